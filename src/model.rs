@@ -1,0 +1,220 @@
+//! The physical model of `MODEL.md`: the parameters of one 2-DOF instance,
+//! the sawtooth drive and the derived quantities every backend needs.
+//!
+//! The model never does I/O and never allocates: it is plain data and pure
+//! functions, shared by the CPU integrator, the GPU packer and the scene
+//! expander.
+
+/// Number of actuated axes of the mechanism (x and y).
+pub const AXES: usize = 2;
+
+/// Axis names, in storage order.
+pub const AXIS_NAMES: [&str; AXES] = ["x", "y"];
+
+/// One actuator + stage axis and its drive (MODEL.md sections 1-2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Axis {
+    /// Equivalent mass of actuator and stage, m_p [kg].
+    pub stage_mass: f64,
+    /// Stiffness of actuator and stage, k [N/m].
+    pub stiffness: f64,
+    /// Viscous damping of actuator and stage, c [N s/m].
+    pub damping: f64,
+    /// Force per volt of the piezo actuator, delta [N/V].
+    pub gain: f64,
+    /// Sawtooth amplitude V [V]; zero means the axis is undriven.
+    pub voltage: f64,
+    /// Drive frequency f [Hz].
+    pub frequency: f64,
+    /// Rise fraction d of each drive cycle, in (0, 1]; 1 is a ramp with an
+    /// instantaneous drop.
+    pub duty: f64,
+    /// Drive phase offset [cycles].
+    pub phase: f64,
+}
+
+/// The shared friction interface and its slider (MODEL.md section 3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mechanism {
+    /// Slider mass m_s [kg].
+    pub slider_mass: f64,
+    /// Maximum static friction f_s [N].
+    pub static_friction: f64,
+    /// Coulomb (sliding) friction f_c [N].
+    pub coulomb_friction: f64,
+    /// Karnopp detection band a on the relative speed [m/s].
+    pub velocity_band: f64,
+}
+
+/// Everything that defines one simulated instance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    pub mechanism: Mechanism,
+    pub axes: [Axis; AXES],
+    /// Simulated scene periods (MODEL.md section 4).
+    pub cycles: u32,
+    /// Leading periods discarded before measuring.
+    pub settle: u32,
+}
+
+impl Axis {
+    /// Table 1 of the paper as printed: a 3.18 kHz stage with Q = 15.6,
+    /// driven at 100 V, 10 Hz, duty 0.98.
+    pub const TABLE1: Axis = Axis {
+        stage_mass: 2.5e-3,
+        stiffness: 1.0e6,
+        damping: 3.2,
+        gain: -0.6,
+        voltage: 100.0,
+        frequency: 10.0,
+        duty: 0.98,
+        phase: 0.0,
+    };
+
+    /// The paper's text (1 kHz, Q = 50) with k = 1e6 N/m, through eqs. 6-7.
+    pub const TEXT: Axis = Axis {
+        stage_mass: 2.533_029_591_058_444e-2,
+        damping: 3.183_098_861_837_907,
+        ..Axis::TABLE1
+    };
+
+    /// True when the axis has a non-zero drive.
+    pub fn is_driven(&self) -> bool {
+        self.voltage != 0.0
+    }
+
+    /// Stage mass from a resonance [Hz] and stiffness (paper eq. 6).
+    pub fn mass_from_resonance(resonance_hz: f64, stiffness: f64) -> f64 {
+        let omega = 2.0 * std::f64::consts::PI * resonance_hz;
+        stiffness / (omega * omega)
+    }
+
+    /// Stiffness from a resonance [Hz] and stage mass (paper eq. 6).
+    pub fn stiffness_from_resonance(resonance_hz: f64, stage_mass: f64) -> f64 {
+        let omega = 2.0 * std::f64::consts::PI * resonance_hz;
+        stage_mass * omega * omega
+    }
+
+    /// Damping from a quality factor (paper eq. 7: c = sqrt(k m) / Q).
+    pub fn damping_from_quality(quality_factor: f64, stiffness: f64, stage_mass: f64) -> f64 {
+        (stiffness * stage_mass).sqrt() / quality_factor
+    }
+
+    /// Resonance of the free stage [Hz].
+    pub fn resonance_hz(&self) -> f64 {
+        (self.stiffness / self.stage_mass).sqrt() / (2.0 * std::f64::consts::PI)
+    }
+
+    /// Quality factor of the free stage.
+    pub fn quality_factor(&self) -> f64 {
+        (self.stiffness * self.stage_mass).sqrt() / self.damping
+    }
+}
+
+impl Mechanism {
+    /// Table 1 of the paper.
+    pub const TABLE1: Mechanism = Mechanism {
+        slider_mass: 5.0e-3,
+        static_friction: 1.2,
+        coulomb_friction: 1.0,
+        velocity_band: 1.0e-6,
+    };
+}
+
+impl Instance {
+    /// The paper's Fig. 6 point with Table 1 as printed: both axes at 100 V,
+    /// 10 Hz, duty 0.98; 10 periods of which 2 settle.
+    pub const TABLE1: Instance = Instance {
+        mechanism: Mechanism::TABLE1,
+        axes: [Axis::TABLE1, Axis::TABLE1],
+        cycles: 10,
+        settle: 2,
+    };
+
+    /// Scene period T = 1 / (lowest frequency among driven axes), or 1 / f_x
+    /// when nothing is driven (MODEL.md section 4) [s].
+    pub fn period(&self) -> f64 {
+        let lowest = self
+            .axes
+            .iter()
+            .filter(|axis| axis.is_driven())
+            .map(|axis| axis.frequency)
+            .fold(f64::INFINITY, f64::min);
+        if lowest.is_finite() {
+            1.0 / lowest
+        } else {
+            1.0 / self.axes[0].frequency
+        }
+    }
+
+    /// Simulated time [s].
+    pub fn duration(&self) -> f64 {
+        self.cycles as f64 * self.period()
+    }
+
+    /// The same mechanism with every axis but `keep` undriven: the 1-DOF
+    /// baseline of MODEL.md section 4 (paper curves d_s1, d_s2).
+    pub fn baseline(&self, keep: usize) -> Instance {
+        let mut out = *self;
+        for (i, axis) in out.axes.iter_mut().enumerate() {
+            if i != keep {
+                axis.voltage = 0.0;
+            }
+        }
+        out
+    }
+
+    /// Converts a slider displacement measured over the kept periods into
+    /// (velocity [m/s], step per own drive cycle [m]) for axis `i`.
+    pub fn measure(&self, i: usize, displacement: f64) -> (f64, f64) {
+        let kept = (self.cycles - self.settle) as f64 * self.period();
+        let velocity = displacement / kept;
+        (velocity, velocity / self.axes[i].frequency)
+    }
+}
+
+/// Normalised sawtooth w(u; d) of MODEL.md section 2: a rise from 0 to 1 over
+/// the first fraction `duty` of each cycle, then a fall back to 0.
+pub fn sawtooth(u: f64, duty: f64) -> f64 {
+    let p = u - u.floor();
+    if p < duty {
+        p / duty
+    } else {
+        (1.0 - p) / (1.0 - duty)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_parameters_follow_from_eqs_6_and_7() {
+        let m = Axis::mass_from_resonance(1000.0, 1.0e6);
+        assert!((m - Axis::TEXT.stage_mass).abs() < 1e-15);
+        let c = Axis::damping_from_quality(50.0, 1.0e6, m);
+        assert!((c - Axis::TEXT.damping).abs() < 1e-12);
+        assert!((Axis::TABLE1.resonance_hz() - 3183.1).abs() < 0.1);
+        assert!((Axis::TABLE1.quality_factor() - 15.625).abs() < 1e-9);
+    }
+
+    #[test]
+    fn period_follows_the_slowest_driven_axis() {
+        let mut inst = Instance::TABLE1;
+        inst.axes[1].frequency = 20.0;
+        assert_eq!(inst.period(), 0.1);
+        inst.axes[0].voltage = 0.0;
+        assert_eq!(inst.period(), 0.05);
+        inst.axes[1].voltage = 0.0;
+        assert_eq!(inst.period(), 0.1);
+    }
+
+    #[test]
+    fn sawtooth_rises_slowly_and_falls_fast() {
+        assert_eq!(sawtooth(0.0, 0.98), 0.0);
+        assert!((sawtooth(0.49, 0.98) - 0.5).abs() < 1e-15);
+        assert!((sawtooth(0.99, 0.98) - 0.5).abs() < 1e-12);
+        assert!((sawtooth(2.25, 0.5) - 0.5).abs() < 1e-15);
+        assert!((sawtooth(0.999, 1.0) - 0.999).abs() < 1e-15);
+    }
+}
