@@ -4,3 +4,5 @@
 
 pub mod cpu;
 pub mod model;
+pub mod output;
+pub mod sweep;
