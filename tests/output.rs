@@ -1,0 +1,109 @@
+//! The HDF5 result file read back: layout, units, values, and that a file
+//! is complete or absent.
+
+use hdf5::types::VarLenUnicode;
+use pidm::output::{AxisInfo, FileInfo, MapWriter};
+use pidm::sweep::Record;
+
+fn info(shape: Vec<usize>, baselines: bool) -> FileInfo {
+    FileInfo {
+        name: "t".into(),
+        scene_text: "name = \"t\"\n".into(),
+        axes: shape
+            .iter()
+            .enumerate()
+            .map(|(d, &n)| AxisInfo {
+                key: format!("axis.x.key{d}"),
+                values: (0..n).map(|v| v as f64).collect(),
+                units: "V".into(),
+            })
+            .collect(),
+        shape,
+        labels: None,
+        baselines,
+        backend: "cpu (test)".into(),
+        precision: "f64".into(),
+        variant: "2-DOF".into(),
+        tolerance: 1e-4,
+    }
+}
+
+fn record(i: usize) -> Record {
+    Record {
+        step: [i as f64 * 1e-9, -(i as f64) * 1e-9],
+        velocity: [i as f64, 2.0 * i as f64],
+        status: (i % 3) as u32,
+        steps: i as u32 * 10,
+        baseline_step: [i as f64 + 0.5, i as f64 - 0.5],
+        baseline_status: 0,
+    }
+}
+
+#[test]
+fn maps_written_in_uneven_chunks_read_back_in_grid_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("out.h5");
+    let shape = vec![3, 4, 5];
+    let n = 60;
+    let mut writer = MapWriter::create(&path, &info(shape.clone(), true)).unwrap();
+    // Uneven chunks that cut rows and planes.
+    let mut start = 0;
+    for len in [7, 1, 13, 20, 19] {
+        let recs: Vec<Record> = (start..start + len).map(record).collect();
+        writer.write(start as u64, &recs).unwrap();
+        start += len;
+    }
+    assert_eq!(start, n);
+    assert!(!path.exists(), "the final name appears only when complete");
+    writer.finish(1.25).unwrap();
+
+    let file = hdf5::File::open(&path).unwrap();
+    let step_x = file.dataset("maps/step_x").unwrap();
+    assert_eq!(step_x.shape(), shape);
+    let values: Vec<f64> = step_x.read_raw().unwrap();
+    let want: Vec<f64> = (0..n).map(|i| record(i).step[0]).collect();
+    assert_eq!(values, want);
+    let status: Vec<u32> = file.dataset("maps/status").unwrap().read_raw().unwrap();
+    assert_eq!(status, (0..n).map(|i| (i % 3) as u32).collect::<Vec<_>>());
+    let base_y: Vec<f64> = file
+        .dataset("baseline/step_y")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    assert_eq!(base_y[59], 58.5);
+    let units: VarLenUnicode = step_x.attr("units").unwrap().read_scalar().unwrap();
+    assert_eq!(units.as_str(), "m");
+    let axis = file.dataset("axes/axis.x.key1").unwrap();
+    assert_eq!(axis.read_raw::<f64>().unwrap(), vec![0.0, 1.0, 2.0, 3.0]);
+    let wall: f64 = file.attr("wall_time_s").unwrap().read_scalar().unwrap();
+    assert_eq!(wall, 1.25);
+    for name in ["scene", "pidm_version", "backend", "precision"] {
+        let v: VarLenUnicode = file.attr(name).unwrap().read_scalar().unwrap();
+        assert!(!v.as_str().is_empty(), "{name}");
+    }
+}
+
+#[test]
+fn a_writer_dropped_before_finishing_leaves_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("out.h5");
+    {
+        let mut writer = MapWriter::create(&path, &info(vec![4], false)).unwrap();
+        writer.write(0, &[record(0), record(1)]).unwrap();
+    }
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn a_single_instance_scene_gives_scalar_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("one.h5");
+    let mut writer = MapWriter::create(&path, &info(vec![], false)).unwrap();
+    writer.write(0, &[record(5)]).unwrap();
+    writer.finish(0.0).unwrap();
+    let file = hdf5::File::open(&path).unwrap();
+    let ds = file.dataset("maps/step_x").unwrap();
+    assert!(ds.shape().is_empty());
+    assert_eq!(ds.read_scalar::<f64>().unwrap(), 5e-9);
+}
