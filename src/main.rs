@@ -1,1 +1,89 @@
-fn main(){}
+//! The `pidm` command line: parses arguments, calls [`run`], prints the
+//! error chain.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+use pidm::commands;
+
+/// Maps how two-axis piezoelectric impact drives move.
+#[derive(Parser, Debug)]
+#[command(name = "pidm", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Runs a scene and writes its step-displacement maps to HDF5.
+    Run {
+        /// The scene file (TOML).
+        scene: PathBuf,
+        /// Output file [default: results/<scene name>.h5].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Worker threads [default: every core].
+        #[arg(long)]
+        threads: Option<usize>,
+    },
+    /// Validates a scene and prints its grid, instance count and cost
+    /// estimate without running it.
+    Check {
+        /// The scene file (TOML).
+        scene: PathBuf,
+    },
+    /// Measures simulated seconds per wall second per core on a scene.
+    Bench {
+        /// The scene file [default: sweeps/paper.toml].
+        #[arg(default_value = "sweeps/paper.toml")]
+        scene: PathBuf,
+        /// Keep measuring for at least this many seconds per thread setting.
+        #[arg(long, default_value_t = 2.0)]
+        seconds: f64,
+    },
+}
+
+fn run(cli: Cli) -> Result<ExitCode> {
+    match cli.command {
+        Command::Run {
+            scene,
+            out,
+            threads,
+        } => {
+            let failed = commands::run(&commands::RunOptions {
+                scene,
+                out,
+                threads,
+                table_limit: 64,
+            })?;
+            if failed > 0 {
+                eprintln!(
+                    "pidm: {failed} instances did not finish normally; \
+                     their map entries are 0 and /maps/status says why"
+                );
+                return Ok(ExitCode::from(3));
+            }
+        }
+        Command::Check { scene } => commands::check(&scene)?,
+        Command::Bench { scene, seconds } => commands::bench(&scene, seconds)?,
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(code) => code,
+        Err(err) => {
+            eprintln!("pidm: error: {err}");
+            for cause in err.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,369 @@
+//! The subcommands behind the `pidm` binary. `main.rs` only parses the
+//! command line and prints errors; everything a command does is here, so
+//! tests can call it.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::cpu::integrate::STATUS_OK;
+use crate::model::{AXES, Instance};
+use crate::output::{AxisInfo, FileInfo, MapWriter};
+use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
+use crate::sweep::{self, Backend, CpuBackend, Plan, Record, Summary};
+
+/// Human meaning of each status code (index = code).
+pub const STATUS_MEANINGS: [&str; 5] = [
+    "ok",
+    "step budget exceeded (simulation.max_steps_per_period)",
+    "non-finite state",
+    "step size underflow (a turn of the friction direction could not be resolved)",
+    "event storm (mode changes without time advancing)",
+];
+
+/// A throughput used only for `pidm check`'s estimate: simulated seconds per
+/// wall second per core, measured by `pidm bench` on the paper scene with
+/// Table 1 as printed (stiffer or lighter-damped stages cost more).
+pub const NOMINAL_SIMULATED_PER_CORE: f64 = 300.0;
+
+/// Options of `pidm run`.
+#[derive(Clone, Debug, Default)]
+pub struct RunOptions {
+    pub scene: PathBuf,
+    pub out: Option<PathBuf>,
+    pub threads: Option<usize>,
+    /// Print the per-instance table for scenes up to this many instances.
+    pub table_limit: u64,
+}
+
+/// What `pidm run` produced.
+pub struct RunResult {
+    pub path: PathBuf,
+    pub summary: Summary,
+    pub wall_time_s: f64,
+    pub backend: String,
+    /// The records, kept only for small scenes (up to the table limit).
+    pub records: Vec<Record>,
+}
+
+/// The flag Ctrl-C raises; long runs stop cleanly at the next chunk.
+pub fn interrupt_flag() -> Arc<AtomicBool> {
+    static FLAG: std::sync::OnceLock<Arc<AtomicBool>> = std::sync::OnceLock::new();
+    FLAG.get_or_init(|| {
+        let flag = Arc::new(AtomicBool::new(false));
+        let handler_flag = flag.clone();
+        // A second handler cannot be installed; a missing one only means
+        // Ctrl-C ends the process at once, which also leaves no output.
+        let _ = ctrlc::set_handler(move || handler_flag.store(true, Ordering::Relaxed));
+        flag
+    })
+    .clone()
+}
+
+fn progress_bar(total: u64) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(total);
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:40}] {pos}/{len} instances ({per_sec}, eta {eta})",
+        )
+        .expect("valid progress template")
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// The file layout of a scene's results.
+pub fn file_info(scene: &Scene, backend: &dyn Backend) -> FileInfo {
+    let (axes, labels) = match &scene.layout {
+        Layout::Grid { axes } => (
+            axes.iter()
+                .map(|a| AxisInfo {
+                    key: a.key.clone(),
+                    values: a.values.clone(),
+                    units: a.units.to_string(),
+                })
+                .collect(),
+            None,
+        ),
+        Layout::Points { labels } => (Vec::new(), Some(labels.clone())),
+    };
+    FileInfo {
+        name: scene.name.clone(),
+        scene_text: scene.text.clone(),
+        shape: scene.shape(),
+        axes,
+        labels,
+        baselines: scene.baselines,
+        backend: backend.describe(),
+        precision: backend.precision().to_string(),
+        variant: if scene.axis_ever_driven(1) && scene.axis_ever_driven(0) {
+            "2-DOF".into()
+        } else {
+            "2-DOF (one axis undriven everywhere)".into()
+        },
+        tolerance: scene.settings.tolerance,
+    }
+}
+
+/// Runs a scene on a backend into an HDF5 file.
+pub fn run_scene(scene: &Scene, backend: &dyn Backend, out: &Path, keep: u64) -> Result<RunResult> {
+    scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
+    let count = scene.instance_count();
+    let instance = |i: u64| scene.instance(i);
+    let plan = Plan {
+        count,
+        instance: &instance,
+        settings: scene.settings,
+        baselines: scene.baselines,
+    };
+    let info = file_info(scene, backend);
+    let mut writer = MapWriter::create(out, &info)?;
+    let bar = progress_bar(count);
+    let stop = interrupt_flag();
+    let started = Instant::now();
+    let mut kept = Vec::new();
+    let summary = sweep::run(
+        &plan,
+        backend,
+        backend.chunk_size(),
+        &|n| bar.inc(n),
+        &stop,
+        &mut |start, records| {
+            if count <= keep {
+                kept.extend_from_slice(records);
+            }
+            writer.write(start, records)
+        },
+    )?;
+    bar.finish_and_clear();
+    let wall_time_s = started.elapsed().as_secs_f64();
+    let path = writer.finish(wall_time_s)?;
+    Ok(RunResult {
+        path,
+        summary,
+        wall_time_s,
+        backend: backend.describe(),
+        records: kept,
+    })
+}
+
+/// Default output path: `results/<name>.h5`.
+pub fn default_output(scene: &Scene) -> PathBuf {
+    PathBuf::from("results").join(format!("{}.h5", scene.name))
+}
+
+/// `pidm run`: prints a short summary and returns the number of instances
+/// that did not finish normally.
+pub fn run(opts: &RunOptions) -> Result<u64> {
+    let scene = Scene::load(&opts.scene)?;
+    let backend = CpuBackend::new(opts.threads)?;
+    let out = opts.out.clone().unwrap_or_else(|| default_output(&scene));
+    eprintln!(
+        "pidm: scene {:?}: {} instances{} on {}, {}, tolerance {:e} rad",
+        scene.name,
+        scene.instance_count(),
+        if scene.baselines {
+            " (+ 1-DOF baselines)"
+        } else {
+            ""
+        },
+        backend.describe(),
+        backend.precision(),
+        scene.settings.tolerance
+    );
+    let result = run_scene(&scene, &backend, &out, opts.table_limit)?;
+    print_summary(&scene, &result);
+    Ok(result.summary.instances - result.summary.status_counts[STATUS_OK as usize])
+}
+
+fn um(x: f64) -> String {
+    format!("{:+.4}", x * 1e6)
+}
+
+fn print_summary(scene: &Scene, result: &RunResult) {
+    let s = &result.summary;
+    println!(
+        "wrote {} ({} instances, {:.3} s wall, {:.0} simulated s per wall s)",
+        result.path.display(),
+        s.instances,
+        result.wall_time_s,
+        s.simulated_s / result.wall_time_s.max(1e-9)
+    );
+    for (code, &n) in s.status_counts.iter().enumerate() {
+        if n > 0 {
+            let meaning = STATUS_MEANINGS.get(code).copied().unwrap_or("unknown");
+            println!("  status {code} ({meaning}): {n}");
+        }
+    }
+    if s.extreme_step[0].is_finite() {
+        println!(
+            "  step range: {} .. {} um per own drive cycle",
+            um(s.extreme_step[0]),
+            um(s.extreme_step[1])
+        );
+    }
+    if !result.records.is_empty() {
+        let labels: Vec<String> = match &scene.layout {
+            Layout::Points { labels } => labels.clone(),
+            Layout::Grid { .. } => (0..result.records.len())
+                .map(|i| format!("#{i}"))
+                .collect(),
+        };
+        let width = labels.iter().map(String::len).max().unwrap_or(0).max(5);
+        print!("  {:width$}  step_x [um]  step_y [um]", "point");
+        if scene.baselines {
+            print!("  1-DOF x [um]  1-DOF y [um]");
+        }
+        println!("  status");
+        for (label, r) in labels.iter().zip(&result.records) {
+            print!(
+                "  {label:width$}  {:>11}  {:>11}",
+                um(r.step[0]),
+                um(r.step[1])
+            );
+            if scene.baselines {
+                print!(
+                    "  {:>12}  {:>12}",
+                    um(r.baseline_step[0]),
+                    um(r.baseline_step[1])
+                );
+            }
+            println!("  {}", r.status.max(r.baseline_status));
+        }
+    }
+}
+
+/// `pidm check`: validates and describes a scene without running it.
+pub fn check(path: &Path) -> Result<()> {
+    let scene = Scene::load(path)?;
+    scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
+    println!("{}", scene.describe());
+    let count = scene.instance_count();
+    // Exact total simulated time for up to a million instances, else a
+    // sample of evenly spaced ones.
+    let sample = count.min(1_000_000).max(1);
+    let mut simulated = 0.0;
+    for k in 0..sample {
+        let i = if count <= sample { k } else { k * count / sample };
+        let inst = scene.instance(i);
+        let mut per = inst.duration();
+        if scene.baselines {
+            for axis in 0..AXES {
+                if inst.baseline(axis) != inst {
+                    per += inst.duration();
+                }
+            }
+        }
+        simulated += per;
+    }
+    simulated *= count as f64 / sample as f64;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let estimate = simulated / (NOMINAL_SIMULATED_PER_CORE * cores as f64);
+    println!("instances: {count}");
+    println!("simulated time: {simulated:.4e} s (baselines included)");
+    println!(
+        "estimated cost: {:.3e} core-seconds, about {} on this machine's {cores} cores \
+         (at the nominal {NOMINAL_SIMULATED_PER_CORE} simulated s per wall s per core; \
+         stiff or lightly damped stages cost more)",
+        simulated / NOMINAL_SIMULATED_PER_CORE,
+        human_duration(estimate)
+    );
+    Ok(())
+}
+
+/// Formats seconds for people.
+pub fn human_duration(seconds: f64) -> String {
+    if seconds < 1.0 {
+        format!("{:.0} ms", seconds * 1e3)
+    } else if seconds < 120.0 {
+        format!("{seconds:.1} s")
+    } else if seconds < 7200.0 {
+        format!("{:.1} min", seconds / 60.0)
+    } else {
+        format!("{:.1} h", seconds / 3600.0)
+    }
+}
+
+/// `pidm bench`: simulated seconds per wall second per core on one thread
+/// at the scene's accuracy, and the all-core figure.
+pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
+    let scene = Scene::load(path)?;
+    let count = scene.instance_count();
+    if count > 100_000 {
+        bail!("bench runs every instance repeatedly; {count} instances is too many");
+    }
+    let mut instances: Vec<Instance> = (0..count).map(|i| scene.instance(i)).collect();
+    if scene.baselines {
+        let extra: Vec<Instance> = instances
+            .iter()
+            .flat_map(|inst| (0..AXES).map(|a| inst.baseline(a)))
+            .filter(|b| !instances.contains(b))
+            .collect();
+        instances.extend(extra);
+    }
+    let simulated: f64 = instances.iter().map(Instance::duration).sum();
+    println!(
+        "bench: scene {:?}, {} integrations ({} simulated s per pass), tolerance {:e} rad",
+        scene.name,
+        instances.len(),
+        simulated,
+        scene.settings.tolerance
+    );
+    for threads in [Some(1), None] {
+        let backend = CpuBackend::new(threads)?;
+        let stop = AtomicBool::new(false);
+        let mut passes = 0;
+        let started = Instant::now();
+        // One warm-up pass, then passes until the time budget is used.
+        backend.run(&instances, &scene.settings, &|_| {})?;
+        while started.elapsed().as_secs_f64() < min_seconds || passes == 0 {
+            let t = Instant::now();
+            let out = backend.run(&instances, &scene.settings, &|_| {})?;
+            let _ = t;
+            if out.iter().any(|o| o.status != STATUS_OK) {
+                bail!("an instance did not finish normally during the benchmark");
+            }
+            passes += 1;
+            if stop.load(Ordering::Relaxed) {
+                break;
+            }
+        }
+        let wall = started.elapsed().as_secs_f64();
+        let n = backend.threads();
+        let rate = passes as f64 * simulated / wall;
+        println!(
+            "  {}: {:.1} simulated s per wall s ({:.1} per core), {:.0} integrations per s, {passes} passes in {wall:.2} s",
+            backend.describe(),
+            rate,
+            rate / n as f64,
+            passes as f64 * instances.len() as f64 / wall
+        );
+    }
+    Ok(())
+}
+
+/// Where `pidm run` writes by default, relative to the working directory.
+pub fn results_dir() -> PathBuf {
+    PathBuf::from("results")
+}
+
+/// Fails with a readable message when a path is not a scene file.
+pub fn require_file(path: &Path) -> Result<()> {
+    if !path.is_file() {
+        bail!("{}: no such scene file", path.display());
+    }
+    Ok(())
+}
+
+/// Reads a whole file with its path in the error.
+pub fn read_text(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
+}
