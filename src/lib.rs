@@ -4,3 +4,4 @@
 
 pub mod cpu;
 pub mod model;
+pub mod scene;
