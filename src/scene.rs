@@ -26,6 +26,13 @@
 //! from the layer below only those that do not over-determine the stage,
 //! preferring `resonance_hz`, then `stiffness`, then `stage_mass`.
 //!
+//! The top level takes `name` (the file stem by default), an optional free
+//! text `description`, and `[output] baselines = true` to also run the two
+//! 1-DOF counterparts of every instance. `[simulation]` takes `cycles`,
+//! `settle` (both integers, per instance) and the scene-wide integrator
+//! settings `tolerance` and `max_steps_per_period` (single values only).
+//! Integer keys accept lists and linear ranges whose values land on integers.
+//!
 //! Everything is validated in [`Scene::from_toml`]; errors name the full key
 //! path, the offending value, what was expected and where in the file.
 
@@ -151,7 +158,7 @@ pub enum SceneError {
         instances: u128,
         /// Output bytes per instance.
         bytes_per_instance: u64,
-        /// The budget that was exceeded [bytes].
+        /// The budget that was exceeded, in bytes.
         budget: u64,
     },
 }

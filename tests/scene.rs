@@ -253,6 +253,19 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "[axis.y]\ndamping = 3\nquality_factor = 50",
             "axis.y: damping and quality_factor both set the damping",
         ),
+        // Derived stage quantities are checked over the whole grid.
+        (
+            "[axis.x]\nresonance_hz = [1000, 1e-200]",
+            "axis.x.stage_mass = inf (derived from axis.x.resonance_hz and the default stiffness 1000000): expected a finite number > 0",
+        ),
+        (
+            "[axis.x]\nresonance_hz = 1e10\nstage_mass = 1e-3\n[axis.y]\nstage_mass = [1e-3, 1e300]",
+            "axis.y.stiffness = inf (derived from axis.x.resonance_hz and axis.y.stage_mass)",
+        ),
+        (
+            "[axis.x]\nquality_factor = { from = 1e-320, to = 1, steps = 3 }",
+            "axis.x.damping = inf (derived from axis.x.quality_factor",
+        ),
         // Points.
         (
             "[axis.y]\nvoltage = [0, 50]\n[[points]]\nlabel = \"a\"",
