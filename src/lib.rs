@@ -2,7 +2,9 @@
 //!
 //! See ARCHITECTURE.md for the bird's-eye view.
 
+pub mod commands;
 pub mod cpu;
 pub mod model;
 pub mod output;
+pub mod scene;
 pub mod sweep;

@@ -1,0 +1,658 @@
+//! Tests of the scene format: refusals with clear messages, grid and point
+//! expansion, stage derivation and the shipped scenes.
+
+use std::path::PathBuf;
+
+use pidm::model::{Axis, Instance};
+use pidm::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene, SceneError};
+
+/// Parses a scene that must be valid, failing with its error message.
+fn parse(text: &str) -> Scene {
+    match Scene::from_toml(text, Some("test")) {
+        Ok(scene) => scene,
+        Err(error) => panic!("refused a valid scene: {error}\n{text}"),
+    }
+}
+
+/// Checks that `text` is refused with a message containing `needle`.
+fn check(text: &str, needle: &str) {
+    match Scene::from_toml(text, Some("test")) {
+        Ok(scene) => panic!(
+            "accepted a bad scene ({} instances); expected an error containing {needle:?}:\n{text}",
+            scene.instance_count()
+        ),
+        Err(error) => {
+            let message = error.to_string();
+            assert!(
+                message.contains(needle),
+                "the error for\n{text}\nis\n  {message}\nand lacks {needle:?}"
+            );
+        }
+    }
+}
+
+/// Whether two numbers agree to `rel` relative.
+fn close(a: f64, b: f64, rel: f64) -> bool {
+    (a - b).abs() <= rel * a.abs().max(b.abs())
+}
+
+/// The path of a shipped scene.
+fn shipped(name: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("sweeps")
+        .join(name)
+}
+
+#[test]
+fn bad_scenes_are_refused_with_clear_messages() {
+    let cases: &[(&str, &str)] = &[
+        // Unknown keys, with the closest valid key or the right table.
+        (
+            "[axis.x]\nstifness = 1e6",
+            "unknown key `axis.x.stifness` (did you mean `stiffness`?)",
+        ),
+        (
+            "[axes.x]\nvoltage = 1",
+            "unknown key `axes` (did you mean `axis`?)",
+        ),
+        ("[axis.z]\nvoltage = 1", "unknown key `axis.z`"),
+        (
+            "[mechanism]\nstage_mass = 1e-3",
+            "unknown key `mechanism.stage_mass` (`stage_mass` belongs in [axis.x] or [axis.y])",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1, step = 3 }",
+            "unknown key `axis.x.voltage.step` (did you mean `steps`?)",
+        ),
+        ("[output]\nbaseline = true", "did you mean `baselines`?"),
+        // Wrong types.
+        (
+            "[axis.y]\nvoltage = \"abc\"",
+            "axis.y.voltage: expected a number, a list of numbers or a range { from, to, steps }, found a string \"abc\"",
+        ),
+        (
+            "[axis.x]\nvoltage = [1.0, \"2\"]",
+            "axis.x.voltage[1]: expected a number",
+        ),
+        (
+            "mechanism = 5",
+            "mechanism: expected a table, found an integer 5",
+        ),
+        (
+            "[output]\nbaselines = 1",
+            "output.baselines: expected a boolean",
+        ),
+        ("name = 3", "name: expected a string"),
+        // Non-finite numbers.
+        (
+            "[axis.x]\nvoltage = nan",
+            "axis.x.voltage = nan: expected a finite number",
+        ),
+        (
+            "[mechanism]\nslider_mass = inf",
+            "mechanism.slider_mass = inf: expected a finite number",
+        ),
+        (
+            "[axis.x]\ngain = [1.0, -inf]",
+            "axis.x.gain = -inf: expected a finite number",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = inf, steps = 3 }",
+            "axis.x.voltage.to = inf",
+        ),
+        // Out-of-range values.
+        (
+            "[axis.x]\nduty = 0.0",
+            "axis.x.duty = 0: expected a number in (0, 1]",
+        ),
+        (
+            "[axis.x]\nduty = 1.5",
+            "axis.x.duty = 1.5: expected a number in (0, 1]",
+        ),
+        (
+            "[axis.y]\nduty = [0.5, 1.5]",
+            "axis.y.duty = 1.5: expected a number in (0, 1] (value 2 of [0.5, 1.5])",
+        ),
+        (
+            "[axis.x]\nstage_mass = -1e-3",
+            "axis.x.stage_mass = -0.001: expected a number > 0",
+        ),
+        (
+            "[mechanism]\nslider_mass = 0",
+            "mechanism.slider_mass = 0: expected a number > 0",
+        ),
+        (
+            "[axis.y]\nstiffness = 0",
+            "axis.y.stiffness = 0: expected a number > 0",
+        ),
+        (
+            "[axis.x]\nfrequency = 0",
+            "axis.x.frequency = 0: expected a number > 0",
+        ),
+        (
+            "[axis.x]\nfrequency = -10",
+            "axis.x.frequency = -10: expected a number > 0",
+        ),
+        (
+            "[axis.x]\ndamping = -0.1",
+            "axis.x.damping = -0.1: expected a number >= 0",
+        ),
+        (
+            "[mechanism]\ncoulomb_friction = -1",
+            "mechanism.coulomb_friction = -1: expected a number >= 0",
+        ),
+        (
+            "[mechanism]\nstatic_friction = 0",
+            "mechanism.static_friction = 0: expected a number > 0",
+        ),
+        (
+            "[mechanism]\nvelocity_band = 0",
+            "mechanism.velocity_band = 0: expected a number > 0",
+        ),
+        (
+            "[axis.x]\nquality_factor = 0",
+            "axis.x.quality_factor = 0: expected a number > 0",
+        ),
+        (
+            "[axis.x]\nresonance_hz = -1000",
+            "axis.x.resonance_hz = -1000: expected a number > 0",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = -1, to = 1, steps = 3 }\nfrequency = { from = 10, to = 0, steps = 3 }",
+            "axis.x.frequency = 0: expected a number > 0 (in the range { from = 10, to = 0, steps = 3 })",
+        ),
+        // The run length.
+        (
+            "[simulation]\ncycles = 10\nsettle = 10",
+            "simulation.settle = 10 with simulation.cycles = 10: expected settle < cycles",
+        ),
+        (
+            "[simulation]\ncycles = 2",
+            "simulation.settle = 2 with simulation.cycles = 2",
+        ),
+        (
+            "[simulation]\ncycles = 0",
+            "simulation.cycles = 0: expected an integer",
+        ),
+        (
+            "[simulation]\ncycles = 2.5",
+            "simulation.cycles = 2.5: expected an integer",
+        ),
+        (
+            "[simulation]\nsettle = -1",
+            "simulation.settle = -1: expected an integer",
+        ),
+        (
+            "[simulation]\ncycles = 4\nsettle = [1, 5]",
+            "simulation.settle = 5 with simulation.cycles = 4",
+        ),
+        (
+            "[simulation]\ncycles = { from = 2, to = 10, steps = 4 }",
+            "do not land on integers",
+        ),
+        (
+            "[simulation]\ncycles = { from = 3, to = 30, steps = 3, log = true }",
+            "cannot take a log range",
+        ),
+        (
+            "[simulation]\ntolerance = 0",
+            "simulation.tolerance = 0: expected a number > 0",
+        ),
+        (
+            "[simulation]\ntolerance = [1e-4, 1e-5]",
+            "cannot be a grid axis",
+        ),
+        (
+            "[simulation]\nmax_steps_per_period = 0",
+            "simulation.max_steps_per_period = 0",
+        ),
+        // Lists and ranges.
+        (
+            "[axis.x]\nvoltage = []",
+            "axis.x.voltage = []: expected at least one value",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 0 }",
+            "axis.x.voltage.steps = 0: expected an integer >= 1",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 2.5 }",
+            "axis.x.voltage.steps = 2.5: expected an integer >= 1",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, steps = 3 }",
+            "`to` is missing",
+        ),
+        (
+            "[axis.x]\nvoltage = { to = 1, steps = 3 }",
+            "`from` is missing",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1 }",
+            "`steps` is missing",
+        ),
+        (
+            "[axis.x]\nfrequency = { from = 0, to = 100, steps = 3, log = true }",
+            "a log range needs from > 0 and to > 0, found from = 0 and to = 100",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 1, to = 2, steps = 3, log = 1 }",
+            "axis.x.voltage.log: expected a boolean",
+        ),
+        // The memory budget.
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 100000 }\n[axis.y]\nvoltage = { from = 0, to = 1, steps = 100000 }",
+            "do not fit the memory budget: grid 100000 x 100000 = 10000000000 instances x 40 bytes",
+        ),
+        // Stage definitions.
+        (
+            "[axis.x]\nstage_mass = 1e-3\nstiffness = 1e6\nresonance_hz = 1000",
+            "axis.x: stage_mass, stiffness and resonance_hz over-determine the stage",
+        ),
+        (
+            "[axis.y]\ndamping = 3\nquality_factor = 50",
+            "axis.y: damping and quality_factor both set the damping",
+        ),
+        // Derived stage quantities are checked over the whole grid.
+        (
+            "[axis.x]\nresonance_hz = [1000, 1e-200]",
+            "axis.x.stage_mass = inf (derived from axis.x.resonance_hz and the default stiffness 1000000): expected a finite number > 0",
+        ),
+        (
+            "[axis.x]\nresonance_hz = 1e10\nstage_mass = 1e-3\n[axis.y]\nstage_mass = [1e-3, 1e300]",
+            "axis.y.stiffness = inf (derived from axis.x.resonance_hz and axis.y.stage_mass)",
+        ),
+        (
+            "[axis.x]\nquality_factor = { from = 1e-320, to = 1, steps = 3 }",
+            "axis.x.damping = inf (derived from axis.x.quality_factor",
+        ),
+        // Points.
+        (
+            "[axis.y]\nvoltage = [0, 50]\n[[points]]\nlabel = \"a\"",
+            "axis.y.voltage has 2 values, but a scene with [[points]] cannot have grid axes",
+        ),
+        (
+            "[[points]]\nlabel = \"Fig. 5a\"\n[[points]]\nlabel = \"Fig. 7\"\naxis.x.duty = 2",
+            "points[1] (\"Fig. 7\"): axis.x.duty = 2: expected a number in (0, 1]",
+        ),
+        (
+            "[[points]]\naxis.x.voltage = [1, 2]",
+            "points[0]: axis.x.voltage = [1, 2]: expected a single value",
+        ),
+        (
+            "[simulation]\nsettle = 5\n[[points]]\nlabel = \"ok\"\n[[points]]\nsimulation.cycles = 3",
+            "points[1]: simulation.settle = 5 with simulation.cycles = 3",
+        ),
+        (
+            "[[points]]\nsimulation.tolerance = 1e-3",
+            "points[0]: simulation.tolerance cannot be set per point",
+        ),
+        (
+            "[[points]]\noutput.baselines = true",
+            "points[0]: `output` cannot be set per point",
+        ),
+        (
+            "[[points]]\naxis.x.stifness = 1",
+            "points[0]: unknown key `axis.x.stifness` (did you mean `stiffness`?)",
+        ),
+        (
+            "[[points]]\nlabel = 5",
+            "points[0]: label: expected a string",
+        ),
+        (
+            "[[points]]\nlabel = \"p\"\naxis.x.quality_factor = 10\naxis.x.damping = 1",
+            "points[0] (\"p\"): axis.x: damping and quality_factor both set the damping",
+        ),
+        ("points = []", "points = []: expected at least one point"),
+        // Locations and syntax.
+        ("\n\n[axis.x]\nduty = 1.5", "(line 4, column 8)"),
+        (
+            "[axis.x]\nvoltage = = 3",
+            "invalid TOML: TOML parse error at line 2",
+        ),
+        ("[axis.x]\nvoltage = 1\nvoltage = 2", "line 3"),
+    ];
+    for (text, needle) in cases {
+        check(text, needle);
+        if std::env::var_os("PIDM_SHOW_ERRORS").is_some() {
+            eprintln!("{}", Scene::from_toml(text, Some("test")).unwrap_err());
+        }
+    }
+}
+
+#[test]
+fn a_scene_needs_a_name_from_text_or_file() {
+    let error = Scene::from_toml("[axis.x]\nvoltage = 1", None).unwrap_err();
+    assert!(error.to_string().contains("name: missing"), "{error}");
+    let scene = Scene::from_toml("name = \"given\"", Some("stem")).unwrap();
+    assert_eq!(scene.name, "given");
+    let scene = Scene::from_toml("", Some("stem")).unwrap();
+    assert_eq!(scene.name, "stem");
+    let missing = shipped("no_such_scene.toml");
+    match Scene::load(&missing) {
+        Err(error @ SceneError::Io { .. }) => {
+            assert!(error.to_string().contains("no_such_scene.toml"), "{error}")
+        }
+        other => panic!("expected an io error, got {other:?}"),
+    }
+}
+
+#[test]
+fn an_empty_scene_is_table_1_with_y_undriven() {
+    let scene = parse("");
+    assert_eq!(scene.shape(), Vec::<usize>::new());
+    assert_eq!(scene.instance_count(), 1);
+    assert_eq!(scene.instance(0), Instance::TABLE1.baseline(0));
+    assert!(!scene.baselines);
+    assert_eq!(scene.settings, pidm::cpu::integrate::Settings::default());
+    assert!(scene.axis_ever_driven(0));
+    assert!(!scene.axis_ever_driven(1));
+}
+
+#[test]
+fn grid_axes_follow_file_order_and_instances_are_row_major() {
+    let scene = parse(
+        "[simulation]\n\
+         cycles = [10, 20]\n\
+         tolerance = 1e-5\n\
+         max_steps_per_period = 1000\n\
+         [axis.y]\n\
+         voltage = [0.0, 50.0, 100.0]\n\
+         [mechanism]\n\
+         slider_mass = 1e-3\n\
+         [axis.x]\n\
+         frequency = { from = 10, to = 40, steps = 4 }\n\
+         duty = [0.5]\n",
+    );
+    let Layout::Grid { axes } = &scene.layout else {
+        panic!("expected a grid");
+    };
+    let keys: Vec<&str> = axes.iter().map(|a| a.key.as_str()).collect();
+    assert_eq!(
+        keys,
+        ["simulation.cycles", "axis.y.voltage", "axis.x.frequency"]
+    );
+    let units: Vec<&str> = axes.iter().map(|a| a.units).collect();
+    assert_eq!(units, ["cycles", "V", "Hz"]);
+    assert_eq!(scene.shape(), [2, 3, 4]);
+    assert_eq!(scene.instance_count(), 24);
+    assert_eq!(scene.settings.tolerance, 1e-5);
+    assert_eq!(scene.settings.max_steps_per_period, 1000);
+    for index in 0..24u64 {
+        let (c, v, f) = (index / 12, index / 4 % 3, index % 4);
+        let instance = scene.instance(index);
+        assert_eq!(instance.cycles, [10, 20][c as usize]);
+        assert_eq!(instance.axes[1].voltage, [0.0, 50.0, 100.0][v as usize]);
+        assert_eq!(
+            instance.axes[0].frequency,
+            [10.0, 20.0, 30.0, 40.0][f as usize]
+        );
+        // A one-element list is a scalar, and y inherits x's frequency.
+        assert_eq!(instance.axes[0].duty, 0.5);
+        assert_eq!(instance.axes[1].frequency, instance.axes[0].frequency);
+        assert_eq!(instance.mechanism.slider_mass, 1e-3);
+        assert_eq!(instance.settle, 2);
+    }
+    assert!(scene.axis_ever_driven(1));
+    let description = scene.describe();
+    for needle in [
+        "scene \"test\"",
+        "2 x 3 x 4 = 24",
+        "axis.x.frequency",
+        "[10, 20] cycles",
+    ] {
+        assert!(
+            description.contains(needle),
+            "{needle:?} missing from\n{description}"
+        );
+    }
+}
+
+#[test]
+fn ranges_give_the_right_values() {
+    let scene = parse(
+        "[axis.x]\n\
+         voltage = { from = -150, to = 150, steps = 61 }\n\
+         frequency = { from = 1, to = 1000, steps = 4, log = true }\n\
+         phase = { from = 0.25, to = 0.75, steps = 1 }\n",
+    );
+    let Layout::Grid { axes } = &scene.layout else {
+        panic!("expected a grid");
+    };
+    assert_eq!(axes.len(), 2);
+    let expected: Vec<f64> = (0..61).map(|i| -150.0 + 5.0 * i as f64).collect();
+    assert_eq!(axes[0].values, expected);
+    let log = [1.0, 10.0, 100.0, 1000.0];
+    for (value, want) in axes[1].values.iter().zip(log) {
+        assert!(close(*value, want, 1e-12), "{value} != {want}");
+    }
+    assert_eq!(scene.instance(0).axes[0].phase, 0.25);
+    assert!(!scene.axis_ever_driven(1));
+}
+
+#[test]
+fn axis_y_inherits_x_but_not_its_voltage() {
+    let scene = parse(
+        "[axis.x]\n\
+         stage_mass = 3e-3\n\
+         stiffness = 2e6\n\
+         damping = 1.5\n\
+         gain = -0.5\n\
+         voltage = 80\n\
+         frequency = [10, 30]\n\
+         duty = 0.9\n\
+         phase = 0.1\n\
+         [axis.y]\n\
+         duty = 0.7\n",
+    );
+    for index in 0..2 {
+        let [x, y] = scene.instance(index).axes;
+        assert_eq!(y.voltage, 0.0);
+        assert_eq!(y.duty, 0.7);
+        assert_eq!(
+            Axis {
+                voltage: x.voltage,
+                duty: x.duty,
+                ..y
+            },
+            x
+        );
+    }
+    assert_eq!(scene.instance(1).axes[1].frequency, 30.0);
+}
+
+#[test]
+fn resonance_and_quality_give_the_text_parameters() {
+    let scene = parse("[axis.x]\nresonance_hz = 1000\nquality_factor = 50\nstiffness = 1e6\n");
+    let [x, y] = scene.instance(0).axes;
+    for axis in [x, y] {
+        assert!(close(axis.stage_mass, Axis::TEXT.stage_mass, 1e-12));
+        assert!(close(axis.damping, Axis::TEXT.damping, 1e-12));
+        assert_eq!(axis.stiffness, Axis::TEXT.stiffness);
+    }
+
+    // y overrides only the stiffness: its mass follows from x's resonance.
+    let scene = parse(
+        "[axis.x]\nresonance_hz = 1000\nquality_factor = 50\nstiffness = 1e6\n\
+         [axis.y]\nstiffness = 4e6\n",
+    );
+    let y = scene.instance(0).axes[1];
+    assert_eq!(y.stiffness, 4e6);
+    assert!(close(y.stage_mass, 4.0 * Axis::TEXT.stage_mass, 1e-12));
+    assert!(close(y.resonance_hz(), 1000.0, 1e-12));
+    assert!(close(y.quality_factor(), 50.0, 1e-12));
+
+    // y gives its own mass: it keeps x's resonance and its stiffness follows.
+    let scene = parse(
+        "[axis.x]\nresonance_hz = 1000\nstiffness = 1e6\n[axis.y]\nstage_mass = 1e-2\ndamping = 2\n",
+    );
+    let y = scene.instance(0).axes[1];
+    assert!(close(y.resonance_hz(), 1000.0, 1e-12));
+    assert_eq!((y.stage_mass, y.damping), (1e-2, 2.0));
+
+    // A resonance with a mass gives the stiffness.
+    let scene = parse("[axis.x]\nresonance_hz = 1000\nstage_mass = 2.533029591058444e-2\n");
+    assert!(close(scene.instance(0).axes[0].stiffness, 1e6, 1e-12));
+
+    // A grid over the resonance recomputes the derived mass per instance.
+    let scene = parse("[axis.x]\nresonance_hz = [1000, 2000]\nquality_factor = 50\n");
+    for (index, f_r) in [1000.0, 2000.0].into_iter().enumerate() {
+        let [x, y] = scene.instance(index as u64).axes;
+        assert!(close(x.resonance_hz(), f_r, 1e-12));
+        assert!(close(x.quality_factor(), 50.0, 1e-12));
+        assert_eq!(x.stiffness, Axis::TABLE1.stiffness);
+        assert_eq!(
+            Axis {
+                voltage: x.voltage,
+                ..y
+            },
+            x
+        );
+    }
+}
+
+#[test]
+fn points_apply_on_top_of_the_base() {
+    let scene = parse(
+        "[axis.x]\nvoltage = 50\nduty = 0.9\n\
+         [[points]]\nlabel = \"dotted\"\naxis.y.phase = 0.25\naxis.y.voltage = 20\n\
+         [[points]]\n[points.axis.y]\nvoltage = 30\nfrequency = 20\n\
+         [points.simulation]\ncycles = 5\nsettle = 1\n\
+         [[points]]\nlabel = \"stage\"\naxis.x.quality_factor = 50\naxis.x.resonance_hz = 1000\n",
+    );
+    assert_eq!(scene.shape(), [3]);
+    assert_eq!(scene.instance_count(), 3);
+    let Layout::Points { labels } = &scene.layout else {
+        panic!("expected points");
+    };
+    assert_eq!(labels, &["dotted", "", "stage"]);
+    let first = scene.instance(0);
+    assert_eq!((first.axes[0].voltage, first.axes[0].duty), (50.0, 0.9));
+    assert_eq!(
+        (
+            first.axes[1].voltage,
+            first.axes[1].phase,
+            first.axes[1].duty
+        ),
+        (20.0, 0.25, 0.9)
+    );
+    assert_eq!(first.axes[0].phase, 0.0);
+    let second = scene.instance(1);
+    assert_eq!(
+        (second.axes[1].voltage, second.axes[1].frequency),
+        (30.0, 20.0)
+    );
+    assert_eq!(second.axes[0].frequency, 10.0);
+    assert_eq!((second.cycles, second.settle), (5, 1));
+    let third = scene.instance(2);
+    assert!(close(
+        third.axes[0].stage_mass,
+        Axis::TEXT.stage_mass,
+        1e-12
+    ));
+    assert!(close(third.axes[1].damping, Axis::TEXT.damping, 1e-12));
+    assert_eq!(third.axes[1].voltage, 0.0);
+    assert!(scene.axis_ever_driven(0) && scene.axis_ever_driven(1));
+}
+
+#[test]
+fn memory_budget_names_shape_count_and_bytes() {
+    let scene = Scene::load(&shipped("coupling.toml")).unwrap();
+    assert!(scene.check_memory(MAP_MEMORY_BUDGET_BYTES).is_ok());
+    let error = scene.check_memory(1000).unwrap_err();
+    let message = error.to_string();
+    for needle in [
+        "61 x 61 = 3721 instances",
+        "56 bytes",
+        "208376 bytes",
+        "1000 bytes",
+    ] {
+        assert!(
+            message.contains(needle),
+            "{needle:?} missing from {message}"
+        );
+    }
+}
+
+#[test]
+fn shipped_scenes_load() {
+    let paper = Scene::load(&shipped("paper.toml")).unwrap();
+    assert_eq!(paper.name, "paper");
+    assert!(paper.baselines);
+    assert_eq!(paper.shape(), [5]);
+    let Layout::Points { labels } = &paper.layout else {
+        panic!("expected points");
+    };
+    assert_eq!(
+        labels,
+        &["Fig. 5a", "Fig. 5b", "Fig. 6", "Fig. 7", "Fig. 8"]
+    );
+    let volts = [
+        (100.0, 0.0),
+        (100.0 / 2f64.sqrt(), 100.0 / 2f64.sqrt()),
+        (100.0, 100.0),
+        (100.0, 50.0),
+        (100.0, 100.0),
+    ];
+    for (index, (vx, vy)) in volts.into_iter().enumerate() {
+        let instance = paper.instance(index as u64);
+        assert!(close(instance.axes[0].voltage, vx, 1e-15));
+        assert!(close(instance.axes[1].voltage, vy, 1e-15));
+        let expected = Instance::TABLE1;
+        assert_eq!(instance.mechanism, expected.mechanism);
+        assert_eq!((instance.cycles, instance.settle), (10, 2));
+        let fy = if index == 4 { 20.0 } else { 10.0 };
+        let [x, y] = instance.axes;
+        assert_eq!(
+            y,
+            Axis {
+                voltage: y.voltage,
+                frequency: fy,
+                ..Axis::TABLE1
+            }
+        );
+        assert_eq!(
+            x,
+            Axis {
+                voltage: x.voltage,
+                ..Axis::TABLE1
+            }
+        );
+    }
+    assert_eq!(paper.instance(2), Instance::TABLE1);
+
+    let text = Scene::load(&shipped("paper_text.toml")).unwrap();
+    assert_eq!(text.name, "paper_text");
+    assert_eq!(text.shape(), [5]);
+    for index in 0..5 {
+        for axis in text.instance(index).axes {
+            assert!(close(axis.stage_mass, Axis::TEXT.stage_mass, 1e-12));
+            assert!(close(axis.damping, Axis::TEXT.damping, 1e-12));
+            assert_eq!(axis.stiffness, 1e6);
+        }
+    }
+
+    let coupling = Scene::load(&shipped("coupling.toml")).unwrap();
+    assert_eq!(coupling.name, "coupling");
+    assert!(coupling.baselines);
+    assert_eq!(coupling.shape(), [61, 61]);
+    assert_eq!(coupling.instance_count(), 61 * 61);
+    let corner = coupling.instance(0);
+    assert_eq!(
+        (corner.axes[0].voltage, corner.axes[1].voltage),
+        (-150.0, -150.0)
+    );
+    let next = coupling.instance(1);
+    assert_eq!(
+        (next.axes[0].voltage, next.axes[1].voltage),
+        (-150.0, -145.0)
+    );
+    let center = coupling.instance(30 * 61 + 30);
+    assert_eq!(center, Instance::TABLE1.baseline(0).baseline(1));
+    assert!(coupling.axis_ever_driven(0) && coupling.axis_ever_driven(1));
+    assert!(
+        coupling
+            .describe()
+            .contains("61 values from -150 V to 150 V (linear, step 5)")
+    );
+}
