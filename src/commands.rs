@@ -213,9 +213,7 @@ fn print_summary(scene: &Scene, result: &RunResult) {
     if !result.records.is_empty() {
         let labels: Vec<String> = match &scene.layout {
             Layout::Points { labels } => labels.clone(),
-            Layout::Grid { .. } => (0..result.records.len())
-                .map(|i| format!("#{i}"))
-                .collect(),
+            Layout::Grid { .. } => (0..result.records.len()).map(|i| format!("#{i}")).collect(),
         };
         let width = labels.iter().map(String::len).max().unwrap_or(0).max(5);
         print!("  {:width$}  step_x [um]  step_y [um]", "point");
@@ -249,10 +247,14 @@ pub fn check(path: &Path) -> Result<()> {
     let count = scene.instance_count();
     // Exact total simulated time for up to a million instances, else a
     // sample of evenly spaced ones.
-    let sample = count.min(1_000_000).max(1);
+    let sample = count.clamp(1, 1_000_000);
     let mut simulated = 0.0;
     for k in 0..sample {
-        let i = if count <= sample { k } else { k * count / sample };
+        let i = if count <= sample {
+            k
+        } else {
+            k * count / sample
+        };
         let inst = scene.instance(i);
         let mut per = inst.duration();
         if scene.baselines {

@@ -71,7 +71,11 @@ const MAPS: [(&str, &str, &str); 6] = [
 const BASELINES: [(&str, &str, &str); 3] = [
     ("step_x", "m", "1-DOF step along x with the y drive off"),
     ("step_y", "m", "1-DOF step along y with the x drive off"),
-    ("status", "1", "integrator status code of the baselines (0 = ok)"),
+    (
+        "status",
+        "1",
+        "integrator status code of the baselines (0 = ok)",
+    ),
 ];
 
 fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {

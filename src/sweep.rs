@@ -195,9 +195,9 @@ pub fn run(
         let mut baseline_job = vec![[usize::MAX; AXES]; mains.len()];
         if plan.baselines {
             for (k, inst) in mains.iter().enumerate() {
-                for axis in 0..AXES {
+                for (axis, job) in baseline_job[k].iter_mut().enumerate() {
                     let base = inst.baseline(axis);
-                    baseline_job[k][axis] = if base == *inst {
+                    *job = if base == *inst {
                         k
                     } else {
                         jobs.push(base);
@@ -228,8 +228,7 @@ pub fn run(
         for (k, inst) in mains.iter().enumerate() {
             let mut rec = record(inst, &outcomes[k]);
             if plan.baselines {
-                for axis in 0..AXES {
-                    let j = baseline_job[k][axis];
+                for (axis, &j) in baseline_job[k].iter().enumerate() {
                     let base = record(&jobs[j], &outcomes[j]);
                     rec.baseline_step[axis] = base.step[axis];
                     rec.baseline_status = rec.baseline_status.max(base.status);

@@ -65,11 +65,7 @@ fn maps_written_in_uneven_chunks_read_back_in_grid_order() {
     assert_eq!(values, want);
     let status: Vec<u32> = file.dataset("maps/status").unwrap().read_raw().unwrap();
     assert_eq!(status, (0..n).map(|i| (i % 3) as u32).collect::<Vec<_>>());
-    let base_y: Vec<f64> = file
-        .dataset("baseline/step_y")
-        .unwrap()
-        .read_raw()
-        .unwrap();
+    let base_y: Vec<f64> = file.dataset("baseline/step_y").unwrap().read_raw().unwrap();
     assert_eq!(base_y[59], 58.5);
     let units: VarLenUnicode = step_x.attr("units").unwrap().read_scalar().unwrap();
     assert_eq!(units.as_str(), "m");

@@ -28,6 +28,10 @@
 //! Every function here is written so that it maps one to one onto WGSL: no
 //! allocation, no recursion, fixed-size arrays and bounded loops.
 
+// Index loops and long argument lists mirror the WGSL shader, which has no
+// iterators, closures or methods on arrays.
+#![allow(clippy::needless_range_loop, clippy::too_many_arguments)]
+
 use crate::model::{AXES, Instance};
 
 /// Stick: slider and stage move together.
@@ -330,7 +334,10 @@ fn drive_force(inst: &Instance, st: &State, i: usize) -> (f64, f64) {
         (amplitude * w, amplitude * axis.frequency / axis.duty)
     } else {
         let w = to_corner / (1.0 - axis.duty);
-        (amplitude * w, -amplitude * axis.frequency / (1.0 - axis.duty))
+        (
+            amplitude * w,
+            -amplitude * axis.frequency / (1.0 - axis.duty),
+        )
     }
 }
 
@@ -625,8 +632,8 @@ fn slip_flow(
             -fc * b[i][2] / (h * h),
         ];
         let mut f = axis_flow(osc, g, st.x_p[i], st.v_p[i], st.x_s[i], st.v_s[i]);
-        f.taylor = (b[i][1] != 0.0 || b[i][2] != 0.0)
-            && (osc.w2.sqrt() + 2.0 * osc.sigma) * h <= 1.0;
+        f.taylor =
+            (b[i][1] != 0.0 || b[i][2] != 0.0) && (osc.w2.sqrt() + 2.0 * osc.sigma) * h <= 1.0;
         f.slider_acc = [fc / ms * b[i][0], fc / ms * b[i][1], fc / ms * b[i][2]];
         flow.axes[i] = f;
     }
@@ -755,13 +762,7 @@ enum EventKind {
 }
 
 /// Value and time derivative of an event function at a sample.
-fn event_value(
-    inst: &Instance,
-    st: &State,
-    kind: EventKind,
-    sign: f64,
-    s: &Sample,
-) -> (f64, f64) {
+fn event_value(inst: &Instance, st: &State, kind: EventKind, sign: f64, s: &Sample) -> (f64, f64) {
     let m = &inst.mechanism;
     match kind {
         EventKind::Breakaway => {
@@ -940,9 +941,10 @@ fn step_stick(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
         h_max.min(event_step(inst, true))
     };
     let samples = sample_step(&flow, h);
-    if !safe {
-        if let Some((lo, hi)) =
+    if !safe
+        && let Some((lo, hi)) =
             find_crossing(inst, st, EventKind::Breakaway, 1.0, &flow, &samples, h)
+    {
         {
             let tau = locate(
                 inst,
@@ -991,7 +993,11 @@ fn step_band(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
         if kind == EventKind::Reversal && sign == 0.0 {
             continue;
         }
-        let sg = if kind == EventKind::Reversal { sign } else { 1.0 };
+        let sg = if kind == EventKind::Reversal {
+            sign
+        } else {
+            1.0
+        };
         if let Some((lo, hi)) = find_crossing(inst, st, kind, sg, &flow, &samples, h) {
             let tau = locate(inst, st, kind, sg, &flow, lo, hi, period);
             if first.is_none_or(|(t, _)| tau < t) {
@@ -1174,8 +1180,7 @@ fn step_slip(
     } else {
         4.0
     };
-    if let Some((lo, hi)) = find_crossing(inst, st, EventKind::EnterBand, 1.0, &flow, &samples, h)
-    {
+    if let Some((lo, hi)) = find_crossing(inst, st, EventKind::EnterBand, 1.0, &flow, &samples, h) {
         let tau = locate(inst, st, EventKind::EnterBand, 1.0, &flow, lo, hi, period);
         let s = eval_at(&flow, tau);
         move_to(st, &s, tau, h_max, stop);
@@ -1185,5 +1190,9 @@ fn step_slip(
     }
     move_to(st, &samples[4], h, h_max, stop);
     // A step cut short by the stop says nothing about the next one.
-    st.h_slip = if h < h_max { h * growth } else { st.h_slip.max(h) };
+    st.h_slip = if h < h_max {
+        h * growth
+    } else {
+        st.h_slip.max(h)
+    };
 }
