@@ -321,22 +321,16 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
     );
     for threads in [Some(1), None] {
         let backend = CpuBackend::new(threads)?;
-        let stop = AtomicBool::new(false);
         let mut passes = 0;
         let started = Instant::now();
         // One warm-up pass, then passes until the time budget is used.
         backend.run(&instances, &scene.settings, &|_| {})?;
         while started.elapsed().as_secs_f64() < min_seconds || passes == 0 {
-            let t = Instant::now();
             let out = backend.run(&instances, &scene.settings, &|_| {})?;
-            let _ = t;
             if out.iter().any(|o| o.status != STATUS_OK) {
                 bail!("an instance did not finish normally during the benchmark");
             }
             passes += 1;
-            if stop.load(Ordering::Relaxed) {
-                break;
-            }
         }
         let wall = started.elapsed().as_secs_f64();
         let n = backend.threads();
@@ -352,20 +346,29 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
     Ok(())
 }
 
-/// Where `pidm run` writes by default, relative to the working directory.
-pub fn results_dir() -> PathBuf {
-    PathBuf::from("results")
-}
-
-/// Fails with a readable message when a path is not a scene file.
-pub fn require_file(path: &Path) -> Result<()> {
-    if !path.is_file() {
-        bail!("{}: no such scene file", path.display());
+/// `pidm report`: writes the paper report to `out`.
+pub fn report(paths: &[PathBuf], out: &Path) -> Result<()> {
+    let defaults = [
+        PathBuf::from("sweeps/paper.toml"),
+        PathBuf::from("sweeps/paper_text.toml"),
+    ];
+    let paths = if paths.is_empty() {
+        &defaults[..]
+    } else {
+        paths
+    };
+    let scenes = paths
+        .iter()
+        .map(|p| Scene::load(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let md = crate::report::report(&scenes)?;
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)?;
     }
+    // Written whole to a temporary name, then renamed: complete or absent.
+    let temp = out.with_extension("md.partial");
+    std::fs::write(&temp, &md).with_context(|| format!("cannot write {}", temp.display()))?;
+    std::fs::rename(&temp, out).with_context(|| format!("cannot write {}", out.display()))?;
+    println!("wrote {}", out.display());
     Ok(())
-}
-
-/// Reads a whole file with its path in the error.
-pub fn read_text(path: &Path) -> Result<String> {
-    std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))
 }

@@ -6,5 +6,6 @@ pub mod commands;
 pub mod cpu;
 pub mod model;
 pub mod output;
+pub mod report;
 pub mod scene;
 pub mod sweep;

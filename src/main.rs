@@ -36,6 +36,15 @@ enum Command {
         /// The scene file (TOML).
         scene: PathBuf,
     },
+    /// Reruns points scenes (the paper's experiments) and writes a Markdown
+    /// report: converged steps beside the paper's, invariants checked.
+    Report {
+        /// Points scenes [default: sweeps/paper.toml sweeps/paper_text.toml].
+        scenes: Vec<PathBuf>,
+        /// Output Markdown file.
+        #[arg(long, default_value = "results/paper.md")]
+        out: PathBuf,
+    },
     /// Measures simulated seconds per wall second per core on a scene.
     Bench {
         /// The scene file [default: sweeps/paper.toml].
@@ -69,6 +78,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             }
         }
         Command::Check { scene } => commands::check(&scene)?,
+        Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Bench { scene, seconds } => commands::bench(&scene, seconds)?,
     }
     Ok(ExitCode::SUCCESS)
