@@ -1,0 +1,132 @@
+//! The `pidm` binary end to end: the paper scene into HDF5 and back, and
+//! bad input refused before any work.
+
+use std::path::Path;
+use std::process::Command;
+
+use hdf5::types::VarLenUnicode;
+
+fn pidm(args: &[&str], dir: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pidm"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("pidm runs")
+}
+
+fn manifest(path: &str) -> String {
+    format!("{}/{path}", env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn the_paper_scene_reproduces_model_md_through_hdf5() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("paper.h5");
+    let run = pidm(
+        &[
+            "run",
+            &manifest("sweeps/paper.toml"),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let file = hdf5::File::open(&out).unwrap();
+    let read = |name: &str| -> Vec<f64> {
+        let v: Vec<f64> = file.dataset(name).unwrap().read_raw().unwrap();
+        v.iter().map(|x| x * 1e6).collect()
+    };
+    let (sx, sy) = (read("maps/step_x"), read("maps/step_y"));
+    let (bx, by) = (read("baseline/step_x"), read("baseline/step_y"));
+    let status: Vec<u32> = file.dataset("maps/status").unwrap().read_raw().unwrap();
+    assert_eq!(status, vec![0; 5]);
+    // MODEL.md section 6, points Fig. 5a, 5b, 6, 7, 8 in file order.
+    let want_2dof = [
+        (0.6159, 0.0),
+        (0.4355, 0.4355),
+        (-0.9424, -0.9424),
+        (0.0545, 0.0273),
+        (1.6151, -0.4950),
+    ];
+    for (k, (x, y)) in want_2dof.iter().enumerate() {
+        assert!((sx[k] - x).abs() < 1e-3, "point {k} x: {}", sx[k]);
+        assert!((sy[k] - y).abs() < 1e-3, "point {k} y: {}", sy[k]);
+    }
+    // The 1-DOF references are baselines: 50 V (Fig. 7 y), 20 Hz (Fig. 8 y).
+    assert!((bx[0] - 0.6159).abs() < 1e-3);
+    assert!((by[3] - 0.3802).abs() < 1e-3);
+    assert!((by[4] - -1.1767).abs() < 1e-3);
+    let labels: Vec<VarLenUnicode> = file.dataset("labels").unwrap().read_raw().unwrap();
+    assert_eq!(labels[4].as_str(), "Fig. 8");
+    let scene: VarLenUnicode = file.attr("scene").unwrap().read_scalar().unwrap();
+    assert!(scene.as_str().contains("[[points]]"));
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.contains("Fig. 8"), "{stdout}");
+}
+
+#[test]
+fn a_bad_scene_is_refused_with_key_value_and_expectation_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bad.toml");
+    std::fs::write(&scene, "name = \"bad\"\n[axis.x]\nduty = 1.5\n").unwrap();
+    for cmd in ["check", "run"] {
+        let out = pidm(&[cmd, scene.to_str().unwrap()], dir.path());
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("axis.x.duty"), "{err}");
+        assert!(err.contains("1.5"), "{err}");
+        assert!(err.contains("(0, 1]"), "{err}");
+    }
+    assert!(!dir.path().join("results").exists());
+}
+
+#[test]
+fn a_grid_scene_writes_maps_shaped_like_its_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("grid.toml");
+    std::fs::write(
+        &scene,
+        "name = \"grid\"\n\
+         [axis.x]\nvoltage = [60.0, 100.0]\n\
+         [axis.y]\nvoltage = { from = 0.0, to = 40.0, steps = 3 }\n\
+         [simulation]\ncycles = 2\nsettle = 1\n",
+    )
+    .unwrap();
+    let check = pidm(&["check", scene.to_str().unwrap()], dir.path());
+    assert!(check.status.success());
+    assert!(String::from_utf8_lossy(&check.stdout).contains("instances: 6"));
+    let run = pidm(
+        &["run", scene.to_str().unwrap(), "--threads", "1"],
+        dir.path(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let file = hdf5::File::open(dir.path().join("results/grid.h5")).unwrap();
+    assert_eq!(file.dataset("maps/step_x").unwrap().shape(), vec![2, 3]);
+    let axis: Vec<f64> = file
+        .dataset("axes/axis.y.voltage")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    assert_eq!(axis, vec![0.0, 20.0, 40.0]);
+    let units: VarLenUnicode = file
+        .dataset("axes/axis.y.voltage")
+        .unwrap()
+        .attr("units")
+        .unwrap()
+        .read_scalar()
+        .unwrap();
+    assert_eq!(units.as_str(), "V");
+    // Row-major: entry [1][0] is V_x = 100 V, V_y = 0 V, a pure 1-DOF run.
+    let step_y: Vec<f64> = file.dataset("maps/step_y").unwrap().read_raw().unwrap();
+    assert_eq!(step_y[3], 0.0);
+    assert!(file.group("baseline").is_err());
+}
