@@ -133,12 +133,17 @@ pub struct State {
 }
 
 /// The exponential of a 2x2 oscillator matrix A = [[0, 1], [-w2, -2 sigma]]
-/// over some time tau, stored as exp(A tau) = a0 I + a1 A.
+/// over some time tau, stored as exp(A tau) = (1 + a0m1) I + a1 A. Keeping
+/// a0 - 1 rather than a0 makes short steps exact at tau = 0 and free of
+/// cancellation.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Propagator {
-    pub a0: f64,
+    pub a0m1: f64,
     pub a1: f64,
 }
+
+/// The propagator over zero time.
+pub const IDENTITY: Propagator = Propagator { a0m1: 0.0, a1: 0.0 };
 
 /// An oscillator m x'' + c x' + k x = g, as sigma = c / 2m and w2 = k / m.
 #[derive(Clone, Copy, Debug, Default)]
@@ -396,7 +401,7 @@ pub fn propagator(sigma: f64, w2: f64, tau: f64) -> Propagator {
     // Term n of the series is t^n / n! A^n = p I + q A; A^2 = -w2 I - 2 sigma A.
     let mut p = 1.0;
     let mut q = 0.0;
-    let mut a0 = 1.0;
+    let mut a0m1 = 0.0;
     let mut a1 = 0.0;
     for n in 1..=TAYLOR_TERMS {
         let f = t / n as f64;
@@ -404,10 +409,10 @@ pub fn propagator(sigma: f64, w2: f64, tau: f64) -> Propagator {
         let next_q = (p - 2.0 * sigma * q) * f;
         p = next_p;
         q = next_q;
-        a0 += p;
+        a0m1 += p;
         a1 += q;
     }
-    let mut prop = Propagator { a0, a1 };
+    let mut prop = Propagator { a0m1, a1 };
     for _ in 0..squarings {
         prop = compose(sigma, w2, prop, prop);
     }
@@ -416,10 +421,11 @@ pub fn propagator(sigma: f64, w2: f64, tau: f64) -> Propagator {
 
 /// The product of two propagators of the same oscillator.
 fn compose(sigma: f64, w2: f64, a: Propagator, b: Propagator) -> Propagator {
+    // (1 + a) (1 + b) - 1 = a + b + a b for the identity parts.
     let ab = a.a1 * b.a1;
     Propagator {
-        a0: a.a0 * b.a0 - w2 * ab,
-        a1: a.a0 * b.a1 + a.a1 * b.a0 - 2.0 * sigma * ab,
+        a0m1: a.a0m1 + b.a0m1 + a.a0m1 * b.a0m1 - w2 * ab,
+        a1: a.a1 + b.a1 + a.a0m1 * b.a1 + a.a1 * b.a0m1 - 2.0 * sigma * ab,
     }
 }
 
@@ -487,12 +493,16 @@ fn eval_stage(f: &AxisFlow, prop: Propagator, tau: f64) -> (f64, f64, f64, f64) 
         return eval_stage_taylor(f, tau);
     }
     let o = &f.osc;
-    let y = prop.a0 * f.y0 + prop.a1 * f.w0;
-    let w = prop.a0 * f.w0 + prop.a1 * (-o.w2 * f.y0 - 2.0 * o.sigma * f.w0);
+    // Changes of the homogeneous part since tau = 0, then the state as the
+    // start value plus changes, so tau = 0 reproduces the start exactly.
+    let dy = prop.a0m1 * f.y0 + prop.a1 * f.w0;
+    let dw = prop.a0m1 * f.w0 + prop.a1 * (-o.w2 * f.y0 - 2.0 * o.sigma * f.w0);
+    let y = f.y0 + dy;
+    let w = f.w0 + dw;
     let a_h = -o.w2 * y - 2.0 * o.sigma * w;
     let j_h = -o.w2 * w - 2.0 * o.sigma * a_h;
-    let x = f.part[0] + (f.part[1] + f.part[2] * tau) * tau + y;
-    let v = f.part[1] + 2.0 * f.part[2] * tau + w;
+    let x = f.x_p + (f.part[1] + f.part[2] * tau) * tau + dy;
+    let v = f.v_p + 2.0 * f.part[2] * tau + dw;
     let a = 2.0 * f.part[2] + a_h;
     (x, v, a, j_h)
 }
@@ -574,7 +584,7 @@ fn eval_at(flow: &Flow, tau: f64) -> Sample {
 
 /// Propagators of every axis at the five sample points of a step of length h.
 fn sample_propagators(flow: &Flow, h: f64) -> [[Propagator; AXES]; 5] {
-    let mut out = [[Propagator { a0: 1.0, a1: 0.0 }; AXES]; 5];
+    let mut out = [[IDENTITY; AXES]; 5];
     for i in 0..AXES {
         let o = &flow.axes[i].osc;
         let quarter = propagator(o.sigma, o.w2, 0.25 * h);
@@ -707,20 +717,25 @@ fn start_slip(st: &mut State, need: [f64; AXES]) {
     st.mode = MODE_BAND;
 }
 
-/// At a relative velocity inside the band: sticks if the static friction can
-/// hold (velocities merge, momentum conserved), else keeps slipping along
-/// the needed force.
+/// At a relative velocity inside the band the two bodies' velocities merge
+/// per axis, conserving momentum (a change of at most the band a). Then they
+/// stick if the static friction can hold them, or else slip starts afresh
+/// along the needed force, exactly as a breakaway from stick does (in 1-D:
+/// the slider reverses). Starting the new slip from zero relative velocity
+/// keeps the relative velocity aligned with the friction when it leaves the
+/// band; holding the old, misaligned relative velocity would make it
+/// re-enter the band at once, over and over.
 fn try_stick(inst: &Instance, st: &mut State) {
     let need = stick_force(inst, st);
     let fs = inst.mechanism.static_friction;
+    let ms = inst.mechanism.slider_mass;
+    for i in 0..AXES {
+        let mp = inst.axes[i].stage_mass;
+        let v = (mp * st.v_p[i] + ms * st.v_s[i]) / (mp + ms);
+        st.v_p[i] = v;
+        st.v_s[i] = v;
+    }
     if norm2(need) <= fs * fs {
-        let ms = inst.mechanism.slider_mass;
-        for i in 0..AXES {
-            let mp = inst.axes[i].stage_mass;
-            let v = (mp * st.v_p[i] + ms * st.v_s[i]) / (mp + ms);
-            st.v_p[i] = v;
-            st.v_s[i] = v;
-        }
         st.mode = MODE_STICK;
     } else {
         start_slip(st, need);
@@ -807,11 +822,17 @@ fn find_crossing(
     h: f64,
 ) -> Option<(f64, f64)> {
     let mut prev = event_value(inst, st, kind, sign, &samples[0]);
+    // A function already past its event when the step starts fires at once;
+    // one exactly at it is armed for the first interval.
+    if prev.0 < 0.0 {
+        return Some((0.0, 0.0));
+    }
     for j in 0..4 {
         let next = event_value(inst, st, kind, sign, &samples[j + 1]);
         let lo = THETA[j] * h;
         let hi = THETA[j + 1] * h;
-        if prev.0 > 0.0 && next.0 <= 0.0 {
+        let armed = prev.0 > 0.0 || (j == 0 && prev.0 == 0.0);
+        if armed && next.0 <= 0.0 && (prev.0 > 0.0 || next.0 < 0.0) {
             return Some((lo, hi));
         }
         if prev.0 > 0.0 && next.0 > 0.0 && prev.1 < 0.0 && next.1 > 0.0 {
@@ -929,7 +950,7 @@ fn step_stick(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
     // The homogeneous acceleration obeys the same oscillator equation, so
     // m a'' + c a' + k a = 0 and k a^2 + m a'^2 never grows: |a| stays below
     // sqrt(a^2 + a'^2 / w2) for the rest of the segment.
-    let s0 = eval_flow(&flow, [Propagator { a0: 1.0, a1: 0.0 }; AXES], 0.0);
+    let s0 = eval_flow(&flow, [IDENTITY; AXES], 0.0);
     let mut bound = 0.0;
     for i in 0..AXES {
         bound += s0.a_p[i] * s0.a_p[i] + s0.j_p[i] * s0.j_p[i] / flow.axes[i].osc.w2;
@@ -1027,7 +1048,7 @@ fn initial_slip_step(inst: &Instance, st: &State, h_max: f64) -> f64 {
     let force = current_force(inst, st);
     let b = direction_poly(st);
     let flow = slip_flow(inst, st, force, b, 1.0);
-    let s = eval_flow(&flow, [Propagator { a0: 1.0, a1: 0.0 }; AXES], 0.0);
+    let s = eval_flow(&flow, [IDENTITY; AXES], 0.0);
     let v = relative_velocity(&s);
     let a = relative_acceleration(&s);
     let speed = norm2(v).sqrt();
