@@ -6,6 +6,7 @@ pub mod commands;
 pub mod cpu;
 pub mod model;
 pub mod output;
+pub mod random;
 pub mod report;
 pub mod scene;
 pub mod sweep;

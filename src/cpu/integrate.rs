@@ -67,6 +67,9 @@ const COLLOCATION_CONVERGED: f64 = 1e-2;
 /// Terms of the stage Taylor series on short slip steps (rate * h <= 1):
 /// the truncation error is below 1 / 21! = 2e-20.
 const TAYLOR_STAGE_TERMS: u32 = 21;
+/// Newton iterations for the direction slip starts in (monotone, converges
+/// in a handful).
+const SLIP_DIRECTION_ITERATIONS: u32 = 40;
 /// Bisection-guarded Newton iterations when locating an event.
 const ROOT_ITERATIONS: u32 = 80;
 /// Consecutive events allowed without the time advancing.
@@ -382,7 +385,7 @@ fn pass_boundaries(inst: &Instance, st: &mut State, period: f64) {
     if st.mode == MODE_STICK {
         let need = stick_force(inst, st);
         if norm2(need) > inst.mechanism.static_friction * inst.mechanism.static_friction {
-            start_slip(st, need);
+            start_slip(inst, st, need);
         }
     }
 }
@@ -707,13 +710,75 @@ fn stick_force(inst: &Instance, st: &State) -> [f64; AXES] {
     need
 }
 
-/// STICK -> SLIP along the needed force, entering the band at zero relative
-/// velocity.
-fn start_slip(st: &mut State, need: [f64; AXES]) {
-    let n = norm2(need).sqrt();
+/// The direction in which slip grows out of zero relative velocity. In
+/// slip the relative acceleration is A - B u per axis, with A_i = P_i / m_p,i
+/// and B_i = f_c (1 / m_p,i + 1 / m_s), so the friction direction u is
+/// consistent only where A - B u = lambda u with lambda > 0:
+/// u_i = A_i / (lambda + B_i) with sum_i A_i^2 / (lambda + B_i)^2 = 1. That
+/// root exists exactly when |f_need| > f_c. With equal stage masses B is the
+/// same on both axes and u is the direction of f_need (MODEL.md section 3);
+/// with unequal ones, slip along f_need itself would turn the relative
+/// velocity away from the friction and chatter at the band edge.
+fn slip_direction(inst: &Instance, need: [f64; AXES]) -> [f64; AXES] {
+    let ms = inst.mechanism.slider_mass;
+    let fc = inst.mechanism.coulomb_friction;
+    let mut a = [0.0; AXES];
+    let mut b = [0.0; AXES];
+    let mut b_max: f64 = 0.0;
     for i in 0..AXES {
-        st.held[i] = need[i] / n;
+        let mp = inst.axes[i].stage_mass;
+        let scale = (mp + ms) / (mp * ms);
+        a[i] = need[i] * scale;
+        b[i] = fc * scale;
+        b_max = b_max.max(b[i]);
     }
+    // g(lambda) = sum A^2 / (lambda + B)^2 - 1 is convex and decreasing, and
+    // g >= 0 at max(0, |A| - max B): Newton from there rises monotonically
+    // to the root.
+    let mut lambda = (norm2(a).sqrt() - b_max).max(0.0);
+    for _ in 0..SLIP_DIRECTION_ITERATIONS {
+        let mut g = -1.0;
+        let mut dg = 0.0;
+        for i in 0..AXES {
+            let d = lambda + b[i];
+            let q = a[i] * a[i] / (d * d);
+            g += q;
+            dg -= 2.0 * q / d;
+        }
+        // Stops at the root, and on NaN (no comparison holds).
+        if g.is_nan() || g <= 0.0 || dg == 0.0 {
+            break;
+        }
+        let next = lambda - g / dg;
+        if next.is_nan() || next <= lambda {
+            break;
+        }
+        lambda = next;
+    }
+    let mut u = [0.0; AXES];
+    for i in 0..AXES {
+        u[i] = a[i] / (lambda + b[i]);
+    }
+    // Normalise away the last rounding; fall back to f_need's direction if
+    // the iteration met a degenerate case.
+    let n = norm2(u).sqrt();
+    if n > 0.0 && n.is_finite() {
+        for i in 0..AXES {
+            u[i] /= n;
+        }
+    } else {
+        let m = norm2(need).sqrt();
+        for i in 0..AXES {
+            u[i] = need[i] / m;
+        }
+    }
+    u
+}
+
+/// STICK -> SLIP: enters the band at zero relative velocity with the
+/// friction held along the direction slip grows in.
+fn start_slip(inst: &Instance, st: &mut State, need: [f64; AXES]) {
+    st.held = slip_direction(inst, need);
     st.mode = MODE_BAND;
 }
 
@@ -738,7 +803,7 @@ fn try_stick(inst: &Instance, st: &mut State) {
     if norm2(need) <= fs * fs {
         st.mode = MODE_STICK;
     } else {
-        start_slip(st, need);
+        start_slip(inst, st, need);
     }
 }
 
@@ -980,7 +1045,7 @@ fn step_stick(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
             let s = eval_at(&flow, tau);
             move_to(st, &s, tau, h_max, stop);
             let need = stick_force(inst, st);
-            start_slip(st, need);
+            start_slip(inst, st, need);
             return;
         }
     }
