@@ -3,3 +3,4 @@
 //! function.
 
 pub mod integrate;
+pub mod karnopp;
