@@ -2,6 +2,7 @@
 //!
 //! See ARCHITECTURE.md for the bird's-eye view.
 
+pub mod accuracy;
 pub mod commands;
 pub mod cpu;
 pub mod model;

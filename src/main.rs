@@ -45,6 +45,30 @@ enum Command {
         #[arg(long, default_value = "results/paper.md")]
         out: PathBuf,
     },
+    /// Work-precision study: error of the step maps against wall time for
+    /// each method and setting; writes a table, HDF5 data, a plot and
+    /// results/accuracy.md.
+    Accuracy {
+        /// Scenes to study [default: sweeps/paper.toml].
+        scenes: Vec<PathBuf>,
+        /// Where the data, plots and summary go.
+        #[arg(long, default_value = "results")]
+        out_dir: PathBuf,
+        /// Step sizes of the fixed-step Karnopp baseline [s].
+        #[arg(long, value_delimiter = ',', default_value = "1e-5,3e-6,1e-6,3e-7")]
+        karnopp_steps: Vec<f64>,
+    },
+    /// Writes a points scene of seeded random instances to stdout.
+    RandomScene {
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[arg(long, default_value_t = 16)]
+        count: usize,
+        #[arg(long, default_value_t = 4)]
+        cycles: u32,
+        #[arg(long, default_value_t = 1)]
+        settle: u32,
+    },
     /// Measures simulated seconds per wall second per core on a scene.
     Bench {
         /// The scene file [default: sweeps/paper.toml].
@@ -79,6 +103,17 @@ fn run(cli: Cli) -> Result<ExitCode> {
         }
         Command::Check { scene } => commands::check(&scene)?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
+        Command::Accuracy {
+            scenes,
+            out_dir,
+            karnopp_steps,
+        } => commands::accuracy(&scenes, &out_dir, &karnopp_steps)?,
+        Command::RandomScene {
+            seed,
+            count,
+            cycles,
+            settle,
+        } => print!("{}", commands::random_scene(seed, count, cycles, settle)),
         Command::Bench { scene, seconds } => commands::bench(&scene, seconds)?,
     }
     Ok(ExitCode::SUCCESS)

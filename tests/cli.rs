@@ -130,3 +130,47 @@ fn a_grid_scene_writes_maps_shaped_like_its_grid() {
     assert_eq!(step_y[3], 0.0);
     assert!(file.group("baseline").is_err());
 }
+
+#[test]
+fn the_accuracy_study_writes_its_table_data_plot_and_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tiny.toml");
+    std::fs::write(
+        &scene,
+        "name = \"tiny\"\n[simulation]\ncycles = 2\nsettle = 1\n",
+    )
+    .unwrap();
+    let out = pidm(
+        &[
+            "accuracy",
+            scene.to_str().unwrap(),
+            "--out-dir",
+            dir.path().to_str().unwrap(),
+            "--karnopp-steps",
+            "1e-5",
+        ],
+        dir.path(),
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for file in ["accuracy_tiny.h5", "accuracy_tiny.png", "accuracy.md"] {
+        assert!(dir.path().join(file).is_file(), "{file} missing");
+    }
+    let file = hdf5::File::open(dir.path().join("accuracy_tiny.h5")).unwrap();
+    let event: Vec<f64> = file
+        .dataset("method0/max_error_um")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    let karnopp: Vec<f64> = file
+        .dataset("method1/max_error_um")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    // The event-locating integrator at its loosest setting beats the paper's
+    // method at the paper's step by orders of magnitude.
+    assert!(event[0] < 0.01 && karnopp[0] > 1.0, "{event:?} {karnopp:?}");
+}

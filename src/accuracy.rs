@@ -1,0 +1,274 @@
+//! `pidm accuracy`: a work-precision study. Every method runs the scene's
+//! instances at a ladder of its accuracy setting; the error of the step maps
+//! is measured against the f64 CPU path at a much tighter tolerance, and the
+//! wall time on one thread is recorded. The fixed-step Karnopp integration
+//! of the paper is included as a baseline, to show what locating mode
+//! changes buys.
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use plotters::prelude::*;
+
+use crate::cpu::integrate::{STATUS_OK, Settings};
+use crate::cpu::karnopp;
+use crate::model::{AXES, Instance};
+use crate::sweep::{Backend, CpuBackend, Outcome};
+
+/// One method of the study and how to run it at a setting.
+pub struct Method<'a> {
+    /// Short name, e.g. "event-locating f64 (cpu)".
+    pub name: String,
+    /// What the setting means, e.g. "tolerance [rad]".
+    pub setting_name: &'static str,
+    /// The ladder, loosest first.
+    pub settings: Vec<f64>,
+    /// Runs every instance at one setting.
+    #[allow(clippy::type_complexity)]
+    pub run: Box<dyn Fn(&[Instance], f64) -> Result<Vec<Outcome>> + 'a>,
+}
+
+/// One measured point of the study.
+#[derive(Clone, Debug)]
+pub struct Point {
+    pub method: String,
+    pub setting: f64,
+    /// Largest error of any step over all instances and axes [um].
+    pub max_error_um: f64,
+    /// Root mean square error over instances and axes [um].
+    pub rms_error_um: f64,
+    /// Wall time for all instances on one thread [s].
+    pub wall_s: f64,
+    /// Instances that did not finish normally.
+    pub failed: usize,
+}
+
+/// Steps [um] per instance and axis.
+fn steps_um(instances: &[Instance], outcomes: &[Outcome]) -> Vec<[f64; AXES]> {
+    instances
+        .iter()
+        .zip(outcomes)
+        .map(|(inst, out)| {
+            let mut s = [0.0; AXES];
+            for (i, v) in s.iter_mut().enumerate() {
+                *v = inst.measure(i, out.displacement[i]).1 * 1e6;
+            }
+            s
+        })
+        .collect()
+}
+
+/// The event-locating CPU integrator at a ladder of tolerances.
+pub fn cpu_method<'a>(base: Settings) -> Method<'a> {
+    let backend = CpuBackend::new(Some(1)).expect("a one-thread pool");
+    Method {
+        name: "event-locating f64 (cpu)".into(),
+        setting_name: "tolerance [rad]",
+        settings: vec![1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
+        run: Box::new(move |instances, tolerance| {
+            let settings = Settings { tolerance, ..base };
+            backend.run(instances, &settings, &|_| {})
+        }),
+    }
+}
+
+/// The paper's fixed-step Karnopp RK4 at a ladder of step sizes.
+pub fn karnopp_method<'a>(steps: Vec<f64>) -> Method<'a> {
+    Method {
+        name: "fixed-step Karnopp RK4 (paper's method)".into(),
+        setting_name: "step [s]",
+        settings: steps,
+        run: Box::new(|instances, step| {
+            Ok(instances
+                .iter()
+                .map(|inst| {
+                    let (displacement, steps) = karnopp::run_fixed_step(inst, step);
+                    Outcome {
+                        displacement,
+                        status: STATUS_OK,
+                        steps: steps.min(u32::MAX as u64) as u32,
+                    }
+                })
+                .collect())
+        }),
+    }
+}
+
+/// Runs the study.
+pub fn study(
+    instances: &[Instance],
+    reference_settings: Settings,
+    methods: &[Method],
+    log: &mut dyn FnMut(&Point),
+) -> Result<Vec<Point>> {
+    let reference_backend = CpuBackend::new(None)?;
+    let reference = reference_backend.run(instances, &reference_settings, &|_| {})?;
+    if let Some(bad) = reference.iter().position(|o| o.status != STATUS_OK) {
+        anyhow::bail!(
+            "the reference run of instance {bad} ended with status {}",
+            reference[bad].status
+        );
+    }
+    let reference = steps_um(instances, &reference);
+    let mut points = Vec::new();
+    for method in methods {
+        for &setting in &method.settings {
+            let started = Instant::now();
+            let outcomes = (method.run)(instances, setting)?;
+            let wall_s = started.elapsed().as_secs_f64();
+            let got = steps_um(instances, &outcomes);
+            let mut max: f64 = 0.0;
+            let mut sum = 0.0;
+            let mut n = 0;
+            let mut failed = 0;
+            for (k, (g, r)) in got.iter().zip(&reference).enumerate() {
+                if outcomes[k].status != STATUS_OK {
+                    failed += 1;
+                    continue;
+                }
+                for axis in 0..AXES {
+                    let e = (g[axis] - r[axis]).abs();
+                    max = max.max(e);
+                    sum += e * e;
+                    n += 1;
+                }
+            }
+            let point = Point {
+                method: method.name.clone(),
+                setting,
+                max_error_um: max,
+                rms_error_um: (sum / n.max(1) as f64).sqrt(),
+                wall_s,
+                failed,
+            };
+            log(&point);
+            points.push(point);
+        }
+    }
+    Ok(points)
+}
+
+/// Writes the study's data to HDF5: one group per method with `setting`,
+/// `max_error_um`, `rms_error_um`, `wall_s`, `failed`.
+pub fn write_hdf5(path: &Path, scene_name: &str, points: &[Point]) -> Result<()> {
+    let temp = path.with_extension("h5.partial");
+    {
+        let file = hdf5::File::create(&temp)
+            .with_context(|| format!("cannot create {}", temp.display()))?;
+        let name: hdf5::types::VarLenUnicode = scene_name.parse().context("scene name")?;
+        file.new_attr::<hdf5::types::VarLenUnicode>()
+            .create("scene")?
+            .write_scalar(&name)?;
+        let mut methods: Vec<&str> = points.iter().map(|p| p.method.as_str()).collect();
+        methods.dedup();
+        for (m, method) in methods.iter().enumerate() {
+            let group = file.create_group(&format!("method{m}"))?;
+            let label: hdf5::types::VarLenUnicode = method.parse().context("method name")?;
+            group
+                .new_attr::<hdf5::types::VarLenUnicode>()
+                .create("name")?
+                .write_scalar(&label)?;
+            let pts: Vec<&Point> = points.iter().filter(|p| p.method == *method).collect();
+            let column = |f: &dyn Fn(&Point) -> f64| pts.iter().map(|p| f(p)).collect::<Vec<_>>();
+            for (key, data) in [
+                ("setting", column(&|p| p.setting)),
+                ("max_error_um", column(&|p| p.max_error_um)),
+                ("rms_error_um", column(&|p| p.rms_error_um)),
+                ("wall_s", column(&|p| p.wall_s)),
+                ("failed", column(&|p| p.failed as f64)),
+            ] {
+                group.new_dataset_builder().with_data(&data).create(key)?;
+            }
+        }
+        file.close()?;
+    }
+    std::fs::rename(&temp, path).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
+
+/// Error floor drawn for exact results on the log axis [um].
+const PLOT_FLOOR_UM: f64 = 1e-9;
+
+/// Draws max error against wall time, log-log, one line per method.
+pub fn plot(path: &Path, title: &str, points: &[Point]) -> Result<()> {
+    let _ =
+        plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
+    let temp = path.with_extension("png.partial.png");
+    {
+        let root = BitMapBackend::new(&temp, (900, 600)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let t_min = points
+            .iter()
+            .map(|p| p.wall_s)
+            .fold(f64::INFINITY, f64::min);
+        let t_max = points.iter().map(|p| p.wall_s).fold(0.0, f64::max);
+        let e_max = points
+            .iter()
+            .map(|p| p.max_error_um)
+            .fold(PLOT_FLOOR_UM, f64::max);
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 22))
+            .margin(15)
+            .x_label_area_size(45)
+            .y_label_area_size(85)
+            .build_cartesian_2d(
+                (t_min * 0.5..t_max * 2.0).log_scale(),
+                (PLOT_FLOOR_UM * 0.5..e_max * 3.0).log_scale(),
+            )?;
+        chart
+            .configure_mesh()
+            .x_desc("wall time on one core [s]")
+            .y_desc("largest error of a step [um]")
+            .x_label_formatter(&|x| format!("{x:.0e}"))
+            .y_label_formatter(&|y| format!("{y:.0e}"))
+            .label_style(("sans-serif", 15))
+            .draw()?;
+        let mut methods: Vec<&str> = points.iter().map(|p| p.method.as_str()).collect();
+        methods.dedup();
+        for (m, method) in methods.iter().enumerate() {
+            let color = Palette99::pick(m).to_rgba();
+            let series: Vec<(f64, f64)> = points
+                .iter()
+                .filter(|p| p.method == *method)
+                .map(|p| (p.wall_s, p.max_error_um.max(PLOT_FLOOR_UM)))
+                .collect();
+            chart
+                .draw_series(LineSeries::new(series.clone(), color.stroke_width(2)))?
+                .label(*method)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                });
+            chart.draw_series(
+                series
+                    .iter()
+                    .map(|&(x, y)| Circle::new((x, y), 4, color.filled())),
+            )?;
+        }
+        for target in [1e-2, 1e-3] {
+            chart.draw_series(LineSeries::new(
+                vec![(t_min * 0.5, target), (t_max * 2.0, target)],
+                BLACK.mix(0.3),
+            ))?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 15))
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()?;
+        root.present()?;
+    }
+    std::fs::rename(&temp, path).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
+
+/// The cheapest setting of a method that reaches `target` um, if any.
+pub fn cheapest(points: &[Point], method: &str, target: f64) -> Option<Point> {
+    points
+        .iter()
+        .filter(|p| p.method == method && p.failed == 0 && p.max_error_um <= target)
+        .min_by(|a, b| a.wall_s.total_cmp(&b.wall_s))
+        .cloned()
+}
