@@ -3,4 +3,5 @@
 //! See ARCHITECTURE.md for the bird's-eye view.
 
 pub mod cpu;
+pub mod gpu;
 pub mod model;
