@@ -20,6 +20,7 @@
 // * `NOISE`: rounding noise allowed for in the friction-direction error, in
 //   units of EPSILON times the speeds involved; zero in f64.
 // * `WORKGROUP_SIZE`: from `pidm::gpu::WORKGROUP_SIZE`.
+// * `PROBE_PASSES`: from `pidm::gpu::layout::PROBE_PASSES`.
 //
 // WGSL has no enums, options, tuples or early returns of several values:
 // those become small structs with flags. Every loop is bounded.
@@ -125,7 +126,7 @@ struct State {
     _pad: u32,
 }
 
-// The per-dispatch controls.
+// The per-dispatch controls, read from a small storage buffer.
 struct Control {
     // Iterations of `advance` in this dispatch.
     max_iterations: u32,
@@ -133,8 +134,10 @@ struct Control {
     initialize: u32,
     // Always 1.0; see `move_to`.
     one: f32,
-    // Always 2; see `loop_limiter_intact`.
+    // Always PROBE_PASSES; see `loop_limiter_intact`.
     probe: u32,
+    // Always 0; see `loop_limiter_intact`.
+    zero: u32,
 }
 
 struct Propagator {
@@ -203,7 +206,10 @@ struct Trial {
 
 @group(0) @binding(0) var<storage, read> params: array<Params>;
 @group(0) @binding(1) var<storage, read_write> states: array<State>;
-@group(0) @binding(2) var<uniform> control: Control;
+// The controls live in a storage buffer, not a uniform: Mesa inlines the
+// values of uniforms that steer loops into the compiled shader, which
+// would unroll the loop-limiter probe and fold the opaque 1.0 away.
+@group(0) @binding(2) var<storage, read> control: Control;
 @group(0) @binding(3) var<storage, read_write> unfinished: atomic<u32>;
 
 // Runs one slice of `advance` for one instance, then counts it if it has
@@ -214,7 +220,7 @@ fn advance_slice(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let index = gid.x + gid.y * groups.x * WORKGROUP_SIZE;
-    if index >= arrayLength(&states) {
+    if index >= arrayLength(&states) || index >= arrayLength(&params) {
         return;
     }
     let p = params[index];
@@ -362,7 +368,7 @@ fn advance(inst: Instance, settings: Settings, st: ptr<function, State>, max_ite
         // An iteration cut short by the driver's loop limiter is undone and
         // redone by the next dispatch; one that cannot fit in a dispatch at
         // all is handed back to the host (which runs it on the CPU).
-        if !loop_limiter_intact() {
+        if !loop_limiter_intact((*st).steps) {
             *st = before;
             if iteration == 1u {
                 (*st).status = STATUS_LOOP_LIMIT;
@@ -375,18 +381,23 @@ fn advance(inst: Instance, settings: Settings, st: ptr<function, State>, max_ite
 // False once the driver's loop limiter has cut loops short in this
 // invocation. llvmpipe/lavapipe share one counter of 65,535 loop iterations
 // between all loops of an invocation (and its SIMD neighbours) and then
-// silently leave every loop after its first pass. This loop runs exactly
-// `control.probe` = 2 passes, a count the compiler cannot know and unroll,
-// unless the limiter has run out. Other drivers have no such limiter.
-fn loop_limiter_intact() -> bool {
+// silently leave every loop after its first pass (or two, where the
+// compiler has peeled one). This loop makes PROBE_PASSES passes unless the
+// limiter has run out. Its pass count comes from the control buffer and
+// depends on the state, so the compiler can neither unroll the loop nor
+// hoist it out of the iteration it checks; the result is compared with the
+// constant, because the compiler knows the loop only ends once
+// k >= passes. Other drivers have no such limiter.
+fn loop_limiter_intact(dependency: u32) -> bool {
+    let passes = control.probe + dependency * control.zero;
     var k = 0u;
     loop {
         k += 1u;
-        if k >= control.probe {
+        if k >= passes {
             break;
         }
     }
-    return k >= control.probe;
+    return k >= PROBE_PASSES;
 }
 
 fn frac(u: Real) -> Real {
@@ -958,7 +969,7 @@ fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Re
         // Knuth's two-sum keeps the rounding error of the addition. Shader
         // compilers may simplify floating-point algebra (Mesa turns
         // a - (sum - (sum - a)) into 0); multiplying by a 1 they cannot see
-        // through (it comes from the control uniform) keeps the sum exact.
+        // through (it comes from the control buffer) keeps the sum exact.
         let one = Real(control.one);
         let a = (*st).time;
         let b = tau + (*st).time_lo;

@@ -80,10 +80,15 @@ macro_rules! host_struct {
     };
 }
 
+/// Passes of the shader's loop-limiter probe (`loop_limiter_intact`): more
+/// than the two a truncated loop can still make when the compiler has
+/// peeled its first pass.
+pub const PROBE_PASSES: u32 = 4;
+
 /// The per-dispatch controls (precision independent).
 pub mod control {
     host_struct! {
-        /// The uniform of one dispatch.
+        /// The controls of one dispatch (a read-only storage buffer).
         pub struct Control {
             /// Iterations of `advance` in the dispatch.
             pub max_iterations: u32,
@@ -93,8 +98,11 @@ pub mod control {
             /// Always 1.0: a factor the shader compiler cannot fold, which
             /// keeps the compensated time sum exact.
             pub one: f32,
-            /// Always 2: the pass count of the shader's loop-limiter probe.
+            /// Always [`PROBE_PASSES`]: the pass count of the shader's
+            /// loop-limiter probe, hidden from the shader compiler.
             pub probe: u32,
+            /// Always 0: hidden from the shader compiler like `probe`.
+            pub zero: u32,
         }
     }
 }
