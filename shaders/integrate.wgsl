@@ -20,7 +20,6 @@
 // * `NOISE`: rounding noise allowed for in the friction-direction error, in
 //   units of EPSILON times the speeds involved; zero in f64.
 // * `WORKGROUP_SIZE`: from `pidm::gpu::WORKGROUP_SIZE`.
-// * `PROBE_PASSES`: from `pidm::gpu::layout::PROBE_PASSES`.
 //
 // WGSL has no enums, options, tuples or early returns of several values:
 // those become small structs with flags. Every loop is bounded.
@@ -134,8 +133,10 @@ struct Control {
     initialize: u32,
     // Always 1.0; see `move_to`.
     one: f32,
-    // Always PROBE_PASSES; see `loop_limiter_intact`.
+    // Passes of the loop-limiter probe, and the passes it must see; see
+    // `loop_limiter_intact`.
     probe: u32,
+    probe_min: u32,
     // Always 0; see `loop_limiter_intact`.
     zero: u32,
 }
@@ -382,12 +383,12 @@ fn advance(inst: Instance, settings: Settings, st: ptr<function, State>, max_ite
 // invocation. llvmpipe/lavapipe share one counter of 65,535 loop iterations
 // between all loops of an invocation (and its SIMD neighbours) and then
 // silently leave every loop after its first pass (or two, where the
-// compiler has peeled one). This loop makes PROBE_PASSES passes unless the
-// limiter has run out. Its pass count comes from the control buffer and
-// depends on the state, so the compiler can neither unroll the loop nor
-// hoist it out of the iteration it checks; the result is compared with the
-// constant, because the compiler knows the loop only ends once
-// k >= passes. Other drivers have no such limiter.
+// compiler has peeled one). This loop makes `control.probe` passes unless
+// the limiter runs out first. The pass count comes from the control buffer
+// and depends on the state, so the compiler can neither unroll the loop nor
+// hoist it out of the iteration it checks. The passes are compared with a
+// second control value, not with `passes` itself: the compiler knows that
+// the loop only ends once k >= passes. Other drivers have no such limiter.
 fn loop_limiter_intact(dependency: u32) -> bool {
     let passes = control.probe + dependency * control.zero;
     var k = 0u;
@@ -397,7 +398,7 @@ fn loop_limiter_intact(dependency: u32) -> bool {
             break;
         }
     }
-    return k >= PROBE_PASSES;
+    return k >= control.probe_min;
 }
 
 fn frac(u: Real) -> Real {

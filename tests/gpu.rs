@@ -432,6 +432,75 @@ fn split_batches_match_one_batch() {
     assert!(seen.len() >= 3);
 }
 
+/// Slices of any length give the same outcomes, bit for bit: a 7-iteration
+/// slice, the default, and one so long that llvmpipe's loop limiter cuts
+/// every dispatch short (each cut iteration is undone and redone).
+#[test]
+fn slice_length_does_not_change_outcomes() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let mut instances = paper_cases();
+    instances.truncate(7);
+    let settings = Settings::default();
+    for precision in precisions(ctx) {
+        let run = |slice_iterations: u32| {
+            let options = BatchOptions {
+                slice_iterations,
+                ..BatchOptions::default()
+            };
+            let mut slices = 0;
+            let out = run_batch_with(
+                ctx,
+                &instances,
+                &settings,
+                precision,
+                &options,
+                &mut |_, _| slices += 1,
+            )
+            .expect("batch runs");
+            eprintln!(
+                "{precision:?}: slices of {slice_iterations} iterations: {slices} dispatches"
+            );
+            out
+        };
+        let default = run(pidm::gpu::SLICE_ITERATIONS);
+        assert_eq!(run(7), default, "{precision:?}: 7-iteration slices");
+        assert_eq!(run(1_000_000), default, "{precision:?}: unbounded slices");
+    }
+}
+
+/// Instances whose single iteration exceeds the driver's loop budget are
+/// integrated on the CPU. A probe of 100,000 passes makes every iteration
+/// exceed llvmpipe's budget of 65,535; other drivers just run the probe.
+/// Either way the outcomes must match the CPU.
+#[test]
+fn loop_limit_falls_back_to_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let instances = [paper_cases()[0], paper_cases()[4]];
+    let settings = Settings::default();
+    let cpu = cpu_reference(&instances, &settings);
+    let options = BatchOptions {
+        probe_passes: 100_000,
+        ..BatchOptions::default()
+    };
+    for precision in precisions(ctx) {
+        let gpu = run_batch_with(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &options,
+            &mut |_, _| {},
+        )
+        .expect("batch runs");
+        assert!(gpu.iter().all(|g| g.status != pidm::gpu::STATUS_LOOP_LIMIT));
+        check("fallback", precision, &instances, &cpu, &gpu);
+    }
+}
+
 #[test]
 fn f64_request_is_refused_or_served() {
     let Some(ctx) = context() else {

@@ -98,9 +98,12 @@ pub mod control {
             /// Always 1.0: a factor the shader compiler cannot fold, which
             /// keeps the compensated time sum exact.
             pub one: f32,
-            /// Always [`PROBE_PASSES`]: the pass count of the shader's
-            /// loop-limiter probe, hidden from the shader compiler.
+            /// Passes of the shader's loop-limiter probe, hidden from the
+            /// shader compiler ([`PROBE_PASSES`] but in tests).
             pub probe: u32,
+            /// Passes the probe must complete for the iteration to stand;
+            /// equal to `probe`.
+            pub probe_min: u32,
             /// Always 0: hidden from the shader compiler like `probe`.
             pub zero: u32,
         }

@@ -122,6 +122,11 @@ pub struct BatchOptions {
     /// Largest number of instances per dispatch batch, on top of the
     /// device's limits (tests force small batches with it).
     pub max_batch: Option<usize>,
+    /// Passes the shader's loop-limiter probe makes; at least
+    /// [`layout::PROBE_PASSES`]. Tests raise it beyond 65,535 so that on
+    /// llvmpipe no iteration can complete its probe, which exercises the
+    /// fallback of [`STATUS_LOOP_LIMIT`] instances to the CPU.
+    pub probe_passes: u32,
 }
 
 impl Default for BatchOptions {
@@ -129,6 +134,7 @@ impl Default for BatchOptions {
         BatchOptions {
             slice_iterations: SLICE_ITERATIONS,
             max_batch: None,
+            probe_passes: layout::PROBE_PASSES,
         }
     }
 }
@@ -199,6 +205,9 @@ pub struct GpuContext {
     limits: wgpu::Limits,
     /// Compiled pipelines, [F32, F64], built on first use.
     pipelines: Mutex<[Option<wgpu::ComputePipeline>; 2]>,
+    /// Held while a batch runs: batches on one context take turns (wgpu's
+    /// GL backend does not survive two threads submitting at once).
+    busy: Mutex<()>,
 }
 
 impl GpuContext {
@@ -268,6 +277,7 @@ impl GpuContext {
             f64,
             limits,
             pipelines: Mutex::new([None, None]),
+            busy: Mutex::new(()),
         })
     }
 
@@ -403,6 +413,7 @@ pub fn run_batch_with(
     options: &BatchOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
+    let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
     let pipeline = ctx.pipeline(precision)?;
     execute_gpu_inner(
         &ctx.device,
@@ -626,7 +637,8 @@ impl Runner<'_> {
                     max_iterations: self.options.slice_iterations,
                     initialize,
                     one: 1.0,
-                    probe: layout::PROBE_PASSES,
+                    probe: self.options.probe_passes.max(layout::PROBE_PASSES),
+                    probe_min: self.options.probe_passes.max(layout::PROBE_PASSES),
                     zero: 0,
                 }),
                 usage: wgpu::BufferUsages::STORAGE,
