@@ -5,6 +5,7 @@
 pub mod accuracy;
 pub mod commands;
 pub mod cpu;
+pub mod gpu;
 pub mod model;
 pub mod output;
 pub mod random;

@@ -1,0 +1,799 @@
+//! The GPU backend: `shaders/integrate.wgsl`, a function-by-function port of
+//! [`crate::cpu::integrate`], run through wgpu with one invocation per
+//! instance.
+//!
+//! * [`GpuContext::new`] picks an adapter and opens a device; the work
+//!   itself ([`execute_gpu_inner`]) takes any device, so tests and callers
+//!   may pass their own.
+//! * A batch is integrated in time slices: every dispatch advances every
+//!   instance by at most [`BatchOptions::slice_iterations`] iterations of
+//!   `advance` and counts the instances still unfinished, and the host
+//!   dispatches again until none is. Drivers stop long dispatches (lavapipe
+//!   even stops every shader loop after 65,535 iterations), so no dispatch
+//!   may run an instance to its end.
+//! * Batches larger than the device's storage-binding, buffer or dispatch
+//!   limits are split automatically.
+//! * f32 runs everywhere; f64 where the adapter offers `SHADER_F64`. The f32
+//!   shader computes in micrometres and milliseconds and keeps the time as
+//!   a two-part number (see [`layout::Units`] and `shaders/integrate.wgsl`).
+
+pub mod layout;
+pub mod shader;
+
+use std::sync::Mutex;
+
+use thiserror::Error;
+use wgpu::util::DeviceExt;
+
+use crate::cpu::integrate::{Settings, displacement, run_instance};
+use crate::model::Instance;
+use layout::HostLayout;
+use layout::control::Control;
+
+/// Invocations per workgroup; the shader reads it from its prelude.
+pub const WORKGROUP_SIZE: u32 = 32;
+
+/// Iterations of `advance` per instance and dispatch: far below lavapipe's
+/// 65,535-iteration loop limit and short enough for desktop watchdogs.
+pub const SLICE_ITERATIONS: u32 = 1024;
+
+/// Status the shader gives an instance when a single iteration of `advance`
+/// needs more loop iterations than the driver allows one invocation
+/// (llvmpipe/lavapipe stop every loop of an invocation after 65,535 loop
+/// iterations in total). [`run_batch`] integrates such instances on the CPU
+/// instead, so callers never see this status.
+pub const STATUS_LOOP_LIMIT: u32 = 100;
+
+/// Floating-point precision of the shader.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Precision {
+    F32,
+    F64,
+}
+
+/// What went wrong on the GPU path.
+#[derive(Debug, Error)]
+pub enum GpuError {
+    /// No adapter fits the request.
+    #[error(
+        "no GPU adapter found ({tried}); install a Vulkan driver (on Debian/Ubuntu \
+         `apt-get install mesa-vulkan-drivers libvulkan1` gives the lavapipe software \
+         adapter) and set WGPU_BACKEND=vulkan"
+    )]
+    NoAdapter {
+        /// What was enumerated and why each candidate was refused.
+        tried: String,
+    },
+    /// f64 was requested from an adapter without `SHADER_F64`.
+    #[error("adapter {adapter} does not support 64-bit floats in shaders (SHADER_F64)")]
+    F64Unsupported { adapter: String },
+    /// The device could not be opened.
+    #[error("requesting a device from {adapter} failed: {message}")]
+    DeviceRequest { adapter: String, message: String },
+    /// The shader did not parse, validate or compile.
+    #[error("the {precision:?} integrate shader failed to compile:\n{message}")]
+    ShaderCompile {
+        precision: Precision,
+        message: String,
+    },
+    /// A readback buffer could not be mapped.
+    #[error("mapping a readback buffer failed: {0}")]
+    BufferMapping(String),
+    /// wgpu reported an error while running a batch.
+    #[error("the GPU reported an error while running a batch: {0}")]
+    Execution(String),
+    /// Instances stayed unfinished after more slices than their step budget
+    /// allows (a shader that stopped advancing).
+    #[error("{unfinished} instances still unfinished after {slices} slices")]
+    Stalled { unfinished: u32, slices: u64 },
+}
+
+/// One adapter as wgpu enumerates it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AdapterSummary {
+    pub name: String,
+    pub device_type: String,
+    pub backend: String,
+    /// True when the adapter offers `SHADER_F64`.
+    pub f64: bool,
+    pub max_storage_buffer_binding_size: u64,
+    pub max_buffer_size: u64,
+    pub max_compute_workgroups_per_dimension: u32,
+}
+
+/// The result of one instance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpuOutcome {
+    /// Slider displacement over the measured periods [m], zero unless
+    /// `status` is `STATUS_OK` (as [`crate::cpu::integrate::displacement`]).
+    pub displacement: [f64; 2],
+    /// One of the `STATUS_*` constants of [`crate::cpu::integrate`].
+    pub status: u32,
+    /// Steps taken (accepted, rejected and events).
+    pub steps: u32,
+}
+
+/// Tuning knobs of [`run_batch_with`]; [`Default`] is what [`run_batch`]
+/// uses.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BatchOptions {
+    /// Iterations of `advance` per dispatch.
+    pub slice_iterations: u32,
+    /// Largest number of instances per dispatch batch, on top of the
+    /// device's limits (tests force small batches with it).
+    pub max_batch: Option<usize>,
+    /// Passes the shader's loop-limiter probe makes; at least
+    /// [`layout::PROBE_PASSES`]. Tests raise it beyond 65,535 so that on
+    /// llvmpipe no iteration can complete its probe, which exercises the
+    /// fallback of [`STATUS_LOOP_LIMIT`] instances to the CPU.
+    pub probe_passes: u32,
+}
+
+impl Default for BatchOptions {
+    fn default() -> Self {
+        BatchOptions {
+            slice_iterations: SLICE_ITERATIONS,
+            max_batch: None,
+            probe_passes: layout::PROBE_PASSES,
+        }
+    }
+}
+
+fn instance() -> wgpu::Instance {
+    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+}
+
+fn adapters() -> Vec<wgpu::Adapter> {
+    pollster::block_on(instance().enumerate_adapters(wgpu::Backends::all()))
+}
+
+fn summary(adapter: &wgpu::Adapter) -> AdapterSummary {
+    let info = adapter.get_info();
+    let limits = adapter.limits();
+    AdapterSummary {
+        name: info.name,
+        device_type: format!("{:?}", info.device_type),
+        backend: format!("{:?}", info.backend),
+        f64: adapter.features().contains(wgpu::Features::SHADER_F64),
+        max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
+        max_buffer_size: limits.max_buffer_size,
+        max_compute_workgroups_per_dimension: limits.max_compute_workgroups_per_dimension,
+    }
+}
+
+/// Every adapter wgpu enumerates (honouring `WGPU_BACKEND`).
+pub fn list_adapters() -> Vec<AdapterSummary> {
+    adapters().iter().map(summary).collect()
+}
+
+/// True for adapters that run on the CPU (lavapipe, llvmpipe, SwiftShader,
+/// WARP).
+fn is_software(info: &wgpu::AdapterInfo) -> bool {
+    let name = info.name.to_lowercase();
+    info.device_type == wgpu::DeviceType::Cpu
+        || ["llvmpipe", "lavapipe", "swiftshader", "softpipe", "warp"]
+            .iter()
+            .any(|n| name.contains(n))
+}
+
+/// Preference among usable adapters: discrete, integrated, virtual, other,
+/// software; f64 support breaks ties.
+fn rank(adapter: &wgpu::Adapter) -> (u32, bool) {
+    let info = adapter.get_info();
+    let kind = if is_software(&info) {
+        0
+    } else {
+        match info.device_type {
+            wgpu::DeviceType::DiscreteGpu => 4,
+            wgpu::DeviceType::IntegratedGpu => 3,
+            wgpu::DeviceType::VirtualGpu => 2,
+            _ => 1,
+        }
+    };
+    (
+        kind,
+        adapter.features().contains(wgpu::Features::SHADER_F64),
+    )
+}
+
+/// An open device with what the batches need to know about it.
+pub struct GpuContext {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    info: wgpu::AdapterInfo,
+    f64: bool,
+    limits: wgpu::Limits,
+    /// Compiled pipelines, [F32, F64], built on first use.
+    pipelines: Mutex<[Option<wgpu::ComputePipeline>; 2]>,
+    /// Held while a batch runs: batches on one context take turns (wgpu's
+    /// GL backend does not survive two threads submitting at once).
+    busy: Mutex<()>,
+}
+
+impl GpuContext {
+    /// Opens the best adapter: a hardware one when there is one, a software
+    /// one (lavapipe and the like) only when `allow_software`.
+    pub fn new(allow_software: bool) -> Result<GpuContext, GpuError> {
+        let mut tried = Vec::new();
+        let mut best: Option<wgpu::Adapter> = None;
+        for adapter in adapters() {
+            let info = adapter.get_info();
+            let label = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
+            let compute = adapter
+                .get_downlevel_capabilities()
+                .flags
+                .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS);
+            if !compute {
+                tried.push(format!("{label}: no compute shaders"));
+                continue;
+            }
+            if is_software(&info) && !allow_software {
+                tried.push(format!("{label}: software, not allowed"));
+                continue;
+            }
+            tried.push(format!("{label}: usable"));
+            if best.as_ref().is_none_or(|b| rank(&adapter) > rank(b)) {
+                best = Some(adapter);
+            }
+        }
+        let Some(adapter) = best else {
+            let backends = wgpu::Backends::from_env()
+                .map(|b| format!("WGPU_BACKEND={b:?}"))
+                .unwrap_or_else(|| "all backends".to_string());
+            let tried = if tried.is_empty() {
+                format!("{backends}: none enumerated")
+            } else {
+                format!("{backends}: {}", tried.join("; "))
+            };
+            return Err(GpuError::NoAdapter { tried });
+        };
+        Self::from_adapter(&adapter)
+    }
+
+    /// Opens a device on a given adapter, with its full limits and
+    /// `SHADER_F64` where offered.
+    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<GpuContext, GpuError> {
+        let info = adapter.get_info();
+        let f64 = adapter.features().contains(wgpu::Features::SHADER_F64);
+        let limits = adapter.limits();
+        let mut features = wgpu::Features::empty();
+        if f64 {
+            features |= wgpu::Features::SHADER_F64;
+        }
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("pidm"),
+            required_features: features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::DeviceRequest {
+            adapter: info.name.clone(),
+            message: e.to_string(),
+        })?;
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            f64,
+            limits,
+            pipelines: Mutex::new([None, None]),
+            busy: Mutex::new(()),
+        })
+    }
+
+    /// "NVIDIA H100 (Vulkan, DiscreteGpu)": the adapter, its backend and
+    /// its type.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.info.name, self.info.backend, self.info.device_type
+        )
+    }
+
+    /// True unless the adapter is a software rasteriser.
+    pub fn is_hardware(&self) -> bool {
+        !is_software(&self.info)
+    }
+
+    /// True when the device runs f64 shaders.
+    pub fn supports_f64(&self) -> bool {
+        self.f64
+    }
+
+    /// The device's limits (the adapter's best).
+    pub fn limits(&self) -> &wgpu::Limits {
+        &self.limits
+    }
+
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
+    /// The compiled pipeline of one precision, built once.
+    fn pipeline(&self, precision: Precision) -> Result<wgpu::ComputePipeline, GpuError> {
+        if precision == Precision::F64 && !self.f64 {
+            return Err(GpuError::F64Unsupported {
+                adapter: self.describe(),
+            });
+        }
+        let slot = match precision {
+            Precision::F32 => 0,
+            Precision::F64 => 1,
+        };
+        let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = &cache[slot] {
+            return Ok(p.clone());
+        }
+        let pipeline = create_pipeline(&self.device, precision)?;
+        cache[slot] = Some(pipeline.clone());
+        Ok(pipeline)
+    }
+}
+
+/// Compiles the integrator for one precision on a device. The source is
+/// validated with naga first, so errors come with source locations.
+pub fn create_pipeline(
+    device: &wgpu::Device,
+    precision: Precision,
+) -> Result<wgpu::ComputePipeline, GpuError> {
+    shader::parse_and_validate(precision)?;
+    let src = shader::source(precision);
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    // wgpu's default runtime checks clamp every dynamic array index and add
+    // a counter to every loop. Both keep the driver's compiler from
+    // unrolling the integrator's short loops, so arrays stay in scratch
+    // memory: on lavapipe the shader then compiles six times slower and
+    // runs four times slower. The integrator needs neither check.
+    // Compilation happens here for most drivers and at the first dispatch
+    // for llvmpipe; either may take seconds.
+    let mut checks = wgpu::ShaderRuntimeChecks::checked();
+    checks.bounds_checks = false;
+    checks.force_loop_bounding = false;
+    // SAFETY: every array index in the shader is a constant or a counter of
+    // a loop bounded by the array's length, the storage arrays are indexed
+    // only below both their `arrayLength`s, and every loop is bounded: by a
+    // constant, by
+    // `max_iterations`, by a rejection or squaring limit, or (the
+    // loop-limiter probe) by `control.probe` passes.
+    let module = unsafe {
+        device.create_shader_module_trusted(
+            wgpu::ShaderModuleDescriptor {
+                label: Some("integrate.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            },
+            checks,
+        )
+    };
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("advance_slice"),
+        layout: None,
+        module: &module,
+        entry_point: Some(shader::ENTRY_POINT),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        return Err(GpuError::ShaderCompile {
+            precision,
+            message: e.to_string(),
+        });
+    }
+    Ok(pipeline)
+}
+
+/// Integrates a batch on the GPU and returns one outcome per instance, in
+/// order. `progress(done, total)` is called after every slice.
+pub fn run_batch(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    precision: Precision,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Vec<GpuOutcome>, GpuError> {
+    run_batch_with(
+        ctx,
+        instances,
+        settings,
+        precision,
+        &BatchOptions::default(),
+        progress,
+    )
+}
+
+/// [`run_batch`] with explicit [`BatchOptions`].
+pub fn run_batch_with(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    precision: Precision,
+    options: &BatchOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Vec<GpuOutcome>, GpuError> {
+    let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
+    let pipeline = ctx.pipeline(precision)?;
+    execute_gpu_inner(
+        &ctx.device,
+        &ctx.queue,
+        &pipeline,
+        &ctx.limits,
+        instances,
+        settings,
+        precision,
+        options,
+        progress,
+    )
+}
+
+/// The work of [`run_batch`] on any device: `pipeline` must come from
+/// [`create_pipeline`] on that device with the same precision, and `limits`
+/// are the device's.
+#[allow(clippy::too_many_arguments)]
+pub fn execute_gpu_inner(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    pipeline: &wgpu::ComputePipeline,
+    limits: &wgpu::Limits,
+    instances: &[Instance],
+    settings: &Settings,
+    precision: Precision,
+    options: &BatchOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Vec<GpuOutcome>, GpuError> {
+    let run = Runner {
+        device,
+        queue,
+        pipeline,
+        limits,
+        settings,
+        options,
+    };
+    match precision {
+        Precision::F32 => run.all::<Single>(instances, progress),
+        Precision::F64 => run.all::<Double>(instances, progress),
+    }
+}
+
+/// The host side of one precision: its storage structs and their packing.
+trait Layout {
+    type Params: HostLayout;
+    type State: HostLayout;
+    fn pack(inst: &Instance, settings: &Settings) -> Self::Params;
+    fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
+}
+
+struct Single;
+struct Double;
+
+impl Layout for Single {
+    type Params = layout::single::Params;
+    type State = layout::single::State;
+    fn pack(inst: &Instance, settings: &Settings) -> Self::Params {
+        layout::single::pack(inst, settings)
+    }
+    fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
+        layout::single::unpack(inst, st)
+    }
+}
+
+impl Layout for Double {
+    type Params = layout::double::Params;
+    type State = layout::double::State;
+    fn pack(inst: &Instance, settings: &Settings) -> Self::Params {
+        layout::double::pack(inst, settings)
+    }
+    fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
+        layout::double::unpack(inst, st)
+    }
+}
+
+/// Largest number of instances one dispatch batch may hold on a device.
+pub fn max_batch_instances(
+    limits: &wgpu::Limits,
+    params_size: usize,
+    state_size: usize,
+    options: &BatchOptions,
+) -> usize {
+    let binding = limits.max_storage_buffer_binding_size;
+    let buffer = limits.max_buffer_size;
+    let largest = params_size.max(state_size) as u64;
+    let by_memory = binding.min(buffer) / largest;
+    let dim = limits.max_compute_workgroups_per_dimension as u64;
+    let by_dispatch = dim * dim * WORKGROUP_SIZE as u64;
+    let mut n = by_memory.min(by_dispatch).min(usize::MAX as u64) as usize;
+    if let Some(m) = options.max_batch {
+        n = n.min(m);
+    }
+    n.max(1)
+}
+
+/// Workgroup counts (x, y) covering `n` instances within the per-dimension
+/// limit. The shader numbers invocations `x + y * groups_x * WORKGROUP_SIZE`.
+pub fn dispatch_size(n: usize, max_per_dimension: u32) -> (u32, u32) {
+    let groups = (n as u64).div_ceil(WORKGROUP_SIZE as u64).max(1);
+    let x = groups.min(max_per_dimension as u64);
+    let y = groups.div_ceil(x);
+    (x as u32, y as u32)
+}
+
+struct Runner<'a> {
+    device: &'a wgpu::Device,
+    queue: &'a wgpu::Queue,
+    pipeline: &'a wgpu::ComputePipeline,
+    limits: &'a wgpu::Limits,
+    settings: &'a Settings,
+    options: &'a BatchOptions,
+}
+
+impl Runner<'_> {
+    /// Runs all instances, batch by batch.
+    fn all<L: Layout>(
+        &self,
+        instances: &[Instance],
+        progress: &mut dyn FnMut(u64, u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let per_batch = max_batch_instances(
+            self.limits,
+            size_of::<L::Params>(),
+            size_of::<L::State>(),
+            self.options,
+        );
+        let total = instances.len() as u64;
+        let mut out = Vec::with_capacity(instances.len());
+        for chunk in instances.chunks(per_batch) {
+            let done_before = out.len() as u64;
+            let mut chunk_progress = |done: u64| progress(done_before + done, total);
+            out.extend(self.batch::<L>(chunk, &mut chunk_progress)?);
+        }
+        // Instances the driver's loop limiter kept from advancing at all are
+        // integrated on the CPU, which the shader mirrors.
+        for (inst, outcome) in instances.iter().zip(out.iter_mut()) {
+            if outcome.status == STATUS_LOOP_LIMIT {
+                let st = run_instance(inst, self.settings);
+                *outcome = GpuOutcome {
+                    displacement: displacement(inst, &st),
+                    status: st.status,
+                    steps: st.steps,
+                };
+            }
+        }
+        Ok(out)
+    }
+
+    /// Runs one batch that fits the device in one dispatch.
+    fn batch<L: Layout>(
+        &self,
+        instances: &[Instance],
+        progress: &mut dyn FnMut(u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let n = instances.len();
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let device = self.device;
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let result = self.batch_inner::<L>(instances, progress);
+        let memory_error = pollster::block_on(memory.pop());
+        let validation_error = pollster::block_on(validation.pop());
+        if let Some(e) = validation_error.or(memory_error) {
+            return Err(GpuError::Execution(e.to_string()));
+        }
+        result
+    }
+
+    fn batch_inner<L: Layout>(
+        &self,
+        instances: &[Instance],
+        progress: &mut dyn FnMut(u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let device = self.device;
+        let queue = self.queue;
+        let n = instances.len();
+        let params: Vec<L::Params> = instances
+            .iter()
+            .map(|inst| L::pack(inst, self.settings))
+            .collect();
+        let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("params"),
+            contents: bytemuck::cast_slice(&params),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let state_bytes = (n * size_of::<L::State>()) as u64;
+        let states = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("states"),
+            size: state_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let states_read = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("states readback"),
+            size: state_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let counter = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("unfinished"),
+            size: 4,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let counter_read = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("unfinished readback"),
+            size: 4,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        // Two controls: the first dispatch initialises the states.
+        let control = |initialize: u32| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("control"),
+                contents: bytemuck::bytes_of(&Control {
+                    max_iterations: self.options.slice_iterations,
+                    initialize,
+                    one: 1.0,
+                    probe: self.options.probe_passes.max(layout::PROBE_PASSES),
+                    probe_min: self.options.probe_passes.max(layout::PROBE_PASSES),
+                    zero: 0,
+                }),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let controls = [control(1), control(0)];
+        let layout = self.pipeline.get_bind_group_layout(0);
+        let bind_groups: Vec<wgpu::BindGroup> = controls
+            .iter()
+            .map(|c| {
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("integrate"),
+                    layout: &layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: params_buffer.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: states.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: c.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: counter.as_entire_binding(),
+                        },
+                    ],
+                })
+            })
+            .collect();
+        let (gx, gy) = dispatch_size(n, self.limits.max_compute_workgroups_per_dimension);
+        let max_slices = slice_bound(instances, self.settings);
+        let mut slice: u64 = 0;
+        loop {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            encoder.clear_buffer(&counter, 0, None);
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(self.pipeline);
+                pass.set_bind_group(0, &bind_groups[usize::from(slice > 0)], &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            encoder.copy_buffer_to_buffer(&counter, 0, &counter_read, 0, 4);
+            queue.submit([encoder.finish()]);
+            let bytes = read_buffer(device, &counter_read)?;
+            let unfinished = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]);
+            slice += 1;
+            progress(n as u64 - unfinished as u64);
+            if unfinished == 0 {
+                break;
+            }
+            if slice >= max_slices {
+                return Err(GpuError::Stalled {
+                    unfinished,
+                    slices: slice,
+                });
+            }
+        }
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
+        queue.submit([encoder.finish()]);
+        let bytes = read_buffer(device, &states_read)?;
+        let finals: &[L::State] = bytemuck::cast_slice(&bytes);
+        Ok(instances
+            .iter()
+            .zip(finals)
+            .map(|(inst, st)| L::unpack(inst, st))
+            .collect())
+    }
+}
+
+/// An upper bound on the slices a batch can need. Every iteration of
+/// `advance` either takes a counted step (bounded by the step budget) or
+/// passes drive corners and period ends (bounded by the drive cycles), and
+/// every slice completes at least one iteration of every unfinished
+/// instance (the loop-limiter rollback may leave it at one) or finishes it
+/// with [`STATUS_LOOP_LIMIT`].
+fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
+    let mut most: u64 = 0;
+    for inst in instances {
+        let budget = settings.max_steps_per_period as u64 * inst.cycles as u64;
+        let mut boundaries = inst.cycles as u64 + 1;
+        for axis in &inst.axes {
+            let cycles = (axis.frequency * inst.period() * inst.cycles as f64).ceil();
+            boundaries += 2 * (cycles.max(0.0) as u64 + 1);
+        }
+        most = most.max(budget + boundaries + 2);
+    }
+    most + 2
+}
+
+/// Copies a mappable buffer's contents to the host.
+fn read_buffer(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| GpuError::BufferMapping(e.to_string()))?
+        .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
+    let data = slice
+        .get_mapped_range()
+        .map_err(|e| GpuError::BufferMapping(e.to_string()))?
+        .to_vec();
+    buffer.unmap();
+    Ok(data)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dispatch_covers_every_instance_within_the_limit() {
+        let wg = WORKGROUP_SIZE as usize;
+        let cases = [
+            (1, 65535),
+            (wg, 65535),
+            (wg + 1, 65535),
+            (9 * wg, 3),
+            (9 * wg - 1, 3),
+            (49 * wg, 7),
+        ];
+        for (n, max) in cases {
+            let (x, y) = dispatch_size(n, max);
+            assert!(
+                x <= max && y <= max,
+                "{n} instances, limit {max}: {x} x {y}"
+            );
+            assert!((x as usize) * (y as usize) * WORKGROUP_SIZE as usize >= n);
+        }
+    }
+
+    #[test]
+    fn batches_respect_binding_limits() {
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: 1000,
+            ..wgpu::Limits::default()
+        };
+        assert_eq!(
+            max_batch_instances(&limits, 100, 200, &BatchOptions::default()),
+            5
+        );
+        let small = BatchOptions {
+            max_batch: Some(3),
+            ..BatchOptions::default()
+        };
+        assert_eq!(max_batch_instances(&limits, 100, 200, &small), 3);
+    }
+}
