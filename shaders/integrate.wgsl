@@ -52,6 +52,7 @@ const EVENT_STEP_PERIODS: Real = Real(0.25);
 const COLLOCATION_ITERATIONS: u32 = 4u;
 const COLLOCATION_CONVERGED: Real = Real(1e-2);
 const TAYLOR_STAGE_TERMS: u32 = 21u;
+const SLIP_DIRECTION_ITERATIONS: u32 = 40u;
 const ROOT_ITERATIONS: u32 = 80u;
 const MAX_STALLED_EVENTS: u32 = 64u;
 const MAX_REJECTIONS: u32 = 60u;
@@ -141,8 +142,9 @@ struct Control {
     zero: u32,
 }
 
+// exp(A tau) = (1 + a0m1) I + a1 A; see `Propagator` in integrate.rs.
 struct Propagator {
-    a0: Real,
+    a0m1: Real,
     a1: Real,
 }
 
@@ -470,7 +472,7 @@ fn pass_boundaries(inst: Instance, st: ptr<function, State>, period: Real) {
         let need = stick_force(inst, *st);
         let fs = inst.mechanism.static_friction;
         if norm2(need) > fs * fs {
-            start_slip(st, need);
+            start_slip(inst, st, need);
         }
     }
 }
@@ -486,7 +488,7 @@ fn propagator(sigma: Real, w2: Real, tau: Real) -> Propagator {
     }
     var p = Real(1.0);
     var q = Real(0.0);
-    var a0 = Real(1.0);
+    var a0m1 = Real(0.0);
     var a1 = Real(0.0);
     for (var n = 1u; n <= TAYLOR_TERMS; n++) {
         let f = t / Real(n);
@@ -494,10 +496,10 @@ fn propagator(sigma: Real, w2: Real, tau: Real) -> Propagator {
         let next_q = (p - Real(2.0) * sigma * q) * f;
         p = next_p;
         q = next_q;
-        a0 += p;
+        a0m1 += p;
         a1 += q;
     }
-    var prop = Propagator(a0, a1);
+    var prop = Propagator(a0m1, a1);
     for (var k = 0u; k < squarings; k++) {
         prop = compose(sigma, w2, prop, prop);
     }
@@ -507,8 +509,8 @@ fn propagator(sigma: Real, w2: Real, tau: Real) -> Propagator {
 fn compose(sigma: Real, w2: Real, a: Propagator, b: Propagator) -> Propagator {
     let ab = a.a1 * b.a1;
     return Propagator(
-        a.a0 * b.a0 - w2 * ab,
-        a.a0 * b.a1 + a.a1 * b.a0 - Real(2.0) * sigma * ab,
+        a.a0m1 + b.a0m1 + a.a0m1 * b.a0m1 - w2 * ab,
+        a.a1 + b.a1 + a.a0m1 * b.a1 + a.a1 * b.a0m1 - Real(2.0) * sigma * ab,
     );
 }
 
@@ -560,12 +562,14 @@ fn eval_stage(f: AxisFlow, prop: Propagator, tau: Real) -> array<Real, 4> {
         return eval_stage_taylor(f, tau);
     }
     let o = f.osc;
-    let y = prop.a0 * f.y0 + prop.a1 * f.w0;
-    let w = prop.a0 * f.w0 + prop.a1 * (-o.w2 * f.y0 - Real(2.0) * o.sigma * f.w0);
+    let dy = prop.a0m1 * f.y0 + prop.a1 * f.w0;
+    let dw = prop.a0m1 * f.w0 + prop.a1 * (-o.w2 * f.y0 - Real(2.0) * o.sigma * f.w0);
+    let y = f.y0 + dy;
+    let w = f.w0 + dw;
     let a_h = -o.w2 * y - Real(2.0) * o.sigma * w;
     let j_h = -o.w2 * w - Real(2.0) * o.sigma * a_h;
-    let x = f.part[0] + (f.part[1] + f.part[2] * tau) * tau + y;
-    let v = f.part[1] + Real(2.0) * f.part[2] * tau + w;
+    let x = f.x_p + (f.part[1] + f.part[2] * tau) * tau + dy;
+    let v = f.v_p + Real(2.0) * f.part[2] * tau + dw;
     let a = Real(2.0) * f.part[2] + a_h;
     return array<Real, 4>(x, v, a, j_h);
 }
@@ -647,7 +651,7 @@ fn eval_at(flow: Flow, tau: Real) -> Sample {
 }
 
 fn identity_propagators() -> array<Propagator, AXES> {
-    return array<Propagator, AXES>(Propagator(Real(1.0), Real(0.0)), Propagator(Real(1.0), Real(0.0)));
+    return array<Propagator, AXES>(Propagator(Real(0.0), Real(0.0)), Propagator(Real(0.0), Real(0.0)));
 }
 
 fn sample_propagators(flow: Flow, h: Real) -> array<array<Propagator, AXES>, 5> {
@@ -768,28 +772,76 @@ fn stick_force(inst: Instance, st: State) -> array<Real, AXES> {
     return need;
 }
 
-fn start_slip(st: ptr<function, State>, need: array<Real, AXES>) {
-    let n = sqrt(norm2(need));
+fn slip_direction(inst: Instance, need: array<Real, AXES>) -> array<Real, AXES> {
+    let ms = inst.mechanism.slider_mass;
+    let fc = inst.mechanism.coulomb_friction;
+    var a: array<Real, AXES>;
+    var b: array<Real, AXES>;
+    var b_max = Real(0.0);
     for (var i = 0u; i < AXES; i++) {
-        (*st).held[i] = need[i] / n;
+        let mp = inst.axes[i].stage_mass;
+        let scale = (mp + ms) / (mp * ms);
+        a[i] = need[i] * scale;
+        b[i] = fc * scale;
+        b_max = max(b_max, b[i]);
     }
+    var lambda = max(sqrt(norm2(a)) - b_max, Real(0.0));
+    for (var it = 0u; it < SLIP_DIRECTION_ITERATIONS; it++) {
+        var g = Real(-1.0);
+        var dg = Real(0.0);
+        for (var i = 0u; i < AXES; i++) {
+            let d = lambda + b[i];
+            let q = a[i] * a[i] / (d * d);
+            g += q;
+            dg -= Real(2.0) * q / d;
+        }
+        // Stops at the root, and on NaN (no comparison holds).
+        if !(g > Real(0.0)) || dg == Real(0.0) {
+            break;
+        }
+        let next = lambda - g / dg;
+        if !(next > lambda) {
+            break;
+        }
+        lambda = next;
+    }
+    var u: array<Real, AXES>;
+    for (var i = 0u; i < AXES; i++) {
+        u[i] = a[i] / (lambda + b[i]);
+    }
+    let n = sqrt(norm2(u));
+    if n > Real(0.0) && is_finite(n) {
+        for (var i = 0u; i < AXES; i++) {
+            u[i] /= n;
+        }
+    } else {
+        let m = sqrt(norm2(need));
+        for (var i = 0u; i < AXES; i++) {
+            u[i] = need[i] / m;
+        }
+    }
+    return u;
+}
+
+fn start_slip(inst: Instance, st: ptr<function, State>, need: array<Real, AXES>) {
+    (*st).held = slip_direction(inst, need);
     (*st).mode = MODE_BAND;
 }
 
 fn try_stick(inst: Instance, st: ptr<function, State>) {
     let need = stick_force(inst, *st);
     let fs = inst.mechanism.static_friction;
+    let ms = inst.mechanism.slider_mass;
+    for (var i = 0u; i < AXES; i++) {
+        let mp = inst.axes[i].stage_mass;
+        let v = (mp * (*st).v_p[i] + ms * (*st).v_s[i]) / (mp + ms);
+        (*st).v_p[i] = v;
+        (*st).v_s[i] = v;
+    }
     if norm2(need) <= fs * fs {
-        let ms = inst.mechanism.slider_mass;
-        for (var i = 0u; i < AXES; i++) {
-            let mp = inst.axes[i].stage_mass;
-            let v = (mp * (*st).v_p[i] + ms * (*st).v_s[i]) / (mp + ms);
-            (*st).v_p[i] = v;
-            (*st).v_s[i] = v;
-        }
         (*st).mode = MODE_STICK;
     } else {
-        start_slip(st, need);
+        start_slip(inst, st, need);
     }
 }
 
@@ -855,11 +907,15 @@ fn find_crossing(
     h: Real,
 ) -> Crossing {
     var prev = event_value(inst, st, kind, sign, samples[0]);
+    if prev[0] < Real(0.0) {
+        return Crossing(true, Real(0.0), Real(0.0));
+    }
     for (var j = 0u; j < 4u; j++) {
         let next = event_value(inst, st, kind, sign, samples[j + 1u]);
         let lo = theta(j) * h;
         let hi = theta(j + 1u) * h;
-        if prev[0] > Real(0.0) && next[0] <= Real(0.0) {
+        let armed = prev[0] > Real(0.0) || (j == 0u && prev[0] == Real(0.0));
+        if armed && next[0] <= Real(0.0) && (prev[0] > Real(0.0) || next[0] < Real(0.0)) {
             return Crossing(true, lo, hi);
         }
         if prev[0] > Real(0.0) && next[0] > Real(0.0) && prev[1] < Real(0.0) && next[1] > Real(0.0) {
@@ -1005,7 +1061,7 @@ fn step_stick(inst: Instance, st: ptr<function, State>, h_max: Real, stop: Real)
             let s = eval_at(flow, tau);
             move_to(st, s, tau, h_max, stop);
             let need = stick_force(inst, *st);
-            start_slip(st, need);
+            start_slip(inst, st, need);
             return;
         }
     }

@@ -31,12 +31,77 @@ pub const STATUS_MEANINGS: [&str; 5] = [
 /// Table 1 as printed (stiffer or lighter-damped stages cost more).
 pub const NOMINAL_SIMULATED_PER_CORE: f64 = 300.0;
 
+/// Which integrator runs a scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum BackendChoice {
+    /// A hardware GPU adapter when there is one, else the CPU path.
+    #[default]
+    Auto,
+    /// The WGSL shader on any adapter, software ones (lavapipe) included.
+    Gpu,
+    /// The rayon CPU path in f64.
+    Cpu,
+}
+
+/// Floating-point precision of the GPU path.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PrecisionChoice {
+    F32,
+    F64,
+}
+
+impl PrecisionChoice {
+    fn gpu(self) -> crate::gpu::Precision {
+        match self {
+            PrecisionChoice::F32 => crate::gpu::Precision::F32,
+            PrecisionChoice::F64 => crate::gpu::Precision::F64,
+        }
+    }
+}
+
+/// Picks the backend and says which in one line on stderr.
+pub fn select_backend(
+    choice: BackendChoice,
+    precision: Option<PrecisionChoice>,
+    threads: Option<usize>,
+) -> Result<Box<dyn Backend>> {
+    use crate::gpu::{GpuBackend, GpuContext};
+    let gpu_precision = precision.unwrap_or(PrecisionChoice::F32).gpu();
+    let backend: Box<dyn Backend> = match choice {
+        BackendChoice::Cpu => {
+            if precision == Some(PrecisionChoice::F32) {
+                bail!("--precision f32: the CPU path runs in f64 only");
+            }
+            Box::new(CpuBackend::new(threads)?)
+        }
+        BackendChoice::Gpu => {
+            let ctx = GpuContext::new(true).context("--backend gpu")?;
+            Box::new(GpuBackend::new(ctx, gpu_precision)?)
+        }
+        BackendChoice::Auto => match GpuContext::new(false) {
+            Ok(ctx) => Box::new(GpuBackend::new(ctx, gpu_precision)?),
+            Err(err) => {
+                eprintln!("pidm: no hardware GPU adapter, using the CPU path ({err})");
+                Box::new(CpuBackend::new(threads)?)
+            }
+        },
+    };
+    eprintln!(
+        "pidm: backend {} ({})",
+        backend.describe(),
+        backend.precision()
+    );
+    Ok(backend)
+}
+
 /// Options of `pidm run`.
 #[derive(Clone, Debug, Default)]
 pub struct RunOptions {
     pub scene: PathBuf,
     pub out: Option<PathBuf>,
     pub threads: Option<usize>,
+    pub backend: BackendChoice,
+    pub precision: Option<PrecisionChoice>,
     /// Print the per-instance table for scenes up to this many instances.
     pub table_limit: u64,
 }
@@ -164,7 +229,8 @@ pub fn default_output(scene: &Scene) -> PathBuf {
 /// that did not finish normally.
 pub fn run(opts: &RunOptions) -> Result<u64> {
     let scene = Scene::load(&opts.scene)?;
-    let backend = CpuBackend::new(opts.threads)?;
+    let backend = select_backend(opts.backend, opts.precision, opts.threads)?;
+    let backend = backend.as_ref();
     let out = opts.out.clone().unwrap_or_else(|| default_output(&scene));
     eprintln!(
         "pidm: scene {:?}: {} instances{} on {}, {}, tolerance {:e} rad",
@@ -179,7 +245,7 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         backend.precision(),
         scene.settings.tolerance
     );
-    let result = run_scene(&scene, &backend, &out, opts.table_limit)?;
+    let result = run_scene(&scene, backend, &out, opts.table_limit)?;
     print_summary(&scene, &result);
     Ok(result.summary.instances - result.summary.status_counts[STATUS_OK as usize])
 }
@@ -237,6 +303,50 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             println!("  {}", r.status.max(r.baseline_status));
         }
     }
+}
+
+/// `pidm info`: every GPU adapter wgpu finds, with type, backend, limits
+/// and f64 support, and which one `--backend auto` and `gpu` would take.
+pub fn info() -> Result<()> {
+    let adapters = crate::gpu::list_adapters();
+    println!(
+        "WGPU_BACKEND={}",
+        std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "(unset: all)".into())
+    );
+    if adapters.is_empty() {
+        println!("no GPU adapters found");
+    }
+    for a in &adapters {
+        println!(
+            "- {} ({}, {}): f64 {}, max storage binding {} MiB, max buffer {} MiB, \
+             max workgroups per dimension {}",
+            a.name,
+            a.device_type,
+            a.backend,
+            if a.f64 { "yes" } else { "no" },
+            a.max_storage_buffer_binding_size >> 20,
+            a.max_buffer_size >> 20,
+            a.max_compute_workgroups_per_dimension
+        );
+    }
+    for (label, software) in [("--backend auto", false), ("--backend gpu", true)] {
+        match crate::gpu::GpuContext::new(software) {
+            Ok(ctx) => println!("{label}: {}", ctx.describe()),
+            Err(err) => println!(
+                "{label}: {}",
+                if software {
+                    format!("fails: {err}")
+                } else {
+                    format!("the CPU path ({err})")
+                }
+            ),
+        }
+    }
+    println!(
+        "cpu: {} threads",
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
+    Ok(())
 }
 
 /// `pidm check`: validates and describes a scene without running it.
@@ -486,12 +596,33 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
         simulated,
         scene.settings.tolerance
     );
-    for threads in [Some(1), None] {
-        let backend = CpuBackend::new(threads)?;
+    let mut backends: Vec<Box<dyn Backend>> = vec![
+        Box::new(CpuBackend::new(Some(1))?),
+        Box::new(CpuBackend::new(None)?),
+    ];
+    match crate::gpu::GpuContext::new(true) {
+        Ok(ctx) => {
+            let f64_ok = ctx.supports_f64();
+            backends.push(Box::new(crate::gpu::GpuBackend::new(
+                ctx,
+                crate::gpu::Precision::F32,
+            )?));
+            if f64_ok {
+                let ctx = crate::gpu::GpuContext::new(true)?;
+                backends.push(Box::new(crate::gpu::GpuBackend::new(
+                    ctx,
+                    crate::gpu::Precision::F64,
+                )?));
+            }
+        }
+        Err(err) => println!("  gpu: not measured ({err})"),
+    }
+    for backend in &backends {
         let mut passes = 0;
-        let started = Instant::now();
-        // One warm-up pass, then passes until the time budget is used.
+        // One warm-up pass (pipeline compilation on the GPU), then passes
+        // until the time budget is used.
         backend.run(&instances, &scene.settings, &|_| {})?;
+        let started = Instant::now();
         while started.elapsed().as_secs_f64() < min_seconds || passes == 0 {
             let out = backend.run(&instances, &scene.settings, &|_| {})?;
             if out.iter().any(|o| o.status != STATUS_OK) {
@@ -500,13 +631,23 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
             passes += 1;
         }
         let wall = started.elapsed().as_secs_f64();
-        let n = backend.threads();
         let rate = passes as f64 * simulated / wall;
+        let per_core = match backend.describe().starts_with("cpu") {
+            true => {
+                let n = if backend.describe().contains("(rayon, 1 threads)") {
+                    1
+                } else {
+                    std::thread::available_parallelism().map_or(1, |n| n.get())
+                };
+                format!(" ({:.1} per core)", rate / n as f64)
+            }
+            false => String::new(),
+        };
         println!(
-            "  {}: {:.1} simulated s per wall s ({:.1} per core), {:.0} integrations per s, {passes} passes in {wall:.2} s",
+            "  {} {}: {:.1} simulated s per wall s{per_core}, {:.1} instances per s, {passes} passes in {wall:.2} s",
             backend.describe(),
+            backend.precision(),
             rate,
-            rate / n as f64,
             passes as f64 * instances.len() as f64 / wall
         );
     }

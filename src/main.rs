@@ -26,10 +26,19 @@ enum Command {
         /// Output file [default: results/<scene name>.h5].
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Worker threads [default: every core].
+        /// Worker threads of the CPU path [default: every core].
         #[arg(long)]
         threads: Option<usize>,
+        /// auto: a hardware GPU when there is one, else the CPU; gpu: any
+        /// adapter (lavapipe included), failing when there is none; cpu.
+        #[arg(long, value_enum, default_value_t = commands::BackendChoice::Auto)]
+        backend: commands::BackendChoice,
+        /// Precision of the GPU path [default: f32]; the CPU path is f64.
+        #[arg(long, value_enum)]
+        precision: Option<commands::PrecisionChoice>,
     },
+    /// Lists GPU adapters: type, backend, limits, f64 support.
+    Info,
     /// Validates a scene and prints its grid, instance count and cost
     /// estimate without running it.
     Check {
@@ -86,11 +95,15 @@ fn run(cli: Cli) -> Result<ExitCode> {
             scene,
             out,
             threads,
+            backend,
+            precision,
         } => {
             let failed = commands::run(&commands::RunOptions {
                 scene,
                 out,
                 threads,
+                backend,
+                precision,
                 table_limit: 64,
             })?;
             if failed > 0 {
@@ -102,6 +115,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             }
         }
         Command::Check { scene } => commands::check(&scene)?,
+        Command::Info => commands::info()?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Accuracy {
             scenes,

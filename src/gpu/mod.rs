@@ -17,8 +17,11 @@
 //!   shader computes in micrometres and milliseconds and keeps the time as
 //!   a two-part number (see [`layout::Units`] and `shaders/integrate.wgsl`).
 
+pub mod backend;
 pub mod layout;
 pub mod shader;
+
+pub use backend::GpuBackend;
 
 use std::sync::Mutex;
 

@@ -1,0 +1,83 @@
+//! The GPU path as a [`Backend`] of the sweep driver.
+
+use anyhow::{Result, bail};
+
+use super::{GpuContext, Precision, run_batch};
+use crate::cpu::integrate::Settings;
+use crate::model::Instance;
+use crate::sweep::{Backend, Outcome};
+
+/// Instances per sweep chunk on the GPU: large enough to fill a desktop GPU,
+/// small enough to checkpoint and report progress often.
+const GPU_CHUNK: usize = 1 << 18;
+
+/// The WGSL shader on one adapter at one precision.
+pub struct GpuBackend {
+    ctx: GpuContext,
+    precision: Precision,
+}
+
+impl GpuBackend {
+    /// Fails with a clear message when f64 is asked of an adapter without
+    /// `SHADER_F64`.
+    pub fn new(ctx: GpuContext, precision: Precision) -> Result<GpuBackend> {
+        if precision == Precision::F64 && !ctx.supports_f64() {
+            bail!(
+                "--precision f64: adapter {} does not support 64-bit floats in shaders \
+                 (SHADER_F64); use --precision f32 or --backend cpu",
+                ctx.describe()
+            );
+        }
+        Ok(GpuBackend { ctx, precision })
+    }
+
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+}
+
+impl Backend for GpuBackend {
+    fn describe(&self) -> String {
+        format!("gpu: {}", self.ctx.describe())
+    }
+
+    fn precision(&self) -> &'static str {
+        match self.precision {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        }
+    }
+
+    fn chunk_size(&self) -> usize {
+        GPU_CHUNK
+    }
+
+    fn run(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        done: &(dyn Fn(u64) + Sync),
+    ) -> Result<Vec<Outcome>> {
+        let mut reported = 0;
+        let outcomes = run_batch(
+            &self.ctx,
+            instances,
+            settings,
+            self.precision,
+            &mut |finished, _total| {
+                if finished > reported {
+                    done(finished - reported);
+                    reported = finished;
+                }
+            },
+        )?;
+        Ok(outcomes
+            .into_iter()
+            .map(|o| Outcome {
+                displacement: o.displacement,
+                status: o.status,
+                steps: o.steps,
+            })
+            .collect())
+    }
+}
