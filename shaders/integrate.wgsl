@@ -21,8 +21,13 @@
 //   units of EPSILON times the speeds involved; zero in f64.
 // * `WORKGROUP_SIZE`: from `pidm::gpu::WORKGROUP_SIZE`.
 //
+// The code is unit-agnostic: the f64 host packs SI units, the f32 host
+// micrometres and milliseconds (`src/gpu/layout.rs`).
+//
 // WGSL has no enums, options, tuples or early returns of several values:
-// those become small structs with flags. Every loop is bounded.
+// those become small structs with flags. Every loop is bounded. Beyond the
+// port, `advance` checks after every iteration whether the driver's loop
+// limiter cut it short (`loop_limiter_intact`) and then undoes it.
 
 const AXES: u32 = 2u;
 
@@ -209,8 +214,8 @@ struct Trial {
 
 @group(0) @binding(0) var<storage, read> params: array<Params>;
 @group(0) @binding(1) var<storage, read_write> states: array<State>;
-// The controls live in a storage buffer, not a uniform: Mesa inlines the
-// values of uniforms that steer loops into the compiled shader, which
+// The controls live in a storage buffer, not a uniform: drivers may
+// specialise a shader on the values of uniforms that steer its loops, which
 // would unroll the loop-limiter probe and fold the opaque 1.0 away.
 @group(0) @binding(2) var<storage, read> control: Control;
 @group(0) @binding(3) var<storage, read_write> unfinished: atomic<u32>;

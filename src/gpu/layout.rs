@@ -99,7 +99,7 @@ pub mod control {
             /// keeps the compensated time sum exact.
             pub one: f32,
             /// Passes of the shader's loop-limiter probe, hidden from the
-            /// shader compiler ([`PROBE_PASSES`] but in tests).
+            /// shader compiler ([`super::PROBE_PASSES`] but in tests).
             pub probe: u32,
             /// Passes the probe must complete for the iteration to stand;
             /// equal to `probe`.

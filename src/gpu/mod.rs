@@ -7,12 +7,21 @@
 //!   may pass their own.
 //! * A batch is integrated in time slices: every dispatch advances every
 //!   instance by at most [`BatchOptions::slice_iterations`] iterations of
-//!   `advance` and counts the instances still unfinished, and the host
-//!   dispatches again until none is. Drivers stop long dispatches (lavapipe
-//!   even stops every shader loop after 65,535 iterations), so no dispatch
-//!   may run an instance to its end.
+//!   `advance`, the states stay in a storage buffer between dispatches, an
+//!   atomic counts the instances still unfinished, and the host dispatches
+//!   again until none is. No dispatch has to run an instance to its end,
+//!   which desktop watchdogs would not allow.
+//! * llvmpipe (lavapipe, and Mesa's GL on the CPU) ends every loop of an
+//!   invocation once all its loops together have run 65,535 iterations,
+//!   silently. The shader checks after each iteration of `advance` whether
+//!   that happened; if so it undoes the iteration and ends the slice, and
+//!   the next dispatch redoes it with a fresh budget. An iteration that
+//!   cannot fit in one budget ends with [`STATUS_LOOP_LIMIT`], and the host
+//!   integrates that instance on the CPU. Results do not depend on the slice
+//!   length.
 //! * Batches larger than the device's storage-binding, buffer or dispatch
-//!   limits are split automatically.
+//!   limits are split automatically (and dispatched in two dimensions when
+//!   one is not enough).
 //! * f32 runs everywhere; f64 where the adapter offers `SHADER_F64`. The f32
 //!   shader computes in micrometres and milliseconds and keeps the time as
 //!   a two-part number (see [`layout::Units`] and `shaders/integrate.wgsl`).
@@ -33,11 +42,13 @@ use crate::model::Instance;
 use layout::HostLayout;
 use layout::control::Control;
 
-/// Invocations per workgroup; the shader reads it from its prelude.
+/// Invocations per workgroup; the shader reads it from its prelude. A warp
+/// on NVIDIA, and small enough that lavapipe spreads a batch of 64 over two
+/// CPU threads.
 pub const WORKGROUP_SIZE: u32 = 32;
 
-/// Iterations of `advance` per instance and dispatch: far below lavapipe's
-/// 65,535-iteration loop limit and short enough for desktop watchdogs.
+/// Iterations of `advance` per instance and dispatch: a dispatch then takes
+/// milliseconds on a GPU, far from any watchdog.
 pub const SLICE_ITERATIONS: u32 = 1024;
 
 /// Status the shader gives an instance when a single iteration of `advance`
@@ -107,7 +118,7 @@ pub struct AdapterSummary {
 /// The result of one instance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GpuOutcome {
-    /// Slider displacement over the measured periods [m], zero unless
+    /// Slider displacement over the measured periods, in metres; zero unless
     /// `status` is `STATUS_OK` (as [`crate::cpu::integrate::displacement`]).
     pub displacement: [f64; 2],
     /// One of the `STATUS_*` constants of [`crate::cpu::integrate`].
@@ -708,11 +719,13 @@ impl Runner<'_> {
         encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
         queue.submit([encoder.finish()]);
         let bytes = read_buffer(device, &states_read)?;
-        let finals: &[L::State] = bytemuck::cast_slice(&bytes);
+        let finals = bytes
+            .chunks_exact(size_of::<L::State>())
+            .map(bytemuck::pod_read_unaligned::<L::State>);
         Ok(instances
             .iter()
             .zip(finals)
-            .map(|(inst, st)| L::unpack(inst, st))
+            .map(|(inst, st)| L::unpack(inst, &st))
             .collect())
     }
 }

@@ -2,7 +2,7 @@
 //!
 //! `shaders/integrate.wgsl` is written against a `Real` type and a handful
 //! of constants; the prelude defines them for one precision. The prelude is
-//! the one place the shader learns [`WORKGROUP_SIZE`](super::WORKGROUP_SIZE).
+//! the one place the shader learns [`WORKGROUP_SIZE`].
 
 use super::{GpuError, Precision, WORKGROUP_SIZE};
 
