@@ -20,6 +20,11 @@
 // * `NOISE`: rounding noise allowed for in the friction-direction error, in
 //   units of EPSILON times the speeds involved; zero in f64.
 // * `WORKGROUP_SIZE`: from `pidm::gpu::WORKGROUP_SIZE`.
+// * `ACTIVE_AXES`: 2, or 1 for the 1-DOF specialisation that the host picks
+//   when axis y is undriven in every instance of a batch. Every per-axis
+//   loop runs over the active axes only; an inactive axis keeps its
+//   zero-initialised state, which is exactly what an undriven axis does in
+//   the 2-DOF integrator (MODEL.md: y stays exactly 0).
 //
 // The code is unit-agnostic: the f64 host packs SI units, the f32 host
 // micrometres and milliseconds (`src/gpu/layout.rs`).
@@ -283,7 +288,7 @@ fn time_reached(st: State, t: Real) -> bool {
 
 fn initial_state(inst: Instance) -> State {
     var st: State;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         st.x_p[i] = Real(0.0);
         st.v_p[i] = Real(0.0);
         st.x_s[i] = Real(0.0);
@@ -303,7 +308,7 @@ fn initial_state(inst: Instance) -> State {
     st.steps = 0u;
     st.stalled = 0u;
     st._pad = 0u;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let axis = inst.axes[i];
         let p = frac(axis.phase);
         st.cycle_phase[i] = p;
@@ -336,7 +341,7 @@ fn advance(inst: Instance, settings: Settings, st: ptr<function, State>, max_ite
             (*st).settle_x_s = (*st).x_s;
         }
         var stop = period;
-        for (var i = 0u; i < AXES; i++) {
+        for (var i = 0u; i < ACTIVE_AXES; i++) {
             stop = min(stop, corner_time(inst, *st, i));
         }
         // The Rust `continue` after passing the boundaries becomes an else
@@ -443,7 +448,7 @@ fn drive_force(inst: Instance, st: State, i: u32) -> array<Real, 2> {
 }
 
 fn pass_boundaries(inst: Instance, st: ptr<function, State>, period: Real) {
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         if time_reached(*st, corner_time(inst, *st, i)) {
             let duty = inst.axes[i].duty;
             if duty >= Real(1.0) {
@@ -461,7 +466,7 @@ fn pass_boundaries(inst: Instance, st: ptr<function, State>, period: Real) {
         (*st).period += 1u;
         (*st).time = Real(0.0);
         (*st).time_lo = Real(0.0);
-        for (var i = 0u; i < AXES; i++) {
+        for (var i = 0u; i < ACTIVE_AXES; i++) {
             let axis = inst.axes[i];
             let end_phase = (*st).cycle_phase[i] + axis.frequency * period;
             let start_phase = frac(axis.phase + Real((*st).period) * inst.cycles_per_period[i]);
@@ -534,7 +539,7 @@ fn axis_oscillator(inst: Instance, i: u32, stuck: bool) -> Oscillator {
 
 fn event_step(inst: Instance, stuck: bool) -> Real {
     var rate = Real(0.0);
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let osc = axis_oscillator(inst, i, stuck);
         rate = max(rate, sqrt(osc.w2) + Real(2.0) * osc.sigma);
     }
@@ -618,7 +623,7 @@ fn eval_stage_taylor(f: AxisFlow, tau: Real) -> array<Real, 4> {
 
 fn eval_flow(flow: Flow, props: array<Propagator, AXES>, tau: Real) -> Sample {
     var s: Sample;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let f = flow.axes[i];
         let e = eval_stage(f, props[i], tau);
         let x = e[0];
@@ -648,7 +653,7 @@ fn eval_flow(flow: Flow, props: array<Propagator, AXES>, tau: Real) -> Sample {
 
 fn eval_at(flow: Flow, tau: Real) -> Sample {
     var props: array<Propagator, AXES>;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let o = flow.axes[i].osc;
         props[i] = propagator(o.sigma, o.w2, tau);
     }
@@ -664,7 +669,7 @@ fn sample_propagators(flow: Flow, h: Real) -> array<array<Propagator, AXES>, 5> 
     for (var j = 0u; j < 5u; j++) {
         out[j] = identity_propagators();
     }
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let o = flow.axes[i].osc;
         let quarter = propagator(o.sigma, o.w2, Real(0.25) * h);
         let half = compose(o.sigma, o.w2, quarter, quarter);
@@ -680,7 +685,7 @@ fn stick_flow(inst: Instance, st: State, force: array<array<Real, 2>, AXES>) -> 
     var flow: Flow;
     flow.stuck = true;
     flow.h = Real(1.0);
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let osc = axis_oscillator(inst, i, true);
         flow.axes[i] = axis_flow(
             osc,
@@ -706,7 +711,7 @@ fn slip_flow(
     flow.h = h;
     let fc = inst.mechanism.coulomb_friction;
     let ms = inst.mechanism.slider_mass;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let osc = axis_oscillator(inst, i, false);
         let g = array<Real, 3>(
             force[i][0] - fc * b[i][0],
@@ -724,7 +729,7 @@ fn slip_flow(
 
 fn current_force(inst: Instance, st: State) -> array<array<Real, 2>, AXES> {
     var force: array<array<Real, 2>, AXES>;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         force[i] = drive_force(inst, st, i);
     }
     return force;
@@ -732,7 +737,7 @@ fn current_force(inst: Instance, st: State) -> array<array<Real, 2>, AXES> {
 
 fn norm2(v: array<Real, AXES>) -> Real {
     var s = Real(0.0);
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         s += v[i] * v[i];
     }
     return s;
@@ -741,7 +746,7 @@ fn norm2(v: array<Real, AXES>) -> Real {
 // `dot` of the Rust file (WGSL's own `dot` takes vectors, not arrays).
 fn dot_axes(a: array<Real, AXES>, b: array<Real, AXES>) -> Real {
     var s = Real(0.0);
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         s += a[i] * b[i];
     }
     return s;
@@ -749,7 +754,7 @@ fn dot_axes(a: array<Real, AXES>, b: array<Real, AXES>) -> Real {
 
 fn relative_velocity(s: Sample) -> array<Real, AXES> {
     var v: array<Real, AXES>;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         v[i] = s.v_p[i] - s.v_s[i];
     }
     return v;
@@ -757,7 +762,7 @@ fn relative_velocity(s: Sample) -> array<Real, AXES> {
 
 fn relative_acceleration(s: Sample) -> array<Real, AXES> {
     var a: array<Real, AXES>;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         a[i] = s.a_p[i] - s.a_s[i];
     }
     return a;
@@ -766,7 +771,7 @@ fn relative_acceleration(s: Sample) -> array<Real, AXES> {
 fn stick_force(inst: Instance, st: State) -> array<Real, AXES> {
     let ms = inst.mechanism.slider_mass;
     var need: array<Real, AXES>;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let axis = inst.axes[i];
         let force = drive_force(inst, st, i)[0];
         let mp = axis.stage_mass;
@@ -783,7 +788,7 @@ fn slip_direction(inst: Instance, need: array<Real, AXES>) -> array<Real, AXES> 
     var a: array<Real, AXES>;
     var b: array<Real, AXES>;
     var b_max = Real(0.0);
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let mp = inst.axes[i].stage_mass;
         let scale = (mp + ms) / (mp * ms);
         a[i] = need[i] * scale;
@@ -794,7 +799,7 @@ fn slip_direction(inst: Instance, need: array<Real, AXES>) -> array<Real, AXES> 
     for (var it = 0u; it < SLIP_DIRECTION_ITERATIONS; it++) {
         var g = Real(-1.0);
         var dg = Real(0.0);
-        for (var i = 0u; i < AXES; i++) {
+        for (var i = 0u; i < ACTIVE_AXES; i++) {
             let d = lambda + b[i];
             let q = a[i] * a[i] / (d * d);
             g += q;
@@ -811,17 +816,17 @@ fn slip_direction(inst: Instance, need: array<Real, AXES>) -> array<Real, AXES> 
         lambda = next;
     }
     var u: array<Real, AXES>;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         u[i] = a[i] / (lambda + b[i]);
     }
     let n = sqrt(norm2(u));
     if n > Real(0.0) && is_finite(n) {
-        for (var i = 0u; i < AXES; i++) {
+        for (var i = 0u; i < ACTIVE_AXES; i++) {
             u[i] /= n;
         }
     } else {
         let m = sqrt(norm2(need));
-        for (var i = 0u; i < AXES; i++) {
+        for (var i = 0u; i < ACTIVE_AXES; i++) {
             u[i] = need[i] / m;
         }
     }
@@ -837,7 +842,7 @@ fn try_stick(inst: Instance, st: ptr<function, State>) {
     let need = stick_force(inst, *st);
     let fs = inst.mechanism.static_friction;
     let ms = inst.mechanism.slider_mass;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         let mp = inst.axes[i].stage_mass;
         let v = (mp * (*st).v_p[i] + ms * (*st).v_s[i]) / (mp + ms);
         (*st).v_p[i] = v;
@@ -859,7 +864,7 @@ fn set_sample(st: ptr<function, State>, s: Sample) {
 
 fn state_is_finite(st: State) -> bool {
     var ok = is_finite(st.time) && is_finite(st.h_slip);
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         ok = ok
             && is_finite(st.x_p[i])
             && is_finite(st.v_p[i])
@@ -1050,7 +1055,7 @@ fn step_stick(inst: Instance, st: ptr<function, State>, h_max: Real, stop: Real)
     let m = inst.mechanism;
     let s0 = eval_flow(flow, identity_propagators(), Real(0.0));
     var bound = Real(0.0);
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         bound += s0.a_p[i] * s0.a_p[i] + s0.j_p[i] * s0.j_p[i] / flow.axes[i].osc.w2;
     }
     let safe = m.slider_mass * m.slider_mass * bound <= m.static_friction * m.static_friction;
@@ -1077,7 +1082,7 @@ fn step_band(inst: Instance, st: ptr<function, State>, h_max: Real, stop: Real) 
     let force = current_force(inst, *st);
     let h = min(h_max, event_step(inst, false));
     var b: array<array<Real, 3>, AXES>;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         b[i] = array<Real, 3>((*st).held[i], Real(0.0), Real(0.0));
     }
     let flow = slip_flow(inst, *st, force, b, h);
@@ -1146,12 +1151,12 @@ fn initial_slip_step(inst: Instance, st: State, h_max: Real) -> Real {
 
 fn direction_poly(st: State) -> array<array<Real, 3>, AXES> {
     var v: array<Real, AXES>;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         v[i] = st.v_p[i] - st.v_s[i];
     }
     let n = sqrt(norm2(v));
     var b: array<array<Real, 3>, AXES>;
-    for (var i = 0u; i < AXES; i++) {
+    for (var i = 0u; i < ACTIVE_AXES; i++) {
         b[i] = array<Real, 3>(v[i] / n, Real(0.0), Real(0.0));
     }
     return b;
@@ -1163,7 +1168,7 @@ fn direction(s: Sample) -> Direction {
     var out: Direction;
     out.ok = n > Real(0.0) && is_finite(n);
     if out.ok {
-        for (var i = 0u; i < AXES; i++) {
+        for (var i = 0u; i < ACTIVE_AXES; i++) {
             out.u[i] = v[i] / n;
         }
     }
@@ -1190,7 +1195,7 @@ fn slip_trial(
             return Trial(flow, array<Sample, 5>(end, end, end, end, end), INFINITY);
         }
         var change = Real(0.0);
-        for (var i = 0u; i < AXES; i++) {
+        for (var i = 0u; i < ACTIVE_AXES; i++) {
             let b1 = Real(4.0) * um.u[i] - Real(3.0) * u0[i] - ue.u[i];
             let b2 = Real(2.0) * (ue.u[i] - Real(2.0) * um.u[i] + u0[i]);
             change = max(max(change, abs(b1 - b[i][1])), abs(b2 - b[i][2]));
@@ -1228,7 +1233,7 @@ fn slip_trial(
         }
         let th = theta(j);
         var d2 = Real(0.0);
-        for (var i = 0u; i < AXES; i++) {
+        for (var i = 0u; i < ACTIVE_AXES; i++) {
             let model = b[i][0] + (b[i][1] + b[i][2] * th) * th;
             d2 += (u.u[i] - model) * (u.u[i] - model);
         }
@@ -1238,7 +1243,7 @@ fn slip_trial(
         var noise = Real(0.0);
         if NOISE > Real(0.0) {
             var scale = Real(0.0);
-            for (var i = 0u; i < AXES; i++) {
+            for (var i = 0u; i < ACTIVE_AXES; i++) {
                 scale += abs(samples[j].v_p[i]) + abs(samples[j].v_s[i]);
             }
             noise = NOISE * EPSILON * scale / sqrt(norm2(v));

@@ -145,6 +145,21 @@ fn progress_bar(total: u64) -> ProgressBar {
     bar
 }
 
+/// Which integrator variant runs a scene's instances on a backend: the GPU
+/// compiles a 1-DOF specialisation when axis y is undriven everywhere; the
+/// CPU always runs the 2-DOF integrator, where an undriven y stays exactly 0.
+pub fn variant(scene: &Scene, backend: &dyn Backend) -> String {
+    let gpu = backend.describe().starts_with("gpu");
+    match (gpu, scene.axis_ever_driven(1)) {
+        (true, false) if scene.baselines => {
+            "1-DOF specialisation (axis y undriven everywhere); the y baselines run 2-DOF".into()
+        }
+        (true, false) => "1-DOF specialisation (axis y undriven everywhere)".into(),
+        (false, false) => "2-DOF (axis y undriven everywhere, exactly at rest)".into(),
+        _ => "2-DOF".into(),
+    }
+}
+
 /// The file layout of a scene's results.
 pub fn file_info(scene: &Scene, backend: &dyn Backend) -> FileInfo {
     let (axes, labels) = match &scene.layout {
@@ -169,11 +184,7 @@ pub fn file_info(scene: &Scene, backend: &dyn Backend) -> FileInfo {
         baselines: scene.baselines,
         backend: backend.describe(),
         precision: backend.precision().to_string(),
-        variant: if scene.axis_ever_driven(1) && scene.axis_ever_driven(0) {
-            "2-DOF".into()
-        } else {
-            "2-DOF (one axis undriven everywhere)".into()
-        },
+        variant: variant(scene, backend),
         tolerance: scene.settings.tolerance,
     }
 }

@@ -522,3 +522,30 @@ fn f64_request_is_refused_or_served() {
         }
     }
 }
+
+#[test]
+fn the_one_dof_specialisation_runs_when_y_is_undriven_and_matches_the_cpu() {
+    // The variant choice itself needs no GPU.
+    let mut one = paper_cases();
+    for inst in &mut one {
+        inst.axes[1].voltage = 0.0;
+    }
+    assert_eq!(pidm::gpu::batch_variant(&one), 1);
+    assert_eq!(pidm::gpu::batch_variant(&paper_cases()), 2);
+    let Some(ctx) = context() else {
+        return;
+    };
+    // Vary the x drive so the 1-DOF batch covers stick, slip and reversal.
+    for (k, inst) in one.iter_mut().enumerate() {
+        inst.axes[0].voltage = [100.0, -70.0, 130.0, 50.0, -120.0, 90.0, 30.0][k % 7];
+        inst.axes[0].duty = [0.98, 0.7, 1.0][k % 3];
+    }
+    let settings = Settings::default();
+    let cpu = cpu_reference(&one, &settings);
+    for precision in precisions(ctx) {
+        let gpu = run_batch(ctx, &one, &settings, precision, &mut |_, _| {}).expect("batch runs");
+        check("1-DOF variant", precision, &one, &cpu, &gpu);
+        // The y axis is exactly at rest, as MODEL.md requires.
+        assert!(gpu.iter().all(|o| o.displacement[1] == 0.0));
+    }
+}

@@ -217,8 +217,8 @@ pub struct GpuContext {
     info: wgpu::AdapterInfo,
     f64: bool,
     limits: wgpu::Limits,
-    /// Compiled pipelines, [F32, F64], built on first use.
-    pipelines: Mutex<[Option<wgpu::ComputePipeline>; 2]>,
+    /// Compiled pipelines, [F32, F64] x [2-DOF, 1-DOF], built on first use.
+    pipelines: Mutex<[Option<wgpu::ComputePipeline>; 4]>,
     /// Held while a batch runs: batches on one context take turns (wgpu's
     /// GL backend does not survive two threads submitting at once).
     busy: Mutex<()>,
@@ -290,7 +290,7 @@ impl GpuContext {
             info,
             f64,
             limits,
-            pipelines: Mutex::new([None, None]),
+            pipelines: Mutex::new([None, None, None, None]),
             busy: Mutex::new(()),
         })
     }
@@ -328,7 +328,11 @@ impl GpuContext {
     }
 
     /// The compiled pipeline of one precision, built once.
-    fn pipeline(&self, precision: Precision) -> Result<wgpu::ComputePipeline, GpuError> {
+    fn pipeline(
+        &self,
+        precision: Precision,
+        active_axes: u32,
+    ) -> Result<wgpu::ComputePipeline, GpuError> {
         if precision == Precision::F64 && !self.f64 {
             return Err(GpuError::F64Unsupported {
                 adapter: self.describe(),
@@ -337,14 +341,24 @@ impl GpuContext {
         let slot = match precision {
             Precision::F32 => 0,
             Precision::F64 => 1,
-        };
+        } + if active_axes == 1 { 2 } else { 0 };
         let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(p) = &cache[slot] {
             return Ok(p.clone());
         }
-        let pipeline = create_pipeline(&self.device, precision)?;
+        let pipeline = create_pipeline_for(&self.device, precision, active_axes)?;
         cache[slot] = Some(pipeline.clone());
         Ok(pipeline)
+    }
+}
+
+/// The variant a batch needs: 1 (the 1-DOF specialisation) when axis y is
+/// undriven in every instance, else 2.
+pub fn batch_variant(instances: &[Instance]) -> u32 {
+    if instances.iter().all(|inst| !inst.axes[1].is_driven()) {
+        1
+    } else {
+        2
     }
 }
 
@@ -354,8 +368,18 @@ pub fn create_pipeline(
     device: &wgpu::Device,
     precision: Precision,
 ) -> Result<wgpu::ComputePipeline, GpuError> {
+    create_pipeline_for(device, precision, 2)
+}
+
+/// Compiles one variant: `active_axes` = 2 for the 2-DOF integrator, 1 for
+/// the 1-DOF specialisation (axis y undriven).
+pub fn create_pipeline_for(
+    device: &wgpu::Device,
+    precision: Precision,
+    active_axes: u32,
+) -> Result<wgpu::ComputePipeline, GpuError> {
     shader::parse_and_validate(precision)?;
-    let src = shader::source(precision);
+    let src = shader::source_for(precision, active_axes);
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
     // wgpu's default runtime checks clamp every dynamic array index and add
     // a counter to every loop. Both keep the driver's compiler from
@@ -428,7 +452,7 @@ pub fn run_batch_with(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
     let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-    let pipeline = ctx.pipeline(precision)?;
+    let pipeline = ctx.pipeline(precision, batch_variant(instances))?;
     execute_gpu_inner(
         &ctx.device,
         &ctx.queue,
