@@ -124,7 +124,10 @@ pub fn interrupt_flag() -> Arc<AtomicBool> {
         let handler_flag = flag.clone();
         // A second handler cannot be installed; a missing one only means
         // Ctrl-C ends the process at once, which also leaves no output.
-        let _ = ctrlc::set_handler(move || handler_flag.store(true, Ordering::Relaxed));
+        let _ = ctrlc::set_handler(move || {
+            handler_flag.store(true, Ordering::Relaxed);
+            crate::sweep::request_interrupt();
+        });
         flag
     })
     .clone()

@@ -13,6 +13,20 @@ use rayon::prelude::*;
 use crate::cpu::integrate::{self, STATUS_OK, Settings};
 use crate::model::{AXES, Instance};
 
+/// Set when the user asks the run to stop (Ctrl-C); backends check it
+/// between instances (CPU) and between time slices (GPU).
+static INTERRUPT: AtomicBool = AtomicBool::new(false);
+
+/// Asks every running backend to stop as soon as it can.
+pub fn request_interrupt() {
+    INTERRUPT.store(true, Ordering::Relaxed);
+}
+
+/// True once a stop was asked for.
+pub fn interrupt_requested() -> bool {
+    INTERRUPT.load(Ordering::Relaxed)
+}
+
 /// What a backend returns for one instance.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Outcome {
@@ -114,6 +128,11 @@ impl Backend for CpuBackend {
                 .par_iter()
                 .with_max_len(1)
                 .map(|inst| {
+                    // After a stop request the remaining instances are
+                    // skipped; the sweep then discards the whole chunk.
+                    if interrupt_requested() {
+                        return Outcome::default();
+                    }
                     let out = run_one(inst, settings);
                     done(1);
                     out
@@ -220,6 +239,12 @@ pub fn run(
             }
         };
         let outcomes = backend.run(&jobs, &plan.settings, &done)?;
+        if stop.load(Ordering::Relaxed) || interrupt_requested() {
+            bail!(
+                "interrupted after {start} of {} instances; nothing was written",
+                plan.count
+            );
+        }
         let left = mains.len() as u64 - reported.load(Ordering::Relaxed);
         if left > 0 {
             progress(left);

@@ -93,6 +93,9 @@ pub enum GpuError {
     /// A readback buffer could not be mapped.
     #[error("mapping a readback buffer failed: {0}")]
     BufferMapping(String),
+    /// The user asked the run to stop (Ctrl-C) between two slices.
+    #[error("interrupted between two time slices")]
+    Interrupted,
     /// wgpu reported an error while running a batch.
     #[error("the GPU reported an error while running a batch: {0}")]
     Execution(String),
@@ -731,6 +734,9 @@ impl Runner<'_> {
             progress(n as u64 - unfinished as u64);
             if unfinished == 0 {
                 break;
+            }
+            if crate::sweep::interrupt_requested() {
+                return Err(GpuError::Interrupted);
             }
             if slice >= max_slices {
                 return Err(GpuError::Stalled {
