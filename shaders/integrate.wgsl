@@ -63,6 +63,7 @@ const COLLOCATION_ITERATIONS: u32 = 4u;
 const COLLOCATION_CONVERGED: Real = Real(1e-2);
 const TAYLOR_STAGE_TERMS: u32 = 21u;
 const SLIP_DIRECTION_ITERATIONS: u32 = 40u;
+const EVENT_NOISE: Real = Real(16.0);
 const ROOT_ITERATIONS: u32 = 80u;
 const MAX_STALLED_EVENTS: u32 = 64u;
 const MAX_REJECTIONS: u32 = 60u;
@@ -907,6 +908,26 @@ fn event_value(inst: Instance, st: State, kind: u32, sign: Real, s: Sample) -> a
     }
 }
 
+fn event_scale(inst: Instance, st: State, kind: u32, s: Sample) -> Real {
+    let m = inst.mechanism;
+    switch kind {
+        case EVENT_BREAKAWAY: {
+            return m.static_friction * m.static_friction
+                + m.slider_mass * m.slider_mass * norm2(s.a_p);
+        }
+        case EVENT_ENTER_BAND, EVENT_LEAVE_BAND: {
+            return norm2(relative_velocity(s)) + m.velocity_band * m.velocity_band;
+        }
+        default: {
+            var scale = Real(0.0);
+            for (var i = 0u; i < ACTIVE_AXES; i++) {
+                scale += (abs(s.v_p[i]) + abs(s.v_s[i])) * abs(st.held[i]);
+            }
+            return scale;
+        }
+    }
+}
+
 fn find_crossing(
     inst: Instance,
     st: State,
@@ -917,14 +938,17 @@ fn find_crossing(
     h: Real,
 ) -> Crossing {
     var prev = event_value(inst, st, kind, sign, samples[0]);
-    if prev[0] < Real(0.0) {
+    // Past the event by more than the rounding noise: fire at once; within
+    // the noise: armed for the first interval (see integrate.rs).
+    let noise = EVENT_NOISE * EPSILON * event_scale(inst, st, kind, samples[0]);
+    if prev[0] < -noise {
         return Crossing(true, Real(0.0), Real(0.0));
     }
     for (var j = 0u; j < 4u; j++) {
         let next = event_value(inst, st, kind, sign, samples[j + 1u]);
         let lo = theta(j) * h;
         let hi = theta(j + 1u) * h;
-        let armed = prev[0] > Real(0.0) || (j == 0u && prev[0] == Real(0.0));
+        let armed = prev[0] > Real(0.0) || j == 0u;
         if armed && next[0] <= Real(0.0) && (prev[0] > Real(0.0) || next[0] < Real(0.0)) {
             return Crossing(true, lo, hi);
         }

@@ -73,6 +73,23 @@ pub fn cpu_method<'a>(base: Settings) -> Method<'a> {
     }
 }
 
+/// A backend (the GPU path) at the same ladder of tolerances as the CPU.
+pub fn backend_method<'a>(backend: Box<dyn Backend + 'a>, base: Settings) -> Method<'a> {
+    Method {
+        name: format!(
+            "event-locating {} ({})",
+            backend.precision(),
+            backend.describe()
+        ),
+        setting_name: "tolerance [rad]",
+        settings: vec![1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
+        run: Box::new(move |instances, tolerance| {
+            let settings = Settings { tolerance, ..base };
+            backend.run(instances, &settings, &|_| {})
+        }),
+    }
+}
+
 /// The paper's fixed-step Karnopp RK4 at a ladder of step sizes.
 pub fn karnopp_method<'a>(steps: Vec<f64>) -> Method<'a> {
     Method {

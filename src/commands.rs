@@ -437,7 +437,7 @@ pub fn scene_jobs(scene: &Scene) -> Vec<Instance> {
 /// `pidm accuracy`: the work-precision study of each scene, written to
 /// `out_dir` as `accuracy_<name>.h5` and `.png`, and summarised in
 /// `accuracy.md`.
-pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64]) -> Result<()> {
+pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: bool) -> Result<()> {
     use crate::accuracy::{self, Point};
     use std::fmt::Write as _;
     let defaults = [PathBuf::from("sweeps/paper.toml")];
@@ -455,7 +455,8 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64]) -> Res
          Errors are the largest difference of any step (x or y, every instance and \
          baseline of the scene) from the f64 CPU path at tolerance 1e-9 rad; times are \
          wall seconds for the whole scene on one thread of this project's 2-core build \
-         machine.\n",
+         machine (GPU rows, when studied with --gpu: lavapipe, a software Vulkan adapter \
+         on the same two cores).\n",
         paths
             .iter()
             .map(|p| p.display().to_string())
@@ -469,10 +470,34 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64]) -> Res
             tolerance: 1e-9,
             ..scene.settings
         };
-        let methods = vec![
-            accuracy::cpu_method(scene.settings),
-            accuracy::karnopp_method(karnopp_steps.to_vec()),
-        ];
+        let mut methods = vec![accuracy::cpu_method(scene.settings)];
+        if gpu {
+            // Every precision the adapter offers, software adapters included.
+            match crate::gpu::GpuContext::new(true) {
+                Ok(ctx) => {
+                    let f64_ok = ctx.supports_f64();
+                    methods.push(accuracy::backend_method(
+                        Box::new(crate::gpu::GpuBackend::new(
+                            ctx,
+                            crate::gpu::Precision::F32,
+                        )?),
+                        scene.settings,
+                    ));
+                    if f64_ok {
+                        let ctx = crate::gpu::GpuContext::new(true)?;
+                        methods.push(accuracy::backend_method(
+                            Box::new(crate::gpu::GpuBackend::new(
+                                ctx,
+                                crate::gpu::Precision::F64,
+                            )?),
+                            scene.settings,
+                        ));
+                    }
+                }
+                Err(err) => println!("  gpu: not studied ({err})"),
+            }
+        }
+        methods.push(accuracy::karnopp_method(karnopp_steps.to_vec()));
         println!(
             "accuracy: scene {:?}, {} integrations, reference tolerance 1e-9 rad",
             scene.name,

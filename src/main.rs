@@ -66,6 +66,10 @@ enum Command {
         /// Step sizes of the fixed-step Karnopp baseline [s].
         #[arg(long, value_delimiter = ',', default_value = "1e-5,3e-6,1e-6,3e-7")]
         karnopp_steps: Vec<f64>,
+        /// Also study the GPU path, on any adapter, in every precision it
+        /// offers.
+        #[arg(long)]
+        gpu: bool,
     },
     /// Writes a points scene of seeded random instances to stdout.
     RandomScene {
@@ -121,7 +125,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             scenes,
             out_dir,
             karnopp_steps,
-        } => commands::accuracy(&scenes, &out_dir, &karnopp_steps)?,
+            gpu,
+        } => commands::accuracy(&scenes, &out_dir, &karnopp_steps, gpu)?,
         Command::RandomScene {
             seed,
             count,

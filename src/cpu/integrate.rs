@@ -70,6 +70,9 @@ const TAYLOR_STAGE_TERMS: u32 = 21;
 /// Newton iterations for the direction slip starts in (monotone, converges
 /// in a handful).
 const SLIP_DIRECTION_ITERATIONS: u32 = 40;
+/// Rounding noise of an event function, in units of epsilon times the
+/// magnitude of its terms.
+const EVENT_NOISE: f64 = 16.0;
 /// Bisection-guarded Newton iterations when locating an event.
 const ROOT_ITERATIONS: u32 = 80;
 /// Consecutive events allowed without the time advancing.
@@ -874,6 +877,27 @@ fn event_value(inst: &Instance, st: &State, kind: EventKind, sign: f64, s: &Samp
     }
 }
 
+/// The magnitude of the terms an event function is the difference of, for
+/// its rounding noise.
+fn event_scale(inst: &Instance, st: &State, kind: EventKind, s: &Sample) -> f64 {
+    let m = &inst.mechanism;
+    match kind {
+        EventKind::Breakaway => {
+            m.static_friction * m.static_friction + m.slider_mass * m.slider_mass * norm2(s.a_p)
+        }
+        EventKind::EnterBand | EventKind::LeaveBand => {
+            norm2(relative_velocity(s)) + m.velocity_band * m.velocity_band
+        }
+        EventKind::Reversal => {
+            let mut scale = 0.0;
+            for i in 0..AXES {
+                scale += (s.v_p[i].abs() + s.v_s[i].abs()) * st.held[i].abs();
+            }
+            scale
+        }
+    }
+}
+
 /// Finds the first crossing of an event function among the samples of a
 /// step. Returns the bracket (lo, hi) in step time, with the function
 /// positive at lo and not positive at hi, or None.
@@ -888,15 +912,20 @@ fn find_crossing(
 ) -> Option<(f64, f64)> {
     let mut prev = event_value(inst, st, kind, sign, &samples[0]);
     // A function already past its event when the step starts fires at once;
-    // one exactly at it is armed for the first interval.
-    if prev.0 < 0.0 {
+    // one at it, within the rounding noise of its evaluation, is armed for
+    // the first interval. The noise margin keeps a decision taken at the
+    // root of the previous event (the function is then zero up to
+    // rounding) from depending on the last bit, which differs between
+    // backends that fuse multiply-adds differently.
+    let noise = EVENT_NOISE * f64::EPSILON * event_scale(inst, st, kind, &samples[0]);
+    if prev.0 < -noise {
         return Some((0.0, 0.0));
     }
     for j in 0..4 {
         let next = event_value(inst, st, kind, sign, &samples[j + 1]);
         let lo = THETA[j] * h;
         let hi = THETA[j + 1] * h;
-        let armed = prev.0 > 0.0 || (j == 0 && prev.0 == 0.0);
+        let armed = prev.0 > 0.0 || j == 0;
         if armed && next.0 <= 0.0 && (prev.0 > 0.0 || next.0 < 0.0) {
             return Some((lo, hi));
         }
