@@ -4,8 +4,6 @@
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -116,21 +114,15 @@ pub struct RunResult {
     pub records: Vec<Record>,
 }
 
-/// The flag Ctrl-C raises; long runs stop cleanly at the next chunk.
-pub fn interrupt_flag() -> Arc<AtomicBool> {
-    static FLAG: std::sync::OnceLock<Arc<AtomicBool>> = std::sync::OnceLock::new();
-    FLAG.get_or_init(|| {
-        let flag = Arc::new(AtomicBool::new(false));
-        let handler_flag = flag.clone();
-        // A second handler cannot be installed; a missing one only means
-        // Ctrl-C ends the process at once, which also leaves no output.
-        let _ = ctrlc::set_handler(move || {
-            handler_flag.store(true, Ordering::Relaxed);
-            crate::sweep::request_interrupt();
-        });
-        flag
-    })
-    .clone()
+/// Installs the Ctrl-C handler once: it asks running backends to stop, and
+/// the sweep then ends without writing a result file.
+pub fn install_interrupt_handler() {
+    static INSTALLED: std::sync::Once = std::sync::Once::new();
+    INSTALLED.call_once(|| {
+        // A missing handler only means Ctrl-C ends the process at once,
+        // which also leaves no output.
+        let _ = ctrlc::set_handler(crate::sweep::request_interrupt);
+    });
 }
 
 fn progress_bar(total: u64) -> ProgressBar {
@@ -152,7 +144,7 @@ fn progress_bar(total: u64) -> ProgressBar {
 /// compiles a 1-DOF specialisation when axis y is undriven everywhere; the
 /// CPU always runs the 2-DOF integrator, where an undriven y stays exactly 0.
 pub fn variant(scene: &Scene, backend: &dyn Backend) -> String {
-    let gpu = backend.describe().starts_with("gpu");
+    let gpu = backend.cpu_threads().is_none();
     match (gpu, scene.axis_ever_driven(1)) {
         (true, false) if scene.baselines => {
             "1-DOF specialisation (axis y undriven everywhere); the y baselines run 2-DOF".into()
@@ -206,7 +198,7 @@ pub fn run_scene(scene: &Scene, backend: &dyn Backend, out: &Path, keep: u64) ->
     let info = file_info(scene, backend);
     let mut writer = MapWriter::create(out, &info)?;
     let bar = progress_bar(count);
-    let stop = interrupt_flag();
+    install_interrupt_handler();
     let started = Instant::now();
     let mut kept = Vec::new();
     let summary = sweep::run(
@@ -214,7 +206,6 @@ pub fn run_scene(scene: &Scene, backend: &dyn Backend, out: &Path, keep: u64) ->
         backend,
         backend.chunk_size(),
         &|n| bar.inc(n),
-        &stop,
         &mut |start, records| {
             if count <= keep {
                 kept.extend_from_slice(records);
@@ -418,17 +409,53 @@ pub fn human_duration(seconds: f64) -> String {
     }
 }
 
+/// The bit pattern of every parameter of an instance: equal keys mean
+/// identical integrations.
+fn instance_key(inst: &Instance) -> Vec<u64> {
+    let m = &inst.mechanism;
+    let mut key = vec![
+        m.slider_mass.to_bits(),
+        m.static_friction.to_bits(),
+        m.coulomb_friction.to_bits(),
+        m.velocity_band.to_bits(),
+        inst.cycles as u64,
+        inst.settle as u64,
+    ];
+    for a in &inst.axes {
+        key.extend(
+            [
+                a.stage_mass,
+                a.stiffness,
+                a.damping,
+                a.gain,
+                a.voltage,
+                a.frequency,
+                a.duty,
+                a.phase,
+            ]
+            .map(f64::to_bits),
+        );
+    }
+    key
+}
+
 /// Every distinct integration a scene asks for: its instances, then the
 /// baselines that differ from their instance.
 pub fn scene_jobs(scene: &Scene) -> Vec<Instance> {
     let count = scene.instance_count();
     let mut instances: Vec<Instance> = (0..count).map(|i| scene.instance(i)).collect();
     if scene.baselines {
-        let extra: Vec<Instance> = instances
-            .iter()
-            .flat_map(|inst| (0..AXES).map(|a| inst.baseline(a)))
-            .filter(|b| !instances.contains(b))
-            .collect();
+        let mut seen: std::collections::HashSet<Vec<u64>> =
+            instances.iter().map(instance_key).collect();
+        let mut extra = Vec::new();
+        for inst in &instances {
+            for axis in 0..AXES {
+                let base = inst.baseline(axis);
+                if seen.insert(instance_key(&base)) {
+                    extra.push(base);
+                }
+            }
+        }
         instances.extend(extra);
     }
     instances
@@ -671,16 +698,9 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
         }
         let wall = started.elapsed().as_secs_f64();
         let rate = passes as f64 * simulated / wall;
-        let per_core = match backend.describe().starts_with("cpu") {
-            true => {
-                let n = if backend.describe().contains("(rayon, 1 threads)") {
-                    1
-                } else {
-                    std::thread::available_parallelism().map_or(1, |n| n.get())
-                };
-                format!(" ({:.1} per core)", rate / n as f64)
-            }
-            false => String::new(),
+        let per_core = match backend.cpu_threads() {
+            Some(n) => format!(" ({:.1} per core)", rate / n as f64),
+            None => String::new(),
         };
         println!(
             "  {} {}: {:.1} simulated s per wall s{per_core}, {:.1} instances per s, {passes} passes in {wall:.2} s",

@@ -60,6 +60,8 @@ pub trait Backend: Sync {
     fn precision(&self) -> &'static str;
     /// A good number of instances per chunk.
     fn chunk_size(&self) -> usize;
+    /// The CPU threads the backend computes on, or `None` for the GPU.
+    fn cpu_threads(&self) -> Option<usize>;
     /// Integrates the instances; `done(n)` reports n more finished ones.
     fn run(
         &self,
@@ -115,6 +117,10 @@ impl Backend for CpuBackend {
 
     fn chunk_size(&self) -> usize {
         4096.max(256 * self.threads())
+    }
+
+    fn cpu_threads(&self) -> Option<usize> {
+        Some(self.threads())
     }
 
     fn run(
@@ -182,14 +188,13 @@ pub struct Plan<'a> {
 /// Runs every instance of the plan in chunks, in index order, calling
 /// `sink(first_index, records)` for each finished chunk. `progress(n)` is
 /// called as instances finish (baselines count as part of their instance);
-/// when `stop` becomes true the sweep ends with an error after the current
-/// chunk.
+/// when an interrupt is requested ([`request_interrupt`]) the sweep ends
+/// with an error and hands nothing more to the sink.
 pub fn run(
     plan: &Plan,
     backend: &dyn Backend,
     chunk: usize,
     progress: &(dyn Fn(u64) + Sync),
-    stop: &AtomicBool,
     sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
 ) -> Result<Summary> {
     let chunk = chunk.max(1) as u64;
@@ -199,7 +204,7 @@ pub fn run(
     };
     let mut start = 0;
     while start < plan.count {
-        if stop.load(Ordering::Relaxed) {
+        if interrupt_requested() {
             bail!(
                 "interrupted after {start} of {} instances; nothing was written",
                 plan.count
@@ -239,7 +244,7 @@ pub fn run(
             }
         };
         let outcomes = backend.run(&jobs, &plan.settings, &done)?;
-        if stop.load(Ordering::Relaxed) || interrupt_requested() {
+        if interrupt_requested() {
             bail!(
                 "interrupted after {start} of {} instances; nothing was written",
                 plan.count

@@ -2,8 +2,6 @@
 //! section 6, the exact invariants, convergence under tightening the
 //! accuracy knob, and determinism across thread counts.
 
-use std::sync::atomic::AtomicBool;
-
 use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::model::{Axis, Instance};
 use pidm::sweep::{self, Backend, CpuBackend, Plan, run_one};
@@ -275,13 +273,12 @@ fn results_are_identical_for_any_thread_count_and_chunk_size() {
         settings: Settings::default(),
         baselines: true,
     };
-    let stop = AtomicBool::new(false);
     let mut runs = Vec::new();
     for (threads, chunk) in [(1, 8), (2, 3), (2, 1)] {
         let backend = CpuBackend::new(Some(threads)).unwrap();
         assert_eq!(backend.threads(), threads);
         let mut records = Vec::new();
-        sweep::run(&plan, &backend, chunk, &|_| {}, &stop, &mut |_, r| {
+        sweep::run(&plan, &backend, chunk, &|_| {}, &mut |_, r| {
             records.extend_from_slice(r);
             Ok(())
         })

@@ -52,6 +52,10 @@ impl Backend for GpuBackend {
         GPU_CHUNK
     }
 
+    fn cpu_threads(&self) -> Option<usize> {
+        None
+    }
+
     fn run(
         &self,
         instances: &[Instance],
