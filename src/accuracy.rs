@@ -112,21 +112,26 @@ pub fn karnopp_method<'a>(steps: Vec<f64>) -> Method<'a> {
     }
 }
 
-/// Runs the study.
+/// Runs the study. Instances whose reference run does not finish normally
+/// (at the tightest tolerance a turn may be unresolvable: status 3) are left
+/// out of every comparison; the returned count says how many.
 pub fn study(
     instances: &[Instance],
     reference_settings: Settings,
     methods: &[Method],
     log: &mut dyn FnMut(&Point),
-) -> Result<Vec<Point>> {
+) -> Result<(Vec<Point>, usize)> {
     let reference_backend = CpuBackend::new(None)?;
-    let reference = reference_backend.run(instances, &reference_settings, &|_| {})?;
-    if let Some(bad) = reference.iter().position(|o| o.status != STATUS_OK) {
-        anyhow::bail!(
-            "the reference run of instance {bad} ended with status {}",
-            reference[bad].status
-        );
+    let reference_outcomes = reference_backend.run(instances, &reference_settings, &|_| {})?;
+    let excluded: Vec<bool> = reference_outcomes
+        .iter()
+        .map(|o| o.status != STATUS_OK)
+        .collect();
+    let excluded_count = excluded.iter().filter(|&&e| e).count();
+    if excluded_count == instances.len() {
+        anyhow::bail!("no instance's reference run finished normally");
     }
+    let reference = reference_outcomes;
     let reference = steps_um(instances, &reference);
     let mut points = Vec::new();
     for method in methods {
@@ -140,6 +145,9 @@ pub fn study(
             let mut n = 0;
             let mut failed = 0;
             for (k, (g, r)) in got.iter().zip(&reference).enumerate() {
+                if excluded[k] {
+                    continue;
+                }
                 if outcomes[k].status != STATUS_OK {
                     failed += 1;
                     continue;
@@ -163,7 +171,7 @@ pub fn study(
             points.push(point);
         }
     }
-    Ok(points)
+    Ok((points, excluded_count))
 }
 
 /// Writes the study's data to HDF5: one group per method with `setting`,

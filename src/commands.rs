@@ -534,21 +534,29 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
             "  {:42} {:>10} {:>14} {:>14} {:>10}",
             "method", "setting", "max err [um]", "rms err [um]", "wall [s]"
         );
-        let points = accuracy::study(&instances, reference, &methods, &mut |p: &Point| {
+        let (points, excluded) =
+            accuracy::study(&instances, reference, &methods, &mut |p: &Point| {
+                println!(
+                    "  {:42} {:>10.0e} {:>14.3e} {:>14.3e} {:>10.4}{}",
+                    p.method,
+                    p.setting,
+                    p.max_error_um,
+                    p.rms_error_um,
+                    p.wall_s,
+                    if p.failed > 0 {
+                        format!("  ({} failed)", p.failed)
+                    } else {
+                        String::new()
+                    }
+                );
+            })?;
+        if excluded > 0 {
             println!(
-                "  {:42} {:>10.0e} {:>14.3e} {:>14.3e} {:>10.4}{}",
-                p.method,
-                p.setting,
-                p.max_error_um,
-                p.rms_error_um,
-                p.wall_s,
-                if p.failed > 0 {
-                    format!("  ({} failed)", p.failed)
-                } else {
-                    String::new()
-                }
+                "  {excluded} of {} integrations left out: their reference run at \
+                 tolerance 1e-9 rad did not finish normally",
+                instances.len()
             );
-        })?;
+        }
         let h5 = out_dir.join(format!("accuracy_{}.h5", scene.name));
         let png = out_dir.join(format!("accuracy_{}.png", scene.name));
         accuracy::write_hdf5(&h5, &scene.name, &points)?;
