@@ -84,7 +84,7 @@ struct Axis {
 // The friction interface, as `pidm::model::Mechanism`.
 struct Mechanism {
     slider_mass: Real,
-    static_friction: Real,
+    holding_friction: Real,
     coulomb_friction: Real,
     velocity_band: Real,
 }
@@ -481,7 +481,7 @@ fn pass_boundaries(inst: Instance, st: ptr<function, State>, period: Real) {
     }
     if (*st).mode == MODE_STICK {
         let need = stick_force(inst, *st);
-        let fs = inst.mechanism.static_friction;
+        let fs = inst.mechanism.holding_friction;
         if norm2(need) > fs * fs {
             start_slip(inst, st, need);
         }
@@ -841,7 +841,7 @@ fn start_slip(inst: Instance, st: ptr<function, State>, need: array<Real, AXES>)
 
 fn try_stick(inst: Instance, st: ptr<function, State>) {
     let need = stick_force(inst, *st);
-    let fs = inst.mechanism.static_friction;
+    let fs = inst.mechanism.holding_friction;
     let ms = inst.mechanism.slider_mass;
     for (var i = 0u; i < ACTIVE_AXES; i++) {
         let mp = inst.axes[i].stage_mass;
@@ -881,7 +881,7 @@ fn event_value(inst: Instance, st: State, kind: u32, sign: Real, s: Sample) -> a
     switch kind {
         case EVENT_BREAKAWAY: {
             let ms2 = m.slider_mass * m.slider_mass;
-            let e = m.static_friction * m.static_friction - ms2 * norm2(s.a_p);
+            let e = m.holding_friction * m.holding_friction - ms2 * norm2(s.a_p);
             return array<Real, 2>(e, Real(-2.0) * ms2 * dot_axes(s.a_p, s.j_p));
         }
         case EVENT_ENTER_BAND: {
@@ -912,7 +912,7 @@ fn event_scale(inst: Instance, st: State, kind: u32, s: Sample) -> Real {
     let m = inst.mechanism;
     switch kind {
         case EVENT_BREAKAWAY: {
-            return m.static_friction * m.static_friction
+            return m.holding_friction * m.holding_friction
                 + m.slider_mass * m.slider_mass * norm2(s.a_p);
         }
         case EVENT_ENTER_BAND, EVENT_LEAVE_BAND: {
@@ -1082,7 +1082,7 @@ fn step_stick(inst: Instance, st: ptr<function, State>, h_max: Real, stop: Real)
     for (var i = 0u; i < ACTIVE_AXES; i++) {
         bound += s0.a_p[i] * s0.a_p[i] + s0.j_p[i] * s0.j_p[i] / flow.axes[i].osc.w2;
     }
-    let safe = m.slider_mass * m.slider_mass * bound <= m.static_friction * m.static_friction;
+    let safe = m.slider_mass * m.slider_mass * bound <= m.holding_friction * m.holding_friction;
     var h = h_max;
     if !safe {
         h = min(h_max, event_step(inst, true));
@@ -1212,7 +1212,14 @@ fn slip_trial(
     let props = sample_propagators(flow, h);
     var mid = eval_flow(flow, props[2], Real(0.5) * h);
     var end = eval_flow(flow, props[4], h);
-    for (var k = 0u; k < COLLOCATION_ITERATIONS; k++) {
+    // Without kinetic friction the slip motion does not depend on the
+    // friction direction: there is no turn to resolve, and no step limit.
+    let frictionless = inst.mechanism.coulomb_friction == Real(0.0);
+    var iterations = COLLOCATION_ITERATIONS;
+    if frictionless {
+        iterations = 0u;
+    }
+    for (var k = 0u; k < iterations; k++) {
         let um = direction(mid);
         let ue = direction(end);
         if !um.ok || !ue.ok {
@@ -1243,6 +1250,9 @@ fn slip_trial(
         eval_flow(flow, props[3], Real(0.75) * h),
         end,
     );
+    if frictionless {
+        return Trial(flow, samples, Real(0.0));
+    }
     var err = Real(0.0);
     var prev_v = relative_velocity(samples[0]);
     for (var j = 1u; j < 5u; j++) {

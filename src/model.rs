@@ -46,6 +46,23 @@ pub struct Mechanism {
     pub velocity_band: f64,
 }
 
+impl Mechanism {
+    /// The largest friction force the interface holds without slipping
+    /// [N]: max(f_s, f_c). It is f_s whenever f_c <= f_s (every physical
+    /// interface). With f_c > f_s, MODEL.md's rules chatter: a breakaway
+    /// with f_s < |f_need| <= f_c starts a slip that the larger kinetic
+    /// friction cannot let grow (the slip direction exists only for
+    /// |f_need| > f_c, see `slip_direction`), so the relative velocity
+    /// falls back into the band at once, over and over, at a cost that
+    /// grows like 1/a. The limit a -> 0 of that chatter is a slider held
+    /// at the stage's velocity until |f_need| exceeds f_c, which is what
+    /// this threshold integrates directly (measured: the chatter's steps
+    /// approach it as a shrinks; README "Extreme cases").
+    pub fn holding_friction(&self) -> f64 {
+        self.static_friction.max(self.coulomb_friction)
+    }
+}
+
 /// Everything that defines one simulated instance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Instance {

@@ -290,12 +290,7 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
                 shard.total
             );
         }
-        let expected: Vec<u64> = shard
-            .spec
-            .ranges(total)
-            .into_iter()
-            .flatten()
-            .collect();
+        let expected: Vec<u64> = shard.spec.ranges(total).into_iter().flatten().collect();
         let stored: Vec<u64> = shard.file.dataset("shard/instance")?.read_raw()?;
         if stored != expected {
             bail!(

@@ -549,3 +549,89 @@ fn the_one_dof_specialisation_runs_when_y_is_undriven_and_matches_the_cpu() {
         assert!(gpu.iter().all(|o| o.displacement[1] == 0.0));
     }
 }
+
+/// CPU steps per period beyond which an extreme point is left out of the
+/// lavapipe comparison (only for time: lavapipe runs one invocation per
+/// lane, and the longest instance sets the batch's wall time). Three of the
+/// 30 points are heavier: 300 cycles, and two with a 1e-9 m/s band and a
+/// slider held at the friction limit. `pidm run sweeps/extreme.toml
+/// --backend gpu` runs them all (README "Extreme cases").
+const EXTREME_STEPS_PER_PERIOD: u32 = 5_000;
+
+#[test]
+fn extreme_points_are_finite_and_match_the_cpu_or_say_why_not() {
+    use pidm::scene::{Layout, Scene};
+    let Some(ctx) = context() else {
+        return;
+    };
+    let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/sweeps/extreme.toml").as_ref())
+        .expect("the extreme scene loads");
+    let Layout::Points { labels } = &scene.layout else {
+        panic!("a points scene");
+    };
+    // A step budget far above what any kept point needs on the CPU, so an
+    // f32 instance that cannot resolve its band (1e-9 m/s next to stage
+    // speeds of 0.05 m/s) ends with status 1 in seconds rather than after
+    // the default 2 M steps per period.
+    let settings = Settings {
+        max_steps_per_period: 20 * EXTREME_STEPS_PER_PERIOD,
+        ..scene.settings
+    };
+    let mut instances = Vec::new();
+    let mut cpu = Vec::new();
+    let mut names = Vec::new();
+    for (k, label) in labels.iter().enumerate() {
+        let inst = scene.instance(k as u64);
+        let st = run_instance(&inst, &settings);
+        if st.steps > EXTREME_STEPS_PER_PERIOD * inst.cycles {
+            eprintln!("extreme: {label} left out ({} CPU steps)", st.steps);
+            continue;
+        }
+        instances.push(inst);
+        cpu.push(st);
+        names.push(label.clone());
+    }
+    assert!(
+        instances.len() >= 25,
+        "only {} points kept",
+        instances.len()
+    );
+    for precision in precisions(ctx) {
+        let gpu =
+            run_batch(ctx, &instances, &settings, precision, &mut |_, _| {}).expect("batch runs");
+        for (k, g) in gpu.iter().enumerate() {
+            assert!(
+                g.displacement.iter().all(|d| d.is_finite()),
+                "{} {precision:?}: non-finite {:?}",
+                names[k],
+                g.displacement
+            );
+        }
+        match precision {
+            // f64 is held to the CPU on every point.
+            Precision::F64 => {
+                check("extreme", precision, &instances, &cpu, &gpu);
+            }
+            // f32 either agrees within its allowance or reports a non-zero
+            // status (with zeros in the map), never a silent wrong value.
+            Precision::F32 => {
+                for (k, g) in gpu.iter().enumerate() {
+                    if g.status != STATUS_OK {
+                        assert_eq!(g.displacement, [0.0; 2], "{}", names[k]);
+                        eprintln!("extreme F32: {} ended with status {}", names[k], g.status);
+                        continue;
+                    }
+                    for i in 0..2 {
+                        let c = step_um(&instances[k], i, displacement(&instances[k], &cpu[k])[i]);
+                        let v = step_um(&instances[k], i, g.displacement[i]);
+                        assert!(
+                            (v - c).abs() <= f32_allowance(c),
+                            "{} F32 axis {i}: {v} against {c}",
+                            names[k]
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

@@ -387,7 +387,8 @@ fn pass_boundaries(inst: &Instance, st: &mut State, period: f64) {
     }
     if st.mode == MODE_STICK {
         let need = stick_force(inst, st);
-        if norm2(need) > inst.mechanism.static_friction * inst.mechanism.static_friction {
+        let hold = inst.mechanism.holding_friction();
+        if norm2(need) > hold * hold {
             start_slip(inst, st, need);
         }
     }
@@ -795,7 +796,7 @@ fn start_slip(inst: &Instance, st: &mut State, need: [f64; AXES]) {
 /// re-enter the band at once, over and over.
 fn try_stick(inst: &Instance, st: &mut State) {
     let need = stick_force(inst, st);
-    let fs = inst.mechanism.static_friction;
+    let fs = inst.mechanism.holding_friction();
     let ms = inst.mechanism.slider_mass;
     for i in 0..AXES {
         let mp = inst.axes[i].stage_mass;
@@ -850,7 +851,8 @@ fn event_value(inst: &Instance, st: &State, kind: EventKind, sign: f64, s: &Samp
     match kind {
         EventKind::Breakaway => {
             let ms2 = m.slider_mass * m.slider_mass;
-            let e = m.static_friction * m.static_friction - ms2 * norm2(s.a_p);
+            let hold = m.holding_friction();
+            let e = hold * hold - ms2 * norm2(s.a_p);
             (e, -2.0 * ms2 * dot(s.a_p, s.j_p))
         }
         EventKind::EnterBand => {
@@ -883,7 +885,8 @@ fn event_scale(inst: &Instance, st: &State, kind: EventKind, s: &Sample) -> f64 
     let m = &inst.mechanism;
     match kind {
         EventKind::Breakaway => {
-            m.static_friction * m.static_friction + m.slider_mass * m.slider_mass * norm2(s.a_p)
+            let hold = m.holding_friction();
+            hold * hold + m.slider_mass * m.slider_mass * norm2(s.a_p)
         }
         EventKind::EnterBand | EventKind::LeaveBand => {
             norm2(relative_velocity(s)) + m.velocity_band * m.velocity_band
@@ -1049,7 +1052,8 @@ fn step_stick(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
     for i in 0..AXES {
         bound += s0.a_p[i] * s0.a_p[i] + s0.j_p[i] * s0.j_p[i] / flow.axes[i].osc.w2;
     }
-    let safe = m.slider_mass * m.slider_mass * bound <= m.static_friction * m.static_friction;
+    let hold = m.holding_friction();
+    let safe = m.slider_mass * m.slider_mass * bound <= hold * hold;
     let h = if safe {
         h_max
     } else {
@@ -1200,7 +1204,15 @@ fn slip_trial(
     let props = sample_propagators(&flow, h);
     let mut mid = eval_flow(&flow, props[2], 0.5 * h);
     let mut end = eval_flow(&flow, props[4], h);
-    for _ in 0..COLLOCATION_ITERATIONS {
+    // Without kinetic friction the slip motion does not depend on the
+    // friction direction: there is no turn to resolve, and no step limit.
+    let frictionless = inst.mechanism.coulomb_friction == 0.0;
+    let iterations = if frictionless {
+        0
+    } else {
+        COLLOCATION_ITERATIONS
+    };
+    for _ in 0..iterations {
         let (Some(um), Some(ue)) = (direction(&mid), direction(&end)) else {
             return (flow, [end; 5], f64::INFINITY);
         };
@@ -1229,6 +1241,9 @@ fn slip_trial(
         eval_flow(&flow, props[3], 0.75 * h),
         end,
     ];
+    if frictionless {
+        return (flow, samples, 0.0);
+    }
     // The error is the distance between the model direction and the true
     // direction of the resulting motion, at every sample.
     let mut err: f64 = 0.0;

@@ -142,7 +142,7 @@ macro_rules! precision_structs {
                 /// `pidm::model::Mechanism` in shader units.
                 pub struct Mechanism {
                     pub slider_mass: Real,
-                    pub static_friction: Real,
+                    pub holding_friction: Real,
                     pub coulomb_friction: Real,
                     pub velocity_band: Real,
                 }
@@ -229,7 +229,7 @@ macro_rules! precision_structs {
                     inst: Instance {
                         mechanism: Mechanism {
                             slider_mass: m.slider_mass as Real,
-                            static_friction: (m.static_friction * newton) as Real,
+                            holding_friction: (m.holding_friction() * newton) as Real,
                             coulomb_friction: (m.coulomb_friction * newton) as Real,
                             velocity_band: (m.velocity_band * u.metre / u.second) as Real,
                         },

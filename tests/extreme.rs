@@ -1,0 +1,198 @@
+//! `sweeps/extreme.toml` on the CPU reference: every point converges (a
+//! tolerance 1000 times tighter moves it by less than the claimed error)
+//! with a bounded step count, no value is NaN or infinite, and each class
+//! shows the physics it is there for. The GPU side is in `tests/gpu.rs`.
+
+use pidm::cpu::integrate::{STATUS_OK, Settings, State, displacement, run_instance};
+use pidm::model::Instance;
+use pidm::scene::{Layout, Scene};
+
+/// The error claimed for any instance at the default tolerance [um].
+const CLAIMED_ERROR_UM: f64 = 1e-3;
+
+/// The documented step bound for the extreme scene at the default
+/// tolerance: steps per scene period (README "Extreme cases"; the worst
+/// point, a 1 kg slider with f_c = f_s and a 1e-9 m/s band, takes 0.39 M).
+const MAX_STEPS_PER_PERIOD: f64 = 5e5;
+
+struct Point {
+    label: String,
+    inst: Instance,
+    default: State,
+    tight: State,
+}
+
+impl Point {
+    fn step_um(&self, st: &State, axis: usize) -> f64 {
+        self.inst
+            .measure(axis, displacement(&self.inst, st)[axis])
+            .1
+            * 1e6
+    }
+
+    fn steps_um(&self) -> [f64; 2] {
+        [
+            self.step_um(&self.default, 0),
+            self.step_um(&self.default, 1),
+        ]
+    }
+}
+
+fn points() -> Vec<Point> {
+    let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/sweeps/extreme.toml").as_ref())
+        .expect("the extreme scene loads");
+    let Layout::Points { labels } = &scene.layout else {
+        panic!("the extreme scene is a points scene");
+    };
+    let tight = Settings {
+        tolerance: scene.settings.tolerance * 1e-3,
+        ..scene.settings
+    };
+    labels
+        .iter()
+        .enumerate()
+        .map(|(k, label)| {
+            let inst = scene.instance(k as u64);
+            Point {
+                label: label.clone(),
+                inst,
+                default: run_instance(&inst, &scene.settings),
+                tight: run_instance(&inst, &tight),
+            }
+        })
+        .collect()
+}
+
+/// What a class of points must show beyond convergence.
+enum Expect {
+    /// Converges; nothing more specific.
+    Converges,
+    /// Both steps are zero within `tol_um`: the slider moves with the
+    /// stage or not at all.
+    NoNetMotion { tol_um: f64 },
+    /// The x step is at least `min_um` (free drift, strong drive).
+    XStepAtLeast { min_um: f64 },
+    /// The y step matches the point labelled `other` within `tol_um`.
+    SameAs { other: &'static str, tol_um: f64 },
+}
+
+/// Classes by label prefix, each with its expectation.
+const CLASSES: [(&str, Expect); 17] = [
+    ("stiffness", Expect::NoNetMotion { tol_um: 1e-6 }),
+    ("Q 0.5", Expect::Converges),
+    ("Q 1", Expect::Converges),
+    ("duty", Expect::Converges),
+    ("frequency", Expect::Converges),
+    ("voltage +1000", Expect::Converges),
+    ("voltage 0 V on both", Expect::NoNetMotion { tol_um: 0.0 }),
+    ("voltage 0 V on x", Expect::Converges),
+    ("friction almost none", Expect::NoNetMotion { tol_um: 0.0 }),
+    ("friction f_c = 0", Expect::XStepAtLeast { min_um: 100.0 }),
+    ("friction f_s huge", Expect::NoNetMotion { tol_um: 1e-6 }),
+    ("friction f_c", Expect::Converges),
+    ("slider mass 1e-6", Expect::NoNetMotion { tol_um: 1e-6 }),
+    ("slider mass", Expect::Converges),
+    (
+        "band 1e-9",
+        Expect::SameAs {
+            other: "band 1e-3 m/s",
+            tol_um: 0.01,
+        },
+    ),
+    ("band", Expect::Converges),
+    (
+        "cycles 300",
+        Expect::SameAs {
+            other: "band 1e-9 m/s",
+            tol_um: 0.01,
+        },
+    ),
+];
+
+fn check(point: &Point, all: &[Point]) {
+    let label = &point.label;
+    let [x, y] = point.steps_um();
+    assert!(x.is_finite() && y.is_finite(), "{label}: {x} {y}");
+    assert_eq!(point.default.status, STATUS_OK, "{label}: status");
+    assert_eq!(
+        point.tight.status, STATUS_OK,
+        "{label}: status at the tight tolerance"
+    );
+    for axis in 0..2 {
+        let change = (point.step_um(&point.tight, axis) - point.steps_um()[axis]).abs();
+        assert!(
+            change <= CLAIMED_ERROR_UM,
+            "{label} axis {axis}: moved {change:e} um"
+        );
+    }
+    let periods = point.inst.cycles as f64;
+    let per_period = point.default.steps as f64 / periods;
+    assert!(
+        per_period <= MAX_STEPS_PER_PERIOD,
+        "{label}: {per_period} steps per period"
+    );
+    let Some((_, expect)) = CLASSES.iter().find(|(prefix, _)| label.starts_with(prefix)) else {
+        // Combined cases: convergence and the step bound above.
+        assert!(label.starts_with("combined"), "{label} belongs to no class");
+        return;
+    };
+    match expect {
+        Expect::Converges => {}
+        Expect::NoNetMotion { tol_um } => {
+            assert!(x.abs() <= *tol_um && y.abs() <= *tol_um, "{label}: {x} {y}");
+        }
+        Expect::XStepAtLeast { min_um } => assert!(x >= *min_um, "{label}: {x}"),
+        Expect::SameAs { other, tol_um } => {
+            let other = all
+                .iter()
+                .find(|p| p.label == *other)
+                .expect("the other point");
+            for (a, b) in point.steps_um().iter().zip(other.steps_um()) {
+                assert!((a - b).abs() <= *tol_um, "{label}: {a} against {b}");
+            }
+        }
+    }
+}
+
+#[test]
+fn every_extreme_point_converges_within_its_step_bound_and_shows_its_physics() {
+    let all = points();
+    assert!(all.len() >= 25);
+    for point in &all {
+        let [x, y] = point.steps_um();
+        eprintln!(
+            "{:45} {x:+12.6} {y:+12.6} um  {:>8} steps (tight: {})",
+            point.label, point.default.steps, point.tight.steps
+        );
+    }
+    for point in &all {
+        check(point, &all);
+    }
+}
+
+#[test]
+fn kinetic_friction_above_static_holds_like_static_friction_of_that_size() {
+    // With f_c > f_s the slider is held until |f_need| exceeds f_c (the
+    // limit of MODEL.md's chatter as the band shrinks): exactly the motion
+    // of an interface whose static friction equals f_c.
+    let all = points();
+    let point = all
+        .iter()
+        .find(|p| p.label == "friction f_c > f_s")
+        .unwrap();
+    let mut held = point.inst;
+    held.mechanism.static_friction = held.mechanism.coulomb_friction;
+    let st = run_instance(&held, &Settings::default());
+    assert_eq!(st.status, STATUS_OK);
+    assert_eq!(
+        displacement(&held, &st),
+        displacement(&point.inst, &point.default)
+    );
+    // And it differs from f_c = f_s at the smaller friction: the class is
+    // not degenerate.
+    let equal = all
+        .iter()
+        .find(|p| p.label == "friction f_c = f_s")
+        .unwrap();
+    assert!((equal.steps_um()[0] - point.steps_um()[0]).abs() > 0.1);
+}
