@@ -114,6 +114,9 @@ JobCompType=jobcomp/none
 MpiDefault=none
 SwitchType=switch/none
 SchedulerType=sched/backfill
+# A job whose dependency can never be met (afterok on a failed job) is
+# cancelled instead of pending for ever, so \`sbatch --wait\` on it returns.
+SchedulerParameters=kill_invalid_depend
 SelectType=select/cons_tres
 SelectTypeParameters=CR_CPU
 ReturnToService=2
@@ -215,6 +218,10 @@ run)
     export SLURM_CONF=$CONF
     status=0
     "$@" || status=$?
+    if ((status != 0)); then
+        say "the command exited with $status; the cluster's logs:"
+        show_logs
+    fi
     exit "$status"
     ;;
 *)
