@@ -44,22 +44,47 @@ live_pid() {
     return 0
 }
 
-# Stops the daemons this folder's pid files name, gently and then firmly.
-stop_daemons() {
-    local name pid pids=() waited
+# The daemons (and job steps) of this folder's cluster: those its pid files
+# name, and any other whose environment or command line names this folder
+# (a cluster whose pid files were deleted, say). Nothing else.
+our_pids() {
+    local name pid proc env cmd
     for name in slurmd slurmctld munged; do
-        pid=$(live_pid "$DIR/run/$name.pid" "$name")
-        if [[ -n $pid ]]; then
-            kill -TERM "$pid" 2>/dev/null || true
-            pids+=("$pid")
+        live_pid "$DIR/run/$name.pid" "$name"
+    done
+    for proc in /proc/[0-9]*; do
+        pid=${proc#/proc/}
+        name=$(cat "$proc/comm" 2>/dev/null) || continue
+        case $name in slurmd | slurmctld | munged | slurmstepd) ;; *) continue ;; esac
+        env=$(tr '\0' '\n' 2>/dev/null <"$proc/environ") || true
+        cmd=$(tr '\0' ' ' 2>/dev/null <"$proc/cmdline") || true
+        if [[ $'\n'$env$'\n' == *$'\n'"SLURM_CONF=$CONF"$'\n'* || $cmd == *"$DIR/"* ]]; then
+            echo "$pid"
         fi
     done
-    for pid in "${pids[@]}"; do
+}
+
+# True while process $1 runs (a zombie has finished).
+alive() {
+    local stat
+    stat=$(cat "/proc/$1/stat" 2>/dev/null) || return 1
+    stat=${stat##*) }
+    [[ ${stat:0:1} != Z ]]
+}
+
+# Stops this folder's cluster, gently and then firmly.
+stop_daemons() {
+    local pid pids waited
+    pids=$(our_pids | sort -un)
+    for pid in $pids; do
+        kill -TERM "$pid" 2>/dev/null || true
+    done
+    for pid in $pids; do
         for ((waited = 0; waited < 100; waited++)); do
-            kill -0 "$pid" 2>/dev/null || break
+            alive "$pid" || break
             sleep 0.1
         done
-        if kill -0 "$pid" 2>/dev/null; then
+        if alive "$pid"; then
             say "pid $pid ignored SIGTERM for 10 s; sending SIGKILL"
             kill -KILL "$pid" 2>/dev/null || true
         fi
@@ -148,10 +173,9 @@ up() {
         fi
     done
     rm -rf "$DIR"
-    mkdir -p "$DIR"
-    chmod 0700 "$DIR"
+    # Only the key is secret (0400); the socket's folders must be searchable.
     mkdir -p "$DIR"/{munge,state,spool,run,log}
-    chmod 0700 "$DIR/munge"
+    chmod 0755 "$DIR" "$DIR/munge"
 
     # If starting fails halfway, stop whatever did start.
     trap 'status=$?; if ((status != 0)); then show_logs; stop_daemons; fi' EXIT
@@ -161,7 +185,7 @@ up() {
     chmod 0400 "$DIR/munge/munge.key"
     munged --force --socket="$SOCKET" --key-file="$DIR/munge/munge.key" \
         --pid-file="$DIR/run/munged.pid" --log-file="$DIR/log/munged.log" \
-        --seed-file="$DIR/munge/munged.seed" </dev/null >>"$DIR/log/munged.log" 2>&1 ||
+        --seed-file="$DIR/munge/munged.seed" </dev/null >>"$DIR/log/munged.log" 2>&1 9>&- ||
         die "munged did not start"
     if command -v munge >/dev/null && command -v unmunge >/dev/null; then
         munge --socket="$SOCKET" -n | unmunge --socket="$SOCKET" >/dev/null ||
@@ -171,9 +195,11 @@ up() {
     write_conf
     export SLURM_CONF=$CONF
     # -i: ignore (there is no) saved state; the daemons fork into the
-    # background themselves and write the pid files named in slurm.conf.
-    slurmctld -i </dev/null >>"$DIR/log/slurmctld.log" 2>&1 || die "slurmctld did not start"
-    slurmd </dev/null >>"$DIR/log/slurmd.log" 2>&1 || die "slurmd did not start"
+    # background themselves and write the pid files named in slurm.conf. No
+    # daemon keeps the lock of `run` (fd 9), or a cluster left running would
+    # hold it.
+    slurmctld -i </dev/null >>"$DIR/log/slurmctld.log" 2>&1 9>&- || die "slurmctld did not start"
+    slurmd </dev/null >>"$DIR/log/slurmd.log" 2>&1 9>&- || die "slurmd did not start"
 
     local waited state=""
     for ((waited = 0; waited < WAIT * 2; waited++)); do
@@ -217,7 +243,7 @@ run)
     trap 'exit 130' INT TERM
     export SLURM_CONF=$CONF
     status=0
-    "$@" || status=$?
+    "$@" 9>&- || status=$?
     if ((status != 0)); then
         say "the command exited with $status; the cluster's logs:"
         show_logs
