@@ -107,9 +107,14 @@ port_busy() {
     (exec 3<>"/dev/tcp/127.0.0.1/$1") 2>/dev/null
 }
 
+# The name slurmd knows its node by: the host name up to the first dot.
+short_hostname() {
+    hostname -s 2>/dev/null || uname -n | cut -d. -f1
+}
+
 write_conf() {
     local host cpus
-    host=$(hostname -s)
+    host=$(short_hostname)
     cpus=$(nproc)
     cat >"$CONF" <<EOF
 # Written by tests/slurm/cluster.sh: a single-node test cluster.
@@ -209,7 +214,7 @@ up() {
     done
     [[ $state == idle ]] || die "the node is not idle after ${WAIT} s (state '${state:-no answer}')"
     trap - EXIT
-    say "single-node cluster up ($(hostname -s), $(nproc) CPUs, state in $DIR)"
+    say "single-node cluster up ($(short_hostname), $(nproc) CPUs, state in $DIR)"
     echo "SLURM_CONF=$CONF"
 }
 
