@@ -2,6 +2,7 @@
 //! command line and prints errors; everything a command does is here, so
 //! tests can call it.
 
+use std::collections::BTreeMap;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -9,10 +10,12 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::checkpoint::{self, Checkpoint};
 use crate::cpu::integrate::STATUS_OK;
 use crate::model::{AXES, Instance};
-use crate::output::{AxisInfo, FileInfo, MapWriter};
+use crate::output::{AxisInfo, FileInfo, MapWriter, ShardInfo};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
+use crate::shard::ShardSpec;
 use crate::sweep::{self, Backend, CpuBackend, Plan, Record, Summary};
 
 /// Human meaning of each status code (index = code).
@@ -102,6 +105,8 @@ pub struct RunOptions {
     pub precision: Option<PrecisionChoice>,
     /// Print the per-instance table for scenes up to this many instances.
     pub table_limit: u64,
+    /// Shard, resume and chunking.
+    pub scope: RunScope,
 }
 
 /// What `pidm run` produced.
@@ -155,8 +160,9 @@ pub fn variant(scene: &Scene, backend: &dyn Backend) -> String {
     }
 }
 
-/// The file layout of a scene's results.
-pub fn file_info(scene: &Scene, backend: &dyn Backend) -> FileInfo {
+/// The file layout of a scene's results, run on `backend` (its
+/// description) in `precision` by the integrator `variant`.
+pub fn file_info(scene: &Scene, backend: String, precision: String, variant: String) -> FileInfo {
     let (axes, labels) = match &scene.layout {
         Layout::Grid { axes } => (
             axes.iter()
@@ -177,51 +183,158 @@ pub fn file_info(scene: &Scene, backend: &dyn Backend) -> FileInfo {
         axes,
         labels,
         baselines: scene.baselines,
-        backend: backend.describe(),
-        precision: backend.precision().to_string(),
-        variant: variant(scene, backend),
+        backend,
+        precision,
+        variant,
         tolerance: scene.settings.tolerance,
+        shard: None,
     }
 }
 
-/// Runs a scene on a backend into an HDF5 file.
-pub fn run_scene(scene: &Scene, backend: &dyn Backend, out: &Path, keep: u64) -> Result<RunResult> {
+/// How a run covers its scene.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RunScope {
+    /// Run only this shard of the instances.
+    pub shard: Option<ShardSpec>,
+    /// Continue an interrupted run from its checkpoint.
+    pub resume: bool,
+    /// Instances per chunk (the checkpoint granularity) instead of the
+    /// backend's choice.
+    pub chunk_size: Option<usize>,
+}
+
+/// Everything that must match for a checkpoint to be resumed: results are
+/// bit-identical only on the same scene, version, precision and hardware
+/// (the CPU path gives the same bits on any thread count).
+fn run_identity(scene: &Scene, backend: &dyn Backend, shard: Option<ShardSpec>) -> String {
+    let hardware = match backend.cpu_threads() {
+        Some(_) => "cpu".to_string(),
+        None => backend.describe(),
+    };
+    format!(
+        "pidm {}\nbackend {hardware}\nprecision {}\nshard {}\ninstances {}\nscene\n{}",
+        env!("CARGO_PKG_VERSION"),
+        backend.precision(),
+        shard.map_or("all".to_string(), |s| s.to_string()),
+        scene.instance_count(),
+        scene.text
+    )
+}
+
+/// Runs a scene on a backend into an HDF5 file, checkpointing each
+/// finished chunk beside it. On an error or an interrupt the output file
+/// is not written and the checkpoint stays for `--resume`.
+pub fn run_scene(
+    scene: &Scene,
+    backend: &dyn Backend,
+    out: &Path,
+    keep: u64,
+    scope: RunScope,
+) -> Result<RunResult> {
     scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
-    let count = scene.instance_count();
+    let total = scene.instance_count();
+    let mut info = file_info(
+        scene,
+        backend.describe(),
+        backend.precision().to_string(),
+        variant(scene, backend),
+    );
+    info.shard = scope.shard.map(|spec| ShardInfo::new(spec, total));
+    let all = match &info.shard {
+        Some(shard) => shard.ranges.clone(),
+        None => Plan::everything(total),
+    };
+    let count: u64 = all.iter().map(|r| r.end - r.start).sum();
+    let keep_records = count <= keep;
+    let mut kept: BTreeMap<u64, Record> = BTreeMap::new();
+    let mut summary = Summary::default();
+
+    let checkpoint_path = checkpoint::path_for(out);
+    let identity = run_identity(scene, backend, scope.shard);
+    let (mut checkpoint, work, mut writer) = if scope.resume {
+        if !checkpoint_path.exists() {
+            bail!(
+                "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
+                checkpoint_path.display()
+            );
+        }
+        let mut writer = MapWriter::create(out, &info)?;
+        let (checkpoint, done) =
+            Checkpoint::resume(&checkpoint_path, &identity, &mut |start, records| {
+                writer.write(start, records)?;
+                for (k, r) in records.iter().enumerate() {
+                    summary.add(r);
+                    if keep_records {
+                        kept.insert(start + k as u64, *r);
+                    }
+                }
+                Ok(())
+            })?;
+        let work = checkpoint::missing(&all, &done);
+        let left: u64 = work.iter().map(|r| r.end - r.start).sum();
+        eprintln!(
+            "pidm: resuming from {}: {} of {count} instances done, {left} to compute",
+            checkpoint_path.display(),
+            count - left
+        );
+        (checkpoint, work, writer)
+    } else {
+        if checkpoint_path.exists() {
+            bail!(
+                "{} holds the finished part of an interrupted run of this output; continue it \
+                 with --resume, or delete it to start over",
+                checkpoint_path.display()
+            );
+        }
+        // The checkpoint is created first: it also keeps a second run of
+        // the same output from starting beside this one.
+        let checkpoint = Checkpoint::create(&checkpoint_path, &identity)?;
+        (checkpoint, all, MapWriter::create(out, &info)?)
+    };
+
     let instance = |i: u64| scene.instance(i);
     let plan = Plan {
-        count,
+        work,
         instance: &instance,
         settings: scene.settings,
         baselines: scene.baselines,
     };
-    let info = file_info(scene, backend);
-    let mut writer = MapWriter::create(out, &info)?;
-    let bar = progress_bar(count);
+    let bar = progress_bar(plan.count());
     install_interrupt_handler();
     let started = Instant::now();
-    let mut kept = Vec::new();
-    let summary = sweep::run(
+    let result = sweep::run(
         &plan,
         backend,
-        backend.chunk_size(),
+        scope.chunk_size.unwrap_or_else(|| backend.chunk_size()),
         &|n| bar.inc(n),
         &mut |start, records| {
-            if count <= keep {
-                kept.extend_from_slice(records);
+            if keep_records {
+                for (k, r) in records.iter().enumerate() {
+                    kept.insert(start + k as u64, *r);
+                }
             }
-            writer.write(start, records)
+            writer.write(start, records)?;
+            checkpoint.append(start, records)
         },
-    )?;
+    );
     bar.finish_and_clear();
+    let new = result.with_context(|| {
+        format!(
+            "the finished instances are kept in {}; the same command with --resume \
+             continues the run",
+            checkpoint_path.display()
+        )
+    })?;
+    summary.merge(&new);
     let wall_time_s = started.elapsed().as_secs_f64();
     let path = writer.finish(wall_time_s)?;
+    checkpoint.remove()?;
     Ok(RunResult {
         path,
         summary,
         wall_time_s,
         backend: backend.describe(),
-        records: kept,
+        records: kept.into_values().collect(),
     })
 }
 
@@ -236,7 +349,11 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
     let scene = Scene::load(&opts.scene)?;
     let backend = select_backend(opts.backend, opts.precision, opts.threads)?;
     let backend = backend.as_ref();
-    let out = opts.out.clone().unwrap_or_else(|| default_output(&scene));
+    let out = match (&opts.out, opts.scope.shard) {
+        (Some(out), _) => out.clone(),
+        (None, Some(shard)) => shard.default_output(&scene.name),
+        (None, None) => default_output(&scene),
+    };
     eprintln!(
         "pidm: scene {:?}: {} instances{} on {}, {}, tolerance {:e} rad",
         scene.name,
@@ -250,7 +367,14 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         backend.precision(),
         scene.settings.tolerance
     );
-    let result = run_scene(&scene, backend, &out, opts.table_limit)?;
+    if let Some(shard) = opts.scope.shard {
+        eprintln!(
+            "pidm: shard {shard}: {} of the {} instances",
+            ShardInfo::new(shard, scene.instance_count()).len(),
+            scene.instance_count()
+        );
+    }
+    let result = run_scene(&scene, backend, &out, opts.table_limit, opts.scope)?;
     print_summary(&scene, &result);
     Ok(result.summary.instances - result.summary.status_counts[STATUS_OK as usize])
 }
@@ -745,5 +869,17 @@ pub fn report(paths: &[PathBuf], out: &Path) -> Result<()> {
     std::fs::write(&temp, &md).with_context(|| format!("cannot write {}", temp.display()))?;
     std::fs::rename(&temp, out).with_context(|| format!("cannot write {}", out.display()))?;
     println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// `pidm merge`: joins shard files into one map file.
+pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<()> {
+    let merged = crate::shard::merge(out, shards)?;
+    println!(
+        "wrote {} ({} instances from {} shards)",
+        merged.path.display(),
+        merged.instances,
+        merged.shards
+    );
     Ok(())
 }

@@ -3,6 +3,7 @@
 //! See ARCHITECTURE.md for the bird's-eye view.
 
 pub mod accuracy;
+pub mod checkpoint;
 pub mod commands;
 pub mod cpu;
 pub mod gpu;
@@ -11,4 +12,5 @@ pub mod output;
 pub mod random;
 pub mod report;
 pub mod scene;
+pub mod shard;
 pub mod sweep;

@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 use pidm::commands;
+use pidm::shard::ShardSpec;
 
 /// Maps how two-axis piezoelectric impact drives move.
 #[derive(Parser, Debug)]
@@ -36,6 +37,28 @@ enum Command {
         /// Precision of the GPU path [default: f32]; the CPU path is f64.
         #[arg(long, value_enum)]
         precision: Option<commands::PrecisionChoice>,
+        /// Run only shard K of N (1 <= K <= N) into its own file [default
+        /// output: results/<scene name>.shard-K-of-N.h5]; `pidm merge`
+        /// joins the shards.
+        #[arg(long, value_name = "K/N")]
+        shard: Option<ShardSpec>,
+        /// Continue an interrupted run from the checkpoint beside its output
+        /// file, computing only the instances that are missing.
+        #[arg(long)]
+        resume: bool,
+        /// Instances per chunk: how often the run checkpoints [default: the
+        /// backend's choice, thousands of instances].
+        #[arg(long)]
+        chunk_size: Option<usize>,
+    },
+    /// Joins the shard files of one scene (`pidm run --shard K/N`) into one
+    /// map file, the same as a single run's.
+    Merge {
+        /// The merged output file.
+        out: PathBuf,
+        /// Every shard file of the run.
+        #[arg(required = true)]
+        shards: Vec<PathBuf>,
     },
     /// Lists GPU adapters: type, backend, limits, f64 support.
     Info,
@@ -101,7 +124,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
             threads,
             backend,
             precision,
+            shard,
+            resume,
+            chunk_size,
         } => {
+            if chunk_size == Some(0) {
+                anyhow::bail!("--chunk-size must be at least 1");
+            }
             let failed = commands::run(&commands::RunOptions {
                 scene,
                 out,
@@ -109,6 +138,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 backend,
                 precision,
                 table_limit: 64,
+                scope: commands::RunScope {
+                    shard,
+                    resume,
+                    chunk_size,
+                },
             })?;
             if failed > 0 {
                 eprintln!(
@@ -118,6 +152,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 return Ok(ExitCode::from(3));
             }
         }
+        Command::Merge { out, shards } => commands::merge(&out, &shards)?,
         Command::Check { scene } => commands::check(&scene)?,
         Command::Info => commands::info()?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,

@@ -11,15 +11,59 @@
 //!   `/maps/steps`, each shaped like the grid;
 //! - `/baseline/step_x`, `/baseline/step_y`, `/baseline/status` when
 //!   baselines are asked for.
+//!
+//! The file also follows the netCDF-4 conventions, so netCDF tools and
+//! `xarray.open_dataset(file, engine="h5netcdf")` see labelled arrays: each
+//! `/axes` dataset is an HDF5 dimension scale named by its key and attached
+//! to every map, and the root group holds hard links (the same objects, not
+//! copies) named `step_x`, ..., `baseline_step_x`, ... and one per axis key.
+//! Every map has `units` and `long_name` attributes.
+//!
+//! A shard file (`pidm run --shard K/N`) holds only its own instances: its
+//! maps are 1-D in ascending flat-index order, `/shard/instance` lists those
+//! indices, and root attributes `shard_index`, `shard_count` and
+//! `instance_count` say which part of the scene it is. `pidm merge` turns
+//! shards back into one map file.
 
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, File, H5Type, Hyperslab, SliceOrIndex};
 use ndarray::ArrayView;
 
+use crate::shard::ShardSpec;
 use crate::sweep::Record;
+
+/// Where a shard file's instances sit in the scene.
+#[derive(Clone, Debug)]
+pub struct ShardInfo {
+    pub spec: ShardSpec,
+    /// Instances in the whole scene.
+    pub total: u64,
+    /// The flat indices this shard holds, ascending and disjoint.
+    pub ranges: Vec<Range<u64>>,
+}
+
+impl ShardInfo {
+    pub fn new(spec: ShardSpec, total: u64) -> ShardInfo {
+        ShardInfo {
+            spec,
+            total,
+            ranges: spec.ranges(total),
+        }
+    }
+
+    /// Instances the shard holds.
+    pub fn len(&self) -> u64 {
+        self.ranges.iter().map(|r| r.end - r.start).sum()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
 
 /// One grid axis as it is written to `/axes`.
 #[derive(Clone, Debug)]
@@ -45,6 +89,8 @@ pub struct FileInfo {
     /// Which integrator variant ran (for example "2-DOF" or "1-DOF").
     pub variant: String,
     pub tolerance: f64,
+    /// Set for a shard file: which part of the scene it holds.
+    pub shard: Option<ShardInfo>,
 }
 
 /// Writes one result file. Dropping it before [`MapWriter::finish`] removes
@@ -54,6 +100,8 @@ pub struct MapWriter {
     temp_path: PathBuf,
     final_path: PathBuf,
     shape: Vec<usize>,
+    /// For a shard: (first flat index, position in the file) of each range.
+    shard_ranges: Vec<(Range<u64>, u64)>,
     maps: Vec<Dataset>,
     baselines: Vec<Dataset>,
 }
@@ -88,6 +136,76 @@ fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
     Ok(())
 }
 
+fn write_u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> Result<()> {
+    loc.new_attr::<u64>().create(name)?.write_scalar(&value)?;
+    Ok(())
+}
+
+/// The name of a map's hard link in the root group: `step_x` for
+/// `/maps/step_x`, `baseline_step_x` for `/baseline/step_x`.
+pub fn root_name(group: &str, name: &str) -> String {
+    if group == "maps" {
+        name.to_string()
+    } else {
+        format!("{group}_{name}")
+    }
+}
+
+/// The chunk shape of a map: at most 2^16 entries, whole along the last
+/// dimensions, so a run writing in flat order touches few chunks and a
+/// map read back by rows is fast. `None` for a scalar (single instance).
+fn chunk_shape(shape: &[usize]) -> Option<Vec<usize>> {
+    const CHUNK_ENTRIES: usize = 1 << 16;
+    if shape.is_empty() {
+        return None;
+    }
+    let mut chunk = vec![1; shape.len()];
+    let mut entries = 1;
+    for d in (0..shape.len()).rev() {
+        let n = shape[d].clamp(1, (CHUNK_ENTRIES / entries).max(1));
+        chunk[d] = n;
+        entries *= n;
+    }
+    Some(chunk)
+}
+
+/// HDF5 dimension scales (the `H5DS` API of the HDF5 high-level library,
+/// which netCDF-4 uses for its dimensions). hdf5-metno does not wrap it.
+mod dimension_scales {
+    use std::ffi::{CString, c_char};
+
+    use anyhow::{Result, bail};
+    use hdf5::Dataset;
+
+    #[link(name = "hdf5_hl")]
+    unsafe extern "C" {
+        fn H5DSset_scale(dsid: i64, dimname: *const c_char) -> i32;
+        fn H5DSattach_scale(did: i64, dsid: i64, idx: u32) -> i32;
+    }
+
+    /// Makes `ds` a dimension scale named `name`.
+    pub fn set_scale(ds: &Dataset, name: &str) -> Result<()> {
+        let name = CString::new(name)?;
+        // SAFETY: the id is a live dataset and the name a C string; the
+        // library lock serialises HDF5 calls as hdf5-metno's own do.
+        let rc = hdf5::sync::sync(|| unsafe { H5DSset_scale(ds.id(), name.as_ptr()) });
+        if rc < 0 {
+            bail!("cannot make {} a dimension scale", ds.name());
+        }
+        Ok(())
+    }
+
+    /// Attaches the scale to dimension `dim` of `ds`.
+    pub fn attach(ds: &Dataset, scale: &Dataset, dim: u32) -> Result<()> {
+        // SAFETY: both ids are live datasets.
+        let rc = hdf5::sync::sync(|| unsafe { H5DSattach_scale(ds.id(), scale.id(), dim) });
+        if rc < 0 {
+            bail!("cannot attach {} to {}", scale.name(), ds.name());
+        }
+        Ok(())
+    }
+}
+
 fn write_f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> Result<()> {
     loc.new_attr::<f64>().create(name)?.write_scalar(&value)?;
     Ok(())
@@ -103,18 +221,31 @@ impl MapWriter {
         let file_name = path
             .file_name()
             .with_context(|| format!("{} is not a file path", path.display()))?;
-        let temp_path = path.with_file_name(format!(
-            ".{}.partial-{}",
-            file_name.to_string_lossy(),
-            std::process::id()
-        ));
+        // One temporary name per output: a run killed before it could
+        // clean up leaves it, and the next run (or `--resume`) of the same
+        // output overwrites it.
+        let temp_path = path.with_file_name(format!(".{}.partial", file_name.to_string_lossy()));
         let file = File::create(&temp_path)
             .with_context(|| format!("cannot create {}", temp_path.display()))?;
+        // A shard's maps are 1-D over its own instances.
+        let map_shape = match &info.shard {
+            Some(shard) => vec![shard.len() as usize],
+            None => info.shape.clone(),
+        };
+        let mut shard_ranges = Vec::new();
+        if let Some(shard) = &info.shard {
+            let mut position = 0;
+            for range in &shard.ranges {
+                shard_ranges.push((range.clone(), position));
+                position += range.end - range.start;
+            }
+        }
         let mut writer = MapWriter {
             file: None,
             temp_path,
             final_path: path.to_path_buf(),
-            shape: info.shape.clone(),
+            shape: map_shape.clone(),
+            shard_ranges,
             maps: Vec::new(),
             baselines: Vec::new(),
         };
@@ -126,14 +257,19 @@ impl MapWriter {
         write_str_attr(&file, "variant", &info.variant)?;
         write_f64_attr(&file, "tolerance", info.tolerance)?;
 
+        // The dimension scales, in grid order.
         let axes = file.create_group("axes")?;
+        let mut scales = Vec::new();
         for axis in &info.axes {
             let ds = axes
                 .new_dataset_builder()
                 .with_data(&axis.values)
                 .create(axis.key.as_str())?;
             write_str_attr(&ds, "units", &axis.units)?;
+            write_str_attr(&ds, "long_name", &axis.key)?;
+            scales.push((axis.key.clone(), ds));
         }
+        let mut coordinates = None;
         if let Some(labels) = &info.labels {
             let index: Vec<u64> = (0..labels.len() as u64).collect();
             let ds = axes
@@ -141,46 +277,86 @@ impl MapWriter {
                 .with_data(&index)
                 .create("point")?;
             write_str_attr(&ds, "units", "1")?;
+            write_str_attr(&ds, "long_name", "point of the scene, in file order")?;
             let text: Vec<VarLenUnicode> = labels
                 .iter()
                 .map(|l| l.parse().context("point label is not valid text"))
                 .collect::<Result<_>>()?;
-            file.new_dataset_builder()
+            let label_ds = file
+                .new_dataset_builder()
                 .with_data(&text)
                 .create("labels")?;
+            write_str_attr(&label_ds, "long_name", "point label")?;
+            scales.push(("point".to_string(), ds));
+            coordinates = Some(label_ds);
+        }
+        let netcdf = info.shard.is_none();
+        if netcdf {
+            for (key, ds) in &scales {
+                dimension_scales::set_scale(ds, key)?;
+                file.link_hard(&format!("axes/{key}"), key)?;
+            }
+            if let Some(labels) = &coordinates {
+                dimension_scales::attach(labels, &scales[0].1, 0)?;
+            }
+        }
+        if let Some(shard) = &info.shard {
+            write_u64_attr(&file, "shard_index", shard.spec.index as u64)?;
+            write_u64_attr(&file, "shard_count", shard.spec.count as u64)?;
+            write_u64_attr(&file, "instance_count", shard.total)?;
+            let group = file.create_group("shard")?;
+            let ds = group
+                .new_dataset::<u64>()
+                .shape(map_shape.clone())
+                .create("instance")?;
+            let index: Vec<u64> = shard.ranges.iter().flat_map(|r| r.clone()).collect();
+            ds.write(&index)?;
+            write_str_attr(
+                &ds,
+                "long_name",
+                "flat row-major index of each instance in the scene",
+            )?;
         }
 
+        let make = |group: &hdf5::Group, name: &str, integer: bool| -> Result<Dataset> {
+            let builder = if integer {
+                group.new_dataset::<u32>()
+            } else {
+                group.new_dataset::<f64>()
+            };
+            let builder = builder.shape(map_shape.clone());
+            let ds = match chunk_shape(&map_shape) {
+                Some(chunk) => builder.chunk(chunk).create(name)?,
+                None => builder.create(name)?,
+            };
+            Ok(ds)
+        };
+        let describe =
+            |ds: &Dataset, prefix: &str, name: &str, units: &str, long_name: &str| -> Result<()> {
+                write_str_attr(ds, "units", units)?;
+                write_str_attr(ds, "long_name", long_name)?;
+                if netcdf {
+                    for (dim, (_, scale)) in scales.iter().enumerate() {
+                        dimension_scales::attach(ds, scale, dim as u32)?;
+                    }
+                    if coordinates.is_some() {
+                        write_str_attr(ds, "coordinates", "labels")?;
+                    }
+                    file.link_hard(&format!("{prefix}/{name}"), &root_name(prefix, name))?;
+                }
+                Ok(())
+            };
         let maps = file.create_group("maps")?;
         for (name, units, long_name) in MAPS {
-            let ds = if name == "status" || name == "steps" {
-                maps.new_dataset::<u32>()
-                    .shape(info.shape.clone())
-                    .create(name)?
-            } else {
-                maps.new_dataset::<f64>()
-                    .shape(info.shape.clone())
-                    .create(name)?
-            };
-            write_str_attr(&ds, "units", units)?;
-            write_str_attr(&ds, "long_name", long_name)?;
+            let ds = make(&maps, name, name == "status" || name == "steps")?;
+            describe(&ds, "maps", name, units, long_name)?;
             writer.maps.push(ds);
         }
         if info.baselines {
             let group = file.create_group("baseline")?;
             for (name, units, long_name) in BASELINES {
-                let ds = if name == "status" {
-                    group
-                        .new_dataset::<u32>()
-                        .shape(info.shape.clone())
-                        .create(name)?
-                } else {
-                    group
-                        .new_dataset::<f64>()
-                        .shape(info.shape.clone())
-                        .create(name)?
-                };
-                write_str_attr(&ds, "units", units)?;
-                write_str_attr(&ds, "long_name", long_name)?;
+                let ds = make(&group, name, name == "status")?;
+                describe(&ds, "baseline", name, units, long_name)?;
                 writer.baselines.push(ds);
             }
         }
@@ -191,6 +367,7 @@ impl MapWriter {
     /// Writes the records of instances `start .. start + records.len()`
     /// (row-major flat indices).
     pub fn write(&mut self, start: u64, records: &[Record]) -> Result<()> {
+        let start = self.position(start, records.len() as u64)?;
         let take = |f: &dyn Fn(&Record) -> f64| records.iter().map(f).collect::<Vec<f64>>();
         let take_u32 = |f: &dyn Fn(&Record) -> u32| records.iter().map(f).collect::<Vec<u32>>();
         let columns_f64 = [
@@ -227,6 +404,24 @@ impl MapWriter {
         Ok(())
     }
 
+    /// Where the instances `start .. start + n` sit in the maps: the flat
+    /// index itself, or for a shard its position among the shard's own.
+    fn position(&self, start: u64, n: u64) -> Result<u64> {
+        if self.shard_ranges.is_empty() {
+            return Ok(start);
+        }
+        let k = self.shard_ranges.partition_point(|(r, _)| r.end <= start);
+        match self.shard_ranges.get(k) {
+            Some((range, position)) if range.start <= start && start + n <= range.end => {
+                Ok(position + (start - range.start))
+            }
+            _ => bail!(
+                "internal: instances {start}..{} are not in this shard",
+                start + n
+            ),
+        }
+    }
+
     /// Records the run's wall time, closes the file and renames it into
     /// place.
     pub fn finish(mut self, wall_time_s: f64) -> Result<PathBuf> {
@@ -254,6 +449,77 @@ impl Drop for MapWriter {
             let _ = std::fs::remove_file(&self.temp_path);
         }
     }
+}
+
+/// Checks that two result files hold the same scene and the same
+/// contents, bit for bit: every dataset of `/axes`, `/maps` and `/baseline`
+/// and the point labels. Run-specific attributes (`wall_time_s`,
+/// `backend`) may differ. The error names the first difference.
+pub fn compare_contents(a: &Path, b: &Path) -> Result<()> {
+    use hdf5::types::{FloatSize, IntSize, TypeDescriptor};
+    let fa = File::open(a).with_context(|| format!("cannot open {}", a.display()))?;
+    let fb = File::open(b).with_context(|| format!("cannot open {}", b.display()))?;
+    let scene = |f: &File| -> Result<String> {
+        let v: VarLenUnicode = f.attr("scene")?.read_scalar()?;
+        Ok(v.as_str().to_string())
+    };
+    if scene(&fa)? != scene(&fb)? {
+        bail!("the `scene` attributes differ");
+    }
+    let mut paths = Vec::new();
+    for group in ["axes", "maps", "baseline"] {
+        let (ga, gb) = (fa.group(group).ok(), fb.group(group).ok());
+        match (ga, gb) {
+            (None, None) => {}
+            (Some(ga), Some(gb)) => {
+                let (mut na, mut nb) = (ga.member_names()?, gb.member_names()?);
+                na.sort();
+                nb.sort();
+                if na != nb {
+                    bail!("/{group} holds {na:?} in one file and {nb:?} in the other");
+                }
+                paths.extend(na.into_iter().map(|n| format!("{group}/{n}")));
+            }
+            _ => bail!("only one file has /{group}"),
+        }
+    }
+    match (fa.dataset("labels").is_ok(), fb.dataset("labels").is_ok()) {
+        (true, true) => paths.push("labels".into()),
+        (false, false) => {}
+        _ => bail!("only one file has /labels"),
+    }
+    for path in paths {
+        let (da, db) = (fa.dataset(&path)?, fb.dataset(&path)?);
+        if da.shape() != db.shape() {
+            bail!("/{path}: shapes {:?} and {:?}", da.shape(), db.shape());
+        }
+        let kind = da.dtype()?.to_descriptor()?;
+        if kind != db.dtype()?.to_descriptor()? {
+            bail!("/{path}: the element types differ");
+        }
+        let same = match kind {
+            TypeDescriptor::Float(FloatSize::U8) => {
+                let (x, y): (Vec<f64>, Vec<f64>) = (da.read_raw()?, db.read_raw()?);
+                x.iter()
+                    .map(|v| v.to_bits())
+                    .eq(y.iter().map(|v| v.to_bits()))
+            }
+            TypeDescriptor::Unsigned(IntSize::U4) => {
+                da.read_raw::<u32>()? == db.read_raw::<u32>()?
+            }
+            TypeDescriptor::Unsigned(IntSize::U8) => {
+                da.read_raw::<u64>()? == db.read_raw::<u64>()?
+            }
+            TypeDescriptor::VarLenUnicode => {
+                da.read_raw::<VarLenUnicode>()? == db.read_raw::<VarLenUnicode>()?
+            }
+            other => bail!("/{path}: unexpected element type {other:?}"),
+        };
+        if !same {
+            bail!("/{path} differs");
+        }
+    }
+    Ok(())
 }
 
 /// Writes a run of row-major flat indices into an N-D dataset as a sequence

@@ -5,6 +5,7 @@
 //! Every instance is integrated independently and deterministically, so the
 //! results are the same bit for bit for any thread count and chunk size.
 
+use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use anyhow::{Result, bail};
@@ -164,7 +165,7 @@ pub fn record(inst: &Instance, out: &Outcome) -> Record {
 }
 
 /// Totals over a sweep.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Summary {
     pub instances: u64,
     /// Instances per status code (index = code; the last entry gathers
@@ -177,12 +178,97 @@ pub struct Summary {
     pub extreme_step: [f64; 2],
 }
 
+impl Default for Summary {
+    fn default() -> Summary {
+        Summary {
+            instances: 0,
+            status_counts: [0; 6],
+            steps: 0,
+            simulated_s: 0.0,
+            extreme_step: [f64::INFINITY, f64::NEG_INFINITY],
+        }
+    }
+}
+
+impl Summary {
+    /// Adds the totals of another part of the same run.
+    pub fn merge(&mut self, other: &Summary) {
+        self.instances += other.instances;
+        for (a, b) in self.status_counts.iter_mut().zip(other.status_counts) {
+            *a += b;
+        }
+        self.steps += other.steps;
+        self.simulated_s += other.simulated_s;
+        self.extreme_step[0] = self.extreme_step[0].min(other.extreme_step[0]);
+        self.extreme_step[1] = self.extreme_step[1].max(other.extreme_step[1]);
+    }
+
+    /// Counts one finished instance (its simulated time is added apart,
+    /// because baselines add to it too).
+    pub fn add(&mut self, rec: &Record) {
+        self.instances += 1;
+        self.status_counts[(rec.status as usize).min(5)] += 1;
+        self.steps += rec.steps as u64;
+        if rec.status == STATUS_OK {
+            for axis in 0..AXES {
+                self.extreme_step[0] = self.extreme_step[0].min(rec.step[axis]);
+                self.extreme_step[1] = self.extreme_step[1].max(rec.step[axis]);
+            }
+        }
+    }
+}
+
 /// Everything a sweep needs to know about its instances.
 pub struct Plan<'a> {
-    pub count: u64,
+    /// The flat instance indices to run: disjoint ranges in ascending
+    /// order (all of `0..count` for a whole run; fewer for a shard or a
+    /// resumed run).
+    pub work: Vec<Range<u64>>,
     pub instance: &'a (dyn Fn(u64) -> Instance + Sync),
     pub settings: Settings,
     pub baselines: bool,
+}
+
+impl Plan<'_> {
+    /// The work list of a whole run of `count` instances.
+    #[allow(clippy::single_range_in_vec_init)]
+    pub fn everything(count: u64) -> Vec<Range<u64>> {
+        if count == 0 {
+            Vec::new()
+        } else {
+            vec![0..count]
+        }
+    }
+
+    /// How many instances the plan runs.
+    pub fn count(&self) -> u64 {
+        self.work.iter().map(|r| r.end - r.start).sum()
+    }
+}
+
+/// Splits the work list into chunks of at most `chunk` instances, each a
+/// list of contiguous segments.
+fn chunks(work: &[Range<u64>], chunk: u64) -> Vec<Vec<Range<u64>>> {
+    let mut out = Vec::new();
+    let mut current: Vec<Range<u64>> = Vec::new();
+    let mut filled = 0;
+    for range in work {
+        let mut start = range.start;
+        while start < range.end {
+            let take = (chunk - filled).min(range.end - start);
+            current.push(start..start + take);
+            filled += take;
+            start += take;
+            if filled == chunk {
+                out.push(std::mem::take(&mut current));
+                filled = 0;
+            }
+        }
+    }
+    if !current.is_empty() {
+        out.push(current);
+    }
+    out
 }
 
 /// Runs every instance of the plan in chunks, in index order, calling
@@ -197,21 +283,18 @@ pub fn run(
     progress: &(dyn Fn(u64) + Sync),
     sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
 ) -> Result<Summary> {
-    let chunk = chunk.max(1) as u64;
-    let mut summary = Summary {
-        extreme_step: [f64::INFINITY, f64::NEG_INFINITY],
-        ..Summary::default()
-    };
-    let mut start = 0;
-    while start < plan.count {
+    let total = plan.count();
+    let mut summary = Summary::default();
+    let mut finished_before = 0;
+    for segments in chunks(&plan.work, chunk.max(1) as u64) {
         if interrupt_requested() {
-            bail!(
-                "interrupted after {start} of {} instances; nothing was written",
-                plan.count
-            );
+            bail!("interrupted after {finished_before} of {total} instances");
         }
-        let end = (start + chunk).min(plan.count);
-        let mains: Vec<Instance> = (start..end).map(|i| (plan.instance)(i)).collect();
+        let mains: Vec<Instance> = segments
+            .iter()
+            .flat_map(|r| r.clone())
+            .map(|i| (plan.instance)(i))
+            .collect();
         // Jobs: the instances, then each baseline that differs from its
         // instance (a baseline of an instance whose other axis is undriven
         // is that instance).
@@ -245,10 +328,7 @@ pub fn run(
         };
         let outcomes = backend.run(&jobs, &plan.settings, &done)?;
         if interrupt_requested() {
-            bail!(
-                "interrupted after {start} of {} instances; nothing was written",
-                plan.count
-            );
+            bail!("interrupted after {finished_before} of {total} instances");
         }
         let left = mains.len() as u64 - reported.load(Ordering::Relaxed);
         if left > 0 {
@@ -264,20 +344,17 @@ pub fn run(
                     rec.baseline_status = rec.baseline_status.max(base.status);
                 }
             }
-            summary.instances += 1;
-            summary.status_counts[(rec.status as usize).min(5)] += 1;
-            summary.steps += rec.steps as u64;
-            if rec.status == STATUS_OK {
-                for axis in 0..AXES {
-                    summary.extreme_step[0] = summary.extreme_step[0].min(rec.step[axis]);
-                    summary.extreme_step[1] = summary.extreme_step[1].max(rec.step[axis]);
-                }
-            }
+            summary.add(&rec);
             records.push(rec);
         }
         summary.simulated_s += jobs.iter().map(Instance::duration).sum::<f64>();
-        sink(start, &records)?;
-        start = end;
+        let mut offset = 0;
+        for segment in &segments {
+            let n = (segment.end - segment.start) as usize;
+            sink(segment.start, &records[offset..offset + n])?;
+            offset += n;
+        }
+        finished_before += mains.len() as u64;
     }
     Ok(summary)
 }
@@ -292,5 +369,26 @@ mod tests {
         inst.axes[1].voltage = 0.0;
         assert_eq!(inst.baseline(0), inst);
         assert_ne!(inst.baseline(1), inst);
+    }
+
+    #[test]
+    fn chunks_cover_the_work_in_order_and_respect_the_size() {
+        let work = vec![0..5, 7..8, 10..17];
+        for size in [1, 2, 3, 5, 100] {
+            let chunks = chunks(&work, size);
+            let flat: Vec<u64> = chunks.iter().flatten().flat_map(|r| r.clone()).collect();
+            assert_eq!(flat, [0, 1, 2, 3, 4, 7, 10, 11, 12, 13, 14, 15, 16]);
+            for chunk in &chunks {
+                let n: u64 = chunk.iter().map(|r| r.end - r.start).sum();
+                assert!(n <= size && n > 0, "size {size}: {chunk:?}");
+                // A segment never spans two work ranges.
+                for seg in chunk {
+                    assert!(
+                        work.iter()
+                            .any(|w| w.start <= seg.start && seg.end <= w.end)
+                    );
+                }
+            }
+        }
     }
 }

@@ -3,7 +3,7 @@
 //! Seeded random 2-DOF instances must agree within 0.001 um per cycle.
 //!
 //! The script needs Python 3 with numpy, scipy and h5py
-//! (`tests/crosscheck/requirements.txt`). Without them the test prints a
+//! (`tests/requirements.txt`). Without them the test prints a
 //! notice and passes, except under CI (`CI` set), where it fails.
 
 use std::process::Command;
@@ -20,7 +20,7 @@ fn python_has_deps() -> bool {
 fn random_instances_agree_with_scipy() {
     if !python_has_deps() {
         let notice = "crosscheck: python3 with numpy, scipy and h5py is not available \
-                      (pip install -r tests/crosscheck/requirements.txt)";
+                      (pip install -r tests/requirements.txt)";
         if std::env::var_os("CI").is_some() {
             panic!("{notice}; CI must install them");
         }

@@ -268,7 +268,7 @@ fn results_are_identical_for_any_thread_count_and_chunk_size() {
         inst
     };
     let plan = Plan {
-        count: 8,
+        work: Plan::everything(8),
         instance: &instance,
         settings: Settings::default(),
         baselines: true,

@@ -1,0 +1,301 @@
+//! Checkpoints: a journal of finished chunks beside the output file, so an
+//! interrupted or crashed run can be resumed (`pidm run --resume`) and
+//! computes only what is missing.
+//!
+//! The journal is append-only: a header that names the run, then one entry
+//! per finished chunk (first flat index, record count, the records, a
+//! checksum), each synced to disk before the next chunk starts. A crash can
+//! only tear the last entry, which the checksum exposes and resume drops.
+//! The HDF5 output itself is written to a temporary file and renamed only
+//! when complete, so the output is never half-written; on resume the
+//! temporary file is rebuilt from the journal.
+
+use std::fs::{File, OpenOptions};
+use std::io::{BufReader, Read, Seek, SeekFrom, Write};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+
+use crate::sweep::Record;
+
+const MAGIC: &[u8; 12] = b"PIDM-CKPT-1\n";
+
+/// Bytes of one record in the journal.
+const RECORD_BYTES: usize = 8 * 6 + 4 * 3;
+
+/// The checkpoint journal of one output file.
+pub struct Checkpoint {
+    file: File,
+    path: PathBuf,
+}
+
+/// The journal beside `out`: `.NAME.checkpoint`.
+pub fn path_for(out: &Path) -> PathBuf {
+    let name = out
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    out.with_file_name(format!(".{name}.checkpoint"))
+}
+
+/// FNV-1a, 64 bit: enough to tell a torn or garbled entry.
+fn checksum(bytes: &[u8]) -> u64 {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        hash ^= b as u64;
+        hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    hash
+}
+
+fn encode(record: &Record, out: &mut Vec<u8>) {
+    for v in record
+        .step
+        .iter()
+        .chain(&record.velocity)
+        .chain(&record.baseline_step)
+    {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    for v in [record.status, record.steps, record.baseline_status] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+}
+
+fn decode(bytes: &[u8]) -> Record {
+    let f = |k: usize| f64::from_le_bytes(bytes[8 * k..8 * k + 8].try_into().unwrap());
+    let u = |k: usize| u32::from_le_bytes(bytes[48 + 4 * k..52 + 4 * k].try_into().unwrap());
+    Record {
+        step: [f(0), f(1)],
+        velocity: [f(2), f(3)],
+        baseline_step: [f(4), f(5)],
+        status: u(0),
+        steps: u(1),
+        baseline_status: u(2),
+    }
+}
+
+impl Checkpoint {
+    /// Starts a new journal for a run identified by `identity` (the scene
+    /// text, version, backend and everything else that must match on
+    /// resume). Refuses to overwrite an existing journal.
+    pub fn create(path: &Path, identity: &str) -> Result<Checkpoint> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+        }
+        let mut file = OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(path)
+            .with_context(|| format!("cannot create the checkpoint {}", path.display()))?;
+        let mut header = MAGIC.to_vec();
+        header.extend_from_slice(&(identity.len() as u64).to_le_bytes());
+        header.extend_from_slice(identity.as_bytes());
+        file.write_all(&header)?;
+        file.sync_data()?;
+        Ok(Checkpoint {
+            file,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// Opens an existing journal for resuming, checks that it belongs to
+    /// the run `identity`, hands every intact entry to `replay` in order,
+    /// drops a torn last entry, and returns the journal ready to append,
+    /// with the flat index ranges it already holds.
+    pub fn resume(
+        path: &Path,
+        identity: &str,
+        replay: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
+    ) -> Result<(Checkpoint, Vec<Range<u64>>)> {
+        let file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(path)
+            .with_context(|| format!("cannot open the checkpoint {}", path.display()))?;
+        let mut reader = BufReader::new(&file);
+        let mut magic = [0u8; MAGIC.len()];
+        let mut len = [0u8; 8];
+        if reader.read_exact(&mut magic).is_err()
+            || &magic != MAGIC
+            || reader.read_exact(&mut len).is_err()
+        {
+            bail!("{} is not a pidm checkpoint", path.display());
+        }
+        let mut stored = vec![0u8; u64::from_le_bytes(len).min(1 << 30) as usize];
+        reader
+            .read_exact(&mut stored)
+            .with_context(|| format!("{} is truncated", path.display()))?;
+        if stored != identity.as_bytes() {
+            bail!(
+                "the checkpoint {} is of a different run (another scene, version, backend \
+                 or shard); delete it to start over",
+                path.display()
+            );
+        }
+        let mut valid_len = (MAGIC.len() + 8 + stored.len()) as u64;
+        let mut done: Vec<Range<u64>> = Vec::new();
+        loop {
+            let mut head = [0u8; 16];
+            if reader.read_exact(&mut head).is_err() {
+                break;
+            }
+            let start = u64::from_le_bytes(head[..8].try_into().unwrap());
+            let n = u64::from_le_bytes(head[8..].try_into().unwrap());
+            let Some(body_len) = (n as usize).checked_mul(RECORD_BYTES) else {
+                break;
+            };
+            if body_len > 1 << 32 {
+                break;
+            }
+            let mut body = vec![0u8; body_len + 8];
+            if reader.read_exact(&mut body).is_err() {
+                break;
+            }
+            let (records_bytes, sum) = body.split_at(body_len);
+            let mut summed = head.to_vec();
+            summed.extend_from_slice(records_bytes);
+            if checksum(&summed) != u64::from_le_bytes(sum.try_into().unwrap()) {
+                break;
+            }
+            let records: Vec<Record> = records_bytes.chunks(RECORD_BYTES).map(decode).collect();
+            replay(start, &records)?;
+            done.push(start..start + n);
+            valid_len += 16 + body.len() as u64;
+        }
+        drop(reader);
+        // Drop a torn tail so new entries follow the last intact one.
+        file.set_len(valid_len)?;
+        let mut file = file;
+        file.seek(SeekFrom::End(0))?;
+        done.sort_by_key(|r| r.start);
+        Ok((
+            Checkpoint {
+                file,
+                path: path.to_path_buf(),
+            },
+            done,
+        ))
+    }
+
+    /// Appends the records of instances `start .. start + records.len()`
+    /// and syncs them to disk.
+    pub fn append(&mut self, start: u64, records: &[Record]) -> Result<()> {
+        let mut entry = Vec::with_capacity(24 + records.len() * RECORD_BYTES);
+        entry.extend_from_slice(&start.to_le_bytes());
+        entry.extend_from_slice(&(records.len() as u64).to_le_bytes());
+        for r in records {
+            encode(r, &mut entry);
+        }
+        let sum = checksum(&entry);
+        entry.extend_from_slice(&sum.to_le_bytes());
+        self.file.write_all(&entry)?;
+        self.file
+            .sync_data()
+            .with_context(|| format!("cannot sync the checkpoint {}", self.path.display()))
+    }
+
+    /// Deletes the journal once the output file is complete.
+    pub fn remove(self) -> Result<()> {
+        drop(self.file);
+        std::fs::remove_file(&self.path)
+            .with_context(|| format!("cannot remove the checkpoint {}", self.path.display()))
+    }
+}
+
+/// The ranges of `all` not covered by `done` (both ascending; `done` may
+/// hold overlapping or adjacent ranges).
+pub fn missing(all: &[Range<u64>], done: &[Range<u64>]) -> Vec<Range<u64>> {
+    let mut out = Vec::new();
+    for range in all {
+        let mut start = range.start;
+        for d in done {
+            if d.end <= start || d.start >= range.end {
+                continue;
+            }
+            if d.start > start {
+                out.push(start..d.start);
+            }
+            start = start.max(d.end);
+        }
+        if start < range.end {
+            out.push(start..range.end);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(i: u64) -> Record {
+        Record {
+            step: [i as f64 * 1e-9, -1.5],
+            velocity: [f64::MIN_POSITIVE, 2.0],
+            status: i as u32 % 5,
+            steps: i as u32,
+            baseline_step: [0.25, -0.0],
+            baseline_status: 7,
+        }
+    }
+
+    #[test]
+    #[allow(clippy::single_range_in_vec_init)]
+    fn missing_ranges_are_the_complement() {
+        let check = |all: &[Range<u64>], done: &[Range<u64>], want: &[Range<u64>]| {
+            assert_eq!(missing(all, done), want, "{all:?} minus {done:?}");
+        };
+        check(&[0..10], &[], &[0..10]);
+        check(&[0..10], &[0..10], &[]);
+        check(&[0..10], &[2..4, 6..7], &[0..2, 4..6, 7..10]);
+        check(&[0..4, 8..12], &[3..9], &[0..3, 9..12]);
+        check(&[0..4], &[0..2, 2..4], &[]);
+    }
+
+    #[test]
+    #[allow(clippy::single_range_in_vec_init)]
+    fn a_journal_replays_what_was_appended_and_drops_a_torn_tail() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(".out.h5.checkpoint");
+        let mut ck = Checkpoint::create(&path, "run A").unwrap();
+        let first: Vec<Record> = (0..3).map(record).collect();
+        let second: Vec<Record> = (10..12).map(record).collect();
+        ck.append(0, &first).unwrap();
+        ck.append(10, &second).unwrap();
+        drop(ck);
+        // Tear the last entry, as a crash in the middle of a write would.
+        let len = std::fs::metadata(&path).unwrap().len();
+        let f = OpenOptions::new().write(true).open(&path).unwrap();
+        f.set_len(len - 5).unwrap();
+        drop(f);
+
+        let mut replayed = Vec::new();
+        let (mut ck, done) = Checkpoint::resume(&path, "run A", &mut |s, r| {
+            replayed.push((s, r.to_vec()));
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(done, [0..3]);
+        assert_eq!(replayed, [(0, first.clone())]);
+        // New entries follow the last intact one.
+        ck.append(10, &second).unwrap();
+        drop(ck);
+        let mut again = Vec::new();
+        let (_, done) = Checkpoint::resume(&path, "run A", &mut |s, r| {
+            again.push((s, r.to_vec()));
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(done, [0..3, 10..12]);
+        assert_eq!(again, [(0, first), (10, second)]);
+
+        let err = Checkpoint::resume(&path, "run B", &mut |_, _| Ok(()))
+            .err()
+            .unwrap();
+        assert!(err.to_string().contains("different run"), "{err}");
+        assert!(Checkpoint::create(&path, "run A").is_err());
+    }
+}

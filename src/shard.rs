@@ -1,0 +1,387 @@
+//! Sharded runs: a deterministic split of a scene's instances into N parts
+//! that separate machines (a Slurm job array) run into separate files, and
+//! the merge that turns those files back into one map file, identical in
+//! content to a single-machine run.
+//!
+//! The split deals out blocks of consecutive flat indices round-robin, so
+//! every shard gets a similar mix of cheap and expensive corners of the
+//! grid, while each shard still writes long contiguous runs.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use anyhow::{Context, Result, bail};
+use hdf5::File;
+use hdf5::types::VarLenUnicode;
+
+use crate::output::{FileInfo, MapWriter, ShardInfo};
+use crate::scene::Scene;
+use crate::sweep::Record;
+
+/// Shard `index` of `count` (1-based, as `--shard 2/4` reads).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ShardSpec {
+    pub index: u32,
+    pub count: u32,
+}
+
+/// Most blocks per shard the split aims for: enough that cost differences
+/// across the grid average out between shards.
+const BLOCKS_PER_SHARD: u64 = 16;
+
+/// Largest block [instances]: long enough for efficient writes and GPU
+/// batches, short enough to balance big grids.
+const MAX_BLOCK: u64 = 4096;
+
+impl ShardSpec {
+    /// Instances per block for a scene of `total` instances.
+    pub fn block_size(self, total: u64) -> u64 {
+        (total / (self.count as u64 * BLOCKS_PER_SHARD)).clamp(1, MAX_BLOCK)
+    }
+
+    /// The flat indices of this shard: every `count`-th block, starting at
+    /// block `index - 1`.
+    pub fn ranges(self, total: u64) -> Vec<Range<u64>> {
+        if self.count == 1 {
+            return crate::sweep::Plan::everything(total);
+        }
+        let block = self.block_size(total);
+        let stride = block * self.count as u64;
+        let mut out = Vec::new();
+        let mut start = block * (self.index as u64 - 1);
+        while start < total {
+            out.push(start..(start + block).min(total));
+            start += stride;
+        }
+        out
+    }
+
+    /// The default output file of this shard of a scene.
+    pub fn default_output(self, scene_name: &str) -> PathBuf {
+        PathBuf::from("results").join(format!(
+            "{scene_name}.shard-{}-of-{}.h5",
+            self.index, self.count
+        ))
+    }
+}
+
+impl fmt::Display for ShardSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+impl FromStr for ShardSpec {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<ShardSpec, String> {
+        let expected = "expected K/N with 1 <= K <= N, for example 2/4";
+        let (k, n) = text
+            .split_once('/')
+            .ok_or_else(|| format!("{text:?}: {expected}"))?;
+        let index: u32 = k
+            .trim()
+            .parse()
+            .map_err(|_| format!("{text:?}: {expected}"))?;
+        let count: u32 = n
+            .trim()
+            .parse()
+            .map_err(|_| format!("{text:?}: {expected}"))?;
+        if count == 0 || index == 0 || index > count {
+            return Err(format!("{text:?}: {expected}"));
+        }
+        Ok(ShardSpec { index, count })
+    }
+}
+
+fn read_str_attr(file: &File, name: &str) -> Result<String> {
+    let value: VarLenUnicode = file
+        .attr(name)
+        .and_then(|a| a.read_scalar())
+        .with_context(|| format!("no text attribute `{name}`"))?;
+    Ok(value.as_str().to_string())
+}
+
+fn read_u64_attr(file: &File, name: &str) -> Result<u64> {
+    file.attr(name)
+        .and_then(|a| a.read_scalar())
+        .with_context(|| format!("no integer attribute `{name}`"))
+}
+
+/// What a shard file says about itself.
+struct ShardFile {
+    path: PathBuf,
+    file: File,
+    spec: ShardSpec,
+    total: u64,
+    scene: String,
+    name: String,
+    version: String,
+    precision: String,
+    variant: String,
+    backend: String,
+    tolerance: f64,
+    wall_time_s: f64,
+}
+
+impl ShardFile {
+    fn open(path: &Path) -> Result<ShardFile> {
+        let file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+        let read = || -> Result<ShardFile> {
+            if file.attr("shard_index").is_err() {
+                bail!("it is not a shard file (it has no `shard_index` attribute)");
+            }
+            let index = read_u64_attr(&file, "shard_index")?;
+            let count = read_u64_attr(&file, "shard_count")?;
+            let spec = ShardSpec {
+                index: u32::try_from(index)?,
+                count: u32::try_from(count)?,
+            };
+            Ok(ShardFile {
+                path: path.to_path_buf(),
+                spec,
+                total: read_u64_attr(&file, "instance_count")?,
+                scene: read_str_attr(&file, "scene")?,
+                name: read_str_attr(&file, "name")?,
+                version: read_str_attr(&file, "pidm_version")?,
+                precision: read_str_attr(&file, "precision")?,
+                variant: read_str_attr(&file, "variant")?,
+                backend: read_str_attr(&file, "backend")?,
+                tolerance: file.attr("tolerance")?.read_scalar()?,
+                wall_time_s: file.attr("wall_time_s")?.read_scalar()?,
+                file: file.clone(),
+            })
+        };
+        read().with_context(|| format!("{}", path.display()))
+    }
+
+    /// Reads the records at positions `at .. at + n` of the shard's maps.
+    fn records(&self, at: u64, n: u64, baselines: bool) -> Result<Vec<Record>> {
+        let range = at as usize..(at + n) as usize;
+        let f64s = |path: &str| -> Result<Vec<f64>> {
+            Ok(self
+                .file
+                .dataset(path)?
+                .read_slice_1d::<f64, _>(range.clone())?
+                .to_vec())
+        };
+        let u32s = |path: &str| -> Result<Vec<u32>> {
+            Ok(self
+                .file
+                .dataset(path)?
+                .read_slice_1d::<u32, _>(range.clone())?
+                .to_vec())
+        };
+        let (step_x, step_y) = (f64s("maps/step_x")?, f64s("maps/step_y")?);
+        let (vel_x, vel_y) = (f64s("maps/velocity_x")?, f64s("maps/velocity_y")?);
+        let (status, steps) = (u32s("maps/status")?, u32s("maps/steps")?);
+        let zeros_f = vec![0.0; n as usize];
+        let zeros_u = vec![0; n as usize];
+        let (base_x, base_y, base_status) = if baselines {
+            (
+                f64s("baseline/step_x")?,
+                f64s("baseline/step_y")?,
+                u32s("baseline/status")?,
+            )
+        } else {
+            (zeros_f.clone(), zeros_f, zeros_u)
+        };
+        Ok((0..n as usize)
+            .map(|k| Record {
+                step: [step_x[k], step_y[k]],
+                velocity: [vel_x[k], vel_y[k]],
+                status: status[k],
+                steps: steps[k],
+                baseline_step: [base_x[k], base_y[k]],
+                baseline_status: base_status[k],
+            })
+            .collect())
+    }
+}
+
+/// What `pidm merge` did.
+pub struct MergeSummary {
+    pub path: PathBuf,
+    pub shards: u32,
+    pub instances: u64,
+}
+
+/// Merges the shard files of one scene into `out`. Refuses shards of
+/// different scenes, versions, precisions or shard counts, a shard given
+/// twice, a missing shard, and a file whose instance list is not the one
+/// its shard number implies.
+pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
+    if paths.is_empty() {
+        bail!("no shard files given");
+    }
+    let shards: Vec<ShardFile> = paths
+        .iter()
+        .map(|p| ShardFile::open(p))
+        .collect::<Result<_>>()?;
+    let first = &shards[0];
+    for other in &shards[1..] {
+        let differs = |what: &str, a: &str, b: &str| -> Result<()> {
+            if a != b {
+                bail!(
+                    "{} and {} come from different {what} ({a:?} against {b:?}); \
+                     shards of one run must match",
+                    first.path.display(),
+                    other.path.display()
+                );
+            }
+            Ok(())
+        };
+        if other.scene != first.scene {
+            bail!(
+                "{} and {} come from different scenes (their `scene` attributes differ)",
+                first.path.display(),
+                other.path.display()
+            );
+        }
+        differs("pidm versions", &first.version, &other.version)?;
+        differs("precisions", &first.precision, &other.precision)?;
+        differs("integrator variants", &first.variant, &other.variant)?;
+        if other.spec.count != first.spec.count {
+            bail!(
+                "{} is shard {} but {} is shard {}: the shards overlap (a run is split \
+                 one way only)",
+                first.path.display(),
+                first.spec,
+                other.path.display(),
+                other.spec
+            );
+        }
+    }
+    let count = first.spec.count;
+    let mut by_index: BTreeMap<u32, &ShardFile> = BTreeMap::new();
+    for shard in &shards {
+        if let Some(earlier) = by_index.insert(shard.spec.index, shard) {
+            bail!(
+                "{} and {} are both shard {}: they overlap",
+                earlier.path.display(),
+                shard.path.display(),
+                shard.spec
+            );
+        }
+    }
+    let missing: Vec<String> = (1..=count)
+        .filter(|k| !by_index.contains_key(k))
+        .map(|k| format!("{k}/{count}"))
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "missing shard{} {} of {count}; every shard of the run must be given",
+            if missing.len() > 1 { "s" } else { "" },
+            missing.join(", ")
+        );
+    }
+
+    let scene = Scene::from_toml(&first.scene, Some(&first.name))
+        .with_context(|| format!("the scene stored in {}", first.path.display()))?;
+    let total = scene.instance_count();
+    for shard in &shards {
+        if shard.total != total {
+            bail!(
+                "{} says the scene has {} instances, but its scene has {total}",
+                shard.path.display(),
+                shard.total
+            );
+        }
+        let expected: Vec<u64> = shard
+            .spec
+            .ranges(total)
+            .into_iter()
+            .flatten()
+            .collect();
+        let stored: Vec<u64> = shard.file.dataset("shard/instance")?.read_raw()?;
+        if stored != expected {
+            bail!(
+                "{}: its instance list is not that of shard {} of this scene",
+                shard.path.display(),
+                shard.spec
+            );
+        }
+    }
+
+    let mut backends: Vec<&str> = shards.iter().map(|s| s.backend.as_str()).collect();
+    backends.sort_unstable();
+    backends.dedup();
+    let mut info: FileInfo = crate::commands::file_info(
+        &scene,
+        backends.join("; "),
+        first.precision.clone(),
+        first.variant.clone(),
+    );
+    info.tolerance = first.tolerance;
+    let mut writer = MapWriter::create(out, &info)?;
+    for shard in by_index.values() {
+        let mut at = 0;
+        for range in ShardInfo::new(shard.spec, total).ranges {
+            let n = range.end - range.start;
+            let records = shard.records(at, n, scene.baselines)?;
+            writer.write(range.start, &records)?;
+            at += n;
+        }
+    }
+    let wall_time_s = shards.iter().map(|s| s.wall_time_s).sum();
+    let path = writer.finish(wall_time_s)?;
+    Ok(MergeSummary {
+        path,
+        shards: count,
+        instances: total,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_cover_every_instance_exactly_once() {
+        for total in [1, 2, 7, 12, 100, 1000, 100_003] {
+            for count in [1, 2, 3, 4, 7, 16] {
+                let mut seen = vec![0u8; total as usize];
+                for index in 1..=count {
+                    let ranges = ShardSpec { index, count }.ranges(total);
+                    for w in ranges.windows(2) {
+                        assert!(w[0].end < w[1].start, "{ranges:?}");
+                    }
+                    for i in ranges.into_iter().flatten() {
+                        seen[i as usize] += 1;
+                    }
+                }
+                assert!(seen.iter().all(|&n| n == 1), "{total} in {count}");
+            }
+        }
+    }
+
+    #[test]
+    fn shards_are_balanced() {
+        let total = 1_000_000;
+        let count = 7;
+        let sizes: Vec<u64> = (1..=count)
+            .map(|index| {
+                ShardSpec { index, count }
+                    .ranges(total)
+                    .iter()
+                    .map(|r| r.end - r.start)
+                    .sum()
+            })
+            .collect();
+        let (min, max) = (sizes.iter().min().unwrap(), sizes.iter().max().unwrap());
+        assert!(max - min <= ShardSpec { index: 1, count }.block_size(total));
+    }
+
+    #[test]
+    fn shard_specs_parse_or_say_what_is_expected() {
+        assert_eq!("2/4".parse(), Ok(ShardSpec { index: 2, count: 4 }));
+        assert_eq!("1/1".parse(), Ok(ShardSpec { index: 1, count: 1 }));
+        for bad in ["0/4", "5/4", "4", "a/b", "1/0", "-1/3", ""] {
+            let err = bad.parse::<ShardSpec>().unwrap_err();
+            assert!(err.contains("expected K/N"), "{bad}: {err}");
+        }
+    }
+}
