@@ -297,7 +297,7 @@ fn a_slurm_job_array_of_shards_merges_into_a_single_run_bit_for_bit_and_bad_sets
             )
         };
         if std::env::var_os("CI").is_some() {
-            panic!("{notice}; CI must provide them");
+            panic!("{notice}; under CI this test must run");
         }
         eprintln!("{notice}; skipping the Slurm job-array test");
         return;
