@@ -215,6 +215,7 @@ pub fn run_scene(scene: &Scene, backend: &dyn Backend, out: &Path, keep: u64) ->
     )?;
     bar.finish_and_clear();
     let wall_time_s = started.elapsed().as_secs_f64();
+    crate::trajectory::record_and_write(writer.file(), scene)?;
     let path = writer.finish(wall_time_s)?;
     Ok(RunResult {
         path,

@@ -12,3 +12,4 @@ pub mod random;
 pub mod report;
 pub mod scene;
 pub mod sweep;
+pub mod trajectory;

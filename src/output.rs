@@ -227,6 +227,14 @@ impl MapWriter {
         Ok(())
     }
 
+    /// The open result file, for extra groups written beside the maps (the
+    /// trajectories).
+    pub fn file(&self) -> &File {
+        self.file
+            .as_ref()
+            .expect("the file stays open until finish")
+    }
+
     /// Records the run's wall time, closes the file and renames it into
     /// place.
     pub fn finish(mut self, wall_time_s: f64) -> Result<PathBuf> {
