@@ -8,6 +8,7 @@ pub mod cpu;
 pub mod gpu;
 pub mod model;
 pub mod output;
+pub mod plot;
 pub mod random;
 pub mod report;
 pub mod scene;

@@ -14,14 +14,19 @@
 //! order of `output.trajectories`):
 //! - `time` [s]; `stage_x`, `stage_y`, `slider_x`, `slider_y` [m];
 //!   `voltage_x`, `voltage_y` [V] (the drive);
-//! - with baselines, `baseline_stage_x`, `baseline_slider_x` (the x axis
-//!   driven alone) and `baseline_stage_y`, `baseline_slider_y` (y alone) [m];
 //! - every dataset has `units` and `long_name` attributes; the group has
 //!   `point` (a human name), `label` (a points scene's label, or ""),
-//!   `index` (flat instance index), `status` (and `baseline_status` with
-//!   baselines), `samples_per_cycle`, `period_s`, `settle_s`, `duration_s` and the drive
-//!   of each axis (`voltage_x` [V], `frequency_x` [Hz], `duty_x`,
-//!   `phase_x` [cycles], and the same for y).
+//!   `index` (flat instance index), `status`, `samples_per_cycle`,
+//!   `period_s`, `settle_s`, `duration_s` and the drive of each axis
+//!   (`voltage_x` [V], `frequency_x` [Hz], `duty_x`, `phase_x` [cycles],
+//!   and the same for y);
+//! - with baselines, subgroups `baseline_x` and `baseline_y`: the 1-DOF run
+//!   with only that axis driven, as `time` [s], `stage`, `slider` [m] and
+//!   `voltage` [V] along that axis, with the same attributes plus
+//!   `measured_cycles`. A 1-DOF run at a higher frequency than the point's
+//!   scene period has a shorter period, so it is recorded for more periods
+//!   to cover the point's whole run; its first `measured_cycles` periods
+//!   are the map's baseline run, bit for bit.
 
 use anyhow::{Context, Result};
 use hdf5::types::VarLenUnicode;
@@ -130,6 +135,20 @@ pub fn record(inst: &Instance, settings: &Settings, samples_per_cycle: u32) -> T
     sampler.out
 }
 
+/// A 1-DOF run beside a recorded point: one axis driven alone.
+#[derive(Clone, Debug)]
+pub struct Baseline {
+    /// The instance recorded: the map's baseline instance with its cycles
+    /// raised, when its period is shorter than the point's, so that it
+    /// covers the point's whole run. Its first `measured_cycles` periods are
+    /// the map's baseline run itself (the integration does not depend on
+    /// how many periods follow).
+    pub instance: Instance,
+    /// The cycles of the map's baseline run.
+    pub measured_cycles: u32,
+    pub trajectory: Trajectory,
+}
+
 /// One recorded point of a scene: the instance and, with baselines, its two
 /// 1-DOF runs (x driven alone, y driven alone).
 #[derive(Clone, Debug)]
@@ -137,7 +156,19 @@ pub struct Recorded {
     pub point: TrajectoryPoint,
     pub instance: Instance,
     pub main: Trajectory,
-    pub baselines: Option<[Trajectory; AXES]>,
+    pub baselines: Option<[Baseline; AXES]>,
+}
+
+/// The baseline of `instance` with only axis `axis` driven, extended to
+/// cover the instance's run.
+pub fn baseline_instance(instance: &Instance, axis: usize) -> (Instance, u32) {
+    let mut base = instance.baseline(axis);
+    let measured = base.cycles;
+    let cover = (instance.duration() / base.period() - 1e-9).ceil();
+    if cover.is_finite() && cover > measured as f64 && cover < u32::MAX as f64 {
+        base.cycles = cover as u32;
+    }
+    (base, measured)
 }
 
 /// Records every trajectory a scene asks for, in parallel.
@@ -151,11 +182,16 @@ pub fn record_scene(scene: &Scene) -> Vec<Recorded> {
             let main = record(&instance, &scene.settings, per);
             let baselines = scene.baselines.then(|| {
                 std::array::from_fn(|axis| {
-                    let base = instance.baseline(axis);
-                    if base == instance {
+                    let (base, measured_cycles) = baseline_instance(&instance, axis);
+                    let trajectory = if base == instance {
                         main.clone()
                     } else {
                         record(&base, &scene.settings, per)
+                    };
+                    Baseline {
+                        instance: base,
+                        measured_cycles,
+                        trajectory,
                     }
                 })
             });
@@ -206,6 +242,25 @@ fn series(
     Ok(())
 }
 
+/// The attributes every trajectory group carries: run timing, status and
+/// drive per axis.
+fn run_attrs(g: &hdf5::Group, inst: &Instance, t: &Trajectory) -> Result<()> {
+    u64_attr(g, "status", t.state.status as u64)?;
+    u64_attr(g, "samples_per_cycle", t.samples_per_cycle as u64)?;
+    f64_attr(g, "period_s", inst.period())?;
+    f64_attr(g, "settle_s", inst.settle as f64 * inst.period())?;
+    f64_attr(g, "duration_s", inst.duration())?;
+    for (i, name) in AXIS_NAMES.iter().enumerate() {
+        let axis = &inst.axes[i];
+        f64_attr(g, &format!("voltage_{name}"), axis.voltage)?;
+        f64_attr(g, &format!("frequency_{name}"), axis.frequency)?;
+        f64_attr(g, &format!("duty_{name}"), axis.duty)?;
+        f64_attr(g, &format!("phase_{name}"), axis.phase)?;
+    }
+    series(g, "time", &t.time, "s", "time from the start of the run")?;
+    Ok(())
+}
+
 /// Writes `recorded` as `/trajectories/0`, `/1`, ... under `parent` (the
 /// result file's root). Writes nothing when the list is empty.
 pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
@@ -216,29 +271,10 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
     for (k, rec) in recorded.iter().enumerate() {
         let g = root.create_group(&k.to_string())?;
         let main = &rec.main;
-        let inst = &rec.instance;
         str_attr(&g, "point", &rec.point.name)?;
         str_attr(&g, "label", &rec.point.label)?;
         u64_attr(&g, "index", rec.point.index)?;
-        u64_attr(&g, "status", main.state.status as u64)?;
-        u64_attr(&g, "samples_per_cycle", main.samples_per_cycle as u64)?;
-        f64_attr(&g, "period_s", inst.period())?;
-        f64_attr(&g, "settle_s", inst.settle as f64 * inst.period())?;
-        f64_attr(&g, "duration_s", inst.duration())?;
-        for (i, name) in AXIS_NAMES.iter().enumerate() {
-            let axis = &inst.axes[i];
-            f64_attr(&g, &format!("voltage_{name}"), axis.voltage)?;
-            f64_attr(&g, &format!("frequency_{name}"), axis.frequency)?;
-            f64_attr(&g, &format!("duty_{name}"), axis.duty)?;
-            f64_attr(&g, &format!("phase_{name}"), axis.phase)?;
-        }
-        series(
-            &g,
-            "time",
-            &main.time,
-            "s",
-            "time from the start of the run",
-        )?;
+        run_attrs(&g, &rec.instance, main)?;
         for (i, name) in AXIS_NAMES.iter().enumerate() {
             series(
                 &g,
@@ -262,27 +298,44 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
                 &format!("drive voltage of axis {name}"),
             )?;
         }
-        if let Some(bases) = &rec.baselines {
-            let mut worst = 0;
-            for (i, name) in AXIS_NAMES.iter().enumerate() {
-                let base = &bases[i];
-                worst = worst.max(base.state.status);
-                series(
-                    &g,
-                    &format!("baseline_stage_{name}"),
-                    &base.stage[i],
-                    "m",
-                    &format!("1-DOF stage displacement along {name} with only {name} driven"),
-                )?;
-                series(
-                    &g,
-                    &format!("baseline_slider_{name}"),
-                    &base.slider[i],
-                    "m",
-                    &format!("1-DOF slider displacement along {name} with only {name} driven"),
-                )?;
-            }
-            u64_attr(&g, "baseline_status", worst as u64)?;
+        let Some(bases) = &rec.baselines else {
+            continue;
+        };
+        for (i, name) in AXIS_NAMES.iter().enumerate() {
+            let base = &bases[i];
+            let b = g.create_group(&format!("baseline_{name}"))?;
+            str_attr(
+                &b,
+                "description",
+                &format!(
+                    "1-DOF run: axis {name} driven alone; its first measured_cycles periods are \
+                     the map's baseline run"
+                ),
+            )?;
+            run_attrs(&b, &base.instance, &base.trajectory)?;
+            u64_attr(&b, "measured_cycles", base.measured_cycles as u64)?;
+            let t = &base.trajectory;
+            series(
+                &b,
+                "stage",
+                &t.stage[i],
+                "m",
+                &format!("1-DOF stage displacement along {name}"),
+            )?;
+            series(
+                &b,
+                "slider",
+                &t.slider[i],
+                "m",
+                &format!("1-DOF slider displacement along {name}"),
+            )?;
+            series(
+                &b,
+                "voltage",
+                &t.voltage[i],
+                "V",
+                &format!("drive voltage of axis {name}"),
+            )?;
         }
     }
     Ok(())
@@ -297,17 +350,18 @@ pub fn record_and_write(parent: &hdf5::Group, scene: &Scene) -> Result<()> {
     write(parent, &record_scene(scene))
 }
 
-/// The slider displacement over the measured periods [m] from a complete
-/// trajectory's samples: the sample at the end of the run minus the sample
-/// at the end of the settle periods. `None` when the run did not finish.
-pub fn measured_displacement(inst: &Instance, t: &Trajectory) -> Option<[f64; AXES]> {
+/// The slider displacement over periods `settle .. cycles` [m] from a
+/// trajectory's samples: the sample at the end of period `cycles` minus the
+/// sample at the end of the settle periods. `None` when the run did not
+/// finish or has fewer periods.
+pub fn measured_displacement(t: &Trajectory, settle: u32, cycles: u32) -> Option<[f64; AXES]> {
     let per = t.samples_per_cycle as usize;
-    let end = inst.cycles as usize * per;
-    let settle = inst.settle as usize * per;
-    if t.state.status != integrate::STATUS_OK || t.time.len() != end + 1 {
+    let end = cycles as usize * per;
+    let start = settle as usize * per;
+    if t.state.status != integrate::STATUS_OK || t.time.len() <= end {
         return None;
     }
     Some(std::array::from_fn(|i| {
-        t.slider[i][end] - t.slider[i][settle]
+        t.slider[i][end] - t.slider[i][start]
     }))
 }

@@ -62,7 +62,8 @@ fn the_samples_give_the_map_displacement() {
         assert_eq!(t.time.len(), inst.cycles as usize * 500 + 1, "{name}");
         assert_eq!(t.time[0], 0.0);
         assert!((t.time[t.time.len() - 1] - inst.duration()).abs() < 1e-12);
-        let got = measured_displacement(&inst, &t).expect("a complete trajectory");
+        let got =
+            measured_displacement(&t, inst.settle, inst.cycles).expect("a complete trajectory");
         for i in 0..2 {
             assert!(
                 (got[i] - want[i]).abs() <= 1e-12,
@@ -192,10 +193,39 @@ fn a_scene_records_its_trajectories_with_baselines() {
         "instance 3 (axis.x.voltage = 100 V, axis.y.voltage = 100 V)"
     );
     let bases = recorded[0].baselines.as_ref().expect("baselines");
-    // The x baseline drives x alone, and equals the 1-DOF run.
+    // The x baseline drives x alone, and is the 1-DOF run.
     let mut alone = recorded[0].instance;
     alone.axes[1].voltage = 0.0;
-    assert_eq!(bases[0].state, run_instance(&alone, &scene.settings));
-    assert!(bases[0].slider[1].iter().all(|&v| v == 0.0));
+    assert_eq!(bases[0].instance, alone);
+    assert_eq!(
+        bases[0].trajectory.state,
+        run_instance(&alone, &scene.settings)
+    );
+    assert!(bases[0].trajectory.slider[1].iter().all(|&v| v == 0.0));
     assert_eq!(recorded[0].main.time.len(), 151);
+}
+
+#[test]
+fn a_faster_baseline_is_extended_over_the_whole_run_unchanged() {
+    // Fig. 8: x at 10 Hz, y at 20 Hz. The y baseline's period is 50 ms, so
+    // its 10 periods last half the point's run; it is recorded for 20, and
+    // its first 10 are the map's baseline run.
+    let (_, inst) = instances()[4];
+    let settings = Settings::default();
+    let (base, measured) = pidm::trajectory::baseline_instance(&inst, 1);
+    assert_eq!((measured, base.cycles), (10, 20));
+    assert!((base.duration() - inst.duration()).abs() < 1e-12);
+    let t = record(&base, &settings, 200);
+    let mut map_run = base;
+    map_run.cycles = measured;
+    let short = record(&map_run, &settings, 200);
+    let n = short.time.len();
+    assert_eq!(t.slider[1][..n], short.slider[1][..]);
+    assert_eq!(t.stage[1][..n], short.stage[1][..]);
+    let want = displacement(&map_run, &run_instance(&map_run, &settings));
+    let got = measured_displacement(&t, base.settle, measured).unwrap();
+    assert!((got[1] - want[1]).abs() <= 1e-12, "{got:?} {want:?}");
+    // Axes at one frequency need no extension.
+    let (base, measured) = pidm::trajectory::baseline_instance(&inst, 0);
+    assert_eq!(base.cycles, measured);
 }
