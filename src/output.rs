@@ -10,7 +10,9 @@
 //!   `/maps/velocity_x`, `/maps/velocity_y` [m/s], `/maps/status`,
 //!   `/maps/steps`, each shaped like the grid;
 //! - `/baseline/step_x`, `/baseline/step_y`, `/baseline/status` when
-//!   baselines are asked for.
+//!   baselines are asked for;
+//! - `/trajectories/<k>/` when the scene asks for trajectories (written by
+//!   `crate::trajectory`, which documents its layout).
 
 use std::path::{Path, PathBuf};
 

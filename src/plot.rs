@@ -251,19 +251,26 @@ enum Kind {
     Points(Vec<String>),
 }
 
-/// One stored run in time: the point's, or a 1-DOF run beside it.
+/// One stored run in time: the point's, or a 1-DOF run beside it (which
+/// holds only its driven axis' series).
 struct RunData {
+    /// Sample times [s].
     time: Vec<f64>,
+    /// Stage and slider displacement per axis [m].
     stage: [Vec<f64>; 2],
     slider: [Vec<f64>; 2],
+    /// Drive amplitude [V], frequency [Hz], rise fraction and phase
+    /// [cycles] per axis.
     voltage: [f64; 2],
     frequency: [f64; 2],
     duty: [f64; 2],
     phase: [f64; 2],
+    /// Scene period and the end of the settle periods [s].
     period_s: f64,
     settle_s: f64,
     /// End of the measured periods [s].
     measured_end_s: f64,
+    /// Integrator status at the end of the run (0 = ok).
     status: u64,
 }
 
