@@ -25,8 +25,9 @@
 //!   `voltage` [V] along that axis, with the same attributes plus
 //!   `measured_cycles`. A 1-DOF run at a higher frequency than the point's
 //!   scene period has a shorter period, so it is recorded for more periods
-//!   to cover the point's whole run; its first `measured_cycles` periods
-//!   are the map's baseline run, bit for bit.
+//!   to cover the point's whole run, with as many samples per second as
+//!   the point; its first `measured_cycles` periods are the map's baseline
+//!   run, bit for bit.
 
 use anyhow::{Context, Result};
 use hdf5::types::VarLenUnicode;
@@ -183,10 +184,14 @@ pub fn record_scene(scene: &Scene) -> Vec<Recorded> {
             let baselines = scene.baselines.then(|| {
                 std::array::from_fn(|axis| {
                     let (base, measured_cycles) = baseline_instance(&instance, axis);
+                    // The same density in time as the point's samples.
+                    let base_per = (per as f64 * base.period() / instance.period())
+                        .round()
+                        .max(1.0) as u32;
                     let trajectory = if base == instance {
                         main.clone()
                     } else {
-                        record(&base, &scene.settings, per)
+                        record(&base, &scene.settings, base_per)
                     };
                     Baseline {
                         instance: base,

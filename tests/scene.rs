@@ -383,9 +383,9 @@ fn bad_scenes_are_refused_with_clear_messages() {
              float 100.5",
         ),
         (
-            "[simulation]\ncycles = 20000\n[output]\ntrajectories = [0]",
-            "output.trajectories[0] = 0: 2000 samples per cycle x 20000 cycles = 40000000 \
-             samples: expected at most 10000000 per trajectory",
+            "[simulation]\ncycles = 2000\n[output]\ntrajectories = [0]",
+            "output.trajectories[0] = 0: 2000 samples per cycle x 2000 cycles = 4000000 \
+             samples: expected at most 2000000 per trajectory",
         ),
         (
             "[output]\ntrajectory = [0]",

@@ -29,10 +29,11 @@ use super::{describe_values, fmt_num, fmt_short};
 pub const DEFAULT_SAMPLES_PER_CYCLE: u32 = 2000;
 
 /// Largest number of samples one trajectory may hold (samples per cycle
-/// times cycles): each sample takes 88 bytes in memory and in the file
-/// (eleven f64 series with the baselines), so this caps a trajectory at
-/// 880 MB.
-pub const MAX_TRAJECTORY_SAMPLES: u64 = 10_000_000;
+/// times cycles). A sample takes 56 bytes in memory per recorded run (time,
+/// and stage, slider and voltage per axis), and with baselines a point is
+/// recorded three times, so this caps one trajectory at about 340 MB while
+/// it is recorded.
+pub const MAX_TRAJECTORY_SAMPLES: u64 = 2_000_000;
 
 /// Largest accepted `trajectory_samples_per_cycle`.
 const MAX_SAMPLES_PER_CYCLE: u32 = 1_000_000;
