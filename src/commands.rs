@@ -327,6 +327,12 @@ pub fn run_scene(
     })?;
     summary.merge(&new);
     let wall_time_s = started.elapsed().as_secs_f64();
+    // Trajectories belong to the whole scene: a shard leaves them to
+    // `pidm merge`, which records them once (they are deterministic f64 CPU
+    // runs, so the merged file equals a single run's).
+    if scope.shard.is_none() {
+        crate::trajectory::record_and_write(writer.file(), scene)?;
+    }
     let path = writer.finish(wall_time_s)?;
     checkpoint.remove()?;
     Ok(RunResult {

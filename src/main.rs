@@ -94,6 +94,16 @@ enum Command {
         #[arg(long)]
         gpu: bool,
     },
+    /// Draws PNG pictures of a result file: heatmaps of the step maps (and
+    /// coupling maps against the 1-DOF baselines), line or bar charts for
+    /// 1-D and points scenes, and the stored trajectories.
+    Plot {
+        /// The result file (HDF5) written by `pidm run`.
+        file: PathBuf,
+        /// Output folder [default: results/plots/<file stem>].
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
     /// Writes a points scene of seeded random instances to stdout.
     RandomScene {
         #[arg(long, default_value_t = 1)]
@@ -154,6 +164,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         }
         Command::Merge { out, shards } => commands::merge(&out, &shards)?,
         Command::Check { scene } => commands::check(&scene)?,
+        Command::Plot { file, out } => pidm::plot::run(&file, out.as_deref())?,
         Command::Info => commands::info()?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Accuracy {

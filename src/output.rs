@@ -10,7 +10,9 @@
 //!   `/maps/velocity_x`, `/maps/velocity_y` [m/s], `/maps/status`,
 //!   `/maps/steps`, each shaped like the grid;
 //! - `/baseline/step_x`, `/baseline/step_y`, `/baseline/status` when
-//!   baselines are asked for.
+//!   baselines are asked for;
+//! - `/trajectories/<k>/` when the scene asks for trajectories (written by
+//!   `crate::trajectory`, which documents its layout).
 //!
 //! The file also follows the netCDF-4 conventions, so netCDF tools and
 //! `xarray.open_dataset(file, engine="h5netcdf")` see labelled arrays: each
@@ -422,6 +424,14 @@ impl MapWriter {
         }
     }
 
+    /// The open result file, for extra groups written beside the maps (the
+    /// trajectories).
+    pub fn file(&self) -> &File {
+        self.file
+            .as_ref()
+            .expect("the file stays open until finish")
+    }
+
     /// Records the run's wall time, closes the file and renames it into
     /// place.
     pub fn finish(mut self, wall_time_s: f64) -> Result<PathBuf> {
@@ -451,12 +461,84 @@ impl Drop for MapWriter {
     }
 }
 
-/// Checks that two result files hold the same scene and the same
-/// contents, bit for bit: every dataset of `/axes`, `/maps` and `/baseline`
-/// and the point labels. Run-specific attributes (`wall_time_s`,
-/// `backend`) may differ. The error names the first difference.
-pub fn compare_contents(a: &Path, b: &Path) -> Result<()> {
-    use hdf5::types::{FloatSize, IntSize, TypeDescriptor};
+/// Every value of a dataset or attribute, exactly: floats as their bits.
+#[derive(Debug, PartialEq)]
+enum Values {
+    Float(Vec<u64>),
+    Unsigned(Vec<u64>),
+    Signed(Vec<i64>),
+    Text(Vec<String>),
+    /// Object references (the dimension-scale attributes `DIMENSION_LIST`
+    /// and `REFERENCE_LIST`) hold file addresses, which need not agree
+    /// between two files of the same content: only their count is compared.
+    References(usize),
+}
+
+/// True for a type that holds object references anywhere.
+fn has_references(ty: &hdf5::types::TypeDescriptor) -> bool {
+    use hdf5::types::TypeDescriptor as T;
+    match ty {
+        T::Reference(_) => true,
+        T::VarLenArray(inner) | T::FixedArray(inner, _) => has_references(inner),
+        T::Compound(c) => c.fields.iter().any(|f| has_references(&f.ty)),
+        _ => false,
+    }
+}
+
+fn values(c: &hdf5::Container) -> Result<Values> {
+    use hdf5::types::{FixedAscii, FloatSize, IntSize, TypeDescriptor as T};
+    fn widen<A, B: From<A>>(v: Vec<A>) -> Vec<B> {
+        v.into_iter().map(B::from).collect()
+    }
+    let ty = c.dtype()?.to_descriptor()?;
+    if has_references(&ty) {
+        return Ok(Values::References(c.size()));
+    }
+    Ok(match ty {
+        T::Float(FloatSize::U8) => {
+            Values::Float(c.read_raw::<f64>()?.iter().map(|x| x.to_bits()).collect())
+        }
+        T::Float(FloatSize::U4) => Values::Float(
+            c.read_raw::<f32>()?
+                .iter()
+                .map(|x| u64::from(x.to_bits()))
+                .collect(),
+        ),
+        T::Unsigned(size) => Values::Unsigned(match size {
+            IntSize::U1 => widen(c.read_raw::<u8>()?),
+            IntSize::U2 => widen(c.read_raw::<u16>()?),
+            IntSize::U4 => widen(c.read_raw::<u32>()?),
+            IntSize::U8 => c.read_raw::<u64>()?,
+        }),
+        T::Integer(size) => Values::Signed(match size {
+            IntSize::U1 => widen(c.read_raw::<i8>()?),
+            IntSize::U2 => widen(c.read_raw::<i16>()?),
+            IntSize::U4 => widen(c.read_raw::<i32>()?),
+            IntSize::U8 => c.read_raw::<i64>()?,
+        }),
+        T::FixedAscii(_) => Values::Text(
+            c.read_raw::<FixedAscii<256>>()?
+                .iter()
+                .map(|v| v.as_str().to_owned())
+                .collect(),
+        ),
+        T::VarLenUnicode => Values::Text(
+            c.read_raw::<VarLenUnicode>()?
+                .iter()
+                .map(|v| v.as_str().to_owned())
+                .collect(),
+        ),
+        other => bail!("unexpected element type {other:?}"),
+    })
+}
+
+/// Checks that two result files hold the same scene and the same contents,
+/// bit for bit: every group and dataset at any depth (maps, axes,
+/// baselines, labels, trajectories), with the same types, shapes, values
+/// and dataset attributes. Run-specific root attributes (`wall_time_s`,
+/// `backend`) may differ. Returns how many datasets were compared; the
+/// error names the first difference.
+pub fn compare_contents(a: &Path, b: &Path) -> Result<usize> {
     let fa = File::open(a).with_context(|| format!("cannot open {}", a.display()))?;
     let fb = File::open(b).with_context(|| format!("cannot open {}", b.display()))?;
     let scene = |f: &File| -> Result<String> {
@@ -466,58 +548,52 @@ pub fn compare_contents(a: &Path, b: &Path) -> Result<()> {
     if scene(&fa)? != scene(&fb)? {
         bail!("the `scene` attributes differ");
     }
-    let mut paths = Vec::new();
-    for group in ["axes", "maps", "baseline"] {
-        let (ga, gb) = (fa.group(group).ok(), fb.group(group).ok());
-        match (ga, gb) {
-            (None, None) => {}
-            (Some(ga), Some(gb)) => {
-                let (mut na, mut nb) = (ga.member_names()?, gb.member_names()?);
-                na.sort();
-                nb.sort();
-                if na != nb {
-                    bail!("/{group} holds {na:?} in one file and {nb:?} in the other");
-                }
-                paths.extend(na.into_iter().map(|n| format!("{group}/{n}")));
-            }
-            _ => bail!("only one file has /{group}"),
+    let mut compared = 0;
+    compare_group(&fa, &fb, &mut compared)?;
+    Ok(compared)
+}
+
+fn compare_group(a: &hdf5::Group, b: &hdf5::Group, compared: &mut usize) -> Result<()> {
+    let (mut names_a, mut names_b) = (a.member_names()?, b.member_names()?);
+    names_a.sort();
+    names_b.sort();
+    if names_a != names_b {
+        bail!(
+            "{} holds {names_a:?} in one file and {names_b:?} in the other",
+            a.name()
+        );
+    }
+    for name in &names_a {
+        if let Ok(group_a) = a.group(name) {
+            compare_group(&group_a, &b.group(name)?, compared)?;
+            continue;
         }
-    }
-    match (fa.dataset("labels").is_ok(), fb.dataset("labels").is_ok()) {
-        (true, true) => paths.push("labels".into()),
-        (false, false) => {}
-        _ => bail!("only one file has /labels"),
-    }
-    for path in paths {
-        let (da, db) = (fa.dataset(&path)?, fb.dataset(&path)?);
+        let (da, db) = (a.dataset(name)?, b.dataset(name)?);
+        let what = da.name();
         if da.shape() != db.shape() {
-            bail!("/{path}: shapes {:?} and {:?}", da.shape(), db.shape());
+            bail!("{what}: shapes {:?} and {:?}", da.shape(), db.shape());
         }
-        let kind = da.dtype()?.to_descriptor()?;
-        if kind != db.dtype()?.to_descriptor()? {
-            bail!("/{path}: the element types differ");
+        if da.dtype()?.to_descriptor()? != db.dtype()?.to_descriptor()? {
+            bail!("{what}: the element types differ");
         }
-        let same = match kind {
-            TypeDescriptor::Float(FloatSize::U8) => {
-                let (x, y): (Vec<f64>, Vec<f64>) = (da.read_raw()?, db.read_raw()?);
-                x.iter()
-                    .map(|v| v.to_bits())
-                    .eq(y.iter().map(|v| v.to_bits()))
-            }
-            TypeDescriptor::Unsigned(IntSize::U4) => {
-                da.read_raw::<u32>()? == db.read_raw::<u32>()?
-            }
-            TypeDescriptor::Unsigned(IntSize::U8) => {
-                da.read_raw::<u64>()? == db.read_raw::<u64>()?
-            }
-            TypeDescriptor::VarLenUnicode => {
-                da.read_raw::<VarLenUnicode>()? == db.read_raw::<VarLenUnicode>()?
-            }
-            other => bail!("/{path}: unexpected element type {other:?}"),
-        };
-        if !same {
-            bail!("/{path} differs");
+        if values(&da).with_context(|| what.clone())? != values(&db)? {
+            bail!("{what} differs");
         }
+        let (mut attrs_a, mut attrs_b) = (da.attr_names()?, db.attr_names()?);
+        attrs_a.sort();
+        attrs_b.sort();
+        if attrs_a != attrs_b {
+            bail!("{what}: attributes {attrs_a:?} and {attrs_b:?}");
+        }
+        for attr in &attrs_a {
+            let (aa, ab) = (da.attr(attr)?, db.attr(attr)?);
+            if aa.dtype()?.to_descriptor()? != ab.dtype()?.to_descriptor()?
+                || values(&aa)? != values(&ab)?
+            {
+                bail!("{what}: attribute {attr} differs");
+            }
+        }
+        *compared += 1;
     }
     Ok(())
 }

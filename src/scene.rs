@@ -28,7 +28,10 @@
 //!
 //! The top level takes `name` (the file stem by default), an optional free
 //! text `description`, and `[output] baselines = true` to also run the two
-//! 1-DOF counterparts of every instance. `[simulation]` takes `cycles`,
+//! 1-DOF counterparts of every instance. `[output] trajectories = [...]`
+//! records the motion of chosen instances over time (see
+//! [`trajectories`] for the entries) with
+//! `trajectory_samples_per_cycle` samples per scene period. `[simulation]` takes `cycles`,
 //! `settle` (both integers, per instance) and the scene-wide integrator
 //! settings `tolerance` and `max_steps_per_period` (single values only).
 //! Integer keys accept lists and linear ranges whose values land on integers.
@@ -45,6 +48,9 @@ use toml::de::{DeTable, DeValue};
 
 use crate::cpu::integrate::Settings;
 use crate::model::{AXES, AXIS_NAMES, Axis, Instance, Mechanism};
+
+pub mod trajectories;
+pub use trajectories::{DEFAULT_SAMPLES_PER_CYCLE, TrajectoryPoint};
 
 /// Default limit on the memory the output maps of one scene may take.
 pub const MAP_MEMORY_BUDGET_BYTES: u64 = 8 << 30;
@@ -71,6 +77,11 @@ pub struct Scene {
     pub baselines: bool,
     /// Scene-wide integrator settings.
     pub settings: Settings,
+    /// Instances whose motion over time is recorded (`output.trajectories`).
+    pub trajectories: Vec<TrajectoryPoint>,
+    /// Samples per scene period of each trajectory
+    /// (`output.trajectory_samples_per_cycle`).
+    pub trajectory_samples_per_cycle: u32,
     /// The optional free-text `description`.
     description: Option<String>,
     /// How the raw key values become an instance.
@@ -482,7 +493,7 @@ const POINT_KEYS: [&str; 4] = ["label", "mechanism", "axis", "simulation"];
 const RANGE_KEYS: [&str; 4] = ["from", "to", "steps", "log"];
 
 /// Keys of `[output]`.
-const OUTPUT_KEYS: [&str; 1] = ["baselines"];
+const OUTPUT_KEYS: [&str; 3] = ["baselines", "trajectories", "trajectory_samples_per_cycle"];
 
 /// What a numeric key should look like, for type errors.
 const NUMERIC_EXPECTED: &str =
@@ -618,6 +629,8 @@ struct Parsed {
     description: Option<String>,
     base: Layer,
     baselines: bool,
+    trajectories: Vec<trajectories::SpecAt>,
+    samples_per_cycle: Option<u32>,
     points: Option<Vec<PointSpec>>,
 }
 
@@ -1147,7 +1160,7 @@ impl Parser<'_> {
                     &mut parsed.base,
                     Context::Base,
                 )?,
-                "output" => parsed.baselines = self.output(value)?,
+                "output" => self.output(value, &mut parsed)?,
                 "points" => parsed.points = Some(self.points(value)?),
                 _ => return Err(self.unknown_key(key, "", &ROOT_KEYS)),
             }
@@ -1390,14 +1403,17 @@ impl Parser<'_> {
         })
     }
 
-    /// `[output]`: returns `baselines`.
-    fn output(&self, value: &Value<'_>) -> Result<bool, SceneError> {
+    /// `[output]`.
+    fn output(&self, value: &Value<'_>, parsed: &mut Parsed) -> Result<(), SceneError> {
         let table = self.table("output", "expected a table", value)?;
-        let mut baselines = false;
         for (key, value) in table.iter() {
             match key.get_ref().as_ref() {
+                "trajectories" => parsed.trajectories = self.trajectories(value)?,
+                "trajectory_samples_per_cycle" => {
+                    parsed.samples_per_cycle = Some(self.samples_per_cycle(value)?);
+                }
                 "baselines" => match value.get_ref() {
-                    DeValue::Boolean(b) => baselines = *b,
+                    DeValue::Boolean(b) => parsed.baselines = *b,
                     _ => {
                         return Err(self.wrong_type(
                             "output.baselines",
@@ -1409,7 +1425,7 @@ impl Parser<'_> {
                 _ => return Err(self.unknown_key(key, "output", &OUTPUT_KEYS)),
             }
         }
-        Ok(baselines)
+        Ok(())
     }
 
     /// `[[points]]`.
@@ -1657,6 +1673,10 @@ impl Scene {
             layout: Layout::Grid { axes: Vec::new() },
             baselines: parsed.baselines,
             settings,
+            trajectories: Vec::new(),
+            trajectory_samples_per_cycle: parsed
+                .samples_per_cycle
+                .unwrap_or(DEFAULT_SAMPLES_PER_CYCLE),
             description: parsed.description,
             plan,
             raw,
@@ -1727,6 +1747,7 @@ impl Scene {
                 });
             }
             scene.layout = Layout::Points { labels };
+            scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
             scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
             for (a, driven) in scene.driven.iter_mut().enumerate() {
                 *driven = scene.points.iter().any(|p| p.axes[a].is_driven());
@@ -1791,6 +1812,7 @@ impl Scene {
             };
         }
         scene.layout = Layout::Grid { axes };
+        scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
         Ok(scene)
     }
 
@@ -1905,6 +1927,15 @@ impl Scene {
                 "no"
             }
         );
+        if !self.trajectories.is_empty() {
+            let names: Vec<&str> = self.trajectories.iter().map(|t| t.name.as_str()).collect();
+            let _ = writeln!(
+                out,
+                "trajectories ({} samples per period): {}",
+                self.trajectory_samples_per_cycle,
+                names.join("; ")
+            );
+        }
         let _ = writeln!(
             out,
             "integrator: tolerance {} rad, at most {} steps per period",

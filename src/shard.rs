@@ -321,6 +321,7 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
             at += n;
         }
     }
+    crate::trajectory::record_and_write(writer.file(), &scene)?;
     let wall_time_s = shards.iter().map(|s| s.wall_time_s).sum();
     let path = writer.finish(wall_time_s)?;
     Ok(MergeSummary {

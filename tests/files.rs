@@ -139,6 +139,42 @@ fn shards_merge_into_the_single_run_bit_for_bit() {
     args.extend(shards.iter().map(|p| s(p)));
     ok(&pidm(&args, d));
     compare_contents(&single, &merged).unwrap();
+
+    // The paper scene records trajectories: the merge records them once,
+    // identical to a single run's.
+    let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/sweeps/paper.toml");
+    let paper_single = d.join("paper.h5");
+    ok(&pidm(
+        &["run", paper, "--out", s(&paper_single), "--backend", "cpu"],
+        d,
+    ));
+    for k in 1..=2 {
+        ok(&pidm(
+            &[
+                "run",
+                paper,
+                "--shard",
+                &format!("{k}/2"),
+                "--backend",
+                "cpu",
+            ],
+            d,
+        ));
+    }
+    let paper_merged = d.join("paper-merged.h5");
+    ok(&pidm(
+        &[
+            "merge",
+            s(&paper_merged),
+            "results/paper.shard-1-of-2.h5",
+            "results/paper.shard-2-of-2.h5",
+        ],
+        d,
+    ));
+    let compared = compare_contents(&paper_single, &paper_merged).unwrap();
+    let file = hdf5::File::open(&paper_merged).unwrap();
+    assert!(file.group("trajectories").is_ok());
+    assert!(compared > 20, "{compared} datasets");
     // A shard alone is not a map file: comparing shows it.
     assert!(compare_contents(&single, &shards[0]).is_err());
 

@@ -304,6 +304,97 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "points[0] (\"p\"): axis.x: damping and quality_factor both set the damping",
         ),
         ("points = []", "points = []: expected at least one point"),
+        // Trajectories.
+        (
+            "[output]\ntrajectories = \"Fig. 6\"",
+            "output.trajectories: expected a list, each entry a point label",
+        ),
+        (
+            "[output]\ntrajectories = [1.5]",
+            "output.trajectories[0]: expected a point label (string), a flat instance index \
+             (integer >= 0) or a table of grid coordinates",
+        ),
+        (
+            "[output]\ntrajectories = [true]",
+            "output.trajectories[0]: expected a point label (string)",
+        ),
+        (
+            "[axis.x]\nvoltage = [50, 100]\n[output]\ntrajectories = [2]",
+            "output.trajectories[0] = 2: expected an instance index from 0 to 1 (the scene has 2 \
+             instances)",
+        ),
+        (
+            "[output]\ntrajectories = [-1]",
+            "output.trajectories[0] = -1: expected an instance index from 0 to 0",
+        ),
+        (
+            "[axis.x]\nvoltage = [50, 100]\n[output]\ntrajectories = [\"a\"]",
+            "output.trajectories[0] = \"a\": a grid scene has no point labels",
+        ),
+        (
+            "[output]\ntrajectories = [\"Fig. 9\"]\n[[points]]\nlabel = \"Fig. 5a\"\n\
+             [[points]]\nlabel = \"Fig. 6\"",
+            "output.trajectories[0] = \"Fig. 9\": expected the label of a point: \"Fig. 5a\", \
+             \"Fig. 6\"",
+        ),
+        (
+            "[output]\ntrajectories = [\"a\"]\n[[points]]\nlabel = \"a\"\n[[points]]\nlabel = \"a\"",
+            "the label names 2 points (indices [0, 1]); expected exactly one",
+        ),
+        (
+            "[output]\ntrajectories = [\"a\"]\n[[points]]\naxis.x.voltage = 5",
+            "expected the label of a point, but no point has a label",
+        ),
+        (
+            "[output]\ntrajectories = [{ axis.x.voltage = 5 }]\n[[points]]\nlabel = \"a\"",
+            "a points scene has no grid coordinates; expected a point label or index",
+        ),
+        (
+            "[axis.x]\nvoltage = [50, 100]\n[axis.y]\nvoltage = [0, 10]\n\
+             [output]\ntrajectories = [{ axis.x.voltage = 50 }]",
+            "expected a value for every grid axis, but `axis.y.voltage` is missing",
+        ),
+        (
+            "[axis.x]\nvoltage = [50, 100]\n[output]\ntrajectories = [{ axis.x.voltage = 75 }]",
+            "axis.x.voltage = 75: expected one of the axis' values, [50, 100] V",
+        ),
+        (
+            "[axis.x]\nvoltage = [50, 100]\n[output]\n\
+             trajectories = [{ axis.x.voltage = 50, axis.x.duty = 0.5 }]",
+            "`axis.x.duty` is not a grid axis; expected the keys axis.x.voltage",
+        ),
+        (
+            "[axis.x]\nvoltage = [50, 100]\n[output]\ntrajectories = [{ axis.x.voltage = \"50\" }]",
+            "output.trajectories[0].axis.x.voltage: expected a number",
+        ),
+        (
+            "[axis.x]\nvoltage = [50, 100]\n[output]\n\
+             trajectories = [1, { \"axis.x.voltage\" = 100.0 }]",
+            "output.trajectories[1] = { \"axis.x.voltage\" = 100.0 }: names the same instance as \
+             output.trajectories[0]",
+        ),
+        (
+            "[output]\ntrajectory_samples_per_cycle = 0",
+            "output.trajectory_samples_per_cycle = 0: expected an integer from 1 to 1000000",
+        ),
+        (
+            "[output]\ntrajectory_samples_per_cycle = 100.5",
+            "output.trajectory_samples_per_cycle: expected an integer from 1 to 1000000, found a \
+             float 100.5",
+        ),
+        (
+            "[simulation]\ncycles = 2000\n[output]\ntrajectories = [0]",
+            "output.trajectories[0] = 0: 2000 samples per cycle x 2000 cycles = 4000000 \
+             samples: expected at most 2000000 per trajectory",
+        ),
+        (
+            "[output]\ntrajectory = [0]",
+            "unknown key `output.trajectory` (did you mean `trajectories`?)",
+        ),
+        (
+            "trajectories = [0]",
+            "unknown key `trajectories` (`trajectories` belongs in [output])",
+        ),
         // Locations and syntax.
         ("\n\n[axis.x]\nduty = 1.5", "(line 4, column 8)"),
         (
@@ -575,6 +666,63 @@ fn memory_budget_names_shape_count_and_bytes() {
 }
 
 #[test]
+fn trajectories_name_instances_by_label_index_or_grid_coordinates() {
+    let grid = parse(
+        "[axis.x]\nvoltage = { from = 0.0, to = 100.0, steps = 3 }\n\
+         [axis.y]\nvoltage = [10.0, 20.0]\n\
+         [output]\ntrajectory_samples_per_cycle = 40\n\
+         trajectories = [5, { axis.y.voltage = 10.0, axis.x.voltage = 50.0 }, \
+         { \"axis.x.voltage\" = 0.0, \"axis.y.voltage\" = 20.0 }]",
+    );
+    let got: Vec<(u64, &str)> = grid
+        .trajectories
+        .iter()
+        .map(|t| (t.index, t.name.as_str()))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            (
+                5,
+                "instance 5 (axis.x.voltage = 100 V, axis.y.voltage = 20 V)"
+            ),
+            (
+                2,
+                "instance 2 (axis.x.voltage = 50 V, axis.y.voltage = 10 V)"
+            ),
+            (
+                1,
+                "instance 1 (axis.x.voltage = 0 V, axis.y.voltage = 20 V)"
+            ),
+        ]
+    );
+    assert_eq!(grid.trajectory_samples_per_cycle, 40);
+    assert!(
+        grid.describe()
+            .contains("trajectories (40 samples per period)")
+    );
+    let points = parse(
+        "[output]\ntrajectories = [\"b\", 0]\n\
+         [[points]]\naxis.x.voltage = 10\n[[points]]\nlabel = \"b\"",
+    );
+    let got: Vec<(u64, &str, &str)> = points
+        .trajectories
+        .iter()
+        .map(|t| (t.index, t.label.as_str(), t.name.as_str()))
+        .collect();
+    assert_eq!(got, [(1, "b", "b"), (0, "", "point 0")]);
+    assert_eq!(
+        points.trajectory_samples_per_cycle,
+        pidm::scene::DEFAULT_SAMPLES_PER_CYCLE
+    );
+    assert!(parse("").trajectories.is_empty());
+    assert_eq!(
+        parse("[output]\ntrajectories = [{}]").trajectories[0].index,
+        0
+    );
+}
+
+#[test]
 fn shipped_scenes_load() {
     let paper = Scene::load(&shipped("paper.toml")).unwrap();
     assert_eq!(paper.name, "paper");
@@ -620,6 +768,21 @@ fn shipped_scenes_load() {
         );
     }
     assert_eq!(paper.instance(2), Instance::TABLE1);
+    let recorded: Vec<(u64, &str)> = paper
+        .trajectories
+        .iter()
+        .map(|t| (t.index, t.name.as_str()))
+        .collect();
+    assert_eq!(
+        recorded,
+        [
+            (0, "Fig. 5a"),
+            (1, "Fig. 5b"),
+            (2, "Fig. 6"),
+            (3, "Fig. 7"),
+            (4, "Fig. 8")
+        ]
+    );
 
     let text = Scene::load(&shipped("paper_text.toml")).unwrap();
     assert_eq!(text.name, "paper_text");

@@ -12,7 +12,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use hdf5::types::{FixedAscii, FloatSize, IntSize, TypeDescriptor, VarLenUnicode};
+use pidm::output::compare_contents;
 
 /// A 4 x 3 grid of the two drive voltages with 1-DOF baselines: 12
 /// instances of 3 periods, so every shard of 3 has several instances.
@@ -80,155 +80,14 @@ fn run_scene(scene: &Path, out: &Path, extra: &[&str], dir: &Path) {
     assert!(out.is_file(), "pidm {args:?} wrote no {}", out.display());
 }
 
-/// Every value of a dataset or attribute, exactly: floats as their bits.
-#[derive(Debug, PartialEq)]
-enum Values {
-    Float(Vec<u64>),
-    Unsigned(Vec<u64>),
-    Signed(Vec<i64>),
-    Text(Vec<String>),
-    /// Object references (the netCDF-4 dimension-scale attributes
-    /// `DIMENSION_LIST` and `REFERENCE_LIST`) hold file addresses, which
-    /// need not agree between two files of the same content: only their
-    /// type and count are compared (`tests/files.rs` checks through xarray
-    /// that the scales are attached).
-    References(usize),
-}
-
-/// True for a type that holds object references anywhere.
-fn has_references(ty: &TypeDescriptor) -> bool {
-    match ty {
-        TypeDescriptor::Reference(_) => true,
-        TypeDescriptor::VarLenArray(inner) | TypeDescriptor::FixedArray(inner, _) => {
-            has_references(inner)
-        }
-        TypeDescriptor::Compound(c) => c.fields.iter().any(|f| has_references(&f.ty)),
-        _ => false,
-    }
-}
-
-fn values(c: &hdf5::Container, what: &str) -> Values {
-    let ty = c.dtype().unwrap().to_descriptor().unwrap();
-    if has_references(&ty) {
-        return Values::References(c.size());
-    }
-    match ty {
-        TypeDescriptor::Float(FloatSize::U8) => Values::Float(
-            ok(c.read_raw::<f64>(), what)
-                .iter()
-                .map(|x| x.to_bits())
-                .collect(),
-        ),
-        TypeDescriptor::Float(FloatSize::U4) => Values::Float(
-            ok(c.read_raw::<f32>(), what)
-                .iter()
-                .map(|x| u64::from(x.to_bits()))
-                .collect(),
-        ),
-        TypeDescriptor::Unsigned(size) => Values::Unsigned(match size {
-            IntSize::U1 => widen(ok(c.read_raw::<u8>(), what)),
-            IntSize::U2 => widen(ok(c.read_raw::<u16>(), what)),
-            IntSize::U4 => widen(ok(c.read_raw::<u32>(), what)),
-            IntSize::U8 => ok(c.read_raw::<u64>(), what),
-        }),
-        TypeDescriptor::Integer(size) => Values::Signed(match size {
-            IntSize::U1 => widen(ok(c.read_raw::<i8>(), what)),
-            IntSize::U2 => widen(ok(c.read_raw::<i16>(), what)),
-            IntSize::U4 => widen(ok(c.read_raw::<i32>(), what)),
-            IntSize::U8 => ok(c.read_raw::<i64>(), what),
-        }),
-        TypeDescriptor::FixedAscii(_) => Values::Text(
-            ok(c.read_raw::<FixedAscii<256>>(), what)
-                .iter()
-                .map(|v| v.as_str().to_owned())
-                .collect(),
-        ),
-        TypeDescriptor::VarLenUnicode => Values::Text(
-            ok(c.read_raw::<VarLenUnicode>(), what)
-                .iter()
-                .map(|v| v.as_str().to_owned())
-                .collect(),
-        ),
-        other => panic!("{what}: unexpected type {other:?}"),
-    }
-}
-
-fn ok<T>(read: hdf5::Result<T>, what: &str) -> T {
-    read.unwrap_or_else(|e| panic!("{what}: {e}"))
-}
-
-fn widen<T, U: From<T>>(v: Vec<T>) -> Vec<U> {
-    v.into_iter().map(U::from).collect()
-}
-
-/// Requires `got` to hold every group and dataset of `want`, and nothing
-/// else, with the same types, shapes, values (bit for bit) and dataset
-/// attributes (units); and the same root `scene` attribute. The root's
-/// other attributes (`wall_time_s`, `backend`, ...) may differ.
+/// Requires `got` to hold the same contents as `want`, bit for bit
+/// (`pidm::output::compare_contents`: every group, dataset and dataset
+/// attribute, and the root `scene` attribute).
 fn assert_same_content(want: &Path, got: &Path) {
-    let (a, b) = (
-        hdf5::File::open(want).unwrap(),
-        hdf5::File::open(got).unwrap(),
-    );
-    assert_eq!(
-        scene_attr(want),
-        scene_attr(got),
-        "the scene attribute differs"
-    );
-    let mut compared = 0;
-    compare_group(&a, &b, got, &mut compared);
+    let compared = compare_contents(want, got)
+        .unwrap_or_else(|e| panic!("{} against {}: {e:#}", got.display(), want.display()));
     // /axes/x.voltage, /axes/y.voltage, six maps and three baselines at least.
     assert!(compared >= 11, "only {compared} datasets compared");
-}
-
-/// The root attribute `scene` of an HDF5 file.
-fn scene_attr(path: &Path) -> String {
-    let file = hdf5::File::open(path).unwrap();
-    let v: VarLenUnicode = file.attr("scene").unwrap().read_scalar().unwrap();
-    v.as_str().to_owned()
-}
-
-fn compare_group(a: &hdf5::Group, b: &hdf5::Group, got: &Path, compared: &mut usize) {
-    let (mut names_a, mut names_b) = (a.member_names().unwrap(), b.member_names().unwrap());
-    names_a.sort();
-    names_b.sort();
-    assert_eq!(
-        names_a,
-        names_b,
-        "{} in {} has other members",
-        a.name(),
-        got.display()
-    );
-    for name in &names_a {
-        if let Ok(group_a) = a.group(name) {
-            compare_group(&group_a, &b.group(name).unwrap(), got, compared);
-            continue;
-        }
-        let (da, db) = (a.dataset(name).unwrap(), b.dataset(name).unwrap());
-        let what = da.name();
-        assert_eq!(da.shape(), db.shape(), "{what}: shape");
-        assert_eq!(
-            da.dtype().unwrap().to_descriptor().unwrap(),
-            db.dtype().unwrap().to_descriptor().unwrap(),
-            "{what}: type"
-        );
-        assert_eq!(values(&da, &what), values(&db, &what), "{what}: values");
-        let (mut attrs_a, mut attrs_b) = (da.attr_names().unwrap(), db.attr_names().unwrap());
-        attrs_a.sort();
-        attrs_b.sort();
-        assert_eq!(attrs_a, attrs_b, "{what}: attribute names");
-        for attr in &attrs_a {
-            let label = format!("{what} attribute {attr}");
-            let (aa, ab) = (da.attr(attr).unwrap(), db.attr(attr).unwrap());
-            assert_eq!(
-                aa.dtype().unwrap().to_descriptor().unwrap(),
-                ab.dtype().unwrap().to_descriptor().unwrap(),
-                "{label}: type"
-            );
-            assert_eq!(values(&aa, &label), values(&ab, &label), "{label}");
-        }
-        *compared += 1;
-    }
 }
 
 /// Runs `pidm merge OUT SHARDS...`.
@@ -364,6 +223,11 @@ fn a_slurm_job_array_of_shards_merges_into_a_single_run_bit_for_bit_and_bad_sets
     assert_same_content(&single, &merged);
     assert_same_content(&single, &dir.join("slurm-merged.h5"));
     // The shard files are HDF5 files of the same scene.
+    let scene_attr = |path: &Path| -> String {
+        let file = hdf5::File::open(path).unwrap();
+        let v: hdf5::types::VarLenUnicode = file.attr("scene").unwrap().read_scalar().unwrap();
+        v.as_str().to_owned()
+    };
     for shard in &shards {
         assert_eq!(
             scene_attr(shard),

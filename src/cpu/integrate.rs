@@ -275,6 +275,72 @@ pub fn displacement(inst: &Instance, st: &State) -> [f64; AXES] {
 
 /// Advances the state by at most `max_iterations` steps, corners and events.
 pub fn advance(inst: &Instance, settings: &Settings, st: &mut State, max_iterations: u32) {
+    advance_observed(inst, settings, st, max_iterations, &mut NoObserver);
+}
+
+/// Sees the closed-form motion over every step the integrator takes (CPU
+/// only; the shader has no counterpart). An observer reads and never
+/// changes the state, so an observed run is the same bit for bit as an
+/// unobserved one.
+pub trait StepObserver {
+    /// Called once per step that moves the state, before it moves: `st` is
+    /// the state at the start of the step (period `st.period`, local time
+    /// `st.time`), `motion` the motion over the step.
+    fn step(&mut self, st: &State, motion: &StepMotion);
+}
+
+/// The observer of plain runs: does nothing, and compiles to nothing.
+pub struct NoObserver;
+
+impl StepObserver for NoObserver {
+    #[inline(always)]
+    fn step(&mut self, _st: &State, _motion: &StepMotion) {}
+}
+
+/// The motion over one step, as the integrator's own dense output: the
+/// closed-form flow that event location evaluates at interior points.
+pub struct StepMotion<'a> {
+    flow: &'a Flow,
+    /// Step length [s].
+    tau: f64,
+    /// Local time within the period where the step ends [s].
+    end: f64,
+    /// The state the step ends in.
+    at_end: &'a Sample,
+}
+
+impl StepMotion<'_> {
+    /// Step length [s].
+    pub fn length(&self) -> f64 {
+        self.tau
+    }
+
+    /// Local time within the scene period where the step ends [s] (the
+    /// step starts at the observed state's `time`).
+    pub fn end(&self) -> f64 {
+        self.end
+    }
+
+    /// Stage and slider positions [m] per axis at `tau` seconds into the
+    /// step, 0 <= tau <= [`StepMotion::length`]; at the end exactly the
+    /// state the integrator moves to.
+    pub fn positions_at(&self, tau: f64) -> ([f64; AXES], [f64; AXES]) {
+        if tau >= self.tau {
+            return (self.at_end.x_p, self.at_end.x_s);
+        }
+        let s = eval_at(self.flow, tau.max(0.0));
+        (s.x_p, s.x_s)
+    }
+}
+
+/// [`advance`] with an observer that sees the motion over every step.
+pub fn advance_observed<O: StepObserver>(
+    inst: &Instance,
+    settings: &Settings,
+    st: &mut State,
+    max_iterations: u32,
+    observer: &mut O,
+) {
     let period = inst.period();
     let budget = (settings.max_steps_per_period as u64) * (inst.cycles as u64);
     let mut iteration = 0;
@@ -297,9 +363,9 @@ pub fn advance(inst: &Instance, settings: &Settings, st: &mut State, max_iterati
         let h_max = stop - st.time;
         let time_before = st.time;
         match st.mode {
-            MODE_STICK => step_stick(inst, st, h_max, stop),
-            MODE_SLIP => step_slip(inst, settings, st, h_max, stop, period),
-            _ => step_band(inst, st, h_max, stop),
+            MODE_STICK => step_stick(inst, st, h_max, stop, observer),
+            MODE_SLIP => step_slip(inst, settings, st, h_max, stop, period, observer),
+            _ => step_band(inst, st, h_max, stop, observer),
         }
         st.steps += 1;
         if st.time > time_before {
@@ -1027,9 +1093,25 @@ fn sample_step(flow: &Flow, h: f64) -> [Sample; 5] {
     out
 }
 
-/// Moves the state to tau within the current step (tau == h_max lands
-/// exactly on the stop).
-fn move_to(st: &mut State, s: &Sample, tau: f64, h_max: f64, stop: f64) {
+/// Moves the state to tau within the current step of flow `flow` (tau ==
+/// h_max lands exactly on the stop), showing the observer the motion first.
+fn move_to<O: StepObserver>(
+    st: &mut State,
+    s: &Sample,
+    tau: f64,
+    h_max: f64,
+    stop: f64,
+    flow: &Flow,
+    observer: &mut O,
+) {
+    let end = if tau >= h_max { stop } else { st.time + tau };
+    let motion = StepMotion {
+        flow,
+        tau,
+        end,
+        at_end: s,
+    };
+    observer.step(st, &motion);
     set_sample(st, s);
     if tau >= h_max {
         st.time = stop;
@@ -1040,7 +1122,13 @@ fn move_to(st: &mut State, s: &Sample, tau: f64, h_max: f64, stop: f64) {
 
 /// One STICK step: straight to the stop when the energy bound shows the
 /// stiction cannot break before it, otherwise a sampled sub-step.
-fn step_stick(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
+fn step_stick<O: StepObserver>(
+    inst: &Instance,
+    st: &mut State,
+    h_max: f64,
+    stop: f64,
+    observer: &mut O,
+) {
     let force = current_force(inst, st);
     let flow = stick_flow(inst, st, force);
     let m = &inst.mechanism;
@@ -1076,18 +1164,24 @@ fn step_stick(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
                 inst.period(),
             );
             let s = eval_at(&flow, tau);
-            move_to(st, &s, tau, h_max, stop);
+            move_to(st, &s, tau, h_max, stop, &flow, observer);
             let need = stick_force(inst, st);
             start_slip(inst, st, need);
             return;
         }
     }
-    move_to(st, &samples[4], h, h_max, stop);
+    move_to(st, &samples[4], h, h_max, stop, &flow, observer);
 }
 
 /// One BAND step: the held friction direction makes the motion exact; the
 /// step ends where the relative velocity leaves the band or reverses.
-fn step_band(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
+fn step_band<O: StepObserver>(
+    inst: &Instance,
+    st: &mut State,
+    h_max: f64,
+    stop: f64,
+    observer: &mut O,
+) {
     let force = current_force(inst, st);
     let h = h_max.min(event_step(inst, false));
     let mut b = [[0.0; 3]; AXES];
@@ -1127,7 +1221,7 @@ fn step_band(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
     match first {
         Some((tau, kind)) => {
             let s = eval_at(&flow, tau);
-            move_to(st, &s, tau, h_max, stop);
+            move_to(st, &s, tau, h_max, stop, &flow, observer);
             if kind == EventKind::LeaveBand {
                 st.mode = MODE_SLIP;
                 st.h_slip = initial_slip_step(inst, st, h_max);
@@ -1135,7 +1229,7 @@ fn step_band(inst: &Instance, st: &mut State, h_max: f64, stop: f64) {
                 try_stick(inst, st);
             }
         }
-        None => move_to(st, &samples[4], h, h_max, stop),
+        None => move_to(st, &samples[4], h, h_max, stop, &flow, observer),
     }
 }
 
@@ -1270,13 +1364,14 @@ fn slip_trial(
 
 /// One SLIP step with error control; ends at the stop, at the end of an
 /// accepted step, or where the relative velocity enters the band.
-fn step_slip(
+fn step_slip<O: StepObserver>(
     inst: &Instance,
     settings: &Settings,
     st: &mut State,
     h_max: f64,
     stop: f64,
     period: f64,
+    observer: &mut O,
 ) {
     let force = current_force(inst, st);
     let tol = settings.tolerance;
@@ -1313,12 +1408,12 @@ fn step_slip(
     if let Some((lo, hi)) = find_crossing(inst, st, EventKind::EnterBand, 1.0, &flow, &samples, h) {
         let tau = locate(inst, st, EventKind::EnterBand, 1.0, &flow, lo, hi, period);
         let s = eval_at(&flow, tau);
-        move_to(st, &s, tau, h_max, stop);
+        move_to(st, &s, tau, h_max, stop, &flow, observer);
         st.h_slip = h;
         try_stick(inst, st);
         return;
     }
-    move_to(st, &samples[4], h, h_max, stop);
+    move_to(st, &samples[4], h, h_max, stop, &flow, observer);
     // A step cut short by the stop says nothing about the next one.
     st.h_slip = if h < h_max {
         h * growth

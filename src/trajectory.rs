@@ -1,0 +1,372 @@
+//! Trajectories: the stage and slider motion of chosen instances over the
+//! whole run (settle included), on a uniform time grid, for pictures such as
+//! the paper's Figs. 5-8.
+//!
+//! A trajectory is always computed by the f64 CPU integrator. Its steps can
+//! be long (a stick phase may be crossed in one closed-form step), so the
+//! samples are not step ends: an observer ([`StepObserver`]) sees the
+//! closed-form motion of every step and evaluates it at each sample time
+//! the step covers, the same dense output that event location uses. The
+//! observer never changes the state, so a recorded run ends in the same
+//! state, bit for bit, as the map run of the same instance.
+//!
+//! Stored in the result file as `/trajectories/<k>/` (k = 0, 1, ... in the
+//! order of `output.trajectories`):
+//! - `time` [s]; `stage_x`, `stage_y`, `slider_x`, `slider_y` [m];
+//!   `voltage_x`, `voltage_y` [V] (the drive);
+//! - every dataset has `units` and `long_name` attributes; the group has
+//!   `point` (a human name), `label` (a points scene's label, or ""),
+//!   `index` (flat instance index), `status`, `samples_per_cycle`,
+//!   `period_s`, `settle_s`, `duration_s` and the drive of each axis
+//!   (`voltage_x` [V], `frequency_x` [Hz], `duty_x`, `phase_x` [cycles],
+//!   and the same for y);
+//! - with baselines, subgroups `baseline_x` and `baseline_y`: the 1-DOF run
+//!   with only that axis driven, as `time` [s], `stage`, `slider` [m] and
+//!   `voltage` [V] along that axis, with the same attributes plus
+//!   `measured_cycles`. A 1-DOF run at a higher frequency than the point's
+//!   scene period has a shorter period, so it is recorded for more periods
+//!   to cover the point's whole run, with as many samples per second as
+//!   the point; its first `measured_cycles` periods are the map's baseline
+//!   run, bit for bit.
+
+use anyhow::{Context, Result};
+use hdf5::types::VarLenUnicode;
+use rayon::prelude::*;
+
+use crate::cpu::integrate::{
+    self, Settings, State, StepMotion, StepObserver, advance_observed, initial_state, is_finished,
+};
+use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
+use crate::scene::{Scene, TrajectoryPoint};
+
+/// The motion of one instance on a uniform time grid.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Trajectory {
+    /// Sample times from the start of the run [s].
+    pub time: Vec<f64>,
+    /// Stage displacement per axis [m].
+    pub stage: [Vec<f64>; AXES],
+    /// Slider displacement per axis [m].
+    pub slider: [Vec<f64>; AXES],
+    /// Drive voltage per axis [V].
+    pub voltage: [Vec<f64>; AXES],
+    /// The state the run ended in (the same as [`integrate::run_instance`]'s).
+    pub state: State,
+    /// Samples per scene period.
+    pub samples_per_cycle: u32,
+}
+
+/// Collects samples as the integrator's steps go by.
+struct Sampler<'a> {
+    inst: &'a Instance,
+    period: f64,
+    per: u64,
+    /// Index of the next sample to take; sample k is at k T / per.
+    next: u64,
+    /// Samples in a complete run.
+    total: u64,
+    out: Trajectory,
+}
+
+impl Sampler<'_> {
+    fn push(&mut self, x_p: [f64; AXES], x_s: [f64; AXES]) {
+        let t = self.next as f64 * self.period / self.per as f64;
+        self.out.time.push(t);
+        for i in 0..AXES {
+            self.out.stage[i].push(x_p[i]);
+            self.out.slider[i].push(x_s[i]);
+            let axis = &self.inst.axes[i];
+            let v = if axis.is_driven() {
+                axis.voltage * sawtooth(axis.frequency * t + axis.phase, axis.duty)
+            } else {
+                0.0
+            };
+            self.out.voltage[i].push(v);
+        }
+        self.next += 1;
+    }
+}
+
+impl StepObserver for Sampler<'_> {
+    fn step(&mut self, st: &State, motion: &StepMotion) {
+        let first = st.period as u64 * self.per;
+        while self.next < self.total {
+            // Local time of the next sample within this period; the sample
+            // at the period's end (j = per) lands exactly on the step end.
+            let j = self.next.saturating_sub(first);
+            let local = j as f64 / self.per as f64 * self.period;
+            if local > motion.end() {
+                break;
+            }
+            let (x_p, x_s) = motion.positions_at(local - st.time);
+            self.push(x_p, x_s);
+        }
+    }
+}
+
+/// Integrates `inst` with the f64 CPU integrator and samples its motion
+/// `samples_per_cycle` times per scene period, from t = 0 to the end of the
+/// run (or to where it stopped, when it ended with a non-zero status).
+pub fn record(inst: &Instance, settings: &Settings, samples_per_cycle: u32) -> Trajectory {
+    let per = samples_per_cycle.max(1) as u64;
+    let total = inst.cycles as u64 * per + 1;
+    let capacity = total.min(1 << 24) as usize;
+    let series = || std::array::from_fn(|_| Vec::with_capacity(capacity));
+    let mut st = initial_state(inst);
+    let mut sampler = Sampler {
+        inst,
+        period: inst.period(),
+        per,
+        next: 0,
+        total,
+        out: Trajectory {
+            time: Vec::with_capacity(capacity),
+            stage: series(),
+            slider: series(),
+            voltage: series(),
+            state: st,
+            samples_per_cycle: per as u32,
+        },
+    };
+    sampler.push(st.x_p, st.x_s);
+    while !is_finished(inst, &st) {
+        advance_observed(inst, settings, &mut st, u32::MAX, &mut sampler);
+    }
+    sampler.out.state = st;
+    sampler.out
+}
+
+/// A 1-DOF run beside a recorded point: one axis driven alone.
+#[derive(Clone, Debug)]
+pub struct Baseline {
+    /// The instance recorded: the map's baseline instance with its cycles
+    /// raised, when its period is shorter than the point's, so that it
+    /// covers the point's whole run. Its first `measured_cycles` periods are
+    /// the map's baseline run itself (the integration does not depend on
+    /// how many periods follow).
+    pub instance: Instance,
+    /// The cycles of the map's baseline run.
+    pub measured_cycles: u32,
+    pub trajectory: Trajectory,
+}
+
+/// One recorded point of a scene: the instance and, with baselines, its two
+/// 1-DOF runs (x driven alone, y driven alone).
+#[derive(Clone, Debug)]
+pub struct Recorded {
+    pub point: TrajectoryPoint,
+    pub instance: Instance,
+    pub main: Trajectory,
+    pub baselines: Option<[Baseline; AXES]>,
+}
+
+/// The baseline of `instance` with only axis `axis` driven, extended to
+/// cover the instance's run.
+pub fn baseline_instance(instance: &Instance, axis: usize) -> (Instance, u32) {
+    let mut base = instance.baseline(axis);
+    let measured = base.cycles;
+    let cover = (instance.duration() / base.period() - 1e-9).ceil();
+    if cover.is_finite() && cover > measured as f64 && cover < u32::MAX as f64 {
+        base.cycles = cover as u32;
+    }
+    (base, measured)
+}
+
+/// Records every trajectory a scene asks for, in parallel.
+pub fn record_scene(scene: &Scene) -> Vec<Recorded> {
+    let per = scene.trajectory_samples_per_cycle;
+    scene
+        .trajectories
+        .par_iter()
+        .map(|point| {
+            let instance = scene.instance(point.index);
+            let main = record(&instance, &scene.settings, per);
+            let baselines = scene.baselines.then(|| {
+                std::array::from_fn(|axis| {
+                    let (base, measured_cycles) = baseline_instance(&instance, axis);
+                    // The same density in time as the point's samples.
+                    let base_per = (per as f64 * base.period() / instance.period())
+                        .round()
+                        .max(1.0) as u32;
+                    let trajectory = if base == instance {
+                        main.clone()
+                    } else {
+                        record(&base, &scene.settings, base_per)
+                    };
+                    Baseline {
+                        instance: base,
+                        measured_cycles,
+                        trajectory,
+                    }
+                })
+            });
+            Recorded {
+                point: point.clone(),
+                instance,
+                main,
+                baselines,
+            }
+        })
+        .collect()
+}
+
+fn str_attr(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
+    let v: VarLenUnicode = value
+        .parse()
+        .with_context(|| format!("attribute {name} is not valid text"))?;
+    loc.new_attr::<VarLenUnicode>()
+        .create(name)?
+        .write_scalar(&v)?;
+    Ok(())
+}
+
+fn f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> Result<()> {
+    loc.new_attr::<f64>().create(name)?.write_scalar(&value)?;
+    Ok(())
+}
+
+fn u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> Result<()> {
+    loc.new_attr::<u64>().create(name)?.write_scalar(&value)?;
+    Ok(())
+}
+
+fn series(
+    group: &hdf5::Group,
+    name: &str,
+    data: &[f64],
+    units: &str,
+    long_name: &str,
+) -> Result<()> {
+    let ds = group
+        .new_dataset_builder()
+        .with_data(data)
+        .create(name)
+        .with_context(|| format!("cannot write trajectory dataset {name}"))?;
+    str_attr(&ds, "units", units)?;
+    str_attr(&ds, "long_name", long_name)?;
+    Ok(())
+}
+
+/// The attributes every trajectory group carries: run timing, status and
+/// drive per axis.
+fn run_attrs(g: &hdf5::Group, inst: &Instance, t: &Trajectory) -> Result<()> {
+    u64_attr(g, "status", t.state.status as u64)?;
+    u64_attr(g, "samples_per_cycle", t.samples_per_cycle as u64)?;
+    f64_attr(g, "period_s", inst.period())?;
+    f64_attr(g, "settle_s", inst.settle as f64 * inst.period())?;
+    f64_attr(g, "duration_s", inst.duration())?;
+    for (i, name) in AXIS_NAMES.iter().enumerate() {
+        let axis = &inst.axes[i];
+        f64_attr(g, &format!("voltage_{name}"), axis.voltage)?;
+        f64_attr(g, &format!("frequency_{name}"), axis.frequency)?;
+        f64_attr(g, &format!("duty_{name}"), axis.duty)?;
+        f64_attr(g, &format!("phase_{name}"), axis.phase)?;
+    }
+    series(g, "time", &t.time, "s", "time from the start of the run")?;
+    Ok(())
+}
+
+/// Writes `recorded` as `/trajectories/0`, `/1`, ... under `parent` (the
+/// result file's root). Writes nothing when the list is empty.
+pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
+    if recorded.is_empty() {
+        return Ok(());
+    }
+    let root = parent.create_group("trajectories")?;
+    for (k, rec) in recorded.iter().enumerate() {
+        let g = root.create_group(&k.to_string())?;
+        let main = &rec.main;
+        str_attr(&g, "point", &rec.point.name)?;
+        str_attr(&g, "label", &rec.point.label)?;
+        u64_attr(&g, "index", rec.point.index)?;
+        run_attrs(&g, &rec.instance, main)?;
+        for (i, name) in AXIS_NAMES.iter().enumerate() {
+            series(
+                &g,
+                &format!("stage_{name}"),
+                &main.stage[i],
+                "m",
+                &format!("stage displacement along {name}"),
+            )?;
+            series(
+                &g,
+                &format!("slider_{name}"),
+                &main.slider[i],
+                "m",
+                &format!("slider displacement along {name}"),
+            )?;
+            series(
+                &g,
+                &format!("voltage_{name}"),
+                &main.voltage[i],
+                "V",
+                &format!("drive voltage of axis {name}"),
+            )?;
+        }
+        let Some(bases) = &rec.baselines else {
+            continue;
+        };
+        for (i, name) in AXIS_NAMES.iter().enumerate() {
+            let base = &bases[i];
+            let b = g.create_group(&format!("baseline_{name}"))?;
+            str_attr(
+                &b,
+                "description",
+                &format!(
+                    "1-DOF run: axis {name} driven alone; its first measured_cycles periods are \
+                     the map's baseline run"
+                ),
+            )?;
+            run_attrs(&b, &base.instance, &base.trajectory)?;
+            u64_attr(&b, "measured_cycles", base.measured_cycles as u64)?;
+            let t = &base.trajectory;
+            series(
+                &b,
+                "stage",
+                &t.stage[i],
+                "m",
+                &format!("1-DOF stage displacement along {name}"),
+            )?;
+            series(
+                &b,
+                "slider",
+                &t.slider[i],
+                "m",
+                &format!("1-DOF slider displacement along {name}"),
+            )?;
+            series(
+                &b,
+                "voltage",
+                &t.voltage[i],
+                "V",
+                &format!("drive voltage of axis {name}"),
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// Records a scene's trajectories and writes them under `parent`; a no-op
+/// for a scene without `output.trajectories`.
+pub fn record_and_write(parent: &hdf5::Group, scene: &Scene) -> Result<()> {
+    if scene.trajectories.is_empty() {
+        return Ok(());
+    }
+    write(parent, &record_scene(scene))
+}
+
+/// The slider displacement over periods `settle .. cycles` [m] from a
+/// trajectory's samples: the sample at the end of period `cycles` minus the
+/// sample at the end of the settle periods. `None` when the run did not
+/// finish or has fewer periods.
+pub fn measured_displacement(t: &Trajectory, settle: u32, cycles: u32) -> Option<[f64; AXES]> {
+    let per = t.samples_per_cycle as usize;
+    let end = cycles as usize * per;
+    let start = settle as usize * per;
+    if t.state.status != integrate::STATUS_OK || t.time.len() <= end {
+        return None;
+    }
+    Some(std::array::from_fn(|i| {
+        t.slider[i][end] - t.slider[i][start]
+    }))
+}

@@ -1,0 +1,248 @@
+//! `pidm plot`: the colour scale and the coupling regimes as functions, and
+//! the binary end to end on tiny scenes (a 2-D grid with baselines, a 1-D
+//! grid, a points scene with a trajectory).
+
+use std::path::Path;
+use std::process::Command;
+
+use pidm::plot::{Diverging, NEUTRAL, Regime, ZERO_STEP_M, plane_dims, rdbu};
+
+fn pidm(args: &[&str], dir: &Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_pidm"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("pidm runs")
+}
+
+/// Runs pidm and fails with its stderr unless it succeeds; returns stdout.
+fn ok(args: &[&str], dir: &Path) -> String {
+    let out = pidm(args, dir);
+    assert!(
+        out.status.success(),
+        "pidm {args:?} failed:\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Decodes a PNG and checks it is a real picture: a sensible size and many
+/// colours (axes, text and data, not a blank page).
+fn check_png(path: &Path) {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut pixels).unwrap();
+    assert!(
+        info.width >= 800 && info.height >= 600,
+        "{}: {}x{}",
+        path.display(),
+        info.width,
+        info.height
+    );
+    let mut colours: Vec<[u8; 3]> = pixels[..info.buffer_size()]
+        .chunks(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(
+        colours.len() >= 20,
+        "{}: only {} colours",
+        path.display(),
+        colours.len()
+    );
+}
+
+#[test]
+fn the_colour_scale_is_centred_and_symmetric() {
+    let scale = Diverging::covering([-0.5, 2.0, 1.0, f64::NAN], 0.0, 1e-3, f64::INFINITY);
+    assert_eq!(scale.limits(), (-2.0, 2.0), "symmetric about zero");
+    assert_eq!(scale.colour(0.0), NEUTRAL, "zero is the neutral midpoint");
+    assert_eq!(scale.fraction(0.0), 0.5);
+    assert_eq!(scale.fraction(-2.0), 0.0);
+    assert_eq!(scale.fraction(2.0), 1.0);
+    assert_eq!(scale.fraction(7.0), 1.0, "values beyond are clamped");
+    assert_eq!(rdbu(0.5), NEUTRAL);
+    // Opposite signs take opposite hues: negative blue, positive red.
+    let (neg, pos) = (scale.colour(-1.5), scale.colour(1.5));
+    assert!(neg.2 > neg.0 && pos.0 > pos.2, "{neg:?} {pos:?}");
+    // Equal magnitudes are equally far from neutral.
+    assert_eq!(
+        scale.fraction(-1.5) - 0.5,
+        0.5 - scale.fraction(1.5),
+        "symmetric"
+    );
+    // Noise around zero stays pale; a cap bounds outliers; other centres.
+    let noise = Diverging::covering([1e-10, -3e-10], 0.0, 1e-3, f64::INFINITY);
+    assert_eq!(noise.half_width, 1e-3);
+    let capped = Diverging::covering([100.0, 1.5], 1.0, 0.25, 3.0);
+    assert_eq!(capped.limits(), (-2.0, 4.0));
+    assert_eq!(capped.colour(1.0), NEUTRAL);
+    let empty = Diverging::covering([], 0.0, 0.5, 3.0);
+    assert_eq!(empty.limits(), (-0.5, 0.5));
+}
+
+#[test]
+fn regimes_classify_2dof_against_1dof() {
+    let um = 1e-6;
+    // (2-DOF step, 1-DOF step, both finished normally, expected regime).
+    let cases = [
+        (0.5 * um, 0.6 * um, true, Regime::Reduced),
+        (0.9 * um, 0.6 * um, true, Regime::Amplified),
+        (-0.9 * um, 0.6 * um, true, Regime::Reversed),
+        (0.1 * um, -0.6 * um, true, Regime::Reversed),
+        (-0.1 * um, -0.6 * um, true, Regime::Reduced),
+        (-1.6 * um, -0.6 * um, true, Regime::Amplified),
+        (0.6 * um, 0.6 * um, true, Regime::Unchanged),
+        (
+            0.6 * um + 0.5 * ZERO_STEP_M,
+            0.6 * um,
+            true,
+            Regime::Unchanged,
+        ),
+        (0.0, 0.6 * um, true, Regime::Stalled),
+        (0.3 * ZERO_STEP_M, -0.6 * um, true, Regime::Stalled),
+        (0.4 * um, 0.0, true, Regime::Started),
+        (-0.4 * um, 0.2 * ZERO_STEP_M, true, Regime::Started),
+        (0.0, 0.0, true, Regime::AtRest),
+        (0.5 * ZERO_STEP_M, -0.5 * ZERO_STEP_M, true, Regime::AtRest),
+        (0.5 * um, 0.6 * um, false, Regime::Failed),
+        (f64::NAN, 0.6 * um, true, Regime::Failed),
+    ];
+    for (two, one, ok, want) in cases {
+        check(two, one, ok, want);
+    }
+    // Every regime has its own colour and text.
+    for (i, a) in Regime::ALL.iter().enumerate() {
+        for b in &Regime::ALL[i + 1..] {
+            assert_ne!(a.colour(), b.colour(), "{a:?} {b:?}");
+            assert_ne!(a.describe(), b.describe());
+        }
+    }
+}
+
+fn check(two_dof: f64, one_dof: f64, ok: bool, want: Regime) {
+    let got = Regime::classify(two_dof, one_dof, ok);
+    assert_eq!(
+        got, want,
+        "2-DOF {two_dof:e} m against 1-DOF {one_dof:e} m (ok {ok})"
+    );
+}
+
+#[test]
+fn pictures_span_the_two_longest_axes() {
+    let cases: [(&[usize], (usize, usize)); 5] = [
+        (&[3, 4], (0, 1)),
+        (&[61, 61], (0, 1)),
+        (&[2, 13, 8], (1, 2)),
+        (&[13, 2, 8], (0, 2)),
+        (&[5, 5, 5, 9], (0, 3)),
+    ];
+    for (shape, want) in cases {
+        assert_eq!(plane_dims(shape), want, "{shape:?}");
+    }
+}
+
+#[test]
+fn a_grid_with_baselines_gives_step_ratio_and_regime_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("tiny.toml"),
+        "name = \"tiny\"\n\
+         [axis.x]\nvoltage = [-100.0, 0.0, 60.0, 100.0]\n\
+         [axis.y]\nvoltage = [0.0, 50.0, 100.0]\n\
+         [simulation]\ncycles = 2\nsettle = 1\n\
+         [output]\nbaselines = true\n",
+    )
+    .unwrap();
+    ok(&["run", "tiny.toml", "--threads", "1"], dir.path());
+    // No --out: the default folder results/plots/<file stem>/.
+    let stdout = ok(&["plot", "results/tiny.h5"], dir.path());
+    let out = dir.path().join("results/plots/tiny");
+    let mut names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(
+        names,
+        [
+            "ratio_x.png",
+            "ratio_y.png",
+            "regime_x.png",
+            "regime_y.png",
+            "step_x.png",
+            "step_y.png"
+        ]
+    );
+    for name in &names {
+        check_png(&out.join(name));
+        assert!(
+            stdout.contains(&format!("wrote results/plots/tiny/{name}")),
+            "{stdout}"
+        );
+    }
+}
+
+#[test]
+fn a_points_scene_gives_bars_and_trajectory_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("pts.toml"),
+        "name = \"pts\"\n\
+         [simulation]\ncycles = 2\nsettle = 1\n\
+         [output]\nbaselines = true\ntrajectories = [\"both\", 0]\n\
+         trajectory_samples_per_cycle = 200\n\
+         [[points]]\nlabel = \"x only\"\naxis.x.voltage = 100.0\n\
+         [[points]]\nlabel = \"both\"\naxis.y.voltage = 100.0\naxis.y.frequency = 20.0\n",
+    )
+    .unwrap();
+    ok(&["run", "pts.toml", "--out", "pts.h5"], dir.path());
+    let file = hdf5::File::open(dir.path().join("pts.h5")).unwrap();
+    let slider: Vec<f64> = file
+        .dataset("trajectories/0/slider_y")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    assert_eq!(slider.len(), 401);
+    let base: Vec<f64> = file
+        .dataset("trajectories/0/baseline_y/slider")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    // The 20 Hz baseline covers the whole run (4 of its periods), as densely
+    // in time as the point.
+    assert_eq!(base.len(), 401);
+    let stdout = ok(&["plot", "pts.h5", "--out", "pics"], dir.path());
+    for name in ["steps.png", "trajectory_both.png", "trajectory_x_only.png"] {
+        let path = dir.path().join("pics").join(name);
+        check_png(&path);
+        assert!(stdout.contains(name), "{stdout}");
+    }
+}
+
+#[test]
+fn a_one_axis_grid_gives_line_plots_and_a_missing_file_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("line.toml"),
+        "name = \"line\"\n\
+         [axis.x]\nvoltage = { from = 20.0, to = 120.0, steps = 6 }\n\
+         [axis.y]\nvoltage = 60.0\n\
+         [simulation]\ncycles = 2\nsettle = 1\n\
+         [output]\nbaselines = true\n",
+    )
+    .unwrap();
+    ok(&["run", "line.toml", "--out", "line.h5"], dir.path());
+    ok(&["plot", "line.h5", "--out", "pics"], dir.path());
+    for name in ["steps.png", "ratio.png"] {
+        check_png(&dir.path().join("pics").join(name));
+    }
+    let missing = pidm(&["plot", "nothing.h5"], dir.path());
+    assert!(!missing.status.success());
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert!(err.contains("nothing.h5"), "{err}");
+}
