@@ -912,11 +912,28 @@ fn event_scale(inst: Instance, st: State, kind: u32, s: Sample) -> Real {
     let m = inst.mechanism;
     switch kind {
         case EVENT_BREAKAWAY: {
-            return m.holding_friction * m.holding_friction
-                + m.slider_mass * m.slider_mass * norm2(s.a_p);
+            // The stage acceleration is the small difference of the drive,
+            // spring and damper forces, so its rounding is relative to
+            // those forces, not to itself.
+            var scale = m.holding_friction * m.holding_friction;
+            for (var i = 0u; i < ACTIVE_AXES; i++) {
+                let axis = inst.axes[i];
+                let forces = axis.stiffness * abs(s.x_p[i]) + axis.damping * abs(s.v_p[i]);
+                let terms = abs(s.a_p[i]) + Real(2.0) * forces / (axis.stage_mass + m.slider_mass);
+                scale += m.slider_mass * m.slider_mass * Real(2.0) * abs(s.a_p[i]) * terms;
+            }
+            return scale;
         }
         case EVENT_ENTER_BAND, EVENT_LEAVE_BAND: {
-            return norm2(relative_velocity(s)) + m.velocity_band * m.velocity_band;
+            // The relative velocity is a difference of two velocities that
+            // are often far larger (a slider sliding with its stage), so
+            // its rounding is relative to those, not to itself.
+            let v = relative_velocity(s);
+            var scale = m.velocity_band * m.velocity_band;
+            for (var i = 0u; i < ACTIVE_AXES; i++) {
+                scale += Real(2.0) * abs(v[i]) * (abs(s.v_p[i]) + abs(s.v_s[i]));
+            }
+            return scale;
         }
         default: {
             var scale = Real(0.0);

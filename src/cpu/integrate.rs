@@ -951,11 +951,29 @@ fn event_scale(inst: &Instance, st: &State, kind: EventKind, s: &Sample) -> f64 
     let m = &inst.mechanism;
     match kind {
         EventKind::Breakaway => {
+            // The stage acceleration is the small difference of the drive,
+            // spring and damper forces, so its rounding is relative to
+            // those forces, not to itself.
             let hold = m.holding_friction();
-            hold * hold + m.slider_mass * m.slider_mass * norm2(s.a_p)
+            let mut scale = hold * hold;
+            for i in 0..AXES {
+                let axis = &inst.axes[i];
+                let forces = axis.stiffness * s.x_p[i].abs() + axis.damping * s.v_p[i].abs();
+                let terms = s.a_p[i].abs() + 2.0 * forces / (axis.stage_mass + m.slider_mass);
+                scale += m.slider_mass * m.slider_mass * 2.0 * s.a_p[i].abs() * terms;
+            }
+            scale
         }
         EventKind::EnterBand | EventKind::LeaveBand => {
-            norm2(relative_velocity(s)) + m.velocity_band * m.velocity_band
+            // The relative velocity is a difference of two velocities that
+            // are often far larger (a slider sliding with its stage), so
+            // its rounding is relative to those, not to itself.
+            let v = relative_velocity(s);
+            let mut scale = m.velocity_band * m.velocity_band;
+            for i in 0..AXES {
+                scale += 2.0 * v[i].abs() * (s.v_p[i].abs() + s.v_s[i].abs());
+            }
+            scale
         }
         EventKind::Reversal => {
             let mut scale = 0.0;
