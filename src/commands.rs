@@ -281,8 +281,8 @@ pub fn run_scene(
     } else {
         if checkpoint_path.exists() {
             bail!(
-                "{} holds the finished part of an interrupted run of this output; continue it \
-                 with --resume, or delete it to start over",
+                "{} holds the finished part of an interrupted run of this output (or one is \
+                 still running); continue it with --resume, or delete it to start over",
                 checkpoint_path.display()
             );
         }
