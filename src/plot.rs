@@ -340,6 +340,13 @@ impl Data {
         let stem = path
             .file_stem()
             .map_or_else(|| "result".to_owned(), |s| s.to_string_lossy().into_owned());
+        if file.attr("shard_index").is_ok() {
+            bail!(
+                "{} is one shard of a sharded run (its maps hold only that shard's \
+                 instances); join the shards with `pidm merge OUT.h5 SHARDS...` and plot OUT.h5",
+                path.display()
+            );
+        }
         let mut notes = Vec::new();
         let name = read_str_attr(&file, "name").unwrap_or(stem);
         let scene = read_str_attr(&file, "scene")

@@ -175,8 +175,11 @@ fn shards_merge_into_the_single_run_bit_for_bit() {
     let file = hdf5::File::open(&paper_merged).unwrap();
     assert!(file.group("trajectories").is_ok());
     assert!(compared > 20, "{compared} datasets");
-    // A shard alone is not a map file: comparing shows it.
+    // A shard alone is not a map file: comparing shows it, and plotting
+    // one is refused with the way out.
     assert!(compare_contents(&single, &shards[0]).is_err());
+    let err = failed(&pidm(&["plot", s(&shards[0]), "--out", "plots"], d));
+    assert!(err.contains("pidm merge"), "{err}");
 
     // Refusals, each naming the problem.
     let other_scene = grid_scene(d, "other", "[60.0, 100.0, 150.0]", 3);
