@@ -112,23 +112,59 @@ pub fn karnopp_method<'a>(steps: Vec<f64>) -> Method<'a> {
     }
 }
 
-/// Runs the study. Instances whose reference run does not finish normally
-/// (at the tightest tolerance a turn may be unresolvable: status 3) are left
-/// out of every comparison; the returned count says how many.
+/// How the references of a study were obtained.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct References {
+    /// Instances whose reference needed a looser tolerance than asked (at
+    /// the tightest tolerance a turn may be unresolvable: status 3).
+    pub loosened: usize,
+    /// Instances with no reference at any tolerance tried, left out of
+    /// every comparison.
+    pub excluded: usize,
+}
+
+/// How many times looser than asked, at most, a reference may be run for
+/// an instance whose reference fails at the asked tolerance.
+const REFERENCE_LOOSENINGS: [f64; 2] = [10.0, 100.0];
+
+/// Runs the study. An instance whose reference run does not finish normally
+/// is rerun 10 and then 100 times looser; one that fails at all three is
+/// left out of every comparison. The returned counts say how many.
 pub fn study(
     instances: &[Instance],
     reference_settings: Settings,
     methods: &[Method],
     log: &mut dyn FnMut(&Point),
-) -> Result<(Vec<Point>, usize)> {
+) -> Result<(Vec<Point>, References)> {
     let reference_backend = CpuBackend::new(None)?;
-    let reference_outcomes = reference_backend.run(instances, &reference_settings, &|_| {})?;
+    let mut reference_outcomes = reference_backend.run(instances, &reference_settings, &|_| {})?;
+    let mut counts = References::default();
+    for factor in REFERENCE_LOOSENINGS {
+        let failed: Vec<usize> = (0..instances.len())
+            .filter(|&k| reference_outcomes[k].status != STATUS_OK)
+            .collect();
+        if failed.is_empty() {
+            break;
+        }
+        let retry: Vec<Instance> = failed.iter().map(|&k| instances[k]).collect();
+        let looser = Settings {
+            tolerance: reference_settings.tolerance * factor,
+            ..reference_settings
+        };
+        let outcomes = reference_backend.run(&retry, &looser, &|_| {})?;
+        for (&k, outcome) in failed.iter().zip(outcomes) {
+            if outcome.status == STATUS_OK {
+                counts.loosened += 1;
+            }
+            reference_outcomes[k] = outcome;
+        }
+    }
     let excluded: Vec<bool> = reference_outcomes
         .iter()
         .map(|o| o.status != STATUS_OK)
         .collect();
-    let excluded_count = excluded.iter().filter(|&&e| e).count();
-    if excluded_count == instances.len() {
+    counts.excluded = excluded.iter().filter(|&&e| e).count();
+    if counts.excluded == instances.len() {
         anyhow::bail!("no instance's reference run finished normally");
     }
     let reference = reference_outcomes;
@@ -171,7 +207,7 @@ pub fn study(
             points.push(point);
         }
     }
-    Ok((points, excluded_count))
+    Ok((points, counts))
 }
 
 /// Writes the study's data to HDF5: one group per method with `setting`,

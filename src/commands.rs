@@ -664,7 +664,7 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
             "  {:42} {:>10} {:>14} {:>14} {:>10}",
             "method", "setting", "max err [um]", "rms err [um]", "wall [s]"
         );
-        let (points, excluded) =
+        let (points, references) =
             accuracy::study(&instances, reference, &methods, &mut |p: &Point| {
                 println!(
                     "  {:42} {:>10.0e} {:>14.3e} {:>14.3e} {:>10.4}{}",
@@ -680,12 +680,9 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
                     }
                 );
             })?;
-        if excluded > 0 {
-            println!(
-                "  {excluded} of {} integrations left out: their reference run at \
-                 tolerance 1e-9 rad did not finish normally",
-                instances.len()
-            );
+        let reference_note = reference_note(references, instances.len());
+        if !reference_note.is_empty() {
+            println!("  {reference_note}");
         }
         let h5 = out_dir.join(format!("accuracy_{}.h5", scene.name));
         let png = out_dir.join(format!("accuracy_{}.png", scene.name));
@@ -703,6 +700,9 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
             instances.len(),
             scene.name
         )?;
+        if !reference_note.is_empty() {
+            writeln!(md, "{reference_note}\n")?;
+        }
         writeln!(
             md,
             "| method | setting | max error [um] | rms error [um] | wall [s] |"
@@ -876,6 +876,26 @@ pub fn report(paths: &[PathBuf], out: &Path) -> Result<()> {
     std::fs::rename(&temp, out).with_context(|| format!("cannot write {}", out.display()))?;
     println!("wrote {}", out.display());
     Ok(())
+}
+
+/// Says how many references of an accuracy study needed a looser
+/// tolerance or are missing; empty when none.
+fn reference_note(references: crate::accuracy::References, integrations: usize) -> String {
+    let mut parts = Vec::new();
+    if references.loosened > 0 {
+        parts.push(format!(
+            "{} of {integrations} references ran at 1e-8 or 1e-7 rad (at 1e-9 a turn \
+             of the friction direction could not be resolved)",
+            references.loosened
+        ));
+    }
+    if references.excluded > 0 {
+        parts.push(format!(
+            "{} of {integrations} integrations are left out: no reference finished",
+            references.excluded
+        ));
+    }
+    parts.join("; ")
 }
 
 /// `pidm merge`: joins shard files into one map file.
