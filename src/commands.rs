@@ -19,12 +19,13 @@ use crate::shard::ShardSpec;
 use crate::sweep::{self, Backend, CpuBackend, Plan, Record, Summary};
 
 /// Human meaning of each status code (index = code).
-pub const STATUS_MEANINGS: [&str; 5] = [
+pub const STATUS_MEANINGS: [&str; 6] = [
     "ok",
     "step budget exceeded (simulation.max_steps_per_period)",
     "non-finite state",
     "step size underflow (a turn of the friction direction could not be resolved)",
     "event storm (mode changes without time advancing)",
+    "unconverged (--verify: a 100 times tighter tolerance moved a step by more than 0.001 um)",
 ];
 
 /// A throughput used only for `pidm check`'s estimate: simulated seconds per
@@ -187,6 +188,7 @@ pub fn file_info(scene: &Scene, backend: String, precision: String, variant: Str
         precision,
         variant,
         tolerance: scene.settings.tolerance,
+        verify_tolerance: None,
         shard: None,
     }
 }
@@ -201,21 +203,25 @@ pub struct RunScope {
     /// Instances per chunk (the checkpoint granularity) instead of the
     /// backend's choice.
     pub chunk_size: Option<usize>,
+    /// Rerun every instance 100 times tighter and mark the unconverged
+    /// ones (status 5).
+    pub verify: bool,
 }
 
 /// Everything that must match for a checkpoint to be resumed: results are
 /// bit-identical only on the same scene, version, precision and hardware
 /// (the CPU path gives the same bits on any thread count).
-fn run_identity(scene: &Scene, backend: &dyn Backend, shard: Option<ShardSpec>) -> String {
+fn run_identity(scene: &Scene, backend: &dyn Backend, scope: RunScope) -> String {
     let hardware = match backend.cpu_threads() {
         Some(_) => "cpu".to_string(),
         None => backend.describe(),
     };
     format!(
-        "pidm {}\nbackend {hardware}\nprecision {}\nshard {}\ninstances {}\nscene\n{}",
+        "pidm {}\nbackend {hardware}\nprecision {}\nshard {}\nverify {}\ninstances {}\nscene\n{}",
         env!("CARGO_PKG_VERSION"),
         backend.precision(),
-        shard.map_or("all".to_string(), |s| s.to_string()),
+        scope.shard.map_or("all".to_string(), |s| s.to_string()),
+        scope.verify,
         scene.instance_count(),
         scene.text
     )
@@ -240,6 +246,9 @@ pub fn run_scene(
         variant(scene, backend),
     );
     info.shard = scope.shard.map(|spec| ShardInfo::new(spec, total));
+    if scope.verify {
+        info.verify_tolerance = Some(scene.settings.tolerance / sweep::VERIFY_TIGHTENING);
+    }
     let all = match &info.shard {
         Some(shard) => shard.ranges.clone(),
         None => Plan::everything(total),
@@ -250,7 +259,7 @@ pub fn run_scene(
     let mut summary = Summary::default();
 
     let checkpoint_path = checkpoint::path_for(out);
-    let identity = run_identity(scene, backend, scope.shard);
+    let identity = run_identity(scene, backend, scope);
     let (mut checkpoint, work, mut writer) = if scope.resume {
         if !checkpoint_path.exists() {
             bail!(
@@ -298,6 +307,7 @@ pub fn run_scene(
         instance: &instance,
         settings: scene.settings,
         baselines: scene.baselines,
+        verify: scope.verify,
     };
     let bar = progress_bar(plan.count());
     install_interrupt_handler();

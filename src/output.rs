@@ -91,6 +91,8 @@ pub struct FileInfo {
     /// Which integrator variant ran (for example "2-DOF" or "1-DOF").
     pub variant: String,
     pub tolerance: f64,
+    /// The tolerance of the `--verify` reruns, when the run was verified.
+    pub verify_tolerance: Option<f64>,
     /// Set for a shard file: which part of the scene it holds.
     pub shard: Option<ShardInfo>,
 }
@@ -258,6 +260,9 @@ impl MapWriter {
         write_str_attr(&file, "precision", &info.precision)?;
         write_str_attr(&file, "variant", &info.variant)?;
         write_f64_attr(&file, "tolerance", info.tolerance)?;
+        if let Some(tolerance) = info.verify_tolerance {
+            write_f64_attr(&file, "verify_tolerance", tolerance)?;
+        }
 
         // The dimension scales, in grid order.
         let axes = file.create_group("axes")?;

@@ -124,6 +124,7 @@ struct ShardFile {
     variant: String,
     backend: String,
     tolerance: f64,
+    verify_tolerance: Option<f64>,
     wall_time_s: f64,
 }
 
@@ -151,6 +152,11 @@ impl ShardFile {
                 variant: read_str_attr(&file, "variant")?,
                 backend: read_str_attr(&file, "backend")?,
                 tolerance: file.attr("tolerance")?.read_scalar()?,
+                verify_tolerance: file
+                    .attr("verify_tolerance")
+                    .ok()
+                    .map(|a| a.read_scalar())
+                    .transpose()?,
                 wall_time_s: file.attr("wall_time_s")?.read_scalar()?,
                 file: file.clone(),
             })
@@ -244,6 +250,11 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
         differs("pidm versions", &first.version, &other.version)?;
         differs("precisions", &first.precision, &other.precision)?;
         differs("integrator variants", &first.variant, &other.variant)?;
+        differs(
+            "verifications (--verify)",
+            &format!("{:?}", first.verify_tolerance),
+            &format!("{:?}", other.verify_tolerance),
+        )?;
         if other.spec.count != first.spec.count {
             bail!(
                 "{} is shard {} but {} is shard {}: the shards overlap (a run is split \
@@ -311,6 +322,7 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
         first.variant.clone(),
     );
     info.tolerance = first.tolerance;
+    info.verify_tolerance = first.verify_tolerance;
     let mut writer = MapWriter::create(out, &info)?;
     for shard in by_index.values() {
         let mut at = 0;

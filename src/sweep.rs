@@ -12,6 +12,21 @@ use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use crate::cpu::integrate::{self, STATUS_OK, Settings};
+
+/// Status of an instance that `--verify` found unconverged: rerun with a
+/// 100 times tighter tolerance, one of its steps (or baseline steps) moved
+/// by more than [`VERIFY_ALLOWANCE_M`]. Like every non-zero status, its map
+/// entries are 0. Set by the sweep, not by an integrator.
+pub const STATUS_UNCONVERGED: u32 = 5;
+
+/// How far a step may move under a 100 times tighter tolerance before
+/// `--verify` calls the instance unconverged [m per drive cycle]: the
+/// project's accuracy bar of 0.001 um (MODEL.md).
+pub const VERIFY_ALLOWANCE_M: f64 = 1e-9;
+
+/// How much tighter than the scene's the tolerance of a `--verify` rerun
+/// is.
+pub const VERIFY_TIGHTENING: f64 = 100.0;
 use crate::model::{AXES, Instance};
 
 /// Set when the user asks the run to stop (Ctrl-C); backends check it
@@ -149,6 +164,25 @@ impl Backend for CpuBackend {
     }
 }
 
+/// Marks `outcome` unconverged when its tighter rerun `check` finished and
+/// moved a step by more than the allowance. A check that did not finish
+/// (a tighter tolerance can underflow, status 3) leaves the outcome as it
+/// is: it neither confirms nor refutes it.
+fn verify(inst: &Instance, outcome: &mut Outcome, check: &Outcome) {
+    if outcome.status != STATUS_OK || check.status != STATUS_OK {
+        return;
+    }
+    let moved = (0..AXES).any(|i| {
+        let (_, a) = inst.measure(i, outcome.displacement[i]);
+        let (_, b) = inst.measure(i, check.displacement[i]);
+        (a - b).abs() > VERIFY_ALLOWANCE_M
+    });
+    if moved {
+        outcome.status = STATUS_UNCONVERGED;
+        outcome.displacement = [0.0; AXES];
+    }
+}
+
 /// Turns a displacement outcome into map entries.
 pub fn record(inst: &Instance, out: &Outcome) -> Record {
     let mut rec = Record {
@@ -170,7 +204,7 @@ pub struct Summary {
     pub instances: u64,
     /// Instances per status code (index = code; the last entry gathers
     /// unknown codes).
-    pub status_counts: [u64; 6],
+    pub status_counts: [u64; 7],
     /// Integrator steps over all main instances.
     pub steps: u64,
     /// Simulated time over all integrated instances, baselines included [s].
@@ -182,7 +216,7 @@ impl Default for Summary {
     fn default() -> Summary {
         Summary {
             instances: 0,
-            status_counts: [0; 6],
+            status_counts: [0; 7],
             steps: 0,
             simulated_s: 0.0,
             extreme_step: [f64::INFINITY, f64::NEG_INFINITY],
@@ -207,7 +241,7 @@ impl Summary {
     /// because baselines add to it too).
     pub fn add(&mut self, rec: &Record) {
         self.instances += 1;
-        self.status_counts[(rec.status as usize).min(5)] += 1;
+        self.status_counts[(rec.status as usize).min(6)] += 1;
         self.steps += rec.steps as u64;
         if rec.status == STATUS_OK {
             for axis in 0..AXES {
@@ -227,6 +261,10 @@ pub struct Plan<'a> {
     pub instance: &'a (dyn Fn(u64) -> Instance + Sync),
     pub settings: Settings,
     pub baselines: bool,
+    /// Rerun every integration with a [`VERIFY_TIGHTENING`] times tighter
+    /// tolerance and mark the instances whose steps move by more than
+    /// [`VERIFY_ALLOWANCE_M`] with [`STATUS_UNCONVERGED`].
+    pub verify: bool,
 }
 
 impl Plan<'_> {
@@ -326,7 +364,17 @@ pub fn run(
                 progress(target - before);
             }
         };
-        let outcomes = backend.run(&jobs, &plan.settings, &done)?;
+        let mut outcomes = backend.run(&jobs, &plan.settings, &done)?;
+        if plan.verify && !interrupt_requested() {
+            let tight = Settings {
+                tolerance: plan.settings.tolerance / VERIFY_TIGHTENING,
+                ..plan.settings
+            };
+            let checks = backend.run(&jobs, &tight, &|_| {})?;
+            for ((job, outcome), check) in jobs.iter().zip(outcomes.iter_mut()).zip(&checks) {
+                verify(job, outcome, check);
+            }
+        }
         if interrupt_requested() {
             bail!("interrupted after {finished_before} of {total} instances");
         }
@@ -369,6 +417,45 @@ mod tests {
         inst.axes[1].voltage = 0.0;
         assert_eq!(inst.baseline(0), inst);
         assert_ne!(inst.baseline(1), inst);
+    }
+
+    #[test]
+    fn verify_marks_only_finished_runs_that_a_finished_check_moves() {
+        let inst = Instance::TABLE1;
+        // Displacements over the measured periods [m]; 8 cycles of 10 Hz
+        // are measured, so 8e-9 m is a step of 1e-9 m per cycle.
+        let cycles = (inst.cycles - inst.settle) as f64;
+        let outcome = |status: u32, x: f64| Outcome {
+            displacement: [x * cycles, 0.0],
+            status,
+            steps: 1,
+        };
+        let check = |run: Outcome, tighter: Outcome, want: u32| {
+            let mut got = run;
+            verify(&inst, &mut got, &tighter);
+            assert_eq!(got.status, want, "{run:?} against {tighter:?}");
+            if want == STATUS_UNCONVERGED {
+                assert_eq!(got.displacement, [0.0; AXES]);
+            } else {
+                assert_eq!(got, run);
+            }
+        };
+        let step = 1e-6;
+        check(outcome(0, step), outcome(0, step + 0.5e-9), STATUS_OK);
+        check(
+            outcome(0, step),
+            outcome(0, step + 2e-9),
+            STATUS_UNCONVERGED,
+        );
+        check(
+            outcome(0, step),
+            outcome(0, step - 2e-9),
+            STATUS_UNCONVERGED,
+        );
+        // A check that did not finish neither confirms nor refutes.
+        check(outcome(0, step), outcome(3, 0.0), STATUS_OK);
+        // A failed run keeps its own status.
+        check(outcome(1, 0.0), outcome(0, step), 1);
     }
 
     #[test]

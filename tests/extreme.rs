@@ -196,3 +196,97 @@ fn kinetic_friction_above_static_holds_like_static_friction_of_that_size() {
         .unwrap();
     assert!((equal.steps_um()[0] - point.steps_um()[0]).abs() > 0.1);
 }
+
+/// Stress grid instance #513 (duty 1, 100 V at 10 Hz and 40 V at 35 Hz,
+/// f_c 0.3 N, band 1e-9 m/s), whose result at the default tolerance depends
+/// on whether a 2-D pass of the relative velocity is caught inside the
+/// band, and a regular point.
+const PLATEAU_SCENE: &str = r#"
+name = "plateau"
+[axis.x]
+voltage = 100.0
+duty = 1.0
+[axis.y]
+voltage = 40.0
+frequency = 35.0
+[mechanism]
+coulomb_friction = 0.3
+velocity_band = 1e-9
+[simulation]
+cycles = 3
+settle = 1
+[[points]]
+label = "stress #513"
+[[points]]
+label = "regular"
+mechanism.velocity_band = 1e-6
+axis.y.phase = 0.37
+"#;
+
+#[test]
+fn verify_marks_what_a_tighter_tolerance_moves_and_keeps_the_rest() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_path = dir.path().join("plateau.toml");
+    std::fs::write(&scene_path, PLATEAU_SCENE).unwrap();
+    let scene = Scene::from_toml(PLATEAU_SCENE, None).unwrap();
+    let converged = Settings {
+        tolerance: 1e-8,
+        ..scene.settings
+    };
+    let run = |verify: bool| -> (Vec<f64>, Vec<u32>) {
+        let out = dir.path().join(format!("plateau-{verify}.h5"));
+        let mut args = vec![
+            "run",
+            scene_path.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--out",
+        ];
+        args.push(out.to_str().unwrap());
+        if verify {
+            args.push("--verify");
+        }
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_pidm"))
+            .args(&args)
+            .output()
+            .unwrap()
+            .status;
+        // Exit code 3 says some instance has a non-zero status.
+        assert!(status.success() || status.code() == Some(3), "{status}");
+        let file = hdf5::File::open(&out).unwrap();
+        let step: Vec<f64> = file.dataset("maps/step_x").unwrap().read_raw().unwrap();
+        let codes: Vec<u32> = file.dataset("maps/status").unwrap().read_raw().unwrap();
+        (step, codes)
+    };
+    let (plain, plain_status) = run(false);
+    let (verified, verified_status) = run(true);
+    assert_eq!(plain_status, [0, 0]);
+    for k in 0..2 {
+        let inst = scene.instance(k as u64);
+        let st = run_instance(&inst, &converged);
+        assert_eq!(st.status, STATUS_OK);
+        let truth = inst.measure(0, displacement(&inst, &st)[0]).1;
+        let plain_error_um = (plain[k] - truth).abs() * 1e6;
+        eprintln!(
+            "point {k}: default {:+.6} um, converged {:+.6} um, verify status {}",
+            plain[k] * 1e6,
+            truth * 1e6,
+            verified_status[k]
+        );
+        match verified_status[k] {
+            // A verified entry is within the claimed error.
+            0 => assert!((verified[k] - truth).abs() * 1e6 <= CLAIMED_ERROR_UM),
+            // An unconverged one is zero in the map.
+            5 => assert_eq!(verified[k], 0.0),
+            other => panic!("point {k}: status {other}"),
+        }
+        // Whenever the default run is off, the verified run says so.
+        if plain_error_um > CLAIMED_ERROR_UM {
+            assert_eq!(
+                verified_status[k], 5,
+                "point {k} is {plain_error_um} um off"
+            );
+        }
+    }
+    assert_eq!(verified_status[1], 0, "the regular point verifies");
+}

@@ -25,6 +25,7 @@ fn info(shape: Vec<usize>, baselines: bool) -> FileInfo {
         precision: "f64".into(),
         variant: "2-DOF".into(),
         tolerance: 1e-4,
+        verify_tolerance: None,
         shard: None,
     }
 }

@@ -272,6 +272,7 @@ fn results_are_identical_for_any_thread_count_and_chunk_size() {
         instance: &instance,
         settings: Settings::default(),
         baselines: true,
+        verify: false,
     };
     let mut runs = Vec::new();
     for (threads, chunk) in [(1, 8), (2, 3), (2, 1)] {
