@@ -130,7 +130,8 @@ const BASELINES: [(&str, &str, &str); 3] = [
     ),
 ];
 
-fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
+/// Writes a text attribute (netCDF readers take variable-length UTF-8).
+pub(crate) fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
     let v: VarLenUnicode = value
         .parse()
         .with_context(|| format!("attribute {name} is not valid text"))?;
@@ -140,7 +141,7 @@ fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
     Ok(())
 }
 
-fn write_u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> Result<()> {
+pub(crate) fn write_u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> Result<()> {
     loc.new_attr::<u64>().create(name)?.write_scalar(&value)?;
     Ok(())
 }
@@ -210,9 +211,18 @@ mod dimension_scales {
     }
 }
 
-fn write_f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> Result<()> {
+pub(crate) fn write_f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> Result<()> {
     loc.new_attr::<f64>().create(name)?.write_scalar(&value)?;
     Ok(())
+}
+
+/// Reads a text attribute written by [`write_str_attr`].
+pub(crate) fn read_str_attr(loc: &hdf5::Location, name: &str) -> Result<String> {
+    let value: VarLenUnicode = loc
+        .attr(name)
+        .and_then(|a| a.read_scalar())
+        .with_context(|| format!("no text attribute `{name}`"))?;
+    Ok(value.as_str().to_string())
 }
 
 impl MapWriter {
@@ -546,11 +556,7 @@ fn values(c: &hdf5::Container) -> Result<Values> {
 pub fn compare_contents(a: &Path, b: &Path) -> Result<usize> {
     let fa = File::open(a).with_context(|| format!("cannot open {}", a.display()))?;
     let fb = File::open(b).with_context(|| format!("cannot open {}", b.display()))?;
-    let scene = |f: &File| -> Result<String> {
-        let v: VarLenUnicode = f.attr("scene")?.read_scalar()?;
-        Ok(v.as_str().to_string())
-    };
-    if scene(&fa)? != scene(&fb)? {
+    if read_str_attr(&fa, "scene")? != read_str_attr(&fb, "scene")? {
         bail!("the `scene` attributes differ");
     }
     let mut compared = 0;

@@ -316,9 +316,7 @@ struct Data {
 }
 
 fn read_str_attr(loc: &hdf5::Location, name: &str) -> Option<String> {
-    let attr = loc.attr(name).ok()?;
-    let value: VarLenUnicode = attr.read_scalar().ok()?;
-    Some(value.as_str().to_owned())
+    crate::output::read_str_attr(loc, name).ok()
 }
 
 fn read_f64_attr(loc: &hdf5::Location, name: &str) -> f64 {

@@ -15,9 +15,8 @@ use std::str::FromStr;
 
 use anyhow::{Context, Result, bail};
 use hdf5::File;
-use hdf5::types::VarLenUnicode;
 
-use crate::output::{FileInfo, MapWriter, ShardInfo};
+use crate::output::{FileInfo, MapWriter, ShardInfo, read_str_attr};
 use crate::scene::Scene;
 use crate::sweep::Record;
 
@@ -95,14 +94,6 @@ impl FromStr for ShardSpec {
         }
         Ok(ShardSpec { index, count })
     }
-}
-
-fn read_str_attr(file: &File, name: &str) -> Result<String> {
-    let value: VarLenUnicode = file
-        .attr(name)
-        .and_then(|a| a.read_scalar())
-        .with_context(|| format!("no text attribute `{name}`"))?;
-    Ok(value.as_str().to_string())
 }
 
 fn read_u64_attr(file: &File, name: &str) -> Result<u64> {

@@ -30,13 +30,13 @@
 //!   run, bit for bit.
 
 use anyhow::{Context, Result};
-use hdf5::types::VarLenUnicode;
 use rayon::prelude::*;
 
 use crate::cpu::integrate::{
     self, Settings, State, StepMotion, StepObserver, advance_observed, initial_state, is_finished,
 };
 use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
+use crate::output::{write_f64_attr, write_str_attr, write_u64_attr};
 use crate::scene::{Scene, TrajectoryPoint};
 
 /// The motion of one instance on a uniform time grid.
@@ -210,26 +210,6 @@ pub fn record_scene(scene: &Scene) -> Vec<Recorded> {
         .collect()
 }
 
-fn str_attr(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
-    let v: VarLenUnicode = value
-        .parse()
-        .with_context(|| format!("attribute {name} is not valid text"))?;
-    loc.new_attr::<VarLenUnicode>()
-        .create(name)?
-        .write_scalar(&v)?;
-    Ok(())
-}
-
-fn f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> Result<()> {
-    loc.new_attr::<f64>().create(name)?.write_scalar(&value)?;
-    Ok(())
-}
-
-fn u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> Result<()> {
-    loc.new_attr::<u64>().create(name)?.write_scalar(&value)?;
-    Ok(())
-}
-
 fn series(
     group: &hdf5::Group,
     name: &str,
@@ -242,25 +222,25 @@ fn series(
         .with_data(data)
         .create(name)
         .with_context(|| format!("cannot write trajectory dataset {name}"))?;
-    str_attr(&ds, "units", units)?;
-    str_attr(&ds, "long_name", long_name)?;
+    write_str_attr(&ds, "units", units)?;
+    write_str_attr(&ds, "long_name", long_name)?;
     Ok(())
 }
 
 /// The attributes every trajectory group carries: run timing, status and
 /// drive per axis.
 fn run_attrs(g: &hdf5::Group, inst: &Instance, t: &Trajectory) -> Result<()> {
-    u64_attr(g, "status", t.state.status as u64)?;
-    u64_attr(g, "samples_per_cycle", t.samples_per_cycle as u64)?;
-    f64_attr(g, "period_s", inst.period())?;
-    f64_attr(g, "settle_s", inst.settle as f64 * inst.period())?;
-    f64_attr(g, "duration_s", inst.duration())?;
+    write_u64_attr(g, "status", t.state.status as u64)?;
+    write_u64_attr(g, "samples_per_cycle", t.samples_per_cycle as u64)?;
+    write_f64_attr(g, "period_s", inst.period())?;
+    write_f64_attr(g, "settle_s", inst.settle as f64 * inst.period())?;
+    write_f64_attr(g, "duration_s", inst.duration())?;
     for (i, name) in AXIS_NAMES.iter().enumerate() {
         let axis = &inst.axes[i];
-        f64_attr(g, &format!("voltage_{name}"), axis.voltage)?;
-        f64_attr(g, &format!("frequency_{name}"), axis.frequency)?;
-        f64_attr(g, &format!("duty_{name}"), axis.duty)?;
-        f64_attr(g, &format!("phase_{name}"), axis.phase)?;
+        write_f64_attr(g, &format!("voltage_{name}"), axis.voltage)?;
+        write_f64_attr(g, &format!("frequency_{name}"), axis.frequency)?;
+        write_f64_attr(g, &format!("duty_{name}"), axis.duty)?;
+        write_f64_attr(g, &format!("phase_{name}"), axis.phase)?;
     }
     series(g, "time", &t.time, "s", "time from the start of the run")?;
     Ok(())
@@ -276,9 +256,9 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
     for (k, rec) in recorded.iter().enumerate() {
         let g = root.create_group(&k.to_string())?;
         let main = &rec.main;
-        str_attr(&g, "point", &rec.point.name)?;
-        str_attr(&g, "label", &rec.point.label)?;
-        u64_attr(&g, "index", rec.point.index)?;
+        write_str_attr(&g, "point", &rec.point.name)?;
+        write_str_attr(&g, "label", &rec.point.label)?;
+        write_u64_attr(&g, "index", rec.point.index)?;
         run_attrs(&g, &rec.instance, main)?;
         for (i, name) in AXIS_NAMES.iter().enumerate() {
             series(
@@ -309,7 +289,7 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
         for (i, name) in AXIS_NAMES.iter().enumerate() {
             let base = &bases[i];
             let b = g.create_group(&format!("baseline_{name}"))?;
-            str_attr(
+            write_str_attr(
                 &b,
                 "description",
                 &format!(
@@ -318,7 +298,7 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
                 ),
             )?;
             run_attrs(&b, &base.instance, &base.trajectory)?;
-            u64_attr(&b, "measured_cycles", base.measured_cycles as u64)?;
+            write_u64_attr(&b, "measured_cycles", base.measured_cycles as u64)?;
             let t = &base.trajectory;
             series(
                 &b,

@@ -29,21 +29,6 @@ settle = 1
 baselines = true
 "#;
 
-/// The same grid with x reaching 121 V instead of 120 V: another scene of
-/// the same shape, whose shards must not merge with `SCENE`'s.
-const OTHER_SCENE: &str = r#"name = "small"
-description = "4 x 3 voltage grid for the sharding tests"
-[axis.x]
-voltage = { from = -90.0, to = 121.0, steps = 4 }
-[axis.y]
-voltage = [-60.0, 0.0, 90.0]
-[simulation]
-cycles = 3
-settle = 1
-[output]
-baselines = true
-"#;
-
 const SHARDS: usize = 3;
 
 fn pidm(args: &[&str], dir: &Path) -> Output {
@@ -262,7 +247,9 @@ fn a_slurm_job_array_of_shards_merges_into_a_single_run_bit_for_bit_and_bad_sets
     let other = dir.join("other");
     std::fs::create_dir(&other).unwrap();
     let other_scene = other.join("small.toml");
-    std::fs::write(&other_scene, OTHER_SCENE).unwrap();
+    // The same grid with x reaching 121 V instead of 120 V: another scene
+    // of the same shape, whose shards must not merge with `SCENE`'s.
+    std::fs::write(&other_scene, SCENE.replace("to = 120.0", "to = 121.0")).unwrap();
     let foreign = other.join("small.shard-3-of-3.h5");
     run_scene(&other_scene, &foreign, &["--shard", "3/3"], &other);
     assert_refused(
