@@ -33,7 +33,8 @@ use anyhow::{Context, Result};
 use rayon::prelude::*;
 
 use crate::cpu::integrate::{
-    self, Settings, State, StepMotion, StepObserver, advance_observed, initial_state, is_finished,
+    self, Coefficients, Settings, State, StepMotion, StepObserver, advance_observed, initial_state,
+    is_finished,
 };
 use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
 use crate::output::{write_f64_attr, write_str_attr, write_u64_attr};
@@ -112,7 +113,8 @@ pub fn record(inst: &Instance, settings: &Settings, samples_per_cycle: u32) -> T
     let total = inst.cycles as u64 * per + 1;
     let capacity = total.min(1 << 24) as usize;
     let series = || std::array::from_fn(|_| Vec::with_capacity(capacity));
-    let mut st = initial_state(inst);
+    let c = Coefficients::new(inst, settings, f64::EPSILON);
+    let mut st = initial_state(&c);
     let mut sampler = Sampler {
         inst,
         period: inst.period(),
@@ -128,9 +130,9 @@ pub fn record(inst: &Instance, settings: &Settings, samples_per_cycle: u32) -> T
             samples_per_cycle: per as u32,
         },
     };
-    sampler.push(st.x_p, st.x_s);
-    while !is_finished(inst, &st) {
-        advance_observed(inst, settings, &mut st, u32::MAX, &mut sampler);
+    sampler.push(st.x_p.to_array(), st.x_s.to_array());
+    while !is_finished(&c, &st) {
+        advance_observed(&c, &mut st, u32::MAX, &mut sampler);
     }
     sampler.out.state = st;
     sampler.out

@@ -1,0 +1,203 @@
+//! Everything the integrator derives from an instance and the settings,
+//! computed once per instance in f64. The CPU integrator reads it in SI
+//! units; the GPU packs the same numbers in its own units
+//! (`pidm::gpu::layout`), so the shader divides by no parameter and takes no
+//! square root of one.
+
+use super::Settings;
+use super::constants::{EVENT_STEP_PERIODS, MIN_STEP_EPSILONS};
+use super::vec2::Vec2;
+use crate::model::Instance;
+
+/// One mode's oscillator per axis: m x'' + c x' + k x = g, with the stage
+/// alone (slip) or stage and slider together (stick).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Oscillator {
+    /// Moving mass m [kg].
+    pub mass: Vec2,
+    /// sigma = c / 2m [1/s].
+    pub sigma: Vec2,
+    /// w^2 = k / m [1/s^2].
+    pub w2: Vec2,
+    /// sqrt(w^2) + 2 sigma [1/s]: bounds how fast the motion can change,
+    /// for the propagator's scaling and the step lengths.
+    pub rate: Vec2,
+    /// 1 / m [1/kg].
+    pub inv_mass: Vec2,
+    /// 1 / w^2 [s^2].
+    pub inv_w2: Vec2,
+}
+
+impl Oscillator {
+    fn new(mass: Vec2, damping: Vec2, stiffness: Vec2) -> Oscillator {
+        let sigma = damping.zip(mass, |c, m| c / (2.0 * m));
+        let w2 = stiffness / mass;
+        Oscillator {
+            mass,
+            sigma,
+            w2,
+            rate: w2.zip(sigma, |w2, s| w2.sqrt() + 2.0 * s),
+            inv_mass: mass.map(|m| 1.0 / m),
+            inv_w2: w2.map(|w2| 1.0 / w2),
+        }
+    }
+}
+
+/// The per-instance constants of the integrator, in one unit system
+/// (whatever the instance is given in).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Coefficients {
+    /// Stage mass m_p, stiffness k and damping c per axis.
+    pub stage_mass: Vec2,
+    pub stiffness: Vec2,
+    pub damping: Vec2,
+    /// 1 / k, for the polynomial particular solutions.
+    pub inv_stiffness: Vec2,
+    /// Stage and slider as one body (STICK).
+    pub stick: Oscillator,
+    /// The stage alone (SLIP and BAND).
+    pub slip: Oscillator,
+    /// Drive force amplitude delta V [N]: zero on an undriven axis.
+    pub amplitude: Vec2,
+    /// Drive frequency f [1/s].
+    pub frequency: Vec2,
+    /// Rise fraction d, 1 / d, and 1 / (1 - d) (0 where d = 1: no fall).
+    pub duty: Vec2,
+    pub inv_duty: Vec2,
+    pub inv_fall: Vec2,
+    /// Force slopes on the rise and on the fall [N/s].
+    pub rise_slope: Vec2,
+    pub fall_slope: Vec2,
+    /// Drive phase [cycles] and drive cycles per scene period.
+    pub phase: Vec2,
+    pub cycles_per_period: Vec2,
+    /// m_p / (m_p + m_s) and m_s / (m_p + m_s): the momentum-conserving
+    /// common velocity is their weighted sum of the two velocities.
+    pub stage_share: Vec2,
+    pub slider_share: Vec2,
+    /// (m_p + m_s) / (m_p m_s): turns f_need into the relative acceleration
+    /// A of `slip_direction`, and f_c into its B.
+    pub slip_scale: Vec2,
+    pub slip_b: Vec2,
+    /// The larger component of `slip_b`.
+    pub slip_b_max: f64,
+    /// max(f_s, f_c)^2 [N^2]: the interface holds while |f_need|^2 <= hold2.
+    pub hold2: f64,
+    /// m_s^2 [kg^2].
+    pub ms2: f64,
+    /// Kinetic friction f_c [N] and f_c / m_s [m/s^2].
+    pub coulomb: f64,
+    pub fc_over_ms: f64,
+    /// Detection band a^2 [m^2/s^2].
+    pub band2: f64,
+    /// Scene period T [s].
+    pub period: f64,
+    /// Step lengths that sample the fastest oscillation of stick and of
+    /// slip densely enough for event detection [s].
+    pub event_step_stuck: f64,
+    pub event_step_slip: f64,
+    /// The smallest slip step before the instance gives up [s].
+    pub min_step: f64,
+    /// Simulated and discarded scene periods.
+    pub cycles: u32,
+    pub settle: u32,
+    /// The accuracy knob [rad] ([`Settings::tolerance`]).
+    pub tolerance: f64,
+    /// Steps allowed in the whole run, saturated at `u32::MAX`.
+    pub budget: u32,
+    /// Whether each axis is driven (a non-zero voltage).
+    pub driven: [bool; 2],
+    /// f_c = 0: slip does not depend on the friction direction.
+    pub frictionless: bool,
+}
+
+impl Coefficients {
+    /// The coefficients of an instance given in any consistent unit system.
+    /// `time_epsilon` is the relative resolution of the time within a
+    /// period (f64's epsilon on the CPU; the f32 shader's two-part time
+    /// resolves far finer than its own epsilon).
+    pub fn new(inst: &Instance, settings: &Settings, time_epsilon: f64) -> Coefficients {
+        let [ax, ay] = &inst.axes;
+        let per_axis = |f: &dyn Fn(&crate::model::Axis) -> f64| Vec2::new(f(ax), f(ay));
+        let m = &inst.mechanism;
+        let ms = m.slider_mass;
+        let fc = m.coulomb_friction;
+        let stage_mass = per_axis(&|a| a.stage_mass);
+        let stiffness = per_axis(&|a| a.stiffness);
+        let damping = per_axis(&|a| a.damping);
+        let stick = Oscillator::new(stage_mass + ms, damping, stiffness);
+        let slip = Oscillator::new(stage_mass, damping, stiffness);
+        let driven = [ax.is_driven(), ay.is_driven()];
+        let amplitude = per_axis(&|a| {
+            if a.is_driven() {
+                a.gain * a.voltage
+            } else {
+                0.0
+            }
+        });
+        let has_fall = |a: &crate::model::Axis| a.duty < 1.0;
+        let period = inst.period();
+        let slip_scale = stage_mass.map(|mp| (mp + ms) / (mp * ms));
+        let slip_b = slip_scale * fc;
+        let event_step = |osc: &Oscillator| {
+            EVENT_STEP_PERIODS * 2.0 * std::f64::consts::PI / osc.rate.max_element()
+        };
+        let budget =
+            (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
+        Coefficients {
+            stage_mass,
+            stiffness,
+            damping,
+            inv_stiffness: stiffness.map(|k| 1.0 / k),
+            stick,
+            slip,
+            amplitude,
+            frequency: per_axis(&|a| a.frequency),
+            duty: per_axis(&|a| a.duty),
+            inv_duty: per_axis(&|a| 1.0 / a.duty),
+            inv_fall: per_axis(&|a| {
+                if has_fall(a) {
+                    1.0 / (1.0 - a.duty)
+                } else {
+                    0.0
+                }
+            }),
+            rise_slope: per_axis(&|a| {
+                if a.is_driven() {
+                    a.gain * a.voltage * a.frequency / a.duty
+                } else {
+                    0.0
+                }
+            }),
+            fall_slope: per_axis(&|a| {
+                if a.is_driven() && has_fall(a) {
+                    -(a.gain * a.voltage) * a.frequency / (1.0 - a.duty)
+                } else {
+                    0.0
+                }
+            }),
+            phase: per_axis(&|a| a.phase),
+            cycles_per_period: per_axis(&|a| a.frequency * period),
+            stage_share: stage_mass.map(|mp| mp / (mp + ms)),
+            slider_share: stage_mass.map(|mp| ms / (mp + ms)),
+            slip_scale,
+            slip_b,
+            slip_b_max: slip_b.max_element().max(0.0),
+            hold2: m.holding_friction() * m.holding_friction(),
+            ms2: ms * ms,
+            coulomb: fc,
+            fc_over_ms: fc / ms,
+            band2: m.velocity_band * m.velocity_band,
+            period,
+            event_step_stuck: event_step(&stick),
+            event_step_slip: event_step(&slip),
+            min_step: MIN_STEP_EPSILONS * time_epsilon * period,
+            cycles: inst.cycles,
+            settle: inst.settle,
+            tolerance: settings.tolerance,
+            budget,
+            driven,
+            frictionless: fc == 0.0,
+        }
+    }
+}

@@ -1,0 +1,111 @@
+//! The integrator's named numbers: friction modes, status codes, event
+//! kinds and tuning constants. This file is their one home: the shader gets
+//! them through the prelude that `pidm::gpu::shader` generates from
+//! [`wgsl_constants`], never by hand.
+
+/// Stick: slider and stage move together.
+pub const MODE_STICK: u32 = 0;
+/// Slip outside the detection band: friction along the relative velocity.
+pub const MODE_SLIP: u32 = 1;
+/// Slip inside the detection band: friction along a held direction.
+pub const MODE_BAND: u32 = 2;
+
+/// The instance finished normally.
+pub const STATUS_OK: u32 = 0;
+/// The step budget ([`super::Settings::max_steps_per_period`]) ran out.
+pub const STATUS_STEP_BUDGET: u32 = 1;
+/// A non-finite number appeared in the state.
+pub const STATUS_NON_FINITE: u32 = 2;
+/// The slip step size fell below the time resolution of a period.
+pub const STATUS_STEP_UNDERFLOW: u32 = 3;
+/// Mode changes kept following each other without time advancing.
+pub const STATUS_EVENT_STORM: u32 = 4;
+
+/// No event is watched.
+pub const EVENT_NONE: u32 = 0;
+/// Stick breaks: hold^2 - |m_s a_p|^2 (f_need of the coupled system).
+pub const EVENT_BREAKAWAY: u32 = 1;
+/// Slip enters the band: |v_rel|^2 - a^2.
+pub const EVENT_ENTER_BAND: u32 = 2;
+/// Band slip leaves the band: a^2 - |v_rel|^2.
+pub const EVENT_LEAVE_BAND: u32 = 3;
+/// The relative velocity reverses against the held direction:
+/// sign * v_rel . held.
+pub const EVENT_REVERSAL: u32 = 4;
+
+/// Number of Taylor terms of the propagator after scaling to norm <= 1/2:
+/// the truncation error is below 0.5^15 / 15! = 2.3e-17.
+pub const TAYLOR_TERMS: u32 = 14;
+/// Fraction of the fastest oscillation period spanned by one step while an
+/// event is possible: each of the four sample intervals then covers at most
+/// 1/16 of a period, so an event function has at most one extremum there.
+pub const EVENT_STEP_PERIODS: f64 = 0.25;
+/// Fixed-point iterations of the friction-direction quadratic per slip
+/// step.
+pub const COLLOCATION_ITERATIONS: u32 = 4;
+/// The iteration stops once the model changes by less than this fraction of
+/// the tolerance.
+pub const COLLOCATION_CONVERGED: f64 = 1e-2;
+/// Terms of the stage Taylor series on short slip steps (rate * h <= 1):
+/// the truncation error is below 1 / 21! = 2e-20.
+pub const TAYLOR_STAGE_TERMS: u32 = 21;
+/// The stage Taylor series stops once the bound on its next term falls
+/// below this (relative to the state's scale).
+pub const TAYLOR_STAGE_CONVERGED: f64 = 1e-18;
+/// Newton iterations for the direction slip starts in (monotone, converges
+/// in a handful).
+pub const SLIP_DIRECTION_ITERATIONS: u32 = 40;
+/// Rounding noise of an event function, in units of epsilon times the
+/// magnitude of its terms.
+pub const EVENT_NOISE: f64 = 16.0;
+/// Bisection-guarded Newton iterations when locating an event.
+pub const ROOT_ITERATIONS: u32 = 80;
+/// Consecutive events allowed without the time advancing.
+pub const MAX_STALLED_EVENTS: u32 = 64;
+/// Step rejections allowed in a row before a slip step gives up.
+pub const MAX_REJECTIONS: u32 = 60;
+/// Largest number of halvings of a propagator's time before its Taylor
+/// series (2^-200 of any step is far below every time resolution).
+pub const MAX_SQUARINGS: u32 = 200;
+/// The smallest slip step, in units of epsilon times the scene period.
+pub const MIN_STEP_EPSILONS: f64 = 64.0;
+/// Newton iterations of [`super::arith::cube_root`] after its range
+/// reduction and linear first guess.
+pub const CUBE_ROOT_ITERATIONS: u32 = 5;
+
+/// Every constant above as WGSL `const` declarations, for the shader's
+/// prelude. Real-valued ones are typed `Real`, so one text serves f32 and
+/// f64.
+pub fn wgsl_constants() -> String {
+    let u = |name: &str, v: u32| format!("const {name}: u32 = {v}u;\n");
+    let r = |name: &str, v: f64| format!("const {name}: Real = Real({v:e});\n");
+    [
+        u("MODE_STICK", MODE_STICK),
+        u("MODE_SLIP", MODE_SLIP),
+        u("MODE_BAND", MODE_BAND),
+        u("STATUS_OK", STATUS_OK),
+        u("STATUS_STEP_BUDGET", STATUS_STEP_BUDGET),
+        u("STATUS_NON_FINITE", STATUS_NON_FINITE),
+        u("STATUS_STEP_UNDERFLOW", STATUS_STEP_UNDERFLOW),
+        u("STATUS_EVENT_STORM", STATUS_EVENT_STORM),
+        u("EVENT_NONE", EVENT_NONE),
+        u("EVENT_BREAKAWAY", EVENT_BREAKAWAY),
+        u("EVENT_ENTER_BAND", EVENT_ENTER_BAND),
+        u("EVENT_LEAVE_BAND", EVENT_LEAVE_BAND),
+        u("EVENT_REVERSAL", EVENT_REVERSAL),
+        u("TAYLOR_TERMS", TAYLOR_TERMS),
+        r("EVENT_STEP_PERIODS", EVENT_STEP_PERIODS),
+        u("COLLOCATION_ITERATIONS", COLLOCATION_ITERATIONS),
+        r("COLLOCATION_CONVERGED", COLLOCATION_CONVERGED),
+        u("TAYLOR_STAGE_TERMS", TAYLOR_STAGE_TERMS),
+        r("TAYLOR_STAGE_CONVERGED", TAYLOR_STAGE_CONVERGED),
+        u("SLIP_DIRECTION_ITERATIONS", SLIP_DIRECTION_ITERATIONS),
+        r("EVENT_NOISE", EVENT_NOISE),
+        u("ROOT_ITERATIONS", ROOT_ITERATIONS),
+        u("MAX_STALLED_EVENTS", MAX_STALLED_EVENTS),
+        u("MAX_REJECTIONS", MAX_REJECTIONS),
+        u("MAX_SQUARINGS", MAX_SQUARINGS),
+        u("CUBE_ROOT_ITERATIONS", CUBE_ROOT_ITERATIONS),
+    ]
+    .concat()
+}

@@ -1,0 +1,428 @@
+//! One step of the integrator, the same code for every friction mode: the
+//! mode only chooses the step length, the flow and which events to watch.
+//! The sampling, the event search and location, and the move are shared,
+//! so on a GPU the lanes of a warp in different modes run the same
+//! instructions together.
+//!
+//! * STICK: the flow of stage and slider as one body; straight to the stop
+//!   when an energy bound shows the stiction cannot break before it,
+//!   otherwise a sampled sub-step watching the breakaway.
+//! * SLIP: one trial step of the friction-direction quadratic (fixed-point
+//!   collocation at the middle and end). A trial whose direction error
+//!   exceeds the tolerance is rejected: the step shrinks and the next
+//!   iteration tries again (counted as a step, time unchanged). An accepted
+//!   step watches the relative velocity entering the band.
+//! * BAND: the held friction direction makes the motion exact; the step
+//!   watches the relative velocity leaving the band and reversing.
+
+use super::arith::step_factor;
+use super::coefficients::Coefficients;
+use super::constants::{
+    COLLOCATION_CONVERGED, COLLOCATION_ITERATIONS, EVENT_BREAKAWAY, EVENT_ENTER_BAND,
+    EVENT_LEAVE_BAND, EVENT_NONE, EVENT_REVERSAL, MAX_REJECTIONS, MODE_BAND, MODE_SLIP, MODE_STICK,
+    SLIP_DIRECTION_ITERATIONS, STATUS_STEP_UNDERFLOW,
+};
+use super::drive::drive_force;
+use super::events::{
+    find_crossing, locate, primary_event, primary_scale, relative_acceleration, relative_velocity,
+    reversal_event, reversal_scale,
+};
+use super::flow::{
+    DirectionModel, Flow, IDENTITY, Sample, eval_at, eval_flow, make_flow, sample_propagators,
+};
+use super::vec2::{Vec2, dot, norm2};
+use super::{State, StepMotion, StepObserver};
+
+/// What one call of [`step`] did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepOutcome {
+    /// The state moved (possibly by zero time, at an event that fires at
+    /// once) or the instance failed.
+    Moved,
+    /// A slip trial was rejected: only the step length changed.
+    Rejected,
+}
+
+/// The flow of the current state in its mode.
+fn mode_flow(
+    c: &Coefficients,
+    st: &State,
+    force: Vec2,
+    slope: Vec2,
+    dir: &DirectionModel,
+    h: f64,
+) -> Flow {
+    make_flow(
+        c,
+        st.mode == MODE_STICK,
+        st.x_p,
+        st.v_p,
+        st.x_s,
+        st.v_s,
+        force,
+        slope,
+        dir,
+        h,
+    )
+}
+
+/// The unit vector of the relative velocity, or `None` where it is zero or
+/// not finite.
+fn direction(s: &Sample) -> Option<Vec2> {
+    let v = relative_velocity(s);
+    let n = norm2(v).sqrt();
+    if n > 0.0 && n.is_finite() {
+        Some(v * (1.0 / n))
+    } else {
+        None
+    }
+}
+
+/// One step of at most `h_max`, ending no later than the local time `stop`.
+pub fn step<O: StepObserver>(
+    c: &Coefficients,
+    st: &mut State,
+    h_max: f64,
+    stop: f64,
+    observer: &mut O,
+) -> StepOutcome {
+    let (force, slope) = drive_force(c, st);
+    let stuck = st.mode == MODE_STICK;
+    let slipping = st.mode == MODE_SLIP;
+    // The step length and the direction model's constant term.
+    let mut dir = DirectionModel::default();
+    let mut h = h_max;
+    if slipping {
+        h = st.h_slip.min(c.event_step_slip).min(h_max);
+        if h <= 0.0 {
+            h = c.event_step_slip.min(h_max);
+        }
+        let v = st.v_p - st.v_s;
+        dir.b0 = v * (1.0 / norm2(v).sqrt());
+    } else if st.mode == MODE_BAND {
+        h = h_max.min(c.event_step_slip);
+        dir.b0 = st.held;
+    }
+    let mut flow = mode_flow(c, st, force, slope, &dir, if stuck { 1.0 } else { h });
+    let mut start = eval_flow(&flow, IDENTITY, 0.0);
+    // The homogeneous acceleration obeys the same oscillator equation, so
+    // m a'' + c a' + k a = 0 and k a^2 + m a'^2 never grows: |a| stays below
+    // sqrt(a^2 + a'^2 / w2) for the rest of a stick segment.
+    let mut safe = false;
+    if stuck {
+        let bound = norm2(start.a_p) + dot(start.j_p * start.j_p, flow.osc.inv_w2);
+        safe = c.ms2 * bound <= c.hold2;
+        if !safe {
+            h = h_max.min(c.event_step_stuck);
+        }
+    }
+    let props = sample_propagators(&flow, h);
+    let mut mid = eval_flow(&flow, props.half, 0.5 * h);
+    let mut end = eval_flow(&flow, props.full, h);
+    // SLIP: the direction model through the true direction at the start,
+    // middle and end of the step, by fixed-point iteration. Without kinetic
+    // friction the motion does not depend on the direction: no turn to
+    // resolve, and no step limit.
+    let mut err = 0.0;
+    if slipping && !c.frictionless {
+        let u0 = dir.b0;
+        for _ in 0..COLLOCATION_ITERATIONS {
+            let (Some(um), Some(ue)) = (direction(&mid), direction(&end)) else {
+                err = f64::INFINITY;
+                break;
+            };
+            let b1 = 4.0 * um - 3.0 * u0 - ue;
+            let b2 = 2.0 * (ue - 2.0 * um + u0);
+            let change = (b1 - dir.b1)
+                .abs()
+                .max_element()
+                .max((b2 - dir.b2).abs().max_element());
+            dir.b1 = b1;
+            dir.b2 = b2;
+            if change == 0.0 {
+                break;
+            }
+            flow = mode_flow(c, st, force, slope, &dir, h);
+            mid = eval_flow(&flow, props.half, 0.5 * h);
+            end = eval_flow(&flow, props.full, h);
+            if change <= COLLOCATION_CONVERGED * c.tolerance {
+                break;
+            }
+        }
+        start = eval_flow(&flow, IDENTITY, 0.0);
+    }
+    let quarter = eval_flow(&flow, props.quarter, 0.25 * h);
+    let three_quarters = eval_flow(&flow, props.three_quarters, 0.75 * h);
+    let samples = [start, quarter, mid, three_quarters, end];
+    if slipping {
+        if err == 0.0 && !c.frictionless {
+            err = direction_error(&dir, &samples);
+        }
+        if err > c.tolerance {
+            reject(c, st, h, err);
+            return StepOutcome::Rejected;
+        }
+    }
+    // The events this step watches, their values at the samples, and in
+    // band slip the sign the reversal product first takes.
+    let primary = if stuck {
+        if safe { EVENT_NONE } else { EVENT_BREAKAWAY }
+    } else if slipping {
+        EVENT_ENTER_BAND
+    } else {
+        EVENT_LEAVE_BAND
+    };
+    let mut ev_primary = [[0.0; 2]; 5];
+    let mut ev_reversal = [[0.0; 2]; 5];
+    let mut sign = 0.0;
+    for (j, s) in samples.iter().enumerate() {
+        ev_primary[j] = primary_event(c, primary, s);
+        ev_reversal[j] = reversal_event(st, s);
+        if sign == 0.0 && ev_reversal[j][0] != 0.0 {
+            sign = if ev_reversal[j][0] > 0.0 { 1.0 } else { -1.0 };
+        }
+    }
+    let watch_reversal = st.mode == MODE_BAND && sign != 0.0;
+    let mut event = EVENT_NONE;
+    let mut event_tau = 0.0;
+    for k in 0..2 {
+        let (kind, kind_sign, ev, scale) = if k == 0 {
+            (primary, 1.0, &ev_primary, primary_scale(c, primary, &start))
+        } else {
+            (
+                if watch_reversal {
+                    EVENT_REVERSAL
+                } else {
+                    EVENT_NONE
+                },
+                sign,
+                &ev_reversal,
+                reversal_scale(st, &start),
+            )
+        };
+        if kind == EVENT_NONE {
+            continue;
+        }
+        let crossing = find_crossing(c, st, kind, kind_sign, ev, scale, &flow, h);
+        if crossing.found {
+            let tau = locate(c, st, kind, kind_sign, &flow, crossing.lo, crossing.hi);
+            if event == EVENT_NONE || tau < event_tau {
+                event = kind;
+                event_tau = tau;
+            }
+        }
+    }
+    if event == EVENT_NONE {
+        move_to(st, &end, h, h_max, stop, &flow, observer);
+        if slipping {
+            // A step cut short by the stop says nothing about the next one.
+            st.h_slip = if h < h_max {
+                h * grow_factor(c, err)
+            } else {
+                st.h_slip.max(h)
+            };
+        }
+    } else {
+        let s = eval_at(&flow, event_tau);
+        move_to(st, &s, event_tau, h_max, stop, &flow, observer);
+        if event == EVENT_BREAKAWAY {
+            let need = stick_force(c, st);
+            start_slip(c, st, need);
+        } else if event == EVENT_LEAVE_BAND {
+            st.mode = MODE_SLIP;
+            st.h_slip = initial_slip_step(c, st, h_max);
+        } else {
+            if event == EVENT_ENTER_BAND {
+                st.h_slip = h;
+            }
+            try_stick(c, st);
+        }
+    }
+    st.rejections = 0;
+    StepOutcome::Moved
+}
+
+/// The largest distance between the direction model and the true direction
+/// of the resulting motion at the samples after the start, or infinity
+/// where the relative velocity turns by a right angle between samples or
+/// vanishes.
+fn direction_error(dir: &DirectionModel, samples: &[Sample; 5]) -> f64 {
+    let mut err: f64 = 0.0;
+    let mut prev_v = relative_velocity(&samples[0]);
+    for (s, th) in samples.iter().zip(super::events::THETA).skip(1) {
+        let v = relative_velocity(s);
+        if dot(v, prev_v) <= 0.0 {
+            return f64::INFINITY;
+        }
+        prev_v = v;
+        let Some(u) = direction(s) else {
+            return f64::INFINITY;
+        };
+        let model = dir.b0 + (dir.b1 + dir.b2 * th) * th;
+        let d = u - model;
+        err = err.max(norm2(d).sqrt());
+    }
+    err
+}
+
+/// A rejected slip trial: the next one is shorter, unless the step has
+/// become too short or too many were rejected in a row.
+fn reject(c: &Coefficients, st: &mut State, h: f64, err: f64) {
+    st.rejections += 1;
+    let factor = if err.is_finite() {
+        step_factor(c.tolerance / err, 0.1, 0.9)
+    } else {
+        0.25
+    };
+    let shorter = h * factor;
+    if shorter < c.min_step || st.rejections > MAX_REJECTIONS {
+        st.status = STATUS_STEP_UNDERFLOW;
+    } else {
+        st.h_slip = shorter;
+    }
+}
+
+/// How much longer the next slip step may be after one with error `err`.
+fn grow_factor(c: &Coefficients, err: f64) -> f64 {
+    if err > 0.0 {
+        step_factor(c.tolerance / err, 0.2, 4.0)
+    } else {
+        4.0
+    }
+}
+
+/// Moves the state to tau within the current step of flow `flow` (tau >=
+/// h_max lands exactly on the stop), showing the observer the motion first.
+fn move_to<O: StepObserver>(
+    st: &mut State,
+    s: &Sample,
+    tau: f64,
+    h_max: f64,
+    stop: f64,
+    flow: &Flow,
+    observer: &mut O,
+) {
+    let end = if tau >= h_max { stop } else { st.time + tau };
+    observer.step(
+        st,
+        &StepMotion {
+            flow,
+            tau,
+            end,
+            at_end: s,
+        },
+    );
+    st.x_p = s.x_p;
+    st.v_p = s.v_p;
+    st.x_s = s.x_s;
+    st.v_s = s.v_s;
+    if tau >= h_max {
+        st.time = stop;
+    } else {
+        st.time += tau;
+    }
+}
+
+/// A first slip step after leaving the band: short enough to follow the
+/// turn of the relative velocity, which happens on the time scale
+/// |v_rel| / |dv_rel/dt across|.
+fn initial_slip_step(c: &Coefficients, st: &State, h_max: f64) -> f64 {
+    let (force, slope) = drive_force(c, st);
+    let v = st.v_p - st.v_s;
+    let dir = DirectionModel {
+        b0: v * (1.0 / norm2(v).sqrt()),
+        ..DirectionModel::default()
+    };
+    let flow = mode_flow(c, st, force, slope, &dir, 1.0);
+    let s = eval_flow(&flow, IDENTITY, 0.0);
+    let v = relative_velocity(&s);
+    let a = relative_acceleration(&s);
+    let speed = norm2(v).sqrt();
+    let along = dot(a, v) / speed;
+    let across = (norm2(a) - along * along).max(0.0).sqrt();
+    let turn = if across > 0.0 {
+        0.1 * speed / across
+    } else {
+        f64::INFINITY
+    };
+    turn.min(c.event_step_slip).min(h_max.max(0.0))
+}
+
+/// The static friction force on the slider that stick would need now, with
+/// both bodies at their common (momentum-conserving) velocity.
+pub fn stick_force(c: &Coefficients, st: &State) -> Vec2 {
+    let (force, _) = drive_force(c, st);
+    let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
+    let p = force - c.damping * v - c.stiffness * st.x_p;
+    c.slider_share * p
+}
+
+/// The direction in which slip grows out of zero relative velocity. In
+/// slip the relative acceleration is A - B u per axis, with A_i = P_i /
+/// m_p,i and B_i = f_c (1 / m_p,i + 1 / m_s), so the friction direction u
+/// is consistent only where A - B u = lambda u with lambda > 0:
+/// u_i = A_i / (lambda + B_i) with sum_i A_i^2 / (lambda + B_i)^2 = 1. That
+/// root exists exactly when |f_need| > f_c. With equal stage masses B is
+/// the same on both axes and u is the direction of f_need (MODEL.md
+/// section 3); with unequal ones, slip along f_need itself would turn the
+/// relative velocity away from the friction and chatter at the band edge.
+fn slip_direction(c: &Coefficients, need: Vec2) -> Vec2 {
+    let a = need * c.slip_scale;
+    let b = c.slip_b;
+    // g(lambda) = sum A^2 / (lambda + B)^2 - 1 is convex and decreasing,
+    // and g >= 0 at max(0, |A| - max B): Newton from there rises
+    // monotonically to the root.
+    let mut lambda = (norm2(a).sqrt() - c.slip_b_max).max(0.0);
+    for _ in 0..SLIP_DIRECTION_ITERATIONS {
+        let d = b + lambda;
+        let r = a / d;
+        let q = r * r;
+        let g = q.x + q.y - 1.0;
+        let dg = -2.0 * dot(q, Vec2::splat(1.0) / d);
+        // Stops at the root, and on NaN (no comparison holds).
+        if g.is_nan() || g <= 0.0 || dg == 0.0 {
+            break;
+        }
+        let next = lambda - g / dg;
+        if next.is_nan() || next <= lambda {
+            break;
+        }
+        lambda = next;
+    }
+    let u = a / (b + lambda);
+    // Normalise away the last rounding; fall back to f_need's direction if
+    // the iteration met a degenerate case.
+    let n = norm2(u).sqrt();
+    if n > 0.0 && n.is_finite() {
+        u * (1.0 / n)
+    } else {
+        need * (1.0 / norm2(need).sqrt())
+    }
+}
+
+/// STICK -> SLIP: enters the band at zero relative velocity with the
+/// friction held along the direction slip grows in.
+pub fn start_slip(c: &Coefficients, st: &mut State, need: Vec2) {
+    st.held = slip_direction(c, need);
+    st.mode = MODE_BAND;
+}
+
+/// At a relative velocity inside the band the two bodies' velocities merge
+/// per axis, conserving momentum (a change of at most the band a). Then
+/// they stick if the static friction can hold them, or else slip starts
+/// afresh along the needed force, exactly as a breakaway from stick does
+/// (in 1-D: the slider reverses). Starting the new slip from zero relative
+/// velocity keeps the relative velocity aligned with the friction when it
+/// leaves the band; holding the old, misaligned relative velocity would
+/// make it re-enter the band at once, over and over.
+fn try_stick(c: &Coefficients, st: &mut State) {
+    let need = stick_force(c, st);
+    let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
+    st.v_p = v;
+    st.v_s = v;
+    if norm2(need) <= c.hold2 {
+        st.mode = MODE_STICK;
+    } else {
+        start_slip(c, st, need);
+    }
+}
