@@ -12,7 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::checkpoint::{self, Checkpoint};
 use crate::cpu::integrate::STATUS_OK;
-use crate::model::{AXES, Instance};
+use crate::model::{AXES, Instance, InstanceKey};
 use crate::output::{AxisInfo, FileInfo, MapWriter, ShardInfo};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
 use crate::shard::ShardSpec;
@@ -81,7 +81,19 @@ pub fn select_backend(
             Box::new(GpuBackend::new(ctx, gpu_precision)?)
         }
         BackendChoice::Auto => match GpuContext::new(false) {
-            Ok(ctx) => Box::new(GpuBackend::new(ctx, gpu_precision)?),
+            Ok(ctx) => {
+                let adapter = ctx.describe();
+                match GpuBackend::new(ctx, gpu_precision) {
+                    Ok(gpu) => Box::new(gpu),
+                    Err(err) => {
+                        eprintln!(
+                            "pidm: the GPU path cannot run on {adapter}, using the CPU path \
+                             ({err:#})"
+                        );
+                        Box::new(CpuBackend::new(threads)?)
+                    }
+                }
+            }
             Err(err) => {
                 eprintln!("pidm: no hardware GPU adapter, using the CPU path ({err})");
                 Box::new(CpuBackend::new(threads)?)
@@ -146,18 +158,13 @@ fn progress_bar(total: u64) -> ProgressBar {
     bar
 }
 
-/// Which integrator variant runs a scene's instances on a backend: the GPU
-/// compiles a 1-DOF specialisation when axis y is undriven everywhere; the
-/// CPU always runs the 2-DOF integrator, where an undriven y stays exactly 0.
-pub fn variant(scene: &Scene, backend: &dyn Backend) -> String {
-    let gpu = backend.cpu_threads().is_none();
-    match (gpu, scene.axis_ever_driven(1)) {
-        (true, false) if scene.baselines => {
-            "1-DOF specialisation (axis y undriven everywhere); the y baselines run 2-DOF".into()
-        }
-        (true, false) => "1-DOF specialisation (axis y undriven everywhere)".into(),
-        (false, false) => "2-DOF (axis y undriven everywhere, exactly at rest)".into(),
-        _ => "2-DOF".into(),
+/// Which integrator runs a scene's instances: every backend runs the 2-DOF
+/// integrator, where an undriven axis stays exactly at rest.
+pub fn variant(scene: &Scene) -> String {
+    if scene.axis_ever_driven(1) {
+        "2-DOF".into()
+    } else {
+        "2-DOF (axis y undriven everywhere, exactly at rest)".into()
     }
 }
 
@@ -243,7 +250,7 @@ pub fn run_scene(
         scene,
         backend.describe(),
         backend.precision().to_string(),
-        variant(scene, backend),
+        variant(scene),
     );
     info.shard = scope.shard.map(|spec| ShardInfo::new(spec, total));
     if scope.verify {
@@ -402,9 +409,11 @@ fn um(x: f64) -> String {
 fn print_summary(scene: &Scene, result: &RunResult) {
     let s = &result.summary;
     println!(
-        "wrote {} ({} instances, {:.3} s wall, {:.0} simulated s per wall s)",
+        "wrote {} ({} instances, {} distinct integrations, {:.3} s wall, {:.0} simulated s \
+         per wall s)",
         result.path.display(),
         s.instances,
+        s.integrations,
         result.wall_time_s,
         s.simulated_s / result.wall_time_s.max(1e-9)
     );
@@ -463,12 +472,14 @@ pub fn info() -> Result<()> {
     }
     for a in &adapters {
         println!(
-            "- {} ({}, {}): f64 {}, max storage binding {} MiB, max buffer {} MiB, \
-             max workgroups per dimension {}",
+            "- {} ({}, {}, {}): f64 {}, pipeline cache {}, max storage binding {} MiB, \
+             max buffer {} MiB, max workgroups per dimension {}",
             a.name,
             a.device_type,
             a.backend,
+            a.driver,
             if a.f64 { "yes" } else { "no" },
+            if a.pipeline_cache { "yes" } else { "no" },
             a.max_storage_buffer_binding_size >> 20,
             a.max_buffer_size >> 20,
             a.max_compute_workgroups_per_dimension
@@ -549,49 +560,19 @@ pub fn human_duration(seconds: f64) -> String {
     }
 }
 
-/// The bit pattern of every parameter of an instance: equal keys mean
-/// identical integrations.
-fn instance_key(inst: &Instance) -> Vec<u64> {
-    let m = &inst.mechanism;
-    let mut key = vec![
-        m.slider_mass.to_bits(),
-        m.static_friction.to_bits(),
-        m.coulomb_friction.to_bits(),
-        m.velocity_band.to_bits(),
-        inst.cycles as u64,
-        inst.settle as u64,
-    ];
-    for a in &inst.axes {
-        key.extend(
-            [
-                a.stage_mass,
-                a.stiffness,
-                a.damping,
-                a.gain,
-                a.voltage,
-                a.frequency,
-                a.duty,
-                a.phase,
-            ]
-            .map(f64::to_bits),
-        );
-    }
-    key
-}
-
 /// Every distinct integration a scene asks for: its instances, then the
 /// baselines that differ from their instance.
 pub fn scene_jobs(scene: &Scene) -> Vec<Instance> {
     let count = scene.instance_count();
     let mut instances: Vec<Instance> = (0..count).map(|i| scene.instance(i)).collect();
     if scene.baselines {
-        let mut seen: std::collections::HashSet<Vec<u64>> =
-            instances.iter().map(instance_key).collect();
+        let mut seen: std::collections::HashSet<InstanceKey> =
+            instances.iter().map(Instance::key).collect();
         let mut extra = Vec::new();
         for inst in &instances {
             for axis in 0..AXES {
                 let base = inst.baseline(axis);
-                if seen.insert(instance_key(&base)) {
+                if seen.insert(base.key()) {
                     extra.push(base);
                 }
             }

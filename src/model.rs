@@ -63,6 +63,9 @@ impl Mechanism {
     }
 }
 
+/// The bits of every parameter of an [`Instance`] ([`Instance::key`]).
+pub type InstanceKey = [u64; 22];
+
 /// Everything that defines one simulated instance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Instance {
@@ -179,6 +182,37 @@ impl Instance {
             }
         }
         out
+    }
+
+    /// The instance's exact identity: every parameter's bits. Two instances
+    /// with the same key integrate to the same result on any backend.
+    pub fn key(&self) -> InstanceKey {
+        let m = &self.mechanism;
+        let mut key = [0; 22];
+        key[..6].copy_from_slice(&[
+            m.slider_mass.to_bits(),
+            m.static_friction.to_bits(),
+            m.coulomb_friction.to_bits(),
+            m.velocity_band.to_bits(),
+            self.cycles as u64,
+            self.settle as u64,
+        ]);
+        for (i, a) in self.axes.iter().enumerate() {
+            key[6 + 8 * i..14 + 8 * i].copy_from_slice(
+                &[
+                    a.stage_mass,
+                    a.stiffness,
+                    a.damping,
+                    a.gain,
+                    a.voltage,
+                    a.frequency,
+                    a.duty,
+                    a.phase,
+                ]
+                .map(f64::to_bits),
+            );
+        }
+        key
     }
 
     /// Converts a slider displacement measured over the kept periods into

@@ -5,6 +5,7 @@
 //! Every instance is integrated independently and deterministically, so the
 //! results are the same bit for bit for any thread count and chunk size.
 
+use std::collections::HashMap;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
@@ -27,7 +28,59 @@ pub const VERIFY_ALLOWANCE_M: f64 = 1e-9;
 /// How much tighter than the scene's the tolerance of a `--verify` rerun
 /// is.
 pub const VERIFY_TIGHTENING: f64 = 100.0;
-use crate::model::{AXES, Instance};
+use crate::model::{AXES, Instance, InstanceKey};
+
+/// Baseline outcomes kept from one chunk for the next, at most: about
+/// 100 MiB.
+const MAX_REMEMBERED_BASELINES: usize = 1 << 20;
+
+/// Where a chunk's baseline comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum JobRef {
+    /// Job `j` of this chunk.
+    Run(usize),
+    /// An earlier chunk ran it.
+    Done,
+}
+
+/// The distinct integrations of a chunk: every main instance and every
+/// baseline is run once, however often it occurs (a V_x x V_y map of N x N
+/// instances has 2 N distinct baselines, not 2 N^2).
+struct Jobs {
+    jobs: Vec<Instance>,
+    /// The job of each main instance.
+    main_job: Vec<usize>,
+    /// The job of each main instance's baselines.
+    baseline_job: Vec<[JobRef; AXES]>,
+}
+
+impl Jobs {
+    fn new(mains: &[Instance], baselines: bool, done: &HashMap<InstanceKey, Outcome>) -> Jobs {
+        let mut jobs = Vec::with_capacity(mains.len());
+        let mut index: HashMap<InstanceKey, usize> = HashMap::with_capacity(mains.len());
+        let mut job_of = |inst: Instance, jobs: &mut Vec<Instance>| {
+            *index.entry(inst.key()).or_insert_with(|| {
+                jobs.push(inst);
+                jobs.len() - 1
+            })
+        };
+        let main_job: Vec<usize> = mains.iter().map(|m| job_of(*m, &mut jobs)).collect();
+        let mut baseline_job = vec![[JobRef::Done; AXES]; if baselines { mains.len() } else { 0 }];
+        for (inst, refs) in mains.iter().zip(baseline_job.iter_mut()) {
+            for (axis, r) in refs.iter_mut().enumerate() {
+                let base = inst.baseline(axis);
+                if !done.contains_key(&base.key()) {
+                    *r = JobRef::Run(job_of(base, &mut jobs));
+                }
+            }
+        }
+        Jobs {
+            jobs,
+            main_job,
+            baseline_job,
+        }
+    }
+}
 
 /// Set when the user asks the run to stop (Ctrl-C); backends check it
 /// between instances (CPU) and between time slices (GPU).
@@ -207,6 +260,8 @@ pub struct Summary {
     pub status_counts: [u64; 7],
     /// Integrator steps over all main instances.
     pub steps: u64,
+    /// Integrations run, baselines included, each distinct one once.
+    pub integrations: u64,
     /// Simulated time over all integrated instances, baselines included [s].
     pub simulated_s: f64,
     pub extreme_step: [f64; 2],
@@ -218,6 +273,7 @@ impl Default for Summary {
             instances: 0,
             status_counts: [0; 7],
             steps: 0,
+            integrations: 0,
             simulated_s: 0.0,
             extreme_step: [f64::INFINITY, f64::NEG_INFINITY],
         }
@@ -232,6 +288,7 @@ impl Summary {
             *a += b;
         }
         self.steps += other.steps;
+        self.integrations += other.integrations;
         self.simulated_s += other.simulated_s;
         self.extreme_step[0] = self.extreme_step[0].min(other.extreme_step[0]);
         self.extreme_step[1] = self.extreme_step[1].max(other.extreme_step[1]);
@@ -324,6 +381,7 @@ pub fn run(
     let total = plan.count();
     let mut summary = Summary::default();
     let mut finished_before = 0;
+    let mut baselines_done: HashMap<InstanceKey, Outcome> = HashMap::new();
     for segments in chunks(&plan.work, chunk.max(1) as u64) {
         if interrupt_requested() {
             bail!("interrupted after {finished_before} of {total} instances");
@@ -333,27 +391,15 @@ pub fn run(
             .flat_map(|r| r.clone())
             .map(|i| (plan.instance)(i))
             .collect();
-        // Jobs: the instances, then each baseline that differs from its
-        // instance (a baseline of an instance whose other axis is undriven
-        // is that instance).
-        let mut jobs = mains.clone();
-        let mut baseline_job = vec![[usize::MAX; AXES]; mains.len()];
-        if plan.baselines {
-            for (k, inst) in mains.iter().enumerate() {
-                for (axis, job) in baseline_job[k].iter_mut().enumerate() {
-                    let base = inst.baseline(axis);
-                    *job = if base == *inst {
-                        k
-                    } else {
-                        jobs.push(base);
-                        jobs.len() - 1
-                    };
-                }
-            }
-        }
-        // Progress counts main instances; baseline jobs add a proportional
+        let jobs = Jobs::new(&mains, plan.baselines, &baselines_done);
+        let Jobs {
+            jobs,
+            main_job,
+            baseline_job,
+        } = jobs;
+        // Progress counts main instances; the other jobs add a proportional
         // share.
-        let scale = mains.len() as f64 / jobs.len() as f64;
+        let scale = mains.len() as f64 / jobs.len().max(1) as f64;
         let finished = AtomicU64::new(0);
         let reported = AtomicU64::new(0);
         let done = |n: u64| {
@@ -364,7 +410,11 @@ pub fn run(
                 progress(target - before);
             }
         };
-        let mut outcomes = backend.run(&jobs, &plan.settings, &done)?;
+        let mut outcomes = if jobs.is_empty() {
+            Vec::new()
+        } else {
+            backend.run(&jobs, &plan.settings, &done)?
+        };
         if plan.verify && !interrupt_requested() {
             let tight = Settings {
                 tolerance: plan.settings.tolerance / VERIFY_TIGHTENING,
@@ -384,10 +434,15 @@ pub fn run(
         }
         let mut records = Vec::with_capacity(mains.len());
         for (k, inst) in mains.iter().enumerate() {
-            let mut rec = record(inst, &outcomes[k]);
+            let mut rec = record(inst, &outcomes[main_job[k]]);
             if plan.baselines {
-                for (axis, &j) in baseline_job[k].iter().enumerate() {
-                    let base = record(&jobs[j], &outcomes[j]);
+                for (axis, job) in baseline_job[k].iter().enumerate() {
+                    let base_inst = inst.baseline(axis);
+                    let base = match *job {
+                        JobRef::Run(j) => outcomes[j],
+                        JobRef::Done => baselines_done[&base_inst.key()],
+                    };
+                    let base = record(&base_inst, &base);
                     rec.baseline_step[axis] = base.step[axis];
                     rec.baseline_status = rec.baseline_status.max(base.status);
                 }
@@ -396,6 +451,21 @@ pub fn run(
             records.push(rec);
         }
         summary.simulated_s += jobs.iter().map(Instance::duration).sum::<f64>();
+        summary.integrations += jobs.len() as u64;
+        // Keep this chunk's baselines for the chunks after it (a grid's
+        // baselines repeat along every other axis), within a bound.
+        if plan.baselines {
+            if baselines_done.len() > MAX_REMEMBERED_BASELINES {
+                baselines_done.clear();
+            }
+            for (inst, refs) in mains.iter().zip(&baseline_job) {
+                for (axis, job) in refs.iter().enumerate() {
+                    if let JobRef::Run(j) = *job {
+                        baselines_done.insert(inst.baseline(axis).key(), outcomes[j]);
+                    }
+                }
+            }
+        }
         let mut offset = 0;
         for segment in &segments {
             let n = (segment.end - segment.start) as usize;

@@ -269,7 +269,11 @@ fn check_struct<T: HostLayout>(module: &naga::Module, layouter: &Layouter, preci
 #[test]
 fn shader_layout_matches_host_structs() {
     for precision in [Precision::F32, Precision::F64] {
-        let (module, _info) = match shader::parse_and_validate(precision) {
+        let variant = pidm::gpu::Variant {
+            precision,
+            loop_limiter: false,
+        };
+        let (module, _info) = match shader::parse_and_validate(variant) {
             Ok(m) => m,
             Err(e) => panic!("{e}"),
         };
@@ -280,19 +284,13 @@ fn shader_layout_matches_host_structs() {
         check_struct::<control::Control>(&module, &layouter, precision);
         match precision {
             Precision::F32 => {
-                check_struct::<single::Axis>(&module, &layouter, precision);
-                check_struct::<single::Mechanism>(&module, &layouter, precision);
-                check_struct::<single::Instance>(&module, &layouter, precision);
-                check_struct::<single::Settings>(&module, &layouter, precision);
-                check_struct::<single::Params>(&module, &layouter, precision);
+                check_struct::<single::Oscillator>(&module, &layouter, precision);
+                check_struct::<single::Coefficients>(&module, &layouter, precision);
                 check_struct::<single::State>(&module, &layouter, precision);
             }
             Precision::F64 => {
-                check_struct::<double::Axis>(&module, &layouter, precision);
-                check_struct::<double::Mechanism>(&module, &layouter, precision);
-                check_struct::<double::Instance>(&module, &layouter, precision);
-                check_struct::<double::Settings>(&module, &layouter, precision);
-                check_struct::<double::Params>(&module, &layouter, precision);
+                check_struct::<double::Oscillator>(&module, &layouter, precision);
+                check_struct::<double::Coefficients>(&module, &layouter, precision);
                 check_struct::<double::State>(&module, &layouter, precision);
             }
         }
@@ -572,17 +570,14 @@ fn f64_request_is_refused_or_served() {
 }
 
 #[test]
-fn the_one_dof_specialisation_runs_when_y_is_undriven_and_matches_the_cpu() {
-    // The variant choice itself needs no GPU.
+fn one_dof_instances_match_the_cpu_and_keep_y_at_rest() {
+    let Some(ctx) = context() else {
+        return;
+    };
     let mut one = paper_cases();
     for inst in &mut one {
         inst.axes[1].voltage = 0.0;
     }
-    assert_eq!(pidm::gpu::batch_variant(&one), 1);
-    assert_eq!(pidm::gpu::batch_variant(&paper_cases()), 2);
-    let Some(ctx) = context() else {
-        return;
-    };
     // Vary the x drive so the 1-DOF batch covers stick, slip and reversal.
     for (k, inst) in one.iter_mut().enumerate() {
         inst.axes[0].voltage = [100.0, -70.0, 130.0, 50.0, -120.0, 90.0, 30.0][k % 7];
@@ -592,7 +587,7 @@ fn the_one_dof_specialisation_runs_when_y_is_undriven_and_matches_the_cpu() {
     let cpu = cpu_reference(&one, &settings);
     for precision in precisions(ctx) {
         let gpu = run_batch(ctx, &one, &settings, precision, &mut |_, _| {}).expect("batch runs");
-        check("1-DOF variant", precision, &one, &cpu, &gpu);
+        check("1-DOF", precision, &one, &cpu, &gpu);
         // The y axis is exactly at rest, as MODEL.md requires.
         assert!(gpu.iter().all(|o| o.displacement[1] == 0.0));
     }

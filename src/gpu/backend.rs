@@ -18,7 +18,9 @@ pub struct GpuBackend {
 }
 
 impl GpuBackend {
-    /// Fails with a clear message when f64 is asked of an adapter without
+    /// Compiles and self-tests the pipeline (see [`GpuContext::prepare`]),
+    /// so a driver that cannot run the shader is found before any work;
+    /// fails with a clear message when f64 is asked of an adapter without
     /// `SHADER_F64`.
     pub fn new(ctx: GpuContext, precision: Precision) -> Result<GpuBackend> {
         if precision == Precision::F64 && !ctx.supports_f64() {
@@ -28,6 +30,7 @@ impl GpuBackend {
                 ctx.describe()
             );
         }
+        ctx.prepare(precision)?;
         Ok(GpuBackend { ctx, precision })
     }
 

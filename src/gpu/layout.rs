@@ -2,18 +2,19 @@
 //! the packing of instances into them.
 //!
 //! Every struct here has a WGSL twin of the same name in
-//! `shaders/integrate.wgsl`. Padding is explicit, so the structs are `Pod`
-//! and their bytes are exactly what the shader reads; the test
+//! `shaders/integrate/`. Padding is explicit, so the structs are `Pod` and
+//! their bytes are exactly what the shader reads; the test
 //! `shader_layout_matches_host_structs` checks every size and member offset
 //! against naga's layouter, so the two cannot drift apart.
 //!
 //! The f32 shader runs in micrometres and milliseconds (see [`Units`]), which
 //! keeps every intermediate of the integrator, notably the derivatives of the
 //! stage Taylor series (rate^n), inside the f32 range. The f64 shader runs in
-//! SI units, exactly like the CPU.
+//! SI units, exactly like the CPU. Either way the per-instance constants are
+//! [`crate::cpu::integrate::Coefficients`], computed in f64 and rounded once.
 
 use crate::cpu::integrate::{STATUS_OK, Settings};
-use crate::model::AXES;
+use crate::model::{AXES, Instance};
 
 /// The unit system of one precision: how many length units make a metre and
 /// how many time units make a second. Masses stay in kilograms, so forces
@@ -44,6 +45,23 @@ impl Units {
     /// Force units per newton (mass units are kilograms).
     pub fn newton(&self) -> f64 {
         self.metre / (self.second * self.second)
+    }
+
+    /// The instance in these units (in f64).
+    pub fn scale(&self, inst: &Instance) -> Instance {
+        let newton = self.newton();
+        let mut out = *inst;
+        for a in &mut out.axes {
+            a.stiffness *= newton / self.metre;
+            a.damping *= newton * self.second / self.metre;
+            a.gain *= newton;
+            a.frequency /= self.second;
+        }
+        let m = &mut out.mechanism;
+        m.static_friction *= newton;
+        m.coulomb_friction *= newton;
+        m.velocity_band *= self.metre / self.second;
+        out
     }
 }
 
@@ -85,12 +103,36 @@ macro_rules! host_struct {
 /// peeled its first pass.
 pub const PROBE_PASSES: u32 = 4;
 
+/// WGSL's `vec2<u32>` (8-byte aligned).
+#[repr(C, align(8))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct U32x2 {
+    pub x: u32,
+    pub y: u32,
+}
+
+/// WGSL's `vec2<f32>` (8-byte aligned).
+#[repr(C, align(8))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct F32x2 {
+    pub x: f32,
+    pub y: f32,
+}
+
+/// WGSL's `vec2<f64>` (16-byte aligned).
+#[repr(C, align(16))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct F64x2 {
+    pub x: f64,
+    pub y: f64,
+}
+
 /// The per-dispatch controls (precision independent).
 pub mod control {
     host_struct! {
         /// The controls of one dispatch (a read-only storage buffer).
         pub struct Control {
-            /// Iterations of `advance` in the dispatch.
+            /// Iterations of `iterate` in the dispatch.
             pub max_iterations: u32,
             /// 1 when the shader must first set every state to its initial
             /// value.
@@ -113,68 +155,80 @@ pub mod control {
 /// Declares the storage structs of one precision in a module, with the
 /// packing of instances and the unpacking of results.
 macro_rules! precision_structs {
-    ($module:ident, $real:ty, $units:expr) => {
+    ($module:ident, $real:ty, $v2:ident, $units:expr, $time_epsilon:expr) => {
         /// Storage structs of one precision.
         pub mod $module {
             use super::*;
+            use crate::cpu::integrate::coefficients::Oscillator as ExactOscillator;
+            use crate::cpu::integrate::{Coefficients as Exact, Vec2};
 
             /// The scalar type of this precision.
             pub type Real = $real;
+            /// WGSL's `vec2<Real>`.
+            pub type V2 = $v2;
 
             /// The unit system this precision computes in.
             pub const UNITS: Units = $units;
 
-            host_struct! {
-                /// `pidm::model::Axis` in shader units.
-                pub struct Axis {
-                    pub stage_mass: Real,
-                    pub stiffness: Real,
-                    pub damping: Real,
-                    pub gain: Real,
-                    pub voltage: Real,
-                    pub frequency: Real,
-                    pub duty: Real,
-                    pub phase: Real,
+            fn v2(v: Vec2) -> V2 {
+                V2 {
+                    x: v.x as Real,
+                    y: v.y as Real,
                 }
             }
 
             host_struct! {
-                /// `pidm::model::Mechanism` in shader units.
-                pub struct Mechanism {
-                    pub slider_mass: Real,
-                    pub holding_friction: Real,
-                    pub coulomb_friction: Real,
-                    pub velocity_band: Real,
+                /// `pidm::cpu::integrate::coefficients::Oscillator`.
+                pub struct Oscillator {
+                    pub mass: V2,
+                    pub sigma: V2,
+                    pub w2: V2,
+                    pub rate: V2,
+                    pub inv_mass: V2,
+                    pub inv_w2: V2,
                 }
             }
 
             host_struct! {
-                /// `pidm::model::Instance` in shader units, with its scene
-                /// period and each axis' drive cycles per period.
-                pub struct Instance {
-                    pub mechanism: Mechanism,
-                    pub axes: [Axis; AXES],
+                /// `pidm::cpu::integrate::Coefficients` in shader units.
+                pub struct Coefficients {
+                    pub stage_mass: V2,
+                    pub stiffness: V2,
+                    pub damping: V2,
+                    pub inv_stiffness: V2,
+                    pub stick: Oscillator,
+                    pub slip: Oscillator,
+                    pub amplitude: V2,
+                    pub frequency: V2,
+                    pub duty: V2,
+                    pub inv_duty: V2,
+                    pub inv_fall: V2,
+                    pub rise_slope: V2,
+                    pub fall_slope: V2,
+                    pub phase: V2,
+                    pub cycles_per_period: V2,
+                    pub stage_share: V2,
+                    pub slider_share: V2,
+                    pub slip_scale: V2,
+                    pub slip_b: V2,
+                    pub slip_b_max: Real,
+                    pub hold2: Real,
+                    pub ms2: Real,
+                    pub coulomb: Real,
+                    pub fc_over_ms: Real,
+                    pub band2: Real,
                     pub period: Real,
-                    pub cycles_per_period: [Real; AXES],
+                    pub event_step_stuck: Real,
+                    pub event_step_slip: Real,
+                    pub min_step: Real,
+                    pub tolerance: Real,
+                    pub collocation_tolerance: Real,
                     pub cycles: u32,
                     pub settle: u32,
-                }
-            }
-
-            host_struct! {
-                /// `pidm::cpu::integrate::Settings`.
-                pub struct Settings {
-                    pub tolerance: Real,
-                    pub max_steps_per_period: u32,
-                    pub _pad: u32,
-                }
-            }
-
-            host_struct! {
-                /// Everything the shader reads about one instance.
-                pub struct Params {
-                    pub inst: Instance,
-                    pub settings: Settings,
+                    pub budget: u32,
+                    pub frictionless: u32,
+                    pub driven: U32x2,
+                    pub _pad: U32x2,
                 }
             }
 
@@ -182,98 +236,123 @@ macro_rules! precision_structs {
                 /// `pidm::cpu::integrate::State` in shader units, plus the
                 /// low part of the two-part time.
                 pub struct State {
-                    pub x_p: [Real; AXES],
-                    pub v_p: [Real; AXES],
-                    pub x_s: [Real; AXES],
-                    pub v_s: [Real; AXES],
-                    pub held: [Real; AXES],
-                    pub settle_x_s: [Real; AXES],
-                    pub cycle_phase: [Real; AXES],
-                    pub next_corner: [Real; AXES],
+                    pub x_p: V2,
+                    pub v_p: V2,
+                    pub x_s: V2,
+                    pub v_s: V2,
+                    pub held: V2,
+                    pub settle_x_s: V2,
+                    pub cycle_phase: V2,
+                    pub next_corner: V2,
                     pub time: Real,
                     pub time_lo: Real,
                     pub h_slip: Real,
-                    pub rising: [u32; AXES],
+                    pub _pad: Real,
+                    pub rising: U32x2,
                     pub mode: u32,
                     pub period: u32,
                     pub status: u32,
                     pub steps: u32,
                     pub stalled: u32,
-                    pub _pad: u32,
+                    pub rejections: u32,
                 }
             }
 
-            /// Packs one instance and the batch settings in shader units.
-            /// Derived quantities (the period, drive cycles per period) are
-            /// computed in f64 and rounded once.
-            pub fn pack(inst: &crate::model::Instance, settings: &super::Settings) -> Params {
-                let u = UNITS;
-                let newton = u.newton();
-                let period = inst.period();
-                let axis = |a: &crate::model::Axis| Axis {
-                    stage_mass: a.stage_mass as Real,
-                    stiffness: (a.stiffness * newton / u.metre) as Real,
-                    damping: (a.damping * newton * u.second / u.metre) as Real,
-                    gain: (a.gain * newton) as Real,
-                    voltage: a.voltage as Real,
-                    frequency: (a.frequency / u.second) as Real,
-                    duty: a.duty as Real,
-                    phase: a.phase as Real,
-                };
-                let m = &inst.mechanism;
-                let mut cycles_per_period = [0.0; AXES];
-                for (i, c) in cycles_per_period.iter_mut().enumerate() {
-                    *c = (inst.axes[i].frequency * period) as Real;
+            fn oscillator(o: &ExactOscillator) -> Oscillator {
+                Oscillator {
+                    mass: v2(o.mass),
+                    sigma: v2(o.sigma),
+                    w2: v2(o.w2),
+                    rate: v2(o.rate),
+                    inv_mass: v2(o.inv_mass),
+                    inv_w2: v2(o.inv_w2),
                 }
-                Params {
-                    inst: Instance {
-                        mechanism: Mechanism {
-                            slider_mass: m.slider_mass as Real,
-                            holding_friction: (m.holding_friction() * newton) as Real,
-                            coulomb_friction: (m.coulomb_friction * newton) as Real,
-                            velocity_band: (m.velocity_band * u.metre / u.second) as Real,
-                        },
-                        axes: [axis(&inst.axes[0]), axis(&inst.axes[1])],
-                        period: (period * u.second) as Real,
-                        cycles_per_period,
-                        cycles: inst.cycles,
-                        settle: inst.settle,
+            }
+
+            /// Packs one instance and the batch settings in shader units:
+            /// the coefficients are computed in f64 from the instance in
+            /// these units and rounded once.
+            pub fn pack(inst: &Instance, settings: &Settings) -> Coefficients {
+                let c = Exact::new(&UNITS.scale(inst), settings, $time_epsilon);
+                Coefficients {
+                    stage_mass: v2(c.stage_mass),
+                    stiffness: v2(c.stiffness),
+                    damping: v2(c.damping),
+                    inv_stiffness: v2(c.inv_stiffness),
+                    stick: oscillator(&c.stick),
+                    slip: oscillator(&c.slip),
+                    amplitude: v2(c.amplitude),
+                    frequency: v2(c.frequency),
+                    duty: v2(c.duty),
+                    inv_duty: v2(c.inv_duty),
+                    inv_fall: v2(c.inv_fall),
+                    rise_slope: v2(c.rise_slope),
+                    fall_slope: v2(c.fall_slope),
+                    phase: v2(c.phase),
+                    cycles_per_period: v2(c.cycles_per_period),
+                    stage_share: v2(c.stage_share),
+                    slider_share: v2(c.slider_share),
+                    slip_scale: v2(c.slip_scale),
+                    slip_b: v2(c.slip_b),
+                    slip_b_max: c.slip_b_max as Real,
+                    hold2: c.hold2 as Real,
+                    ms2: c.ms2 as Real,
+                    coulomb: c.coulomb as Real,
+                    fc_over_ms: c.fc_over_ms as Real,
+                    band2: c.band2 as Real,
+                    period: c.period as Real,
+                    event_step_stuck: c.event_step_stuck as Real,
+                    event_step_slip: c.event_step_slip as Real,
+                    min_step: c.min_step as Real,
+                    tolerance: c.tolerance as Real,
+                    collocation_tolerance: c.collocation_tolerance as Real,
+                    cycles: c.cycles,
+                    settle: c.settle,
+                    budget: c.budget,
+                    frictionless: c.frictionless as u32,
+                    driven: U32x2 {
+                        x: c.driven[0] as u32,
+                        y: c.driven[1] as u32,
                     },
-                    settings: Settings {
-                        tolerance: settings.tolerance as Real,
-                        max_steps_per_period: settings.max_steps_per_period,
-                        _pad: 0,
-                    },
+                    _pad: U32x2::default(),
                 }
             }
 
             /// The outcome of a finished state, back in SI units: the slider
             /// displacement over the measured periods, or zero where the
             /// instance did not finish normally (as the CPU reports it).
-            pub fn unpack(inst: &crate::model::Instance, st: &State) -> super::super::GpuOutcome {
+            pub fn unpack(inst: &Instance, st: &State) -> super::super::GpuOutcome {
                 let mut displacement = [0.0; AXES];
                 if st.status == STATUS_OK && st.period >= inst.cycles {
-                    for (i, d) in displacement.iter_mut().enumerate() {
-                        *d = (st.x_s[i] as f64 - st.settle_x_s[i] as f64) / UNITS.metre;
-                    }
+                    displacement = [
+                        (st.x_s.x as f64 - st.settle_x_s.x as f64) / UNITS.metre,
+                        (st.x_s.y as f64 - st.settle_x_s.y as f64) / UNITS.metre,
+                    ];
                 }
                 super::super::GpuOutcome {
                     displacement,
                     status: st.status,
                     steps: st.steps,
+                    cpu_fallback: false,
                 }
             }
         }
     };
 }
 
-precision_structs!(single, f32, Units::MICRO_MILLI);
-precision_structs!(double, f64, Units::SI);
+precision_structs!(
+    single,
+    f32,
+    F32x2,
+    Units::MICRO_MILLI,
+    crate::gpu::shader::F32_TIME_EPSILON
+);
+precision_structs!(double, f64, F64x2, Units::SI, f64::EPSILON);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::Instance;
+    use crate::cpu::integrate::Coefficients;
 
     #[test]
     fn units_keep_the_force_unit_one_newton() {
@@ -284,15 +363,18 @@ mod tests {
     #[test]
     fn packing_scales_the_paper_mechanism_to_order_one() {
         let p = single::pack(&Instance::TABLE1, &Settings::default());
-        let a = p.inst.axes[0];
         // w2 = k / m = 4e8 s^-2 = 400 ms^-2.
-        assert!((a.stiffness / a.stage_mass - 400.0).abs() < 1e-3);
-        assert!((a.frequency - 0.01).abs() < 1e-9);
-        assert!((p.inst.period - 100.0).abs() < 1e-5);
-        assert!((p.inst.mechanism.velocity_band - 1e-3).abs() < 1e-9);
+        assert!((p.slip.w2.x - 400.0).abs() < 1e-3);
+        assert!((p.frequency.x - 0.01).abs() < 1e-9);
+        assert!((p.period - 100.0).abs() < 1e-5);
+        assert!((p.band2 - 1e-6).abs() < 1e-12);
+        // f64 packs exactly the CPU's coefficients.
         let d = double::pack(&Instance::TABLE1, &Settings::default());
-        assert_eq!(d.inst.axes[0].stiffness, 1.0e6);
-        assert_eq!(d.inst.period, Instance::TABLE1.period());
-        assert_eq!(d.inst.cycles_per_period, [1.0, 1.0]);
+        let c = Coefficients::new(&Instance::TABLE1, &Settings::default(), f64::EPSILON);
+        assert_eq!(d.stiffness.x, 1.0e6);
+        assert_eq!(d.period, Instance::TABLE1.period());
+        assert_eq!(d.cycles_per_period.x, 1.0);
+        assert_eq!(d.stick.rate.y, c.stick.rate.y);
+        assert_eq!(d.event_step_slip, c.event_step_slip);
     }
 }

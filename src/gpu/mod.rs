@@ -1,38 +1,49 @@
-//! The GPU backend: `shaders/integrate.wgsl`, a function-by-function port of
-//! [`crate::cpu::integrate`], run through wgpu with one invocation per
-//! instance.
+//! The GPU backend: the WGSL shader in `shaders/integrate/`, a
+//! file-by-file mirror of [`crate::cpu::integrate`], run through wgpu with
+//! one invocation per instance.
 //!
 //! * [`GpuContext::new`] picks an adapter and opens a device; the work
 //!   itself ([`execute_gpu_inner`]) takes any device, so tests and callers
 //!   may pass their own.
+//! * [`GpuContext::prepare`] compiles the pipeline of a precision and runs a
+//!   self-test batch against the CPU before any instance is integrated: a
+//!   driver that fails to compile the shader without saying so through
+//!   wgpu (NVIDIA's "NVVM compilation failed" loses the device) or that
+//!   computes wrong numbers is caught there, as a [`GpuError`], never a
+//!   panic.
 //! * A batch is integrated in time slices: every dispatch advances every
 //!   instance by at most [`BatchOptions::slice_iterations`] iterations of
-//!   `advance`, the states stay in a storage buffer between dispatches, an
+//!   `iterate`, the states stay in a storage buffer between dispatches, an
 //!   atomic counts the instances still unfinished, and the host dispatches
 //!   again until none is. No dispatch has to run an instance to its end,
 //!   which desktop watchdogs would not allow.
 //! * llvmpipe (lavapipe, and Mesa's GL on the CPU) ends every loop of an
 //!   invocation once all its loops together have run 65,535 iterations,
-//!   silently. The shader checks after each iteration of `advance` whether
-//!   that happened; if so it undoes the iteration and ends the slice, and
-//!   the next dispatch redoes it with a fresh budget. An iteration that
-//!   cannot fit in one budget ends with [`STATUS_LOOP_LIMIT`], and the host
-//!   integrates that instance on the CPU. Results do not depend on the slice
-//!   length.
+//!   silently. Its pipelines check after each iteration whether that
+//!   happened; if so the iteration is undone and the slice ends, and the
+//!   next dispatch redoes it with a fresh budget. An iteration that cannot
+//!   fit in one budget ends with [`STATUS_LOOP_LIMIT`], and the host
+//!   integrates that instance on the CPU ([`GpuOutcome::cpu_fallback`]
+//!   says so). Results do not depend on the slice length.
 //! * Batches larger than the device's storage-binding, buffer or dispatch
 //!   limits are split automatically (and dispatched in two dimensions when
 //!   one is not enough).
 //! * f32 runs everywhere; f64 where the adapter offers `SHADER_F64`. The f32
 //!   shader computes in micrometres and milliseconds and keeps the time as
-//!   a two-part number (see [`layout::Units`] and `shaders/integrate.wgsl`).
+//!   a two-part number (see [`layout::Units`]).
+//! * Compiled pipelines are kept in a [`wgpu::PipelineCache`] on disk where
+//!   the adapter supports one (Vulkan), so a later run skips the driver's
+//!   compile ([`cache`]).
 
 pub mod backend;
+pub mod cache;
 pub mod layout;
 pub mod shader;
 
 pub use backend::GpuBackend;
+pub use shader::Variant;
 
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 use thiserror::Error;
 use wgpu::util::DeviceExt;
@@ -47,15 +58,15 @@ use layout::control::Control;
 /// CPU threads.
 pub const WORKGROUP_SIZE: u32 = 32;
 
-/// Iterations of `advance` per instance and dispatch: a dispatch then takes
+/// Iterations of `iterate` per instance and dispatch: a dispatch then takes
 /// milliseconds on a GPU, far from any watchdog.
 pub const SLICE_ITERATIONS: u32 = 1024;
 
-/// Status the shader gives an instance when a single iteration of `advance`
-/// needs more loop iterations than the driver allows one invocation
-/// (llvmpipe/lavapipe stop every loop of an invocation after 65,535 loop
-/// iterations in total). [`run_batch`] integrates such instances on the CPU
-/// instead, so callers never see this status.
+/// Status the shader gives an instance when a single iteration needs more
+/// loop iterations than the driver allows one invocation (llvmpipe/lavapipe
+/// stop every loop of an invocation after 65,535 loop iterations in total).
+/// [`run_batch`] integrates such instances on the CPU instead and marks
+/// them ([`GpuOutcome::cpu_fallback`]), so callers never see this status.
 pub const STATUS_LOOP_LIMIT: u32 = 100;
 
 /// Floating-point precision of the shader.
@@ -90,6 +101,17 @@ pub enum GpuError {
         precision: Precision,
         message: String,
     },
+    /// The device was lost or reported an error outside any error scope
+    /// (NVIDIA's driver loses the device when its compiler fails).
+    #[error("the GPU device {adapter} failed: {message}")]
+    Device { adapter: String, message: String },
+    /// The pipeline compiled but its self-test batch disagreed with the CPU.
+    #[error("the {precision:?} pipeline on {adapter} failed its self-test: {message}")]
+    SelfTest {
+        precision: Precision,
+        adapter: String,
+        message: String,
+    },
     /// A readback buffer could not be mapped.
     #[error("mapping a readback buffer failed: {0}")]
     BufferMapping(String),
@@ -111,8 +133,13 @@ pub struct AdapterSummary {
     pub name: String,
     pub device_type: String,
     pub backend: String,
+    /// The driver and its version, as the adapter reports them.
+    pub driver: String,
     /// True when the adapter offers `SHADER_F64`.
     pub f64: bool,
+    /// True when the adapter keeps compiled pipelines in a cache wgpu can
+    /// save (`PIPELINE_CACHE`).
+    pub pipeline_cache: bool,
     pub max_storage_buffer_binding_size: u64,
     pub max_buffer_size: u64,
     pub max_compute_workgroups_per_dimension: u32,
@@ -128,13 +155,16 @@ pub struct GpuOutcome {
     pub status: u32,
     /// Steps taken (accepted, rejected and events).
     pub steps: u32,
+    /// True when the driver's loop limiter kept the shader from advancing
+    /// this instance at all and the CPU integrated it instead.
+    pub cpu_fallback: bool,
 }
 
 /// Tuning knobs of [`run_batch_with`]; [`Default`] is what [`run_batch`]
 /// uses.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BatchOptions {
-    /// Iterations of `advance` per dispatch.
+    /// Iterations of `iterate` per dispatch.
     pub slice_iterations: u32,
     /// Largest number of instances per dispatch batch, on top of the
     /// device's limits (tests force small batches with it).
@@ -168,13 +198,25 @@ fn summary(adapter: &wgpu::Adapter) -> AdapterSummary {
     let info = adapter.get_info();
     let limits = adapter.limits();
     AdapterSummary {
-        name: info.name,
+        name: info.name.clone(),
         device_type: format!("{:?}", info.device_type),
         backend: format!("{:?}", info.backend),
+        driver: driver_of(&info),
         f64: adapter.features().contains(wgpu::Features::SHADER_F64),
+        pipeline_cache: adapter.features().contains(wgpu::Features::PIPELINE_CACHE),
         max_storage_buffer_binding_size: limits.max_storage_buffer_binding_size,
         max_buffer_size: limits.max_buffer_size,
         max_compute_workgroups_per_dimension: limits.max_compute_workgroups_per_dimension,
+    }
+}
+
+/// "NVIDIA 580.159.04": the driver's name and version.
+fn driver_of(info: &wgpu::AdapterInfo) -> String {
+    match (info.driver.is_empty(), info.driver_info.is_empty()) {
+        (false, false) => format!("{} {}", info.driver, info.driver_info),
+        (false, true) => info.driver.clone(),
+        (true, false) => info.driver_info.clone(),
+        (true, true) => "unknown driver".to_string(),
     }
 }
 
@@ -191,6 +233,13 @@ fn is_software(info: &wgpu::AdapterInfo) -> bool {
         || ["llvmpipe", "lavapipe", "swiftshader", "softpipe", "warp"]
             .iter()
             .any(|n| name.contains(n))
+}
+
+/// True for adapters whose shader loops stop silently after 65,535
+/// iterations (Mesa's llvmpipe, behind lavapipe and its GL driver).
+fn has_loop_limiter(info: &wgpu::AdapterInfo) -> bool {
+    let name = info.name.to_lowercase();
+    name.contains("llvmpipe") || name.contains("lavapipe")
 }
 
 /// Preference among usable adapters: discrete, integrated, virtual, other,
@@ -213,6 +262,28 @@ fn rank(adapter: &wgpu::Adapter) -> (u32, bool) {
     )
 }
 
+/// Errors the device reported outside any error scope, and its loss.
+#[derive(Default)]
+struct DeviceHealth {
+    failure: Mutex<Option<String>>,
+}
+
+impl DeviceHealth {
+    fn record(&self, message: String) {
+        let mut failure = self.failure.lock().unwrap_or_else(|e| e.into_inner());
+        if failure.is_none() {
+            *failure = Some(message);
+        }
+    }
+
+    fn failure(&self) -> Option<String> {
+        self.failure
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+}
+
 /// An open device with what the batches need to know about it.
 pub struct GpuContext {
     device: wgpu::Device,
@@ -220,8 +291,11 @@ pub struct GpuContext {
     info: wgpu::AdapterInfo,
     f64: bool,
     limits: wgpu::Limits,
-    /// Compiled pipelines, [F32, F64] x [2-DOF, 1-DOF], built on first use.
-    pipelines: Mutex<[Option<wgpu::ComputePipeline>; 4]>,
+    health: Arc<DeviceHealth>,
+    /// The driver's pipeline cache, where the adapter offers one.
+    cache: Option<cache::DiskCache>,
+    /// Compiled and self-tested pipelines, [F32, F64], built on first use.
+    pipelines: Mutex<[Option<wgpu::ComputePipeline>; 2]>,
     /// Held while a batch runs: batches on one context take turns (wgpu's
     /// GL backend does not survive two threads submitting at once).
     busy: Mutex<()>,
@@ -267,16 +341,14 @@ impl GpuContext {
         Self::from_adapter(&adapter)
     }
 
-    /// Opens a device on a given adapter, with its full limits and
-    /// `SHADER_F64` where offered.
+    /// Opens a device on a given adapter, with its full limits, and
+    /// `SHADER_F64` and `PIPELINE_CACHE` where offered.
     pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<GpuContext, GpuError> {
         let info = adapter.get_info();
-        let f64 = adapter.features().contains(wgpu::Features::SHADER_F64);
+        let offered = adapter.features();
+        let f64 = offered.contains(wgpu::Features::SHADER_F64);
         let limits = adapter.limits();
-        let mut features = wgpu::Features::empty();
-        if f64 {
-            features |= wgpu::Features::SHADER_F64;
-        }
+        let features = offered & (wgpu::Features::SHADER_F64 | wgpu::Features::PIPELINE_CACHE);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("pidm"),
             required_features: features,
@@ -287,13 +359,32 @@ impl GpuContext {
             adapter: info.name.clone(),
             message: e.to_string(),
         })?;
+        // wgpu panics on errors outside any error scope unless a handler
+        // takes them: record them (and the device's loss) instead, and turn
+        // them into errors where the work checks.
+        let health = Arc::new(DeviceHealth::default());
+        let on_error = health.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            on_error.record(e.to_string())
+        }));
+        let on_lost = health.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            on_lost.record(format!("device lost ({reason:?}): {message}"))
+        });
+        let cache = if features.contains(wgpu::Features::PIPELINE_CACHE) {
+            cache::DiskCache::open(&device, &info)
+        } else {
+            None
+        };
         Ok(GpuContext {
             device,
             queue,
             info,
             f64,
             limits,
-            pipelines: Mutex::new([None, None, None, None]),
+            health,
+            cache,
+            pipelines: Mutex::new([None, None]),
             busy: Mutex::new(()),
         })
     }
@@ -307,6 +398,11 @@ impl GpuContext {
         )
     }
 
+    /// The driver and its version.
+    pub fn driver(&self) -> String {
+        driver_of(&self.info)
+    }
+
     /// True unless the adapter is a software rasteriser.
     pub fn is_hardware(&self) -> bool {
         !is_software(&self.info)
@@ -315,6 +411,11 @@ impl GpuContext {
     /// True when the device runs f64 shaders.
     pub fn supports_f64(&self) -> bool {
         self.f64
+    }
+
+    /// Where compiled pipelines are kept between runs, if anywhere.
+    pub fn pipeline_cache_path(&self) -> Option<&std::path::Path> {
+        self.cache.as_ref().map(|c| c.path())
     }
 
     /// The device's limits (the adapter's best).
@@ -330,12 +431,30 @@ impl GpuContext {
         &self.queue
     }
 
-    /// The compiled pipeline of one precision, built once.
-    fn pipeline(
-        &self,
-        precision: Precision,
-        active_axes: u32,
-    ) -> Result<wgpu::ComputePipeline, GpuError> {
+    /// The shader variant this adapter runs in a precision.
+    pub fn variant(&self, precision: Precision) -> Variant {
+        Variant {
+            precision,
+            loop_limiter: has_loop_limiter(&self.info),
+        }
+    }
+
+    /// An error if the device failed or was lost so far.
+    fn check_health(&self) -> Result<(), GpuError> {
+        match self.health.failure() {
+            Some(message) => Err(GpuError::Device {
+                adapter: self.describe(),
+                message,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Compiles the pipeline of a precision and tests it against the CPU,
+    /// once per context; a later call returns the first outcome's pipeline.
+    /// Every driver failure becomes an error here, before any instance of a
+    /// run is integrated.
+    pub fn prepare(&self, precision: Precision) -> Result<wgpu::ComputePipeline, GpuError> {
         if precision == Precision::F64 && !self.f64 {
             return Err(GpuError::F64Unsupported {
                 adapter: self.describe(),
@@ -344,46 +463,107 @@ impl GpuContext {
         let slot = match precision {
             Precision::F32 => 0,
             Precision::F64 => 1,
-        } + if active_axes == 1 { 2 } else { 0 };
-        let mut cache = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(p) = &cache[slot] {
+        };
+        let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = &pipelines[slot] {
             return Ok(p.clone());
         }
-        let pipeline = create_pipeline_for(&self.device, precision, active_axes)?;
-        cache[slot] = Some(pipeline.clone());
+        let variant = self.variant(precision);
+        let pipeline = create_pipeline_cached(
+            &self.device,
+            variant,
+            self.cache.as_ref().map(|c| c.cache()),
+        )?;
+        self.check_health()?;
+        self.self_test(&pipeline, precision)?;
+        if let Some(cache) = &self.cache {
+            cache.save();
+        }
+        pipelines[slot] = Some(pipeline.clone());
         Ok(pipeline)
     }
-}
 
-/// The variant a batch needs: 1 (the 1-DOF specialisation) when axis y is
-/// undriven in every instance, else 2.
-pub fn batch_variant(instances: &[Instance]) -> u32 {
-    if instances.iter().all(|inst| !inst.axes[1].is_driven()) {
-        1
-    } else {
-        2
+    /// Runs the self-test batch (MODEL.md's Fig. 8 case, two periods, and
+    /// its 1-DOF x baseline) on a fresh pipeline and compares with the CPU.
+    fn self_test(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        precision: Precision,
+    ) -> Result<(), GpuError> {
+        let mut fig8 = Instance::TABLE1;
+        fig8.axes[1].frequency = 20.0;
+        fig8.cycles = 2;
+        fig8.settle = 1;
+        let instances = [fig8, fig8.baseline(0)];
+        let settings = Settings::default();
+        let fail = |message: String| GpuError::SelfTest {
+            precision,
+            adapter: self.describe(),
+            message,
+        };
+        let outcomes = execute_gpu_inner(
+            &self.device,
+            &self.queue,
+            pipeline,
+            &self.limits,
+            &instances,
+            &settings,
+            precision,
+            &BatchOptions::default(),
+            &mut |_, _| {},
+        )
+        .map_err(|e| fail(e.to_string()))?;
+        self.check_health()?;
+        // f64 mirrors the CPU to rounding; f32 to its own precision.
+        let allowance = match precision {
+            Precision::F32 => 0.01e-6,
+            Precision::F64 => 1e-12,
+        };
+        for (inst, got) in instances.iter().zip(&outcomes) {
+            let want = run_instance(inst, &settings);
+            let want_d = displacement(inst, &want);
+            if got.status != want.status {
+                return Err(fail(format!(
+                    "status {} where the CPU ends with {}",
+                    got.status, want.status
+                )));
+            }
+            for (axis, (&g, &w)) in got.displacement.iter().zip(&want_d).enumerate() {
+                let step = |d: f64| inst.measure(axis, d).1;
+                let err = (step(g) - step(w)).abs();
+                if err.is_nan() || err > allowance {
+                    return Err(fail(format!(
+                        "axis {axis} steps {:.6e} m where the CPU gives {:.6e} m",
+                        step(g),
+                        step(w)
+                    )));
+                }
+            }
+        }
+        Ok(())
     }
 }
 
-/// Compiles the integrator for one precision on a device. The source is
+/// Compiles the integrator for one precision on a device, with the variant
+/// a device of that kind needs (`loop_limiter` for llvmpipe). The source is
 /// validated with naga first, so errors come with source locations.
 pub fn create_pipeline(
     device: &wgpu::Device,
-    precision: Precision,
+    variant: Variant,
 ) -> Result<wgpu::ComputePipeline, GpuError> {
-    create_pipeline_for(device, precision, 2)
+    create_pipeline_cached(device, variant, None)
 }
 
-/// Compiles one variant: `active_axes` = 2 for the 2-DOF integrator, 1 for
-/// the 1-DOF specialisation (axis y undriven).
-pub fn create_pipeline_for(
+fn create_pipeline_cached(
     device: &wgpu::Device,
-    precision: Precision,
-    active_axes: u32,
+    variant: Variant,
+    cache: Option<&wgpu::PipelineCache>,
 ) -> Result<wgpu::ComputePipeline, GpuError> {
-    shader::parse_and_validate(precision)?;
-    let src = shader::source_for(precision, active_axes);
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let precision = variant.precision;
+    shader::parse_and_validate(variant)?;
+    let src = shader::source(variant);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
     // wgpu's default runtime checks clamp every dynamic array index and add
     // a counter to every loop. Both keep the driver's compiler from
     // unrolling the integrator's short loops, so arrays stay in scratch
@@ -397,13 +577,12 @@ pub fn create_pipeline_for(
     // SAFETY: every array index in the shader is a constant or a counter of
     // a loop bounded by the array's length, the storage arrays are indexed
     // only below both their `arrayLength`s, and every loop is bounded: by a
-    // constant, by
-    // `max_iterations`, by a rejection or squaring limit, or (the
-    // loop-limiter probe) by `control.probe` passes.
+    // constant, by `max_iterations`, or (the loop-limiter probe) by
+    // `control.probe` passes.
     let module = unsafe {
         device.create_shader_module_trusted(
             wgpu::ShaderModuleDescriptor {
-                label: Some("integrate.wgsl"),
+                label: Some("shaders/integrate"),
                 source: wgpu::ShaderSource::Wgsl(src.into()),
             },
             checks,
@@ -415,9 +594,11 @@ pub fn create_pipeline_for(
         module: &module,
         entry_point: Some(shader::ENTRY_POINT),
         compilation_options: Default::default(),
-        cache: None,
+        cache,
     });
-    if let Some(e) = pollster::block_on(scope.pop()) {
+    let internal = pollster::block_on(internal.pop());
+    let validation = pollster::block_on(validation.pop());
+    if let Some(e) = validation.or(internal) {
         return Err(GpuError::ShaderCompile {
             precision,
             message: e.to_string(),
@@ -454,9 +635,9 @@ pub fn run_batch_with(
     options: &BatchOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
+    let pipeline = ctx.prepare(precision)?;
     let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-    let pipeline = ctx.pipeline(precision, batch_variant(instances))?;
-    execute_gpu_inner(
+    let out = execute_gpu_inner(
         &ctx.device,
         &ctx.queue,
         &pipeline,
@@ -466,7 +647,9 @@ pub fn run_batch_with(
         precision,
         options,
         progress,
-    )
+    )?;
+    ctx.check_health()?;
+    Ok(out)
 }
 
 /// The work of [`run_batch`] on any device: `pipeline` must come from
@@ -500,9 +683,9 @@ pub fn execute_gpu_inner(
 
 /// The host side of one precision: its storage structs and their packing.
 trait Layout {
-    type Params: HostLayout;
+    type Coefficients: HostLayout;
     type State: HostLayout;
-    fn pack(inst: &Instance, settings: &Settings) -> Self::Params;
+    fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
 }
 
@@ -510,9 +693,9 @@ struct Single;
 struct Double;
 
 impl Layout for Single {
-    type Params = layout::single::Params;
+    type Coefficients = layout::single::Coefficients;
     type State = layout::single::State;
-    fn pack(inst: &Instance, settings: &Settings) -> Self::Params {
+    fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::single::pack(inst, settings)
     }
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
@@ -521,9 +704,9 @@ impl Layout for Single {
 }
 
 impl Layout for Double {
-    type Params = layout::double::Params;
+    type Coefficients = layout::double::Coefficients;
     type State = layout::double::State;
-    fn pack(inst: &Instance, settings: &Settings) -> Self::Params {
+    fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::double::pack(inst, settings)
     }
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
@@ -534,13 +717,13 @@ impl Layout for Double {
 /// Largest number of instances one dispatch batch may hold on a device.
 pub fn max_batch_instances(
     limits: &wgpu::Limits,
-    params_size: usize,
+    coefficients_size: usize,
     state_size: usize,
     options: &BatchOptions,
 ) -> usize {
     let binding = limits.max_storage_buffer_binding_size;
     let buffer = limits.max_buffer_size;
-    let largest = params_size.max(state_size) as u64;
+    let largest = coefficients_size.max(state_size) as u64;
     let by_memory = binding.min(buffer) / largest;
     let dim = limits.max_compute_workgroups_per_dimension as u64;
     let by_dispatch = dim * dim * WORKGROUP_SIZE as u64;
@@ -578,7 +761,7 @@ impl Runner<'_> {
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let per_batch = max_batch_instances(
             self.limits,
-            size_of::<L::Params>(),
+            size_of::<L::Coefficients>(),
             size_of::<L::State>(),
             self.options,
         );
@@ -598,6 +781,7 @@ impl Runner<'_> {
                     displacement: displacement(inst, &st),
                     status: st.status,
                     steps: st.steps,
+                    cpu_fallback: true,
                 };
             }
         }
@@ -634,13 +818,13 @@ impl Runner<'_> {
         let device = self.device;
         let queue = self.queue;
         let n = instances.len();
-        let params: Vec<L::Params> = instances
+        let coefficients: Vec<L::Coefficients> = instances
             .iter()
             .map(|inst| L::pack(inst, self.settings))
             .collect();
-        let params_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("params"),
-            contents: bytemuck::cast_slice(&params),
+        let coefficients_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("coefficients"),
+            contents: bytemuck::cast_slice(&coefficients),
             usage: wgpu::BufferUsages::STORAGE,
         });
         let state_bytes = (n * size_of::<L::State>()) as u64;
@@ -696,7 +880,7 @@ impl Runner<'_> {
                     entries: &[
                         wgpu::BindGroupEntry {
                             binding: 0,
-                            resource: params_buffer.as_entire_binding(),
+                            resource: coefficients_buffer.as_entire_binding(),
                         },
                         wgpu::BindGroupEntry {
                             binding: 1,

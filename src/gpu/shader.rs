@@ -1,13 +1,51 @@
-//! The WGSL source of the integrator and its per-precision prelude.
+//! The WGSL source of the integrator and its per-variant prelude.
 //!
-//! `shaders/integrate.wgsl` is written against a `Real` type and a handful
-//! of constants; the prelude defines them for one precision. The prelude is
-//! the one place the shader learns [`WORKGROUP_SIZE`].
+//! `shaders/integrate/*.wgsl` is written against a `Real` type, a `V2`
+//! vector of two `Real`s, the integrator's constants and a few arithmetic
+//! helpers; the prelude defines them for one [`Variant`]. The constants come
+//! from [`crate::cpu::integrate::constants`], the one place they are
+//! written. Every shader file but `entry.wgsl` mirrors the Rust file of the
+//! same name in `src/cpu/integrate/` (`advance.wgsl` mirrors `mod.rs`).
 
-use super::{GpuError, Precision, WORKGROUP_SIZE};
+use super::{GpuError, Precision, STATUS_LOOP_LIMIT, WORKGROUP_SIZE};
+use crate::cpu::integrate::constants::{self, TAYLOR_STAGE_TERMS, TAYLOR_TERMS};
 
-/// The integrator, without its prelude.
-pub const INTEGRATE_WGSL: &str = include_str!("../../shaders/integrate.wgsl");
+/// The shader files, in the order they are concatenated (WGSL declarations
+/// may come in any order; this one reads top-down), with their text.
+pub const FILES: [(&str, &str); 8] = [
+    (
+        "arith.wgsl",
+        include_str!("../../shaders/integrate/arith.wgsl"),
+    ),
+    (
+        "coefficients.wgsl",
+        include_str!("../../shaders/integrate/coefficients.wgsl"),
+    ),
+    (
+        "flow.wgsl",
+        include_str!("../../shaders/integrate/flow.wgsl"),
+    ),
+    (
+        "drive.wgsl",
+        include_str!("../../shaders/integrate/drive.wgsl"),
+    ),
+    (
+        "events.wgsl",
+        include_str!("../../shaders/integrate/events.wgsl"),
+    ),
+    (
+        "step.wgsl",
+        include_str!("../../shaders/integrate/step.wgsl"),
+    ),
+    (
+        "advance.wgsl",
+        include_str!("../../shaders/integrate/advance.wgsl"),
+    ),
+    (
+        "entry.wgsl",
+        include_str!("../../shaders/integrate/entry.wgsl"),
+    ),
+];
 
 /// The name of the compute entry point.
 pub const ENTRY_POINT: &str = "advance_slice";
@@ -20,58 +58,160 @@ pub const ENTRY_POINT: &str = "advance_slice";
 const F32_NOISE: f64 = 8.0;
 
 /// Resolution of the f32 two-part time, relative to the period.
-const F32_TIME_EPSILON: f64 = 1e-13;
+pub const F32_TIME_EPSILON: f64 = 1e-13;
 
-/// The prelude that defines `Real` and the precision's constants, for the
-/// full 2-DOF integrator.
-pub fn prelude(precision: Precision) -> String {
-    prelude_for(precision, 2)
+/// What one compiled pipeline is specialised to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Variant {
+    pub precision: Precision,
+    /// The adapter ends every shader loop after 65,535 iterations
+    /// (llvmpipe): the shader then checks every iteration and undoes those
+    /// the limiter cut short. Hardware adapters leave the check out.
+    pub loop_limiter: bool,
 }
 
-/// The prelude for `active_axes` integrated axes (2, or 1 for the 1-DOF
-/// specialisation).
-pub fn prelude_for(precision: Precision, active_axes: u32) -> String {
-    let body = match precision {
-        Precision::F32 => format!(
-            "alias Real = f32;\n\
-             const EPSILON: Real = {eps:e};\n\
-             const TIME_EPSILON: Real = {time_eps:e};\n\
-             const INFINITY: Real = {max:e};\n\
-             const TINY: Real = 1e-30;\n\
-             const COMPENSATED_TIME: bool = true;\n\
-             const NOISE: Real = {noise:?};\n",
-            eps = f32::EPSILON as f64,
-            time_eps = F32_TIME_EPSILON,
-            max = f32::MAX as f64,
-            noise = F32_NOISE,
-        ),
-        Precision::F64 => format!(
-            "alias Real = f64;\n\
-             const EPSILON: Real = {eps:e};\n\
-             const TIME_EPSILON: Real = {eps:e};\n\
-             const INFINITY: Real = {max:e};\n\
-             const TINY: Real = 1e-300;\n\
-             const COMPENSATED_TIME: bool = false;\n\
-             const NOISE: Real = 0.0;\n",
-            eps = f64::EPSILON,
-            max = f64::MAX,
-        ),
-    };
+/// The f64 arithmetic helpers. NVIDIA's Vulkan compiler (driver 580) fails
+/// ("NVVM compilation failed: 3") on the integrator when it contains f64
+/// division or square root, so f64 builds both from `inverseSqrt` (which it
+/// compiles) and fused multiply-adds: Newton's iteration to full precision,
+/// then one correction, which gives the correctly rounded result in all but
+/// rare halfway cases (so the shader computes what the CPU computes).
+const F64_HELPERS: &str = "\
+// 1 / b: a first guess from inverseSqrt(b^2), three Newton steps (each
+// doubles the correct digits of the driver's guess), then a correction.
+fn recip(b: Real) -> Real {
+    if b == Real(0.0) {
+        return INFINITY;
+    }
+    var y = inverseSqrt(b * b);
+    y = select(y, -y, b < Real(0.0));
+    y = fma(y, fma(-b, y, Real(1.0)), y);
+    y = fma(y, fma(-b, y, Real(1.0)), y);
+    y = fma(y, fma(-b, y, Real(1.0)), y);
+    return fma(y, fma(-b, y, Real(1.0)), y);
+}
+
+// a / b, rounded as the CPU rounds it (but for rare halfway cases).
+fn div(a: Real, b: Real) -> Real {
+    if b == Real(0.0) {
+        return a * recip(b);
+    }
+    let y = recip(b);
+    let q = a * y;
+    return fma(fma(-b, q, a), y, q);
+}
+
+// sqrt(x) for x >= 0 (and x itself for 0 and NaN).
+fn root(x: Real) -> Real {
+    if !(x > Real(0.0)) || x > INFINITY {
+        return x;
+    }
+    var y = inverseSqrt(x);
+    let half = Real(0.5) * x;
+    y = y * fma(-half * y, y, Real(1.5));
+    y = y * fma(-half * y, y, Real(1.5));
+    y = y * fma(-half * y, y, Real(1.5));
+    let s = x * y;
+    return fma(fma(-s, s, x), Real(0.5) * y, s);
+}
+";
+
+/// The f32 helpers: the hardware's own division and square root.
+const F32_HELPERS: &str = "\
+fn recip(b: Real) -> Real {
+    return Real(1.0) / b;
+}
+
+fn div(a: Real, b: Real) -> Real {
+    return a / b;
+}
+
+fn root(x: Real) -> Real {
+    return sqrt(x);
+}
+";
+
+/// Helpers common to both precisions.
+const COMMON_HELPERS: &str = "\
+fn div2(a: V2, b: V2) -> V2 {
+    return V2(div(a.x, b.x), div(a.y, b.y));
+}
+";
+
+/// `fn inverse_integer(n: u32) -> Real`: 1 / n as a literal for every n
+/// the Taylor series use, so no series divides (the CPU multiplies by the
+/// same constants).
+fn inverse_integer_fn() -> String {
+    let most = TAYLOR_TERMS.max(TAYLOR_STAGE_TERMS + 1);
+    let mut cases = String::new();
+    for n in 1..=most {
+        cases += &format!(
+            "        case {n}u: {{ return Real({:e}); }}\n",
+            1.0 / n as f64
+        );
+    }
     format!(
-        "// Prelude for {precision:?}, generated by pidm::gpu::shader.\n\
-         {body}const WORKGROUP_SIZE: u32 = {WORKGROUP_SIZE}u;\n\
-         const ACTIVE_AXES: u32 = {active_axes}u;\n\n"
+        "fn inverse_integer(n: u32) -> Real {{\n    switch n {{\n{cases}        \
+         default: {{ return Real(0.0); }}\n    }}\n}}\n"
     )
 }
 
-/// The complete shader source for one precision.
-pub fn source(precision: Precision) -> String {
-    source_for(precision, 2)
+/// The prelude that defines `Real`, `V2`, the constants and the helpers of
+/// one variant.
+pub fn prelude(variant: Variant) -> String {
+    let (body, helpers) = match variant.precision {
+        Precision::F32 => (
+            format!(
+                "alias Real = f32;\n\
+                 const EPSILON: Real = {eps:e};\n\
+                 const TIME_EPSILON: Real = {time_eps:e};\n\
+                 const INFINITY: Real = {max:e};\n\
+                 const TINY: Real = 1e-30;\n\
+                 const COMPENSATED_TIME: bool = true;\n\
+                 const NOISE: Real = {noise:?};\n",
+                eps = f32::EPSILON as f64,
+                time_eps = F32_TIME_EPSILON,
+                max = f32::MAX as f64,
+                noise = F32_NOISE,
+            ),
+            F32_HELPERS,
+        ),
+        Precision::F64 => (
+            format!(
+                "alias Real = f64;\n\
+                 const EPSILON: Real = {eps:e};\n\
+                 const TIME_EPSILON: Real = {eps:e};\n\
+                 const INFINITY: Real = {max:e};\n\
+                 const TINY: Real = 1e-300;\n\
+                 const COMPENSATED_TIME: bool = false;\n\
+                 const NOISE: Real = 0.0;\n",
+                eps = f64::EPSILON,
+                max = f64::MAX,
+            ),
+            F64_HELPERS,
+        ),
+    };
+    format!(
+        "// Prelude for {variant:?}, generated by pidm::gpu::shader.\n\
+         {body}alias V2 = vec2<Real>;\n\
+         const WORKGROUP_SIZE: u32 = {WORKGROUP_SIZE}u;\n\
+         const LOOP_LIMITER: bool = {limiter};\n\
+         const STATUS_LOOP_LIMIT: u32 = {STATUS_LOOP_LIMIT}u;\n\
+         {constants}\n{helpers}\n{COMMON_HELPERS}\n{inverse}\n",
+        limiter = variant.loop_limiter,
+        constants = constants::wgsl_constants(),
+        inverse = inverse_integer_fn(),
+    )
 }
 
-/// The complete shader source for one precision and variant.
-pub fn source_for(precision: Precision, active_axes: u32) -> String {
-    prelude_for(precision, active_axes) + INTEGRATE_WGSL
+/// The complete shader source of one variant.
+pub fn source(variant: Variant) -> String {
+    let mut src = prelude(variant);
+    for (name, text) in FILES {
+        src += &format!("\n// ---- shaders/integrate/{name}\n");
+        src += text;
+    }
+    src
 }
 
 /// The naga capabilities the shader needs in one precision.
@@ -82,12 +222,13 @@ pub fn capabilities(precision: Precision) -> naga::valid::Capabilities {
     }
 }
 
-/// Parses and validates the shader for one precision with naga, as wgpu
-/// will, and returns the module (with its type arena, for layout checks).
+/// Parses and validates one variant with naga, as wgpu will, and returns
+/// the module (with its type arena, for layout checks).
 pub fn parse_and_validate(
-    precision: Precision,
+    variant: Variant,
 ) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
-    let src = source(precision);
+    let precision = variant.precision;
+    let src = source(variant);
     let module = naga::front::wgsl::parse_str(&src).map_err(|e| GpuError::ShaderCompile {
         precision,
         message: e.emit_to_string(&src),
@@ -106,27 +247,79 @@ pub fn parse_and_validate(
 mod tests {
     use super::*;
 
-    #[test]
-    fn prelude_literals_round_trip() {
-        let p = prelude(Precision::F32);
-        assert!(p.contains("alias Real = f32;"));
-        let max = format!("{:e}", f32::MAX as f64);
-        assert_eq!(max.parse::<f64>().unwrap() as f32, f32::MAX);
-        let p = prelude(Precision::F64);
-        assert!(p.contains(&format!("{:e}", f64::MAX)));
-        assert_eq!(format!("{:e}", f64::MAX).parse::<f64>().unwrap(), f64::MAX);
-        assert_eq!(
-            format!("{:e}", f64::EPSILON).parse::<f64>().unwrap(),
-            f64::EPSILON
-        );
+    fn variants() -> Vec<Variant> {
+        let mut out = Vec::new();
+        for precision in [Precision::F32, Precision::F64] {
+            for loop_limiter in [false, true] {
+                out.push(Variant {
+                    precision,
+                    loop_limiter,
+                });
+            }
+        }
+        out
     }
 
     #[test]
-    fn shader_parses_and_validates_in_both_precisions() {
-        for precision in [Precision::F32, Precision::F64] {
-            if let Err(e) = parse_and_validate(precision) {
-                panic!("{e}");
+    fn prelude_literals_round_trip() {
+        let max = format!("{:e}", f32::MAX as f64);
+        assert_eq!(max.parse::<f64>().unwrap() as f32, f32::MAX);
+        assert_eq!(format!("{:e}", f64::MAX).parse::<f64>().unwrap(), f64::MAX);
+        for n in 1..=22u32 {
+            let text = format!("{:e}", 1.0 / n as f64);
+            assert_eq!(text.parse::<f64>().unwrap(), 1.0 / n as f64);
+        }
+    }
+
+    #[test]
+    fn every_variant_parses_and_validates() {
+        for variant in variants() {
+            if let Err(e) = parse_and_validate(variant) {
+                panic!("{variant:?}: {e}");
             }
         }
+    }
+
+    /// NVIDIA's compiler rejects f64 division and square root in this
+    /// shader, so the f64 variant has none outside the f32-free helpers
+    /// (which build them from inverseSqrt and fma).
+    #[test]
+    fn the_f64_shader_neither_divides_nor_takes_square_roots() {
+        let variant = Variant {
+            precision: Precision::F64,
+            loop_limiter: false,
+        };
+        let (module, info) = parse_and_validate(variant).unwrap();
+        let is_f64 = |ty: &naga::TypeInner| {
+            ty.scalar()
+                .is_some_and(|s| s.kind == naga::ScalarKind::Float && s.width == 8)
+        };
+        let mut checked = 0;
+        let functions = module.functions.iter().map(|(h, f)| (f, &info[h])).chain(
+            module
+                .entry_points
+                .iter()
+                .enumerate()
+                .map(|(i, e)| (&e.function, info.get_entry_point(i))),
+        );
+        for (f, fi) in functions {
+            let name = f.name.as_deref().unwrap_or("?");
+            for (handle, expr) in f.expressions.iter() {
+                let float = is_f64(fi[handle].ty.inner_with(&module.types));
+                match expr {
+                    naga::Expression::Binary {
+                        op: naga::BinaryOperator::Divide,
+                        ..
+                    } if float => panic!("{name} divides in f64"),
+                    naga::Expression::Math {
+                        fun: naga::MathFunction::Sqrt,
+                        ..
+                    } if float => panic!("{name} takes an f64 square root"),
+                    _ => {}
+                }
+                checked += 1;
+            }
+        }
+        assert!(checked > 1000, "only {checked} expressions seen");
     }
 }

@@ -1,12 +1,10 @@
 //! Arithmetic the shader cannot take from its standard library, written out
 //! so the CPU computes exactly what the shader computes.
 
-use super::constants::CUBE_ROOT_ITERATIONS;
-
-/// Ratios handed to [`step_factor`] are clamped to this range first: every
-/// factor the integrator asks for saturates inside it (0.9 cbrt(r) reaches
-/// the smallest bound 0.1 at r = 1.4e-3 and the largest 4 at r = 88).
-const RATIO_RANGE: (f64, f64) = (1e-3, 1e2);
+use super::constants::{
+    CUBE_ROOT_GUESS, CUBE_ROOT_ITERATIONS, ONE_THIRD, STEP_FACTOR_QUANTUM, STEP_RATIO_MAX,
+    STEP_RATIO_MIN,
+};
 
 /// The cube root of `c` in [1e-3, 1e2] by range reduction to [1/8, 1]
 /// (exact scalings by 8) and Newton's iteration from a linear guess. WGSL
@@ -27,18 +25,20 @@ pub fn cube_root(c: f64) -> f64 {
             scale *= 0.5;
         }
     }
-    let mut y = 0.428_571_428_571_428_6 + 0.571_428_571_428_571_4 * x;
+    let mut y = CUBE_ROOT_GUESS[0] + CUBE_ROOT_GUESS[1] * x;
     for _ in 0..CUBE_ROOT_ITERATIONS {
-        y = (2.0 * y + x / (y * y)) * (1.0 / 3.0);
+        y = (2.0 * y + x / (y * y)) * ONE_THIRD;
     }
     y * scale
 }
 
-/// A step-size factor 0.9 cbrt(ratio) limited to [lo, hi]: the classic
+/// A step-size factor 0.9 cbrt(ratio), rounded down to a multiple of
+/// 1 / [`STEP_FACTOR_QUANTUM`] and limited to [lo, hi]: the classic
 /// controller for an error that grows like the cube of the step.
 pub fn step_factor(ratio: f64, lo: f64, hi: f64) -> f64 {
-    let r = ratio.clamp(RATIO_RANGE.0, RATIO_RANGE.1);
-    (0.9 * cube_root(r)).clamp(lo, hi)
+    let r = ratio.clamp(STEP_RATIO_MIN, STEP_RATIO_MAX);
+    let factor = (0.9 * cube_root(r) * STEP_FACTOR_QUANTUM).floor() * (1.0 / STEP_FACTOR_QUANTUM);
+    factor.clamp(lo, hi)
 }
 
 #[cfg(test)]
@@ -48,8 +48,8 @@ mod tests {
     #[test]
     fn cube_root_is_accurate_over_its_range() {
         let mut worst: f64 = 0.0;
-        let mut c = RATIO_RANGE.0;
-        while c <= RATIO_RANGE.1 {
+        let mut c = STEP_RATIO_MIN;
+        while c <= STEP_RATIO_MAX {
             let err = (cube_root(c) - c.cbrt()).abs() / c.cbrt();
             worst = worst.max(err);
             c *= 1.0137;
@@ -58,15 +58,17 @@ mod tests {
     }
 
     #[test]
-    fn step_factor_saturates_as_the_unclamped_controller() {
+    fn step_factor_is_the_controller_rounded_down() {
         for ratio in [1e-9, 1e-4, 1e-3, 0.01, 0.5, 1.0, 2.0, 50.0, 1e3, 1e12] {
             for (lo, hi) in [(0.1, 0.9), (0.2, 4.0)] {
                 let exact: f64 = (0.9 * f64::cbrt(ratio)).clamp(lo, hi);
                 let got = step_factor(ratio, lo, hi);
                 assert!(
-                    (got - exact).abs() <= 4.0 * f64::EPSILON * exact,
+                    got <= exact && exact - got < 1.0 / STEP_FACTOR_QUANTUM,
                     "ratio {ratio}: {got} against {exact}"
                 );
+                let on_grid = got == (got * STEP_FACTOR_QUANTUM).round() / STEP_FACTOR_QUANTUM;
+                assert!(on_grid || got == lo || got == hi, "{got} is off the grid");
             }
         }
     }

@@ -5,7 +5,7 @@
 //! square root of one.
 
 use super::Settings;
-use super::constants::{EVENT_STEP_PERIODS, MIN_STEP_EPSILONS};
+use super::constants::{COLLOCATION_CONVERGED, EVENT_STEP_PERIODS, MIN_STEP_EPSILONS};
 use super::vec2::Vec2;
 use crate::model::Instance;
 
@@ -103,6 +103,9 @@ pub struct Coefficients {
     pub settle: u32,
     /// The accuracy knob [rad] ([`Settings::tolerance`]).
     pub tolerance: f64,
+    /// The change of the direction model below which its fixed-point
+    /// iteration stops [rad].
+    pub collocation_tolerance: f64,
     /// Steps allowed in the whole run, saturated at `u32::MAX`.
     pub budget: u32,
     /// Whether each axis is driven (a non-zero voltage).
@@ -195,6 +198,7 @@ impl Coefficients {
             cycles: inst.cycles,
             settle: inst.settle,
             tolerance: settings.tolerance,
+            collocation_tolerance: COLLOCATION_CONVERGED * settings.tolerance,
             budget,
             driven,
             frictionless: fc == 0.0,

@@ -73,6 +73,27 @@ pub const MIN_STEP_EPSILONS: f64 = 64.0;
 /// reduction and linear first guess.
 pub const CUBE_ROOT_ITERATIONS: u32 = 5;
 
+/// Ratios handed to `arith::step_factor` are clamped to [min, max] first:
+/// every factor the integrator asks for saturates inside it (0.9 cbrt(r)
+/// reaches the smallest bound 0.1 at r = 1.4e-3 and the largest 4 at
+/// r = 88).
+pub const STEP_RATIO_MIN: f64 = 1e-3;
+pub const STEP_RATIO_MAX: f64 = 1e2;
+/// Step-size factors are rounded down to multiples of 1 / this. The
+/// controller's input, the direction error, carries rounding noise that
+/// differs between backends (fused multiply-adds); a factor that followed
+/// it continuously would turn last-bit differences into different step
+/// sequences, and so different results at the level of the tolerance.
+/// Rounded factors differ only where the error sits on a rounding boundary.
+pub const STEP_FACTOR_QUANTUM: f64 = 64.0;
+/// The linear first guess of the cube root on [1/8, 1]: the chord
+/// through (1/8, 1/2) and (1, 1).
+pub const CUBE_ROOT_GUESS: [f64; 2] = [3.0 / 7.0, 4.0 / 7.0];
+/// Rational constants of the slider polynomial and the cube root.
+pub const ONE_THIRD: f64 = 1.0 / 3.0;
+pub const ONE_SIXTH: f64 = 1.0 / 6.0;
+pub const ONE_TWELFTH: f64 = 1.0 / 12.0;
+
 /// Every constant above as WGSL `const` declarations, for the shader's
 /// prelude. Real-valued ones are typed `Real`, so one text serves f32 and
 /// f64.
@@ -106,6 +127,15 @@ pub fn wgsl_constants() -> String {
         u("MAX_REJECTIONS", MAX_REJECTIONS),
         u("MAX_SQUARINGS", MAX_SQUARINGS),
         u("CUBE_ROOT_ITERATIONS", CUBE_ROOT_ITERATIONS),
+        r("CUBE_ROOT_GUESS_0", CUBE_ROOT_GUESS[0]),
+        r("CUBE_ROOT_GUESS_1", CUBE_ROOT_GUESS[1]),
+        r("STEP_FACTOR_QUANTUM", STEP_FACTOR_QUANTUM),
+        r("STEP_FACTOR_GRID", 1.0 / STEP_FACTOR_QUANTUM),
+        r("STEP_RATIO_MIN", STEP_RATIO_MIN),
+        r("STEP_RATIO_MAX", STEP_RATIO_MAX),
+        r("ONE_THIRD", ONE_THIRD),
+        r("ONE_SIXTH", ONE_SIXTH),
+        r("ONE_TWELFTH", ONE_TWELFTH),
     ]
     .concat()
 }

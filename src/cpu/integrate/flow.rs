@@ -3,7 +3,9 @@
 //! axis, and the slider), and its evaluation at any time inside the step.
 
 use super::coefficients::{Coefficients, Oscillator};
-use super::constants::{MAX_SQUARINGS, TAYLOR_STAGE_CONVERGED, TAYLOR_STAGE_TERMS};
+use super::constants::{
+    MAX_SQUARINGS, ONE_SIXTH, ONE_THIRD, ONE_TWELFTH, TAYLOR_STAGE_CONVERGED, TAYLOR_STAGE_TERMS,
+};
 use super::vec2::Vec2;
 
 /// exp(A tau) = (1 + a0m1) I + a1 A per axis, for the oscillator matrix
@@ -325,8 +327,8 @@ pub fn eval_flow(flow: &Flow, prop: Propagator, tau: f64) -> Sample {
             j_p: j,
             x_s: flow.x_s
                 + flow.v_s * tau
-                + (h * h * th * th) * (c0 * 0.5 + (c1 * (1.0 / 6.0) + c2 * (1.0 / 12.0 * th)) * th),
-            v_s: flow.v_s + (h * th) * (c0 + (c1 * 0.5 + c2 * (1.0 / 3.0 * th)) * th),
+                + (h * h * th * th) * (c0 * 0.5 + (c1 * ONE_SIXTH + c2 * (ONE_TWELFTH * th)) * th),
+            v_s: flow.v_s + (h * th) * (c0 + (c1 * 0.5 + c2 * (ONE_THIRD * th)) * th),
             a_s: c0 + (c1 + c2 * th) * th,
         }
     }

@@ -18,8 +18,8 @@
 use super::arith::step_factor;
 use super::coefficients::Coefficients;
 use super::constants::{
-    COLLOCATION_CONVERGED, COLLOCATION_ITERATIONS, EVENT_BREAKAWAY, EVENT_ENTER_BAND,
-    EVENT_LEAVE_BAND, EVENT_NONE, EVENT_REVERSAL, MAX_REJECTIONS, MODE_BAND, MODE_SLIP, MODE_STICK,
+    COLLOCATION_ITERATIONS, EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_LEAVE_BAND, EVENT_NONE,
+    EVENT_REVERSAL, MAX_REJECTIONS, MAX_SQUARINGS, MODE_BAND, MODE_SLIP, MODE_STICK,
     SLIP_DIRECTION_ITERATIONS, STATUS_STEP_UNDERFLOW,
 };
 use super::drive::drive_force;
@@ -145,7 +145,7 @@ pub fn step<O: StepObserver>(
             flow = mode_flow(c, st, force, slope, &dir, h);
             mid = eval_flow(&flow, props.half, 0.5 * h);
             end = eval_flow(&flow, props.full, h);
-            if change <= COLLOCATION_CONVERGED * c.tolerance {
+            if change <= c.collocation_tolerance {
                 break;
             }
         }
@@ -325,7 +325,11 @@ fn move_to<O: StepObserver>(
 
 /// A first slip step after leaving the band: short enough to follow the
 /// turn of the relative velocity, which happens on the time scale
-/// |v_rel| / |dv_rel/dt across|.
+/// |v_rel| / |dv_rel/dt across|. The step is the event step halved until
+/// it is at most a tenth of that time: the relative velocity is a small
+/// difference of large velocities, so the turn time carries rounding noise
+/// that differs between backends, and a power-of-two step does not follow
+/// it (only a turn time on a power of two could tip it).
 fn initial_slip_step(c: &Coefficients, st: &State, h_max: f64) -> f64 {
     let (force, slope) = drive_force(c, st);
     let v = st.v_p - st.v_s;
@@ -338,14 +342,22 @@ fn initial_slip_step(c: &Coefficients, st: &State, h_max: f64) -> f64 {
     let v = relative_velocity(&s);
     let a = relative_acceleration(&s);
     let speed = norm2(v).sqrt();
-    let along = dot(a, v) / speed;
-    let across = (norm2(a) - along * along).max(0.0).sqrt();
+    // |a across v| = |v x a| / |v|, free of the cancellation of
+    // sqrt(|a|^2 - (a . v / |v|)^2).
+    let across = (v.x * a.y - v.y * a.x).abs() / speed;
     let turn = if across > 0.0 {
         0.1 * speed / across
     } else {
         f64::INFINITY
     };
-    turn.min(c.event_step_slip).min(h_max.max(0.0))
+    let mut h = c.event_step_slip;
+    for _ in 0..MAX_SQUARINGS {
+        if h <= turn {
+            break;
+        }
+        h *= 0.5;
+    }
+    h.min(h_max.max(0.0))
 }
 
 /// The static friction force on the slider that stick would need now, with

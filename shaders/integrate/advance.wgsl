@@ -1,0 +1,117 @@
+// Mirror of src/cpu/integrate/mod.rs: the state, and one iteration of the
+// integrator.
+
+// The integrator state, as `pidm::cpu::integrate::State`, plus `time_lo`,
+// the low part of the time (always zero unless COMPENSATED_TIME).
+struct State {
+    x_p: V2,
+    v_p: V2,
+    x_s: V2,
+    v_s: V2,
+    held: V2,
+    settle_x_s: V2,
+    cycle_phase: V2,
+    next_corner: V2,
+    time: Real,
+    time_lo: Real,
+    h_slip: Real,
+    _pad: Real,
+    rising: vec2<u32>,
+    mode: u32,
+    period: u32,
+    status: u32,
+    steps: u32,
+    stalled: u32,
+    rejections: u32,
+}
+
+fn initial_state(c: Coefficients) -> State {
+    let p = frac2(c.phase);
+    let rising = p < c.duty;
+    var st: State;
+    st.x_p = V2(0.0);
+    st.v_p = V2(0.0);
+    st.x_s = V2(0.0);
+    st.v_s = V2(0.0);
+    st.held = V2(0.0);
+    st.settle_x_s = V2(0.0);
+    st.cycle_phase = p;
+    st.next_corner = select(V2(1.0), c.duty, rising);
+    st.time = Real(0.0);
+    st.time_lo = Real(0.0);
+    st.h_slip = Real(0.0);
+    st.rising = select(vec2<u32>(0u), vec2<u32>(1u), rising);
+    st.mode = MODE_STICK;
+    st.period = 0u;
+    st.status = STATUS_OK;
+    st.steps = 0u;
+    st.stalled = 0u;
+    st.rejections = 0u;
+    st._pad = Real(0.0);
+    return st;
+}
+
+fn is_finished(c: Coefficients, st: State) -> bool {
+    return st.status != STATUS_OK || st.period >= c.cycles;
+}
+
+// `st.time >= t` on the two-part time.
+fn time_reached(st: State, t: Real) -> bool {
+    return st.time > t || (st.time == t && st.time_lo >= Real(0.0));
+}
+
+fn stop_time(c: Coefficients, st: State) -> Real {
+    let corners = corner_time(c, st);
+    return min(min(c.period, corners.x), corners.y);
+}
+
+fn iterate(c: Coefficients, st: ptr<function, State>) {
+    if (*st).period == c.settle && (*st).time == Real(0.0) && (*st).time_lo == Real(0.0) {
+        (*st).settle_x_s = (*st).x_s;
+    }
+    var stop = stop_time(c, *st);
+    if time_reached(*st, stop) {
+        pass_boundaries(c, st);
+        if is_finished(c, *st) {
+            return;
+        }
+        stop = stop_time(c, *st);
+        if time_reached(*st, stop) {
+            return;
+        }
+    }
+    let h_max = (stop - (*st).time) - (*st).time_lo;
+    let time_before = (*st).time;
+    let time_lo_before = (*st).time_lo;
+    let outcome = step(c, st, h_max, stop);
+    (*st).steps += 1u;
+    if outcome == STEP_MOVED || (*st).status != STATUS_OK {
+        if (*st).time > time_before || ((*st).time == time_before && (*st).time_lo > time_lo_before) {
+            (*st).stalled = 0u;
+        } else {
+            (*st).stalled += 1u;
+            if (*st).stalled > MAX_STALLED_EVENTS {
+                (*st).status = STATUS_EVENT_STORM;
+            }
+        }
+    }
+    if !state_is_finite(*st) {
+        (*st).status = STATUS_NON_FINITE;
+    } else if (*st).steps > c.budget {
+        (*st).status = STATUS_STEP_BUDGET;
+    }
+}
+
+// `f64::is_finite`, with INFINITY standing for infinity.
+fn is_finite(x: Real) -> bool {
+    return abs(x) < INFINITY;
+}
+
+fn is_finite2(v: V2) -> bool {
+    return all(abs(v) < V2(INFINITY));
+}
+
+fn state_is_finite(st: State) -> bool {
+    return is_finite(st.time) && is_finite(st.h_slip) && is_finite2(st.x_p) && is_finite2(st.v_p)
+        && is_finite2(st.x_s) && is_finite2(st.v_s);
+}

@@ -1,0 +1,55 @@
+// Mirror of src/cpu/integrate/coefficients.rs: the per-instance constants,
+// computed once in f64 by the host and packed in the shader's units
+// (src/gpu/layout.rs), so the shader divides by no parameter and takes no
+// square root of one. Booleans are u32 (0 or 1): storage buffers hold no
+// bool.
+
+// One mode's oscillator per axis: m x'' + c x' + k x = g.
+struct Oscillator {
+    mass: V2,
+    sigma: V2,
+    w2: V2,
+    rate: V2,
+    inv_mass: V2,
+    inv_w2: V2,
+}
+
+struct Coefficients {
+    stage_mass: V2,
+    stiffness: V2,
+    damping: V2,
+    inv_stiffness: V2,
+    stick: Oscillator,
+    slip: Oscillator,
+    amplitude: V2,
+    frequency: V2,
+    duty: V2,
+    inv_duty: V2,
+    inv_fall: V2,
+    rise_slope: V2,
+    fall_slope: V2,
+    phase: V2,
+    cycles_per_period: V2,
+    stage_share: V2,
+    slider_share: V2,
+    slip_scale: V2,
+    slip_b: V2,
+    slip_b_max: Real,
+    hold2: Real,
+    ms2: Real,
+    coulomb: Real,
+    fc_over_ms: Real,
+    band2: Real,
+    period: Real,
+    event_step_stuck: Real,
+    event_step_slip: Real,
+    min_step: Real,
+    tolerance: Real,
+    collocation_tolerance: Real,
+    cycles: u32,
+    settle: u32,
+    budget: u32,
+    frictionless: u32,
+    driven: vec2<u32>,
+    _pad: vec2<u32>,
+}

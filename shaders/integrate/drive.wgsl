@@ -1,0 +1,62 @@
+// Mirror of src/cpu/integrate/drive.rs: the sawtooth drives.
+
+// Local time of each axis' next drive corner, or INFINITY where undriven.
+fn corner_time(c: Coefficients, st: State) -> V2 {
+    let t = max(div2(st.next_corner - st.cycle_phase, c.frequency), V2(0.0));
+    return select(V2(INFINITY), t, c.driven == vec2<u32>(1u));
+}
+
+// The drive force of each axis now, and its slope.
+struct Drive {
+    force: V2,
+    slope: V2,
+}
+
+fn drive_force(c: Coefficients, st: State) -> Drive {
+    // With the two-part time (f32) the low part adds its own phase; in f64
+    // it is zero and this is the CPU's sum.
+    let u = st.cycle_phase + c.frequency * st.time + c.frequency * st.time_lo;
+    let to_corner = max(st.next_corner - u, V2(0.0));
+    let rising = st.rising == vec2<u32>(1u);
+    let w = select(to_corner * c.inv_fall, Real(1.0) - to_corner * c.inv_duty, rising);
+    let slope = select(c.fall_slope, c.rise_slope, rising);
+    return Drive(c.amplitude * w, slope);
+}
+
+// Passes every drive corner and the period end that lie at the current
+// time, then lets a stuck slider break loose if a jump of the drive (duty
+// 1) demands it.
+fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
+    let corners = corner_time(c, *st);
+    let reached = vec2<bool>(time_reached(*st, corners.x), time_reached(*st, corners.y));
+    let jump = c.duty >= V2(1.0);
+    let rising = (*st).rising == vec2<u32>(1u);
+    // Duty 1: one corner per cycle; otherwise the rise ends or begins.
+    let advance_by = select(select(c.duty, Real(1.0) - c.duty, rising), V2(1.0), jump);
+    (*st).next_corner = select((*st).next_corner, (*st).next_corner + advance_by, reached);
+    let flips = reached & !jump;
+    (*st).rising = select((*st).rising, select(vec2<u32>(1u), vec2<u32>(0u), rising), flips);
+    if time_reached(*st, c.period) {
+        (*st).period += 1u;
+        (*st).time = Real(0.0);
+        (*st).time_lo = Real(0.0);
+        let end_phase = (*st).cycle_phase + c.frequency * c.period;
+        let start_phase = frac2(c.phase + Real((*st).period) * c.cycles_per_period);
+        let shift = round(end_phase - start_phase);
+        (*st).cycle_phase = start_phase;
+        (*st).next_corner = (*st).next_corner - shift;
+        if (*st).period == c.settle {
+            (*st).settle_x_s = (*st).x_s;
+        }
+    }
+    if (*st).mode == MODE_STICK {
+        let need = stick_force(c, *st);
+        if dot(need, need) > c.hold2 {
+            start_slip(c, st, need);
+        }
+    }
+}
+
+fn frac2(u: V2) -> V2 {
+    return u - floor(u);
+}

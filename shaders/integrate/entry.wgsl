@@ -1,0 +1,98 @@
+// The compute entry point (GPU only; the CPU's counterpart is the loop of
+// `pidm::cpu::integrate::advance`). One invocation integrates one instance
+// for at most `control.max_iterations` iterations, keeping its whole state
+// in registers and in the `states` buffer between dispatches.
+
+// The per-dispatch controls, read from a small storage buffer.
+struct Control {
+    // Iterations of `iterate` in this dispatch.
+    max_iterations: u32,
+    // 1 when the states must first be set to `initial_state`.
+    initialize: u32,
+    // Always 1.0; see `move_to`.
+    one: f32,
+    // Passes of the loop-limiter probe, and the passes it must see; see
+    // `loop_limiter_intact`.
+    probe: u32,
+    probe_min: u32,
+    // Always 0; see `loop_limiter_intact`.
+    zero: u32,
+}
+
+@group(0) @binding(0) var<storage, read> coefficients: array<Coefficients>;
+@group(0) @binding(1) var<storage, read_write> states: array<State>;
+// The controls live in a storage buffer, not a uniform: drivers may
+// specialise a shader on the values of uniforms that steer its loops, which
+// would unroll the loop-limiter probe and fold the opaque 1.0 away.
+@group(0) @binding(2) var<storage, read> control: Control;
+@group(0) @binding(3) var<storage, read_write> unfinished: atomic<u32>;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn advance_slice(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let index = gid.x + gid.y * groups.x * WORKGROUP_SIZE;
+    if index >= arrayLength(&states) || index >= arrayLength(&coefficients) {
+        return;
+    }
+    let c = coefficients[index];
+    var st: State;
+    if control.initialize == 1u {
+        st = initial_state(c);
+    } else {
+        st = states[index];
+    }
+    advance(c, &st, control.max_iterations);
+    states[index] = st;
+    if !is_finished(c, st) {
+        atomicAdd(&unfinished, 1u);
+    }
+}
+
+fn advance(c: Coefficients, st: ptr<function, State>, max_iterations: u32) {
+    for (var iteration = 0u; iteration < max_iterations; iteration++) {
+        if is_finished(c, *st) {
+            return;
+        }
+        if LOOP_LIMITER {
+            // An iteration cut short by the driver's loop limiter is undone
+            // and redone by the next dispatch; one that cannot fit in a
+            // dispatch at all is handed back to the host.
+            let before = *st;
+            iterate(c, st);
+            if !loop_limiter_intact((*st).steps) {
+                *st = before;
+                if iteration == 0u {
+                    (*st).status = STATUS_LOOP_LIMIT;
+                }
+                return;
+            }
+        } else {
+            iterate(c, st);
+        }
+    }
+}
+
+// False once the driver's loop limiter has cut loops short in this
+// invocation. llvmpipe/lavapipe share one counter of 65,535 loop iterations
+// between all loops of an invocation (and its SIMD neighbours) and then
+// silently leave every loop after its first pass (or two, where the
+// compiler has peeled one). This loop makes `control.probe` passes unless
+// the limiter runs out first. The pass count comes from the control buffer
+// and depends on the state, so the compiler can neither unroll the loop nor
+// hoist it out of the iteration it checks. The passes are compared with a
+// second control value, not with `passes` itself: the compiler knows that
+// the loop only ends once k >= passes. Other drivers have no such limiter,
+// and their pipelines leave it out (LOOP_LIMITER is false).
+fn loop_limiter_intact(dependency: u32) -> bool {
+    let passes = control.probe + dependency * control.zero;
+    var k = 0u;
+    loop {
+        k += 1u;
+        if k >= passes {
+            break;
+        }
+    }
+    return k >= control.probe_min;
+}

@@ -1,0 +1,181 @@
+// Mirror of src/cpu/integrate/events.rs: event functions, the search for
+// the first crossing among a step's samples, and its location.
+
+// The first bracket of a crossing in step time.
+struct Crossing {
+    found: bool,
+    lo: Real,
+    hi: Real,
+}
+
+// Fractions of a step at which every step is sampled (`THETA[j]`).
+fn theta(j: u32) -> Real {
+    return Real(0.25) * Real(j);
+}
+
+fn relative_velocity(s: Sample) -> V2 {
+    return s.v_p - s.v_s;
+}
+
+fn relative_acceleration(s: Sample) -> V2 {
+    return s.a_p - s.a_s;
+}
+
+// Value and time derivative of the primary event of a kind.
+fn primary_event(c: Coefficients, kind: u32, s: Sample) -> V2 {
+    if kind == EVENT_BREAKAWAY {
+        let e = c.hold2 - c.ms2 * dot(s.a_p, s.a_p);
+        return V2(e, Real(-2.0) * c.ms2 * dot(s.a_p, s.j_p));
+    }
+    let v = relative_velocity(s);
+    let a = relative_acceleration(s);
+    let e = dot(v, v) - c.band2;
+    let de = Real(2.0) * dot(v, a);
+    if kind == EVENT_ENTER_BAND {
+        return V2(e, de);
+    }
+    return V2(-e, -de);
+}
+
+fn reversal_event(st: State, s: Sample) -> V2 {
+    return V2(dot(relative_velocity(s), st.held), dot(relative_acceleration(s), st.held));
+}
+
+fn primary_scale(c: Coefficients, kind: u32, s: Sample) -> Real {
+    if kind == EVENT_BREAKAWAY {
+        let forces = c.stiffness * abs(s.x_p) + c.damping * abs(s.v_p);
+        let terms = abs(s.a_p) + Real(2.0) * forces * c.stick.inv_mass;
+        return c.hold2 + dot(c.ms2 * Real(2.0) * abs(s.a_p), terms);
+    }
+    let v = relative_velocity(s);
+    return c.band2 + dot(Real(2.0) * abs(v), abs(s.v_p) + abs(s.v_s));
+}
+
+fn reversal_scale(st: State, s: Sample) -> Real {
+    return dot(abs(s.v_p) + abs(s.v_s), abs(st.held));
+}
+
+// The event values at the five samples of a step.
+struct EventSamples {
+    v: array<V2, 5>,
+}
+
+fn find_crossing(
+    c: Coefficients,
+    st: State,
+    kind: u32,
+    sign: Real,
+    ev: ptr<function, EventSamples>,
+    scale: Real,
+    flow: Flow,
+    h: Real,
+) -> Crossing {
+    var prev = sign * (*ev).v[0];
+    let noise = EVENT_NOISE * EPSILON * scale;
+    if prev.x < -noise {
+        return Crossing(true, Real(0.0), Real(0.0));
+    }
+    for (var j = 0u; j < 4u; j++) {
+        let next = sign * (*ev).v[j + 1u];
+        let lo = theta(j) * h;
+        let hi = theta(j + 1u) * h;
+        let armed = prev.x > Real(0.0) || j == 0u;
+        if armed && next.x <= Real(0.0) && (prev.x > Real(0.0) || next.x < Real(0.0)) {
+            return Crossing(true, lo, hi);
+        }
+        if prev.x > Real(0.0) && next.x > Real(0.0) && prev.y < Real(0.0) && next.y > Real(0.0) {
+            let tau = hermite_minimum(prev, next, hi - lo);
+            let e = event_at(c, st, kind, sign, flow, lo + tau).x;
+            if e <= Real(0.0) {
+                return Crossing(true, lo, lo + tau);
+            }
+        }
+        prev = next;
+    }
+    return Crossing(false, Real(0.0), Real(0.0));
+}
+
+fn event_at(c: Coefficients, st: State, kind: u32, sign: Real, flow: Flow, tau: Real) -> V2 {
+    let s = eval_at(flow, tau);
+    var ev: V2;
+    if kind == EVENT_REVERSAL {
+        ev = reversal_event(st, s);
+    } else {
+        ev = primary_event(c, kind, s);
+    }
+    return sign * ev;
+}
+
+// The `good` closure of `hermite_minimum`.
+fn hermite_good(s: Real, len: Real, qa: Real, qb: Real) -> bool {
+    return s > Real(0.0) && s < len && (qb + Real(2.0) * qa * s) > Real(0.0);
+}
+
+fn hermite_minimum(a: V2, b: V2, len: Real) -> Real {
+    let d = div(b.x - a.x, len);
+    let c2 = div(Real(3.0) * d - Real(2.0) * a.y - b.y, len);
+    let c3 = div(a.y + b.y - Real(2.0) * d, len * len);
+    let qa = Real(3.0) * c3;
+    let qb = Real(2.0) * c2;
+    let qc = a.y;
+    var s: Real;
+    if abs(qa) < TINY || abs(qa * len) < Real(1e-12) * abs(qb) {
+        s = div(-qc, qb);
+    } else {
+        let disc = root(max(qb * qb - Real(4.0) * qa * qc, Real(0.0)));
+        let signum = select(Real(-1.0), Real(1.0), qb >= Real(0.0));
+        let r = Real(-0.5) * (qb + signum * disc);
+        let r1 = div(r, qa);
+        var r2 = r1;
+        if r != Real(0.0) {
+            r2 = div(qc, r);
+        }
+        if hermite_good(r1, len, qa, qb) {
+            s = r1;
+        } else if hermite_good(r2, len, qa, qb) {
+            s = r2;
+        } else {
+            s = Real(0.5) * len;
+        }
+    }
+    return clamp(s, Real(0.0), len);
+}
+
+fn locate(
+    c: Coefficients,
+    st: State,
+    kind: u32,
+    sign: Real,
+    flow: Flow,
+    lo_in: Real,
+    hi_in: Real,
+) -> Real {
+    var lo = lo_in;
+    var hi = hi_in;
+    // In f64 the second term never wins (hi <= period and TIME_EPSILON =
+    // EPSILON); in f32 it stops the bisection at the resolution of tau.
+    let resolution = max(Real(4.0) * TIME_EPSILON * c.period, Real(4.0) * EPSILON * hi);
+    var tau = Real(0.5) * (lo + hi);
+    for (var k = 0u; k < ROOT_ITERATIONS; k++) {
+        if hi - lo <= resolution {
+            break;
+        }
+        let ev = event_at(c, st, kind, sign, flow, tau);
+        if ev.x > Real(0.0) {
+            lo = tau;
+        } else {
+            hi = tau;
+        }
+        let newton = tau - div(ev.x, ev.y);
+        if newton > lo && newton < hi && ev.y != Real(0.0) {
+            tau = newton;
+        } else {
+            tau = Real(0.5) * (lo + hi);
+        }
+        let margin = Real(1e-3) * (hi - lo);
+        if tau - lo < margin || hi - tau < margin {
+            tau = clamp(tau, lo + margin, hi - margin);
+        }
+    }
+    return hi;
+}

@@ -1,0 +1,346 @@
+// Mirror of src/cpu/integrate/step.rs: one step, the same code for every
+// friction mode (the mode only picks the step length, the flow and the
+// events watched), so the lanes of a warp in different modes run the same
+// sampling, event and move instructions together.
+
+// `StepOutcome`.
+const STEP_MOVED: u32 = 0u;
+const STEP_REJECTED: u32 = 1u;
+
+fn mode_flow(c: Coefficients, st: State, drive: Drive, dir: DirectionModel, h: Real) -> Flow {
+    return make_flow(c, st.mode == MODE_STICK, st.x_p, st.v_p, st.x_s, st.v_s, drive.force, drive.slope, dir, h);
+}
+
+// The `Option<Vec2>` of `direction`.
+struct Direction {
+    ok: bool,
+    u: V2,
+}
+
+fn direction(s: Sample) -> Direction {
+    let v = relative_velocity(s);
+    let n = root(dot(v, v));
+    var out = Direction(false, V2(0.0));
+    if n > Real(0.0) && is_finite(n) {
+        out.ok = true;
+        out.u = v * recip(n);
+    }
+    return out;
+}
+
+fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u32 {
+    let drive = drive_force(c, *st);
+    let stuck = (*st).mode == MODE_STICK;
+    let slipping = (*st).mode == MODE_SLIP;
+    var dir = DirectionModel(V2(0.0), V2(0.0), V2(0.0));
+    var h = h_max;
+    if slipping {
+        h = min(min((*st).h_slip, c.event_step_slip), h_max);
+        if h <= Real(0.0) {
+            h = min(c.event_step_slip, h_max);
+        }
+        let v = (*st).v_p - (*st).v_s;
+        dir.b0 = v * recip(root(dot(v, v)));
+    } else if (*st).mode == MODE_BAND {
+        h = min(h_max, c.event_step_slip);
+        dir.b0 = (*st).held;
+    }
+    var flow_h = h;
+    if stuck {
+        flow_h = Real(1.0);
+    }
+    var flow = mode_flow(c, *st, drive, dir, flow_h);
+    var start = eval_flow(flow, identity_propagator(), Real(0.0));
+    var safe = false;
+    if stuck {
+        let bound = dot(start.a_p, start.a_p) + dot(start.j_p * start.j_p, flow.osc.inv_w2);
+        safe = c.ms2 * bound <= c.hold2;
+        if !safe {
+            h = min(h_max, c.event_step_stuck);
+        }
+    }
+    let props = sample_propagators(flow, h);
+    var mid = eval_flow(flow, props.half, Real(0.5) * h);
+    var end = eval_flow(flow, props.full, h);
+    var err = Real(0.0);
+    var failed = false;
+    if slipping && c.frictionless == 0u {
+        let u0 = dir.b0;
+        for (var k = 0u; k < COLLOCATION_ITERATIONS; k++) {
+            let um = direction(mid);
+            let ue = direction(end);
+            if !um.ok || !ue.ok {
+                failed = true;
+                break;
+            }
+            let b1 = Real(4.0) * um.u - Real(3.0) * u0 - ue.u;
+            let b2 = Real(2.0) * (ue.u - Real(2.0) * um.u + u0);
+            let db1 = abs(b1 - dir.b1);
+            let db2 = abs(b2 - dir.b2);
+            let change = max(max(db1.x, db1.y), max(db2.x, db2.y));
+            dir.b1 = b1;
+            dir.b2 = b2;
+            if change == Real(0.0) {
+                break;
+            }
+            flow = mode_flow(c, *st, drive, dir, h);
+            mid = eval_flow(flow, props.half, Real(0.5) * h);
+            end = eval_flow(flow, props.full, h);
+            if change <= c.collocation_tolerance {
+                break;
+            }
+        }
+        start = eval_flow(flow, identity_propagator(), Real(0.0));
+    }
+    let quarter = eval_flow(flow, props.quarter, Real(0.25) * h);
+    let three_quarters = eval_flow(flow, props.three_quarters, Real(0.75) * h);
+    if slipping {
+        if failed {
+            err = INFINITY;
+        } else if c.frictionless == 0u {
+            err = direction_error(dir, start, quarter, mid, three_quarters, end);
+        }
+        if err > c.tolerance {
+            reject(c, st, h, err);
+            return STEP_REJECTED;
+        }
+    }
+    var primary = EVENT_LEAVE_BAND;
+    if stuck {
+        primary = select(EVENT_BREAKAWAY, EVENT_NONE, safe);
+    } else if slipping {
+        primary = EVENT_ENTER_BAND;
+    }
+    var ev_primary: EventSamples;
+    var ev_reversal: EventSamples;
+    ev_primary.v[0] = primary_event(c, primary, start);
+    ev_primary.v[1] = primary_event(c, primary, quarter);
+    ev_primary.v[2] = primary_event(c, primary, mid);
+    ev_primary.v[3] = primary_event(c, primary, three_quarters);
+    ev_primary.v[4] = primary_event(c, primary, end);
+    ev_reversal.v[0] = reversal_event(*st, start);
+    ev_reversal.v[1] = reversal_event(*st, quarter);
+    ev_reversal.v[2] = reversal_event(*st, mid);
+    ev_reversal.v[3] = reversal_event(*st, three_quarters);
+    ev_reversal.v[4] = reversal_event(*st, end);
+    var sign = Real(0.0);
+    for (var j = 0u; j < 5u; j++) {
+        let d = ev_reversal.v[j].x;
+        if sign == Real(0.0) && d != Real(0.0) {
+            sign = select(Real(-1.0), Real(1.0), d > Real(0.0));
+        }
+    }
+    let watch_reversal = (*st).mode == MODE_BAND && sign != Real(0.0);
+    var event = EVENT_NONE;
+    var event_tau = Real(0.0);
+    for (var k = 0u; k < 2u; k++) {
+        var kind = primary;
+        var kind_sign = Real(1.0);
+        var scale: Real;
+        if k == 0u {
+            scale = primary_scale(c, primary, start);
+        } else {
+            kind = select(EVENT_NONE, EVENT_REVERSAL, watch_reversal);
+            kind_sign = sign;
+            scale = reversal_scale(*st, start);
+        }
+        if kind == EVENT_NONE {
+            continue;
+        }
+        var crossing: Crossing;
+        if k == 0u {
+            crossing = find_crossing(c, *st, kind, kind_sign, &ev_primary, scale, flow, h);
+        } else {
+            crossing = find_crossing(c, *st, kind, kind_sign, &ev_reversal, scale, flow, h);
+        }
+        if crossing.found {
+            let tau = locate(c, *st, kind, kind_sign, flow, crossing.lo, crossing.hi);
+            if event == EVENT_NONE || tau < event_tau {
+                event = kind;
+                event_tau = tau;
+            }
+        }
+    }
+    if event == EVENT_NONE {
+        move_to(st, end, h, h_max, stop);
+        if slipping {
+            if h < h_max {
+                (*st).h_slip = h * grow_factor(c, err);
+            } else {
+                (*st).h_slip = max((*st).h_slip, h);
+            }
+        }
+    } else {
+        let s = eval_at(flow, event_tau);
+        move_to(st, s, event_tau, h_max, stop);
+        if event == EVENT_BREAKAWAY {
+            let need = stick_force(c, *st);
+            start_slip(c, st, need);
+        } else if event == EVENT_LEAVE_BAND {
+            (*st).mode = MODE_SLIP;
+            (*st).h_slip = initial_slip_step(c, *st, h_max);
+        } else {
+            if event == EVENT_ENTER_BAND {
+                (*st).h_slip = h;
+            }
+            try_stick(c, st);
+        }
+    }
+    (*st).rejections = 0u;
+    return STEP_MOVED;
+}
+
+// The error of one sample after the start (see `direction_error`); the
+// relative velocity of the previous sample comes in `prev_v`.
+fn sample_direction_error(dir: DirectionModel, s: Sample, th: Real, prev_v: V2) -> Real {
+    let v = relative_velocity(s);
+    if dot(v, prev_v) <= Real(0.0) {
+        return INFINITY;
+    }
+    let u = direction(s);
+    if !u.ok {
+        return INFINITY;
+    }
+    let model = dir.b0 + (dir.b1 + dir.b2 * th) * th;
+    let d = u.u - model;
+    // Rounding noise in the relative velocity, a difference of two larger
+    // velocities, is not a direction error (NOISE is zero in f64, where
+    // this subtracts nothing).
+    var noise = Real(0.0);
+    if NOISE > Real(0.0) {
+        let scale = abs(s.v_p) + abs(s.v_s);
+        noise = NOISE * EPSILON * div(scale.x + scale.y, root(dot(v, v)));
+    }
+    return root(dot(d, d)) - noise;
+}
+
+fn direction_error(dir: DirectionModel, s0: Sample, s1: Sample, s2: Sample, s3: Sample, s4: Sample) -> Real {
+    var err = Real(0.0);
+    err = max(err, sample_direction_error(dir, s1, Real(0.25), relative_velocity(s0)));
+    err = max(err, sample_direction_error(dir, s2, Real(0.5), relative_velocity(s1)));
+    err = max(err, sample_direction_error(dir, s3, Real(0.75), relative_velocity(s2)));
+    err = max(err, sample_direction_error(dir, s4, Real(1.0), relative_velocity(s3)));
+    return err;
+}
+
+fn reject(c: Coefficients, st: ptr<function, State>, h: Real, err: Real) {
+    (*st).rejections += 1u;
+    var factor = Real(0.25);
+    if is_finite(err) {
+        factor = step_factor(div(c.tolerance, err), Real(0.1), Real(0.9));
+    }
+    let shorter = h * factor;
+    if shorter < c.min_step || (*st).rejections > MAX_REJECTIONS {
+        (*st).status = STATUS_STEP_UNDERFLOW;
+    } else {
+        (*st).h_slip = shorter;
+    }
+}
+
+fn grow_factor(c: Coefficients, err: Real) -> Real {
+    if err > Real(0.0) {
+        return step_factor(div(c.tolerance, err), Real(0.2), Real(4.0));
+    }
+    return Real(4.0);
+}
+
+fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Real) {
+    (*st).x_p = s.x_p;
+    (*st).v_p = s.v_p;
+    (*st).x_s = s.x_s;
+    (*st).v_s = s.v_s;
+    if tau >= h_max {
+        (*st).time = stop;
+        (*st).time_lo = Real(0.0);
+    } else if COMPENSATED_TIME {
+        // Knuth's two-sum keeps the rounding error of the addition. Shader
+        // compilers may simplify floating-point algebra (Mesa turns
+        // a - (sum - (sum - a)) into 0); multiplying by a 1 they cannot see
+        // through (it comes from the control buffer) keeps the sum exact.
+        let one = Real(control.one);
+        let a = (*st).time;
+        let b = tau + (*st).time_lo;
+        let sum = (a + b) * one;
+        let bb = (sum - a) * one;
+        (*st).time_lo = (a - (sum - bb)) + (b - bb);
+        (*st).time = sum;
+    } else {
+        (*st).time += tau;
+    }
+}
+
+fn initial_slip_step(c: Coefficients, st: State, h_max: Real) -> Real {
+    let drive = drive_force(c, st);
+    let v0 = st.v_p - st.v_s;
+    let dir = DirectionModel(v0 * recip(root(dot(v0, v0))), V2(0.0), V2(0.0));
+    let flow = mode_flow(c, st, drive, dir, Real(1.0));
+    let s = eval_flow(flow, identity_propagator(), Real(0.0));
+    let v = relative_velocity(s);
+    let a = relative_acceleration(s);
+    let speed = root(dot(v, v));
+    let across = div(abs(v.x * a.y - v.y * a.x), speed);
+    var turn = INFINITY;
+    if across > Real(0.0) {
+        turn = div(Real(0.1) * speed, across);
+    }
+    var h = c.event_step_slip;
+    for (var k = 0u; k < MAX_SQUARINGS; k++) {
+        if h <= turn {
+            break;
+        }
+        h *= Real(0.5);
+    }
+    return min(h, max(h_max, Real(0.0)));
+}
+
+fn stick_force(c: Coefficients, st: State) -> V2 {
+    let force = drive_force(c, st).force;
+    let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
+    let p = force - c.damping * v - c.stiffness * st.x_p;
+    return c.slider_share * p;
+}
+
+fn slip_direction(c: Coefficients, need: V2) -> V2 {
+    let a = need * c.slip_scale;
+    let b = c.slip_b;
+    var lambda = max(root(dot(a, a)) - c.slip_b_max, Real(0.0));
+    for (var k = 0u; k < SLIP_DIRECTION_ITERATIONS; k++) {
+        let d = b + lambda;
+        let r = div2(a, d);
+        let q = r * r;
+        let g = q.x + q.y - Real(1.0);
+        let dg = Real(-2.0) * dot(q, div2(V2(1.0), d));
+        // Stops at the root, and on NaN (no comparison holds).
+        if !(g > Real(0.0)) || dg == Real(0.0) {
+            break;
+        }
+        let next = lambda - div(g, dg);
+        if !(next > lambda) {
+            break;
+        }
+        lambda = next;
+    }
+    let u = div2(a, b + lambda);
+    let n = root(dot(u, u));
+    if n > Real(0.0) && is_finite(n) {
+        return u * recip(n);
+    }
+    return need * recip(root(dot(need, need)));
+}
+
+fn start_slip(c: Coefficients, st: ptr<function, State>, need: V2) {
+    (*st).held = slip_direction(c, need);
+    (*st).mode = MODE_BAND;
+}
+
+fn try_stick(c: Coefficients, st: ptr<function, State>) {
+    let need = stick_force(c, *st);
+    let v = c.stage_share * (*st).v_p + c.slider_share * (*st).v_s;
+    (*st).v_p = v;
+    (*st).v_s = v;
+    if dot(need, need) <= c.hold2 {
+        (*st).mode = MODE_STICK;
+    } else {
+        start_slip(c, st, need);
+    }
+}
