@@ -78,13 +78,18 @@ pub fn select_backend(
         }
         BackendChoice::Gpu => {
             let ctx = GpuContext::new(true).context("--backend gpu")?;
-            Box::new(GpuBackend::new(ctx, gpu_precision)?)
+            let gpu = GpuBackend::new(ctx, gpu_precision)?;
+            eprintln!("pidm: {}", gpu.readiness());
+            Box::new(gpu)
         }
         BackendChoice::Auto => match GpuContext::new(false) {
             Ok(ctx) => {
                 let adapter = ctx.describe();
                 match GpuBackend::new(ctx, gpu_precision) {
-                    Ok(gpu) => Box::new(gpu),
+                    Ok(gpu) => {
+                        eprintln!("pidm: {}", gpu.readiness());
+                        Box::new(gpu)
+                    }
                     Err(err) => {
                         eprintln!(
                             "pidm: the GPU path cannot run on {adapter}, using the CPU path \

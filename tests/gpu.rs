@@ -425,14 +425,14 @@ fn random_scene_matches_the_cpu() {
 }
 
 /// An instance that needs more than 65,535 steps, lavapipe's loop limit:
-/// the paper's 10/20 Hz 2-DOF case over 140 periods.
+/// the paper's 10/20 Hz 2-DOF case over 400 periods.
 #[test]
 fn long_run_crosses_the_loop_limit() {
     let Some(ctx) = context() else {
         return;
     };
     let mut inst = paper_cases()[6];
-    inst.cycles = 140;
+    inst.cycles = 400;
     let instances = [inst];
     let settings = Settings::default();
     let cpu = cpu_reference(&instances, &settings);

@@ -25,7 +25,7 @@ fn relative_acceleration(s: Sample) -> V2 {
 fn primary_event(c: Coefficients, kind: u32, s: Sample) -> V2 {
     if kind == EVENT_BREAKAWAY {
         let e = c.hold2 - c.ms2 * dot(s.a_p, s.a_p);
-        return V2(e, Real(-2.0) * c.ms2 * dot(s.a_p, s.j_p));
+        return V2(e, -c.two_ms2 * dot(s.a_p, s.j_p));
     }
     let v = relative_velocity(s);
     let a = relative_acceleration(s);
@@ -37,6 +37,14 @@ fn primary_event(c: Coefficients, kind: u32, s: Sample) -> V2 {
     return V2(-e, -de);
 }
 
+fn approach_event(c: Coefficients, flow: Flow, s: Sample) -> V2 {
+    return V2(dot(relative_velocity(s), flow.b0) - c.band, dot(relative_acceleration(s), flow.b0));
+}
+
+fn approach_scale(c: Coefficients, flow: Flow, s: Sample) -> Real {
+    return c.band + dot(abs(s.v_p) + abs(s.v_s), abs(flow.b0));
+}
+
 fn reversal_event(st: State, s: Sample) -> V2 {
     return V2(dot(relative_velocity(s), st.held), dot(relative_acceleration(s), st.held));
 }
@@ -45,7 +53,7 @@ fn primary_scale(c: Coefficients, kind: u32, s: Sample) -> Real {
     if kind == EVENT_BREAKAWAY {
         let forces = c.stiffness * abs(s.x_p) + c.damping * abs(s.v_p);
         let terms = abs(s.a_p) + Real(2.0) * forces * c.stick.inv_mass;
-        return c.hold2 + dot(c.ms2 * Real(2.0) * abs(s.a_p), terms);
+        return c.hold2 + dot(c.two_ms2 * abs(s.a_p), terms);
     }
     let v = relative_velocity(s);
     return c.band2 + dot(Real(2.0) * abs(v), abs(s.v_p) + abs(s.v_s));
@@ -100,6 +108,8 @@ fn event_at(c: Coefficients, st: State, kind: u32, sign: Real, flow: Flow, tau: 
     var ev: V2;
     if kind == EVENT_REVERSAL {
         ev = reversal_event(st, s);
+    } else if kind == EVENT_APPROACH {
+        ev = approach_event(c, flow, s);
     } else {
         ev = primary_event(c, kind, s);
     }

@@ -44,6 +44,7 @@ struct Flow {
     v_p: V2,
     x_s: V2,
     v_s: V2,
+    b0: V2,
     slider0: V2,
     slider1: V2,
     slider2: V2,
@@ -185,6 +186,7 @@ fn make_flow(
     f.v_p = v_p;
     f.x_s = x_s;
     f.v_s = v_s;
+    f.b0 = dir.b0;
     f.slider0 = c.fc_over_ms * dir.b0;
     f.slider1 = c.fc_over_ms * dir.b1;
     f.slider2 = c.fc_over_ms * dir.b2;

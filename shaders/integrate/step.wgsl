@@ -92,13 +92,44 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u
         }
         start = eval_flow(flow, identity_propagator(), Real(0.0));
     }
-    let quarter = eval_flow(flow, props.quarter, Real(0.25) * h);
-    let three_quarters = eval_flow(flow, props.three_quarters, Real(0.75) * h);
-    if slipping {
+    var quarter = eval_flow(flow, props.quarter, Real(0.25) * h);
+    var three_quarters = eval_flow(flow, props.three_quarters, Real(0.75) * h);
+    var slip_event = EVENT_ENTER_BAND;
+    if slipping && c.frictionless == 0u {
         if failed {
             err = INFINITY;
-        } else if c.frictionless == 0u {
-            err = direction_error(dir, start, quarter, mid, three_quarters, end);
+        } else {
+            err = direction_error(dir, start, quarter, mid, three_quarters, end, 4u);
+        }
+        if err >= INFINITY {
+            // The relative velocity reversed within the trial: the
+            // constant direction of the start up to where it slows into
+            // the band (see step.rs).
+            dir = DirectionModel(dir.b0, V2(0.0), V2(0.0));
+            flow = mode_flow(c, *st, drive, dir, h);
+            start = eval_flow(flow, identity_propagator(), Real(0.0));
+            quarter = eval_flow(flow, props.quarter, Real(0.25) * h);
+            mid = eval_flow(flow, props.half, Real(0.5) * h);
+            three_quarters = eval_flow(flow, props.three_quarters, Real(0.75) * h);
+            end = eval_flow(flow, props.full, h);
+            var ev: EventSamples;
+            ev.v[0] = approach_event(c, flow, start);
+            ev.v[1] = approach_event(c, flow, quarter);
+            ev.v[2] = approach_event(c, flow, mid);
+            ev.v[3] = approach_event(c, flow, three_quarters);
+            ev.v[4] = approach_event(c, flow, end);
+            let scale = approach_scale(c, flow, start);
+            let entry = find_crossing(c, *st, EVENT_APPROACH, Real(1.0), &ev, scale, flow, h);
+            if entry.found {
+                var before = 0u;
+                for (var j = 1u; j < 5u; j++) {
+                    if theta(j) * h <= entry.lo {
+                        before = j;
+                    }
+                }
+                err = direction_error(dir, start, quarter, mid, three_quarters, end, before);
+                slip_event = EVENT_APPROACH;
+            }
         }
         if err > c.tolerance {
             reject(c, st, h, err);
@@ -109,15 +140,15 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u
     if stuck {
         primary = select(EVENT_BREAKAWAY, EVENT_NONE, safe);
     } else if slipping {
-        primary = EVENT_ENTER_BAND;
+        primary = slip_event;
     }
     var ev_primary: EventSamples;
     var ev_reversal: EventSamples;
-    ev_primary.v[0] = primary_event(c, primary, start);
-    ev_primary.v[1] = primary_event(c, primary, quarter);
-    ev_primary.v[2] = primary_event(c, primary, mid);
-    ev_primary.v[3] = primary_event(c, primary, three_quarters);
-    ev_primary.v[4] = primary_event(c, primary, end);
+    ev_primary.v[0] = any_primary_event(c, primary, flow, start);
+    ev_primary.v[1] = any_primary_event(c, primary, flow, quarter);
+    ev_primary.v[2] = any_primary_event(c, primary, flow, mid);
+    ev_primary.v[3] = any_primary_event(c, primary, flow, three_quarters);
+    ev_primary.v[4] = any_primary_event(c, primary, flow, end);
     ev_reversal.v[0] = reversal_event(*st, start);
     ev_reversal.v[1] = reversal_event(*st, quarter);
     ev_reversal.v[2] = reversal_event(*st, mid);
@@ -138,7 +169,11 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u
         var kind_sign = Real(1.0);
         var scale: Real;
         if k == 0u {
-            scale = primary_scale(c, primary, start);
+            if primary == EVENT_APPROACH {
+                scale = approach_scale(c, flow, start);
+            } else {
+                scale = primary_scale(c, primary, start);
+            }
         } else {
             kind = select(EVENT_NONE, EVENT_REVERSAL, watch_reversal);
             kind_sign = sign;
@@ -172,6 +207,20 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u
         }
     } else {
         let s = eval_at(flow, event_tau);
+        // The approach is the band entry only while v_rel still points
+        // along the step's direction (see step.rs).
+        if event == EVENT_APPROACH {
+            let u = direction(s);
+            var turned = INFINITY;
+            if u.ok {
+                let d = u.u - flow.b0;
+                turned = root(dot(d, d)) - direction_noise(s);
+            }
+            if turned > c.tolerance {
+                reject(c, st, h, INFINITY);
+                return STEP_REJECTED;
+            }
+        }
         move_to(st, s, event_tau, h_max, stop);
         if event == EVENT_BREAKAWAY {
             let need = stick_force(c, *st);
@@ -180,7 +229,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u
             (*st).mode = MODE_SLIP;
             (*st).h_slip = initial_slip_step(c, *st, h_max);
         } else {
-            if event == EVENT_ENTER_BAND {
+            if event == EVENT_ENTER_BAND || event == EVENT_APPROACH {
                 (*st).h_slip = h;
             }
             try_stick(c, st);
@@ -190,9 +239,26 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u
     return STEP_MOVED;
 }
 
+// The primary event of a step (the `if primary == EVENT_APPROACH` of
+// step.rs).
+fn any_primary_event(c: Coefficients, kind: u32, flow: Flow, s: Sample) -> V2 {
+    if kind == EVENT_APPROACH {
+        return approach_event(c, flow, s);
+    }
+    return primary_event(c, kind, s);
+}
+
 // The error of one sample after the start (see `direction_error`); the
-// relative velocity of the previous sample comes in `prev_v`.
-fn sample_direction_error(dir: DirectionModel, s: Sample, th: Real, prev_v: V2) -> Real {
+// relative velocity of the previous sample comes in `prev_v`, and the
+// rounding noise of the start's direction, which the model interpolates
+// with weight (1 - th)(1 - 2 th), in `start_noise`.
+fn sample_direction_error(
+    dir: DirectionModel,
+    s: Sample,
+    th: Real,
+    prev_v: V2,
+    start_noise: Real,
+) -> Real {
     let v = relative_velocity(s);
     if dot(v, prev_v) <= Real(0.0) {
         return INFINITY;
@@ -203,23 +269,46 @@ fn sample_direction_error(dir: DirectionModel, s: Sample, th: Real, prev_v: V2) 
     }
     let model = dir.b0 + (dir.b1 + dir.b2 * th) * th;
     let d = u.u - model;
-    // Rounding noise in the relative velocity, a difference of two larger
-    // velocities, is not a direction error (NOISE is zero in f64, where
-    // this subtracts nothing).
-    var noise = Real(0.0);
-    if NOISE > Real(0.0) {
-        let scale = abs(s.v_p) + abs(s.v_s);
-        noise = NOISE * EPSILON * div(scale.x + scale.y, root(dot(v, v)));
-    }
-    return root(dot(d, d)) - noise;
+    let weight = abs((Real(1.0) - th) * (Real(1.0) - Real(2.0) * th));
+    return root(dot(d, d)) - direction_noise(s) - weight * start_noise;
 }
 
-fn direction_error(dir: DirectionModel, s0: Sample, s1: Sample, s2: Sample, s3: Sample, s4: Sample) -> Real {
+// The rounding noise of the direction of the relative velocity, a
+// difference of two larger velocities: not a direction error. NOISE is
+// zero in f64, where this is zero.
+fn direction_noise(s: Sample) -> Real {
+    if NOISE > Real(0.0) {
+        let v = relative_velocity(s);
+        let scale = abs(s.v_p) + abs(s.v_s);
+        return NOISE * EPSILON * div(scale.x + scale.y, root(dot(v, v)));
+    }
+    return Real(0.0);
+}
+
+// The error at samples 1 to `last`.
+fn direction_error(
+    dir: DirectionModel,
+    s0: Sample,
+    s1: Sample,
+    s2: Sample,
+    s3: Sample,
+    s4: Sample,
+    last: u32,
+) -> Real {
     var err = Real(0.0);
-    err = max(err, sample_direction_error(dir, s1, Real(0.25), relative_velocity(s0)));
-    err = max(err, sample_direction_error(dir, s2, Real(0.5), relative_velocity(s1)));
-    err = max(err, sample_direction_error(dir, s3, Real(0.75), relative_velocity(s2)));
-    err = max(err, sample_direction_error(dir, s4, Real(1.0), relative_velocity(s3)));
+    let start_noise = direction_noise(s0);
+    if last >= 1u {
+        err = max(err, sample_direction_error(dir, s1, Real(0.25), relative_velocity(s0), start_noise));
+    }
+    if last >= 2u {
+        err = max(err, sample_direction_error(dir, s2, Real(0.5), relative_velocity(s1), start_noise));
+    }
+    if last >= 3u {
+        err = max(err, sample_direction_error(dir, s3, Real(0.75), relative_velocity(s2), start_noise));
+    }
+    if last >= 4u {
+        err = max(err, sample_direction_error(dir, s4, Real(1.0), relative_velocity(s3), start_noise));
+    }
     return err;
 }
 
@@ -278,7 +367,8 @@ fn initial_slip_step(c: Coefficients, st: State, h_max: Real) -> Real {
     let v = relative_velocity(s);
     let a = relative_acceleration(s);
     let speed = root(dot(v, v));
-    let across = div(abs(v.x * a.y - v.y * a.x), speed);
+    // A turn below the rounding noise of the direction is no turn (f32).
+    let across = max(div(abs(v.x * a.y - v.y * a.x), speed) - root(dot(a, a)) * direction_noise(s), Real(0.0));
     var turn = INFINITY;
     if across > Real(0.0) {
         turn = div(Real(0.1) * speed, across);

@@ -34,6 +34,25 @@ impl GpuBackend {
         Ok(GpuBackend { ctx, precision })
     }
 
+    /// "GPU ready in 0.21 s (...)": what opening the device, creating the
+    /// pipeline and its self-test cost.
+    pub fn readiness(&self) -> String {
+        match self.ctx.prepare_timed(self.precision) {
+            Ok((_, p)) => format!(
+                "GPU ready in {:.2} s (device {:.2} s, pipeline {:.2} s{}, self-test {:.2} s)",
+                p.open_s + p.pipeline_s + p.self_test_s,
+                p.open_s,
+                p.pipeline_s,
+                match self.ctx.pipeline_cache_path() {
+                    Some(path) => format!(" with the cache {}", path.display()),
+                    None => String::new(),
+                },
+                p.self_test_s
+            ),
+            Err(e) => format!("GPU not ready: {e}"),
+        }
+    }
+
     pub fn context(&self) -> &GpuContext {
         &self.ctx
     }

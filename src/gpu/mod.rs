@@ -186,12 +186,18 @@ impl Default for BatchOptions {
     }
 }
 
-fn instance() -> wgpu::Instance {
-    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+/// Every adapter on the given backends (the instance's other settings come
+/// from wgpu's environment variables).
+fn adapters_on(backends: wgpu::Backends) -> Vec<wgpu::Adapter> {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
+    desc.backends = backends;
+    pollster::block_on(wgpu::Instance::new(desc).enumerate_adapters(backends))
 }
 
+/// Every adapter wgpu can open, on the backends `WGPU_BACKEND` names or on
+/// all.
 fn adapters() -> Vec<wgpu::Adapter> {
-    pollster::block_on(instance().enumerate_adapters(wgpu::Backends::all()))
+    adapters_on(wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all()))
 }
 
 fn summary(adapter: &wgpu::Adapter) -> AdapterSummary {
@@ -262,6 +268,18 @@ fn rank(adapter: &wgpu::Adapter) -> (u32, bool) {
     )
 }
 
+/// What making a pipeline ready cost, for the user's information.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Preparation {
+    /// Finding the adapter and opening the device [s].
+    pub open_s: f64,
+    /// Creating the pipeline: the driver's compile, or a pipeline-cache hit
+    /// [s].
+    pub pipeline_s: f64,
+    /// The self-test batch [s].
+    pub self_test_s: f64,
+}
+
 /// Errors the device reported outside any error scope, and its loss.
 #[derive(Default)]
 struct DeviceHealth {
@@ -294,8 +312,11 @@ pub struct GpuContext {
     health: Arc<DeviceHealth>,
     /// The driver's pipeline cache, where the adapter offers one.
     cache: Option<cache::DiskCache>,
-    /// Compiled and self-tested pipelines, [F32, F64], built on first use.
-    pipelines: Mutex<[Option<wgpu::ComputePipeline>; 2]>,
+    /// Compiled and self-tested pipelines, [F32, F64], built on first use,
+    /// with what building them cost.
+    pipelines: Mutex<[Option<(wgpu::ComputePipeline, Preparation)>; 2]>,
+    /// Time to find the adapter and open the device [s].
+    opened_in: f64,
     /// Held while a batch runs: batches on one context take turns (wgpu's
     /// GL backend does not survive two threads submitting at once).
     busy: Mutex<()>,
@@ -305,9 +326,24 @@ impl GpuContext {
     /// Opens the best adapter: a hardware one when there is one, a software
     /// one (lavapipe and the like) only when `allow_software`.
     pub fn new(allow_software: bool) -> Result<GpuContext, GpuError> {
+        let started = std::time::Instant::now();
         let mut tried = Vec::new();
         let mut best: Option<wgpu::Adapter> = None;
-        for adapter in adapters() {
+        // Unless WGPU_BACKEND says otherwise, the primary backends
+        // (Vulkan, Metal, DX12) first: opening GL costs a tenth of a second,
+        // and a GL adapter has no f64.
+        let candidates = match wgpu::Backends::from_env() {
+            Some(backends) => adapters_on(backends),
+            None => {
+                let mut found = adapters_on(wgpu::Backends::PRIMARY);
+                let usable = |a: &wgpu::Adapter| allow_software || !is_software(&a.get_info());
+                if !found.iter().any(usable) {
+                    found.extend(adapters_on(wgpu::Backends::SECONDARY));
+                }
+                found
+            }
+        };
+        for adapter in candidates {
             let info = adapter.get_info();
             let label = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
             let compute = adapter
@@ -338,12 +374,15 @@ impl GpuContext {
             };
             return Err(GpuError::NoAdapter { tried });
         };
-        Self::from_adapter(&adapter)
+        let mut ctx = Self::from_adapter(&adapter)?;
+        ctx.opened_in = started.elapsed().as_secs_f64();
+        Ok(ctx)
     }
 
     /// Opens a device on a given adapter, with its full limits, and
     /// `SHADER_F64` and `PIPELINE_CACHE` where offered.
     pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<GpuContext, GpuError> {
+        let started = std::time::Instant::now();
         let info = adapter.get_info();
         let offered = adapter.features();
         let f64 = offered.contains(wgpu::Features::SHADER_F64);
@@ -385,6 +424,7 @@ impl GpuContext {
             health,
             cache,
             pipelines: Mutex::new([None, None]),
+            opened_in: started.elapsed().as_secs_f64(),
             busy: Mutex::new(()),
         })
     }
@@ -455,6 +495,15 @@ impl GpuContext {
     /// Every driver failure becomes an error here, before any instance of a
     /// run is integrated.
     pub fn prepare(&self, precision: Precision) -> Result<wgpu::ComputePipeline, GpuError> {
+        self.prepare_timed(precision).map(|(p, _)| p)
+    }
+
+    /// [`GpuContext::prepare`], with what the preparation cost (the first
+    /// call's, also on later calls).
+    pub fn prepare_timed(
+        &self,
+        precision: Precision,
+    ) -> Result<(wgpu::ComputePipeline, Preparation), GpuError> {
         if precision == Precision::F64 && !self.f64 {
             return Err(GpuError::F64Unsupported {
                 adapter: self.describe(),
@@ -468,6 +517,7 @@ impl GpuContext {
         if let Some(p) = &pipelines[slot] {
             return Ok(p.clone());
         }
+        let started = std::time::Instant::now();
         let variant = self.variant(precision);
         let pipeline = create_pipeline_cached(
             &self.device,
@@ -475,12 +525,19 @@ impl GpuContext {
             self.cache.as_ref().map(|c| c.cache()),
         )?;
         self.check_health()?;
+        let compiled = started.elapsed().as_secs_f64();
         self.self_test(&pipeline, precision)?;
+        let tested = started.elapsed().as_secs_f64();
         if let Some(cache) = &self.cache {
             cache.save();
         }
-        pipelines[slot] = Some(pipeline.clone());
-        Ok(pipeline)
+        let preparation = Preparation {
+            open_s: self.opened_in,
+            pipeline_s: compiled,
+            self_test_s: tested - compiled,
+        };
+        pipelines[slot] = Some((pipeline.clone(), preparation));
+        Ok((pipeline, preparation))
     }
 
     /// Runs the self-test batch (MODEL.md's Fig. 8 case, two periods, and

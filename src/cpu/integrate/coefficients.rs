@@ -83,12 +83,14 @@ pub struct Coefficients {
     pub slip_b_max: f64,
     /// max(f_s, f_c)^2 [N^2]: the interface holds while |f_need|^2 <= hold2.
     pub hold2: f64,
-    /// m_s^2 [kg^2].
+    /// m_s^2 and 2 m_s^2 [kg^2].
     pub ms2: f64,
+    pub two_ms2: f64,
     /// Kinetic friction f_c [N] and f_c / m_s [m/s^2].
     pub coulomb: f64,
     pub fc_over_ms: f64,
-    /// Detection band a^2 [m^2/s^2].
+    /// Detection band a [m/s] and a^2 [m^2/s^2].
+    pub band: f64,
     pub band2: f64,
     /// Scene period T [s].
     pub period: f64,
@@ -188,8 +190,10 @@ impl Coefficients {
             slip_b_max: slip_b.max_element().max(0.0),
             hold2: m.holding_friction() * m.holding_friction(),
             ms2: ms * ms,
+            two_ms2: 2.0 * (ms * ms),
             coulomb: fc,
             fc_over_ms: fc / ms,
+            band: m.velocity_band,
             band2: m.velocity_band * m.velocity_band,
             period,
             event_step_stuck: event_step(&stick),

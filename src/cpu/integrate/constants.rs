@@ -32,6 +32,11 @@ pub const EVENT_LEAVE_BAND: u32 = 3;
 /// The relative velocity reverses against the held direction:
 /// sign * v_rel . held.
 pub const EVENT_REVERSAL: u32 = 4;
+/// Slip along a fixed direction u slows into the band: v_rel . u - a. The
+/// band entry of a slip trial whose relative velocity reverses (see
+/// `step::step`), linear in the velocity where |v_rel|^2 - a^2 is
+/// quadratic, so f32 resolves it too.
+pub const EVENT_APPROACH: u32 = 5;
 
 /// Number of Taylor terms of the propagator after scaling to norm <= 1/2:
 /// the truncation error is below 0.5^15 / 15! = 2.3e-17.
@@ -114,6 +119,7 @@ pub fn wgsl_constants() -> String {
         u("EVENT_ENTER_BAND", EVENT_ENTER_BAND),
         u("EVENT_LEAVE_BAND", EVENT_LEAVE_BAND),
         u("EVENT_REVERSAL", EVENT_REVERSAL),
+        u("EVENT_APPROACH", EVENT_APPROACH),
         u("TAYLOR_TERMS", TAYLOR_TERMS),
         r("EVENT_STEP_PERIODS", EVENT_STEP_PERIODS),
         u("COLLOCATION_ITERATIONS", COLLOCATION_ITERATIONS),

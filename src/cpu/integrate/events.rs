@@ -43,7 +43,7 @@ pub fn relative_acceleration(s: &Sample) -> Vec2 {
 pub fn primary_event(c: &Coefficients, kind: u32, s: &Sample) -> EventValue {
     if kind == EVENT_BREAKAWAY {
         let e = c.hold2 - c.ms2 * norm2(s.a_p);
-        return [e, -2.0 * c.ms2 * dot(s.a_p, s.j_p)];
+        return [e, -c.two_ms2 * dot(s.a_p, s.j_p)];
     }
     let v = relative_velocity(s);
     let a = relative_acceleration(s);
@@ -54,6 +54,20 @@ pub fn primary_event(c: &Coefficients, kind: u32, s: &Sample) -> EventValue {
     } else {
         [-e, -de]
     }
+}
+
+/// v_rel . u - a and its derivative, for the flow's constant friction
+/// direction u.
+pub fn approach_event(c: &Coefficients, flow: &Flow, s: &Sample) -> EventValue {
+    [
+        dot(relative_velocity(s), flow.b0) - c.band,
+        dot(relative_acceleration(s), flow.b0),
+    ]
+}
+
+/// The magnitude of the terms of the approach event.
+pub fn approach_scale(c: &Coefficients, flow: &Flow, s: &Sample) -> f64 {
+    c.band + dot(s.v_p.abs() + s.v_s.abs(), flow.b0.abs())
 }
 
 /// v_rel . held and its derivative: the reversal event before its sign.
@@ -73,7 +87,7 @@ pub fn primary_scale(c: &Coefficients, kind: u32, s: &Sample) -> f64 {
         // forces, not to itself.
         let forces = c.stiffness * s.x_p.abs() + c.damping * s.v_p.abs();
         let terms = s.a_p.abs() + 2.0 * forces * c.stick.inv_mass;
-        return c.hold2 + dot(c.ms2 * 2.0 * s.a_p.abs(), terms);
+        return c.hold2 + dot(c.two_ms2 * s.a_p.abs(), terms);
     }
     // The relative velocity is a difference of two velocities that are
     // often far larger (a slider sliding with its stage), so its rounding
@@ -161,6 +175,8 @@ pub fn event_at(
     let s = eval_at(flow, tau);
     let ev = if kind == super::constants::EVENT_REVERSAL {
         reversal_event(st, &s)
+    } else if kind == super::constants::EVENT_APPROACH {
+        approach_event(c, flow, &s)
     } else {
         primary_event(c, kind, &s)
     };

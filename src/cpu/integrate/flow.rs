@@ -73,6 +73,8 @@ pub struct Flow {
     pub v_p: Vec2,
     pub x_s: Vec2,
     pub v_s: Vec2,
+    /// The friction direction model's constant term (slip only).
+    pub b0: Vec2,
     /// Slider acceleration polynomial in theta = tau / h (slip only).
     pub slider0: Vec2,
     pub slider1: Vec2,
@@ -224,6 +226,7 @@ pub fn make_flow(
         v_p,
         x_s,
         v_s,
+        b0: dir.b0,
         slider0: c.fc_over_ms * dir.b0,
         slider1: c.fc_over_ms * dir.b1,
         slider2: c.fc_over_ms * dir.b2,

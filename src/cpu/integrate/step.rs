@@ -18,17 +18,18 @@
 use super::arith::step_factor;
 use super::coefficients::Coefficients;
 use super::constants::{
-    COLLOCATION_ITERATIONS, EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_LEAVE_BAND, EVENT_NONE,
-    EVENT_REVERSAL, MAX_REJECTIONS, MAX_SQUARINGS, MODE_BAND, MODE_SLIP, MODE_STICK,
+    COLLOCATION_ITERATIONS, EVENT_APPROACH, EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_LEAVE_BAND,
+    EVENT_NONE, EVENT_REVERSAL, MAX_REJECTIONS, MAX_SQUARINGS, MODE_BAND, MODE_SLIP, MODE_STICK,
     SLIP_DIRECTION_ITERATIONS, STATUS_STEP_UNDERFLOW,
 };
 use super::drive::drive_force;
 use super::events::{
-    find_crossing, locate, primary_event, primary_scale, relative_acceleration, relative_velocity,
-    reversal_event, reversal_scale,
+    THETA, approach_event, approach_scale, find_crossing, locate, primary_event, primary_scale,
+    relative_acceleration, relative_velocity, reversal_event, reversal_scale,
 };
 use super::flow::{
-    DirectionModel, Flow, IDENTITY, Sample, eval_at, eval_flow, make_flow, sample_propagators,
+    DirectionModel, Flow, IDENTITY, Sample, SamplePropagators, eval_at, eval_flow, make_flow,
+    sample_propagators,
 };
 use super::vec2::{Vec2, dot, norm2};
 use super::{State, StepMotion, StepObserver};
@@ -153,22 +154,50 @@ pub fn step<O: StepObserver>(
     }
     let quarter = eval_flow(&flow, props.quarter, 0.25 * h);
     let three_quarters = eval_flow(&flow, props.three_quarters, 0.75 * h);
-    let samples = [start, quarter, mid, three_quarters, end];
-    if slipping {
-        if err == 0.0 && !c.frictionless {
-            err = direction_error(&dir, &samples);
+    let mut samples = [start, quarter, mid, three_quarters, end];
+    // The event a slip step ends at: the band entry, or its approach along
+    // a fixed direction.
+    let mut slip_event = EVENT_ENTER_BAND;
+    if slipping && !c.frictionless {
+        if err == 0.0 {
+            err = direction_error(&dir, &samples, 4);
+        }
+        if err == f64::INFINITY {
+            // The relative velocity reversed (or vanished) within the trial,
+            // so no quadratic follows its direction; but the band is
+            // entered before any reversal. Take the constant direction u of
+            // the start (exact for motion along a fixed direction), find
+            // where v_rel . u slows to the band, and check the direction
+            // only before that. Without this, a slip that slows down toward
+            // the band is found by halving and quadrupling the step about
+            // twenty times, until a step happens to end inside the band.
+            dir = DirectionModel {
+                b0: dir.b0,
+                ..DirectionModel::default()
+            };
+            flow = mode_flow(c, st, force, slope, &dir, h);
+            samples = sample_flow(&flow, &props, h);
+            let ev = samples.map(|s| approach_event(c, &flow, &s));
+            let scale = approach_scale(c, &flow, &samples[0]);
+            let entry = find_crossing(c, st, EVENT_APPROACH, 1.0, &ev, scale, &flow, h);
+            if entry.found {
+                let before = THETA.iter().filter(|&&th| th * h <= entry.lo).count() - 1;
+                err = direction_error(&dir, &samples, before);
+                slip_event = EVENT_APPROACH;
+            }
         }
         if err > c.tolerance {
             reject(c, st, h, err);
             return StepOutcome::Rejected;
         }
     }
+    let (start, end) = (samples[0], samples[4]);
     // The events this step watches, their values at the samples, and in
     // band slip the sign the reversal product first takes.
     let primary = if stuck {
         if safe { EVENT_NONE } else { EVENT_BREAKAWAY }
     } else if slipping {
-        EVENT_ENTER_BAND
+        slip_event
     } else {
         EVENT_LEAVE_BAND
     };
@@ -176,7 +205,11 @@ pub fn step<O: StepObserver>(
     let mut ev_reversal = [[0.0; 2]; 5];
     let mut sign = 0.0;
     for (j, s) in samples.iter().enumerate() {
-        ev_primary[j] = primary_event(c, primary, s);
+        ev_primary[j] = if primary == EVENT_APPROACH {
+            approach_event(c, &flow, s)
+        } else {
+            primary_event(c, primary, s)
+        };
         ev_reversal[j] = reversal_event(st, s);
         if sign == 0.0 && ev_reversal[j][0] != 0.0 {
             sign = if ev_reversal[j][0] > 0.0 { 1.0 } else { -1.0 };
@@ -187,7 +220,12 @@ pub fn step<O: StepObserver>(
     let mut event_tau = 0.0;
     for k in 0..2 {
         let (kind, kind_sign, ev, scale) = if k == 0 {
-            (primary, 1.0, &ev_primary, primary_scale(c, primary, &start))
+            let scale = if primary == EVENT_APPROACH {
+                approach_scale(c, &flow, &start)
+            } else {
+                primary_scale(c, primary, &start)
+            };
+            (primary, 1.0, &ev_primary, scale)
         } else {
             (
                 if watch_reversal {
@@ -224,6 +262,19 @@ pub fn step<O: StepObserver>(
         }
     } else {
         let s = eval_at(&flow, event_tau);
+        // v_rel . u = a is the band entry only while v_rel still points
+        // along u: a relative velocity that turned on its way to zero (a
+        // pass of the band in 2-D) needs shorter steps instead.
+        if event == EVENT_APPROACH {
+            let turned = match direction(&s) {
+                Some(u) => norm2(u - flow.b0).sqrt(),
+                None => f64::INFINITY,
+            };
+            if turned > c.tolerance {
+                reject(c, st, h, f64::INFINITY);
+                return StepOutcome::Rejected;
+            }
+        }
         move_to(st, &s, event_tau, h_max, stop, &flow, observer);
         if event == EVENT_BREAKAWAY {
             let need = stick_force(c, st);
@@ -232,7 +283,7 @@ pub fn step<O: StepObserver>(
             st.mode = MODE_SLIP;
             st.h_slip = initial_slip_step(c, st, h_max);
         } else {
-            if event == EVENT_ENTER_BAND {
+            if event == EVENT_ENTER_BAND || event == EVENT_APPROACH {
                 st.h_slip = h;
             }
             try_stick(c, st);
@@ -242,14 +293,24 @@ pub fn step<O: StepObserver>(
     StepOutcome::Moved
 }
 
+/// The five samples of a flow over a step of length h.
+fn sample_flow(flow: &Flow, props: &SamplePropagators, h: f64) -> [Sample; 5] {
+    [
+        eval_flow(flow, IDENTITY, 0.0),
+        eval_flow(flow, props.quarter, 0.25 * h),
+        eval_flow(flow, props.half, 0.5 * h),
+        eval_flow(flow, props.three_quarters, 0.75 * h),
+        eval_flow(flow, props.full, h),
+    ]
+}
+
 /// The largest distance between the direction model and the true direction
-/// of the resulting motion at the samples after the start, or infinity
-/// where the relative velocity turns by a right angle between samples or
-/// vanishes.
-fn direction_error(dir: &DirectionModel, samples: &[Sample; 5]) -> f64 {
+/// of the resulting motion at samples 1 to `last`, or infinity where the
+/// relative velocity turns by a right angle between samples or vanishes.
+fn direction_error(dir: &DirectionModel, samples: &[Sample; 5], last: usize) -> f64 {
     let mut err: f64 = 0.0;
     let mut prev_v = relative_velocity(&samples[0]);
-    for (s, th) in samples.iter().zip(super::events::THETA).skip(1) {
+    for (s, th) in samples.iter().zip(THETA).skip(1).take(last) {
         let v = relative_velocity(s);
         if dot(v, prev_v) <= 0.0 {
             return f64::INFINITY;
