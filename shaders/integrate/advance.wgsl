@@ -8,6 +8,7 @@ struct State {
     v_p: V2,
     x_s: V2,
     v_s: V2,
+    v_rel: V2,
     held: V2,
     settle_x_s: V2,
     cycle_phase: V2,
@@ -33,6 +34,7 @@ fn initial_state(c: Coefficients) -> State {
     st.v_p = V2(0.0);
     st.x_s = V2(0.0);
     st.v_s = V2(0.0);
+    st.v_rel = V2(0.0);
     st.held = V2(0.0);
     st.settle_x_s = V2(0.0);
     st.cycle_phase = p;
@@ -113,5 +115,5 @@ fn is_finite2(v: V2) -> bool {
 
 fn state_is_finite(st: State) -> bool {
     return is_finite(st.time) && is_finite(st.h_slip) && is_finite2(st.x_p) && is_finite2(st.v_p)
-        && is_finite2(st.x_s) && is_finite2(st.v_s);
+        && is_finite2(st.x_s) && is_finite2(st.v_s) && is_finite2(st.v_rel);
 }

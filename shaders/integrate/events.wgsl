@@ -14,7 +14,7 @@ fn theta(j: u32) -> Real {
 }
 
 fn relative_velocity(s: Sample) -> V2 {
-    return s.v_p - s.v_s;
+    return s.v_rel;
 }
 
 fn relative_acceleration(s: Sample) -> V2 {

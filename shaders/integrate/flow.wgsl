@@ -25,6 +25,7 @@ struct Sample {
     x_s: V2,
     v_s: V2,
     a_s: V2,
+    v_rel: V2,
 }
 
 // The motion of both axes over one step.
@@ -44,6 +45,7 @@ struct Flow {
     v_p: V2,
     x_s: V2,
     v_s: V2,
+    v_rel: V2,
     b0: V2,
     slider0: V2,
     slider1: V2,
@@ -149,6 +151,7 @@ fn make_flow(
     v_p: V2,
     x_s: V2,
     v_s: V2,
+    v_rel: V2,
     force: V2,
     slope: V2,
     dir: DirectionModel,
@@ -186,6 +189,7 @@ fn make_flow(
     f.v_p = v_p;
     f.x_s = x_s;
     f.v_s = v_s;
+    f.v_rel = v_rel;
     f.b0 = dir.b0;
     f.slider0 = c.fc_over_ms * dir.b0;
     f.slider1 = c.fc_over_ms * dir.b1;
@@ -197,10 +201,10 @@ fn make_flow(
     return f;
 }
 
-// Stage (x, v, a, jerk) per axis.
+// Stage (x, change of v since the start, a, jerk) per axis.
 struct Stage {
     x: V2,
-    v: V2,
+    dv: V2,
     a: V2,
     j: V2,
 }
@@ -214,9 +218,9 @@ fn eval_stage(f: Flow, prop: Propagator, tau: Real) -> Stage {
     let a_h = -o.w2 * y - Real(2.0) * o.sigma * w;
     let j_h = -o.w2 * w - Real(2.0) * o.sigma * a_h;
     let x = f.x_p + (f.part1 + f.part2 * tau) * tau + dy;
-    let v = f.v_p + Real(2.0) * f.part2 * tau + dw;
+    let dv = Real(2.0) * f.part2 * tau + dw;
     let a = Real(2.0) * f.part2 + a_h;
-    return Stage(x, v, a, j_h);
+    return Stage(x, dv, a, j_h);
 }
 
 fn eval_stage_taylor(f: Flow, tau: Real) -> Stage {
@@ -237,7 +241,9 @@ fn eval_stage_taylor(f: Flow, tau: Real) -> Stage {
         let inv_n1 = inverse_integer(n + 1u);
         bound = select(bound, bound * rate_tau * inv_n1, live);
         out.x = select(out.x, out.x + d0 * t, live);
-        out.v = select(out.v, out.v + d1 * t, live);
+        if n > 0u {
+            out.dv = select(out.dv, out.dv + d1 * t, live);
+        }
         out.a = select(out.a, out.a + d2 * t, live);
         out.j = select(out.j, out.j + d3 * t, live);
         var g = V2(0.0);
@@ -259,19 +265,21 @@ fn eval_flow(flow: Flow, prop: Propagator, tau: Real) -> Sample {
     if any(flow.taylor) {
         let ts = eval_stage_taylor(flow, tau);
         st.x = select(st.x, ts.x, flow.taylor);
-        st.v = select(st.v, ts.v, flow.taylor);
+        st.dv = select(st.dv, ts.dv, flow.taylor);
         st.a = select(st.a, ts.a, flow.taylor);
         st.j = select(st.j, ts.j, flow.taylor);
     }
+    let v = flow.v_p + st.dv;
     var s: Sample;
     s.x_p = st.x;
-    s.v_p = st.v;
+    s.v_p = v;
     s.a_p = st.a;
     s.j_p = st.j;
     if flow.stuck {
         s.x_s = flow.x_s + (st.x - flow.x_p);
-        s.v_s = st.v;
+        s.v_s = v;
         s.a_s = st.a;
+        s.v_rel = V2(0.0);
     } else {
         let th = tau * flow.inv_h;
         let h = flow.h;
@@ -281,8 +289,10 @@ fn eval_flow(flow: Flow, prop: Propagator, tau: Real) -> Sample {
         s.x_s = flow.x_s
             + flow.v_s * tau
             + (h * h * th * th) * (c0 * Real(0.5) + (c1 * ONE_SIXTH + c2 * (ONE_TWELFTH * th)) * th);
-        s.v_s = flow.v_s + (h * th) * (c0 + (c1 * Real(0.5) + c2 * (ONE_THIRD * th)) * th);
+        let dv_s = (h * th) * (c0 + (c1 * Real(0.5) + c2 * (ONE_THIRD * th)) * th);
+        s.v_s = flow.v_s + dv_s;
         s.a_s = c0 + (c1 + c2 * th) * th;
+        s.v_rel = flow.v_rel + (st.dv - dv_s);
     }
     return s;
 }

@@ -242,6 +242,7 @@ macro_rules! precision_structs {
                     pub v_p: V2,
                     pub x_s: V2,
                     pub v_s: V2,
+                    pub v_rel: V2,
                     pub held: V2,
                     pub settle_x_s: V2,
                     pub cycle_phase: V2,

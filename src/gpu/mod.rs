@@ -693,18 +693,20 @@ pub fn run_batch_with(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
     let pipeline = ctx.prepare(precision)?;
-    let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-    let out = execute_gpu_inner(
-        &ctx.device,
-        &ctx.queue,
-        &pipeline,
-        &ctx.limits,
-        instances,
-        settings,
-        precision,
-        options,
-        progress,
-    )?;
+    let out = {
+        let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
+        execute_gpu_inner(
+            &ctx.device,
+            &ctx.queue,
+            &pipeline,
+            &ctx.limits,
+            instances,
+            settings,
+            precision,
+            options,
+            progress,
+        )?
+    };
     ctx.check_health()?;
     Ok(out)
 }

@@ -57,6 +57,11 @@ pub const ENTRY_POINT: &str = "advance_slice";
 /// than the tolerance and the step control shrinks the step to nothing.
 const F32_NOISE: f64 = 8.0;
 
+/// In f32, a slip that slows along a fixed direction to within this many
+/// bands of zero relative velocity enters the band (its velocity across the
+/// direction is rounding noise of that size).
+const F32_APPROACH_BANDS: f64 = 4.0;
+
 /// Resolution of the f32 two-part time, relative to the period.
 pub const F32_TIME_EPSILON: f64 = 1e-13;
 
@@ -168,11 +173,13 @@ pub fn prelude(variant: Variant) -> String {
                  const INFINITY: Real = {max:e};\n\
                  const TINY: Real = 1e-30;\n\
                  const COMPENSATED_TIME: bool = true;\n\
-                 const NOISE: Real = {noise:?};\n",
+                 const NOISE: Real = {noise:?};\n\
+                 const F32_APPROACH_BANDS: Real = {bands:?};\n",
                 eps = f32::EPSILON as f64,
                 time_eps = F32_TIME_EPSILON,
                 max = f32::MAX as f64,
                 noise = F32_NOISE,
+                bands = F32_APPROACH_BANDS * F32_APPROACH_BANDS,
             ),
             F32_HELPERS,
         ),
@@ -184,7 +191,8 @@ pub fn prelude(variant: Variant) -> String {
                  const INFINITY: Real = {max:e};\n\
                  const TINY: Real = 1e-300;\n\
                  const COMPENSATED_TIME: bool = false;\n\
-                 const NOISE: Real = 0.0;\n",
+                 const NOISE: Real = 0.0;\n\
+                 const F32_APPROACH_BANDS: Real = 0.0;\n",
                 eps = f64::EPSILON,
                 max = f64::MAX,
             ),

@@ -31,7 +31,7 @@ pub struct Crossing {
 pub const THETA: [f64; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
 
 pub fn relative_velocity(s: &Sample) -> Vec2 {
-    s.v_p - s.v_s
+    s.v_rel
 }
 
 pub fn relative_acceleration(s: &Sample) -> Vec2 {

@@ -46,6 +46,8 @@ pub struct Sample {
     pub x_s: Vec2,
     pub v_s: Vec2,
     pub a_s: Vec2,
+    /// v_p - v_s, from the start value and the changes since the start.
+    pub v_rel: Vec2,
 }
 
 /// The motion of both axes over one step.
@@ -73,6 +75,7 @@ pub struct Flow {
     pub v_p: Vec2,
     pub x_s: Vec2,
     pub v_s: Vec2,
+    pub v_rel: Vec2,
     /// The friction direction model's constant term (slip only).
     pub b0: Vec2,
     /// Slider acceleration polynomial in theta = tau / h (slip only).
@@ -185,6 +188,7 @@ pub fn make_flow(
     v_p: Vec2,
     x_s: Vec2,
     v_s: Vec2,
+    v_rel: Vec2,
     force: Vec2,
     slope: Vec2,
     dir: &DirectionModel,
@@ -226,6 +230,7 @@ pub fn make_flow(
         v_p,
         x_s,
         v_s,
+        v_rel,
         b0: dir.b0,
         slider0: c.fc_over_ms * dir.b0,
         slider1: c.fc_over_ms * dir.b1,
@@ -240,7 +245,8 @@ pub fn make_flow(
     }
 }
 
-/// Stage (x, v, a, jerk) at tau with the propagator for tau.
+/// Stage (x, change of v since the start, a, jerk) at tau with the
+/// propagator for tau.
 fn eval_stage(f: &Flow, prop: Propagator, tau: f64) -> (Vec2, Vec2, Vec2, Vec2) {
     let o = &f.osc;
     // Changes of the homogeneous part since tau = 0, then the state as the
@@ -252,12 +258,12 @@ fn eval_stage(f: &Flow, prop: Propagator, tau: f64) -> (Vec2, Vec2, Vec2, Vec2) 
     let a_h = -o.w2 * y - 2.0 * o.sigma * w;
     let j_h = -o.w2 * w - 2.0 * o.sigma * a_h;
     let x = f.x_p + (f.part1 + f.part2 * tau) * tau + dy;
-    let v = f.v_p + 2.0 * f.part2 * tau + dw;
+    let dv = 2.0 * f.part2 * tau + dw;
     let a = 2.0 * f.part2 + a_h;
-    (x, v, a, j_h)
+    (x, dv, a, j_h)
 }
 
-/// Stage (x, v, a, jerk) at tau by the Taylor series of the exact solution,
+/// Stage (x, change of v, a, jerk) at tau by the Taylor series of the exact solution,
 /// with derivatives from m x'' = g - c x' - k x. Valid and accurate to
 /// rounding for rate * tau <= 1. Each axis stops adding terms once the
 /// bound on its next term is negligible.
@@ -284,7 +290,10 @@ fn eval_stage_taylor(f: &Flow, tau: f64) -> (Vec2, Vec2, Vec2, Vec2) {
         let inv_n1 = 1.0 / (n + 1) as f64;
         bound = Vec2::select(bound, bound * rate_tau * inv_n1, live);
         x = Vec2::select(x, x + d0 * t, live);
-        v = Vec2::select(v, v + d1 * t, live);
+        // The velocity's change leaves out its start value (n = 0).
+        if n > 0 {
+            v = Vec2::select(v, v + d1 * t, live);
+        }
         a = Vec2::select(a, a + d2 * t, live);
         j = Vec2::select(j, j + d3 * t, live);
         // g^(n+2)(0): 2 g2 for n = 0, zero after.
@@ -301,14 +310,15 @@ fn eval_stage_taylor(f: &Flow, tau: f64) -> (Vec2, Vec2, Vec2, Vec2) {
 
 /// Evaluates the flow at tau, given the propagator for tau.
 pub fn eval_flow(flow: &Flow, prop: Propagator, tau: f64) -> Sample {
-    let (mut x, mut v, mut a, mut j) = eval_stage(flow, prop, tau);
+    let (mut x, mut dv, mut a, mut j) = eval_stage(flow, prop, tau);
     if flow.taylor[0] || flow.taylor[1] {
-        let (tx, tv, ta, tj) = eval_stage_taylor(flow, tau);
+        let (tx, tdv, ta, tj) = eval_stage_taylor(flow, tau);
         x = Vec2::select(x, tx, flow.taylor);
-        v = Vec2::select(v, tv, flow.taylor);
+        dv = Vec2::select(dv, tdv, flow.taylor);
         a = Vec2::select(a, ta, flow.taylor);
         j = Vec2::select(j, tj, flow.taylor);
     }
+    let v = flow.v_p + dv;
     if flow.stuck {
         Sample {
             x_p: x,
@@ -318,11 +328,13 @@ pub fn eval_flow(flow: &Flow, prop: Propagator, tau: f64) -> Sample {
             x_s: flow.x_s + (x - flow.x_p),
             v_s: v,
             a_s: a,
+            v_rel: Vec2::ZERO,
         }
     } else {
         let th = tau * flow.inv_h;
         let h = flow.h;
         let (c0, c1, c2) = (flow.slider0, flow.slider1, flow.slider2);
+        let dv_s = (h * th) * (c0 + (c1 * 0.5 + c2 * (ONE_THIRD * th)) * th);
         Sample {
             x_p: x,
             v_p: v,
@@ -331,8 +343,9 @@ pub fn eval_flow(flow: &Flow, prop: Propagator, tau: f64) -> Sample {
             x_s: flow.x_s
                 + flow.v_s * tau
                 + (h * h * th * th) * (c0 * 0.5 + (c1 * ONE_SIXTH + c2 * (ONE_TWELFTH * th)) * th),
-            v_s: flow.v_s + (h * th) * (c0 + (c1 * 0.5 + c2 * (ONE_THIRD * th)) * th),
+            v_s: flow.v_s + dv_s,
             a_s: c0 + (c1 + c2 * th) * th,
+            v_rel: flow.v_rel + (dv - dv_s),
         }
     }
 }

@@ -95,6 +95,10 @@ pub struct State {
     /// Slider positions [m] and velocities [m/s].
     pub x_s: Vec2,
     pub v_s: Vec2,
+    /// Relative velocity v_p - v_s [m/s], integrated on its own from its
+    /// changes: near the band it is far smaller than the two velocities,
+    /// and their difference would know it only to their rounding.
+    pub v_rel: Vec2,
     /// Friction direction held inside the band (unit vector on the slider).
     pub held: Vec2,
     /// Slider positions when the measured periods began [m].
@@ -131,6 +135,7 @@ pub fn initial_state(c: &Coefficients) -> State {
         v_p: Vec2::ZERO,
         x_s: Vec2::ZERO,
         v_s: Vec2::ZERO,
+        v_rel: Vec2::ZERO,
         held: Vec2::ZERO,
         settle_x_s: Vec2::ZERO,
         cycle_phase: p,
@@ -300,4 +305,5 @@ fn state_is_finite(st: &State) -> bool {
         && finite(st.v_p)
         && finite(st.x_s)
         && finite(st.v_s)
+        && finite(st.v_rel)
 }

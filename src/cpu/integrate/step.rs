@@ -60,6 +60,7 @@ fn mode_flow(
         st.v_p,
         st.x_s,
         st.v_s,
+        st.v_rel,
         force,
         slope,
         dir,
@@ -98,7 +99,7 @@ pub fn step<O: StepObserver>(
         if h <= 0.0 {
             h = c.event_step_slip.min(h_max);
         }
-        let v = st.v_p - st.v_s;
+        let v = st.v_rel;
         dir.b0 = v * (1.0 / norm2(v).sqrt());
     } else if st.mode == MODE_BAND {
         h = h_max.min(c.event_step_slip);
@@ -377,6 +378,7 @@ fn move_to<O: StepObserver>(
     st.v_p = s.v_p;
     st.x_s = s.x_s;
     st.v_s = s.v_s;
+    st.v_rel = s.v_rel;
     if tau >= h_max {
         st.time = stop;
     } else {
@@ -393,7 +395,7 @@ fn move_to<O: StepObserver>(
 /// it (only a turn time on a power of two could tip it).
 fn initial_slip_step(c: &Coefficients, st: &State, h_max: f64) -> f64 {
     let (force, slope) = drive_force(c, st);
-    let v = st.v_p - st.v_s;
+    let v = st.v_rel;
     let dir = DirectionModel {
         b0: v * (1.0 / norm2(v).sqrt()),
         ..DirectionModel::default()
@@ -493,6 +495,7 @@ fn try_stick(c: &Coefficients, st: &mut State) {
     let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
     st.v_p = v;
     st.v_s = v;
+    st.v_rel = Vec2::ZERO;
     if norm2(need) <= c.hold2 {
         st.mode = MODE_STICK;
     } else {
