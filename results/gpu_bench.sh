@@ -16,6 +16,7 @@ mkdir -p "$out"
 work=$(mktemp -d)
 table="$out/table.md"
 : > "$table"
+: > "$out/runs.log"
 
 # Scenes derived from the shipped ones.
 sed -e 's/steps = 61/steps = 200/g' -e 's/^baselines = true/baselines = false/' \
@@ -37,13 +38,15 @@ timed() {
     shift
     local start end
     start=$(date +%s.%N)
-    if ! pidm run "$@" > "$out/$label.log" 2>&1; then
-        echo "FAILED: $label (see $label.log)" >&2
-        tail -5 "$out/$label.log" >&2
+    if ! pidm run "$@" > "$work/$label.log" 2>&1; then
+        echo "FAILED: $label" >&2
+        tail -5 "$work/$label.log" >&2
+        { echo "== $label (FAILED)"; cat "$work/$label.log"; } >> "$out/runs.log"
         echo "nan"
         return
     fi
     end=$(date +%s.%N)
+    { echo "== $label: $(python3 -c "print(f'{$end - $start:.3f}')") s"; grep -E "ready|backend|wrote|status [1-9]" "$work/$label.log"; } >> "$out/runs.log"
     python3 -c "print(f'{$end - $start:.3f}')"
 }
 
@@ -85,12 +88,9 @@ if [ "$mode" = full ]; then
 fi
 for scene in $scenes; do
     f32=$(timed "$scene-f32" "$work/$scene.toml" --backend gpu --precision f32 --out "$work/$scene-f32.h5")
-    f64=nan
-    if [ "$scene" != coupling1000b ]; then
-        f64=$(timed "$scene-f64" "$work/$scene.toml" --backend gpu --precision f64 --out "$work/$scene-f64.h5")
-    fi
+    f64=$(timed "$scene-f64" "$work/$scene.toml" --backend gpu --precision f64 --out "$work/$scene-f64.h5")
     cpu=$(timed "$scene-cpu" "$work/$scene.toml" --backend cpu --out "$work/$scene-cpu.h5")
-    n=$(grep -o '([0-9]* instances' "$out/$scene-cpu.log" | head -1 | tr -dc 0-9)
+    n=$(grep -o '([0-9]* instances' "$work/$scene-cpu.log" | head -1 | tr -dc 0-9)
     sp32=$(python3 -c "print(f'{$cpu / $f32:.1f}')" 2>/dev/null || echo nan)
     sp64=$(python3 -c "print(f'{$cpu / $f64:.1f}')" 2>/dev/null || echo nan)
     row "$scene | $n | $f32 | $f64 | $cpu | $sp32 | $sp64"

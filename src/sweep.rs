@@ -386,11 +386,8 @@ pub fn run(
         if interrupt_requested() {
             bail!("interrupted after {finished_before} of {total} instances");
         }
-        let mains: Vec<Instance> = segments
-            .iter()
-            .flat_map(|r| r.clone())
-            .map(|i| (plan.instance)(i))
-            .collect();
+        let indices: Vec<u64> = segments.iter().flat_map(|r| r.clone()).collect();
+        let mains: Vec<Instance> = indices.par_iter().map(|&i| (plan.instance)(i)).collect();
         let jobs = Jobs::new(&mains, plan.baselines, &baselines_done);
         let Jobs {
             jobs,

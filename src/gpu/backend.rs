@@ -7,9 +7,11 @@ use crate::cpu::integrate::Settings;
 use crate::model::Instance;
 use crate::sweep::{Backend, Outcome};
 
-/// Instances per sweep chunk on the GPU: large enough to fill a desktop GPU,
-/// small enough to checkpoint and report progress often.
-const GPU_CHUNK: usize = 1 << 18;
+/// Instances per sweep chunk on the GPU: a million, enough to fill a large
+/// GPU several times over (so the slowest instances of a chunk, which the
+/// chunk waits for, are a small part of it), and about a second of work
+/// between checkpoints.
+const GPU_CHUNK: usize = 1 << 20;
 
 /// The WGSL shader on one adapter at one precision.
 pub struct GpuBackend {

@@ -45,6 +45,8 @@ pub use shader::Variant;
 
 use std::sync::{Arc, Mutex};
 
+use rayon::prelude::*;
+
 use thiserror::Error;
 use wgpu::util::DeviceExt;
 
@@ -742,7 +744,7 @@ pub fn execute_gpu_inner(
 
 /// The host side of one precision: its storage structs and their packing.
 trait Layout {
-    type Coefficients: HostLayout;
+    type Coefficients: HostLayout + Send;
     type State: HostLayout;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
@@ -878,7 +880,7 @@ impl Runner<'_> {
         let queue = self.queue;
         let n = instances.len();
         let coefficients: Vec<L::Coefficients> = instances
-            .iter()
+            .par_iter()
             .map(|inst| L::pack(inst, self.settings))
             .collect();
         let coefficients_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
