@@ -34,7 +34,8 @@ enum Command {
         /// adapter (lavapipe included), failing when there is none; cpu.
         #[arg(long, value_enum, default_value_t = commands::BackendChoice::Auto)]
         backend: commands::BackendChoice,
-        /// Precision of the GPU path [default: f32]; the CPU path is f64.
+        /// Precision of the GPU path [default: f64 where the adapter has
+        /// it, else f32]; the CPU path is f64.
         #[arg(long, value_enum)]
         precision: Option<commands::PrecisionChoice>,
         /// Run only shard K of N (1 <= K <= N) into its own file [default

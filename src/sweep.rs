@@ -34,6 +34,46 @@ use crate::model::{AXES, Instance, InstanceKey};
 /// 100 MiB.
 const MAX_REMEMBERED_BASELINES: usize = 1 << 20;
 
+/// A map from a 64-bit digest of an instance's key to its job, with a fast
+/// multiply-rotate hash (the keys are parameter bits, not attacker-chosen):
+/// 16 bytes an entry, so a million instances stay in cache where full keys
+/// and std's SipHash made de-duplicating them cost a second.
+type DigestMap = HashMap<u64, usize, std::hash::BuildHasherDefault<KeyHasher>>;
+
+/// FxHash's word mixing (as in rustc): rotate, xor, multiply per word.
+#[derive(Default)]
+struct KeyHasher(u64);
+
+impl std::hash::Hasher for KeyHasher {
+    fn write(&mut self, bytes: &[u8]) {
+        for chunk in bytes.chunks(8) {
+            let mut word = [0u8; 8];
+            word[..chunk.len()].copy_from_slice(chunk);
+            self.write_u64(u64::from_le_bytes(word));
+        }
+    }
+
+    fn write_u64(&mut self, word: u64) {
+        self.0 = (self.0.rotate_left(5) ^ word).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+
+    fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+/// A 64-bit digest of an instance's key.
+fn digest(key: &InstanceKey) -> u64 {
+    use std::hash::Hasher;
+    let mut h = KeyHasher::default();
+    for &word in key {
+        h.write_u64(word);
+    }
+    // A final avalanche, so the map's low bits depend on every word.
+    let x = h.finish();
+    (x ^ (x >> 29)).wrapping_mul(0xbf58_476d_1ce4_e5b9) ^ (x >> 32)
+}
+
 /// Where a chunk's baseline comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum JobRef {
@@ -55,30 +95,77 @@ struct Jobs {
 }
 
 impl Jobs {
-    fn new(mains: &[Instance], baselines: bool, done: &HashMap<InstanceKey, Outcome>) -> Jobs {
-        let mut jobs = Vec::with_capacity(mains.len());
-        let mut index: HashMap<InstanceKey, usize> = HashMap::with_capacity(mains.len());
-        let mut job_of = |inst: Instance, jobs: &mut Vec<Instance>| {
-            *index.entry(inst.key()).or_insert_with(|| {
-                jobs.push(inst);
-                jobs.len() - 1
-            })
+    fn new(mains: &[Instance], baselines: bool, done: &BaselineMemo) -> Jobs {
+        // Digests in parallel; the de-duplication is a sequential pass over
+        // them that compares whole keys only where digests meet.
+        let main_digests: Vec<u64> = mains.par_iter().map(|m| digest(&m.key())).collect();
+        let base_digests: Vec<[u64; AXES]> = if baselines {
+            mains
+                .par_iter()
+                .map(|m| std::array::from_fn(|axis| digest(&m.baseline(axis).key())))
+                .collect()
+        } else {
+            Vec::new()
         };
-        let main_job: Vec<usize> = mains.iter().map(|m| job_of(*m, &mut jobs)).collect();
-        let mut baseline_job = vec![[JobRef::Done; AXES]; if baselines { mains.len() } else { 0 }];
-        for (inst, refs) in mains.iter().zip(baseline_job.iter_mut()) {
-            for (axis, r) in refs.iter_mut().enumerate() {
-                let base = inst.baseline(axis);
-                if !done.contains_key(&base.key()) {
-                    *r = JobRef::Run(job_of(base, &mut jobs));
+        let mut jobs: Vec<Instance> = Vec::with_capacity(mains.len());
+        let mut index = DigestMap::with_capacity_and_hasher(mains.len(), Default::default());
+        let mut job_of = |inst: Instance, d: u64, jobs: &mut Vec<Instance>| {
+            use std::collections::hash_map::Entry;
+            match index.entry(d) {
+                Entry::Occupied(e) if jobs[*e.get()].key() == inst.key() => *e.get(),
+                // Two instances with one digest: run both (never seen; a
+                // duplicate integration is harmless).
+                Entry::Occupied(_) => {
+                    jobs.push(inst);
+                    jobs.len() - 1
+                }
+                Entry::Vacant(e) => {
+                    jobs.push(inst);
+                    *e.insert(jobs.len() - 1)
                 }
             }
-        }
+        };
+        let main_job: Vec<usize> = mains
+            .iter()
+            .zip(&main_digests)
+            .map(|(m, &d)| job_of(*m, d, &mut jobs))
+            .collect();
+        let baseline_job = mains
+            .iter()
+            .zip(&base_digests)
+            .map(|(m, digests)| {
+                std::array::from_fn(|axis| {
+                    let base = m.baseline(axis);
+                    match done.get(&base, digests[axis]) {
+                        Some(_) => JobRef::Done,
+                        None => JobRef::Run(job_of(base, digests[axis], &mut jobs)),
+                    }
+                })
+            })
+            .collect();
         Jobs {
             jobs,
             main_job,
             baseline_job,
         }
+    }
+}
+
+/// Baseline outcomes of earlier chunks, by digest (with the instance, to
+/// tell digests apart).
+#[derive(Default)]
+struct BaselineMemo(HashMap<u64, (Instance, Outcome), std::hash::BuildHasherDefault<KeyHasher>>);
+
+impl BaselineMemo {
+    fn get(&self, inst: &Instance, d: u64) -> Option<Outcome> {
+        self.0
+            .get(&d)
+            .filter(|(known, _)| known.key() == inst.key())
+            .map(|(_, outcome)| *outcome)
+    }
+
+    fn insert(&mut self, inst: &Instance, outcome: Outcome) {
+        self.0.insert(digest(&inst.key()), (*inst, outcome));
     }
 }
 
@@ -262,6 +349,8 @@ pub struct Summary {
     pub steps: u64,
     /// Integrations run, baselines included, each distinct one once.
     pub integrations: u64,
+    /// Wall time spent integrating (in the backend) [s].
+    pub integration_s: f64,
     /// Simulated time over all integrated instances, baselines included [s].
     pub simulated_s: f64,
     pub extreme_step: [f64; 2],
@@ -274,6 +363,7 @@ impl Default for Summary {
             status_counts: [0; 7],
             steps: 0,
             integrations: 0,
+            integration_s: 0.0,
             simulated_s: 0.0,
             extreme_step: [f64::INFINITY, f64::NEG_INFINITY],
         }
@@ -289,6 +379,7 @@ impl Summary {
         }
         self.steps += other.steps;
         self.integrations += other.integrations;
+        self.integration_s += other.integration_s;
         self.simulated_s += other.simulated_s;
         self.extreme_step[0] = self.extreme_step[0].min(other.extreme_step[0]);
         self.extreme_step[1] = self.extreme_step[1].max(other.extreme_step[1]);
@@ -381,7 +472,7 @@ pub fn run(
     let total = plan.count();
     let mut summary = Summary::default();
     let mut finished_before = 0;
-    let mut baselines_done: HashMap<InstanceKey, Outcome> = HashMap::new();
+    let mut baselines_done = BaselineMemo::default();
     for segments in chunks(&plan.work, chunk.max(1) as u64) {
         if interrupt_requested() {
             bail!("interrupted after {finished_before} of {total} instances");
@@ -407,11 +498,13 @@ pub fn run(
                 progress(target - before);
             }
         };
+        let started = std::time::Instant::now();
         let mut outcomes = if jobs.is_empty() {
             Vec::new()
         } else {
             backend.run(&jobs, &plan.settings, &done)?
         };
+        summary.integration_s += started.elapsed().as_secs_f64();
         if plan.verify && !interrupt_requested() {
             let tight = Settings {
                 tolerance: plan.settings.tolerance / VERIFY_TIGHTENING,
@@ -437,7 +530,9 @@ pub fn run(
                     let base_inst = inst.baseline(axis);
                     let base = match *job {
                         JobRef::Run(j) => outcomes[j],
-                        JobRef::Done => baselines_done[&base_inst.key()],
+                        JobRef::Done => baselines_done
+                            .get(&base_inst, digest(&base_inst.key()))
+                            .expect("a baseline marked done was remembered"),
                     };
                     let base = record(&base_inst, &base);
                     rec.baseline_step[axis] = base.step[axis];
@@ -452,13 +547,13 @@ pub fn run(
         // Keep this chunk's baselines for the chunks after it (a grid's
         // baselines repeat along every other axis), within a bound.
         if plan.baselines {
-            if baselines_done.len() > MAX_REMEMBERED_BASELINES {
-                baselines_done.clear();
+            if baselines_done.0.len() > MAX_REMEMBERED_BASELINES {
+                baselines_done.0.clear();
             }
             for (inst, refs) in mains.iter().zip(&baseline_job) {
                 for (axis, job) in refs.iter().enumerate() {
                     if let JobRef::Run(j) = *job {
-                        baselines_done.insert(inst.baseline(axis).key(), outcomes[j]);
+                        baselines_done.insert(&inst.baseline(axis), outcomes[j]);
                     }
                 }
             }

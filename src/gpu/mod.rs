@@ -64,6 +64,30 @@ pub const WORKGROUP_SIZE: u32 = 32;
 /// milliseconds on a GPU, far from any watchdog.
 pub const SLICE_ITERATIONS: u32 = 1024;
 
+/// The invocations per workgroup this process uses: [`WORKGROUP_SIZE`], or
+/// `PIDM_GPU_WORKGROUP` (a power of two from 1 to 256), a knob for
+/// measuring other sizes.
+pub fn workgroup_size() -> u32 {
+    static SIZE: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
+    *SIZE.get_or_init(|| {
+        std::env::var("PIDM_GPU_WORKGROUP")
+            .ok()
+            .and_then(|v| v.parse::<u32>().ok())
+            .filter(|n| n.is_power_of_two() && *n <= 256)
+            .unwrap_or(WORKGROUP_SIZE)
+    })
+}
+
+/// The iterations per dispatch this process uses: [`SLICE_ITERATIONS`], or
+/// `PIDM_GPU_SLICE` (at least 1), a knob for measuring other lengths.
+pub fn slice_iterations() -> u32 {
+    std::env::var("PIDM_GPU_SLICE")
+        .ok()
+        .and_then(|v| v.parse::<u32>().ok())
+        .filter(|&n| n >= 1)
+        .unwrap_or(SLICE_ITERATIONS)
+}
+
 /// Status the shader gives an instance when a single iteration needs more
 /// loop iterations than the driver allows one invocation (llvmpipe/lavapipe
 /// stop every loop of an invocation after 65,535 loop iterations in total).
@@ -181,7 +205,7 @@ pub struct BatchOptions {
 impl Default for BatchOptions {
     fn default() -> Self {
         BatchOptions {
-            slice_iterations: SLICE_ITERATIONS,
+            slice_iterations: slice_iterations(),
             max_batch: None,
             probe_passes: layout::PROBE_PASSES,
         }
@@ -787,7 +811,7 @@ pub fn max_batch_instances(
     let largest = coefficients_size.max(state_size) as u64;
     let by_memory = binding.min(buffer) / largest;
     let dim = limits.max_compute_workgroups_per_dimension as u64;
-    let by_dispatch = dim * dim * WORKGROUP_SIZE as u64;
+    let by_dispatch = dim * dim * workgroup_size() as u64;
     let mut n = by_memory.min(by_dispatch).min(usize::MAX as u64) as usize;
     if let Some(m) = options.max_batch {
         n = n.min(m);
@@ -796,9 +820,10 @@ pub fn max_batch_instances(
 }
 
 /// Workgroup counts (x, y) covering `n` instances within the per-dimension
-/// limit. The shader numbers invocations `x + y * groups_x * WORKGROUP_SIZE`.
+/// limit. The shader numbers invocations `x + y * groups_x * WORKGROUP_SIZE`
+/// (the prelude's, [`workgroup_size`]).
 pub fn dispatch_size(n: usize, max_per_dimension: u32) -> (u32, u32) {
-    let groups = (n as u64).div_ceil(WORKGROUP_SIZE as u64).max(1);
+    let groups = (n as u64).div_ceil(workgroup_size() as u64).max(1);
     let x = groups.min(max_per_dimension as u64);
     let y = groups.div_ceil(x);
     (x as u32, y as u32)
@@ -1052,7 +1077,7 @@ mod tests {
 
     #[test]
     fn dispatch_covers_every_instance_within_the_limit() {
-        let wg = WORKGROUP_SIZE as usize;
+        let wg = workgroup_size() as usize;
         let cases = [
             (1, 65535),
             (wg, 65535),
@@ -1067,7 +1092,7 @@ mod tests {
                 x <= max && y <= max,
                 "{n} instances, limit {max}: {x} x {y}"
             );
-            assert!((x as usize) * (y as usize) * WORKGROUP_SIZE as usize >= n);
+            assert!((x as usize) * (y as usize) * workgroup_size() as usize >= n);
         }
     }
 
