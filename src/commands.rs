@@ -827,6 +827,8 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
         }
         Err(err) => println!("  gpu: not measured ({err})"),
     }
+    // Instances per second of the all-core CPU path, to compare the GPU with.
+    let mut cpu_rate = None;
     for backend in &backends {
         let mut passes = 0;
         // One warm-up pass (pipeline compilation on the GPU), then passes
@@ -846,12 +848,25 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
             Some(n) => format!(" ({:.1} per core)", rate / n as f64),
             None => String::new(),
         };
+        let per_second = passes as f64 * instances.len() as f64 / wall;
+        let versus = match (backend.cpu_threads(), cpu_rate) {
+            (Some(_), _) => {
+                cpu_rate = Some(per_second);
+                String::new()
+            }
+            (None, Some(cpu)) => format!(
+                ", {:.2} times the CPU path on every core",
+                per_second / cpu
+            ),
+            (None, None) => String::new(),
+        };
         println!(
-            "  {} {}: {:.1} simulated s per wall s{per_core}, {:.1} instances per s, {passes} passes in {wall:.2} s",
+            "  {} {}: {:.1} simulated s per wall s{per_core}, {:.1} instances per s{versus}, \
+             {passes} passes in {wall:.2} s",
             backend.describe(),
             backend.precision(),
             rate,
-            passes as f64 * instances.len() as f64 / wall
+            per_second
         );
     }
     Ok(())
