@@ -854,10 +854,9 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
                 cpu_rate = Some(per_second);
                 String::new()
             }
-            (None, Some(cpu)) => format!(
-                ", {:.2} times the CPU path on every core",
-                per_second / cpu
-            ),
+            (None, Some(cpu)) => {
+                format!(", {:.2} times the CPU path on every core", per_second / cpu)
+            }
             (None, None) => String::new(),
         };
         println!(

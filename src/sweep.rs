@@ -504,7 +504,6 @@ pub fn run(
         } else {
             backend.run(&jobs, &plan.settings, &done)?
         };
-        summary.integration_s += started.elapsed().as_secs_f64();
         if plan.verify && !interrupt_requested() {
             let tight = Settings {
                 tolerance: plan.settings.tolerance / VERIFY_TIGHTENING,
@@ -515,6 +514,7 @@ pub fn run(
                 verify(job, outcome, check);
             }
         }
+        summary.integration_s += started.elapsed().as_secs_f64();
         if interrupt_requested() {
             bail!("interrupted after {finished_before} of {total} instances");
         }
@@ -522,25 +522,30 @@ pub fn run(
         if left > 0 {
             progress(left);
         }
-        let mut records = Vec::with_capacity(mains.len());
-        for (k, inst) in mains.iter().enumerate() {
-            let mut rec = record(inst, &outcomes[main_job[k]]);
-            if plan.baselines {
-                for (axis, job) in baseline_job[k].iter().enumerate() {
-                    let base_inst = inst.baseline(axis);
-                    let base = match *job {
-                        JobRef::Run(j) => outcomes[j],
-                        JobRef::Done => baselines_done
-                            .get(&base_inst, digest(&base_inst.key()))
-                            .expect("a baseline marked done was remembered"),
-                    };
-                    let base = record(&base_inst, &base);
-                    rec.baseline_step[axis] = base.step[axis];
-                    rec.baseline_status = rec.baseline_status.max(base.status);
+        let records: Vec<Record> = mains
+            .par_iter()
+            .enumerate()
+            .map(|(k, inst)| {
+                let mut rec = record(inst, &outcomes[main_job[k]]);
+                if plan.baselines {
+                    for (axis, job) in baseline_job[k].iter().enumerate() {
+                        let base_inst = inst.baseline(axis);
+                        let base = match *job {
+                            JobRef::Run(j) => outcomes[j],
+                            JobRef::Done => baselines_done
+                                .get(&base_inst, digest(&base_inst.key()))
+                                .expect("a baseline marked done was remembered"),
+                        };
+                        let base = record(&base_inst, &base);
+                        rec.baseline_step[axis] = base.step[axis];
+                        rec.baseline_status = rec.baseline_status.max(base.status);
+                    }
                 }
-            }
-            summary.add(&rec);
-            records.push(rec);
+                rec
+            })
+            .collect();
+        for rec in &records {
+            summary.add(rec);
         }
         summary.simulated_s += jobs.iter().map(Instance::duration).sum::<f64>();
         summary.integrations += jobs.len() as u64;

@@ -310,7 +310,10 @@ fn check(
     // Every instance ran on the GPU: the CPU fallback of the loop limiter
     // has a test of its own.
     let fallbacks = gpu.iter().filter(|o| o.cpu_fallback).count();
-    assert_eq!(fallbacks, 0, "{label} {precision:?}: {fallbacks} instances ran on the CPU");
+    assert_eq!(
+        fallbacks, 0,
+        "{label} {precision:?}: {fallbacks} instances ran on the CPU"
+    );
     let label = format!("{label} {precision:?}");
     let a = match precision {
         Precision::F32 => compare(&label, instances, cpu, gpu, &f32_allowance),
