@@ -1,6 +1,5 @@
-//! CPU mirrors of the WGSL shader stages, one module per shader file, in f64.
-//! The shader in `shaders/integrate.wgsl` follows `integrate.rs` function by
-//! function.
+//! CPU mirrors of the WGSL shader stages, in f64: `integrate/` follows
+//! `shaders/integrate/` file by file and function by function.
 
 pub mod integrate;
 pub mod karnopp;
