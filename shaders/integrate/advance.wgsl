@@ -27,7 +27,7 @@ struct State {
 }
 
 fn initial_state(c: Coefficients) -> State {
-    let p = frac2(c.phase);
+    let p = frac(c.phase);
     let rising = p < c.duty;
     var st: State;
     st.x_p = V2(0.0);

@@ -41,7 +41,7 @@ fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
         (*st).time = Real(0.0);
         (*st).time_lo = Real(0.0);
         let end_phase = (*st).cycle_phase + c.frequency * c.period;
-        let start_phase = frac2(c.phase + Real((*st).period) * c.cycles_per_period);
+        let start_phase = frac(c.phase + Real((*st).period) * c.cycles_per_period);
         let shift = round(end_phase - start_phase);
         (*st).cycle_phase = start_phase;
         (*st).next_corner = (*st).next_corner - shift;
@@ -57,6 +57,6 @@ fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
     }
 }
 
-fn frac2(u: V2) -> V2 {
+fn frac(u: V2) -> V2 {
     return u - floor(u);
 }

@@ -289,6 +289,112 @@ mod tests {
         }
     }
 
+    /// Function names defined in a source text (`fn name(` at any
+    /// indentation), leaving out a Rust file's test module.
+    fn defined_functions(text: &str) -> Vec<String> {
+        let text = text.split("#[cfg(test)]").next().unwrap_or(text);
+        let mut names = Vec::new();
+        for line in text.lines() {
+            let line = line.trim_start();
+            let rest = ["pub fn ", "pub(super) fn ", "fn "]
+                .iter()
+                .find_map(|prefix| line.strip_prefix(prefix));
+            if let Some(rest) = rest {
+                let name: String = rest
+                    .chars()
+                    .take_while(|c| c.is_alphanumeric() || *c == '_')
+                    .collect();
+                names.push(name);
+            }
+        }
+        names
+    }
+
+    /// Every shader file (but the entry point) defines the functions of its
+    /// Rust mirror and only those, apart from the listed helpers that one
+    /// side needs and the other does not (with the reason).
+    #[test]
+    fn every_shader_file_mirrors_its_rust_file() {
+        let rust = [
+            ("arith.wgsl", include_str!("../cpu/integrate/arith.rs")),
+            (
+                "coefficients.wgsl",
+                include_str!("../cpu/integrate/coefficients.rs"),
+            ),
+            ("flow.wgsl", include_str!("../cpu/integrate/flow.rs")),
+            ("drive.wgsl", include_str!("../cpu/integrate/drive.rs")),
+            ("events.wgsl", include_str!("../cpu/integrate/events.rs")),
+            ("step.wgsl", include_str!("../cpu/integrate/step.rs")),
+            ("advance.wgsl", include_str!("../cpu/integrate/mod.rs")),
+        ];
+        // Shader only: WGSL has no Option, closures, methods or
+        // is_finite, splits some expressions into functions, and f32 needs
+        // noise allowances f64 does not.
+        let shader_only = [
+            "identity_propagator",
+            "series_term",
+            "theta",
+            "hermite_good",
+            "any_primary_event",
+            "sample_direction_error",
+            "direction_noise",
+            "time_reached",
+            "is_finite",
+            "is_finite2",
+        ];
+        // CPU only: constructors, the observer of trajectories (its `step`
+        // method and `StepMotion`), the whole run and its result, Rust's
+        // rounding and the sample array.
+        let cpu_only = [
+            "new",
+            "default",
+            "run_instance",
+            "displacement",
+            "advance_observed",
+            "step",
+            "length",
+            "end",
+            "positions_at",
+            "round_half_even",
+            "sample_flow",
+        ];
+        for (wgsl_name, rust_text) in rust {
+            let (_, wgsl_text) = FILES.iter().find(|(n, _)| *n == wgsl_name).unwrap();
+            let wgsl = defined_functions(wgsl_text);
+            let cpu = defined_functions(rust_text);
+            // The GPU's `advance` (with the loop limiter) lives beside its
+            // entry point.
+            let mut found = wgsl.clone();
+            if wgsl_name == "advance.wgsl" {
+                let (_, entry) = FILES.iter().find(|(n, _)| *n == "entry.wgsl").unwrap();
+                found.extend(defined_functions(entry));
+            }
+            for f in &wgsl {
+                assert!(
+                    cpu.contains(f) || shader_only.contains(&f.as_str()),
+                    "{wgsl_name} defines {f}, its Rust mirror does not"
+                );
+            }
+            for f in &cpu {
+                assert!(
+                    found.contains(f) || cpu_only.contains(&f.as_str()),
+                    "the Rust mirror of {wgsl_name} defines {f}, the shader does not"
+                );
+            }
+        }
+    }
+
+    /// The propagator's Taylor series is unrolled in the shader: one term
+    /// per constant the Rust loop runs over.
+    #[test]
+    fn the_shader_unrolls_every_propagator_term() {
+        let (_, flow) = FILES.iter().find(|(n, _)| *n == "flow.wgsl").unwrap();
+        let terms = flow
+            .matches("series_term(&s, osc, t * inverse_integer(")
+            .count();
+        assert_eq!(terms as u32, TAYLOR_TERMS);
+    }
+
     /// NVIDIA's compiler rejects f64 division and square root in this
     /// shader, so the f64 variant has none outside the f32-free helpers
     /// (which build them from inverseSqrt and fma).

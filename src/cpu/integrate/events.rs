@@ -9,9 +9,7 @@
 
 use super::State;
 use super::coefficients::Coefficients;
-use super::constants::{
-    EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_LEAVE_BAND, EVENT_NOISE, ROOT_ITERATIONS,
-};
+use super::constants::{EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_NOISE, ROOT_ITERATIONS};
 use super::flow::{Flow, Sample, eval_at};
 use super::vec2::{Vec2, dot, norm2};
 
@@ -254,15 +252,4 @@ pub fn locate(
         }
     }
     hi
-}
-
-/// True for the events after which the slider may stick: entering the band
-/// and reversing inside it.
-pub fn ends_in_stick_check(kind: u32) -> bool {
-    kind == EVENT_ENTER_BAND || kind == super::constants::EVENT_REVERSAL
-}
-
-/// True for leaving the band.
-pub fn leaves_band(kind: u32) -> bool {
-    kind == EVENT_LEAVE_BAND
 }
