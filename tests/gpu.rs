@@ -491,6 +491,41 @@ fn split_batches_match_one_batch() {
     assert!(seen.len() >= 3);
 }
 
+/// Lanes that take one instance after another (two lanes for seven
+/// instances, in 7-iteration slices, so instances end and begin inside
+/// dispatches) give the outcomes of one lane per instance, bit for bit.
+#[test]
+fn few_lanes_work_through_every_instance() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let mut instances = paper_cases();
+    instances.truncate(7);
+    let settings = Settings::default();
+    for precision in precisions(ctx) {
+        let whole =
+            run_batch(ctx, &instances, &settings, precision, &mut |_, _| {}).expect("batch runs");
+        let options = BatchOptions {
+            lanes: 2,
+            slice_iterations: 7,
+            ..BatchOptions::default()
+        };
+        let mut seen = Vec::new();
+        let few = run_batch_with(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &options,
+            &mut |done, total| seen.push((done, total)),
+        )
+        .expect("batch on two lanes runs");
+        assert_eq!(whole, few, "{precision:?}");
+        assert_eq!(seen.last(), Some(&(7, 7)));
+        assert!(seen.windows(2).all(|w| w[0].0 <= w[1].0));
+    }
+}
+
 /// Slices of any length give the same outcomes, bit for bit: a 7-iteration
 /// slice, the default, and one so long that llvmpipe's loop limiter cuts
 /// every dispatch short (each cut iteration is undone and redone).

@@ -1,7 +1,21 @@
 // The compute entry point (GPU only; the CPU's counterpart is the loop of
-// `pidm::cpu::integrate::advance`). One invocation integrates one instance
-// for at most `control.max_iterations` iterations, keeping its whole state
-// in registers and in the `states` buffer between dispatches.
+// `pidm::cpu::integrate::advance`). Each invocation is a lane that works
+// through instances for at most `control.max_iterations` iterations per
+// dispatch, keeping the state of the instance in hand in registers and in
+// the `states` buffer between dispatches. A lane whose instance finishes
+// takes the next unstarted one from an atomic counter, so no lane of a warp
+// idles while a slow neighbour finishes.
+
+// The lane holds no instance.
+const NO_INSTANCE: u32 = 0xffffffffu;
+
+// The work counters of a batch.
+struct Counters {
+    // The next instance no lane has taken yet.
+    next: atomic<u32>,
+    // Instances finished (normally or not).
+    finished: atomic<u32>,
+}
 
 // The per-dispatch controls, read from a small storage buffer.
 struct Control {
@@ -25,53 +39,93 @@ struct Control {
 // specialise a shader on the values of uniforms that steer its loops, which
 // would unroll the loop-limiter probe and fold the opaque 1.0 away.
 @group(0) @binding(2) var<storage, read> control: Control;
-@group(0) @binding(3) var<storage, read_write> unfinished: atomic<u32>;
+@group(0) @binding(3) var<storage, read_write> counters: Counters;
+// The instance each lane holds (the host starts lane k on instance k).
+@group(0) @binding(4) var<storage, read_write> lanes: array<u32>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn advance_slice(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let index = gid.x + gid.y * groups.x * WORKGROUP_SIZE;
-    if index >= arrayLength(&states) || index >= arrayLength(&coefficients) {
+    let lane = gid.x + gid.y * groups.x * WORKGROUP_SIZE;
+    if lane >= arrayLength(&lanes) {
         return;
     }
-    let c = coefficients[index];
+    let count = min(arrayLength(&states), arrayLength(&coefficients));
+    var index = lanes[lane];
+    if index >= count {
+        return;
+    }
+    var c = coefficients[index];
     var st: State;
     if control.initialize == 1u {
         st = initial_state(c);
     } else {
         st = states[index];
     }
-    advance(c, &st, control.max_iterations);
-    states[index] = st;
-    if !is_finished(c, st) {
-        atomicAdd(&unfinished, 1u);
+    var left = control.max_iterations;
+    loop {
+        if is_finished(c, st) {
+            states[index] = st;
+            atomicAdd(&counters.finished, 1u);
+            index = atomicAdd(&counters.next, 1u);
+            if index >= count {
+                index = NO_INSTANCE;
+                break;
+            }
+            c = coefficients[index];
+            st = initial_state(c);
+        }
+        if left == 0u {
+            break;
+        }
+        let run = advance(c, &st, left, left == control.max_iterations);
+        left -= run.iterations;
+        if run.cut {
+            break;
+        }
     }
+    if index != NO_INSTANCE {
+        states[index] = st;
+    }
+    lanes[lane] = index;
 }
 
-fn advance(c: Coefficients, st: ptr<function, State>, max_iterations: u32) {
-    for (var iteration = 0u; iteration < max_iterations; iteration++) {
+// What a call of `advance` did.
+struct Advance {
+    // Iterations completed.
+    iterations: u32,
+    // The driver's loop limiter ended the dispatch for this lane.
+    cut: bool,
+}
+
+// At most `max_iterations` iterations of one instance, up to its end.
+// `fresh` says the lane has completed no iteration in this dispatch yet.
+fn advance(c: Coefficients, st: ptr<function, State>, max_iterations: u32, fresh: bool) -> Advance {
+    var iteration = 0u;
+    for (; iteration < max_iterations; iteration++) {
         if is_finished(c, *st) {
-            return;
+            break;
         }
         if LOOP_LIMITER {
             // An iteration cut short by the driver's loop limiter is undone
             // and redone by the next dispatch; one that cannot fit in a
-            // dispatch at all is handed back to the host.
+            // whole dispatch is handed back to the host.
             let before = *st;
             iterate(c, st);
             if !loop_limiter_intact((*st).steps) {
                 *st = before;
-                if iteration == 0u {
+                if iteration == 0u && fresh {
                     (*st).status = STATUS_LOOP_LIMIT;
                 }
-                return;
+                return Advance(iteration, true);
             }
         } else {
             iterate(c, st);
         }
     }
+    return Advance(iteration, false);
 }
 
 // False once the driver's loop limiter has cut loops short in this

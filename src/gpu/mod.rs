@@ -78,6 +78,22 @@ pub fn workgroup_size() -> u32 {
     })
 }
 
+/// Lanes (invocations) that work through a batch's instances, at most:
+/// enough to fill an H100 (132 multiprocessors x 2048 threads) about once.
+/// A lane that finishes an instance takes the next one, so a batch of more
+/// instances than lanes keeps every lane busy until the last few.
+pub const LANES: usize = 1 << 18;
+
+/// The lanes this process uses: [`LANES`], or `PIDM_GPU_LANES` (at least
+/// 1), a knob for measuring other counts.
+pub fn lanes() -> usize {
+    std::env::var("PIDM_GPU_LANES")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .filter(|&n| n >= 1)
+        .unwrap_or(LANES)
+}
+
 /// The iterations per dispatch this process uses: [`SLICE_ITERATIONS`], or
 /// `PIDM_GPU_SLICE` (at least 1), a knob for measuring other lengths.
 pub fn slice_iterations() -> u32 {
@@ -200,6 +216,9 @@ pub struct BatchOptions {
     /// llvmpipe no iteration can complete its probe, which exercises the
     /// fallback of [`STATUS_LOOP_LIMIT`] instances to the CPU.
     pub probe_passes: u32,
+    /// Lanes working through a batch, at most (tests use few, so lanes
+    /// take several instances each).
+    pub lanes: usize,
 }
 
 impl Default for BatchOptions {
@@ -208,6 +227,7 @@ impl Default for BatchOptions {
             slice_iterations: slice_iterations(),
             max_batch: None,
             probe_passes: layout::PROBE_PASSES,
+            lanes: lanes(),
         }
     }
 }
@@ -926,17 +946,23 @@ impl Runner<'_> {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let counter = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("unfinished"),
-            size: 4,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
+        // Lane k starts on instance k; the counters say which instance is
+        // next and how many finished.
+        let lane_count = n.min(self.options.lanes.max(1));
+        let lane_indices: Vec<u32> = (0..lane_count as u32).collect();
+        let lanes_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("lanes"),
+            contents: bytemuck::cast_slice(&lane_indices),
+            usage: wgpu::BufferUsages::STORAGE,
         });
-        let counter_read = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("unfinished readback"),
-            size: 4,
+        let counters = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("counters"),
+            contents: bytemuck::cast_slice(&[lane_count as u32, 0u32]),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+        let counters_read = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("counters readback"),
+            size: 8,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -978,30 +1004,36 @@ impl Runner<'_> {
                         },
                         wgpu::BindGroupEntry {
                             binding: 3,
-                            resource: counter.as_entire_binding(),
+                            resource: counters.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: lanes_buffer.as_entire_binding(),
                         },
                     ],
                 })
             })
             .collect();
-        let (gx, gy) = dispatch_size(n, self.limits.max_compute_workgroups_per_dimension);
-        let max_slices = slice_bound(instances, self.settings);
+        let (gx, gy) = dispatch_size(lane_count, self.limits.max_compute_workgroups_per_dimension);
+        // A lane works through its instances one after another.
+        let rounds = n.div_ceil(lane_count) as u64;
+        let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds);
         let mut slice: u64 = 0;
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
-            encoder.clear_buffer(&counter, 0, None);
             {
                 let mut pass = encoder.begin_compute_pass(&Default::default());
                 pass.set_pipeline(self.pipeline);
                 pass.set_bind_group(0, &bind_groups[usize::from(slice > 0)], &[]);
                 pass.dispatch_workgroups(gx, gy, 1);
             }
-            encoder.copy_buffer_to_buffer(&counter, 0, &counter_read, 0, 4);
+            encoder.copy_buffer_to_buffer(&counters, 0, &counters_read, 0, 8);
             queue.submit([encoder.finish()]);
-            let bytes = read_buffer(device, &counter_read)?;
-            let unfinished = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]);
+            let bytes = read_buffer(device, &counters_read)?;
+            let finished = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as u64;
+            let unfinished = (n as u64).saturating_sub(finished) as u32;
             slice += 1;
-            progress(n as u64 - unfinished as u64);
+            progress(finished.min(n as u64));
             if unfinished == 0 {
                 break;
             }
@@ -1030,12 +1062,13 @@ impl Runner<'_> {
     }
 }
 
-/// An upper bound on the slices a batch can need. Every iteration of
+/// An upper bound on the slices one instance can need. Every iteration of
 /// `advance` either takes a counted step (bounded by the step budget) or
 /// passes drive corners and period ends (bounded by the drive cycles), and
-/// every slice completes at least one iteration of every unfinished
-/// instance (the loop-limiter rollback may leave it at one) or finishes it
-/// with [`STATUS_LOOP_LIMIT`].
+/// every slice completes at least one iteration of the instance each lane
+/// holds (the loop-limiter rollback may leave it at one) or finishes it
+/// with [`STATUS_LOOP_LIMIT`]; a lane holds its instances one after
+/// another.
 fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
     let mut most: u64 = 0;
     for inst in instances {
