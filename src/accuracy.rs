@@ -105,6 +105,7 @@ pub fn karnopp_method<'a>(steps: Vec<f64>) -> Method<'a> {
                         displacement,
                         status: STATUS_OK,
                         steps: steps.min(u32::MAX as u64) as u32,
+                        on_cpu: false,
                     }
                 })
                 .collect())

@@ -432,6 +432,13 @@ fn print_summary(scene: &Scene, result: &RunResult) {
         s.integration_s,
         s.simulated_s / result.wall_time_s.max(1e-9)
     );
+    if s.on_cpu > 0 {
+        println!(
+            "  {} of the integrations ran on the CPU in f64 (the slow tail of a GPU batch, or \
+             iterations the driver's loop limiter cut)",
+            s.on_cpu
+        );
+    }
     for (code, &n) in s.status_counts.iter().enumerate() {
         if n > 0 {
             let meaning = STATUS_MEANINGS.get(code).copied().unwrap_or("unknown");

@@ -191,6 +191,9 @@ pub struct Outcome {
     pub displacement: [f64; AXES],
     pub status: u32,
     pub steps: u32,
+    /// A GPU backend integrated this one on the CPU instead (the slow tail
+    /// of a batch, or an iteration the driver's loop limiter cut).
+    pub on_cpu: bool,
 }
 
 /// One instance's entry in the maps, in SI units.
@@ -259,6 +262,7 @@ pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
         displacement: integrate::displacement(inst, &st),
         status: st.status,
         steps: st.steps,
+        on_cpu: false,
     }
 }
 
@@ -351,6 +355,8 @@ pub struct Summary {
     pub integrations: u64,
     /// Wall time spent integrating (in the backend) [s].
     pub integration_s: f64,
+    /// Integrations a GPU backend ran on the CPU instead.
+    pub on_cpu: u64,
     /// Simulated time over all integrated instances, baselines included [s].
     pub simulated_s: f64,
     pub extreme_step: [f64; 2],
@@ -364,6 +370,7 @@ impl Default for Summary {
             steps: 0,
             integrations: 0,
             integration_s: 0.0,
+            on_cpu: 0,
             simulated_s: 0.0,
             extreme_step: [f64::INFINITY, f64::NEG_INFINITY],
         }
@@ -380,6 +387,7 @@ impl Summary {
         self.steps += other.steps;
         self.integrations += other.integrations;
         self.integration_s += other.integration_s;
+        self.on_cpu += other.on_cpu;
         self.simulated_s += other.simulated_s;
         self.extreme_step[0] = self.extreme_step[0].min(other.extreme_step[0]);
         self.extreme_step[1] = self.extreme_step[1].max(other.extreme_step[1]);
@@ -549,6 +557,7 @@ pub fn run(
         }
         summary.simulated_s += jobs.iter().map(Instance::duration).sum::<f64>();
         summary.integrations += jobs.len() as u64;
+        summary.on_cpu += outcomes.iter().filter(|o| o.on_cpu).count() as u64;
         // Keep this chunk's baselines for the chunks after it (a grid's
         // baselines repeat along every other axis), within a bound.
         if plan.baselines {
@@ -596,6 +605,7 @@ mod tests {
             displacement: [x * cycles, 0.0],
             status,
             steps: 1,
+            on_cpu: false,
         };
         let check = |run: Outcome, tighter: Outcome, want: u32| {
             let mut got = run;

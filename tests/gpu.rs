@@ -526,6 +526,54 @@ fn few_lanes_work_through_every_instance() {
     }
 }
 
+/// The slow tail of a batch goes to the CPU: seven short instances and one
+/// forty periods long; once only the long one is left, the CPU integrates
+/// it (in f64, from its start) and says so, and every outcome matches the
+/// CPU.
+#[test]
+fn the_slow_tail_of_a_batch_finishes_on_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let mut instances = paper_cases();
+    instances.truncate(7);
+    let mut long = paper_cases()[6];
+    long.cycles = 40;
+    instances.push(long);
+    let settings = Settings::default();
+    let cpu = cpu_reference(&instances, &settings);
+    let options = BatchOptions {
+        slice_iterations: 64,
+        cpu_tail: Some(1),
+        ..BatchOptions::default()
+    };
+    for precision in precisions(ctx) {
+        let gpu = run_batch_with(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &options,
+            &mut |_, _| {},
+        )
+        .expect("batch runs");
+        let on_cpu: Vec<bool> = gpu.iter().map(|g| g.finished_on_cpu).collect();
+        assert_eq!(
+            on_cpu,
+            [false, false, false, false, false, false, false, true]
+        );
+        // The long one is the CPU's own result.
+        let d = displacement(&instances[7], &cpu[7]);
+        assert_eq!(gpu[7].displacement, d);
+        let allowance: &dyn Fn(f64) -> f64 = match precision {
+            Precision::F32 => &f32_allowance,
+            Precision::F64 => &|_| F64_ALLOWANCE,
+        };
+        let a = compare("tail", &instances, &cpu, &gpu, allowance);
+        assert_eq!(a.failures, 0);
+    }
+}
+
 /// Slices of any length give the same outcomes, bit for bit: a 7-iteration
 /// slice, the default, and one so long that llvmpipe's loop limiter cuts
 /// every dispatch short (each cut iteration is undone and redone).

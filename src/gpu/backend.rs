@@ -105,6 +105,7 @@ impl Backend for GpuBackend {
                 displacement: o.displacement,
                 status: o.status,
                 steps: o.steps,
+                on_cpu: o.cpu_fallback || o.finished_on_cpu,
             })
             .collect())
     }

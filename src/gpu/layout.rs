@@ -339,6 +339,7 @@ macro_rules! precision_structs {
                     status: st.status,
                     steps: st.steps,
                     cpu_fallback: false,
+                    finished_on_cpu: false,
                 }
             }
         }

@@ -200,6 +200,10 @@ pub struct GpuOutcome {
     /// True when the driver's loop limiter kept the shader from advancing
     /// this instance at all and the CPU integrated it instead.
     pub cpu_fallback: bool,
+    /// True when the instance was among the last unfinished ones of a
+    /// large batch and the CPU integrated it (in f64, from its start) while
+    /// the GPU stopped: see [`BatchOptions::cpu_tail`].
+    pub finished_on_cpu: bool,
 }
 
 /// Tuning knobs of [`run_batch_with`]; [`Default`] is what [`run_batch`]
@@ -219,7 +223,19 @@ pub struct BatchOptions {
     /// Lanes working through a batch, at most (tests use few, so lanes
     /// take several instances each).
     pub lanes: usize,
+    /// Hand the slow tail of a batch to the CPU: once every instance has
+    /// started and at most this many are unfinished, the GPU stops and the
+    /// CPU integrates those from their start, in parallel. `None` is 1 % of
+    /// a batch of at least [`CPU_TAIL_MIN_BATCH`] instances (and nothing of
+    /// a smaller one); `Some(0)` never hands over. A GPU lane takes tens of
+    /// microseconds a step, a CPU core about one: an instance a hundred
+    /// times longer than its batch's others (a sliding mode on the rim of
+    /// the band) would otherwise hold the whole batch.
+    pub cpu_tail: Option<usize>,
 }
+
+/// The smallest batch whose slow tail goes to the CPU.
+pub const CPU_TAIL_MIN_BATCH: usize = 1000;
 
 impl Default for BatchOptions {
     fn default() -> Self {
@@ -228,6 +244,7 @@ impl Default for BatchOptions {
             max_batch: None,
             probe_passes: layout::PROBE_PASSES,
             lanes: lanes(),
+            cpu_tail: None,
         }
     }
 }
@@ -792,6 +809,7 @@ trait Layout {
     type State: HostLayout;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
+    fn finished(inst: &Instance, st: &Self::State) -> bool;
 }
 
 struct Single;
@@ -806,6 +824,9 @@ impl Layout for Single {
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
         layout::single::unpack(inst, st)
     }
+    fn finished(inst: &Instance, st: &Self::State) -> bool {
+        st.status != crate::cpu::integrate::STATUS_OK || st.period >= inst.cycles
+    }
 }
 
 impl Layout for Double {
@@ -816,6 +837,9 @@ impl Layout for Double {
     }
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
         layout::double::unpack(inst, st)
+    }
+    fn finished(inst: &Instance, st: &Self::State) -> bool {
+        st.status != crate::cpu::integrate::STATUS_OK || st.period >= inst.cycles
     }
 }
 
@@ -888,6 +912,7 @@ impl Runner<'_> {
                     status: st.status,
                     steps: st.steps,
                     cpu_fallback: true,
+                    finished_on_cpu: false,
                 };
             }
         }
@@ -1018,6 +1043,11 @@ impl Runner<'_> {
         // A lane works through its instances one after another.
         let rounds = n.div_ceil(lane_count) as u64;
         let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds);
+        let tail_size = match self.options.cpu_tail {
+            Some(k) => k as u64,
+            None if n >= CPU_TAIL_MIN_BATCH => n as u64 / 100,
+            None => 0,
+        };
         let mut slice: u64 = 0;
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
@@ -1030,11 +1060,13 @@ impl Runner<'_> {
             encoder.copy_buffer_to_buffer(&counters, 0, &counters_read, 0, 8);
             queue.submit([encoder.finish()]);
             let bytes = read_buffer(device, &counters_read)?;
+            let next = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]) as u64;
             let finished = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as u64;
             let unfinished = (n as u64).saturating_sub(finished) as u32;
             slice += 1;
             progress(finished.min(n as u64));
-            if unfinished == 0 {
+            // Every instance started, and only the slow tail is left.
+            if unfinished == 0 || (next >= n as u64 && (unfinished as u64) <= tail_size) {
                 break;
             }
             if crate::sweep::interrupt_requested() {
@@ -1051,14 +1083,40 @@ impl Runner<'_> {
         encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
         queue.submit([encoder.finish()]);
         let bytes = read_buffer(device, &states_read)?;
-        let finals = bytes
+        let finals: Vec<L::State> = bytes
             .chunks_exact(size_of::<L::State>())
-            .map(bytemuck::pod_read_unaligned::<L::State>);
-        Ok(instances
+            .map(bytemuck::pod_read_unaligned::<L::State>)
+            .collect();
+        // The slow tail, if the GPU stopped before it: on the CPU, from the
+        // start, in parallel.
+        let mut out: Vec<GpuOutcome> = instances
             .iter()
-            .zip(finals)
-            .map(|(inst, st)| L::unpack(inst, &st))
-            .collect())
+            .zip(&finals)
+            .map(|(inst, st)| L::unpack(inst, st))
+            .collect();
+        let tail: Vec<usize> = (0..n)
+            .filter(|&k| !L::finished(&instances[k], &finals[k]))
+            .collect();
+        let on_cpu: Vec<GpuOutcome> = tail
+            .par_iter()
+            .with_max_len(1)
+            .map(|&k| {
+                let inst = &instances[k];
+                let st = run_instance(inst, self.settings);
+                GpuOutcome {
+                    displacement: displacement(inst, &st),
+                    status: st.status,
+                    steps: st.steps,
+                    cpu_fallback: false,
+                    finished_on_cpu: true,
+                }
+            })
+            .collect();
+        for (&k, outcome) in tail.iter().zip(on_cpu) {
+            out[k] = outcome;
+        }
+        progress(n as u64);
+        Ok(out)
     }
 }
 
