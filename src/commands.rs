@@ -12,7 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::checkpoint::{self, Checkpoint};
 use crate::cpu::integrate::STATUS_OK;
-use crate::model::{AXES, Instance, InstanceKey};
+use crate::model::{AXES, AXIS_NAMES, Instance, InstanceKey};
 use crate::output::{AxisInfo, FileInfo, MapWriter, ShardInfo};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
 use crate::shard::ShardSpec;
@@ -770,30 +770,28 @@ pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> String
         .iter()
         .enumerate()
     {
-        let m = &inst.mechanism;
         let _ = writeln!(toml, "[[points]]\nlabel = \"random {k}\"");
         let _ = writeln!(
             toml,
-            "mechanism = {{ slider_mass = {:?}, static_friction = {:?}, coulomb_friction = {:?}, velocity_band = {:?} }}",
-            m.slider_mass, m.static_friction, m.coulomb_friction, m.velocity_band
+            "mechanism = {}",
+            inline_table(&inst.mechanism.parameters())
         );
-        for (name, a) in ["x", "y"].iter().zip(&inst.axes) {
-            let _ = writeln!(
-                toml,
-                "axis.{name} = {{ stage_mass = {:?}, stiffness = {:?}, damping = {:?}, gain = {:?}, voltage = {:?}, frequency = {:?}, duty = {:?}, phase = {:?} }}",
-                a.stage_mass,
-                a.stiffness,
-                a.damping,
-                a.gain,
-                a.voltage,
-                a.frequency,
-                a.duty,
-                a.phase
-            );
+        for (name, a) in AXIS_NAMES.iter().zip(&inst.axes) {
+            let _ = writeln!(toml, "axis.{name} = {}", inline_table(&a.parameters()));
         }
         toml.push('\n');
     }
     toml
+}
+
+/// A TOML inline table of named values, each written so that it reads back
+/// bit for bit.
+fn inline_table(entries: &[(&str, f64)]) -> String {
+    let fields: Vec<String> = entries
+        .iter()
+        .map(|(k, v)| format!("{k} = {v:?}"))
+        .collect();
+    format!("{{ {} }}", fields.join(", "))
 }
 
 /// `pidm bench`: simulated seconds per wall second per core on one thread

@@ -98,6 +98,20 @@ impl Axis {
         ..Axis::TABLE1
     };
 
+    /// Every parameter, named by its scene key, in storage order.
+    pub fn parameters(&self) -> [(&'static str, f64); 8] {
+        [
+            ("stage_mass", self.stage_mass),
+            ("stiffness", self.stiffness),
+            ("damping", self.damping),
+            ("gain", self.gain),
+            ("voltage", self.voltage),
+            ("frequency", self.frequency),
+            ("duty", self.duty),
+            ("phase", self.phase),
+        ]
+    }
+
     /// True when the axis has a non-zero drive.
     pub fn is_driven(&self) -> bool {
         self.voltage != 0.0
@@ -132,6 +146,16 @@ impl Axis {
 }
 
 impl Mechanism {
+    /// Every parameter, named by its scene key, in storage order.
+    pub fn parameters(&self) -> [(&'static str, f64); 4] {
+        [
+            ("slider_mass", self.slider_mass),
+            ("static_friction", self.static_friction),
+            ("coulomb_friction", self.coulomb_friction),
+            ("velocity_band", self.velocity_band),
+        ]
+    }
+
     /// Table 1 of the paper.
     pub const TABLE1: Mechanism = Mechanism {
         slider_mass: 5.0e-3,
@@ -187,30 +211,11 @@ impl Instance {
     /// The instance's exact identity: every parameter's bits. Two instances
     /// with the same key integrate to the same result on any backend.
     pub fn key(&self) -> InstanceKey {
-        let m = &self.mechanism;
         let mut key = [0; 22];
-        key[..6].copy_from_slice(&[
-            m.slider_mass.to_bits(),
-            m.static_friction.to_bits(),
-            m.coulomb_friction.to_bits(),
-            m.velocity_band.to_bits(),
-            self.cycles as u64,
-            self.settle as u64,
-        ]);
+        key[..4].copy_from_slice(&self.mechanism.parameters().map(|(_, v)| v.to_bits()));
+        key[4..6].copy_from_slice(&[self.cycles as u64, self.settle as u64]);
         for (i, a) in self.axes.iter().enumerate() {
-            key[6 + 8 * i..14 + 8 * i].copy_from_slice(
-                &[
-                    a.stage_mass,
-                    a.stiffness,
-                    a.damping,
-                    a.gain,
-                    a.voltage,
-                    a.frequency,
-                    a.duty,
-                    a.phase,
-                ]
-                .map(f64::to_bits),
-            );
+            key[6 + 8 * i..14 + 8 * i].copy_from_slice(&a.parameters().map(|(_, v)| v.to_bits()));
         }
         key
     }

@@ -64,6 +64,18 @@ fn context() -> Option<&'static GpuContext> {
         .as_ref()
 }
 
+/// A batch that must run, without progress reports.
+fn gpu_batch(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    precision: Precision,
+    options: &BatchOptions,
+) -> Vec<GpuOutcome> {
+    run_batch_with(ctx, instances, settings, precision, options, &mut |_, _| {})
+        .expect("batch runs")
+}
+
 /// The CPU reference of every instance.
 fn cpu_reference(instances: &[Instance], settings: &Settings) -> Vec<pidm::cpu::integrate::State> {
     instances
@@ -360,8 +372,13 @@ fn paper_cases_match_the_cpu() {
     let settings = Settings::default();
     let cpu = cpu_reference(&instances, &settings);
     for precision in precisions(ctx) {
-        let gpu =
-            run_batch(ctx, &instances, &settings, precision, &mut |_, _| {}).expect("batch runs");
+        let gpu = gpu_batch(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &BatchOptions::default(),
+        );
         let agreement = check("paper", precision, &instances, &cpu, &gpu);
         if precision == Precision::F64 {
             // The f64 shader is the CPU's mirror: on the paper's cases it
@@ -403,8 +420,13 @@ fn f64_follows_the_cpu_through_perturbed_band_exits() {
             ..Settings::default()
         };
         let cpu = cpu_reference(&instances, &settings);
-        let gpu = run_batch(ctx, &instances, &settings, Precision::F64, &mut |_, _| {})
-            .expect("batch runs");
+        let gpu = gpu_batch(
+            ctx,
+            &instances,
+            &settings,
+            Precision::F64,
+            &BatchOptions::default(),
+        );
         let agreement = check("perturbed Fig. 8", Precision::F64, &instances, &cpu, &gpu);
         assert!(
             agreement.max_abs < 1e-9,
@@ -464,8 +486,13 @@ fn long_run_crosses_the_loop_limit() {
     let cpu = cpu_reference(&instances, &settings);
     assert!(cpu[0].steps > 65_535, "CPU took {} steps", cpu[0].steps);
     for precision in precisions(ctx) {
-        let gpu =
-            run_batch(ctx, &instances, &settings, precision, &mut |_, _| {}).expect("batch runs");
+        let gpu = gpu_batch(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &BatchOptions::default(),
+        );
         assert!(gpu[0].steps > 65_535, "GPU took {} steps", gpu[0].steps);
         check("long", precision, &instances, &cpu, &gpu);
     }
@@ -481,8 +508,13 @@ fn split_batches_match_one_batch() {
     let mut instances = paper_cases();
     instances.truncate(7);
     let settings = Settings::default();
-    let whole =
-        run_batch(ctx, &instances, &settings, Precision::F32, &mut |_, _| {}).expect("batch runs");
+    let whole = gpu_batch(
+        ctx,
+        &instances,
+        &settings,
+        Precision::F32,
+        &BatchOptions::default(),
+    );
     let options = BatchOptions {
         max_batch: Some(3),
         ..BatchOptions::default()
@@ -516,8 +548,13 @@ fn few_lanes_work_through_every_instance() {
     instances.truncate(7);
     let settings = Settings::default();
     for precision in precisions(ctx) {
-        let whole =
-            run_batch(ctx, &instances, &settings, precision, &mut |_, _| {}).expect("batch runs");
+        let whole = gpu_batch(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &BatchOptions::default(),
+        );
         let options = BatchOptions {
             lanes: 2,
             slice_iterations: 7,
@@ -561,15 +598,7 @@ fn the_slow_tail_of_a_batch_finishes_on_the_cpu() {
         ..BatchOptions::default()
     };
     for precision in precisions(ctx) {
-        let gpu = run_batch_with(
-            ctx,
-            &instances,
-            &settings,
-            precision,
-            &options,
-            &mut |_, _| {},
-        )
-        .expect("batch runs");
+        let gpu = gpu_batch(ctx, &instances, &settings, precision, &options);
         let on_cpu: Vec<bool> = gpu.iter().map(|g| g.finished_on_cpu).collect();
         assert_eq!(
             on_cpu,
@@ -637,15 +666,7 @@ fn loop_limit_falls_back_to_the_cpu() {
         ..BatchOptions::default()
     };
     for precision in precisions(ctx) {
-        let gpu = run_batch_with(
-            ctx,
-            &instances,
-            &settings,
-            precision,
-            &options,
-            &mut |_, _| {},
-        )
-        .expect("batch runs");
+        let gpu = gpu_batch(ctx, &instances, &settings, precision, &options);
         assert!(gpu.iter().all(|g| g.status != pidm::gpu::STATUS_LOOP_LIMIT));
         // On llvmpipe no iteration completes its probe, so every instance
         // falls back (and says so); other drivers run them all.
@@ -698,7 +719,7 @@ fn one_dof_instances_match_the_cpu_and_keep_y_at_rest() {
     let settings = Settings::default();
     let cpu = cpu_reference(&one, &settings);
     for precision in precisions(ctx) {
-        let gpu = run_batch(ctx, &one, &settings, precision, &mut |_, _| {}).expect("batch runs");
+        let gpu = gpu_batch(ctx, &one, &settings, precision, &BatchOptions::default());
         check("1-DOF", precision, &one, &cpu, &gpu);
         // The y axis is exactly at rest, as MODEL.md requires.
         assert!(gpu.iter().all(|o| o.displacement[1] == 0.0));
@@ -752,8 +773,13 @@ fn extreme_points_are_finite_and_match_the_cpu_or_say_why_not() {
         instances.len()
     );
     for precision in precisions(ctx) {
-        let gpu =
-            run_batch(ctx, &instances, &settings, precision, &mut |_, _| {}).expect("batch runs");
+        let gpu = gpu_batch(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &BatchOptions::default(),
+        );
         for (k, g) in gpu.iter().enumerate() {
             assert!(
                 g.displacement.iter().all(|d| d.is_finite()),

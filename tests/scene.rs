@@ -819,3 +819,16 @@ fn shipped_scenes_load() {
             .contains("61 values from -150 V to 150 V (linear, step 5)")
     );
 }
+
+/// `pidm random-scene` writes a scene that reads back as the very instances
+/// it drew, bit for bit.
+#[test]
+fn random_scene_reads_back_bit_for_bit() {
+    let (seed, count, cycles, settle) = (7, 5, 6, 2);
+    let scene = parse(&pidm::commands::random_scene(seed, count, cycles, settle));
+    let drawn = pidm::random::random_instances(seed, count, cycles, settle);
+    assert_eq!(scene.instance_count(), count as u64);
+    for (k, inst) in drawn.iter().enumerate() {
+        assert_eq!(scene.instance(k as u64).key(), inst.key(), "instance {k}");
+    }
+}

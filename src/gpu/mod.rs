@@ -37,10 +37,12 @@
 
 pub mod backend;
 pub mod cache;
+mod knobs;
 pub mod layout;
 pub mod shader;
 
 pub use backend::GpuBackend;
+pub use knobs::{LANES, SLICE_ITERATIONS, WORKGROUP_SIZE, lanes, slice_iterations, workgroup_size};
 pub use shader::Variant;
 
 use std::sync::{Arc, Mutex};
@@ -54,55 +56,6 @@ use crate::cpu::integrate::{Settings, displacement, run_instance};
 use crate::model::Instance;
 use layout::HostLayout;
 use layout::control::Control;
-
-/// Invocations per workgroup; the shader reads it from its prelude. A warp
-/// on NVIDIA, and small enough that lavapipe spreads a batch of 64 over two
-/// CPU threads.
-pub const WORKGROUP_SIZE: u32 = 32;
-
-/// Iterations of `iterate` per instance and dispatch: a dispatch then takes
-/// milliseconds on a GPU, far from any watchdog.
-pub const SLICE_ITERATIONS: u32 = 1024;
-
-/// The invocations per workgroup this process uses: [`WORKGROUP_SIZE`], or
-/// `PIDM_GPU_WORKGROUP` (a power of two from 1 to 256), a knob for
-/// measuring other sizes.
-pub fn workgroup_size() -> u32 {
-    static SIZE: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
-    *SIZE.get_or_init(|| {
-        std::env::var("PIDM_GPU_WORKGROUP")
-            .ok()
-            .and_then(|v| v.parse::<u32>().ok())
-            .filter(|n| n.is_power_of_two() && *n <= 256)
-            .unwrap_or(WORKGROUP_SIZE)
-    })
-}
-
-/// Lanes (invocations) that work through a batch's instances, at most:
-/// enough to fill an H100 (132 multiprocessors x 2048 threads) about once.
-/// A lane that finishes an instance takes the next one, so a batch of more
-/// instances than lanes keeps every lane busy until the last few.
-pub const LANES: usize = 1 << 18;
-
-/// The lanes this process uses: [`LANES`], or `PIDM_GPU_LANES` (at least
-/// 1), a knob for measuring other counts.
-pub fn lanes() -> usize {
-    std::env::var("PIDM_GPU_LANES")
-        .ok()
-        .and_then(|v| v.parse::<usize>().ok())
-        .filter(|&n| n >= 1)
-        .unwrap_or(LANES)
-}
-
-/// The iterations per dispatch this process uses: [`SLICE_ITERATIONS`], or
-/// `PIDM_GPU_SLICE` (at least 1), a knob for measuring other lengths.
-pub fn slice_iterations() -> u32 {
-    std::env::var("PIDM_GPU_SLICE")
-        .ok()
-        .and_then(|v| v.parse::<u32>().ok())
-        .filter(|&n| n >= 1)
-        .unwrap_or(SLICE_ITERATIONS)
-}
 
 /// Status the shader gives an instance when a single iteration needs more
 /// loop iterations than the driver allows one invocation (llvmpipe/lavapipe

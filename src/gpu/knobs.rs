@@ -1,0 +1,117 @@
+//! The GPU path's tuning constants and the environment knobs that override
+//! them for measurements. A knob read once per process; a value it refuses
+//! is reported on stderr and the default stands.
+
+use std::str::FromStr;
+use std::sync::OnceLock;
+
+/// Invocations per workgroup; the shader reads it from its prelude. A warp
+/// on NVIDIA, and small enough that lavapipe spreads a batch of 64 over two
+/// CPU threads.
+pub const WORKGROUP_SIZE: u32 = 32;
+
+/// Iterations of `iterate` per instance and dispatch: a dispatch then takes
+/// milliseconds on a GPU, far from any watchdog.
+pub const SLICE_ITERATIONS: u32 = 1024;
+
+/// Lanes (invocations) that work through a batch's instances, at most:
+/// enough to fill an H100 (132 multiprocessors x 2048 threads) about once.
+/// A lane that finishes an instance takes the next one, so a batch of more
+/// instances than lanes keeps every lane busy until the last few.
+pub const LANES: usize = 1 << 18;
+
+/// The invocations per workgroup this process uses: [`WORKGROUP_SIZE`], or
+/// `PIDM_GPU_WORKGROUP` (a power of two from 1 to 256).
+pub fn workgroup_size() -> u32 {
+    static SIZE: OnceLock<u32> = OnceLock::new();
+    *SIZE.get_or_init(|| {
+        knob(
+            "PIDM_GPU_WORKGROUP",
+            WORKGROUP_SIZE,
+            |n: &u32| n.is_power_of_two() && *n <= 256,
+            "a power of two from 1 to 256",
+        )
+    })
+}
+
+/// The lanes this process uses: [`LANES`], or `PIDM_GPU_LANES` (at least 1).
+pub fn lanes() -> usize {
+    static LANE_COUNT: OnceLock<usize> = OnceLock::new();
+    *LANE_COUNT.get_or_init(|| {
+        knob(
+            "PIDM_GPU_LANES",
+            LANES,
+            |n| *n >= 1,
+            "an integer of at least 1",
+        )
+    })
+}
+
+/// The iterations per dispatch this process uses: [`SLICE_ITERATIONS`], or
+/// `PIDM_GPU_SLICE` (at least 1).
+pub fn slice_iterations() -> u32 {
+    static SLICE: OnceLock<u32> = OnceLock::new();
+    *SLICE.get_or_init(|| {
+        knob(
+            "PIDM_GPU_SLICE",
+            SLICE_ITERATIONS,
+            |n| *n >= 1,
+            "an integer of at least 1",
+        )
+    })
+}
+
+/// The value of the environment variable `name`, or `default` where it is
+/// unset. A value that does not parse or is not `valid` is reported, with
+/// what was `expected`, and the default is used.
+fn knob<T: FromStr + std::fmt::Display>(
+    name: &str,
+    default: T,
+    valid: impl Fn(&T) -> bool,
+    expected: &str,
+) -> T {
+    let text = std::env::var(name).ok();
+    match parse_knob(text.as_deref(), valid) {
+        Ok(value) => value.unwrap_or(default),
+        Err(text) => {
+            eprintln!("pidm: ignoring {name} = {text:?}: expected {expected}; using {default}");
+            default
+        }
+    }
+}
+
+/// A knob's value from its text: `None` where unset, the text itself as the
+/// error where it does not parse or is not `valid`.
+fn parse_knob<T: FromStr>(
+    text: Option<&str>,
+    valid: impl Fn(&T) -> bool,
+) -> Result<Option<T>, &str> {
+    let Some(text) = text else {
+        return Ok(None);
+    };
+    match text.trim().parse::<T>() {
+        Ok(value) if valid(&value) => Ok(Some(value)),
+        _ => Err(text),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_knob;
+
+    /// Parses `text` as a power-of-two workgroup knob.
+    fn check(text: Option<&str>, expected: Result<Option<u32>, &str>) {
+        let power_of_two = |n: &u32| n.is_power_of_two() && *n <= 256;
+        assert_eq!(parse_knob(text, power_of_two), expected, "{text:?}");
+    }
+
+    #[test]
+    fn knobs_take_valid_values_and_refuse_the_rest() {
+        check(None, Ok(None));
+        check(Some("64"), Ok(Some(64)));
+        check(Some(" 8 "), Ok(Some(8)));
+        check(Some("300"), Err("300"));
+        check(Some("0"), Err("0"));
+        check(Some("many"), Err("many"));
+    }
+}
