@@ -537,6 +537,10 @@ pub fn check(path: &Path) -> Result<()> {
     // sample of evenly spaced ones.
     let sample = count.clamp(1, 1_000_000);
     let mut simulated = 0.0;
+    // A run integrates each distinct baseline once (they repeat along every
+    // other grid axis): those of the sampled instances, not scaled up.
+    let mut baselines = std::collections::HashSet::new();
+    let mut baseline_time = 0.0;
     for k in 0..sample {
         let i = if count <= sample {
             k
@@ -544,17 +548,17 @@ pub fn check(path: &Path) -> Result<()> {
             k * count / sample
         };
         let inst = scene.instance(i);
-        let mut per = inst.duration();
+        simulated += inst.duration();
         if scene.baselines {
             for axis in 0..AXES {
-                if inst.baseline(axis) != inst {
-                    per += inst.duration();
+                let base = inst.baseline(axis);
+                if base != inst && baselines.insert(base.key()) {
+                    baseline_time += base.duration();
                 }
             }
         }
-        simulated += per;
     }
-    simulated *= count as f64 / sample as f64;
+    simulated = simulated * count as f64 / sample as f64 + baseline_time;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let estimate = simulated / (NOMINAL_SIMULATED_PER_CORE * cores as f64);
     println!("instances: {count}");

@@ -3,7 +3,9 @@
 //! whatever the instance count.
 //!
 //! Every instance is integrated independently and deterministically, so the
-//! results are the same bit for bit for any thread count and chunk size.
+//! results are the same bit for bit for any thread count and chunk size
+//! (on a GPU in f64, up to the shader's difference from the CPU on the
+//! instances of a batch's CPU tail: `gpu::BatchOptions::cpu_tail`).
 
 use std::collections::HashMap;
 use std::ops::Range;
@@ -31,7 +33,9 @@ pub const VERIFY_TIGHTENING: f64 = 100.0;
 use crate::model::{AXES, Instance, InstanceKey};
 
 /// Baseline outcomes kept from one chunk for the next, at most: about
-/// 100 MiB.
+/// 200 MiB at 208 bytes an entry. The bound is checked between chunks, so a
+/// chunk's own distinct baselines come on top (two per instance at most,
+/// 2,000 on a 1000 x 1000 map).
 const MAX_REMEMBERED_BASELINES: usize = 1 << 20;
 
 /// A map from a 64-bit digest of an instance's key to its job, with a fast

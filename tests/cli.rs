@@ -85,6 +85,29 @@ fn a_bad_scene_is_refused_with_key_value_and_expectation_and_writes_nothing() {
     assert!(!dir.path().join("results").exists());
 }
 
+/// `pidm check` counts each distinct baseline once, as a run integrates
+/// them: on a 2 x 3 grid with y from 0 V, the x baselines are the two
+/// voltages of x and the y baselines the three of y, so 6 + 5 integrations
+/// of 0.2 s each (a triple count per instance would give 3.2 s).
+#[test]
+fn check_counts_each_distinct_baseline_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("grid.toml");
+    std::fs::write(
+        &scene,
+        "name = \"grid\"\n\
+         [axis.x]\nvoltage = [60.0, 100.0]\n\
+         [axis.y]\nvoltage = { from = 0.0, to = 40.0, steps = 3 }\n\
+         [simulation]\ncycles = 2\nsettle = 1\n\
+         [output]\nbaselines = true\n",
+    )
+    .unwrap();
+    let check = pidm(&["check", scene.to_str().unwrap()], dir.path());
+    let stdout = String::from_utf8_lossy(&check.stdout);
+    assert!(check.status.success(), "{stdout}");
+    assert!(stdout.contains("simulated time: 2.2000e0 s"), "{stdout}");
+}
+
 #[test]
 fn a_grid_scene_writes_maps_shaped_like_its_grid() {
     let dir = tempfile::tempdir().unwrap();

@@ -15,7 +15,6 @@ struct Oscillator {
 }
 
 struct Coefficients {
-    stage_mass: V2,
     stiffness: V2,
     damping: V2,
     inv_stiffness: V2,

@@ -36,7 +36,6 @@ struct Flow {
     stiffness: V2,
     h: Real,
     inv_h: Real,
-    part0: V2,
     part1: V2,
     part2: V2,
     y0: V2,
@@ -180,7 +179,6 @@ fn make_flow(
     f.stiffness = c.stiffness;
     f.h = h;
     f.inv_h = inv_h;
-    f.part0 = x0;
     f.part1 = x1;
     f.part2 = x2;
     f.y0 = x_p - x0;

@@ -192,7 +192,6 @@ macro_rules! precision_structs {
             host_struct! {
                 /// `pidm::cpu::integrate::Coefficients` in shader units.
                 pub struct Coefficients {
-                    pub stage_mass: V2,
                     pub stiffness: V2,
                     pub damping: V2,
                     pub inv_stiffness: V2,
@@ -278,7 +277,6 @@ macro_rules! precision_structs {
             pub fn pack(inst: &Instance, settings: &Settings) -> Coefficients {
                 let c = Exact::new(&UNITS.scale(inst), settings, $time_epsilon);
                 Coefficients {
-                    stage_mass: v2(c.stage_mass),
                     stiffness: v2(c.stiffness),
                     damping: v2(c.damping),
                     inv_stiffness: v2(c.inv_stiffness),
@@ -321,6 +319,11 @@ macro_rules! precision_structs {
                     },
                     _pad: U32x2::default(),
                 }
+            }
+
+            /// True once the instance ended, normally or with a status.
+            pub fn finished(inst: &Instance, st: &State) -> bool {
+                st.status != STATUS_OK || st.period >= inst.cycles
             }
 
             /// The outcome of a finished state, back in SI units: the slider

@@ -179,16 +179,33 @@ pub struct BatchOptions {
     /// Hand the slow tail of a batch to the CPU: once every instance has
     /// started and at most this many are unfinished, the GPU stops and the
     /// CPU integrates those from their start, in parallel. `None` is 1 % of
-    /// a batch of at least [`CPU_TAIL_MIN_BATCH`] instances (and nothing of
-    /// a smaller one); `Some(0)` never hands over. A GPU lane takes tens of
-    /// microseconds a step, a CPU core about one: an instance a hundred
-    /// times longer than its batch's others (a sliding mode on the rim of
-    /// the band) would otherwise hold the whole batch.
+    /// an f64 batch of at least [`CPU_TAIL_MIN_BATCH`] instances (and
+    /// nothing of a smaller one or of any f32 batch); `Some(0)` never hands
+    /// over. A GPU lane takes tens of microseconds a step, a CPU core about
+    /// one: an instance a hundred times longer than its batch's others (a
+    /// sliding mode on the rim of the band) would otherwise hold the whole
+    /// batch. Which instances form the tail depends on the batch, so a map
+    /// split into other batches (chunks, shards, a resumed run) differs on
+    /// them by the GPU's difference from the CPU: rounding or the
+    /// tolerance's scatter in f64, but f32's own error in f32, which is why
+    /// f32 never hands over by default.
     pub cpu_tail: Option<usize>,
 }
 
 /// The smallest batch whose slow tail goes to the CPU.
 pub const CPU_TAIL_MIN_BATCH: usize = 1000;
+
+impl BatchOptions {
+    /// The unfinished instances of a batch of `n` that the CPU takes over
+    /// (see [`BatchOptions::cpu_tail`]).
+    pub fn tail_size(&self, precision: Precision, n: usize) -> usize {
+        match self.cpu_tail {
+            Some(k) => k,
+            None if precision == Precision::F64 && n >= CPU_TAIL_MIN_BATCH => n / 100,
+            None => 0,
+        }
+    }
+}
 
 impl Default for BatchOptions {
     fn default() -> Self {
@@ -535,7 +552,7 @@ impl GpuContext {
         }
         let started = std::time::Instant::now();
         let variant = self.variant(precision);
-        let pipeline = create_pipeline_cached(
+        let pipeline = create_pipeline(
             &self.device,
             variant,
             self.cache.as_ref().map(|c| c.cache()),
@@ -584,9 +601,9 @@ impl GpuContext {
             precision,
             &BatchOptions::default(),
             &mut |_, _| {},
-        )
-        .map_err(|e| fail(e.to_string()))?;
+        );
         self.check_health()?;
+        let outcomes = outcomes.map_err(|e| fail(e.to_string()))?;
         // f64 mirrors the CPU to rounding; f32 to its own precision.
         let allowance = match precision {
             Precision::F32 => 0.01e-6,
@@ -618,16 +635,10 @@ impl GpuContext {
 }
 
 /// Compiles the integrator for one precision on a device, with the variant
-/// a device of that kind needs (`loop_limiter` for llvmpipe). The source is
-/// validated with naga first, so errors come with source locations.
+/// a device of that kind needs (`loop_limiter` for llvmpipe), through the
+/// driver's pipeline `cache` where there is one. The source is validated
+/// with naga first, so errors come with source locations.
 pub fn create_pipeline(
-    device: &wgpu::Device,
-    variant: Variant,
-) -> Result<wgpu::ComputePipeline, GpuError> {
-    create_pipeline_cached(device, variant, None)
-}
-
-fn create_pipeline_cached(
     device: &wgpu::Device,
     variant: Variant,
     cache: Option<&wgpu::PipelineCache>,
@@ -721,10 +732,12 @@ pub fn run_batch_with(
             precision,
             options,
             progress,
-        )?
+        )
     };
+    // A lost device fails the batch's readback with a generic mapping
+    // error; the device's own message says why.
     ctx.check_health()?;
-    Ok(out)
+    out
 }
 
 /// The work of [`run_batch`] on any device: `pipeline` must come from
@@ -758,6 +771,7 @@ pub fn execute_gpu_inner(
 
 /// The host side of one precision: its storage structs and their packing.
 trait Layout {
+    const PRECISION: Precision;
     type Coefficients: HostLayout + Send;
     type State: HostLayout;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
@@ -769,6 +783,7 @@ struct Single;
 struct Double;
 
 impl Layout for Single {
+    const PRECISION: Precision = Precision::F32;
     type Coefficients = layout::single::Coefficients;
     type State = layout::single::State;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
@@ -778,11 +793,12 @@ impl Layout for Single {
         layout::single::unpack(inst, st)
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
-        st.status != crate::cpu::integrate::STATUS_OK || st.period >= inst.cycles
+        layout::single::finished(inst, st)
     }
 }
 
 impl Layout for Double {
+    const PRECISION: Precision = Precision::F64;
     type Coefficients = layout::double::Coefficients;
     type State = layout::double::State;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
@@ -792,7 +808,7 @@ impl Layout for Double {
         layout::double::unpack(inst, st)
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
-        st.status != crate::cpu::integrate::STATUS_OK || st.period >= inst.cycles
+        layout::double::finished(inst, st)
     }
 }
 
@@ -857,18 +873,16 @@ impl Runner<'_> {
         }
         // Instances the driver's loop limiter kept from advancing at all are
         // integrated on the CPU, which the shader mirrors.
-        for (inst, outcome) in instances.iter().zip(out.iter_mut()) {
-            if outcome.status == STATUS_LOOP_LIMIT {
-                let st = run_instance(inst, self.settings);
+        out.par_iter_mut()
+            .zip(instances)
+            .with_max_len(1)
+            .filter(|(outcome, _)| outcome.status == STATUS_LOOP_LIMIT)
+            .for_each(|(outcome, inst)| {
                 *outcome = GpuOutcome {
-                    displacement: displacement(inst, &st),
-                    status: st.status,
-                    steps: st.steps,
                     cpu_fallback: true,
-                    finished_on_cpu: false,
+                    ..on_cpu(inst, self.settings)
                 };
-            }
-        }
+            });
         Ok(out)
     }
 
@@ -996,11 +1010,7 @@ impl Runner<'_> {
         // A lane works through its instances one after another.
         let rounds = n.div_ceil(lane_count) as u64;
         let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds);
-        let tail_size = match self.options.cpu_tail {
-            Some(k) => k as u64,
-            None if n >= CPU_TAIL_MIN_BATCH => n as u64 / 100,
-            None => 0,
-        };
+        let tail_size = self.options.tail_size(L::PRECISION, n) as u64;
         let mut slice: u64 = 0;
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
@@ -1050,22 +1060,15 @@ impl Runner<'_> {
         let tail: Vec<usize> = (0..n)
             .filter(|&k| !L::finished(&instances[k], &finals[k]))
             .collect();
-        let on_cpu: Vec<GpuOutcome> = tail
+        let tail_outcomes: Vec<GpuOutcome> = tail
             .par_iter()
             .with_max_len(1)
-            .map(|&k| {
-                let inst = &instances[k];
-                let st = run_instance(inst, self.settings);
-                GpuOutcome {
-                    displacement: displacement(inst, &st),
-                    status: st.status,
-                    steps: st.steps,
-                    cpu_fallback: false,
-                    finished_on_cpu: true,
-                }
+            .map(|&k| GpuOutcome {
+                finished_on_cpu: true,
+                ..on_cpu(&instances[k], self.settings)
             })
             .collect();
-        for (&k, outcome) in tail.iter().zip(on_cpu) {
+        for (&k, outcome) in tail.iter().zip(tail_outcomes) {
             out[k] = outcome;
         }
         progress(n as u64);
@@ -1095,6 +1098,19 @@ fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
 }
 
 /// Copies a mappable buffer's contents to the host.
+/// One instance integrated on the CPU, which the shader mirrors, as a GPU
+/// outcome (the caller marks why it ran there).
+fn on_cpu(inst: &Instance, settings: &Settings) -> GpuOutcome {
+    let st = run_instance(inst, settings);
+    GpuOutcome {
+        displacement: displacement(inst, &st),
+        status: st.status,
+        steps: st.steps,
+        cpu_fallback: false,
+        finished_on_cpu: false,
+    }
+}
+
 fn read_buffer(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
@@ -1118,6 +1134,30 @@ fn read_buffer(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The default tail is 1 % of a large f64 batch and nothing in f32,
+    /// whose results would then depend on how a map is split into batches.
+    #[test]
+    fn only_large_f64_batches_hand_their_tail_to_the_cpu() {
+        let default = BatchOptions::default();
+        let check = |options: &BatchOptions, precision, n, expected| {
+            assert_eq!(
+                options.tail_size(precision, n),
+                expected,
+                "{precision:?} {n}"
+            );
+        };
+        check(&default, Precision::F64, 999, 0);
+        check(&default, Precision::F64, 1000, 10);
+        check(&default, Precision::F64, 250_000, 2500);
+        check(&default, Precision::F32, 250_000, 0);
+        let explicit = BatchOptions {
+            cpu_tail: Some(3),
+            ..default
+        };
+        check(&explicit, Precision::F32, 10, 3);
+        check(&explicit, Precision::F64, 10, 3);
+    }
 
     #[test]
     fn dispatch_covers_every_instance_within_the_limit() {

@@ -47,8 +47,8 @@ impl Oscillator {
 /// (whatever the instance is given in).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Coefficients {
-    /// Stage mass m_p, stiffness k and damping c per axis.
-    pub stage_mass: Vec2,
+    /// Stiffness k and damping c per axis (the stage mass enters through
+    /// the oscillators and the shares below).
     pub stiffness: Vec2,
     pub damping: Vec2,
     /// 1 / k, for the polynomial particular solutions.
@@ -72,7 +72,7 @@ pub struct Coefficients {
     pub phase: Vec2,
     pub cycles_per_period: Vec2,
     /// m_p / (m_p + m_s) and m_s / (m_p + m_s): the momentum-conserving
-    /// common velocity is their weighted sum of the two velocities.
+    /// common velocity is the sum of the two velocities weighted by them.
     pub stage_share: Vec2,
     pub slider_share: Vec2,
     /// (m_p + m_s) / (m_p m_s): turns f_need into the relative acceleration
@@ -150,7 +150,6 @@ impl Coefficients {
         let budget =
             (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
         Coefficients {
-            stage_mass,
             stiffness,
             damping,
             inv_stiffness: stiffness.map(|k| 1.0 / k),

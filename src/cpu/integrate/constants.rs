@@ -99,9 +99,10 @@ pub const ONE_THIRD: f64 = 1.0 / 3.0;
 pub const ONE_SIXTH: f64 = 1.0 / 6.0;
 pub const ONE_TWELFTH: f64 = 1.0 / 12.0;
 
-/// Every constant above as WGSL `const` declarations, for the shader's
-/// prelude. Real-valued ones are typed `Real`, so one text serves f32 and
-/// f64.
+/// The constants above that the shader reads, as WGSL `const`
+/// declarations for its prelude (the host folds the others into
+/// `Coefficients`). Real-valued ones are typed `Real`, so one text serves
+/// f32 and f64.
 pub fn wgsl_constants() -> String {
     let u = |name: &str, v: u32| format!("const {name}: u32 = {v}u;\n");
     let r = |name: &str, v: f64| format!("const {name}: Real = Real({v:e});\n");
@@ -121,9 +122,7 @@ pub fn wgsl_constants() -> String {
         u("EVENT_REVERSAL", EVENT_REVERSAL),
         u("EVENT_APPROACH", EVENT_APPROACH),
         u("TAYLOR_TERMS", TAYLOR_TERMS),
-        r("EVENT_STEP_PERIODS", EVENT_STEP_PERIODS),
         u("COLLOCATION_ITERATIONS", COLLOCATION_ITERATIONS),
-        r("COLLOCATION_CONVERGED", COLLOCATION_CONVERGED),
         u("TAYLOR_STAGE_TERMS", TAYLOR_STAGE_TERMS),
         r("TAYLOR_STAGE_CONVERGED", TAYLOR_STAGE_CONVERGED),
         u("SLIP_DIRECTION_ITERATIONS", SLIP_DIRECTION_ITERATIONS),

@@ -3,9 +3,10 @@
 //!
 //! Every event function is positive before its event and crosses to zero
 //! or below at it. A step watches at most two: the primary one of its mode
-//! (breakaway in stick, entering the band in slip, leaving it in band
-//! slip) and, in band slip, the reversal of the relative velocity against
-//! the held direction.
+//! (breakaway in stick, entering the band in slip, or slowing into it along
+//! a fixed direction for a reversing slip trial, leaving it in band slip)
+//! and, in band slip, the reversal of the relative velocity against the
+//! held direction.
 
 use super::State;
 use super::coefficients::Coefficients;

@@ -40,8 +40,8 @@ pub struct Sample {
     pub x_p: Vec2,
     pub v_p: Vec2,
     pub a_p: Vec2,
-    /// Stage jerk of the homogeneous part [m/s^3] (the particular part's
-    /// jerk is constant and cancels from every use).
+    /// Stage jerk [m/s^3]: the homogeneous part's, which is the whole jerk
+    /// because the particular solution is quadratic in time.
     pub j_p: Vec2,
     pub x_s: Vec2,
     pub v_s: Vec2,
@@ -63,8 +63,8 @@ pub struct Flow {
     /// Step length the slider polynomial is scaled to [s], and its inverse.
     pub h: f64,
     pub inv_h: f64,
-    /// Particular solution x(tau) = part0 + part1 tau + part2 tau^2.
-    pub part0: Vec2,
+    /// Particular solution x(tau) = x0 + part1 tau + part2 tau^2 (its
+    /// constant x0 enters only through y0).
     pub part1: Vec2,
     pub part2: Vec2,
     /// Homogeneous displacement and velocity at tau = 0.
@@ -221,7 +221,6 @@ pub fn make_flow(
         stiffness: c.stiffness,
         h,
         inv_h,
-        part0: x0,
         part1: x1,
         part2: x2,
         y0: x_p - x0,
@@ -372,8 +371,8 @@ mod tests {
         let wd = (w2 - sigma * sigma).sqrt();
         for tau in [0.0, 1e-9, 1e-6, 3e-5, 1e-4, 1e-3, 0.05] {
             let p = propagator(&osc, tau);
-            // exp(A t) applied to (1, 0): x = a0 + a1 * 0... the first
-            // component of (a0 I + a1 A) (1, 0) is a0.
+            // Applied to (1, 0), exp(A t) = a0 I + a1 A gives a0 as the
+            // first component.
             let exact = (-sigma * tau).exp() * ((wd * tau).cos() + sigma / wd * (wd * tau).sin());
             let got = 1.0 + p.a0m1.x;
             assert!(

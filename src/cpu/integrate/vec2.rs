@@ -41,11 +41,6 @@ impl Vec2 {
         self.map(f64::abs)
     }
 
-    /// Component-wise minimum (WGSL `min`).
-    pub fn min(self, other: Vec2) -> Vec2 {
-        self.zip(other, f64::min)
-    }
-
     /// The larger component.
     pub fn max_element(self) -> f64 {
         self.x.max(self.y)
@@ -73,18 +68,6 @@ pub fn dot(a: Vec2, b: Vec2) -> f64 {
 /// |v|^2.
 pub fn norm2(v: Vec2) -> f64 {
     dot(v, v)
-}
-
-impl From<[f64; 2]> for Vec2 {
-    fn from(a: [f64; 2]) -> Vec2 {
-        Vec2::new(a[0], a[1])
-    }
-}
-
-impl From<Vec2> for [f64; 2] {
-    fn from(v: Vec2) -> [f64; 2] {
-        v.to_array()
-    }
 }
 
 impl Index<usize> for Vec2 {
