@@ -622,6 +622,14 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
     };
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;
+    // The command that regenerates this report, every option spelled out.
+    let mut command: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    let steps: Vec<String> = karnopp_steps.iter().map(|h| format!("{h:e}")).collect();
+    command.push(format!("--karnopp-steps {}", steps.join(",")));
+    if gpu {
+        command.push("--gpu".into());
+    }
+    command.push(format!("--out-dir {}", out_dir.display()));
     let mut md = String::new();
     writeln!(
         md,
@@ -631,11 +639,7 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
          wall seconds for the whole scene on one thread of this project's 2-core build \
          machine (GPU rows, when studied with --gpu: lavapipe, a software Vulkan adapter \
          on the same two cores).\n",
-        paths
-            .iter()
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(" ")
+        command.join(" ")
     )?;
     for path in paths {
         let scene = Scene::load(path)?;
