@@ -80,7 +80,12 @@ pub struct Variant {
 /// division or square root, so f64 builds both from `inverseSqrt` (which it
 /// compiles) and fused multiply-adds: Newton's iteration to full precision,
 /// then one correction, which gives the correctly rounded result in all but
-/// rare halfway cases (so the shader computes what the CPU computes).
+/// rare halfway cases (so the shader computes what the CPU computes). The
+/// guess squares its argument, so the helpers hold for 1e-154 < |b| <
+/// 1e154; the integrator's non-zero divisors, in SI units, are expected
+/// to stay inside it.
+/// Outside it they differ from the CPU: `recip(0)` is the largest finite
+/// value, not infinity.
 const F64_HELPERS: &str = "\
 // 1 / b: a first guess from inverseSqrt(b^2), three Newton steps (each
 // doubles the correct digits of the driver's guess), then a correction.
