@@ -13,6 +13,7 @@
 use std::fs::{File, OpenOptions};
 use std::io::{BufReader, Read, Seek, SeekFrom, Write};
 use std::ops::Range;
+use std::os::unix::fs::OpenOptionsExt;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
@@ -28,15 +29,6 @@ const RECORD_BYTES: usize = 8 * 6 + 4 * 3;
 pub struct Checkpoint {
     file: File,
     path: PathBuf,
-}
-
-/// The journal beside `out`: `.NAME.checkpoint`.
-pub fn path_for(out: &Path) -> PathBuf {
-    let name = out
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    out.with_file_name(format!(".{name}.checkpoint"))
 }
 
 /// FNV-1a, 64 bit: enough to tell a torn or garbled entry.
@@ -113,6 +105,7 @@ impl Checkpoint {
         let file = OpenOptions::new()
             .read(true)
             .write(true)
+            .custom_flags(libc::O_NOFOLLOW)
             .open(path)
             .with_context(|| format!("cannot open the checkpoint {}", path.display()))?;
         let mut reader = BufReader::new(&file);

@@ -13,20 +13,10 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::checkpoint::{self, Checkpoint};
 use crate::cpu::integrate::STATUS_OK;
 use crate::model::{AXES, AXIS_NAMES, Instance, InstanceKey};
-use crate::output::{AxisInfo, FileInfo, MapWriter, ShardInfo};
+use crate::output::{AxisInfo, FileInfo, MapWriter, OutputClaim, ShardInfo};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
 use crate::shard::ShardSpec;
 use crate::sweep::{self, Backend, CpuBackend, Plan, Record, Summary};
-
-/// Human meaning of each status code (index = code).
-pub const STATUS_MEANINGS: [&str; 6] = [
-    "ok",
-    "step budget exceeded (simulation.max_steps_per_period)",
-    "non-finite state",
-    "step size underflow (a turn of the friction direction could not be resolved)",
-    "event storm (mode changes without time advancing)",
-    "unconverged (--verify: a 100 times tighter tolerance moved a step by more than 0.001 um)",
-];
 
 /// A throughput used only for `pidm check`'s estimate: simulated seconds per
 /// wall second per core, measured by `pidm bench` on the paper scene with
@@ -279,7 +269,11 @@ pub fn run_scene(
     let mut kept: BTreeMap<u64, Record> = BTreeMap::new();
     let mut summary = Summary::default();
 
-    let checkpoint_path = checkpoint::path_for(out);
+    // The claim comes before anything else touches the output, its
+    // temporary file or its checkpoint: a second run of the same output is
+    // refused here, without side effects.
+    let claim = OutputClaim::acquire(out)?;
+    let checkpoint_path = claim.checkpoint_path();
     let identity = run_identity(scene, backend, scope);
     let (mut checkpoint, work, mut writer) = if scope.resume {
         if !checkpoint_path.exists() {
@@ -288,7 +282,7 @@ pub fn run_scene(
                 checkpoint_path.display()
             );
         }
-        let mut writer = MapWriter::create(out, &info)?;
+        let mut writer = MapWriter::create(&claim, &info)?;
         let (checkpoint, done) =
             Checkpoint::resume(&checkpoint_path, &identity, &mut |start, records| {
                 writer.write(start, records)?;
@@ -311,15 +305,15 @@ pub fn run_scene(
     } else {
         if checkpoint_path.exists() {
             bail!(
-                "{} holds the finished part of an interrupted run of this output (or one is \
-                 still running); continue it with --resume, or delete it to start over",
+                "{} holds the finished part of an interrupted run of this output; continue it \
+                 with --resume, or delete it to start over",
                 checkpoint_path.display()
             );
         }
         // The checkpoint is created first: it also keeps a second run of
         // the same output from starting beside this one.
         let checkpoint = Checkpoint::create(&checkpoint_path, &identity)?;
-        (checkpoint, all, MapWriter::create(out, &info)?)
+        (checkpoint, all, MapWriter::create(&claim, &info)?)
     };
 
     let instance = |i: u64| scene.instance(i);
@@ -391,6 +385,12 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         (None, Some(shard)) => shard.default_output(&scene.name),
         (None, None) => default_output(&scene),
     };
+    if crate::output::claim::is_same_file(&out, &opts.scene) {
+        bail!(
+            "{} is the scene file itself; give another --out",
+            out.display()
+        );
+    }
     eprintln!(
         "pidm: scene {:?}: {} instances{} on {}, {}, tolerance {:e} rad",
         scene.name,
@@ -441,7 +441,7 @@ fn print_summary(scene: &Scene, result: &RunResult) {
     }
     for (code, &n) in s.status_counts.iter().enumerate() {
         if n > 0 {
-            let meaning = STATUS_MEANINGS.get(code).copied().unwrap_or("unknown");
+            let meaning = crate::status::Status::describe(code as u32);
             println!("  status {code} ({meaning}): {n}");
         }
     }

@@ -14,5 +14,6 @@ pub mod random;
 pub mod report;
 pub mod scene;
 pub mod shard;
+pub mod status;
 pub mod sweep;
 pub mod trajectory;

@@ -13,11 +13,13 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use hdf5::File;
 
-use crate::output::{FileInfo, MapWriter, ShardInfo, read_str_attr};
+use crate::output::claim::is_same_file;
+use crate::output::{BASELINES, FileInfo, MAPS, MapWriter, OutputClaim, ShardInfo, read_str_attr};
 use crate::scene::Scene;
+use crate::status::Status;
 use crate::sweep::Record;
 
 /// Shard `index` of `count` (1-based, as `--shard 2/4` reads).
@@ -155,22 +157,54 @@ impl ShardFile {
         read().with_context(|| format!("{}", path.display()))
     }
 
-    /// Reads the records at positions `at .. at + n` of the shard's maps.
-    fn records(&self, at: u64, n: u64, baselines: bool) -> Result<Vec<Record>> {
+    /// Checks that every map the merge reads is a 1-D dataset of `len`
+    /// values, naming the file and the dataset that is not.
+    fn check_layout(&self, len: u64, baselines: bool) -> Result<()> {
+        let mut names: Vec<String> = MAPS.iter().map(|m| format!("maps/{}", m.0)).collect();
+        if baselines {
+            names.extend(BASELINES.iter().map(|m| format!("baseline/{}", m.0)));
+        }
+        names.push("shard/instance".into());
+        for name in &names {
+            let name = name.as_str();
+            let ds = self.file.dataset(name).map_err(|_| {
+                anyhow!(
+                    "{}: the dataset `{name}` is missing; it is not a complete shard file",
+                    self.path.display()
+                )
+            })?;
+            let shape = ds.shape();
+            if shape != [len as usize] {
+                bail!(
+                    "{}: the dataset `{name}` has shape {shape:?}, but shard {} of this scene \
+                     holds {len} instances",
+                    self.path.display(),
+                    self.spec
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads the records at positions `at .. at + n` of the shard's maps,
+    /// which hold the instances from flat index `first` on, and checks that
+    /// they can be right: a known status, finite values, and zeros where
+    /// an instance did not finish normally.
+    fn records(&self, at: u64, n: u64, first: u64, baselines: bool) -> Result<Vec<Record>> {
         let range = at as usize..(at + n) as usize;
-        let f64s = |path: &str| -> Result<Vec<f64>> {
-            Ok(self
-                .file
-                .dataset(path)?
-                .read_slice_1d::<f64, _>(range.clone())?
-                .to_vec())
+        let f64s = |name: &str| -> Result<Vec<f64>> {
+            self.file
+                .dataset(name)
+                .and_then(|ds| ds.read_slice_1d::<f64, _>(range.clone()))
+                .map(|v| v.to_vec())
+                .with_context(|| format!("{}: cannot read `{name}`", self.path.display()))
         };
-        let u32s = |path: &str| -> Result<Vec<u32>> {
-            Ok(self
-                .file
-                .dataset(path)?
-                .read_slice_1d::<u32, _>(range.clone())?
-                .to_vec())
+        let u32s = |name: &str| -> Result<Vec<u32>> {
+            self.file
+                .dataset(name)
+                .and_then(|ds| ds.read_slice_1d::<u32, _>(range.clone()))
+                .map(|v| v.to_vec())
+                .with_context(|| format!("{}: cannot read `{name}`", self.path.display()))
         };
         let (step_x, step_y) = (f64s("maps/step_x")?, f64s("maps/step_y")?);
         let (vel_x, vel_y) = (f64s("maps/velocity_x")?, f64s("maps/velocity_y")?);
@@ -186,7 +220,7 @@ impl ShardFile {
         } else {
             (zeros_f.clone(), zeros_f, zeros_u)
         };
-        Ok((0..n as usize)
+        let records: Vec<Record> = (0..n as usize)
             .map(|k| Record {
                 step: [step_x[k], step_y[k]],
                 velocity: [vel_x[k], vel_y[k]],
@@ -195,8 +229,57 @@ impl ShardFile {
                 baseline_step: [base_x[k], base_y[k]],
                 baseline_status: base_status[k],
             })
-            .collect())
+            .collect();
+        for (k, record) in records.iter().enumerate() {
+            check_record(record).map_err(|why| {
+                anyhow!(
+                    "{}: instance {} cannot be right: {why}",
+                    self.path.display(),
+                    first + k as u64
+                )
+            })?;
+        }
+        Ok(records)
     }
+}
+
+/// Whether a stored record can have been written by a run: every status is
+/// a known code, every value is finite, and an instance that did not finish
+/// normally has zeros in its map entries.
+fn check_record(record: &Record) -> std::result::Result<(), String> {
+    for (what, code) in [
+        ("status", record.status),
+        ("baseline status", record.baseline_status),
+    ] {
+        if Status::from_code(code).is_none() {
+            return Err(format!("its {what} is {code}, which is no status code"));
+        }
+    }
+    let values = [
+        ("step_x", record.step[0]),
+        ("step_y", record.step[1]),
+        ("velocity_x", record.velocity[0]),
+        ("velocity_y", record.velocity[1]),
+        ("baseline step_x", record.baseline_step[0]),
+        ("baseline step_y", record.baseline_step[1]),
+    ];
+    for (what, value) in values {
+        if !value.is_finite() {
+            return Err(format!("its {what} is {value}"));
+        }
+    }
+    if record.status != Status::Ok.code() {
+        for (what, value) in &values[..4] {
+            if *value != 0.0 {
+                return Err(format!(
+                    "its status is {} ({}) but its {what} is {value:e}, not 0",
+                    record.status,
+                    Status::describe(record.status)
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// What `pidm merge` did.
@@ -213,6 +296,15 @@ pub struct MergeSummary {
 pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
     if paths.is_empty() {
         bail!("no shard files given");
+    }
+    // Nothing is read or written before the output is ours.
+    let claim = OutputClaim::acquire(out)?;
+    if let Some(shard) = paths.iter().find(|p| is_same_file(out, p)) {
+        bail!(
+            "{} is also given as the shard {}; merge into another file",
+            out.display(),
+            shard.display()
+        );
     }
     let shards: Vec<ShardFile> = paths
         .iter()
@@ -241,10 +333,13 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
         differs("pidm versions", &first.version, &other.version)?;
         differs("precisions", &first.precision, &other.precision)?;
         differs("integrator variants", &first.variant, &other.variant)?;
+        let verification = |tolerance: Option<f64>| {
+            tolerance.map_or("none".to_string(), |t| format!("tolerance {t:e}"))
+        };
         differs(
             "verifications (--verify)",
-            &format!("{:?}", first.verify_tolerance),
-            &format!("{:?}", other.verify_tolerance),
+            &verification(first.verify_tolerance),
+            &verification(other.verify_tolerance),
         )?;
         if other.spec.count != first.spec.count {
             bail!(
@@ -293,7 +388,12 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
             );
         }
         let expected: Vec<u64> = shard.spec.ranges(total).into_iter().flatten().collect();
-        let stored: Vec<u64> = shard.file.dataset("shard/instance")?.read_raw()?;
+        shard.check_layout(expected.len() as u64, scene.baselines)?;
+        let stored: Vec<u64> = shard
+            .file
+            .dataset("shard/instance")
+            .and_then(|ds| ds.read_raw())
+            .with_context(|| format!("{}: cannot read `shard/instance`", shard.path.display()))?;
         if stored != expected {
             bail!(
                 "{}: its instance list is not that of shard {} of this scene",
@@ -314,12 +414,12 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
     );
     info.tolerance = first.tolerance;
     info.verify_tolerance = first.verify_tolerance;
-    let mut writer = MapWriter::create(out, &info)?;
+    let mut writer = MapWriter::create(&claim, &info)?;
     for shard in by_index.values() {
         let mut at = 0;
         for range in ShardInfo::new(shard.spec, total).ranges {
             let n = range.end - range.start;
-            let records = shard.records(at, n, scene.baselines)?;
+            let records = shard.records(at, n, range.start, scene.baselines)?;
             writer.write(range.start, &records)?;
             at += n;
         }

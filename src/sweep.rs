@@ -260,8 +260,14 @@ impl CpuBackend {
 }
 
 /// Integrates one instance on the CPU.
+///
+/// A stop request ([`request_interrupt`]) ends the integration within about
+/// a millisecond; the outcome is then a default one that the sweep discards
+/// with the rest of its chunk.
 pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
-    let st = integrate::run_instance(inst, settings);
+    let Some(st) = integrate::run_instance_until(inst, settings, interrupt_requested) else {
+        return Outcome::default();
+    };
     Outcome {
         displacement: integrate::displacement(inst, &st),
         status: st.status,

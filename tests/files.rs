@@ -339,6 +339,43 @@ fn a_killed_or_interrupted_run_resumes_to_the_uninterrupted_file() {
         std::fs::remove_file(&out).unwrap();
     }
 
+    // A second run of the same output, while the first is running (here
+    // held still with SIGSTOP so that it cannot finish meanwhile), is
+    // refused before it touches anything, whether it resumes or not; the
+    // first then finishes its file as if alone.
+    let child = Command::new(env!("CARGO_BIN_EXE_pidm"))
+        .args(args)
+        .current_dir(d)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let signal = |name: &str| {
+        let sent = Command::new("kill")
+            .args([name, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(sent.success());
+    };
+    wait_for_checkpoint(&checkpoint, 1, chunk);
+    signal("-STOP");
+    let partial = d.join(".long.h5.partial");
+    let journal = std::fs::read(&checkpoint).unwrap();
+    let partial_len = std::fs::metadata(&partial).unwrap().len();
+    let mut resume = args.to_vec();
+    resume.push("--resume");
+    for second in [&args[..], &resume[..]] {
+        let err = failed(&pidm(second, d));
+        assert!(err.contains("another pidm process is writing"), "{err}");
+        assert_eq!(std::fs::read(&checkpoint).unwrap(), journal);
+        assert_eq!(std::fs::metadata(&partial).unwrap().len(), partial_len);
+    }
+    signal("-CONT");
+    let ended = child.wait_with_output().unwrap();
+    assert!(ended.status.success());
+    compare_contents(&whole, &out).unwrap();
+    std::fs::remove_file(&out).unwrap();
+
     // A checkpoint of another scene is refused, not mixed in.
     let mut child = Command::new(env!("CARGO_BIN_EXE_pidm"))
         .args(args)
@@ -361,4 +398,215 @@ fn a_killed_or_interrupted_run_resumes_to_the_uninterrupted_file() {
     let err = failed(&pidm(&resume, d));
     assert!(err.contains("is of a different run"), "{err}");
     assert!(!out.exists());
+}
+
+/// Every file in the folder, sorted (hidden ones included).
+fn names_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn outputs_that_are_not_regular_files_or_new_paths_are_refused_untouched() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = grid_scene(d, "grid", "[50.0, 100.0]", 2);
+    std::fs::create_dir(d.join("folder")).unwrap();
+    let made = Command::new("mkfifo").arg(d.join("fifo")).status().unwrap();
+    assert!(made.success());
+    let victim = d.join("victim.h5");
+    std::fs::write(&victim, b"not to be touched").unwrap();
+    std::os::unix::fs::symlink(&victim, d.join("link.h5")).unwrap();
+    // A side file that is a link must not be followed either.
+    std::os::unix::fs::symlink(&victim, d.join(".side.h5.partial")).unwrap();
+    let before = names_in(d);
+
+    let check = |out: &str, expected: &str| {
+        let err = failed(&pidm(
+            &["run", s(&scene), "--out", out, "--backend", "cpu"],
+            d,
+        ));
+        assert!(err.contains(expected), "--out {out}: {err}");
+        assert!(!err.contains("panicked"), "--out {out}: {err}");
+        assert_eq!(names_in(d), before, "--out {out} left files behind");
+    };
+    check("folder", "is a folder, not a regular file");
+    check("fifo", "is a FIFO, not a regular file");
+    check("link.h5", "is a symbolic link, not a regular file");
+    check("side.h5", ".side.h5.partial is a symbolic link");
+    check(
+        "/dev/null",
+        "/dev/null is a character device, not a regular file",
+    );
+    check(".", ". is not a file name");
+    check("..", ".. is not a file name");
+    check("/", "/ is not a file name");
+    check("folder/", "folder/ is not a file name");
+    check("folder/..", "folder/.. is not a file name");
+    check(s(&scene), "is the scene file itself");
+
+    assert_eq!(std::fs::read(&victim).unwrap(), b"not to be touched");
+    let null = std::fs::metadata("/dev/null").unwrap();
+    assert!(null.file_type().is_char_device(), "/dev/null was replaced");
+    assert_eq!(leftovers(Path::new("/dev")), Vec::<String>::new());
+    // An existing regular file is replaced as a whole.
+    std::fs::write(d.join("old.h5"), b"an older result").unwrap();
+    ok(&pidm(
+        &["run", s(&scene), "--out", "old.h5", "--backend", "cpu"],
+        d,
+    ));
+    hdf5::File::open(d.join("old.h5")).unwrap();
+    assert!(!d.join(".old.h5.lock").exists());
+}
+
+#[test]
+fn a_merge_names_the_shard_and_dataset_that_cannot_be_right() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = grid_scene(d, "grid", "[50.0, 100.0, 150.0]", 2);
+    for k in 1..=2 {
+        let shard = format!("{k}/2");
+        let out = format!("shard-{k}.h5");
+        ok(&pidm(
+            &[
+                "run",
+                s(&scene),
+                "--shard",
+                &shard,
+                "--out",
+                &out,
+                "--backend",
+                "cpu",
+            ],
+            d,
+        ));
+    }
+    ok(&pidm(&["merge", "good.h5", "shard-1.h5", "shard-2.h5"], d));
+
+    // Each damage is done to a copy of shard 1.
+    let check = |what: &str, damage: &dyn Fn(&hdf5::File), expected: &str| {
+        let copy = d.join("damaged.h5");
+        std::fs::copy(d.join("shard-1.h5"), &copy).unwrap();
+        damage(&hdf5::File::open_rw(&copy).unwrap());
+        let err = failed(&pidm(&["merge", "bad.h5", "damaged.h5", "shard-2.h5"], d));
+        assert!(err.contains("damaged.h5"), "{what}: {err}");
+        assert!(err.contains(expected), "{what}: {err}");
+        assert!(!err.contains("panicked"), "{what}: {err}");
+        assert!(
+            !err.contains("Some(") && !err.contains("None"),
+            "{what}: {err}"
+        );
+        assert!(!d.join("bad.h5").exists(), "{what}");
+        assert!(leftovers(d).is_empty(), "{what}: {:?}", leftovers(d));
+    };
+    let write_f64 = |name: &'static str, at: usize, value: f64| {
+        move |f: &hdf5::File| {
+            let ds = f.dataset(name).unwrap();
+            let mut v: Vec<f64> = ds.read_raw().unwrap();
+            v[at] = value;
+            ds.write_raw(&v).unwrap();
+        }
+    };
+    let write_u32 = |name: &'static str, at: usize, value: u32| {
+        move |f: &hdf5::File| {
+            let ds = f.dataset(name).unwrap();
+            let mut v: Vec<u32> = ds.read_raw().unwrap();
+            v[at] = value;
+            ds.write_raw(&v).unwrap();
+        }
+    };
+    check(
+        "NaN with status 0",
+        &write_f64("maps/step_x", 1, f64::NAN),
+        "its step_x is NaN",
+    );
+    check(
+        "a status that does not exist",
+        &write_u32("maps/status", 0, 17),
+        "its status is 17, which is no status code",
+    );
+    check(
+        "a failed instance with a step",
+        &|f: &hdf5::File| {
+            write_u32("maps/status", 2, 3)(f);
+            write_f64("maps/step_y", 2, 1e-6)(f);
+        },
+        "its status is 3 (step size underflow",
+    );
+    check(
+        "a shortened map",
+        &|f: &hdf5::File| {
+            let maps = f.group("maps").unwrap();
+            maps.unlink("step_y").unwrap();
+            maps.new_dataset_builder()
+                .with_data(&[0.0f64; 2])
+                .create("step_y")
+                .unwrap();
+        },
+        "`maps/step_y` has shape [2]",
+    );
+    check(
+        "a missing map",
+        &|f: &hdf5::File| f.group("baseline").unwrap().unlink("status").unwrap(),
+        "`baseline/status` is missing",
+    );
+    check(
+        "a missing instance list",
+        &|f: &hdf5::File| f.unlink("shard/instance").unwrap(),
+        "`shard/instance` is missing",
+    );
+    // The output may not be one of the shards it reads.
+    let err = failed(&pidm(
+        &["merge", "shard-1.h5", "shard-1.h5", "shard-2.h5"],
+        d,
+    ));
+    assert!(err.contains("is also given as the shard"), "{err}");
+    hdf5::File::open(d.join("shard-1.h5"))
+        .unwrap()
+        .dataset("shard/instance")
+        .unwrap();
+}
+
+#[test]
+fn ctrl_c_stops_a_long_instance_at_once_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // One instance of ten million cycles: hours of integration.
+    let scene = d.join("endless.toml");
+    std::fs::write(
+        &scene,
+        "name = \"endless\"\n[axis.x]\nvoltage = 100.0\n[simulation]\ncycles = 10000000\n",
+    )
+    .unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_pidm"))
+        .args(["run", s(&scene), "--out", "endless.h5", "--backend", "cpu"])
+        .current_dir(d)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for_checkpoint(&d.join(".endless.h5.checkpoint"), 0, 1);
+    std::thread::sleep(Duration::from_millis(300));
+    let asked = Instant::now();
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let ended = child.wait_with_output().unwrap();
+    let waited = asked.elapsed();
+    let err = String::from_utf8_lossy(&ended.stderr);
+    assert!(!ended.status.success(), "{err}");
+    assert!(err.contains("interrupted after 0 of 1 instances"), "{err}");
+    // The integrator looks at the stop request every 2^14 iterations
+    // (about a millisecond); five seconds leaves room for a loaded machine.
+    assert!(waited < Duration::from_secs(5), "took {waited:?} to stop");
+    assert!(!d.join("endless.h5").exists());
+    assert!(leftovers(d).is_empty(), "{:?}", leftovers(d));
 }

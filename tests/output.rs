@@ -2,7 +2,7 @@
 //! is complete or absent.
 
 use hdf5::types::VarLenUnicode;
-use pidm::output::{AxisInfo, FileInfo, MapWriter};
+use pidm::output::{AxisInfo, FileInfo, MapWriter, OutputClaim};
 use pidm::sweep::Record;
 
 fn info(shape: Vec<usize>, baselines: bool) -> FileInfo {
@@ -47,7 +47,8 @@ fn maps_written_in_uneven_chunks_read_back_in_grid_order() {
     let path = dir.path().join("out.h5");
     let shape = vec![3, 4, 5];
     let n = 60;
-    let mut writer = MapWriter::create(&path, &info(shape.clone(), true)).unwrap();
+    let claim = OutputClaim::acquire(&path).unwrap();
+    let mut writer = MapWriter::create(&claim, &info(shape.clone(), true)).unwrap();
     // Uneven chunks that cut rows and planes.
     let mut start = 0;
     for len in [7, 1, 13, 20, 19] {
@@ -86,7 +87,8 @@ fn a_writer_dropped_before_finishing_leaves_no_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("out.h5");
     {
-        let mut writer = MapWriter::create(&path, &info(vec![4], false)).unwrap();
+        let claim = OutputClaim::acquire(&path).unwrap();
+        let mut writer = MapWriter::create(&claim, &info(vec![4], false)).unwrap();
         writer.write(0, &[record(0), record(1)]).unwrap();
     }
     let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
@@ -97,7 +99,8 @@ fn a_writer_dropped_before_finishing_leaves_no_file() {
 fn a_single_instance_scene_gives_scalar_maps() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("one.h5");
-    let mut writer = MapWriter::create(&path, &info(vec![], false)).unwrap();
+    let claim = OutputClaim::acquire(&path).unwrap();
+    let mut writer = MapWriter::create(&claim, &info(vec![], false)).unwrap();
     writer.write(0, &[record(5)]).unwrap();
     writer.finish(0.0).unwrap();
     let file = hdf5::File::open(&path).unwrap();

@@ -351,12 +351,13 @@ mod tests {
             "is_finite2",
         ];
         // CPU only: constructors, the observer of trajectories (its `step`
-        // method and `StepMotion`), the whole run and its result, Rust's
+        // method and `StepMotion`), the whole run (stoppable) and its result, Rust's
         // rounding and the sample array.
         let cpu_only = [
             "new",
             "default",
             "run_instance",
+            "run_instance_until",
             "displacement",
             "advance_observed",
             "step",

@@ -159,12 +159,32 @@ pub fn is_finished(c: &Coefficients, st: &State) -> bool {
 
 /// Integrates one instance to the end and returns its final state.
 pub fn run_instance(inst: &Instance, settings: &Settings) -> State {
+    run_instance_until(inst, settings, || false).expect("never asked to stop")
+}
+
+/// Iterations between two looks at the stop request of
+/// [`run_instance_until`]: about a millisecond of integration, and far too
+/// many for the look to cost anything measurable.
+const ITERATIONS_BETWEEN_STOP_CHECKS: u32 = 1 << 14;
+
+/// Integrates one instance to the end, or until `stop` returns true (it is
+/// asked every [`ITERATIONS_BETWEEN_STOP_CHECKS`] iterations), in which
+/// case there is no result. Integrating in slices gives the same state bit
+/// for bit as integrating in one go: `advance` resumes where it stopped.
+pub fn run_instance_until(
+    inst: &Instance,
+    settings: &Settings,
+    stop: impl Fn() -> bool,
+) -> Option<State> {
     let c = Coefficients::new(inst, settings, f64::EPSILON);
     let mut st = initial_state(&c);
     while !is_finished(&c, &st) {
-        advance(&c, &mut st, u32::MAX);
+        if stop() {
+            return None;
+        }
+        advance(&c, &mut st, ITERATIONS_BETWEEN_STOP_CHECKS);
     }
-    st
+    Some(st)
 }
 
 /// Slider displacement over the measured periods [m], or zero where the

@@ -36,7 +36,10 @@ use hdf5::{Dataset, File, H5Type, Hyperslab, SliceOrIndex};
 use ndarray::ArrayView;
 
 use crate::shard::ShardSpec;
+
+pub mod claim;
 use crate::sweep::Record;
+pub use claim::OutputClaim;
 
 /// Where a shard file's instances sit in the scene.
 #[derive(Clone, Debug)]
@@ -110,8 +113,9 @@ pub struct MapWriter {
     baselines: Vec<Dataset>,
 }
 
-/// Map datasets in the order [`Record`] fields are written.
-const MAPS: [(&str, &str, &str); 6] = [
+/// Map datasets under `/maps` (name, units, long name), in the order
+/// [`Record`] fields are written.
+pub const MAPS: [(&str, &str, &str); 6] = [
     ("step_x", "m", "slider step along x per x drive cycle"),
     ("step_y", "m", "slider step along y per y drive cycle"),
     ("velocity_x", "m/s", "mean slider velocity along x"),
@@ -120,7 +124,8 @@ const MAPS: [(&str, &str, &str); 6] = [
     ("steps", "1", "integrator steps taken"),
 ];
 
-const BASELINES: [(&str, &str, &str); 3] = [
+/// Baseline datasets under `/baseline` (name, units, long name).
+pub const BASELINES: [(&str, &str, &str); 3] = [
     ("step_x", "m", "1-DOF step along x with the y drive off"),
     ("step_y", "m", "1-DOF step along y with the x drive off"),
     (
@@ -226,20 +231,22 @@ pub(crate) fn read_str_attr(loc: &hdf5::Location, name: &str) -> Result<String> 
 }
 
 impl MapWriter {
-    /// Creates the temporary file next to `path` with axes and empty maps.
-    pub fn create(path: &Path, info: &FileInfo) -> Result<MapWriter> {
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+    /// Creates the temporary file of the claimed output with axes and
+    /// empty maps. A temporary file left by a killed run is replaced: the
+    /// claim proves that no other run is writing it.
+    pub fn create(claim: &OutputClaim, info: &FileInfo) -> Result<MapWriter> {
+        let path = claim.path();
+        let temp_path = claim.partial_path();
+        // Removing first replaces a stale file without following it, should
+        // it have become a link since the claim checked it.
+        match std::fs::remove_file(&temp_path) {
+            Ok(()) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => {
+                return Err(e).with_context(|| format!("cannot remove {}", temp_path.display()));
+            }
         }
-        let file_name = path
-            .file_name()
-            .with_context(|| format!("{} is not a file path", path.display()))?;
-        // One temporary name per output: a run killed before it could
-        // clean up leaves it, and the next run (or `--resume`) of the same
-        // output overwrites it.
-        let temp_path = path.with_file_name(format!(".{}.partial", file_name.to_string_lossy()));
-        let file = File::create(&temp_path)
+        let file = File::create_excl(&temp_path)
             .with_context(|| format!("cannot create {}", temp_path.display()))?;
         // A shard's maps are 1-D over its own instances.
         let map_shape = match &info.shard {
@@ -448,20 +455,29 @@ impl MapWriter {
     }
 
     /// Records the run's wall time, closes the file and renames it into
-    /// place.
+    /// place. On an error the temporary file is removed and the output is
+    /// left as it was.
     pub fn finish(mut self, wall_time_s: f64) -> Result<PathBuf> {
+        write_f64_attr(self.file(), "wall_time_s", wall_time_s)?;
+        // The output may have changed since the claim checked it; a rename
+        // would silently replace a FIFO or device that appeared meanwhile.
+        claim::check_regular_or_absent(&self.final_path)?;
         let file = self.file.take().context("result file already closed")?;
-        write_f64_attr(&file, "wall_time_s", wall_time_s)?;
         self.maps.clear();
         self.baselines.clear();
-        file.close()?;
-        std::fs::rename(&self.temp_path, &self.final_path).with_context(|| {
-            format!(
-                "cannot move {} to {}",
-                self.temp_path.display(),
-                self.final_path.display()
-            )
-        })?;
+        let moved = file.close().map_err(anyhow::Error::from).and_then(|()| {
+            std::fs::rename(&self.temp_path, &self.final_path).with_context(|| {
+                format!(
+                    "cannot move {} to {}",
+                    self.temp_path.display(),
+                    self.final_path.display()
+                )
+            })
+        });
+        if let Err(e) = moved {
+            let _ = std::fs::remove_file(&self.temp_path);
+            return Err(e);
+        }
         Ok(self.final_path.clone())
     }
 }

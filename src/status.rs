@@ -1,0 +1,89 @@
+//! Instance status codes and what they mean: the one home of the codes the
+//! result files hold in `/maps/status` and `/baseline/status`.
+//!
+//! The integrators set codes 0 to 4 (their values live in
+//! `cpu::integrate::constants`, from which the shader's prelude is also
+//! generated); the sweep sets 5 after `--verify`. Every non-zero status
+//! leaves 0 in the instance's map entries, never NaN.
+
+use crate::cpu::integrate::{
+    STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_OK, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
+};
+use crate::sweep::STATUS_UNCONVERGED;
+
+/// What became of one instance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Status {
+    /// The instance finished normally.
+    Ok = STATUS_OK,
+    /// The step budget (`simulation.max_steps_per_period`) ran out.
+    StepBudget = STATUS_STEP_BUDGET,
+    /// A non-finite number appeared in the state.
+    NonFinite = STATUS_NON_FINITE,
+    /// The slip step size fell below the time resolution of a period.
+    StepUnderflow = STATUS_STEP_UNDERFLOW,
+    /// Mode changes kept following each other without time advancing.
+    EventStorm = STATUS_EVENT_STORM,
+    /// `--verify` found a step that a 100 times tighter tolerance moved.
+    Unconverged = STATUS_UNCONVERGED,
+}
+
+impl Status {
+    /// Every status, in code order.
+    pub const ALL: [Status; 6] = [
+        Status::Ok,
+        Status::StepBudget,
+        Status::NonFinite,
+        Status::StepUnderflow,
+        Status::EventStorm,
+        Status::Unconverged,
+    ];
+
+    /// The code stored in result files.
+    pub fn code(self) -> u32 {
+        self as u32
+    }
+
+    /// The status of a stored code, if the code exists.
+    pub fn from_code(code: u32) -> Option<Status> {
+        Status::ALL.into_iter().find(|s| s.code() == code)
+    }
+
+    /// What the status means, for people.
+    pub fn meaning(self) -> &'static str {
+        match self {
+            Status::Ok => "ok",
+            Status::StepBudget => "step budget exceeded (simulation.max_steps_per_period)",
+            Status::NonFinite => "non-finite state",
+            Status::StepUnderflow => {
+                "step size underflow (a turn of the friction direction could not be resolved)"
+            }
+            Status::EventStorm => "event storm (mode changes without time advancing)",
+            Status::Unconverged => {
+                "unconverged (--verify: a 100 times tighter tolerance moved a step by more than \
+                 0.001 um)"
+            }
+        }
+    }
+
+    /// The meaning of a stored code, or a note that it does not exist.
+    pub fn describe(code: u32) -> &'static str {
+        Status::from_code(code).map_or("no such status", Status::meaning)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn codes_are_dense_and_round_trip() {
+        for (k, status) in Status::ALL.into_iter().enumerate() {
+            assert_eq!(status.code(), k as u32);
+            assert_eq!(Status::from_code(k as u32), Some(status));
+        }
+        assert_eq!(Status::from_code(Status::ALL.len() as u32), None);
+        assert_eq!(Status::describe(99), "no such status");
+    }
+}
