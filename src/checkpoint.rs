@@ -117,10 +117,17 @@ impl Checkpoint {
         {
             bail!("{} is not a pidm checkpoint", path.display());
         }
-        let mut stored = vec![0u8; u64::from_le_bytes(len).min(1 << 30) as usize];
-        reader
-            .read_exact(&mut stored)
-            .with_context(|| format!("{} is truncated", path.display()))?;
+        let file_len = file
+            .metadata()
+            .with_context(|| format!("cannot inspect {}", path.display()))?
+            .len();
+        // Nothing is allocated on the word of the file alone: a length that
+        // is not the identity's cannot be this run's.
+        let stored_len = u64::from_le_bytes(len);
+        let mut stored = vec![0u8; identity.len()];
+        if stored_len != identity.len() as u64 || reader.read_exact(&mut stored).is_err() {
+            stored.clear();
+        }
         if stored != identity.as_bytes() {
             bail!(
                 "the checkpoint {} is of a different run (another scene, version, backend \
@@ -140,7 +147,8 @@ impl Checkpoint {
             let Some(body_len) = (n as usize).checked_mul(RECORD_BYTES) else {
                 break;
             };
-            if body_len > 1 << 32 {
+            // An entry longer than what is left of the file is torn.
+            if body_len as u64 + 8 > file_len.saturating_sub(valid_len + 16) {
                 break;
             }
             let mut body = vec![0u8; body_len + 8];
@@ -154,6 +162,18 @@ impl Checkpoint {
                 break;
             }
             let records: Vec<Record> = records_bytes.chunks(RECORD_BYTES).map(decode).collect();
+            if let Some((k, why)) = records
+                .iter()
+                .enumerate()
+                .find_map(|(k, r)| Some((k, r.implausibility()?)))
+            {
+                bail!(
+                    "the checkpoint {} holds a record that cannot be right (instance {}: \
+                     {why}); delete it to start over",
+                    path.display(),
+                    start.saturating_add(k as u64)
+                );
+            }
             replay(start, &records)?;
             done.push(start..start + n);
             valid_len += 16 + body.len() as u64;
@@ -224,14 +244,18 @@ pub fn missing(all: &[Range<u64>], done: &[Range<u64>]) -> Vec<Range<u64>> {
 mod tests {
     use super::*;
 
+    /// A record a run could have written: a failed instance (every third)
+    /// has zeros in its map entries.
     fn record(i: u64) -> Record {
+        let failed = i % 3 == 1;
+        let value = |v: f64| if failed { 0.0 } else { v };
         Record {
-            step: [i as f64 * 1e-9, -1.5],
-            velocity: [f64::MIN_POSITIVE, 2.0],
-            status: i as u32 % 5,
+            step: [value(i as f64 * 1e-9), value(-1.5)],
+            velocity: [value(f64::MIN_POSITIVE), value(2.0)],
+            status: if failed { 1 + i as u32 % 5 } else { 0 },
             steps: i as u32,
             baseline_step: [0.25, -0.0],
-            baseline_status: 7,
+            baseline_status: 5,
         }
     }
 
@@ -290,5 +314,86 @@ mod tests {
             .unwrap();
         assert!(err.to_string().contains("different run"), "{err}");
         assert!(Checkpoint::create(&path, "run A").is_err());
+    }
+
+    /// One way of damaging a journal.
+    #[derive(Clone, Debug)]
+    enum Damage {
+        Truncate(usize),
+        Flip(usize, u8),
+        Insert(usize, Vec<u8>),
+        Overwrite(usize, u64),
+    }
+
+    fn damage_strategy() -> impl proptest::strategy::Strategy<Value = Vec<Damage>> {
+        use proptest::prelude::*;
+        let one = prop_oneof![
+            any::<usize>().prop_map(Damage::Truncate),
+            (any::<usize>(), 1..=255u8).prop_map(|(at, bits)| Damage::Flip(at, bits)),
+            (
+                any::<usize>(),
+                proptest::collection::vec(any::<u8>(), 1..64)
+            )
+                .prop_map(|(at, bytes)| Damage::Insert(at, bytes)),
+            (any::<usize>(), any::<u64>()).prop_map(|(at, v)| Damage::Overwrite(at, v)),
+        ];
+        proptest::collection::vec(one, 1..4)
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig {
+            cases: 100,
+            failure_persistence: None,
+            ..Default::default()
+        })]
+
+        /// Whatever happens to a journal, resuming gives an error or a
+        /// prefix of what was appended, never a panic, a foreign record or
+        /// an allocation on the file's word.
+        #[test]
+        fn a_damaged_journal_resumes_to_a_prefix_or_an_error(damages in damage_strategy()) {
+            let dir = tempfile::tempdir().unwrap();
+            let path = dir.path().join(".out.h5.checkpoint");
+            let mut ck = Checkpoint::create(&path, "run A").unwrap();
+            let entries: Vec<(u64, Vec<Record>)> = [(0u64, 0..4u64), (4, 4..5), (9, 9..12)]
+                .into_iter()
+                .map(|(start, range)| (start, range.map(record).collect()))
+                .collect();
+            for (start, records) in &entries {
+                ck.append(*start, records).unwrap();
+            }
+            drop(ck);
+            let mut bytes = std::fs::read(&path).unwrap();
+            for damage in damages {
+                let at = |k: usize| k % (bytes.len() + 1);
+                match damage {
+                    Damage::Truncate(k) => bytes.truncate(at(k)),
+                    Damage::Flip(k, bits) if !bytes.is_empty() => {
+                        let k = k % bytes.len();
+                        bytes[k] ^= bits;
+                    }
+                    Damage::Flip(..) => {}
+                    Damage::Insert(k, extra) => {
+                        let k = at(k);
+                        bytes.splice(k..k, extra);
+                    }
+                    Damage::Overwrite(k, v) => {
+                        let k = at(k);
+                        let end = (k + 8).min(bytes.len());
+                        bytes.splice(k..end, v.to_le_bytes());
+                    }
+                }
+            }
+            std::fs::write(&path, &bytes).unwrap();
+            let mut replayed = Vec::new();
+            let resumed = Checkpoint::resume(&path, "run A", &mut |s, r| {
+                replayed.push((s, r.to_vec()));
+                Ok(())
+            });
+            if resumed.is_ok() {
+                proptest::prop_assert!(replayed.len() <= entries.len());
+                proptest::prop_assert_eq!(&replayed[..], &entries[..replayed.len()]);
+            }
+        }
     }
 }

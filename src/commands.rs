@@ -285,6 +285,17 @@ pub fn run_scene(
         let mut writer = MapWriter::create(&claim, &info)?;
         let (checkpoint, done) =
             Checkpoint::resume(&checkpoint_path, &identity, &mut |start, records| {
+                let end = start.checked_add(records.len() as u64);
+                if !all
+                    .iter()
+                    .any(|r| r.start <= start && end.is_some_and(|e| e <= r.end))
+                {
+                    bail!(
+                        "the checkpoint {} holds instances {start}.. that this run does not \
+                         compute; delete it to start over",
+                        checkpoint_path.display()
+                    );
+                }
                 writer.write(start, records)?;
                 for (k, r) in records.iter().enumerate() {
                     summary.add(r);

@@ -93,7 +93,8 @@ enum Command {
         #[arg(long, default_value = "results")]
         out_dir: PathBuf,
         /// Step sizes of the fixed-step Karnopp baseline [s].
-        #[arg(long, value_delimiter = ',', default_value = "1e-5,3e-6,1e-6,3e-7")]
+        #[arg(long, value_delimiter = ',', default_value = "1e-5,3e-6,1e-6,3e-7",
+              value_parser = positive_finite)]
         karnopp_steps: Vec<f64>,
         /// Also study the GPU path, on any adapter, in every precision it
         /// offers.
@@ -127,9 +128,18 @@ enum Command {
         #[arg(default_value = "sweeps/paper.toml")]
         scene: PathBuf,
         /// Keep measuring for at least this many seconds per thread setting.
-        #[arg(long, default_value_t = 2.0)]
+        #[arg(long, default_value_t = 2.0, value_parser = positive_finite)]
         seconds: f64,
     },
+}
+
+/// A flag value that must be a finite number above zero.
+fn positive_finite(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(value) if value.is_finite() && value > 0.0 => Ok(value),
+        Ok(value) => Err(format!("{value} is not a finite number above 0")),
+        Err(e) => Err(format!("{text:?} is not a number ({e})")),
+    }
 }
 
 fn run(cli: Cli) -> Result<ExitCode> {
@@ -193,6 +203,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
 }
 
 fn main() -> ExitCode {
+    // Output piped into a reader that stops early (`pidm check | head`)
+    // ends the process quietly, as it does every Unix tool, instead of a
+    // panic in `println!`.
+    // SAFETY: called first in `main`, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => code,

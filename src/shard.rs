@@ -19,7 +19,6 @@ use hdf5::File;
 use crate::output::claim::is_same_file;
 use crate::output::{BASELINES, FileInfo, MAPS, MapWriter, OutputClaim, ShardInfo, read_str_attr};
 use crate::scene::Scene;
-use crate::status::Status;
 use crate::sweep::Record;
 
 /// Shard `index` of `count` (1-based, as `--shard 2/4` reads).
@@ -231,55 +230,16 @@ impl ShardFile {
             })
             .collect();
         for (k, record) in records.iter().enumerate() {
-            check_record(record).map_err(|why| {
-                anyhow!(
+            if let Some(why) = record.implausibility() {
+                bail!(
                     "{}: instance {} cannot be right: {why}",
                     self.path.display(),
                     first + k as u64
-                )
-            })?;
+                );
+            }
         }
         Ok(records)
     }
-}
-
-/// Whether a stored record can have been written by a run: every status is
-/// a known code, every value is finite, and an instance that did not finish
-/// normally has zeros in its map entries.
-fn check_record(record: &Record) -> std::result::Result<(), String> {
-    for (what, code) in [
-        ("status", record.status),
-        ("baseline status", record.baseline_status),
-    ] {
-        if Status::from_code(code).is_none() {
-            return Err(format!("its {what} is {code}, which is no status code"));
-        }
-    }
-    let values = [
-        ("step_x", record.step[0]),
-        ("step_y", record.step[1]),
-        ("velocity_x", record.velocity[0]),
-        ("velocity_y", record.velocity[1]),
-        ("baseline step_x", record.baseline_step[0]),
-        ("baseline step_y", record.baseline_step[1]),
-    ];
-    for (what, value) in values {
-        if !value.is_finite() {
-            return Err(format!("its {what} is {value}"));
-        }
-    }
-    if record.status != Status::Ok.code() {
-        for (what, value) in &values[..4] {
-            if *value != 0.0 {
-                return Err(format!(
-                    "its status is {} ({}) but its {what} is {value:e}, not 0",
-                    record.status,
-                    Status::describe(record.status)
-                ));
-            }
-        }
-    }
-    Ok(())
 }
 
 /// What `pidm merge` did.

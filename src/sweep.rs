@@ -15,6 +15,7 @@ use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use crate::cpu::integrate::{self, STATUS_OK, Settings};
+use crate::status::Status;
 
 /// Status of an instance that `--verify` found unconverged: rerun with a
 /// 100 times tighter tolerance, one of its steps (or baseline steps) moved
@@ -213,6 +214,45 @@ pub struct Record {
     pub baseline_step: [f64; AXES],
     /// Worst status of the two baselines.
     pub baseline_status: u32,
+}
+
+impl Record {
+    /// Why a stored record cannot have been written by a run, if it cannot:
+    /// every status must be a known code, every value finite, and an
+    /// instance that did not finish normally must have zeros in its map
+    /// entries. Readers of result files and checkpoints ask this of every
+    /// record they take in.
+    pub fn implausibility(&self) -> Option<String> {
+        for (what, code) in [
+            ("status", self.status),
+            ("baseline status", self.baseline_status),
+        ] {
+            if Status::from_code(code).is_none() {
+                return Some(format!("its {what} is {code}, which is no status code"));
+            }
+        }
+        let values = [
+            ("step_x", self.step[0]),
+            ("step_y", self.step[1]),
+            ("velocity_x", self.velocity[0]),
+            ("velocity_y", self.velocity[1]),
+            ("baseline step_x", self.baseline_step[0]),
+            ("baseline step_y", self.baseline_step[1]),
+        ];
+        if let Some((what, value)) = values.iter().find(|(_, v)| !v.is_finite()) {
+            return Some(format!("its {what} is {value}"));
+        }
+        if self.status != Status::Ok.code() {
+            if let Some((what, value)) = values[..4].iter().find(|(_, v)| *v != 0.0) {
+                return Some(format!(
+                    "its status is {} ({}) but its {what} is {value:e}, not 0",
+                    self.status,
+                    Status::describe(self.status)
+                ));
+            }
+        }
+        None
+    }
 }
 
 /// A way of integrating many instances.
