@@ -610,3 +610,148 @@ fn ctrl_c_stops_a_long_instance_at_once_and_writes_nothing() {
     assert!(!d.join("endless.h5").exists());
     assert!(leftovers(d).is_empty(), "{:?}", leftovers(d));
 }
+
+/// One structural damage to a shard file.
+#[derive(Clone, Debug)]
+enum ShardDamage {
+    /// Remove the dataset.
+    Delete(usize),
+    /// Replace the dataset with one of another length.
+    Resize(usize, usize),
+    /// Write a value at a position (taken modulo the length).
+    Set(usize, usize, f64),
+}
+
+/// The datasets a merge reads from a shard with baselines.
+const SHARD_DATASETS: [&str; 10] = [
+    "maps/step_x",
+    "maps/step_y",
+    "maps/velocity_x",
+    "maps/velocity_y",
+    "maps/status",
+    "maps/steps",
+    "baseline/step_x",
+    "baseline/step_y",
+    "baseline/status",
+    "shard/instance",
+];
+
+fn apply(file: &hdf5::File, damage: &ShardDamage) {
+    let name = |k: usize| SHARD_DATASETS[k % SHARD_DATASETS.len()];
+    let (group, leaf) =
+        |k: usize| -> (&str, &str) { name(k).split_once('/').unwrap() }(match damage {
+            ShardDamage::Delete(k) | ShardDamage::Resize(k, _) | ShardDamage::Set(k, ..) => *k,
+        });
+    let Ok(group) = file.group(group) else { return };
+    let Ok(ds) = group.dataset(leaf) else { return };
+    let is_float = ds.dtype().unwrap().is::<f64>();
+    match *damage {
+        ShardDamage::Delete(_) => group.unlink(leaf).unwrap(),
+        ShardDamage::Resize(_, len) => {
+            group.unlink(leaf).unwrap();
+            let builder = group.new_dataset_builder();
+            if is_float {
+                builder.with_data(&vec![0.5f64; len]).create(leaf).unwrap();
+            } else {
+                builder.with_data(&vec![1u32; len]).create(leaf).unwrap();
+            }
+        }
+        ShardDamage::Set(_, at, value) => {
+            if is_float {
+                let mut v: Vec<f64> = ds.read_raw().unwrap();
+                if !v.is_empty() {
+                    let at = at % v.len();
+                    v[at] = value;
+                    ds.write_raw(&v).unwrap();
+                }
+            } else if let Ok(mut v) = ds.read_raw::<u32>() {
+                if !v.is_empty() {
+                    let at = at % v.len();
+                    v[at] = value.abs().min(u32::MAX as f64) as u32;
+                    ds.write_raw(&v).unwrap();
+                }
+            }
+        }
+    }
+}
+
+fn shard_damage() -> impl proptest::strategy::Strategy<Value = Vec<ShardDamage>> {
+    use proptest::prelude::*;
+    let value = prop_oneof![
+        Just(f64::NAN),
+        Just(f64::INFINITY),
+        Just(-0.0),
+        Just(1e300),
+        Just(6.0),
+        any::<f64>(),
+    ];
+    let one = prop_oneof![
+        (0..10usize).prop_map(ShardDamage::Delete),
+        (0..10usize, 0..12usize).prop_map(|(k, n)| ShardDamage::Resize(k, n)),
+        (0..10usize, any::<usize>(), value).prop_map(|(k, at, v)| ShardDamage::Set(k, at, v)),
+    ];
+    proptest::collection::vec(one, 1..4)
+}
+
+/// Whatever is done to a shard's datasets, a merge gives an error or a
+/// file, never a panic; and when it gives a file, every value in it is one
+/// a run could have written.
+#[test]
+fn a_merge_of_damaged_shards_gives_an_error_or_a_plausible_file() {
+    use proptest::test_runner::{Config, TestRunner};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = grid_scene(d, "grid", "[50.0, 100.0, 150.0]", 2);
+    for k in 1..=2 {
+        let shard = format!("{k}/2");
+        let out = format!("shard-{k}.h5");
+        ok(&pidm(
+            &[
+                "run",
+                s(&scene),
+                "--shard",
+                &shard,
+                "--out",
+                &out,
+                "--backend",
+                "cpu",
+            ],
+            d,
+        ));
+    }
+    let mut runner = TestRunner::new(Config {
+        cases: 48,
+        failure_persistence: None,
+        ..Config::default()
+    });
+    let merged_files = std::cell::Cell::new(0);
+    runner
+        .run(&shard_damage(), |damages| {
+            let copy = d.join("damaged.h5");
+            std::fs::copy(d.join("shard-1.h5"), &copy).unwrap();
+            {
+                let file = hdf5::File::open_rw(&copy).unwrap();
+                for damage in &damages {
+                    apply(&file, damage);
+                }
+            }
+            let out = d.join("merged.h5");
+            let _ = std::fs::remove_file(&out);
+            let merged = pidm::shard::merge(&out, &[copy, d.join("shard-2.h5")]);
+            if merged.is_ok() {
+                merged_files.set(merged_files.get() + 1);
+                let file = hdf5::File::open(&out).unwrap();
+                let status: Vec<u32> = file.dataset("maps/status").unwrap().read_raw().unwrap();
+                let step: Vec<f64> = file.dataset("maps/step_x").unwrap().read_raw().unwrap();
+                for (s, x) in status.iter().zip(&step) {
+                    proptest::prop_assert!(pidm::status::Status::from_code(*s).is_some());
+                    proptest::prop_assert!(x.is_finite());
+                }
+            } else {
+                proptest::prop_assert!(!out.exists());
+            }
+            Ok(())
+        })
+        .unwrap();
+    eprintln!("{} of 48 damaged shards still merged", merged_files.get());
+}
