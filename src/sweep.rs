@@ -242,16 +242,16 @@ impl Record {
         if let Some((what, value)) = values.iter().find(|(_, v)| !v.is_finite()) {
             return Some(format!("its {what} is {value}"));
         }
-        if self.status != Status::Ok.code() {
-            if let Some((what, value)) = values[..4].iter().find(|(_, v)| *v != 0.0) {
-                return Some(format!(
-                    "its status is {} ({}) but its {what} is {value:e}, not 0",
-                    self.status,
-                    Status::describe(self.status)
-                ));
-            }
+        let failed = self.status != Status::Ok.code();
+        let kept = values[..4].iter().find(|(_, v)| *v != 0.0);
+        match kept {
+            Some((what, value)) if failed => Some(format!(
+                "its status is {} ({}) but its {what} is {value:e}, not 0",
+                self.status,
+                Status::describe(self.status)
+            )),
+            _ => None,
         }
-        None
     }
 }
 
