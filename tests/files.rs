@@ -637,11 +637,12 @@ const SHARD_DATASETS: [&str; 10] = [
 ];
 
 fn apply(file: &hdf5::File, damage: &ShardDamage) {
-    let name = |k: usize| SHARD_DATASETS[k % SHARD_DATASETS.len()];
-    let (group, leaf) =
-        |k: usize| -> (&str, &str) { name(k).split_once('/').unwrap() }(match damage {
-            ShardDamage::Delete(k) | ShardDamage::Resize(k, _) | ShardDamage::Set(k, ..) => *k,
-        });
+    let k = match damage {
+        ShardDamage::Delete(k) | ShardDamage::Resize(k, _) | ShardDamage::Set(k, ..) => *k,
+    };
+    let (group, leaf) = SHARD_DATASETS[k % SHARD_DATASETS.len()]
+        .split_once('/')
+        .unwrap();
     let Ok(group) = file.group(group) else { return };
     let Ok(ds) = group.dataset(leaf) else { return };
     let is_float = ds.dtype().unwrap().is::<f64>();
@@ -664,12 +665,12 @@ fn apply(file: &hdf5::File, damage: &ShardDamage) {
                     v[at] = value;
                     ds.write_raw(&v).unwrap();
                 }
-            } else if let Ok(mut v) = ds.read_raw::<u32>() {
-                if !v.is_empty() {
-                    let at = at % v.len();
-                    v[at] = value.abs().min(u32::MAX as f64) as u32;
-                    ds.write_raw(&v).unwrap();
-                }
+            } else if let Ok(mut v) = ds.read_raw::<u32>()
+                && !v.is_empty()
+            {
+                let at = at % v.len();
+                v[at] = value.abs().min(u32::MAX as f64) as u32;
+                ds.write_raw(&v).unwrap();
             }
         }
     }
