@@ -11,10 +11,11 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use plotters::prelude::*;
 
+use crate::backend::{Backend, CpuBackend};
 use crate::cpu::integrate::{STATUS_OK, Settings};
 use crate::cpu::karnopp;
 use crate::model::{AXES, Instance};
-use crate::sweep::{Backend, CpuBackend, Outcome};
+use crate::sweep::Outcome;
 
 /// One method of the study and how to run it at a setting.
 pub struct Method<'a> {

@@ -10,107 +10,21 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::backend::{
+    Backend, BackendChoice, CpuBackend, GpuBackend, Hardware, Precision, select_backend,
+};
 use crate::checkpoint::{self, Checkpoint};
 use crate::cpu::integrate::STATUS_OK;
 use crate::model::{AXES, AXIS_NAMES, Instance, InstanceKey};
-use crate::output::{AxisInfo, FileInfo, MapWriter, OutputClaim, ShardInfo};
+use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
 use crate::shard::ShardSpec;
-use crate::sweep::{self, Backend, CpuBackend, Plan, Record, Summary};
+use crate::sweep::{self, Plan, Record, Summary};
 
 /// A throughput used only for `pidm check`'s estimate: simulated seconds per
 /// wall second per core, measured by `pidm bench` on the paper scene with
 /// Table 1 as printed (stiffer or lighter-damped stages cost more).
 pub const NOMINAL_SIMULATED_PER_CORE: f64 = 300.0;
-
-/// Which integrator runs a scene.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum BackendChoice {
-    /// A hardware GPU adapter when there is one, else the CPU path.
-    #[default]
-    Auto,
-    /// The WGSL shader on any adapter, software ones (lavapipe) included.
-    Gpu,
-    /// The rayon CPU path in f64.
-    Cpu,
-}
-
-/// Floating-point precision of the GPU path.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum PrecisionChoice {
-    F32,
-    F64,
-}
-
-impl PrecisionChoice {
-    fn gpu(self) -> crate::gpu::Precision {
-        match self {
-            PrecisionChoice::F32 => crate::gpu::Precision::F32,
-            PrecisionChoice::F64 => crate::gpu::Precision::F64,
-        }
-    }
-}
-
-/// Picks the backend and says which in one line on stderr.
-pub fn select_backend(
-    choice: BackendChoice,
-    precision: Option<PrecisionChoice>,
-    threads: Option<usize>,
-) -> Result<Box<dyn Backend>> {
-    use crate::gpu::{GpuBackend, GpuContext};
-    // f64 where the adapter has it: on the GPUs measured it costs no more
-    // than f32 (the integrator waits on branches, not arithmetic) and it
-    // follows the CPU reference to rounding.
-    let gpu_precision = |ctx: &GpuContext| match precision {
-        Some(p) => p.gpu(),
-        None if ctx.supports_f64() => crate::gpu::Precision::F64,
-        None => crate::gpu::Precision::F32,
-    };
-    let backend: Box<dyn Backend> = match choice {
-        BackendChoice::Cpu => {
-            if precision == Some(PrecisionChoice::F32) {
-                bail!("--precision f32: the CPU path runs in f64 only");
-            }
-            Box::new(CpuBackend::new(threads)?)
-        }
-        BackendChoice::Gpu => {
-            let ctx = GpuContext::new(true).context("--backend gpu")?;
-            let precision = gpu_precision(&ctx);
-            let gpu = GpuBackend::new(ctx, precision)?;
-            eprintln!("pidm: {}", gpu.readiness());
-            Box::new(gpu)
-        }
-        BackendChoice::Auto => match GpuContext::new(false) {
-            Ok(ctx) => {
-                let adapter = ctx.describe();
-                let precision = gpu_precision(&ctx);
-                match GpuBackend::new(ctx, precision) {
-                    Ok(gpu) => {
-                        eprintln!("pidm: {}", gpu.readiness());
-                        Box::new(gpu)
-                    }
-                    Err(err) => {
-                        eprintln!(
-                            "pidm: the GPU path cannot run on {adapter}, using the CPU path \
-                             ({err:#})"
-                        );
-                        Box::new(CpuBackend::new(threads)?)
-                    }
-                }
-            }
-            Err(err) => {
-                eprintln!("pidm: no hardware GPU adapter, using the CPU path ({err})");
-                Box::new(CpuBackend::new(threads)?)
-            }
-        },
-    };
-    eprintln!(
-        "pidm: backend {} ({})",
-        backend.describe(),
-        backend.precision()
-    );
-    Ok(backend)
-}
 
 /// Options of `pidm run`.
 #[derive(Clone, Debug, Default)]
@@ -119,7 +33,7 @@ pub struct RunOptions {
     pub out: Option<PathBuf>,
     pub threads: Option<usize>,
     pub backend: BackendChoice,
-    pub precision: Option<PrecisionChoice>,
+    pub precision: Option<Precision>,
     /// Print the per-instance table for scenes up to this many instances.
     pub table_limit: u64,
     /// Shard, resume and chunking.
@@ -172,38 +86,6 @@ pub fn variant(scene: &Scene) -> String {
     }
 }
 
-/// The file layout of a scene's results, run on `backend` (its
-/// description) in `precision` by the integrator `variant`.
-pub fn file_info(scene: &Scene, backend: String, precision: String, variant: String) -> FileInfo {
-    let (axes, labels) = match &scene.layout {
-        Layout::Grid { axes } => (
-            axes.iter()
-                .map(|a| AxisInfo {
-                    key: a.key.clone(),
-                    values: a.values.clone(),
-                    units: a.units.to_string(),
-                })
-                .collect(),
-            None,
-        ),
-        Layout::Points { labels } => (Vec::new(), Some(labels.clone())),
-    };
-    FileInfo {
-        name: scene.name.clone(),
-        scene_text: scene.text.clone(),
-        shape: scene.shape(),
-        axes,
-        labels,
-        baselines: scene.baselines,
-        backend,
-        precision,
-        variant,
-        tolerance: scene.settings.tolerance,
-        verify_tolerance: None,
-        shard: None,
-    }
-}
-
 /// How a run covers its scene.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct RunScope {
@@ -223,9 +105,9 @@ pub struct RunScope {
 /// bit-identical only on the same scene, version, precision and hardware
 /// (the CPU path gives the same bits on any thread count).
 fn run_identity(scene: &Scene, backend: &dyn Backend, scope: RunScope) -> String {
-    let hardware = match backend.cpu_threads() {
-        Some(_) => "cpu".to_string(),
-        None => backend.describe(),
+    let hardware = match backend.hardware() {
+        Hardware::Cpu { .. } => "cpu".to_string(),
+        Hardware::Gpu => backend.describe(),
     };
     format!(
         "pidm {}\nbackend {hardware}\nprecision {}\nshard {}\nverify {}\ninstances {}\nscene\n{}",
@@ -250,7 +132,7 @@ pub fn run_scene(
 ) -> Result<RunResult> {
     scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
     let total = scene.instance_count();
-    let mut info = file_info(
+    let mut info = FileInfo::of_scene(
         scene,
         backend.describe(),
         backend.precision().to_string(),
@@ -666,19 +548,13 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
                 Ok(ctx) => {
                     let f64_ok = ctx.supports_f64();
                     methods.push(accuracy::backend_method(
-                        Box::new(crate::gpu::GpuBackend::new(
-                            ctx,
-                            crate::gpu::Precision::F32,
-                        )?),
+                        Box::new(GpuBackend::new(ctx, Precision::F32)?),
                         scene.settings,
                     ));
                     if f64_ok {
                         let ctx = crate::gpu::GpuContext::new(true)?;
                         methods.push(accuracy::backend_method(
-                            Box::new(crate::gpu::GpuBackend::new(
-                                ctx,
-                                crate::gpu::Precision::F64,
-                            )?),
+                            Box::new(GpuBackend::new(ctx, Precision::F64)?),
                             scene.settings,
                         ));
                     }
@@ -837,16 +713,10 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
     match crate::gpu::GpuContext::new(true) {
         Ok(ctx) => {
             let f64_ok = ctx.supports_f64();
-            backends.push(Box::new(crate::gpu::GpuBackend::new(
-                ctx,
-                crate::gpu::Precision::F32,
-            )?));
+            backends.push(Box::new(GpuBackend::new(ctx, Precision::F32)?));
             if f64_ok {
                 let ctx = crate::gpu::GpuContext::new(true)?;
-                backends.push(Box::new(crate::gpu::GpuBackend::new(
-                    ctx,
-                    crate::gpu::Precision::F64,
-                )?));
+                backends.push(Box::new(GpuBackend::new(ctx, Precision::F64)?));
             }
         }
         Err(err) => println!("  gpu: not measured ({err})"),
@@ -868,20 +738,20 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
         }
         let wall = started.elapsed().as_secs_f64();
         let rate = passes as f64 * simulated / wall;
-        let per_core = match backend.cpu_threads() {
-            Some(n) => format!(" ({:.1} per core)", rate / n as f64),
-            None => String::new(),
+        let per_core = match backend.hardware() {
+            Hardware::Cpu { threads } => format!(" ({:.1} per core)", rate / threads as f64),
+            Hardware::Gpu => String::new(),
         };
         let per_second = passes as f64 * instances.len() as f64 / wall;
-        let versus = match (backend.cpu_threads(), cpu_rate) {
-            (Some(_), _) => {
+        let versus = match (backend.hardware(), cpu_rate) {
+            (Hardware::Cpu { .. }, _) => {
                 cpu_rate = Some(per_second);
                 String::new()
             }
-            (None, Some(cpu)) => {
+            (Hardware::Gpu, Some(cpu)) => {
                 format!(", {:.2} times the CPU path on every core", per_second / cpu)
             }
-            (None, None) => String::new(),
+            (Hardware::Gpu, None) => String::new(),
         };
         println!(
             "  {} {}: {:.1} simulated s per wall s{per_core}, {:.1} instances per s{versus}, \

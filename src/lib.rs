@@ -3,6 +3,7 @@
 //! See ARCHITECTURE.md for the bird's-eye view.
 
 pub mod accuracy;
+pub mod backend;
 pub mod checkpoint;
 pub mod commands;
 pub mod cpu;

@@ -7,8 +7,8 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use pidm::commands;
 use pidm::shard::ShardSpec;
+use pidm::{backend, commands};
 
 /// Maps how two-axis piezoelectric impact drives move.
 #[derive(Parser, Debug)]
@@ -32,12 +32,12 @@ enum Command {
         threads: Option<usize>,
         /// auto: a hardware GPU when there is one, else the CPU; gpu: any
         /// adapter (lavapipe included), failing when there is none; cpu.
-        #[arg(long, value_enum, default_value_t = commands::BackendChoice::Auto)]
-        backend: commands::BackendChoice,
+        #[arg(long, value_enum, default_value_t = backend::BackendChoice::Auto)]
+        backend: backend::BackendChoice,
         /// Precision of the GPU path [default: f64 where the adapter has
         /// it, else f32]; the CPU path is f64.
         #[arg(long, value_enum)]
-        precision: Option<commands::PrecisionChoice>,
+        precision: Option<backend::Precision>,
         /// Run only shard K of N (1 <= K <= N) into its own file [default
         /// output: results/<scene name>.shard-K-of-N.h5]; `pidm merge`
         /// joins the shards.

@@ -366,7 +366,7 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
     let mut backends: Vec<&str> = shards.iter().map(|s| s.backend.as_str()).collect();
     backends.sort_unstable();
     backends.dedup();
-    let mut info: FileInfo = crate::commands::file_info(
+    let mut info = FileInfo::of_scene(
         &scene,
         backends.join("; "),
         first.precision.clone(),

@@ -14,6 +14,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 
+use crate::backend::Backend;
 use crate::cpu::integrate::{self, STATUS_OK, Settings};
 use crate::status::Status;
 
@@ -255,50 +256,6 @@ impl Record {
     }
 }
 
-/// A way of integrating many instances.
-pub trait Backend: Sync {
-    /// Names the hardware that ran, for the `backend` attribute.
-    fn describe(&self) -> String;
-    /// "f64" or "f32".
-    fn precision(&self) -> &'static str;
-    /// A good number of instances per chunk.
-    fn chunk_size(&self) -> usize;
-    /// The CPU threads the backend computes on, or `None` for the GPU.
-    fn cpu_threads(&self) -> Option<usize>;
-    /// Integrates the instances; `done(n)` reports n more finished ones.
-    fn run(
-        &self,
-        instances: &[Instance],
-        settings: &Settings,
-        done: &(dyn Fn(u64) + Sync),
-    ) -> Result<Vec<Outcome>>;
-}
-
-/// The rayon CPU path in f64: the reference.
-pub struct CpuBackend {
-    pool: rayon::ThreadPool,
-}
-
-impl CpuBackend {
-    /// A backend on `threads` threads, or on every core when `None`.
-    pub fn new(threads: Option<usize>) -> Result<CpuBackend> {
-        let mut builder = rayon::ThreadPoolBuilder::new();
-        if let Some(n) = threads {
-            if n == 0 {
-                bail!("--threads must be at least 1");
-            }
-            builder = builder.num_threads(n);
-        }
-        Ok(CpuBackend {
-            pool: builder.build()?,
-        })
-    }
-
-    pub fn threads(&self) -> usize {
-        self.pool.current_num_threads()
-    }
-}
-
 /// Integrates one instance on the CPU.
 ///
 /// A stop request ([`request_interrupt`]) ends the integration within about
@@ -313,48 +270,6 @@ pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
         status: st.status,
         steps: st.steps,
         on_cpu: false,
-    }
-}
-
-impl Backend for CpuBackend {
-    fn describe(&self) -> String {
-        format!("cpu (rayon, {} threads)", self.threads())
-    }
-
-    fn precision(&self) -> &'static str {
-        "f64"
-    }
-
-    fn chunk_size(&self) -> usize {
-        4096.max(256 * self.threads())
-    }
-
-    fn cpu_threads(&self) -> Option<usize> {
-        Some(self.threads())
-    }
-
-    fn run(
-        &self,
-        instances: &[Instance],
-        settings: &Settings,
-        done: &(dyn Fn(u64) + Sync),
-    ) -> Result<Vec<Outcome>> {
-        Ok(self.pool.install(|| {
-            instances
-                .par_iter()
-                .with_max_len(1)
-                .map(|inst| {
-                    // After a stop request the remaining instances are
-                    // skipped; the sweep then discards the whole chunk.
-                    if interrupt_requested() {
-                        return Outcome::default();
-                    }
-                    let out = run_one(inst, settings);
-                    done(1);
-                    out
-                })
-                .collect()
-        }))
     }
 }
 

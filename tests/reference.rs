@@ -2,9 +2,10 @@
 //! section 6, the exact invariants, convergence under tightening the
 //! accuracy knob, and determinism across thread counts.
 
+use pidm::backend::{Backend, CpuBackend};
 use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::model::{Axis, Instance};
-use pidm::sweep::{self, Backend, CpuBackend, Plan, run_one};
+use pidm::sweep::{self, Plan, run_one};
 
 /// Steps per own drive cycle [um] and the status of one instance.
 fn steps_um(inst: &Instance, settings: &Settings) -> ([f64; 2], u32) {

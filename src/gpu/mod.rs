@@ -35,13 +35,11 @@
 //!   the adapter supports one (Vulkan), so a later run skips the driver's
 //!   compile ([`cache`]).
 
-pub mod backend;
 pub mod cache;
 mod knobs;
 pub mod layout;
 pub mod shader;
 
-pub use backend::GpuBackend;
 pub use knobs::{LANES, SLICE_ITERATIONS, WORKGROUP_SIZE, lanes, slice_iterations, workgroup_size};
 pub use shader::Variant;
 
@@ -64,12 +62,7 @@ use layout::control::Control;
 /// them ([`GpuOutcome::cpu_fallback`]), so callers never see this status.
 pub const STATUS_LOOP_LIMIT: u32 = 100;
 
-/// Floating-point precision of the shader.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Precision {
-    F32,
-    F64,
-}
+pub use crate::backend::Precision;
 
 /// What went wrong on the GPU path.
 #[derive(Debug, Error)]

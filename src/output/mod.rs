@@ -35,6 +35,7 @@ use hdf5::types::VarLenUnicode;
 use hdf5::{Dataset, File, H5Type, Hyperslab, SliceOrIndex};
 use ndarray::ArrayView;
 
+use crate::scene::{Layout, Scene};
 use crate::shard::ShardSpec;
 
 pub mod claim;
@@ -98,6 +99,45 @@ pub struct FileInfo {
     pub verify_tolerance: Option<f64>,
     /// Set for a shard file: which part of the scene it holds.
     pub shard: Option<ShardInfo>,
+}
+
+impl FileInfo {
+    /// The file layout of a scene's results, run on `backend` (its
+    /// description) in `precision` by the integrator `variant`.
+    pub fn of_scene(
+        scene: &Scene,
+        backend: String,
+        precision: String,
+        variant: String,
+    ) -> FileInfo {
+        let (axes, labels) = match &scene.layout {
+            Layout::Grid { axes } => (
+                axes.iter()
+                    .map(|a| AxisInfo {
+                        key: a.key.clone(),
+                        values: a.values.clone(),
+                        units: a.units.to_string(),
+                    })
+                    .collect(),
+                None,
+            ),
+            Layout::Points { labels } => (Vec::new(), Some(labels.clone())),
+        };
+        FileInfo {
+            name: scene.name.clone(),
+            scene_text: scene.text.clone(),
+            shape: scene.shape(),
+            axes,
+            labels,
+            baselines: scene.baselines,
+            backend,
+            precision,
+            variant,
+            tolerance: scene.settings.tolerance,
+            verify_tolerance: None,
+            shard: None,
+        }
+    }
 }
 
 /// Writes one result file. Dropping it before [`MapWriter::finish`] removes

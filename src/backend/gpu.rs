@@ -2,10 +2,11 @@
 
 use anyhow::{Result, bail};
 
-use super::{GpuContext, Precision, run_batch};
+use super::{Backend, Hardware, Precision};
 use crate::cpu::integrate::Settings;
+use crate::gpu::{GpuContext, run_batch};
 use crate::model::Instance;
-use crate::sweep::{Backend, Outcome};
+use crate::sweep::Outcome;
 
 /// Instances per sweep chunk on the GPU: a million, enough to fill a large
 /// GPU several times over (so the slowest instances of a chunk, which the
@@ -65,19 +66,16 @@ impl Backend for GpuBackend {
         format!("gpu: {}", self.ctx.describe())
     }
 
-    fn precision(&self) -> &'static str {
-        match self.precision {
-            Precision::F32 => "f32",
-            Precision::F64 => "f64",
-        }
+    fn precision(&self) -> Precision {
+        self.precision
     }
 
     fn chunk_size(&self) -> usize {
         GPU_CHUNK
     }
 
-    fn cpu_threads(&self) -> Option<usize> {
-        None
+    fn hardware(&self) -> Hardware {
+        Hardware::Gpu
     }
 
     fn run(

@@ -1,0 +1,79 @@
+//! The rayon CPU path in f64: every instance through
+//! [`crate::sweep::run_one`], one per task.
+
+use anyhow::{Result, bail};
+use rayon::prelude::*;
+
+use super::{Backend, Hardware, Precision};
+use crate::cpu::integrate::Settings;
+use crate::model::Instance;
+use crate::sweep::{Outcome, interrupt_requested, run_one};
+
+/// The rayon CPU path in f64: the reference.
+pub struct CpuBackend {
+    pool: rayon::ThreadPool,
+}
+
+impl CpuBackend {
+    /// A backend on `threads` threads, or on every core when `None`.
+    pub fn new(threads: Option<usize>) -> Result<CpuBackend> {
+        let mut builder = rayon::ThreadPoolBuilder::new();
+        if let Some(n) = threads {
+            if n == 0 {
+                bail!("--threads must be at least 1");
+            }
+            builder = builder.num_threads(n);
+        }
+        Ok(CpuBackend {
+            pool: builder.build()?,
+        })
+    }
+
+    pub fn threads(&self) -> usize {
+        self.pool.current_num_threads()
+    }
+}
+
+impl Backend for CpuBackend {
+    fn describe(&self) -> String {
+        format!("cpu (rayon, {} threads)", self.threads())
+    }
+
+    fn precision(&self) -> Precision {
+        Precision::F64
+    }
+
+    fn chunk_size(&self) -> usize {
+        4096.max(256 * self.threads())
+    }
+
+    fn hardware(&self) -> Hardware {
+        Hardware::Cpu {
+            threads: self.threads(),
+        }
+    }
+
+    fn run(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        done: &(dyn Fn(u64) + Sync),
+    ) -> Result<Vec<Outcome>> {
+        Ok(self.pool.install(|| {
+            instances
+                .par_iter()
+                .with_max_len(1)
+                .map(|inst| {
+                    // After a stop request the remaining instances are
+                    // skipped; the sweep then discards the whole chunk.
+                    if interrupt_requested() {
+                        return Outcome::default();
+                    }
+                    let out = run_one(inst, settings);
+                    done(1);
+                    out
+                })
+                .collect()
+        }))
+    }
+}
