@@ -157,6 +157,13 @@ impl Jobs {
     }
 }
 
+/// Every distinct integration that `instances` (and, with `baselines`,
+/// their 1-DOF baselines) ask for, each once, in first-seen order: what a
+/// sweep of them integrates, for studies and benchmarks of whole scenes.
+pub fn distinct_integrations(instances: &[Instance], baselines: bool) -> Vec<Instance> {
+    Jobs::new(instances, baselines, &BaselineMemo::default()).jobs
+}
+
 /// Baseline outcomes of earlier chunks, by digest (with the instance, to
 /// tell digests apart).
 #[derive(Default)]

@@ -17,6 +17,9 @@ use crate::cpu::karnopp;
 use crate::model::{AXES, Instance};
 use crate::sweep::Outcome;
 
+mod report;
+pub use report::{Report, reference_note};
+
 /// One method of the study and how to run it at a setting.
 pub struct Method<'a> {
     /// Short name, e.g. "event-locating f64 (cpu)".
