@@ -86,4 +86,28 @@ mod tests {
         assert_eq!(Status::from_code(Status::ALL.len() as u32), None);
         assert_eq!(Status::describe(99), "no such status");
     }
+
+    #[test]
+    fn the_readme_table_lists_every_status_with_its_meaning() {
+        let readme = include_str!("../README.md");
+        let section = readme
+            .split("\n## Status codes\n")
+            .nth(1)
+            .expect("README has a Status codes section");
+        let section = section.split("\n## ").next().unwrap();
+        let rows: Vec<(String, String)> = section
+            .lines()
+            .filter_map(|line| {
+                let cols: Vec<&str> = line.trim().trim_matches('|').split('|').collect();
+                let code = cols.first()?.trim();
+                code.parse::<u32>().ok()?;
+                Some((code.to_string(), cols.get(1)?.trim().to_string()))
+            })
+            .collect();
+        let want: Vec<(String, String)> = Status::ALL
+            .iter()
+            .map(|s| (s.code().to_string(), s.meaning().to_string()))
+            .collect();
+        assert_eq!(rows, want);
+    }
 }
