@@ -264,6 +264,16 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 100000 }\n[axis.y]\nvoltage = { from = 0, to = 1, steps = 100000 }",
             "do not fit the memory budget: grid 100000 x 100000 = 10000000000 instances x 40 bytes",
         ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 214748364 }\n\
+             gain = { from = 0, to = 1, steps = 214748364 }\n\
+             frequency = { from = 1, to = 2, steps = 214748364 }\n\
+             duty = { from = 0.5, to = 1, steps = 214748364 }\n\
+             phase = { from = 0, to = 1, steps = 214748364 }",
+            "grid 214748364 x 214748364 x 214748364 x 214748364 x 214748364 = more than \
+             340282366920938463463374607431768211455 instances x 40 bytes per instance = more \
+             than 340282366920938463463374607431768211455 bytes, over the budget",
+        ),
         // Stage definitions.
         (
             "[axis.x]\nstage_mass = 1e-3\nstiffness = 1e6\nresonance_hz = 1000",

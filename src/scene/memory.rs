@@ -78,14 +78,23 @@ pub(super) fn memory_message(
         "a single instance".to_owned()
     } else {
         let dims: Vec<String> = shape.iter().map(u64::to_string).collect();
-        format!("grid {} = {instances} instances", dims.join(" x "))
+        let count = if instances == u128::MAX {
+            // The product overflowed: the count is only known to be huge.
+            format!("more than {}", u128::MAX)
+        } else {
+            instances.to_string()
+        };
+        format!("grid {} = {count} instances", dims.join(" x "))
     };
     let bytes = instances.saturating_mul(bytes_per_instance as u128);
+    let total = if bytes == u128::MAX {
+        format!("more than {bytes} bytes")
+    } else {
+        format!("{bytes} bytes ({})", human_bytes(bytes as f64))
+    };
     format!(
         "the output maps do not fit the memory budget: {layout} x {bytes_per_instance} bytes \
-         per instance = {bytes} bytes ({}), over the budget of {budget} bytes ({}); \
-         use a coarser grid",
-        human_bytes(bytes as f64),
+         per instance = {total}, over the budget of {budget} bytes ({}); use a coarser grid",
         human_bytes(budget as f64)
     )
 }
