@@ -584,9 +584,16 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
 }
 
 /// `pidm random-scene`: a points scene of seeded random instances (see
-/// `random.rs` for the ranges), as TOML on stdout.
-pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> String {
+/// `random.rs` for the ranges), as TOML on stdout. Refuses `count` 0: a
+/// scene without points is one default instance, not none.
+pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> Result<String> {
     use std::fmt::Write as _;
+    if count == 0 {
+        bail!(
+            "random-scene --count 0: expected at least 1 instance (a scene without points would \
+             run one default instance)"
+        );
+    }
     let mut toml = String::new();
     let _ = writeln!(
         toml,
@@ -609,7 +616,7 @@ pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> String
         }
         toml.push('\n');
     }
-    toml
+    Ok(toml)
 }
 
 /// A TOML inline table of named values, each written so that it reads back

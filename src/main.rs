@@ -196,7 +196,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             count,
             cycles,
             settle,
-        } => print!("{}", commands::random_scene(seed, count, cycles, settle)),
+        } => print!("{}", commands::random_scene(seed, count, cycles, settle)?),
         Command::Bench { scene, seconds } => commands::bench(&scene, seconds)?,
     }
     Ok(ExitCode::SUCCESS)

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use pidm::model::{Axis, Instance};
-use pidm::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene, SceneError};
+use pidm::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, MAX_SCENE_BYTES, Scene, SceneError};
 
 /// Parses a scene that must be valid, failing with its error message.
 fn parse(text: &str) -> Scene {
@@ -239,10 +239,40 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "[axis.x]\nvoltage = { from = 1, to = 2, steps = 3, log = 1 }",
             "axis.x.voltage.log: expected a boolean",
         ),
+        // A range of one value must not pretend to span two.
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 10, steps = 1 }",
+            "axis.x.voltage = { from = 0, to = 10, steps = 1 }: steps = 1 gives the single value \
+             from = 0, never reaching to = 10; expected steps >= 2 when from != to",
+        ),
+        // Too many steps says so, with the maximum.
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 9223372036854775807 }",
+            "axis.x.voltage.steps = 9223372036854775807: too large; expected at most 214748364 \
+             steps",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 1e300 }",
+            "axis.x.voltage.steps = 1e300: too large; expected at most 214748364 steps",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 214748365 }",
+            "axis.x.voltage.steps = 214748365: too large",
+        ),
         // The memory budget.
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 100000 }\n[axis.y]\nvoltage = { from = 0, to = 1, steps = 100000 }",
             "do not fit the memory budget: grid 100000 x 100000 = 10000000000 instances x 40 bytes",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 214748364 }\n\
+             gain = { from = 0, to = 1, steps = 214748364 }\n\
+             frequency = { from = 1, to = 2, steps = 214748364 }\n\
+             duty = { from = 0.5, to = 1, steps = 214748364 }\n\
+             phase = { from = 0, to = 1, steps = 214748364 }",
+            "grid 214748364 x 214748364 x 214748364 x 214748364 x 214748364 = more than \
+             340282366920938463463374607431768211455 instances x 40 bytes per instance = more \
+             than 340282366920938463463374607431768211455 bytes, over the budget",
         ),
         // Stage definitions.
         (
@@ -253,18 +283,23 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "[axis.y]\ndamping = 3\nquality_factor = 50",
             "axis.y: damping and quality_factor both set the damping",
         ),
-        // Derived stage quantities are checked over the whole grid.
+        // Derived stage quantities are checked over the whole grid, against
+        // the bounds of the key they stand for.
         (
-            "[axis.x]\nresonance_hz = [1000, 1e-200]",
-            "axis.x.stage_mass = inf (derived from axis.x.resonance_hz and the default stiffness 1000000): expected a finite number > 0",
+            "[axis.x]\nresonance_hz = [1000, 1e-2]",
+            "(derived from axis.x.resonance_hz and the default stiffness 1000000): expected a \
+             number from 1e-9 to 1000 kg (the plausible range of the model)",
         ),
         (
-            "[axis.x]\nresonance_hz = 1e10\nstage_mass = 1e-3\n[axis.y]\nstage_mass = [1e-3, 1e300]",
-            "axis.y.stiffness = inf (derived from axis.x.resonance_hz and axis.y.stage_mass)",
+            "[axis.x]\nresonance_hz = 1e6\nstage_mass = 1e-3\n[axis.y]\nstage_mass = [1e-3, 1e3]",
+            "(derived from axis.x.resonance_hz and axis.y.stage_mass): expected a number from \
+             0.001 to 1000000000000 N/m",
         ),
         (
-            "[axis.x]\nquality_factor = { from = 1e-320, to = 1, steps = 3 }",
-            "axis.x.damping = inf (derived from axis.x.quality_factor",
+            "[axis.x]\nstiffness = 1e12\nstage_mass = 1e3\n\
+             quality_factor = { from = 1e-3, to = 1, steps = 3 }",
+            "(derived from axis.x.quality_factor, the stiffness and the stage mass): expected a \
+             number from 0 to 1000000000 N s/m",
         ),
         // Points.
         (
@@ -395,6 +430,125 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "trajectories = [0]",
             "unknown key `trajectories` (`trajectories` belongs in [output])",
         ),
+        // Physical bounds: each bounded key, past one of its ends.
+        (
+            "[axis.x]\nfrequency = 1e300",
+            "axis.x.frequency = 1e300: expected a number from 0.001 to 1000000 Hz (the plausible \
+             range of the model)",
+        ),
+        (
+            "[axis.y]\nvoltage = 1e308",
+            "axis.y.voltage = 1e308: expected a number from -10000 to 10000 V",
+        ),
+        (
+            "[axis.x]\nvoltage = 100000000000000000000000000000000000000000",
+            "axis.x.voltage = 1e41: expected a number from -10000 to 10000 V",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = -2e4, steps = 3 }",
+            "axis.x.voltage = -20000: expected a number from -10000 to 10000 V (the plausible \
+             range of the model) (in the range { from = 0, to = -2e4, steps = 3 })",
+        ),
+        (
+            "[mechanism]\nslider_mass = 1e-12",
+            "mechanism.slider_mass = 1e-12: expected a number from 1e-9 to 1000 kg",
+        ),
+        (
+            "[mechanism]\nstatic_friction = 1e10",
+            "mechanism.static_friction = 10000000000: expected a number from 1e-12 to \
+             1000000000 N",
+        ),
+        (
+            "[mechanism]\ncoulomb_friction = 1e10",
+            "mechanism.coulomb_friction = 10000000000: expected a number from 0 to 1000000000 N",
+        ),
+        (
+            "[mechanism]\nvelocity_band = 1e-20",
+            "mechanism.velocity_band = 1e-20: expected a number from 1e-15 to 1000 m/s",
+        ),
+        (
+            "[axis.x]\nstage_mass = 1e4",
+            "axis.x.stage_mass = 10000: expected a number from 1e-9 to 1000 kg",
+        ),
+        (
+            "[axis.x]\nstiffness = 1e13",
+            "axis.x.stiffness = 10000000000000: expected a number from 0.001 to 1000000000000 N/m",
+        ),
+        (
+            "[axis.y]\ndamping = 1e10",
+            "axis.y.damping = 10000000000: expected a number from 0 to 1000000000 N s/m",
+        ),
+        (
+            "[axis.x]\nresonance_hz = 1e11",
+            "axis.x.resonance_hz = 100000000000: expected a number from 0.001 to 10000000000 Hz",
+        ),
+        (
+            "[axis.x]\nquality_factor = 1e-4",
+            "axis.x.quality_factor = 0.0001: expected a number from 0.001 to 1000000000 (the",
+        ),
+        (
+            "[axis.x]\ngain = -1e4",
+            "axis.x.gain = -10000: expected a number from -1000 to 1000 N/V",
+        ),
+        (
+            "[axis.x]\nduty = 1e-7",
+            "axis.x.duty = 1e-7: expected a number from 1e-6 to 1 (the",
+        ),
+        (
+            "[axis.y]\nphase = 2e6",
+            "axis.y.phase = 2000000: expected a number from -1000000 to 1000000 cycles",
+        ),
+        (
+            "[simulation]\ntolerance = 2",
+            "simulation.tolerance = 2: expected a number from 1e-12 to 1 rad",
+        ),
+        // A name is a name, not a path: it makes results/<name>.h5.
+        (
+            "name = \"../../escaped\"",
+            "name = \"../../escaped\": expected a name, not a path: no `/` or `\\`; the name \
+             makes the default output file results/<name>.h5 (line 1, column 8)",
+        ),
+        (
+            "name = \"/home/me/data\"",
+            "name = \"/home/me/data\": expected a name, not a path",
+        ),
+        (
+            "name = 'C:\\data\\run'",
+            "name = \"C:\\\\data\\\\run\": expected a name, not a path",
+        ),
+        (
+            "name = \"..\"",
+            "name = \"..\": expected a name, not `.` or `..`",
+        ),
+        (
+            "name = \".\"",
+            "name = \".\": expected a name, not `.` or `..`",
+        ),
+        (
+            "name = \".hidden\"",
+            "name = \".hidden\": expected a name that does not start with `.`",
+        ),
+        (
+            "name = \"-rf\"",
+            "name = \"-rf\": expected a name that does not start with `-`",
+        ),
+        (
+            "name = \"a\\u0000b\"",
+            "name = \"a\\0b\": expected no control characters, found U+0000 at byte 1",
+        ),
+        (
+            "name = \"a\\nb\"",
+            "name = \"a\\nb\": expected no control characters, found U+000A at byte 1",
+        ),
+        ("name = \"\"", "name = \"\": expected a non-empty string"),
+        (
+            "name = \"  \"",
+            "name = \"  \": expected a non-empty string",
+        ),
+        (
+            "name = \"aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa\"",
+            "expected at most 100 bytes, found 101",
+        ),
         // Locations and syntax.
         ("\n\n[axis.x]\nduty = 1.5", "(line 4, column 8)"),
         (
@@ -505,7 +659,7 @@ fn ranges_give_the_right_values() {
         "[axis.x]\n\
          voltage = { from = -150, to = 150, steps = 61 }\n\
          frequency = { from = 1, to = 1000, steps = 4, log = true }\n\
-         phase = { from = 0.25, to = 0.75, steps = 1 }\n",
+         phase = { from = 0.25, to = 0.25, steps = 1 }\n",
     );
     let Layout::Grid { axes } = &scene.layout else {
         panic!("expected a grid");
@@ -825,10 +979,147 @@ fn shipped_scenes_load() {
 #[test]
 fn random_scene_reads_back_bit_for_bit() {
     let (seed, count, cycles, settle) = (7, 5, 6, 2);
-    let scene = parse(&pidm::commands::random_scene(seed, count, cycles, settle));
+    let scene = parse(&pidm::commands::random_scene(seed, count, cycles, settle).unwrap());
     let drawn = pidm::random::random_instances(seed, count, cycles, settle);
     assert_eq!(scene.instance_count(), count as u64);
     for (k, inst) in drawn.iter().enumerate() {
         assert_eq!(scene.instance(k as u64).key(), inst.key(), "instance {k}");
     }
+}
+
+/// `pidm random-scene --count 0` is refused: a scene without points would
+/// run one default instance.
+#[test]
+fn random_scene_refuses_no_instances() {
+    let error = pidm::commands::random_scene(1, 0, 4, 1).unwrap_err();
+    let message = error.to_string();
+    assert!(
+        message.contains("--count 0: expected at least 1 instance"),
+        "{message}"
+    );
+}
+
+/// The default name, the file stem, passes the same rule as `name`, and
+/// the message says where it came from and how to give one.
+#[test]
+fn the_default_name_follows_the_name_rule() {
+    for stem in [".hidden", "-rf", "a\u{1}b"] {
+        let error = Scene::from_toml("", Some(stem)).unwrap_err().to_string();
+        assert!(
+            error.contains(&format!("name = {stem:?}: expected"))
+                && error.contains("the default name, the scene file's stem")
+                && error.contains("set `name = \"...\"` in the scene"),
+            "{error}"
+        );
+        let given = Scene::from_toml("name = \"ok\"", Some(stem)).unwrap();
+        assert_eq!(given.name, "ok");
+    }
+    let long = "a".repeat(pidm::scene::MAX_NAME_BYTES);
+    assert_eq!(parse(&format!("name = \"{long}\"")).name, long);
+    assert_eq!(parse("name = \"scan 2 (x, y)\"").name, "scan 2 (x, y)");
+}
+
+/// Scene files are read with a bound and must be text; each refusal names
+/// the file.
+#[test]
+fn scene_files_are_bounded_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, bytes: &[u8]| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path
+    };
+    // A regular file over the bound is refused by its size (sparse: no
+    // disk is used).
+    let big = dir.path().join("big.toml");
+    std::fs::File::create(&big)
+        .unwrap()
+        .set_len(MAX_SCENE_BYTES + 1)
+        .unwrap();
+    let cases: Vec<(PathBuf, String)> = vec![
+        (
+            big.clone(),
+            format!("big.toml is larger than 16.0 MiB ({MAX_SCENE_BYTES} bytes)"),
+        ),
+        (
+            write("nul.toml", b"name = \"a\"\0"),
+            "nul.toml is not a text file: it holds a NUL byte at byte 10".to_owned(),
+        ),
+        (
+            write("latin1.toml", b"# caf\xe9\n"),
+            "latin1.toml is not a text file: it is not UTF-8 (invalid byte at byte 5)".to_owned(),
+        ),
+        (dir.path().to_owned(), "cannot read scene file".to_owned()),
+    ];
+    #[cfg(unix)]
+    let cases = {
+        let mut cases = cases;
+        // A device that never ends is cut at the bound, not read forever.
+        cases.push((
+            PathBuf::from("/dev/zero"),
+            "scene file /dev/zero is larger than 16.0 MiB".to_owned(),
+        ));
+        cases
+    };
+    for (path, needle) in &cases {
+        match Scene::load(path) {
+            Ok(_) => panic!("{} was accepted", path.display()),
+            Err(error) => {
+                let message = error.to_string();
+                assert!(
+                    message.contains(needle.as_str()),
+                    "{message}\nlacks {needle:?}"
+                );
+            }
+        }
+    }
+    let fine = write("fine.toml", "description = \"Grüße\"\n".as_bytes());
+    assert_eq!(Scene::load(&fine).unwrap().name, "fine");
+}
+
+/// An error's message carries the underlying error once: no variant also
+/// exposes it as its `source`, which `pidm` would print again as "caused
+/// by". Checked on the library and on `pidm check` itself.
+#[test]
+fn errors_print_their_cause_once() {
+    use std::error::Error as _;
+    let syntax = Scene::from_toml("[axis.x]\nvoltage = = 3", Some("t")).unwrap_err();
+    assert!(matches!(syntax, SceneError::Syntax { .. }));
+    assert!(syntax.source().is_none());
+    let missing = Scene::load(&shipped("no_such_scene.toml")).unwrap_err();
+    assert!(missing.source().is_none());
+
+    let dir = tempfile::tempdir().unwrap();
+    let broken = dir.path().join("broken.toml");
+    std::fs::write(&broken, "[axis.x]\nvoltage = = 3\n").unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_pidm"))
+        .arg("check")
+        .arg(&broken)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        stderr.matches("TOML parse error at line 2").count(),
+        1,
+        "{stderr}"
+    );
+    assert!(!stderr.contains("caused by"), "{stderr}");
+}
+
+/// Every shipped scene stays within the bounds and loads.
+#[test]
+fn every_shipped_scene_validates() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("sweeps");
+    let mut count = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            if let Err(error) = Scene::load(&path) {
+                panic!("{}: {error}", path.display());
+            }
+            count += 1;
+        }
+    }
+    assert!(count >= 6, "only {count} scenes in {}", dir.display());
 }

@@ -17,8 +17,12 @@
 //! `trajectory_samples_per_cycle` sets how densely each trajectory is
 //! sampled in time.
 
-use super::{DeTable, DeValue, Layout, Parser, Scene, SceneError, Value};
-use super::{describe_values, fmt_num, fmt_short};
+use toml::de::{DeTable, DeValue};
+
+use super::describe::describe_values;
+use super::format::{fmt_num, fmt_short};
+use super::parser::{Parser, Value, join};
+use super::{Layout, Scene, SceneError};
 
 /// Default samples per scene period of a recorded trajectory. At Table 1's
 /// 10 Hz drive and 3.2 kHz stage resonance, 2000 samples per 0.1 s period
@@ -119,7 +123,7 @@ impl Parser<'_> {
         out: &mut Vec<(String, f64)>,
     ) -> Result<(), SceneError> {
         for (key, value) in table.iter() {
-            let name = super::join(prefix, key.get_ref());
+            let name = join(prefix, key.get_ref());
             match value.get_ref() {
                 DeValue::Table(inner) => self.flatten_coordinates(path, &name, inner, out)?,
                 _ => {

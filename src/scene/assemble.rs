@@ -1,0 +1,236 @@
+//! Assembling a scene: from the parsed layers to the validated [`Scene`],
+//! its layout (a grid or a list of points), the checks that need the whole
+//! scene (derived stage quantities, settle < cycles, the memory budget) and
+//! the trajectories.
+
+use toml::de::DeTable;
+
+use super::error::{SceneError, point_name};
+use super::format::fmt_short;
+use super::keys::{
+    AXIS_FIELDS, Field, MAX_STEPS_SLOT, SLOTS, TOLERANCE_SLOT, axis_slot, slot_field, slot_path,
+};
+use super::layer::{Layer, kept_from_lower};
+use super::memory::{MAP_MEMORY_BUDGET_BYTES, check_memory};
+use super::name::check_name;
+use super::parser::Parser;
+use super::plan::{Culprits, Plan, Src, check_instance};
+use super::trajectories::DEFAULT_SAMPLES_PER_CYCLE;
+use super::values::Entry;
+use super::{GridAxis, Layout, Scene};
+use crate::cpu::integrate::Settings;
+use crate::model::AXES;
+
+/// Parses and validates a scene; see [`Scene::from_toml`].
+pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, SceneError> {
+    let document = DeTable::parse(text).map_err(|error| SceneError::Syntax { error })?;
+    let parser = Parser { text };
+    let parsed = parser.root(document.get_ref())?;
+
+    // A given name was checked by the parser; the default one is checked
+    // here by the same rule.
+    let name = match parsed.name {
+        Some(name) => name,
+        None => {
+            let name = default_name.ok_or_else(|| SceneError::Invalid {
+                message: "name: missing; a scene read from text needs `name = \"...\"`".to_owned(),
+                location: None,
+            })?;
+            check_name(name).map_err(|expected| SceneError::Invalid {
+                message: format!(
+                    "name = {expected} (this is the default name, the scene file's stem; \
+                     set `name = \"...\"` in the scene)"
+                ),
+                location: None,
+            })?;
+            name.to_owned()
+        }
+    };
+
+    let base = &parsed.base;
+    let mut settings = Settings::default();
+    if let Some(entry) = &base.entries[TOLERANCE_SLOT] {
+        settings.tolerance = entry.values.value(0);
+    }
+    if let Some(entry) = &base.entries[MAX_STEPS_SLOT] {
+        settings.max_steps_per_period = entry.values.value(0) as u32;
+    }
+
+    let mut raw = [0.0; SLOTS];
+    let mut given = [false; SLOTS];
+    for (slot, entry) in base.entries.iter().enumerate() {
+        if let Some(entry) = entry {
+            given[slot] = true;
+            raw[slot] = entry.values.value(0);
+        }
+    }
+    let mut grid: Vec<(usize, &Entry)> = base
+        .entries
+        .iter()
+        .enumerate()
+        .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e)))
+        .filter(|(_, entry)| entry.values.len() > 1)
+        .collect();
+    grid.sort_by_key(|(_, entry)| entry.span.start);
+
+    let plan = Plan::build(&given);
+    // Locates an error by the first culprit found, layer by layer (the
+    // point first).
+    let locate_slot = |culprits: Culprits, layers: &[&Layer]| {
+        layers.iter().find_map(|layer| {
+            culprits
+                .iter()
+                .flatten()
+                .find_map(|&slot| layer.entries[slot].as_ref())
+                .map(|entry| parser.locate(entry.span.start))
+        })
+    };
+
+    let mut scene = Scene {
+        name,
+        text: text.to_owned(),
+        layout: Layout::Grid { axes: Vec::new() },
+        baselines: parsed.baselines,
+        settings,
+        trajectories: Vec::new(),
+        trajectory_samples_per_cycle: parsed
+            .samples_per_cycle
+            .unwrap_or(DEFAULT_SAMPLES_PER_CYCLE),
+        description: parsed.description,
+        plan,
+        raw,
+        grid_slots: Vec::new(),
+        points: Vec::new(),
+        point_keys: Vec::new(),
+        driven: [false; AXES],
+    };
+
+    if let Some(points) = parsed.points {
+        if let Some((slot, entry)) = grid.first() {
+            return Err(parser.invalid(
+                entry.span.clone(),
+                format!(
+                    "{} has {} values, but a scene with [[points]] cannot have grid axes: \
+                     give each point its own value, or drop [[points]]",
+                    slot_path(*slot),
+                    entry.values.len()
+                ),
+            ));
+        }
+        let mut labels = Vec::with_capacity(points.len());
+        for (index, point) in points.iter().enumerate() {
+            let mut point_given = given;
+            let mut point_raw = raw;
+            for (slot, entry) in point.layer.entries.iter().enumerate() {
+                if let Some(entry) = entry {
+                    point_given[slot] = true;
+                    point_raw[slot] = entry.values.value(0);
+                }
+            }
+            for axis in 0..AXES {
+                let upper = point.layer.axis_given(axis);
+                let lower = base.axis_given(axis);
+                let kept = kept_from_lower(&upper, &lower, true);
+                for j in 0..AXIS_FIELDS.len() {
+                    point_given[axis_slot(axis, j)] = upper[j] || kept[j];
+                }
+            }
+            let point_plan = Plan::build(&point_given);
+            let instance = point_plan.resolve(&point_raw);
+            check_instance(&instance, &point_plan).map_err(|(message, slot)| {
+                SceneError::Invalid {
+                    message: format!("{}: {message}", point_name(index, &point.label)),
+                    location: locate_slot(slot, &[&point.layer, base]),
+                }
+            })?;
+            scene.points.push(instance);
+            labels.push(point.label.clone());
+            let mut keys: Vec<(usize, String)> = point
+                .layer
+                .entries
+                .iter()
+                .enumerate()
+                .filter_map(|(slot, entry)| {
+                    entry.as_ref().map(|entry| {
+                        let value = fmt_short(entry.values.value(0));
+                        (entry.span.start, format!("{} = {value}", slot_path(slot)))
+                    })
+                })
+                .collect();
+            keys.sort();
+            let keys: Vec<String> = keys.into_iter().map(|(_, key)| key).collect();
+            scene.point_keys.push(if keys.is_empty() {
+                "the base".to_owned()
+            } else {
+                keys.join(", ")
+            });
+        }
+        scene.layout = Layout::Points { labels };
+        scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
+        scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
+        for (a, driven) in scene.driven.iter_mut().enumerate() {
+            *driven = scene.points.iter().any(|p| p.axes[a].is_driven());
+        }
+        return Ok(scene);
+    }
+
+    // Refuse oversized grids before expanding any range.
+    let shape: Vec<u64> = grid.iter().map(|(_, entry)| entry.values.len()).collect();
+    check_memory(&shape, false, scene.baselines, MAP_MEMORY_BUDGET_BYTES)?;
+
+    // Per-key checks covered every value; derived quantities and
+    // settle < cycles are monotone in each key, so the corners of the
+    // grid over the keys involved cover every instance.
+    let involved: Vec<(usize, f64, f64)> = grid
+        .iter()
+        .filter(|(slot, _)| {
+            let field = slot_field(*slot);
+            matches!(
+                field,
+                Field::StageMass
+                    | Field::Stiffness
+                    | Field::ResonanceHz
+                    | Field::QualityFactor
+                    | Field::Cycles
+                    | Field::Settle
+            )
+        })
+        .map(|(slot, entry)| {
+            let (lo, hi) = entry.values.min_max();
+            (*slot, lo, hi)
+        })
+        .collect();
+    for corner in 0..1u64 << involved.len() {
+        let mut corner_raw = raw;
+        for (bit, &(slot, lo, hi)) in involved.iter().enumerate() {
+            corner_raw[slot] = if (corner >> bit) & 1 == 1 { hi } else { lo };
+        }
+        let instance = plan.resolve(&corner_raw);
+        check_instance(&instance, &plan).map_err(|(message, slot)| SceneError::Invalid {
+            message,
+            location: locate_slot(slot, &[base]),
+        })?;
+    }
+
+    let axes: Vec<GridAxis> = grid
+        .iter()
+        .map(|(slot, entry)| GridAxis {
+            key: slot_path(*slot),
+            values: entry.values.expand(),
+            units: slot_field(*slot).units(),
+        })
+        .collect();
+    scene.grid_slots = grid.iter().map(|(slot, _)| *slot).collect();
+    for a in 0..AXES {
+        scene.driven[a] = match plan.axes[a].voltage {
+            Src::Const(v) => v != 0.0,
+            Src::Slot(slot) => match scene.grid_slots.iter().position(|&s| s == slot) {
+                Some(g) => axes[g].values.iter().any(|&v| v != 0.0),
+                None => raw[slot] != 0.0,
+            },
+        };
+    }
+    scene.layout = Layout::Grid { axes };
+    scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
+    Ok(scene)
+}

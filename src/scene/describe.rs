@@ -1,0 +1,163 @@
+//! The human summary of a scene (`pidm check`): [`Scene::describe`].
+
+use std::fmt::Write as _;
+
+use super::format::{fmt_short, human_bytes};
+use super::{Layout, Scene};
+use crate::model::AXIS_NAMES;
+
+impl Scene {
+    /// A multi-line human summary: name, grid axes or points, instance
+    /// count, baselines, settings and the first instance's parameters.
+    pub fn describe(&self) -> String {
+        let mut out = String::new();
+        let count = self.instance_count();
+        let _ = writeln!(out, "scene {:?}", self.name);
+        if let Some(description) = &self.description {
+            let _ = writeln!(out, "  {}", description.trim());
+        }
+        match &self.layout {
+            Layout::Grid { axes } if axes.is_empty() => {
+                let _ = writeln!(out, "single instance");
+            }
+            Layout::Grid { axes } => {
+                let dims: Vec<String> = axes.iter().map(|a| a.values.len().to_string()).collect();
+                let _ = writeln!(
+                    out,
+                    "grid {} = {count} instances (row-major, last axis fastest):",
+                    dims.join(" x ")
+                );
+                let width = axes.iter().map(|a| a.key.len()).max().unwrap_or(0);
+                for axis in axes {
+                    let _ = writeln!(
+                        out,
+                        "  {:width$}  {}",
+                        axis.key,
+                        describe_values(&axis.values, axis.units)
+                    );
+                }
+            }
+            Layout::Points { labels } => {
+                let _ = writeln!(out, "{count} points:");
+                for (i, (label, keys)) in labels.iter().zip(&self.point_keys).enumerate() {
+                    let label = if label.is_empty() {
+                        String::new()
+                    } else {
+                        format!("{label}: ")
+                    };
+                    let _ = writeln!(out, "  [{i}] {label}{keys}");
+                }
+            }
+        }
+        let _ = writeln!(
+            out,
+            "baselines: {}",
+            if self.baselines {
+                "yes (the two 1-DOF runs of every instance)"
+            } else {
+                "no"
+            }
+        );
+        if !self.trajectories.is_empty() {
+            let names: Vec<&str> = self.trajectories.iter().map(|t| t.name.as_str()).collect();
+            let _ = writeln!(
+                out,
+                "trajectories ({} samples per period): {}",
+                self.trajectory_samples_per_cycle,
+                names.join("; ")
+            );
+        }
+        let _ = writeln!(
+            out,
+            "integrator: tolerance {} rad, at most {} steps per period",
+            fmt_short(self.settings.tolerance),
+            self.settings.max_steps_per_period
+        );
+        let bytes = count as u128 * self.bytes_per_instance() as u128;
+        let human = human_bytes(bytes as f64);
+        if bytes < 1024 {
+            let _ = writeln!(out, "output maps: {human}");
+        } else {
+            let _ = writeln!(out, "output maps: {human} ({bytes} bytes)");
+        }
+        if count > 0 {
+            let first = self.instance(0);
+            let m = first.mechanism;
+            let _ = writeln!(out, "instance 0:");
+            let _ = writeln!(
+                out,
+                "  mechanism: slider_mass {} kg, static_friction {} N, coulomb_friction {} N, velocity_band {} m/s",
+                fmt_short(m.slider_mass),
+                fmt_short(m.static_friction),
+                fmt_short(m.coulomb_friction),
+                fmt_short(m.velocity_band)
+            );
+            for (axis, name) in first.axes.iter().zip(AXIS_NAMES) {
+                let _ = writeln!(
+                    out,
+                    "  axis.{name}: stage_mass {} kg, stiffness {} N/m, damping {} N s/m \
+                     (resonance {:.4} Hz, Q {:.4}), gain {} N/V, voltage {} V, frequency {} Hz, \
+                     duty {}, phase {} cycles",
+                    fmt_short(axis.stage_mass),
+                    fmt_short(axis.stiffness),
+                    fmt_short(axis.damping),
+                    axis.resonance_hz(),
+                    axis.quality_factor(),
+                    fmt_short(axis.gain),
+                    fmt_short(axis.voltage),
+                    fmt_short(axis.frequency),
+                    fmt_short(axis.duty),
+                    fmt_short(axis.phase)
+                );
+            }
+            let _ = writeln!(
+                out,
+                "  simulation: cycles {}, settle {}",
+                first.cycles, first.settle
+            );
+        }
+        out
+    }
+}
+
+/// Describes the values of a grid axis: all of them when few, else the
+/// count, ends and spacing.
+pub(super) fn describe_values(values: &[f64], units: &str) -> String {
+    let unit = if units == "1" {
+        String::new()
+    } else {
+        format!(" {units}")
+    };
+    let n = values.len();
+    if n <= 6 {
+        let list: Vec<String> = values.iter().map(|&v| fmt_short(v)).collect();
+        return format!("[{}]{unit}", list.join(", "));
+    }
+    let (first, last) = (values[0], values[n - 1]);
+    let step = (last - first) / (n - 1) as f64;
+    let linear = values
+        .iter()
+        .enumerate()
+        .all(|(i, &v)| (v - (first + step * i as f64)).abs() <= 1e-9 * first.abs().max(last.abs()));
+    let spacing = if linear {
+        format!("linear, step {}", fmt_short(step))
+    } else if first > 0.0 && last > 0.0 {
+        let ratio = (last / first).powf(1.0 / (n - 1) as f64);
+        let log = values
+            .iter()
+            .enumerate()
+            .all(|(i, &v)| (v / (first * ratio.powi(i as i32)) - 1.0).abs() <= 1e-9);
+        if log {
+            format!("log, ratio {ratio:.6}")
+        } else {
+            "list".to_owned()
+        }
+    } else {
+        "list".to_owned()
+    };
+    format!(
+        "{n} values from {}{unit} to {}{unit} ({spacing})",
+        fmt_short(first),
+        fmt_short(last)
+    )
+}

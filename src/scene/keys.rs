@@ -1,0 +1,201 @@
+//! The keys of a scene: the numeric keys ([`Field`]) with their names and
+//! units, the tables they belong to, and the raw slots that hold their
+//! values while a scene is assembled.
+//!
+//! Raw slots number every numeric key of the scene once: the mechanism
+//! first, then each axis, then the simulation.
+
+use crate::model::{AXES, AXIS_NAMES};
+
+/// A numeric key of a scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Field {
+    SliderMass,
+    StaticFriction,
+    CoulombFriction,
+    VelocityBand,
+    StageMass,
+    Stiffness,
+    Damping,
+    ResonanceHz,
+    QualityFactor,
+    Gain,
+    Voltage,
+    Frequency,
+    Duty,
+    Phase,
+    Cycles,
+    Settle,
+    Tolerance,
+    MaxStepsPerPeriod,
+}
+
+impl Field {
+    /// The key's name within its table.
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Field::SliderMass => "slider_mass",
+            Field::StaticFriction => "static_friction",
+            Field::CoulombFriction => "coulomb_friction",
+            Field::VelocityBand => "velocity_band",
+            Field::StageMass => "stage_mass",
+            Field::Stiffness => "stiffness",
+            Field::Damping => "damping",
+            Field::ResonanceHz => "resonance_hz",
+            Field::QualityFactor => "quality_factor",
+            Field::Gain => "gain",
+            Field::Voltage => "voltage",
+            Field::Frequency => "frequency",
+            Field::Duty => "duty",
+            Field::Phase => "phase",
+            Field::Cycles => "cycles",
+            Field::Settle => "settle",
+            Field::Tolerance => "tolerance",
+            Field::MaxStepsPerPeriod => "max_steps_per_period",
+        }
+    }
+
+    /// The units of the key's values.
+    pub(super) fn units(self) -> &'static str {
+        match self {
+            Field::SliderMass | Field::StageMass => "kg",
+            Field::StaticFriction | Field::CoulombFriction => "N",
+            Field::VelocityBand => "m/s",
+            Field::Stiffness => "N/m",
+            Field::Damping => "N s/m",
+            Field::ResonanceHz | Field::Frequency => "Hz",
+            Field::QualityFactor | Field::Duty | Field::MaxStepsPerPeriod => "1",
+            Field::Gain => "N/V",
+            Field::Voltage => "V",
+            Field::Phase | Field::Cycles | Field::Settle => "cycles",
+            Field::Tolerance => "rad",
+        }
+    }
+
+    /// Whether the key applies to the whole scene (one value, no points).
+    pub(super) fn scene_wide(self) -> bool {
+        matches!(self, Field::Tolerance | Field::MaxStepsPerPeriod)
+    }
+}
+
+/// The keys of `[mechanism]`, in slot order.
+pub(super) const MECHANISM_FIELDS: [Field; 4] = [
+    Field::SliderMass,
+    Field::StaticFriction,
+    Field::CoulombFriction,
+    Field::VelocityBand,
+];
+
+/// The keys of `[axis.x]` and `[axis.y]`, in slot order.
+pub(super) const AXIS_FIELDS: [Field; 10] = [
+    Field::StageMass,
+    Field::Stiffness,
+    Field::Damping,
+    Field::ResonanceHz,
+    Field::QualityFactor,
+    Field::Gain,
+    Field::Voltage,
+    Field::Frequency,
+    Field::Duty,
+    Field::Phase,
+];
+
+/// The keys of `[simulation]`, in slot order.
+pub(super) const SIMULATION_FIELDS: [Field; 4] = [
+    Field::Cycles,
+    Field::Settle,
+    Field::Tolerance,
+    Field::MaxStepsPerPeriod,
+];
+
+// Indices of the axis keys within `AXIS_FIELDS`.
+
+/// Index of `stage_mass`.
+pub(super) const STAGE_MASS: usize = 0;
+/// Index of `stiffness`.
+pub(super) const STIFFNESS: usize = 1;
+/// Index of `damping`.
+pub(super) const DAMPING: usize = 2;
+/// Index of `resonance_hz`.
+pub(super) const RESONANCE: usize = 3;
+/// Index of `quality_factor`.
+pub(super) const QUALITY: usize = 4;
+/// Index of `gain`.
+pub(super) const GAIN: usize = 5;
+/// Index of `voltage`.
+pub(super) const VOLTAGE: usize = 6;
+/// Index of `frequency`.
+pub(super) const FREQUENCY: usize = 7;
+/// Index of `duty`.
+pub(super) const DUTY: usize = 8;
+/// Index of `phase`.
+pub(super) const PHASE: usize = 9;
+
+/// The first raw slot of the axes (the mechanism's come before).
+pub(super) const AXIS_SLOTS: usize = MECHANISM_FIELDS.len();
+/// The first raw slot of `[simulation]`.
+pub(super) const SIMULATION_SLOTS: usize = AXIS_SLOTS + AXES * AXIS_FIELDS.len();
+/// Number of raw slots.
+pub(super) const SLOTS: usize = SIMULATION_SLOTS + SIMULATION_FIELDS.len();
+/// The raw slot of `simulation.cycles`.
+pub(super) const CYCLES_SLOT: usize = SIMULATION_SLOTS;
+/// The raw slot of `simulation.settle`.
+pub(super) const SETTLE_SLOT: usize = SIMULATION_SLOTS + 1;
+/// The raw slot of `simulation.tolerance`.
+pub(super) const TOLERANCE_SLOT: usize = SIMULATION_SLOTS + 2;
+/// The raw slot of `simulation.max_steps_per_period`.
+pub(super) const MAX_STEPS_SLOT: usize = SIMULATION_SLOTS + 3;
+
+/// The raw slot of axis key `index` (into [`AXIS_FIELDS`]) of axis `axis`.
+pub(super) fn axis_slot(axis: usize, index: usize) -> usize {
+    AXIS_SLOTS + axis * AXIS_FIELDS.len() + index
+}
+
+/// The key held by a raw slot.
+pub(super) fn slot_field(slot: usize) -> Field {
+    if slot < AXIS_SLOTS {
+        MECHANISM_FIELDS[slot]
+    } else if slot < SIMULATION_SLOTS {
+        AXIS_FIELDS[(slot - AXIS_SLOTS) % AXIS_FIELDS.len()]
+    } else {
+        SIMULATION_FIELDS[slot - SIMULATION_SLOTS]
+    }
+}
+
+/// The full dotted path of a raw slot, e.g. "axis.y.voltage".
+pub(super) fn slot_path(slot: usize) -> String {
+    let field = slot_field(slot);
+    if slot < AXIS_SLOTS {
+        format!("mechanism.{}", field.name())
+    } else if slot < SIMULATION_SLOTS {
+        let axis = (slot - AXIS_SLOTS) / AXIS_FIELDS.len();
+        format!("axis.{}.{}", AXIS_NAMES[axis], field.name())
+    } else {
+        format!("simulation.{}", field.name())
+    }
+}
+
+/// Keys of the document root.
+pub(super) const ROOT_KEYS: [&str; 7] = [
+    "name",
+    "description",
+    "mechanism",
+    "axis",
+    "simulation",
+    "output",
+    "points",
+];
+
+/// Keys of one `[[points]]` entry.
+pub(super) const POINT_KEYS: [&str; 4] = ["label", "mechanism", "axis", "simulation"];
+
+/// Keys of a range table.
+pub(super) const RANGE_KEYS: [&str; 4] = ["from", "to", "steps", "log"];
+
+/// Keys of `[output]`.
+pub(super) const OUTPUT_KEYS: [&str; 3] =
+    ["baselines", "trajectories", "trajectory_samples_per_cycle"];
+
+/// What a numeric key should look like, for type errors.
+pub(super) const NUMERIC_EXPECTED: &str =
+    "expected a number, a list of numbers or a range { from, to, steps }";

@@ -1,0 +1,69 @@
+//! Layers of keys: the base scene and each `[[points]]` entry give keys at
+//! their own level, and an upper layer (`axis.y` over `axis.x`, a point over
+//! the base) takes from the one below what it does not give itself.
+
+use super::keys::{
+    AXIS_FIELDS, DAMPING, DUTY, FREQUENCY, GAIN, PHASE, QUALITY, RESONANCE, SLOTS, STAGE_MASS,
+    STIFFNESS, VOLTAGE, axis_slot,
+};
+use super::values::Entry;
+
+/// The keys given at one level (the base, or one point), by raw slot.
+#[derive(Clone, Debug)]
+pub(super) struct Layer {
+    /// The entry of each raw slot, when given.
+    pub(super) entries: [Option<Entry>; SLOTS],
+}
+
+impl Default for Layer {
+    fn default() -> Self {
+        Layer {
+            entries: std::array::from_fn(|_| None),
+        }
+    }
+}
+
+impl Layer {
+    /// Which keys of axis `axis` are given.
+    pub(super) fn axis_given(&self, axis: usize) -> [bool; AXIS_FIELDS.len()] {
+        std::array::from_fn(|j| self.entries[axis_slot(axis, j)].is_some())
+    }
+}
+
+/// One `[[points]]` entry.
+#[derive(Debug)]
+pub(super) struct PointSpec {
+    /// The point's `label`, "" when none was given.
+    pub(super) label: String,
+    /// The keys the point sets.
+    pub(super) layer: Layer,
+}
+
+/// Which keys of a lower layer survive under an upper layer: those the upper
+/// one does not give, as long as they do not over-determine the stage. The
+/// voltage is kept only when `voltage` is set (a point over the base, not
+/// `axis.y` over `axis.x`).
+pub(super) fn kept_from_lower(
+    upper: &[bool; AXIS_FIELDS.len()],
+    lower: &[bool; AXIS_FIELDS.len()],
+    voltage: bool,
+) -> [bool; AXIS_FIELDS.len()] {
+    let mut kept = [false; AXIS_FIELDS.len()];
+    for j in [GAIN, VOLTAGE, FREQUENCY, DUTY, PHASE] {
+        kept[j] = lower[j] && !upper[j];
+    }
+    kept[VOLTAGE] &= voltage;
+    let triple = [RESONANCE, STIFFNESS, STAGE_MASS];
+    let mut count = triple.iter().filter(|&&j| upper[j]).count();
+    for j in triple {
+        if lower[j] && !upper[j] && count < 2 {
+            kept[j] = true;
+            count += 1;
+        }
+    }
+    if !upper[DAMPING] && !upper[QUALITY] {
+        kept[DAMPING] = lower[DAMPING];
+        kept[QUALITY] = lower[QUALITY];
+    }
+    kept
+}

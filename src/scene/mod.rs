@@ -1,0 +1,207 @@
+//! Scene files: the TOML description of what to simulate, its validation and
+//! its expansion into [`Instance`]s.
+//!
+//! A scene gives the shared friction interface (`[mechanism]`), the two
+//! axes (`[axis.x]`, `[axis.y]`), the run length and integrator settings
+//! (`[simulation]`) and what to output (`[output]`). Anything not given is
+//! Table 1 of the paper as printed ([`Mechanism::TABLE1`](crate::model::Mechanism::TABLE1),
+//! [`Axis::TABLE1`](crate::model::Axis::TABLE1)),
+//! 10 cycles of which 2 settle. Every `axis.y` key defaults to `axis.x`'s
+//! value, except the voltage, which defaults to 0 (y undriven).
+//!
+//! Any numeric value may be a scalar, a list (`[1.0, 2.0]`) or a range
+//! (`{ from = 0.0, to = 150.0, steps = 151 }`, endpoints included;
+//! `log = true` spaces the values geometrically). Every key with more than
+//! one value is a grid axis, in the order the keys appear in the file; the
+//! grid is stored row-major with the last axis varying fastest. A grid axis
+//! over an `axis.x` key that `axis.y` inherits moves both axes together.
+//!
+//! Instead of a grid, a scene may list `[[points]]`: partial scenes of
+//! single values applied on top of the base, each with an optional `label`.
+//!
+//! A stage may be given by its resonance and quality factor instead of its
+//! mass and damping (paper eqs. 6-7): `resonance_hz` with `stage_mass` or
+//! `stiffness` (the other follows; with neither, the stiffness is Table 1's),
+//! and `quality_factor` instead of `damping`. An overriding layer (`axis.y`
+//! over `axis.x`, a point over the base) keeps its own stage keys and takes
+//! from the layer below only those that do not over-determine the stage,
+//! preferring `resonance_hz`, then `stiffness`, then `stage_mass`.
+//!
+//! The top level takes `name` (the file stem by default), an optional free
+//! text `description`, and `[output] baselines = true` to also run the two
+//! 1-DOF counterparts of every instance. `[output] trajectories = [...]`
+//! records the motion of chosen instances over time (see
+//! [`trajectories`] for the entries) with
+//! `trajectory_samples_per_cycle` samples per scene period. `[simulation]` takes `cycles`,
+//! `settle` (both integers, per instance) and the scene-wide integrator
+//! settings `tolerance` and `max_steps_per_period` (single values only).
+//! Integer keys accept lists and linear ranges whose values land on integers.
+//!
+//! A range with `steps = 1` must have `from = to`, and `steps` is at most
+//! [`MAX_RANGE_STEPS`]. Beyond its sign and interval, every numeric key must
+//! lie within generous physical bounds that keep every run finite (see the
+//! private `rules` module for each bound and why): a frequency of 1e300 Hz
+//! or a voltage of 1e308 V is refused here instead of ending in status 2.
+//!
+//! `name` is a name, not a path (see [`MAX_NAME_BYTES`] and the `name`
+//! module): it makes the default output file `results/<name>.h5`, so it may
+//! hold no `/` or `\`, no control characters, and may not start with `.`
+//! or `-`. A scene file is read with a bound of [`MAX_SCENE_BYTES`] and
+//! must be UTF-8 text.
+//!
+//! Everything is validated in [`Scene::from_toml`]; errors name the full key
+//! path, the offending value, what was expected and where in the file.
+//!
+//! The module is split by concern: `error` (why a scene was refused),
+//! `file` (reading a scene file), `name` (the name rule), `keys` (the
+//! numeric keys, their tables and raw slots), `rules` (what values each key
+//! accepts), `values` (scalars, lists and ranges), `parser` (the TOML
+//! document into layers of keys), `suggest` (hints for unknown keys),
+//! `layer` (what an upper layer takes from the one below), `plan` (from raw
+//! key values to instances), `assemble` (the validated scene), `memory` (the
+//! output budget), `describe` (the human summary), `format` (numbers in
+//! messages) and [`trajectories`].
+
+use std::path::Path;
+
+use crate::cpu::integrate::Settings;
+use crate::model::{AXES, Instance};
+
+mod assemble;
+mod describe;
+mod error;
+mod file;
+mod format;
+mod keys;
+mod layer;
+mod memory;
+mod name;
+mod parser;
+mod plan;
+mod rules;
+mod suggest;
+pub mod trajectories;
+mod values;
+
+pub use error::{Location, SceneError};
+pub use file::MAX_SCENE_BYTES;
+pub use memory::{
+    BASELINE_MAPS_PER_INSTANCE, MAP_ENTRY_BYTES, MAP_MEMORY_BUDGET_BYTES, MAPS_PER_INSTANCE,
+};
+pub use name::MAX_NAME_BYTES;
+pub use trajectories::{DEFAULT_SAMPLES_PER_CYCLE, TrajectoryPoint};
+pub use values::MAX_RANGE_STEPS;
+
+use keys::SLOTS;
+use plan::Plan;
+
+/// A validated scene, ready to be expanded instance by instance.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The scene's name (`name`, or the file stem when loaded from a file).
+    pub name: String,
+    /// The TOML source as read.
+    pub text: String,
+    /// How the instances are laid out: a grid or a list of points.
+    pub layout: Layout,
+    /// Whether the two 1-DOF counterparts of every instance are run too.
+    pub baselines: bool,
+    /// Scene-wide integrator settings.
+    pub settings: Settings,
+    /// Instances whose motion over time is recorded (`output.trajectories`).
+    pub trajectories: Vec<TrajectoryPoint>,
+    /// Samples per scene period of each trajectory
+    /// (`output.trajectory_samples_per_cycle`).
+    pub trajectory_samples_per_cycle: u32,
+    /// The optional free-text `description`.
+    description: Option<String>,
+    /// How the raw key values become an instance.
+    plan: Plan,
+    /// The raw key values of the base (grid slots hold their first value).
+    raw: [f64; SLOTS],
+    /// For each grid axis, the raw slot it sets.
+    grid_slots: Vec<usize>,
+    /// The instances of a point scene, in point order.
+    points: Vec<Instance>,
+    /// For each point, the keys it sets, as "key = value", in file order.
+    point_keys: Vec<String>,
+    /// Whether each axis is driven in at least one instance.
+    driven: [bool; AXES],
+}
+
+/// How the instances of a scene are arranged.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Layout {
+    /// A row-major grid over the axes, in file order, the last fastest; no
+    /// axes means a single instance.
+    Grid { axes: Vec<GridAxis> },
+    /// A list of points, one label per instance ("" when none was given).
+    Points { labels: Vec<String> },
+}
+
+/// One axis of a grid: a key given more than one value.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GridAxis {
+    /// Full dotted key path, e.g. "axis.y.voltage".
+    pub key: String,
+    /// The values, in order.
+    pub values: Vec<f64>,
+    /// Units of the values: "V", "Hz", "kg", "N/m", "N s/m", "N/V", "N",
+    /// "m/s", "cycles", "1" (dimensionless) or "rad".
+    pub units: &'static str,
+}
+
+impl Scene {
+    /// Parses and validates a scene. `default_name` is used when the text has
+    /// no `name` (the file stem, when loading a file); it must be a valid
+    /// name too.
+    pub fn from_toml(text: &str, default_name: Option<&str>) -> Result<Scene, SceneError> {
+        assemble::scene(text, default_name)
+    }
+
+    /// Reads and validates a scene file; its stem is the default name. The
+    /// file is read with a bound of [`MAX_SCENE_BYTES`] and must be text.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = file::read(path)?;
+        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned());
+        Scene::from_toml(&text, stem.as_deref())
+    }
+
+    /// The grid shape (file order), or `[n]` for n points; `[]` for a
+    /// single-instance grid.
+    pub fn shape(&self) -> Vec<usize> {
+        match &self.layout {
+            Layout::Grid { axes } => axes.iter().map(|a| a.values.len()).collect(),
+            Layout::Points { labels } => vec![labels.len()],
+        }
+    }
+
+    /// Number of instances.
+    pub fn instance_count(&self) -> u64 {
+        self.shape().iter().map(|&n| n as u64).product()
+    }
+
+    /// Instance `index`, row-major over the grid axes (the last fastest), or
+    /// point `index`. Cheap: no allocation.
+    pub fn instance(&self, index: u64) -> Instance {
+        match &self.layout {
+            Layout::Points { .. } => self.points[index as usize],
+            Layout::Grid { axes } => {
+                let mut raw = self.raw;
+                let mut rest = index;
+                for (axis, &slot) in axes.iter().zip(&self.grid_slots).rev() {
+                    let n = axis.values.len() as u64;
+                    raw[slot] = axis.values[(rest % n) as usize];
+                    rest /= n;
+                }
+                debug_assert_eq!(rest, 0, "instance index out of range");
+                self.plan.resolve(&raw)
+            }
+        }
+    }
+
+    /// Whether axis `axis` has a non-zero voltage in at least one instance.
+    pub fn axis_ever_driven(&self, axis: usize) -> bool {
+        self.driven.get(axis).copied().unwrap_or(false)
+    }
+}

@@ -1,0 +1,661 @@
+//! The parser: reads a TOML document into layers of keys, checking every
+//! key, type and value on the way, with errors located in the text.
+
+use std::ops::Range;
+
+use toml::Spanned;
+use toml::de::{DeTable, DeValue};
+
+use super::error::{Location, SceneError};
+use super::format::{fmt_num, human_bytes};
+use super::keys::{
+    AXIS_FIELDS, DAMPING, Field, MECHANISM_FIELDS, NUMERIC_EXPECTED, OUTPUT_KEYS, POINT_KEYS,
+    QUALITY, RANGE_KEYS, RESONANCE, ROOT_KEYS, SIMULATION_FIELDS, SIMULATION_SLOTS, STAGE_MASS,
+    STIFFNESS, axis_slot,
+};
+use super::layer::{Layer, PointSpec};
+use super::memory::MAP_MEMORY_BUDGET_BYTES;
+use super::name::check_name;
+use super::suggest::{home_of, suggest};
+use super::trajectories::SpecAt;
+use super::values::{Entry, MAX_RANGE_STEPS, Values};
+use crate::model::AXIS_NAMES;
+
+/// The document, parsed but not yet checked as a whole.
+#[derive(Debug, Default)]
+pub(super) struct Parsed {
+    /// `name`, already checked to be a plain file name.
+    pub(super) name: Option<String>,
+    /// `description`.
+    pub(super) description: Option<String>,
+    /// The keys of the base scene.
+    pub(super) base: Layer,
+    /// `output.baselines`.
+    pub(super) baselines: bool,
+    /// `output.trajectories`, not yet resolved against the layout.
+    pub(super) trajectories: Vec<SpecAt>,
+    /// `output.trajectory_samples_per_cycle`.
+    pub(super) samples_per_cycle: Option<u32>,
+    /// The `[[points]]`, when given.
+    pub(super) points: Option<Vec<PointSpec>>,
+}
+
+/// Whether keys are read for the base scene or for one point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Context {
+    /// The base scene: grid axes and scene-wide keys allowed.
+    Base,
+    /// One `[[points]]` entry: single values of per-instance keys only.
+    Point,
+}
+
+/// Reads a parsed TOML document into layers, checking every key and value.
+pub(super) struct Parser<'t> {
+    /// The scene's TOML text, for locations and quoting values.
+    pub(super) text: &'t str,
+}
+
+/// A TOML value and where it is in the text.
+pub(super) type Value<'a> = Spanned<DeValue<'a>>;
+/// A TOML key and where it is in the text.
+pub(super) type Key<'a> = Spanned<std::borrow::Cow<'a, str>>;
+
+impl Parser<'_> {
+    /// The line and column of a byte offset.
+    pub(super) fn locate(&self, offset: usize) -> Location {
+        let before = self.text.get(..offset).unwrap_or(self.text);
+        let line_start = before.rfind('\n').map_or(0, |i| i + 1);
+        Location {
+            line: before.matches('\n').count() + 1,
+            column: before[line_start..].chars().count() + 1,
+        }
+    }
+
+    /// An [`SceneError::Invalid`] located at `span`.
+    pub(super) fn invalid(&self, span: Range<usize>, message: impl Into<String>) -> SceneError {
+        SceneError::Invalid {
+            message: message.into(),
+            location: Some(self.locate(span.start)),
+        }
+    }
+
+    /// The source text of a value, shortened for messages.
+    pub(super) fn source(&self, span: Range<usize>) -> String {
+        let text = self.text.get(span).unwrap_or("").trim();
+        let text = text.split_whitespace().collect::<Vec<_>>().join(" ");
+        if text.chars().count() > 60 {
+            let short: String = text.chars().take(57).collect();
+            format!("{short}...")
+        } else {
+            text
+        }
+    }
+
+    /// Describes a value of the wrong type: "a string \"abc\"".
+    pub(super) fn found(&self, value: &Value<'_>) -> String {
+        match value.get_ref() {
+            DeValue::String(s) => format!("a string {:?}", s.as_ref()),
+            DeValue::Integer(_) => format!("an integer {}", self.source(value.span())),
+            DeValue::Float(_) => format!("a float {}", self.source(value.span())),
+            DeValue::Boolean(b) => format!("a boolean {b}"),
+            DeValue::Datetime(d) => format!("a date-time {d}"),
+            DeValue::Array(_) => format!("a list {}", self.source(value.span())),
+            DeValue::Table(_) => "a table".to_owned(),
+        }
+    }
+
+    /// A wrong-type error.
+    pub(super) fn wrong_type(&self, path: &str, expected: &str, value: &Value<'_>) -> SceneError {
+        self.invalid(
+            value.span(),
+            format!("{path}: {expected}, found {}", self.found(value)),
+        )
+    }
+
+    /// An unknown-key error, with the closest valid key or the table the key
+    /// belongs to.
+    pub(super) fn unknown_key(
+        &self,
+        key: &Key<'_>,
+        prefix: &str,
+        candidates: &[&str],
+    ) -> SceneError {
+        let name = key.get_ref().as_ref();
+        let path = join(prefix, name);
+        let hint = match home_of(name) {
+            Some(home) => format!(" (`{name}` belongs in {home})"),
+            None => match suggest(name, candidates) {
+                Some(best) => format!(" (did you mean `{best}`?)"),
+                None => format!(" (expected one of: {})", candidates.join(", ")),
+            },
+        };
+        self.invalid(key.span(), format!("unknown key `{path}`{hint}"))
+    }
+
+    /// A table value.
+    pub(super) fn table<'v, 'a>(
+        &self,
+        path: &str,
+        expected: &str,
+        value: &'v Value<'a>,
+    ) -> Result<&'v DeTable<'a>, SceneError> {
+        match value.get_ref() {
+            DeValue::Table(table) => Ok(table),
+            _ => Err(self.wrong_type(path, expected, value)),
+        }
+    }
+
+    /// A string value.
+    pub(super) fn string(&self, path: &str, value: &Value<'_>) -> Result<String, SceneError> {
+        match value.get_ref() {
+            DeValue::String(s) => Ok(s.to_string()),
+            _ => Err(self.wrong_type(path, "expected a string", value)),
+        }
+    }
+
+    /// A number (integer or float, possibly non-finite).
+    pub(super) fn number(value: &DeValue<'_>) -> Option<f64> {
+        match value {
+            DeValue::Integer(i) => integer_value(i.as_str(), i.radix()),
+            DeValue::Float(f) => {
+                let text = f.as_str();
+                text.parse::<f64>().ok().or_else(|| {
+                    let lower = text.to_ascii_lowercase();
+                    if lower.contains("nan") {
+                        Some(f64::NAN)
+                    } else if lower.contains("inf") {
+                        Some(if lower.starts_with('-') {
+                            f64::NEG_INFINITY
+                        } else {
+                            f64::INFINITY
+                        })
+                    } else {
+                        None
+                    }
+                })
+            }
+            _ => None,
+        }
+    }
+
+    /// A single finite number.
+    pub(super) fn finite(&self, path: &str, value: &Value<'_>) -> Result<f64, SceneError> {
+        let number = Self::number(value.get_ref())
+            .ok_or_else(|| self.wrong_type(path, "expected a number", value))?;
+        if !number.is_finite() {
+            return Err(self.invalid(
+                value.span(),
+                format!("{path} = {}: expected a finite number", fmt_num(number)),
+            ));
+        }
+        Ok(number)
+    }
+
+    /// The document root.
+    pub(super) fn root(&self, table: &DeTable<'_>) -> Result<Parsed, SceneError> {
+        let mut parsed = Parsed::default();
+        for (key, value) in table.iter() {
+            match key.get_ref().as_ref() {
+                "name" => {
+                    let name = self.string("name", value)?;
+                    check_name(&name).map_err(|expected| {
+                        self.invalid(value.span(), format!("name = {expected}"))
+                    })?;
+                    parsed.name = Some(name);
+                }
+                "description" => parsed.description = Some(self.string("description", value)?),
+                "mechanism" => self.group(
+                    value,
+                    "mechanism",
+                    &MECHANISM_FIELDS,
+                    0,
+                    &mut parsed.base,
+                    Context::Base,
+                )?,
+                "axis" => self.axes(value, &mut parsed.base, Context::Base)?,
+                "simulation" => self.group(
+                    value,
+                    "simulation",
+                    &SIMULATION_FIELDS,
+                    SIMULATION_SLOTS,
+                    &mut parsed.base,
+                    Context::Base,
+                )?,
+                "output" => self.output(value, &mut parsed)?,
+                "points" => parsed.points = Some(self.points(value)?),
+                _ => return Err(self.unknown_key(key, "", &ROOT_KEYS)),
+            }
+        }
+        self.check_stage_keys(&parsed.base)?;
+        Ok(parsed)
+    }
+
+    /// `[axis]`: the tables `x` and `y`.
+    pub(super) fn axes(
+        &self,
+        value: &Value<'_>,
+        layer: &mut Layer,
+        context: Context,
+    ) -> Result<(), SceneError> {
+        let table = self.table(
+            "axis",
+            "expected a table of axes ([axis.x], [axis.y])",
+            value,
+        )?;
+        for (key, value) in table.iter() {
+            let name = key.get_ref().as_ref();
+            let Some(axis) = AXIS_NAMES.iter().position(|&n| n == name) else {
+                return Err(self.unknown_key(key, "axis", &AXIS_NAMES));
+            };
+            self.group(
+                value,
+                &format!("axis.{name}"),
+                &AXIS_FIELDS,
+                axis_slot(axis, 0),
+                layer,
+                context,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// A table of numeric keys: `[mechanism]`, `[axis.*]` or `[simulation]`.
+    pub(super) fn group(
+        &self,
+        value: &Value<'_>,
+        path: &str,
+        fields: &[Field],
+        slot_base: usize,
+        layer: &mut Layer,
+        context: Context,
+    ) -> Result<(), SceneError> {
+        let table = self.table(path, "expected a table", value)?;
+        let names: Vec<&str> = fields.iter().map(|f| f.name()).collect();
+        for (key, value) in table.iter() {
+            let name = key.get_ref().as_ref();
+            let Some(index) = names.iter().position(|&n| n == name) else {
+                return Err(self.unknown_key(key, path, &names));
+            };
+            let field = fields[index];
+            let key_path = format!("{path}.{name}");
+            if field.scene_wide() && context == Context::Point {
+                return Err(self.invalid(
+                    key.span(),
+                    format!(
+                        "{key_path} cannot be set per point: the integrator settings apply to \
+                         the whole scene (set them in the base [simulation])"
+                    ),
+                ));
+            }
+            let values = self.values(&key_path, field, value)?;
+            if values.len() > 1 && (field.scene_wide() || context == Context::Point) {
+                let why = if context == Context::Point {
+                    "a point's values must be single numbers (points give a list of instances, \
+                     not a grid)"
+                } else {
+                    "it applies to the whole scene and cannot be a grid axis"
+                };
+                return Err(self.invalid(
+                    value.span(),
+                    format!(
+                        "{key_path} = {}: expected a single value, found {} values; {why}",
+                        self.source(value.span()),
+                        values.len()
+                    ),
+                ));
+            }
+            layer.entries[slot_base + index] = Some(Entry {
+                values,
+                span: value.span(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The values of a numeric key, each checked against the key's rule.
+    pub(super) fn values(
+        &self,
+        path: &str,
+        field: Field,
+        value: &Value<'_>,
+    ) -> Result<Values, SceneError> {
+        let values = match value.get_ref() {
+            DeValue::Integer(_) | DeValue::Float(_) => {
+                Values::List(vec![Self::number(value.get_ref()).unwrap_or(f64::NAN)])
+            }
+            DeValue::Array(items) => {
+                if items.is_empty() {
+                    return Err(self.invalid(
+                        value.span(),
+                        format!("{path} = []: expected at least one value (an empty list gives no instances)"),
+                    ));
+                }
+                let mut numbers = Vec::with_capacity(items.len());
+                for (i, item) in items.iter().enumerate() {
+                    match Self::number(item.get_ref()) {
+                        Some(number) => numbers.push(number),
+                        None => {
+                            return Err(self.wrong_type(
+                                &format!("{path}[{i}]"),
+                                "expected a number",
+                                item,
+                            ));
+                        }
+                    }
+                }
+                Values::List(numbers)
+            }
+            DeValue::Table(table) => self.range(path, field, value.span(), table)?,
+            _ => return Err(self.wrong_type(path, NUMERIC_EXPECTED, value)),
+        };
+        let rule = field.rule();
+        let source = self.source(value.span());
+        for (i, number) in values.extremes() {
+            let context = match &values {
+                Values::List(list) if list.len() == 1 => String::new(),
+                Values::List(_) => format!(" (value {} of {source})", i + 1),
+                Values::Range { .. } => format!(" (in the range {source})"),
+            };
+            if !number.is_finite() {
+                return Err(self.invalid(
+                    value.span(),
+                    format!(
+                        "{path} = {}: expected a finite number{context}",
+                        fmt_num(number)
+                    ),
+                ));
+            }
+            if !rule.accepts(number) {
+                return Err(self.invalid(
+                    value.span(),
+                    format!("{path} = {}: {}{context}", fmt_num(number), rule.expected()),
+                ));
+            }
+            if let Some(bounds) = field.bounds()
+                && !bounds.contains(number)
+            {
+                return Err(self.invalid(
+                    value.span(),
+                    format!(
+                        "{path} = {}: {}{context}",
+                        fmt_num(number),
+                        bounds.expected(field.units())
+                    ),
+                ));
+            }
+        }
+        Ok(values)
+    }
+
+    /// A range table `{ from, to, steps, log }`.
+    pub(super) fn range(
+        &self,
+        path: &str,
+        field: Field,
+        span: Range<usize>,
+        table: &DeTable<'_>,
+    ) -> Result<Values, SceneError> {
+        let (mut from, mut to, mut steps, mut log) = (None, None, None, false);
+        for (key, value) in table.iter() {
+            let key_path = format!("{path}.{}", key.get_ref());
+            match key.get_ref().as_ref() {
+                "from" => from = Some(self.finite(&key_path, value)?),
+                "to" => to = Some(self.finite(&key_path, value)?),
+                "steps" => steps = Some(self.steps(&key_path, value)?),
+                "log" => match value.get_ref() {
+                    DeValue::Boolean(b) => log = *b,
+                    _ => {
+                        return Err(self.wrong_type(
+                            &key_path,
+                            "expected a boolean (true or false)",
+                            value,
+                        ));
+                    }
+                },
+                _ => return Err(self.unknown_key(key, path, &RANGE_KEYS)),
+            }
+        }
+        let source = self.source(span.clone());
+        let missing = [
+            ("from", from.is_none()),
+            ("to", to.is_none()),
+            ("steps", steps.is_none()),
+        ];
+        if let Some((name, _)) = missing.iter().find(|(_, missing)| *missing) {
+            return Err(self.invalid(
+                span,
+                format!(
+                    "{path} = {source}: a range needs `from`, `to` and `steps`, but `{name}` is missing"
+                ),
+            ));
+        }
+        let (from, to, steps) = (from.unwrap_or(0.0), to.unwrap_or(0.0), steps.unwrap_or(1));
+        if steps == 1 && from != to {
+            return Err(self.invalid(
+                span,
+                format!(
+                    "{path} = {source}: steps = 1 gives the single value from = {}, never \
+                     reaching to = {}; expected steps >= 2 when from != to (or to = from for a \
+                     single value)",
+                    fmt_num(from),
+                    fmt_num(to)
+                ),
+            ));
+        }
+        let rule = field.rule();
+        if log && rule.integer() {
+            return Err(self.invalid(
+                span,
+                format!(
+                    "{path} = {source}: an integer key cannot take a log range; give a list of integers"
+                ),
+            ));
+        }
+        if log && !(from > 0.0 && to > 0.0) {
+            return Err(self.invalid(
+                span,
+                format!(
+                    "{path} = {source}: a log range needs from > 0 and to > 0, found from = {} and to = {}",
+                    fmt_num(from),
+                    fmt_num(to)
+                ),
+            ));
+        }
+        if rule.integer() && steps > 1 {
+            let step = (to - from) / (steps - 1) as f64;
+            if step.fract() != 0.0 {
+                return Err(self.invalid(
+                    span,
+                    format!(
+                        "{path} = {source}: the values do not land on integers (step {}); \
+                         choose steps so that (to - from) / (steps - 1) is an integer",
+                        fmt_num(step)
+                    ),
+                ));
+            }
+        }
+        Ok(Values::Range {
+            from,
+            to,
+            steps,
+            log,
+        })
+    }
+
+    /// `steps` of a range: an integer from 1 to [`MAX_RANGE_STEPS`].
+    fn steps(&self, path: &str, value: &Value<'_>) -> Result<u64, SceneError> {
+        let expected = "expected an integer >= 1";
+        let number =
+            Self::number(value.get_ref()).ok_or_else(|| self.wrong_type(path, expected, value))?;
+        if !(number >= 1.0 && number.fract() == 0.0) {
+            return Err(self.invalid(
+                value.span(),
+                format!("{path} = {}: {expected}", fmt_num(number)),
+            ));
+        }
+        if number > MAX_RANGE_STEPS as f64 {
+            return Err(self.invalid(
+                value.span(),
+                format!(
+                    "{path} = {}: too large; expected at most {MAX_RANGE_STEPS} steps (the most \
+                     values one grid axis can have within the {} budget of the output maps)",
+                    self.source(value.span()),
+                    human_bytes(MAP_MEMORY_BUDGET_BYTES as f64)
+                ),
+            ));
+        }
+        Ok(number as u64)
+    }
+
+    /// `[output]`.
+    pub(super) fn output(&self, value: &Value<'_>, parsed: &mut Parsed) -> Result<(), SceneError> {
+        let table = self.table("output", "expected a table", value)?;
+        for (key, value) in table.iter() {
+            match key.get_ref().as_ref() {
+                "trajectories" => parsed.trajectories = self.trajectories(value)?,
+                "trajectory_samples_per_cycle" => {
+                    parsed.samples_per_cycle = Some(self.samples_per_cycle(value)?);
+                }
+                "baselines" => match value.get_ref() {
+                    DeValue::Boolean(b) => parsed.baselines = *b,
+                    _ => {
+                        return Err(self.wrong_type(
+                            "output.baselines",
+                            "expected a boolean (true or false)",
+                            value,
+                        ));
+                    }
+                },
+                _ => return Err(self.unknown_key(key, "output", &OUTPUT_KEYS)),
+            }
+        }
+        Ok(())
+    }
+
+    /// `[[points]]`.
+    pub(super) fn points(&self, value: &Value<'_>) -> Result<Vec<PointSpec>, SceneError> {
+        let DeValue::Array(items) = value.get_ref() else {
+            return Err(self.wrong_type("points", "expected a list of tables ([[points]])", value));
+        };
+        if items.is_empty() {
+            return Err(self.invalid(value.span(), "points = []: expected at least one point"));
+        }
+        let mut points = Vec::with_capacity(items.len());
+        for (index, item) in items.iter().enumerate() {
+            let DeValue::Table(table) = item.get_ref() else {
+                return Err(self.wrong_type(&format!("points[{index}]"), "expected a table", item));
+            };
+            let label = match table.get("label") {
+                Some(label) => self
+                    .string("label", label)
+                    .map_err(|e| e.in_point(index, ""))?,
+                None => String::new(),
+            };
+            let layer = self.point(table).map_err(|e| e.in_point(index, &label))?;
+            points.push(PointSpec { label, layer });
+        }
+        Ok(points)
+    }
+
+    /// One point's keys.
+    pub(super) fn point(&self, table: &DeTable<'_>) -> Result<Layer, SceneError> {
+        let mut layer = Layer::default();
+        for (key, value) in table.iter() {
+            match key.get_ref().as_ref() {
+                "label" => {}
+                "mechanism" => self.group(
+                    value,
+                    "mechanism",
+                    &MECHANISM_FIELDS,
+                    0,
+                    &mut layer,
+                    Context::Point,
+                )?,
+                "axis" => self.axes(value, &mut layer, Context::Point)?,
+                "simulation" => self.group(
+                    value,
+                    "simulation",
+                    &SIMULATION_FIELDS,
+                    SIMULATION_SLOTS,
+                    &mut layer,
+                    Context::Point,
+                )?,
+                name @ ("name" | "description" | "output" | "points") => {
+                    return Err(self.invalid(
+                        key.span(),
+                        format!("`{name}` cannot be set per point: it applies to the whole scene"),
+                    ));
+                }
+                _ => return Err(self.unknown_key(key, "", &POINT_KEYS)),
+            }
+        }
+        self.check_stage_keys(&layer)?;
+        Ok(layer)
+    }
+
+    /// Refuses a layer whose stage keys over-determine a stage.
+    pub(super) fn check_stage_keys(&self, layer: &Layer) -> Result<(), SceneError> {
+        for (axis, name) in AXIS_NAMES.iter().enumerate() {
+            let given = layer.axis_given(axis);
+            let span = |j: usize| {
+                layer.entries[axis_slot(axis, j)]
+                    .as_ref()
+                    .map_or(0..0, |e| e.span.clone())
+            };
+            if given[STAGE_MASS] && given[STIFFNESS] && given[RESONANCE] {
+                return Err(self.invalid(
+                    span(RESONANCE),
+                    format!(
+                        "axis.{name}: stage_mass, stiffness and resonance_hz over-determine the \
+                         stage (f_r = sqrt(k/m) / (2 pi)); give two of them"
+                    ),
+                ));
+            }
+            if given[DAMPING] && given[QUALITY] {
+                return Err(self.invalid(
+                    span(QUALITY),
+                    format!(
+                        "axis.{name}: damping and quality_factor both set the damping \
+                         (c = sqrt(k m) / Q); give one of them"
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Joins a table path and a key.
+pub(super) fn join(prefix: &str, name: &str) -> String {
+    if prefix.is_empty() {
+        name.to_owned()
+    } else {
+        format!("{prefix}.{name}")
+    }
+}
+
+/// The value of an integer's digits (as `from_str_radix` reads them, with an
+/// optional sign): exact up to 2^53, rounded beyond. TOML integers are 64
+/// bits, but a scene may hold more digits, and they should read as the huge
+/// number they are rather than as something that is not a number.
+fn integer_value(digits: &str, radix: u32) -> Option<f64> {
+    if let Ok(n) = i128::from_str_radix(digits, radix) {
+        return Some(n as f64);
+    }
+    if radix == 10 {
+        // Correctly rounded, where summing digit by digit would not be.
+        return digits.parse().ok();
+    }
+    let (negative, magnitude) = match digits.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, digits.strip_prefix('+').unwrap_or(digits)),
+    };
+    if magnitude.is_empty() {
+        return None;
+    }
+    let mut value = 0.0f64;
+    for c in magnitude.chars() {
+        value = value * f64::from(radix) + f64::from(c.to_digit(radix)?);
+    }
+    Some(if negative { -value } else { value })
+}

@@ -1,0 +1,323 @@
+//! From raw key values to instances: the [`Plan`] says where every parameter
+//! of an instance comes from (a raw slot or a default, directly or through
+//! the stage relations of paper eqs. 6-7), and [`check_instance`] checks what
+//! the per-key checks cannot.
+
+use super::format::fmt_num;
+use super::keys::{
+    AXIS_FIELDS, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, Field, GAIN, PHASE, QUALITY, RESONANCE,
+    SETTLE_SLOT, SLOTS, STAGE_MASS, STIFFNESS, VOLTAGE, axis_slot, slot_path,
+};
+use super::layer::kept_from_lower;
+use crate::model::{AXES, AXIS_NAMES, Axis, Instance, Mechanism};
+
+/// Where a parameter's value comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Src {
+    /// A raw key slot (given in the file, possibly by the other axis).
+    Slot(usize),
+    /// A default.
+    Const(f64),
+}
+
+impl Src {
+    /// The value, in its key's units, for a set of raw key values.
+    pub(super) fn get(self, raw: &[f64; SLOTS]) -> f64 {
+        match self {
+            Src::Slot(slot) => raw[slot],
+            Src::Const(value) => value,
+        }
+    }
+
+    /// Names the source in messages about derived values.
+    pub(super) fn describe(self, field: Field) -> String {
+        match self {
+            Src::Slot(slot) => slot_path(slot),
+            Src::Const(value) => format!("the default {} {}", field.name(), fmt_num(value)),
+        }
+    }
+}
+
+/// How an axis' stage mass and stiffness are obtained.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum StagePlan {
+    /// Both given (or defaulted).
+    MassStiffness { mass: Src, stiffness: Src },
+    /// The mass follows from the resonance and the stiffness (eq. 6).
+    ResonanceStiffness { resonance: Src, stiffness: Src },
+    /// The stiffness follows from the resonance and the mass (eq. 6).
+    ResonanceMass { resonance: Src, mass: Src },
+}
+
+/// How an axis' damping is obtained.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum DampingPlan {
+    /// Given (or defaulted).
+    Damping(Src),
+    /// From the quality factor (eq. 7).
+    Quality(Src),
+}
+
+/// Where every parameter of one axis comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct AxisPlan {
+    /// Stage mass and stiffness.
+    pub(super) stage: StagePlan,
+    /// Stage damping.
+    pub(super) damping: DampingPlan,
+    /// Piezo gain [N/V].
+    pub(super) gain: Src,
+    /// Drive amplitude [V].
+    pub(super) voltage: Src,
+    /// Drive frequency [Hz].
+    pub(super) frequency: Src,
+    /// Duty of the sawtooth [1].
+    pub(super) duty: Src,
+    /// Phase offset [cycles].
+    pub(super) phase: Src,
+}
+
+/// Where every parameter of an instance comes from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Plan {
+    /// The `[mechanism]` keys, in slot order.
+    pub(super) mechanism: [Src; 4],
+    /// Each axis.
+    pub(super) axes: [AxisPlan; AXES],
+    /// Periods run [cycles].
+    pub(super) cycles: Src,
+    /// Periods discarded before measuring [cycles].
+    pub(super) settle: Src,
+}
+
+impl Plan {
+    /// The plan for a set of given keys (after points are overlaid).
+    pub(super) fn build(given: &[bool; SLOTS]) -> Plan {
+        let own = |axis: usize| -> [bool; AXIS_FIELDS.len()] {
+            std::array::from_fn(|j| given[axis_slot(axis, j)])
+        };
+        let x = own(0);
+        let y = own(1);
+        let kept = kept_from_lower(&y, &x, false);
+        let x_sources: [Option<usize>; AXIS_FIELDS.len()] =
+            std::array::from_fn(|j| x[j].then(|| axis_slot(0, j)));
+        let y_sources: [Option<usize>; AXIS_FIELDS.len()] = std::array::from_fn(|j| {
+            if y[j] {
+                Some(axis_slot(1, j))
+            } else if kept[j] {
+                Some(axis_slot(0, j))
+            } else {
+                None
+            }
+        });
+        let mechanism_defaults = [
+            Mechanism::TABLE1.slider_mass,
+            Mechanism::TABLE1.static_friction,
+            Mechanism::TABLE1.coulomb_friction,
+            Mechanism::TABLE1.velocity_band,
+        ];
+        let or_default = |slot: usize, default: f64| {
+            if given[slot] {
+                Src::Slot(slot)
+            } else {
+                Src::Const(default)
+            }
+        };
+        Plan {
+            mechanism: std::array::from_fn(|i| or_default(i, mechanism_defaults[i])),
+            axes: [
+                AxisPlan::build(&x_sources, Axis::TABLE1.voltage),
+                AxisPlan::build(&y_sources, 0.0),
+            ],
+            cycles: or_default(CYCLES_SLOT, Instance::TABLE1.cycles as f64),
+            settle: or_default(SETTLE_SLOT, Instance::TABLE1.settle as f64),
+        }
+    }
+
+    /// The instance for a set of raw key values.
+    pub(super) fn resolve(&self, raw: &[f64; SLOTS]) -> Instance {
+        let [
+            slider_mass,
+            static_friction,
+            coulomb_friction,
+            velocity_band,
+        ] = self.mechanism.map(|src| src.get(raw));
+        Instance {
+            mechanism: Mechanism {
+                slider_mass,
+                static_friction,
+                coulomb_friction,
+                velocity_band,
+            },
+            axes: [self.axes[0].resolve(raw), self.axes[1].resolve(raw)],
+            cycles: self.cycles.get(raw) as u32,
+            settle: self.settle.get(raw) as u32,
+        }
+    }
+}
+
+impl AxisPlan {
+    /// The plan of one axis from the slots its keys come from.
+    pub(super) fn build(sources: &[Option<usize>; AXIS_FIELDS.len()], voltage: f64) -> AxisPlan {
+        let t = Axis::TABLE1;
+        let src = |j: usize, default: f64| sources[j].map_or(Src::Const(default), Src::Slot);
+        let stage = match (sources[STAGE_MASS], sources[STIFFNESS], sources[RESONANCE]) {
+            (_, _, None) => StagePlan::MassStiffness {
+                mass: src(STAGE_MASS, t.stage_mass),
+                stiffness: src(STIFFNESS, t.stiffness),
+            },
+            (Some(mass), None, Some(resonance)) => StagePlan::ResonanceMass {
+                resonance: Src::Slot(resonance),
+                mass: Src::Slot(mass),
+            },
+            // Three stage keys never reach here: layers are checked, and
+            // inheritance keeps at most two.
+            (_, _, Some(resonance)) => StagePlan::ResonanceStiffness {
+                resonance: Src::Slot(resonance),
+                stiffness: src(STIFFNESS, t.stiffness),
+            },
+        };
+        let damping = match sources[QUALITY] {
+            Some(quality) => DampingPlan::Quality(Src::Slot(quality)),
+            None => DampingPlan::Damping(src(DAMPING, t.damping)),
+        };
+        AxisPlan {
+            stage,
+            damping,
+            gain: src(GAIN, t.gain),
+            voltage: src(VOLTAGE, voltage),
+            frequency: src(FREQUENCY, t.frequency),
+            duty: src(DUTY, t.duty),
+            phase: src(PHASE, t.phase),
+        }
+    }
+
+    /// The axis for a set of raw key values.
+    pub(super) fn resolve(&self, raw: &[f64; SLOTS]) -> Axis {
+        let (stage_mass, stiffness) = match self.stage {
+            StagePlan::MassStiffness { mass, stiffness } => (mass.get(raw), stiffness.get(raw)),
+            StagePlan::ResonanceStiffness {
+                resonance,
+                stiffness,
+            } => {
+                let k = stiffness.get(raw);
+                (Axis::mass_from_resonance(resonance.get(raw), k), k)
+            }
+            StagePlan::ResonanceMass { resonance, mass } => {
+                let m = mass.get(raw);
+                (m, Axis::stiffness_from_resonance(resonance.get(raw), m))
+            }
+        };
+        let damping = match self.damping {
+            DampingPlan::Damping(c) => c.get(raw),
+            DampingPlan::Quality(q) => {
+                Axis::damping_from_quality(q.get(raw), stiffness, stage_mass)
+            }
+        };
+        Axis {
+            stage_mass,
+            stiffness,
+            damping,
+            gain: self.gain.get(raw),
+            voltage: self.voltage.get(raw),
+            frequency: self.frequency.get(raw),
+            duty: self.duty.get(raw),
+            phase: self.phase.get(raw),
+        }
+    }
+}
+
+/// The raw slots an error may be located by, most relevant first.
+pub(super) type Culprits = [Option<usize>; 2];
+
+/// The slot of a source, when it comes from the file.
+pub(super) fn src_slot(src: Src) -> Option<usize> {
+    match src {
+        Src::Slot(slot) => Some(slot),
+        Src::Const(_) => None,
+    }
+}
+
+/// Checks what per-key checks cannot: derived stage quantities and
+/// settle < cycles. Returns the message and the slots to locate it by.
+pub(super) fn check_instance(instance: &Instance, plan: &Plan) -> Result<(), (String, Culprits)> {
+    for (a, (axis, axis_plan)) in instance.axes.iter().zip(&plan.axes).enumerate() {
+        let name = AXIS_NAMES[a];
+        let derived = match axis_plan.stage {
+            StagePlan::MassStiffness { .. } => None,
+            StagePlan::ResonanceStiffness {
+                resonance,
+                stiffness,
+            } => Some((
+                Field::StageMass,
+                axis.stage_mass,
+                resonance,
+                format!(
+                    "{} and {}",
+                    resonance.describe(Field::ResonanceHz),
+                    stiffness.describe(Field::Stiffness)
+                ),
+            )),
+            StagePlan::ResonanceMass { resonance, mass } => Some((
+                Field::Stiffness,
+                axis.stiffness,
+                resonance,
+                format!(
+                    "{} and {}",
+                    resonance.describe(Field::ResonanceHz),
+                    mass.describe(Field::StageMass)
+                ),
+            )),
+        };
+        if let Some((field, value, resonance, from)) = derived
+            && let Some(expected) = derived_expected(field, value)
+        {
+            return Err((
+                format!(
+                    "axis.{name}.{} = {} (derived from {from}): {expected}",
+                    field.name(),
+                    fmt_num(value)
+                ),
+                [src_slot(resonance), None],
+            ));
+        }
+        if let DampingPlan::Quality(quality) = axis_plan.damping
+            && let Some(expected) = derived_expected(Field::Damping, axis.damping)
+        {
+            return Err((
+                format!(
+                    "axis.{name}.damping = {} (derived from {}, the stiffness and the stage \
+                     mass): {expected}",
+                    fmt_num(axis.damping),
+                    quality.describe(Field::QualityFactor)
+                ),
+                [src_slot(quality), None],
+            ));
+        }
+    }
+    if instance.settle >= instance.cycles {
+        return Err((
+            format!(
+                "simulation.settle = {} with simulation.cycles = {}: expected settle < cycles \
+                 (the settle periods are discarded before measuring)",
+                instance.settle, instance.cycles
+            ),
+            [src_slot(plan.settle), src_slot(plan.cycles)],
+        ));
+    }
+    Ok(())
+}
+
+/// What a derived stage quantity (stage mass, stiffness or damping) should
+/// have been when `value` is not acceptable for `field`: finite and of the
+/// key's sign, then within its plausible bounds; `None` when it is fine.
+fn derived_expected(field: Field, value: f64) -> Option<String> {
+    let rule = field.rule();
+    if !value.is_finite() || !rule.accepts(value) {
+        return Some(rule.expected().replacen("a number", "a finite number", 1));
+    }
+    match field.bounds() {
+        Some(bounds) if !bounds.contains(value) => Some(bounds.expected(field.units())),
+        _ => None,
+    }
+}

@@ -1,0 +1,245 @@
+//! What values each numeric key accepts: its [`Rule`] (sign, interval,
+//! integrality: what the model's equations need) and its [`Bounds`] (what
+//! is physically plausible for a millimetre-scale piezoelectric stick-slip
+//! drive, generously).
+//!
+//! Both are intervals, so a monotone range is valid exactly when both its
+//! ends are, and the derived stage quantities (monotone in each key) are
+//! valid over a whole grid exactly when they are at its corners.
+//!
+//! The bounds keep every run finite. Within them a force is at most 1e9 N
+//! (friction) and a mass at least 1e-9 kg, so an acceleration is at most
+//! about 1e18 m/s^2; a run lasts at most 4.3e9 periods of 1e3 s, about
+//! 4.3e12 s; so no displacement, velocity or energy of a run comes near
+//! f64's 1.8e308, where the unbounded values they replace (a frequency of
+//! 1e300 Hz, a voltage of 1e308 V) overflowed and ended with status 2. Each
+//! bound is also at least 10 times wider than every shipped scene
+//! (`sweeps/*.toml`; `sweeps/extreme.toml` spans the widest ranges).
+//! The GPU's f32 path has a far smaller range (3.4e38); the bounds do not
+//! promise that every corner of them stays finite there.
+
+use super::format::fmt_num;
+use super::keys::Field;
+
+/// What values a key accepts, by sign, interval and integrality. Every rule
+/// is an interval (plus integrality).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Rule {
+    /// A number > 0.
+    Positive,
+    /// A number >= 0.
+    NonNegative,
+    /// Any finite number.
+    Finite,
+    /// A number in (0, 1].
+    Duty,
+    /// An integer in [1, u32::MAX].
+    Count,
+    /// An integer in [0, u32::MAX].
+    Settle,
+}
+
+impl Rule {
+    /// Whether `value` (already known to be finite) is accepted.
+    pub(super) fn accepts(self, value: f64) -> bool {
+        let integer = value.fract() == 0.0;
+        match self {
+            Rule::Positive => value > 0.0,
+            Rule::NonNegative => value >= 0.0,
+            Rule::Finite => true,
+            Rule::Duty => value > 0.0 && value <= 1.0,
+            Rule::Count => integer && value >= 1.0 && value <= u32::MAX as f64,
+            Rule::Settle => integer && value >= 0.0 && value <= u32::MAX as f64,
+        }
+    }
+
+    /// What the rule expects, for error messages.
+    pub(super) fn expected(self) -> &'static str {
+        match self {
+            Rule::Positive => "expected a number > 0",
+            Rule::NonNegative => "expected a number >= 0",
+            Rule::Finite => "expected a finite number",
+            Rule::Duty => "expected a number in (0, 1]",
+            Rule::Count => "expected an integer from 1 to 4294967295",
+            Rule::Settle => "expected an integer from 0 to 4294967295",
+        }
+    }
+
+    /// Whether the key holds an integer.
+    pub(super) fn integer(self) -> bool {
+        matches!(self, Rule::Count | Rule::Settle)
+    }
+}
+
+/// The plausible values of a key, a closed interval in the key's units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Bounds {
+    /// The smallest plausible value.
+    pub(super) min: f64,
+    /// The largest plausible value.
+    pub(super) max: f64,
+}
+
+impl Bounds {
+    /// Whether `value` lies within the bounds.
+    pub(super) fn contains(self, value: f64) -> bool {
+        value >= self.min && value <= self.max
+    }
+
+    /// What the bounds expect, with the key's units, for error messages.
+    pub(super) fn expected(self, units: &str) -> String {
+        let unit = if units == "1" {
+            String::new()
+        } else {
+            format!(" {units}")
+        };
+        format!(
+            "expected a number from {} to {}{unit} (the plausible range of the model)",
+            fmt_num(self.min),
+            fmt_num(self.max)
+        )
+    }
+}
+
+/// Slider and stage masses, 1 ug to 1 t [kg]. The shipped scenes use 1e-6
+/// kg (`sweeps/extreme.toml`) to 1 kg; the lower end keeps an acceleration
+/// (force / mass) finite.
+const MASS: Bounds = Bounds {
+    min: 1e-9,
+    max: 1e3,
+};
+
+/// Static friction, 1 pN to 1 GN [N]. `sweeps/extreme.toml` goes from 1e-9
+/// N (almost none) to 1e6 N (never slips).
+const STATIC_FRICTION: Bounds = Bounds {
+    min: 1e-12,
+    max: 1e9,
+};
+
+/// Coulomb (sliding) friction, none to 1 GN [N], like the static friction.
+const COULOMB_FRICTION: Bounds = Bounds { min: 0.0, max: 1e9 };
+
+/// The velocity band of the stick detection, 1 fm/s to 1 km/s [m/s].
+/// `sweeps/extreme.toml` uses 1e-9 to 1e-3 m/s; a band wider than any
+/// speed of the run only means the slider always sticks.
+const VELOCITY_BAND: Bounds = Bounds {
+    min: 1e-15,
+    max: 1e3,
+};
+
+/// Stage stiffness, 1 mN/m to 1 TN/m [N/m]. `sweeps/extreme.toml` goes to
+/// 1e9 N/m (a 100 kHz stage); Table 1 has 1e6 N/m.
+const STIFFNESS: Bounds = Bounds {
+    min: 1e-3,
+    max: 1e12,
+};
+
+/// Stage damping, none to 1e9 N s/m [N s/m]. Q = 0.5 at 1e9 N/m and 2.5 g
+/// (`sweeps/extreme.toml`) needs about 3e3 N s/m.
+const DAMPING: Bounds = Bounds { min: 0.0, max: 1e9 };
+
+/// Stage resonance, 1 mHz to 10 GHz [Hz]: up to the 5e9 Hz of the stiffest
+/// and lightest stage the mass and stiffness bounds allow, down to the
+/// drive's lowest frequency. The paper's text uses 1 kHz.
+const RESONANCE: Bounds = Bounds {
+    min: 1e-3,
+    max: 1e10,
+};
+
+/// Stage quality factor, 1e-3 (far overdamped) to 1e9 [1].
+/// `sweeps/extreme.toml` spans 0.5 to 1e4.
+const QUALITY: Bounds = Bounds {
+    min: 1e-3,
+    max: 1e9,
+};
+
+/// Piezo force constant, -1 kN/V to 1 kN/V [N/V]. Table 1 has -0.6 N/V.
+const GAIN: Bounds = Bounds {
+    min: -1e3,
+    max: 1e3,
+};
+
+/// Drive amplitude, -10 kV to 10 kV [V]: ten times the +-1000 V of
+/// `sweeps/extreme.toml`, beyond which piezo stacks break down.
+const VOLTAGE: Bounds = Bounds {
+    min: -1e4,
+    max: 1e4,
+};
+
+/// Drive frequency, 1 mHz to 1 MHz [Hz]. `sweeps/extreme.toml` drives at
+/// up to 13 kHz, past the 3.2 kHz stage resonance of Table 1; 1 MHz is ten
+/// times the resonance of its stiffest stage. At the lower end one period
+/// lasts 1000 s.
+const FREQUENCY: Bounds = Bounds {
+    min: 1e-3,
+    max: 1e6,
+};
+
+/// Duty of the sawtooth, 1e-6 to 1 [1]: a rise shorter than a millionth of
+/// the period would make the drive's slope, voltage / (duty x period),
+/// enormous for no physical reason. `sweeps/stress.toml` goes down to 0.6.
+const DUTY: Bounds = Bounds {
+    min: 1e-6,
+    max: 1.0,
+};
+
+/// Phase offset, -1e6 to 1e6 periods [cycles]: only its fraction matters,
+/// and beyond a million periods f64 keeps fewer than 10 of its digits.
+const PHASE: Bounds = Bounds {
+    min: -1e6,
+    max: 1e6,
+};
+
+/// Integrator tolerance, 1e-12 to 1 rad [rad]: a deviation of the friction
+/// direction above a radian leaves the quadratic model of the direction
+/// nothing to approximate; the error of the step maps is about tolerance / 4
+/// um, so 1e-12 rad already asks for 2.5e-13 um. The default is 1e-4 rad;
+/// `tests/extreme.rs` converges at 1e-8 rad.
+const TOLERANCE: Bounds = Bounds {
+    min: 1e-12,
+    max: 1.0,
+};
+
+impl Field {
+    /// What values the key accepts.
+    pub(super) fn rule(self) -> Rule {
+        match self {
+            Field::SliderMass
+            | Field::StaticFriction
+            | Field::VelocityBand
+            | Field::StageMass
+            | Field::Stiffness
+            | Field::ResonanceHz
+            | Field::QualityFactor
+            | Field::Frequency
+            | Field::Tolerance => Rule::Positive,
+            Field::CoulombFriction | Field::Damping => Rule::NonNegative,
+            Field::Gain | Field::Voltage | Field::Phase => Rule::Finite,
+            Field::Duty => Rule::Duty,
+            Field::Cycles | Field::MaxStepsPerPeriod => Rule::Count,
+            Field::Settle => Rule::Settle,
+        }
+    }
+
+    /// The plausible values of the key, checked after its rule; none for the
+    /// integer keys, which their rule already bounds.
+    pub(super) fn bounds(self) -> Option<Bounds> {
+        Some(match self {
+            Field::SliderMass | Field::StageMass => MASS,
+            Field::StaticFriction => STATIC_FRICTION,
+            Field::CoulombFriction => COULOMB_FRICTION,
+            Field::VelocityBand => VELOCITY_BAND,
+            Field::Stiffness => STIFFNESS,
+            Field::Damping => DAMPING,
+            Field::ResonanceHz => RESONANCE,
+            Field::QualityFactor => QUALITY,
+            Field::Gain => GAIN,
+            Field::Voltage => VOLTAGE,
+            Field::Frequency => FREQUENCY,
+            Field::Duty => DUTY,
+            Field::Phase => PHASE,
+            Field::Tolerance => TOLERANCE,
+            Field::Cycles | Field::Settle | Field::MaxStepsPerPeriod => return None,
+        })
+    }
+}
