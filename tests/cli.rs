@@ -22,10 +22,14 @@ fn manifest(path: &str) -> String {
 fn the_paper_scene_reproduces_model_md_through_hdf5() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("paper.h5");
+    // The CPU path explicitly: the default (`auto`) picks a hardware GPU
+    // where there is one, and the f32 shader does not meet these bounds.
     let run = pidm(
         &[
             "run",
             &manifest("sweeps/paper.toml"),
+            "--backend",
+            "cpu",
             "--out",
             out.to_str().unwrap(),
         ],
@@ -123,8 +127,16 @@ fn a_grid_scene_writes_maps_shaped_like_its_grid() {
     let check = pidm(&["check", scene.to_str().unwrap()], dir.path());
     assert!(check.status.success());
     assert!(String::from_utf8_lossy(&check.stdout).contains("instances: 6"));
+    // The CPU path explicitly, as above.
     let run = pidm(
-        &["run", scene.to_str().unwrap(), "--threads", "1"],
+        &[
+            "run",
+            scene.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--threads",
+            "1",
+        ],
         dir.path(),
     );
     assert!(

@@ -3,7 +3,10 @@
 //! accuracy knob, and determinism across thread counts.
 
 use pidm::backend::{Backend, CpuBackend};
-use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
+use pidm::cpu::integrate::{
+    Coefficients, MODE_STICK, STATUS_OK, Settings, State, StepMotion, StepObserver, Vec2,
+    advance_observed, displacement, initial_state, is_finished, run_instance,
+};
 use pidm::model::{Axis, Instance};
 use pidm::sweep::{self, Plan, run_one};
 
@@ -84,6 +87,11 @@ fn reference_cases() -> Vec<(&'static str, Instance, [f64; 2])> {
         (
             "text 1-DOF 100 V 10 Hz",
             case(100.0, 0.0, 10.0, 10.0, x),
+            [0.0, 0.0],
+        ),
+        (
+            "text 1-DOF 50 V 10 Hz",
+            case(50.0, 0.0, 10.0, 10.0, x),
             [0.0, 0.0],
         ),
     ]
@@ -320,5 +328,59 @@ fn random_instances_finish_and_converge_within_the_claimed_error() {
     assert!(
         worst <= CLAIMED_ANY_INSTANCE_ERROR_UM,
         "largest change {worst:e} um"
+    );
+}
+
+/// Records the mode every step of a run starts in.
+struct Modes(Vec<u32>);
+
+impl StepObserver for Modes {
+    fn step(&mut self, st: &State, _motion: &StepMotion) {
+        self.0.push(st.mode);
+    }
+}
+
+/// MODEL.md section 6: with the text's parameter set (`sweeps/paper_text.toml`)
+/// the 10 Hz 1-DOF cases, 100 V and 50 V, do not slip at all. Pinned here
+/// by what the run does, not only by its step: every step starts in stick
+/// and the run ends in stick with no relative velocity.
+#[test]
+fn the_texts_10_hz_one_dof_cases_never_slip() {
+    let settings = Settings::default();
+    let mut steps = Vec::new();
+    for voltage in [100.0, 50.0] {
+        let inst = case(voltage, 0.0, 10.0, 10.0, Axis::TEXT);
+        let c = Coefficients::new(&inst, &settings, f64::EPSILON);
+        let mut st = initial_state(&c);
+        let mut modes = Modes(Vec::new());
+        while !is_finished(&c, &st) {
+            advance_observed(&c, &mut st, u32::MAX, &mut modes);
+        }
+        assert_eq!(st.status, STATUS_OK, "{voltage} V");
+        assert!(!modes.0.is_empty(), "{voltage} V: no step observed");
+        assert!(
+            modes.0.iter().all(|&m| m == MODE_STICK),
+            "{voltage} V: a step started in mode {:?}",
+            modes.0.iter().find(|&&m| m != MODE_STICK)
+        );
+        assert_eq!(st.mode, MODE_STICK, "{voltage} V");
+        assert_eq!(st.v_rel, Vec2::ZERO, "{voltage} V");
+        let step_um = inst.measure(0, displacement(&inst, &st)[0]).1 * 1e6;
+        // The step is not exactly 0: the slider rides the stage's decaying
+        // start-up transient, which has not quite died out when the
+        // measured cycles begin (measured -9.0e-6 um at 100 V and -4.5e-6
+        // um at 50 V). The bound, 2e-5 um, leaves a factor of 2 and is below
+        // MODEL.md's printed resolution of 1e-4 um; the modes above, not
+        // the step, are what shows that nothing slipped.
+        assert!(step_um.abs() <= 2e-5, "{voltage} V: step {step_um:e} um");
+        steps.push(step_um);
+    }
+    // Stuck, the mechanism is linear, so halving the voltage halves the
+    // step to rounding (measured: equal to 16 digits).
+    assert!(
+        (steps[1] - 0.5 * steps[0]).abs() <= 1e-9 * steps[0].abs(),
+        "50 V step {:e} um is not half the 100 V step {:e} um",
+        steps[1],
+        steps[0]
     );
 }

@@ -111,18 +111,40 @@ pub fn run_fixed_step(inst: &Instance, step: f64) -> ([f64; AXES], u64) {
 mod tests {
     use super::*;
 
-    #[test]
-    fn the_fixed_step_baseline_is_far_off_at_the_papers_step_and_closer_when_refined() {
-        // MODEL.md: plain fixed-step RK4 at h = 1e-5 s is wrong by
-        // micrometres per cycle on the paper's cases.
+    /// How far the fixed-step baseline at RK4 step `h` is from the
+    /// event-locating integrator, in um per own drive cycle, on the 1-DOF
+    /// 100 V case of Table 1 (4 cycles of which 2 settle).
+    fn fixed_step_error_um(h: f64) -> f64 {
         let mut inst = Instance::TABLE1;
         inst.axes[1].voltage = 0.0;
         inst.cycles = 4;
         inst.settle = 2;
         let reference = crate::sweep::run_one(&inst, &Default::default()).displacement[0];
-        let (coarse, _) = run_fixed_step(&inst, 1e-5);
+        let (fixed, _) = run_fixed_step(&inst, h);
         let step = |d: f64| inst.measure(0, d).1 * 1e6;
-        let err_coarse = (step(coarse[0]) - step(reference)).abs();
-        assert!(err_coarse > 0.05, "coarse error {err_coarse} um");
+        (step(fixed[0]) - step(reference)).abs()
+    }
+
+    #[test]
+    fn the_fixed_step_baseline_is_far_off_at_the_papers_step_and_closer_when_refined() {
+        // MODEL.md section 3: plain fixed-step RK4 at h = 1e-5 s is wrong by
+        // micrometres per cycle on the paper's cases. Measured here: 21.7 um;
+        // the bound leaves a factor of 4.
+        let coarse = fixed_step_error_um(1e-5);
+        assert!(coarse > 5.0, "at h = 1e-5 s the error is {coarse} um");
+        // Ten times finer the error falls to 0.056 um, 390 times smaller
+        // (the default integrator's error is about 1e-4 um, far below
+        // both). The bound asks for a factor of 100.
+        let refined = fixed_step_error_um(1e-6);
+        assert!(
+            refined < coarse / 100.0,
+            "at h = 1e-6 s the error is {refined} um, at 1e-5 s {coarse} um"
+        );
+        // Refining does not converge it, though: the error goes on
+        // scattering (with changing sign) at a few 0.01 um down to h = 1e-7
+        // s, where it is still 0.0096 um. At 1e-6 s it stays above ten
+        // times the project's 0.001 um bar (measured 0.056 um, so the bound
+        // leaves a factor of 5).
+        assert!(refined > 0.01, "at h = 1e-6 s the error is {refined} um");
     }
 }
