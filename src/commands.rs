@@ -616,6 +616,9 @@ pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> Result
         }
         toml.push('\n');
     }
+    // What is written must be a scene that runs: its own validation
+    // refuses flags it cannot hold (`--cycles 0`, `--settle` >= `--cycles`).
+    Scene::from_toml(&toml, None).context("random-scene: the flags do not make a valid scene")?;
     Ok(toml)
 }
 

@@ -298,3 +298,62 @@ fn the_gpu_backend_writes_the_same_datasets_as_the_cpu() {
         }
     }
 }
+
+#[test]
+fn a_bad_flag_value_is_refused_with_what_was_expected() {
+    let dir = tempfile::tempdir().unwrap();
+    let paper = manifest("sweeps/paper.toml");
+    let check = |args: &[&str], expected: &str| {
+        let out = pidm(args, dir.path());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert_ne!(out.status.code(), Some(101), "{args:?} panicked: {err}");
+        assert!(err.contains(expected), "{args:?}: {err}");
+    };
+    check(
+        &["bench", &paper, "--seconds", "nan"],
+        "NaN is not a finite number above 0",
+    );
+    check(
+        &["accuracy", &paper, "--karnopp-steps", "1e-5,0"],
+        "0 is not a finite number above 0",
+    );
+    check(
+        &["random-scene", "--count", "0"],
+        "expected at least 1 instance",
+    );
+    check(&["random-scene", "--cycles", "0"], "simulation.cycles = 0");
+    check(
+        &["random-scene", "--cycles", "3", "--settle", "3"],
+        "expected settle < cycles",
+    );
+    let run = |extra: &[&str], expected: &str| {
+        let mut args = vec!["run", paper.as_str(), "--backend", "cpu", "--out", "x.h5"];
+        args.extend(extra);
+        check(&args, expected);
+        assert!(!dir.path().join("x.h5").exists(), "{extra:?}");
+    };
+    run(&["--threads", "0"], "--threads must be at least 1");
+    run(&["--chunk-size", "0"], "--chunk-size must be at least 1");
+    run(&["--shard", "0/3"], "expected K/N with 1 <= K <= N");
+    run(&["--precision", "f32"], "the CPU path runs in f64 only");
+}
+
+#[test]
+fn output_cut_short_by_its_reader_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    // `pidm check SCENE | head -1`: the reader is gone before pidm writes
+    // (its end of the pipe is closed as soon as pidm starts).
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pidm"))
+        .args(["check", &manifest("sweeps/coupling.toml")])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.signal(), Some(13), "{:?}: {err}", out.status);
+}
