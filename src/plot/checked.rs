@@ -165,7 +165,7 @@ impl ResultFile {
             return Err(self.dataset_error(
                 path,
                 Problem::WrongType {
-                    found: found.to_string(),
+                    found: type_name(&found),
                     expected: want.describe(),
                 },
             ));
@@ -299,7 +299,7 @@ impl ResultFile {
             return Err(self.error(
                 object(),
                 Problem::WrongType {
-                    found: found.to_string(),
+                    found: type_name(&found),
                     expected: want.describe(),
                 },
             ));
@@ -380,6 +380,18 @@ impl ResultFile {
     pub(super) fn has_attr(&self, loc: &Location, name: &str) -> bool {
         loc.attr_names()
             .is_ok_and(|names| names.iter().any(|n| n == name))
+    }
+}
+
+/// A short name of a stored type for messages: "float64", "uint32",
+/// "text", ...
+fn type_name(found: &TypeDescriptor) -> String {
+    match found {
+        TypeDescriptor::VarLenUnicode
+        | TypeDescriptor::VarLenAscii
+        | TypeDescriptor::FixedAscii(_)
+        | TypeDescriptor::FixedUnicode(_) => "text".to_owned(),
+        other => other.to_string(),
     }
 }
 
