@@ -185,20 +185,39 @@ impl ResultFile {
         self.read(path, &ds, |ds| ds.read_raw::<u32>())
     }
 
-    /// Reads the text dataset at `path` whole.
+    /// Reads the text dataset at `path` whole; text that is not UTF-8 is
+    /// an error.
     pub(super) fn texts(&self, path: &str) -> Checked<Array<String>> {
         let ds = self.dataset(path, Want::Text)?;
-        self.read(path, &ds, |ds| {
-            if matches!(
-                ds.dtype().and_then(|t| t.to_descriptor()),
-                Ok(TypeDescriptor::VarLenAscii)
-            ) {
+        let ascii = is_ascii(ds.dtype());
+        // The bytes, not `as_str`: HDF5 hands over whatever the file holds,
+        // and a damaged file may hold bytes that are not UTF-8.
+        let raw = self.read(path, &ds, |ds| {
+            Ok(if ascii {
                 let raw: Vec<VarLenAscii> = ds.read_raw()?;
-                Ok(raw.iter().map(|s| s.as_str().to_owned()).collect())
+                raw.iter().map(|s| s.as_bytes().to_vec()).collect()
             } else {
                 let raw: Vec<VarLenUnicode> = ds.read_raw()?;
-                Ok(raw.iter().map(|s| s.as_str().to_owned()).collect())
-            }
+                raw.iter().map(|s| s.as_bytes().to_vec()).collect()
+            })
+        })?;
+        let values = raw
+            .values
+            .into_iter()
+            .enumerate()
+            .map(|(k, bytes)| {
+                String::from_utf8(bytes).map_err(|_| {
+                    self.dataset_error(
+                        path,
+                        Problem::Invalid(format!("holds text that is not UTF-8 at index {k}")),
+                    )
+                })
+            })
+            .collect::<Checked<_>>()?;
+        Ok(Array {
+            path: raw.path,
+            shape: raw.shape,
+            values,
         })
     }
 
@@ -282,15 +301,15 @@ impl ResultFile {
         want: Want,
     ) -> Checked<Option<Attribute>> {
         let object = || format!("attribute {name} of {}", shown(at));
-        let names = loc
-            .attr_names()
-            .map_err(|e| self.error(object(), unreadable(e)))?;
-        if !names.iter().any(|n| n == name) {
-            return Ok(None);
-        }
-        let attr = loc
-            .attr(name)
-            .map_err(|e| self.error(object(), unreadable(e)))?;
+        // Opened by name, not found by listing the attributes: listing
+        // builds a table that libhdf5 1.10 frees wrongly when a damaged
+        // file breaks it off (a segmentation fault, found by
+        // tests/plot_fuzz.rs).
+        let attr = match loc.attr(name) {
+            Ok(attr) => attr,
+            Err(e) if is_missing_attribute(&e) => return Ok(None),
+            Err(e) => return Err(self.error(object(), unreadable(e))),
+        };
         let found = attr
             .dtype()
             .and_then(|t| t.to_descriptor())
@@ -327,19 +346,21 @@ impl ResultFile {
         let Some(attr) = self.attribute(loc, at, name, Want::Text)? else {
             return Ok(None);
         };
-        let ascii = matches!(
-            attr.dtype().and_then(|t| t.to_descriptor()),
-            Ok(TypeDescriptor::VarLenAscii)
-        );
-        let text = if ascii {
+        let object = || format!("attribute {name} of {}", shown(at));
+        let bytes = if is_ascii(attr.dtype()) {
             attr.read_scalar::<VarLenAscii>()
-                .map(|s| s.as_str().to_owned())
+                .map(|s| s.as_bytes().to_vec())
         } else {
             attr.read_scalar::<VarLenUnicode>()
-                .map(|s| s.as_str().to_owned())
-        };
-        text.map(Some)
-            .map_err(|e| self.error(format!("attribute {name} of {}", shown(at)), unreadable(e)))
+                .map(|s| s.as_bytes().to_vec())
+        }
+        .map_err(|e| self.error(object(), unreadable(e)))?;
+        String::from_utf8(bytes).map(Some).map_err(|_| {
+            self.error(
+                object(),
+                Problem::Invalid("holds text that is not UTF-8".to_owned()),
+            )
+        })
     }
 
     /// The finite number attribute `name` of the object at `at`, which must
@@ -378,9 +399,22 @@ impl ResultFile {
 
     /// Whether the object at `at` has an attribute `name`.
     pub(super) fn has_attr(&self, loc: &Location, name: &str) -> bool {
-        loc.attr_names()
-            .is_ok_and(|names| names.iter().any(|n| n == name))
+        loc.attr(name).is_ok()
     }
+}
+
+/// Whether opening an attribute by name failed because there is none of
+/// that name (libhdf5 says "can't locate attribute").
+fn is_missing_attribute(e: &hdf5::Error) -> bool {
+    e.to_string().contains("can't locate attribute")
+}
+
+/// Whether `dtype` is ASCII text (else, for text, UTF-8).
+fn is_ascii(dtype: hdf5::Result<hdf5::Datatype>) -> bool {
+    matches!(
+        dtype.and_then(|t| t.to_descriptor()),
+        Ok(TypeDescriptor::VarLenAscii)
+    )
 }
 
 /// A short name of a stored type for messages: "float64", "uint32",
