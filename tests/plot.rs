@@ -432,8 +432,36 @@ fn damaged_result_files_are_errors_that_name_the_dataset() {
         "a non-finite axis value",
         |p| edit(p, |f| alter(f, "axes/axis.x.voltage", |v| v[1] = f64::NAN)),
         Want::Error(&[
-            "dataset /axes/axis.x.voltage holds 1 non-finite values, the first at index 1",
+            "dataset /axes/axis.x.voltage holds 1 values that are not finite or beyond ±1e100, \
+             the first at index 1",
         ]),
+    );
+    // Finite but so large that a chart's range would overflow and its
+    // labels never end: refused before drawing.
+    check(
+        "a sample time beyond ±1e100",
+        |p| {
+            edit(p, |f| {
+                alter(f, "trajectories/0/time", |v| {
+                    *v.last_mut().unwrap() = f64::MAX
+                })
+            })
+        },
+        Want::Error(&[
+            "dataset /trajectories/0/time holds 1 values that are not finite or beyond ±1e100, \
+             the first at index 40",
+        ]),
+    );
+    check(
+        "a run attribute beyond ±1e100",
+        |p| {
+            edit(p, |f| {
+                f.group("trajectories/0")?
+                    .attr("settle_s")?
+                    .write_scalar(&-1e300)
+            })
+        },
+        Want::Error(&["attribute settle_s of /trajectories/0 is -1e300, expected a finite number"]),
     );
     check(
         "sample times that decrease",
@@ -520,25 +548,35 @@ fn damaged_result_files_are_errors_that_name_the_dataset() {
         Want::Pictures(2, &["wrote pics/step_x.png", "wrote pics/step_y.png"]),
     );
     check(
-        "a non-finite step of an instance with status 0",
-        |p| edit(p, |f| alter(f, "maps/step_x", |v| v[1] = f64::NAN)),
+        "steps that are not finite or beyond ±1e100 with status 0",
+        |p| {
+            edit(p, |f| {
+                alter(f, "maps/step_x", |v| v[1] = f64::NAN)?;
+                alter(f, "baseline/step_y", |v| v[2] = -f64::MAX)
+            })
+        },
         Want::Pictures(
             7,
-            &["note: 1 instances have status 0 in /maps/status but a non-finite value"],
+            &[
+                "note: 1 instances have status 0 in /maps/status but a value in /maps/step_x or \
+                 /maps/step_y that is not finite or beyond ±1e100",
+                "note: 1 instances have status 0 in /baseline/status but a value in \
+                 /baseline/step_x or /baseline/step_y",
+            ],
         ),
     );
     check(
-        "a trajectory with non-finite displacements",
+        "a trajectory with displacements beyond ±1e100",
         |p| {
             edit(p, |f| {
-                alter(f, "trajectories/0/slider_y", |v| v[7] = f64::INFINITY)
+                alter(f, "trajectories/0/slider_y", |v| v[7] = f64::MAX)
             })
         },
         Want::Pictures(
             6,
             &[
                 "note: trajectory 0 (instance 0",
-                "holds non-finite displacements (the run diverged); not drawn",
+                "holds displacements that are not finite or beyond ±1e100 (the run diverged); not drawn",
             ],
         ),
     );

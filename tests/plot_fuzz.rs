@@ -99,6 +99,9 @@ enum Mutation {
     /// Replace the dataset with this index by a 1-D one of this length,
     /// of the same kind of numbers.
     ResizeDataset(usize, usize),
+    /// Set one value of the float dataset with this index (other datasets
+    /// stay as they are).
+    SetValue(usize, usize, f64),
     /// Delete the attribute with this index.
     DeleteAttribute(usize),
     /// Keep this fraction of the file's bytes.
@@ -116,7 +119,10 @@ impl Mutation {
     fn is_structural(&self) -> bool {
         matches!(
             self,
-            Mutation::DeleteDataset(_) | Mutation::ResizeDataset(..) | Mutation::DeleteAttribute(_)
+            Mutation::DeleteDataset(_)
+                | Mutation::ResizeDataset(..)
+                | Mutation::SetValue(..)
+                | Mutation::DeleteAttribute(_)
         )
     }
 }
@@ -126,10 +132,27 @@ fn mutation() -> impl Strategy<Value = Mutation> {
     prop_oneof![
         any::<usize>().prop_map(Mutation::DeleteDataset),
         (any::<usize>(), 0usize..40).prop_map(|(i, n)| Mutation::ResizeDataset(i, n)),
+        (any::<usize>(), any::<usize>(), value()).prop_map(|(i, k, v)| Mutation::SetValue(i, k, v)),
         any::<usize>().prop_map(Mutation::DeleteAttribute),
         (0.0..1.0f64).prop_map(Mutation::Truncate),
         (0.0..1.0f64, 1u8..=255).prop_map(|(at, mask)| Mutation::Flip(at, mask)),
         (0usize..4096, 1u8..=255).prop_map(|(at, mask)| Mutation::FlipHead(at, mask)),
+    ]
+}
+
+/// A value to put into a dataset: any number, or one at the edges of what
+/// a float can hold.
+fn value() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        any::<f64>(),
+        Just(f64::NAN),
+        Just(f64::INFINITY),
+        Just(-f64::MAX),
+        Just(f64::MAX),
+        Just(1e100),
+        Just(-1e100),
+        Just(f64::MIN_POSITIVE / 4.0),
+        Just(0.0),
     ]
 }
 
@@ -167,6 +190,21 @@ fn restructure(path: &Path, changes: &[&Mutation]) -> hdf5::Result<()> {
                         .shape([n])
                         .create(name.as_str())?
                         .write_raw(&values)?;
+                }
+            }
+            Mutation::SetValue(i, k, value) => {
+                let name = &valid.datasets[i % valid.datasets.len()];
+                let Ok(ds) = file.dataset(name) else {
+                    continue;
+                };
+                if !matches!(ds.dtype()?.to_descriptor()?, TypeDescriptor::Float(_)) {
+                    continue;
+                }
+                let mut values: Vec<f64> = ds.read_raw()?;
+                if !values.is_empty() {
+                    let n = values.len();
+                    values[k % n] = value;
+                    ds.write_raw(&values)?;
                 }
             }
             Mutation::DeleteAttribute(i) => {

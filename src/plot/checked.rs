@@ -11,6 +11,17 @@ use hdf5::{Attribute, Dataset, Group, Location, LocationType};
 
 use super::error::{Problem, ResultFileError};
 
+/// The largest magnitude a number read from a result file may have. Far
+/// beyond any physical value here, it keeps every quantity derived for a
+/// picture (micrometres, milliseconds, spans, padding) finite: a range
+/// that overflows to infinity would hang the chart's label placement.
+pub(super) const PLAUSIBLE: f64 = 1e100;
+
+/// Whether `value` is finite and within [`PLAUSIBLE`].
+pub(super) fn is_plausible(value: f64) -> bool {
+    value.abs() <= PLAUSIBLE
+}
+
 /// The result of a checked read.
 pub(super) type Checked<T> = Result<T, ResultFileError>;
 
@@ -275,16 +286,16 @@ impl ResultFile {
         }
     }
 
-    /// An error if `array` holds a non-finite value; `reason` says why it
-    /// cannot.
-    pub(super) fn expect_finite(&self, array: &Array<f64>, reason: &'static str) -> Checked<()> {
-        let Some(first) = array.values.iter().position(|v| !v.is_finite()) else {
+    /// An error if `array` holds a value that is not finite or beyond
+    /// [`PLAUSIBLE`]; `reason` says why it cannot.
+    pub(super) fn expect_plausible(&self, array: &Array<f64>, reason: &'static str) -> Checked<()> {
+        let Some(first) = array.values.iter().position(|&v| !is_plausible(v)) else {
             return Ok(());
         };
         Err(self.dataset_error(
             &array.path,
-            Problem::NonFinite {
-                count: array.values.iter().filter(|v| !v.is_finite()).count(),
+            Problem::Implausible {
+                count: array.values.iter().filter(|&&v| !is_plausible(v)).count(),
                 first,
                 reason,
             },
@@ -363,8 +374,8 @@ impl ResultFile {
         })
     }
 
-    /// The finite number attribute `name` of the object at `at`, which must
-    /// exist.
+    /// The number attribute `name` of the object at `at`, which must exist
+    /// and be finite and within [`PLAUSIBLE`].
     pub(super) fn number_attr(&self, loc: &Location, at: &str, name: &str) -> Checked<f64> {
         let object = || format!("attribute {name} of {}", shown(at));
         let attr = self
@@ -373,10 +384,12 @@ impl ResultFile {
         let value = attr
             .read_scalar::<f64>()
             .map_err(|e| self.error(object(), unreadable(e)))?;
-        if !value.is_finite() {
+        if !is_plausible(value) {
             return Err(self.error(
                 object(),
-                Problem::Invalid(format!("is {value}, expected a finite number")),
+                Problem::Invalid(format!(
+                    "is {value:e}, expected a finite number within ±{PLAUSIBLE:e}"
+                )),
             ));
         }
         Ok(value)

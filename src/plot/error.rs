@@ -63,8 +63,13 @@ pub enum Problem {
         expected: Vec<usize>,
         reason: String,
     },
-    #[error("holds {count} non-finite values, the first at index {first} ({reason})")]
-    NonFinite {
+    /// Values that are not finite or beyond ±1e100 where only finite,
+    /// plausible ones can be.
+    #[error(
+        "holds {count} values that are not finite or beyond ±1e100, the first at index {first} \
+         ({reason})"
+    )]
+    Implausible {
         count: usize,
         first: usize,
         reason: &'static str,

@@ -3,15 +3,18 @@
 //! the trajectories must exist with the right type, and every shape must
 //! agree with the others, so drawing never indexes past the end of a list.
 //!
-//! Coordinates (axis values, sample times, run attributes) must be finite:
-//! a non-finite one is an error. Values (steps, displacements) may be
-//! non-finite only where the run failed: a non-finite step with status 0 is
-//! drawn as not computed, with a note, and a trajectory with non-finite
-//! samples is left out, with a note.
+//! Every number drawn must be finite and within ±1e100 ([`PLAUSIBLE`]), so
+//! that nothing derived from it overflows. Coordinates (axis values, sample
+//! times, run attributes) beyond that are an error. Values (steps,
+//! displacements) can be so only where a run failed: such a step with
+//! status 0 is drawn as not computed, and a trajectory with such samples
+//! is left out, each with a note.
+//!
+//! [`PLAUSIBLE`]: super::checked::PLAUSIBLE
 
 use std::path::Path;
 
-use super::checked::{Array, Checked, ResultFile, join};
+use super::checked::{Array, Checked, ResultFile, is_plausible, join};
 use super::error::{Problem, ResultFileError};
 use super::read_trajectories::{TrajectoryData, read_trajectories};
 use super::schema;
@@ -160,15 +163,15 @@ fn read_maps(
     let mut status_values = status_map.values;
     let mut marked = 0;
     for (k, s) in status_values.iter_mut().enumerate() {
-        if *s == 0 && !(x.values[k].is_finite() && y.values[k].is_finite()) {
+        if *s == 0 && !(is_plausible(x.values[k]) && is_plausible(y.values[k])) {
             *s = NOT_FINITE;
             marked += 1;
         }
     }
     if marked > 0 {
         notes.push(format!(
-            "{marked} instances have status 0 in /{status} but a non-finite value in /{} or /{}; \
-             they are drawn as not computed",
+            "{marked} instances have status 0 in /{status} but a value in /{} or /{} that is not \
+             finite or beyond ±1e100; they are drawn as not computed",
             step[0], step[1]
         ));
     }
@@ -180,7 +183,7 @@ fn read_axis(file: &ResultFile, key: &str) -> Checked<AxisData> {
     let path = join(schema::AXES, key);
     let values = file.floats(&path)?;
     file.expect_list(&values)?;
-    file.expect_finite(&values, "axis values place the cells on the page")?;
+    file.expect_plausible(&values, "axis values place the cells on the page")?;
     let units = match file.root().dataset(&path) {
         Ok(ds) => file.text_attr(&ds, &path, schema::UNITS)?,
         Err(_) => None,

@@ -1,9 +1,9 @@
 //! Reading the stored trajectories (`/trajectories/<k>/`, laid out by
 //! `crate::trajectory`), checked: every series of a run has the length of
-//! its `time`, times are finite and never decrease, and the run attributes
-//! the figure uses exist and are finite.
+//! its `time`, times are finite (within ±1e100) and never decrease, and the
+//! run attributes the figure uses exist and are finite.
 
-use super::checked::{Checked, ResultFile, join};
+use super::checked::{Checked, ResultFile, is_plausible, join};
 use super::error::Problem;
 use super::schema;
 use crate::model::AXIS_NAMES;
@@ -46,13 +46,13 @@ impl RunData {
             .then(|| (self.slider[a][j] - self.slider[a][i]) / kept / self.frequency[a] * 1e6)
     }
 
-    /// Whether every stored displacement is finite.
-    fn is_finite(&self) -> bool {
+    /// Whether every stored displacement is finite and within ±1e100.
+    fn is_plausible(&self) -> bool {
         self.stage
             .iter()
             .chain(&self.slider)
             .flatten()
-            .all(|v| v.is_finite())
+            .all(|&v| is_plausible(v))
     }
 }
 
@@ -117,8 +117,11 @@ fn read_trajectory(file: &ResultFile, at: &str, name: &str) -> Checked<Trajector
     };
     let not_drawn = if run.time.len() < 2 {
         Some("has fewer than two samples".to_owned())
-    } else if !run.is_finite() || baselines.iter().flatten().any(|b| !b.is_finite()) {
-        Some("holds non-finite displacements (the run diverged)".to_owned())
+    } else if !run.is_plausible() || baselines.iter().flatten().any(|b| !b.is_plausible()) {
+        Some(
+            "holds displacements that are not finite or beyond ±1e100 (the run diverged)"
+                .to_owned(),
+        )
     } else {
         None
     };
@@ -155,7 +158,7 @@ fn read_run(file: &ResultFile, at: &str, baseline: bool) -> Checked<RunData> {
     let time_path = join(at, schema::TIME);
     let time = file.floats(&time_path)?;
     file.expect_list(&time)?;
-    file.expect_finite(&time, "sample times place the curves on the page")?;
+    file.expect_plausible(&time, "sample times place the curves on the page")?;
     if let Some(i) = time.values.windows(2).position(|w| w[1] < w[0]) {
         return Err(file.dataset_error(
             &time_path,
