@@ -581,3 +581,57 @@ fn damaged_result_files_are_errors_that_name_the_dataset() {
         ),
     );
 }
+
+#[test]
+fn a_failed_plot_leaves_an_earlier_output_folder_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let copy = dir.path().join("dmg.h5");
+    std::fs::copy(valid_file(), &copy).unwrap();
+    ok(&["plot", "dmg.h5", "--out", "pics"], dir.path());
+    // Names and inode numbers: a picture moved into place is a new file,
+    // even with the same bytes.
+    let snapshot = |dir: &Path| {
+        use std::os::unix::fs::MetadataExt;
+        let mut files: Vec<(String, u64)> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                let name = e.file_name().to_string_lossy().into_owned();
+                (name, e.metadata().unwrap().ino())
+            })
+            .collect();
+        files.sort();
+        files
+    };
+    let before = snapshot(&dir.path().join("pics"));
+    assert_eq!(before.len(), 7);
+    // The trajectory is read last: everything before it would draw.
+    edit(&copy, |f| {
+        alter(f, "trajectories/0/stage_y", |v| v.truncate(5))
+    });
+    let out = pidm(&["plot", "dmg.h5", "--out", "pics"], dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/trajectories/0/stage_y"));
+    assert!(
+        before == snapshot(&dir.path().join("pics")),
+        "the earlier pictures changed"
+    );
+    // A folder in the place of the last picture: found only once every
+    // picture is drawn, yet none is moved into place.
+    std::fs::copy(valid_file(), &copy).unwrap();
+    let last = dir.path().join("pics/trajectory_instance_0.png");
+    std::fs::remove_file(&last).unwrap();
+    std::fs::create_dir(&last).unwrap();
+    let before = snapshot(&dir.path().join("pics"));
+    let out = pidm(&["plot", "dmg.h5", "--out", "pics"], dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("pics/trajectory_instance_0.png: a folder of that name is in the way"),
+        "{err}"
+    );
+    assert!(
+        before == snapshot(&dir.path().join("pics")),
+        "pictures were replaced"
+    );
+}

@@ -33,16 +33,6 @@ pub enum ResultFileError {
     },
 }
 
-impl ResultFileError {
-    /// The object the error is about ("dataset /maps/step_x"), if any.
-    pub fn object(&self) -> Option<&str> {
-        match self {
-            ResultFileError::Invalid { object, .. } => Some(object),
-            _ => None,
-        }
-    }
-}
-
 /// What is wrong with one object of a result file.
 #[derive(Debug, Error)]
 pub enum Problem {

@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 
 /// A staging folder for the pictures of one output folder.
 pub(super) struct Staging {
@@ -62,32 +62,38 @@ impl Staging {
 
     /// Moves the pictures `files` (paths in the staging folder) into the
     /// output folder, replacing pictures of the same name, and returns
-    /// their new paths in the same order.
+    /// their new paths in the same order. What could stop a move (the
+    /// output folder cannot be made, a folder is in a picture's place) is
+    /// checked before the first one, so none is replaced unless all are.
     pub(super) fn commit(self, files: &[PathBuf]) -> Result<Vec<PathBuf>> {
+        let targets = files
+            .iter()
+            .map(|staged| {
+                let name = staged
+                    .file_name()
+                    .with_context(|| format!("{} has no file name", staged.display()))?;
+                Ok(self.out.join(name))
+            })
+            .collect::<Result<Vec<PathBuf>>>()?;
         std::fs::create_dir_all(&self.out)
             .with_context(|| format!("cannot create the folder {}", self.out.display()))?;
-        let mut moved: Vec<PathBuf> = Vec::with_capacity(files.len());
-        for staged in files {
+        if let Some(blocked) = targets.iter().find(|t| t.is_dir()) {
+            bail!(
+                "cannot write {}: a folder of that name is in the way; no picture was written",
+                blocked.display()
+            );
+        }
+        for (k, (staged, target)) in files.iter().zip(&targets).enumerate() {
             // A name drawn twice was overwritten in the staging folder and
             // is moved once.
-            if let Some(k) = files
-                .iter()
-                .position(|f| f == staged)
-                .filter(|&k| k < moved.len())
-            {
-                moved.push(moved[k].clone());
+            if files[..k].contains(staged) {
                 continue;
             }
-            let name = staged
-                .file_name()
-                .with_context(|| format!("{} has no file name", staged.display()))?;
-            let target = self.out.join(name);
-            std::fs::rename(staged, &target).with_context(|| {
+            std::fs::rename(staged, target).with_context(|| {
                 format!("cannot move {} to {}", staged.display(), target.display())
             })?;
-            moved.push(target);
         }
-        Ok(moved)
+        Ok(targets)
     }
 }
 
