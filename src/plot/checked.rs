@@ -88,7 +88,7 @@ pub(super) fn join(parent: &str, name: &str) -> String {
 
 impl ResultFile {
     /// Opens `path`; a missing file, a folder, an empty, truncated or
-    /// non-HDF5 file is an [`ResultFileError::Open`].
+    /// non-HDF5 file is a [`ResultFileError::Open`].
     pub(super) fn open(path: &Path) -> Checked<ResultFile> {
         let fail = |reason: String| ResultFileError::Open {
             file: path.to_path_buf(),
@@ -232,6 +232,8 @@ impl ResultFile {
         })
     }
 
+    /// Reads the dataset `ds` at `path` whole with `read`, and checks that
+    /// it gave one value per element of the dataset's shape.
     fn read<T>(
         &self,
         path: &str,
@@ -442,6 +444,7 @@ fn type_name(found: &TypeDescriptor) -> String {
     }
 }
 
+/// The problem of an object that libhdf5 could not read, with its reason.
 fn unreadable(e: hdf5::Error) -> Problem {
     Problem::Unreadable(e.to_string())
 }
