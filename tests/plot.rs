@@ -113,7 +113,7 @@ fn regimes_classify_2dof_against_1dof() {
         (f64::NAN, 0.6 * um, true, Regime::Failed),
     ];
     for (two, one, ok, want) in cases {
-        check(two, one, ok, want);
+        check_regime(two, one, ok, want);
     }
     // Every regime has its own colour and text.
     for (i, a) in Regime::ALL.iter().enumerate() {
@@ -124,7 +124,7 @@ fn regimes_classify_2dof_against_1dof() {
     }
 }
 
-fn check(two_dof: f64, one_dof: f64, ok: bool, want: Regime) {
+fn check_regime(two_dof: f64, one_dof: f64, ok: bool, want: Regime) {
     let got = Regime::classify(two_dof, one_dof, ok);
     assert_eq!(
         got, want,
@@ -245,4 +245,393 @@ fn a_one_axis_grid_gives_line_plots_and_a_missing_file_is_an_error() {
     assert!(!missing.status.success());
     let err = String::from_utf8_lossy(&missing.stderr);
     assert!(err.contains("nothing.h5"), "{err}");
+}
+
+// ---------------------------------------------------------------------------
+// Damaged result files: every one is an error that names the file and the
+// dataset, never a panic, and leaves no picture behind.
+
+/// A valid result file of a 3 x 2 grid with baselines and one trajectory,
+/// made once per test process: `<dir>/dmg.h5`.
+fn valid_file() -> &'static Path {
+    static FILE: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    FILE.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap().keep();
+        std::fs::write(
+            dir.join("dmg.toml"),
+            "name = \"dmg\"\n\
+             [axis.x]\nvoltage = [0.0, 60.0, 100.0]\n\
+             [axis.y]\nvoltage = [0.0, 100.0]\n\
+             [simulation]\ncycles = 2\nsettle = 1\n\
+             [output]\nbaselines = true\ntrajectories = [0]\n\
+             trajectory_samples_per_cycle = 20\n",
+        )
+        .unwrap();
+        ok(&["run", "dmg.toml", "--threads", "1"], &dir);
+        dir.join("results/dmg.h5")
+    })
+}
+
+/// Opens the copy at `path` for writing and applies `change`.
+fn edit(path: &Path, change: impl FnOnce(&hdf5::File) -> hdf5::Result<()>) {
+    let file = hdf5::File::open_rw(path).unwrap();
+    change(&file).unwrap();
+}
+
+/// Replaces the dataset `name` by one of `shape` holding `values`.
+fn replace<T: hdf5::H5Type>(
+    file: &hdf5::File,
+    name: &str,
+    shape: &[usize],
+    values: &[T],
+) -> hdf5::Result<()> {
+    file.unlink(name)?;
+    file.new_dataset::<T>()
+        .shape(shape)
+        .create(name)?
+        .write_raw(values)
+}
+
+/// Changes the float dataset `name` by `change`, keeping its shape unless
+/// the change alters the number of values (then it becomes 1-D).
+fn alter(file: &hdf5::File, name: &str, change: impl FnOnce(&mut Vec<f64>)) -> hdf5::Result<()> {
+    let ds = file.dataset(name)?;
+    let mut shape = ds.shape();
+    let mut values: Vec<f64> = ds.read_raw()?;
+    let before = values.len();
+    change(&mut values);
+    if values.len() != before {
+        shape = vec![values.len()];
+    }
+    replace(file, name, &shape, &values)
+}
+
+/// What a damaged file must give.
+enum Want {
+    /// An error whose message holds every one of these texts.
+    Error(&'static [&'static str]),
+    /// Success with this many pictures and these texts in the output.
+    Pictures(usize, &'static [&'static str]),
+}
+
+/// Copies the valid file, damages the copy with `damage`, plots it and
+/// checks the outcome against `want`.
+fn check(what: &str, damage: impl FnOnce(&Path), want: Want) {
+    let dir = tempfile::tempdir().unwrap();
+    let copy = dir.path().join("dmg.h5");
+    std::fs::copy(valid_file(), &copy).unwrap();
+    damage(&copy);
+    let out = pidm(&["plot", "dmg.h5", "--out", "pics"], dir.path());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !stderr.contains("panicked"),
+        "{what}: pidm panicked:\n{stderr}"
+    );
+    let pngs: Vec<String> = std::fs::read_dir(dir.path().join("pics"))
+        .map(|entries| {
+            entries
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .filter(|n| n.ends_with(".png"))
+                .collect()
+        })
+        .unwrap_or_default();
+    let leftovers: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("plotting"))
+        .collect();
+    assert!(leftovers.is_empty(), "{what}: staging left: {leftovers:?}");
+    match want {
+        Want::Error(texts) => {
+            assert_eq!(
+                out.status.code(),
+                Some(1),
+                "{what}: want a plain failure\nstdout:\n{stdout}\nstderr:\n{stderr}"
+            );
+            assert!(stderr.contains("dmg.h5"), "{what}: no file name: {stderr}");
+            for text in texts {
+                assert!(stderr.contains(text), "{what}: want {text:?} in:\n{stderr}");
+            }
+            assert!(pngs.is_empty(), "{what}: pictures left behind: {pngs:?}");
+        }
+        Want::Pictures(count, texts) => {
+            assert!(out.status.success(), "{what}: failed:\n{stderr}");
+            assert_eq!(pngs.len(), count, "{what}: {pngs:?}\n{stdout}");
+            for text in texts {
+                assert!(stdout.contains(text), "{what}: want {text:?} in:\n{stdout}");
+            }
+        }
+    }
+}
+
+#[test]
+fn damaged_result_files_are_errors_that_name_the_dataset() {
+    let undamaged = |_: &Path| {};
+    check("the valid file", undamaged, Want::Pictures(7, &[]));
+    check(
+        "trajectory series of unequal lengths (the reported panic)",
+        |p| {
+            edit(p, |f| {
+                alter(f, "trajectories/0/slider_x", |v| v.truncate(40))
+            })
+        },
+        Want::Error(&[
+            "dataset /trajectories/0/slider_x has shape [40], expected [41]",
+            "the length of /trajectories/0/time",
+        ]),
+    );
+    check(
+        "a 1-DOF series shorter than its time",
+        |p| {
+            edit(p, |f| {
+                alter(f, "trajectories/0/baseline_y/stage", |v| v.truncate(3))
+            })
+        },
+        Want::Error(&["dataset /trajectories/0/baseline_y/stage has shape [3]"]),
+    );
+    check(
+        "a map of the wrong shape",
+        |p| edit(p, |f| replace(f, "maps/step_y", &[2, 3], &[0.0f64; 6])),
+        Want::Error(&["dataset /maps/step_y has shape [2, 3], expected [3, 2]"]),
+    );
+    check(
+        "a baseline status of the wrong shape",
+        |p| edit(p, |f| replace(f, "baseline/status", &[6], &[0u32; 6])),
+        Want::Error(&["dataset /baseline/status has shape [6], expected [3, 2]"]),
+    );
+    check(
+        "a missing axis",
+        |p| edit(p, |f| f.unlink("axes/axis.x.voltage")),
+        Want::Error(&["dataset /axes/axis.x.voltage is missing"]),
+    );
+    check(
+        "an axis of the wrong length",
+        |p| edit(p, |f| alter(f, "axes/axis.y.voltage", |v| v.push(200.0))),
+        Want::Error(&[
+            "dataset /maps/step_x has shape [3, 2], expected [3, 3]",
+            "/axes/axis.y.voltage",
+        ]),
+    );
+    check(
+        "a status map of floats",
+        |p| edit(p, |f| replace(f, "maps/status", &[3, 2], &[0.0f64; 6])),
+        Want::Error(&["dataset /maps/status holds float64 values, expected integer"]),
+    );
+    check(
+        "a group where a map belongs",
+        |p| {
+            edit(p, |f| {
+                f.unlink("maps/step_x")?;
+                f.create_group("maps/step_x").map(drop)
+            })
+        },
+        Want::Error(&["dataset /maps/step_x is not a dataset"]),
+    );
+    check(
+        "a non-finite axis value",
+        |p| edit(p, |f| alter(f, "axes/axis.x.voltage", |v| v[1] = f64::NAN)),
+        Want::Error(&[
+            "dataset /axes/axis.x.voltage holds 1 values that are not finite or beyond ±1e100, \
+             the first at index 1",
+        ]),
+    );
+    // Finite but so large that a chart's range would overflow and its
+    // labels never end: refused before drawing.
+    check(
+        "a sample time beyond ±1e100",
+        |p| {
+            edit(p, |f| {
+                alter(f, "trajectories/0/time", |v| {
+                    *v.last_mut().unwrap() = f64::MAX
+                })
+            })
+        },
+        Want::Error(&[
+            "dataset /trajectories/0/time holds 1 values that are not finite or beyond ±1e100, \
+             the first at index 40",
+        ]),
+    );
+    check(
+        "a run attribute beyond ±1e100",
+        |p| {
+            edit(p, |f| {
+                f.group("trajectories/0")?
+                    .attr("settle_s")?
+                    .write_scalar(&-1e300)
+            })
+        },
+        Want::Error(&["attribute settle_s of /trajectories/0 is -1e300, expected a finite number"]),
+    );
+    check(
+        "sample times that decrease",
+        |p| edit(p, |f| alter(f, "trajectories/0/time", |v| v.swap(4, 5))),
+        Want::Error(&["dataset /trajectories/0/time decreases after index 4"]),
+    );
+    check(
+        "a run attribute of the wrong type",
+        |p| {
+            edit(p, |f| {
+                let g = f.group("trajectories/0")?;
+                g.delete_attr("period_s")?;
+                let text: hdf5::types::VarLenUnicode = "long".parse().unwrap();
+                g.new_attr::<hdf5::types::VarLenUnicode>()
+                    .create("period_s")?
+                    .write_scalar(&text)
+            })
+        },
+        Want::Error(&[
+            "attribute period_s of /trajectories/0 holds text values, expected floating-point",
+        ]),
+    );
+    check(
+        "a missing run attribute",
+        |p| {
+            edit(p, |f| {
+                f.group("trajectories/0/baseline_x")?
+                    .delete_attr("settle_s")
+            })
+        },
+        Want::Error(&["attribute settle_s of /trajectories/0/baseline_x is missing"]),
+    );
+    check(
+        "half a pair of 1-DOF runs",
+        |p| edit(p, |f| f.unlink("trajectories/0/baseline_y")),
+        Want::Error(&[
+            "group /trajectories/0/baseline_y is missing while /trajectories/0/baseline_x exists",
+        ]),
+    );
+    check(
+        "no maps",
+        |p| edit(p, |f| f.unlink("maps")),
+        Want::Error(&["group /maps is missing: not a pidm result file"]),
+    );
+    check(
+        "a shard",
+        |p| {
+            edit(p, |f| {
+                f.new_attr::<u64>()
+                    .create("shard_index")?
+                    .write_scalar(&0u64)
+            })
+        },
+        Want::Error(&["is one shard of a sharded run"]),
+    );
+    check(
+        "an empty file",
+        |p| std::fs::write(p, b"").unwrap(),
+        Want::Error(&["cannot open dmg.h5 as an HDF5 result file: the file is empty"]),
+    );
+    check(
+        "a file that is not HDF5",
+        |p| std::fs::write(p, "name = \"dmg\"\n").unwrap(),
+        Want::Error(&["cannot open dmg.h5 as an HDF5 result file"]),
+    );
+    check(
+        "a truncated file",
+        |p| {
+            let bytes = std::fs::read(p).unwrap();
+            std::fs::write(p, &bytes[..bytes.len() / 2]).unwrap();
+        },
+        Want::Error(&["cannot open dmg.h5 as an HDF5 result file"]),
+    );
+    // Optional groups may be missing; values that may be non-finite are
+    // left out with a note.
+    check(
+        "no trajectories and no baselines",
+        |p| {
+            edit(p, |f| {
+                f.unlink("trajectories")?;
+                f.unlink("baseline")
+            })
+        },
+        Want::Pictures(2, &["wrote pics/step_x.png", "wrote pics/step_y.png"]),
+    );
+    check(
+        "steps that are not finite or beyond ±1e100 with status 0",
+        |p| {
+            edit(p, |f| {
+                alter(f, "maps/step_x", |v| v[1] = f64::NAN)?;
+                alter(f, "baseline/step_y", |v| v[2] = -f64::MAX)
+            })
+        },
+        Want::Pictures(
+            7,
+            &[
+                "note: 1 instances have status 0 in /maps/status but a value in /maps/step_x or \
+                 /maps/step_y that is not finite or beyond ±1e100",
+                "note: 1 instances have status 0 in /baseline/status but a value in \
+                 /baseline/step_x or /baseline/step_y",
+            ],
+        ),
+    );
+    check(
+        "a trajectory with displacements beyond ±1e100",
+        |p| {
+            edit(p, |f| {
+                alter(f, "trajectories/0/slider_y", |v| v[7] = f64::MAX)
+            })
+        },
+        Want::Pictures(
+            6,
+            &[
+                "note: trajectory 0 (instance 0",
+                "holds displacements that are not finite or beyond ±1e100 (the run diverged); not drawn",
+            ],
+        ),
+    );
+}
+
+#[test]
+fn a_failed_plot_leaves_an_earlier_output_folder_as_it_was() {
+    let dir = tempfile::tempdir().unwrap();
+    let copy = dir.path().join("dmg.h5");
+    std::fs::copy(valid_file(), &copy).unwrap();
+    ok(&["plot", "dmg.h5", "--out", "pics"], dir.path());
+    // Names and inode numbers: a picture moved into place is a new file,
+    // even with the same bytes.
+    let snapshot = |dir: &Path| {
+        use std::os::unix::fs::MetadataExt;
+        let mut files: Vec<(String, u64)> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                let name = e.file_name().to_string_lossy().into_owned();
+                (name, e.metadata().unwrap().ino())
+            })
+            .collect();
+        files.sort();
+        files
+    };
+    let before = snapshot(&dir.path().join("pics"));
+    assert_eq!(before.len(), 7);
+    // The trajectory is read last: everything before it would draw.
+    edit(&copy, |f| {
+        alter(f, "trajectories/0/stage_y", |v| v.truncate(5))
+    });
+    let out = pidm(&["plot", "dmg.h5", "--out", "pics"], dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/trajectories/0/stage_y"));
+    assert!(
+        before == snapshot(&dir.path().join("pics")),
+        "the earlier pictures changed"
+    );
+    // A folder in the place of the last picture: found only once every
+    // picture is drawn, yet none is moved into place.
+    std::fs::copy(valid_file(), &copy).unwrap();
+    let last = dir.path().join("pics/trajectory_instance_0.png");
+    std::fs::remove_file(&last).unwrap();
+    std::fs::create_dir(&last).unwrap();
+    let before = snapshot(&dir.path().join("pics"));
+    let out = pidm(&["plot", "dmg.h5", "--out", "pics"], dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("pics/trajectory_instance_0.png: a folder of that name is in the way"),
+        "{err}"
+    );
+    assert!(
+        before == snapshot(&dir.path().join("pics")),
+        "pictures were replaced"
+    );
 }

@@ -1,0 +1,152 @@
+//! The bar chart of a points scene (or of a single instance): the steps
+//! per point, with the baselines beside them.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use super::canvas::{LEGEND_WIDTH, font, save, swatch, title_block};
+use super::colour::{FAILED, X_COLOUR, Y_COLOUR, axis_colour, light};
+use super::read::Data;
+use super::text::short;
+
+/// Writes the bar chart of a points scene (or of a single instance).
+pub(super) fn point_bars(
+    data: &Data,
+    labels: &[String],
+    dir: &Path,
+    files: &mut Vec<PathBuf>,
+) -> Result<()> {
+    let n = labels.len();
+    let base = data.baseline.as_ref();
+    // Bars per point: 2-DOF x, 1-DOF x, 2-DOF y, 1-DOF y (the 1-DOF ones
+    // only with baselines).
+    let mut bars: Vec<(usize, usize, bool, f64, bool)> = Vec::new();
+    for k in 0..n {
+        for a in 0..2 {
+            bars.push((k, a, false, data.step[a][k] * 1e6, data.status[k] == 0));
+            if let Some((b, bs)) = base {
+                bars.push((k, a, true, b[a][k] * 1e6, bs[k] == 0));
+            }
+        }
+    }
+    let per = if base.is_some() { 4 } else { 2 };
+    let values: Vec<f64> = bars.iter().filter(|b| b.4).map(|b| b.3).collect();
+    let hi = values.iter().copied().fold(0.0f64, f64::max);
+    let lo = values.iter().copied().fold(0.0f64, f64::min);
+    let pad = 0.15 * (hi - lo).max(1e-6);
+    let failed = (0..n).filter(|&k| data.status[k] != 0).count();
+    let mut title = vec![
+        format!(
+            "{}: slider step per own drive cycle at each point",
+            data.name
+        ),
+        "above zero: moves towards +x (+y); below zero: towards -x (-y)".to_owned(),
+    ];
+    if failed > 0 {
+        title.push(format!(
+            "{failed} points ended with a non-zero status: drawn as grey stubs, no value"
+        ));
+    }
+    let width = (1100u32).max(220 * n as u32 + LEGEND_WIDTH + 120).min(4000);
+    let path = dir.join("steps.png");
+    save(&path, (width, 760), |root| {
+        let body = title_block(root, &title)?;
+        let (left, right) = body.split_horizontally(width - LEGEND_WIDTH);
+        let mut chart = ChartBuilder::on(&left)
+            .margin(15)
+            .x_label_area_size(50)
+            .y_label_area_size(80)
+            .build_cartesian_2d(0.0..n as f64, (lo - pad)..(hi + pad))?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .disable_x_axis()
+            .y_desc("step [µm per own drive cycle]")
+            .y_label_formatter(&|v| short(*v))
+            .label_style(font(15))
+            .axis_desc_style(font(17))
+            .draw()?;
+        chart.draw_series(LineSeries::new(
+            vec![(0.0, 0.0), (n as f64, 0.0)],
+            BLACK.stroke_width(1),
+        ))?;
+        let slot = 0.8 / per as f64;
+        for (m, &(k, a, is_base, value, ok)) in bars.iter().enumerate() {
+            let j = m % per;
+            let x0 = k as f64 + 0.1 + slot * j as f64;
+            let x1 = x0 + slot * 0.9;
+            let colour = if !ok {
+                FAILED
+            } else if is_base {
+                light(axis_colour(a), 0.35)
+            } else {
+                axis_colour(a)
+            };
+            let v = if ok {
+                value
+            } else {
+                0.04 * (hi - lo).max(1e-6)
+            };
+            chart.draw_series(std::iter::once(Rectangle::new(
+                [(x0, 0.0), (x1, v)],
+                colour.filled(),
+            )))?;
+            if is_base {
+                chart.draw_series(std::iter::once(Rectangle::new(
+                    [(x0, 0.0), (x1, v)],
+                    axis_colour(a).stroke_width(1),
+                )))?;
+            }
+            if ok {
+                let (px, py) = chart.backend_coord(&(0.5 * (x0 + x1), value));
+                let (anchor, dy) = if value >= 0.0 {
+                    (VPos::Bottom, -3)
+                } else {
+                    (VPos::Top, 3)
+                };
+                root.draw_text(
+                    &format!("{value:.3}"),
+                    &font(12).pos(Pos::new(HPos::Center, anchor)),
+                    (px, py + dy),
+                )?;
+            }
+        }
+        for (k, label) in labels.iter().enumerate() {
+            let (px, py) = chart.backend_coord(&(k as f64 + 0.5, lo - pad));
+            root.draw_text(
+                label,
+                &font(16).pos(Pos::new(HPos::Center, VPos::Top)),
+                (px, py + 8),
+            )?;
+        }
+        let mut items = vec![
+            (X_COLOUR, "2-DOF step along x".to_owned()),
+            (Y_COLOUR, "2-DOF step along y".to_owned()),
+        ];
+        if base.is_some() {
+            items.insert(
+                1,
+                (
+                    light(X_COLOUR, 0.35),
+                    "1-DOF along x (x driven alone)".to_owned(),
+                ),
+            );
+            items.push((
+                light(Y_COLOUR, 0.35),
+                "1-DOF along y (y driven alone)".to_owned(),
+            ));
+        }
+        if failed > 0 {
+            items.push((FAILED, "not computed (status ≠ 0)".to_owned()));
+        }
+        for (k, (c, text)) in items.iter().enumerate() {
+            swatch(&right, 0, 30 + 30 * k as i32, *c, text)?;
+        }
+        Ok(())
+    })?;
+    files.push(path);
+    Ok(())
+}

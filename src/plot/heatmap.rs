@@ -1,0 +1,164 @@
+//! One heatmap picture: coloured cells over two grid axes, with a colour
+//! bar or category swatches beside it.
+
+use std::path::Path;
+
+use anyhow::Result;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use super::canvas::{Area, LEGEND_WIDTH, font, save, swatch, title_block};
+use super::colour::Diverging;
+use super::placement::{Placement, label_values};
+use super::read::AxisData;
+use super::text::{axis_title, short};
+
+/// Width and height of a map picture [px].
+const MAP_SIZE: (u32, u32) = (1160, 860);
+
+/// What the right-hand column of a map shows.
+pub(super) enum MapLegend {
+    /// A colour bar for a diverging scale, with its title, and extra
+    /// swatches below it.
+    Bar {
+        scale: Diverging,
+        title: String,
+        swatches: Vec<(RGBColor, String)>,
+    },
+    /// Category swatches.
+    Categories(Vec<(RGBColor, String)>),
+}
+
+/// Draws one heatmap: `colour(i, j)` is the cell at value i of `across`
+/// and value j of `up`.
+pub(super) fn heatmap(
+    path: &Path,
+    title: &[String],
+    across: &AxisData,
+    up: &AxisData,
+    colour: &dyn Fn(usize, usize) -> RGBColor,
+    legend: &MapLegend,
+) -> Result<()> {
+    save(path, MAP_SIZE, |root| {
+        let body = title_block(root, title)?;
+        let (left, right) = body.split_horizontally(MAP_SIZE.0 - LEGEND_WIDTH);
+        let (px, py) = (Placement::of(&across.values), Placement::of(&up.values));
+        let (ex, ey) = (px.edges(&across.values), py.edges(&up.values));
+        let range = |e: &[f64]| {
+            let lo = e.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = e.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            lo..hi
+        };
+        let mut chart = ChartBuilder::on(&left)
+            .margin_left(10)
+            .margin_right(20)
+            .margin_top(10)
+            .margin_bottom(10)
+            .x_label_area_size(60)
+            .y_label_area_size(80)
+            .build_cartesian_2d(range(&ex), range(&ey))?;
+        let fx = move |c: &f64| short(px.value(*c));
+        let fy = move |c: &f64| short(py.value(*c));
+        // A log-spaced axis is labelled at its own values: plotters would
+        // pick round numbers of the logarithm.
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .x_desc(axis_title(&across.key, &across.units))
+            .y_desc(axis_title(&up.key, &up.units))
+            .x_labels(if px.log { 0 } else { 10 })
+            .y_labels(if py.log { 0 } else { 10 })
+            .x_label_formatter(&fx)
+            .y_label_formatter(&fy)
+            .label_style(font(15))
+            .axis_desc_style(font(17))
+            .draw()?;
+        let (y_bottom, x_left) = (range(&ey).start, range(&ex).start);
+        if px.log {
+            for v in label_values(&across.values) {
+                let (x, y) = chart.backend_coord(&(px.place(v), y_bottom));
+                root.draw(&PathElement::new(vec![(x, y), (x, y + 5)], BLACK))?;
+                root.draw_text(
+                    &short(v),
+                    &font(15).pos(Pos::new(HPos::Center, VPos::Top)),
+                    (x, y + 8),
+                )?;
+            }
+        }
+        if py.log {
+            for v in label_values(&up.values) {
+                let (x, y) = chart.backend_coord(&(x_left, py.place(v)));
+                root.draw(&PathElement::new(vec![(x - 5, y), (x, y)], BLACK))?;
+                root.draw_text(
+                    &short(v),
+                    &font(15).pos(Pos::new(HPos::Right, VPos::Center)),
+                    (x - 8, y),
+                )?;
+            }
+        }
+        let mut cells = Vec::with_capacity(across.values.len() * up.values.len());
+        for i in 0..across.values.len() {
+            for j in 0..up.values.len() {
+                cells.push(Rectangle::new(
+                    [(ex[i], ey[j]), (ex[i + 1], ey[j + 1])],
+                    colour(i, j).filled(),
+                ));
+            }
+        }
+        chart.draw_series(cells)?;
+        match legend {
+            MapLegend::Bar {
+                scale,
+                title,
+                swatches,
+            } => {
+                let bar_height = right.dim_in_pixel().1 as i32 - 60 - 32 * swatches.len() as i32;
+                let (bar_area, below) = right.split_vertically(bar_height.max(200));
+                colour_bar(&bar_area, scale, title)?;
+                for (k, (c, text)) in swatches.iter().enumerate() {
+                    swatch(&below, 10, 10 + 30 * k as i32, *c, text)?;
+                }
+            }
+            MapLegend::Categories(items) => {
+                for (k, (c, text)) in items.iter().enumerate() {
+                    swatch(&right, 0, 30 + 30 * k as i32, *c, text)?;
+                }
+            }
+        }
+        Ok(())
+    })
+}
+
+/// A vertical colour bar of a diverging scale with value labels on its
+/// right and the title beside them.
+fn colour_bar(area: &Area<'_>, scale: &Diverging, title: &str) -> Result<()> {
+    let (lo, hi) = scale.limits();
+    let mut chart = ChartBuilder::on(area)
+        .margin_top(20)
+        .margin_bottom(20)
+        .margin_left(20)
+        .margin_right(150)
+        .set_label_area_size(LabelAreaPosition::Right, 100)
+        .build_cartesian_2d(0.0..1.0, lo..hi)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .disable_x_axis()
+        .y_desc(title)
+        .y_labels(9)
+        .y_label_formatter(&|v| short(*v))
+        .label_style(font(14))
+        .axis_desc_style(font(15))
+        .draw()?;
+    let n = 240;
+    chart.draw_series((0..n).map(|k| {
+        let a = lo + (hi - lo) * k as f64 / n as f64;
+        let b = lo + (hi - lo) * (k + 1) as f64 / n as f64;
+        Rectangle::new([(0.0, a), (1.0, b)], scale.colour(0.5 * (a + b)).filled())
+    }))?;
+    chart.draw_series(std::iter::once(Rectangle::new(
+        [(0.0, lo), (1.0, hi)],
+        BLACK.stroke_width(1),
+    )))?;
+    Ok(())
+}

@@ -1,0 +1,255 @@
+//! Line plots of a grid with one axis: the steps against it, and the ratio
+//! of 2-DOF to 1-DOF steps with their regimes.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
+
+use super::canvas::{LEGEND_WIDTH, font, save, swatch, title_block};
+use super::colour::{FAILED, axis_colour};
+use super::placement::{Placement, label_values};
+use super::read::{AxisData, Data};
+use super::regime::{Regime, ZERO_STEP_M};
+use super::text::{axis_title, short};
+use crate::model::AXIS_NAMES;
+
+/// One line of a line chart.
+struct Series {
+    name: String,
+    colour: RGBColor,
+    /// Dashed without dots (1-DOF), or solid with a dot per value.
+    dashed: bool,
+    /// (grid value, y) pairs.
+    points: Vec<(f64, f64)>,
+}
+
+/// A line chart against one grid axis.
+struct LineChart<'a> {
+    title: Vec<String>,
+    axis: &'a AxisData,
+    y_title: &'a str,
+    /// A horizontal black line at this y.
+    reference: f64,
+    series: Vec<Series>,
+    /// Extra dots (grid value, y, colour), drawn over the lines.
+    markers: Vec<(f64, f64, RGBColor)>,
+    /// Swatches listed after the series in the legend.
+    extra_legend: Vec<(RGBColor, String)>,
+}
+
+impl LineChart<'_> {
+    fn draw(&self, path: &Path) -> Result<()> {
+        let axis = self.axis;
+        save(path, (1100, 760), |root| {
+            let body = title_block(root, &self.title)?;
+            let (left, right) = body.split_horizontally(1100 - LEGEND_WIDTH);
+            let place = Placement::of(&axis.values);
+            let xs: Vec<f64> = axis.values.iter().map(|&v| place.place(v)).collect();
+            let (x_lo, x_hi) = xs
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                    (a.min(x), b.max(x))
+                });
+            let ys = self
+                .series
+                .iter()
+                .flat_map(|s| s.points.iter().map(|p| p.1))
+                .chain(self.markers.iter().map(|m| m.1))
+                .chain(std::iter::once(self.reference));
+            let (y_lo, y_hi) = ys.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), y| {
+                (a.min(y), b.max(y))
+            });
+            let pad = 0.06 * (y_hi - y_lo).max(1e-6);
+            let (y_lo, y_hi) = (y_lo - pad, y_hi + pad);
+            let mut chart = ChartBuilder::on(&left)
+                .margin(15)
+                .x_label_area_size(60)
+                .y_label_area_size(80)
+                .build_cartesian_2d(x_lo..x_hi, y_lo..y_hi)?;
+            let fx = move |c: &f64| short(place.value(*c));
+            chart
+                .configure_mesh()
+                .x_desc(axis_title(&axis.key, &axis.units))
+                .y_desc(self.y_title)
+                .x_labels(if place.log { 0 } else { 10 })
+                .x_label_formatter(&fx)
+                .y_label_formatter(&|v| short(*v))
+                .label_style(font(15))
+                .axis_desc_style(font(17))
+                .light_line_style(WHITE.mix(0.0))
+                .draw()?;
+            if place.log {
+                for v in label_values(&axis.values) {
+                    let (x, y) = chart.backend_coord(&(place.place(v), y_lo));
+                    root.draw(&PathElement::new(vec![(x, y), (x, y + 5)], BLACK))?;
+                    root.draw_text(
+                        &short(v),
+                        &font(15).pos(Pos::new(HPos::Center, VPos::Top)),
+                        (x, y + 8),
+                    )?;
+                }
+            }
+            chart.draw_series(LineSeries::new(
+                vec![(x_lo, self.reference), (x_hi, self.reference)],
+                BLACK.stroke_width(1),
+            ))?;
+            for s in &self.series {
+                let pts: Vec<(f64, f64)> =
+                    s.points.iter().map(|&(x, y)| (place.place(x), y)).collect();
+                let style = s.colour.stroke_width(2);
+                if s.dashed {
+                    chart.draw_series(DashedLineSeries::new(pts, 8, 5, style))?;
+                } else {
+                    chart.draw_series(LineSeries::new(pts.clone(), style))?;
+                    chart.draw_series(pts.iter().map(|&p| Circle::new(p, 3, s.colour.filled())))?;
+                }
+            }
+            chart.draw_series(
+                self.markers
+                    .iter()
+                    .map(|&(x, y, c)| Circle::new((place.place(x), y), 5, c.filled())),
+            )?;
+            let mut row = 0;
+            for s in &self.series {
+                let y = 30 + 30 * row;
+                let style = s.colour.stroke_width(3);
+                if s.dashed {
+                    right.draw(&PathElement::new(vec![(0, y + 9), (8, y + 9)], style))?;
+                    right.draw(&PathElement::new(vec![(12, y + 9), (20, y + 9)], style))?;
+                } else {
+                    right.draw(&PathElement::new(vec![(0, y + 9), (20, y + 9)], style))?;
+                }
+                right.draw_text(&s.name, &font(14), (28, y + 2))?;
+                row += 1;
+            }
+            for (colour, text) in &self.extra_legend {
+                swatch(&right, 0, 30 + 30 * row, *colour, text)?;
+                row += 1;
+            }
+            Ok(())
+        })
+    }
+}
+
+/// Writes the line plots of a grid with one axis.
+pub(super) fn grid_lines(
+    data: &Data,
+    axis: &AxisData,
+    dir: &Path,
+    files: &mut Vec<PathBuf>,
+) -> Result<()> {
+    let n = axis.values.len();
+    let failed: Vec<usize> = (0..n).filter(|&k| data.status[k] != 0).collect();
+    let mut series = Vec::new();
+    for a in 0..2 {
+        series.push(Series {
+            name: format!("2-DOF step along {}", AXIS_NAMES[a]),
+            colour: axis_colour(a),
+            dashed: false,
+            points: (0..n)
+                .filter(|&k| data.status[k] == 0)
+                .map(|k| (axis.values[k], data.step[a][k] * 1e6))
+                .collect(),
+        });
+        if let Some((base, bstatus)) = &data.baseline {
+            series.push(Series {
+                name: format!("1-DOF step along {} (driven alone)", AXIS_NAMES[a]),
+                colour: axis_colour(a),
+                dashed: true,
+                points: (0..n)
+                    .filter(|&k| bstatus[k] == 0)
+                    .map(|k| (axis.values[k], base[a][k] * 1e6))
+                    .collect(),
+            });
+        }
+    }
+    let path = dir.join("steps.png");
+    LineChart {
+        title: vec![
+            format!(
+                "{}: slider step per own drive cycle against {}",
+                data.name, axis.key
+            ),
+            "above zero: moves towards +x (+y); below zero: towards -x (-y)".to_owned(),
+        ],
+        axis,
+        y_title: "step [µm per own drive cycle]",
+        reference: 0.0,
+        series,
+        markers: failed
+            .iter()
+            .map(|&k| (axis.values[k], 0.0, FAILED))
+            .collect(),
+        extra_legend: if failed.is_empty() {
+            Vec::new()
+        } else {
+            vec![(
+                FAILED,
+                format!("not computed (status ≠ 0): {}", failed.len()),
+            )]
+        },
+    }
+    .draw(&path)?;
+    files.push(path);
+
+    let Some((base, bstatus)) = &data.baseline else {
+        return Ok(());
+    };
+    let ok = |k: usize| data.status[k] == 0 && bstatus[k] == 0;
+    let mut series = Vec::new();
+    let mut markers = Vec::new();
+    let mut seen = Vec::new();
+    for a in 0..2 {
+        let kept: Vec<usize> = (0..n)
+            .filter(|&k| ok(k) && base[a][k].abs() >= ZERO_STEP_M)
+            .collect();
+        for &k in &kept {
+            let regime = Regime::classify(data.step[a][k], base[a][k], true);
+            if !seen.contains(&regime) {
+                seen.push(regime);
+            }
+            markers.push((
+                axis.values[k],
+                data.step[a][k] / base[a][k],
+                regime.colour(),
+            ));
+        }
+        series.push(Series {
+            name: format!("2-DOF / 1-DOF step along {}", AXIS_NAMES[a]),
+            colour: axis_colour(a),
+            dashed: false,
+            points: kept
+                .iter()
+                .map(|&k| (axis.values[k], data.step[a][k] / base[a][k]))
+                .collect(),
+        });
+    }
+    let path = dir.join("ratio.png");
+    LineChart {
+        title: vec![
+            format!(
+                "{}: 2-DOF step / 1-DOF step against {}",
+                data.name, axis.key
+            ),
+            "1 (black line): as if each axis were driven alone; below 0: reversed. Dots: regime"
+                .to_owned(),
+            "points where the 1-DOF step is below 0.001 µm have no ratio and are left out"
+                .to_owned(),
+        ],
+        axis,
+        y_title: "2-DOF step / 1-DOF step",
+        reference: 1.0,
+        series,
+        markers,
+        extra_legend: Regime::ALL
+            .iter()
+            .filter(|r| seen.contains(r))
+            .map(|r| (r.colour(), r.describe().to_owned()))
+            .collect(),
+    }
+    .draw(&path)?;
+    files.push(path);
+    Ok(())
+}

@@ -1,0 +1,138 @@
+//! `pidm plot`: PNG pictures of a result file, for readers who do not know
+//! the code.
+//!
+//! What is drawn depends on the file:
+//!
+//! - a grid with two or more axes: a heatmap of the step per axis for every
+//!   2-D slice (the two axes with the most values span it, the earlier in
+//!   the file across; one picture per combination of the other axes'
+//!   values, at most [`MAX_SLICES`]),
+//!   on a diverging colour scale centred on zero with symmetric limits, so a
+//!   reversal of direction shows as a change of hue; with baselines also the
+//!   ratio of the 2-DOF step to the 1-DOF step per axis and a map of the
+//!   coupling regime ([`Regime`]);
+//! - a grid with one axis: line plots of the steps (and baselines, ratios
+//!   and regimes);
+//! - a points scene (or a single instance): a bar chart of the steps, with
+//!   the baselines beside them;
+//! - every stored trajectory: stage and slider displacement against time
+//!   per axis and the slider's path in the x-y plane, like the paper's
+//!   Figs. 5-8.
+//!
+//! Steps are drawn in micrometres per own drive cycle; instances that ended
+//! with a non-zero status are drawn in grey, never as a number.
+//!
+//! Nothing is half-done: the whole file is read and checked first (a
+//! missing dataset, a wrong type or a shape that disagrees with the others
+//! is a [`ResultFileError`] naming the file and the dataset), then every
+//! picture is drawn into a staging folder beside the output folder and
+//! moved into it only when all are written.
+//!
+//! The files, one concern each:
+//! - reading: `schema` (the names read), `error`, `checked` (checked
+//!   access to one HDF5 file), `read` (maps, baselines, axes, labels) and
+//!   `read_trajectories`;
+//! - colours and classes: `colour`, `regime`;
+//! - drawing helpers: `canvas` (fonts, titles, swatches, PNG writing),
+//!   `text` (labels and numbers), `placement` (linear or log axes);
+//! - pictures: `heatmap` (one map), `maps` (the maps of an N-D grid),
+//!   `lines` (1-D grids), `bars` (points), `trajectory`;
+//! - `staging`: all pictures or none.
+
+mod bars;
+mod canvas;
+mod checked;
+mod colour;
+mod error;
+mod heatmap;
+mod lines;
+mod maps;
+mod placement;
+mod read;
+mod read_trajectories;
+mod regime;
+mod schema;
+mod staging;
+mod text;
+mod trajectory;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+
+pub use colour::{Diverging, FAILED, NEUTRAL, UNDEFINED, rdbu};
+pub use error::{Problem, ResultFileError};
+pub use maps::plane_dims;
+pub use regime::{Regime, ZERO_STEP_M};
+
+use read::{Data, Kind};
+use staging::Staging;
+
+/// At most this many 2-D slices are drawn per map of an N-D grid; beyond
+/// it, evenly spaced slices are chosen and the choice is reported.
+pub const MAX_SLICES: usize = 24;
+
+/// What `pidm plot` wrote.
+#[derive(Clone, Debug, Default)]
+pub struct Plotted {
+    /// Every PNG written, in order.
+    pub files: Vec<PathBuf>,
+    /// Things the reader should know (slices left out, guessed axis order,
+    /// values or trajectories left out).
+    pub notes: Vec<String>,
+}
+
+/// Default output folder: `results/plots/<file stem>/`.
+pub fn default_out_dir(file: &Path) -> PathBuf {
+    let stem = file
+        .file_stem()
+        .map_or_else(|| "result".to_owned(), |s| s.to_string_lossy().into_owned());
+    PathBuf::from("results").join("plots").join(stem)
+}
+
+/// Checks the result file `file` whole, then draws every picture of it
+/// into `dir`: all of them, or, on any error, none.
+pub fn plot_file(file: &Path, dir: &Path) -> Result<Plotted> {
+    let data = Data::read(file)?;
+    let staging = Staging::new(dir)?;
+    let mut notes = data.notes.clone();
+    let mut staged = Vec::new();
+    draw(&data, staging.path(), &mut staged, &mut notes)?;
+    Ok(Plotted {
+        files: staging.commit(&staged)?,
+        notes,
+    })
+}
+
+/// Draws every picture of `data` into `dir`, adding each file to `files`.
+fn draw(data: &Data, dir: &Path, files: &mut Vec<PathBuf>, notes: &mut Vec<String>) -> Result<()> {
+    match &data.kind {
+        Kind::Points(labels) => bars::point_bars(data, labels, dir, files)?,
+        Kind::Grid(axes) if axes.is_empty() => {
+            bars::point_bars(data, &["the single instance".to_owned()], dir, files)?
+        }
+        Kind::Grid(axes) if axes.len() == 1 => lines::grid_lines(data, &axes[0], dir, files)?,
+        Kind::Grid(axes) => maps::grid_maps(data, axes, dir, files, notes)?,
+    }
+    for (k, t) in data.trajectories.iter().enumerate() {
+        if let Some(why) = &t.not_drawn {
+            notes.push(format!("trajectory {k} ({}) {why}; not drawn", t.point));
+            continue;
+        }
+        files.push(trajectory::trajectory_figure(data, k, t, dir)?);
+    }
+    Ok(())
+}
+
+/// `pidm plot`: draws the pictures and prints every file written.
+pub fn run(file: &Path, out: Option<&Path>) -> Result<()> {
+    let dir = out.map_or_else(|| default_out_dir(file), Path::to_path_buf);
+    let plotted = plot_file(file, &dir)?;
+    for path in &plotted.files {
+        println!("wrote {}", path.display());
+    }
+    for note in &plotted.notes {
+        println!("note: {note}");
+    }
+    Ok(())
+}

@@ -1,0 +1,270 @@
+//! Reading a result file into [`Data`], checked whole before any picture
+//! is drawn: the maps, their status, the baselines, the axes or labels and
+//! the trajectories must exist with the right type, and every shape must
+//! agree with the others, so drawing never indexes past the end of a list.
+//!
+//! Every number drawn must be finite and within ±1e100 ([`PLAUSIBLE`]), so
+//! that nothing derived from it overflows. Coordinates (axis values, sample
+//! times, run attributes) beyond that are an error. Values (steps,
+//! displacements) can be so only where a run failed: such a step with
+//! status 0 is drawn as not computed, and a trajectory with such samples
+//! is left out, each with a note.
+//!
+//! [`PLAUSIBLE`]: super::checked::PLAUSIBLE
+
+use std::path::Path;
+
+use super::checked::{Array, Checked, ResultFile, is_plausible, join};
+use super::error::{Problem, ResultFileError};
+use super::read_trajectories::{TrajectoryData, read_trajectories};
+use super::schema;
+use crate::scene::{Layout, Scene};
+
+/// The status given to instances whose step is not finite although their
+/// status is 0; like every non-zero status, it is drawn as not computed.
+const NOT_FINITE: u32 = u32::MAX;
+
+/// One grid axis as stored in `/axes`.
+#[derive(Clone, Debug)]
+pub(super) struct AxisData {
+    pub(super) key: String,
+    pub(super) units: String,
+    pub(super) values: Vec<f64>,
+}
+
+/// What kind of instances the file holds.
+pub(super) enum Kind {
+    /// A grid, its axes in grid order (none for a single instance).
+    Grid(Vec<AxisData>),
+    /// A points scene, one label per point.
+    Points(Vec<String>),
+}
+
+/// Everything `pidm plot` reads.
+pub(super) struct Data {
+    pub(super) name: String,
+    pub(super) kind: Kind,
+    /// The shape of the maps: the grid's, `[points]` for a points scene,
+    /// `[]` for a single instance.
+    pub(super) shape: Vec<usize>,
+    /// Steps per axis [m per own drive cycle], row-major.
+    pub(super) step: [Vec<f64>; 2],
+    pub(super) status: Vec<u32>,
+    /// The 1-DOF steps per axis and their status, when stored.
+    pub(super) baseline: Option<([Vec<f64>; 2], Vec<u32>)>,
+    pub(super) trajectories: Vec<TrajectoryData>,
+    /// Things the reader should know (guessed axis order, values left out).
+    pub(super) notes: Vec<String>,
+}
+
+impl Data {
+    /// Reads and checks the result file at `path`.
+    pub(super) fn read(path: &Path) -> Checked<Data> {
+        let file = ResultFile::open(path)?;
+        let root = file.root();
+        if file.has_attr(root, schema::SHARD_INDEX) {
+            return Err(ResultFileError::Shard {
+                file: path.to_path_buf(),
+            });
+        }
+        let mut notes = Vec::new();
+        let stem = path
+            .file_stem()
+            .map_or_else(|| "result".to_owned(), |s| s.to_string_lossy().into_owned());
+        let name = file.text_attr(root, "", schema::NAME)?.unwrap_or(stem);
+        // A scene that no longer parses (written by another version) only
+        // loses the grid order, which is then guessed with a note.
+        let scene = file
+            .text_attr(root, "", schema::SCENE)?
+            .and_then(|text| Scene::from_toml(&text, Some(&name)).ok());
+        if !file.exists(schema::MAPS) {
+            return Err(file.error(
+                format!("group /{}", schema::MAPS),
+                Problem::Invalid("is missing: not a pidm result file".to_owned()),
+            ));
+        }
+        file.group(schema::MAPS)?;
+        let (step, status) = read_maps(&file, schema::STEP, schema::STATUS, None, &mut notes)?;
+        let shape = step[0].shape.clone();
+        let baseline = if file.exists(schema::BASELINE) {
+            file.group(schema::BASELINE)?;
+            let (b, s) = read_maps(
+                &file,
+                schema::BASELINE_STEP,
+                schema::BASELINE_STATUS,
+                Some(&shape),
+                &mut notes,
+            )?;
+            Some((b.map(|a| a.values), s))
+        } else {
+            None
+        };
+        let points = matches!(
+            scene,
+            Some(Scene {
+                layout: Layout::Points { .. },
+                ..
+            })
+        );
+        let kind = if points || file.exists(schema::LABELS) {
+            let labels = file.texts(schema::LABELS)?;
+            file.expect_shape(
+                &labels,
+                &shape,
+                format!("one label per instance: the shape of /{}", schema::STEP[0]),
+            )?;
+            Kind::Points(labels.values)
+        } else {
+            Kind::Grid(read_axes(&file, &shape, scene.as_ref(), &mut notes)?)
+        };
+        let trajectories = read_trajectories(&file)?;
+        Ok(Data {
+            name,
+            kind,
+            shape,
+            step: step.map(|a| a.values),
+            status,
+            baseline,
+            trajectories,
+            notes,
+        })
+    }
+}
+
+/// Reads the step maps `step` and the status map `status`, checks that
+/// they share one shape (`shape`, when given: that of the 2-DOF maps) with
+/// no empty dimension, and marks non-finite steps with status 0 as not
+/// computed.
+fn read_maps(
+    file: &ResultFile,
+    step: [&str; 2],
+    status: &str,
+    shape: Option<&[usize]>,
+    notes: &mut Vec<String>,
+) -> Checked<([Array<f64>; 2], Vec<u32>)> {
+    let x = file.floats(step[0])?;
+    let (shape, reason) = match shape {
+        Some(shape) => (shape.to_vec(), format!("the shape of /{}", schema::STEP[0])),
+        None => (x.shape.clone(), format!("the shape of /{}", step[0])),
+    };
+    file.expect_shape(&x, &shape, &reason)?;
+    if let Some(d) = shape.iter().position(|&n| n == 0) {
+        return Err(file.dataset_error(
+            step[0],
+            Problem::Invalid(format!(
+                "has shape {shape:?}: dimension {d} is empty, so there is nothing to draw"
+            )),
+        ));
+    }
+    let y = file.floats(step[1])?;
+    file.expect_shape(&y, &shape, &reason)?;
+    let status_map = file.integers(status)?;
+    file.expect_shape(&status_map, &shape, &reason)?;
+    let mut status_values = status_map.values;
+    let mut marked = 0;
+    for (k, s) in status_values.iter_mut().enumerate() {
+        if *s == 0 && !(is_plausible(x.values[k]) && is_plausible(y.values[k])) {
+            *s = NOT_FINITE;
+            marked += 1;
+        }
+    }
+    if marked > 0 {
+        notes.push(format!(
+            "{marked} instances have status 0 in /{status} but a value in /{} or /{} that is not \
+             finite or beyond ±1e100; they are drawn as not computed",
+            step[0], step[1]
+        ));
+    }
+    Ok(([x, y], status_values))
+}
+
+/// Reads the 1-D, finite axis dataset `/axes/<key>` and its unit.
+fn read_axis(file: &ResultFile, key: &str) -> Checked<AxisData> {
+    let path = join(schema::AXES, key);
+    let values = file.floats(&path)?;
+    file.expect_list(&values)?;
+    file.expect_plausible(&values, "axis values place the cells on the page")?;
+    let units = match file.root().dataset(&path) {
+        Ok(ds) => file.text_attr(&ds, &path, schema::UNITS)?,
+        Err(_) => None,
+    };
+    Ok(AxisData {
+        key: key.to_owned(),
+        units: units.unwrap_or_else(|| "1".to_owned()),
+        values: values.values,
+    })
+}
+
+/// The grid axes in grid order. HDF5 lists `/axes` alphabetically, so the
+/// order comes from the stored scene when it parses, and then every axis it
+/// names must be stored with the length of its dimension of the maps;
+/// otherwise each dimension takes the first unused axis of its length, or
+/// its indices when there is none.
+fn read_axes(
+    file: &ResultFile,
+    shape: &[usize],
+    scene: Option<&Scene>,
+    notes: &mut Vec<String>,
+) -> Checked<Vec<AxisData>> {
+    if let Some(Scene {
+        layout: Layout::Grid { axes },
+        ..
+    }) = scene
+    {
+        let out: Vec<AxisData> = axes
+            .iter()
+            .map(|a| read_axis(file, &a.key))
+            .collect::<Checked<_>>()?;
+        let lengths: Vec<usize> = out.iter().map(|a| a.values.len()).collect();
+        if lengths != shape {
+            let names: Vec<String> = out
+                .iter()
+                .map(|a| format!("/{}", join(schema::AXES, &a.key)))
+                .collect();
+            return Err(file.dataset_error(
+                schema::STEP[0],
+                Problem::WrongShape {
+                    found: shape.to_vec(),
+                    expected: lengths,
+                    reason: format!(
+                        "the lengths of the stored scene's grid axes {}",
+                        if names.is_empty() {
+                            "(none: a single instance)".to_owned()
+                        } else {
+                            names.join(", ")
+                        }
+                    ),
+                },
+            ));
+        }
+        return Ok(out);
+    }
+    let names = if file.exists(schema::AXES) {
+        file.members(schema::AXES)?
+    } else {
+        Vec::new()
+    };
+    let mut all: Vec<AxisData> = names
+        .iter()
+        .map(|n| read_axis(file, n))
+        .collect::<Checked<_>>()?;
+    let mut out = Vec::with_capacity(shape.len());
+    for (d, &n) in shape.iter().enumerate() {
+        match all.iter().position(|a| a.values.len() == n) {
+            Some(i) => out.push(all.remove(i)),
+            None => out.push(AxisData {
+                key: format!("dimension {d}"),
+                units: "1".to_owned(),
+                values: (0..n).map(|v| v as f64).collect(),
+            }),
+        }
+    }
+    if !shape.is_empty() {
+        notes.push(
+            "the stored scene did not give the grid order; axes were matched to dimensions \
+             by length"
+                .to_owned(),
+        );
+    }
+    Ok(out)
+}
