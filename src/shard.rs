@@ -17,7 +17,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use hdf5::File;
 
 use crate::output::claim::is_same_file;
-use crate::output::{BASELINES, FileInfo, MAPS, MapWriter, OutputClaim, ShardInfo, read_str_attr};
+use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo, read_str_attr, schema};
 use crate::scene::Scene;
 use crate::sweep::Record;
 
@@ -124,11 +124,11 @@ impl ShardFile {
     fn open(path: &Path) -> Result<ShardFile> {
         let file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
         let read = || -> Result<ShardFile> {
-            if file.attr("shard_index").is_err() {
+            if file.attr(schema::SHARD_INDEX).is_err() {
                 bail!("it is not a shard file (it has no `shard_index` attribute)");
             }
-            let index = read_u64_attr(&file, "shard_index")?;
-            let count = read_u64_attr(&file, "shard_count")?;
+            let index = read_u64_attr(&file, schema::SHARD_INDEX)?;
+            let count = read_u64_attr(&file, schema::SHARD_COUNT)?;
             let spec = ShardSpec {
                 index: u32::try_from(index)?,
                 count: u32::try_from(count)?,
@@ -136,9 +136,9 @@ impl ShardFile {
             Ok(ShardFile {
                 path: path.to_path_buf(),
                 spec,
-                total: read_u64_attr(&file, "instance_count")?,
-                scene: read_str_attr(&file, "scene")?,
-                name: read_str_attr(&file, "name")?,
+                total: read_u64_attr(&file, schema::INSTANCE_COUNT)?,
+                scene: read_str_attr(&file, schema::SCENE)?,
+                name: read_str_attr(&file, schema::NAME)?,
                 version: read_str_attr(&file, "pidm_version")?,
                 precision: read_str_attr(&file, "precision")?,
                 variant: read_str_attr(&file, "variant")?,
@@ -159,11 +159,19 @@ impl ShardFile {
     /// Checks that every map the merge reads is a 1-D dataset of `len`
     /// values, naming the file and the dataset that is not.
     fn check_layout(&self, len: u64, baselines: bool) -> Result<()> {
-        let mut names: Vec<String> = MAPS.iter().map(|m| format!("maps/{}", m.0)).collect();
+        let in_group = |group: &str, d: &schema::MapDataset| format!("{group}/{}", d.name);
+        let mut names: Vec<String> = schema::MAP_DATASETS
+            .iter()
+            .map(|d| in_group(schema::MAPS, d))
+            .collect();
         if baselines {
-            names.extend(BASELINES.iter().map(|m| format!("baseline/{}", m.0)));
+            names.extend(
+                schema::BASELINE_DATASETS
+                    .iter()
+                    .map(|d| in_group(schema::BASELINE, d)),
+            );
         }
-        names.push("shard/instance".into());
+        names.push(schema::SHARD_INSTANCE.into());
         for name in &names {
             let name = name.as_str();
             let ds = self.file.dataset(name).map_err(|_| {
@@ -351,7 +359,7 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
         shard.check_layout(expected.len() as u64, scene.baselines)?;
         let stored: Vec<u64> = shard
             .file
-            .dataset("shard/instance")
+            .dataset(schema::SHARD_INSTANCE)
             .and_then(|ds| ds.read_raw())
             .with_context(|| format!("{}: cannot read `shard/instance`", shard.path.display()))?;
         if stored != expected {

@@ -37,6 +37,7 @@ use crate::cpu::integrate::{
     is_finished,
 };
 use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
+use crate::output::schema;
 use crate::output::{write_f64_attr, write_str_attr, write_u64_attr};
 use crate::scene::{Scene, TrajectoryPoint};
 
@@ -224,27 +225,34 @@ fn series(
         .with_data(data)
         .create(name)
         .with_context(|| format!("cannot write trajectory dataset {name}"))?;
-    write_str_attr(&ds, "units", units)?;
-    write_str_attr(&ds, "long_name", long_name)?;
+    write_str_attr(&ds, schema::UNITS, units)?;
+    write_str_attr(&ds, schema::LONG_NAME, long_name)?;
     Ok(())
 }
 
 /// The attributes every trajectory group carries: run timing, status and
 /// drive per axis.
 fn run_attrs(g: &hdf5::Group, inst: &Instance, t: &Trajectory) -> Result<()> {
-    write_u64_attr(g, "status", t.state.status as u64)?;
+    write_u64_attr(g, schema::RUN_STATUS, t.state.status as u64)?;
     write_u64_attr(g, "samples_per_cycle", t.samples_per_cycle as u64)?;
-    write_f64_attr(g, "period_s", inst.period())?;
-    write_f64_attr(g, "settle_s", inst.settle as f64 * inst.period())?;
-    write_f64_attr(g, "duration_s", inst.duration())?;
+    write_f64_attr(g, schema::PERIOD_S, inst.period())?;
+    write_f64_attr(g, schema::SETTLE_S, inst.settle as f64 * inst.period())?;
+    write_f64_attr(g, schema::DURATION_S, inst.duration())?;
     for (i, name) in AXIS_NAMES.iter().enumerate() {
         let axis = &inst.axes[i];
-        write_f64_attr(g, &format!("voltage_{name}"), axis.voltage)?;
-        write_f64_attr(g, &format!("frequency_{name}"), axis.frequency)?;
-        write_f64_attr(g, &format!("duty_{name}"), axis.duty)?;
-        write_f64_attr(g, &format!("phase_{name}"), axis.phase)?;
+        let attr = |what: &str| format!("{what}_{name}");
+        write_f64_attr(g, &attr(schema::VOLTAGE), axis.voltage)?;
+        write_f64_attr(g, &attr(schema::FREQUENCY), axis.frequency)?;
+        write_f64_attr(g, &attr(schema::DUTY), axis.duty)?;
+        write_f64_attr(g, &attr(schema::PHASE), axis.phase)?;
     }
-    series(g, "time", &t.time, "s", "time from the start of the run")?;
+    series(
+        g,
+        schema::TIME,
+        &t.time,
+        "s",
+        "time from the start of the run",
+    )?;
     Ok(())
 }
 
@@ -254,25 +262,25 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
     if recorded.is_empty() {
         return Ok(());
     }
-    let root = parent.create_group("trajectories")?;
+    let root = parent.create_group(schema::TRAJECTORIES)?;
     for (k, rec) in recorded.iter().enumerate() {
         let g = root.create_group(&k.to_string())?;
         let main = &rec.main;
-        write_str_attr(&g, "point", &rec.point.name)?;
-        write_str_attr(&g, "label", &rec.point.label)?;
-        write_u64_attr(&g, "index", rec.point.index)?;
+        write_str_attr(&g, schema::POINT, &rec.point.name)?;
+        write_str_attr(&g, schema::LABEL, &rec.point.label)?;
+        write_u64_attr(&g, schema::INDEX, rec.point.index)?;
         run_attrs(&g, &rec.instance, main)?;
         for (i, name) in AXIS_NAMES.iter().enumerate() {
             series(
                 &g,
-                &format!("stage_{name}"),
+                schema::STAGE[i],
                 &main.stage[i],
                 "m",
                 &format!("stage displacement along {name}"),
             )?;
             series(
                 &g,
-                &format!("slider_{name}"),
+                schema::SLIDER[i],
                 &main.slider[i],
                 "m",
                 &format!("slider displacement along {name}"),
@@ -290,7 +298,7 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
         };
         for (i, name) in AXIS_NAMES.iter().enumerate() {
             let base = &bases[i];
-            let b = g.create_group(&format!("baseline_{name}"))?;
+            let b = g.create_group(schema::BASELINE_RUN[i])?;
             write_str_attr(
                 &b,
                 "description",
@@ -300,18 +308,18 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
                 ),
             )?;
             run_attrs(&b, &base.instance, &base.trajectory)?;
-            write_u64_attr(&b, "measured_cycles", base.measured_cycles as u64)?;
+            write_u64_attr(&b, schema::MEASURED_CYCLES, base.measured_cycles as u64)?;
             let t = &base.trajectory;
             series(
                 &b,
-                "stage",
+                schema::BASELINE_STAGE,
                 &t.stage[i],
                 "m",
                 &format!("1-DOF stage displacement along {name}"),
             )?;
             series(
                 &b,
-                "slider",
+                schema::BASELINE_SLIDER,
                 &t.slider[i],
                 "m",
                 &format!("1-DOF slider displacement along {name}"),

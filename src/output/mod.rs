@@ -39,6 +39,7 @@ use crate::scene::{Layout, Scene};
 use crate::shard::ShardSpec;
 
 pub mod claim;
+pub mod schema;
 use crate::sweep::Record;
 pub use claim::OutputClaim;
 
@@ -153,28 +154,6 @@ pub struct MapWriter {
     baselines: Vec<Dataset>,
 }
 
-/// Map datasets under `/maps` (name, units, long name), in the order
-/// [`Record`] fields are written.
-pub const MAPS: [(&str, &str, &str); 6] = [
-    ("step_x", "m", "slider step along x per x drive cycle"),
-    ("step_y", "m", "slider step along y per y drive cycle"),
-    ("velocity_x", "m/s", "mean slider velocity along x"),
-    ("velocity_y", "m/s", "mean slider velocity along y"),
-    ("status", "1", "integrator status code (0 = ok)"),
-    ("steps", "1", "integrator steps taken"),
-];
-
-/// Baseline datasets under `/baseline` (name, units, long name).
-pub const BASELINES: [(&str, &str, &str); 3] = [
-    ("step_x", "m", "1-DOF step along x with the y drive off"),
-    ("step_y", "m", "1-DOF step along y with the x drive off"),
-    (
-        "status",
-        "1",
-        "integrator status code of the baselines (0 = ok)",
-    ),
-];
-
 /// Writes a text attribute (netCDF readers take variable-length UTF-8).
 pub(crate) fn write_str_attr(loc: &hdf5::Location, name: &str, value: &str) -> Result<()> {
     let v: VarLenUnicode = value
@@ -194,7 +173,7 @@ pub(crate) fn write_u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> Re
 /// The name of a map's hard link in the root group: `step_x` for
 /// `/maps/step_x`, `baseline_step_x` for `/baseline/step_x`.
 pub fn root_name(group: &str, name: &str) -> String {
-    if group == "maps" {
+    if group == schema::MAPS {
         name.to_string()
     } else {
         format!("{group}_{name}")
@@ -310,8 +289,8 @@ impl MapWriter {
             maps: Vec::new(),
             baselines: Vec::new(),
         };
-        write_str_attr(&file, "scene", &info.scene_text)?;
-        write_str_attr(&file, "name", &info.name)?;
+        write_str_attr(&file, schema::SCENE, &info.scene_text)?;
+        write_str_attr(&file, schema::NAME, &info.name)?;
         write_str_attr(&file, "pidm_version", env!("CARGO_PKG_VERSION"))?;
         write_str_attr(&file, "backend", &info.backend)?;
         write_str_attr(&file, "precision", &info.precision)?;
@@ -322,15 +301,15 @@ impl MapWriter {
         }
 
         // The dimension scales, in grid order.
-        let axes = file.create_group("axes")?;
+        let axes = file.create_group(schema::AXES)?;
         let mut scales = Vec::new();
         for axis in &info.axes {
             let ds = axes
                 .new_dataset_builder()
                 .with_data(&axis.values)
                 .create(axis.key.as_str())?;
-            write_str_attr(&ds, "units", &axis.units)?;
-            write_str_attr(&ds, "long_name", &axis.key)?;
+            write_str_attr(&ds, schema::UNITS, &axis.units)?;
+            write_str_attr(&ds, schema::LONG_NAME, &axis.key)?;
             scales.push((axis.key.clone(), ds));
         }
         let mut coordinates = None;
@@ -349,7 +328,7 @@ impl MapWriter {
             let label_ds = file
                 .new_dataset_builder()
                 .with_data(&text)
-                .create("labels")?;
+                .create(schema::LABELS)?;
             write_str_attr(&label_ds, "long_name", "point label")?;
             scales.push(("point".to_string(), ds));
             coordinates = Some(label_ds);
@@ -365,10 +344,10 @@ impl MapWriter {
             }
         }
         if let Some(shard) = &info.shard {
-            write_u64_attr(&file, "shard_index", shard.spec.index as u64)?;
-            write_u64_attr(&file, "shard_count", shard.spec.count as u64)?;
-            write_u64_attr(&file, "instance_count", shard.total)?;
-            let group = file.create_group("shard")?;
+            write_u64_attr(&file, schema::SHARD_INDEX, shard.spec.index as u64)?;
+            write_u64_attr(&file, schema::SHARD_COUNT, shard.spec.count as u64)?;
+            write_u64_attr(&file, schema::INSTANCE_COUNT, shard.total)?;
+            let group = file.create_group(schema::SHARD)?;
             let ds = group
                 .new_dataset::<u64>()
                 .shape(map_shape.clone())
@@ -397,8 +376,8 @@ impl MapWriter {
         };
         let describe =
             |ds: &Dataset, prefix: &str, name: &str, units: &str, long_name: &str| -> Result<()> {
-                write_str_attr(ds, "units", units)?;
-                write_str_attr(ds, "long_name", long_name)?;
+                write_str_attr(ds, schema::UNITS, units)?;
+                write_str_attr(ds, schema::LONG_NAME, long_name)?;
                 if netcdf {
                     for (dim, (_, scale)) in scales.iter().enumerate() {
                         dimension_scales::attach(ds, scale, dim as u32)?;
@@ -410,17 +389,17 @@ impl MapWriter {
                 }
                 Ok(())
             };
-        let maps = file.create_group("maps")?;
-        for (name, units, long_name) in MAPS {
-            let ds = make(&maps, name, name == "status" || name == "steps")?;
-            describe(&ds, "maps", name, units, long_name)?;
+        let maps = file.create_group(schema::MAPS)?;
+        for d in schema::MAP_DATASETS {
+            let ds = make(&maps, d.name, d.integer)?;
+            describe(&ds, schema::MAPS, d.name, d.units, d.long_name)?;
             writer.maps.push(ds);
         }
         if info.baselines {
-            let group = file.create_group("baseline")?;
-            for (name, units, long_name) in BASELINES {
-                let ds = make(&group, name, name == "status")?;
-                describe(&ds, "baseline", name, units, long_name)?;
+            let group = file.create_group(schema::BASELINE)?;
+            for d in schema::BASELINE_DATASETS {
+                let ds = make(&group, d.name, d.integer)?;
+                describe(&ds, schema::BASELINE, d.name, d.units, d.long_name)?;
                 writer.baselines.push(ds);
             }
         }

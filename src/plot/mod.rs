@@ -29,7 +29,7 @@
 //! moved into it only when all are written.
 //!
 //! The files, one concern each:
-//! - reading: `schema` (the names read), `error`, `checked` (checked
+//! - reading: `crate::output::schema` (the names read), `error`, `checked` (checked
 //!   access to one HDF5 file), `read` (maps, baselines, axes, labels) and
 //!   `read_trajectories`;
 //! - colours and classes: `colour`, `regime`;
@@ -51,7 +51,6 @@ mod placement;
 mod read;
 mod read_trajectories;
 mod regime;
-mod schema;
 mod staging;
 mod text;
 mod trajectory;

@@ -17,7 +17,7 @@ use std::path::Path;
 use super::checked::{Array, Checked, ResultFile, is_plausible, join};
 use super::error::{Problem, ResultFileError};
 use super::read_trajectories::{TrajectoryData, read_trajectories};
-use super::schema;
+use crate::output::schema;
 use crate::scene::{Layout, Scene};
 
 /// The status given to instances whose step is not finite although their

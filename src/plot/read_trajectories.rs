@@ -5,8 +5,8 @@
 
 use super::checked::{Checked, ResultFile, is_plausible, join};
 use super::error::Problem;
-use super::schema;
 use crate::model::AXIS_NAMES;
+use crate::output::schema;
 
 /// One stored run in time: the point's, or a 1-DOF run beside it (which
 /// holds only its driven axis' series).

@@ -6,17 +6,9 @@ use super::{Layout, Scene, SceneError};
 /// Default limit on the memory the output maps of one scene may take [bytes].
 pub const MAP_MEMORY_BUDGET_BYTES: u64 = 8 << 30;
 
-/// Output maps kept per instance (the 2-DOF results).
-pub const MAPS_PER_INSTANCE: u64 = 5;
-
-/// Extra output maps per instance when the 1-DOF baselines are run.
-pub const BASELINE_MAPS_PER_INSTANCE: u64 = 2;
-
-/// Bytes per entry of an output map (one f64).
-pub const MAP_ENTRY_BYTES: u64 = 8;
-
 impl Scene {
-    /// Output bytes per instance: 5 maps of f64, plus 2 with baselines.
+    /// Output bytes per instance: the maps of the result-file schema, with
+    /// the baselines' when the scene asks for them.
     pub fn bytes_per_instance(&self) -> u64 {
         bytes_per_instance(self.baselines)
     }
@@ -29,15 +21,9 @@ impl Scene {
     }
 }
 
-/// Output bytes per instance.
+/// Output bytes per instance, as the result file's schema lays them out.
 pub(super) fn bytes_per_instance(baselines: bool) -> u64 {
-    let maps = MAPS_PER_INSTANCE
-        + if baselines {
-            BASELINE_MAPS_PER_INSTANCE
-        } else {
-            0
-        };
-    maps * MAP_ENTRY_BYTES
+    crate::output::schema::bytes_per_instance(baselines)
 }
 
 /// Refuses a layout whose output maps exceed `budget`.

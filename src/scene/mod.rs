@@ -85,9 +85,7 @@ mod values;
 
 pub use error::{Location, SceneError};
 pub use file::MAX_SCENE_BYTES;
-pub use memory::{
-    BASELINE_MAPS_PER_INSTANCE, MAP_ENTRY_BYTES, MAP_MEMORY_BUDGET_BYTES, MAPS_PER_INSTANCE,
-};
+pub use memory::MAP_MEMORY_BUDGET_BYTES;
 pub use name::MAX_NAME_BYTES;
 pub use trajectories::{DEFAULT_SAMPLES_PER_CYCLE, TrajectoryPoint};
 pub use values::MAX_RANGE_STEPS;

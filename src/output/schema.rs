@@ -1,0 +1,197 @@
+//! The result-file schema: the one home of the names, types and shapes
+//! that the writers (`crate::output` for maps, axes and baselines,
+//! `crate::trajectory` for trajectories), the readers (`pidm plot`,
+//! `pidm merge`) and the memory estimate of a scene share. The layout
+//! itself is described in `crate::output`'s module docs.
+//!
+//! Paths are relative to the file's root; messages show them with a
+//! leading '/'.
+
+/// One map dataset: shaped like the grid (1-D over the shard's instances
+/// in a shard file), one entry per instance.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MapDataset {
+    /// Its name inside its group.
+    pub name: &'static str,
+    /// The `units` attribute.
+    pub units: &'static str,
+    /// The `long_name` attribute.
+    pub long_name: &'static str,
+    /// Whether it holds u32 (else f64).
+    pub integer: bool,
+}
+
+impl MapDataset {
+    /// Bytes one entry takes.
+    pub const fn bytes(&self) -> u64 {
+        if self.integer { 4 } else { 8 }
+    }
+}
+
+/// The datasets under [`MAPS`], in the order `Record` fields are written.
+pub const MAP_DATASETS: [MapDataset; 6] = [
+    map(
+        "step_x",
+        "m",
+        "slider step along x per x drive cycle",
+        false,
+    ),
+    map(
+        "step_y",
+        "m",
+        "slider step along y per y drive cycle",
+        false,
+    ),
+    map("velocity_x", "m/s", "mean slider velocity along x", false),
+    map("velocity_y", "m/s", "mean slider velocity along y", false),
+    map("status", "1", "integrator status code (0 = ok)", true),
+    map("steps", "1", "integrator steps taken", true),
+];
+
+/// The datasets under [`BASELINE`] when a scene asks for baselines.
+pub const BASELINE_DATASETS: [MapDataset; 3] = [
+    map(
+        "step_x",
+        "m",
+        "1-DOF step along x with the y drive off",
+        false,
+    ),
+    map(
+        "step_y",
+        "m",
+        "1-DOF step along y with the x drive off",
+        false,
+    ),
+    map(
+        "status",
+        "1",
+        "integrator status code of the baselines (0 = ok)",
+        true,
+    ),
+];
+
+const fn map(
+    name: &'static str,
+    units: &'static str,
+    long_name: &'static str,
+    integer: bool,
+) -> MapDataset {
+    MapDataset {
+        name,
+        units,
+        long_name,
+        integer,
+    }
+}
+
+/// Bytes the maps of one instance take in a result file (and in memory
+/// while a map is assembled), with or without its baselines.
+pub const fn bytes_per_instance(baselines: bool) -> u64 {
+    let mut bytes = 0;
+    let mut k = 0;
+    while k < MAP_DATASETS.len() {
+        bytes += MAP_DATASETS[k].bytes();
+        k += 1;
+    }
+    if baselines {
+        let mut k = 0;
+        while k < BASELINE_DATASETS.len() {
+            bytes += BASELINE_DATASETS[k].bytes();
+            k += 1;
+        }
+    }
+    bytes
+}
+
+/// The group of a shard file's instance list.
+pub const SHARD: &str = "shard";
+/// The flat scene index of each instance a shard file holds.
+pub const SHARD_INSTANCE: &str = "shard/instance";
+/// The attribute of every map and axis that holds its description.
+pub const LONG_NAME: &str = "long_name";
+
+/// Root attributes of a shard file: which part of the scene it holds.
+pub const SHARD_COUNT: &str = "shard_count";
+pub const INSTANCE_COUNT: &str = "instance_count";
+
+/// The group of the maps; a file without it is no result file.
+pub const MAPS: &str = "maps";
+/// The 2-DOF step per axis [m per own drive cycle], shaped like the grid.
+pub const STEP: [&str; 2] = ["maps/step_x", "maps/step_y"];
+/// The integrator status per instance (0 = ok), shaped like the grid.
+pub const STATUS: &str = "maps/status";
+
+/// The optional group of the 1-DOF runs beside the maps.
+pub const BASELINE: &str = "baseline";
+/// The 1-DOF step per axis, shaped like the grid.
+pub const BASELINE_STEP: [&str; 2] = ["baseline/step_x", "baseline/step_y"];
+/// The worse status of the two 1-DOF runs, shaped like the grid.
+pub const BASELINE_STATUS: &str = "baseline/status";
+
+/// The group of the grid axes, one 1-D dataset per axis key.
+pub const AXES: &str = "axes";
+/// The attribute of an axis dataset that holds its unit.
+pub const UNITS: &str = "units";
+/// The point labels of a points scene, one per instance.
+pub const LABELS: &str = "labels";
+
+/// Root attribute: the scene's name.
+pub const NAME: &str = "name";
+/// Root attribute: the scene's TOML text, which gives the grid order.
+pub const SCENE: &str = "scene";
+/// Root attribute present only in a shard file.
+pub const SHARD_INDEX: &str = "shard_index";
+
+/// The optional group of the stored trajectories, `<k>/` for k = 0, 1, ...
+pub const TRAJECTORIES: &str = "trajectories";
+/// Sample times [s] of a run group.
+pub const TIME: &str = "time";
+/// Stage and slider displacement per axis [m] of a trajectory group.
+pub const STAGE: [&str; 2] = ["stage_x", "stage_y"];
+pub const SLIDER: [&str; 2] = ["slider_x", "slider_y"];
+/// The 1-DOF run subgroups of a trajectory, x driven alone and y alone.
+pub const BASELINE_RUN: [&str; 2] = ["baseline_x", "baseline_y"];
+/// Stage and slider displacement along the driven axis [m] of a 1-DOF run.
+pub const BASELINE_STAGE: &str = "stage";
+pub const BASELINE_SLIDER: &str = "slider";
+
+/// Text attributes of a trajectory group.
+pub const POINT: &str = "point";
+pub const LABEL: &str = "label";
+/// Integer attributes of a run group.
+pub const INDEX: &str = "index";
+pub const RUN_STATUS: &str = "status";
+pub const MEASURED_CYCLES: &str = "measured_cycles";
+/// Number attributes of a run group [s].
+pub const PERIOD_S: &str = "period_s";
+pub const SETTLE_S: &str = "settle_s";
+pub const DURATION_S: &str = "duration_s";
+/// Per-axis drive attributes of a run group, suffixed `_x` and `_y`.
+pub const VOLTAGE: &str = "voltage";
+pub const FREQUENCY: &str = "frequency";
+pub const DUTY: &str = "duty";
+pub const PHASE: &str = "phase";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_paths_readers_use_are_the_datasets_writers_write() {
+        let path = |group: &str, d: &MapDataset| format!("{group}/{}", d.name);
+        assert_eq!(
+            STEP.map(String::from),
+            [0, 1].map(|k| path(MAPS, &MAP_DATASETS[k]))
+        );
+        assert_eq!(STATUS, path(MAPS, &MAP_DATASETS[4]));
+        assert_eq!(
+            BASELINE_STEP.map(String::from),
+            [0, 1].map(|k| path(BASELINE, &BASELINE_DATASETS[k]))
+        );
+        assert_eq!(BASELINE_STATUS, path(BASELINE, &BASELINE_DATASETS[2]));
+        assert_eq!(SHARD_INSTANCE, format!("{SHARD}/instance"));
+        // Four f64 maps and two u32 maps; two f64 and one u32 baselines.
+        assert_eq!(bytes_per_instance(false), 40);
+        assert_eq!(bytes_per_instance(true), 60);
+    }
+}
