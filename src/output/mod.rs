@@ -246,7 +246,10 @@ pub(crate) fn read_str_attr(loc: &hdf5::Location, name: &str) -> Result<String> 
         .attr(name)
         .and_then(|a| a.read_scalar())
         .with_context(|| format!("no text attribute `{name}`"))?;
-    Ok(value.as_str().to_string())
+    // The bytes are checked here: the stored text of a damaged file need
+    // not be UTF-8, and `as_str` would take it on trust.
+    String::from_utf8(value.as_bytes().to_vec())
+        .map_err(|_| anyhow::anyhow!("the text attribute `{name}` is not valid UTF-8"))
 }
 
 impl MapWriter {
