@@ -317,7 +317,7 @@ impl ResultFile {
         // Opened by name, not found by listing the attributes: listing
         // builds a table that libhdf5 1.10 frees wrongly when a damaged
         // file breaks it off (a segmentation fault, found by
-        // tests/plot_fuzz.rs).
+        // tests/it/plot_fuzz.rs).
         let attr = match loc.attr(name) {
             Ok(attr) => attr,
             Err(e) if is_missing_attribute(&e) => return Ok(None),

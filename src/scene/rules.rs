@@ -194,7 +194,7 @@ const PHASE: Bounds = Bounds {
 /// direction above a radian leaves the quadratic model of the direction
 /// nothing to approximate; the error of the step maps is about tolerance / 4
 /// um, so 1e-12 rad already asks for 2.5e-13 um. The default is 1e-4 rad;
-/// `tests/extreme.rs` converges at 1e-8 rad.
+/// `tests/it/extreme.rs` converges at 1e-8 rad.
 const TOLERANCE: Bounds = Bounds {
     min: 1e-12,
     max: 1.0,

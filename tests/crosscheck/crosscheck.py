@@ -74,7 +74,7 @@ With `--backend gpu` the engine runs on the GPU (`pidm run --backend gpu
 --precision f64`): the same checks and bounds apply, the result files
 must say the GPU ran at that precision, and no integration may have been
 handed to the CPU. `--precision f32` runs, but these bounds are f64's:
-f32's own claim is 0.005 um + 1 % against the CPU (tests/gpu.rs).
+f32's own claim is 0.005 um + 1 % against the CPU (tests/it/gpu.rs).
 
 EXCLUDED names instances left out of both checks, with the reason; they
 are still integrated and printed. It is empty: for bands of 1e-7 m/s and

@@ -1,7 +1,7 @@
 //! `sweeps/extreme.toml` on the CPU reference: every point converges (a
 //! tolerance 1000 times tighter moves it by less than the claimed error)
 //! with a bounded step count, no value is NaN or infinite, and each class
-//! shows the physics it is there for. The GPU side is in `tests/gpu.rs`.
+//! shows the physics it is there for. The GPU side is in `tests/it/gpu.rs`.
 
 use pidm::cpu::integrate::{STATUS_OK, Settings, State, displacement, run_instance};
 use pidm::model::Instance;

@@ -3,17 +3,9 @@
 //! grid, a points scene with a trajectory).
 
 use std::path::Path;
-use std::process::Command;
 
+use crate::common::pidm;
 use pidm::plot::{Diverging, NEUTRAL, Regime, ZERO_STEP_M, plane_dims, rdbu};
-
-fn pidm(args: &[&str], dir: &Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_pidm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("pidm runs")
-}
 
 /// Runs pidm and fails with its stderr unless it succeeds; returns stdout.
 fn ok(args: &[&str], dir: &Path) -> String {

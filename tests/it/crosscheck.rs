@@ -13,7 +13,7 @@
 //! (`tests/requirements.txt`). Without them each test prints a notice and
 //! passes, except under CI (`CI` set), where it fails. The GPU test needs
 //! an adapter with f64 (lavapipe is enough, with `WGPU_BACKEND=vulkan`):
-//! like `tests/gpu.rs`, it fails under CI without one and otherwise prints
+//! like `tests/it/gpu.rs`, it fails under CI without one and otherwise prints
 //! a notice and passes.
 
 use std::process::Command;

@@ -2,7 +2,7 @@
 //! on a real single-node cluster that `tests/slurm/cluster.sh` starts and
 //! stops, `sweeps/slurm/merge.sbatch` behind it, and `pidm merge` of the
 //! array's shards, each against a single `pidm run` bit for bit; then
-//! `pidm merge` refusing bad sets of those shards. (`tests/files.rs` checks
+//! `pidm merge` refusing bad sets of those shards. (`tests/it/files.rs` checks
 //! shards run and merged by hand, without Slurm.)
 //!
 //! The cluster needs root and Debian's `slurm-wlm` and `munge` packages.
@@ -12,6 +12,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use crate::common::{manifest, pidm, s};
 use pidm::output::compare_contents;
 
 /// A 4 x 3 grid of the two drive voltages with 1-DOF baselines: 12
@@ -31,14 +32,6 @@ baselines = true
 
 const SHARDS: usize = 3;
 
-fn pidm(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pidm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("pidm runs")
-}
-
 fn text(out: &Output) -> String {
     format!(
         "{}\nstdout:\n{}\nstderr:\n{}",
@@ -46,14 +39,6 @@ fn text(out: &Output) -> String {
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     )
-}
-
-fn manifest(path: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(path)
-}
-
-fn s(path: &Path) -> &str {
-    path.to_str().expect("temporary paths are UTF-8")
 }
 
 /// Runs `pidm run SCENE --out OUT` (with `extra` arguments) and requires success.

@@ -1,22 +1,10 @@
 //! The `pidm` binary end to end: the paper scene into HDF5 and back, and
 //! bad input refused before any work.
 
-use std::path::Path;
 use std::process::Command;
 
+use crate::common::{manifest, pidm};
 use hdf5::types::VarLenUnicode;
-
-fn pidm(args: &[&str], dir: &Path) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_pidm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("pidm runs")
-}
-
-fn manifest(path: &str) -> String {
-    format!("{}/{path}", env!("CARGO_MANIFEST_DIR"))
-}
 
 #[test]
 fn the_paper_scene_reproduces_model_md_through_hdf5() {

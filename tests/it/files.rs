@@ -7,15 +7,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use crate::common::{pidm, s};
 use pidm::output::compare_contents;
-
-fn pidm(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_pidm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("pidm runs")
-}
 
 fn ok(out: &Output) -> String {
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
@@ -43,10 +36,6 @@ fn grid_scene(dir: &Path, name: &str, x_volts: &str, cycles: u32) -> PathBuf {
     )
     .unwrap();
     path
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 #[test]

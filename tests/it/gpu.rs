@@ -144,34 +144,12 @@ fn compare(
     a
 }
 
-/// MODEL.md section 6: Table 1 as printed, duty 0.98, phases 0, 10
-/// periods of which 2 settle; then the text's parameter set.
+/// MODEL.md section 6: every reference case.
 fn paper_cases() -> Vec<Instance> {
-    let case = |vx: f64, vy: f64, fx: f64, fy: f64, text: bool| {
-        let mut inst = Instance::TABLE1;
-        if text {
-            inst.axes = [Axis::TEXT, Axis::TEXT];
-        }
-        inst.axes[0].voltage = vx;
-        inst.axes[1].voltage = vy;
-        inst.axes[0].frequency = fx;
-        inst.axes[1].frequency = fy;
-        inst
-    };
-    let r = 100.0 / 2f64.sqrt();
-    vec![
-        case(100.0, 0.0, 10.0, 10.0, false),
-        case(50.0, 0.0, 10.0, 10.0, false),
-        case(100.0, 0.0, 20.0, 20.0, false),
-        case(r, r, 10.0, 10.0, false),
-        case(100.0, 100.0, 10.0, 10.0, false),
-        case(100.0, 50.0, 10.0, 10.0, false),
-        case(100.0, 100.0, 10.0, 20.0, false),
-        case(100.0, 0.0, 20.0, 20.0, true),
-        case(100.0, 100.0, 10.0, 10.0, true),
-        case(100.0, 100.0, 10.0, 20.0, true),
-        case(100.0, 0.0, 10.0, 10.0, true),
-    ]
+    crate::common::reference_cases()
+        .into_iter()
+        .map(|(_, instance, _)| instance)
+        .collect()
 }
 
 /// SplitMix64: a tiny seeded generator, so the scene needs no dependency.

@@ -8,6 +8,8 @@ use pidm::cpu::integrate::{
     advance_observed, displacement, initial_state, is_finished, run_instance,
 };
 use pidm::model::{Axis, Instance};
+
+use crate::common::{case, reference_cases};
 use pidm::sweep::{self, Plan, run_one};
 
 /// Steps per own drive cycle [um] and the status of one instance.
@@ -15,86 +17,6 @@ fn steps_um(inst: &Instance, settings: &Settings) -> ([f64; 2], u32) {
     let out = run_one(inst, settings);
     let rec = sweep::record(inst, &out);
     ([rec.step[0] * 1e6, rec.step[1] * 1e6], out.status)
-}
-
-fn case(vx: f64, vy: f64, fx: f64, fy: f64, axis: Axis) -> Instance {
-    let mut inst = Instance::TABLE1;
-    inst.axes = [axis, axis];
-    inst.axes[0].voltage = vx;
-    inst.axes[1].voltage = vy;
-    inst.axes[0].frequency = fx;
-    inst.axes[1].frequency = fy;
-    inst
-}
-
-/// MODEL.md section 6: (name, instance, step_x, step_y) in um, given to 4
-/// decimals there.
-fn reference_cases() -> Vec<(&'static str, Instance, [f64; 2])> {
-    let t = Axis::TABLE1;
-    let x = Axis::TEXT;
-    let r = 100.0 / 2f64.sqrt();
-    vec![
-        (
-            "1-DOF 100 V 10 Hz",
-            case(100.0, 0.0, 10.0, 10.0, t),
-            [0.6159, 0.0],
-        ),
-        (
-            "1-DOF 50 V 10 Hz",
-            case(50.0, 0.0, 10.0, 10.0, t),
-            [0.3802, 0.0],
-        ),
-        (
-            "1-DOF 100 V 20 Hz",
-            case(100.0, 0.0, 20.0, 20.0, t),
-            [-1.1767, 0.0],
-        ),
-        (
-            "2-DOF 70.71/70.71 V",
-            case(r, r, 10.0, 10.0, t),
-            [0.4355, 0.4355],
-        ),
-        (
-            "2-DOF 100/100 V",
-            case(100.0, 100.0, 10.0, 10.0, t),
-            [-0.9424, -0.9424],
-        ),
-        (
-            "2-DOF 100/50 V",
-            case(100.0, 50.0, 10.0, 10.0, t),
-            [0.0545, 0.0273],
-        ),
-        (
-            "2-DOF 10/20 Hz",
-            case(100.0, 100.0, 10.0, 20.0, t),
-            [1.6151, -0.4950],
-        ),
-        (
-            "text 1-DOF 100 V 20 Hz",
-            case(100.0, 0.0, 20.0, 20.0, x),
-            [-2.8519, 0.0],
-        ),
-        (
-            "text 2-DOF 100/100 V",
-            case(100.0, 100.0, 10.0, 10.0, x),
-            [-0.6042, -0.6042],
-        ),
-        (
-            "text 2-DOF 10/20 Hz",
-            case(100.0, 100.0, 10.0, 20.0, x),
-            [1.0692, -1.1754],
-        ),
-        (
-            "text 1-DOF 100 V 10 Hz",
-            case(100.0, 0.0, 10.0, 10.0, x),
-            [0.0, 0.0],
-        ),
-        (
-            "text 1-DOF 50 V 10 Hz",
-            case(50.0, 0.0, 10.0, 10.0, x),
-            [0.0, 0.0],
-        ),
-    ]
 }
 
 /// The references are printed to 4 decimals; a converged result must round

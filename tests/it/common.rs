@@ -1,0 +1,109 @@
+//! Helpers every test module shares: the `pidm` binary, paths in the
+//! repository, and the paper's reference cases.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use pidm::model::{Axis, Instance};
+
+/// Runs the `pidm` binary built with these tests in `dir`.
+pub fn pidm(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_pidm"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("pidm runs")
+}
+
+/// A path inside the repository, as text.
+pub fn manifest(path: &str) -> String {
+    format!("{}/{path}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A path as text (temporary paths are UTF-8).
+pub fn s(path: &Path) -> &str {
+    path.to_str().expect("temporary paths are UTF-8")
+}
+
+/// One case of MODEL.md section 6: both stages `axis`, the given voltages
+/// [V] and frequencies [Hz], Table 1's interface, duty 0.98, phases 0, 10
+/// periods of which 2 settle.
+pub fn case(vx: f64, vy: f64, fx: f64, fy: f64, axis: Axis) -> Instance {
+    let mut inst = Instance::TABLE1;
+    inst.axes = [axis, axis];
+    inst.axes[0].voltage = vx;
+    inst.axes[1].voltage = vy;
+    inst.axes[0].frequency = fx;
+    inst.axes[1].frequency = fy;
+    inst
+}
+
+/// MODEL.md section 6: (name, instance, step_x, step_y) in um, given to 4
+/// decimals there.
+pub fn reference_cases() -> Vec<(&'static str, Instance, [f64; 2])> {
+    let t = Axis::TABLE1;
+    let x = Axis::TEXT;
+    let r = 100.0 / 2f64.sqrt();
+    vec![
+        (
+            "1-DOF 100 V 10 Hz",
+            case(100.0, 0.0, 10.0, 10.0, t),
+            [0.6159, 0.0],
+        ),
+        (
+            "1-DOF 50 V 10 Hz",
+            case(50.0, 0.0, 10.0, 10.0, t),
+            [0.3802, 0.0],
+        ),
+        (
+            "1-DOF 100 V 20 Hz",
+            case(100.0, 0.0, 20.0, 20.0, t),
+            [-1.1767, 0.0],
+        ),
+        (
+            "2-DOF 70.71/70.71 V",
+            case(r, r, 10.0, 10.0, t),
+            [0.4355, 0.4355],
+        ),
+        (
+            "2-DOF 100/100 V",
+            case(100.0, 100.0, 10.0, 10.0, t),
+            [-0.9424, -0.9424],
+        ),
+        (
+            "2-DOF 100/50 V",
+            case(100.0, 50.0, 10.0, 10.0, t),
+            [0.0545, 0.0273],
+        ),
+        (
+            "2-DOF 10/20 Hz",
+            case(100.0, 100.0, 10.0, 20.0, t),
+            [1.6151, -0.4950],
+        ),
+        (
+            "text 1-DOF 100 V 20 Hz",
+            case(100.0, 0.0, 20.0, 20.0, x),
+            [-2.8519, 0.0],
+        ),
+        (
+            "text 2-DOF 100/100 V",
+            case(100.0, 100.0, 10.0, 10.0, x),
+            [-0.6042, -0.6042],
+        ),
+        (
+            "text 2-DOF 10/20 Hz",
+            case(100.0, 100.0, 10.0, 20.0, x),
+            [1.0692, -1.1754],
+        ),
+        (
+            "text 1-DOF 100 V 10 Hz",
+            case(100.0, 0.0, 10.0, 10.0, x),
+            [0.0, 0.0],
+        ),
+        (
+            "text 1-DOF 50 V 10 Hz",
+            case(50.0, 0.0, 10.0, 10.0, x),
+            [0.0, 0.0],
+        ),
+    ]
+}

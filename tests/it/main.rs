@@ -1,0 +1,20 @@
+//! The integration tests, one binary (each test file is a module; they
+//! link HDF5 and wgpu once). `common` holds the helpers they share.
+//!
+//! Run one module with `cargo test --release --test it gpu::`.
+
+mod common;
+
+mod cli;
+mod crosscheck;
+mod extreme;
+mod files;
+mod gpu;
+mod output;
+mod plot;
+mod plot_fuzz;
+mod reference;
+mod scene;
+mod scene_fuzz;
+mod slurm;
+mod trajectory;
