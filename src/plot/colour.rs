@@ -26,8 +26,10 @@ const RDBU: [(u8, u8, u8); 11] = [
     (103, 0, 31),
 ];
 
-/// The colour at the midpoint of the diverging scale.
-pub const NEUTRAL: RGBColor = RGBColor(247, 247, 247);
+/// The colour at the midpoint of the diverging scale (the middle class of
+/// [`RDBU`]).
+#[cfg(test)]
+const NEUTRAL: RGBColor = RGBColor(RDBU[5].0, RDBU[5].1, RDBU[5].2);
 
 /// A diverging colour scale with limits symmetric about its centre.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -109,3 +111,37 @@ pub(super) fn light(c: RGBColor, keep: f64) -> RGBColor {
 pub(super) const BASELINE_GREY: RGBColor = RGBColor(150, 150, 150);
 /// The background band of the settle periods in trajectory figures.
 pub(super) const SETTLE_GREY: RGBColor = RGBColor(236, 236, 236);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_colour_scale_is_centred_and_symmetric() {
+        let scale = Diverging::covering([-0.5, 2.0, 1.0, f64::NAN], 0.0, 1e-3, f64::INFINITY);
+        assert_eq!(scale.limits(), (-2.0, 2.0), "symmetric about zero");
+        assert_eq!(scale.colour(0.0), NEUTRAL, "zero is the neutral midpoint");
+        assert_eq!(scale.fraction(0.0), 0.5);
+        assert_eq!(scale.fraction(-2.0), 0.0);
+        assert_eq!(scale.fraction(2.0), 1.0);
+        assert_eq!(scale.fraction(7.0), 1.0, "values beyond are clamped");
+        assert_eq!(rdbu(0.5), NEUTRAL);
+        // Opposite signs take opposite hues: negative blue, positive red.
+        let (neg, pos) = (scale.colour(-1.5), scale.colour(1.5));
+        assert!(neg.2 > neg.0 && pos.0 > pos.2, "{neg:?} {pos:?}");
+        // Equal magnitudes are equally far from neutral.
+        assert_eq!(
+            scale.fraction(-1.5) - 0.5,
+            0.5 - scale.fraction(1.5),
+            "symmetric"
+        );
+        // Noise around zero stays pale; a cap bounds outliers; other centres.
+        let noise = Diverging::covering([1e-10, -3e-10], 0.0, 1e-3, f64::INFINITY);
+        assert_eq!(noise.half_width, 1e-3);
+        let capped = Diverging::covering([100.0, 1.5], 1.0, 0.25, 3.0);
+        assert_eq!(capped.limits(), (-2.0, 4.0));
+        assert_eq!(capped.colour(1.0), NEUTRAL);
+        let empty = Diverging::covering([], 0.0, 0.5, 3.0);
+        assert_eq!(empty.limits(), (-0.5, 0.5));
+    }
+}

@@ -273,3 +273,22 @@ pub(super) fn grid_maps(
 
 /// Ratio colour scales reach at most this far from 1.
 const RATIO_HALF_WIDTH: f64 = 3.0;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pictures_span_the_two_longest_axes() {
+        let cases: [(&[usize], (usize, usize)); 5] = [
+            (&[3, 4], (0, 1)),
+            (&[61, 61], (0, 1)),
+            (&[2, 13, 8], (1, 2)),
+            (&[13, 2, 8], (0, 2)),
+            (&[5, 5, 5, 9], (0, 3)),
+        ];
+        for (shape, want) in cases {
+            assert_eq!(plane_dims(shape), want, "{shape:?}");
+        }
+    }
+}

@@ -59,10 +59,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 
-pub use colour::{Diverging, FAILED, NEUTRAL, UNDEFINED, rdbu};
 pub use error::{Problem, ResultFileError};
-pub use maps::plane_dims;
-pub use regime::{Regime, ZERO_STEP_M};
 
 use read::{Data, Kind};
 use staging::Staging;

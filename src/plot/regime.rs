@@ -97,3 +97,55 @@ impl Regime {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn regimes_classify_2dof_against_1dof() {
+        let um = 1e-6;
+        // (2-DOF step, 1-DOF step, both finished normally, expected regime).
+        let cases = [
+            (0.5 * um, 0.6 * um, true, Regime::Reduced),
+            (0.9 * um, 0.6 * um, true, Regime::Amplified),
+            (-0.9 * um, 0.6 * um, true, Regime::Reversed),
+            (0.1 * um, -0.6 * um, true, Regime::Reversed),
+            (-0.1 * um, -0.6 * um, true, Regime::Reduced),
+            (-1.6 * um, -0.6 * um, true, Regime::Amplified),
+            (0.6 * um, 0.6 * um, true, Regime::Unchanged),
+            (
+                0.6 * um + 0.5 * ZERO_STEP_M,
+                0.6 * um,
+                true,
+                Regime::Unchanged,
+            ),
+            (0.0, 0.6 * um, true, Regime::Stalled),
+            (0.3 * ZERO_STEP_M, -0.6 * um, true, Regime::Stalled),
+            (0.4 * um, 0.0, true, Regime::Started),
+            (-0.4 * um, 0.2 * ZERO_STEP_M, true, Regime::Started),
+            (0.0, 0.0, true, Regime::AtRest),
+            (0.5 * ZERO_STEP_M, -0.5 * ZERO_STEP_M, true, Regime::AtRest),
+            (0.5 * um, 0.6 * um, false, Regime::Failed),
+            (f64::NAN, 0.6 * um, true, Regime::Failed),
+        ];
+        for (two, one, ok, want) in cases {
+            check_regime(two, one, ok, want);
+        }
+        // Every regime has its own colour and text.
+        for (i, a) in Regime::ALL.iter().enumerate() {
+            for b in &Regime::ALL[i + 1..] {
+                assert_ne!(a.colour(), b.colour(), "{a:?} {b:?}");
+                assert_ne!(a.describe(), b.describe());
+            }
+        }
+    }
+
+    fn check_regime(two_dof: f64, one_dof: f64, ok: bool, want: Regime) {
+        let got = Regime::classify(two_dof, one_dof, ok);
+        assert_eq!(
+            got, want,
+            "2-DOF {two_dof:e} m against 1-DOF {one_dof:e} m (ok {ok})"
+        );
+    }
+}

@@ -1,11 +1,9 @@
-//! `pidm plot`: the colour scale and the coupling regimes as functions, and
-//! the binary end to end on tiny scenes (a 2-D grid with baselines, a 1-D
+//! `pidm plot` end to end on tiny scenes (a 2-D grid with baselines, a 1-D
 //! grid, a points scene with a trajectory).
 
 use std::path::Path;
 
 use crate::common::pidm;
-use pidm::plot::{Diverging, NEUTRAL, Regime, ZERO_STEP_M, plane_dims, rdbu};
 
 /// Runs pidm and fails with its stderr unless it succeeds; returns stdout.
 fn ok(args: &[&str], dir: &Path) -> String {
@@ -46,96 +44,6 @@ fn check_png(path: &Path) {
         path.display(),
         colours.len()
     );
-}
-
-#[test]
-fn the_colour_scale_is_centred_and_symmetric() {
-    let scale = Diverging::covering([-0.5, 2.0, 1.0, f64::NAN], 0.0, 1e-3, f64::INFINITY);
-    assert_eq!(scale.limits(), (-2.0, 2.0), "symmetric about zero");
-    assert_eq!(scale.colour(0.0), NEUTRAL, "zero is the neutral midpoint");
-    assert_eq!(scale.fraction(0.0), 0.5);
-    assert_eq!(scale.fraction(-2.0), 0.0);
-    assert_eq!(scale.fraction(2.0), 1.0);
-    assert_eq!(scale.fraction(7.0), 1.0, "values beyond are clamped");
-    assert_eq!(rdbu(0.5), NEUTRAL);
-    // Opposite signs take opposite hues: negative blue, positive red.
-    let (neg, pos) = (scale.colour(-1.5), scale.colour(1.5));
-    assert!(neg.2 > neg.0 && pos.0 > pos.2, "{neg:?} {pos:?}");
-    // Equal magnitudes are equally far from neutral.
-    assert_eq!(
-        scale.fraction(-1.5) - 0.5,
-        0.5 - scale.fraction(1.5),
-        "symmetric"
-    );
-    // Noise around zero stays pale; a cap bounds outliers; other centres.
-    let noise = Diverging::covering([1e-10, -3e-10], 0.0, 1e-3, f64::INFINITY);
-    assert_eq!(noise.half_width, 1e-3);
-    let capped = Diverging::covering([100.0, 1.5], 1.0, 0.25, 3.0);
-    assert_eq!(capped.limits(), (-2.0, 4.0));
-    assert_eq!(capped.colour(1.0), NEUTRAL);
-    let empty = Diverging::covering([], 0.0, 0.5, 3.0);
-    assert_eq!(empty.limits(), (-0.5, 0.5));
-}
-
-#[test]
-fn regimes_classify_2dof_against_1dof() {
-    let um = 1e-6;
-    // (2-DOF step, 1-DOF step, both finished normally, expected regime).
-    let cases = [
-        (0.5 * um, 0.6 * um, true, Regime::Reduced),
-        (0.9 * um, 0.6 * um, true, Regime::Amplified),
-        (-0.9 * um, 0.6 * um, true, Regime::Reversed),
-        (0.1 * um, -0.6 * um, true, Regime::Reversed),
-        (-0.1 * um, -0.6 * um, true, Regime::Reduced),
-        (-1.6 * um, -0.6 * um, true, Regime::Amplified),
-        (0.6 * um, 0.6 * um, true, Regime::Unchanged),
-        (
-            0.6 * um + 0.5 * ZERO_STEP_M,
-            0.6 * um,
-            true,
-            Regime::Unchanged,
-        ),
-        (0.0, 0.6 * um, true, Regime::Stalled),
-        (0.3 * ZERO_STEP_M, -0.6 * um, true, Regime::Stalled),
-        (0.4 * um, 0.0, true, Regime::Started),
-        (-0.4 * um, 0.2 * ZERO_STEP_M, true, Regime::Started),
-        (0.0, 0.0, true, Regime::AtRest),
-        (0.5 * ZERO_STEP_M, -0.5 * ZERO_STEP_M, true, Regime::AtRest),
-        (0.5 * um, 0.6 * um, false, Regime::Failed),
-        (f64::NAN, 0.6 * um, true, Regime::Failed),
-    ];
-    for (two, one, ok, want) in cases {
-        check_regime(two, one, ok, want);
-    }
-    // Every regime has its own colour and text.
-    for (i, a) in Regime::ALL.iter().enumerate() {
-        for b in &Regime::ALL[i + 1..] {
-            assert_ne!(a.colour(), b.colour(), "{a:?} {b:?}");
-            assert_ne!(a.describe(), b.describe());
-        }
-    }
-}
-
-fn check_regime(two_dof: f64, one_dof: f64, ok: bool, want: Regime) {
-    let got = Regime::classify(two_dof, one_dof, ok);
-    assert_eq!(
-        got, want,
-        "2-DOF {two_dof:e} m against 1-DOF {one_dof:e} m (ok {ok})"
-    );
-}
-
-#[test]
-fn pictures_span_the_two_longest_axes() {
-    let cases: [(&[usize], (usize, usize)); 5] = [
-        (&[3, 4], (0, 1)),
-        (&[61, 61], (0, 1)),
-        (&[2, 13, 8], (1, 2)),
-        (&[13, 2, 8], (0, 2)),
-        (&[5, 5, 5, 9], (0, 3)),
-    ];
-    for (shape, want) in cases {
-        assert_eq!(plane_dims(shape), want, "{shape:?}");
-    }
 }
 
 #[test]
