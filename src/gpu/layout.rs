@@ -66,7 +66,8 @@ impl Units {
 }
 
 /// A struct shared with the shader: its WGSL name and the byte offset of
-/// every member, in declaration order.
+/// every member, in declaration order, which a unit test holds against
+/// naga's layout of the shader.
 pub trait HostLayout: bytemuck::Pod {
     /// The name of the WGSL struct it mirrors.
     const NAME: &'static str;
@@ -362,6 +363,75 @@ precision_structs!(double, f64, F64x2, Units::SI, f64::EPSILON);
 mod tests {
     use super::*;
     use crate::cpu::integrate::Coefficients;
+    use crate::gpu::Precision;
+    use naga::proc::Layouter;
+
+    /// Checks one naga struct against its host mirror.
+    fn check_struct<T: HostLayout>(
+        module: &naga::Module,
+        layouter: &Layouter,
+        precision: Precision,
+    ) {
+        let (handle, ty) = module
+            .types
+            .iter()
+            .find(|(_, ty)| ty.name.as_deref() == Some(T::NAME))
+            .unwrap_or_else(|| panic!("{precision:?}: no struct {} in the shader", T::NAME));
+        let naga::TypeInner::Struct { members, span } = &ty.inner else {
+            panic!("{} is not a struct", T::NAME);
+        };
+        assert_eq!(
+            *span as usize,
+            size_of::<T>(),
+            "{precision:?} {}: shader size {} vs host {}",
+            T::NAME,
+            span,
+            size_of::<T>()
+        );
+        assert_eq!(layouter[handle].size as usize, size_of::<T>());
+        let host = T::members();
+        let shader: Vec<(&str, usize)> = members
+            .iter()
+            .map(|m| (m.name.as_deref().unwrap_or("?"), m.offset as usize))
+            .collect();
+        assert_eq!(
+            shader,
+            host,
+            "{precision:?} {}: members (name, offset) differ",
+            T::NAME
+        );
+    }
+
+    #[test]
+    fn shader_layout_matches_host_structs() {
+        for precision in [Precision::F32, Precision::F64] {
+            let variant = crate::gpu::Variant {
+                precision,
+                loop_limiter: false,
+            };
+            let (module, _info) = match crate::gpu::shader::parse_and_validate(variant) {
+                Ok(m) => m,
+                Err(e) => panic!("{e}"),
+            };
+            let mut layouter = Layouter::default();
+            layouter
+                .update(module.to_ctx())
+                .expect("the shader's types lay out");
+            check_struct::<control::Control>(&module, &layouter, precision);
+            match precision {
+                Precision::F32 => {
+                    check_struct::<single::Oscillator>(&module, &layouter, precision);
+                    check_struct::<single::Coefficients>(&module, &layouter, precision);
+                    check_struct::<single::State>(&module, &layouter, precision);
+                }
+                Precision::F64 => {
+                    check_struct::<double::Oscillator>(&module, &layouter, precision);
+                    check_struct::<double::Coefficients>(&module, &layouter, precision);
+                    check_struct::<double::State>(&module, &layouter, precision);
+                }
+            }
+        }
+    }
 
     #[test]
     fn units_keep_the_force_unit_one_newton() {

@@ -8,12 +8,8 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
-use naga::proc::Layouter;
 use pidm::cpu::integrate::{STATUS_OK, Settings, displacement, run_instance};
-use pidm::gpu::layout::{HostLayout, control, double, single};
-use pidm::gpu::{
-    BatchOptions, GpuContext, GpuOutcome, Precision, run_batch, run_batch_with, shader,
-};
+use pidm::gpu::{BatchOptions, GpuContext, GpuOutcome, Precision, run_batch, run_batch_with};
 use pidm::model::{Axis, Instance};
 
 /// Allowed f32 error per axis: 0.005 um + 1 % of the CPU step [um].
@@ -223,69 +219,6 @@ fn random_scene(
         }
     }
     (instances, states, skipped)
-}
-
-/// Checks one naga struct against its host mirror.
-fn check_struct<T: HostLayout>(module: &naga::Module, layouter: &Layouter, precision: Precision) {
-    let (handle, ty) = module
-        .types
-        .iter()
-        .find(|(_, ty)| ty.name.as_deref() == Some(T::NAME))
-        .unwrap_or_else(|| panic!("{precision:?}: no struct {} in the shader", T::NAME));
-    let naga::TypeInner::Struct { members, span } = &ty.inner else {
-        panic!("{} is not a struct", T::NAME);
-    };
-    assert_eq!(
-        *span as usize,
-        size_of::<T>(),
-        "{precision:?} {}: shader size {} vs host {}",
-        T::NAME,
-        span,
-        size_of::<T>()
-    );
-    assert_eq!(layouter[handle].size as usize, size_of::<T>());
-    let host = T::members();
-    let shader: Vec<(&str, usize)> = members
-        .iter()
-        .map(|m| (m.name.as_deref().unwrap_or("?"), m.offset as usize))
-        .collect();
-    assert_eq!(
-        shader,
-        host,
-        "{precision:?} {}: members (name, offset) differ",
-        T::NAME
-    );
-}
-
-#[test]
-fn shader_layout_matches_host_structs() {
-    for precision in [Precision::F32, Precision::F64] {
-        let variant = pidm::gpu::Variant {
-            precision,
-            loop_limiter: false,
-        };
-        let (module, _info) = match shader::parse_and_validate(variant) {
-            Ok(m) => m,
-            Err(e) => panic!("{e}"),
-        };
-        let mut layouter = Layouter::default();
-        layouter
-            .update(module.to_ctx())
-            .expect("the shader's types lay out");
-        check_struct::<control::Control>(&module, &layouter, precision);
-        match precision {
-            Precision::F32 => {
-                check_struct::<single::Oscillator>(&module, &layouter, precision);
-                check_struct::<single::Coefficients>(&module, &layouter, precision);
-                check_struct::<single::State>(&module, &layouter, precision);
-            }
-            Precision::F64 => {
-                check_struct::<double::Oscillator>(&module, &layouter, precision);
-                check_struct::<double::Coefficients>(&module, &layouter, precision);
-                check_struct::<double::State>(&module, &layouter, precision);
-            }
-        }
-    }
 }
 
 /// Compares a batch with the CPU at its precision's allowance and fails on
