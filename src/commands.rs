@@ -48,6 +48,9 @@ pub struct RunResult {
     pub backend: String,
     /// The records, kept only for small scenes (up to the table limit).
     pub records: Vec<Record>,
+    /// Instances taken from the checkpoint of an interrupted run
+    /// (`--resume`) rather than integrated by this one.
+    pub from_checkpoint: u64,
 }
 
 /// Installs the Ctrl-C handler once: it asks running backends to stop, and
@@ -150,6 +153,7 @@ pub fn run_scene(
     let keep_records = count <= keep;
     let mut kept: BTreeMap<u64, Record> = BTreeMap::new();
     let mut summary = Summary::default();
+    let mut from_checkpoint = 0;
 
     // The claim comes before anything else touches the output, its
     // temporary file or its checkpoint: a second run of the same output is
@@ -179,6 +183,7 @@ pub fn run_scene(
                     );
                 }
                 writer.write(start, records)?;
+                from_checkpoint += records.len() as u64;
                 for (k, r) in records.iter().enumerate() {
                     summary.add(r);
                     if keep_records {
@@ -259,6 +264,7 @@ pub fn run_scene(
         wall_time_s,
         backend: backend.describe(),
         records: kept.into_values().collect(),
+        from_checkpoint,
     })
 }
 
@@ -315,9 +321,15 @@ fn um(x: f64) -> String {
 
 fn print_summary(scene: &Scene, result: &RunResult) {
     let s = &result.summary;
+    // After --resume the integrations and times are this run's own; the
+    // instances and statuses count the whole file.
+    let resumed = match result.from_checkpoint {
+        0 => String::new(),
+        n => format!(" ({n} of them from the checkpoint)"),
+    };
     println!(
-        "wrote {} ({} instances, {} distinct integrations, {:.3} s wall of which {:.3} s \
-         integrating, {:.0} simulated s per wall s)",
+        "wrote {} ({} instances{resumed}, {} distinct integrations in this run, {:.3} s wall of \
+         which {:.3} s integrating, {:.0} simulated s per wall s)",
         result.path.display(),
         s.instances,
         s.integrations,

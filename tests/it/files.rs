@@ -316,11 +316,20 @@ fn a_killed_or_interrupted_run_resumes_to_the_uninterrupted_file() {
 
         let mut resume = args.to_vec();
         resume.push("--resume");
-        let stderr = ok(&pidm(&resume, d));
+        let resumed = pidm(&resume, d);
+        let stderr = ok(&resumed);
         let done = resumed_done(&stderr);
         assert!(
             (2 * chunk..48).contains(&done),
             "{signal}: {done} done before resuming"
+        );
+        // The summary tells the file's instances from this run's work.
+        let summary = String::from_utf8_lossy(&resumed.stdout);
+        assert!(
+            summary.contains(&format!(
+                "48 instances ({done} of them from the checkpoint), "
+            )),
+            "{summary}"
         );
         assert!(!checkpoint.exists());
         assert!(leftovers(d).is_empty(), "{:?}", leftovers(d));
