@@ -139,17 +139,17 @@ impl ShardFile {
                 total: read_u64_attr(&file, schema::INSTANCE_COUNT)?,
                 scene: read_str_attr(&file, schema::SCENE)?,
                 name: read_str_attr(&file, schema::NAME)?,
-                version: read_str_attr(&file, "pidm_version")?,
-                precision: read_str_attr(&file, "precision")?,
-                variant: read_str_attr(&file, "variant")?,
-                backend: read_str_attr(&file, "backend")?,
-                tolerance: file.attr("tolerance")?.read_scalar()?,
+                version: read_str_attr(&file, schema::PIDM_VERSION)?,
+                precision: read_str_attr(&file, schema::PRECISION)?,
+                variant: read_str_attr(&file, schema::VARIANT)?,
+                backend: read_str_attr(&file, schema::BACKEND)?,
+                tolerance: file.attr(schema::TOLERANCE)?.read_scalar()?,
                 verify_tolerance: file
-                    .attr("verify_tolerance")
+                    .attr(schema::VERIFY_TOLERANCE)
                     .ok()
                     .map(|a| a.read_scalar())
                     .transpose()?,
-                wall_time_s: file.attr("wall_time_s")?.read_scalar()?,
+                wall_time_s: file.attr(schema::WALL_TIME_S)?.read_scalar()?,
                 file: file.clone(),
             })
         };

@@ -294,13 +294,13 @@ impl MapWriter {
         };
         write_str_attr(&file, schema::SCENE, &info.scene_text)?;
         write_str_attr(&file, schema::NAME, &info.name)?;
-        write_str_attr(&file, "pidm_version", env!("CARGO_PKG_VERSION"))?;
-        write_str_attr(&file, "backend", &info.backend)?;
-        write_str_attr(&file, "precision", &info.precision)?;
-        write_str_attr(&file, "variant", &info.variant)?;
-        write_f64_attr(&file, "tolerance", info.tolerance)?;
+        write_str_attr(&file, schema::PIDM_VERSION, env!("CARGO_PKG_VERSION"))?;
+        write_str_attr(&file, schema::BACKEND, &info.backend)?;
+        write_str_attr(&file, schema::PRECISION, &info.precision)?;
+        write_str_attr(&file, schema::VARIANT, &info.variant)?;
+        write_f64_attr(&file, schema::TOLERANCE, info.tolerance)?;
         if let Some(tolerance) = info.verify_tolerance {
-            write_f64_attr(&file, "verify_tolerance", tolerance)?;
+            write_f64_attr(&file, schema::VERIFY_TOLERANCE, tolerance)?;
         }
 
         // The dimension scales, in grid order.
@@ -386,7 +386,7 @@ impl MapWriter {
                         dimension_scales::attach(ds, scale, dim as u32)?;
                     }
                     if coordinates.is_some() {
-                        write_str_attr(ds, "coordinates", "labels")?;
+                        write_str_attr(ds, "coordinates", schema::LABELS)?;
                     }
                     file.link_hard(&format!("{prefix}/{name}"), &root_name(prefix, name))?;
                 }
@@ -480,7 +480,7 @@ impl MapWriter {
     /// place. On an error the temporary file is removed and the output is
     /// left as it was.
     pub fn finish(mut self, wall_time_s: f64) -> Result<PathBuf> {
-        write_f64_attr(self.file(), "wall_time_s", wall_time_s)?;
+        write_f64_attr(self.file(), schema::WALL_TIME_S, wall_time_s)?;
         // The output may have changed since the claim checked it; a rename
         // would silently replace a FIFO or device that appeared meanwhile.
         claim::check_regular_or_absent(&self.final_path)?;

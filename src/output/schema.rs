@@ -110,6 +110,18 @@ pub const SHARD_INSTANCE: &str = "shard/instance";
 /// The attribute of every map and axis that holds its description.
 pub const LONG_NAME: &str = "long_name";
 
+/// Root attributes every result file carries: the pidm version, the
+/// backend that ran (its description), "f32" or "f64", the integrator
+/// variant, the scene's tolerance [rad], the `--verify` rerun's tolerance
+/// [rad] (only with `--verify`) and the run's wall time [s].
+pub const PIDM_VERSION: &str = "pidm_version";
+pub const BACKEND: &str = "backend";
+pub const PRECISION: &str = "precision";
+pub const VARIANT: &str = "variant";
+pub const TOLERANCE: &str = "tolerance";
+pub const VERIFY_TOLERANCE: &str = "verify_tolerance";
+pub const WALL_TIME_S: &str = "wall_time_s";
+
 /// Root attributes of a shard file: which part of the scene it holds.
 pub const SHARD_COUNT: &str = "shard_count";
 pub const INSTANCE_COUNT: &str = "instance_count";
