@@ -2,24 +2,20 @@
 //! command line and prints errors; everything a command does is here, so
 //! tests can call it.
 
-use std::collections::BTreeMap;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::backend::{
     Backend, BackendChoice, CpuBackend, GpuBackend, Hardware, Precision, select_backend,
 };
-use crate::checkpoint::{self, Checkpoint};
 use crate::cpu::integrate::STATUS_OK;
 use crate::model::{AXES, AXIS_NAMES, Instance};
-use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo};
+use crate::output::ShardInfo;
+use crate::run::{RunResult, RunScope, default_output, run_scene};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
-use crate::shard::ShardSpec;
-use crate::sweep::{self, Plan, Record, Summary};
+use crate::sweep;
 
 /// A throughput used only for `pidm check`'s estimate: simulated seconds per
 /// wall second per core, measured by `pidm bench` on the paper scene with
@@ -38,239 +34,6 @@ pub struct RunOptions {
     pub table_limit: u64,
     /// Shard, resume and chunking.
     pub scope: RunScope,
-}
-
-/// What `pidm run` produced.
-pub struct RunResult {
-    pub path: PathBuf,
-    pub summary: Summary,
-    pub wall_time_s: f64,
-    pub backend: String,
-    /// The records, kept only for small scenes (up to the table limit).
-    pub records: Vec<Record>,
-    /// Instances taken from the checkpoint of an interrupted run
-    /// (`--resume`) rather than integrated by this one.
-    pub from_checkpoint: u64,
-}
-
-/// Installs the Ctrl-C handler once: it asks running backends to stop, and
-/// the sweep then ends without writing a result file.
-pub fn install_interrupt_handler() {
-    static INSTALLED: std::sync::Once = std::sync::Once::new();
-    INSTALLED.call_once(|| {
-        // A missing handler only means Ctrl-C ends the process at once,
-        // which also leaves no output.
-        let _ = ctrlc::set_handler(crate::sweep::request_interrupt);
-    });
-}
-
-fn progress_bar(total: u64) -> ProgressBar {
-    if !std::io::stderr().is_terminal() {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new(total);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} instances ({per_sec}, eta {eta})",
-        )
-        .expect("valid progress template")
-        .progress_chars("=> "),
-    );
-    bar
-}
-
-/// Which integrator runs a scene's instances: every backend runs the 2-DOF
-/// integrator, where an undriven axis stays exactly at rest.
-pub fn variant(scene: &Scene) -> String {
-    if scene.axis_ever_driven(1) {
-        "2-DOF".into()
-    } else {
-        "2-DOF (axis y undriven everywhere, exactly at rest)".into()
-    }
-}
-
-/// How a run covers its scene.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct RunScope {
-    /// Run only this shard of the instances.
-    pub shard: Option<ShardSpec>,
-    /// Continue an interrupted run from its checkpoint.
-    pub resume: bool,
-    /// Instances per chunk (the checkpoint granularity) instead of the
-    /// backend's choice.
-    pub chunk_size: Option<usize>,
-    /// Rerun every instance 100 times tighter and mark the unconverged
-    /// ones (status 5).
-    pub verify: bool,
-}
-
-/// Everything that must match for a checkpoint to be resumed: results are
-/// bit-identical only on the same scene, version, precision and hardware
-/// (the CPU path gives the same bits on any thread count).
-fn run_identity(scene: &Scene, backend: &dyn Backend, scope: RunScope) -> String {
-    let hardware = match backend.hardware() {
-        Hardware::Cpu { .. } => "cpu".to_string(),
-        Hardware::Gpu => backend.describe(),
-    };
-    format!(
-        "pidm {}\nbackend {hardware}\nprecision {}\nshard {}\nverify {}\ninstances {}\nscene\n{}",
-        env!("CARGO_PKG_VERSION"),
-        backend.precision(),
-        scope.shard.map_or("all".to_string(), |s| s.to_string()),
-        scope.verify,
-        scene.instance_count(),
-        scene.text
-    )
-}
-
-/// Runs a scene on a backend into an HDF5 file, checkpointing each
-/// finished chunk beside it. On an error or an interrupt the output file
-/// is not written and the checkpoint stays for `--resume`.
-pub fn run_scene(
-    scene: &Scene,
-    backend: &dyn Backend,
-    out: &Path,
-    keep: u64,
-    scope: RunScope,
-) -> Result<RunResult> {
-    scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
-    let total = scene.instance_count();
-    let mut info = FileInfo::of_scene(
-        scene,
-        backend.describe(),
-        backend.precision().to_string(),
-        variant(scene),
-    );
-    info.shard = scope.shard.map(|spec| ShardInfo::new(spec, total));
-    if scope.verify {
-        info.verify_tolerance = Some(scene.settings.tolerance / sweep::VERIFY_TIGHTENING);
-    }
-    let all = match &info.shard {
-        Some(shard) => shard.ranges.clone(),
-        None => Plan::everything(total),
-    };
-    let count: u64 = all.iter().map(|r| r.end - r.start).sum();
-    let keep_records = count <= keep;
-    let mut kept: BTreeMap<u64, Record> = BTreeMap::new();
-    let mut summary = Summary::default();
-    let mut from_checkpoint = 0;
-
-    // The claim comes before anything else touches the output, its
-    // temporary file or its checkpoint: a second run of the same output is
-    // refused here, without side effects.
-    let claim = OutputClaim::acquire(out)?;
-    let checkpoint_path = claim.checkpoint_path();
-    let identity = run_identity(scene, backend, scope);
-    let (mut checkpoint, work, mut writer) = if scope.resume {
-        if !checkpoint_path.exists() {
-            bail!(
-                "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
-                checkpoint_path.display()
-            );
-        }
-        let mut writer = MapWriter::create(&claim, &info)?;
-        let (checkpoint, done) =
-            Checkpoint::resume(&checkpoint_path, &identity, &mut |start, records| {
-                let end = start.checked_add(records.len() as u64);
-                if !all
-                    .iter()
-                    .any(|r| r.start <= start && end.is_some_and(|e| e <= r.end))
-                {
-                    bail!(
-                        "the checkpoint {} holds instances {start}.. that this run does not \
-                         compute; delete it to start over",
-                        checkpoint_path.display()
-                    );
-                }
-                writer.write(start, records)?;
-                from_checkpoint += records.len() as u64;
-                for (k, r) in records.iter().enumerate() {
-                    summary.add(r);
-                    if keep_records {
-                        kept.insert(start + k as u64, *r);
-                    }
-                }
-                Ok(())
-            })?;
-        let work = checkpoint::missing(&all, &done);
-        let left: u64 = work.iter().map(|r| r.end - r.start).sum();
-        eprintln!(
-            "pidm: resuming from {}: {} of {count} instances done, {left} to compute",
-            checkpoint_path.display(),
-            count - left
-        );
-        (checkpoint, work, writer)
-    } else {
-        if checkpoint_path.exists() {
-            bail!(
-                "{} holds the finished part of an interrupted run of this output; continue it \
-                 with --resume, or delete it to start over",
-                checkpoint_path.display()
-            );
-        }
-        // The checkpoint is created first: it also keeps a second run of
-        // the same output from starting beside this one.
-        let checkpoint = Checkpoint::create(&checkpoint_path, &identity)?;
-        (checkpoint, all, MapWriter::create(&claim, &info)?)
-    };
-
-    let instance = |i: u64| scene.instance(i);
-    let plan = Plan {
-        work,
-        instance: &instance,
-        settings: scene.settings,
-        baselines: scene.baselines,
-        verify: scope.verify,
-    };
-    let bar = progress_bar(plan.count());
-    install_interrupt_handler();
-    let started = Instant::now();
-    let result = sweep::run(
-        &plan,
-        backend,
-        scope.chunk_size.unwrap_or_else(|| backend.chunk_size()),
-        &|n| bar.inc(n),
-        &mut |start, records| {
-            if keep_records {
-                for (k, r) in records.iter().enumerate() {
-                    kept.insert(start + k as u64, *r);
-                }
-            }
-            writer.write(start, records)?;
-            checkpoint.append(start, records)
-        },
-    );
-    bar.finish_and_clear();
-    let new = result.with_context(|| {
-        format!(
-            "the finished instances are kept in {}; the same command with --resume \
-             continues the run",
-            checkpoint_path.display()
-        )
-    })?;
-    summary.merge(&new);
-    let wall_time_s = started.elapsed().as_secs_f64();
-    // Trajectories belong to the whole scene: a shard leaves them to
-    // `pidm merge`, which records them once (they are deterministic f64 CPU
-    // runs, so the merged file equals a single run's).
-    if scope.shard.is_none() {
-        crate::trajectory::record_and_write(writer.file(), scene)?;
-    }
-    let path = writer.finish(wall_time_s)?;
-    checkpoint.remove()?;
-    Ok(RunResult {
-        path,
-        summary,
-        wall_time_s,
-        backend: backend.describe(),
-        records: kept.into_values().collect(),
-        from_checkpoint,
-    })
-}
-
-/// Default output path: `results/<name>.h5`.
-pub fn default_output(scene: &Scene) -> PathBuf {
-    PathBuf::from("results").join(format!("{}.h5", scene.name))
 }
 
 /// `pidm run`: prints a short summary and returns the number of instances

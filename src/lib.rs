@@ -13,6 +13,7 @@ pub mod output;
 pub mod plot;
 pub mod random;
 pub mod report;
+pub mod run;
 pub mod scene;
 pub mod shard;
 pub mod status;

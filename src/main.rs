@@ -165,7 +165,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 backend,
                 precision,
                 table_limit: 64,
-                scope: commands::RunScope {
+                scope: pidm::run::RunScope {
                     shard,
                     resume,
                     chunk_size,
