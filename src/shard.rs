@@ -193,36 +193,34 @@ impl ShardFile {
         Ok(())
     }
 
+    /// The values at positions `range` of the 1-D dataset `path`.
+    fn column<T: hdf5::H5Type + Clone>(&self, path: &str, range: Range<usize>) -> Result<Vec<T>> {
+        self.file
+            .dataset(path)
+            .and_then(|ds| ds.read_slice_1d::<T, _>(range))
+            .map(|v| v.to_vec())
+            .with_context(|| format!("{}: cannot read `{path}`", self.path.display()))
+    }
+
     /// Reads the records at positions `at .. at + n` of the shard's maps,
     /// which hold the instances from flat index `first` on, and checks that
     /// they can be right: a known status, finite values, and zeros where
     /// an instance did not finish normally.
     fn records(&self, at: u64, n: u64, first: u64, baselines: bool) -> Result<Vec<Record>> {
         let range = at as usize..(at + n) as usize;
-        let f64s = |name: &str| -> Result<Vec<f64>> {
-            self.file
-                .dataset(name)
-                .and_then(|ds| ds.read_slice_1d::<f64, _>(range.clone()))
-                .map(|v| v.to_vec())
-                .with_context(|| format!("{}: cannot read `{name}`", self.path.display()))
-        };
-        let u32s = |name: &str| -> Result<Vec<u32>> {
-            self.file
-                .dataset(name)
-                .and_then(|ds| ds.read_slice_1d::<u32, _>(range.clone()))
-                .map(|v| v.to_vec())
-                .with_context(|| format!("{}: cannot read `{name}`", self.path.display()))
-        };
-        let (step_x, step_y) = (f64s("maps/step_x")?, f64s("maps/step_y")?);
-        let (vel_x, vel_y) = (f64s("maps/velocity_x")?, f64s("maps/velocity_y")?);
-        let (status, steps) = (u32s("maps/status")?, u32s("maps/steps")?);
+        let f64s = |path: &str| self.column::<f64>(path, range.clone());
+        let u32s = |path: &str| self.column::<u32>(path, range.clone());
+        let map = |k: usize| format!("{}/{}", schema::MAPS, schema::MAP_DATASETS[k].name);
+        let (step_x, step_y) = (f64s(schema::STEP[0])?, f64s(schema::STEP[1])?);
+        let (vel_x, vel_y) = (f64s(&map(2))?, f64s(&map(3))?);
+        let (status, steps) = (u32s(schema::STATUS)?, u32s(&map(5))?);
         let zeros_f = vec![0.0; n as usize];
         let zeros_u = vec![0; n as usize];
         let (base_x, base_y, base_status) = if baselines {
             (
-                f64s("baseline/step_x")?,
-                f64s("baseline/step_y")?,
-                u32s("baseline/status")?,
+                f64s(schema::BASELINE_STEP[0])?,
+                f64s(schema::BASELINE_STEP[1])?,
+                u32s(schema::BASELINE_STATUS)?,
             )
         } else {
             (zeros_f.clone(), zeros_f, zeros_u)

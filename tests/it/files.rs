@@ -221,10 +221,8 @@ fn wait_for_checkpoint(path: &Path, entries: u64, chunk: u64) {
 
 /// Temporary files in the folder.
 fn leftovers(dir: &Path) -> Vec<String> {
-    std::fs::read_dir(dir)
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
+    names_in(dir)
+        .into_iter()
         .filter(|n| n.contains("partial"))
         .collect()
 }
@@ -463,28 +461,32 @@ fn outputs_that_are_not_regular_files_or_new_paths_are_refused_untouched() {
     assert!(!d.join(".old.h5.lock").exists());
 }
 
+/// Runs a small grid scene in `dir` as two shards, `shard-1.h5` and
+/// `shard-2.h5`.
+fn two_shards(dir: &Path) {
+    let scene = grid_scene(dir, "grid", "[50.0, 100.0, 150.0]", 2);
+    for k in 1..=2 {
+        let shard = format!("{k}/2");
+        let out = format!("shard-{k}.h5");
+        let args = [
+            "run",
+            s(&scene),
+            "--shard",
+            &shard,
+            "--out",
+            &out,
+            "--backend",
+            "cpu",
+        ];
+        ok(&pidm(&args, dir));
+    }
+}
+
 #[test]
 fn a_merge_names_the_shard_and_dataset_that_cannot_be_right() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let scene = grid_scene(d, "grid", "[50.0, 100.0, 150.0]", 2);
-    for k in 1..=2 {
-        let shard = format!("{k}/2");
-        let out = format!("shard-{k}.h5");
-        ok(&pidm(
-            &[
-                "run",
-                s(&scene),
-                "--shard",
-                &shard,
-                "--out",
-                &out,
-                "--backend",
-                "cpu",
-            ],
-            d,
-        ));
-    }
+    two_shards(d);
     ok(&pidm(&["merge", "good.h5", "shard-1.h5", "shard-2.h5"], d));
 
     // Each damage is done to a copy of shard 1.
@@ -621,26 +623,26 @@ enum ShardDamage {
 }
 
 /// The datasets a merge reads from a shard with baselines.
-const SHARD_DATASETS: [&str; 10] = [
-    "maps/step_x",
-    "maps/step_y",
-    "maps/velocity_x",
-    "maps/velocity_y",
-    "maps/status",
-    "maps/steps",
-    "baseline/step_x",
-    "baseline/step_y",
-    "baseline/status",
-    "shard/instance",
-];
+fn shard_datasets() -> Vec<String> {
+    use pidm::output::schema;
+    let in_group = |group: &str, d: &schema::MapDataset| format!("{group}/{}", d.name);
+    let maps = schema::MAP_DATASETS
+        .iter()
+        .map(|d| in_group(schema::MAPS, d));
+    let baselines = schema::BASELINE_DATASETS
+        .iter()
+        .map(|d| in_group(schema::BASELINE, d));
+    maps.chain(baselines)
+        .chain([schema::SHARD_INSTANCE.to_string()])
+        .collect()
+}
 
 fn apply(file: &hdf5::File, damage: &ShardDamage) {
     let k = match damage {
         ShardDamage::Delete(k) | ShardDamage::Resize(k, _) | ShardDamage::Set(k, ..) => *k,
     };
-    let (group, leaf) = SHARD_DATASETS[k % SHARD_DATASETS.len()]
-        .split_once('/')
-        .unwrap();
+    let names = shard_datasets();
+    let (group, leaf) = names[k % names.len()].split_once('/').unwrap();
     let Ok(group) = file.group(group) else { return };
     let Ok(ds) = group.dataset(leaf) else { return };
     let is_float = ds.dtype().unwrap().is::<f64>();
@@ -700,24 +702,7 @@ fn a_merge_of_damaged_shards_gives_an_error_or_a_plausible_file() {
     use proptest::test_runner::{Config, TestRunner};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let scene = grid_scene(d, "grid", "[50.0, 100.0, 150.0]", 2);
-    for k in 1..=2 {
-        let shard = format!("{k}/2");
-        let out = format!("shard-{k}.h5");
-        ok(&pidm(
-            &[
-                "run",
-                s(&scene),
-                "--shard",
-                &shard,
-                "--out",
-                &out,
-                "--backend",
-                "cpu",
-            ],
-            d,
-        ));
-    }
+    two_shards(d);
     let mut runner = TestRunner::new(Config {
         cases: 48,
         failure_persistence: None,
