@@ -29,6 +29,12 @@ impl CpuBackend {
         })
     }
 
+    /// The threads a pool built from `--threads` gets: the flag's value, or
+    /// every core.
+    pub fn default_threads(threads: Option<usize>) -> usize {
+        threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+    }
+
     pub fn threads(&self) -> usize {
         self.pool.current_num_threads()
     }

@@ -42,9 +42,11 @@ impl GpuBackend {
     pub fn readiness(&self) -> String {
         match self.ctx.prepare_timed(self.precision) {
             Ok((_, p)) => format!(
-                "GPU ready in {:.2} s (device {:.2} s, pipeline {:.2} s{}, self-test {:.2} s)",
+                "GPU ready in {:.2} s (device {:.2} s of which drivers and adapters {:.2} s, \
+                 pipeline {:.2} s{}, self-test {:.2} s)",
                 p.open_s + p.pipeline_s + p.self_test_s,
                 p.open_s,
+                p.adapters_s,
                 p.pipeline_s,
                 match self.ctx.pipeline_cache_path() {
                     Some(path) => format!(" with the cache {}", path.display()),

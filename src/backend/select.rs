@@ -18,11 +18,31 @@ pub enum BackendChoice {
     Cpu,
 }
 
-/// Picks the backend and says which in one line on stderr.
+/// Fewest distinct integrations per CPU thread for which `--backend auto`
+/// opens a GPU. One step takes a GPU lane tens of times as long as a CPU
+/// core, and opening the device costs about 0.2 s before any work: on the
+/// H100 machine of results/gpu.md (16 threads) whole runs of up to 1,024
+/// random instances, or up to 20,000 instances of the coupling map, end
+/// sooner on the CPU, and 4,096 random instances take both about as long.
+/// Below this many per thread the CPU wins or loses only fractions of a
+/// second.
+pub const GPU_MIN_INTEGRATIONS_PER_THREAD: u64 = 256;
+
+/// True when `--backend auto` should not even look for a GPU: the run has
+/// too few integrations for one to pay (see
+/// [`GPU_MIN_INTEGRATIONS_PER_THREAD`]).
+pub fn too_few_for_gpu(integrations: u64, threads: usize) -> bool {
+    integrations < GPU_MIN_INTEGRATIONS_PER_THREAD.saturating_mul(threads.max(1) as u64)
+}
+
+/// Picks the backend and says which in one line on stderr. `integrations`
+/// is the number of distinct integrations the run will compute (an upper
+/// bound will do), which `auto` weighs against the CPU's threads.
 pub fn select_backend(
     choice: BackendChoice,
     precision: Option<Precision>,
     threads: Option<usize>,
+    integrations: u64,
 ) -> Result<Box<dyn Backend>> {
     // f64 where the adapter has it: on the GPUs measured it costs no more
     // than f32 (the integrator waits on branches, not arithmetic) and it
@@ -45,6 +65,19 @@ pub fn select_backend(
             let gpu = GpuBackend::new(ctx, precision)?;
             eprintln!("pidm: {}", gpu.readiness());
             Box::new(gpu)
+        }
+        BackendChoice::Auto
+            if precision != Some(Precision::F32)
+                && too_few_for_gpu(integrations, CpuBackend::default_threads(threads)) =>
+        {
+            let threads = CpuBackend::default_threads(threads);
+            eprintln!(
+                "pidm: {integrations} integrations are too few for a GPU to beat {threads} CPU \
+                 threads (it needs {} or more); using the CPU path (--backend gpu uses the GPU \
+                 anyway)",
+                GPU_MIN_INTEGRATIONS_PER_THREAD * threads as u64
+            );
+            Box::new(CpuBackend::new(Some(threads))?)
         }
         BackendChoice::Auto => match GpuContext::new(false) {
             Ok(ctx) => {
@@ -76,4 +109,35 @@ pub fn select_backend(
         backend.precision()
     );
     Ok(backend)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One row: integrations, CPU threads, whether auto stays on the CPU.
+    fn check(integrations: u64, threads: usize, cpu: bool) {
+        assert_eq!(
+            too_few_for_gpu(integrations, threads),
+            cpu,
+            "{integrations} integrations on {threads} threads"
+        );
+    }
+
+    #[test]
+    fn auto_leaves_small_runs_to_the_cpu() {
+        // sweeps/paper.toml: 12 integrations.
+        check(12, 16, true);
+        check(12, 2, true);
+        check(0, 1, true);
+        // The threshold itself opens the GPU.
+        check(4095, 16, true);
+        check(4096, 16, false);
+        check(512, 2, false);
+        // A 200 x 200 map.
+        check(40_000, 16, false);
+        // A thread count of zero counts as one.
+        check(255, 0, true);
+        check(256, 0, false);
+    }
 }

@@ -359,6 +359,37 @@ precision_structs!(
 );
 precision_structs!(double, f64, F64x2, Units::SI, f64::EPSILON);
 
+impl double::State {
+    /// The CPU integrator's state this f64 shader state stands for: the
+    /// same quantities in the same (SI) units, so the CPU can continue an
+    /// instance where the GPU stopped (the f64 shader keeps no low part of
+    /// the time; `time_lo` is zero).
+    pub fn to_cpu(&self) -> crate::cpu::integrate::State {
+        use crate::cpu::integrate::Vec2;
+        let v = |a: F64x2| Vec2::new(a.x, a.y);
+        crate::cpu::integrate::State {
+            x_p: v(self.x_p),
+            v_p: v(self.v_p),
+            x_s: v(self.x_s),
+            v_s: v(self.v_s),
+            v_rel: v(self.v_rel),
+            held: v(self.held),
+            settle_x_s: v(self.settle_x_s),
+            cycle_phase: v(self.cycle_phase),
+            next_corner: v(self.next_corner),
+            time: self.time + self.time_lo,
+            h_slip: self.h_slip,
+            rising: [self.rising.x, self.rising.y],
+            mode: self.mode,
+            period: self.period,
+            status: self.status,
+            steps: self.steps,
+            stalled: self.stalled,
+            rejections: self.rejections,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -455,5 +486,54 @@ mod tests {
         assert_eq!(d.cycles_per_period.x, 1.0);
         assert_eq!(d.stick.rate.y, c.stick.rate.y);
         assert_eq!(d.event_step_slip, c.event_step_slip);
+    }
+
+    /// Every member of an f64 shader state lands in the CPU state's member
+    /// of the same name, so the CPU continues exactly where the GPU stopped.
+    #[test]
+    fn f64_states_continue_on_the_cpu_member_by_member() {
+        let pair = |k: f64| F64x2 { x: k, y: k + 0.5 };
+        let mut st: double::State = bytemuck::Zeroable::zeroed();
+        st.x_p = pair(1.0);
+        st.v_p = pair(2.0);
+        st.x_s = pair(3.0);
+        st.v_s = pair(4.0);
+        st.v_rel = pair(5.0);
+        st.held = pair(6.0);
+        st.settle_x_s = pair(7.0);
+        st.cycle_phase = pair(8.0);
+        st.next_corner = pair(9.0);
+        st.time = 10.0;
+        st.h_slip = 11.0;
+        st.rising = U32x2 { x: 1, y: 0 };
+        st.mode = 2;
+        st.period = 13;
+        st.status = 14;
+        st.steps = 15;
+        st.stalled = 16;
+        st.rejections = 17;
+        let cpu = st.to_cpu();
+        let v = |k: f64| crate::cpu::integrate::Vec2::new(k, k + 0.5);
+        assert_eq!(
+            [cpu.x_p, cpu.v_p, cpu.x_s, cpu.v_s, cpu.v_rel, cpu.held],
+            [v(1.0), v(2.0), v(3.0), v(4.0), v(5.0), v(6.0)]
+        );
+        assert_eq!(
+            [cpu.settle_x_s, cpu.cycle_phase, cpu.next_corner],
+            [v(7.0), v(8.0), v(9.0)]
+        );
+        assert_eq!([cpu.time, cpu.h_slip], [10.0, 11.0]);
+        assert_eq!(cpu.rising, [1, 0]);
+        assert_eq!(
+            [
+                cpu.mode,
+                cpu.period,
+                cpu.status,
+                cpu.steps,
+                cpu.stalled,
+                cpu.rejections
+            ],
+            [2, 13, 14, 15, 16, 17]
+        );
     }
 }

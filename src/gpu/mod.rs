@@ -147,8 +147,8 @@ pub struct GpuOutcome {
     /// this instance at all and the CPU integrated it instead.
     pub cpu_fallback: bool,
     /// True when the instance was among the last unfinished ones of a
-    /// large batch and the CPU integrated it (in f64, from its start) while
-    /// the GPU stopped: see [`BatchOptions::cpu_tail`].
+    /// large batch and the CPU finished it (in f64) while the GPU stopped:
+    /// see [`BatchOptions::cpu_tail`].
     pub finished_on_cpu: bool,
 }
 
@@ -171,30 +171,46 @@ pub struct BatchOptions {
     pub lanes: usize,
     /// Hand the slow tail of a batch to the CPU: once every instance has
     /// started and at most this many are unfinished, the GPU stops and the
-    /// CPU integrates those from their start, in parallel. `None` is 1 % of
-    /// an f64 batch of at least [`CPU_TAIL_MIN_BATCH`] instances (and
-    /// nothing of a smaller one or of any f32 batch); `Some(0)` never hands
+    /// CPU finishes those, in parallel: from where the GPU left them in f64
+    /// (the shader mirrors the CPU step for step, so no work is lost), from
+    /// their start in f32. `None` is the default of [`BatchOptions::tail_size`]
+    /// for f64 batches of at least [`CPU_TAIL_MIN_BATCH`] instances, and
+    /// nothing for a smaller one or any f32 batch; `Some(0)` never hands
     /// over. A GPU lane takes tens of microseconds a step, a CPU core about
-    /// one: an instance a hundred times longer than its batch's others (a
-    /// sliding mode on the rim of the band) would otherwise hold the whole
-    /// batch. Which instances form the tail depends on the batch, so a map
-    /// split into other batches (chunks, shards, a resumed run) differs on
-    /// them by the GPU's difference from the CPU: rounding or the
-    /// tolerance's scatter in f64, but f32's own error in f32, which is why
-    /// f32 never hands over by default.
+    /// one: once few instances are left, the GPU runs them at one lane's
+    /// speed each while the CPU's threads would be faster, and an instance a
+    /// hundred times longer than its batch's others (a sliding mode on the
+    /// rim of the band) would hold the whole batch. Which instances form
+    /// the tail depends on the batch, so a map split into other batches
+    /// (chunks, shards, a resumed run) differs on them by the GPU's
+    /// difference from the CPU: rounding or the tolerance's scatter in f64,
+    /// but f32's own error in f32, which is why f32 never hands over by
+    /// default.
     pub cpu_tail: Option<usize>,
 }
 
-/// The smallest batch whose slow tail goes to the CPU.
+/// The smallest batch whose slow tail goes to the CPU by default (smaller
+/// ones, the self-test's and most tests', stay on the GPU to their end).
 pub const CPU_TAIL_MIN_BATCH: usize = 1000;
+
+/// Unfinished instances per CPU thread below which an f64 batch hands its
+/// tail to the CPU: a core steps about twenty times as fast as a GPU lane,
+/// so with fewer than about that many instances per thread left, the CPU
+/// finishes them sooner than the GPU would.
+pub const CPU_TAIL_PER_THREAD: usize = 16;
 
 impl BatchOptions {
     /// The unfinished instances of a batch of `n` that the CPU takes over
-    /// (see [`BatchOptions::cpu_tail`]).
-    pub fn tail_size(&self, precision: Precision, n: usize) -> usize {
+    /// when it has `threads` threads (see [`BatchOptions::cpu_tail`]): by
+    /// default, for f64 batches of at least [`CPU_TAIL_MIN_BATCH`], 1 % of
+    /// the batch or [`CPU_TAIL_PER_THREAD`] per thread, whichever is more,
+    /// but never more than a quarter of the batch.
+    pub fn tail_size(&self, precision: Precision, n: usize, threads: usize) -> usize {
         match self.cpu_tail {
             Some(k) => k,
-            None if precision == Precision::F64 && n >= CPU_TAIL_MIN_BATCH => n / 100,
+            None if precision == Precision::F64 && n >= CPU_TAIL_MIN_BATCH => {
+                (n / 100).max(CPU_TAIL_PER_THREAD * threads).min(n / 4)
+            }
             None => 0,
         }
     }
@@ -299,6 +315,9 @@ fn rank(adapter: &wgpu::Adapter) -> (u32, bool) {
 pub struct Preparation {
     /// Finding the adapter and opening the device [s].
     pub open_s: f64,
+    /// The part of `open_s` spent loading the drivers and enumerating
+    /// their adapters, before the device is requested [s].
+    pub adapters_s: f64,
     /// Creating the pipeline: the driver's compile, or a pipeline-cache hit
     /// [s].
     pub pipeline_s: f64,
@@ -343,6 +362,8 @@ pub struct GpuContext {
     pipelines: Mutex<[Option<(wgpu::ComputePipeline, Preparation)>; 2]>,
     /// Time to find the adapter and open the device [s].
     opened_in: f64,
+    /// The part of `opened_in` before the device was requested [s].
+    adapters_in: f64,
     /// Held while a batch runs: batches on one context take turns (wgpu's
     /// GL backend does not survive two threads submitting at once).
     busy: Mutex<()>,
@@ -389,6 +410,7 @@ impl GpuContext {
                 best = Some(adapter);
             }
         }
+        let adapters_in = started.elapsed().as_secs_f64();
         let Some(adapter) = best else {
             let backends = wgpu::Backends::from_env()
                 .map(|b| format!("WGPU_BACKEND={b:?}"))
@@ -402,6 +424,7 @@ impl GpuContext {
         };
         let mut ctx = Self::from_adapter(&adapter)?;
         ctx.opened_in = started.elapsed().as_secs_f64();
+        ctx.adapters_in = adapters_in;
         Ok(ctx)
     }
 
@@ -451,6 +474,7 @@ impl GpuContext {
             cache,
             pipelines: Mutex::new([None, None]),
             opened_in: started.elapsed().as_secs_f64(),
+            adapters_in: 0.0,
             busy: Mutex::new(()),
         })
     }
@@ -559,6 +583,7 @@ impl GpuContext {
         }
         let preparation = Preparation {
             open_s: self.opened_in,
+            adapters_s: self.adapters_in,
             pipeline_s: compiled,
             self_test_s: tested - compiled,
         };
@@ -766,10 +791,14 @@ pub fn execute_gpu_inner(
 trait Layout {
     const PRECISION: Precision;
     type Coefficients: HostLayout + Send;
-    type State: HostLayout;
+    type State: HostLayout + Sync;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
     fn finished(inst: &Instance, st: &Self::State) -> bool;
+    /// The CPU integrator's state for an unfinished shader state, where
+    /// the CPU can continue from it (f64), or `None` where the CPU must
+    /// start the instance over (f32: its state is f32's approximation).
+    fn continuable(st: &Self::State) -> Option<crate::cpu::integrate::State>;
 }
 
 struct Single;
@@ -788,6 +817,9 @@ impl Layout for Single {
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::single::finished(inst, st)
     }
+    fn continuable(_: &Self::State) -> Option<crate::cpu::integrate::State> {
+        None
+    }
 }
 
 impl Layout for Double {
@@ -802,6 +834,9 @@ impl Layout for Double {
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::double::finished(inst, st)
+    }
+    fn continuable(st: &Self::State) -> Option<crate::cpu::integrate::State> {
+        Some(st.to_cpu())
     }
 }
 
@@ -1003,7 +1038,9 @@ impl Runner<'_> {
         // A lane works through its instances one after another.
         let rounds = n.div_ceil(lane_count) as u64;
         let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds);
-        let tail_size = self.options.tail_size(L::PRECISION, n) as u64;
+        let tail_size =
+            self.options
+                .tail_size(L::PRECISION, n, rayon::current_num_threads()) as u64;
         let mut slice: u64 = 0;
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
@@ -1043,8 +1080,9 @@ impl Runner<'_> {
             .chunks_exact(size_of::<L::State>())
             .map(bytemuck::pod_read_unaligned::<L::State>)
             .collect();
-        // The slow tail, if the GPU stopped before it: on the CPU, from the
-        // start, in parallel.
+        // The slow tail, if the GPU stopped before it: on the CPU, in
+        // parallel, from where the GPU left it (f64) or from the start
+        // (f32).
         let mut out: Vec<GpuOutcome> = instances
             .iter()
             .zip(&finals)
@@ -1058,7 +1096,10 @@ impl Runner<'_> {
             .with_max_len(1)
             .map(|&k| GpuOutcome {
                 finished_on_cpu: true,
-                ..on_cpu(&instances[k], self.settings)
+                ..match L::continuable(&finals[k]) {
+                    Some(st) => continue_on_cpu(&instances[k], self.settings, st),
+                    None => on_cpu(&instances[k], self.settings),
+                }
             })
             .collect();
         for (&k, outcome) in tail.iter().zip(tail_outcomes) {
@@ -1104,6 +1145,23 @@ fn on_cpu(inst: &Instance, settings: &Settings) -> GpuOutcome {
     }
 }
 
+/// One instance finished on the CPU from a state the f64 shader reached.
+fn continue_on_cpu(
+    inst: &Instance,
+    settings: &Settings,
+    st: crate::cpu::integrate::State,
+) -> GpuOutcome {
+    let st = crate::cpu::integrate::continue_instance_until(inst, settings, st, || false)
+        .expect("never asked to stop");
+    GpuOutcome {
+        displacement: displacement(inst, &st),
+        status: st.status,
+        steps: st.steps,
+        cpu_fallback: false,
+        finished_on_cpu: false,
+    }
+}
+
 fn read_buffer(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
@@ -1133,23 +1191,29 @@ mod tests {
     #[test]
     fn only_large_f64_batches_hand_their_tail_to_the_cpu() {
         let default = BatchOptions::default();
-        let check = |options: &BatchOptions, precision, n, expected| {
+        // (options, precision, batch, CPU threads, tail).
+        let check = |options: &BatchOptions, precision, n, threads, expected| {
             assert_eq!(
-                options.tail_size(precision, n),
+                options.tail_size(precision, n, threads),
                 expected,
-                "{precision:?} {n}"
+                "{precision:?} {n} on {threads} threads"
             );
         };
-        check(&default, Precision::F64, 999, 0);
-        check(&default, Precision::F64, 1000, 10);
-        check(&default, Precision::F64, 250_000, 2500);
-        check(&default, Precision::F32, 250_000, 0);
+        check(&default, Precision::F64, 999, 16, 0);
+        // A quarter of the batch at most.
+        check(&default, Precision::F64, 1000, 16, 250);
+        // 16 per thread.
+        check(&default, Precision::F64, 4096, 16, 256);
+        check(&default, Precision::F64, 4096, 2, 40);
+        // 1 % of a large batch.
+        check(&default, Precision::F64, 250_000, 16, 2500);
+        check(&default, Precision::F32, 250_000, 16, 0);
         let explicit = BatchOptions {
             cpu_tail: Some(3),
             ..default
         };
-        check(&explicit, Precision::F32, 10, 3);
-        check(&explicit, Precision::F64, 10, 3);
+        check(&explicit, Precision::F32, 10, 16, 3);
+        check(&explicit, Precision::F64, 10, 16, 3);
     }
 
     #[test]

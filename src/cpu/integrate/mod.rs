@@ -177,7 +177,21 @@ pub fn run_instance_until(
     stop: impl Fn() -> bool,
 ) -> Option<State> {
     let c = Coefficients::new(inst, settings, f64::EPSILON);
-    let mut st = initial_state(&c);
+    let st = initial_state(&c);
+    continue_instance_until(inst, settings, st, stop)
+}
+
+/// Integrates one instance to the end from a state it reached, which the
+/// f64 shader may have left (see `pidm::gpu::layout::double::State`): the
+/// shader mirrors this integrator step for step, so the run continues
+/// where the GPU stopped. `stop` as in [`run_instance_until`].
+pub fn continue_instance_until(
+    inst: &Instance,
+    settings: &Settings,
+    mut st: State,
+    stop: impl Fn() -> bool,
+) -> Option<State> {
+    let c = Coefficients::new(inst, settings, f64::EPSILON);
     while !is_finished(&c, &st) {
         if stop() {
             return None;
