@@ -100,52 +100,94 @@ struct Jobs {
     baseline_job: Vec<[JobRef; AXES]>,
 }
 
+/// Digest buckets the de-duplication of [`Jobs::new`] spreads over the
+/// threads: enough for every core to have several, few enough that each is
+/// thousands of integrations long on a large chunk.
+const DEDUP_BUCKETS: usize = 256;
+
 impl Jobs {
+    /// Every integration the chunk asks for is an item: the mains in order,
+    /// then each main's baselines, axis by axis. An item is a job where it
+    /// is the first of its kind; jobs keep the order of their first items.
+    /// Digests, the comparison of whole keys where digests meet, and the
+    /// search for first items run in parallel (items are spread over
+    /// [`DEDUP_BUCKETS`] by digest, and each bucket is searched in item
+    /// order); only the numbering of the jobs is a sequential pass.
     fn new(mains: &[Instance], baselines: bool, done: &BaselineMemo) -> Jobs {
-        // Digests in parallel; the de-duplication is a sequential pass over
-        // them that compares whole keys only where digests meet.
-        let main_digests: Vec<u64> = mains.par_iter().map(|m| digest(&m.key())).collect();
-        let base_digests: Vec<[u64; AXES]> = if baselines {
-            mains
-                .par_iter()
-                .map(|m| std::array::from_fn(|axis| digest(&m.baseline(axis).key())))
-                .collect()
-        } else {
-            Vec::new()
-        };
-        let mut jobs: Vec<Instance> = Vec::with_capacity(mains.len());
-        let mut index = DigestMap::with_capacity_and_hasher(mains.len(), Default::default());
-        let mut job_of = |inst: Instance, d: u64, jobs: &mut Vec<Instance>| {
-            use std::collections::hash_map::Entry;
-            match index.entry(d) {
-                Entry::Occupied(e) if jobs[*e.get()].key() == inst.key() => *e.get(),
-                // Two instances with one digest: run both (never seen; a
-                // duplicate integration is harmless).
-                Entry::Occupied(_) => {
-                    jobs.push(inst);
-                    jobs.len() - 1
-                }
-                Entry::Vacant(e) => {
-                    jobs.push(inst);
-                    *e.insert(jobs.len() - 1)
-                }
+        let n = mains.len();
+        let total = if baselines { n * (1 + AXES) } else { n };
+        let item = |i: usize| -> Instance {
+            if i < n {
+                mains[i]
+            } else {
+                mains[(i - n) / AXES].baseline((i - n) % AXES)
             }
         };
-        let main_job: Vec<usize> = mains
-            .iter()
-            .zip(&main_digests)
-            .map(|(m, &d)| job_of(*m, d, &mut jobs))
+        // Each item's digest, and whether an earlier chunk ran it (only
+        // baselines are remembered between chunks).
+        let (digests, earlier): (Vec<u64>, Vec<bool>) = (0..total)
+            .into_par_iter()
+            .map(|i| {
+                let inst = item(i);
+                let d = digest(&inst.key());
+                (d, i >= n && done.get(&inst, d).is_some())
+            })
+            .unzip();
+        let bucket = |d: u64| (d >> 56) as usize % DEDUP_BUCKETS;
+        let mut buckets: Vec<Vec<usize>> = vec![Vec::new(); DEDUP_BUCKETS];
+        for i in (0..total).filter(|&i| !earlier[i]) {
+            buckets[bucket(digests[i])].push(i);
+        }
+        // The first item of each item's kind: itself, or an earlier item
+        // with the same key. Two different keys with one digest (never
+        // seen) both run: a duplicate integration is harmless.
+        let firsts: Vec<Vec<(usize, usize)>> = buckets
+            .par_iter()
+            .map(|items| {
+                let mut seen = DigestMap::with_capacity_and_hasher(items.len(), Default::default());
+                items
+                    .iter()
+                    .map(|&i| {
+                        use std::collections::hash_map::Entry;
+                        match seen.entry(digests[i]) {
+                            Entry::Occupied(e) if item(*e.get()).key() == item(i).key() => {
+                                (i, *e.get())
+                            }
+                            Entry::Occupied(_) => (i, i),
+                            Entry::Vacant(e) => (i, *e.insert(i)),
+                        }
+                    })
+                    .collect()
+            })
             .collect();
-        let baseline_job = mains
-            .iter()
-            .zip(&base_digests)
-            .map(|(m, digests)| {
-                std::array::from_fn(|axis| {
-                    let base = m.baseline(axis);
-                    match done.get(&base, digests[axis]) {
-                        Some(_) => JobRef::Done,
-                        None => JobRef::Run(job_of(base, digests[axis], &mut jobs)),
-                    }
+        let mut first = vec![usize::MAX; total];
+        for (i, f) in firsts.into_iter().flatten() {
+            first[i] = f;
+        }
+        // Jobs numbered in the order of their first items.
+        let first_items: Vec<usize> = (0..total)
+            .into_par_iter()
+            .filter(|&i| !earlier[i] && first[i] == i)
+            .collect();
+        let jobs: Vec<Instance> = first_items.par_iter().map(|&i| item(i)).collect();
+        let mut job_of_first = vec![usize::MAX; total];
+        for (j, &i) in first_items.iter().enumerate() {
+            job_of_first[i] = j;
+        }
+        let mut main_job: Vec<usize> = (0..total)
+            .into_par_iter()
+            .map(|i| match earlier[i] {
+                true => usize::MAX,
+                false => job_of_first[first[i]],
+            })
+            .collect();
+        let job_of_baseline = main_job.split_off(n);
+        let baseline_job = job_of_baseline
+            .par_chunks(AXES)
+            .map(|refs| {
+                std::array::from_fn(|axis| match refs[axis] {
+                    usize::MAX => JobRef::Done,
+                    j => JobRef::Run(j),
                 })
             })
             .collect();
@@ -558,6 +600,79 @@ pub fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// What [`Jobs::new`] must equal: a plain first-seen de-duplication
+    /// on whole keys, one item after another. Returns the jobs' keys, each
+    /// main's job and each baseline's job (`None`: an earlier chunk ran it).
+    #[allow(clippy::type_complexity)]
+    fn plain_jobs(
+        mains: &[Instance],
+        baselines: bool,
+        done: &BaselineMemo,
+    ) -> (Vec<InstanceKey>, Vec<usize>, Vec<[Option<usize>; AXES]>) {
+        let mut keys: Vec<InstanceKey> = Vec::new();
+        let mut job = |inst: &Instance| match keys.iter().position(|k| *k == inst.key()) {
+            Some(j) => j,
+            None => {
+                keys.push(inst.key());
+                keys.len() - 1
+            }
+        };
+        let main_job: Vec<usize> = mains.iter().map(&mut job).collect();
+        let mut baseline_job = Vec::new();
+        if baselines {
+            for m in mains {
+                baseline_job.push(std::array::from_fn(|axis| {
+                    let b = m.baseline(axis);
+                    match done.get(&b, digest(&b.key())) {
+                        Some(_) => None,
+                        None => Some(job(&b)),
+                    }
+                }));
+            }
+        }
+        (keys, main_job, baseline_job)
+    }
+
+    #[test]
+    fn jobs_are_the_first_seen_distinct_integrations() {
+        // A scrambled grid with repeats, 1-DOF instances (their x baseline
+        // is themselves) and baselines an earlier chunk ran.
+        let mut mains = Vec::new();
+        for k in 0..700u64 {
+            let mut inst = Instance::TABLE1;
+            inst.axes[0].voltage = [0.0, 40.0, 80.0, 120.0][(k * 7 % 4) as usize];
+            inst.axes[1].voltage = [0.0, 50.0, 100.0][(k * 5 % 3) as usize];
+            inst.axes[0].frequency = 10.0 + (k * 13 % 97) as f64;
+            mains.push(inst);
+        }
+        let mut done = BaselineMemo::default();
+        for m in mains.iter().step_by(11) {
+            done.insert(&m.baseline(1), Outcome::default());
+        }
+        for (baselines, memo) in [
+            (false, BaselineMemo::default()),
+            (true, BaselineMemo::default()),
+            (true, done),
+        ] {
+            let jobs = Jobs::new(&mains, baselines, &memo);
+            let (keys, main_job, baseline_job) = plain_jobs(&mains, baselines, &memo);
+            let got: Vec<InstanceKey> = jobs.jobs.iter().map(Instance::key).collect();
+            assert_eq!(got, keys, "baselines {baselines}");
+            assert_eq!(jobs.main_job, main_job);
+            let got: Vec<[Option<usize>; AXES]> = jobs
+                .baseline_job
+                .iter()
+                .map(|refs| {
+                    refs.map(|r| match r {
+                        JobRef::Run(j) => Some(j),
+                        JobRef::Done => None,
+                    })
+                })
+                .collect();
+            assert_eq!(got, baseline_job);
+        }
+    }
 
     #[test]
     fn baseline_of_a_one_axis_instance_is_the_instance() {
