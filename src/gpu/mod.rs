@@ -791,7 +791,7 @@ pub fn execute_gpu_inner(
 trait Layout {
     const PRECISION: Precision;
     type Coefficients: HostLayout + Send;
-    type State: HostLayout + Sync;
+    type State: HostLayout + Send + Sync;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
     fn finished(inst: &Instance, st: &Self::State) -> bool;
@@ -1075,35 +1075,49 @@ impl Runner<'_> {
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
         queue.submit([encoder.finish()]);
-        let bytes = read_buffer(device, &states_read)?;
-        let finals: Vec<L::State> = bytes
-            .chunks_exact(size_of::<L::State>())
-            .map(bytemuck::pod_read_unaligned::<L::State>)
-            .collect();
+        // The outcomes, read in place from the mapped states, and the
+        // states of the unfinished ones.
+        let (mut out, tail) = with_mapped(device, &states_read, |bytes| {
+            let owned: Vec<L::State>;
+            let states: &[L::State] = match bytemuck::try_cast_slice(bytes) {
+                Ok(states) => states,
+                // A mapping not aligned for the struct (no driver seen).
+                Err(_) => {
+                    owned = bytes
+                        .chunks_exact(size_of::<L::State>())
+                        .map(bytemuck::pod_read_unaligned)
+                        .collect();
+                    &owned
+                }
+            };
+            let out: Vec<GpuOutcome> = states
+                .par_iter()
+                .zip(instances)
+                .map(|(st, inst)| L::unpack(inst, st))
+                .collect();
+            let tail: Vec<(usize, L::State)> = (0..n)
+                .into_par_iter()
+                .filter(|&k| !L::finished(&instances[k], &states[k]))
+                .map(|k| (k, states[k]))
+                .collect();
+            (out, tail)
+        })?;
         // The slow tail, if the GPU stopped before it: on the CPU, in
         // parallel, from where the GPU left it (f64) or from the start
         // (f32).
-        let mut out: Vec<GpuOutcome> = instances
-            .iter()
-            .zip(&finals)
-            .map(|(inst, st)| L::unpack(inst, st))
-            .collect();
-        let tail: Vec<usize> = (0..n)
-            .filter(|&k| !L::finished(&instances[k], &finals[k]))
-            .collect();
         let tail_outcomes: Vec<GpuOutcome> = tail
             .par_iter()
             .with_max_len(1)
-            .map(|&k| GpuOutcome {
+            .map(|(k, st)| GpuOutcome {
                 finished_on_cpu: true,
-                ..match L::continuable(&finals[k]) {
-                    Some(st) => continue_on_cpu(&instances[k], self.settings, st),
-                    None => on_cpu(&instances[k], self.settings),
+                ..match L::continuable(st) {
+                    Some(st) => continue_on_cpu(&instances[*k], self.settings, st),
+                    None => on_cpu(&instances[*k], self.settings),
                 }
             })
             .collect();
-        for (&k, outcome) in tail.iter().zip(tail_outcomes) {
-            out[k] = outcome;
+        for ((k, _), outcome) in tail.iter().zip(tail_outcomes) {
+            out[*k] = outcome;
         }
         progress(n as u64);
         Ok(out)
@@ -1163,6 +1177,16 @@ fn continue_on_cpu(
 }
 
 fn read_buffer(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+    with_mapped(device, buffer, <[u8]>::to_vec)
+}
+
+/// Maps a mappable buffer for reading and hands its bytes to `read`, with
+/// no copy of them on the host.
+fn with_mapped<T>(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T, GpuError> {
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -1174,12 +1198,14 @@ fn read_buffer(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, 
     rx.recv()
         .map_err(|e| GpuError::BufferMapping(e.to_string()))?
         .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
-    let data = slice
-        .get_mapped_range()
-        .map_err(|e| GpuError::BufferMapping(e.to_string()))?
-        .to_vec();
+    let out = {
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
+        read(&view)
+    };
     buffer.unmap();
-    Ok(data)
+    Ok(out)
 }
 
 #[cfg(test)]
