@@ -31,6 +31,9 @@ frequency = { from = 5.0, to = 40.0, steps = 200 }
 voltage = 0.0
 EOF
 cp sweeps/paper.toml "$work/paper.toml"
+# Heterogeneous scenes: every parameter drawn at random per instance.
+pidm random-scene --seed 3 --count 4096 --cycles 4 > "$work/rand4096.toml"
+pidm random-scene --seed 7 --count 20000 --cycles 4 > "$work/rand20k.toml"
 
 # Runs one `pidm run` and prints its whole wall time [s]; the log is kept.
 timed() {
@@ -80,20 +83,22 @@ pidm run "$work/paper.toml" --backend gpu --precision f32 --out "$work/p.h5" > /
 pidm run "$work/paper.toml" --backend gpu --precision f64 --out "$work/p.h5" > /dev/null 2>&1
 
 echo "== timings (warm)"
-row "scene | instances | GPU f32 [s] | GPU f64 [s] | CPU, all cores [s] | f32 speed-up | f64 speed-up"
-row "---|---|---|---|---|---|---"
-scenes="paper coupling200 onedof200"
+row "scene | instances | GPU f32 [s] | GPU f64 [s] | CPU, all cores [s] | f32 speed-up | f64 speed-up | auto [s] | auto ran on"
+row "---|---|---|---|---|---|---|---|---"
+scenes="paper coupling200 onedof200 rand4096"
 if [ "$mode" = full ]; then
-    scenes="$scenes coupling1000b"
+    scenes="$scenes coupling1000b rand20k"
 fi
 for scene in $scenes; do
     f32=$(timed "$scene-f32" "$work/$scene.toml" --backend gpu --precision f32 --out "$work/$scene-f32.h5")
     f64=$(timed "$scene-f64" "$work/$scene.toml" --backend gpu --precision f64 --out "$work/$scene-f64.h5")
     cpu=$(timed "$scene-cpu" "$work/$scene.toml" --backend cpu --out "$work/$scene-cpu.h5")
     n=$(grep -o '([0-9]* instances' "$work/$scene-cpu.log" | head -1 | tr -dc 0-9)
+    auto=$(timed "$scene-auto" "$work/$scene.toml" --out "$work/$scene-auto.h5")
+    ran=$(grep -o '^pidm: backend [a-z]*' "$work/$scene-auto.log" | head -1 | cut -d' ' -f3)
     sp32=$(python3 -c "print(f'{$cpu / $f32:.1f}')" 2>/dev/null || echo nan)
     sp64=$(python3 -c "print(f'{$cpu / $f64:.1f}')" 2>/dev/null || echo nan)
-    row "$scene | $n | $f32 | $f64 | $cpu | $sp32 | $sp64"
+    row "$scene | $n | $f32 | $f64 | $cpu | $sp32 | $sp64 | $auto | $ran"
     # Agreement of the maps with the CPU's [um].
     python3 - "$work/$scene-cpu.h5" "$work/$scene-f32.h5" "$work/$scene-f64.h5" <<'EOF' | tee -a "$out/agreement.txt"
 import sys, os

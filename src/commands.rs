@@ -206,8 +206,15 @@ pub fn info() -> Result<()> {
             a.max_compute_workgroups_per_dimension
         );
     }
-    for (label, software) in [("--backend auto", false), ("--backend gpu", true)] {
+    for (label, software) in [
+        ("--backend auto (a run large enough for a GPU)", false),
+        ("--backend gpu", true),
+    ] {
         match crate::gpu::GpuContext::new(software) {
+            Ok(ctx) if !software && !ctx.supports_f64() => println!(
+                "{label}: the CPU path ({} has no f64 in shaders; --precision f32 uses it)",
+                ctx.describe()
+            ),
             Ok(ctx) => println!("{label}: {}", ctx.describe()),
             Err(err) => println!(
                 "{label}: {}",

@@ -30,8 +30,10 @@ enum Command {
         /// Worker threads of the CPU path [default: every core].
         #[arg(long)]
         threads: Option<usize>,
-        /// auto: a hardware GPU when there is one, else the CPU; gpu: any
-        /// adapter (lavapipe included), failing when there is none; cpu.
+        /// auto: a hardware GPU with f64 when there is one and the run has
+        /// at least 256 distinct integrations per CPU thread, else the
+        /// CPU; gpu: any adapter (lavapipe included), failing when there is
+        /// none; cpu.
         #[arg(long, value_enum, default_value_t = backend::BackendChoice::Auto)]
         backend: backend::BackendChoice,
         /// Precision of the GPU path [default: f64 where the adapter has

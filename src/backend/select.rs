@@ -9,7 +9,8 @@ use crate::gpu::GpuContext;
 /// Which integrator runs a scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum BackendChoice {
-    /// A hardware GPU adapter when there is one, else the CPU path.
+    /// A hardware GPU adapter with f64 when there is one and the run is
+    /// large enough for it to pay, else the CPU path.
     #[default]
     Auto,
     /// The WGSL shader on any adapter, software ones (lavapipe) included.
@@ -80,6 +81,18 @@ pub fn select_backend(
             Box::new(CpuBackend::new(Some(threads))?)
         }
         BackendChoice::Auto => match GpuContext::new(false) {
+            // f32 steps can be off by more than 1 % where a velocity band is
+            // too narrow for f32 to resolve (results/gpu.md): auto runs
+            // f32 only when asked to.
+            Ok(ctx) if !ctx.supports_f64() && precision.is_none() => {
+                eprintln!(
+                    "pidm: {} has no 64-bit floats in shaders, and f32 steps can be off by more \
+                     than 1 % where a velocity band is narrow; using the CPU path \
+                     (--precision f32 runs the GPU in f32)",
+                    ctx.describe()
+                );
+                Box::new(CpuBackend::new(threads)?)
+            }
             Ok(ctx) => {
                 let adapter = ctx.describe();
                 let precision = gpu_precision(&ctx);
