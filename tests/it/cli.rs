@@ -3,7 +3,7 @@
 
 use std::process::Command;
 
-use crate::common::{manifest, pidm};
+use crate::common::{manifest, pidm, s};
 use hdf5::types::VarLenUnicode;
 
 #[test]
@@ -98,6 +98,44 @@ fn check_counts_each_distinct_baseline_once() {
     let stdout = String::from_utf8_lossy(&check.stdout);
     assert!(check.status.success(), "{stdout}");
     assert!(stdout.contains("simulated time: 2.2000e0 s"), "{stdout}");
+}
+
+/// `--backend auto` counts a run's distinct integrations before it looks
+/// for a GPU: the coupling map's 3,721 instances hold their own baselines
+/// (3,721 integrations, not 11,163), fewer than the 4,096 a GPU needs
+/// against 16 CPU threads, so the run stays on the CPU without opening a
+/// device; against 8 threads (2,048) it looks for one.
+#[test]
+fn auto_counts_distinct_integrations_and_leaves_small_runs_to_the_cpu() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("coupling.h5");
+    for (threads, too_few) in [("16", true), ("8", false)] {
+        let run = pidm(
+            &[
+                "run",
+                &manifest("sweeps/coupling.toml"),
+                "--threads",
+                threads,
+                "--out",
+                s(&out),
+            ],
+            dir.path(),
+        );
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "{stderr}");
+        let notice = "pidm: 3721 integrations are too few for a GPU to beat 16 CPU threads \
+                      (it needs 4096 or more); using the CPU path";
+        assert_eq!(
+            stderr.contains(notice),
+            too_few,
+            "{threads} threads: {stderr}"
+        );
+        assert_eq!(
+            stderr.contains("too few"),
+            too_few,
+            "{threads} threads: {stderr}"
+        );
+    }
 }
 
 #[test]
