@@ -908,7 +908,7 @@ impl Runner<'_> {
             .for_each(|(outcome, inst)| {
                 *outcome = GpuOutcome {
                     cpu_fallback: true,
-                    ..on_cpu(inst, self.settings)
+                    ..on_cpu(inst, self.settings, None)
                 };
             });
         Ok(out)
@@ -1110,10 +1110,7 @@ impl Runner<'_> {
             .with_max_len(1)
             .map(|(k, st)| GpuOutcome {
                 finished_on_cpu: true,
-                ..match L::continuable(st) {
-                    Some(st) => continue_on_cpu(&instances[*k], self.settings, st),
-                    None => on_cpu(&instances[*k], self.settings),
-                }
+                ..on_cpu(&instances[*k], self.settings, L::continuable(st))
             })
             .collect();
         for ((k, _), outcome) in tail.iter().zip(tail_outcomes) {
@@ -1145,28 +1142,19 @@ fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
     most + 2
 }
 
-/// Copies a mappable buffer's contents to the host.
 /// One instance integrated on the CPU, which the shader mirrors, as a GPU
-/// outcome (the caller marks why it ran there).
-fn on_cpu(inst: &Instance, settings: &Settings) -> GpuOutcome {
-    let st = run_instance(inst, settings);
-    GpuOutcome {
-        displacement: displacement(inst, &st),
-        status: st.status,
-        steps: st.steps,
-        cpu_fallback: false,
-        finished_on_cpu: false,
-    }
-}
-
-/// One instance finished on the CPU from a state the f64 shader reached.
-fn continue_on_cpu(
+/// outcome (the caller marks why it ran there): from its start, or from a
+/// state the f64 shader reached.
+fn on_cpu(
     inst: &Instance,
     settings: &Settings,
-    st: crate::cpu::integrate::State,
+    from: Option<crate::cpu::integrate::State>,
 ) -> GpuOutcome {
-    let st = crate::cpu::integrate::continue_instance_until(inst, settings, st, || false)
-        .expect("never asked to stop");
+    let st = match from {
+        Some(st) => crate::cpu::integrate::continue_instance_until(inst, settings, st, || false)
+            .expect("never asked to stop"),
+        None => run_instance(inst, settings),
+    };
     GpuOutcome {
         displacement: displacement(inst, &st),
         status: st.status,
@@ -1176,6 +1164,7 @@ fn continue_on_cpu(
     }
 }
 
+/// Copies a mappable buffer's contents to the host.
 fn read_buffer(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     with_mapped(device, buffer, <[u8]>::to_vec)
 }
