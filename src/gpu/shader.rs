@@ -351,13 +351,15 @@ mod tests {
             "is_finite2",
         ];
         // CPU only: constructors, the observer of trajectories (its `step`
-        // method and `StepMotion`), the whole run (stoppable) and its result, Rust's
-        // rounding and the sample array.
+        // method and `StepMotion`), the whole run (stoppable, also from a
+        // state the f64 shader left) and its result, Rust's rounding and
+        // the sample array.
         let cpu_only = [
             "new",
             "default",
             "run_instance",
             "run_instance_until",
+            "continue_instance_until",
             "displacement",
             "advance_observed",
             "step",
