@@ -80,8 +80,8 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
     }
     let result = run_scene(&scene, backend, &out, opts.table_limit, opts.scope)?;
     print_summary(&scene, &result);
-    // Closing a GPU device costs NVIDIA's driver about 0.05 s, as long as
-    // the whole GPU run of a 200 x 200 map. The output is complete and
+    // Closing a GPU device costs NVIDIA's driver 0.03-0.05 s, as long as
+    // the whole integration of a 200 x 200 map. The output is complete and
     // closed here and the process ends right after this command, so the
     // device is left to the operating system, which frees it either way.
     if backend.hardware() == Hardware::Gpu {
@@ -96,7 +96,7 @@ const COUNTED_RUN: u64 = 1 << 16;
 
 /// The integrations a run computes, for `--backend auto`'s choice: small
 /// runs are counted exactly (repeated instances and shared baselines once),
-/// larger ones by their instances, all of which `auto` sends to a GPU.
+/// larger ones and shards by their instances, an upper bound.
 fn integrations_for_choice(scene: &Scene, scope: RunScope) -> u64 {
     let count = match scope.shard {
         Some(shard) => ShardInfo::new(shard, scene.instance_count()).len(),

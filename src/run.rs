@@ -219,9 +219,10 @@ pub fn run_scene(
             writer.write(start, records)?;
             computed += records.len() as u64;
             // The last records go into the output file alone: it is
-            // finished a moment later and the journal removed, so writing
-            // and syncing them there too (a third of a second for a
-            // million) would protect nothing but that moment.
+            // finished right after (trajectories, closing) and the journal
+            // removed, so writing and syncing them there too (a third of a
+            // second for a million) would only spare recomputing them after
+            // a failure in those last moments.
             if computed < to_compute {
                 checkpoint.append(start, records)?;
             }
