@@ -174,6 +174,8 @@ impl Jobs {
         for (j, &i) in first_items.iter().enumerate() {
             job_of_first[i] = j;
         }
+        // Each item's job (`usize::MAX`: an earlier chunk ran it); the
+        // mains come first.
         let mut main_job: Vec<usize> = (0..total)
             .into_par_iter()
             .map(|i| match earlier[i] {
@@ -181,8 +183,8 @@ impl Jobs {
                 false => job_of_first[first[i]],
             })
             .collect();
-        let job_of_baseline = main_job.split_off(n);
-        let baseline_job = job_of_baseline
+        let baseline_job = main_job
+            .split_off(n)
             .par_chunks(AXES)
             .map(|refs| {
                 std::array::from_fn(|axis| match refs[axis] {

@@ -53,6 +53,7 @@ pub fn select_backend(
         None if ctx.supports_f64() => Precision::F64,
         None => Precision::F32,
     };
+    let cpu_threads = CpuBackend::default_threads(threads);
     let backend: Box<dyn Backend> = match choice {
         BackendChoice::Cpu => {
             if precision == Some(Precision::F32) {
@@ -68,10 +69,9 @@ pub fn select_backend(
             Box::new(gpu)
         }
         BackendChoice::Auto
-            if precision != Some(Precision::F32)
-                && too_few_for_gpu(integrations, CpuBackend::default_threads(threads)) =>
+            if precision != Some(Precision::F32) && too_few_for_gpu(integrations, cpu_threads) =>
         {
-            let threads = CpuBackend::default_threads(threads);
+            let threads = cpu_threads;
             eprintln!(
                 "pidm: {integrations} integrations are too few for a GPU to beat {threads} CPU \
                  threads (it needs {} or more); using the CPU path (--backend gpu uses the GPU \

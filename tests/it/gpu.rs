@@ -148,6 +148,15 @@ fn paper_cases() -> Vec<Instance> {
         .collect()
 }
 
+/// The seven cases of MODEL.md section 6 with Table 1's mechanism (the
+/// text's follow them): a small batch for the tests of batching, lanes and
+/// slices.
+fn table1_cases() -> Vec<Instance> {
+    let mut instances = paper_cases();
+    instances.truncate(7);
+    instances
+}
+
 /// SplitMix64: a tiny seeded generator, so the scene needs no dependency.
 struct SplitMix(u64);
 
@@ -420,8 +429,7 @@ fn split_batches_match_one_batch() {
     let Some(ctx) = context() else {
         return;
     };
-    let mut instances = paper_cases();
-    instances.truncate(7);
+    let instances = table1_cases();
     let settings = Settings::default();
     let whole = gpu_batch(
         ctx,
@@ -459,8 +467,7 @@ fn few_lanes_work_through_every_instance() {
     let Some(ctx) = context() else {
         return;
     };
-    let mut instances = paper_cases();
-    instances.truncate(7);
+    let instances = table1_cases();
     let settings = Settings::default();
     for precision in precisions(ctx) {
         let whole = gpu_batch(
@@ -500,8 +507,7 @@ fn the_slow_tail_of_a_batch_finishes_on_the_cpu() {
     let Some(ctx) = context() else {
         return;
     };
-    let mut instances = paper_cases();
-    instances.truncate(7);
+    let mut instances = table1_cases();
     let mut long = paper_cases()[6];
     long.cycles = 40;
     instances.push(long);
@@ -542,8 +548,7 @@ fn slice_length_does_not_change_outcomes() {
     let Some(ctx) = context() else {
         return;
     };
-    let mut instances = paper_cases();
-    instances.truncate(7);
+    let instances = table1_cases();
     let settings = Settings::default();
     for precision in precisions(ctx) {
         let run = |slice_iterations: u32| {
