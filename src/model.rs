@@ -64,17 +64,71 @@ impl Mechanism {
 }
 
 /// The bits of every parameter of an [`Instance`] ([`Instance::key`]).
-pub type InstanceKey = [u64; 22];
+pub type InstanceKey = [u64; 24];
+
+/// How an instance's step is measured (MODEL.md section 4).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Measure {
+    /// The paper's fixed window: [`Instance::cycles`] scene periods, the
+    /// first [`Instance::settle`] discarded. It equals the steady step only
+    /// when the motion is periodic from `settle` on with a period that
+    /// divides `cycles - settle`.
+    Window,
+    /// The steady step: after at least [`Instance::settle`] periods, the
+    /// run stops when its motion repeats or when each axis' standard error
+    /// is at most `step_tolerance`, and at [`Instance::cycles`]
+    /// (`max_cycles`) periods at the latest.
+    Steady {
+        /// Standard error allowed on each axis' mean step [m per own drive
+        /// cycle].
+        step_tolerance: f64,
+    },
+}
+
+impl Measure {
+    /// Default `step_tolerance` [m per own drive cycle]: 0.01 um, twice the
+    /// 0.005 um a map is compared at and a hundred times the integrator's
+    /// own error (1e-4 um).
+    pub const DEFAULT_STEP_TOLERANCE: f64 = 1e-8;
+    /// Default `max_cycles` [scene periods]. A quasi-periodic instance's
+    /// standard error falls like (oscillation range) / N, measured 0.01-0.12
+    /// um after 1,000 periods, so 0.01 um takes up to about 12,000 periods;
+    /// periodic instances stop after a few common periods whatever this is.
+    /// 10,000 bounds the cost of a map's worst instances to seconds each,
+    /// and those that do not converge by then say so (status "not steady").
+    pub const DEFAULT_MAX_CYCLES: u32 = 10_000;
+    /// Default leading periods discarded at least (the window's default too).
+    pub const DEFAULT_SETTLE: u32 = 2;
+
+    /// The scene's name of the method: "window" or "steady".
+    pub fn name(&self) -> &'static str {
+        match self {
+            Measure::Window => "window",
+            Measure::Steady { .. } => "steady",
+        }
+    }
+
+    /// The step tolerance [m per own drive cycle], 0 for a window.
+    pub fn step_tolerance(&self) -> f64 {
+        match self {
+            Measure::Window => 0.0,
+            Measure::Steady { step_tolerance } => *step_tolerance,
+        }
+    }
+}
 
 /// Everything that defines one simulated instance.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Instance {
     pub mechanism: Mechanism,
     pub axes: [Axis; AXES],
-    /// Simulated scene periods (MODEL.md section 4).
+    /// Scene periods simulated (a window) or the most that may be
+    /// simulated (`max_cycles` of a steady measurement) (MODEL.md section 4).
     pub cycles: u32,
-    /// Leading periods discarded before measuring.
+    /// Leading periods discarded before measuring (at least, when steady).
     pub settle: u32,
+    /// How the step is measured.
+    pub measure: Measure,
 }
 
 impl Axis {
@@ -173,6 +227,7 @@ impl Instance {
         axes: [Axis::TABLE1, Axis::TABLE1],
         cycles: 10,
         settle: 2,
+        measure: Measure::Window,
     };
 
     /// Scene period T = 1 / (lowest frequency among driven axes), or 1 / f_x
@@ -191,7 +246,8 @@ impl Instance {
         }
     }
 
-    /// Simulated time [s].
+    /// Simulated time at most [s] (a steady measurement usually stops
+    /// earlier).
     pub fn duration(&self) -> f64 {
         self.cycles as f64 * self.period()
     }
@@ -211,12 +267,14 @@ impl Instance {
     /// The instance's exact identity: every parameter's bits. Two instances
     /// with the same key integrate to the same result on any backend.
     pub fn key(&self) -> InstanceKey {
-        let mut key = [0; 22];
+        let mut key = [0; 24];
         key[..4].copy_from_slice(&self.mechanism.parameters().map(|(_, v)| v.to_bits()));
         key[4..6].copy_from_slice(&[self.cycles as u64, self.settle as u64]);
         for (i, a) in self.axes.iter().enumerate() {
             key[6 + 8 * i..14 + 8 * i].copy_from_slice(&a.parameters().map(|(_, v)| v.to_bits()));
         }
+        key[22] = matches!(self.measure, Measure::Steady { .. }) as u64;
+        key[23] = self.measure.step_tolerance().to_bits();
         key
     }
 

@@ -3,7 +3,7 @@
 //! physical (f_c <= f_s). The generator is SplitMix64, so a seed gives the
 //! same instances on every machine.
 
-use crate::model::{AXES, Axis, Instance, Mechanism};
+use crate::model::{AXES, Axis, Instance, Measure, Mechanism};
 
 /// A small deterministic generator (SplitMix64).
 #[derive(Clone, Debug)]
@@ -70,6 +70,7 @@ pub fn random_instance(rng: &mut Rng, cycles: u32, settle: u32) -> Instance {
         axes,
         cycles,
         settle,
+        measure: Measure::Window,
     }
 }
 

@@ -152,6 +152,7 @@ impl Plan {
             axes: [self.axes[0].resolve(raw), self.axes[1].resolve(raw)],
             cycles: self.cycles.get(raw) as u32,
             settle: self.settle.get(raw) as u32,
+            measure: crate::model::Measure::Window,
         }
     }
 }
