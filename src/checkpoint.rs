@@ -23,7 +23,7 @@ use crate::sweep::Record;
 const MAGIC: &[u8; 12] = b"PIDM-CKPT-1\n";
 
 /// Bytes of one record in the journal.
-const RECORD_BYTES: usize = 8 * 6 + 4 * 3;
+const RECORD_BYTES: usize = 8 * 8 + 4 * 5;
 
 /// The checkpoint journal of one output file.
 pub struct Checkpoint {
@@ -47,24 +47,34 @@ fn encode(record: &Record, out: &mut Vec<u8>) {
         .iter()
         .chain(&record.velocity)
         .chain(&record.baseline_step)
+        .chain(&record.step_se)
     {
         out.extend_from_slice(&v.to_le_bytes());
     }
-    for v in [record.status, record.steps, record.baseline_status] {
+    for v in [
+        record.status,
+        record.steps,
+        record.baseline_status,
+        record.periods,
+        record.period_lag,
+    ] {
         out.extend_from_slice(&v.to_le_bytes());
     }
 }
 
 fn decode(bytes: &[u8]) -> Record {
     let f = |k: usize| f64::from_le_bytes(bytes[8 * k..8 * k + 8].try_into().unwrap());
-    let u = |k: usize| u32::from_le_bytes(bytes[48 + 4 * k..52 + 4 * k].try_into().unwrap());
+    let u = |k: usize| u32::from_le_bytes(bytes[64 + 4 * k..68 + 4 * k].try_into().unwrap());
     Record {
         step: [f(0), f(1)],
         velocity: [f(2), f(3)],
         baseline_step: [f(4), f(5)],
+        step_se: [f(6), f(7)],
         status: u(0),
         steps: u(1),
         baseline_status: u(2),
+        periods: u(3),
+        period_lag: u(4),
     }
 }
 
@@ -254,6 +264,9 @@ mod tests {
             velocity: [value(f64::MIN_POSITIVE), value(2.0)],
             status: if failed { 1 + i as u32 % 5 } else { 0 },
             steps: i as u32,
+            step_se: [value(i as f64 * 1e-12), 0.0],
+            periods: 10 + i as u32,
+            period_lag: i as u32 % 4,
             baseline_step: [0.25, -0.0],
             baseline_status: 5,
         }

@@ -11,7 +11,8 @@ use crate::backend::{
     Backend, BackendChoice, CpuBackend, GpuBackend, Hardware, Precision, select_backend,
 };
 use crate::cpu::integrate::STATUS_OK;
-use crate::model::{AXES, AXIS_NAMES, Instance};
+use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
+use crate::model::{AXES, AXIS_NAMES, Instance, Measure};
 use crate::output::ShardInfo;
 use crate::run::{RunResult, RunScope, default_output, run_scene};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
@@ -40,8 +41,19 @@ pub struct RunOptions {
 /// that did not finish normally.
 pub fn run(opts: &RunOptions) -> Result<u64> {
     let scene = Scene::load(&opts.scene)?;
+    let steady =
+        scene.instance_count() > 0 && matches!(scene.instance(0).measure, Measure::Steady { .. });
+    let choice = if steady && opts.backend == BackendChoice::Auto {
+        eprintln!(
+            "pidm: the steady measurement runs on the CPU path (the GPU path measures fixed \
+             windows only so far)"
+        );
+        BackendChoice::Cpu
+    } else {
+        opts.backend
+    };
     let selected = select_backend(
-        opts.backend,
+        choice,
         opts.precision,
         opts.threads,
         integrations_for_choice(&scene, opts.scope),
@@ -87,7 +99,9 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
     if backend.hardware() == Hardware::Gpu {
         std::mem::forget(selected);
     }
-    Ok(result.summary.instances - result.summary.status_counts[STATUS_OK as usize])
+    // "Not steady" instances finished normally and keep their estimates.
+    let counts = &result.summary.status_counts;
+    Ok(result.summary.instances - counts[STATUS_OK as usize] - counts[STATUS_NOT_STEADY as usize])
 }
 
 /// Largest run whose distinct integrations `pidm run` counts before
@@ -143,6 +157,20 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             let meaning = crate::status::Status::describe(code as u32);
             println!("  status {code} ({meaning}): {n}");
         }
+    }
+    if matches!(scene.instance(0).measure, Measure::Steady { .. }) && s.instances > 0 {
+        let not_steady = s.status_counts[STATUS_NOT_STEADY as usize];
+        let converged = s.status_counts[STATUS_OK as usize].saturating_sub(s.periodic);
+        println!(
+            "  steady measurement: {} periodic (exact), {converged} converged within the step \
+             tolerance, {not_steady} not steady (ran to max_cycles; estimates kept with their \
+             standard errors); largest standard error {:.4} um; periods per instance: mean \
+             {:.0}, most {}",
+            s.periodic,
+            s.largest_se * 1e6,
+            s.periods as f64 / s.instances as f64,
+            s.max_periods
+        );
     }
     if s.extreme_step[0].is_finite() {
         println!(

@@ -8,6 +8,7 @@ pub mod checkpoint;
 pub mod commands;
 pub mod cpu;
 pub mod gpu;
+pub mod measurement;
 pub mod model;
 pub mod output;
 pub mod plot;

@@ -281,8 +281,18 @@ impl Instance {
     /// Converts a slider displacement measured over the kept periods into
     /// (velocity [m/s], step per own drive cycle [m]) for axis `i`.
     pub fn measure(&self, i: usize, displacement: f64) -> (f64, f64) {
-        let kept = (self.cycles - self.settle) as f64 * self.period();
-        let velocity = displacement / kept;
+        self.measure_over(i, displacement, (self.cycles - self.settle) as f64)
+    }
+
+    /// Converts a slider travel over `span` scene periods into (velocity
+    /// [m/s], step per own drive cycle [m]) for axis `i`; zeros when
+    /// nothing was measured (`span` 0).
+    pub fn measure_over(&self, i: usize, travel: f64, span: f64) -> (f64, f64) {
+        if span <= 0.0 {
+            return (0.0, 0.0);
+        }
+        let kept = span * self.period();
+        let velocity = travel / kept;
         (velocity, velocity / self.axes[i].frequency)
     }
 }

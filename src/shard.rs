@@ -214,6 +214,8 @@ impl ShardFile {
         let (step_x, step_y) = (f64s(schema::STEP[0])?, f64s(schema::STEP[1])?);
         let (vel_x, vel_y) = (f64s(&map(2))?, f64s(&map(3))?);
         let (status, steps) = (u32s(schema::STATUS)?, u32s(&map(5))?);
+        let (se_x, se_y) = (f64s(&map(6))?, f64s(&map(7))?);
+        let (periods, lags) = (u32s(&map(8))?, u32s(&map(9))?);
         let zeros_f = vec![0.0; n as usize];
         let zeros_u = vec![0; n as usize];
         let (base_x, base_y, base_status) = if baselines {
@@ -231,6 +233,9 @@ impl ShardFile {
                 velocity: [vel_x[k], vel_y[k]],
                 status: status[k],
                 steps: steps[k],
+                step_se: [se_x[k], se_y[k]],
+                periods: periods[k],
+                period_lag: lags[k],
                 baseline_step: [base_x[k], base_y[k]],
                 baseline_status: base_status[k],
             })

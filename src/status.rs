@@ -3,9 +3,12 @@
 //!
 //! The integrators set codes 0 to 4 (their values live in
 //! `cpu::integrate::constants`, from which the shader's prelude is also
-//! generated); the sweep sets 5 after `--verify`. Every non-zero status
-//! leaves 0 in the instance's map entries, never NaN.
+//! generated); the sweep sets 5 after `--verify`; the measurement's
+//! reduction (`crate::measurement`) sets 6. Every non-zero status but 6
+//! leaves 0 in the instance's map entries, never NaN; 6 ("not steady")
+//! keeps the best estimate and its standard error.
 
+use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
 use crate::cpu::integrate::{
     STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_OK, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
 };
@@ -27,17 +30,22 @@ pub enum Status {
     EventStorm = STATUS_EVENT_STORM,
     /// `--verify` found a step that a 100 times tighter tolerance moved.
     Unconverged = STATUS_UNCONVERGED,
+    /// A steady measurement ran to `simulation.max_cycles` without its
+    /// motion repeating or its standard error falling within
+    /// `simulation.step_tolerance`; the map keeps the best estimate.
+    NotSteady = STATUS_NOT_STEADY,
 }
 
 impl Status {
     /// Every status, in code order.
-    pub const ALL: [Status; 6] = [
+    pub const ALL: [Status; 7] = [
         Status::Ok,
         Status::StepBudget,
         Status::NonFinite,
         Status::StepUnderflow,
         Status::EventStorm,
         Status::Unconverged,
+        Status::NotSteady,
     ];
 
     /// The code stored in result files.
@@ -63,6 +71,10 @@ impl Status {
             Status::Unconverged => {
                 "unconverged (--verify: a 100 times tighter tolerance moved a step by more than \
                  0.001 um)"
+            }
+            Status::NotSteady => {
+                "not steady (ran to simulation.max_cycles; the map keeps the best estimate and \
+                 its standard error in step_*_se)"
             }
         }
     }

@@ -16,6 +16,7 @@ use rayon::prelude::*;
 
 use crate::backend::Backend;
 use crate::cpu::integrate::{self, STATUS_OK, Settings};
+use crate::measurement::{Measured, keeps_values, reduce};
 use crate::status::Status;
 
 /// Status of an instance that `--verify` found unconverged: rerun with a
@@ -240,17 +241,47 @@ pub fn interrupt_requested() -> bool {
     INTERRUPT.load(Ordering::Relaxed)
 }
 
-/// What a backend returns for one instance.
+/// What a backend returns for one instance: its [`Measured`] and the
+/// work it took.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Outcome {
-    /// Slider displacement over the measured periods [m]; zero unless the
-    /// status is [`STATUS_OK`].
+    /// Slider travel over the measured span [m]; zero unless the status
+    /// keeps values ([`crate::measurement::keeps_values`]).
     pub displacement: [f64; AXES],
+    /// Scene periods the displacement spans.
+    pub span: f64,
+    /// Standard error of each axis' step [m per own drive cycle].
+    pub se: [f64; AXES],
+    /// Scene periods integrated, settle included.
+    pub periods: u32,
+    /// Scene periods of the detected cycle, 0 when none.
+    pub lag: u32,
     pub status: u32,
     pub steps: u32,
     /// A GPU backend integrated this one on the CPU instead (the slow tail
     /// of a batch, or an iteration the driver's loop limiter cut).
     pub on_cpu: bool,
+}
+
+impl Outcome {
+    /// The outcome of a reduced run.
+    pub fn of(m: &Measured, steps: u32, on_cpu: bool) -> Outcome {
+        Outcome {
+            displacement: m.travel,
+            span: m.span,
+            se: m.se,
+            periods: m.periods,
+            lag: m.lag,
+            status: m.status,
+            steps,
+            on_cpu,
+        }
+    }
+
+    /// Step per own drive cycle [m] of axis `i`.
+    pub fn step(&self, inst: &Instance, i: usize) -> f64 {
+        inst.measure_over(i, self.displacement[i], self.span).1
+    }
 }
 
 /// One instance's entry in the maps, in SI units.
@@ -260,6 +291,13 @@ pub struct Record {
     pub step: [f64; AXES],
     /// Mean slider velocity [m/s].
     pub velocity: [f64; AXES],
+    /// Standard error of each step [m per own drive cycle]: 0 for a window
+    /// and a periodic motion.
+    pub step_se: [f64; AXES],
+    /// Scene periods integrated, settle included.
+    pub periods: u32,
+    /// Scene periods of the detected cycle, 0 when none.
+    pub period_lag: u32,
     pub status: u32,
     pub steps: u32,
     /// 1-DOF steps with the other axis undriven [m] (zero when not asked).
@@ -288,14 +326,19 @@ impl Record {
             ("step_y", self.step[1]),
             ("velocity_x", self.velocity[0]),
             ("velocity_y", self.velocity[1]),
+            ("step_x_se", self.step_se[0]),
+            ("step_y_se", self.step_se[1]),
             ("baseline step_x", self.baseline_step[0]),
             ("baseline step_y", self.baseline_step[1]),
         ];
         if let Some((what, value)) = values.iter().find(|(_, v)| !v.is_finite()) {
             return Some(format!("its {what} is {value}"));
         }
-        let failed = self.status != Status::Ok.code();
-        let kept = values[..4].iter().find(|(_, v)| *v != 0.0);
+        if let Some((what, value)) = values[4..6].iter().find(|(_, v)| *v < 0.0) {
+            return Some(format!("its {what} is {value:e}, below 0"));
+        }
+        let failed = !keeps_values(self.status);
+        let kept = values[..6].iter().find(|(_, v)| *v != 0.0);
         match kept {
             Some((what, value)) if failed => Some(format!(
                 "its status is {} ({}) but its {what} is {value:e}, not 0",
@@ -313,15 +356,10 @@ impl Record {
 /// a millisecond; the outcome is then a default one that the sweep discards
 /// with the rest of its chunk.
 pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
-    let Some(st) = integrate::run_instance_until(inst, settings, interrupt_requested) else {
+    let Some(run) = integrate::run_instance_until(inst, settings, interrupt_requested) else {
         return Outcome::default();
     };
-    Outcome {
-        displacement: integrate::displacement(inst, &st),
-        status: st.status,
-        steps: st.steps,
-        on_cpu: false,
-    }
+    Outcome::of(&reduce(inst, &run), run.state.steps, false)
 }
 
 /// Marks `outcome` unconverged when its tighter rerun `check` finished and
@@ -333,13 +371,18 @@ fn verify(inst: &Instance, outcome: &mut Outcome, check: &Outcome) {
         return;
     }
     let moved = (0..AXES).any(|i| {
-        let (_, a) = inst.measure(i, outcome.displacement[i]);
-        let (_, b) = inst.measure(i, check.displacement[i]);
+        let a = outcome.step(inst, i);
+        let b = check.step(inst, i);
         (a - b).abs() > VERIFY_ALLOWANCE_M
     });
     if moved {
-        outcome.status = STATUS_UNCONVERGED;
-        outcome.displacement = [0.0; AXES];
+        *outcome = Outcome {
+            status: STATUS_UNCONVERGED,
+            steps: outcome.steps,
+            periods: outcome.periods,
+            on_cpu: outcome.on_cpu,
+            ..Outcome::default()
+        };
     }
 }
 
@@ -348,10 +391,13 @@ pub fn record(inst: &Instance, out: &Outcome) -> Record {
     let mut rec = Record {
         status: out.status,
         steps: out.steps,
+        step_se: out.se,
+        periods: out.periods,
+        period_lag: out.lag,
         ..Record::default()
     };
     for i in 0..AXES {
-        let (velocity, step) = inst.measure(i, out.displacement[i]);
+        let (velocity, step) = inst.measure_over(i, out.displacement[i], out.span);
         rec.velocity[i] = velocity;
         rec.step[i] = step;
     }
@@ -364,7 +410,16 @@ pub struct Summary {
     pub instances: u64,
     /// Instances per status code (index = code; the last entry gathers
     /// unknown codes).
-    pub status_counts: [u64; 7],
+    pub status_counts: [u64; 8],
+    /// Instances whose motion was found periodic (a steady measurement).
+    pub periodic: u64,
+    /// Largest standard error of a step among instances that keep values
+    /// [m per own drive cycle].
+    pub largest_se: f64,
+    /// Scene periods integrated over all main instances, and the most of
+    /// one instance.
+    pub periods: u64,
+    pub max_periods: u32,
     /// Integrator steps over all main instances.
     pub steps: u64,
     /// Integrations run, baselines included, each distinct one once.
@@ -382,7 +437,11 @@ impl Default for Summary {
     fn default() -> Summary {
         Summary {
             instances: 0,
-            status_counts: [0; 7],
+            status_counts: [0; 8],
+            periodic: 0,
+            largest_se: 0.0,
+            periods: 0,
+            max_periods: 0,
             steps: 0,
             integrations: 0,
             integration_s: 0.0,
@@ -401,6 +460,10 @@ impl Summary {
             *a += b;
         }
         self.steps += other.steps;
+        self.periodic += other.periodic;
+        self.largest_se = self.largest_se.max(other.largest_se);
+        self.periods += other.periods;
+        self.max_periods = self.max_periods.max(other.max_periods);
         self.integrations += other.integrations;
         self.integration_s += other.integration_s;
         self.on_cpu += other.on_cpu;
@@ -413,8 +476,14 @@ impl Summary {
     /// because baselines add to it too).
     pub fn add(&mut self, rec: &Record) {
         self.instances += 1;
-        self.status_counts[(rec.status as usize).min(6)] += 1;
+        self.status_counts[(rec.status as usize).min(7)] += 1;
         self.steps += rec.steps as u64;
+        self.periodic += (rec.period_lag > 0) as u64;
+        if keeps_values(rec.status) {
+            self.largest_se = self.largest_se.max(rec.step_se[0]).max(rec.step_se[1]);
+        }
+        self.periods += rec.periods as u64;
+        self.max_periods = self.max_periods.max(rec.periods);
         if rec.status == STATUS_OK {
             for axis in 0..AXES {
                 self.extreme_step[0] = self.extreme_step[0].min(rec.step[axis]);
@@ -571,7 +640,11 @@ pub fn run(
         for rec in &records {
             summary.add(rec);
         }
-        summary.simulated_s += jobs.iter().map(Instance::duration).sum::<f64>();
+        summary.simulated_s += jobs
+            .iter()
+            .zip(&outcomes)
+            .map(|(inst, out)| out.periods as f64 * inst.period())
+            .sum::<f64>();
         summary.integrations += jobs.len() as u64;
         summary.on_cpu += outcomes.iter().filter(|o| o.on_cpu).count() as u64;
         // Keep this chunk's baselines for the chunks after it (a grid's
@@ -692,9 +765,11 @@ mod tests {
         let cycles = (inst.cycles - inst.settle) as f64;
         let outcome = |status: u32, x: f64| Outcome {
             displacement: [x * cycles, 0.0],
+            span: cycles,
             status,
             steps: 1,
-            on_cpu: false,
+            periods: inst.cycles,
+            ..Outcome::default()
         };
         let check = |run: Outcome, tighter: Outcome, want: u32| {
             let mut got = run;

@@ -33,8 +33,8 @@ use anyhow::{Context, Result};
 use rayon::prelude::*;
 
 use crate::cpu::integrate::{
-    self, Coefficients, Settings, State, StepMotion, StepObserver, advance_observed, initial_state,
-    is_finished,
+    self, Coefficients, Settings, State, StepMotion, StepObserver, advance_observed,
+    initial_measure, initial_state, is_finished,
 };
 use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
 use crate::output::schema;
@@ -116,6 +116,7 @@ pub fn record(inst: &Instance, settings: &Settings, samples_per_cycle: u32) -> T
     let series = || std::array::from_fn(|_| Vec::with_capacity(capacity));
     let c = Coefficients::new(inst, settings, f64::EPSILON);
     let mut st = initial_state(&c);
+    let mut measure = initial_measure(&c);
     let mut sampler = Sampler {
         inst,
         period: inst.period(),
@@ -133,7 +134,7 @@ pub fn record(inst: &Instance, settings: &Settings, samples_per_cycle: u32) -> T
     };
     sampler.push(st.x_p.to_array(), st.x_s.to_array());
     while !is_finished(&c, &st) {
-        advance_observed(&c, &mut st, u32::MAX, &mut sampler);
+        advance_observed(&c, &mut st, &mut measure, u32::MAX, &mut sampler);
     }
     sampler.out.state = st;
     sampler.out

@@ -56,7 +56,7 @@ fn steps_um(instances: &[Instance], outcomes: &[Outcome]) -> Vec<[f64; AXES]> {
         .map(|(inst, out)| {
             let mut s = [0.0; AXES];
             for (i, v) in s.iter_mut().enumerate() {
-                *v = inst.measure(i, out.displacement[i]).1 * 1e6;
+                *v = out.step(inst, i) * 1e6;
             }
             s
         })
@@ -107,9 +107,11 @@ pub fn karnopp_method<'a>(steps: Vec<f64>) -> Method<'a> {
                     let (displacement, steps) = karnopp::run_fixed_step(inst, step);
                     Outcome {
                         displacement,
+                        span: (inst.cycles - inst.settle) as f64,
+                        periods: inst.cycles,
                         status: STATUS_OK,
                         steps: steps.min(u32::MAX as u64) as u32,
-                        on_cpu: false,
+                        ..Outcome::default()
                     }
                 })
                 .collect())

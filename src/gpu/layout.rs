@@ -386,6 +386,7 @@ impl double::State {
             steps: self.steps,
             stalled: self.stalled,
             rejections: self.rejections,
+            measured: 0,
         }
     }
 }

@@ -50,7 +50,8 @@ use rayon::prelude::*;
 use thiserror::Error;
 use wgpu::util::DeviceExt;
 
-use crate::cpu::integrate::{Settings, displacement, run_instance};
+use crate::cpu::integrate::{Run, Settings, initial_measure, run_instance};
+use crate::measurement::displacement;
 use crate::model::Instance;
 use layout::HostLayout;
 use layout::control::Control;
@@ -630,10 +631,10 @@ impl GpuContext {
         for (inst, got) in instances.iter().zip(&outcomes) {
             let want = run_instance(inst, &settings);
             let want_d = displacement(inst, &want);
-            if got.status != want.status {
+            if got.status != want.state.status {
                 return Err(fail(format!(
                     "status {} where the CPU ends with {}",
-                    got.status, want.status
+                    got.status, want.state.status
                 )));
             }
             for (axis, (&g, &w)) in got.displacement.iter().zip(&want_d).enumerate() {
@@ -1150,15 +1151,24 @@ fn on_cpu(
     settings: &Settings,
     from: Option<crate::cpu::integrate::State>,
 ) -> GpuOutcome {
-    let st = match from {
-        Some(st) => crate::cpu::integrate::continue_instance_until(inst, settings, st, || false)
-            .expect("never asked to stop"),
+    let run = match from {
+        Some(state) => {
+            // The shader measures fixed windows only: a window's run needs
+            // no measurement accumulators.
+            let c = crate::cpu::integrate::Coefficients::new(inst, settings, f64::EPSILON);
+            let run = Run {
+                state,
+                measure: initial_measure(&c),
+            };
+            crate::cpu::integrate::continue_instance_until(inst, settings, run, || false)
+                .expect("never asked to stop")
+        }
         None => run_instance(inst, settings),
     };
     GpuOutcome {
-        displacement: displacement(inst, &st),
-        status: st.status,
-        steps: st.steps,
+        displacement: displacement(inst, &run),
+        status: run.state.status,
+        steps: run.state.steps,
         cpu_fallback: false,
         finished_on_cpu: false,
     }

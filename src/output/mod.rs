@@ -427,6 +427,15 @@ impl MapWriter {
         }
         write_flat(&self.maps[4], &self.shape, start, &take_u32(&|r| r.status))?;
         write_flat(&self.maps[5], &self.shape, start, &take_u32(&|r| r.steps))?;
+        write_flat(&self.maps[6], &self.shape, start, &take(&|r| r.step_se[0]))?;
+        write_flat(&self.maps[7], &self.shape, start, &take(&|r| r.step_se[1]))?;
+        write_flat(&self.maps[8], &self.shape, start, &take_u32(&|r| r.periods))?;
+        write_flat(
+            &self.maps[9],
+            &self.shape,
+            start,
+            &take_u32(&|r| r.period_lag),
+        )?;
         if !self.baselines.is_empty() {
             write_flat(
                 &self.baselines[0],

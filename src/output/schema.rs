@@ -29,7 +29,7 @@ impl MapDataset {
 }
 
 /// The datasets under [`MAPS`], in the order `Record` fields are written.
-pub const MAP_DATASETS: [MapDataset; 6] = [
+pub const MAP_DATASETS: [MapDataset; 10] = [
     map(
         "step_x",
         "m",
@@ -46,6 +46,30 @@ pub const MAP_DATASETS: [MapDataset; 6] = [
     map("velocity_y", "m/s", "mean slider velocity along y", false),
     map("status", "1", "integrator status code (0 = ok)", true),
     map("steps", "1", "integrator steps taken", true),
+    map(
+        "step_x_se",
+        "m",
+        "standard error of step_x (0 when periodic or a fixed window)",
+        false,
+    ),
+    map(
+        "step_y_se",
+        "m",
+        "standard error of step_y (0 when periodic or a fixed window)",
+        false,
+    ),
+    map(
+        "periods",
+        "1",
+        "scene periods integrated, settle included",
+        true,
+    ),
+    map(
+        "period_lag",
+        "1",
+        "scene periods of the detected cycle (0 when none)",
+        true,
+    ),
 ];
 
 /// The datasets under [`BASELINE`] when a scene asks for baselines.
@@ -203,7 +227,7 @@ mod tests {
         assert_eq!(BASELINE_STATUS, path(BASELINE, &BASELINE_DATASETS[2]));
         assert_eq!(SHARD_INSTANCE, format!("{SHARD}/instance"));
         // Four f64 maps and two u32 maps; two f64 and one u32 baselines.
-        assert_eq!(bytes_per_instance(false), 40);
-        assert_eq!(bytes_per_instance(true), 60);
+        assert_eq!(bytes_per_instance(false), 64);
+        assert_eq!(bytes_per_instance(true), 84);
     }
 }

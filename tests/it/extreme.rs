@@ -3,7 +3,8 @@
 //! with a bounded step count, no value is NaN or infinite, and each class
 //! shows the physics it is there for. The GPU side is in `tests/it/gpu.rs`.
 
-use pidm::cpu::integrate::{STATUS_OK, Settings, State, displacement, run_instance};
+use pidm::cpu::integrate::{STATUS_OK, Settings, State, run_instance};
+use pidm::measurement::window_displacement as displacement;
 use pidm::model::Instance;
 use pidm::scene::{Layout, Scene};
 
@@ -58,8 +59,8 @@ fn points() -> Vec<Point> {
             Point {
                 label: label.clone(),
                 inst,
-                default: run_instance(&inst, &scene.settings),
-                tight: run_instance(&inst, &tight),
+                default: run_instance(&inst, &scene.settings).state,
+                tight: run_instance(&inst, &tight).state,
             }
         })
         .collect()
@@ -184,7 +185,7 @@ fn kinetic_friction_above_static_holds_like_static_friction_of_that_size() {
         .unwrap();
     let mut held = point.inst;
     held.mechanism.static_friction = held.mechanism.coulomb_friction;
-    let st = run_instance(&held, &Settings::default());
+    let st = run_instance(&held, &Settings::default()).state;
     assert_eq!(st.status, STATUS_OK);
     assert_eq!(
         displacement(&held, &st),
@@ -270,7 +271,7 @@ fn verify_marks_what_a_tighter_tolerance_moves_and_keeps_the_rest() {
     let truth: Vec<f64> = (0..2)
         .map(|k| {
             let inst = scene.instance(k as u64);
-            let st = run_instance(&inst, &converged);
+            let st = run_instance(&inst, &converged).state;
             assert_eq!(st.status, STATUS_OK);
             inst.measure(0, displacement(&inst, &st)[0]).1
         })

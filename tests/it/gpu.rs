@@ -8,8 +8,9 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
-use pidm::cpu::integrate::{STATUS_OK, Settings, displacement, run_instance};
+use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::gpu::{BatchOptions, GpuContext, GpuOutcome, Precision, run_batch, run_batch_with};
+use pidm::measurement::window_displacement as displacement;
 use pidm::model::{Axis, Instance};
 
 /// Allowed f32 error per axis: 0.005 um + 1 % of the CPU step [um].
@@ -76,7 +77,7 @@ fn gpu_batch(
 fn cpu_reference(instances: &[Instance], settings: &Settings) -> Vec<pidm::cpu::integrate::State> {
     instances
         .iter()
-        .map(|inst| run_instance(inst, settings))
+        .map(|inst| run_instance(inst, settings).state)
         .collect()
 }
 
@@ -219,7 +220,7 @@ fn random_scene(
     let mut skipped = 0;
     while instances.len() < n {
         let inst = random_instance(&mut rng);
-        let st = run_instance(&inst, settings);
+        let st = run_instance(&inst, settings).state;
         if st.status == STATUS_OK && st.steps <= SLIDING_MODE_STEPS_PER_PERIOD * inst.cycles {
             instances.push(inst);
             states.push(st);
@@ -692,7 +693,7 @@ fn extreme_points_are_finite_and_match_the_cpu_or_say_why_not() {
     let mut left_out = Vec::new();
     for (k, label) in labels.iter().enumerate() {
         let inst = scene.instance(k as u64);
-        let st = run_instance(&inst, &settings);
+        let st = run_instance(&inst, &settings).state;
         if st.steps > EXTREME_STEPS_PER_PERIOD * inst.cycles {
             eprintln!("extreme: {label} left out ({} CPU steps)", st.steps);
             left_out.push(label.as_str());

@@ -17,4 +17,5 @@ mod reference;
 mod scene;
 mod scene_fuzz;
 mod slurm;
+mod steady;
 mod trajectory;

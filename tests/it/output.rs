@@ -36,6 +36,9 @@ fn record(i: usize) -> Record {
         velocity: [i as f64, 2.0 * i as f64],
         status: (i % 3) as u32,
         steps: i as u32 * 10,
+        step_se: [i as f64 * 1e-12, 0.0],
+        periods: 10 + i as u32,
+        period_lag: (i % 2) as u32,
         baseline_step: [i as f64 + 0.5, i as f64 - 0.5],
         baseline_status: 0,
     }

@@ -5,8 +5,9 @@
 use pidm::backend::{Backend, CpuBackend};
 use pidm::cpu::integrate::{
     Coefficients, MODE_STICK, STATUS_OK, Settings, State, StepMotion, StepObserver, Vec2,
-    advance_observed, displacement, initial_state, is_finished, run_instance,
+    advance_observed, initial_measure, initial_state, is_finished, run_instance,
 };
+use pidm::measurement::window_displacement as displacement;
 use pidm::model::{Axis, Instance};
 
 use crate::common::{case, reference_cases};
@@ -78,7 +79,7 @@ fn check_close(what: &str, a: f64, b: f64) {
 fn an_undriven_axis_stays_exactly_at_rest() {
     for voltage in [100.0, 50.0, -70.0] {
         let inst = case(voltage, 0.0, 10.0, 10.0, Axis::TABLE1);
-        let st = run_instance(&inst, &Settings::default());
+        let st = run_instance(&inst, &Settings::default()).state;
         assert_eq!(st.status, STATUS_OK);
         assert_eq!(
             [st.x_p[1], st.v_p[1], st.x_s[1], st.v_s[1]],
@@ -274,9 +275,10 @@ fn the_texts_10_hz_one_dof_cases_never_slip() {
         let inst = case(voltage, 0.0, 10.0, 10.0, Axis::TEXT);
         let c = Coefficients::new(&inst, &settings, f64::EPSILON);
         let mut st = initial_state(&c);
+        let mut measure = initial_measure(&c);
         let mut modes = Modes(Vec::new());
         while !is_finished(&c, &st) {
-            advance_observed(&c, &mut st, u32::MAX, &mut modes);
+            advance_observed(&c, &mut st, &mut measure, u32::MAX, &mut modes);
         }
         assert_eq!(st.status, STATUS_OK, "{voltage} V");
         assert!(!modes.0.is_empty(), "{voltage} V: no step observed");

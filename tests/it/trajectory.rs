@@ -2,7 +2,8 @@
 //! the map results, and samples inside long closed-form steps are the true
 //! motion (checked against an independent integration).
 
-use pidm::cpu::integrate::{STATUS_OK, Settings, displacement, run_instance};
+use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
+use pidm::measurement::window_displacement as displacement;
 use pidm::model::{Axis, Instance, sawtooth};
 use pidm::scene::Scene;
 use pidm::trajectory::{measured_displacement, record, record_scene};
@@ -43,7 +44,7 @@ fn instances() -> Vec<(&'static str, Instance)> {
 fn recording_leaves_the_run_unchanged_bit_for_bit() {
     let settings = Settings::default();
     for (name, inst) in instances() {
-        let plain = run_instance(&inst, &settings);
+        let plain = run_instance(&inst, &settings).state;
         for per in [7, 2000] {
             let t = record(&inst, &settings, per);
             assert_eq!(t.state, plain, "{name}, {per} samples per cycle");
@@ -55,7 +56,7 @@ fn recording_leaves_the_run_unchanged_bit_for_bit() {
 fn the_samples_give_the_map_displacement() {
     let settings = Settings::default();
     for (name, inst) in instances() {
-        let plain = run_instance(&inst, &settings);
+        let plain = run_instance(&inst, &settings).state;
         assert_eq!(plain.status, STATUS_OK, "{name}");
         let want = displacement(&inst, &plain);
         let t = record(&inst, &settings, 500);
@@ -199,7 +200,7 @@ fn a_scene_records_its_trajectories_with_baselines() {
     assert_eq!(bases[0].instance, alone);
     assert_eq!(
         bases[0].trajectory.state,
-        run_instance(&alone, &scene.settings)
+        run_instance(&alone, &scene.settings).state
     );
     assert!(bases[0].trajectory.slider[1].iter().all(|&v| v == 0.0));
     assert_eq!(recorded[0].main.time.len(), 151);
@@ -222,7 +223,7 @@ fn a_faster_baseline_is_extended_over_the_whole_run_unchanged() {
     let n = short.time.len();
     assert_eq!(t.slider[1][..n], short.slider[1][..]);
     assert_eq!(t.stage[1][..n], short.stage[1][..]);
-    let want = displacement(&map_run, &run_instance(&map_run, &settings));
+    let want = displacement(&map_run, &run_instance(&map_run, &settings).state);
     let got = measured_displacement(&t, base.settle, measured).unwrap();
     assert!((got[1] - want[1]).abs() <= 1e-12, "{got:?} {want:?}");
     // Axes at one frequency need no extension.

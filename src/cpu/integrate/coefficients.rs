@@ -6,8 +6,9 @@
 
 use super::Settings;
 use super::constants::{COLLOCATION_CONVERGED, EVENT_STEP_PERIODS, MIN_STEP_EPSILONS};
+use super::measure;
 use super::vec2::Vec2;
-use crate::model::Instance;
+use crate::model::{Instance, Measure};
 
 /// One mode's oscillator per axis: m x'' + c x' + k x = g, with the stage
 /// alone (slip) or stage and slider together (stick).
@@ -112,6 +113,20 @@ pub struct Coefficients {
     pub budget: u32,
     /// Whether each axis is driven (a non-zero voltage).
     pub driven: [bool; 2],
+    /// A steady measurement (`measure::period_end` runs at period ends).
+    pub steady: bool,
+    /// The drives' common period [scene periods], 0 when there is none up
+    /// to `measure::MAX_COMMON_PERIOD`.
+    pub common_period: u32,
+    /// The first batch length [scene periods].
+    pub batch_length: u32,
+    /// Squared standard error allowed on each axis' travel per scene
+    /// period [m^2]: (step_tolerance f_i T)^2.
+    pub se_limit2: Vec2,
+    /// The recurrence test's tolerances on positions [m] and velocities
+    /// [m/s].
+    pub repeat_x: f64,
+    pub repeat_v: f64,
     /// f_c = 0: slip does not depend on the friction direction.
     pub frictionless: bool,
 }
@@ -149,6 +164,11 @@ impl Coefficients {
         };
         let budget =
             (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
+        let cycles_per_period = per_axis(&|a| a.frequency * period);
+        let step_tolerance = inst.measure.step_tolerance();
+        let se_limit = cycles_per_period * step_tolerance;
+        let (repeat_x, repeat_v) =
+            measure::repeat_tolerances(settings.tolerance, slip.rate.max_element());
         Coefficients {
             stiffness,
             damping,
@@ -181,7 +201,7 @@ impl Coefficients {
                 }
             }),
             phase: per_axis(&|a| a.phase),
-            cycles_per_period: per_axis(&|a| a.frequency * period),
+            cycles_per_period,
             stage_share: stage_mass.map(|mp| mp / (mp + ms)),
             slider_share: stage_mass.map(|mp| ms / (mp + ms)),
             slip_scale,
@@ -204,6 +224,12 @@ impl Coefficients {
             collocation_tolerance: COLLOCATION_CONVERGED * settings.tolerance,
             budget,
             driven,
+            steady: matches!(inst.measure, Measure::Steady { .. }),
+            common_period: measure::common_period(cycles_per_period, driven),
+            batch_length: measure::first_batch_length(cycles_per_period, driven, inst.cycles),
+            se_limit2: se_limit * se_limit,
+            repeat_x,
+            repeat_v,
             frictionless: fc == 0.0,
         }
     }

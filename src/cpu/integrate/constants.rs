@@ -20,6 +20,11 @@ pub const STATUS_NON_FINITE: u32 = 2;
 pub const STATUS_STEP_UNDERFLOW: u32 = 3;
 /// Mode changes kept following each other without time advancing.
 pub const STATUS_EVENT_STORM: u32 = 4;
+/// A steady measurement reached `max_cycles` without its motion repeating
+/// or its standard error falling within the step tolerance: the map keeps
+/// the best estimate and its standard error (set by the host's reduction,
+/// `pidm::measurement`; code 5 is the sweep's `--verify`).
+pub const STATUS_NOT_STEADY: u32 = 6;
 
 /// No event is watched.
 pub const EVENT_NONE: u32 = 0;

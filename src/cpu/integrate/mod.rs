@@ -43,6 +43,7 @@ pub mod constants;
 pub mod drive;
 pub mod events;
 pub mod flow;
+pub mod measure;
 pub mod step;
 pub mod vec2;
 
@@ -51,6 +52,7 @@ pub use constants::{
     MODE_BAND, MODE_SLIP, MODE_STICK, STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_OK,
     STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
 };
+pub use measure::{Measure, initial_measure};
 pub use vec2::Vec2;
 
 use constants::MAX_STALLED_EVENTS;
@@ -123,6 +125,8 @@ pub struct State {
     pub stalled: u32,
     /// Slip trials rejected in a row.
     pub rejections: u32,
+    /// 1 once a steady measurement is complete (`measure::period_end`).
+    pub measured: u32,
 }
 
 /// A fresh state: everything at rest at zero displacement, in stick, at the
@@ -149,16 +153,25 @@ pub fn initial_state(c: &Coefficients) -> State {
         steps: 0,
         stalled: 0,
         rejections: 0,
+        measured: 0,
     }
 }
 
 /// True once the instance has finished, normally or not.
 pub fn is_finished(c: &Coefficients, st: &State) -> bool {
-    st.status != STATUS_OK || st.period >= c.cycles
+    st.status != STATUS_OK || st.period >= c.cycles || st.measured == 1
 }
 
-/// Integrates one instance to the end and returns its final state.
-pub fn run_instance(inst: &Instance, settings: &Settings) -> State {
+/// Where a run ended: the integrator's state and the measurement's
+/// accumulators (unused by a window).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Run {
+    pub state: State,
+    pub measure: Measure,
+}
+
+/// Integrates one instance to the end.
+pub fn run_instance(inst: &Instance, settings: &Settings) -> Run {
     run_instance_until(inst, settings, || false).expect("never asked to stop")
 }
 
@@ -175,10 +188,13 @@ pub fn run_instance_until(
     inst: &Instance,
     settings: &Settings,
     stop: impl Fn() -> bool,
-) -> Option<State> {
+) -> Option<Run> {
     let c = Coefficients::new(inst, settings, f64::EPSILON);
-    let st = initial_state(&c);
-    continue_instance_until(inst, settings, st, stop)
+    let run = Run {
+        state: initial_state(&c),
+        measure: initial_measure(&c),
+    };
+    continue_instance_until(inst, settings, run, stop)
 }
 
 /// Integrates one instance to the end from a state it reached, which the
@@ -188,32 +204,27 @@ pub fn run_instance_until(
 pub fn continue_instance_until(
     inst: &Instance,
     settings: &Settings,
-    mut st: State,
+    mut run: Run,
     stop: impl Fn() -> bool,
-) -> Option<State> {
+) -> Option<Run> {
     let c = Coefficients::new(inst, settings, f64::EPSILON);
-    while !is_finished(&c, &st) {
+    while !is_finished(&c, &run.state) {
         if stop() {
             return None;
         }
-        advance(&c, &mut st, ITERATIONS_BETWEEN_STOP_CHECKS);
+        advance(
+            &c,
+            &mut run.state,
+            &mut run.measure,
+            ITERATIONS_BETWEEN_STOP_CHECKS,
+        );
     }
-    Some(st)
-}
-
-/// Slider displacement over the measured periods [m], or zero where the
-/// instance did not finish normally (its status says why).
-pub fn displacement(inst: &Instance, st: &State) -> [f64; AXES] {
-    if st.status == STATUS_OK && st.period >= inst.cycles {
-        (st.x_s - st.settle_x_s).to_array()
-    } else {
-        [0.0; AXES]
-    }
+    Some(run)
 }
 
 /// Advances the state by at most `max_iterations` iterations.
-pub fn advance(c: &Coefficients, st: &mut State, max_iterations: u32) {
-    advance_observed(c, st, max_iterations, &mut NoObserver);
+pub fn advance(c: &Coefficients, st: &mut State, m: &mut Measure, max_iterations: u32) {
+    advance_observed(c, st, m, max_iterations, &mut NoObserver);
 }
 
 /// Sees the closed-form motion over every step the integrator takes (CPU
@@ -272,15 +283,24 @@ impl StepMotion<'_> {
 }
 
 /// [`advance`] with an observer that sees the motion over every step.
+/// A steady measurement processes each period end before the iteration
+/// that passes it (`measure::period_end`); a window never looks.
 pub fn advance_observed<O: StepObserver>(
     c: &Coefficients,
     st: &mut State,
+    m: &mut Measure,
     max_iterations: u32,
     observer: &mut O,
 ) {
     for _ in 0..max_iterations {
         if is_finished(c, st) {
             return;
+        }
+        if measure::at_period_end(c, st, m) {
+            measure::period_end(c, st, m);
+            if is_finished(c, st) {
+                return;
+            }
         }
         iterate(c, st, observer);
     }

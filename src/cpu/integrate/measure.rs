@@ -1,0 +1,377 @@
+//! The steady measurement (MODEL.md section 4): the per-period bookkeeping
+//! of one instance and the rule that stops its run. The CPU mirror of
+//! `shaders/integrate/measure.wgsl` (same functions, same order of
+//! operations); its constants reach the shader through the prelude.
+//!
+//! At the end of every scene period from `settle` on, [`period_end`]
+//! records the slider's travel over the period into fixed-size batch
+//! accumulators, and at the end of every common period of the drives it
+//! compares the state with the states of the last [`SNAPSHOTS`] common
+//! period ends. The run stops
+//!
+//! * *periodic*: the state (stage positions and velocities, slider
+//!   velocity, mode; not the slider position, which translates) repeats
+//!   after L common periods within [`repeat_tolerances`]: the travel over
+//!   those L common periods is the steady step exactly;
+//! * *converged*: at least [`MIN_BATCHES`] batches, each spanning the
+//!   slowest beat of the drives, are complete, and every axis' standard
+//!   error ([`estimate`]) is at most the step tolerance.
+//!
+//! Otherwise it runs to `max_cycles` (the instance's `cycles`), and the
+//! reduction (`pidm::measurement`) reports it "not steady" with its best
+//! estimate. Everything here is fixed-size: no per-period arrays.
+//!
+//! The estimate ([`estimate`]): the transient is cut by MSER (White 1997,
+//! "An effective truncation heuristic for bias reduction in simulation
+//! output", Simulation 69(6); MSER-5 in White, Cobb and Spratt 2000) on the
+//! batch sums, which makes it MSER-b with batches of at least one common
+//! period. The standard error combines batch means over the kept batches
+//! (Schmeiser 1982, with a fixed number of batches whose length doubles as
+//! the run grows, as in Fishman and Yarberry 1997's LABATCH.2) with the
+//! bounded-oscillation term, the range of the centred cumulative sum over
+//! the kept periods divided by their number. Batch means alone claim far
+//! too small errors for quasi-periodic motion (whose running mean converges
+//! like 1/N) and for a stuck slider (whose increments telescope); the range
+//! term is of the size of those errors. Batches span the slowest beat of
+//! order at most [`BEAT_ORDER`], so their means are not correlated through
+//! a beat (MODEL.md section 4's first trap).
+
+use super::State;
+use super::coefficients::Coefficients;
+use super::vec2::Vec2;
+
+/// Common-period ends whose states are kept for the recurrence test: the
+/// longest lag found is this many common periods (subharmonic motion of
+/// order up to 8).
+pub const SNAPSHOTS: usize = 8;
+/// Batch accumulators per axis. When all are full, neighbours are added in
+/// pairs and the batch length doubles.
+pub const BATCHES: usize = 32;
+/// Complete batches needed before a statistical stop: after MSER has cut
+/// at most half of them, at least 8 remain for batch means.
+pub const MIN_BATCHES: u32 = 16;
+/// The longest common period looked for [scene periods].
+pub const MAX_COMMON_PERIOD: u32 = 1000;
+/// Beats of order up to this (|q r - p| for the frequency ratio r) set the
+/// shortest batch when the drives have no common period.
+pub const BEAT_ORDER: u32 = 8;
+/// Relative distance from an integer below which q r counts as one: the
+/// drive then repeats after q scene periods to 1e-9 cycles, far below
+/// anything the recurrence test sees.
+pub const COMMENSURATE: f64 = 1e-9;
+/// The recurrence test's position tolerance per radian of the integrator's
+/// tolerance [m/rad]: the default tolerance 1e-4 rad gives 1e-10 m, the
+/// integrator's own error in a step (about tolerance / 4 micrometres).
+pub const REPEAT_METRES_PER_RADIAN: f64 = 1e-6;
+
+/// The measurement is still running.
+pub const VERDICT_RUNNING: u32 = 0;
+/// The motion repeated: the step is exact.
+pub const VERDICT_PERIODIC: u32 = 1;
+/// The standard error fell within the step tolerance.
+pub const VERDICT_CONVERGED: u32 = 2;
+
+/// The state at the end of one common period.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Snapshot {
+    pub x_p: Vec2,
+    pub v_p: Vec2,
+    pub v_s: Vec2,
+    /// Slider position [m]: not compared, but the travel since it is the
+    /// step of a periodic motion.
+    pub x_s: Vec2,
+    pub mode: u32,
+}
+
+/// The per-instance accumulators of a steady measurement. Lengths are in
+/// metres, counts in scene periods.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Measure {
+    /// Slider position at the end of the previous period.
+    pub last_x_s: Vec2,
+    /// Slider position where the batch being filled began.
+    pub batch_start: Vec2,
+    /// Smallest and largest travel over one period, per axis.
+    pub d_min: Vec2,
+    pub d_max: Vec2,
+    /// Travel over the detected cycle (periodic verdict).
+    pub travel: Vec2,
+    /// Travel over each complete batch.
+    pub sums: [Vec2; BATCHES],
+    /// The last common-period ends, a ring indexed by `snapshots`.
+    pub snaps: [Snapshot; SNAPSHOTS],
+    /// The period whose end is processed next (guards against processing
+    /// one end twice).
+    pub next_end: u32,
+    /// Periods measured (after `settle`).
+    pub measured: u32,
+    /// Complete batches, the current batch length and the periods in the
+    /// batch being filled.
+    pub filled: u32,
+    pub batch_length: u32,
+    pub in_batch: u32,
+    /// Snapshots taken so far.
+    pub snapshots: u32,
+    /// The detected cycle [scene periods], 0 when none.
+    pub lag: u32,
+    pub verdict: u32,
+}
+
+/// The accumulators of a run that has not started.
+pub fn initial_measure(c: &Coefficients) -> Measure {
+    Measure {
+        last_x_s: Vec2::ZERO,
+        batch_start: Vec2::ZERO,
+        d_min: Vec2::splat(f64::INFINITY),
+        d_max: Vec2::splat(-f64::INFINITY),
+        travel: Vec2::ZERO,
+        sums: [Vec2::ZERO; BATCHES],
+        snaps: [Snapshot::default(); SNAPSHOTS],
+        next_end: 0,
+        measured: 0,
+        filled: 0,
+        batch_length: c.batch_length,
+        in_batch: 0,
+        snapshots: 0,
+        lag: 0,
+        verdict: VERDICT_RUNNING,
+    }
+}
+
+/// Whether the state sits at a period end that [`period_end`] has not
+/// processed yet (a steady measurement only).
+pub fn at_period_end(c: &Coefficients, st: &State, m: &Measure) -> bool {
+    c.steady && st.time >= c.period && m.next_end == st.period
+}
+
+/// Processes the end of period `st.period`: the state is at t = (period + 1)
+/// T, before the boundary is passed. Sets `st.measured` when the
+/// measurement is complete.
+pub fn period_end(c: &Coefficients, st: &mut State, m: &mut Measure) {
+    m.next_end = st.period + 1;
+    let ended = st.period + 1;
+    if ended < c.settle {
+        return;
+    }
+    if ended > c.settle {
+        let d = st.x_s - m.last_x_s;
+        m.d_min = m.d_min.zip(d, f64::min);
+        m.d_max = m.d_max.zip(d, f64::max);
+        m.measured += 1;
+        m.in_batch += 1;
+        if m.in_batch == m.batch_length {
+            close_batch(m, st.x_s);
+        }
+    } else {
+        m.batch_start = st.x_s;
+    }
+    m.last_x_s = st.x_s;
+    if c.common_period > 0 && (ended - c.settle) % c.common_period == 0 {
+        recurrence(c, st, m);
+    }
+    if m.verdict == VERDICT_RUNNING && m.in_batch == 0 && m.filled >= MIN_BATCHES {
+        let e = estimate(m);
+        if e.se2.x <= c.se_limit2.x && e.se2.y <= c.se_limit2.y {
+            m.verdict = VERDICT_CONVERGED;
+        }
+    }
+    if m.verdict != VERDICT_RUNNING {
+        st.measured = 1;
+    }
+}
+
+/// Stores the batch that ends at `x_s`; folds the batches in pairs when
+/// all are full.
+fn close_batch(m: &mut Measure, x_s: Vec2) {
+    m.sums[m.filled as usize] = x_s - m.batch_start;
+    m.filled += 1;
+    m.batch_start = x_s;
+    m.in_batch = 0;
+    if m.filled as usize == BATCHES {
+        for j in 0..BATCHES / 2 {
+            m.sums[j] = m.sums[2 * j] + m.sums[2 * j + 1];
+        }
+        m.filled = (BATCHES / 2) as u32;
+        m.batch_length *= 2;
+    }
+}
+
+/// Compares the state with the last common-period ends, nearest first;
+/// records the lag and the travel over it when one matches, else keeps the
+/// state.
+fn recurrence(c: &Coefficients, st: &State, m: &mut Measure) {
+    let kept = m.snapshots.min(SNAPSHOTS as u32);
+    for back in 1..=kept {
+        let s = &m.snaps[((m.snapshots - back) % SNAPSHOTS as u32) as usize];
+        if s.mode == st.mode
+            && close(st.x_p, s.x_p, c.repeat_x)
+            && close(st.v_p, s.v_p, c.repeat_v)
+            && close(st.v_s, s.v_s, c.repeat_v)
+        {
+            m.lag = back * c.common_period;
+            m.travel = st.x_s - s.x_s;
+            m.verdict = VERDICT_PERIODIC;
+            return;
+        }
+    }
+    m.snaps[(m.snapshots % SNAPSHOTS as u32) as usize] = Snapshot {
+        x_p: st.x_p,
+        v_p: st.v_p,
+        v_s: st.v_s,
+        x_s: st.x_s,
+        mode: st.mode,
+    };
+    m.snapshots += 1;
+}
+
+fn close(a: Vec2, b: Vec2, tolerance: f64) -> bool {
+    let d = (a - b).abs();
+    d.x <= tolerance && d.y <= tolerance
+}
+
+/// The batch estimate of the mean travel per scene period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// Travel over the kept batches [m].
+    pub travel: Vec2,
+    /// Periods in the kept batches.
+    pub span: u32,
+    /// Squared standard error of the mean travel per scene period [m^2].
+    pub se2: Vec2,
+}
+
+/// The estimate from the complete batches: MSER's cut, then batch means
+/// and the range of the centred cumulative sum over what is kept. Needs at
+/// least one complete batch; with one, the spread is unknown and the
+/// standard error is the largest single-period travel.
+pub fn estimate(m: &Measure) -> Estimate {
+    let n = m.filled;
+    let cuts = mser_cut(m);
+    let cut = cuts.x.max(cuts.y) as u32;
+    let kept = n - cut;
+    let mut total = Vec2::ZERO;
+    for j in cut..n {
+        total = total + m.sums[j as usize];
+    }
+    let b = m.batch_length as f64;
+    let inv_kept = 1.0 / kept as f64;
+    let mean = total * inv_kept;
+    let mut squares = Vec2::ZERO;
+    let mut walk = Vec2::ZERO;
+    let mut low = Vec2::ZERO;
+    let mut high = Vec2::ZERO;
+    for j in cut..n {
+        let e = m.sums[j as usize] - mean;
+        squares = squares + e * e;
+        walk = walk + e;
+        low = low.zip(walk, f64::min);
+        high = high.zip(walk, f64::max);
+    }
+    let span = kept as f64 * b;
+    let inv_span = 1.0 / span;
+    let range = (high - low) * inv_span;
+    let se2 = if kept >= 2 {
+        let inv_b = 1.0 / b;
+        let batch = squares * (inv_kept / (kept - 1) as f64) * (inv_b * inv_b);
+        batch + range * range
+    } else {
+        let largest = m.d_min.abs().zip(m.d_max.abs(), f64::max);
+        largest * largest
+    };
+    Estimate {
+        travel: total,
+        span: kept * m.batch_length,
+        se2,
+    }
+}
+
+/// MSER's truncation per axis: the number of leading batches d <= n / 2
+/// that minimises the squared deviations of the rest over (n - d)^2.
+fn mser_cut(m: &Measure) -> Vec2 {
+    let n = m.filled;
+    let mut best = Vec2::splat(f64::INFINITY);
+    let mut cut = Vec2::ZERO;
+    for d in 0..=n / 2 {
+        let left = (n - d) as f64;
+        let inv_left = 1.0 / left;
+        let mut total = Vec2::ZERO;
+        for j in d..n {
+            total = total + m.sums[j as usize];
+        }
+        let mean = total * inv_left;
+        let mut squares = Vec2::ZERO;
+        for j in d..n {
+            let e = m.sums[j as usize] - mean;
+            squares = squares + e * e;
+        }
+        let score = squares * (inv_left * inv_left);
+        for i in 0..2 {
+            if score[i] < best[i] {
+                best[i] = score[i];
+                cut[i] = d as f64;
+            }
+        }
+    }
+    cut
+}
+
+/// The drives' common period [scene periods]: the smallest q <=
+/// [`MAX_COMMON_PERIOD`] at which every driven axis completes a whole
+/// number of its cycles (the drive then repeats, phases included), or 0.
+pub fn common_period(cycles_per_period: Vec2, driven: [bool; 2]) -> u32 {
+    (1..=MAX_COMMON_PERIOD)
+        .find(|&q| (0..2).all(|i| !driven[i] || is_whole(q as f64 * cycles_per_period[i])))
+        .unwrap_or(0)
+}
+
+fn is_whole(x: f64) -> bool {
+    (x - x.round()).abs() <= COMMENSURATE * x.abs().max(1.0)
+}
+
+/// The first batch length [scene periods]: the common period where there
+/// is one; otherwise the slowest beat of order up to [`BEAT_ORDER`]
+/// between the two drives, 1 / |q r - p| periods (r the cycles per period
+/// of the faster axis), rounded up.
+pub fn first_batch_length(cycles_per_period: Vec2, driven: [bool; 2], max_cycles: u32) -> u32 {
+    let common = common_period(cycles_per_period, driven);
+    if common > 0 {
+        return common;
+    }
+    let mut slowest: f64 = 1.0;
+    for i in 0..2 {
+        if !driven[i] {
+            continue;
+        }
+        for q in 1..=BEAT_ORDER {
+            let x = q as f64 * cycles_per_period[i];
+            if is_whole(x) {
+                continue;
+            }
+            let beat = 1.0 / (x - x.round()).abs();
+            slowest = slowest.max(beat);
+        }
+    }
+    slowest.ceil().min(max_cycles as f64).max(1.0) as u32
+}
+
+/// The recurrence test's tolerances: on positions [m] and on velocities
+/// [m/s] (positions times the fastest rate of the stage).
+pub fn repeat_tolerances(tolerance: f64, stage_rate: f64) -> (f64, f64) {
+    let x = REPEAT_METRES_PER_RADIAN * tolerance;
+    (x, x * stage_rate)
+}
+
+/// The constants above that the shader reads, as WGSL declarations for
+/// its prelude.
+pub fn wgsl_constants() -> String {
+    let u = |name: &str, v: u32| format!("const {name}: u32 = {v}u;\n");
+    [
+        u("SNAPSHOTS", SNAPSHOTS as u32),
+        u("BATCHES", BATCHES as u32),
+        u("MIN_BATCHES", MIN_BATCHES),
+        u("VERDICT_RUNNING", VERDICT_RUNNING),
+        u("VERDICT_PERIODIC", VERDICT_PERIODIC),
+        u("VERDICT_CONVERGED", VERDICT_CONVERGED),
+    ]
+    .concat()
+}

@@ -1,0 +1,138 @@
+//! The reduction of a finished run to what a map shows (MODEL.md section
+//! 4): the mean travel and the periods it spans, each axis' standard error,
+//! the periods integrated, the detected cycle and the status. Every
+//! backend's results pass through [`reduce`]: the CPU's runs directly, the
+//! GPU's once their states and accumulators are read back in f64.
+//!
+//! The per-period bookkeeping and the stop rule are
+//! `cpu::integrate::measure` (mirrored by the shader); this module only
+//! reads what they left.
+
+use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
+use crate::cpu::integrate::measure::{VERDICT_CONVERGED, VERDICT_PERIODIC, estimate};
+use crate::cpu::integrate::{Run, STATUS_OK, State};
+use crate::model::{AXES, Instance, Measure};
+
+/// What one run measured. Lengths in metres.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Measured {
+    /// Slider travel over the measured span per axis [m]; zero unless the
+    /// status is OK or "not steady".
+    pub travel: [f64; AXES],
+    /// Scene periods the travel spans (0 when nothing was measured).
+    pub span: f64,
+    /// Standard error of each axis' step [m per own drive cycle]: 0 for a
+    /// window and for a periodic motion.
+    pub se: [f64; AXES],
+    /// Scene periods integrated, settle included.
+    pub periods: u32,
+    /// Scene periods of the detected cycle, 0 when none was detected.
+    pub lag: u32,
+    pub status: u32,
+}
+
+/// Whether a status keeps its instance's values: OK and "not steady" (the
+/// best estimate, with its standard error) do; every failure leaves zeros.
+pub fn keeps_values(status: u32) -> bool {
+    status == STATUS_OK || status == STATUS_NOT_STEADY
+}
+
+/// Reduces a finished run of `inst`.
+pub fn reduce(inst: &Instance, run: &Run) -> Measured {
+    let st = &run.state;
+    let m = &run.measure;
+    let failed = Measured {
+        status: st.status,
+        periods: st.period,
+        ..Measured::default()
+    };
+    if st.status != STATUS_OK {
+        return failed;
+    }
+    match inst.measure {
+        Measure::Window => {
+            if st.period < inst.cycles {
+                // Not finished: no backend hands such a run over.
+                return failed;
+            }
+            Measured {
+                travel: (st.x_s - st.settle_x_s).to_array(),
+                span: (inst.cycles - inst.settle) as f64,
+                se: [0.0; AXES],
+                periods: inst.cycles,
+                lag: 0,
+                status: STATUS_OK,
+            }
+        }
+        Measure::Steady { .. } => {
+            let own_cycles = |i: usize| inst.axes[i].frequency * inst.period();
+            let periods = m.next_end;
+            if m.verdict == VERDICT_PERIODIC {
+                return Measured {
+                    travel: m.travel.to_array(),
+                    span: m.lag as f64,
+                    se: [0.0; AXES],
+                    periods,
+                    lag: m.lag,
+                    status: STATUS_OK,
+                };
+            }
+            let status = if m.verdict == VERDICT_CONVERGED {
+                STATUS_OK
+            } else {
+                STATUS_NOT_STEADY
+            };
+            let (travel, span, se2) = if m.filled > 0 {
+                let e = estimate(m);
+                (e.travel, e.span as f64, e.se2)
+            } else {
+                // Not one batch complete (a tiny max_cycles): the periods
+                // measured so far, with the largest single-period travel as
+                // the error.
+                let largest = m.d_min.abs().zip(m.d_max.abs(), f64::max);
+                let largest = largest.map(|v| if v.is_finite() { v } else { 0.0 });
+                (
+                    m.last_x_s - m.batch_start,
+                    m.in_batch as f64,
+                    largest * largest,
+                )
+            };
+            if span == 0.0 {
+                return Measured {
+                    status,
+                    periods,
+                    ..Measured::default()
+                };
+            }
+            Measured {
+                travel: travel.to_array(),
+                span,
+                se: std::array::from_fn(|i| se2[i].sqrt() / own_cycles(i)),
+                periods,
+                lag: 0,
+                status,
+            }
+        }
+    }
+}
+
+/// The slider travel over a fixed window that a run's final state holds
+/// [m], or zero where it did not finish normally.
+pub fn window_displacement(inst: &Instance, st: &State) -> [f64; AXES] {
+    if st.status == STATUS_OK && st.period >= inst.cycles {
+        (st.x_s - st.settle_x_s).to_array()
+    } else {
+        [0.0; AXES]
+    }
+}
+
+/// The slider travel a run measured [m] (zero where it failed).
+pub fn displacement(inst: &Instance, run: &Run) -> [f64; AXES] {
+    reduce(inst, run).travel
+}
+
+/// The step per own drive cycle [m] of axis `i` of a run.
+pub fn step(inst: &Instance, run: &Run, i: usize) -> f64 {
+    let r = reduce(inst, run);
+    inst.measure_over(i, r.travel[i], r.span).1
+}

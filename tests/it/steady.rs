@@ -1,0 +1,173 @@
+//! The steady measurement (MODEL.md section 4) on the CPU: periodic
+//! motion found with the right lag, the 10 / 14 Hz step whatever the
+//! settle and tolerance, standard errors that cover the error against a
+//! much longer run, and "not steady" where max_cycles is too short.
+
+use pidm::cpu::integrate::constants::STATUS_NOT_STEADY;
+use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
+use pidm::measurement::{Measured, reduce};
+use pidm::model::{Axis, Instance, Measure};
+
+use crate::common::case;
+
+/// Table 1 at 100 V on both axes, x at `fx` and y at `fy` Hz, measured
+/// steady with `settle`, `tolerance` [m] and `max_cycles`.
+fn steady(fx: f64, fy: f64, settle: u32, tolerance: f64, max_cycles: u32) -> Instance {
+    let mut inst = case(100.0, 100.0, fx, fy, Axis::TABLE1);
+    inst.settle = settle;
+    inst.cycles = max_cycles;
+    inst.measure = Measure::Steady {
+        step_tolerance: tolerance,
+    };
+    inst
+}
+
+/// The same drives measured over a fixed window of `cycles` periods, 2 of
+/// them settling.
+fn window(inst: &Instance, cycles: u32) -> Instance {
+    let mut w = *inst;
+    w.cycles = cycles;
+    w.settle = 2;
+    w.measure = Measure::Window;
+    w
+}
+
+fn measure(inst: &Instance) -> Measured {
+    reduce(inst, &run_instance(inst, &Settings::default()))
+}
+
+fn step_um(inst: &Instance, m: &Measured, axis: usize) -> f64 {
+    inst.measure_over(axis, m.travel[axis], m.span).1 * 1e6
+}
+
+/// One periodic case: the lag must be a positive multiple of `lag`, the
+/// steps within 1e-6 um of a fixed window that spans whole cycles of the
+/// motion, and the standard errors 0.
+fn check_periodic(name: &str, inst: Instance, lag: u32) {
+    let got = measure(&inst);
+    assert_eq!(got.status, STATUS_OK, "{name}: {got:?}");
+    assert!(
+        got.lag > 0 && got.lag % lag == 0,
+        "{name}: lag {} is not a multiple of {lag} ({got:?})",
+        got.lag
+    );
+    assert_eq!(got.se, [0.0, 0.0], "{name}");
+    assert!(
+        got.periods <= 20 * lag.max(2) + inst.settle,
+        "{name}: {got:?}"
+    );
+    // A window from the same settle over a whole number of detected cycles.
+    let mut w = window(&inst, 0);
+    w.settle = got.periods - got.lag;
+    w.cycles = got.periods + 10 * got.lag;
+    let reference = measure(&w);
+    for axis in 0..2 {
+        let (a, b) = (step_um(&inst, &got, axis), step_um(&w, &reference, axis));
+        assert!(
+            (a - b).abs() < 1e-6,
+            "{name}: axis {axis} steady {a} um, window {b} um"
+        );
+    }
+}
+
+#[test]
+fn commensurate_drives_are_found_periodic_with_their_lag() {
+    let mut phased = steady(10.0, 10.0, 2, 1e-8, 10_000);
+    phased.axes[1].phase = 0.3;
+    let cases = [
+        ("equal 10 Hz", steady(10.0, 10.0, 2, 1e-8, 10_000), 1),
+        ("equal 10 Hz, y phase 0.3", phased, 1),
+        ("3:2", steady(10.0, 15.0, 2, 1e-8, 10_000), 2),
+        ("7:5", steady(10.0, 14.0, 2, 1e-8, 10_000), 5),
+        ("2:1", steady(10.0, 20.0, 2, 1e-8, 10_000), 1),
+    ];
+    for (name, inst, lag) in cases {
+        check_periodic(name, inst, lag);
+    }
+}
+
+#[test]
+fn ten_and_fourteen_hertz_give_minus_075_um_whatever_settle_and_tolerance() {
+    // MODEL.md section 4: -0.75 um on y (+0.60 on x) over any multiple of
+    // the 5-period common period, +3.09 um over the paper's 8 periods.
+    let paper = measure(&window(&steady(10.0, 14.0, 2, 1e-8, 10), 10));
+    let w = window(&steady(10.0, 14.0, 2, 1e-8, 10), 10);
+    assert!((step_um(&w, &paper, 1) - 3.09).abs() < 0.01);
+    for settle in [2, 3, 7, 20] {
+        for tolerance in [1e-8, 1e-9, 1e-6] {
+            let inst = steady(10.0, 14.0, settle, tolerance, 10_000);
+            let got = measure(&inst);
+            let (x, y) = (step_um(&inst, &got, 0), step_um(&inst, &got, 1));
+            assert_eq!(got.status, STATUS_OK);
+            assert_eq!(got.lag % 5, 0, "settle {settle}: {got:?}");
+            assert!((y + 0.75).abs() < 0.005, "settle {settle}: step_y {y} um");
+            assert!((x - 0.60).abs() < 0.005, "settle {settle}: step_x {x} um");
+        }
+    }
+}
+
+#[test]
+fn a_quasi_periodic_standard_error_covers_the_error_against_a_long_run() {
+    // 10 Hz against 10 sqrt(2) Hz: no common period, so the statistical
+    // rule decides. The reference is a fixed window of 20,000 periods,
+    // whose own error is about the oscillation range over 20,000.
+    for (fy, tolerance) in [(10.0 * 2f64.sqrt(), 1e-8), (10.0 * 3f64.sqrt(), 3e-8)] {
+        let inst = steady(10.0, fy, 2, tolerance, 20_000);
+        let got = measure(&inst);
+        assert_eq!(got.lag, 0, "{fy} Hz: {got:?}");
+        assert!(
+            got.status == STATUS_OK || got.status == STATUS_NOT_STEADY,
+            "{got:?}"
+        );
+        let long = window(&inst, 20_002);
+        let reference = measure(&long);
+        for axis in 0..2 {
+            let (a, b) = (step_um(&inst, &got, axis), step_um(&long, &reference, axis));
+            let se = got.se[axis] * 1e6;
+            eprintln!(
+                "{fy:.4} Hz axis {axis}: status {} after {} periods, {a:+.5} +- {se:.5} um; \
+                 20,000-period window {b:+.5} um",
+                got.status, got.periods
+            );
+            assert!(
+                (a - b).abs() <= 3.0 * se + 0.002,
+                "{fy} Hz axis {axis}: steady {a} +- {se} um, 20,000 periods {b} um"
+            );
+            if got.status == STATUS_OK {
+                assert!(se <= tolerance * 1e6 * (1.0 + 1e-12), "{se} um");
+            }
+        }
+    }
+}
+
+#[test]
+fn a_tiny_max_cycles_is_not_steady_with_a_standard_error_above_the_tolerance() {
+    for max_cycles in [3, 5, 12] {
+        let inst = steady(10.0, 10.0 * 2f64.sqrt(), 2, 1e-8, max_cycles);
+        let got = measure(&inst);
+        assert_eq!(got.status, STATUS_NOT_STEADY, "max_cycles {max_cycles}");
+        assert_eq!(got.periods, max_cycles);
+        assert!(
+            got.se.iter().any(|&se| se > 1e-8),
+            "max_cycles {max_cycles}: {got:?}"
+        );
+        assert!(got.se.iter().all(|se| se.is_finite()));
+        assert!(got.travel.iter().all(|t| t.is_finite()));
+    }
+}
+
+#[test]
+fn window_measurement_is_untouched_by_the_steady_machinery() {
+    // The window's arithmetic: travel over cycles - settle periods.
+    let inst = Instance::TABLE1;
+    let run = run_instance(&inst, &Settings::default());
+    let got = reduce(&inst, &run);
+    assert_eq!(got.span, 8.0);
+    assert_eq!(got.periods, 10);
+    assert_eq!(got.se, [0.0, 0.0]);
+    assert_eq!(run.state.measured, 0);
+    assert_eq!(
+        got.travel,
+        (run.state.x_s - run.state.settle_x_s).to_array()
+    );
+}
