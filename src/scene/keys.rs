@@ -280,3 +280,39 @@ pub(super) const OUTPUT_KEYS: [&str; 3] =
 /// What a numeric key should look like, for type errors.
 pub(super) const NUMERIC_EXPECTED: &str =
     "expected a number, a list of numbers or a range { from, to, steps }";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn modes_read_back_by_name_and_steady_is_the_default() {
+        for mode in Mode::ALL {
+            assert_eq!(Mode::from_name(mode.name()), Some(mode));
+        }
+        assert_eq!(Mode::default(), Mode::Steady);
+        for name in ["forever", "Window", " steady", ""] {
+            assert_eq!(Mode::from_name(name), None, "{name:?}");
+        }
+    }
+
+    #[test]
+    fn each_mode_key_belongs_to_one_mode_and_has_a_slot() {
+        assert_eq!(Field::Cycles.mode(), Some(Mode::Window));
+        assert_eq!(Field::StepTolerance.mode(), Some(Mode::Steady));
+        assert_eq!(Field::MaxCycles.mode(), Some(Mode::Steady));
+        assert_eq!(Field::Settle.mode(), None);
+        assert_eq!(slot_path(STEP_TOLERANCE_SLOT), "simulation.step_tolerance");
+        assert_eq!(slot_path(MAX_CYCLES_SLOT), "simulation.max_cycles");
+        assert_eq!(slot_path(CYCLES_SLOT), "simulation.cycles");
+        assert_eq!(slot_path(SETTLE_SLOT), "simulation.settle");
+        assert_eq!(Field::StepTolerance.units(), "m");
+        assert_eq!(Field::MaxCycles.units(), "cycles");
+        // Every numeric key of [simulation] and `measure` are hinted.
+        for field in SIMULATION_FIELDS {
+            assert!(SIMULATION_KEYS.contains(&field.name()), "{field:?}");
+        }
+        assert!(SIMULATION_KEYS.contains(&MEASURE_KEY));
+        assert_eq!(SIMULATION_KEYS.len(), SIMULATION_FIELDS.len() + 1);
+    }
+}

@@ -82,3 +82,28 @@ pub(super) fn edit_distance(a: &str, b: &str) -> usize {
     }
     d[a.len()][b.len()]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::keys::SIMULATION_KEYS;
+
+    #[test]
+    fn misspelt_measurement_keys_find_their_key() {
+        for (typed, meant) in [
+            ("max_cycle", "max_cycles"),
+            ("maxcycles", "max_cycles"),
+            ("step_tolerence", "step_tolerance"),
+            ("steptolerance", "step_tolerance"),
+            ("mesure", "measure"),
+            ("measurement", "measure"),
+            ("steady_step_tolerance", "step_tolerance"),
+        ] {
+            assert_eq!(suggest(typed, &SIMULATION_KEYS), Some(meant), "{typed}");
+        }
+        assert_eq!(suggest("xyz", &SIMULATION_KEYS), None);
+        assert_eq!(home_of("measure"), Some("[simulation]"));
+        assert_eq!(home_of("max_cycles"), Some("[simulation]"));
+        assert_eq!(home_of("step_tolerance"), Some("[simulation]"));
+    }
+}
