@@ -275,6 +275,9 @@ pub fn check(path: &Path) -> Result<()> {
     // other grid axis): those of the sampled instances, not scaled up.
     let mut baselines = std::collections::HashSet::new();
     let mut baseline_time = 0.0;
+    // A steady measurement may stop long before its max_cycles: its time is
+    // an upper bound.
+    let mut steady = false;
     for k in 0..sample {
         let i = if count <= sample {
             k
@@ -282,6 +285,7 @@ pub fn check(path: &Path) -> Result<()> {
             k * count / sample
         };
         let inst = scene.instance(i);
+        steady |= matches!(inst.measure, Measure::Steady { .. });
         simulated += inst.duration();
         if scene.baselines {
             for axis in 0..AXES {
@@ -295,10 +299,19 @@ pub fn check(path: &Path) -> Result<()> {
     simulated = simulated * count as f64 / sample as f64 + baseline_time;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let estimate = simulated / (NOMINAL_SIMULATED_PER_CORE * cores as f64);
+    let (at_most, stops) = if steady {
+        (
+            "at most ",
+            "; a steady measurement stops as soon as its steps are known, often long before \
+             max_cycles",
+        )
+    } else {
+        ("", "")
+    };
     println!("instances: {count}");
-    println!("simulated time: {simulated:.4e} s (baselines included)");
+    println!("simulated time: {at_most}{simulated:.4e} s (baselines included{stops})");
     println!(
-        "estimated cost: {:.3e} core-seconds, about {} on this machine's {cores} cores \
+        "estimated cost: {at_most}{:.3e} core-seconds, about {} on this machine's {cores} cores \
          (at the nominal {NOMINAL_SIMULATED_PER_CORE} simulated s per wall s per core; \
          stiff or lightly damped stages cost more)",
         simulated / NOMINAL_SIMULATED_PER_CORE,
@@ -425,8 +438,10 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
 }
 
 /// `pidm random-scene`: a points scene of seeded random instances (see
-/// `random.rs` for the ranges), as TOML on stdout. Refuses `count` 0: a
-/// scene without points is one default instance, not none.
+/// `random.rs` for the ranges), as TOML on stdout, measured over a fixed
+/// window (`measure = "window"`, `cycles` periods of which `settle` are
+/// discarded) so that backends can be compared on it exactly. Refuses
+/// `count` 0: a scene without points is one default instance, not none.
 pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> Result<String> {
     use std::fmt::Write as _;
     if count == 0 {
@@ -440,7 +455,7 @@ pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> Result
         toml,
         "# {count} seeded random 2-DOF instances (seed {seed}): written by\n\
          # `pidm random-scene --seed {seed} --count {count} --cycles {cycles} --settle {settle}`.\n\
-         name = \"random\"\n\n[simulation]\ncycles = {cycles}\nsettle = {settle}\n"
+         name = \"random\"\n\n[simulation]\nmeasure = \"window\"\ncycles = {cycles}\nsettle = {settle}\n"
     );
     for (k, inst) in crate::random::random_instances(seed, count, cycles, settle)
         .iter()

@@ -113,14 +113,17 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
-    /// Writes a points scene of seeded random instances to stdout.
+    /// Writes a points scene of seeded random instances to stdout, measured
+    /// over a fixed window (`measure = "window"`).
     RandomScene {
         #[arg(long, default_value_t = 1)]
         seed: u64,
         #[arg(long, default_value_t = 16)]
         count: usize,
+        /// Scene periods of the window.
         #[arg(long, default_value_t = 4)]
         cycles: u32,
+        /// Leading periods discarded.
         #[arg(long, default_value_t = 1)]
         settle: u32,
     },

@@ -24,6 +24,8 @@ fn key_meaning(key: &str) -> Option<String> {
         "velocity_band" => "velocity band",
         "cycles" => "simulated periods",
         "settle" => "settle periods",
+        "max_cycles" => "most simulated periods",
+        "step_tolerance" => "steady step tolerance",
         _ => return None,
     };
     Some(match axis {

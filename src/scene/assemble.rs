@@ -1,7 +1,7 @@
 //! Assembling a scene: from the parsed layers to the validated [`Scene`],
 //! its layout (a grid or a list of points), the checks that need the whole
-//! scene (derived stage quantities, settle < cycles, the memory budget) and
-//! the trajectories.
+//! scene (derived stage quantities, settle < cycles or max_cycles, the
+//! memory budget) and the trajectories.
 
 use toml::de::DeTable;
 
@@ -73,7 +73,8 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
         .collect();
     grid.sort_by_key(|(_, entry)| entry.span.start);
 
-    let plan = Plan::build(&given);
+    let mode = parsed.measure.unwrap_or_default();
+    let plan = Plan::build(&given, mode);
     // Locates an error by the first culprit found, layer by layer (the
     // point first).
     let locate_slot = |culprits: Culprits, layers: &[&Layer]| {
@@ -135,7 +136,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
                     point_given[axis_slot(axis, j)] = upper[j] || kept[j];
                 }
             }
-            let point_plan = Plan::build(&point_given);
+            let point_plan = Plan::build(&point_given, mode);
             let instance = point_plan.resolve(&point_raw);
             check_instance(&instance, &point_plan).map_err(|(message, slot)| {
                 SceneError::Invalid {
@@ -179,7 +180,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     check_memory(&shape, false, scene.baselines, MAP_MEMORY_BUDGET_BYTES)?;
 
     // Per-key checks covered every value; derived quantities and
-    // settle < cycles are monotone in each key, so the corners of the
+    // settle < cycles (or max_cycles) are monotone in each key, so the corners of the
     // grid over the keys involved cover every instance.
     let involved: Vec<(usize, f64, f64)> = grid
         .iter()
@@ -193,6 +194,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
                     | Field::QualityFactor
                     | Field::Cycles
                     | Field::Settle
+                    | Field::MaxCycles
             )
         })
         .map(|(slot, entry)| {

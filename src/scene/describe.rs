@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 
 use super::format::{fmt_short, human_bytes};
 use super::{Layout, Scene};
-use crate::model::AXIS_NAMES;
+use crate::model::{AXIS_NAMES, Instance, Measure};
 
 impl Scene {
     /// A multi-line human summary: name, grid axes or points, instance
@@ -110,13 +110,27 @@ impl Scene {
                     fmt_short(axis.phase)
                 );
             }
-            let _ = writeln!(
-                out,
-                "  simulation: cycles {}, settle {}",
-                first.cycles, first.settle
-            );
+            let _ = writeln!(out, "  simulation: {}", describe_measure(&first));
         }
         out
+    }
+}
+
+/// How an instance is measured, for the summary: "window, cycles 10,
+/// settle 2" or "steady measurement, settle >= 2, step tolerance 1e-8 m, at
+/// most 10000 periods".
+pub(super) fn describe_measure(instance: &Instance) -> String {
+    match instance.measure {
+        Measure::Window => format!(
+            "window, cycles {}, settle {}",
+            instance.cycles, instance.settle
+        ),
+        Measure::Steady { step_tolerance } => format!(
+            "steady measurement, settle >= {}, step tolerance {} m, at most {} periods",
+            instance.settle,
+            fmt_short(step_tolerance),
+            instance.cycles
+        ),
     }
 }
 

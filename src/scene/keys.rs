@@ -28,6 +28,8 @@ pub(super) enum Field {
     Settle,
     Tolerance,
     MaxStepsPerPeriod,
+    StepTolerance,
+    MaxCycles,
 }
 
 impl Field {
@@ -52,6 +54,8 @@ impl Field {
             Field::Settle => "settle",
             Field::Tolerance => "tolerance",
             Field::MaxStepsPerPeriod => "max_steps_per_period",
+            Field::StepTolerance => "step_tolerance",
+            Field::MaxCycles => "max_cycles",
         }
     }
 
@@ -67,14 +71,70 @@ impl Field {
             Field::QualityFactor | Field::Duty | Field::MaxStepsPerPeriod => "1",
             Field::Gain => "N/V",
             Field::Voltage => "V",
-            Field::Phase | Field::Cycles | Field::Settle => "cycles",
+            Field::Phase | Field::Cycles | Field::Settle | Field::MaxCycles => "cycles",
             Field::Tolerance => "rad",
+            Field::StepTolerance => "m",
         }
     }
 
     /// Whether the key applies to the whole scene (one value, no points).
     pub(super) fn scene_wide(self) -> bool {
         matches!(self, Field::Tolerance | Field::MaxStepsPerPeriod)
+    }
+
+    /// The one measurement mode the key applies to, if it applies to one
+    /// only: `cycles` to a window, `step_tolerance` and `max_cycles` to a
+    /// steady measurement. A scene in the other mode refuses the key.
+    pub(super) fn mode(self) -> Option<Mode> {
+        match self {
+            Field::Cycles => Some(Mode::Window),
+            Field::StepTolerance | Field::MaxCycles => Some(Mode::Steady),
+            _ => None,
+        }
+    }
+}
+
+/// `simulation.measure`: how a scene measures its steps (MODEL.md section
+/// 4), one mode for the whole scene.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) enum Mode {
+    /// The steady step (the default): `settle`, `step_tolerance`,
+    /// `max_cycles`.
+    #[default]
+    Steady,
+    /// The paper's fixed window: `cycles`, `settle`.
+    Window,
+}
+
+impl Mode {
+    /// Every mode, in the order messages list them.
+    pub(super) const ALL: [Mode; 2] = [Mode::Steady, Mode::Window];
+
+    /// The mode's value of `simulation.measure`.
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Mode::Steady => "steady",
+            Mode::Window => "window",
+        }
+    }
+
+    /// The mode a value of `simulation.measure` names.
+    pub(super) fn from_name(name: &str) -> Option<Mode> {
+        Mode::ALL.into_iter().find(|mode| mode.name() == name)
+    }
+
+    /// What a scene in this mode takes instead of a key of the other
+    /// mode, for the refusal of that key.
+    pub(super) fn instead(self) -> &'static str {
+        match self {
+            Mode::Steady => {
+                "a steady measurement takes simulation.max_cycles (the most periods it may run)"
+            }
+            Mode::Window => {
+                "a window measurement runs simulation.cycles periods and takes no \
+                 step_tolerance or max_cycles"
+            }
+        }
     }
 }
 
@@ -100,12 +160,29 @@ pub(super) const AXIS_FIELDS: [Field; 10] = [
     Field::Phase,
 ];
 
-/// The keys of `[simulation]`, in slot order.
-pub(super) const SIMULATION_FIELDS: [Field; 4] = [
+/// The numeric keys of `[simulation]`, in slot order. `measure`, its one
+/// string key, is read apart ([`MEASURE_KEY`]).
+pub(super) const SIMULATION_FIELDS: [Field; 6] = [
     Field::Cycles,
     Field::Settle,
     Field::Tolerance,
     Field::MaxStepsPerPeriod,
+    Field::StepTolerance,
+    Field::MaxCycles,
+];
+
+/// `[simulation]`'s string key: how the step is measured, scene-wide.
+pub(super) const MEASURE_KEY: &str = "measure";
+
+/// Every key of `[simulation]`, for hints on unknown keys.
+pub(super) const SIMULATION_KEYS: [&str; 7] = [
+    "cycles",
+    "settle",
+    "tolerance",
+    "max_steps_per_period",
+    "step_tolerance",
+    "max_cycles",
+    MEASURE_KEY,
 ];
 
 // Indices of the axis keys within `AXIS_FIELDS`.
@@ -145,6 +222,10 @@ pub(super) const SETTLE_SLOT: usize = SIMULATION_SLOTS + 1;
 pub(super) const TOLERANCE_SLOT: usize = SIMULATION_SLOTS + 2;
 /// The raw slot of `simulation.max_steps_per_period`.
 pub(super) const MAX_STEPS_SLOT: usize = SIMULATION_SLOTS + 3;
+/// The raw slot of `simulation.step_tolerance`.
+pub(super) const STEP_TOLERANCE_SLOT: usize = SIMULATION_SLOTS + 4;
+/// The raw slot of `simulation.max_cycles`.
+pub(super) const MAX_CYCLES_SLOT: usize = SIMULATION_SLOTS + 5;
 
 /// The raw slot of axis key `index` (into [`AXIS_FIELDS`]) of axis `axis`.
 pub(super) fn axis_slot(axis: usize, index: usize) -> usize {
@@ -199,3 +280,39 @@ pub(super) const OUTPUT_KEYS: [&str; 3] =
 /// What a numeric key should look like, for type errors.
 pub(super) const NUMERIC_EXPECTED: &str =
     "expected a number, a list of numbers or a range { from, to, steps }";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn modes_read_back_by_name_and_steady_is_the_default() {
+        for mode in Mode::ALL {
+            assert_eq!(Mode::from_name(mode.name()), Some(mode));
+        }
+        assert_eq!(Mode::default(), Mode::Steady);
+        for name in ["forever", "Window", " steady", ""] {
+            assert_eq!(Mode::from_name(name), None, "{name:?}");
+        }
+    }
+
+    #[test]
+    fn each_mode_key_belongs_to_one_mode_and_has_a_slot() {
+        assert_eq!(Field::Cycles.mode(), Some(Mode::Window));
+        assert_eq!(Field::StepTolerance.mode(), Some(Mode::Steady));
+        assert_eq!(Field::MaxCycles.mode(), Some(Mode::Steady));
+        assert_eq!(Field::Settle.mode(), None);
+        assert_eq!(slot_path(STEP_TOLERANCE_SLOT), "simulation.step_tolerance");
+        assert_eq!(slot_path(MAX_CYCLES_SLOT), "simulation.max_cycles");
+        assert_eq!(slot_path(CYCLES_SLOT), "simulation.cycles");
+        assert_eq!(slot_path(SETTLE_SLOT), "simulation.settle");
+        assert_eq!(Field::StepTolerance.units(), "m");
+        assert_eq!(Field::MaxCycles.units(), "cycles");
+        // Every numeric key of [simulation] and `measure` are hinted.
+        for field in SIMULATION_FIELDS {
+            assert!(SIMULATION_KEYS.contains(&field.name()), "{field:?}");
+        }
+        assert!(SIMULATION_KEYS.contains(&MEASURE_KEY));
+        assert_eq!(SIMULATION_KEYS.len(), SIMULATION_FIELDS.len() + 1);
+    }
+}

@@ -6,7 +6,7 @@
 //! (`[simulation]`) and what to output (`[output]`). Anything not given is
 //! Table 1 of the paper as printed ([`Mechanism::TABLE1`](crate::model::Mechanism::TABLE1),
 //! [`Axis::TABLE1`](crate::model::Axis::TABLE1)),
-//! 10 cycles of which 2 settle. Every `axis.y` key defaults to `axis.x`'s
+//! measured steady (see below). Every `axis.y` key defaults to `axis.x`'s
 //! value, except the voltage, which defaults to 0 (y undriven).
 //!
 //! Any numeric value may be a scalar, a list (`[1.0, 2.0]`) or a range
@@ -32,10 +32,27 @@
 //! 1-DOF counterparts of every instance. `[output] trajectories = [...]`
 //! records the motion of chosen instances over time (see
 //! [`trajectories`] for the entries) with
-//! `trajectory_samples_per_cycle` samples per scene period. `[simulation]` takes `cycles`,
-//! `settle` (both integers, per instance) and the scene-wide integrator
-//! settings `tolerance` and `max_steps_per_period` (single values only).
+//! `trajectory_samples_per_cycle` samples per scene period.
+//!
+//! `[simulation] measure` says how the steps are measured (MODEL.md section
+//! 4), one string for the whole scene: `"steady"` (the default) runs each
+//! instance until its steady step is known, with `settle` (the least
+//! periods discarded, default [`Measure::DEFAULT_SETTLE`]), `step_tolerance`
+//! (the standard error allowed on each axis' step [m per own drive cycle],
+//! default [`Measure::DEFAULT_STEP_TOLERANCE`]) and `max_cycles` (the most
+//! scene periods it may run, default [`Measure::DEFAULT_MAX_CYCLES`]);
+//! `"window"` is the paper's fixed window, `cycles` periods (default 10) of
+//! which the first `settle` (default 2) are discarded. A key of the other
+//! mode (`cycles` in a steady scene, `step_tolerance` or `max_cycles` in a
+//! window) is refused, never ignored. `cycles`, `max_cycles`, `settle` and
+//! `step_tolerance` are per instance (grid axes and points may set them);
+//! `measure` and the integrator settings `tolerance` and
+//! `max_steps_per_period` apply to the whole scene (single values only).
 //! Integer keys accept lists and linear ranges whose values land on integers.
+//!
+//! [`Measure::DEFAULT_SETTLE`]: crate::model::Measure::DEFAULT_SETTLE
+//! [`Measure::DEFAULT_STEP_TOLERANCE`]: crate::model::Measure::DEFAULT_STEP_TOLERANCE
+//! [`Measure::DEFAULT_MAX_CYCLES`]: crate::model::Measure::DEFAULT_MAX_CYCLES
 //!
 //! A range with `steps = 1` must have `from = to`, and `steps` is at most
 //! [`MAX_RANGE_STEPS`]. Beyond its sign and interval, every numeric key must
@@ -145,7 +162,7 @@ pub struct GridAxis {
     /// The values, in order.
     pub values: Vec<f64>,
     /// Units of the values: "V", "Hz", "kg", "N/m", "N s/m", "N/V", "N",
-    /// "m/s", "cycles", "1" (dimensionless) or "rad".
+    /// "m/s", "m", "cycles", "1" (dimensionless) or "rad".
     pub units: &'static str,
 }
 

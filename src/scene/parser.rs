@@ -9,9 +9,9 @@ use toml::de::{DeTable, DeValue};
 use super::error::{Location, SceneError};
 use super::format::{fmt_num, human_bytes};
 use super::keys::{
-    AXIS_FIELDS, DAMPING, Field, MECHANISM_FIELDS, NUMERIC_EXPECTED, OUTPUT_KEYS, POINT_KEYS,
-    QUALITY, RANGE_KEYS, RESONANCE, ROOT_KEYS, SIMULATION_FIELDS, SIMULATION_SLOTS, STAGE_MASS,
-    STIFFNESS, axis_slot,
+    AXIS_FIELDS, DAMPING, Field, MEASURE_KEY, MECHANISM_FIELDS, Mode, NUMERIC_EXPECTED,
+    OUTPUT_KEYS, POINT_KEYS, QUALITY, RANGE_KEYS, RESONANCE, ROOT_KEYS, SIMULATION_FIELDS,
+    SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot, slot_field, slot_path,
 };
 use super::layer::{Layer, PointSpec};
 use super::memory::MAP_MEMORY_BUDGET_BYTES;
@@ -30,6 +30,8 @@ pub(super) struct Parsed {
     pub(super) description: Option<String>,
     /// The keys of the base scene.
     pub(super) base: Layer,
+    /// `simulation.measure`, when given (the default is [`Mode::Steady`]).
+    pub(super) measure: Option<Mode>,
     /// `output.baselines`.
     pub(super) baselines: bool,
     /// `output.trajectories`, not yet resolved against the layout.
@@ -213,21 +215,68 @@ impl Parser<'_> {
                     Context::Base,
                 )?,
                 "axis" => self.axes(value, &mut parsed.base, Context::Base)?,
-                "simulation" => self.group(
-                    value,
-                    "simulation",
-                    &SIMULATION_FIELDS,
-                    SIMULATION_SLOTS,
-                    &mut parsed.base,
-                    Context::Base,
-                )?,
+                "simulation" => {
+                    self.simulation(value, &mut parsed.base, Context::Base, &mut parsed.measure)?
+                }
                 "output" => self.output(value, &mut parsed)?,
                 "points" => parsed.points = Some(self.points(value)?),
                 _ => return Err(self.unknown_key(key, "", &ROOT_KEYS)),
             }
         }
         self.check_stage_keys(&parsed.base)?;
+        let mode = parsed.measure.unwrap_or_default();
+        self.check_mode_keys(&parsed.base, mode, parsed.measure.is_none())?;
+        for (index, point) in parsed.points.iter().flatten().enumerate() {
+            self.check_mode_keys(&point.layer, mode, parsed.measure.is_none())
+                .map_err(|e| e.in_point(index, &point.label))?;
+        }
         Ok(parsed)
+    }
+
+    /// Refuses a key of `layer` that applies to the other measurement mode
+    /// than the scene's: never silently ignored. `default` says the mode was
+    /// not given.
+    pub(super) fn check_mode_keys(
+        &self,
+        layer: &Layer,
+        mode: Mode,
+        default: bool,
+    ) -> Result<(), SceneError> {
+        let mut given: Vec<(usize, &Entry)> = layer
+            .entries
+            .iter()
+            .enumerate()
+            .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e)))
+            .filter(|&(slot, _)| slot_field(slot).mode().is_some_and(|m| m != mode))
+            .collect();
+        given.sort_by_key(|(_, entry)| entry.span.start);
+        let Some(&(slot, entry)) = given.first() else {
+            return Ok(());
+        };
+        let key_mode = slot_field(slot).mode().unwrap_or(mode);
+        let scene = if default {
+            format!(
+                "This scene measures {:?} (the default, as no simulation.measure is given)",
+                mode.name()
+            )
+        } else {
+            format!("This scene sets measure = {:?}", mode.name())
+        };
+        let todo = match mode {
+            Mode::Steady => {
+                "set measure = \"window\" for the paper's fixed window of cycles periods"
+            }
+            Mode::Window => "remove it, or set measure = \"steady\"",
+        };
+        Err(self.invalid(
+            entry.span.clone(),
+            format!(
+                "{} applies to measure = {:?}; {}. {scene}: {todo}",
+                slot_path(slot),
+                key_mode.name(),
+                mode.instead()
+            ),
+        ))
     }
 
     /// `[axis]`: the tables `x` and `y`.
@@ -272,43 +321,114 @@ impl Parser<'_> {
         let table = self.table(path, "expected a table", value)?;
         let names: Vec<&str> = fields.iter().map(|f| f.name()).collect();
         for (key, value) in table.iter() {
-            let name = key.get_ref().as_ref();
-            let Some(index) = names.iter().position(|&n| n == name) else {
-                return Err(self.unknown_key(key, path, &names));
-            };
-            let field = fields[index];
-            let key_path = format!("{path}.{name}");
-            if field.scene_wide() && context == Context::Point {
+            self.field(key, value, path, fields, &names, slot_base, layer, context)?;
+        }
+        Ok(())
+    }
+
+    /// `[simulation]`: its numeric keys and `measure`, which only the base
+    /// may set.
+    pub(super) fn simulation(
+        &self,
+        value: &Value<'_>,
+        layer: &mut Layer,
+        context: Context,
+        measure: &mut Option<Mode>,
+    ) -> Result<(), SceneError> {
+        let table = self.table("simulation", "expected a table", value)?;
+        for (key, value) in table.iter() {
+            if key.get_ref().as_ref() != MEASURE_KEY {
+                self.field(
+                    key,
+                    value,
+                    "simulation",
+                    &SIMULATION_FIELDS,
+                    &SIMULATION_KEYS,
+                    SIMULATION_SLOTS,
+                    layer,
+                    context,
+                )?;
+                continue;
+            }
+            if context == Context::Point {
                 return Err(self.invalid(
                     key.span(),
-                    format!(
-                        "{key_path} cannot be set per point: the integrator settings apply to \
-                         the whole scene (set them in the base [simulation])"
-                    ),
+                    "simulation.measure cannot be set per point: it applies to the whole scene \
+                     (set it in the base [simulation])",
                 ));
             }
-            let values = self.values(&key_path, field, value)?;
-            if values.len() > 1 && (field.scene_wide() || context == Context::Point) {
-                let why = if context == Context::Point {
-                    "a point's values must be single numbers (points give a list of instances, \
-                     not a grid)"
-                } else {
-                    "it applies to the whole scene and cannot be a grid axis"
-                };
+            let names: Vec<String> = Mode::ALL
+                .iter()
+                .map(|mode| format!("{:?}", mode.name()))
+                .collect();
+            let expected = format!("expected {}", names.join(" or "));
+            let DeValue::String(name) = value.get_ref() else {
+                return Err(self.wrong_type("simulation.measure", &expected, value));
+            };
+            let Some(mode) = Mode::from_name(name) else {
                 return Err(self.invalid(
                     value.span(),
                     format!(
-                        "{key_path} = {}: expected a single value, found {} values; {why}",
-                        self.source(value.span()),
-                        values.len()
+                        "simulation.measure = {:?}: {expected} (the steady step, the default, \
+                         or the paper's fixed window)",
+                        name.as_ref()
                     ),
                 ));
-            }
-            layer.entries[slot_base + index] = Some(Entry {
-                values,
-                span: value.span(),
-            });
+            };
+            *measure = Some(mode);
         }
+        Ok(())
+    }
+
+    /// One numeric key of a table: its values, checked, into `layer`.
+    #[allow(clippy::too_many_arguments)]
+    fn field(
+        &self,
+        key: &Key<'_>,
+        value: &Value<'_>,
+        path: &str,
+        fields: &[Field],
+        candidates: &[&str],
+        slot_base: usize,
+        layer: &mut Layer,
+        context: Context,
+    ) -> Result<(), SceneError> {
+        let name = key.get_ref().as_ref();
+        let Some(index) = fields.iter().position(|f| f.name() == name) else {
+            return Err(self.unknown_key(key, path, candidates));
+        };
+        let field = fields[index];
+        let key_path = format!("{path}.{name}");
+        if field.scene_wide() && context == Context::Point {
+            return Err(self.invalid(
+                key.span(),
+                format!(
+                    "{key_path} cannot be set per point: the integrator settings apply to \
+                     the whole scene (set them in the base [simulation])"
+                ),
+            ));
+        }
+        let values = self.values(&key_path, field, value)?;
+        if values.len() > 1 && (field.scene_wide() || context == Context::Point) {
+            let why = if context == Context::Point {
+                "a point's values must be single numbers (points give a list of instances, \
+                 not a grid)"
+            } else {
+                "it applies to the whole scene and cannot be a grid axis"
+            };
+            return Err(self.invalid(
+                value.span(),
+                format!(
+                    "{key_path} = {}: expected a single value, found {} values; {why}",
+                    self.source(value.span()),
+                    values.len()
+                ),
+            ));
+        }
+        layer.entries[slot_base + index] = Some(Entry {
+            values,
+            span: value.span(),
+        });
         Ok(())
     }
 
@@ -572,14 +692,7 @@ impl Parser<'_> {
                     Context::Point,
                 )?,
                 "axis" => self.axes(value, &mut layer, Context::Point)?,
-                "simulation" => self.group(
-                    value,
-                    "simulation",
-                    &SIMULATION_FIELDS,
-                    SIMULATION_SLOTS,
-                    &mut layer,
-                    Context::Point,
-                )?,
+                "simulation" => self.simulation(value, &mut layer, Context::Point, &mut None)?,
                 name @ ("name" | "description" | "output" | "points") => {
                     return Err(self.invalid(
                         key.span(),

@@ -5,11 +5,12 @@
 
 use super::format::fmt_num;
 use super::keys::{
-    AXIS_FIELDS, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, Field, GAIN, PHASE, QUALITY, RESONANCE,
-    SETTLE_SLOT, SLOTS, STAGE_MASS, STIFFNESS, VOLTAGE, axis_slot, slot_path,
+    AXIS_FIELDS, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, Field, GAIN, MAX_CYCLES_SLOT, Mode, PHASE,
+    QUALITY, RESONANCE, SETTLE_SLOT, SLOTS, STAGE_MASS, STEP_TOLERANCE_SLOT, STIFFNESS, VOLTAGE,
+    axis_slot, slot_path,
 };
 use super::layer::kept_from_lower;
-use crate::model::{AXES, AXIS_NAMES, Axis, Instance, Mechanism};
+use crate::model::{AXES, AXIS_NAMES, Axis, Instance, Measure, Mechanism};
 
 /// Where a parameter's value comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,15 +85,23 @@ pub(super) struct Plan {
     pub(super) mechanism: [Src; 4],
     /// Each axis.
     pub(super) axes: [AxisPlan; AXES],
-    /// Periods run [cycles].
+    /// How the steps are measured (`simulation.measure`, scene-wide).
+    pub(super) mode: Mode,
+    /// Periods run (a window's `cycles`) or the most that may be run (a
+    /// steady measurement's `max_cycles`) [cycles].
     pub(super) cycles: Src,
-    /// Periods discarded before measuring [cycles].
+    /// Periods discarded before measuring (at least, when steady) [cycles].
     pub(super) settle: Src,
+    /// Standard error allowed on each axis' steady step [m per own drive
+    /// cycle]; unused by a window.
+    pub(super) step_tolerance: Src,
 }
 
 impl Plan {
-    /// The plan for a set of given keys (after points are overlaid).
-    pub(super) fn build(given: &[bool; SLOTS]) -> Plan {
+    /// The plan for a set of given keys (after points are overlaid) in a
+    /// measurement mode. The keys of the other mode were refused by the
+    /// parser, so none is given here.
+    pub(super) fn build(given: &[bool; SLOTS], mode: Mode) -> Plan {
         let own = |axis: usize| -> [bool; AXIS_FIELDS.len()] {
             std::array::from_fn(|j| given[axis_slot(axis, j)])
         };
@@ -129,8 +138,16 @@ impl Plan {
                 AxisPlan::build(&x_sources, Axis::TABLE1.voltage),
                 AxisPlan::build(&y_sources, 0.0),
             ],
-            cycles: or_default(CYCLES_SLOT, Instance::TABLE1.cycles as f64),
-            settle: or_default(SETTLE_SLOT, Instance::TABLE1.settle as f64),
+            mode,
+            cycles: match mode {
+                Mode::Window => or_default(CYCLES_SLOT, Instance::TABLE1.cycles as f64),
+                Mode::Steady => or_default(MAX_CYCLES_SLOT, Measure::DEFAULT_MAX_CYCLES as f64),
+            },
+            settle: match mode {
+                Mode::Window => or_default(SETTLE_SLOT, Instance::TABLE1.settle as f64),
+                Mode::Steady => or_default(SETTLE_SLOT, Measure::DEFAULT_SETTLE as f64),
+            },
+            step_tolerance: or_default(STEP_TOLERANCE_SLOT, Measure::DEFAULT_STEP_TOLERANCE),
         }
     }
 
@@ -152,7 +169,12 @@ impl Plan {
             axes: [self.axes[0].resolve(raw), self.axes[1].resolve(raw)],
             cycles: self.cycles.get(raw) as u32,
             settle: self.settle.get(raw) as u32,
-            measure: crate::model::Measure::Window,
+            measure: match self.mode {
+                Mode::Window => Measure::Window,
+                Mode::Steady => Measure::Steady {
+                    step_tolerance: self.step_tolerance.get(raw),
+                },
+            },
         }
     }
 }
@@ -240,7 +262,7 @@ pub(super) fn src_slot(src: Src) -> Option<usize> {
 }
 
 /// Checks what per-key checks cannot: derived stage quantities and
-/// settle < cycles. Returns the message and the slots to locate it by.
+/// settle < cycles (a window) or settle < max_cycles (steady). Returns the message and the slots to locate it by.
 pub(super) fn check_instance(instance: &Instance, plan: &Plan) -> Result<(), (String, Culprits)> {
     for (a, (axis, axis_plan)) in instance.axes.iter().zip(&plan.axes).enumerate() {
         let name = AXIS_NAMES[a];
@@ -297,14 +319,20 @@ pub(super) fn check_instance(instance: &Instance, plan: &Plan) -> Result<(), (St
         }
     }
     if instance.settle >= instance.cycles {
-        return Err((
-            format!(
+        let message = match plan.mode {
+            Mode::Window => format!(
                 "simulation.settle = {} with simulation.cycles = {}: expected settle < cycles \
                  (the settle periods are discarded before measuring)",
                 instance.settle, instance.cycles
             ),
-            [src_slot(plan.settle), src_slot(plan.cycles)],
-        ));
+            Mode::Steady => format!(
+                "simulation.settle = {} with simulation.max_cycles = {}: expected settle < \
+                 max_cycles (at least the settle periods are discarded before measuring, and \
+                 max_cycles bounds the whole run)",
+                instance.settle, instance.cycles
+            ),
+        };
+        return Err((message, [src_slot(plan.settle), src_slot(plan.cycles)]));
     }
     Ok(())
 }

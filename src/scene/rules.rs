@@ -200,6 +200,19 @@ const TOLERANCE: Bounds = Bounds {
     max: 1.0,
 };
 
+/// Standard error allowed on a steady step, none to 1 mm per own drive
+/// cycle [m]. The upper end is far beyond any stick-slip drive's step (Table
+/// 1's converged steps are at most a few micrometres, MODEL.md section 6);
+/// a tolerance above every step would accept any estimate as soon as
+/// `settle` periods are past, a short window in disguise. There is no lower
+/// end beyond > 0: a tolerance no estimate can meet only means the run
+/// stops when its motion repeats or at `max_cycles`, which bounds it. The
+/// default, `Measure::DEFAULT_STEP_TOLERANCE`, is 1e-8 m.
+const STEP_TOLERANCE: Bounds = Bounds {
+    min: 0.0,
+    max: 1e-3,
+};
+
 impl Field {
     /// What values the key accepts.
     pub(super) fn rule(self) -> Rule {
@@ -212,11 +225,14 @@ impl Field {
             | Field::ResonanceHz
             | Field::QualityFactor
             | Field::Frequency
-            | Field::Tolerance => Rule::Positive,
+            | Field::Tolerance
+            | Field::StepTolerance => Rule::Positive,
             Field::CoulombFriction | Field::Damping => Rule::NonNegative,
             Field::Gain | Field::Voltage | Field::Phase => Rule::Finite,
             Field::Duty => Rule::Duty,
-            Field::Cycles | Field::MaxStepsPerPeriod => Rule::Count,
+            // `max_cycles` is bounded like `cycles`: both are the most
+            // periods an instance runs.
+            Field::Cycles | Field::MaxCycles | Field::MaxStepsPerPeriod => Rule::Count,
             Field::Settle => Rule::Settle,
         }
     }
@@ -239,7 +255,10 @@ impl Field {
             Field::Duty => DUTY,
             Field::Phase => PHASE,
             Field::Tolerance => TOLERANCE,
-            Field::Cycles | Field::Settle | Field::MaxStepsPerPeriod => return None,
+            Field::StepTolerance => STEP_TOLERANCE,
+            Field::Cycles | Field::Settle | Field::MaxCycles | Field::MaxStepsPerPeriod => {
+                return None;
+            }
         })
     }
 }

@@ -2,7 +2,7 @@
 //! key by edit distance.
 
 use super::keys::{
-    AXIS_FIELDS, Field, MECHANISM_FIELDS, OUTPUT_KEYS, ROOT_KEYS, SIMULATION_FIELDS,
+    AXIS_FIELDS, Field, MEASURE_KEY, MECHANISM_FIELDS, OUTPUT_KEYS, ROOT_KEYS, SIMULATION_FIELDS,
 };
 use crate::model::AXIS_NAMES;
 
@@ -13,7 +13,7 @@ pub(super) fn home_of(name: &str) -> Option<&'static str> {
         Some("[mechanism]")
     } else if is(&AXIS_FIELDS) {
         Some("[axis.x] or [axis.y]")
-    } else if is(&SIMULATION_FIELDS) {
+    } else if is(&SIMULATION_FIELDS) || name == MEASURE_KEY {
         Some("[simulation]")
     } else if OUTPUT_KEYS.contains(&name) {
         Some("[output]")
@@ -28,8 +28,9 @@ pub(super) fn home_of(name: &str) -> Option<&'static str> {
     }
 }
 
-/// The candidate closest to `name`: a prefix or container of it, or one
-/// within a few edits.
+/// The candidate closest to `name`: one within a few edits, one that
+/// contains it, or the longest one of at least 4 characters that it
+/// contains (`measurement` for `measure`).
 pub(super) fn suggest<'c>(name: &str, candidates: &[&'c str]) -> Option<&'c str> {
     let lower = name.to_ascii_lowercase();
     let best = candidates
@@ -40,13 +41,19 @@ pub(super) fn suggest<'c>(name: &str, candidates: &[&'c str]) -> Option<&'c str>
     if best.0 < length && best.0 <= (length / 3).max(1) {
         return Some(best.1);
     }
-    if length >= 3 {
-        return candidates
+    if length >= 3
+        && let Some(container) = candidates
             .iter()
             .copied()
-            .find(|c| c.contains(lower.as_str()));
+            .find(|c| c.contains(lower.as_str()))
+    {
+        return Some(container);
     }
-    None
+    candidates
+        .iter()
+        .copied()
+        .filter(|c| c.chars().count() >= 4 && lower.contains(*c))
+        .max_by_key(|c| c.chars().count())
 }
 
 /// Optimal-string-alignment edit distance (insertions, deletions,
@@ -74,4 +81,29 @@ pub(super) fn edit_distance(a: &str, b: &str) -> usize {
         }
     }
     d[a.len()][b.len()]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::keys::SIMULATION_KEYS;
+
+    #[test]
+    fn misspelt_measurement_keys_find_their_key() {
+        for (typed, meant) in [
+            ("max_cycle", "max_cycles"),
+            ("maxcycles", "max_cycles"),
+            ("step_tolerence", "step_tolerance"),
+            ("steptolerance", "step_tolerance"),
+            ("mesure", "measure"),
+            ("measurement", "measure"),
+            ("steady_step_tolerance", "step_tolerance"),
+        ] {
+            assert_eq!(suggest(typed, &SIMULATION_KEYS), Some(meant), "{typed}");
+        }
+        assert_eq!(suggest("xyz", &SIMULATION_KEYS), None);
+        assert_eq!(home_of("measure"), Some("[simulation]"));
+        assert_eq!(home_of("max_cycles"), Some("[simulation]"));
+        assert_eq!(home_of("step_tolerance"), Some("[simulation]"));
+    }
 }

@@ -23,6 +23,7 @@ use super::describe::describe_values;
 use super::format::{fmt_num, fmt_short};
 use super::parser::{Parser, Value, join};
 use super::{Layout, Scene, SceneError};
+use crate::model::Measure;
 
 /// Default samples per scene period of a recorded trajectory. At Table 1's
 /// 10 Hz drive and 3.2 kHz stage resonance, 2000 samples per 0.1 s period
@@ -271,13 +272,22 @@ impl Parser<'_> {
                      instance once"
                 )));
             }
-            let cycles = scene.instance(index).cycles as u64;
+            // A steady run may last its max_cycles: the bound holds for that.
+            let instance = scene.instance(index);
+            let cycles = instance.cycles as u64;
             let samples = cycles * scene.trajectory_samples_per_cycle as u64;
             if samples > MAX_TRAJECTORY_SAMPLES {
+                let (why, key) = match instance.measure {
+                    Measure::Window => ("", "simulation.cycles"),
+                    Measure::Steady { .. } => (
+                        " (a steady run may last its simulation.max_cycles periods)",
+                        "simulation.max_cycles",
+                    ),
+                };
                 return Err(fail(format!(
-                    "{} samples per cycle x {cycles} cycles = {samples} samples: expected at most \
-                     {MAX_TRAJECTORY_SAMPLES} per trajectory; lower \
-                     output.trajectory_samples_per_cycle or simulation.cycles",
+                    "{} samples per cycle x {cycles} cycles = {samples} samples{why}: expected \
+                     at most {MAX_TRAJECTORY_SAMPLES} per trajectory; lower \
+                     output.trajectory_samples_per_cycle or {key}",
                     scene.trajectory_samples_per_cycle
                 )));
             }

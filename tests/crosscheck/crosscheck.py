@@ -271,6 +271,7 @@ def scene_toml(instances: list[Instance], tolerance: float | None = None) -> str
         'description = "seeded random instances for the SciPy cross-check"',
         "",
         "[simulation]",
+        'measure = "window"',
         f"cycles = {CYCLES}",
         f"settle = {SETTLE}",
     ]

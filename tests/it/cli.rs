@@ -90,7 +90,7 @@ fn check_counts_each_distinct_baseline_once() {
         "name = \"grid\"\n\
          [axis.x]\nvoltage = [60.0, 100.0]\n\
          [axis.y]\nvoltage = { from = 0.0, to = 40.0, steps = 3 }\n\
-         [simulation]\ncycles = 2\nsettle = 1\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n\
          [output]\nbaselines = true\n",
     )
     .unwrap();
@@ -147,7 +147,7 @@ fn a_grid_scene_writes_maps_shaped_like_its_grid() {
         "name = \"grid\"\n\
          [axis.x]\nvoltage = [60.0, 100.0]\n\
          [axis.y]\nvoltage = { from = 0.0, to = 40.0, steps = 3 }\n\
-         [simulation]\ncycles = 2\nsettle = 1\n",
+         [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n",
     )
     .unwrap();
     let check = pidm(&["check", scene.to_str().unwrap()], dir.path());
@@ -198,7 +198,7 @@ fn the_accuracy_study_writes_its_table_data_plot_and_summary() {
     let scene = dir.path().join("tiny.toml");
     std::fs::write(
         &scene,
-        "name = \"tiny\"\n[simulation]\ncycles = 2\nsettle = 1\n",
+        "name = \"tiny\"\n[simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n",
     )
     .unwrap();
     let out = pidm(

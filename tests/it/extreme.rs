@@ -216,6 +216,7 @@ frequency = 35.0
 coulomb_friction = 0.3
 velocity_band = 1e-9
 [simulation]
+measure = "window"
 cycles = 3
 settle = 1
 tolerance = TOLERANCE

@@ -30,7 +30,7 @@ fn grid_scene(dir: &Path, name: &str, x_volts: &str, cycles: u32) -> PathBuf {
             "name = \"{name}\"\n\
              [axis.x]\nvoltage = {x_volts}\n\
              [axis.y]\nvoltage = [0.0, 40.0, 80.0, 120.0]\nfrequency = 20.0\n\
-             [simulation]\ncycles = {cycles}\nsettle = 1\n\
+             [simulation]\nmeasure = \"window\"\ncycles = {cycles}\nsettle = 1\n\
              [output]\nbaselines = true\n"
         ),
     )
@@ -581,7 +581,7 @@ fn ctrl_c_stops_a_long_instance_at_once_and_writes_nothing() {
     let scene = d.join("endless.toml");
     std::fs::write(
         &scene,
-        "name = \"endless\"\n[axis.x]\nvoltage = 100.0\n[simulation]\ncycles = 10000000\n",
+        "name = \"endless\"\n[axis.x]\nvoltage = 100.0\n[simulation]\nmeasure = \"window\"\ncycles = 10000000\n",
     )
     .unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_pidm"))

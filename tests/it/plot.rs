@@ -54,7 +54,7 @@ fn a_grid_with_baselines_gives_step_ratio_and_regime_maps() {
         "name = \"tiny\"\n\
          [axis.x]\nvoltage = [-100.0, 0.0, 60.0, 100.0]\n\
          [axis.y]\nvoltage = [0.0, 50.0, 100.0]\n\
-         [simulation]\ncycles = 2\nsettle = 1\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n\
          [output]\nbaselines = true\n",
     )
     .unwrap();
@@ -93,7 +93,7 @@ fn a_points_scene_gives_bars_and_trajectory_figures() {
     std::fs::write(
         dir.path().join("pts.toml"),
         "name = \"pts\"\n\
-         [simulation]\ncycles = 2\nsettle = 1\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n\
          [output]\nbaselines = true\ntrajectories = [\"both\", 0]\n\
          trajectory_samples_per_cycle = 200\n\
          [[points]]\nlabel = \"x only\"\naxis.x.voltage = 100.0\n\
@@ -132,7 +132,7 @@ fn a_one_axis_grid_gives_line_plots_and_a_missing_file_is_an_error() {
         "name = \"line\"\n\
          [axis.x]\nvoltage = { from = 20.0, to = 120.0, steps = 6 }\n\
          [axis.y]\nvoltage = 60.0\n\
-         [simulation]\ncycles = 2\nsettle = 1\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n\
          [output]\nbaselines = true\n",
     )
     .unwrap();
@@ -162,7 +162,7 @@ fn valid_file() -> &'static Path {
             "name = \"dmg\"\n\
              [axis.x]\nvoltage = [0.0, 60.0, 100.0]\n\
              [axis.y]\nvoltage = [0.0, 100.0]\n\
-             [simulation]\ncycles = 2\nsettle = 1\n\
+             [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n\
              [output]\nbaselines = true\ntrajectories = [0]\n\
              trajectory_samples_per_cycle = 20\n",
         )

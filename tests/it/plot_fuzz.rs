@@ -44,7 +44,7 @@ fn valid() -> &'static Valid {
             "name = \"fuzz\"\n\
              [axis.x]\nvoltage = [0.0, 100.0]\n\
              [axis.y]\nvoltage = [0.0, 100.0]\n\
-             [simulation]\ncycles = 2\nsettle = 1\n\
+             [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n\
              [output]\nbaselines = true\ntrajectories = [3]\n\
              trajectory_samples_per_cycle = 8\n",
         )

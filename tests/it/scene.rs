@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use pidm::model::{Axis, Instance};
+use pidm::model::{Axis, Instance, Measure};
 use pidm::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, MAX_SCENE_BYTES, Scene, SceneError};
 
 /// Parses a scene that must be valid, failing with its error message.
@@ -163,19 +163,19 @@ fn bad_scenes_are_refused_with_clear_messages() {
         ),
         // The run length.
         (
-            "[simulation]\ncycles = 10\nsettle = 10",
+            "[simulation]\nmeasure = \"window\"\ncycles = 10\nsettle = 10",
             "simulation.settle = 10 with simulation.cycles = 10: expected settle < cycles",
         ),
         (
-            "[simulation]\ncycles = 2",
+            "[simulation]\nmeasure = \"window\"\ncycles = 2",
             "simulation.settle = 2 with simulation.cycles = 2",
         ),
         (
-            "[simulation]\ncycles = 0",
+            "[simulation]\nmeasure = \"window\"\ncycles = 0",
             "simulation.cycles = 0: expected an integer",
         ),
         (
-            "[simulation]\ncycles = 2.5",
+            "[simulation]\nmeasure = \"window\"\ncycles = 2.5",
             "simulation.cycles = 2.5: expected an integer",
         ),
         (
@@ -183,16 +183,176 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "simulation.settle = -1: expected an integer",
         ),
         (
-            "[simulation]\ncycles = 4\nsettle = [1, 5]",
+            "[simulation]\nmeasure = \"window\"\ncycles = 4\nsettle = [1, 5]",
             "simulation.settle = 5 with simulation.cycles = 4",
         ),
         (
-            "[simulation]\ncycles = { from = 2, to = 10, steps = 4 }",
+            "[simulation]\nmeasure = \"window\"\ncycles = { from = 2, to = 10, steps = 4 }",
             "do not land on integers",
         ),
         (
-            "[simulation]\ncycles = { from = 3, to = 30, steps = 3, log = true }",
+            "[simulation]\nmeasure = \"window\"\ncycles = { from = 3, to = 30, steps = 3, log = true }",
             "cannot take a log range",
+        ),
+        // The measurement: its mode, the keys of each mode and their values.
+        (
+            "[simulation]\nmeasure = \"forever\"",
+            "simulation.measure = \"forever\": expected \"steady\" or \"window\"",
+        ),
+        (
+            "[simulation]\nmeasure = 3",
+            "simulation.measure: expected \"steady\" or \"window\", found an integer 3",
+        ),
+        (
+            "[simulation]\nmeasure = [\"window\"]",
+            "simulation.measure: expected \"steady\" or \"window\", found a list",
+        ),
+        (
+            "[simulation]\nmeasure = \"Window\"",
+            "simulation.measure = \"Window\": expected \"steady\" or \"window\"",
+        ),
+        (
+            "[simulation]\nstep_tolerance = 0",
+            "simulation.step_tolerance = 0: expected a number > 0",
+        ),
+        (
+            "[simulation]\nstep_tolerance = -1e-9",
+            "simulation.step_tolerance = -1e-9: expected a number > 0",
+        ),
+        (
+            "[simulation]\nstep_tolerance = nan",
+            "simulation.step_tolerance = nan: expected a finite number",
+        ),
+        (
+            "[simulation]\nstep_tolerance = inf",
+            "simulation.step_tolerance = inf: expected a finite number",
+        ),
+        (
+            "[simulation]\nstep_tolerance = [1e-8, -inf]",
+            "simulation.step_tolerance = -inf: expected a finite number",
+        ),
+        (
+            "[simulation]\nstep_tolerance = 1e-2",
+            "simulation.step_tolerance = 0.01: expected a number from 0 to 0.001 m",
+        ),
+        (
+            "[simulation]\nstep_tolerance = \"1e-8\"",
+            "simulation.step_tolerance: expected a number",
+        ),
+        (
+            "[simulation]\nmax_cycles = 0",
+            "simulation.max_cycles = 0: expected an integer from 1 to 4294967295",
+        ),
+        (
+            "[simulation]\nmax_cycles = 2.5",
+            "simulation.max_cycles = 2.5: expected an integer",
+        ),
+        (
+            "[simulation]\nmax_cycles = 4294967296",
+            "simulation.max_cycles = 4294967296: expected an integer from 1 to 4294967295",
+        ),
+        (
+            "[simulation]\nmax_cycles = 2",
+            "simulation.settle = 2 with simulation.max_cycles = 2: expected settle < max_cycles",
+        ),
+        (
+            "[simulation]\nmax_cycles = 1",
+            "simulation.settle = 2 with simulation.max_cycles = 1: expected settle < max_cycles",
+        ),
+        (
+            "[simulation]\nmeasure = \"steady\"\nsettle = 50\nmax_cycles = 50",
+            "simulation.settle = 50 with simulation.max_cycles = 50: expected settle < max_cycles",
+        ),
+        (
+            "[simulation]\nmax_cycles = 40\nsettle = [1, 50]",
+            "simulation.settle = 50 with simulation.max_cycles = 40",
+        ),
+        (
+            "[simulation]\nmax_cycles = { from = 2, to = 10, steps = 3, log = true }",
+            "simulation.max_cycles = { from = 2, to = 10, steps = 3, log = true }: an integer \
+             key cannot take a log range",
+        ),
+        (
+            "[simulation]\nmax_cycles = 100\n[[points]]\nlabel = \"short\"\n\
+             simulation.max_cycles = 2",
+            "points[0] (\"short\"): simulation.settle = 2 with simulation.max_cycles = 2",
+        ),
+        // A key of the other mode is refused, never ignored: `cycles` in a
+        // steady scene (the default too), the steady keys in a window.
+        (
+            "[simulation]\ncycles = 10",
+            "simulation.cycles applies to measure = \"window\"; a steady measurement takes \
+             simulation.max_cycles (the most periods it may run). This scene measures \
+             \"steady\" (the default, as no simulation.measure is given): set measure = \
+             \"window\" for the paper's fixed window of cycles periods (line 2, column 10)",
+        ),
+        (
+            "[simulation]\nmeasure = \"steady\"\nsettle = 2\ncycles = [10, 20]",
+            "simulation.cycles applies to measure = \"window\"; a steady measurement takes \
+             simulation.max_cycles (the most periods it may run). This scene sets measure = \
+             \"steady\"",
+        ),
+        (
+            "[simulation]\ncycles = 10\nmeasure = \"steady\"",
+            "simulation.cycles applies to measure = \"window\"",
+        ),
+        (
+            "[simulation]\nmeasure = \"window\"\nstep_tolerance = 1e-8",
+            "simulation.step_tolerance applies to measure = \"steady\"; a window measurement \
+             runs simulation.cycles periods and takes no step_tolerance or max_cycles. This \
+             scene sets measure = \"window\": remove it, or set measure = \"steady\"",
+        ),
+        (
+            "[simulation]\nmax_cycles = 100\nmeasure = \"window\"",
+            "simulation.max_cycles applies to measure = \"steady\"",
+        ),
+        (
+            "[simulation]\nmeasure = \"window\"\n[[points]]\nlabel = \"a\"\n[[points]]\n\
+             label = \"b\"\nsimulation.max_cycles = 100",
+            "points[1] (\"b\"): simulation.max_cycles applies to measure = \"steady\"",
+        ),
+        (
+            "[[points]]\nsimulation.cycles = 4",
+            "points[0]: simulation.cycles applies to measure = \"window\"",
+        ),
+        (
+            "[[points]]\nsimulation.measure = \"window\"",
+            "points[0]: simulation.measure cannot be set per point: it applies to the whole scene",
+        ),
+        (
+            "[[points]]\nsimulation.step_tolerance = [1e-8, 1e-9]",
+            "points[0]: simulation.step_tolerance = [1e-8, 1e-9]: expected a single value",
+        ),
+        (
+            "[simulation]\nmax_cycles = 2000\n[output]\ntrajectories = [0]",
+            "output.trajectories[0] = 0: 2000 samples per cycle x 2000 cycles = 4000000 samples \
+             (a steady run may last its simulation.max_cycles periods): expected at most 2000000 \
+             per trajectory; lower output.trajectory_samples_per_cycle or simulation.max_cycles",
+        ),
+        // Misspelt measurement keys get a hint.
+        (
+            "[simulation]\nmax_cycle = 100",
+            "unknown key `simulation.max_cycle` (did you mean `max_cycles`?)",
+        ),
+        (
+            "[simulation]\nstep_tolerence = 1e-8",
+            "unknown key `simulation.step_tolerence` (did you mean `step_tolerance`?)",
+        ),
+        (
+            "[simulation]\nmeasurement = \"window\"",
+            "unknown key `simulation.measurement` (did you mean `measure`?)",
+        ),
+        (
+            "[simulation]\nmesure = \"window\"",
+            "unknown key `simulation.mesure` (did you mean `measure`?)",
+        ),
+        (
+            "[axis.x]\nmax_cycles = 100",
+            "unknown key `axis.x.max_cycles` (`max_cycles` belongs in [simulation])",
+        ),
+        (
+            "[output]\nmeasure = \"window\"",
+            "unknown key `output.measure` (`measure` belongs in [simulation])",
         ),
         (
             "[simulation]\ntolerance = 0",
@@ -315,7 +475,7 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "points[0]: axis.x.voltage = [1, 2]: expected a single value",
         ),
         (
-            "[simulation]\nsettle = 5\n[[points]]\nlabel = \"ok\"\n[[points]]\nsimulation.cycles = 3",
+            "[simulation]\nmeasure = \"window\"\nsettle = 5\n[[points]]\nlabel = \"ok\"\n[[points]]\nsimulation.cycles = 3",
             "points[1]: simulation.settle = 5 with simulation.cycles = 3",
         ),
         (
@@ -403,7 +563,7 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "output.trajectories[0].axis.x.voltage: expected a number",
         ),
         (
-            "[axis.x]\nvoltage = [50, 100]\n[output]\n\
+            "[axis.x]\nvoltage = [50, 100]\n[simulation]\nmax_cycles = 1000\n[output]\n\
              trajectories = [1, { \"axis.x.voltage\" = 100.0 }]",
             "output.trajectories[1] = { \"axis.x.voltage\" = 100.0 }: names the same instance as \
              output.trajectories[0]",
@@ -418,7 +578,7 @@ fn bad_scenes_are_refused_with_clear_messages() {
              float 100.5",
         ),
         (
-            "[simulation]\ncycles = 2000\n[output]\ntrajectories = [0]",
+            "[simulation]\nmeasure = \"window\"\ncycles = 2000\n[output]\ntrajectories = [0]",
             "output.trajectories[0] = 0: 2000 samples per cycle x 2000 cycles = 4000000 \
              samples: expected at most 2000000 per trajectory",
         ),
@@ -582,12 +742,25 @@ fn a_scene_needs_a_name_from_text_or_file() {
     }
 }
 
+/// Table 1's instance measured steady with the model's defaults: the
+/// instance a scene gives when it sets nothing of `[simulation]`.
+fn steady(instance: Instance) -> Instance {
+    Instance {
+        cycles: Measure::DEFAULT_MAX_CYCLES,
+        settle: Measure::DEFAULT_SETTLE,
+        measure: Measure::Steady {
+            step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
+        },
+        ..instance
+    }
+}
+
 #[test]
 fn an_empty_scene_is_table_1_with_y_undriven() {
     let scene = parse("");
     assert_eq!(scene.shape(), Vec::<usize>::new());
     assert_eq!(scene.instance_count(), 1);
-    assert_eq!(scene.instance(0), Instance::TABLE1.baseline(0));
+    assert_eq!(scene.instance(0), steady(Instance::TABLE1.baseline(0)));
     assert!(!scene.baselines);
     assert_eq!(scene.settings, pidm::cpu::integrate::Settings::default());
     assert!(scene.axis_ever_driven(0));
@@ -598,6 +771,7 @@ fn an_empty_scene_is_table_1_with_y_undriven() {
 fn grid_axes_follow_file_order_and_instances_are_row_major() {
     let scene = parse(
         "[simulation]\n\
+         measure = \"window\"\n\
          cycles = [10, 20]\n\
          tolerance = 1e-5\n\
          max_steps_per_period = 1000\n\
@@ -760,6 +934,7 @@ fn resonance_and_quality_give_the_text_parameters() {
 fn points_apply_on_top_of_the_base() {
     let scene = parse(
         "[axis.x]\nvoltage = 50\nduty = 0.9\n\
+         [simulation]\nmeasure = \"window\"\n\
          [[points]]\nlabel = \"dotted\"\naxis.y.phase = 0.25\naxis.y.voltage = 20\n\
          [[points]]\n[points.axis.y]\nvoltage = 30\nfrequency = 20\n\
          [points.simulation]\ncycles = 5\nsettle = 1\n\
@@ -858,7 +1033,7 @@ fn trajectories_name_instances_by_label_index_or_grid_coordinates() {
             .contains("trajectories (40 samples per period)")
     );
     let points = parse(
-        "[output]\ntrajectories = [\"b\", 0]\n\
+        "[simulation]\nmax_cycles = 1000\n[output]\ntrajectories = [\"b\", 0]\n\
          [[points]]\naxis.x.voltage = 10\n[[points]]\nlabel = \"b\"",
     );
     let got: Vec<(u64, &str, &str)> = points
@@ -872,10 +1047,8 @@ fn trajectories_name_instances_by_label_index_or_grid_coordinates() {
         pidm::scene::DEFAULT_SAMPLES_PER_CYCLE
     );
     assert!(parse("").trajectories.is_empty());
-    assert_eq!(
-        parse("[output]\ntrajectories = [{}]").trajectories[0].index,
-        0
-    );
+    let window = parse("[simulation]\nmeasure = \"window\"\n[output]\ntrajectories = [{}]");
+    assert_eq!(window.trajectories[0].index, 0);
 }
 
 #[test]
@@ -967,7 +1140,7 @@ fn shipped_scenes_load() {
         (-150.0, -145.0)
     );
     let center = coupling.instance(30 * 61 + 30);
-    assert_eq!(center, Instance::TABLE1.baseline(0).baseline(1));
+    assert_eq!(center, steady(Instance::TABLE1.baseline(0).baseline(1)));
     assert!(coupling.axis_ever_driven(0) && coupling.axis_ever_driven(1));
     assert!(
         coupling
@@ -976,12 +1149,155 @@ fn shipped_scenes_load() {
     );
 }
 
+/// A scene that sets nothing of `[simulation]` measures steady, with the
+/// model's defaults: step tolerance 1e-8 m, at most 10000 periods, at least
+/// 2 discarded.
+#[test]
+fn the_default_measurement_is_steady() {
+    for text in ["", "[simulation]\nmeasure = \"steady\""] {
+        let scene = parse(text);
+        let instance = scene.instance(0);
+        assert_eq!(
+            instance.measure,
+            Measure::Steady {
+                step_tolerance: 1e-8
+            },
+            "{text}"
+        );
+        assert_eq!((instance.cycles, instance.settle), (10_000, 2), "{text}");
+        let description = scene.describe();
+        assert!(
+            description.contains(
+                "simulation: steady measurement, settle >= 2, step tolerance 1e-8 m, at most \
+                 10000 periods"
+            ),
+            "{description}"
+        );
+    }
+}
+
+/// `measure = "window"` gives exactly the instances of the fixed window:
+/// `cycles` and `settle` as given, 10 and 2 by default, so window maps stay
+/// bit for bit.
+#[test]
+fn a_window_gives_the_fixed_window_instances() {
+    let scene = parse("[simulation]\nmeasure = \"window\"");
+    assert_eq!(scene.instance(0), Instance::TABLE1.baseline(0));
+    assert_eq!(scene.instance(0).key(), Instance::TABLE1.baseline(0).key());
+    assert!(
+        scene
+            .describe()
+            .contains("simulation: window, cycles 10, settle 2")
+    );
+    let scene = parse(
+        "[axis.y]\nvoltage = 100.0\n[simulation]\nmeasure = \"window\"\ncycles = 12\nsettle = 3",
+    );
+    let expected = Instance {
+        cycles: 12,
+        settle: 3,
+        ..Instance::TABLE1
+    };
+    assert_eq!(scene.instance(0), expected);
+    assert_eq!(scene.instance(0).key(), expected.key());
+    // A window over the run length, and per point.
+    let scene = parse("[simulation]\nmeasure = \"window\"\ncycles = [4, 8]\nsettle = 1");
+    for (index, cycles) in [4, 8].into_iter().enumerate() {
+        let instance = scene.instance(index as u64);
+        assert_eq!(instance.measure, Measure::Window);
+        assert_eq!((instance.cycles, instance.settle), (cycles, 1));
+    }
+    let scene =
+        parse("[simulation]\nmeasure = \"window\"\n[[points]]\n[[points]]\nsimulation.cycles = 7");
+    assert_eq!(scene.instance(0), Instance::TABLE1.baseline(0));
+    assert_eq!(
+        scene.instance(1),
+        Instance {
+            cycles: 7,
+            ..Instance::TABLE1.baseline(0)
+        }
+    );
+}
+
+/// The steady keys are per instance like `cycles` and `settle`: grid axes
+/// and points may set them.
+#[test]
+fn steady_keys_set_each_instance() {
+    let scene = parse(
+        "[simulation]\nmeasure = \"steady\"\nsettle = 5\n\
+         step_tolerance = [1e-8, 1e-9]\nmax_cycles = { from = 100, to = 300, steps = 3 }",
+    );
+    let Layout::Grid { axes } = &scene.layout else {
+        panic!("expected a grid");
+    };
+    let keys: Vec<(&str, &str)> = axes.iter().map(|a| (a.key.as_str(), a.units)).collect();
+    assert_eq!(
+        keys,
+        [
+            ("simulation.step_tolerance", "m"),
+            ("simulation.max_cycles", "cycles")
+        ]
+    );
+    assert_eq!(scene.shape(), [2, 3]);
+    for index in 0..6u64 {
+        let instance = scene.instance(index);
+        let tolerance = [1e-8, 1e-9][(index / 3) as usize];
+        assert_eq!(
+            instance.measure,
+            Measure::Steady {
+                step_tolerance: tolerance
+            }
+        );
+        assert_eq!(instance.cycles, [100, 200, 300][(index % 3) as usize]);
+        assert_eq!(instance.settle, 5);
+    }
+    let description = scene.describe();
+    for needle in [
+        "simulation.step_tolerance  [1e-8, 1e-9] m",
+        "simulation.max_cycles      [100, 200, 300] cycles",
+        "simulation: steady measurement, settle >= 5, step tolerance 1e-8 m, at most 100 periods",
+    ] {
+        assert!(
+            description.contains(needle),
+            "{needle:?} missing from\n{description}"
+        );
+    }
+    let scene = parse(
+        "[simulation]\nmax_cycles = 400\n\
+         [[points]]\n\
+         [[points]]\nsimulation.step_tolerance = 1e-6\nsimulation.max_cycles = 20\n\
+         simulation.settle = 0",
+    );
+    assert_eq!(
+        scene.instance(0),
+        Instance {
+            cycles: 400,
+            ..steady(Instance::TABLE1.baseline(0))
+        }
+    );
+    assert_eq!(
+        scene.instance(1),
+        Instance {
+            cycles: 20,
+            settle: 0,
+            measure: Measure::Steady {
+                step_tolerance: 1e-6
+            },
+            ..Instance::TABLE1.baseline(0)
+        }
+    );
+    // One period with none discarded is the shortest steady run.
+    let one = parse("[simulation]\nmax_cycles = 1\nsettle = 0").instance(0);
+    assert_eq!((one.cycles, one.settle), (1, 0));
+}
+
 /// `pidm random-scene` writes a scene that reads back as the very instances
 /// it drew, bit for bit.
 #[test]
 fn random_scene_reads_back_bit_for_bit() {
     let (seed, count, cycles, settle) = (7, 5, 6, 2);
-    let scene = parse(&pidm::commands::random_scene(seed, count, cycles, settle).unwrap());
+    let text = pidm::commands::random_scene(seed, count, cycles, settle).unwrap();
+    assert!(text.contains("measure = \"window\""), "{text}");
+    let scene = parse(&text);
     let drawn = pidm::random::random_instances(seed, count, cycles, settle);
     assert_eq!(scene.instance_count(), count as u64);
     for (k, inst) in drawn.iter().enumerate() {

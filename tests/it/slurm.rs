@@ -24,6 +24,7 @@ voltage = { from = -90.0, to = 120.0, steps = 4 }
 [axis.y]
 voltage = [-60.0, 0.0, 90.0]
 [simulation]
+measure = "window"
 cycles = 3
 settle = 1
 [output]

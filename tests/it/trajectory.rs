@@ -179,7 +179,7 @@ fn a_scene_records_its_trajectories_with_baselines() {
         "name = \"t\"\n\
          [axis.x]\nvoltage = [60.0, 100.0]\n\
          [axis.y]\nvoltage = [0.0, 100.0]\n\
-         [simulation]\ncycles = 3\nsettle = 1\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 3\nsettle = 1\n\
          [output]\nbaselines = true\n\
          trajectories = [{ axis.x.voltage = 100.0, axis.y.voltage = 100.0 }, 0]\n\
          trajectory_samples_per_cycle = 50\n",
