@@ -41,19 +41,8 @@ pub struct RunOptions {
 /// that did not finish normally.
 pub fn run(opts: &RunOptions) -> Result<u64> {
     let scene = Scene::load(&opts.scene)?;
-    let steady =
-        scene.instance_count() > 0 && matches!(scene.instance(0).measure, Measure::Steady { .. });
-    let choice = if steady && opts.backend == BackendChoice::Auto {
-        eprintln!(
-            "pidm: the steady measurement runs on the CPU path (the GPU path measures fixed \
-             windows only so far)"
-        );
-        BackendChoice::Cpu
-    } else {
-        opts.backend
-    };
     let selected = select_backend(
-        choice,
+        opts.backend,
         opts.precision,
         opts.threads,
         integrations_for_choice(&scene, opts.scope),

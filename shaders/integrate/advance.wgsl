@@ -24,6 +24,9 @@ struct State {
     steps: u32,
     stalled: u32,
     rejections: u32,
+    measured: u32,
+    _pad_u: u32,
+    _pad_v: vec2<u32>,
 }
 
 fn initial_state(c: Coefficients) -> State {
@@ -49,12 +52,13 @@ fn initial_state(c: Coefficients) -> State {
     st.steps = 0u;
     st.stalled = 0u;
     st.rejections = 0u;
+    st.measured = 0u;
     st._pad = Real(0.0);
     return st;
 }
 
 fn is_finished(c: Coefficients, st: State) -> bool {
-    return st.status != STATUS_OK || st.period >= c.cycles;
+    return st.status != STATUS_OK || st.period >= c.cycles || st.measured == 1u;
 }
 
 // `st.time >= t` on the two-part time.

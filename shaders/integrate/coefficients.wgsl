@@ -53,4 +53,12 @@ struct Coefficients {
     frictionless: u32,
     driven: vec2<u32>,
     _pad: vec2<u32>,
+    // The steady measurement (src/cpu/integrate/measure.rs).
+    se_limit2: V2,
+    repeat_x: Real,
+    repeat_v: Real,
+    steady: u32,
+    common_period: u32,
+    batch_length: u32,
+    _pad2: u32,
 }

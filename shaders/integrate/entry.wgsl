@@ -42,6 +42,10 @@ struct Control {
 @group(0) @binding(3) var<storage, read_write> counters: Counters;
 // The instance each lane holds (the host starts lane k on instance k).
 @group(0) @binding(4) var<storage, read_write> lanes: array<u32>;
+// The steady measurement's accumulators per instance (measure.wgsl), read
+// and written only at the period ends of steady instances; a batch of
+// windows binds a single unused entry.
+@group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn advance_slice(
@@ -61,6 +65,9 @@ fn advance_slice(
     var st: State;
     if control.initialize == 1u {
         st = initial_state(c);
+        if c.steady == 1u {
+            measures[index] = initial_measure(c);
+        }
     } else {
         st = states[index];
     }
@@ -76,11 +83,14 @@ fn advance_slice(
             }
             c = coefficients[index];
             st = initial_state(c);
+            if c.steady == 1u {
+                measures[index] = initial_measure(c);
+            }
         }
         if left == 0u {
             break;
         }
-        let run = advance(c, &st, left, left == control.max_iterations);
+        let run = advance(c, &st, index, left, left == control.max_iterations);
         left -= run.iterations;
         if run.cut {
             break;
@@ -100,13 +110,37 @@ struct Advance {
     cut: bool,
 }
 
-// At most `max_iterations` iterations of one instance, up to its end.
-// `fresh` says the lane has completed no iteration in this dispatch yet.
-fn advance(c: Coefficients, st: ptr<function, State>, max_iterations: u32, fresh: bool) -> Advance {
+// At most `max_iterations` iterations of one instance (`index`), up to its
+// end. `fresh` says the lane has completed no iteration in this dispatch
+// yet. As the CPU's `advance_observed`, a steady measurement processes each
+// period end before the iteration that passes it; its accumulators are
+// copied in and written back only then, and only once the loop limiter
+// has let the update complete.
+fn advance(c: Coefficients, st: ptr<function, State>, index: u32, max_iterations: u32, fresh: bool) -> Advance {
     var iteration = 0u;
     for (; iteration < max_iterations; iteration++) {
         if is_finished(c, *st) {
             break;
+        }
+        if c.steady == 1u && at_period_end(c, *st, measures[index].next_end) {
+            var m = measures[index];
+            if LOOP_LIMITER {
+                let before = *st;
+                period_end(c, st, &m);
+                if !loop_limiter_intact((*st).steps) {
+                    *st = before;
+                    if iteration == 0u && fresh {
+                        (*st).status = STATUS_LOOP_LIMIT;
+                    }
+                    return Advance(iteration, true);
+                }
+            } else {
+                period_end(c, st, &m);
+            }
+            measures[index] = m;
+            if is_finished(c, *st) {
+                break;
+            }
         }
         if LOOP_LIMITER {
             // An iteration cut short by the driver's loop limiter is undone

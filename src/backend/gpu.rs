@@ -5,7 +5,7 @@ use anyhow::{Result, bail};
 use super::{Backend, Hardware, Precision};
 use crate::cpu::integrate::Settings;
 use crate::gpu::{GpuContext, run_batch};
-use crate::model::{Instance, Measure};
+use crate::model::Instance;
 use crate::sweep::Outcome;
 
 /// Instances per sweep chunk on the GPU: a million, enough to fill a large
@@ -86,17 +86,6 @@ impl Backend for GpuBackend {
         settings: &Settings,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
-        if let Some(inst) = instances
-            .iter()
-            .find(|inst| matches!(inst.measure, Measure::Steady { .. }))
-        {
-            bail!(
-                "the GPU path measures fixed windows only so far: this scene measures the \
-                 steady step (simulation.measure = \"{}\"); run it with --backend cpu, or set \
-                 simulation.measure = \"window\" to run the paper's fixed window on the GPU",
-                inst.measure.name()
-            );
-        }
         let mut reported = 0;
         let outcomes = run_batch(
             &self.ctx,
@@ -112,15 +101,15 @@ impl Backend for GpuBackend {
         )?;
         Ok(outcomes
             .into_iter()
-            .zip(instances)
-            .map(|(o, inst)| Outcome {
+            .map(|o| Outcome {
                 displacement: o.displacement,
-                span: (inst.cycles - inst.settle) as f64,
-                periods: inst.cycles,
+                span: o.span,
+                se: o.se,
+                periods: o.periods,
+                lag: o.lag,
                 status: o.status,
                 steps: o.steps,
                 on_cpu: o.cpu_fallback || o.finished_on_cpu,
-                ..Outcome::default()
             })
             .collect())
     }

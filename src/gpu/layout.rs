@@ -14,7 +14,7 @@
 //! [`crate::cpu::integrate::Coefficients`], computed in f64 and rounded once.
 
 use crate::cpu::integrate::{STATUS_OK, Settings};
-use crate::model::{AXES, Instance};
+use crate::model::{AXES, Instance, Measure};
 
 /// The unit system of one precision: how many length units make a metre and
 /// how many time units make a second. Masses stay in kilograms, so forces
@@ -56,6 +56,9 @@ impl Units {
             a.damping *= newton * self.second / self.metre;
             a.gain *= newton;
             a.frequency /= self.second;
+        }
+        if let Measure::Steady { step_tolerance } = &mut out.measure {
+            *step_tolerance *= self.metre;
         }
         let m = &mut out.mechanism;
         m.static_friction *= newton;
@@ -161,6 +164,7 @@ macro_rules! precision_structs {
         pub mod $module {
             use super::*;
             use crate::cpu::integrate::coefficients::Oscillator as ExactOscillator;
+            use crate::cpu::integrate::measure;
             use crate::cpu::integrate::{Coefficients as Exact, Vec2};
 
             /// The scalar type of this precision.
@@ -231,6 +235,13 @@ macro_rules! precision_structs {
                     pub frictionless: u32,
                     pub driven: U32x2,
                     pub _pad: U32x2,
+                    pub se_limit2: V2,
+                    pub repeat_x: Real,
+                    pub repeat_v: Real,
+                    pub steady: u32,
+                    pub common_period: u32,
+                    pub batch_length: u32,
+                    pub _pad2: u32,
                 }
             }
 
@@ -258,7 +269,98 @@ macro_rules! precision_structs {
                     pub steps: u32,
                     pub stalled: u32,
                     pub rejections: u32,
+                    pub measured: u32,
+                    pub _pad_u: u32,
+                    pub _pad_v: U32x2,
                 }
+            }
+
+            host_struct! {
+                /// `pidm::cpu::integrate::measure::Snapshot` in shader units.
+                pub struct Snapshot {
+                    pub x_p: V2,
+                    pub v_p: V2,
+                    pub v_s: V2,
+                    pub x_s: V2,
+                    pub mode: u32,
+                    pub _pad_u: u32,
+                    pub _pad_v: U32x2,
+                }
+            }
+
+            host_struct! {
+                /// `pidm::cpu::integrate::Measure` in shader units.
+                pub struct Measure {
+                    pub last_x_s: V2,
+                    pub batch_start: V2,
+                    pub d_min: V2,
+                    pub d_max: V2,
+                    pub travel: V2,
+                    pub sums: [V2; measure::BATCHES],
+                    pub snaps: [Snapshot; measure::SNAPSHOTS],
+                    pub next_end: u32,
+                    pub measured: u32,
+                    pub filled: u32,
+                    pub batch_length: u32,
+                    pub in_batch: u32,
+                    pub snapshots: u32,
+                    pub lag: u32,
+                    pub verdict: u32,
+                }
+            }
+
+            /// The CPU's accumulators in SI units for a shader's
+            /// (positions over metres, velocities over metres per second).
+            pub fn measure_to_cpu(m: &Measure) -> measure::Measure {
+                let length = |v: V2| Vec2::new(v.x as f64, v.y as f64) * (1.0 / UNITS.metre);
+                let speed = UNITS.second / UNITS.metre;
+                let velocity = |v: V2| Vec2::new(v.x as f64, v.y as f64) * speed;
+                let extreme = |v: V2| {
+                    length(v).map(|x| {
+                        if x.abs() >= Real::MAX as f64 / UNITS.metre {
+                            x.signum() * f64::INFINITY
+                        } else {
+                            x
+                        }
+                    })
+                };
+                measure::Measure {
+                    last_x_s: length(m.last_x_s),
+                    batch_start: length(m.batch_start),
+                    d_min: extreme(m.d_min),
+                    d_max: extreme(m.d_max),
+                    travel: length(m.travel),
+                    sums: m.sums.map(length),
+                    snaps: m.snaps.map(|s| measure::Snapshot {
+                        x_p: length(s.x_p),
+                        v_p: velocity(s.v_p),
+                        v_s: velocity(s.v_s),
+                        x_s: length(s.x_s),
+                        mode: s.mode,
+                    }),
+                    next_end: m.next_end,
+                    measured: m.measured,
+                    filled: m.filled,
+                    batch_length: m.batch_length,
+                    in_batch: m.in_batch,
+                    snapshots: m.snapshots,
+                    lag: m.lag,
+                    verdict: m.verdict,
+                }
+            }
+
+            /// The CPU state, in SI units, that a reduction reads of a
+            /// finished shader state: status, period and slider positions.
+            pub fn reduced_state(st: &State) -> crate::cpu::integrate::State {
+                let length = |v: V2| Vec2::new(v.x as f64, v.y as f64) * (1.0 / UNITS.metre);
+                let mut out = crate::cpu::integrate::initial_state(&Exact::default());
+                out.x_s = length(st.x_s);
+                out.settle_x_s = length(st.settle_x_s);
+                out.status = st.status;
+                out.period = st.period;
+                out.measured = st.measured;
+                out.steps = st.steps;
+                out
             }
 
             fn oscillator(o: &ExactOscillator) -> Oscillator {
@@ -319,12 +421,19 @@ macro_rules! precision_structs {
                         y: c.driven[1] as u32,
                     },
                     _pad: U32x2::default(),
+                    se_limit2: v2(c.se_limit2),
+                    repeat_x: c.repeat_x as Real,
+                    repeat_v: c.repeat_v as Real,
+                    steady: c.steady as u32,
+                    common_period: c.common_period,
+                    batch_length: c.batch_length,
+                    _pad2: 0,
                 }
             }
 
             /// True once the instance ended, normally or with a status.
             pub fn finished(inst: &Instance, st: &State) -> bool {
-                st.status != STATUS_OK || st.period >= inst.cycles
+                st.status != STATUS_OK || st.period >= inst.cycles || st.measured == 1
             }
 
             /// The outcome of a finished state, back in SI units: the slider
@@ -340,6 +449,10 @@ macro_rules! precision_structs {
                 }
                 super::super::GpuOutcome {
                     displacement,
+                    span: (inst.cycles - inst.settle) as f64,
+                    se: [0.0; AXES],
+                    periods: inst.cycles,
+                    lag: 0,
                     status: st.status,
                     steps: st.steps,
                     cpu_fallback: false,
@@ -386,7 +499,7 @@ impl double::State {
             steps: self.steps,
             stalled: self.stalled,
             rejections: self.rejections,
-            measured: 0,
+            measured: self.measured,
         }
     }
 }
@@ -455,11 +568,15 @@ mod tests {
                     check_struct::<single::Oscillator>(&module, &layouter, precision);
                     check_struct::<single::Coefficients>(&module, &layouter, precision);
                     check_struct::<single::State>(&module, &layouter, precision);
+                    check_struct::<single::Snapshot>(&module, &layouter, precision);
+                    check_struct::<single::Measure>(&module, &layouter, precision);
                 }
                 Precision::F64 => {
                     check_struct::<double::Oscillator>(&module, &layouter, precision);
                     check_struct::<double::Coefficients>(&module, &layouter, precision);
                     check_struct::<double::State>(&module, &layouter, precision);
+                    check_struct::<double::Snapshot>(&module, &layouter, precision);
+                    check_struct::<double::Measure>(&module, &layouter, precision);
                 }
             }
         }

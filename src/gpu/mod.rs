@@ -51,8 +51,8 @@ use thiserror::Error;
 use wgpu::util::DeviceExt;
 
 use crate::cpu::integrate::{Run, Settings, initial_measure, run_instance};
-use crate::measurement::displacement;
-use crate::model::Instance;
+use crate::measurement::{Measured, reduce};
+use crate::model::{Instance, Measure};
 use layout::HostLayout;
 use layout::control::Control;
 
@@ -138,8 +138,15 @@ pub struct AdapterSummary {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GpuOutcome {
     /// Slider displacement over the measured periods, in metres; zero unless
-    /// `status` is `STATUS_OK` (as [`crate::cpu::integrate::displacement`]).
+    /// the status keeps values (as [`crate::measurement::Measured::travel`]).
     pub displacement: [f64; 2],
+    /// The rest of the run's [`Measured`]: the scene periods the
+    /// displacement spans, the standard errors [m per own drive cycle], the
+    /// periods integrated and the detected cycle.
+    pub span: f64,
+    pub se: [f64; 2],
+    pub periods: u32,
+    pub lag: u32,
     /// One of the `STATUS_*` constants of [`crate::cpu::integrate`].
     pub status: u32,
     /// Steps taken (accepted, rejected and events).
@@ -603,7 +610,15 @@ impl GpuContext {
         fig8.axes[1].frequency = 20.0;
         fig8.cycles = 2;
         fig8.settle = 1;
-        let instances = [fig8, fig8.baseline(0)];
+        // A steady measurement of 10 Hz against 14 Hz: periodic with a lag
+        // of 5 periods (a common period) after about 7.
+        let mut steady = Instance::TABLE1;
+        steady.axes[1].frequency = 14.0;
+        steady.cycles = 40;
+        steady.measure = Measure::Steady {
+            step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
+        };
+        let instances = [fig8, fig8.baseline(0), steady];
         let settings = Settings::default();
         let fail = |message: String| GpuError::SelfTest {
             precision,
@@ -629,22 +644,23 @@ impl GpuContext {
             Precision::F64 => 1e-12,
         };
         for (inst, got) in instances.iter().zip(&outcomes) {
-            let want = run_instance(inst, &settings);
-            let want_d = displacement(inst, &want);
-            if got.status != want.state.status {
+            let want = reduce(inst, &run_instance(inst, &settings));
+            if got.status != want.status || got.lag != want.lag {
                 return Err(fail(format!(
-                    "status {} where the CPU ends with {}",
-                    got.status, want.state.status
+                    "status {} and cycle {} periods where the CPU ends with {} and {}",
+                    got.status, got.lag, want.status, want.lag
                 )));
             }
-            for (axis, (&g, &w)) in got.displacement.iter().zip(&want_d).enumerate() {
-                let step = |d: f64| inst.measure(axis, d).1;
-                let err = (step(g) - step(w)).abs();
+            for axis in 0..2 {
+                let step = |m: &GpuOutcome| inst.measure_over(axis, m.displacement[axis], m.span).1;
+                let (g, w) = (
+                    step(got),
+                    inst.measure_over(axis, want.travel[axis], want.span).1,
+                );
+                let err = (g - w).abs();
                 if err.is_nan() || err > allowance {
                     return Err(fail(format!(
-                        "axis {axis} steps {:.6e} m where the CPU gives {:.6e} m",
-                        step(g),
-                        step(w)
+                        "axis {axis} steps {g:.6e} m where the CPU gives {w:.6e} m"
                     )));
                 }
             }
@@ -793,13 +809,38 @@ trait Layout {
     const PRECISION: Precision;
     type Coefficients: HostLayout + Send;
     type State: HostLayout + Send + Sync;
+    type Measure: HostLayout + Send + Sync;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
+    /// The outcome of a finished fixed window.
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
+    /// The outcome of a finished steady measurement, through the one
+    /// reduction every backend's results pass through.
+    fn reduce(inst: &Instance, st: &Self::State, m: &Self::Measure) -> GpuOutcome;
     fn finished(inst: &Instance, st: &Self::State) -> bool;
-    /// The CPU integrator's state for an unfinished shader state, where
-    /// the CPU can continue from it (f64), or `None` where the CPU must
-    /// start the instance over (f32: its state is f32's approximation).
-    fn continuable(st: &Self::State) -> Option<crate::cpu::integrate::State>;
+    /// The CPU integrator's run for an unfinished shader state (and the
+    /// accumulators of a steady measurement), where the CPU can continue
+    /// from it (f64), or `None` where the CPU must start the instance over
+    /// (f32: its state is f32's approximation).
+    fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run>;
+}
+
+/// A steady outcome from the shader's state and accumulators converted to
+/// the CPU's, in SI units.
+fn reduce_shader(
+    inst: &Instance,
+    state: crate::cpu::integrate::State,
+    measure: crate::cpu::integrate::Measure,
+) -> GpuOutcome {
+    let steps = state.steps;
+    GpuOutcome::of(&reduce(inst, &Run { state, measure }), steps)
+}
+
+/// Whether any instance of a batch measures the steady step (its batch
+/// then needs one set of accumulators per instance).
+fn any_steady(instances: &[Instance]) -> bool {
+    instances
+        .iter()
+        .any(|inst| matches!(inst.measure, Measure::Steady { .. }))
 }
 
 struct Single;
@@ -809,16 +850,24 @@ impl Layout for Single {
     const PRECISION: Precision = Precision::F32;
     type Coefficients = layout::single::Coefficients;
     type State = layout::single::State;
+    type Measure = layout::single::Measure;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::single::pack(inst, settings)
     }
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
         layout::single::unpack(inst, st)
     }
+    fn reduce(inst: &Instance, st: &Self::State, m: &Self::Measure) -> GpuOutcome {
+        reduce_shader(
+            inst,
+            layout::single::reduced_state(st),
+            layout::single::measure_to_cpu(m),
+        )
+    }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::single::finished(inst, st)
     }
-    fn continuable(_: &Self::State) -> Option<crate::cpu::integrate::State> {
+    fn continuable(_: &Instance, _: &Self::State, _: Option<&Self::Measure>) -> Option<Run> {
         None
     }
 }
@@ -827,17 +876,28 @@ impl Layout for Double {
     const PRECISION: Precision = Precision::F64;
     type Coefficients = layout::double::Coefficients;
     type State = layout::double::State;
+    type Measure = layout::double::Measure;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::double::pack(inst, settings)
     }
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
         layout::double::unpack(inst, st)
     }
+    fn reduce(inst: &Instance, st: &Self::State, m: &Self::Measure) -> GpuOutcome {
+        reduce_shader(inst, st.to_cpu(), layout::double::measure_to_cpu(m))
+    }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::double::finished(inst, st)
     }
-    fn continuable(st: &Self::State) -> Option<crate::cpu::integrate::State> {
-        Some(st.to_cpu())
+    fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run> {
+        let c = crate::cpu::integrate::Coefficients::new(inst, &Settings::default(), f64::EPSILON);
+        Some(Run {
+            state: st.to_cpu(),
+            measure: match m {
+                Some(m) => layout::double::measure_to_cpu(m),
+                None => initial_measure(&c),
+            },
+        })
     }
 }
 
@@ -887,10 +947,15 @@ impl Runner<'_> {
         instances: &[Instance],
         progress: &mut dyn FnMut(u64, u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let state_size = if any_steady(instances) {
+            size_of::<L::State>().max(size_of::<L::Measure>())
+        } else {
+            size_of::<L::State>()
+        };
         let per_batch = max_batch_instances(
             self.limits,
             size_of::<L::Coefficients>(),
-            size_of::<L::State>(),
+            state_size,
             self.options,
         );
         let total = instances.len() as u64;
@@ -967,6 +1032,23 @@ impl Runner<'_> {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        // The steady measurement's accumulators: one per instance where
+        // any instance is steady, else one unused entry (windows never
+        // touch them).
+        let steady = any_steady(instances);
+        let measure_bytes = (size_of::<L::Measure>() * if steady { n } else { 1 }) as u64;
+        let measures = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("measures"),
+            size: measure_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let measures_read = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("measures readback"),
+            size: measure_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         // Lane k starts on instance k; the counters say which instance is
         // next and how many finished.
         let lane_count = n.min(self.options.lanes.max(1));
@@ -1031,6 +1113,10 @@ impl Runner<'_> {
                             binding: 4,
                             resource: lanes_buffer.as_entire_binding(),
                         },
+                        wgpu::BindGroupEntry {
+                            binding: 5,
+                            resource: measures.as_entire_binding(),
+                        },
                     ],
                 })
             })
@@ -1075,7 +1161,21 @@ impl Runner<'_> {
         }
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
+        if steady {
+            encoder.copy_buffer_to_buffer(&measures, 0, &measures_read, 0, measure_bytes);
+        }
         queue.submit([encoder.finish()]);
+        let measure_list: Vec<L::Measure> = if steady {
+            with_mapped(device, &measures_read, |bytes| {
+                bytes
+                    .chunks_exact(size_of::<L::Measure>())
+                    .map(bytemuck::pod_read_unaligned)
+                    .collect()
+            })?
+        } else {
+            Vec::new()
+        };
+        let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
         // The outcomes, read in place from the mapped states, and the
         // states of the unfinished ones.
         let (mut out, tail) = with_mapped(device, &states_read, |bytes| {
@@ -1091,10 +1191,15 @@ impl Runner<'_> {
                     &owned
                 }
             };
-            let out: Vec<GpuOutcome> = states
-                .par_iter()
-                .zip(instances)
-                .map(|(st, inst)| L::unpack(inst, st))
+            let out: Vec<GpuOutcome> = (0..n)
+                .into_par_iter()
+                .map(|k| {
+                    if is_steady(k) {
+                        L::reduce(&instances[k], &states[k], &measure_list[k])
+                    } else {
+                        L::unpack(&instances[k], &states[k])
+                    }
+                })
                 .collect();
             let tail: Vec<(usize, L::State)> = (0..n)
                 .into_par_iter()
@@ -1109,9 +1214,16 @@ impl Runner<'_> {
         let tail_outcomes: Vec<GpuOutcome> = tail
             .par_iter()
             .with_max_len(1)
-            .map(|(k, st)| GpuOutcome {
-                finished_on_cpu: true,
-                ..on_cpu(&instances[*k], self.settings, L::continuable(st))
+            .map(|(k, st)| {
+                let m = is_steady(*k).then(|| &measure_list[*k]);
+                GpuOutcome {
+                    finished_on_cpu: true,
+                    ..on_cpu(
+                        &instances[*k],
+                        self.settings,
+                        L::continuable(&instances[*k], st, m),
+                    )
+                }
             })
             .collect();
         for ((k, _), outcome) in tail.iter().zip(tail_outcomes) {
@@ -1145,32 +1257,30 @@ fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
 
 /// One instance integrated on the CPU, which the shader mirrors, as a GPU
 /// outcome (the caller marks why it ran there): from its start, or from a
-/// state the f64 shader reached.
-fn on_cpu(
-    inst: &Instance,
-    settings: &Settings,
-    from: Option<crate::cpu::integrate::State>,
-) -> GpuOutcome {
+/// run the f64 shader left unfinished.
+fn on_cpu(inst: &Instance, settings: &Settings, from: Option<Run>) -> GpuOutcome {
     let run = match from {
-        Some(state) => {
-            // The shader measures fixed windows only: a window's run needs
-            // no measurement accumulators.
-            let c = crate::cpu::integrate::Coefficients::new(inst, settings, f64::EPSILON);
-            let run = Run {
-                state,
-                measure: initial_measure(&c),
-            };
-            crate::cpu::integrate::continue_instance_until(inst, settings, run, || false)
-                .expect("never asked to stop")
-        }
+        Some(run) => crate::cpu::integrate::continue_instance_until(inst, settings, run, || false)
+            .expect("never asked to stop"),
         None => run_instance(inst, settings),
     };
-    GpuOutcome {
-        displacement: displacement(inst, &run),
-        status: run.state.status,
-        steps: run.state.steps,
-        cpu_fallback: false,
-        finished_on_cpu: false,
+    GpuOutcome::of(&reduce(inst, &run), run.state.steps)
+}
+
+impl GpuOutcome {
+    /// The outcome of a reduced run, integrated on the GPU.
+    pub fn of(m: &Measured, steps: u32) -> GpuOutcome {
+        GpuOutcome {
+            displacement: m.travel,
+            span: m.span,
+            se: m.se,
+            periods: m.periods,
+            lag: m.lag,
+            status: m.status,
+            steps,
+            cpu_fallback: false,
+            finished_on_cpu: false,
+        }
     }
 }
 

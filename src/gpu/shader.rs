@@ -9,10 +9,11 @@
 
 use super::{GpuError, Precision, STATUS_LOOP_LIMIT, workgroup_size};
 use crate::cpu::integrate::constants::{self, TAYLOR_STAGE_TERMS, TAYLOR_TERMS};
+use crate::cpu::integrate::measure;
 
 /// The shader files, in the order they are concatenated (WGSL declarations
 /// may come in any order; this one reads top-down), with their text.
-pub const FILES: [(&str, &str); 8] = [
+pub const FILES: [(&str, &str); 9] = [
     (
         "arith.wgsl",
         include_str!("../../shaders/integrate/arith.wgsl"),
@@ -40,6 +41,10 @@ pub const FILES: [(&str, &str); 8] = [
     (
         "advance.wgsl",
         include_str!("../../shaders/integrate/advance.wgsl"),
+    ),
+    (
+        "measure.wgsl",
+        include_str!("../../shaders/integrate/measure.wgsl"),
     ),
     (
         "entry.wgsl",
@@ -216,7 +221,7 @@ pub fn prelude(variant: Variant) -> String {
          {constants}\n{helpers}\n{COMMON_HELPERS}\n{inverse}\n",
         limiter = variant.loop_limiter,
         workgroup = workgroup_size(),
-        constants = constants::wgsl_constants(),
+        constants = constants::wgsl_constants() + &measure::wgsl_constants(),
         inverse = inverse_integer_fn(),
     )
 }
@@ -334,6 +339,7 @@ mod tests {
             ("events.wgsl", include_str!("../cpu/integrate/events.rs")),
             ("step.wgsl", include_str!("../cpu/integrate/step.rs")),
             ("advance.wgsl", include_str!("../cpu/integrate/mod.rs")),
+            ("measure.wgsl", include_str!("../cpu/integrate/measure.rs")),
         ];
         // Shader only: WGSL has no Option, closures, methods or
         // is_finite, splits some expressions into functions, and f32 needs
@@ -368,6 +374,13 @@ mod tests {
             "positions_at",
             "round_half_even",
             "sample_flow",
+            // The host's part of the measurement: the common period, the
+            // first batch, the tolerances (folded into Coefficients).
+            "common_period",
+            "is_whole",
+            "first_batch_length",
+            "repeat_tolerances",
+            "wgsl_constants",
         ];
         for (wgsl_name, rust_text) in rust {
             let (_, wgsl_text) = FILES.iter().find(|(n, _)| *n == wgsl_name).unwrap();

@@ -8,10 +8,12 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
+use pidm::cpu::integrate::constants::STATUS_NOT_STEADY;
 use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::gpu::{BatchOptions, GpuContext, GpuOutcome, Precision, run_batch, run_batch_with};
 use pidm::measurement::window_displacement as displacement;
-use pidm::model::{Axis, Instance};
+use pidm::measurement::{Measured, reduce};
+use pidm::model::{Axis, Instance, Measure};
 
 /// Allowed f32 error per axis: 0.005 um + 1 % of the CPU step [um].
 fn f32_allowance(cpu_step_um: f64) -> f64 {
@@ -759,6 +761,92 @@ fn extreme_points_are_finite_and_match_the_cpu_or_say_why_not() {
                             names[k]
                         );
                     }
+                }
+            }
+        }
+    }
+}
+
+/// Steady measurements on the GPU measure as the CPU does (MODEL.md
+/// section 4): in f64 the same lags and steps within [`F64_ALLOWANCE`] on
+/// periodic instances and the same statuses; every other value within
+/// three combined standard errors + 0.002 um of the CPU's (f32: plus its
+/// allowance). Short slices (the loop limiter's rollback of a period end)
+/// and a slow tail that the CPU continues from the GPU's accumulators give
+/// the same results.
+#[test]
+fn steady_measurements_match_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let steady = |fx: f64, fy: f64, vy: f64, tolerance: f64, max_cycles: u32| {
+        let mut inst = Instance::TABLE1;
+        inst.axes[0].frequency = fx;
+        inst.axes[1].frequency = fy;
+        inst.axes[1].voltage = vy;
+        inst.cycles = max_cycles;
+        inst.measure = Measure::Steady {
+            step_tolerance: tolerance,
+        };
+        inst
+    };
+    let mut phased = steady(10.0, 10.0, 100.0, 1e-8, 2000);
+    phased.axes[1].phase = 0.3;
+    let instances = [
+        steady(10.0, 10.0, 100.0, 1e-8, 2000),
+        phased,
+        steady(10.0, 15.0, 100.0, 1e-8, 2000),
+        steady(10.0, 14.0, 100.0, 1e-8, 2000),
+        steady(10.0, 20.0, 50.0, 1e-8, 2000),
+        steady(10.0, 10.0, 0.0, 1e-8, 2000),
+        // Quasi-periodic: converged statistically, and cut at max_cycles.
+        steady(10.0, 10.0 * 3f64.sqrt(), 100.0, 3e-8, 2000),
+        steady(10.0, 10.0 * 3f64.sqrt(), 100.0, 1e-8, 12),
+    ];
+    let settings = Settings::default();
+    let cpu: Vec<Measured> = instances
+        .iter()
+        .map(|inst| reduce(inst, &run_instance(inst, &settings)))
+        .collect();
+    assert!(cpu[..6].iter().all(|m| m.lag > 0), "{cpu:?}");
+    assert_eq!(cpu[7].status, STATUS_NOT_STEADY);
+    let tail = BatchOptions {
+        slice_iterations: 64,
+        cpu_tail: Some(2),
+        ..BatchOptions::default()
+    };
+    for precision in precisions(ctx) {
+        for (label, options) in [("default", BatchOptions::default()), ("tail", tail)] {
+            let gpu = gpu_batch(ctx, &instances, &settings, precision, &options);
+            for (k, (inst, (c, g))) in instances.iter().zip(cpu.iter().zip(&gpu)).enumerate() {
+                let name = format!("{label} {precision} #{k}");
+                let step =
+                    |travel: f64, span: f64, i: usize| inst.measure_over(i, travel, span).1 * 1e6;
+                if precision == Precision::F64 {
+                    assert_eq!((g.status, g.lag), (c.status, c.lag), "{name}: {g:?} {c:?}");
+                }
+                for i in 0..2 {
+                    let (a, b) = (
+                        step(g.displacement[i], g.span, i),
+                        step(c.travel[i], c.span, i),
+                    );
+                    let bound = if precision == Precision::F64 && c.lag > 0 {
+                        F64_ALLOWANCE
+                    } else {
+                        let se = 3.0 * (g.se[i] + c.se[i]) * 1e6 + 0.002;
+                        match precision {
+                            Precision::F64 => se,
+                            Precision::F32 => se + f32_allowance(b),
+                        }
+                    };
+                    assert!(
+                        (a - b).abs() <= bound,
+                        "{name} axis {i}: GPU {a} um (lag {}, status {}), CPU {b} um (lag {}), \
+                         bound {bound}",
+                        g.lag,
+                        g.status,
+                        c.lag
+                    );
                 }
             }
         }

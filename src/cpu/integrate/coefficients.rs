@@ -167,8 +167,9 @@ impl Coefficients {
         let cycles_per_period = per_axis(&|a| a.frequency * period);
         let step_tolerance = inst.measure.step_tolerance();
         let se_limit = cycles_per_period * step_tolerance;
+        let deflection = (amplitude.abs() * stiffness.map(|k| 1.0 / k)).max_element();
         let (repeat_x, repeat_v) =
-            measure::repeat_tolerances(settings.tolerance, slip.rate.max_element());
+            measure::repeat_tolerances(settings.tolerance, deflection, slip.rate.max_element());
         Coefficients {
             stiffness,
             damping,

@@ -60,9 +60,12 @@ pub const BEAT_ORDER: u32 = 8;
 /// anything the recurrence test sees.
 pub const COMMENSURATE: f64 = 1e-9;
 /// The recurrence test's position tolerance per radian of the integrator's
-/// tolerance [m/rad]: the default tolerance 1e-4 rad gives 1e-10 m, the
-/// integrator's own error in a step (about tolerance / 4 micrometres).
-pub const REPEAT_METRES_PER_RADIAN: f64 = 1e-6;
+/// tolerance, relative to the largest static deflection of a stage under
+/// its drive amplitude (|delta V| / k): the default tolerance 1e-4 rad and
+/// Table 1's 60 um deflection give 6e-11 m, below the integrator's own
+/// error in a step (about tolerance / 4 micrometres). Relative, so it means
+/// the same in every unit system the shader computes in.
+pub const REPEAT_PER_RADIAN: f64 = 1e-2;
 
 /// The measurement is still running.
 pub const VERDICT_RUNNING: u32 = 0;
@@ -272,7 +275,7 @@ pub fn estimate(m: &Measure) -> Estimate {
     let range = (high - low) * inv_span;
     let se2 = if kept >= 2 {
         let inv_b = 1.0 / b;
-        let batch = squares * (inv_kept / (kept - 1) as f64) * (inv_b * inv_b);
+        let batch = squares * (inv_kept * (1.0 / (kept - 1) as f64)) * (inv_b * inv_b);
         batch + range * range
     } else {
         let largest = m.d_min.abs().zip(m.d_max.abs(), f64::max);
@@ -354,10 +357,11 @@ pub fn first_batch_length(cycles_per_period: Vec2, driven: [bool; 2], max_cycles
     slowest.ceil().min(max_cycles as f64).max(1.0) as u32
 }
 
-/// The recurrence test's tolerances: on positions [m] and on velocities
-/// [m/s] (positions times the fastest rate of the stage).
-pub fn repeat_tolerances(tolerance: f64, stage_rate: f64) -> (f64, f64) {
-    let x = REPEAT_METRES_PER_RADIAN * tolerance;
+/// The recurrence test's tolerances: on positions (relative to the
+/// largest static `deflection` of a stage) and on velocities (positions
+/// times the fastest rate of the stage), in the instance's units.
+pub fn repeat_tolerances(tolerance: f64, deflection: f64, stage_rate: f64) -> (f64, f64) {
+    let x = REPEAT_PER_RADIAN * tolerance * deflection;
     (x, x * stage_rate)
 }
 

@@ -1,0 +1,204 @@
+// Mirror of src/cpu/integrate/measure.rs: the per-period bookkeeping of a
+// steady measurement and the rule that stops its run. The host computes
+// the common period, the first batch length and the tolerances
+// (Coefficients) and reduces what is left here to the map's values
+// (src/measurement.rs); the shader keeps each instance's Measure in the
+// `measures` buffer and copies it in only at a period end.
+
+// The state at the end of one common period.
+struct Snapshot {
+    x_p: V2,
+    v_p: V2,
+    v_s: V2,
+    x_s: V2,
+    mode: u32,
+    _pad_u: u32,
+    _pad_v: vec2<u32>,
+}
+
+// The per-instance accumulators, as `pidm::cpu::integrate::Measure`.
+struct Measure {
+    last_x_s: V2,
+    batch_start: V2,
+    d_min: V2,
+    d_max: V2,
+    travel: V2,
+    sums: array<V2, BATCHES>,
+    snaps: array<Snapshot, SNAPSHOTS>,
+    next_end: u32,
+    measured: u32,
+    filled: u32,
+    batch_length: u32,
+    in_batch: u32,
+    snapshots: u32,
+    lag: u32,
+    verdict: u32,
+}
+
+fn initial_measure(c: Coefficients) -> Measure {
+    var m: Measure;
+    m.last_x_s = V2(0.0);
+    m.batch_start = V2(0.0);
+    m.d_min = V2(INFINITY);
+    m.d_max = V2(-INFINITY);
+    m.travel = V2(0.0);
+    m.next_end = 0u;
+    m.measured = 0u;
+    m.filled = 0u;
+    m.batch_length = c.batch_length;
+    m.in_batch = 0u;
+    m.snapshots = 0u;
+    m.lag = 0u;
+    m.verdict = VERDICT_RUNNING;
+    return m;
+}
+
+// Whether the state sits at a period end not processed yet (the caller
+// checks `c.steady` first and reads `next_end` from the instance's
+// Measure).
+fn at_period_end(c: Coefficients, st: State, next_end: u32) -> bool {
+    return c.steady == 1u && time_reached(st, c.period) && next_end == st.period;
+}
+
+fn period_end(c: Coefficients, st: ptr<function, State>, m: ptr<function, Measure>) {
+    (*m).next_end = (*st).period + 1u;
+    let ended = (*st).period + 1u;
+    if ended < c.settle {
+        return;
+    }
+    if ended > c.settle {
+        let d = (*st).x_s - (*m).last_x_s;
+        (*m).d_min = min((*m).d_min, d);
+        (*m).d_max = max((*m).d_max, d);
+        (*m).measured += 1u;
+        (*m).in_batch += 1u;
+        if (*m).in_batch == (*m).batch_length {
+            close_batch(m, (*st).x_s);
+        }
+    } else {
+        (*m).batch_start = (*st).x_s;
+    }
+    (*m).last_x_s = (*st).x_s;
+    if c.common_period > 0u && (ended - c.settle) % c.common_period == 0u {
+        recurrence(c, *st, m);
+    }
+    if (*m).verdict == VERDICT_RUNNING && (*m).in_batch == 0u && (*m).filled >= MIN_BATCHES {
+        let e = estimate(m);
+        if e.se2.x <= c.se_limit2.x && e.se2.y <= c.se_limit2.y {
+            (*m).verdict = VERDICT_CONVERGED;
+        }
+    }
+    if (*m).verdict != VERDICT_RUNNING {
+        (*st).measured = 1u;
+    }
+}
+
+fn close_batch(m: ptr<function, Measure>, x_s: V2) {
+    (*m).sums[(*m).filled] = x_s - (*m).batch_start;
+    (*m).filled += 1u;
+    (*m).batch_start = x_s;
+    (*m).in_batch = 0u;
+    if (*m).filled == BATCHES {
+        for (var j = 0u; j < BATCHES / 2u; j++) {
+            (*m).sums[j] = (*m).sums[2u * j] + (*m).sums[2u * j + 1u];
+        }
+        (*m).filled = BATCHES / 2u;
+        (*m).batch_length *= 2u;
+    }
+}
+
+fn recurrence(c: Coefficients, st: State, m: ptr<function, Measure>) {
+    let kept = min((*m).snapshots, SNAPSHOTS);
+    for (var back = 1u; back <= kept; back++) {
+        let s = (*m).snaps[((*m).snapshots - back) % SNAPSHOTS];
+        if s.mode == st.mode && close(st.x_p, s.x_p, c.repeat_x) && close(st.v_p, s.v_p, c.repeat_v)
+            && close(st.v_s, s.v_s, c.repeat_v) {
+            (*m).lag = back * c.common_period;
+            (*m).travel = st.x_s - s.x_s;
+            (*m).verdict = VERDICT_PERIODIC;
+            return;
+        }
+    }
+    var s: Snapshot;
+    s.x_p = st.x_p;
+    s.v_p = st.v_p;
+    s.v_s = st.v_s;
+    s.x_s = st.x_s;
+    s.mode = st.mode;
+    (*m).snaps[(*m).snapshots % SNAPSHOTS] = s;
+    (*m).snapshots += 1u;
+}
+
+fn close(a: V2, b: V2, tolerance: Real) -> bool {
+    return all(abs(a - b) <= V2(tolerance));
+}
+
+// The batch estimate of the mean travel per scene period.
+struct Estimate {
+    travel: V2,
+    span: u32,
+    se2: V2,
+}
+
+fn estimate(m: ptr<function, Measure>) -> Estimate {
+    let n = (*m).filled;
+    let cuts = mser_cut(m);
+    let cut = u32(max(cuts.x, cuts.y));
+    let kept = n - cut;
+    var total = V2(0.0);
+    for (var j = cut; j < n; j++) {
+        total = total + (*m).sums[j];
+    }
+    let b = Real((*m).batch_length);
+    let inv_kept = recip(Real(kept));
+    let mean = total * inv_kept;
+    var squares = V2(0.0);
+    var walk = V2(0.0);
+    var low = V2(0.0);
+    var high = V2(0.0);
+    for (var j = cut; j < n; j++) {
+        let e = (*m).sums[j] - mean;
+        squares = squares + e * e;
+        walk = walk + e;
+        low = min(low, walk);
+        high = max(high, walk);
+    }
+    let span = Real(kept) * b;
+    let inv_span = recip(span);
+    let range = (high - low) * inv_span;
+    var se2: V2;
+    if kept >= 2u {
+        let inv_b = recip(b);
+        let batch = squares * (inv_kept * recip(Real(kept - 1u))) * (inv_b * inv_b);
+        se2 = batch + range * range;
+    } else {
+        let largest = max(abs((*m).d_min), abs((*m).d_max));
+        se2 = largest * largest;
+    }
+    return Estimate(total, kept * (*m).batch_length, se2);
+}
+
+fn mser_cut(m: ptr<function, Measure>) -> V2 {
+    let n = (*m).filled;
+    var best = V2(INFINITY);
+    var cut = V2(0.0);
+    for (var d = 0u; d <= n / 2u; d++) {
+        let left = Real(n - d);
+        let inv_left = recip(left);
+        var total = V2(0.0);
+        for (var j = d; j < n; j++) {
+            total = total + (*m).sums[j];
+        }
+        let mean = total * inv_left;
+        var squares = V2(0.0);
+        for (var j = d; j < n; j++) {
+            let e = (*m).sums[j] - mean;
+            squares = squares + e * e;
+        }
+        let score = squares * (inv_left * inv_left);
+        let better = score < best;
+        best = select(best, score, better);
+        cut = select(cut, V2(Real(d)), better);
+    }
+    return cut;
+}
