@@ -334,7 +334,7 @@ fn scene_integrations(scene: &Scene) -> Vec<Instance> {
 /// `out_dir` as `accuracy_<name>.h5` and `.png`, and summarised in
 /// `accuracy.md`.
 pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: bool) -> Result<()> {
-    use crate::accuracy::{self, Point, Report, reference_note};
+    use crate::accuracy::{self, Report};
     let defaults = [PathBuf::from("sweeps/paper.toml")];
     let paths = if paths.is_empty() {
         &defaults[..]
@@ -386,30 +386,7 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
             scene.name,
             instances.len()
         );
-        println!(
-            "  {:42} {:>10} {:>14} {:>14} {:>10}",
-            "method", "setting", "max err [um]", "rms err [um]", "wall [s]"
-        );
-        let (points, references) =
-            accuracy::study(&instances, reference, &methods, &mut |p: &Point| {
-                println!(
-                    "  {:42} {:>10.0e} {:>14.3e} {:>14.3e} {:>10.4}{}",
-                    p.method,
-                    p.setting,
-                    p.max_error_um,
-                    p.rms_error_um,
-                    p.wall_s,
-                    if p.failed > 0 {
-                        format!("  ({} failed)", p.failed)
-                    } else {
-                        String::new()
-                    }
-                );
-            })?;
-        let note = reference_note(references, instances.len());
-        if !note.is_empty() {
-            println!("  {note}");
-        }
+        let (points, references) = study_and_print(&instances, &instances, reference, &methods)?;
         let h5 = out_dir.join(format!("accuracy_{}.h5", scene.name));
         let png = out_dir.join(format!("accuracy_{}.png", scene.name));
         accuracy::write_hdf5(&h5, &scene.name, &points)?;
@@ -420,10 +397,81 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
         )?;
         println!("  wrote {} and {}", h5.display(), png.display());
         report.add_scene(&scene.name, instances.len(), references, &methods, &points);
+        // The measurement, where two drive frequencies make it matter.
+        if accuracy::has_two_frequencies(&instances) {
+            let methods = [
+                accuracy::window_method(scene.settings, vec![10.0, 20.0, 50.0, 100.0]),
+                accuracy::steady_method(
+                    scene.settings,
+                    vec![1e-7, 3e-8, 1e-8, 3e-9],
+                    Measure::DEFAULT_MAX_CYCLES,
+                ),
+            ];
+            println!(
+                "accuracy: scene {:?}, the measurement: against steady runs to {:e} m, at most {} \
+                 periods",
+                scene.name,
+                accuracy::MEASUREMENT_REFERENCE_TOLERANCE,
+                accuracy::MEASUREMENT_REFERENCE_MAX_CYCLES
+            );
+            let long = accuracy::measurement_reference(&instances);
+            let (points, references) =
+                study_and_print(&instances, &long, scene.settings, &methods)?;
+            let h5 = out_dir.join(format!("accuracy_{}_measure.h5", scene.name));
+            let png = out_dir.join(format!("accuracy_{}_measure.png", scene.name));
+            accuracy::write_hdf5(&h5, &scene.name, &points)?;
+            accuracy::plot(
+                &png,
+                &format!("scene {}: measurement error against run time", scene.name),
+                &points,
+            )?;
+            println!("  wrote {} and {}", h5.display(), png.display());
+            report.add_measurement(&scene.name, instances.len(), references, &methods, &points);
+        }
     }
     let out = report.write(out_dir)?;
     println!("wrote {}", out.display());
     Ok(())
+}
+
+/// Runs one study and prints its points as they come.
+fn study_and_print(
+    instances: &[Instance],
+    reference_instances: &[Instance],
+    reference: crate::cpu::integrate::Settings,
+    methods: &[crate::accuracy::Method],
+) -> Result<(Vec<crate::accuracy::Point>, crate::accuracy::References)> {
+    use crate::accuracy::{self, Point, reference_note};
+    println!(
+        "  {:42} {:>10} {:>14} {:>14} {:>10}",
+        "method", "setting", "max err [um]", "rms err [um]", "wall [s]"
+    );
+    let (points, references) = accuracy::study(
+        instances,
+        reference_instances,
+        reference,
+        methods,
+        &mut |p: &Point| {
+            println!(
+                "  {:42} {:>10} {:>14.3e} {:>14.3e} {:>10.4}{}",
+                p.method,
+                accuracy::setting(p.setting),
+                p.max_error_um,
+                p.rms_error_um,
+                p.wall_s,
+                if p.failed > 0 {
+                    format!("  ({} failed)", p.failed)
+                } else {
+                    String::new()
+                }
+            );
+        },
+    )?;
+    let note = reference_note(references, instances.len());
+    if !note.is_empty() {
+        println!("  {note}");
+    }
+    Ok((points, references))
 }
 
 /// `pidm random-scene`: a points scene of seeded random instances (see

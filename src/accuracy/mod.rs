@@ -14,11 +14,17 @@ use plotters::prelude::*;
 use crate::backend::{Backend, CpuBackend};
 use crate::cpu::integrate::{STATUS_OK, Settings};
 use crate::cpu::karnopp;
+use crate::measurement::keeps_values;
 use crate::model::{AXES, Instance};
 use crate::sweep::Outcome;
 
+mod measurement;
 mod report;
-pub use report::{Report, reference_note};
+pub use measurement::{
+    MEASUREMENT_REFERENCE_MAX_CYCLES, MEASUREMENT_REFERENCE_TOLERANCE, has_two_frequencies,
+    measurement_reference, steady_method, window_method,
+};
+pub use report::{Report, reference_note, setting};
 
 /// One method of the study and how to run it at a setting.
 pub struct Method<'a> {
@@ -44,7 +50,8 @@ pub struct Point {
     pub rms_error_um: f64,
     /// Wall time for all instances on one thread [s].
     pub wall_s: f64,
-    /// Instances that did not finish normally.
+    /// Instances that did not finish normally ("not steady" ones among
+    /// them: their values are compared too, as a map shows them).
     pub failed: usize,
 }
 
@@ -137,14 +144,19 @@ const REFERENCE_LOOSENINGS: [f64; 2] = [10.0, 100.0];
 /// Runs the study. An instance whose reference run does not finish normally
 /// is rerun 10 and then 100 times looser; one that fails at all three is
 /// left out of every comparison. The returned counts say how many.
+/// `reference_instances` are the instances as the reference measures them
+/// (the instances themselves for a study of the integrator; long steady
+/// runs for a study of the measurement).
 pub fn study(
     instances: &[Instance],
+    reference_instances: &[Instance],
     reference_settings: Settings,
     methods: &[Method],
     log: &mut dyn FnMut(&Point),
 ) -> Result<(Vec<Point>, References)> {
     let reference_backend = CpuBackend::new(None)?;
-    let mut reference_outcomes = reference_backend.run(instances, &reference_settings, &|_| {})?;
+    let mut reference_outcomes =
+        reference_backend.run(reference_instances, &reference_settings, &|_| {})?;
     let mut counts = References::default();
     for factor in REFERENCE_LOOSENINGS {
         let failed: Vec<usize> = (0..instances.len())
@@ -153,7 +165,7 @@ pub fn study(
         if failed.is_empty() {
             break;
         }
-        let retry: Vec<Instance> = failed.iter().map(|&k| instances[k]).collect();
+        let retry: Vec<Instance> = failed.iter().map(|&k| reference_instances[k]).collect();
         let looser = Settings {
             tolerance: reference_settings.tolerance * factor,
             ..reference_settings
@@ -191,8 +203,12 @@ pub fn study(
                 if excluded[k] {
                     continue;
                 }
+                // "Not steady" values are on the map: they are compared,
+                // and counted as failed to converge.
                 if outcomes[k].status != STATUS_OK {
                     failed += 1;
+                }
+                if !keeps_values(outcomes[k].status) {
                     continue;
                 }
                 for axis in 0..AXES {

@@ -40,11 +40,65 @@ impl Report {
         methods: &[Method<'_>],
         points: &[Point],
     ) {
+        let title = format!("Scene `{name}` ({integrations} integrations)");
+        let picture = format!("accuracy_{name}.png");
+        self.add_section(
+            &title,
+            &picture,
+            "",
+            integrations,
+            references,
+            methods,
+            points,
+        );
+    }
+
+    /// Adds the measurement study of one scene: fixed windows and steady
+    /// measurements against the long-run mean step.
+    pub fn add_measurement(
+        &mut self,
+        name: &str,
+        integrations: usize,
+        references: References,
+        methods: &[Method<'_>],
+        points: &[Point],
+    ) {
+        let title = format!("Scene `{name}`: the measurement ({integrations} integrations)");
+        let picture = format!("accuracy_{name}_measure.png");
+        let intro = format!(
+            "Errors here are against the long-run mean step (MODEL.md section 4): a steady \
+             measurement of every instance to a standard error of {:.0e} m per own drive \
+             cycle, at most {} periods, at the scene's integration tolerance. Failed counts \
+             \"not steady\" instances, whose estimates are compared too.\n\n",
+            super::MEASUREMENT_REFERENCE_TOLERANCE,
+            super::MEASUREMENT_REFERENCE_MAX_CYCLES
+        );
+        self.add_section(
+            &title,
+            &picture,
+            &intro,
+            integrations,
+            references,
+            methods,
+            points,
+        );
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn add_section(
+        &mut self,
+        title: &str,
+        picture: &str,
+        intro: &str,
+        integrations: usize,
+        references: References,
+        methods: &[Method<'_>],
+        points: &[Point],
+    ) {
         let md = &mut self.markdown;
         let _ = writeln!(
             md,
-            "## Scene `{name}` ({integrations} integrations)\n\n\
-             ![error against time](accuracy_{name}.png)\n"
+            "## {title}\n\n{intro}![error against time]({picture})\n"
         );
         let note = reference_note(references, integrations);
         if !note.is_empty() {
@@ -52,13 +106,19 @@ impl Report {
         }
         let _ = writeln!(
             md,
-            "| method | setting | max error [um] | rms error [um] | wall [s] |\n|---|---|---|---|---|"
+            "| method | setting | max error [um] | rms error [um] | wall [s] | failed |\n\
+             |---|---|---|---|---|---|"
         );
         for p in points {
             let _ = writeln!(
                 md,
-                "| {} | {:.0e} | {:.2e} | {:.2e} | {:.4} |",
-                p.method, p.setting, p.max_error_um, p.rms_error_um, p.wall_s
+                "| {} | {} | {:.2e} | {:.2e} | {:.4} | {} |",
+                p.method,
+                setting(p.setting),
+                p.max_error_um,
+                p.rms_error_um,
+                p.wall_s,
+                p.failed
             );
         }
         let _ = writeln!(md);
@@ -67,8 +127,11 @@ impl Report {
                 let _ = match cheapest(points, &method.name, target) {
                     Some(p) => writeln!(
                         md,
-                        "- {}: {target} um is reached at {} = {:.0e} in {:.4} s.",
-                        method.name, method.setting_name, p.setting, p.wall_s
+                        "- {}: {target} um is reached at {} = {} in {:.4} s.",
+                        method.name,
+                        method.setting_name,
+                        setting(p.setting),
+                        p.wall_s
                     ),
                     None => writeln!(
                         md,
@@ -89,6 +152,16 @@ impl Report {
             .with_context(|| format!("cannot write {}", temp.display()))?;
         std::fs::rename(&temp, &out).with_context(|| format!("cannot write {}", out.display()))?;
         Ok(out)
+    }
+}
+
+/// A setting as the tables write it: whole numbers (periods, steps) as
+/// they are, others in scientific notation.
+pub fn setting(value: f64) -> String {
+    if value >= 1.0 && value.fract() == 0.0 && value < 1e9 {
+        format!("{value:.0}")
+    } else {
+        format!("{value:.0e}")
     }
 }
 

@@ -408,30 +408,30 @@ fn bad_scenes_are_refused_with_clear_messages() {
         // Too many steps says so, with the maximum.
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 9223372036854775807 }",
-            "axis.x.voltage.steps = 9223372036854775807: too large; expected at most 214748364 \
+            "axis.x.voltage.steps = 9223372036854775807: too large; expected at most 134217728 \
              steps",
         ),
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 1e300 }",
-            "axis.x.voltage.steps = 1e300: too large; expected at most 214748364 steps",
+            "axis.x.voltage.steps = 1e300: too large; expected at most 134217728 steps",
         ),
         (
-            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 214748365 }",
-            "axis.x.voltage.steps = 214748365: too large",
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 134217729 }",
+            "axis.x.voltage.steps = 134217729: too large",
         ),
         // The memory budget.
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 100000 }\n[axis.y]\nvoltage = { from = 0, to = 1, steps = 100000 }",
-            "do not fit the memory budget: grid 100000 x 100000 = 10000000000 instances x 40 bytes",
+            "do not fit the memory budget: grid 100000 x 100000 = 10000000000 instances x 64 bytes",
         ),
         (
-            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 214748364 }\n\
-             gain = { from = 0, to = 1, steps = 214748364 }\n\
-             frequency = { from = 1, to = 2, steps = 214748364 }\n\
-             duty = { from = 0.5, to = 1, steps = 214748364 }\n\
-             phase = { from = 0, to = 1, steps = 214748364 }",
-            "grid 214748364 x 214748364 x 214748364 x 214748364 x 214748364 = more than \
-             340282366920938463463374607431768211455 instances x 40 bytes per instance = more \
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 134217728 }\n\
+             gain = { from = 0, to = 1, steps = 134217728 }\n\
+             frequency = { from = 1, to = 2, steps = 134217728 }\n\
+             duty = { from = 0.5, to = 1, steps = 134217728 }\n\
+             phase = { from = 0, to = 1, steps = 134217728 }",
+            "grid 134217728 x 134217728 x 134217728 x 134217728 x 134217728 = more than \
+             340282366920938463463374607431768211455 instances x 64 bytes per instance = more \
              than 340282366920938463463374607431768211455 bytes, over the budget",
         ),
         // Stage definitions.
@@ -983,10 +983,10 @@ fn memory_budget_names_shape_count_and_bytes() {
     let message = error.to_string();
     for needle in [
         "61 x 61 = 3721 instances",
-        // Four f64 and two u32 maps, two f64 and one u32 baselines: the
+        // Six f64 and four u32 maps, two f64 and one u32 baselines: the
         // bytes the result file holds per instance.
-        "60 bytes",
-        "223260 bytes",
+        "84 bytes",
+        "312564 bytes",
         "1000 bytes",
     ] {
         assert!(
