@@ -47,7 +47,7 @@ fn check_periodic(name: &str, inst: Instance, lag: u32) {
     let got = measure(&inst);
     assert_eq!(got.status, STATUS_OK, "{name}: {got:?}");
     assert!(
-        got.lag > 0 && got.lag % lag == 0,
+        got.lag > 0 && got.lag.is_multiple_of(lag),
         "{name}: lag {} is not a multiple of {lag} ({got:?})",
         got.lag
     );
@@ -99,7 +99,7 @@ fn ten_and_fourteen_hertz_give_minus_075_um_whatever_settle_and_tolerance() {
             let got = measure(&inst);
             let (x, y) = (step_um(&inst, &got, 0), step_um(&inst, &got, 1));
             assert_eq!(got.status, STATUS_OK);
-            assert_eq!(got.lag % 5, 0, "settle {settle}: {got:?}");
+            assert!(got.lag.is_multiple_of(5), "settle {settle}: {got:?}");
             assert!((y + 0.75).abs() < 0.005, "settle {settle}: step_y {y} um");
             assert!((x - 0.60).abs() < 0.005, "settle {settle}: step_x {x} um");
         }

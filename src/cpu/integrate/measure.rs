@@ -169,7 +169,7 @@ pub fn period_end(c: &Coefficients, st: &mut State, m: &mut Measure) {
         m.batch_start = st.x_s;
     }
     m.last_x_s = st.x_s;
-    if c.common_period > 0 && (ended - c.settle) % c.common_period == 0 {
+    if c.common_period > 0 && (ended - c.settle).is_multiple_of(c.common_period) {
         recurrence(c, st, m);
     }
     if m.verdict == VERDICT_RUNNING && m.in_batch == 0 && m.filled >= MIN_BATCHES {
