@@ -11,6 +11,7 @@ pub mod gpu;
 pub mod model;
 pub mod output;
 pub mod plot;
+pub mod progress;
 pub mod random;
 pub mod report;
 pub mod run;

@@ -13,6 +13,7 @@ mod gpu;
 mod output;
 mod plot;
 mod plot_fuzz;
+mod progress;
 mod reference;
 mod scene;
 mod scene_fuzz;
