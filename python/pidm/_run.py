@@ -252,65 +252,99 @@ def _after_interrupt(result: Path, existed: bool, interrupt: BaseException) -> N
 
 def _watch(command: list[str], progress: ProgressArg) -> tuple[int, str]:
     """Runs pidm, shows its JSON progress lines, and returns its exit status and
-    the rest of its stderr. On KeyboardInterrupt stops it (SIGINT, then SIGKILL)
-    and raises again."""
-    child = subprocess.Popen(
-        command,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        errors="replace",
-        bufsize=1,
-    )
-    records: queue.Queue[dict[str, Any]] = queue.Queue()
-    text: list[str] = []
+    the rest of its stderr. On Ctrl-C (or any exception) stops it (SIGINT, then
+    SIGKILL) and raises KeyboardInterrupt (the exception)."""
+    interrupted = threading.Event()
+    # Set by Ctrl-C and when pidm closes its stderr (it ends).
+    wake = threading.Event()
+    with _sigint_as_flag(interrupted, wake):
+        child = subprocess.Popen(
+            command,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            errors="replace",
+            bufsize=1,
+        )
+        records: queue.Queue[dict[str, Any]] = queue.Queue()
+        text: list[str] = []
 
-    def read_stderr() -> None:
-        assert child.stderr is not None
-        for line in child.stderr:
-            if line.startswith("{"):
-                try:
-                    record = json.loads(line)
-                except ValueError:
-                    record = None
-                if isinstance(record, dict) and "done" in record and "total" in record:
-                    records.put(record)
-                    continue
-            text.append(line)
-
-    def read_stdout() -> None:
-        assert child.stdout is not None
-        for _ in child.stdout:
-            pass
-
-    readers = [
-        threading.Thread(target=read_stderr, daemon=True),
-        threading.Thread(target=read_stdout, daemon=True),
-    ]
-    for reader in readers:
-        reader.start()
-    show = _Shower(progress)
-    try:
-        while True:
+        def read_stderr() -> None:
+            assert child.stderr is not None
             try:
-                returncode = child.wait(timeout=0.1)
-            except subprocess.TimeoutExpired:
-                returncode = None
+                for line in child.stderr:
+                    if line.startswith("{"):
+                        try:
+                            record = json.loads(line)
+                        except ValueError:
+                            record = None
+                        if isinstance(record, dict) and "done" in record and "total" in record:
+                            records.put(record)
+                            continue
+                    text.append(line)
+            finally:
+                wake.set()
+
+        def read_stdout() -> None:
+            assert child.stdout is not None
+            for _ in child.stdout:
+                pass
+
+        readers = [
+            threading.Thread(target=read_stderr, daemon=True),
+            threading.Thread(target=read_stdout, daemon=True),
+        ]
+        show = _Shower(progress)
+        try:
+            for reader in readers:
+                reader.start()
+            while True:
+                if interrupted.is_set():
+                    raise KeyboardInterrupt
+                returncode = child.poll()
+                show.drain(records)
+                if returncode is not None:
+                    break
+                if wake.wait(0.1) and not interrupted.is_set():
+                    # stderr closed: pidm is ending; poll until it has.
+                    child.wait()
+            for reader in readers:
+                reader.join()
             show.drain(records)
-            if returncode is not None:
-                break
-        for reader in readers:
-            reader.join()
-        show.drain(records)
-    except BaseException:
-        _stop(child)
-        for reader in readers:
-            reader.join(timeout=1.0)
-        raise
-    finally:
-        show.close()
+        except BaseException:
+            _stop(child)
+            for reader in readers:
+                if reader.is_alive() or reader.ident is not None:
+                    reader.join(timeout=1.0)
+            raise
+        finally:
+            show.close()
     return returncode, "".join(text)
+
+
+@contextlib.contextmanager
+def _sigint_as_flag(*flags: threading.Event) -> Iterator[None]:
+    """While a run is watched, SIGINT (Ctrl-C) only sets a flag, so the watching
+    loop stops the child and raises KeyboardInterrupt itself, never from inside
+    subprocess's bookkeeping. Only in the main thread, and only where SIGINT raises
+    KeyboardInterrupt (Python's default handler); otherwise SIGINT is left as it is."""
+
+    def on_sigint(_signum: int, _frame: Any) -> None:
+        for flag in flags:
+            flag.set()
+
+    previous = None
+    if (
+        threading.current_thread() is threading.main_thread()
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    ):
+        previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        yield
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
 
 
 def _stop(child: subprocess.Popen) -> None:

@@ -1,8 +1,8 @@
 """Shared helpers of the Python API tests.
 
 They run the pidm binary named by PIDM_BINARY (tests/it/python.rs sets it to the
-binary cargo built) and import the package from python/ (PYTHONPATH), so they
-test this checkout. A missing optional package (tqdm, matplotlib) skips its test
+binary cargo built) and import the package from python/ of this checkout (also
+in the Python processes they start). A missing optional package (tqdm, matplotlib) skips its test
 on a developer's machine and fails it under CI=true.
 """
 
@@ -11,11 +11,15 @@ from __future__ import annotations
 import importlib
 import os
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
+
+# The package of this checkout, before any installed copy.
+sys.path.insert(0, str(ROOT / "python"))
 
 #: A small 2 x 3 grid of voltages with baselines and one trajectory (milliseconds).
 GRID = {
@@ -53,6 +57,15 @@ def require(module: str):
         if os.environ.get("CI"):
             pytest.fail(f"{module} is not installed; CI must install tests/requirements.txt")
         pytest.skip(f"{module} is not installed (pip install -r tests/requirements.txt)")
+
+
+def child_env(**extra: str) -> dict[str, str]:
+    """The environment of a Python child process: this one's, with python/ of this
+    checkout first on PYTHONPATH (as an absolute path: the child may run elsewhere)."""
+    paths = [str(ROOT / "python")]
+    if os.environ.get("PYTHONPATH"):
+        paths.append(os.environ["PYTHONPATH"])
+    return dict(os.environ, PYTHONPATH=os.pathsep.join(paths), **extra)
 
 
 @pytest.fixture(scope="session")
