@@ -14,6 +14,7 @@ mod output;
 mod plot;
 mod plot_fuzz;
 mod progress;
+mod python;
 mod reference;
 mod scene;
 mod scene_fuzz;
