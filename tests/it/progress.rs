@@ -275,3 +275,36 @@ fn check_json_gives_the_grid_and_the_cost() {
     let err = String::from_utf8_lossy(&bad.stderr);
     assert!(err.contains("axis.x.voltag"), "{err}");
 }
+
+/// The exit statuses are documented where users look: `--help` of pidm and
+/// of `pidm run`, and the README.
+#[test]
+fn help_and_readme_list_the_exit_statuses() {
+    let dir = tempfile::tempdir().unwrap();
+    for args in [&["--help"][..], &["run", "--help"]] {
+        let out = pidm(args, dir.path());
+        assert!(out.status.success());
+        let help = String::from_utf8_lossy(&out.stdout);
+        let statuses = help
+            .split("Exit status:")
+            .nth(1)
+            .unwrap_or_else(|| panic!("{args:?}: no exit statuses in\n{help}"));
+        for code in ["0", "1", "2", "3", "130"] {
+            assert!(
+                statuses
+                    .lines()
+                    .any(|l| l.trim_start().starts_with(&format!("{code} "))),
+                "{args:?}: no exit status {code} in\n{help}"
+            );
+        }
+        assert!(statuses.contains("143 by SIGTERM"), "{help}");
+    }
+    let readme = include_str!("../../README.md");
+    let table = readme
+        .split("Exit statuses (also in `pidm --help`):")
+        .nth(1)
+        .expect("the README lists the exit statuses");
+    for row in ["| 0 |", "| 1 |", "| 2 |", "| 3 |", "| 130, 143 |"] {
+        assert!(table.contains(row), "README: no row {row}");
+    }
+}
