@@ -40,6 +40,9 @@ pub struct RunOptions {
 /// `pidm run`: prints a short summary and returns the number of instances
 /// that did not finish normally.
 pub fn run(opts: &RunOptions) -> Result<u64> {
+    // Ctrl-C and SIGTERM from here on stop the run through the checkpoint
+    // (exit 130 or 143), not by ending the process mid-write.
+    crate::run::install_interrupt_handler();
     let scene = Scene::load(&opts.scene)?;
     let selected = select_backend(
         opts.backend,
@@ -250,11 +253,25 @@ pub fn info() -> Result<()> {
     Ok(())
 }
 
-/// `pidm check`: validates and describes a scene without running it.
-pub fn check(path: &Path) -> Result<()> {
-    let scene = Scene::load(path)?;
-    scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
-    println!("{}", scene.describe());
+/// What `pidm check` finds out about a scene: its size and a cost estimate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CheckReport {
+    pub instances: u64,
+    /// Simulated time over every instance and distinct baseline [s].
+    pub simulated_s: f64,
+    /// The estimated cost [core-seconds] at [`NOMINAL_SIMULATED_PER_CORE`].
+    pub core_seconds: f64,
+    /// The cores of this machine.
+    pub cores: usize,
+    /// The estimated wall time on this machine's cores [s].
+    pub estimate_s: f64,
+    /// The times are upper bounds: a steady measurement stops as soon as
+    /// its steps are known.
+    pub upper_bound: bool,
+}
+
+/// Sizes up a scene and estimates its cost.
+pub fn check_report(scene: &Scene) -> CheckReport {
     let count = scene.instance_count();
     // Exact total simulated time for up to a million instances, else a
     // sample of evenly spaced ones.
@@ -287,8 +304,36 @@ pub fn check(path: &Path) -> Result<()> {
     }
     simulated = simulated * count as f64 / sample as f64 + baseline_time;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let estimate = simulated / (NOMINAL_SIMULATED_PER_CORE * cores as f64);
-    let (at_most, stops) = if steady {
+    CheckReport {
+        instances: count,
+        simulated_s: simulated,
+        core_seconds: simulated / NOMINAL_SIMULATED_PER_CORE,
+        cores,
+        estimate_s: simulated / (NOMINAL_SIMULATED_PER_CORE * cores as f64),
+        upper_bound: steady,
+    }
+}
+
+/// `pidm check`: validates and describes a scene without running it, as
+/// text or (`json`) as one JSON object on stdout (see [`check_json`]).
+pub fn check(path: &Path, json: bool) -> Result<()> {
+    let scene = Scene::load(path)?;
+    scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
+    let report = check_report(&scene);
+    if json {
+        println!("{}", check_json(&scene, &report));
+        return Ok(());
+    }
+    println!("{}", scene.describe());
+    let CheckReport {
+        instances,
+        simulated_s,
+        core_seconds,
+        cores,
+        estimate_s,
+        upper_bound,
+    } = report;
+    let (at_most, stops) = if upper_bound {
         (
             "at most ",
             "; a steady measurement stops as soon as its steps are known, often long before \
@@ -297,16 +342,63 @@ pub fn check(path: &Path) -> Result<()> {
     } else {
         ("", "")
     };
-    println!("instances: {count}");
-    println!("simulated time: {at_most}{simulated:.4e} s (baselines included{stops})");
+    println!("instances: {instances}");
+    println!("simulated time: {at_most}{simulated_s:.4e} s (baselines included{stops})");
     println!(
-        "estimated cost: {at_most}{:.3e} core-seconds, about {} on this machine's {cores} cores \
-         (at the nominal {NOMINAL_SIMULATED_PER_CORE} simulated s per wall s per core; \
+        "estimated cost: {at_most}{core_seconds:.3e} core-seconds, about {} on this machine's \
+         {cores} cores (at the nominal {NOMINAL_SIMULATED_PER_CORE} simulated s per wall s per \
+         core; \
          stiff or lightly damped stages cost more)",
-        simulated / NOMINAL_SIMULATED_PER_CORE,
-        human_duration(estimate)
+        human_duration(estimate_s)
     );
     Ok(())
+}
+
+/// `pidm check --json`: the scene's name, layout (`"grid"` with its axes:
+/// key, units, size, first and last value; or `"points"` with their
+/// labels), instance count, shape, baselines, trajectory count, the bytes
+/// of its output maps, and the cost estimate: simulated time
+/// (`simulated_s`), `core_seconds`, `estimate_s` on this machine's `cores`
+/// at `nominal_simulated_per_core_s`; `estimate_is_upper_bound` where a
+/// steady measurement may stop long before its `max_cycles`.
+pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
+    use serde_json::json;
+    let (layout, axes, labels) = match &scene.layout {
+        Layout::Grid { axes } => {
+            let axes: Vec<serde_json::Value> = axes
+                .iter()
+                .map(|a| {
+                    json!({
+                        "key": a.key,
+                        "units": a.units,
+                        "size": a.values.len(),
+                        "first": a.values.first(),
+                        "last": a.values.last(),
+                    })
+                })
+                .collect();
+            ("grid", axes, Vec::new())
+        }
+        Layout::Points { labels } => ("points", Vec::new(), labels.clone()),
+    };
+    json!({
+        "name": scene.name,
+        "layout": layout,
+        "instances": report.instances,
+        "shape": scene.shape(),
+        "axes": axes,
+        "labels": labels,
+        "baselines": scene.baselines,
+        "trajectories": scene.trajectories.len(),
+        "tolerance_rad": scene.settings.tolerance,
+        "output_bytes": scene.bytes_per_instance().saturating_mul(report.instances),
+        "simulated_s": report.simulated_s,
+        "core_seconds": report.core_seconds,
+        "cores": report.cores,
+        "estimate_s": report.estimate_s,
+        "estimate_is_upper_bound": report.upper_bound,
+        "nominal_simulated_per_core_s": NOMINAL_SIMULATED_PER_CORE,
+    })
 }
 
 /// Formats seconds for people.

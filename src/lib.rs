@@ -12,6 +12,7 @@ pub mod measurement;
 pub mod model;
 pub mod output;
 pub mod plot;
+pub mod progress;
 pub mod random;
 pub mod report;
 pub mod run;

@@ -10,9 +10,20 @@ use clap::{Parser, Subcommand};
 use pidm::shard::ShardSpec;
 use pidm::{backend, commands};
 
+/// The exit statuses, shown by `--help`.
+const EXIT_STATUS: &str = "\
+Exit status:
+  0    success
+  1    an error: a bad scene, a file that cannot be written, a GPU that fails
+  2    a usage error: an unknown command or flag, a missing argument
+  3    pidm run: some instance did not finish normally (/maps/status says why)
+  130  pidm run stopped by SIGINT (Ctrl-C), 143 by SIGTERM: the finished
+       instances stay in the checkpoint beside the output, and the command
+       printed on stderr (the same with --resume) continues the run";
+
 /// Maps how two-axis piezoelectric impact drives move.
 #[derive(Parser, Debug)]
-#[command(name = "pidm", version, about)]
+#[command(name = "pidm", version, about, after_help = EXIT_STATUS)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -21,6 +32,7 @@ struct Cli {
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Runs a scene and writes its step-displacement maps to HDF5.
+    #[command(after_help = EXIT_STATUS)]
     Run {
         /// The scene file (TOML).
         scene: PathBuf,
@@ -58,6 +70,12 @@ enum Command {
         /// (status 5, map entries 0). Costs about 3 times the run.
         #[arg(long)]
         verify: bool,
+        /// How progress is shown on stderr: bar (a bar with an ETA), jsonl
+        /// (one JSON object per line: done, total, elapsed_s, eta_s,
+        /// instances_per_s; the last has done == total) or none [default:
+        /// bar when stderr is a terminal, else none].
+        #[arg(long, value_enum)]
+        progress: Option<pidm::progress::ProgressMode>,
     },
     /// Joins the shard files of one scene (`pidm run --shard K/N`) into one
     /// map file, the same as a single run's.
@@ -75,6 +93,10 @@ enum Command {
     Check {
         /// The scene file (TOML).
         scene: PathBuf,
+        /// Print one JSON object instead: name, layout, axes, instances,
+        /// shape, baselines, output bytes and the cost estimate.
+        #[arg(long)]
+        json: bool,
     },
     /// Reruns points scenes (the paper's experiments) and writes a Markdown
     /// report: converged steps beside the paper's, invariants checked.
@@ -159,6 +181,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             resume,
             chunk_size,
             verify,
+            progress,
         } => {
             if chunk_size == Some(0) {
                 anyhow::bail!("--chunk-size must be at least 1");
@@ -175,6 +198,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                     resume,
                     chunk_size,
                     verify,
+                    progress,
                 },
             })?;
             if failed > 0 {
@@ -186,7 +210,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             }
         }
         Command::Merge { out, shards } => commands::merge(&out, &shards)?,
-        Command::Check { scene } => commands::check(&scene)?,
+        Command::Check { scene, json } => commands::check(&scene, json)?,
         Command::Plot { file, out } => pidm::plot::run(&file, out.as_deref())?,
         Command::Info => commands::info()?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
@@ -207,6 +231,28 @@ fn run(cli: Cli) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// This process's command line with `--resume` added (once), quoted for a
+/// POSIX shell.
+fn resume_command() -> String {
+    let mut args: Vec<String> = std::env::args_os()
+        .map(|a| shell_quote(&a.to_string_lossy()))
+        .collect();
+    if !args.iter().any(|a| a == "--resume") {
+        args.push("--resume".into());
+    }
+    args.join(" ")
+}
+
+/// `text` as one word of a POSIX shell command.
+fn shell_quote(text: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "_-./=:,+@%".contains(c);
+    if !text.is_empty() && text.chars().all(plain) {
+        text.to_string()
+    } else {
+        format!("'{}'", text.replace('\'', "'\\''"))
+    }
+}
+
 fn main() -> ExitCode {
     // Output piped into a reader that stops early (`pidm check | head`)
     // ends the process quietly, as it does every Unix tool, instead of a
@@ -222,6 +268,20 @@ fn main() -> ExitCode {
             eprintln!("pidm: error: {err}");
             for cause in err.chain().skip(1) {
                 eprintln!("  caused by: {cause}");
+            }
+            // A run stopped by SIGINT or SIGTERM exits with 128 + the
+            // signal, as a shell reports a process the signal ended.
+            if let Some(signal) = pidm::run::stop_signal() {
+                let name = if signal == libc::SIGTERM {
+                    "SIGTERM"
+                } else {
+                    "SIGINT"
+                };
+                eprintln!(
+                    "pidm: stopped by {name}; continue the run with:\n  {}",
+                    resume_command()
+                );
+                return ExitCode::from(128 + signal.clamp(0, 127) as u8);
             }
             ExitCode::FAILURE
         }

@@ -4,16 +4,16 @@
 //! every caller that wants a result file go through [`run_scene`].
 
 use std::collections::BTreeMap;
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicI32, Ordering};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::backend::{Backend, Hardware};
 use crate::checkpoint::{self, Checkpoint};
 use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo};
+use crate::progress::{Progress, ProgressMode};
 use crate::scene::{MAP_MEMORY_BUDGET_BYTES, Scene};
 use crate::shard::ShardSpec;
 use crate::sweep::{self, Plan, Record, Summary};
@@ -31,30 +31,45 @@ pub struct RunResult {
     pub from_checkpoint: u64,
 }
 
-/// Installs the Ctrl-C handler once: it asks running backends to stop, and
-/// the sweep then ends without writing a result file.
+/// The signal that stopped the run (SIGINT or SIGTERM), 0 while none did.
+static STOP_SIGNAL: AtomicI32 = AtomicI32::new(0);
+
+/// The handler of SIGINT and SIGTERM: it records the first signal and asks
+/// running backends to stop. Only atomic stores, so it is
+/// async-signal-safe.
+extern "C" fn on_stop_signal(signal: libc::c_int) {
+    let _ = STOP_SIGNAL.compare_exchange(0, signal, Ordering::SeqCst, Ordering::SeqCst);
+    crate::sweep::request_interrupt();
+}
+
+/// Installs the SIGINT (Ctrl-C) and SIGTERM handler once: it asks running
+/// backends to stop, and the sweep then ends without writing a result
+/// file, its finished chunks kept in the checkpoint. [`stop_signal`] says
+/// which signal it was, for the exit code (128 + the signal's number).
 pub fn install_interrupt_handler() {
     static INSTALLED: std::sync::Once = std::sync::Once::new();
     INSTALLED.call_once(|| {
-        // A missing handler only means Ctrl-C ends the process at once,
-        // which also leaves no output.
-        let _ = ctrlc::set_handler(crate::sweep::request_interrupt);
+        for signal in [libc::SIGINT, libc::SIGTERM] {
+            // SAFETY: a zeroed sigaction is valid (empty mask, no flags);
+            // the handler only stores to atomics. A failure only means the
+            // signal ends the process at once, which also leaves no output.
+            unsafe {
+                let mut action: libc::sigaction = std::mem::zeroed();
+                action.sa_sigaction = on_stop_signal as extern "C" fn(libc::c_int) as usize;
+                action.sa_flags = libc::SA_RESTART;
+                libc::sigemptyset(&mut action.sa_mask);
+                libc::sigaction(signal, &action, std::ptr::null_mut());
+            }
+        }
     });
 }
 
-fn progress_bar(total: u64) -> ProgressBar {
-    if !std::io::stderr().is_terminal() {
-        return ProgressBar::hidden();
+/// The signal (SIGINT or SIGTERM) that asked the run to stop, if one did.
+pub fn stop_signal() -> Option<i32> {
+    match STOP_SIGNAL.load(Ordering::SeqCst) {
+        0 => None,
+        signal => Some(signal),
     }
-    let bar = ProgressBar::new(total);
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40}] {pos}/{len} instances ({per_sec}, eta {eta})",
-        )
-        .expect("valid progress template")
-        .progress_chars("=> "),
-    );
-    bar
 }
 
 /// Which integrator runs a scene's instances: every backend runs the 2-DOF
@@ -80,6 +95,9 @@ pub struct RunScope {
     /// Rerun every instance 100 times tighter and mark the unconverged
     /// ones (status 5).
     pub verify: bool,
+    /// How progress is shown on stderr [default: the bar on a terminal,
+    /// else nothing].
+    pub progress: Option<ProgressMode>,
 }
 
 /// Everything that must match for a checkpoint to be resumed: results are
@@ -200,8 +218,14 @@ pub fn run_scene(
         baselines: scene.baselines,
         verify: scope.verify,
     };
-    let bar = progress_bar(plan.count());
     install_interrupt_handler();
+    let progress = Progress::new(
+        scope
+            .progress
+            .unwrap_or_else(ProgressMode::default_for_stderr),
+        count - plan.count(),
+        count,
+    );
     let started = Instant::now();
     let to_compute = plan.count();
     let mut computed = 0;
@@ -209,7 +233,7 @@ pub fn run_scene(
         &plan,
         backend,
         scope.chunk_size.unwrap_or_else(|| backend.chunk_size()),
-        &|n| bar.inc(n),
+        &|n| progress.inc(n),
         &mut |start, records| {
             if keep_records {
                 for (k, r) in records.iter().enumerate() {
@@ -229,7 +253,10 @@ pub fn run_scene(
             Ok(())
         },
     );
-    bar.finish_and_clear();
+    match &result {
+        Ok(_) => progress.finish(),
+        Err(_) => progress.abandon(),
+    }
     let new = result.with_context(|| {
         format!(
             "the finished instances are kept in {}; the same command with --resume \

@@ -13,6 +13,8 @@ mod gpu;
 mod output;
 mod plot;
 mod plot_fuzz;
+mod progress;
+mod python;
 mod reference;
 mod scene;
 mod scene_fuzz;

@@ -1,0 +1,44 @@
+"""pidm from Python: run scenes of the 2-DOF stick-slip piezo drive simulator and get
+their maps as xarray Datasets.
+
+The package runs the pidm binary as a child process (``$PIDM_BINARY``, else
+``pidm`` on ``PATH``; build one with ``cargo build --release``) and reads its HDF5
+result file::
+
+    import pidm
+
+    ds = pidm.run({"axis": {"x": {"voltage": {"from": 0, "to": 150, "steps": 31}}}})
+    (ds.step_x * 1e6).plot()            # um per drive cycle against axis.x.voltage [V]
+
+- :func:`run`: runs a scene (a path, TOML text or a dict) and returns its maps;
+- :func:`open`: reads a result file; :func:`open_trajectory` one of its
+  trajectories; :func:`trajectory_names` lists them;
+- :func:`check`: validates a scene and estimates its cost without running it;
+- :class:`SceneError` (a ValueError) for a scene pidm refuses, :class:`PidmError`
+  for any other failure, both with pidm's message.
+
+Units are SI as in the scene files: steps in m per own drive cycle, velocities in
+m/s, voltages in V, frequencies in Hz, times in s, phases in cycles.
+"""
+
+from ._binary import BINARY_VARIABLE, find_binary
+from ._errors import PidmError, SceneError
+from ._read import open, open_trajectory, trajectory_names
+from ._run import RunWarning, check, run
+from ._toml import dumps as scene_toml
+
+__all__ = [
+    "BINARY_VARIABLE",
+    "PidmError",
+    "RunWarning",
+    "SceneError",
+    "check",
+    "find_binary",
+    "open",
+    "open_trajectory",
+    "run",
+    "scene_toml",
+    "trajectory_names",
+]
+
+__version__ = "0.1.0"

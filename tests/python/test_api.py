@@ -1,0 +1,294 @@
+"""pidm.run, pidm.open, pidm.open_trajectory and pidm.check against the CLI."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pidm
+import pytest
+import xarray as xr
+from conftest import GRID, GRID_TOML, ROOT, require
+
+
+def file_maps(path: Path) -> dict[str, np.ndarray]:
+    """Every dataset under /maps and /baseline of a result file, read with h5py."""
+    maps = {}
+    with h5py.File(path, "r") as f:
+        for group, prefix in (("maps", ""), ("baseline", "baseline_")):
+            for name, dataset in f.get(group, {}).items():
+                maps[prefix + name] = dataset[()]
+    return maps
+
+
+def assert_same_maps(ds: xr.Dataset, path: Path) -> None:
+    """The Dataset holds every map of the file, bit for bit, and nothing else."""
+    maps = file_maps(path)
+    assert sorted(ds.data_vars) == sorted(maps)
+    for name, values in maps.items():
+        got = ds[name].values
+        assert got.dtype == values.dtype, name
+        assert got.shape == values.shape, name
+        # Bit for bit: the same bytes, so NaN patterns and -0.0 count too.
+        assert got.tobytes() == values.tobytes(), name
+
+
+def test_run_of_a_dict_equals_the_cli_file_bit_for_bit(cli_file: Path, tmp_path: Path) -> None:
+    ds = pidm.run(GRID, backend="cpu", progress=False)
+    assert_same_maps(ds, cli_file)
+    # The same through xarray's own reading of the CLI file.
+    with xr.open_dataset(cli_file, engine="h5netcdf") as ref:
+        for name in ref.data_vars:
+            assert ds[name].values.tobytes() == ref[name].values.tobytes(), name
+            assert ds[name].dims == ref[name].dims, name
+        for name in ref.coords:
+            assert ds[name].values.tobytes() == ref[name].values.tobytes(), name
+    # A path and TOML text give the same maps.
+    scene = tmp_path / "grid.toml"
+    scene.write_text(GRID_TOML)
+    assert_same_maps(pidm.run(scene, backend="cpu", progress=False), cli_file)
+    assert_same_maps(pidm.run(str(scene), backend="cpu", progress=False), cli_file)
+    assert_same_maps(pidm.run(GRID_TOML, backend="cpu", progress=False), cli_file)
+
+
+def test_the_dataset_has_the_grid_the_units_and_the_run_facts(tmp_path: Path) -> None:
+    out = tmp_path / "kept.h5"
+    ds = pidm.run(GRID, backend="cpu", threads=1, out=out, progress=False)
+    assert ds.step_x.dims == ("axis.x.voltage", "axis.y.voltage")
+    assert dict(ds.sizes) == {"axis.x.voltage": 2, "axis.y.voltage": 3}
+    assert ds["axis.x.voltage"].values.tolist() == [50.0, 100.0]
+    assert ds["axis.y.voltage"].values.tolist() == [0.0, 40.0, 80.0]
+    for axis in ("axis.x.voltage", "axis.y.voltage"):
+        assert ds[axis].attrs["units"] == "V"
+    for name in ("step_x", "step_y", "baseline_step_x", "baseline_step_y"):
+        assert ds[name].attrs["units"] == "m", name
+        assert ds[name].attrs["long_name"], name
+        assert ds[name].dims == ds.step_x.dims
+    assert ds.velocity_x.attrs["units"] == "m/s"
+    assert (ds.status == 0).all()
+    for key in ("scene", "name", "pidm_version", "backend", "precision", "tolerance"):
+        assert key in ds.attrs, key
+    assert ds.attrs["name"] == "grid"
+    assert ds.attrs["precision"] == "f64"
+    assert ds.attrs["backend"].startswith("cpu")
+    assert ds.attrs["wall_time_s"] >= 0.0
+    assert "[axis.x]" in ds.attrs["scene"]
+    # A given out keeps the file; the Dataset holds no handle on it: the file
+    # opens for writing and can be removed while the Dataset is still read.
+    assert out.exists()
+    with h5py.File(out, "r+"):
+        pass
+    out.unlink()
+    assert float(ds.step_x.sel({"axis.x.voltage": 100.0, "axis.y.voltage": 0.0})) > 0.0
+    # pidm.open reads a CLI file the same way.
+    assert_same_maps(pidm.open(pidm_run_file(tmp_path)), tmp_path / "again.h5")
+
+
+def pidm_run_file(tmp_path: Path) -> Path:
+    out = tmp_path / "again.h5"
+    pidm.run(GRID, backend="cpu", out=out, progress=False)
+    return out
+
+
+def test_out_none_leaves_no_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    monkeypatch.setattr("tempfile.tempdir", str(temp))
+    pidm.run(GRID, backend="cpu", progress=False)
+    assert list(temp.iterdir()) == []
+
+
+def test_a_bad_scene_raises_a_scene_error_naming_the_key() -> None:
+    with pytest.raises(pidm.SceneError) as caught:
+        pidm.run({"axis": {"x": {"voltag": 100.0}}}, progress=False)
+    assert isinstance(caught.value, ValueError)
+    assert "axis.x.voltag" in str(caught.value)
+    assert "did you mean `voltage`" in str(caught.value)
+    with pytest.raises(ValueError, match="axis.y.frequency"):
+        pidm.run({"axis": {"y": {"frequency": -5.0}}}, progress=False)
+    with pytest.raises(pidm.SceneError, match="axis.x.voltag"):
+        pidm.check({"axis": {"x": {"voltag": 100.0}}})
+    # Not TOML at all.
+    with pytest.raises(pidm.SceneError):
+        pidm.run("[axis.x\nvoltage = 1.0\n", progress=False)
+    with pytest.raises(FileNotFoundError):
+        pidm.run("no/such/scene.toml", progress=False)
+
+
+def test_other_failures_raise_pidm_error_with_pidms_text(tmp_path: Path) -> None:
+    # An output that is a folder: the scene is fine, the run is not.
+    folder = tmp_path / "folder.h5"
+    folder.mkdir()
+    with pytest.raises(pidm.PidmError) as caught:
+        pidm.run(GRID, backend="cpu", out=folder, progress=False)
+    assert not isinstance(caught.value, pidm.SceneError)
+    assert caught.value.returncode == 1
+    assert str(folder) in str(caught.value)
+    assert "pidm: error:" in caught.value.stderr
+    # A flag pidm does not know is a usage error (exit status 2).
+    with pytest.raises(pidm.PidmError) as caught:
+        pidm.run(GRID, backend="cpu", progress=False, no_such_flag=True)
+    assert caught.value.returncode == 2
+    assert "--no-such-flag" in str(caught.value)
+    with pytest.raises(ValueError, match="backend"):
+        pidm.run(GRID, backend="tpu")
+
+
+def test_without_a_binary_the_error_says_how_to_build_one(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    monkeypatch.setenv("PIDM_BINARY", str(tmp_path / "missing"))
+    with pytest.raises(pidm.PidmError, match="cargo build --release"):
+        pidm.run(GRID)
+    monkeypatch.delenv("PIDM_BINARY")
+    monkeypatch.setenv("PATH", str(tmp_path))
+    with pytest.raises(pidm.PidmError, match="PIDM_BINARY=target/release/pidm"):
+        pidm.check(GRID)
+
+
+def test_progress_records_count_up_to_the_total() -> None:
+    records = []
+    pidm.run(GRID, backend="cpu", progress=records.append)
+    assert len(records) >= 2
+    for record in records:
+        assert set(record) >= {"done", "total", "elapsed_s", "eta_s", "instances_per_s"}
+        assert record["total"] == 6
+    assert records[0]["done"] == 0
+    assert records[0]["eta_s"] is None
+    assert [r["done"] for r in records] == sorted(r["done"] for r in records)
+    assert records[-1]["done"] == 6
+    assert records[-1]["eta_s"] == 0.0
+
+
+def test_progress_shows_a_tqdm_bar(capfd: pytest.CaptureFixture[str]) -> None:
+    require("tqdm")
+    pidm.run(GRID, backend="cpu")
+    err = capfd.readouterr().err
+    assert "pidm" in err and "6/6" in err, err
+    pidm.run(GRID, backend="cpu", progress=False)
+    assert capfd.readouterr().err == ""
+
+
+def test_check_reports_the_grid_and_the_cost() -> None:
+    report = pidm.check(GRID)
+    assert report["instances"] == 6
+    assert report["shape"] == [2, 3]
+    assert [a["key"] for a in report["axes"]] == ["axis.x.voltage", "axis.y.voltage"]
+    assert report["axes"][1]["units"] == "V"
+    assert report["baselines"] is True
+    assert report["trajectories"] == 1
+    assert report["estimate_s"] > 0.0
+    assert report["simulated_s"] > 0.0
+
+
+def test_open_trajectory_reads_the_stored_motion(cli_file: Path) -> None:
+    t = pidm.open_trajectory(cli_file, 0)
+    assert t.stage_x.dims == ("time",)
+    assert t.time.attrs["units"] == "s"
+    assert t.slider_x.attrs["units"] == "m"
+    assert t.voltage_x.attrs["units"] == "V"
+    assert t.attrs["index"] == 0
+    with h5py.File(cli_file, "r") as f:
+        group = f["trajectories/0"]
+        for name in ("time", "stage_x", "stage_y", "slider_x", "slider_y", "voltage_x"):
+            assert t[name].values.tobytes() == group[name][()].tobytes(), name
+        base = f["trajectories/0/baseline_x"]
+        b = pidm.open_trajectory(cli_file, 0, baseline="x")
+        assert b.slider.values.tobytes() == base["slider"][()].tobytes()
+        assert b.attrs["measured_cycles"] == base.attrs["measured_cycles"]
+    assert pidm.trajectory_names(cli_file) == [t.attrs["point"]]
+    with pytest.raises(KeyError):
+        pidm.open_trajectory(cli_file, 1)
+
+
+def test_a_points_scene_has_labels() -> None:
+    scene = {
+        "simulation": {"cycles": 3, "settle": 1},
+        "points": [
+            {"label": "slow", "axis": {"x": {"voltage": 60.0}}},
+            {"label": "fast", "axis.x.voltage": 120.0, "axis.y.voltage": 50.0},
+        ],
+    }
+    ds = pidm.run(scene, backend="cpu", progress=False)
+    assert ds.step_x.dims == ("point",)
+    assert ds.label.values.tolist() == ["slow", "fast"]
+    assert ds.attrs["name"] == "scene"
+
+
+def test_dict_scenes_keep_their_key_order_and_numpy_values() -> None:
+    scene = {
+        "axis": {
+            "y": {"voltage": np.array([0.0, 60.0])},
+            "x": {"voltage": np.linspace(40.0, 120.0, 3)},
+        },
+        "simulation": {"cycles": np.int64(3), "settle": 1},
+    }
+    ds = pidm.run(scene, backend="cpu", progress=False)
+    # axis.y first: the grid's axes follow the dict's order.
+    assert ds.step_x.dims == ("axis.y.voltage", "axis.x.voltage")
+    assert ds["axis.x.voltage"].values.tolist() == [40.0, 80.0, 120.0]
+    text = pidm.scene_toml({"a": {"b": 0.1 + 0.2, "c": 'q"\n'}})
+    assert "b = 0.30000000000000004" in text
+    assert 'c = "q\\"\\n"' in text
+
+
+def test_failed_instances_warn_and_keep_their_status() -> None:
+    # A step budget far too small: every instance ends with status 1.
+    scene = {"simulation": {"cycles": 3, "settle": 1, "max_steps_per_period": 2}}
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        ds = pidm.run(scene, backend="cpu", progress=False)
+    assert any(issubclass(w.category, pidm.RunWarning) for w in seen)
+    assert int(ds.status) == 1
+
+
+def test_the_package_installs_with_pip(tmp_path: Path) -> None:
+    """`pip install ./python` gives an importable package (built here without
+    dependencies into a folder)."""
+    # From a copy: a build in place would leave its egg-info in the checkout.
+    source = tmp_path / "source"
+    ignore = shutil.ignore_patterns("*.egg-info", "build", "__pycache__")
+    shutil.copytree(ROOT / "python", source, ignore=ignore)
+    target = tmp_path / "site"
+    command = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target"]
+    command += [str(target), str(source)]
+    if builds_without_isolation():
+        command.append("--no-build-isolation")
+    done = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, check=False)
+    assert done.returncode == 0, done.stderr
+    env = dict(os.environ, PYTHONPATH=str(target))
+    probe = "import pidm, sys; print(pidm.__file__); print(pidm.run.__doc__.splitlines()[0])"
+    shown = subprocess.run(
+        [sys.executable, "-c", probe],
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+        check=False,
+    )
+    assert shown.returncode == 0, shown.stderr
+    assert str(target) in shown.stdout
+    assert (target / "pidm" / "py.typed").exists()
+
+
+def builds_without_isolation() -> bool:
+    """Whether setuptools here builds wheels (70.1 and newer, or with `wheel`),
+    so pip need not fetch a build environment."""
+    try:
+        import setuptools
+    except ImportError:
+        return False
+    try:
+        import wheel  # noqa: F401
+
+        return True
+    except ImportError:
+        pass
+    version = tuple(int(p) for p in setuptools.__version__.split(".")[:2] if p.isdigit())
+    return version >= (70, 1)
