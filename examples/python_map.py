@@ -27,7 +27,12 @@ import pidm
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=11, help="voltages per axis")
-    parser.add_argument("--cycles", type=int, default=6, help="drive cycles per instance")
+    parser.add_argument(
+        "--max-cycles",
+        type=int,
+        default=2000,
+        help="most scene periods an instance may run (the steady measurement stops earlier)",
+    )
     parser.add_argument("--backend", default="auto", help="auto, cpu or gpu")
     parser.add_argument("--out", default="python_map.png", help="PNG to write")
     args = parser.parse_args()
@@ -36,7 +41,7 @@ def main() -> None:
     scene = {
         "name": "python_map",
         "axis": {"x": {"voltage": volts}, "y": {"voltage": volts}},
-        "simulation": {"cycles": args.cycles, "settle": 1},
+        "simulation": {"max_cycles": args.max_cycles},
     }
     print(f"{pidm.check(scene)['instances']} instances")
     ds = pidm.run(scene, backend=args.backend)

@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 
 use crate::cpu::integrate::{STATUS_OK, Settings};
-use crate::model::Instance;
+use crate::model::{Instance, Measure};
 use crate::scene::{Layout, Scene};
 use crate::sweep::{self, run_one};
 
@@ -28,6 +28,38 @@ fn steps(inst: &Instance, settings: &Settings) -> ([f64; 2], u32) {
     let out = run_one(inst, settings);
     let rec = sweep::record(inst, &out);
     ([rec.step[0] * 1e6, rec.step[1] * 1e6], out.status)
+}
+
+/// The steady step [um] of an instance measured over a fixed window
+/// (MODEL.md section 4), as the report's cell: the value and "(periodic, N
+/// periods)" or "± standard error"; the instance's own window steps where
+/// it is steady already.
+fn steady_cell(inst: &Instance, settings: &Settings) -> String {
+    let steady = Instance {
+        cycles: Measure::DEFAULT_MAX_CYCLES,
+        settle: Measure::DEFAULT_SETTLE,
+        measure: Measure::Steady {
+            step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
+        },
+        ..*inst
+    };
+    let out = run_one(&steady, settings);
+    let step = |i: usize| out.step(&steady, i) * 1e6;
+    let how = if out.lag > 0 {
+        format!("periodic, cycle {} periods", out.lag)
+    } else {
+        format!(
+            "± {:.4}, ± {:.4}{}",
+            out.se[0] * 1e6,
+            out.se[1] * 1e6,
+            if out.status == STATUS_OK {
+                ""
+            } else {
+                ", not steady"
+            }
+        )
+    };
+    format!("{:.4}, {:.4} ({how})", step(0), step(1))
 }
 
 fn cell(v: Option<f64>) -> String {
@@ -64,9 +96,12 @@ pub fn scene_section(scene: &Scene) -> Result<String> {
         md,
         "## Scene `{}`\n\nStage m_p = {:.4e} kg, k = {:.3e} N/m, c = {:.4} N s/m \
          (resonance {:.1} Hz, Q = {:.2}); slider m_s = {:.1e} kg, f_s = {} N, f_c = {} N, \
-         a = {:.0e} m/s; duty {}, {} periods of which {} settle. Tolerance {:.0e} rad \
-         (default); the last column is the largest change of any step when it is \
-         tightened 1000 times.\n",
+         a = {:.0e} m/s; duty {}, {} periods of which {} settle ({} measurement). Tolerance \
+         {:.0e} rad (default); the last column is the largest change of any step when it is \
+         tightened 1000 times. The steady column is the long-run mean step of the 2-DOF \
+         point (MODEL.md section 4), measured until its motion repeats or its standard \
+         error is within 0.01 um: it differs from the window where the window does not \
+         span whole cycles of the motion.\n",
         scene.name,
         axis.stage_mass,
         axis.stiffness,
@@ -80,14 +115,15 @@ pub fn scene_section(scene: &Scene) -> Result<String> {
         axis.duty,
         first.cycles,
         first.settle,
+        first.measure.name(),
         settings.tolerance,
     )?;
     writeln!(
         md,
-        "| point | V_x, V_y [V] | f_x, f_y [Hz] | 2-DOF x | 2-DOF y | paper 2-DOF | \
-         1-DOF x | 1-DOF y | paper 1-DOF | change when tightened |"
+        "| point | V_x, V_y [V] | f_x, f_y [Hz] | 2-DOF x | 2-DOF y | steady 2-DOF x, y | \
+         paper 2-DOF | 1-DOF x | 1-DOF y | paper 1-DOF | change when tightened |"
     )?;
-    writeln!(md, "|---|---|---|---|---|---|---|---|---|---|")?;
+    writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|")?;
     let mut results = Vec::new();
     for (i, label) in labels.iter().enumerate() {
         let inst = scene.instance(i as u64);
@@ -118,13 +154,15 @@ pub fn scene_section(scene: &Scene) -> Result<String> {
         };
         writeln!(
             md,
-            "| {label} | {:.2}, {:.2} | {}, {} | {:.4} | {:.4} | {p2} | {:.4} | {:.4} | {p1} | {change:.1e} |",
+            "| {label} | {:.2}, {:.2} | {}, {} | {:.4} | {:.4} | {} | {p2} | {:.4} | {:.4} | {p1} | \
+             {change:.1e} |",
             inst.axes[0].voltage,
             inst.axes[1].voltage,
             inst.axes[0].frequency,
             inst.axes[1].frequency,
             two[0],
             two[1],
+            steady_cell(&inst, &settings),
             bx[0],
             by[1],
         )?;

@@ -28,7 +28,7 @@ GRID = {
         "x": {"voltage": [50.0, 100.0]},
         "y": {"voltage": {"from": 0.0, "to": 80.0, "steps": 3}, "frequency": 20.0},
     },
-    "simulation": {"cycles": 3, "settle": 1},
+    "simulation": {"measure": "window", "cycles": 3, "settle": 1},
     "output": {"baselines": True, "trajectories": [0]},
 }
 
@@ -41,6 +41,7 @@ voltage = [50.0, 100.0]
 voltage = { from = 0.0, to = 80.0, steps = 3 }
 frequency = 20.0
 [simulation]
+measure = "window"
 cycles = 3
 settle = 1
 [output]

@@ -209,7 +209,7 @@ def test_open_trajectory_reads_the_stored_motion(cli_file: Path) -> None:
 
 def test_a_points_scene_has_labels() -> None:
     scene = {
-        "simulation": {"cycles": 3, "settle": 1},
+        "simulation": {"measure": "window", "cycles": 3, "settle": 1},
         "points": [
             {"label": "slow", "axis": {"x": {"voltage": 60.0}}},
             {"label": "fast", "axis.x.voltage": 120.0, "axis.y.voltage": 50.0},
@@ -227,7 +227,7 @@ def test_dict_scenes_keep_their_key_order_and_numpy_values() -> None:
             "y": {"voltage": np.array([0.0, 60.0])},
             "x": {"voltage": np.linspace(40.0, 120.0, 3)},
         },
-        "simulation": {"cycles": np.int64(3), "settle": 1},
+        "simulation": {"measure": "window", "cycles": np.int64(3), "settle": 1},
     }
     ds = pidm.run(scene, backend="cpu", progress=False)
     # axis.y first: the grid's axes follow the dict's order.
@@ -240,7 +240,9 @@ def test_dict_scenes_keep_their_key_order_and_numpy_values() -> None:
 
 def test_failed_instances_warn_and_keep_their_status() -> None:
     # A step budget far too small: every instance ends with status 1.
-    scene = {"simulation": {"cycles": 3, "settle": 1, "max_steps_per_period": 2}}
+    scene = {
+        "simulation": {"measure": "window", "cycles": 3, "settle": 1, "max_steps_per_period": 2}
+    }
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
         ds = pidm.run(scene, backend="cpu", progress=False)

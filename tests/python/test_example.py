@@ -13,7 +13,7 @@ def test_the_python_map_example_draws_a_png(tmp_path: Path) -> None:
     require("matplotlib")
     png = tmp_path / "map.png"
     example = ROOT / "examples" / "python_map.py"
-    command = [sys.executable, str(example), "--steps", "5", "--cycles", "3"]
+    command = [sys.executable, str(example), "--steps", "5", "--max-cycles", "100"]
     command += ["--backend", "cpu", "--out", str(png)]
     done = subprocess.run(
         command, capture_output=True, text=True, cwd=tmp_path, env=child_env(), check=False

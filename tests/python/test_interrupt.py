@@ -21,7 +21,7 @@ signal.signal(signal.SIGINT, signal.default_int_handler)
 import pidm
 
 out = None if sys.argv[1] == "-" else sys.argv[1]
-scene = {"axis": {"x": {"voltage": 100.0}}, "simulation": {"cycles": 10_000_000}}
+scene = {"axis": {"x": {"voltage": 100.0}}, "simulation": {"measure": "window", "cycles": 10_000_000}}
 try:
     pidm.run(scene, backend="cpu", out=out, progress=lambda record: print("running", flush=True))
 except KeyboardInterrupt:
