@@ -46,7 +46,8 @@ fn steady_cell(inst: &Instance, settings: &Settings) -> String {
     let out = run_one(&steady, settings);
     let step = |i: usize| out.step(&steady, i) * 1e6;
     let how = if out.lag > 0 {
-        format!("periodic, cycle {} periods", out.lag)
+        let plural = if out.lag == 1 { "" } else { "s" };
+        format!("periodic, cycle of {} period{plural}", out.lag)
     } else {
         format!(
             "± {:.4}, ± {:.4}{}",
