@@ -8,7 +8,7 @@ use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{Axis, Instance, Measure};
 
-use crate::common::case;
+use crate::common::{case, manifest, pidm, s};
 
 /// Table 1 at 100 V on both axes, x at `fx` and y at `fy` Hz, measured
 /// steady with `settle`, `tolerance` [m] and `max_cycles`.
@@ -170,4 +170,67 @@ fn window_measurement_is_untouched_by_the_steady_machinery() {
         got.travel,
         (run.state.x_s - run.state.settle_x_s).to_array()
     );
+}
+
+/// Window mode reproduces, bit for bit, the maps that the binary built
+/// before the steady measurement existed (commit 7916a32) wrote for the
+/// scenes in tests/golden/ (random instances, and a grid at 10 Hz against
+/// 14 Hz, both with baselines): `tests/golden/dump_window.py` wrote their
+/// bits.
+#[test]
+fn window_maps_match_the_pre_steady_binary_bit_for_bit() {
+    let golden = std::fs::read_to_string(manifest("tests/golden/window_7916a32.txt"))
+        .expect("tests/golden/window_7916a32.txt");
+    let dir = tempfile::tempdir().unwrap();
+    let mut checked = 0;
+    for scene in ["window_random", "window_grid"] {
+        let out = dir.path().join(format!("{scene}.h5"));
+        let path = manifest(&format!("tests/golden/{scene}.toml"));
+        let run = pidm(
+            &["run", &path, "--backend", "cpu", "--out", s(&out)],
+            dir.path(),
+        );
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let file = hdf5::File::open(&out).unwrap();
+        let floats: Vec<Vec<f64>> = [
+            "maps/step_x",
+            "maps/step_y",
+            "maps/velocity_x",
+            "maps/velocity_y",
+            "baseline/step_x",
+            "baseline/step_y",
+        ]
+        .iter()
+        .map(|d| file.dataset(d).unwrap().read_raw().unwrap())
+        .collect();
+        let ints: Vec<Vec<u32>> = ["maps/status", "maps/steps", "baseline/status"]
+            .iter()
+            .map(|d| file.dataset(d).unwrap().read_raw().unwrap())
+            .collect();
+        for line in golden
+            .lines()
+            .filter(|l| l.starts_with(&format!("{scene} ")))
+        {
+            let fields: Vec<&str> = line.split_whitespace().collect();
+            let k: usize = fields[1].parse().unwrap();
+            for (c, hex) in floats.iter().zip(&fields[2..8]) {
+                let want = f64::from_bits(u64::from_str_radix(hex, 16).unwrap());
+                assert_eq!(
+                    c[k].to_bits(),
+                    want.to_bits(),
+                    "{scene} #{k}: {} != {want}",
+                    c[k]
+                );
+            }
+            for (c, text) in ints.iter().zip(&fields[8..11]) {
+                assert_eq!(c[k].to_string(), *text, "{scene} #{k}");
+            }
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 16 + 49, "golden lines checked");
 }
