@@ -156,6 +156,9 @@ pub const MAPS: &str = "maps";
 pub const STEP: [&str; 2] = ["maps/step_x", "maps/step_y"];
 /// The integrator status per instance (0 = ok), shaped like the grid.
 pub const STATUS: &str = "maps/status";
+/// The standard errors of the steps per axis, shaped like the grid
+/// (absent from files written before the steady measurement).
+pub const STEP_SE: [&str; 2] = ["maps/step_x_se", "maps/step_y_se"];
 
 /// The optional group of the 1-DOF runs beside the maps.
 pub const BASELINE: &str = "baseline";

@@ -6,6 +6,10 @@ use plotters::style::RGBColor;
 /// The colour of instances with a non-zero status: a neutral grey that no
 /// colour scale here uses.
 pub const FAILED: RGBColor = RGBColor(120, 120, 120);
+/// Instances whose steady measurement ran to max_cycles (status 6): their
+/// estimate is in the file, with its standard error, but not drawn as a
+/// value.
+pub const NOT_STEADY: RGBColor = RGBColor(200, 200, 200);
 
 /// The colour of cells where a ratio is undefined (1-DOF step about zero).
 pub const UNDEFINED: RGBColor = RGBColor(205, 205, 205);

@@ -7,11 +7,12 @@ use anyhow::Result;
 use plotters::style::RGBColor;
 
 use super::MAX_SLICES;
-use super::colour::{Diverging, FAILED, UNDEFINED};
+use super::colour::{Diverging, FAILED, NOT_STEADY, UNDEFINED};
 use super::heatmap::{MapLegend, heatmap};
 use super::read::{AxisData, Data};
 use super::regime::{Regime, ZERO_STEP_M};
 use super::text::{short, with_unit};
+use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
 use crate::model::AXIS_NAMES;
 
 /// The two dimensions a grid's pictures span: those with the most values
@@ -110,11 +111,22 @@ pub(super) fn grid_maps(
             .flat_map(|i| (0..n1).map(move |j| (i, j)))
             .map(|(i, j)| flat(i, j))
             .collect();
-        let failed = cells.iter().filter(|&&k| data.status[k] != 0).count();
+        let unsteady = cells
+            .iter()
+            .filter(|&&k| data.status[k] == STATUS_NOT_STEADY)
+            .count();
+        let failed = cells.iter().filter(|&&k| data.status[k] != 0).count() - unsteady;
         let failed_line = (failed > 0).then(|| {
             format!(
-                "grey: {failed} of {} instances ended with a non-zero status (see \
+                "dark grey: {failed} of {} instances ended with a non-zero status (see \
                  /maps/status); no value is drawn",
+                cells.len()
+            )
+        });
+        let unsteady_line = (unsteady > 0).then(|| {
+            format!(
+                "light grey: {unsteady} of {} instances did not converge by max_cycles (status \
+                 6); their estimates and standard errors are in the file, not drawn",
                 cells.len()
             )
         });
@@ -141,10 +153,14 @@ pub(super) fn grid_maps(
             ];
             title.extend(slice_line.clone());
             title.extend(failed_line.clone());
+            title.extend(unsteady_line.clone());
             let path = dir.join(format!("step_{}{suffix}.png", AXIS_NAMES[axis]));
             let mut swatches = Vec::new();
             if failed > 0 {
-                swatches.push((FAILED, "not computed (status ≠ 0)".to_owned()));
+                swatches.push((FAILED, "not computed (status ≠ 0, 6)".to_owned()));
+            }
+            if unsteady > 0 {
+                swatches.push((NOT_STEADY, "not steady (status 6)".to_owned()));
             }
             heatmap(
                 &path,
@@ -153,10 +169,10 @@ pub(super) fn grid_maps(
                 up,
                 &|i, j| {
                     let k = flat(i, j);
-                    if data.status[k] != 0 {
-                        FAILED
-                    } else {
-                        scale.colour(data.step[axis][k] * 1e6)
+                    match data.status[k] {
+                        0 => scale.colour(data.step[axis][k] * 1e6),
+                        STATUS_NOT_STEADY => NOT_STEADY,
+                        _ => FAILED,
                     }
                 },
                 &MapLegend::Bar {
@@ -166,6 +182,69 @@ pub(super) fn grid_maps(
                 },
             )?;
             files.push(path);
+
+            if let Some(se) = &data.step_se {
+                // Status 6 ("not steady") keeps its estimate's error too.
+                let shown = |k: usize| data.status[k] == 0 || data.status[k] == STATUS_NOT_STEADY;
+                let errors_um: Vec<f64> = cells
+                    .iter()
+                    .filter(|&&k| shown(k))
+                    .map(|&k| se[axis][k] * 1e6)
+                    .collect();
+                if errors_um.iter().any(|&e| e > 0.0) {
+                    let escale = Diverging::covering(errors_um, 0.0, 1e-3, f64::INFINITY);
+                    let hidden = cells.iter().filter(|&&k| !shown(k)).count();
+                    let mut title = vec![
+                        format!(
+                            "{}: standard error of the step along {} [{}]",
+                            data.name,
+                            AXIS_NAMES[axis],
+                            per_cycle(axis)
+                        ),
+                        format!(
+                            "white: exact (the motion repeats); red: the statistical error of a \
+                             motion that does not; colour limit {} µm",
+                            short(escale.half_width)
+                        ),
+                    ];
+                    title.extend(slice_line.clone());
+                    if hidden > 0 {
+                        title.push(format!(
+                            "grey: {hidden} of {} instances failed (see /maps/status)",
+                            cells.len()
+                        ));
+                    }
+                    let path = dir.join(format!("step_{}_se{suffix}.png", AXIS_NAMES[axis]));
+                    let mut swatches = Vec::new();
+                    if hidden > 0 {
+                        swatches.push((FAILED, "failed (status ≠ 0, 6)".to_owned()));
+                    }
+                    heatmap(
+                        &path,
+                        &title,
+                        across,
+                        up,
+                        &|i, j| {
+                            let k = flat(i, j);
+                            if shown(k) {
+                                escale.colour(se[axis][k] * 1e6)
+                            } else {
+                                FAILED
+                            }
+                        },
+                        &MapLegend::Bar {
+                            scale: escale,
+                            title: format!(
+                                "standard error along {} [{}]",
+                                AXIS_NAMES[axis],
+                                per_cycle(axis)
+                            ),
+                            swatches,
+                        },
+                    )?;
+                    files.push(path);
+                }
+            }
 
             let Some((base, base_status)) = &data.baseline else {
                 continue;

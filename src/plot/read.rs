@@ -52,6 +52,9 @@ pub(super) struct Data {
     pub(super) status: Vec<u32>,
     /// The 1-DOF steps per axis and their status, when stored.
     pub(super) baseline: Option<([Vec<f64>; 2], Vec<u32>)>,
+    /// The standard errors of the steps per axis [m per own drive cycle],
+    /// when stored (files of the steady measurement).
+    pub(super) step_se: Option<[Vec<f64>; 2]>,
     pub(super) trajectories: Vec<TrajectoryData>,
     /// Things the reader should know (guessed axis order, values left out).
     pub(super) notes: Vec<String>,
@@ -99,6 +102,25 @@ impl Data {
         } else {
             None
         };
+        let step_se = if schema::STEP_SE.iter().all(|path| file.exists(path)) {
+            let mut read = Vec::new();
+            for path in schema::STEP_SE {
+                let se = file.floats(path)?;
+                file.expect_shape(&se, &shape, format!("the shape of /{}", schema::STEP[0]))?;
+                if let Some(v) = se.values.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+                    return Err(file.dataset_error(
+                        path,
+                        Problem::Invalid(format!("holds {v}: a standard error is finite and >= 0")),
+                    ));
+                }
+                read.push(se.values);
+            }
+            let y = read.pop().expect("two axes");
+            let x = read.pop().expect("two axes");
+            Some([x, y])
+        } else {
+            None
+        };
         let points = matches!(
             scene,
             Some(Scene {
@@ -125,6 +147,7 @@ impl Data {
             step: step.map(|a| a.values),
             status,
             baseline,
+            step_se,
             trajectories,
             notes,
         })

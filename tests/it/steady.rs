@@ -234,3 +234,101 @@ fn window_maps_match_the_pre_steady_binary_bit_for_bit() {
     }
     assert_eq!(checked, 16 + 49, "golden lines checked");
 }
+
+/// A steady scene's shards merge into its single run bit for bit, the new
+/// maps (standard errors, periods, lags) included, and the single run holds
+/// them with their units.
+#[test]
+fn steady_shards_merge_into_the_single_run_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = d.join("steady.toml");
+    std::fs::write(
+        &scene,
+        "name = \"steady\"\n\
+         [axis.x]\nvoltage = [60.0, 100.0]\nfrequency = 10.0\n\
+         [axis.y]\nvoltage = 100.0\nfrequency = [14.0, 17.320508075688775]\n\
+         [simulation]\nstep_tolerance = 3e-8\nmax_cycles = 3000\n\
+         [output]\nbaselines = true\n",
+    )
+    .unwrap();
+    let single = d.join("single.h5");
+    let run = pidm(
+        &["run", s(&scene), "--out", s(&single), "--backend", "cpu"],
+        d,
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        stdout.contains("2 periodic (exact), 2 converged"),
+        "{stdout}"
+    );
+    for k in 1..=2 {
+        let out = pidm(
+            &[
+                "run",
+                s(&scene),
+                "--shard",
+                &format!("{k}/2"),
+                "--backend",
+                "cpu",
+            ],
+            d,
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let merged = d.join("merged.h5");
+    let out = pidm(
+        &[
+            "merge",
+            s(&merged),
+            "results/steady.shard-1-of-2.h5",
+            "results/steady.shard-2-of-2.h5",
+        ],
+        d,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    pidm::output::compare_contents(&single, &merged).unwrap();
+    let file = hdf5::File::open(&single).unwrap();
+    let lag: Vec<u32> = file.dataset("maps/period_lag").unwrap().read_raw().unwrap();
+    let se: Vec<f64> = file.dataset("maps/step_y_se").unwrap().read_raw().unwrap();
+    let periods: Vec<u32> = file.dataset("maps/periods").unwrap().read_raw().unwrap();
+    // x slowest: (60 V, 14 Hz), (60 V, 17.3 Hz), (100 V, 14 Hz), ...
+    assert_eq!(lag, [5, 0, 5, 0]);
+    assert!(
+        se[0] == 0.0 && se[2] == 0.0 && se[1] > 0.0 && se[3] > 0.0,
+        "{se:?}"
+    );
+    assert!(se.iter().all(|&e| e <= 3e-8), "{se:?}");
+    assert!(periods[1] > 100 && periods[0] < 20, "{periods:?}");
+    let units: hdf5::types::VarLenUnicode = file
+        .dataset("maps/step_x_se")
+        .unwrap()
+        .attr("units")
+        .unwrap()
+        .read_scalar()
+        .unwrap();
+    assert_eq!(units.as_str(), "m");
+    // The plots carry the standard errors: one map per axis beside the steps.
+    let plot = pidm(&["plot", s(&single), "--out", "plots"], d);
+    assert!(
+        plot.status.success(),
+        "{}",
+        String::from_utf8_lossy(&plot.stderr)
+    );
+    for name in ["step_x.png", "step_x_se.png", "step_y.png", "step_y_se.png"] {
+        assert!(d.join("plots").join(name).is_file(), "{name}");
+    }
+}
