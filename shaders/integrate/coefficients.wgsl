@@ -60,5 +60,5 @@ struct Coefficients {
     steady: u32,
     common_period: u32,
     batch_length: u32,
-    _pad2: u32,
+    min_batch: u32,
 }

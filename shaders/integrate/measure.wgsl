@@ -82,9 +82,10 @@ fn period_end(c: Coefficients, st: ptr<function, State>, m: ptr<function, Measur
     if c.common_period > 0u && (ended - c.settle) % c.common_period == 0u {
         recurrence(c, *st, m);
     }
-    if (*m).verdict == VERDICT_RUNNING && (*m).in_batch == 0u && (*m).filled >= MIN_BATCHES {
+    if (*m).verdict == VERDICT_RUNNING && (*m).in_batch == 0u && (*m).filled >= MIN_BATCHES
+        && (*m).batch_length >= c.min_batch {
         let e = estimate(m);
-        if e.se2.x <= c.se_limit2.x && e.se2.y <= c.se_limit2.y {
+        if e.stationary && e.se2.x <= c.se_limit2.x && e.se2.y <= c.se_limit2.y {
             (*m).verdict = VERDICT_CONVERGED;
         }
     }
@@ -138,6 +139,48 @@ struct Estimate {
     travel: V2,
     span: u32,
     se2: V2,
+    stationary: bool,
+}
+
+// Batch means and the range term over complete batches `start .. end`.
+struct Statistics {
+    total: V2,
+    mean: V2,
+    se2: V2,
+    correlated: vec2<bool>,
+}
+
+fn statistics(m: ptr<function, Measure>, start: u32, end: u32) -> Statistics {
+    let count = end - start;
+    var total = V2(0.0);
+    for (var j = start; j < end; j++) {
+        total = total + (*m).sums[j];
+    }
+    let b = Real((*m).batch_length);
+    let inv_count = recip(Real(count));
+    let per_batch = total * inv_count;
+    var squares = V2(0.0);
+    var lagged = V2(0.0);
+    var previous = V2(0.0);
+    var walk = V2(0.0);
+    var low = V2(0.0);
+    var high = V2(0.0);
+    for (var j = start; j < end; j++) {
+        let e = (*m).sums[j] - per_batch;
+        squares = squares + e * e;
+        lagged = lagged + e * previous;
+        previous = e;
+        walk = walk + e;
+        low = min(low, walk);
+        high = max(high, walk);
+    }
+    let inv_span = recip(Real(count) * b);
+    let range = (high - low) * inv_span;
+    let inv_b = recip(b);
+    let batch = squares * (inv_count * recip(Real(count - 1u))) * (inv_b * inv_b);
+    let bound = squares * squares * (CORRELATION_Z * CORRELATION_Z * inv_count);
+    let correlated = lagged > V2(0.0) & lagged * lagged > bound;
+    return Statistics(total, total * inv_span, batch + range * range, correlated);
 }
 
 fn estimate(m: ptr<function, Measure>) -> Estimate {
@@ -145,37 +188,26 @@ fn estimate(m: ptr<function, Measure>) -> Estimate {
     let cuts = mser_cut(m);
     let cut = u32(max(cuts.x, cuts.y));
     let kept = n - cut;
-    var total = V2(0.0);
-    for (var j = cut; j < n; j++) {
-        total = total + (*m).sums[j];
-    }
-    let b = Real((*m).batch_length);
-    let inv_kept = recip(Real(kept));
-    let mean = total * inv_kept;
-    var squares = V2(0.0);
-    var walk = V2(0.0);
-    var low = V2(0.0);
-    var high = V2(0.0);
-    for (var j = cut; j < n; j++) {
-        let e = (*m).sums[j] - mean;
-        squares = squares + e * e;
-        walk = walk + e;
-        low = min(low, walk);
-        high = max(high, walk);
-    }
-    let span = Real(kept) * b;
-    let inv_span = recip(span);
-    let range = (high - low) * inv_span;
-    var se2: V2;
-    if kept >= 2u {
-        let inv_b = recip(b);
-        let batch = squares * (inv_kept * recip(Real(kept - 1u))) * (inv_b * inv_b);
-        se2 = batch + range * range;
-    } else {
+    let span = kept * (*m).batch_length;
+    if kept < 2u {
+        var total = V2(0.0);
+        for (var j = cut; j < n; j++) {
+            total = total + (*m).sums[j];
+        }
         let largest = max(abs((*m).d_min), abs((*m).d_max));
-        se2 = largest * largest;
+        return Estimate(total, span, largest * largest, false);
     }
-    return Estimate(total, kept * (*m).batch_length, se2);
+    let whole = statistics(m, cut, n);
+    let half = kept / 2u;
+    var stationary = false;
+    if half >= 2u && cut < n / 2u && !any(whole.correlated) {
+        let first = statistics(m, cut, cut + half);
+        let last = statistics(m, n - half, n);
+        let d = first.mean - last.mean;
+        let allowed = (first.se2 + last.se2) * (STATIONARY_Z * STATIONARY_Z);
+        stationary = d.x * d.x <= allowed.x && d.y * d.y <= allowed.y;
+    }
+    return Estimate(whole.total, span, whole.se2, stationary);
 }
 
 fn mser_cut(m: ptr<function, Measure>) -> V2 {

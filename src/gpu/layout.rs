@@ -241,7 +241,7 @@ macro_rules! precision_structs {
                     pub steady: u32,
                     pub common_period: u32,
                     pub batch_length: u32,
-                    pub _pad2: u32,
+                    pub min_batch: u32,
                 }
             }
 
@@ -427,7 +427,7 @@ macro_rules! precision_structs {
                     steady: c.steady as u32,
                     common_period: c.common_period,
                     batch_length: c.batch_length,
-                    _pad2: 0,
+                    min_batch: c.min_batch,
                 }
             }
 

@@ -379,6 +379,7 @@ mod tests {
             "common_period",
             "is_whole",
             "first_batch_length",
+            "beat_batch_length",
             "repeat_tolerances",
             "wgsl_constants",
         ];

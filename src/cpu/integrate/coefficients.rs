@@ -120,6 +120,9 @@ pub struct Coefficients {
     pub common_period: u32,
     /// The first batch length [scene periods].
     pub batch_length: u32,
+    /// The batch length a statistical stop needs [scene periods]: the
+    /// common period or the slowest beat (`measure::beat_batch_length`).
+    pub min_batch: u32,
     /// Squared standard error allowed on each axis' travel per scene
     /// period [m^2]: (step_tolerance f_i T)^2.
     pub se_limit2: Vec2,
@@ -228,6 +231,7 @@ impl Coefficients {
             steady: matches!(inst.measure, Measure::Steady { .. }),
             common_period: measure::common_period(cycles_per_period, driven),
             batch_length: measure::first_batch_length(cycles_per_period, driven, inst.cycles),
+            min_batch: measure::beat_batch_length(cycles_per_period, driven),
             se_limit2: se_limit * se_limit,
             repeat_x,
             repeat_v,

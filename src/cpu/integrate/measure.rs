@@ -14,8 +14,9 @@
 //!   after L common periods within [`repeat_tolerances`]: the travel over
 //!   those L common periods is the steady step exactly;
 //! * *converged*: at least [`MIN_BATCHES`] batches, each spanning the
-//!   slowest beat of the drives, are complete, and every axis' standard
-//!   error ([`estimate`]) is at most the step tolerance.
+//!   slowest beat of the drives (`Coefficients::min_batch`), are complete, what MSER keeps of them is
+//!   stationary (its halves agree), and every axis' standard error
+//!   ([`estimate`]) is at most the step tolerance.
 //!
 //! Otherwise it runs to `max_cycles` (the instance's `cycles`), and the
 //! reduction (`pidm::measurement`) reports it "not steady" with its best
@@ -34,7 +35,11 @@
 //! like 1/N) and for a stuck slider (whose increments telescope); the range
 //! term is of the size of those errors. Batches span the slowest beat of
 //! order at most [`BEAT_ORDER`], so their means are not correlated through
-//! a beat (MODEL.md section 4's first trap).
+//! a beat (MODEL.md section 4's first trap). Beats of higher order and
+//! transients that die slowly are slower than anything a finite set of
+//! batches can see; the stop therefore also asks that the first and last
+//! halves of the kept batches agree (Geweke 1992's comparison of early and
+//! late means), which a motion still changing on a longer scale fails.
 
 use super::State;
 use super::coefficients::Coefficients;
@@ -53,8 +58,11 @@ pub const MIN_BATCHES: u32 = 16;
 /// The longest common period looked for [scene periods].
 pub const MAX_COMMON_PERIOD: u32 = 1000;
 /// Beats of order up to this (|q r - p| for the frequency ratio r) set the
-/// shortest batch when the drives have no common period.
-pub const BEAT_ORDER: u32 = 8;
+/// shortest batch when the drives have no common period. Stick-slip is
+/// not smooth: measured on random instances, beats of order 20 (203
+/// periods) and 21 (1,045 periods) moved the mean step by 0.05 um long
+/// after batches spanning the beats of order up to 8 agreed.
+pub const BEAT_ORDER: u32 = 64;
 /// Relative distance from an integer below which q r counts as one: the
 /// drive then repeats after q scene periods to 1e-9 cycles, far below
 /// anything the recurrence test sees.
@@ -172,9 +180,13 @@ pub fn period_end(c: &Coefficients, st: &mut State, m: &mut Measure) {
     if c.common_period > 0 && (ended - c.settle).is_multiple_of(c.common_period) {
         recurrence(c, st, m);
     }
-    if m.verdict == VERDICT_RUNNING && m.in_batch == 0 && m.filled >= MIN_BATCHES {
+    if m.verdict == VERDICT_RUNNING
+        && m.in_batch == 0
+        && m.filled >= MIN_BATCHES
+        && m.batch_length >= c.min_batch
+    {
         let e = estimate(m);
-        if e.se2.x <= c.se_limit2.x && e.se2.y <= c.se_limit2.y {
+        if e.stationary && e.se2.x <= c.se_limit2.x && e.se2.y <= c.se_limit2.y {
             m.verdict = VERDICT_CONVERGED;
         }
     }
@@ -241,50 +253,123 @@ pub struct Estimate {
     pub span: u32,
     /// Squared standard error of the mean travel per scene period [m^2].
     pub se2: Vec2,
+    /// The kept batches look stationary: MSER's cut stayed below its
+    /// limit, their means are not correlated ([`CORRELATION_Z`]), and the
+    /// means of their first and last halves agree within [`STATIONARY_Z`]
+    /// combined standard errors.
+    pub stationary: bool,
+}
+
+/// The halves of the kept batches may differ by this many combined
+/// standard errors (a Geweke-style check; Geweke 1992). A motion that
+/// changes more slowly than the run has lasted (a beat of high order, a
+/// transient that dies slowly) shows as a difference between the halves
+/// that no statistic of the batches alone reveals.
+pub const STATIONARY_Z: f64 = 2.0;
+
+/// Batch means whose lag-1 autocorrelation exceeds this many standard
+/// deviations of its value for independent means (1 / sqrt(count)) are
+/// taken to be correlated: the batches are still shorter than the slowest
+/// change of the motion, and batch means would claim too small an error
+/// (the test of independence of LABATCH.2, Fishman and Yarberry 1997).
+pub const CORRELATION_Z: f64 = 2.0;
+
+/// Batch means and the range term over complete batches `start .. end`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Statistics {
+    /// Travel over the batches [m].
+    pub total: Vec2,
+    /// Mean travel per scene period [m].
+    pub mean: Vec2,
+    /// Squared standard error of `mean` [m^2] (needs at least 2 batches).
+    pub se2: Vec2,
+    /// Whether each axis' batch means are correlated (lag 1).
+    pub correlated: [bool; 2],
+}
+
+/// The statistics of batches `start .. end` (at least 2): batch means over
+/// them, plus the range of their centred cumulative sum over the periods
+/// they span.
+pub fn statistics(m: &Measure, start: u32, end: u32) -> Statistics {
+    let count = end - start;
+    let mut total = Vec2::ZERO;
+    for j in start..end {
+        total = total + m.sums[j as usize];
+    }
+    let b = m.batch_length as f64;
+    let inv_count = 1.0 / count as f64;
+    let per_batch = total * inv_count;
+    let mut squares = Vec2::ZERO;
+    let mut lagged = Vec2::ZERO;
+    let mut previous = Vec2::ZERO;
+    let mut walk = Vec2::ZERO;
+    let mut low = Vec2::ZERO;
+    let mut high = Vec2::ZERO;
+    for j in start..end {
+        let e = m.sums[j as usize] - per_batch;
+        squares = squares + e * e;
+        lagged = lagged + e * previous;
+        previous = e;
+        walk = walk + e;
+        low = low.zip(walk, f64::min);
+        high = high.zip(walk, f64::max);
+    }
+    let inv_span = 1.0 / (count as f64 * b);
+    let range = (high - low) * inv_span;
+    let inv_b = 1.0 / b;
+    let batch = squares * (inv_count * (1.0 / (count - 1) as f64)) * (inv_b * inv_b);
+    // lagged / squares > CORRELATION_Z / sqrt(count), without a root.
+    let bound = squares * squares * (CORRELATION_Z * CORRELATION_Z * inv_count);
+    Statistics {
+        total,
+        mean: total * inv_span,
+        se2: batch + range * range,
+        correlated: [
+            lagged.x > 0.0 && lagged.x * lagged.x > bound.x,
+            lagged.y > 0.0 && lagged.y * lagged.y > bound.y,
+        ],
+    }
 }
 
 /// The estimate from the complete batches: MSER's cut, then batch means
-/// and the range of the centred cumulative sum over what is kept. Needs at
-/// least one complete batch; with one, the spread is unknown and the
-/// standard error is the largest single-period travel.
+/// and the range of the centred cumulative sum over what is kept, and the
+/// stationarity of what is kept. Needs at least one complete batch; with
+/// one, the spread is unknown and the standard error is the largest
+/// single-period travel.
 pub fn estimate(m: &Measure) -> Estimate {
     let n = m.filled;
     let cuts = mser_cut(m);
     let cut = cuts.x.max(cuts.y) as u32;
     let kept = n - cut;
-    let mut total = Vec2::ZERO;
-    for j in cut..n {
-        total = total + m.sums[j as usize];
-    }
-    let b = m.batch_length as f64;
-    let inv_kept = 1.0 / kept as f64;
-    let mean = total * inv_kept;
-    let mut squares = Vec2::ZERO;
-    let mut walk = Vec2::ZERO;
-    let mut low = Vec2::ZERO;
-    let mut high = Vec2::ZERO;
-    for j in cut..n {
-        let e = m.sums[j as usize] - mean;
-        squares = squares + e * e;
-        walk = walk + e;
-        low = low.zip(walk, f64::min);
-        high = high.zip(walk, f64::max);
-    }
-    let span = kept as f64 * b;
-    let inv_span = 1.0 / span;
-    let range = (high - low) * inv_span;
-    let se2 = if kept >= 2 {
-        let inv_b = 1.0 / b;
-        let batch = squares * (inv_kept * (1.0 / (kept - 1) as f64)) * (inv_b * inv_b);
-        batch + range * range
-    } else {
+    let span = kept * m.batch_length;
+    if kept < 2 {
+        let mut total = Vec2::ZERO;
+        for j in cut..n {
+            total = total + m.sums[j as usize];
+        }
         let largest = m.d_min.abs().zip(m.d_max.abs(), f64::max);
-        largest * largest
-    };
+        return Estimate {
+            travel: total,
+            span,
+            se2: largest * largest,
+            stationary: false,
+        };
+    }
+    let whole = statistics(m, cut, n);
+    let half = kept / 2;
+    let mut stationary = false;
+    if half >= 2 && cut < n / 2 && !whole.correlated[0] && !whole.correlated[1] {
+        let first = statistics(m, cut, cut + half);
+        let last = statistics(m, n - half, n);
+        let d = first.mean - last.mean;
+        let allowed = (first.se2 + last.se2) * (STATIONARY_Z * STATIONARY_Z);
+        stationary = d.x * d.x <= allowed.x && d.y * d.y <= allowed.y;
+    }
     Estimate {
-        travel: total,
-        span: kept * m.batch_length,
-        se2,
+        travel: whole.total,
+        span,
+        se2: whole.se2,
+        stationary,
     }
 }
 
@@ -331,11 +416,11 @@ fn is_whole(x: f64) -> bool {
     (x - x.round()).abs() <= COMMENSURATE * x.abs().max(1.0)
 }
 
-/// The first batch length [scene periods]: the common period where there
-/// is one; otherwise the slowest beat of order up to [`BEAT_ORDER`]
-/// between the two drives, 1 / |q r - p| periods (r the cycles per period
-/// of the faster axis), rounded up.
-pub fn first_batch_length(cycles_per_period: Vec2, driven: [bool; 2], max_cycles: u32) -> u32 {
+/// The batch length that a statistical stop needs [scene periods]: the
+/// common period where there is one; otherwise the slowest beat of order
+/// up to [`BEAT_ORDER`] between the two drives, 1 / |q r - p| periods (r
+/// the cycles per period of the faster axis), rounded up.
+pub fn beat_batch_length(cycles_per_period: Vec2, driven: [bool; 2]) -> u32 {
     let common = common_period(cycles_per_period, driven);
     if common > 0 {
         return common;
@@ -354,7 +439,20 @@ pub fn first_batch_length(cycles_per_period: Vec2, driven: [bool; 2], max_cycles
             slowest = slowest.max(beat);
         }
     }
-    slowest.ceil().min(max_cycles as f64).max(1.0) as u32
+    slowest.ceil().min(u32::MAX as f64).max(1.0) as u32
+}
+
+/// The first batch length [scene periods]: the common period where there
+/// is one; otherwise the beat's batch ([`beat_batch_length`]), but short
+/// enough for [`MIN_BATCHES`] batches to fit in `max_cycles`, so that a
+/// run stopped there still has batches to estimate its error from (it
+/// cannot stop statistically before its batches span the beat).
+pub fn first_batch_length(cycles_per_period: Vec2, driven: [bool; 2], max_cycles: u32) -> u32 {
+    let beat = beat_batch_length(cycles_per_period, driven);
+    if common_period(cycles_per_period, driven) > 0 {
+        return beat;
+    }
+    beat.min((max_cycles / MIN_BATCHES).max(1))
 }
 
 /// The recurrence test's tolerances: on positions (relative to the
@@ -369,6 +467,7 @@ pub fn repeat_tolerances(tolerance: f64, deflection: f64, stage_rate: f64) -> (f
 /// its prelude.
 pub fn wgsl_constants() -> String {
     let u = |name: &str, v: u32| format!("const {name}: u32 = {v}u;\n");
+    let r = |name: &str, v: f64| format!("const {name}: Real = Real({v:e});\n");
     [
         u("SNAPSHOTS", SNAPSHOTS as u32),
         u("BATCHES", BATCHES as u32),
@@ -376,6 +475,8 @@ pub fn wgsl_constants() -> String {
         u("VERDICT_RUNNING", VERDICT_RUNNING),
         u("VERDICT_PERIODIC", VERDICT_PERIODIC),
         u("VERDICT_CONVERGED", VERDICT_CONVERGED),
+        r("STATIONARY_Z", STATIONARY_Z),
+        r("CORRELATION_Z", CORRELATION_Z),
     ]
     .concat()
 }
