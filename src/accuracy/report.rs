@@ -127,11 +127,20 @@ impl Report {
                 let _ = match cheapest(points, &method.name, target) {
                     Some(p) => writeln!(
                         md,
-                        "- {}: {target} um is reached at {} = {} in {:.4} s.",
+                        "- {}: {target} um is reached at {} = {} in {:.4} s{}.",
                         method.name,
                         method.setting_name,
                         setting(p.setting),
-                        p.wall_s
+                        p.wall_s,
+                        if p.failed > 0 {
+                            format!(
+                                ", with {} instances that did not finish normally (for a \
+                                 steady method: not steady; their estimates are compared)",
+                                p.failed
+                            )
+                        } else {
+                            String::new()
+                        }
                     ),
                     None => writeln!(
                         md,
