@@ -61,8 +61,10 @@ pub const MAX_COMMON_PERIOD: u32 = 1000;
 /// shortest batch when the drives have no common period. Stick-slip is
 /// not smooth: measured on random instances, beats of order 20 (203
 /// periods) and 21 (1,045 periods) moved the mean step by 0.05 um long
-/// after batches spanning the beats of order up to 8 agreed.
-pub const BEAT_ORDER: u32 = 64;
+/// after batches spanning the beats of order up to 8 agreed, and on
+/// sweeps/beats.toml one of order 105 (280 periods) by 0.026 um after
+/// those up to order 64 agreed.
+pub const BEAT_ORDER: u32 = 128;
 /// Relative distance from an integer below which q r counts as one: the
 /// drive then repeats after q scene periods to 1e-9 cycles, far below
 /// anything the recurrence test sees.
