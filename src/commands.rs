@@ -414,6 +414,26 @@ pub fn human_duration(seconds: f64) -> String {
     }
 }
 
+/// The default scene of `pidm accuracy` and `pidm bench`.
+pub const DEFAULT_SCENE: &str = "sweeps/paper.toml";
+
+/// Loads a scene file; a shipped scene named by its path in the checkout
+/// (`sweeps/paper.toml`, the commands' defaults) that is not there, as
+/// from another directory, is the copy built into the binary.
+pub fn load_scene(path: &Path) -> Result<Scene> {
+    if !path.exists()
+        && let Some(scene) = path.to_str().and_then(Scene::shipped)
+    {
+        return Ok(scene?);
+    }
+    Ok(Scene::load(path)?)
+}
+
+/// [`load_scene`] for each path.
+fn load_scenes(paths: &[PathBuf]) -> Result<Vec<Scene>> {
+    paths.iter().map(|p| load_scene(p)).collect()
+}
+
 /// Every distinct integration a whole scene asks for.
 fn scene_integrations(scene: &Scene) -> Vec<Instance> {
     let instances: Vec<Instance> = (0..scene.instance_count())
@@ -427,7 +447,7 @@ fn scene_integrations(scene: &Scene) -> Vec<Instance> {
 /// `accuracy.md`.
 pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: bool) -> Result<()> {
     use crate::accuracy::{self, Report};
-    let defaults = [PathBuf::from("sweeps/paper.toml")];
+    let defaults = [PathBuf::from(DEFAULT_SCENE)];
     let paths = if paths.is_empty() {
         &defaults[..]
     } else {
@@ -444,8 +464,7 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
     }
     command.push(format!("--out-dir {}", out_dir.display()));
     let mut report = Report::new(&command.join(" "));
-    for path in paths {
-        let scene = Scene::load(path)?;
+    for scene in load_scenes(paths)? {
         let measured = scene_integrations(&scene);
         // The integrator is studied over the paper's fixed window (10
         // periods, 2 discarded), whatever the scene measures: the
@@ -634,9 +653,11 @@ fn inline_table(entries: &[(&str, f64)]) -> String {
 }
 
 /// `pidm bench`: simulated seconds per wall second per core on one thread
-/// at the scene's accuracy, and the all-core figure.
-pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
-    let scene = Scene::load(path)?;
+/// at the scene's accuracy, and the all-core figure; `path` `None` is the
+/// built-in paper scene.
+pub fn bench(path: Option<&Path>, min_seconds: f64) -> Result<()> {
+    let default = PathBuf::from(DEFAULT_SCENE);
+    let scene = load_scene(path.unwrap_or(&default))?;
     let count = scene.instance_count();
     if count > 100_000 {
         bail!("bench runs every instance repeatedly; {count} instances is too many");
@@ -711,19 +732,16 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
 
 /// `pidm report`: writes the paper report to `out`.
 pub fn report(paths: &[PathBuf], out: &Path) -> Result<()> {
-    let defaults = [
-        PathBuf::from("sweeps/paper.toml"),
-        PathBuf::from("sweeps/paper_text.toml"),
-    ];
+    let defaults: Vec<PathBuf> = crate::scene::SHIPPED
+        .iter()
+        .map(|(path, _)| PathBuf::from(path))
+        .collect();
     let paths = if paths.is_empty() {
         &defaults[..]
     } else {
         paths
     };
-    let scenes = paths
-        .iter()
-        .map(|p| Scene::load(p))
-        .collect::<Result<Vec<_>, _>>()?;
+    let scenes = load_scenes(paths)?;
     let md = crate::report::report(&scenes)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;

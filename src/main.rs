@@ -101,7 +101,8 @@ enum Command {
     /// Reruns points scenes (the paper's experiments) and writes a Markdown
     /// report: converged steps beside the paper's, invariants checked.
     Report {
-        /// Points scenes [default: sweeps/paper.toml sweeps/paper_text.toml].
+        /// Points scenes [default: sweeps/paper.toml sweeps/paper_text.toml,
+        /// built into pidm, so any directory works].
         scenes: Vec<PathBuf>,
         /// Output Markdown file.
         #[arg(long, default_value = "results/paper.md")]
@@ -111,7 +112,8 @@ enum Command {
     /// each method and setting; writes a table, HDF5 data, a plot and
     /// results/accuracy.md.
     Accuracy {
-        /// Scenes to study [default: sweeps/paper.toml].
+        /// Scenes to study [default: sweeps/paper.toml, built into pidm, so
+        /// any directory works].
         scenes: Vec<PathBuf>,
         /// Where the data, plots and summary go.
         #[arg(long, default_value = "results")]
@@ -151,9 +153,9 @@ enum Command {
     },
     /// Measures simulated seconds per wall second per core on a scene.
     Bench {
-        /// The scene file [default: sweeps/paper.toml].
-        #[arg(default_value = "sweeps/paper.toml")]
-        scene: PathBuf,
+        /// The scene file [default: sweeps/paper.toml, built into pidm, so
+        /// any directory works].
+        scene: Option<PathBuf>,
         /// Keep measuring for at least this many seconds per thread setting.
         #[arg(long, default_value_t = 2.0, value_parser = positive_finite)]
         seconds: f64,
@@ -226,7 +228,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             cycles,
             settle,
         } => print!("{}", commands::random_scene(seed, count, cycles, settle)?),
-        Command::Bench { scene, seconds } => commands::bench(&scene, seconds)?,
+        Command::Bench { scene, seconds } => commands::bench(scene.as_deref(), seconds)?,
     }
     Ok(ExitCode::SUCCESS)
 }

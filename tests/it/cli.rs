@@ -383,3 +383,43 @@ fn output_cut_short_by_its_reader_ends_quietly() {
     assert!(!err.contains("panicked"), "{err}");
     assert_eq!(out.status.signal(), Some(13), "{:?}: {err}", out.status);
 }
+
+/// The commands whose default is a shipped scene (`report`, `bench`) work
+/// from a directory that holds no `sweeps/`: the scenes are built in.
+#[test]
+fn default_scenes_work_from_any_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = pidm(&["report"], dir.path());
+    assert!(
+        report.status.success(),
+        "{}",
+        String::from_utf8_lossy(&report.stderr)
+    );
+    let md = std::fs::read_to_string(dir.path().join("results/paper.md")).unwrap();
+    assert!(md.contains("Fig. 8"), "{md}");
+    let bench = pidm(&["bench", "--seconds", "1"], dir.path());
+    let stdout = String::from_utf8_lossy(&bench.stdout);
+    assert!(
+        bench.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&bench.stderr)
+    );
+    assert!(stdout.contains("bench: scene \"paper\""), "{stdout}");
+    // A path that is neither a file nor a shipped scene is still an error.
+    let missing = pidm(&["bench", "sweeps/none.toml"], dir.path());
+    assert!(!missing.status.success());
+    let err = String::from_utf8_lossy(&missing.stderr);
+    assert!(
+        err.contains("cannot read scene file sweeps/none.toml"),
+        "{err}"
+    );
+}
+
+/// `pidm bench --help` names its default once.
+#[test]
+fn bench_help_names_its_default_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let help = pidm(&["bench", "--help"], dir.path());
+    let text = String::from_utf8_lossy(&help.stdout);
+    assert_eq!(text.matches("sweeps/paper.toml").count(), 1, "{text}");
+}
