@@ -18,10 +18,7 @@ use crate::run::{RunResult, RunScope, default_output, run_scene};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
 use crate::sweep;
 
-/// A throughput used only for `pidm check`'s estimate: simulated seconds per
-/// wall second per core, measured by `pidm bench` on the paper scene with
-/// Table 1 as printed (stiffer or lighter-damped stages cost more).
-pub const NOMINAL_SIMULATED_PER_CORE: f64 = 300.0;
+pub use crate::estimate::NOMINAL_SIMULATED_PER_CORE;
 
 /// Options of `pidm run`.
 #[derive(Clone, Debug, Default)]
@@ -257,20 +254,29 @@ pub fn info() -> Result<()> {
 #[derive(Clone, Debug, PartialEq)]
 pub struct CheckReport {
     pub instances: u64,
-    /// Simulated time over every instance and distinct baseline [s].
+    /// The distinct integrations a run computes (instances and baselines
+    /// that repeat counted once; estimated beyond 65,536 instances).
+    pub integrations: u64,
+    /// Simulated time over every instance and distinct baseline [s], each
+    /// run to its `cycles` (`max_cycles` when steady: an upper bound).
     pub simulated_s: f64,
-    /// The estimated cost [core-seconds] at [`NOMINAL_SIMULATED_PER_CORE`].
+    /// The estimated cost [core-seconds], from the probe.
     pub core_seconds: f64,
-    /// The cores of this machine.
+    /// The cores of this machine: the CPU path's threads the estimate
+    /// assumes.
     pub cores: usize,
-    /// The estimated wall time on this machine's cores [s].
+    /// The estimated wall time of the run on the CPU path on `cores`
+    /// threads [s].
     pub estimate_s: f64,
-    /// The times are upper bounds: a steady measurement stops as soon as
-    /// its steps are known.
+    /// The estimate is an upper bound: a probed steady integration ran to
+    /// the probe's limit and was charged up to its `max_cycles`.
     pub upper_bound: bool,
+    /// What the probe measured.
+    pub probe: crate::estimate::Probe,
 }
 
-/// Sizes up a scene and estimates its cost.
+/// Sizes up a scene and estimates its cost with a short probe (see
+/// [`crate::estimate`]).
 pub fn check_report(scene: &Scene) -> CheckReport {
     let count = scene.instance_count();
     // Exact total simulated time for up to a million instances, else a
@@ -281,9 +287,6 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     // other grid axis): those of the sampled instances, not scaled up.
     let mut baselines = std::collections::HashSet::new();
     let mut baseline_time = 0.0;
-    // A steady measurement may stop long before its max_cycles: its time is
-    // an upper bound.
-    let mut steady = false;
     for k in 0..sample {
         let i = if count <= sample {
             k
@@ -291,7 +294,6 @@ pub fn check_report(scene: &Scene) -> CheckReport {
             k * count / sample
         };
         let inst = scene.instance(i);
-        steady |= matches!(inst.measure, Measure::Steady { .. });
         simulated += inst.duration();
         if scene.baselines {
             for axis in 0..AXES {
@@ -304,13 +306,21 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     }
     simulated = simulated * count as f64 / sample as f64 + baseline_time;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (integrations, probe) = crate::estimate::probe(scene, cores);
+    let core_seconds = probe.mean_core_s * integrations as f64;
+    // The run spreads its integrations over the cores the probe had (fewer
+    // than the machine's where other work shares it), and cannot spread
+    // fewer integrations than cores over them all.
+    let spread = (integrations as f64).clamp(1.0, probe.parallelism);
     CheckReport {
         instances: count,
+        integrations,
         simulated_s: simulated,
-        core_seconds: simulated / NOMINAL_SIMULATED_PER_CORE,
+        core_seconds,
         cores,
-        estimate_s: simulated / (NOMINAL_SIMULATED_PER_CORE * cores as f64),
-        upper_bound: steady,
+        estimate_s: core_seconds / spread,
+        upper_bound: probe.scaled + probe.cut > 0,
+        probe,
     }
 }
 
@@ -327,40 +337,84 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
     println!("{}", scene.describe());
     let CheckReport {
         instances,
+        integrations,
         simulated_s,
         core_seconds,
         cores,
         estimate_s,
         upper_bound,
+        ref probe,
     } = report;
-    let (at_most, stops) = if upper_bound {
-        (
-            "at most ",
-            "; a steady measurement stops as soon as its steps are known, often long before \
-             max_cycles",
-        )
+    let steady = matches!(scene.instance(0).measure, Measure::Steady { .. });
+    println!("instances: {instances} ({integrations} distinct integrations, baselines included)");
+    if steady {
+        println!(
+            "simulated time: at most {simulated_s:.4e} s (each run to max_cycles; a steady \
+             measurement stops as soon as its steps are known, often long before)"
+        );
     } else {
-        ("", "")
-    };
-    println!("instances: {instances}");
-    println!("simulated time: {at_most}{simulated_s:.4e} s (baselines included{stops})");
+        println!("simulated time: {simulated_s:.4e} s (baselines included)");
+    }
+    let at_most = if upper_bound { "at most " } else { "" };
     println!(
-        "estimated cost: {at_most}{core_seconds:.3e} core-seconds, about {} on this machine's \
-         {cores} cores (at the nominal {NOMINAL_SIMULATED_PER_CORE} simulated s per wall s per \
-         core; \
-         stiff or lightly damped stages cost more)",
-        human_duration(estimate_s)
+        "estimated cost: {at_most}{core_seconds:.3e} core-seconds: {at_most}{} on the CPU path \
+         (f64) on this machine's {cores} {} (--backend cpu; a GPU run is not estimated)",
+        human_duration(estimate_s),
+        plural(cores as u64, "core", "cores")
     );
+    println!("  {}", probe_note(probe));
     Ok(())
+}
+
+/// How the estimate was made, in one sentence.
+fn probe_note(probe: &crate::estimate::Probe) -> String {
+    let mut note = format!(
+        "from a probe of {} {} ({:.2} s, {:.1} cores busy): {:.3} ms and {:.1} periods each \
+         on average",
+        probe.integrations,
+        plural(probe.integrations as u64, "integration", "integrations"),
+        probe.wall_s,
+        probe.parallelism,
+        probe.mean_core_s * 1e3,
+        probe.mean_periods
+    );
+    if probe.scaled > 0 {
+        note.push_str(&format!(
+            "; {} ran past {} periods and {} charged up to {} max_cycles",
+            probe.scaled,
+            crate::estimate::PROBE_PERIODS,
+            if probe.scaled == 1 { "is" } else { "are" },
+            if probe.scaled == 1 { "its" } else { "their" }
+        ));
+    }
+    if probe.cut > 0 {
+        note.push_str(&format!(
+            "; {} took over {} s and {} charged at {} simulated s per core-second",
+            probe.cut,
+            crate::estimate::PROBE_CUTOFF_S,
+            if probe.cut == 1 { "is" } else { "are" },
+            NOMINAL_SIMULATED_PER_CORE
+        ));
+    }
+    note
+}
+
+/// `n` and the singular or plural noun.
+pub fn plural(n: u64, one: &'static str, many: &'static str) -> &'static str {
+    if n == 1 { one } else { many }
 }
 
 /// `pidm check --json`: the scene's name, layout (`"grid"` with its axes:
 /// key, units, size, first and last value; or `"points"` with their
 /// labels), instance count, shape, baselines, trajectory count, the bytes
 /// of its output maps, and the cost estimate: simulated time
-/// (`simulated_s`), `core_seconds`, `estimate_s` on this machine's `cores`
-/// at `nominal_simulated_per_core_s`; `estimate_is_upper_bound` where a
-/// steady measurement may stop long before its `max_cycles`.
+/// (`simulated_s`, to every `max_cycles` when steady), the distinct
+/// `integrations`, `core_seconds` and `estimate_s` on the CPU path
+/// (`estimate_backend`) on this machine's `cores`, measured by a probe
+/// (`probe`: integrations, scaled, cut, mean_periods, mean_core_s,
+/// wall_s); `estimate_is_upper_bound` where a probed steady integration
+/// was charged up to its `max_cycles`. `nominal_simulated_per_core_s` is
+/// the rate charged to a probed integration that was cut off.
 pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
     use serde_json::json;
     let (layout, axes, labels) = match &scene.layout {
@@ -381,10 +435,12 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
         }
         Layout::Points { labels } => ("points", Vec::new(), labels.clone()),
     };
+    let probe = &report.probe;
     json!({
         "name": scene.name,
         "layout": layout,
         "instances": report.instances,
+        "integrations": report.integrations,
         "shape": scene.shape(),
         "axes": axes,
         "labels": labels,
@@ -396,7 +452,17 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
         "core_seconds": report.core_seconds,
         "cores": report.cores,
         "estimate_s": report.estimate_s,
+        "estimate_backend": format!("cpu (f64, {} threads)", report.cores),
         "estimate_is_upper_bound": report.upper_bound,
+        "probe": {
+            "integrations": probe.integrations,
+            "scaled": probe.scaled,
+            "cut": probe.cut,
+            "mean_periods": probe.mean_periods,
+            "mean_core_s": probe.mean_core_s,
+            "wall_s": probe.wall_s,
+            "parallelism": probe.parallelism,
+        },
         "nominal_simulated_per_core_s": NOMINAL_SIMULATED_PER_CORE,
     })
 }

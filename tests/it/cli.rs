@@ -423,3 +423,45 @@ fn bench_help_names_its_default_once() {
     let text = String::from_utf8_lossy(&help.stdout);
     assert_eq!(text.matches("sweeps/paper.toml").count(), 1, "{text}");
 }
+
+/// `pidm check`'s estimate comes from a probe of the scene and is within a
+/// few times of the run: on the coupling map (3,721 steady instances that
+/// stop after 3 periods) a nominal rate over `max_cycles` said 107 min for
+/// a run of 0.1 s. The bound is loose (5x) for a shared machine; the
+/// report of issue 21 records the measured ratios.
+#[test]
+fn check_estimates_the_coupling_map_from_a_probe() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = manifest("sweeps/coupling.toml");
+    let check = pidm(&["check", "--json", &scene], dir.path());
+    assert!(check.status.success());
+    let report: serde_json::Value = serde_json::from_slice(&check.stdout).unwrap();
+    let estimate = report["estimate_s"].as_f64().unwrap();
+    assert_eq!(report["integrations"], 3721);
+    assert_eq!(report["estimate_is_upper_bound"], false);
+    assert!(
+        report["estimate_backend"]
+            .as_str()
+            .unwrap()
+            .starts_with("cpu (f64, ")
+    );
+    assert!(report["probe"]["integrations"].as_u64().unwrap() >= 32);
+    assert_eq!(report["probe"]["mean_periods"], 3.0);
+    let out = dir.path().join("coupling.h5");
+    let run = pidm(
+        &["run", &scene, "--backend", "cpu", "--out", s(&out)],
+        dir.path(),
+    );
+    assert!(run.status.success());
+    let file = hdf5::File::open(&out).unwrap();
+    let wall: f64 = file.attr("wall_time_s").unwrap().read_scalar().unwrap();
+    let ratio = estimate / wall;
+    assert!(
+        (0.2..5.0).contains(&ratio),
+        "estimate {estimate} s against a run of {wall} s"
+    );
+    let text = pidm(&["check", &scene], dir.path());
+    let stdout = String::from_utf8_lossy(&text.stdout);
+    assert!(stdout.contains("on the CPU path (f64)"), "{stdout}");
+    assert!(stdout.contains("from a probe of"), "{stdout}");
+}

@@ -19,7 +19,7 @@ fn grid_scene(dir: &Path, cycles: u32) -> String {
             "name = \"grid\"\n\
          [axis.x]\nvoltage = [40.0, 80.0, 120.0, 160.0]\n\
          [axis.y]\nvoltage = [0.0, 30.0, 60.0, 90.0, 120.0]\nfrequency = 20.0\n\
-         [simulation]\ncycles = {cycles}\nsettle = 1\n\
+         [simulation]\nmeasure = \"window\"\ncycles = {cycles}\nsettle = 1\n\
          [output]\nbaselines = true\n"
         ),
     )
@@ -186,7 +186,7 @@ fn stop_a_long_run(name: &str) -> (Option<i32>, Duration, String) {
     let d = dir.path();
     std::fs::write(
         d.join("endless.toml"),
-        "[axis.x]\nvoltage = 100.0\n[simulation]\ncycles = 10000000\n",
+        "[axis.x]\nvoltage = 100.0\n[simulation]\nmeasure = \"window\"\ncycles = 10000000\n",
     )
     .unwrap();
     let args = [
