@@ -39,8 +39,9 @@ enum Command {
         /// Output file [default: results/<scene name>.h5].
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Worker threads of the CPU path [default: every core].
-        #[arg(long)]
+        /// Worker threads of the CPU path, from 1 to 4 per core [default:
+        /// every core].
+        #[arg(long, value_parser = thread_count)]
         threads: Option<usize>,
         /// auto: a hardware GPU with f64 when there is one and the run has
         /// at least 256 distinct integrations per CPU thread, else the
@@ -160,6 +161,27 @@ enum Command {
         #[arg(long, default_value_t = 2.0, value_parser = positive_finite)]
         seconds: f64,
     },
+}
+
+/// Most `--threads` per core: the integration is bound by the CPU, so more
+/// threads than cores only add overhead, and thousands of them take
+/// seconds to start.
+const MAX_THREADS_PER_CORE: usize = 4;
+
+/// A `--threads` value: from 1 to [`MAX_THREADS_PER_CORE`] per core.
+fn thread_count(text: &str) -> Result<usize, String> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let limit = MAX_THREADS_PER_CORE * cores;
+    match text.parse::<usize>() {
+        Ok(0) => Err("expected at least 1 thread".into()),
+        Ok(n) if n > limit => Err(format!(
+            "{n} threads is too many: expected at most {limit} ({MAX_THREADS_PER_CORE} per core on \
+             this machine's {cores} {}); the CPU path gains nothing from more threads than cores",
+            if cores == 1 { "core" } else { "cores" }
+        )),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("{text:?} is not a whole number ({e})")),
+    }
 }
 
 /// A flag value that must be a finite number above zero.

@@ -359,7 +359,30 @@ fn a_bad_flag_value_is_refused_with_what_was_expected() {
         check(&args, expected);
         assert!(!dir.path().join("x.h5").exists(), "{extra:?}");
     };
-    run(&["--threads", "0"], "--threads must be at least 1");
+    run(
+        &["--threads", "0"],
+        "invalid value '0' for '--threads <THREADS>': expected at least 1 thread",
+    );
+    // Far more threads than cores: refused with the limit, before anything
+    // (thousands of threads took seconds to start).
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    run(
+        &["--threads", "100000"],
+        &format!(
+            "100000 threads is too many: expected at most {} (4 per core",
+            4 * cores
+        ),
+    );
+    // Usage errors: exit status 2, and nothing said before them.
+    for threads in ["0", "100000"] {
+        let out = pidm(
+            &["run", &paper, "--threads", threads, "--out", "x.h5"],
+            dir.path(),
+        );
+        assert_eq!(out.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.starts_with("error: invalid value"), "{err}");
+    }
     run(&["--chunk-size", "0"], "--chunk-size must be at least 1");
     run(&["--shard", "0/3"], "expected K/N with 1 <= K <= N");
     run(&["--precision", "f32"], "the CPU path runs in f64 only");
