@@ -285,6 +285,15 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // Mesa's GL driver complains of an unset or invalid XDG_RUNTIME_DIR on
+    // stderr when wgpu looks for adapters (machines without a desktop
+    // session): give it a private folder of this user's instead.
+    if let Some(dir) = pidm::gpu::private_runtime_dir() {
+        // SAFETY: still before any thread exists.
+        unsafe {
+            std::env::set_var("XDG_RUNTIME_DIR", dir);
+        }
+    }
     let cli = Cli::parse();
     match run(cli) {
         Ok(code) => code,

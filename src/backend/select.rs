@@ -64,6 +64,18 @@ pub fn select_backend(
         BackendChoice::Gpu => {
             let ctx = GpuContext::new(true).context("--backend gpu")?;
             let precision = gpu_precision(&ctx);
+            if !ctx.is_hardware() {
+                let name = ctx.describe();
+                let kind = if name.contains("llvmpipe") {
+                    " (lavapipe)"
+                } else {
+                    ""
+                };
+                eprintln!(
+                    "pidm: no hardware GPU; the software adapter{kind} runs the shader, on the \
+                     CPU: {name}"
+                );
+            }
             let gpu = GpuBackend::new(ctx, precision)?;
             eprintln!("pidm: {}", gpu.readiness());
             Box::new(gpu)
@@ -109,6 +121,10 @@ pub fn select_backend(
                         Box::new(CpuBackend::new(threads)?)
                     }
                 }
+            }
+            Err(err @ crate::gpu::GpuError::OnlySoftware { .. }) => {
+                eprintln!("pidm: {err}: using the CPU path (--backend gpu runs lavapipe anyway)");
+                Box::new(CpuBackend::new(threads)?)
             }
             Err(err) => {
                 eprintln!("pidm: no hardware GPU adapter, using the CPU path ({err})");

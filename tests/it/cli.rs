@@ -488,3 +488,38 @@ fn check_estimates_the_coupling_map_from_a_probe() {
     assert!(stdout.contains("on the CPU path (f64)"), "{stdout}");
     assert!(stdout.contains("from a probe of"), "{stdout}");
 }
+
+/// Without a desktop session (no XDG_RUNTIME_DIR), looking for adapters
+/// prints nothing the user cannot act on (Mesa's GL driver said "error:
+/// XDG_RUNTIME_DIR is invalid or not set"), and where the only adapter is
+/// a software one, pidm says so plainly.
+#[test]
+fn looking_for_adapters_is_quiet_and_names_a_software_adapter() {
+    let dir = tempfile::tempdir().unwrap();
+    for invalid in [None, Some("/nonexistent/runtime")] {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_pidm"));
+        command.arg("info").current_dir(dir.path());
+        command.env_remove("WGPU_BACKEND");
+        match invalid {
+            None => command.env_remove("XDG_RUNTIME_DIR"),
+            Some(path) => command.env("XDG_RUNTIME_DIR", path),
+        };
+        let out = command.output().unwrap();
+        assert!(out.status.success());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let hardware = ["DiscreteGpu", "IntegratedGpu", "VirtualGpu"]
+            .iter()
+            .any(|kind| stdout.contains(kind));
+        if !hardware && stdout.contains("llvmpipe") {
+            assert!(
+                stdout.contains(
+                    "--backend auto (a run large enough for a GPU): the CPU path (no hardware \
+                     GPU; only the software adapter (lavapipe: llvmpipe"
+                ),
+                "{stdout}"
+            );
+        }
+    }
+}
