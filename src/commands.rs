@@ -60,9 +60,10 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         );
     }
     eprintln!(
-        "pidm: scene {:?}: {} instances{} on {}, {}, tolerance {:e} rad",
+        "pidm: scene {:?}: {} {}{} on {}, {}, tolerance {:e} rad",
         scene.name,
         scene.instance_count(),
+        plural(scene.instance_count(), "instance", "instances"),
         if scene.baselines {
             " (+ 1-DOF baselines)"
         } else {
@@ -112,8 +113,15 @@ fn integrations_for_choice(scene: &Scene, scope: RunScope) -> u64 {
     crate::sweep::distinct_integrations(&instances, scene.baselines).len() as u64
 }
 
-fn um(x: f64) -> String {
-    format!("{:+.4}", x * 1e6)
+/// Metres as signed micrometres to 4 decimals; a value that rounds to
+/// zero is "0.0000", never "-0.0000".
+pub fn um(x: f64) -> String {
+    let v = x * 1e6;
+    if (v * 1e4).round() == 0.0 {
+        "0.0000".to_owned()
+    } else {
+        format!("{v:+.4}")
+    }
 }
 
 fn print_summary(scene: &Scene, result: &RunResult) {
@@ -125,11 +133,13 @@ fn print_summary(scene: &Scene, result: &RunResult) {
         n => format!(" ({n} of them from the checkpoint)"),
     };
     println!(
-        "wrote {} ({} instances{resumed}, {} distinct integrations in this run, {:.3} s wall of \
-         which {:.3} s integrating, {:.0} simulated s per wall s)",
+        "wrote {} ({} {}{resumed}, {} distinct {} in this run, {:.3} s wall of which {:.3} s \
+         integrating, {:.0} simulated s per wall s)",
         result.path.display(),
         s.instances,
+        plural(s.instances, "instance", "instances"),
         s.integrations,
+        plural(s.integrations, "integration", "integrations"),
         result.wall_time_s,
         s.integration_s,
         s.simulated_s / result.wall_time_s.max(1e-9)
@@ -346,7 +356,10 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
         ref probe,
     } = report;
     let steady = matches!(scene.instance(0).measure, Measure::Steady { .. });
-    println!("instances: {instances} ({integrations} distinct integrations, baselines included)");
+    println!(
+        "instances: {instances} ({integrations} distinct {}, baselines included)",
+        plural(integrations, "integration", "integrations")
+    );
     if steady {
         println!(
             "simulated time: at most {simulated_s:.4e} s (each run to max_cycles; a steady \

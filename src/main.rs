@@ -226,9 +226,14 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 },
             })?;
             if failed > 0 {
+                let (noun, their) = if failed == 1 {
+                    ("instance", "its")
+                } else {
+                    ("instances", "their")
+                };
                 eprintln!(
-                    "pidm: {failed} instances did not finish normally; \
-                     their map entries are 0 and /maps/status says why"
+                    "pidm: {failed} {noun} did not finish normally; {their} map entries are 0 \
+                     and /maps/status says why"
                 );
                 return Ok(ExitCode::from(3));
             }

@@ -85,9 +85,14 @@ pub fn select_backend(
         {
             let threads = cpu_threads;
             eprintln!(
-                "pidm: {integrations} integrations are too few for a GPU to beat {threads} CPU \
-                 threads (it needs {} or more); using the CPU path (--backend gpu uses the GPU \
-                 anyway)",
+                "pidm: {integrations} {} too few for a GPU to beat {threads} CPU {} (it needs {} \
+                 or more); using the CPU path (--backend gpu uses the GPU anyway)",
+                if integrations == 1 {
+                    "integration is"
+                } else {
+                    "integrations are"
+                },
+                if threads == 1 { "thread" } else { "threads" },
                 GPU_MIN_INTEGRATIONS_PER_THREAD * threads as u64
             );
             Box::new(CpuBackend::new(Some(threads))?)

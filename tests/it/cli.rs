@@ -523,3 +523,41 @@ fn looking_for_adapters_is_quiet_and_names_a_software_adapter() {
         }
     }
 }
+
+/// Tables print a step that rounds to zero as 0.0000, never -0.0000, and
+/// counts of one are singular.
+#[test]
+fn summaries_print_zero_unsigned_and_one_in_the_singular() {
+    use pidm::commands::um;
+    assert_eq!(um(-1e-12), "0.0000");
+    assert_eq!(um(-0.0), "0.0000");
+    assert_eq!(um(4e-11), "0.0000");
+    assert_eq!(um(-6e-11), "-0.0001");
+    assert_eq!(um(6.159e-7), "+0.6159");
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("one.toml"),
+        "[simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n",
+    )
+    .unwrap();
+    let out = pidm(
+        &["run", "one.toml", "--threads", "1", "--out", "one.h5"],
+        dir.path(),
+    );
+    assert!(out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stdout.contains("(1 instance, 1 distinct integration in this run"),
+        "{stdout}"
+    );
+    assert!(
+        stderr.contains("scene \"one\": 1 instance on cpu (rayon, 1 thread)"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("1 integration is too few for a GPU to beat 1 CPU thread "),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("-0.0000") && !stderr.contains("instances on"));
+}
