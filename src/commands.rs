@@ -130,7 +130,10 @@ fn print_summary(scene: &Scene, result: &RunResult) {
     // instances and statuses count the whole file.
     let resumed = match result.from_checkpoint {
         0 => String::new(),
-        n => format!(" ({n} of them from the checkpoint)"),
+        n => format!(
+            " ({n} of them from the checkpoint; {:.3} s wall over every part of the run)",
+            result.total_wall_time_s
+        ),
     };
     println!(
         "wrote {} ({} {}{resumed}, {} distinct {} in this run, {:.3} s wall of which {:.3} s \
