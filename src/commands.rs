@@ -181,6 +181,23 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             um(s.extreme_step[1])
         );
     }
+    for (axis, name) in AXIS_NAMES.iter().enumerate() {
+        let [backward, forward] = s.best[axis];
+        let say = |(step, index): (f64, u64), sign: f64| {
+            if index == u64::MAX || step * sign <= 0.0 {
+                "none".to_owned()
+            } else {
+                format!("{} um at {}", um(step), instance_name(scene, index))
+            }
+        };
+        if forward.1 != u64::MAX && scene.axis_ever_driven(axis) {
+            println!(
+                "  best on {name}: forward {}; backward {}",
+                say(forward, 1.0),
+                say(backward, -1.0)
+            );
+        }
+    }
     if !result.records.is_empty() {
         let labels: Vec<String> = match &scene.layout {
             Layout::Points { labels } => labels.clone(),
@@ -207,6 +224,49 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             }
             println!("  {}", r.status.max(r.baseline_status));
         }
+    }
+}
+
+/// Names instance `index` of a scene by what sets it apart: its grid
+/// coordinates (`axis.x.voltage = 150, axis.y.voltage = 60`), its point's
+/// label, or its flat index.
+pub fn instance_name(scene: &Scene, index: u64) -> String {
+    match &scene.layout {
+        Layout::Grid { axes } if !axes.is_empty() => {
+            let mut rest = index;
+            let mut parts: Vec<String> = axes
+                .iter()
+                .rev()
+                .map(|axis| {
+                    let n = axis.values.len() as u64;
+                    let value = axis.values[(rest % n) as usize];
+                    rest /= n;
+                    let units = if axis.units == "1" {
+                        String::new()
+                    } else {
+                        format!(" {}", axis.units)
+                    };
+                    format!("{} = {}{units}", axis.key, short_number(value))
+                })
+                .collect();
+            parts.reverse();
+            parts.join(", ")
+        }
+        Layout::Points { labels } if !labels[index as usize].is_empty() => {
+            format!("{:?}", labels[index as usize])
+        }
+        _ => format!("instance {index}"),
+    }
+}
+
+/// A number to six significant digits, without trailing zeros.
+fn short_number(value: f64) -> String {
+    let text = format!("{value:.6}");
+    let precise = format!("{}", value);
+    if precise.len() <= text.len() {
+        precise
+    } else {
+        format!("{value:.6e}")
     }
 }
 

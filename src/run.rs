@@ -185,7 +185,7 @@ pub fn run_scene(
                 writer.write(start, records)?;
                 from_checkpoint += records.len() as u64;
                 for (k, r) in records.iter().enumerate() {
-                    summary.add(r);
+                    summary.add(r, start + k as u64);
                     if keep_records {
                         kept.insert(start + k as u64, *r);
                     }

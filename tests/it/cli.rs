@@ -561,3 +561,38 @@ fn summaries_print_zero_unsigned_and_one_in_the_singular() {
     );
     assert!(!stdout.contains("-0.0000") && !stderr.contains("instances on"));
 }
+
+/// After a run, the summary names the instance with the largest forward
+/// and backward step on each axis by its parameters (the lower flat index
+/// when two tie).
+#[test]
+fn the_summary_names_the_best_point_per_axis() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("b.toml"),
+        "name = \"b\"\n[axis.x]\nvoltage = [-100.0, 0.0, 100.0]\n\
+         [axis.y]\nvoltage = [0.0, 100.0]\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 3\nsettle = 1\n",
+    )
+    .unwrap();
+    let out = pidm(
+        &["run", "b.toml", "--backend", "cpu", "--out", "b.h5"],
+        dir.path(),
+    );
+    assert!(out.status.success());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains(
+            "best on x: forward +0.9424 um at axis.x.voltage = -100 V, axis.y.voltage = 100 V; \
+             backward -0.9424 um at axis.x.voltage = 100 V, axis.y.voltage = 100 V"
+        ),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains(
+            "best on y: forward +0.6159 um at axis.x.voltage = 0 V, axis.y.voltage = 100 V; \
+             backward -0.9424 um at axis.x.voltage = -100 V, axis.y.voltage = 100 V"
+        ),
+        "{stdout}"
+    );
+}
