@@ -48,6 +48,60 @@ fn slices(rest: &[usize]) -> (Vec<Vec<usize>>, usize) {
     (combos, total)
 }
 
+/// The drive parameters of a grid scene that no grid axis changes, as a
+/// title line: "fixed: x 100 V, 10 Hz, duty 0.98, phase 0; y 10 Hz, ...".
+/// A parameter is fixed when one step along each grid axis leaves it as
+/// it is (a grid axis over an `axis.x` key that `axis.y` inherits moves
+/// both). `None` for a scene without a grid of two or more axes.
+pub(super) fn fixed_drive(scene: &crate::scene::Scene) -> Option<String> {
+    let crate::scene::Layout::Grid { axes } = &scene.layout else {
+        return None;
+    };
+    if axes.len() < 2 {
+        return None;
+    }
+    let first = scene.instance(0);
+    let mut neighbours = Vec::new();
+    let mut stride = 1u64;
+    for axis in axes.iter().rev() {
+        if axis.values.len() > 1 {
+            neighbours.push(scene.instance(stride));
+        }
+        stride *= axis.values.len() as u64;
+    }
+    let mut parts = Vec::new();
+    for (a, name) in AXIS_NAMES.iter().enumerate() {
+        let fixed = |get: &dyn Fn(&crate::model::Axis) -> f64| {
+            neighbours
+                .iter()
+                .all(|n| get(&n.axes[a]).to_bits() == get(&first.axes[a]).to_bits())
+        };
+        let drive = &first.axes[a];
+        let mut items = Vec::new();
+        if fixed(&|x| x.voltage) {
+            items.push(with_unit(drive.voltage, "V"));
+        }
+        // An axis undriven everywhere has no drive to describe.
+        if items.first().is_some_and(|_| drive.voltage == 0.0) {
+            parts.push(format!("{name} undriven"));
+            continue;
+        }
+        if fixed(&|x| x.frequency) {
+            items.push(with_unit(drive.frequency, "Hz"));
+        }
+        if fixed(&|x| x.duty) {
+            items.push(format!("duty {}", short(drive.duty)));
+        }
+        if fixed(&|x| x.phase) {
+            items.push(format!("phase {}", short(drive.phase)));
+        }
+        if !items.is_empty() {
+            parts.push(format!("{name} {}", items.join(", ")));
+        }
+    }
+    (!parts.is_empty()).then(|| format!("fixed: {}", parts.join("; ")))
+}
+
 /// The per-axis words for map titles.
 fn per_cycle(axis: usize) -> String {
     format!("µm per {} drive cycle", AXIS_NAMES[axis])
@@ -138,8 +192,12 @@ pub(super) fn grid_maps(
                     short(scale.half_width),
                     a = AXIS_NAMES[axis]
                 ),
+                "black lines: the zero-step contour, where the step changes sign or stops \
+                 (below 0.001 µm)"
+                    .to_owned(),
             ];
             title.extend(slice_line.clone());
+            title.extend(data.fixed.clone());
             title.extend(failed_line.clone());
             let path = dir.join(format!("step_{}{suffix}.png", AXIS_NAMES[axis]));
             let mut swatches = Vec::new();
@@ -164,6 +222,17 @@ pub(super) fn grid_maps(
                     title: format!("step along {} [{}]", AXIS_NAMES[axis], per_cycle(axis)),
                     swatches,
                 },
+                Some(&|i, j| {
+                    let k = flat(i, j);
+                    (data.status[k] == 0).then(|| {
+                        let step = data.step[axis][k];
+                        if step.abs() < ZERO_STEP_M {
+                            0
+                        } else {
+                            step.signum() as i8
+                        }
+                    })
+                }),
             )?;
             files.push(path);
 
@@ -204,6 +273,7 @@ pub(super) fn grid_maps(
                 ),
             ];
             title.extend(slice_line.clone());
+            title.extend(data.fixed.clone());
             let path = dir.join(format!("ratio_{a}{suffix}.png"));
             let mut swatches = vec![(UNDEFINED, "1-DOF step < 0.001 µm: no ratio".to_owned())];
             if cells.iter().any(|&k| !ok(k)) {
@@ -227,6 +297,7 @@ pub(super) fn grid_maps(
                     title: format!("2-DOF step / 1-DOF step along {a}"),
                     swatches,
                 },
+                None,
             )?;
             files.push(path);
 
@@ -256,6 +327,7 @@ pub(super) fn grid_maps(
                     .to_owned(),
             ];
             title.extend(slice_line.clone());
+            title.extend(data.fixed.clone());
             let path = dir.join(format!("regime_{a}{suffix}.png"));
             heatmap(
                 &path,
@@ -264,6 +336,7 @@ pub(super) fn grid_maps(
                 up,
                 &|i, j| regime(flat(i, j)).colour(),
                 &MapLegend::Categories(items),
+                None,
             )?;
             files.push(path);
         }
@@ -290,5 +363,43 @@ mod tests {
         for (shape, want) in cases {
             assert_eq!(plane_dims(shape), want, "{shape:?}");
         }
+    }
+
+    use crate::scene::Scene;
+
+    #[test]
+    fn map_titles_name_the_drive_parameters_no_grid_axis_changes() {
+        let scene = Scene::from_toml(
+            "[axis.x]\nvoltage = [50.0, 100.0]\nduty = 0.9\n\
+             [axis.y]\nvoltage = [0.0, 60.0]\nfrequency = 20.0\n",
+            Some("t"),
+        )
+        .unwrap();
+        assert_eq!(
+            fixed_drive(&scene).as_deref(),
+            Some("fixed: x 10 Hz, duty 0.9, phase 0; y 20 Hz, duty 0.9, phase 0")
+        );
+        // A grid over an x key that y inherits moves both.
+        let scene = Scene::from_toml(
+            "[axis.x]\nfrequency = [10.0, 20.0]\n[axis.y]\nvoltage = [0.0, 60.0]\n",
+            Some("t"),
+        )
+        .unwrap();
+        assert_eq!(
+            fixed_drive(&scene).as_deref(),
+            Some("fixed: x 100 V, duty 0.98, phase 0; y duty 0.98, phase 0")
+        );
+        // y undriven everywhere; a 1-D grid has no maps.
+        let scene = Scene::from_toml(
+            "[axis.x]\nvoltage = [50.0, 100.0]\nfrequency = [10.0, 20.0]\n",
+            Some("t"),
+        )
+        .unwrap();
+        assert_eq!(
+            fixed_drive(&scene).as_deref(),
+            Some("fixed: x duty 0.98, phase 0; y undriven")
+        );
+        let scene = Scene::from_toml("[axis.x]\nvoltage = [50.0, 100.0]\n", Some("t")).unwrap();
+        assert_eq!(fixed_drive(&scene), None);
     }
 }
