@@ -137,6 +137,19 @@ enum Command {
         /// Output folder [default: results/plots/<file stem>].
         #[arg(long)]
         out: Option<PathBuf>,
+        /// The grid axis across the maps, by key (`axis.x.voltage`)
+        /// [default: of the two axes with the most values, the earlier].
+        #[arg(long, value_name = "KEY")]
+        x: Option<String>,
+        /// The grid axis up the maps, by key [default: of the two axes with
+        /// the most values, the later].
+        #[arg(long, value_name = "KEY")]
+        y: Option<String>,
+        /// Hold a grid axis at one of its values (repeatable): only the
+        /// maps at that value are drawn [default: one map per combination
+        /// of the other axes' values].
+        #[arg(long, value_name = "KEY=VALUE", value_parser = key_value)]
+        at: Vec<(String, f64)>,
     },
     /// Writes a points scene of seeded random instances to stdout, measured
     /// over a fixed window (`measure = "window"`).
@@ -181,6 +194,19 @@ fn thread_count(text: &str) -> Result<usize, String> {
         )),
         Ok(n) => Ok(n),
         Err(e) => Err(format!("{text:?} is not a whole number ({e})")),
+    }
+}
+
+/// A `KEY=VALUE` flag value with a finite number.
+fn key_value(text: &str) -> Result<(String, f64), String> {
+    let Some((key, value)) = text.split_once('=') else {
+        return Err(format!(
+            "{text:?}: expected KEY=VALUE, e.g. axis.y.frequency=20"
+        ));
+    };
+    match value.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok((key.trim().to_owned(), v)),
+        _ => Err(format!("{text:?}: {value:?} is not a finite number")),
     }
 }
 
@@ -240,7 +266,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
         }
         Command::Merge { out, shards } => commands::merge(&out, &shards)?,
         Command::Check { scene, json } => commands::check(&scene, json)?,
-        Command::Plot { file, out } => pidm::plot::run(&file, out.as_deref())?,
+        Command::Plot {
+            file,
+            out,
+            x,
+            y,
+            at,
+        } => pidm::plot::run(&file, out.as_deref(), &pidm::plot::View { x, y, at })?,
         Command::Info => commands::info()?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Accuracy {

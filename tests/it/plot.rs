@@ -601,3 +601,83 @@ fn replotting_removes_the_earlier_pictures_and_nothing_else() {
         ["mine.png", "notes.txt", "old", "step_x.png", "step_y.png"]
     );
 }
+
+/// `pidm plot --x KEY --y KEY --at KEY=VALUE` slices a grid of three axes:
+/// the maps span the axes named, at the value held; a key or value the
+/// grid does not have is an error naming what it has, and nothing is
+/// drawn.
+#[test]
+fn plot_slices_a_grid_by_the_axes_and_values_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("g3.toml"),
+        "name = \"g3\"\n\
+         [axis.x]\nvoltage = [50.0, 100.0, 150.0]\n\
+         [axis.y]\nvoltage = [0.0, 50.0, 100.0, 150.0]\nfrequency = [10.0, 20.0]\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n",
+    )
+    .unwrap();
+    ok(&["run", "g3.toml", "--threads", "1"], dir.path());
+    // By default: the two longest axes span the maps, one per frequency.
+    ok(&["plot", "results/g3.h5", "--out", "all"], dir.path());
+    assert_eq!(
+        pictures_in(&dir.path().join("all")),
+        [
+            "step_x__axis.y.frequency=10.png",
+            "step_x__axis.y.frequency=20.png",
+            "step_y__axis.y.frequency=10.png",
+            "step_y__axis.y.frequency=20.png"
+        ]
+    );
+    let stdout = ok(
+        &[
+            "plot",
+            "results/g3.h5",
+            "--out",
+            "one",
+            "--x",
+            "axis.y.frequency",
+            "--y",
+            "axis.x.voltage",
+            "--at",
+            "axis.y.voltage=100",
+        ],
+        dir.path(),
+    );
+    assert_eq!(
+        pictures_in(&dir.path().join("one")),
+        [
+            "step_x__axis.y.voltage=100.png",
+            "step_y__axis.y.voltage=100.png"
+        ],
+        "{stdout}"
+    );
+    check_png(&dir.path().join("one/step_x__axis.y.voltage=100.png"));
+    for (args, want) in [
+        (
+            &["--x", "axis.z.voltage"][..],
+            "--x axis.z.voltage: not a grid axis of this file; expected one of axis.x.voltage, \
+             axis.y.voltage, axis.y.frequency",
+        ),
+        (
+            &["--at", "axis.y.frequency=15"][..],
+            "--at axis.y.frequency=15: not a value of that axis; it has 10, 20",
+        ),
+        (
+            &["--x", "axis.x.voltage", "--at", "axis.x.voltage=50"][..],
+            "--at axis.x.voltage: it is the axis --x or --y spans",
+        ),
+        (
+            &["--x", "axis.x.voltage", "--y", "axis.x.voltage"][..],
+            "--x and --y name the same axis axis.x.voltage",
+        ),
+    ] {
+        let mut all = vec!["plot", "results/g3.h5", "--out", "bad"];
+        all.extend(args);
+        let out = pidm(&all, dir.path());
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!dir.path().join("bad").exists());
+    }
+}
