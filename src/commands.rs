@@ -385,13 +385,20 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     // than the machine's where other work shares it), and cannot spread
     // fewer integrations than cores over them all.
     let spread = (integrations as f64).clamp(1.0, probe.parallelism);
+    // A probe of every integration, each to its end, was the run itself.
+    let whole = probe.integrations as u64 == integrations && probe.scaled + probe.cut == 0;
+    let estimate_s = if whole {
+        probe.wall_s
+    } else {
+        core_seconds / spread
+    };
     CheckReport {
         instances: count,
         integrations,
         simulated_s: simulated,
         core_seconds,
         cores,
-        estimate_s: core_seconds / spread,
+        estimate_s,
         upper_bound: probe.scaled + probe.cut > 0,
         probe,
     }

@@ -12,7 +12,10 @@
 //! one to its end (so a steady one stops where the run would), but at
 //! most [`PROBE_PERIODS`] periods: one that would run longer is charged
 //! its cost per period times its `cycles` (`max_cycles`), and the
-//! estimate is then an upper bound.
+//! estimate is then an upper bound. The probe's cost per integration,
+//! times the run's distinct integrations, over the cores the probe's
+//! threads had, is the estimate; a probe of every integration of a small
+//! scene was the run itself, and its wall time is the estimate.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -45,6 +48,10 @@ pub const PROBE_PERIODS: u32 = 200;
 /// paper scene's rate on the 2-core build machine, a lower rate than most
 /// scenes reach.
 pub const NOMINAL_SIMULATED_PER_CORE: f64 = 300.0;
+
+/// A probe shorter than this [s] does not measure how many cores its
+/// threads had.
+const MEASURABLE_S: f64 = 0.02;
 
 /// Scenes with more instances than this are probed on a sample of evenly
 /// spaced instances and their baselines rather than on every distinct
@@ -206,6 +213,10 @@ pub fn probe(scene: &Scene, threads: usize) -> (u64, Probe) {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads.max(1))
         .build();
+    // The threads started before the clock: a run's pool is warm too.
+    if let Ok(pool) = &pool {
+        pool.broadcast(|_| ());
+    }
     let started = Instant::now();
     let settings = scene.settings;
     let run = || -> Vec<Probed> {
@@ -219,9 +230,9 @@ pub fn probe(scene: &Scene, threads: usize) -> (u64, Probe) {
         Ok(pool) => pool.install(run),
         Err(_) => run(),
     };
+    let wall_s = started.elapsed().as_secs_f64();
     done.store(true, Ordering::Relaxed);
     let _ = watchdog.join();
-    let wall_s = started.elapsed().as_secs_f64();
     let n = results.len().max(1) as f64;
     let busy: f64 = results.iter().map(|r| r.wall).sum();
     let probe = Probe {
@@ -231,7 +242,13 @@ pub fn probe(scene: &Scene, threads: usize) -> (u64, Probe) {
         mean_periods: results.iter().map(|r| r.periods).sum::<f64>() / n,
         mean_core_s: results.iter().map(|r| r.cost).sum::<f64>() / n,
         wall_s,
-        parallelism: (busy / wall_s.max(1e-9)).clamp(1.0, threads.max(1) as f64),
+        // A probe shorter than this is mostly the pool's own overhead and
+        // tells nothing of how busy the cores are: it counts them all.
+        parallelism: if wall_s < MEASURABLE_S {
+            threads.max(1) as f64
+        } else {
+            (busy / wall_s).clamp(1.0, threads.max(1) as f64)
+        },
     };
     (count, probe)
 }
