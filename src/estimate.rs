@@ -33,7 +33,7 @@ use crate::sweep::distinct_integrations;
 pub const PROBE_MAX: usize = 256;
 
 /// The probe starts no integration after this many seconds.
-pub const PROBE_BUDGET_S: f64 = 0.25;
+pub const PROBE_BUDGET_S: f64 = 0.4;
 
 /// A probed integration still running after this many seconds is cut off
 /// and charged the nominal rate instead.
