@@ -339,8 +339,13 @@ pub struct CheckReport {
     /// assumes.
     pub cores: usize,
     /// The estimated wall time of the run on the CPU path on `cores`
-    /// threads [s].
+    /// threads [s]: its integrations (`sweep_s`), its trajectories
+    /// (`trajectories_s`) and [`crate::estimate::RUN_OVERHEAD_S`].
     pub estimate_s: f64,
+    /// Of `estimate_s`, the integrations of the maps [s].
+    pub sweep_s: f64,
+    /// Of `estimate_s`, recording the trajectories [s].
+    pub trajectories_s: f64,
     /// The estimate is an upper bound: a probed steady integration ran to
     /// the probe's limit and was charged up to its `max_cycles`.
     pub upper_bound: bool,
@@ -387,11 +392,13 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     let spread = (integrations as f64).clamp(1.0, probe.parallelism);
     // A probe of every integration, each to its end, was the run itself.
     let whole = probe.integrations as u64 == integrations && probe.scaled + probe.cut == 0;
-    let estimate_s = if whole {
+    let sweep_s = if whole {
         probe.wall_s
     } else {
         core_seconds / spread
     };
+    let trajectories_s = crate::estimate::trajectories_s(scene, &probe);
+    let estimate_s = sweep_s + trajectories_s + crate::estimate::RUN_OVERHEAD_S;
     CheckReport {
         instances: count,
         integrations,
@@ -399,6 +406,8 @@ pub fn check_report(scene: &Scene) -> CheckReport {
         core_seconds,
         cores,
         estimate_s,
+        sweep_s,
+        trajectories_s,
         upper_bound: probe.scaled + probe.cut > 0,
         probe,
     }
@@ -422,6 +431,8 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
         core_seconds,
         cores,
         estimate_s,
+        sweep_s,
+        trajectories_s,
         upper_bound,
         ref probe,
     } = report;
@@ -444,6 +455,19 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
          (f64) on this machine's {cores} {} (--backend cpu; a GPU run is not estimated)",
         human_duration(estimate_s),
         plural(cores as u64, "core", "cores")
+    );
+    let trajectories = if trajectories_s > 0.0 {
+        format!(
+            ", {} recording trajectories",
+            human_duration(trajectories_s)
+        )
+    } else {
+        String::new()
+    };
+    println!(
+        "  {} integrating{trajectories}, {} starting and writing",
+        human_duration(sweep_s),
+        human_duration(crate::estimate::RUN_OVERHEAD_S)
     );
     println!("  {}", probe_note(probe));
     Ok(())
@@ -493,7 +517,9 @@ pub fn plural(n: u64, one: &'static str, many: &'static str) -> &'static str {
 /// of its output maps, and the cost estimate: simulated time
 /// (`simulated_s`, to every `max_cycles` when steady), the distinct
 /// `integrations`, `core_seconds` and `estimate_s` on the CPU path
-/// (`estimate_backend`) on this machine's `cores`, measured by a probe
+/// (`estimate_backend`) on this machine's `cores` (of it
+/// `estimate_sweep_s` integrating the maps and `estimate_trajectories_s`
+/// recording trajectories, the rest starting and writing), measured by a probe
 /// (`probe`: integrations, scaled, cut, mean_periods, mean_core_s,
 /// wall_s); `estimate_is_upper_bound` where a probed steady integration
 /// was charged up to its `max_cycles`. `nominal_simulated_per_core_s` is
@@ -536,6 +562,8 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
         "cores": report.cores,
         "estimate_s": report.estimate_s,
         "estimate_backend": format!("cpu (f64, {} threads)", report.cores),
+        "estimate_sweep_s": report.sweep_s,
+        "estimate_trajectories_s": report.trajectories_s,
         "estimate_is_upper_bound": report.upper_bound,
         "probe": {
             "integrations": probe.integrations,

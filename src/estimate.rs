@@ -53,6 +53,37 @@ pub const NOMINAL_SIMULATED_PER_CORE: f64 = 300.0;
 /// threads had.
 const MEASURABLE_S: f64 = 0.02;
 
+/// What recording one trajectory sample costs [s]: per sampled run (the
+/// instance, and each 1-DOF baseline beside it), integration and writing
+/// together. Measured with `sweeps/paper.toml` on the 2-core build
+/// machine: 5 trajectories with baselines, 20,000 samples per run, 0.08 s.
+pub const TRAJECTORY_S_PER_SAMPLE: f64 = 3e-7;
+
+/// What a run costs besides its integrations [s]: starting the process,
+/// creating and closing the result file (a one-instance run takes 0.01 s
+/// on the 2-core build machine).
+pub const RUN_OVERHEAD_S: f64 = 0.01;
+
+/// The cost of recording a scene's trajectories [s]: each runs as long as
+/// its instance (a steady one for the probe's mean periods, at most its
+/// `max_cycles`), sampled `trajectory_samples_per_cycle` times a period,
+/// with its 1-DOF baselines beside it when the scene has them.
+pub fn trajectories_s(scene: &Scene, probe: &Probe) -> f64 {
+    let runs = if scene.baselines { 1 + AXES } else { 1 } as f64;
+    scene
+        .trajectories
+        .iter()
+        .map(|t| {
+            let inst = scene.instance(t.index);
+            let periods = match inst.measure {
+                Measure::Window => inst.cycles as f64,
+                Measure::Steady { .. } => probe.mean_periods.clamp(1.0, inst.cycles as f64),
+            };
+            periods * scene.trajectory_samples_per_cycle as f64 * runs * TRAJECTORY_S_PER_SAMPLE
+        })
+        .sum()
+}
+
 /// Scenes with more instances than this are probed on a sample of evenly
 /// spaced instances and their baselines rather than on every distinct
 /// integration.

@@ -93,7 +93,9 @@ def check(scene: Scene) -> dict[str, Any]:
     many), ``output_bytes``, ``integrations`` (distinct, baselines included), and
     the cost estimate: ``simulated_s`` [simulated s, baselines included, to every
     ``max_cycles`` when steady], ``core_seconds`` [s of one core], ``estimate_s``
-    [wall s on the CPU path, ``estimate_backend``, on this machine's ``cores``],
+    [wall s on the CPU path, ``estimate_backend``, on this machine's ``cores``; of
+    it ``estimate_sweep_s`` integrating and ``estimate_trajectories_s`` recording
+    trajectories],
     measured by a short probe of a few instances (``probe``: ``integrations``,
     ``scaled``, ``cut``, ``mean_periods``, ``mean_core_s``, ``wall_s``,
     ``parallelism``); ``estimate_is_upper_bound`` when a probed steady instance
