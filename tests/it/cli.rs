@@ -369,8 +369,8 @@ fn a_bad_flag_value_is_refused_with_what_was_expected() {
     run(
         &["--threads", "100000"],
         &format!(
-            "100000 threads is too many: expected at most {} (4 per core",
-            4 * cores
+            "100000 threads is too many: expected at most {} (the larger of 4 per core",
+            (4 * cores).max(64)
         ),
     );
     // Usage errors: exit status 2, and nothing said before them.
