@@ -216,6 +216,18 @@ fn key_value(text: &str) -> Result<(String, f64), String> {
     }
 }
 
+impl Command {
+    /// Whether the command may look for GPU adapters.
+    fn looks_for_gpu(&self) -> bool {
+        match self {
+            Command::Run { backend, .. } => *backend != backend::BackendChoice::Cpu,
+            Command::Info | Command::Bench { .. } => true,
+            Command::Accuracy { gpu, .. } => *gpu,
+            _ => false,
+        }
+    }
+}
+
 /// A flag value that must be a finite number above zero.
 fn positive_finite(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
@@ -328,16 +340,33 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    let cli = Cli::parse();
     // Mesa's GL driver complains of an unset or invalid XDG_RUNTIME_DIR on
     // stderr when wgpu looks for adapters (machines without a desktop
-    // session): give it a private folder of this user's instead.
-    if let Some(dir) = pidm::gpu::private_runtime_dir() {
-        // SAFETY: still before any thread exists.
+    // session): give it a private folder of this process's instead,
+    // removed at the end.
+    let runtime = cli
+        .command
+        .looks_for_gpu()
+        .then(pidm::gpu::private_runtime_dir)
+        .flatten();
+    if let Some(dir) = &runtime {
+        // SAFETY: still before any thread exists (parsing the command line
+        // starts none).
         unsafe {
             std::env::set_var("XDG_RUNTIME_DIR", dir);
         }
     }
-    let cli = Cli::parse();
+    let code = exit_code(cli);
+    if let Some(dir) = runtime {
+        let _ = std::fs::remove_dir(dir);
+    }
+    code
+}
+
+/// Runs the command and turns its outcome into the exit status, printing
+/// the error chain.
+fn exit_code(cli: Cli) -> ExitCode {
     match run(cli) {
         Ok(code) => code,
         Err(err) => {

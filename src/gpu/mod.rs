@@ -291,13 +291,15 @@ pub fn list_adapters() -> Vec<AdapterSummary> {
     adapters().iter().map(summary).collect()
 }
 
-/// A private runtime folder for this user when `XDG_RUNTIME_DIR` is unset
-/// or invalid (not a folder of this user's that only it may enter), to set
-/// before wgpu looks for adapters: Mesa's GL driver otherwise prints
+/// A private runtime folder for this process when `XDG_RUNTIME_DIR` is
+/// unset or invalid (not a folder of this user's that only it may enter),
+/// to set before wgpu looks for adapters: Mesa's GL driver otherwise prints
 /// "error: XDG_RUNTIME_DIR is invalid or not set in the environment", which
 /// a user of pidm can do nothing about. `None` when the variable is valid
-/// or no such folder can be made; the folder (`pidm-runtime-<uid>` in the
-/// temporary folder, mode 0700) is kept for the next run.
+/// or no such folder can be made. The folder, `pidm-runtime-<uid>-<pid>`
+/// in the temporary folder with mode 0700, is new and empty: the caller
+/// removes it when the process ends ([`std::fs::remove_dir`] leaves it if
+/// a driver put something there).
 pub fn private_runtime_dir() -> Option<std::path::PathBuf> {
     use std::os::unix::fs::{DirBuilderExt, MetadataExt};
     // SAFETY: getuid cannot fail and touches no memory.
@@ -311,8 +313,8 @@ pub fn private_runtime_dir() -> Option<std::path::PathBuf> {
     {
         return None;
     }
-    let dir = std::env::temp_dir().join(format!("pidm-runtime-{uid}"));
-    let _ = std::fs::DirBuilder::new().mode(0o700).create(&dir);
+    let dir = std::env::temp_dir().join(format!("pidm-runtime-{uid}-{}", std::process::id()));
+    std::fs::DirBuilder::new().mode(0o700).create(&dir).ok()?;
     private(&dir).then_some(dir)
 }
 
