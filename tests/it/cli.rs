@@ -500,9 +500,10 @@ fn check_estimates_the_coupling_map_from_a_probe() {
 fn looking_for_adapters_is_quiet_and_names_a_software_adapter() {
     let dir = tempfile::tempdir().unwrap();
     for invalid in [None, Some("/nonexistent/runtime")] {
+        let tmp = tempfile::tempdir().unwrap();
         let mut command = Command::new(env!("CARGO_BIN_EXE_pidm"));
         command.arg("info").current_dir(dir.path());
-        command.env_remove("WGPU_BACKEND");
+        command.env_remove("WGPU_BACKEND").env("TMPDIR", tmp.path());
         match invalid {
             None => command.env_remove("XDG_RUNTIME_DIR"),
             Some(path) => command.env("XDG_RUNTIME_DIR", path),
@@ -511,6 +512,9 @@ fn looking_for_adapters_is_quiet_and_names_a_software_adapter() {
         assert!(out.status.success());
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
+        // The private runtime folder is gone with the process.
+        let left: Vec<_> = std::fs::read_dir(tmp.path()).unwrap().collect();
+        assert!(left.is_empty(), "{left:?}");
         let stdout = String::from_utf8_lossy(&out.stdout);
         let hardware = ["DiscreteGpu", "IntegratedGpu", "VirtualGpu"]
             .iter()
