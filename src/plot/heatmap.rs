@@ -59,9 +59,21 @@ pub(super) fn contour_segments(
 }
 
 /// Draws one heatmap: `colour(i, j)` is the cell at value i of `across`
-/// and value j of `up`; with `contour`, a black line parts neighbouring
-/// cells of different classes.
+/// and value j of `up`.
 pub(super) fn heatmap(
+    path: &Path,
+    title: &[String],
+    across: &AxisData,
+    up: &AxisData,
+    colour: &dyn Fn(usize, usize) -> RGBColor,
+    legend: &MapLegend,
+) -> Result<()> {
+    heatmap_contoured(path, title, across, up, colour, legend, None)
+}
+
+/// [`heatmap`], and with `contour` a black line parting neighbouring cells
+/// of different classes.
+pub(super) fn heatmap_contoured(
     path: &Path,
     title: &[String],
     across: &AxisData,

@@ -8,7 +8,7 @@ use plotters::style::RGBColor;
 
 use super::MAX_SLICES;
 use super::colour::{Diverging, FAILED, UNDEFINED};
-use super::heatmap::{MapLegend, heatmap};
+use super::heatmap::{MapLegend, heatmap, heatmap_contoured};
 use super::read::{AxisData, Data};
 use super::regime::{Regime, ZERO_STEP_M};
 use super::text::{short, with_unit};
@@ -312,7 +312,7 @@ pub(super) fn grid_maps(
             if failed > 0 {
                 swatches.push((FAILED, "not computed (status ≠ 0)".to_owned()));
             }
-            heatmap(
+            heatmap_contoured(
                 &path,
                 &title,
                 across,
@@ -405,7 +405,6 @@ pub(super) fn grid_maps(
                     title: format!("2-DOF step / 1-DOF step along {a}"),
                     swatches,
                 },
-                None,
             )?;
             files.push(path);
 
@@ -444,7 +443,6 @@ pub(super) fn grid_maps(
                 up,
                 &|i, j| regime(flat(i, j)).colour(),
                 &MapLegend::Categories(items),
-                None,
             )?;
             files.push(path);
         }
