@@ -8,7 +8,7 @@ use plotters::style::RGBColor;
 
 use super::MAX_SLICES;
 use super::colour::{Diverging, FAILED, UNDEFINED};
-use super::heatmap::{MapLegend, heatmap, heatmap_contoured};
+use super::heatmap::{MapLegend, heatmap};
 use super::read::{AxisData, Data};
 use super::regime::{Regime, ZERO_STEP_M};
 use super::text::{short, with_unit};
@@ -312,7 +312,7 @@ pub(super) fn grid_maps(
             if failed > 0 {
                 swatches.push((FAILED, "not computed (status ≠ 0)".to_owned()));
             }
-            heatmap_contoured(
+            super::heatmap::heatmap_contoured(
                 &path,
                 &title,
                 across,
