@@ -3,8 +3,12 @@
 //! computes only what is missing.
 //!
 //! The journal is append-only: a header that names the run, then one entry
-//! per finished chunk (first flat index, record count, the records, a
-//! checksum), each synced to disk before the next chunk starts. A crash can
+//! per finished chunk (first flat index, record count, the part of the run
+//! that wrote it and that part's wall time so far, the records, a
+//! checksum), each synced to disk before the next chunk starts. A part is
+//! one process: the first run is part 0, each `--resume` the next; the
+//! wall times let the finished file record the time of every part
+//! (`wall_time_parts_s`) and their total (`wall_time_s`). A crash can
 //! only tear the last entry, which the checksum exposes and resume drops.
 //! The HDF5 output itself is written to a temporary file and renamed only
 //! when complete, so the output is never half-written; on resume the
@@ -20,7 +24,10 @@ use anyhow::{Context, Result, bail};
 
 use crate::sweep::Record;
 
-const MAGIC: &[u8; 12] = b"PIDM-CKPT-1\n";
+const MAGIC: &[u8; 12] = b"PIDM-CKPT-2\n";
+
+/// Bytes of an entry's head: start, count, part, wall time so far.
+const HEAD_BYTES: usize = 32;
 
 /// Bytes of one record in the journal.
 const RECORD_BYTES: usize = 8 * 8 + 4 * 5;
@@ -29,6 +36,13 @@ const RECORD_BYTES: usize = 8 * 8 + 4 * 5;
 pub struct Checkpoint {
     file: File,
     path: PathBuf,
+    /// The part this process writes: 0 for a new run, one more than the
+    /// journal's last for a resumed one.
+    part: u64,
+    /// When this part began.
+    started: std::time::Instant,
+    /// The wall time of each earlier part up to its last entry [s].
+    earlier: Vec<f64>,
 }
 
 /// FNV-1a, 64 bit: enough to tell a torn or garbled entry.
@@ -100,7 +114,16 @@ impl Checkpoint {
         Ok(Checkpoint {
             file,
             path: path.to_path_buf(),
+            part: 0,
+            started: std::time::Instant::now(),
+            earlier: Vec::new(),
         })
+    }
+
+    /// The wall time of each earlier part of the run, up to the last chunk
+    /// it finished [s]: none for a new run.
+    pub fn earlier_parts(&self) -> &[f64] {
+        &self.earlier
     }
 
     /// Opens an existing journal for resuming, checks that it belongs to
@@ -147,18 +170,19 @@ impl Checkpoint {
         }
         let mut valid_len = (MAGIC.len() + 8 + stored.len()) as u64;
         let mut done: Vec<Range<u64>> = Vec::new();
+        let mut earlier: Vec<f64> = Vec::new();
         loop {
-            let mut head = [0u8; 16];
+            let mut head = [0u8; HEAD_BYTES];
             if reader.read_exact(&mut head).is_err() {
                 break;
             }
-            let start = u64::from_le_bytes(head[..8].try_into().unwrap());
-            let n = u64::from_le_bytes(head[8..].try_into().unwrap());
+            let word = |k: usize| u64::from_le_bytes(head[8 * k..8 * k + 8].try_into().unwrap());
+            let (start, n, part, wall) = (word(0), word(1), word(2), f64::from_bits(word(3)));
             let Some(body_len) = (n as usize).checked_mul(RECORD_BYTES) else {
                 break;
             };
             // An entry longer than what is left of the file is torn.
-            if body_len as u64 + 8 > file_len.saturating_sub(valid_len + 16) {
+            if body_len as u64 + 8 > file_len.saturating_sub(valid_len + HEAD_BYTES as u64) {
                 break;
             }
             let mut body = vec![0u8; body_len + 8];
@@ -186,7 +210,16 @@ impl Checkpoint {
             }
             replay(start, &records)?;
             done.push(start..start + n);
-            valid_len += 16 + body.len() as u64;
+            valid_len += HEAD_BYTES as u64 + body.len() as u64;
+            // Parts follow one another; a part number far beyond the
+            // entries there are cannot be right and counts as the next.
+            let part = (part as usize).min(earlier.len());
+            if part == earlier.len() {
+                earlier.push(0.0);
+            }
+            if wall.is_finite() && wall >= 0.0 {
+                earlier[part] = earlier[part].max(wall);
+            }
         }
         drop(reader);
         // Drop a torn tail so new entries follow the last intact one.
@@ -198,6 +231,9 @@ impl Checkpoint {
             Checkpoint {
                 file,
                 path: path.to_path_buf(),
+                part: earlier.len() as u64,
+                started: std::time::Instant::now(),
+                earlier,
             },
             done,
         ))
@@ -206,9 +242,12 @@ impl Checkpoint {
     /// Appends the records of instances `start .. start + records.len()`
     /// and syncs them to disk.
     pub fn append(&mut self, start: u64, records: &[Record]) -> Result<()> {
-        let mut entry = Vec::with_capacity(24 + records.len() * RECORD_BYTES);
+        let mut entry = Vec::with_capacity(HEAD_BYTES + 8 + records.len() * RECORD_BYTES);
         entry.extend_from_slice(&start.to_le_bytes());
         entry.extend_from_slice(&(records.len() as u64).to_le_bytes());
+        entry.extend_from_slice(&self.part.to_le_bytes());
+        let wall = self.started.elapsed().as_secs_f64();
+        entry.extend_from_slice(&wall.to_bits().to_le_bytes());
         for r in records {
             encode(r, &mut entry);
         }

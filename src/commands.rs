@@ -18,10 +18,7 @@ use crate::run::{RunResult, RunScope, default_output, run_scene};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
 use crate::sweep;
 
-/// A throughput used only for `pidm check`'s estimate: simulated seconds per
-/// wall second per core, measured by `pidm bench` on the paper scene with
-/// Table 1 as printed (stiffer or lighter-damped stages cost more).
-pub const NOMINAL_SIMULATED_PER_CORE: f64 = 300.0;
+pub use crate::estimate::NOMINAL_SIMULATED_PER_CORE;
 
 /// Options of `pidm run`.
 #[derive(Clone, Debug, Default)]
@@ -63,9 +60,10 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         );
     }
     eprintln!(
-        "pidm: scene {:?}: {} instances{} on {}, {}, tolerance {:e} rad",
+        "pidm: scene {:?}: {} {}{} on {}, {}, tolerance {:e} rad",
         scene.name,
         scene.instance_count(),
+        plural(scene.instance_count(), "instance", "instances"),
         if scene.baselines {
             " (+ 1-DOF baselines)"
         } else {
@@ -115,8 +113,15 @@ fn integrations_for_choice(scene: &Scene, scope: RunScope) -> u64 {
     crate::sweep::distinct_integrations(&instances, scene.baselines).len() as u64
 }
 
-fn um(x: f64) -> String {
-    format!("{:+.4}", x * 1e6)
+/// Metres as signed micrometres to 4 decimals; a value that rounds to
+/// zero is "0.0000", never "-0.0000".
+pub fn um(x: f64) -> String {
+    let v = x * 1e6;
+    if (v * 1e4).round() == 0.0 {
+        "0.0000".to_owned()
+    } else {
+        format!("{v:+.4}")
+    }
 }
 
 fn print_summary(scene: &Scene, result: &RunResult) {
@@ -125,14 +130,19 @@ fn print_summary(scene: &Scene, result: &RunResult) {
     // instances and statuses count the whole file.
     let resumed = match result.from_checkpoint {
         0 => String::new(),
-        n => format!(" ({n} of them from the checkpoint)"),
+        n => format!(
+            " ({n} of them from the checkpoint; {:.3} s wall over every part of the run)",
+            result.total_wall_time_s
+        ),
     };
     println!(
-        "wrote {} ({} instances{resumed}, {} distinct integrations in this run, {:.3} s wall of \
-         which {:.3} s integrating, {:.0} simulated s per wall s)",
+        "wrote {} ({} {}{resumed}, {} distinct {} in this run, {:.3} s wall of which {:.3} s \
+         integrating, {:.0} simulated s per wall s)",
         result.path.display(),
         s.instances,
+        plural(s.instances, "instance", "instances"),
         s.integrations,
+        plural(s.integrations, "integration", "integrations"),
         result.wall_time_s,
         s.integration_s,
         s.simulated_s / result.wall_time_s.max(1e-9)
@@ -171,6 +181,23 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             um(s.extreme_step[1])
         );
     }
+    for (axis, name) in AXIS_NAMES.iter().enumerate() {
+        let [backward, forward] = s.best[axis];
+        let say = |(step, index): (f64, u64), sign: f64| {
+            if index == u64::MAX || step * sign <= 0.0 {
+                "none".to_owned()
+            } else {
+                format!("{} um at {}", um(step), instance_name(scene, index))
+            }
+        };
+        if forward.1 != u64::MAX && scene.axis_ever_driven(axis) {
+            println!(
+                "  best on {name}: forward {}; backward {}",
+                say(forward, 1.0),
+                say(backward, -1.0)
+            );
+        }
+    }
     if !result.records.is_empty() {
         let labels: Vec<String> = match &scene.layout {
             Layout::Points { labels } => labels.clone(),
@@ -197,6 +224,49 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             }
             println!("  {}", r.status.max(r.baseline_status));
         }
+    }
+}
+
+/// Names instance `index` of a scene by what sets it apart: its grid
+/// coordinates (`axis.x.voltage = 150, axis.y.voltage = 60`), its point's
+/// label, or its flat index.
+pub fn instance_name(scene: &Scene, index: u64) -> String {
+    match &scene.layout {
+        Layout::Grid { axes } if !axes.is_empty() => {
+            let mut rest = index;
+            let mut parts: Vec<String> = axes
+                .iter()
+                .rev()
+                .map(|axis| {
+                    let n = axis.values.len() as u64;
+                    let value = axis.values[(rest % n) as usize];
+                    rest /= n;
+                    let units = if axis.units == "1" {
+                        String::new()
+                    } else {
+                        format!(" {}", axis.units)
+                    };
+                    format!("{} = {}{units}", axis.key, short_number(value))
+                })
+                .collect();
+            parts.reverse();
+            parts.join(", ")
+        }
+        Layout::Points { labels } if !labels[index as usize].is_empty() => {
+            format!("{:?}", labels[index as usize])
+        }
+        _ => format!("instance {index}"),
+    }
+}
+
+/// A number to six significant digits, without trailing zeros.
+fn short_number(value: f64) -> String {
+    let text = format!("{value:.6}");
+    let precise = format!("{}", value);
+    if precise.len() <= text.len() {
+        precise
+    } else {
+        format!("{value:.6e}")
     }
 }
 
@@ -257,20 +327,34 @@ pub fn info() -> Result<()> {
 #[derive(Clone, Debug, PartialEq)]
 pub struct CheckReport {
     pub instances: u64,
-    /// Simulated time over every instance and distinct baseline [s].
+    /// The distinct integrations a run computes (instances and baselines
+    /// that repeat counted once; estimated beyond 65,536 instances).
+    pub integrations: u64,
+    /// Simulated time over every instance and distinct baseline [s], each
+    /// run to its `cycles` (`max_cycles` when steady: an upper bound).
     pub simulated_s: f64,
-    /// The estimated cost [core-seconds] at [`NOMINAL_SIMULATED_PER_CORE`].
+    /// The estimated cost [core-seconds], from the probe.
     pub core_seconds: f64,
-    /// The cores of this machine.
+    /// The cores of this machine: the CPU path's threads the estimate
+    /// assumes.
     pub cores: usize,
-    /// The estimated wall time on this machine's cores [s].
+    /// The estimated wall time of the run on the CPU path on `cores`
+    /// threads [s]: its integrations (`sweep_s`), its trajectories
+    /// (`trajectories_s`) and [`crate::estimate::RUN_OVERHEAD_S`].
     pub estimate_s: f64,
-    /// The times are upper bounds: a steady measurement stops as soon as
-    /// its steps are known.
+    /// Of `estimate_s`, the integrations of the maps [s].
+    pub sweep_s: f64,
+    /// Of `estimate_s`, recording the trajectories [s].
+    pub trajectories_s: f64,
+    /// The estimate is an upper bound: a probed steady integration ran to
+    /// the probe's limit and was charged up to its `max_cycles`.
     pub upper_bound: bool,
+    /// What the probe measured.
+    pub probe: crate::estimate::Probe,
 }
 
-/// Sizes up a scene and estimates its cost.
+/// Sizes up a scene and estimates its cost with a short probe (see
+/// [`crate::estimate`]).
 pub fn check_report(scene: &Scene) -> CheckReport {
     let count = scene.instance_count();
     // Exact total simulated time for up to a million instances, else a
@@ -281,9 +365,6 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     // other grid axis): those of the sampled instances, not scaled up.
     let mut baselines = std::collections::HashSet::new();
     let mut baseline_time = 0.0;
-    // A steady measurement may stop long before its max_cycles: its time is
-    // an upper bound.
-    let mut steady = false;
     for k in 0..sample {
         let i = if count <= sample {
             k
@@ -291,7 +372,6 @@ pub fn check_report(scene: &Scene) -> CheckReport {
             k * count / sample
         };
         let inst = scene.instance(i);
-        steady |= matches!(inst.measure, Measure::Steady { .. });
         simulated += inst.duration();
         if scene.baselines {
             for axis in 0..AXES {
@@ -304,13 +384,32 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     }
     simulated = simulated * count as f64 / sample as f64 + baseline_time;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (integrations, probe) = crate::estimate::probe(scene, cores);
+    let core_seconds = probe.mean_core_s * integrations as f64;
+    // The run spreads its integrations over the cores the probe had (fewer
+    // than the machine's where other work shares it), and cannot spread
+    // fewer integrations than cores over them all.
+    let spread = (integrations as f64).clamp(1.0, probe.parallelism);
+    // A probe of every integration, each to its end, was the run itself.
+    let whole = probe.integrations as u64 == integrations && probe.scaled + probe.cut == 0;
+    let sweep_s = if whole {
+        probe.wall_s
+    } else {
+        core_seconds / spread
+    };
+    let trajectories_s = crate::estimate::trajectories_s(scene, &probe);
+    let estimate_s = sweep_s + trajectories_s + crate::estimate::RUN_OVERHEAD_S;
     CheckReport {
         instances: count,
+        integrations,
         simulated_s: simulated,
-        core_seconds: simulated / NOMINAL_SIMULATED_PER_CORE,
+        core_seconds,
         cores,
-        estimate_s: simulated / (NOMINAL_SIMULATED_PER_CORE * cores as f64),
-        upper_bound: steady,
+        estimate_s,
+        sweep_s,
+        trajectories_s,
+        upper_bound: probe.scaled + probe.cut > 0,
+        probe,
     }
 }
 
@@ -327,40 +426,104 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
     println!("{}", scene.describe());
     let CheckReport {
         instances,
+        integrations,
         simulated_s,
         core_seconds,
         cores,
         estimate_s,
+        sweep_s,
+        trajectories_s,
         upper_bound,
+        ref probe,
     } = report;
-    let (at_most, stops) = if upper_bound {
-        (
-            "at most ",
-            "; a steady measurement stops as soon as its steps are known, often long before \
-             max_cycles",
+    let steady = matches!(scene.instance(0).measure, Measure::Steady { .. });
+    println!(
+        "instances: {instances} ({integrations} distinct {}, baselines included)",
+        plural(integrations, "integration", "integrations")
+    );
+    if steady {
+        println!(
+            "simulated time: at most {simulated_s:.4e} s (each run to max_cycles; a steady \
+             measurement stops as soon as its steps are known, often long before)"
+        );
+    } else {
+        println!("simulated time: {simulated_s:.4e} s (baselines included)");
+    }
+    let at_most = if upper_bound { "at most " } else { "" };
+    println!(
+        "estimated cost: {at_most}{core_seconds:.3e} core-seconds: {at_most}{} on the CPU path \
+         (f64) on this machine's {cores} {} (--backend cpu; a GPU run is not estimated)",
+        human_duration(estimate_s),
+        plural(cores as u64, "core", "cores")
+    );
+    let trajectories = if trajectories_s > 0.0 {
+        format!(
+            ", {} recording trajectories",
+            human_duration(trajectories_s)
         )
     } else {
-        ("", "")
+        String::new()
     };
-    println!("instances: {instances}");
-    println!("simulated time: {at_most}{simulated_s:.4e} s (baselines included{stops})");
     println!(
-        "estimated cost: {at_most}{core_seconds:.3e} core-seconds, about {} on this machine's \
-         {cores} cores (at the nominal {NOMINAL_SIMULATED_PER_CORE} simulated s per wall s per \
-         core; \
-         stiff or lightly damped stages cost more)",
-        human_duration(estimate_s)
+        "  {} integrating{trajectories}, {} starting and writing",
+        human_duration(sweep_s),
+        human_duration(crate::estimate::RUN_OVERHEAD_S)
     );
+    println!("  {}", probe_note(probe));
     Ok(())
+}
+
+/// How the estimate was made, in one sentence.
+fn probe_note(probe: &crate::estimate::Probe) -> String {
+    let mut note = format!(
+        "from a probe of {} {} ({:.2} s, {:.1} cores busy): {:.3} ms and {:.1} periods each \
+         on average",
+        probe.integrations,
+        plural(probe.integrations as u64, "integration", "integrations"),
+        probe.wall_s,
+        probe.parallelism,
+        probe.mean_core_s * 1e3,
+        probe.mean_periods
+    );
+    if probe.scaled > 0 {
+        note.push_str(&format!(
+            "; {} ran past {} periods and {} charged up to {} max_cycles",
+            probe.scaled,
+            crate::estimate::PROBE_PERIODS,
+            if probe.scaled == 1 { "is" } else { "are" },
+            if probe.scaled == 1 { "its" } else { "their" }
+        ));
+    }
+    if probe.cut > 0 {
+        note.push_str(&format!(
+            "; {} took over {} s and {} charged at {} simulated s per core-second",
+            probe.cut,
+            crate::estimate::PROBE_CUTOFF_S,
+            if probe.cut == 1 { "is" } else { "are" },
+            NOMINAL_SIMULATED_PER_CORE
+        ));
+    }
+    note
+}
+
+/// `n` and the singular or plural noun.
+pub fn plural(n: u64, one: &'static str, many: &'static str) -> &'static str {
+    if n == 1 { one } else { many }
 }
 
 /// `pidm check --json`: the scene's name, layout (`"grid"` with its axes:
 /// key, units, size, first and last value; or `"points"` with their
 /// labels), instance count, shape, baselines, trajectory count, the bytes
 /// of its output maps, and the cost estimate: simulated time
-/// (`simulated_s`), `core_seconds`, `estimate_s` on this machine's `cores`
-/// at `nominal_simulated_per_core_s`; `estimate_is_upper_bound` where a
-/// steady measurement may stop long before its `max_cycles`.
+/// (`simulated_s`, to every `max_cycles` when steady), the distinct
+/// `integrations`, `core_seconds` and `estimate_s` on the CPU path
+/// (`estimate_backend`) on this machine's `cores` (of it
+/// `estimate_sweep_s` integrating the maps and `estimate_trajectories_s`
+/// recording trajectories, the rest starting and writing), measured by a probe
+/// (`probe`: integrations, scaled, cut, mean_periods, mean_core_s,
+/// wall_s); `estimate_is_upper_bound` where a probed steady integration
+/// was charged up to its `max_cycles`. `nominal_simulated_per_core_s` is
+/// the rate charged to a probed integration that was cut off.
 pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
     use serde_json::json;
     let (layout, axes, labels) = match &scene.layout {
@@ -381,10 +544,12 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
         }
         Layout::Points { labels } => ("points", Vec::new(), labels.clone()),
     };
+    let probe = &report.probe;
     json!({
         "name": scene.name,
         "layout": layout,
         "instances": report.instances,
+        "integrations": report.integrations,
         "shape": scene.shape(),
         "axes": axes,
         "labels": labels,
@@ -396,7 +561,19 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
         "core_seconds": report.core_seconds,
         "cores": report.cores,
         "estimate_s": report.estimate_s,
+        "estimate_backend": format!("cpu (f64, {} threads)", report.cores),
+        "estimate_sweep_s": report.sweep_s,
+        "estimate_trajectories_s": report.trajectories_s,
         "estimate_is_upper_bound": report.upper_bound,
+        "probe": {
+            "integrations": probe.integrations,
+            "scaled": probe.scaled,
+            "cut": probe.cut,
+            "mean_periods": probe.mean_periods,
+            "mean_core_s": probe.mean_core_s,
+            "wall_s": probe.wall_s,
+            "parallelism": probe.parallelism,
+        },
         "nominal_simulated_per_core_s": NOMINAL_SIMULATED_PER_CORE,
     })
 }
@@ -414,6 +591,26 @@ pub fn human_duration(seconds: f64) -> String {
     }
 }
 
+/// The default scene of `pidm accuracy` and `pidm bench`.
+pub const DEFAULT_SCENE: &str = "sweeps/paper.toml";
+
+/// Loads a scene file; a shipped scene named by its path in the checkout
+/// (`sweeps/paper.toml`, the commands' defaults) that is not there, as
+/// from another directory, is the copy built into the binary.
+pub fn load_scene(path: &Path) -> Result<Scene> {
+    if !path.exists()
+        && let Some(scene) = path.to_str().and_then(Scene::shipped)
+    {
+        return Ok(scene?);
+    }
+    Ok(Scene::load(path)?)
+}
+
+/// [`load_scene`] for each path.
+fn load_scenes(paths: &[PathBuf]) -> Result<Vec<Scene>> {
+    paths.iter().map(|p| load_scene(p)).collect()
+}
+
 /// Every distinct integration a whole scene asks for.
 fn scene_integrations(scene: &Scene) -> Vec<Instance> {
     let instances: Vec<Instance> = (0..scene.instance_count())
@@ -427,7 +624,7 @@ fn scene_integrations(scene: &Scene) -> Vec<Instance> {
 /// `accuracy.md`.
 pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: bool) -> Result<()> {
     use crate::accuracy::{self, Report};
-    let defaults = [PathBuf::from("sweeps/paper.toml")];
+    let defaults = [PathBuf::from(DEFAULT_SCENE)];
     let paths = if paths.is_empty() {
         &defaults[..]
     } else {
@@ -444,8 +641,7 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
     }
     command.push(format!("--out-dir {}", out_dir.display()));
     let mut report = Report::new(&command.join(" "));
-    for path in paths {
-        let scene = Scene::load(path)?;
+    for scene in load_scenes(paths)? {
         let measured = scene_integrations(&scene);
         // The integrator is studied over the paper's fixed window (10
         // periods, 2 discarded), whatever the scene measures: the
@@ -634,9 +830,11 @@ fn inline_table(entries: &[(&str, f64)]) -> String {
 }
 
 /// `pidm bench`: simulated seconds per wall second per core on one thread
-/// at the scene's accuracy, and the all-core figure.
-pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
-    let scene = Scene::load(path)?;
+/// at the scene's accuracy, and the all-core figure; `path` `None` is the
+/// built-in paper scene.
+pub fn bench(path: Option<&Path>, min_seconds: f64) -> Result<()> {
+    let default = PathBuf::from(DEFAULT_SCENE);
+    let scene = load_scene(path.unwrap_or(&default))?;
     let count = scene.instance_count();
     if count > 100_000 {
         bail!("bench runs every instance repeatedly; {count} instances is too many");
@@ -711,19 +909,16 @@ pub fn bench(path: &Path, min_seconds: f64) -> Result<()> {
 
 /// `pidm report`: writes the paper report to `out`.
 pub fn report(paths: &[PathBuf], out: &Path) -> Result<()> {
-    let defaults = [
-        PathBuf::from("sweeps/paper.toml"),
-        PathBuf::from("sweeps/paper_text.toml"),
-    ];
+    let defaults: Vec<PathBuf> = crate::scene::SHIPPED
+        .iter()
+        .map(|(path, _)| PathBuf::from(path))
+        .collect();
     let paths = if paths.is_empty() {
         &defaults[..]
     } else {
         paths
     };
-    let scenes = paths
-        .iter()
-        .map(|p| Scene::load(p))
-        .collect::<Result<Vec<_>, _>>()?;
+    let scenes = load_scenes(paths)?;
     let md = crate::report::report(&scenes)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;

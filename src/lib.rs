@@ -7,6 +7,7 @@ pub mod backend;
 pub mod checkpoint;
 pub mod commands;
 pub mod cpu;
+pub mod estimate;
 pub mod gpu;
 pub mod measurement;
 pub mod model;

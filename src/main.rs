@@ -39,8 +39,9 @@ enum Command {
         /// Output file [default: results/<scene name>.h5].
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Worker threads of the CPU path [default: every core].
-        #[arg(long)]
+        /// Worker threads of the CPU path, from 1 to 4 per core (or 64)
+        /// [default: every core].
+        #[arg(long, value_parser = thread_count)]
         threads: Option<usize>,
         /// auto: a hardware GPU with f64 when there is one and the run has
         /// at least 256 distinct integrations per CPU thread, else the
@@ -101,7 +102,8 @@ enum Command {
     /// Reruns points scenes (the paper's experiments) and writes a Markdown
     /// report: converged steps beside the paper's, invariants checked.
     Report {
-        /// Points scenes [default: sweeps/paper.toml sweeps/paper_text.toml].
+        /// Points scenes [default: sweeps/paper.toml sweeps/paper_text.toml,
+        /// built into pidm, so any directory works].
         scenes: Vec<PathBuf>,
         /// Output Markdown file.
         #[arg(long, default_value = "results/paper.md")]
@@ -111,7 +113,8 @@ enum Command {
     /// each method and setting; writes a table, HDF5 data, a plot and
     /// results/accuracy.md.
     Accuracy {
-        /// Scenes to study [default: sweeps/paper.toml].
+        /// Scenes to study [default: sweeps/paper.toml, built into pidm, so
+        /// any directory works].
         scenes: Vec<PathBuf>,
         /// Where the data, plots and summary go.
         #[arg(long, default_value = "results")]
@@ -134,6 +137,19 @@ enum Command {
         /// Output folder [default: results/plots/<file stem>].
         #[arg(long)]
         out: Option<PathBuf>,
+        /// The grid axis across the maps, by key (`axis.x.voltage`)
+        /// [default: of the two axes with the most values, the earlier].
+        #[arg(long, value_name = "KEY")]
+        x: Option<String>,
+        /// The grid axis up the maps, by key [default: of the two axes with
+        /// the most values, the later].
+        #[arg(long, value_name = "KEY")]
+        y: Option<String>,
+        /// Hold a grid axis at one of its values (repeatable): only the
+        /// maps at that value are drawn [default: one map per combination
+        /// of the other axes' values].
+        #[arg(long, value_name = "KEY=VALUE", value_parser = key_value)]
+        at: Vec<(String, f64)>,
     },
     /// Writes a points scene of seeded random instances to stdout, measured
     /// over a fixed window (`measure = "window"`).
@@ -151,13 +167,65 @@ enum Command {
     },
     /// Measures simulated seconds per wall second per core on a scene.
     Bench {
-        /// The scene file [default: sweeps/paper.toml].
-        #[arg(default_value = "sweeps/paper.toml")]
-        scene: PathBuf,
+        /// The scene file [default: sweeps/paper.toml, built into pidm, so
+        /// any directory works].
+        scene: Option<PathBuf>,
         /// Keep measuring for at least this many seconds per thread setting.
         #[arg(long, default_value_t = 2.0, value_parser = positive_finite)]
         seconds: f64,
     },
+}
+
+/// Most `--threads` per core: the integration is bound by the CPU, so more
+/// threads than cores only add overhead, and thousands of them take
+/// seconds to start.
+const MAX_THREADS_PER_CORE: usize = 4;
+
+/// `--threads` may always be this many, on any machine: enough to run as
+/// a 16-core machine would (tests and timings do), and quick to start.
+const MIN_THREAD_LIMIT: usize = 64;
+
+/// A `--threads` value: from 1 to [`MAX_THREADS_PER_CORE`] per core, or
+/// [`MIN_THREAD_LIMIT`] where that is more.
+fn thread_count(text: &str) -> Result<usize, String> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let limit = (MAX_THREADS_PER_CORE * cores).max(MIN_THREAD_LIMIT);
+    match text.parse::<usize>() {
+        Ok(0) => Err("expected at least 1 thread".into()),
+        Ok(n) if n > limit => Err(format!(
+            "{n} threads is too many: expected at most {limit} (the larger of \
+             {MAX_THREADS_PER_CORE} per core on this machine's {cores} {} and \
+             {MIN_THREAD_LIMIT}); the CPU path gains nothing from more threads than cores",
+            if cores == 1 { "core" } else { "cores" }
+        )),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("{text:?} is not a whole number ({e})")),
+    }
+}
+
+/// A `KEY=VALUE` flag value with a finite number.
+fn key_value(text: &str) -> Result<(String, f64), String> {
+    let Some((key, value)) = text.split_once('=') else {
+        return Err(format!(
+            "{text:?}: expected KEY=VALUE, e.g. axis.y.frequency=20"
+        ));
+    };
+    match value.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok((key.trim().to_owned(), v)),
+        _ => Err(format!("{text:?}: {value:?} is not a finite number")),
+    }
+}
+
+impl Command {
+    /// Whether the command may look for GPU adapters.
+    fn looks_for_gpu(&self) -> bool {
+        match self {
+            Command::Run { backend, .. } => *backend != backend::BackendChoice::Cpu,
+            Command::Info | Command::Bench { .. } => true,
+            Command::Accuracy { gpu, .. } => *gpu,
+            _ => false,
+        }
+    }
 }
 
 /// A flag value that must be a finite number above zero.
@@ -202,16 +270,27 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 },
             })?;
             if failed > 0 {
+                let (noun, their) = if failed == 1 {
+                    ("instance", "its")
+                } else {
+                    ("instances", "their")
+                };
                 eprintln!(
-                    "pidm: {failed} instances did not finish normally; \
-                     their map entries are 0 and /maps/status says why"
+                    "pidm: {failed} {noun} did not finish normally; {their} map entries are 0 \
+                     and /maps/status says why"
                 );
                 return Ok(ExitCode::from(3));
             }
         }
         Command::Merge { out, shards } => commands::merge(&out, &shards)?,
         Command::Check { scene, json } => commands::check(&scene, json)?,
-        Command::Plot { file, out } => pidm::plot::run(&file, out.as_deref())?,
+        Command::Plot {
+            file,
+            out,
+            x,
+            y,
+            at,
+        } => pidm::plot::run(&file, out.as_deref(), &pidm::plot::View { x, y, at })?,
         Command::Info => commands::info()?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Accuracy {
@@ -226,7 +305,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             cycles,
             settle,
         } => print!("{}", commands::random_scene(seed, count, cycles, settle)?),
-        Command::Bench { scene, seconds } => commands::bench(&scene, seconds)?,
+        Command::Bench { scene, seconds } => commands::bench(scene.as_deref(), seconds)?,
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -262,6 +341,32 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     let cli = Cli::parse();
+    // Mesa's GL driver complains of an unset or invalid XDG_RUNTIME_DIR on
+    // stderr when wgpu looks for adapters (machines without a desktop
+    // session): give it a private folder of this process's instead,
+    // removed at the end.
+    let runtime = cli
+        .command
+        .looks_for_gpu()
+        .then(pidm::gpu::private_runtime_dir)
+        .flatten();
+    if let Some(dir) = &runtime {
+        // SAFETY: still before any thread exists (parsing the command line
+        // starts none).
+        unsafe {
+            std::env::set_var("XDG_RUNTIME_DIR", dir);
+        }
+    }
+    let code = exit_code(cli);
+    if let Some(dir) = runtime {
+        let _ = std::fs::remove_dir(dir);
+    }
+    code
+}
+
+/// Runs the command and turns its outcome into the exit status, printing
+/// the error chain.
+fn exit_code(cli: Cli) -> ExitCode {
     match run(cli) {
         Ok(code) => code,
         Err(err) => {

@@ -22,7 +22,11 @@ use crate::sweep::{self, Plan, Record, Summary};
 pub struct RunResult {
     pub path: PathBuf,
     pub summary: Summary,
+    /// This process's wall time [s].
     pub wall_time_s: f64,
+    /// The wall time of every part of the run, this one and those before
+    /// an interrupt (`--resume`) [s].
+    pub total_wall_time_s: f64,
     pub backend: String,
     /// The records, kept only for small scenes (up to the table limit).
     pub records: Vec<Record>,
@@ -181,7 +185,7 @@ pub fn run_scene(
                 writer.write(start, records)?;
                 from_checkpoint += records.len() as u64;
                 for (k, r) in records.iter().enumerate() {
-                    summary.add(r);
+                    summary.add(r, start + k as u64);
                     if keep_records {
                         kept.insert(start + k as u64, *r);
                     }
@@ -272,12 +276,15 @@ pub fn run_scene(
     if scope.shard.is_none() {
         crate::trajectory::record_and_write(writer.file(), scene)?;
     }
-    let path = writer.finish(wall_time_s)?;
+    let mut parts = checkpoint.earlier_parts().to_vec();
+    parts.push(wall_time_s);
+    let path = writer.finish(&parts)?;
     checkpoint.remove()?;
     Ok(RunResult {
         path,
         summary,
         wall_time_s,
+        total_wall_time_s: parts.iter().sum(),
         backend: backend.describe(),
         records: kept.into_values().collect(),
         from_checkpoint,

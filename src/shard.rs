@@ -396,8 +396,8 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
         }
     }
     crate::trajectory::record_and_write(writer.file(), &scene)?;
-    let wall_time_s = shards.iter().map(|s| s.wall_time_s).sum();
-    let path = writer.finish(wall_time_s)?;
+    let parts: Vec<f64> = shards.iter().map(|s| s.wall_time_s).collect();
+    let path = writer.finish(&parts)?;
     Ok(MergeSummary {
         path,
         shards: count,

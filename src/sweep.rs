@@ -431,6 +431,10 @@ pub struct Summary {
     /// Simulated time over all integrated instances, baselines included [s].
     pub simulated_s: f64,
     pub extreme_step: [f64; 2],
+    /// Per axis, the instance with the most backward step and the one with
+    /// the most forward step among those with status 0: (step [m per own
+    /// drive cycle], flat index); the index is `u64::MAX` while none is.
+    pub best: [[(f64, u64); 2]; AXES],
 }
 
 impl Default for Summary {
@@ -448,6 +452,7 @@ impl Default for Summary {
             on_cpu: 0,
             simulated_s: 0.0,
             extreme_step: [f64::INFINITY, f64::NEG_INFINITY],
+            best: [[(f64::INFINITY, u64::MAX), (f64::NEG_INFINITY, u64::MAX)]; AXES],
         }
     }
 }
@@ -470,11 +475,32 @@ impl Summary {
         self.simulated_s += other.simulated_s;
         self.extreme_step[0] = self.extreme_step[0].min(other.extreme_step[0]);
         self.extreme_step[1] = self.extreme_step[1].max(other.extreme_step[1]);
+        for axis in 0..AXES {
+            let [low, high] = other.best[axis];
+            self.offer(axis, low.0, low.1);
+            self.offer(axis, high.0, high.1);
+        }
     }
 
-    /// Counts one finished instance (its simulated time is added apart,
+    /// Takes a step of instance `index` on `axis` as the most backward or
+    /// forward one when it is (the lower index wins a tie, whatever the
+    /// order instances come in).
+    fn offer(&mut self, axis: usize, step: f64, index: u64) {
+        if index == u64::MAX || !step.is_finite() {
+            return;
+        }
+        let [low, high] = &mut self.best[axis];
+        if step < low.0 || (step == low.0 && index < low.1) {
+            *low = (step, index);
+        }
+        if step > high.0 || (step == high.0 && index < high.1) {
+            *high = (step, index);
+        }
+    }
+
+    /// Counts one finished instance, flat index `index` (its simulated time is added apart,
     /// because baselines add to it too).
-    pub fn add(&mut self, rec: &Record) {
+    pub fn add(&mut self, rec: &Record, index: u64) {
         self.instances += 1;
         self.status_counts[(rec.status as usize).min(7)] += 1;
         self.steps += rec.steps as u64;
@@ -488,6 +514,7 @@ impl Summary {
             for axis in 0..AXES {
                 self.extreme_step[0] = self.extreme_step[0].min(rec.step[axis]);
                 self.extreme_step[1] = self.extreme_step[1].max(rec.step[axis]);
+                self.offer(axis, rec.step[axis], index);
             }
         }
     }
@@ -637,8 +664,8 @@ pub fn run(
                 rec
             })
             .collect();
-        for rec in &records {
-            summary.add(rec);
+        for (rec, &index) in records.iter().zip(&indices) {
+            summary.add(rec, index);
         }
         summary.simulated_s += jobs
             .iter()

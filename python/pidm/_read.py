@@ -74,7 +74,8 @@ def open(path: PathLike) -> xr.Dataset:
       its ``units`` and ``long_name``;
     - attributes: the file's root attributes: ``scene`` (the TOML text), ``name``,
       ``pidm_version``, ``backend``, ``precision``, ``tolerance`` [rad],
-      ``wall_time_s`` [s], ``variant``, ...
+      ``wall_time_s`` [s, every part of the run], ``wall_time_parts_s`` [s, each
+      part: the runs of a resumed run, the shards of a merged one], ``variant``, ...
 
     Trajectories are read by :func:`open_trajectory`.
     """

@@ -90,11 +90,17 @@ def check(scene: Scene) -> dict[str, Any]:
     Returns a dict with ``name``, ``layout`` (``"grid"`` or ``"points"``), ``axes``
     (per grid axis: ``key``, ``units``, ``size``, ``first``, ``last``),
     ``instances``, ``shape``, ``labels``, ``baselines``, ``trajectories`` (how
-    many), ``output_bytes``, and the cost estimate: ``simulated_s`` [simulated s,
-    baselines included], ``core_seconds`` [s of one core], ``estimate_s`` [wall s
-    on this machine's ``cores``] at ``nominal_simulated_per_core_s`` [simulated s
-    per wall s per core]. Raises SceneError (a ValueError) with pidm's message for
-    a scene pidm refuses.
+    many), ``output_bytes``, ``integrations`` (distinct, baselines included), and
+    the cost estimate: ``simulated_s`` [simulated s, baselines included, to every
+    ``max_cycles`` when steady], ``core_seconds`` [s of one core], ``estimate_s``
+    [wall s on the CPU path, ``estimate_backend``, on this machine's ``cores``; of
+    it ``estimate_sweep_s`` integrating and ``estimate_trajectories_s`` recording
+    trajectories],
+    measured by a short probe of a few instances (``probe``: ``integrations``,
+    ``scaled``, ``cut``, ``mean_periods``, ``mean_core_s``, ``wall_s``,
+    ``parallelism``); ``estimate_is_upper_bound`` when a probed steady instance
+    was charged up to its ``max_cycles``. Raises SceneError (a ValueError) with
+    pidm's message for a scene pidm refuses.
     """
     binary = find_binary()
     with (

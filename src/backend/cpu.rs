@@ -42,7 +42,10 @@ impl CpuBackend {
 
 impl Backend for CpuBackend {
     fn describe(&self) -> String {
-        format!("cpu (rayon, {} threads)", self.threads())
+        match self.threads() {
+            1 => "cpu (rayon, 1 thread)".to_owned(),
+            n => format!("cpu (rayon, {n} threads)"),
+        }
     }
 
     fn precision(&self) -> Precision {

@@ -64,6 +64,18 @@ pub fn select_backend(
         BackendChoice::Gpu => {
             let ctx = GpuContext::new(true).context("--backend gpu")?;
             let precision = gpu_precision(&ctx);
+            if !ctx.is_hardware() {
+                let name = ctx.describe();
+                let kind = if name.contains("llvmpipe") {
+                    " (lavapipe)"
+                } else {
+                    ""
+                };
+                eprintln!(
+                    "pidm: no hardware GPU; the software adapter{kind} runs the shader, on the \
+                     CPU: {name}"
+                );
+            }
             let gpu = GpuBackend::new(ctx, precision)?;
             eprintln!("pidm: {}", gpu.readiness());
             Box::new(gpu)
@@ -73,9 +85,14 @@ pub fn select_backend(
         {
             let threads = cpu_threads;
             eprintln!(
-                "pidm: {integrations} integrations are too few for a GPU to beat {threads} CPU \
-                 threads (it needs {} or more); using the CPU path (--backend gpu uses the GPU \
-                 anyway)",
+                "pidm: {integrations} {} too few for a GPU to beat {threads} CPU {} (it needs {} \
+                 or more); using the CPU path (--backend gpu uses the GPU anyway)",
+                if integrations == 1 {
+                    "integration is"
+                } else {
+                    "integrations are"
+                },
+                if threads == 1 { "thread" } else { "threads" },
                 GPU_MIN_INTEGRATIONS_PER_THREAD * threads as u64
             );
             Box::new(CpuBackend::new(Some(threads))?)
@@ -109,6 +126,10 @@ pub fn select_backend(
                         Box::new(CpuBackend::new(threads)?)
                     }
                 }
+            }
+            Err(err @ crate::gpu::GpuError::OnlySoftware { .. }) => {
+                eprintln!("pidm: {err}: using the CPU path (--backend gpu runs lavapipe anyway)");
+                Box::new(CpuBackend::new(threads)?)
             }
             Err(err) => {
                 eprintln!("pidm: no hardware GPU adapter, using the CPU path ({err})");

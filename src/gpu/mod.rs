@@ -78,6 +78,16 @@ pub enum GpuError {
         /// What was enumerated and why each candidate was refused.
         tried: String,
     },
+    /// Only software adapters were found, and they were not allowed.
+    #[error(
+        "no hardware GPU; only the software adapter ({software}), which runs the shader on the \
+         CPU, slower than the CPU path"
+    )]
+    OnlySoftware {
+        /// The software adapter found, e.g. "llvmpipe (LLVM 15.0.6, 256
+        /// bits) (Vulkan)".
+        software: String,
+    },
     /// f64 was requested from an adapter without `SHADER_F64`.
     #[error("adapter {adapter} does not support 64-bit floats in shaders (SHADER_F64)")]
     F64Unsupported { adapter: String },
@@ -281,6 +291,33 @@ pub fn list_adapters() -> Vec<AdapterSummary> {
     adapters().iter().map(summary).collect()
 }
 
+/// A private runtime folder for this process when `XDG_RUNTIME_DIR` is
+/// unset or invalid (not a folder of this user's that only it may enter),
+/// to set before wgpu looks for adapters: Mesa's GL driver otherwise prints
+/// "error: XDG_RUNTIME_DIR is invalid or not set in the environment", which
+/// a user of pidm can do nothing about. `None` when the variable is valid
+/// or no such folder can be made. The folder, `pidm-runtime-<uid>-<pid>`
+/// in the temporary folder with mode 0700, is new and empty: the caller
+/// removes it when the process ends ([`std::fs::remove_dir`] leaves it if
+/// a driver put something there).
+pub fn private_runtime_dir() -> Option<std::path::PathBuf> {
+    use std::os::unix::fs::{DirBuilderExt, MetadataExt};
+    // SAFETY: getuid cannot fail and touches no memory.
+    let uid = unsafe { libc::getuid() };
+    let private = |path: &std::path::Path| {
+        std::fs::symlink_metadata(path)
+            .is_ok_and(|m| m.is_dir() && m.uid() == uid && m.mode() & 0o077 == 0)
+    };
+    if let Some(dir) = std::env::var_os("XDG_RUNTIME_DIR").filter(|d| !d.is_empty())
+        && private(std::path::Path::new(&dir))
+    {
+        return None;
+    }
+    let dir = std::env::temp_dir().join(format!("pidm-runtime-{uid}-{}", std::process::id()));
+    std::fs::DirBuilder::new().mode(0o700).create(&dir).ok()?;
+    private(&dir).then_some(dir)
+}
+
 /// True for adapters that run on the CPU (lavapipe, llvmpipe, SwiftShader,
 /// WARP).
 fn is_software(info: &wgpu::AdapterInfo) -> bool {
@@ -384,6 +421,9 @@ impl GpuContext {
         let started = std::time::Instant::now();
         let mut tried = Vec::new();
         let mut best: Option<wgpu::Adapter> = None;
+        // The first software adapter refused, to say so plainly when it is
+        // the only kind there is.
+        let mut software_seen: Option<String> = None;
         // Unless WGPU_BACKEND says otherwise, the primary backends
         // (Vulkan, Metal, DX12) first: opening GL costs a tenth of a second,
         // and a GL adapter has no f64.
@@ -411,6 +451,14 @@ impl GpuContext {
             }
             if is_software(&info) && !allow_software {
                 tried.push(format!("{label}: software, not allowed"));
+                software_seen.get_or_insert_with(|| {
+                    let kind = if has_loop_limiter(&info) {
+                        "lavapipe: "
+                    } else {
+                        ""
+                    };
+                    format!("{kind}{}, {:?}", info.name, info.backend)
+                });
                 continue;
             }
             tried.push(format!("{label}: usable"));
@@ -419,6 +467,11 @@ impl GpuContext {
             }
         }
         let adapters_in = started.elapsed().as_secs_f64();
+        if best.is_none()
+            && let Some(software) = software_seen
+        {
+            return Err(GpuError::OnlySoftware { software });
+        }
         let Some(adapter) = best else {
             let backends = wgpu::Backends::from_env()
                 .map(|b| format!("WGPU_BACKEND={b:?}"))

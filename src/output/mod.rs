@@ -485,11 +485,21 @@ impl MapWriter {
             .expect("the file stays open until finish")
     }
 
-    /// Records the run's wall time, closes the file and renames it into
-    /// place. On an error the temporary file is removed and the output is
-    /// left as it was.
-    pub fn finish(mut self, wall_time_s: f64) -> Result<PathBuf> {
-        write_f64_attr(self.file(), schema::WALL_TIME_S, wall_time_s)?;
+    /// Records the run's wall time, the total of its `parts` (the runs of
+    /// an interrupted and resumed run, or the shards of a merged one; one
+    /// for a plain run), closes the file and renames it into place. On an
+    /// error the temporary file is removed and the output is left as it
+    /// was.
+    pub fn finish(mut self, parts: &[f64]) -> Result<PathBuf> {
+        write_f64_attr(self.file(), schema::WALL_TIME_S, parts.iter().sum())?;
+        {
+            let attr = self
+                .file()
+                .new_attr::<f64>()
+                .shape(parts.len())
+                .create(schema::WALL_TIME_PARTS_S)?;
+            attr.write_raw(parts)?;
+        }
         // The output may have changed since the claim checked it; a rename
         // would silently replace a FIFO or device that appeared meanwhile.
         claim::check_regular_or_absent(&self.final_path)?;

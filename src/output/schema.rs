@@ -145,6 +145,10 @@ pub const VARIANT: &str = "variant";
 pub const TOLERANCE: &str = "tolerance";
 pub const VERIFY_TOLERANCE: &str = "verify_tolerance";
 pub const WALL_TIME_S: &str = "wall_time_s";
+/// Root attribute: the wall time of each part of the run [s]: the runs of
+/// an interrupted and resumed run in order, or the shards of a merged one;
+/// one value for a plain run. `wall_time_s` is their total.
+pub const WALL_TIME_PARTS_S: &str = "wall_time_parts_s";
 
 /// Root attributes of a shard file: which part of the scene it holds.
 pub const SHARD_COUNT: &str = "shard_count";

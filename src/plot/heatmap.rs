@@ -29,6 +29,35 @@ pub(super) enum MapLegend {
     Categories(Vec<(RGBColor, String)>),
 }
 
+/// The class of a cell for a contour: cells of different classes are
+/// parted by a line; `None` (a cell without a value) is parted from none.
+pub(super) type ContourClass<'a> = &'a dyn Fn(usize, usize) -> Option<i8>;
+
+/// The cell edges between neighbouring cells of different classes, as
+/// line segments in the chart's coordinates (`ex`, `ey`: the cell edges).
+pub(super) fn contour_segments(
+    class: ContourClass<'_>,
+    ex: &[f64],
+    ey: &[f64],
+) -> Vec<[(f64, f64); 2]> {
+    let (nx, ny) = (ex.len() - 1, ey.len() - 1);
+    let mut segments = Vec::new();
+    for i in 0..nx {
+        for j in 0..ny {
+            let Some(here) = class(i, j) else {
+                continue;
+            };
+            if i + 1 < nx && class(i + 1, j).is_some_and(|c| c != here) {
+                segments.push([(ex[i + 1], ey[j]), (ex[i + 1], ey[j + 1])]);
+            }
+            if j + 1 < ny && class(i, j + 1).is_some_and(|c| c != here) {
+                segments.push([(ex[i], ey[j + 1]), (ex[i + 1], ey[j + 1])]);
+            }
+        }
+    }
+    segments
+}
+
 /// Draws one heatmap: `colour(i, j)` is the cell at value i of `across`
 /// and value j of `up`.
 pub(super) fn heatmap(
@@ -38,6 +67,20 @@ pub(super) fn heatmap(
     up: &AxisData,
     colour: &dyn Fn(usize, usize) -> RGBColor,
     legend: &MapLegend,
+) -> Result<()> {
+    heatmap_contoured(path, title, across, up, colour, legend, None)
+}
+
+/// [`heatmap`], and with `contour` a black line parting neighbouring cells
+/// of different classes.
+pub(super) fn heatmap_contoured(
+    path: &Path,
+    title: &[String],
+    across: &AxisData,
+    up: &AxisData,
+    colour: &dyn Fn(usize, usize) -> RGBColor,
+    legend: &MapLegend,
+    contour: Option<ContourClass<'_>>,
 ) -> Result<()> {
     save(path, MAP_SIZE, |root| {
         let body = title_block(root, title)?;
@@ -106,6 +149,13 @@ pub(super) fn heatmap(
             }
         }
         chart.draw_series(cells)?;
+        if let Some(class) = contour {
+            chart.draw_series(
+                contour_segments(class, &ex, &ey)
+                    .into_iter()
+                    .map(|[a, b]| PathElement::new(vec![a, b], BLACK.stroke_width(2))),
+            )?;
+        }
         match legend {
             MapLegend::Bar {
                 scale,
@@ -161,4 +211,31 @@ fn colour_bar(area: &Area<'_>, scale: &Diverging, title: &str) -> Result<()> {
         BLACK.stroke_width(1),
     )))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 3 x 2 grid: + + 0 on the bottom row, - + (none) on the top: lines
+    /// part the classes, never a cell without a value.
+    #[test]
+    fn the_contour_parts_cells_of_different_classes() {
+        let classes = [[Some(1), Some(-1)], [Some(1), Some(1)], [Some(0), None]];
+        let class = |i: usize, j: usize| classes[i][j];
+        let (ex, ey) = ([0.0, 1.0, 2.0, 3.0], [0.0, 1.0, 2.0]);
+        let mut segments = contour_segments(&class, &ex, &ey);
+        segments.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        assert_eq!(
+            segments,
+            [
+                // (0,0)+ | (0,1)- : the edge at y = 1 over x 0..1.
+                [(0.0, 1.0), (1.0, 1.0)],
+                // (0,1)- | (1,1)+ : the edge at x = 1 over y 1..2.
+                [(1.0, 1.0), (1.0, 2.0)],
+                // (1,0)+ | (2,0)0 : the edge at x = 2 over y 0..1.
+                [(2.0, 0.0), (2.0, 1.0)],
+            ]
+        );
+    }
 }

@@ -15,13 +15,107 @@ use super::text::{short, with_unit};
 use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
 use crate::model::AXIS_NAMES;
 
-/// The two dimensions a grid's pictures span: those with the most values
-/// (the earlier on ties), in grid order.
-pub fn plane_dims(shape: &[usize]) -> (usize, usize) {
-    let mut dims: Vec<usize> = (0..shape.len()).collect();
-    dims.sort_by_key(|&d| std::cmp::Reverse(shape[d]));
-    let (a, b) = (dims[0], dims[1]);
-    (a.min(b), a.max(b))
+/// How a grid's maps are sliced: the dimensions across and up, and for
+/// every other dimension the indices drawn (all, or the one `--at` holds).
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Plane {
+    pub(super) across: usize,
+    pub(super) up: usize,
+    /// For each dimension but `across` and `up`, in grid order: the
+    /// dimension and the indices of its values to draw.
+    pub(super) rest: Vec<(usize, Vec<usize>)>,
+}
+
+impl Plane {
+    /// The plane of a `view` of a grid with `axes` (two or more) and
+    /// `shape`: its keys checked against the grid's, an `--at` value
+    /// matched to one of its axis' values.
+    pub(super) fn choose(
+        axes: &[AxisData],
+        shape: &[usize],
+        view: &super::View,
+    ) -> anyhow::Result<Plane> {
+        let keys = || {
+            axes.iter()
+                .map(|a| a.key.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let find = |flag: &str, key: &str| {
+            axes.iter().position(|a| a.key == key).ok_or_else(|| {
+                anyhow::anyhow!(
+                    "{flag} {key}: not a grid axis of this file; expected one of {}",
+                    keys()
+                )
+            })
+        };
+        let x = view.x.as_deref().map(|k| find("--x", k)).transpose()?;
+        let y = view.y.as_deref().map(|k| find("--y", k)).transpose()?;
+        let mut held: Vec<(usize, usize)> = Vec::new();
+        for (key, value) in &view.at {
+            let d = find("--at", key)?;
+            if Some(d) == x || Some(d) == y {
+                anyhow::bail!("--at {key}: it is the axis --x or --y spans; hold another axis");
+            }
+            if held.iter().any(|&(h, _)| h == d) {
+                anyhow::bail!("--at {key}: given twice");
+            }
+            let values = &axes[d].values;
+            let scale = values.iter().fold(value.abs(), |m, v| m.max(v.abs()));
+            let Some(i) = values
+                .iter()
+                .position(|v| (v - value).abs() <= 1e-9 * scale.max(f64::MIN_POSITIVE))
+            else {
+                let list: Vec<String> = values.iter().map(|v| short(*v)).collect();
+                anyhow::bail!(
+                    "--at {key}={}: not a value of that axis; it has {}",
+                    short(*value),
+                    list.join(", ")
+                );
+            };
+            held.push((d, i));
+        }
+        // The longest axes not held span the maps where --x or --y leaves
+        // it open (the earlier on ties).
+        let mut free: Vec<usize> = (0..shape.len())
+            .filter(|d| Some(*d) != x && Some(*d) != y && !held.iter().any(|&(h, _)| h == *d))
+            .collect();
+        free.sort_by_key(|&d| std::cmp::Reverse(shape[d]));
+        let mut free = free.into_iter();
+        let (across, up) = match (x, y) {
+            (Some(x), Some(y)) if x == y => {
+                anyhow::bail!("--x and --y name the same axis {}", axes[x].key)
+            }
+            (Some(x), Some(y)) => (x, y),
+            (Some(x), None) => (x, free.next().context_axis()?),
+            (None, Some(y)) => (free.next().context_axis()?, y),
+            (None, None) => {
+                let (a, b) = (free.next().context_axis()?, free.next().context_axis()?);
+                (a.min(b), a.max(b))
+            }
+        };
+        let rest = (0..shape.len())
+            .filter(|&d| d != across && d != up)
+            .map(|d| match held.iter().find(|&&(h, _)| h == d) {
+                Some(&(_, i)) => (d, vec![i]),
+                None => (d, (0..shape[d]).collect()),
+            })
+            .collect();
+        Ok(Plane { across, up, rest })
+    }
+}
+
+/// An axis left to span a map, or the error that none is.
+trait ContextAxis {
+    fn context_axis(self) -> anyhow::Result<usize>;
+}
+
+impl ContextAxis for Option<usize> {
+    fn context_axis(self) -> anyhow::Result<usize> {
+        self.ok_or_else(|| {
+            anyhow::anyhow!("--at holds every axis but one; a map needs two axes to span")
+        })
+    }
 }
 
 /// The combinations of indices of the dimensions of sizes `rest` to draw
@@ -49,23 +143,80 @@ fn slices(rest: &[usize]) -> (Vec<Vec<usize>>, usize) {
     (combos, total)
 }
 
+/// The drive parameters of a grid scene that no grid axis changes, as a
+/// title line: "fixed: x 100 V, 10 Hz, duty 0.98, phase 0; y 10 Hz, ...".
+/// A parameter is fixed when one step along each grid axis leaves it as
+/// it is (a grid axis over an `axis.x` key that `axis.y` inherits moves
+/// both). `None` for a scene without a grid of two or more axes.
+pub(super) fn fixed_drive(scene: &crate::scene::Scene) -> Option<String> {
+    let crate::scene::Layout::Grid { axes } = &scene.layout else {
+        return None;
+    };
+    if axes.len() < 2 {
+        return None;
+    }
+    let first = scene.instance(0);
+    let mut neighbours = Vec::new();
+    let mut stride = 1u64;
+    for axis in axes.iter().rev() {
+        if axis.values.len() > 1 {
+            neighbours.push(scene.instance(stride));
+        }
+        stride *= axis.values.len() as u64;
+    }
+    let mut parts = Vec::new();
+    for (a, name) in AXIS_NAMES.iter().enumerate() {
+        let fixed = |get: &dyn Fn(&crate::model::Axis) -> f64| {
+            neighbours
+                .iter()
+                .all(|n| get(&n.axes[a]).to_bits() == get(&first.axes[a]).to_bits())
+        };
+        let drive = &first.axes[a];
+        let mut items = Vec::new();
+        if fixed(&|x| x.voltage) {
+            items.push(with_unit(drive.voltage, "V"));
+        }
+        // An axis undriven everywhere has no drive to describe.
+        if items.first().is_some_and(|_| drive.voltage == 0.0) {
+            parts.push(format!("{name} undriven"));
+            continue;
+        }
+        if fixed(&|x| x.frequency) {
+            items.push(with_unit(drive.frequency, "Hz"));
+        }
+        if fixed(&|x| x.duty) {
+            items.push(format!("duty {}", short(drive.duty)));
+        }
+        if fixed(&|x| x.phase) {
+            items.push(format!("phase {}", short(drive.phase)));
+        }
+        if !items.is_empty() {
+            parts.push(format!("{name} {}", items.join(", ")));
+        }
+    }
+    (!parts.is_empty()).then(|| format!("fixed: {}", parts.join("; ")))
+}
+
 /// The per-axis words for map titles.
 fn per_cycle(axis: usize) -> String {
     format!("µm per {} drive cycle", AXIS_NAMES[axis])
 }
 
-/// Writes the heatmaps of a grid with two or more axes.
+/// Writes the heatmaps of a grid with two or more axes, sliced as `plane`
+/// says (by default the two axes with the most values span the maps, the
+/// earlier in the file across).
 pub(super) fn grid_maps(
     data: &Data,
     axes: &[AxisData],
+    plane: &Plane,
     dir: &Path,
     files: &mut Vec<PathBuf>,
     notes: &mut Vec<String>,
 ) -> Result<()> {
     let shape = &data.shape;
-    let (p, q) = plane_dims(shape);
-    let rest: Vec<usize> = (0..shape.len()).filter(|&d| d != p && d != q).collect();
-    let rest_shape: Vec<usize> = rest.iter().map(|&d| shape[d]).collect();
+    let (p, q) = (plane.across, plane.up);
+    let rest: Vec<usize> = plane.rest.iter().map(|(d, _)| *d).collect();
+    let rest_shape: Vec<usize> = plane.rest.iter().map(|(_, ix)| ix.len()).collect();
     let mut strides = vec![1; shape.len()];
     for d in (0..shape.len().saturating_sub(1)).rev() {
         strides[d] = strides[d + 1] * shape[d + 1];
@@ -81,6 +232,17 @@ pub(super) fn grid_maps(
             combos.len()
         ));
     }
+    // Indices into each dimension's drawn values, to indices of its values.
+    let combos: Vec<Vec<usize>> = combos
+        .into_iter()
+        .map(|combo| {
+            combo
+                .iter()
+                .zip(&plane.rest)
+                .map(|(&k, (_, ix))| ix[k])
+                .collect()
+        })
+        .collect();
     let (n0, n1) = (shape[p], shape[q]);
     let (across, up) = (&axes[p], &axes[q]);
     for combo in &combos {
@@ -150,8 +312,12 @@ pub(super) fn grid_maps(
                     short(scale.half_width),
                     a = AXIS_NAMES[axis]
                 ),
+                "black lines: the zero-step contour, where the step changes sign or stops \
+                 (below 0.001 µm)"
+                    .to_owned(),
             ];
             title.extend(slice_line.clone());
+            title.extend(data.fixed.clone());
             title.extend(failed_line.clone());
             title.extend(unsteady_line.clone());
             let path = dir.join(format!("step_{}{suffix}.png", AXIS_NAMES[axis]));
@@ -162,7 +328,7 @@ pub(super) fn grid_maps(
             if unsteady > 0 {
                 swatches.push((NOT_STEADY, "not steady (status 6)".to_owned()));
             }
-            heatmap(
+            super::heatmap::heatmap_contoured(
                 &path,
                 &title,
                 across,
@@ -180,6 +346,17 @@ pub(super) fn grid_maps(
                     title: format!("step along {} [{}]", AXIS_NAMES[axis], per_cycle(axis)),
                     swatches,
                 },
+                Some(&|i, j| {
+                    let k = flat(i, j);
+                    (data.status[k] == 0).then(|| {
+                        let step = data.step[axis][k];
+                        if step.abs() < ZERO_STEP_M {
+                            0
+                        } else {
+                            step.signum() as i8
+                        }
+                    })
+                }),
             )?;
             files.push(path);
 
@@ -283,6 +460,7 @@ pub(super) fn grid_maps(
                 ),
             ];
             title.extend(slice_line.clone());
+            title.extend(data.fixed.clone());
             let path = dir.join(format!("ratio_{a}{suffix}.png"));
             let mut swatches = vec![(UNDEFINED, "1-DOF step < 0.001 µm: no ratio".to_owned())];
             if cells.iter().any(|&k| !ok(k)) {
@@ -335,6 +513,7 @@ pub(super) fn grid_maps(
                     .to_owned(),
             ];
             title.extend(slice_line.clone());
+            title.extend(data.fixed.clone());
             let path = dir.join(format!("regime_{a}{suffix}.png"));
             heatmap(
                 &path,
@@ -367,7 +546,55 @@ mod tests {
             (&[5, 5, 5, 9], (0, 3)),
         ];
         for (shape, want) in cases {
-            assert_eq!(plane_dims(shape), want, "{shape:?}");
+            let axes: Vec<AxisData> = shape
+                .iter()
+                .enumerate()
+                .map(|(d, &n)| AxisData {
+                    key: format!("k{d}"),
+                    units: "1".into(),
+                    values: (0..n).map(|v| v as f64).collect(),
+                })
+                .collect();
+            let plane = Plane::choose(&axes, shape, &crate::plot::View::default()).unwrap();
+            assert_eq!((plane.across, plane.up), want, "{shape:?}");
         }
+    }
+
+    use crate::scene::Scene;
+
+    #[test]
+    fn map_titles_name_the_drive_parameters_no_grid_axis_changes() {
+        let scene = Scene::from_toml(
+            "[axis.x]\nvoltage = [50.0, 100.0]\nduty = 0.9\n\
+             [axis.y]\nvoltage = [0.0, 60.0]\nfrequency = 20.0\n",
+            Some("t"),
+        )
+        .unwrap();
+        assert_eq!(
+            fixed_drive(&scene).as_deref(),
+            Some("fixed: x 10 Hz, duty 0.9, phase 0; y 20 Hz, duty 0.9, phase 0")
+        );
+        // A grid over an x key that y inherits moves both.
+        let scene = Scene::from_toml(
+            "[axis.x]\nfrequency = [10.0, 20.0]\n[axis.y]\nvoltage = [0.0, 60.0]\n",
+            Some("t"),
+        )
+        .unwrap();
+        assert_eq!(
+            fixed_drive(&scene).as_deref(),
+            Some("fixed: x 100 V, duty 0.98, phase 0; y duty 0.98, phase 0")
+        );
+        // y undriven everywhere; a 1-D grid has no maps.
+        let scene = Scene::from_toml(
+            "[axis.x]\nvoltage = [50.0, 100.0]\nfrequency = [10.0, 20.0]\n",
+            Some("t"),
+        )
+        .unwrap();
+        assert_eq!(
+            fixed_drive(&scene).as_deref(),
+            Some("fixed: x duty 0.98, phase 0; y undriven")
+        );
+        let scene = Scene::from_toml("[axis.x]\nvoltage = [50.0, 100.0]\n", Some("t")).unwrap();
+        assert_eq!(fixed_drive(&scene), None);
     }
 }

@@ -86,29 +86,85 @@ pub fn default_out_dir(file: &Path) -> PathBuf {
     PathBuf::from("results").join("plots").join(stem)
 }
 
+/// Which slices of a grid the maps show (`pidm plot --x --y --at`): the
+/// keys of the axes across and up (the two longest when not given), and
+/// values at which other axes are held.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct View {
+    /// The grid axis across the maps.
+    pub x: Option<String>,
+    /// The grid axis up the maps.
+    pub y: Option<String>,
+    /// Grid axes held at one value each: (key, value).
+    pub at: Vec<(String, f64)>,
+}
+
+impl View {
+    /// Whether the view asks for anything but the default.
+    pub fn is_default(&self) -> bool {
+        self == &View::default()
+    }
+}
+
 /// Checks the result file `file` whole, then draws every picture of it
 /// into `dir`: all of them, or, on any error, none.
 pub fn plot_file(file: &Path, dir: &Path) -> Result<Plotted> {
+    plot_view(file, dir, &View::default())
+}
+
+/// [`plot_file`] with the maps of a grid sliced as `view` says.
+pub fn plot_view(file: &Path, dir: &Path, view: &View) -> Result<Plotted> {
     let data = Data::read(file)?;
+    let plane = match &data.kind {
+        Kind::Grid(axes) if axes.len() >= 2 => Some(maps::Plane::choose(axes, &data.shape, view)?),
+        _ if !view.is_default() => anyhow::bail!(
+            "--x, --y and --at slice the maps of a grid of two or more axes; {} has none",
+            file.display()
+        ),
+        _ => None,
+    };
     let staging = Staging::new(dir)?;
     let mut notes = data.notes.clone();
     let mut staged = Vec::new();
-    draw(&data, staging.path(), &mut staged, &mut notes)?;
+    draw(
+        &data,
+        plane.as_ref(),
+        staging.path(),
+        &mut staged,
+        &mut notes,
+    )?;
     Ok(Plotted {
         files: staging.commit(&staged)?,
         notes,
     })
 }
 
-/// Draws every picture of `data` into `dir`, adding each file to `files`.
-fn draw(data: &Data, dir: &Path, files: &mut Vec<PathBuf>, notes: &mut Vec<String>) -> Result<()> {
+/// Draws every picture of `data` into `dir`, adding each file to `files`;
+/// `plane` says how a grid of two or more axes is sliced.
+fn draw(
+    data: &Data,
+    plane: Option<&maps::Plane>,
+    dir: &Path,
+    files: &mut Vec<PathBuf>,
+    notes: &mut Vec<String>,
+) -> Result<()> {
     match &data.kind {
         Kind::Points(labels) => bars::point_bars(data, labels, dir, files)?,
         Kind::Grid(axes) if axes.is_empty() => {
             bars::point_bars(data, &["the single instance".to_owned()], dir, files)?
         }
         Kind::Grid(axes) if axes.len() == 1 => lines::grid_lines(data, &axes[0], dir, files)?,
-        Kind::Grid(axes) => maps::grid_maps(data, axes, dir, files, notes)?,
+        Kind::Grid(axes) => {
+            let default;
+            let plane = match plane {
+                Some(plane) => plane,
+                None => {
+                    default = maps::Plane::choose(axes, &data.shape, &View::default())?;
+                    &default
+                }
+            };
+            maps::grid_maps(data, axes, plane, dir, files, notes)?
+        }
     }
     for (k, t) in data.trajectories.iter().enumerate() {
         if let Some(why) = &t.not_drawn {
@@ -121,9 +177,9 @@ fn draw(data: &Data, dir: &Path, files: &mut Vec<PathBuf>, notes: &mut Vec<Strin
 }
 
 /// `pidm plot`: draws the pictures and prints every file written.
-pub fn run(file: &Path, out: Option<&Path>) -> Result<()> {
+pub fn run(file: &Path, out: Option<&Path>, view: &View) -> Result<()> {
     let dir = out.map_or_else(|| default_out_dir(file), Path::to_path_buf);
-    let plotted = plot_file(file, &dir)?;
+    let plotted = plot_view(file, &dir, view)?;
     for path in &plotted.files {
         println!("wrote {}", path.display());
     }

@@ -58,6 +58,9 @@ pub(super) struct Data {
     pub(super) trajectories: Vec<TrajectoryData>,
     /// Things the reader should know (guessed axis order, values left out).
     pub(super) notes: Vec<String>,
+    /// The drive parameters that no grid axis changes, for map titles
+    /// ("fixed: x 100 V, 10 Hz, ..."), when the scene parses.
+    pub(super) fixed: Option<String>,
 }
 
 impl Data {
@@ -140,6 +143,7 @@ impl Data {
             Kind::Grid(read_axes(&file, &shape, scene.as_ref(), &mut notes)?)
         };
         let trajectories = read_trajectories(&file)?;
+        let fixed = scene.as_ref().and_then(super::maps::fixed_drive);
         Ok(Data {
             name,
             kind,
@@ -150,6 +154,7 @@ impl Data {
             step_se,
             trajectories,
             notes,
+            fixed,
         })
     }
 }

@@ -4,11 +4,53 @@
 //! leaves the output folder as it was; the staging folder is removed when
 //! the [`Staging`] is dropped (only a killed process leaves it behind, as
 //! `.<out>.plotting-<pid>-<n>` beside the output folder).
+//!
+//! The output folder keeps a manifest of the pictures pidm drew there,
+//! [`MANIFEST`], one file name a line. When new pictures are moved in, the
+//! ones the manifest lists that the new set does not hold (the ratio maps
+//! of an earlier run with baselines, say) are removed, so the folder never
+//! shows a mix of two results; nothing the manifest does not list is ever
+//! touched. The manifest is rewritten before the first move to list the
+//! old and new pictures, so that an interrupted commit still knows every
+//! picture it may have left.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::{Context, Result, bail};
+
+/// The manifest in an output folder: the file names of the pictures pidm
+/// drew there, one a line.
+pub const MANIFEST: &str = ".pidm-plot-manifest";
+
+/// The picture names the manifest of `out` lists: plain file names only
+/// (no separator, not `.` or `..`, not the manifest itself), so that a
+/// damaged or edited manifest can never name anything outside `out`. No
+/// manifest, or one that cannot be read, lists nothing.
+fn manifest_names(out: &Path) -> Vec<String> {
+    let Ok(text) = std::fs::read_to_string(out.join(MANIFEST)) else {
+        return Vec::new();
+    };
+    text.lines()
+        .filter(|name| {
+            !name.is_empty()
+                && *name != MANIFEST
+                && Path::new(name).file_name() == Some(std::ffi::OsStr::new(name))
+        })
+        .map(str::to_owned)
+        .collect()
+}
+
+/// Writes the manifest of `out` listing `names`, whole or not at all.
+fn write_manifest(out: &Path, names: &[String]) -> Result<()> {
+    let path = out.join(MANIFEST);
+    let temp = out.join(format!("{MANIFEST}.{}", std::process::id()));
+    let mut text = names.join("\n");
+    text.push('\n');
+    std::fs::write(&temp, text)
+        .and_then(|()| std::fs::rename(&temp, &path))
+        .with_context(|| format!("cannot write {}", path.display()))
+}
 
 /// A staging folder for the pictures of one output folder.
 pub(super) struct Staging {
@@ -61,10 +103,12 @@ impl Staging {
     }
 
     /// Moves the pictures `files` (paths in the staging folder) into the
-    /// output folder, replacing pictures of the same name, and returns
-    /// their new paths in the same order. What could stop a move (the
-    /// output folder cannot be made, a folder is in a picture's place) is
-    /// checked before the first one, so none is replaced unless all are.
+    /// output folder, replacing pictures of the same name, removes the
+    /// pictures an earlier plot drew there that are not among them (those
+    /// the manifest lists, nothing else), and returns their new paths in
+    /// the same order. What could stop a move (the output folder cannot be
+    /// made, a folder is in a picture's place) is checked before the first
+    /// one, so none is replaced unless all are.
     pub(super) fn commit(self, files: &[PathBuf]) -> Result<Vec<PathBuf>> {
         let targets = files
             .iter()
@@ -83,6 +127,22 @@ impl Staging {
                 blocked.display()
             );
         }
+        let mut new: Vec<String> = Vec::new();
+        for target in &targets {
+            let name = target
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            if !new.contains(&name) {
+                new.push(name);
+            }
+        }
+        let old = manifest_names(&self.out);
+        let stale: Vec<&String> = old.iter().filter(|name| !new.contains(name)).collect();
+        // Until the old pictures are gone, the manifest lists them too.
+        let mut both = new.clone();
+        both.extend(stale.iter().map(|name| (*name).clone()));
+        write_manifest(&self.out, &both)?;
         for (k, (staged, target)) in files.iter().zip(&targets).enumerate() {
             // A name drawn twice was overwritten in the staging folder and
             // is moved once.
@@ -93,6 +153,16 @@ impl Staging {
                 format!("cannot move {} to {}", staged.display(), target.display())
             })?;
         }
+        for name in stale {
+            let path = self.out.join(name);
+            // Only a file pidm drew: a folder or a link put there since is
+            // left alone.
+            if std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
+                std::fs::remove_file(&path)
+                    .with_context(|| format!("cannot remove the old picture {}", path.display()))?;
+            }
+        }
+        write_manifest(&self.out, &new)?;
         Ok(targets)
     }
 }

@@ -256,10 +256,14 @@ pub(super) fn slot_path(slot: usize) -> String {
     }
 }
 
+/// The root key that says phases of a whole cycle or more are meant.
+pub(super) const PHASE_UNITS_KEY: &str = "phase_units";
+
 /// Keys of the document root.
-pub(super) const ROOT_KEYS: [&str; 7] = [
+pub(super) const ROOT_KEYS: [&str; 8] = [
     "name",
     "description",
+    PHASE_UNITS_KEY,
     "mechanism",
     "axis",
     "simulation",

@@ -110,6 +110,17 @@ pub use values::MAX_RANGE_STEPS;
 use keys::SLOTS;
 use plan::Plan;
 
+/// The shipped scenes that commands take by default (`pidm report`,
+/// `accuracy`, `bench`), built into the binary: their path in the
+/// checkout and their text.
+pub const SHIPPED: [(&str, &str); 2] = [
+    ("sweeps/paper.toml", include_str!("../../sweeps/paper.toml")),
+    (
+        "sweeps/paper_text.toml",
+        include_str!("../../sweeps/paper_text.toml"),
+    ),
+];
+
 /// A validated scene, ready to be expanded instance by instance.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -213,6 +224,16 @@ impl Scene {
                 self.plan.resolve(&raw)
             }
         }
+    }
+
+    /// A scene shipped in `sweeps/` and built into the binary, by its path
+    /// there (`"sweeps/paper.toml"`), so that the commands whose default is
+    /// a shipped scene work from any directory; `None` for a path that is
+    /// not built in.
+    pub fn shipped(path: &str) -> Option<Result<Scene, SceneError>> {
+        let (_, text) = SHIPPED.iter().find(|(p, _)| *p == path)?;
+        let stem = Path::new(path).file_stem()?.to_string_lossy().into_owned();
+        Some(Scene::from_toml(text, Some(&stem)))
     }
 
     /// Whether axis `axis` has a non-zero voltage in at least one instance.

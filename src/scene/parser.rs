@@ -7,11 +7,12 @@ use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
 use super::error::{Location, SceneError};
-use super::format::{fmt_num, human_bytes};
+use super::format::{fmt_num, fmt_short, human_bytes};
 use super::keys::{
     AXIS_FIELDS, DAMPING, Field, MEASURE_KEY, MECHANISM_FIELDS, Mode, NUMERIC_EXPECTED,
-    OUTPUT_KEYS, POINT_KEYS, QUALITY, RANGE_KEYS, RESONANCE, ROOT_KEYS, SIMULATION_FIELDS,
-    SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot, slot_field, slot_path,
+    OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, RANGE_KEYS, RESONANCE, ROOT_KEYS,
+    SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot,
+    slot_field, slot_path,
 };
 use super::layer::{Layer, PointSpec};
 use super::memory::MAP_MEMORY_BUDGET_BYTES;
@@ -32,6 +33,8 @@ pub(super) struct Parsed {
     pub(super) base: Layer,
     /// `simulation.measure`, when given (the default is [`Mode::Steady`]).
     pub(super) measure: Option<Mode>,
+    /// `phase_units = "cycles"`: phases beyond one whole cycle are meant.
+    pub(super) whole_cycles: bool,
     /// `output.baselines`.
     pub(super) baselines: bool,
     /// `output.trajectories`, not yet resolved against the layout.
@@ -206,6 +209,20 @@ impl Parser<'_> {
                     parsed.name = Some(name);
                 }
                 "description" => parsed.description = Some(self.string("description", value)?),
+                PHASE_UNITS_KEY => {
+                    let units = self.string(PHASE_UNITS_KEY, value)?;
+                    if units != "cycles" {
+                        return Err(self.invalid(
+                            value.span(),
+                            format!(
+                                "{PHASE_UNITS_KEY} = {units:?}: expected \"cycles\" (a phase is \
+                                 always in cycles of its axis' drive, 1 = one period; write \
+                                 degrees / 360, so 90 degrees is 0.25)"
+                            ),
+                        ));
+                    }
+                    parsed.whole_cycles = true;
+                }
                 "mechanism" => self.group(
                     value,
                     "mechanism",
@@ -224,6 +241,13 @@ impl Parser<'_> {
             }
         }
         self.check_stage_keys(&parsed.base)?;
+        if !parsed.whole_cycles {
+            self.check_phases(&parsed.base)?;
+            for (index, point) in parsed.points.iter().flatten().enumerate() {
+                self.check_phases(&point.layer)
+                    .map_err(|e| e.in_point(index, &point.label))?;
+            }
+        }
         let mode = parsed.measure.unwrap_or_default();
         self.check_mode_keys(&parsed.base, mode, parsed.measure.is_none())?;
         for (index, point) in parsed.points.iter().flatten().enumerate() {
@@ -231,6 +255,43 @@ impl Parser<'_> {
                 .map_err(|e| e.in_point(index, &point.label))?;
         }
         Ok(parsed)
+    }
+
+    /// Refuses a phase beyond one whole cycle: a phase is in cycles, so
+    /// `phase = 90` is almost surely 90 degrees (0.25 cycles), which would
+    /// run as 90 whole periods, the same as 0. One cycle itself is
+    /// accepted (the end of a sweep over a whole period). A scene that
+    /// means whole cycles says so with `phase_units = "cycles"`.
+    pub(super) fn check_phases(&self, layer: &Layer) -> Result<(), SceneError> {
+        for (axis, name) in AXIS_NAMES.iter().enumerate() {
+            let Some(entry) = &layer.entries[axis_slot(axis, PHASE)] else {
+                continue;
+            };
+            let Some((_, phase)) = entry
+                .values
+                .extremes()
+                .into_iter()
+                .find(|&(_, v)| v.abs() > 1.0)
+            else {
+                continue;
+            };
+            let cycles = phase / 360.0;
+            return Err(self.invalid(
+                entry.span.clone(),
+                format!(
+                    "axis.{name}.phase = {}: a phase is in cycles of the drive (1 = one \
+                     period), so this is {} periods, which runs like {}; if it is in \
+                     degrees, write {} ({} degrees / 360). To mean whole cycles, set \
+                     {PHASE_UNITS_KEY} = \"cycles\" at the top of the scene",
+                    fmt_num(phase),
+                    fmt_num(phase),
+                    fmt_short(phase - phase.floor()),
+                    fmt_short(cycles),
+                    fmt_num(phase)
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// Refuses a key of `layer` that applies to the other measurement mode
@@ -693,7 +754,7 @@ impl Parser<'_> {
                 )?,
                 "axis" => self.axes(value, &mut layer, Context::Point)?,
                 "simulation" => self.simulation(value, &mut layer, Context::Point, &mut None)?,
-                name @ ("name" | "description" | "output" | "points") => {
+                name @ ("name" | "description" | "output" | "points" | PHASE_UNITS_KEY) => {
                     return Err(self.invalid(
                         key.span(),
                         format!("`{name}` cannot be set per point: it applies to the whole scene"),

@@ -325,7 +325,7 @@ fn a_killed_or_interrupted_run_resumes_to_the_uninterrupted_file() {
         let summary = String::from_utf8_lossy(&resumed.stdout);
         assert!(
             summary.contains(&format!(
-                "48 instances ({done} of them from the checkpoint), "
+                "48 instances ({done} of them from the checkpoint; "
             )),
             "{summary}"
         );

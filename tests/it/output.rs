@@ -61,7 +61,7 @@ fn maps_written_in_uneven_chunks_read_back_in_grid_order() {
     }
     assert_eq!(start, n);
     assert!(!path.exists(), "the final name appears only when complete");
-    writer.finish(1.25).unwrap();
+    writer.finish(&[1.0, 0.25]).unwrap();
 
     let file = hdf5::File::open(&path).unwrap();
     let step_x = file.dataset("maps/step_x").unwrap();
@@ -79,6 +79,8 @@ fn maps_written_in_uneven_chunks_read_back_in_grid_order() {
     assert_eq!(axis.read_raw::<f64>().unwrap(), vec![0.0, 1.0, 2.0, 3.0]);
     let wall: f64 = file.attr("wall_time_s").unwrap().read_scalar().unwrap();
     assert_eq!(wall, 1.25);
+    let parts: Vec<f64> = file.attr("wall_time_parts_s").unwrap().read_raw().unwrap();
+    assert_eq!(parts, [1.0, 0.25]);
     for name in ["scene", "pidm_version", "backend", "precision"] {
         let v: VarLenUnicode = file.attr(name).unwrap().read_scalar().unwrap();
         assert!(!v.as_str().is_empty(), "{name}");
@@ -105,7 +107,7 @@ fn a_single_instance_scene_gives_scalar_maps() {
     let claim = OutputClaim::acquire(&path).unwrap();
     let mut writer = MapWriter::create(&claim, &info(vec![], false)).unwrap();
     writer.write(0, &[record(5)]).unwrap();
-    writer.finish(0.0).unwrap();
+    writer.finish(&[0.0]).unwrap();
     let file = hdf5::File::open(&path).unwrap();
     let ds = file.dataset("maps/step_x").unwrap();
     assert!(ds.shape().is_empty());

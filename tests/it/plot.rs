@@ -46,6 +46,17 @@ fn check_png(path: &Path) {
     );
 }
 
+/// The names of the pictures in `dir`: its files but the hidden manifest.
+fn pictures_in(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != ".pidm-plot-manifest")
+        .collect();
+    names.sort();
+    names
+}
+
 #[test]
 fn a_grid_with_baselines_gives_step_ratio_and_regime_maps() {
     let dir = tempfile::tempdir().unwrap();
@@ -62,10 +73,7 @@ fn a_grid_with_baselines_gives_step_ratio_and_regime_maps() {
     // No --out: the default folder results/plots/<file stem>/.
     let stdout = ok(&["plot", "results/tiny.h5"], dir.path());
     let out = dir.path().join("results/plots/tiny");
-    let mut names: Vec<String> = std::fs::read_dir(&out)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
+    let mut names = pictures_in(&out);
     names.sort();
     assert_eq!(
         names,
@@ -504,7 +512,8 @@ fn a_failed_plot_leaves_an_earlier_output_folder_as_it_was() {
         files
     };
     let before = snapshot(&dir.path().join("pics"));
-    assert_eq!(before.len(), 7);
+    // Seven pictures and the manifest.
+    assert_eq!(before.len(), 8);
     // The trajectory is read last: everything before it would draw.
     edit(&copy, |f| {
         alter(f, "trajectories/0/stage_y", |v| v.truncate(5))
@@ -534,4 +543,141 @@ fn a_failed_plot_leaves_an_earlier_output_folder_as_it_was() {
         before == snapshot(&dir.path().join("pics")),
         "pictures were replaced"
     );
+}
+
+/// Plotting a result into a folder that holds the pictures of an earlier
+/// result of the same name replaces them: no ratio or regime map of a run
+/// with baselines stays beside the maps of a run without, and only the
+/// pictures pidm drew there go (a user's own file stays).
+#[test]
+fn replotting_removes_the_earlier_pictures_and_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |baselines: bool| {
+        format!(
+            "name = \"tiny\"\n\
+             [axis.x]\nvoltage = [0.0, 100.0]\n\
+             [axis.y]\nvoltage = [0.0, 100.0]\n\
+             [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n\
+             [output]\nbaselines = {baselines}\n"
+        )
+    };
+    std::fs::write(dir.path().join("tiny.toml"), scene(true)).unwrap();
+    ok(&["run", "tiny.toml", "--threads", "1"], dir.path());
+    ok(&["plot", "results/tiny.h5", "--out", "pics"], dir.path());
+    let pics = dir.path().join("pics");
+    assert_eq!(pictures_in(&pics).len(), 6);
+    // The user's own files: a picture and a note, and a folder.
+    std::fs::write(pics.join("mine.png"), "not pidm's").unwrap();
+    std::fs::write(pics.join("notes.txt"), "keep").unwrap();
+    std::fs::create_dir(pics.join("old")).unwrap();
+    std::fs::write(dir.path().join("tiny.toml"), scene(false)).unwrap();
+    ok(&["run", "tiny.toml", "--threads", "1"], dir.path());
+    let stdout = ok(&["plot", "results/tiny.h5", "--out", "pics"], dir.path());
+    assert_eq!(
+        pictures_in(&pics),
+        ["mine.png", "notes.txt", "old", "step_x.png", "step_y.png"],
+        "{stdout}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(pics.join("mine.png")).unwrap(),
+        "not pidm's"
+    );
+    // The manifest lists this plot's pictures only.
+    let manifest = std::fs::read_to_string(pics.join(".pidm-plot-manifest")).unwrap();
+    assert_eq!(manifest, "step_x.png\nstep_y.png\n");
+    // A manifest edited to name something outside the folder, or the
+    // user's file, removes nothing but listed pictures inside it.
+    std::fs::write(dir.path().join("outside.png"), "outside").unwrap();
+    std::fs::write(
+        pics.join(".pidm-plot-manifest"),
+        "../outside.png\n/etc/passwd\n..\n.\nold\nstep_x.png\n",
+    )
+    .unwrap();
+    ok(&["plot", "results/tiny.h5", "--out", "pics"], dir.path());
+    assert!(dir.path().join("outside.png").exists());
+    assert!(pics.join("old").is_dir());
+    assert_eq!(
+        pictures_in(&pics),
+        ["mine.png", "notes.txt", "old", "step_x.png", "step_y.png"]
+    );
+}
+
+/// `pidm plot --x KEY --y KEY --at KEY=VALUE` slices a grid of three axes:
+/// the maps span the axes named, at the value held; a key or value the
+/// grid does not have is an error naming what it has, and nothing is
+/// drawn.
+#[test]
+fn plot_slices_a_grid_by_the_axes_and_values_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("g3.toml"),
+        "name = \"g3\"\n\
+         [axis.x]\nvoltage = [50.0, 100.0, 150.0]\n\
+         [axis.y]\nvoltage = [0.0, 50.0, 100.0, 150.0]\nfrequency = [10.0, 20.0]\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 1\n",
+    )
+    .unwrap();
+    ok(&["run", "g3.toml", "--threads", "1"], dir.path());
+    // By default: the two longest axes span the maps, one per frequency.
+    ok(&["plot", "results/g3.h5", "--out", "all"], dir.path());
+    assert_eq!(
+        pictures_in(&dir.path().join("all")),
+        [
+            "step_x__axis.y.frequency=10.png",
+            "step_x__axis.y.frequency=20.png",
+            "step_y__axis.y.frequency=10.png",
+            "step_y__axis.y.frequency=20.png"
+        ]
+    );
+    let stdout = ok(
+        &[
+            "plot",
+            "results/g3.h5",
+            "--out",
+            "one",
+            "--x",
+            "axis.y.frequency",
+            "--y",
+            "axis.x.voltage",
+            "--at",
+            "axis.y.voltage=100",
+        ],
+        dir.path(),
+    );
+    assert_eq!(
+        pictures_in(&dir.path().join("one")),
+        [
+            "step_x__axis.y.voltage=100.png",
+            "step_y__axis.y.voltage=100.png"
+        ],
+        "{stdout}"
+    );
+    check_png(&dir.path().join("one/step_x__axis.y.voltage=100.png"));
+    for (args, want) in [
+        (
+            &["--x", "axis.z.voltage"][..],
+            "--x axis.z.voltage: not a grid axis of this file; expected one of axis.x.voltage, \
+             axis.y.voltage, axis.y.frequency",
+        ),
+        (
+            &["--at", "axis.y.frequency=15"][..],
+            "--at axis.y.frequency=15: not a value of that axis; it has 10, 20",
+        ),
+        (
+            &["--x", "axis.x.voltage", "--at", "axis.x.voltage=50"][..],
+            "--at axis.x.voltage: it is the axis --x or --y spans",
+        ),
+        (
+            &["--x", "axis.x.voltage", "--y", "axis.x.voltage"][..],
+            "--x and --y name the same axis axis.x.voltage",
+        ),
+    ] {
+        let mut all = vec!["plot", "results/g3.h5", "--out", "bad"];
+        all.extend(args);
+        let out = pidm(&all, dir.path());
+        assert_eq!(out.status.code(), Some(1), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(!dir.path().join("bad").exists());
+    }
 }

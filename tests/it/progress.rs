@@ -158,6 +158,13 @@ fn jsonl_progress_of_a_resumed_run_starts_at_the_checkpoint() {
         "{stderr}"
     );
     assert_eq!(lines.last().unwrap()["done"], 20, "{stderr}");
+    // The file's wall time counts both parts, and names each.
+    let file = hdf5::File::open(d.join("grid.h5")).unwrap();
+    let total: f64 = file.attr("wall_time_s").unwrap().read_scalar().unwrap();
+    let parts: Vec<f64> = file.attr("wall_time_parts_s").unwrap().read_raw().unwrap();
+    assert_eq!(parts.len(), 2, "{parts:?}");
+    assert!(parts[0] > 0.0 && parts[1] > 0.0, "{parts:?}");
+    assert_eq!(total, parts[0] + parts[1]);
 }
 
 fn spawn(args: &[&str], dir: &Path) -> Child {

@@ -658,6 +658,30 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "[axis.y]\nphase = 2e6",
             "axis.y.phase = 2000000: expected a number from -1000000 to 1000000 cycles",
         ),
+        // A phase is in cycles: 90 is almost surely degrees.
+        (
+            "[axis.y]\nvoltage = 100\nphase = 90",
+            "axis.y.phase = 90: a phase is in cycles of the drive (1 = one period), so this is \
+             90 periods, which runs like 0; if it is in degrees, write 0.25 (90 degrees / 360). \
+             To mean whole cycles, set phase_units = \"cycles\" at the top of the scene (line 3",
+        ),
+        (
+            "[axis.x]\nphase = { from = 0, to = 180, steps = 3 }",
+            "axis.x.phase = 180: a phase is in cycles",
+        ),
+        (
+            "[[points]]\naxis.x.phase = -45",
+            "points[0]: axis.x.phase = -45: a phase is in cycles of the drive (1 = one period), \
+             so this is -45 periods, which runs like 0; if it is in degrees, write -0.125",
+        ),
+        (
+            "phase_units = \"degrees\"",
+            "phase_units = \"degrees\": expected \"cycles\"",
+        ),
+        (
+            "[[points]]\nphase_units = \"cycles\"",
+            "`phase_units` cannot be set per point",
+        ),
         (
             "[simulation]\ntolerance = 2",
             "simulation.tolerance = 2: expected a number from 1e-12 to 1 rad",
@@ -847,6 +871,20 @@ fn ranges_give_the_right_values() {
     }
     assert_eq!(scene.instance(0).axes[0].phase, 0.25);
     assert!(!scene.axis_ever_driven(1));
+}
+
+#[test]
+fn phases_of_a_whole_cycle_or_more_need_phase_units() {
+    // A sweep over one whole period ends at 1: accepted as it is.
+    let scene = parse("[axis.x]\nphase = { from = 0, to = 1, steps = 5 }\n");
+    assert_eq!(scene.instance(4).axes[0].phase, 1.0);
+    // Beyond one cycle, phase_units = "cycles" says whole cycles are meant.
+    let scene = parse(
+        "phase_units = \"cycles\"\n[axis.y]\nvoltage = 100\nphase = 90\n\
+         [[points]]\naxis.x.phase = 2.5\n",
+    );
+    assert_eq!(scene.instance(0).axes[1].phase, 90.0);
+    assert_eq!(scene.instance(0).axes[0].phase, 2.5);
 }
 
 #[test]

@@ -1,0 +1,285 @@
+//! `pidm check`'s cost estimate: a short probe that integrates a few
+//! instances of the scene on the CPU path and scales their measured cost
+//! to the whole run.
+//!
+//! A nominal rate (simulated seconds per wall second) misjudges a scene by
+//! orders of magnitude: the cost of a simulated second grows with the
+//! drive frequency and the stage's stiffness, and a steady measurement
+//! usually stops long before its `max_cycles`, so the simulated time is
+//! only an upper bound. The probe measures instead: it integrates up to
+//! [`PROBE_MAX`] of the scene's distinct integrations, evenly spread over
+//! it, on every core for at most about [`PROBE_BUDGET_S`] seconds, each
+//! one to its end (so a steady one stops where the run would), but at
+//! most [`PROBE_PERIODS`] periods: one that would run longer is charged
+//! its cost per period times its `cycles` (`max_cycles`), and the
+//! estimate is then an upper bound. The probe's cost per integration,
+//! times the run's distinct integrations, over the cores the probe's
+//! threads had, is the estimate; a probe of every integration of a small
+//! scene was the run itself, and its wall time is the estimate.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use rayon::prelude::*;
+
+use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
+use crate::cpu::integrate::{Settings, run_instance_until};
+use crate::model::{AXES, Instance, Measure};
+use crate::scene::Scene;
+use crate::sweep::distinct_integrations;
+
+/// At most this many integrations are probed.
+pub const PROBE_MAX: usize = 256;
+
+/// The probe starts no integration after this many seconds.
+pub const PROBE_BUDGET_S: f64 = 0.4;
+
+/// A probed integration still running after this many seconds is cut off
+/// and charged the nominal rate instead.
+pub const PROBE_CUTOFF_S: f64 = 1.0;
+
+/// A probed integration runs at most this many scene periods; beyond, its
+/// cost is scaled up to its `cycles`.
+pub const PROBE_PERIODS: u32 = 200;
+
+/// Simulated seconds per wall second per core charged to a probed
+/// integration cut off after [`PROBE_CUTOFF_S`] (and to none else): the
+/// paper scene's rate on the 2-core build machine, a lower rate than most
+/// scenes reach.
+pub const NOMINAL_SIMULATED_PER_CORE: f64 = 300.0;
+
+/// A probe shorter than this [s] does not measure how many cores its
+/// threads had.
+const MEASURABLE_S: f64 = 0.02;
+
+/// What recording one trajectory sample costs [s]: per sampled run (the
+/// instance, and each 1-DOF baseline beside it), integration and writing
+/// together. Measured with `sweeps/paper.toml` on the 2-core build
+/// machine: 5 trajectories with baselines, 20,000 samples per run, 0.08 s.
+pub const TRAJECTORY_S_PER_SAMPLE: f64 = 3e-7;
+
+/// What a run costs besides its integrations [s]: starting the process,
+/// creating and closing the result file (a one-instance run takes 0.01 s
+/// on the 2-core build machine).
+pub const RUN_OVERHEAD_S: f64 = 0.01;
+
+/// The cost of recording a scene's trajectories [s]: each runs as long as
+/// its instance (a steady one for the probe's mean periods, at most its
+/// `max_cycles`), sampled `trajectory_samples_per_cycle` times a period,
+/// with its 1-DOF baselines beside it when the scene has them.
+pub fn trajectories_s(scene: &Scene, probe: &Probe) -> f64 {
+    let runs = if scene.baselines { 1 + AXES } else { 1 } as f64;
+    scene
+        .trajectories
+        .iter()
+        .map(|t| {
+            let inst = scene.instance(t.index);
+            let periods = match inst.measure {
+                Measure::Window => inst.cycles as f64,
+                Measure::Steady { .. } => probe.mean_periods.clamp(1.0, inst.cycles as f64),
+            };
+            periods * scene.trajectory_samples_per_cycle as f64 * runs * TRAJECTORY_S_PER_SAMPLE
+        })
+        .sum()
+}
+
+/// Scenes with more instances than this are probed on a sample of evenly
+/// spaced instances and their baselines rather than on every distinct
+/// integration.
+const COUNTED: u64 = 1 << 16;
+
+/// What the probe measured.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Probe {
+    /// Integrations probed.
+    pub integrations: usize,
+    /// Of them, those that would run past [`PROBE_PERIODS`] periods and
+    /// were scaled up to their `cycles`.
+    pub scaled: usize,
+    /// Of them, those cut off after [`PROBE_CUTOFF_S`].
+    pub cut: usize,
+    /// Mean scene periods a probed integration ran (scaled ones counted at
+    /// their `cycles`).
+    pub mean_periods: f64,
+    /// Mean cost of a probed integration [core-seconds], scaled ones at
+    /// their `cycles`.
+    pub mean_core_s: f64,
+    /// Wall time the probe took [s].
+    pub wall_s: f64,
+    /// The cores the probe's threads had on average: the time they spent
+    /// integrating over its wall time, at least 1 (less than the threads
+    /// where other work shares the machine).
+    pub parallelism: f64,
+}
+
+/// The integrations a run computes (exact up to [`COUNTED`] instances,
+/// else the instances and the distinct baselines of a sample), and the
+/// candidates the probe picks from.
+fn integrations(scene: &Scene) -> (u64, Vec<Instance>) {
+    let count = scene.instance_count();
+    if count <= COUNTED {
+        let instances: Vec<Instance> = (0..count).map(|i| scene.instance(i)).collect();
+        let all = distinct_integrations(&instances, scene.baselines);
+        return (all.len() as u64, all);
+    }
+    let sample: Vec<Instance> = (0..1024u64)
+        .map(|k| scene.instance(k * count / 1024 + count / 2048))
+        .collect();
+    let mut baselines = std::collections::HashSet::new();
+    if scene.baselines {
+        for inst in &sample {
+            for axis in 0..AXES {
+                let base = inst.baseline(axis);
+                if base != *inst {
+                    baselines.insert(base.key());
+                }
+            }
+        }
+    }
+    let candidates = distinct_integrations(&sample, scene.baselines);
+    (count + baselines.len() as u64, candidates)
+}
+
+/// One probed integration.
+struct Probed {
+    /// What it is charged [core-seconds]: its cost to the end of the run.
+    cost: f64,
+    /// What it took [s].
+    wall: f64,
+    /// Scene periods it runs (charged ones at their `cycles`).
+    periods: f64,
+    /// Scaled up from [`PROBE_PERIODS`] to its `cycles`.
+    scaled: bool,
+    /// Cut off after [`PROBE_CUTOFF_S`].
+    cut: bool,
+}
+
+/// The cost of one integration, probed, or `None` when the probe's budget
+/// was spent before it started.
+fn probe_one(
+    inst: &Instance,
+    settings: &Settings,
+    started: Instant,
+    cut: &AtomicBool,
+) -> Option<Probed> {
+    if started.elapsed().as_secs_f64() > PROBE_BUDGET_S {
+        return None;
+    }
+    let capped = Instance {
+        cycles: inst.cycles.min(PROBE_PERIODS.max(inst.settle + 1)),
+        ..*inst
+    };
+    let begin = Instant::now();
+    let run = run_instance_until(&capped, settings, || cut.load(Ordering::Relaxed));
+    let wall = begin.elapsed().as_secs_f64();
+    let Some(run) = run else {
+        // Cut off: charged at the nominal rate, and at least what it took.
+        let nominal = inst.duration() / NOMINAL_SIMULATED_PER_CORE;
+        return Some(Probed {
+            cost: nominal.max(wall),
+            wall,
+            periods: inst.cycles as f64,
+            scaled: false,
+            cut: true,
+        });
+    };
+    let measured = crate::measurement::reduce(&capped, &run);
+    let periods = measured.periods.max(1) as f64;
+    let ran_out = capped.cycles < inst.cycles
+        && match capped.measure {
+            Measure::Window => true,
+            Measure::Steady { .. } => measured.status == STATUS_NOT_STEADY,
+        };
+    let scale = if ran_out {
+        inst.cycles as f64 / periods
+    } else {
+        1.0
+    };
+    Some(Probed {
+        cost: wall * scale,
+        wall,
+        periods: periods * scale,
+        scaled: ran_out,
+        cut: false,
+    })
+}
+
+/// Probes the scene's cost on the CPU path (see the module documentation)
+/// with a pool of `threads` threads. Returns the distinct integrations of
+/// the run and what the probe measured.
+pub fn probe(scene: &Scene, threads: usize) -> (u64, Probe) {
+    let (count, candidates) = integrations(scene);
+    let k = candidates.len().min(PROBE_MAX);
+    // Every candidate when there are few; else spread by the golden ratio,
+    // so that the ones probed before the budget ran out (any stretch of
+    // the list, as the threads split it) are spread over the whole scene.
+    let picked: Vec<Instance> = if candidates.len() <= PROBE_MAX {
+        candidates
+    } else {
+        let golden = 0.5 * (5f64.sqrt() - 1.0);
+        (0..k)
+            .map(|j| {
+                let at = (0.5 + j as f64 * golden).fract() * candidates.len() as f64;
+                candidates[(at as usize).min(candidates.len() - 1)]
+            })
+            .collect()
+    };
+    let cut = Arc::new(AtomicBool::new(false));
+    let done = Arc::new(AtomicBool::new(false));
+    let watchdog = {
+        let (cut, done) = (Arc::clone(&cut), Arc::clone(&done));
+        std::thread::spawn(move || {
+            let until = Instant::now() + Duration::from_secs_f64(PROBE_BUDGET_S + PROBE_CUTOFF_S);
+            while !done.load(Ordering::Relaxed) {
+                let now = Instant::now();
+                if now >= until {
+                    cut.store(true, Ordering::Relaxed);
+                    return;
+                }
+                std::thread::sleep((until - now).min(Duration::from_millis(5)));
+            }
+        })
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.max(1))
+        .build();
+    // The threads started before the clock: a run's pool is warm too.
+    if let Ok(pool) = &pool {
+        pool.broadcast(|_| ());
+    }
+    let started = Instant::now();
+    let settings = scene.settings;
+    let run = || -> Vec<Probed> {
+        picked
+            .par_iter()
+            .with_max_len(1)
+            .filter_map(|inst| probe_one(inst, &settings, started, &cut))
+            .collect()
+    };
+    let results = match pool {
+        Ok(pool) => pool.install(run),
+        Err(_) => run(),
+    };
+    let wall_s = started.elapsed().as_secs_f64();
+    done.store(true, Ordering::Relaxed);
+    let _ = watchdog.join();
+    let n = results.len().max(1) as f64;
+    let busy: f64 = results.iter().map(|r| r.wall).sum();
+    let probe = Probe {
+        integrations: results.len(),
+        scaled: results.iter().filter(|r| r.scaled).count(),
+        cut: results.iter().filter(|r| r.cut).count(),
+        mean_periods: results.iter().map(|r| r.periods).sum::<f64>() / n,
+        mean_core_s: results.iter().map(|r| r.cost).sum::<f64>() / n,
+        wall_s,
+        // A probe shorter than this is mostly the pool's own overhead and
+        // tells nothing of how busy the cores are: it counts them all.
+        parallelism: if wall_s < MEASURABLE_S {
+            threads.max(1) as f64
+        } else {
+            (busy / wall_s).clamp(1.0, threads.max(1) as f64)
+        },
+    };
+    (count, probe)
+}
