@@ -260,10 +260,11 @@ def _watch(command: list[str], progress: ProgressArg) -> tuple[int, str]:
     """Runs pidm, shows its JSON progress lines, and returns its exit status and
     the rest of its stderr. On Ctrl-C (or any exception) stops it (SIGINT, then
     SIGKILL) and raises KeyboardInterrupt (the exception)."""
-    interrupted = threading.Event()
-    # Set by Ctrl-C and when pidm closes its stderr (it ends).
+    # Set by Ctrl-C: a plain flag, which a signal handler may set safely.
+    interrupted = _Flag()
+    # Set when pidm closes its stderr (it ends), by the reader thread.
     wake = threading.Event()
-    with _sigint_as_flag(interrupted, wake):
+    with _sigint_as_flag(interrupted):
         child = subprocess.Popen(
             command,
             stdin=subprocess.DEVNULL,
@@ -306,13 +307,13 @@ def _watch(command: list[str], progress: ProgressArg) -> tuple[int, str]:
             for reader in readers:
                 reader.start()
             while True:
-                if interrupted.is_set():
+                if interrupted.is_set:
                     raise KeyboardInterrupt
                 returncode = child.poll()
                 show.drain(records)
                 if returncode is not None:
                     break
-                if wake.wait(0.1) and not interrupted.is_set():
+                if wake.wait(0.1) and not interrupted.is_set:
                     # stderr closed: pidm is ending; poll until it has.
                     child.wait()
             for reader in readers:
@@ -329,16 +330,25 @@ def _watch(command: list[str], progress: ProgressArg) -> tuple[int, str]:
     return returncode, "".join(text)
 
 
+class _Flag:
+    """A flag that a signal handler may set. Not a ``threading.Event``: its
+    ``set`` takes a lock that the interrupted code (an ``Event.wait`` in the same
+    thread) may hold, and the handler would then wait for it forever."""
+
+    def __init__(self) -> None:
+        self.is_set = False
+
+
 @contextlib.contextmanager
-def _sigint_as_flag(*flags: threading.Event) -> Iterator[None]:
+def _sigint_as_flag(flag: _Flag) -> Iterator[None]:
     """While a run is watched, SIGINT (Ctrl-C) only sets a flag, so the watching
-    loop stops the child and raises KeyboardInterrupt itself, never from inside
-    subprocess's bookkeeping. Only in the main thread, and only where SIGINT raises
-    KeyboardInterrupt (Python's default handler); otherwise SIGINT is left as it is."""
+    loop (which looks at it every 0.1 s) stops the child and raises
+    KeyboardInterrupt itself, never from inside subprocess's bookkeeping. Only in
+    the main thread, and only where SIGINT raises KeyboardInterrupt (Python's
+    default handler); otherwise SIGINT is left as it is."""
 
     def on_sigint(_signum: int, _frame: Any) -> None:
-        for flag in flags:
-            flag.set()
+        flag.is_set = True
 
     previous = None
     if (
