@@ -9,6 +9,7 @@ pub mod commands;
 pub mod cpu;
 pub mod estimate;
 pub mod gpu;
+pub mod interrupt;
 pub mod measurement;
 pub mod model;
 pub mod output;

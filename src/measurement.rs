@@ -136,3 +136,46 @@ pub fn step(inst: &Instance, run: &Run, i: usize) -> f64 {
     let r = reduce(inst, run);
     inst.measure_over(i, r.travel[i], r.span).1
 }
+
+/// What a backend returns for one instance: its [`Measured`] and the
+/// work it took.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Outcome {
+    /// Slider travel over the measured span [m]; zero unless the status
+    /// keeps values ([`crate::measurement::keeps_values`]).
+    pub displacement: [f64; AXES],
+    /// Scene periods the displacement spans.
+    pub span: f64,
+    /// Standard error of each axis' step [m per own drive cycle].
+    pub se: [f64; AXES],
+    /// Scene periods integrated, settle included.
+    pub periods: u32,
+    /// Scene periods of the detected cycle, 0 when none.
+    pub lag: u32,
+    pub status: u32,
+    pub steps: u32,
+    /// A GPU backend integrated this one on the CPU instead (the slow tail
+    /// of a batch, or an iteration the driver's loop limiter cut).
+    pub on_cpu: bool,
+}
+
+impl Outcome {
+    /// The outcome of a reduced run.
+    pub fn of(m: &Measured, steps: u32, on_cpu: bool) -> Outcome {
+        Outcome {
+            displacement: m.travel,
+            span: m.span,
+            se: m.se,
+            periods: m.periods,
+            lag: m.lag,
+            status: m.status,
+            steps,
+            on_cpu,
+        }
+    }
+
+    /// Step per own drive cycle [m] of axis `i`.
+    pub fn step(&self, inst: &Instance, i: usize) -> f64 {
+        inst.measure_over(i, self.displacement[i], self.span).1
+    }
+}

@@ -8,11 +8,10 @@
 //! leaves 0 in the instance's map entries, never NaN; 6 ("not steady")
 //! keeps the best estimate and its standard error.
 
-use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
+use crate::cpu::integrate::constants::{STATUS_NOT_STEADY, STATUS_UNCONVERGED};
 use crate::cpu::integrate::{
     STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_OK, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
 };
-use crate::sweep::STATUS_UNCONVERGED;
 
 /// What became of one instance.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

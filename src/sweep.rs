@@ -9,21 +9,17 @@
 
 use std::collections::HashMap;
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use crate::backend::Backend;
-use crate::cpu::integrate::{self, STATUS_OK, Settings};
-use crate::measurement::{Measured, keeps_values, reduce};
+use crate::cpu::integrate::{STATUS_OK, Settings};
+use crate::measurement::keeps_values;
 use crate::status::Status;
 
-/// Status of an instance that `--verify` found unconverged: rerun with a
-/// 100 times tighter tolerance, one of its steps (or baseline steps) moved
-/// by more than [`VERIFY_ALLOWANCE_M`]. Like every non-zero status, its map
-/// entries are 0. Set by the sweep, not by an integrator.
-pub const STATUS_UNCONVERGED: u32 = 5;
+pub use crate::cpu::integrate::constants::STATUS_UNCONVERGED;
 
 /// How far a step may move under a 100 times tighter tolerance before
 /// `--verify` calls the instance unconverged [m per drive cycle]: the
@@ -227,62 +223,9 @@ impl BaselineMemo {
     }
 }
 
-/// Set when the user asks the run to stop (Ctrl-C); backends check it
-/// between instances (CPU) and between time slices (GPU).
-static INTERRUPT: AtomicBool = AtomicBool::new(false);
+pub use crate::interrupt::{interrupt_requested, request_interrupt};
 
-/// Asks every running backend to stop as soon as it can.
-pub fn request_interrupt() {
-    INTERRUPT.store(true, Ordering::Relaxed);
-}
-
-/// True once a stop was asked for.
-pub fn interrupt_requested() -> bool {
-    INTERRUPT.load(Ordering::Relaxed)
-}
-
-/// What a backend returns for one instance: its [`Measured`] and the
-/// work it took.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Outcome {
-    /// Slider travel over the measured span [m]; zero unless the status
-    /// keeps values ([`crate::measurement::keeps_values`]).
-    pub displacement: [f64; AXES],
-    /// Scene periods the displacement spans.
-    pub span: f64,
-    /// Standard error of each axis' step [m per own drive cycle].
-    pub se: [f64; AXES],
-    /// Scene periods integrated, settle included.
-    pub periods: u32,
-    /// Scene periods of the detected cycle, 0 when none.
-    pub lag: u32,
-    pub status: u32,
-    pub steps: u32,
-    /// A GPU backend integrated this one on the CPU instead (the slow tail
-    /// of a batch, or an iteration the driver's loop limiter cut).
-    pub on_cpu: bool,
-}
-
-impl Outcome {
-    /// The outcome of a reduced run.
-    pub fn of(m: &Measured, steps: u32, on_cpu: bool) -> Outcome {
-        Outcome {
-            displacement: m.travel,
-            span: m.span,
-            se: m.se,
-            periods: m.periods,
-            lag: m.lag,
-            status: m.status,
-            steps,
-            on_cpu,
-        }
-    }
-
-    /// Step per own drive cycle [m] of axis `i`.
-    pub fn step(&self, inst: &Instance, i: usize) -> f64 {
-        inst.measure_over(i, self.displacement[i], self.span).1
-    }
-}
+pub use crate::measurement::Outcome;
 
 /// One instance's entry in the maps, in SI units.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -350,17 +293,7 @@ impl Record {
     }
 }
 
-/// Integrates one instance on the CPU.
-///
-/// A stop request ([`request_interrupt`]) ends the integration within about
-/// a millisecond; the outcome is then a default one that the sweep discards
-/// with the rest of its chunk.
-pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
-    let Some(run) = integrate::run_instance_until(inst, settings, interrupt_requested) else {
-        return Outcome::default();
-    };
-    Outcome::of(&reduce(inst, &run), run.state.steps, false)
-}
+pub use crate::backend::cpu::run_one;
 
 /// Marks `outcome` unconverged when its tighter rerun `check` finished and
 /// moved a step by more than the allowance. A check that did not finish

@@ -1,13 +1,15 @@
 //! The rayon CPU path in f64: every instance through
-//! [`crate::sweep::run_one`], one per task.
+//! [`run_one`], one per task.
 
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision};
+use crate::cpu::integrate;
 use crate::cpu::integrate::Settings;
+use crate::interrupt::interrupt_requested;
+use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
-use crate::sweep::{Outcome, interrupt_requested, run_one};
 
 /// The rayon CPU path in f64: the reference.
 pub struct CpuBackend {
@@ -85,4 +87,16 @@ impl Backend for CpuBackend {
                 .collect()
         }))
     }
+}
+
+/// Integrates one instance on the CPU.
+///
+/// A stop request ([`request_interrupt`]) ends the integration within about
+/// a millisecond; the outcome is then a default one that the sweep discards
+/// with the rest of its chunk.
+pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
+    let Some(run) = integrate::run_instance_until(inst, settings, interrupt_requested) else {
+        return Outcome::default();
+    };
+    Outcome::of(&reduce(inst, &run), run.state.steps, false)
 }

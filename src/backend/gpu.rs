@@ -5,8 +5,8 @@ use anyhow::{Result, bail};
 use super::{Backend, Hardware, Precision};
 use crate::cpu::integrate::Settings;
 use crate::gpu::{GpuContext, run_batch};
+use crate::measurement::Outcome;
 use crate::model::Instance;
-use crate::sweep::Outcome;
 
 /// Instances per sweep chunk on the GPU: a million, enough to fill a large
 /// GPU several times over (so the slowest instances of a chunk, which the

@@ -8,8 +8,8 @@ use std::fmt;
 use anyhow::Result;
 
 use crate::cpu::integrate::Settings;
+use crate::measurement::Outcome;
 use crate::model::Instance;
-use crate::sweep::Outcome;
 
 pub mod cpu;
 pub mod gpu;

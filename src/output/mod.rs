@@ -36,10 +36,11 @@ use hdf5::{Dataset, File, H5Type, Hyperslab, SliceOrIndex};
 use ndarray::ArrayView;
 
 use crate::scene::{Layout, Scene};
-use crate::shard::ShardSpec;
+pub use shard_spec::ShardSpec;
 
 pub mod claim;
 pub mod schema;
+pub mod shard_spec;
 use crate::sweep::Record;
 pub use claim::OutputClaim;
 

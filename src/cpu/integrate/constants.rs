@@ -25,6 +25,11 @@ pub const STATUS_EVENT_STORM: u32 = 4;
 /// the best estimate and its standard error (set by the host's reduction,
 /// `pidm::measurement`; code 5 is the sweep's `--verify`).
 pub const STATUS_NOT_STEADY: u32 = 6;
+/// Status of an instance that `--verify` found unconverged: rerun with a
+/// 100 times tighter tolerance, one of its steps (or baseline steps) moved
+/// by more than `pidm::sweep::VERIFY_ALLOWANCE_M`. Like every non-zero status, its map
+/// entries are 0. Set by the sweep, not by an integrator.
+pub const STATUS_UNCONVERGED: u32 = 5;
 
 /// No event is watched.
 pub const EVENT_NONE: u32 = 0;
