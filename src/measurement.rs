@@ -56,7 +56,7 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                 return failed;
             }
             Measured {
-                travel: (st.x_s - st.settle_x_s).to_array(),
+                travel: window_displacement(inst, st),
                 span: (inst.cycles - inst.settle) as f64,
                 se: [0.0; AXES],
                 periods: inst.cycles,
@@ -126,16 +126,6 @@ pub fn window_displacement(inst: &Instance, st: &State) -> [f64; AXES] {
     }
 }
 
-/// The slider travel a run measured [m] (zero where it failed).
-pub fn displacement(inst: &Instance, run: &Run) -> [f64; AXES] {
-    reduce(inst, run).travel
-}
-
-/// The step per own drive cycle [m] of axis `i` of a run.
-pub fn step(inst: &Instance, run: &Run, i: usize) -> f64 {
-    let r = reduce(inst, run);
-    inst.measure_over(i, r.travel[i], r.span).1
-}
 
 /// What a backend returns for one instance: its [`Measured`] and the
 /// work it took.
