@@ -126,7 +126,6 @@ pub fn window_displacement(inst: &Instance, st: &State) -> [f64; AXES] {
     }
 }
 
-
 /// What a backend returns for one instance: its [`Measured`] and the
 /// work it took.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
