@@ -64,11 +64,11 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
             raw[slot] = entry.values.value(0);
         }
     }
-    let mut grid: Vec<(usize, &Entry)> = base
+    let mut grid: Vec<(usize, Entry)> = base
         .entries
         .iter()
         .enumerate()
-        .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e)))
+        .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e.clone())))
         .filter(|(_, entry)| entry.values.len() > 1)
         .collect();
     grid.sort_by_key(|(_, entry)| entry.span.start);
@@ -100,6 +100,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
         description: parsed.description,
         plan,
         raw,
+        refine: None,
         grid_slots: Vec::new(),
         points: Vec::new(),
         point_keys: Vec::new(),
@@ -107,6 +108,13 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     };
 
     if let Some(points) = parsed.points {
+        if let Some(spec) = &parsed.refine {
+            return Err(parser.invalid(
+                spec.span.clone(),
+                "refine: a scene with [[points]] cannot be refined; expected a grid of two \
+                 range axes",
+            ));
+        }
         if let Some((slot, entry)) = grid.first() {
             return Err(parser.invalid(
                 entry.span.clone(),
@@ -173,6 +181,11 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
             *driven = scene.points.iter().any(|p| p.axes[a].is_driven());
         }
         return Ok(scene);
+    }
+
+    // A refined scene is its finest grid from here on.
+    if let Some(spec) = &parsed.refine {
+        scene.refine = Some(parser.refine_grid(spec, &mut grid)?);
     }
 
     // Refuse oversized grids before expanding any range.

@@ -260,7 +260,7 @@ pub(super) fn slot_path(slot: usize) -> String {
 pub(super) const PHASE_UNITS_KEY: &str = "phase_units";
 
 /// Keys of the document root.
-pub(super) const ROOT_KEYS: [&str; 8] = [
+pub(super) const ROOT_KEYS: [&str; 9] = [
     "name",
     "description",
     PHASE_UNITS_KEY,
@@ -269,7 +269,11 @@ pub(super) const ROOT_KEYS: [&str; 8] = [
     "simulation",
     "output",
     "points",
+    "refine",
 ];
+
+/// Keys of `[refine]`.
+pub(super) const REFINE_KEYS: [&str; 2] = ["levels", "tolerance"];
 
 /// Keys of one `[[points]]` entry.
 pub(super) const POINT_KEYS: [&str; 4] = ["label", "mechanism", "axis", "simulation"];

@@ -95,6 +95,7 @@ mod memory;
 mod name;
 mod parser;
 mod plan;
+mod refine;
 mod rules;
 mod suggest;
 pub mod trajectories;
@@ -104,6 +105,7 @@ pub use error::{Location, SceneError};
 pub use file::MAX_SCENE_BYTES;
 pub use memory::MAP_MEMORY_BUDGET_BYTES;
 pub use name::MAX_NAME_BYTES;
+pub use refine::{DEFAULT_REFINE_TOLERANCE_M, MAX_REFINE_LEVELS, Refine};
 pub use trajectories::{DEFAULT_SAMPLES_PER_CYCLE, TrajectoryPoint};
 pub use values::MAX_RANGE_STEPS;
 
@@ -143,6 +145,10 @@ pub struct Scene {
     description: Option<String>,
     /// How the raw key values become an instance.
     plan: Plan,
+    /// `[refine]`: when set, the grid is the finest grid of an adaptive
+    /// refinement of the scene's own (coarse) grid, which `crate::refine`
+    /// integrates only where the regimes change.
+    pub refine: Option<Refine>,
     /// The raw key values of the base (grid slots hold their first value).
     raw: [f64; SLOTS],
     /// For each grid axis, the raw slot it sets.

@@ -17,6 +17,7 @@ use super::keys::{
 use super::layer::{Layer, PointSpec};
 use super::memory::MAP_MEMORY_BUDGET_BYTES;
 use super::name::check_name;
+use super::refine::RefineSpec;
 use super::suggest::{home_of, suggest};
 use super::trajectories::SpecAt;
 use super::values::{Entry, MAX_RANGE_STEPS, Values};
@@ -43,6 +44,8 @@ pub(super) struct Parsed {
     pub(super) samples_per_cycle: Option<u32>,
     /// The `[[points]]`, when given.
     pub(super) points: Option<Vec<PointSpec>>,
+    /// `[refine]`, when given.
+    pub(super) refine: Option<RefineSpec>,
 }
 
 /// Whether keys are read for the base scene or for one point.
@@ -237,6 +240,7 @@ impl Parser<'_> {
                 }
                 "output" => self.output(value, &mut parsed)?,
                 "points" => parsed.points = Some(self.points(value)?),
+                "refine" => parsed.refine = Some(self.refine(value)?),
                 _ => return Err(self.unknown_key(key, "", &ROOT_KEYS)),
             }
         }
