@@ -242,6 +242,22 @@ impl Checkpoint {
     /// Appends the records of instances `start .. start + records.len()`
     /// and syncs them to disk.
     pub fn append(&mut self, start: u64, records: &[Record]) -> Result<()> {
+        self.append_unsynced(start, records)?;
+        self.sync()
+    }
+
+    /// Syncs the entries appended so far to disk.
+    pub fn sync(&mut self) -> Result<()> {
+        self.file
+            .sync_data()
+            .with_context(|| format!("cannot sync the checkpoint {}", self.path.display()))
+    }
+
+    /// Appends an entry without syncing it: for a chunk of many scattered
+    /// ranges (a refined run's), whose entries are synced together by
+    /// [`Checkpoint::sync`] (a crash before then tears at most the entries
+    /// since the last sync, which resume drops).
+    pub fn append_unsynced(&mut self, start: u64, records: &[Record]) -> Result<()> {
         let mut entry = Vec::with_capacity(HEAD_BYTES + 8 + records.len() * RECORD_BYTES);
         entry.extend_from_slice(&start.to_le_bytes());
         entry.extend_from_slice(&(records.len() as u64).to_le_bytes());
@@ -254,9 +270,7 @@ impl Checkpoint {
         let sum = checksum(&entry);
         entry.extend_from_slice(&sum.to_le_bytes());
         self.file.write_all(&entry)?;
-        self.file
-            .sync_data()
-            .with_context(|| format!("cannot sync the checkpoint {}", self.path.display()))
+        Ok(())
     }
 
     /// Deletes the journal once the output file is complete.

@@ -113,6 +113,35 @@ fn integrations_for_choice(scene: &Scene, scope: RunScope) -> u64 {
     crate::sweep::distinct_integrations(&instances, scene.baselines).len() as u64
 }
 
+/// The refinement's lines of the run summary: integrated and inferred
+/// points, and per level what was integrated, refined and missed.
+fn print_refine(report: &crate::refine::Report) {
+    let inferred = report.points - report.integrated;
+    println!(
+        "  refined map: {} of the {} points integrated ({:.1} %), {inferred} inferred (bilinear, \
+         /maps/inferred = 1); the instance counts below are the integrated points",
+        report.integrated,
+        report.points,
+        100.0 * report.integrated as f64 / report.points.max(1) as f64
+    );
+    for (level, st) in report.levels.iter().enumerate() {
+        if level == 0 {
+            println!("    level 0 (coarse grid): {} points", st.integrated);
+        } else {
+            println!(
+                "    level {level}: {} points, {} of {} cells refined, largest probe miss {:.4} \
+                 um, audit {} cells, {} found",
+                st.integrated,
+                st.flagged,
+                st.candidates,
+                st.largest_miss * 1e6,
+                st.audited,
+                st.audit_finds
+            );
+        }
+    }
+}
+
 /// Metres as signed micrometres to 4 decimals; a value that rounds to
 /// zero is "0.0000", never "-0.0000".
 pub fn um(x: f64) -> String {
@@ -147,6 +176,9 @@ fn print_summary(scene: &Scene, result: &RunResult) {
         s.integration_s,
         s.simulated_s / result.wall_time_s.max(1e-9)
     );
+    if let Some(report) = &result.refine {
+        print_refine(report);
+    }
     if s.on_cpu > 0 {
         println!(
             "  {} of the integrations ran on the CPU in f64 (the slow tail of a GPU batch, or \

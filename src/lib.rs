@@ -16,6 +16,7 @@ pub mod output;
 pub mod plot;
 pub mod progress;
 pub mod random;
+pub mod refine;
 pub mod report;
 pub mod run;
 pub mod scene;

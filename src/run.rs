@@ -33,6 +33,8 @@ pub struct RunResult {
     /// Instances taken from the checkpoint of an interrupted run
     /// (`--resume`) rather than integrated by this one.
     pub from_checkpoint: u64,
+    /// What the refinement did, for a scene with `[refine]`.
+    pub refine: Option<crate::refine::Report>,
 }
 
 /// The signal that stopped the run (SIGINT or SIGTERM), 0 while none did.
@@ -134,6 +136,13 @@ pub fn run_scene(
     scope: RunScope,
 ) -> Result<RunResult> {
     scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
+    if scene.refine.is_some() && scope.shard.is_some() {
+        bail!(
+            "--shard: the scene has [refine], whose waves choose the points to integrate from \
+             the whole map, so it cannot be split into shards; run it whole, or remove \
+             [refine] to shard the uniform grid"
+        );
+    }
     let total = scene.instance_count();
     let mut info = FileInfo::of_scene(
         scene,
@@ -161,6 +170,30 @@ pub fn run_scene(
     let claim = OutputClaim::acquire(out)?;
     let checkpoint_path = claim.checkpoint_path();
     let identity = run_identity(scene, backend, scope);
+    if let Some(refine) = &scene.refine {
+        install_interrupt_handler();
+        let scope = crate::refine::Scope {
+            resume: scope.resume,
+            chunk_size: scope.chunk_size,
+            verify: scope.verify,
+            progress: scope
+                .progress
+                .unwrap_or_else(ProgressMode::default_for_stderr),
+            keep,
+        };
+        let refined =
+            crate::refine::run::run(scene, refine, backend, &claim, &info, scope, &identity)?;
+        return Ok(RunResult {
+            path: refined.path,
+            summary: refined.summary,
+            wall_time_s: refined.wall_time_s,
+            total_wall_time_s: refined.total_wall_time_s,
+            backend: backend.describe(),
+            records: refined.records,
+            from_checkpoint: refined.from_checkpoint,
+            refine: Some(refined.report),
+        });
+    }
     let (mut checkpoint, work, mut writer) = if scope.resume {
         if !checkpoint_path.exists() {
             bail!(
@@ -288,6 +321,7 @@ pub fn run_scene(
         backend: backend.describe(),
         records: kept.into_values().collect(),
         from_checkpoint,
+        refine: None,
     })
 }
 

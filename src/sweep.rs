@@ -206,9 +206,13 @@ pub fn distinct_integrations(instances: &[Instance], baselines: bool) -> Vec<Ins
 }
 
 /// Baseline outcomes of earlier chunks, by digest (with the instance, to
-/// tell digests apart).
+/// tell digests apart). A caller that runs several sweeps of one scene
+/// (the waves of `crate::refine`) keeps one across them with
+/// [`run_with_memo`], so each baseline runs once.
 #[derive(Default)]
-struct BaselineMemo(HashMap<u64, (Instance, Outcome), std::hash::BuildHasherDefault<KeyHasher>>);
+pub struct BaselineMemo(
+    HashMap<u64, (Instance, Outcome), std::hash::BuildHasherDefault<KeyHasher>>,
+);
 
 impl BaselineMemo {
     fn get(&self, inst: &Instance, d: u64) -> Option<Outcome> {
@@ -522,17 +526,36 @@ pub fn run(
     progress: &(dyn Fn(u64) + Sync),
     sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
 ) -> Result<Summary> {
+    run_with_memo(
+        plan,
+        backend,
+        chunk,
+        progress,
+        sink,
+        &mut BaselineMemo::default(),
+    )
+}
+
+/// [`run`], with the baselines of earlier sweeps of the same scene in
+/// `baselines_done` (and this sweep's added to it).
+pub fn run_with_memo(
+    plan: &Plan,
+    backend: &dyn Backend,
+    chunk: usize,
+    progress: &(dyn Fn(u64) + Sync),
+    sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
+    baselines_done: &mut BaselineMemo,
+) -> Result<Summary> {
     let total = plan.count();
     let mut summary = Summary::default();
     let mut finished_before = 0;
-    let mut baselines_done = BaselineMemo::default();
     for segments in chunks(&plan.work, chunk.max(1) as u64) {
         if interrupt_requested() {
             bail!("interrupted after {finished_before} of {total} instances");
         }
         let indices: Vec<u64> = segments.iter().flat_map(|r| r.clone()).collect();
         let mains: Vec<Instance> = indices.par_iter().map(|&i| (plan.instance)(i)).collect();
-        let jobs = Jobs::new(&mains, plan.baselines, &baselines_done);
+        let jobs = Jobs::new(&mains, plan.baselines, baselines_done);
         let Jobs {
             jobs,
             main_job,

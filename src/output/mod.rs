@@ -153,6 +153,8 @@ pub struct MapWriter {
     shard_ranges: Vec<(Range<u64>, u64)>,
     maps: Vec<Dataset>,
     baselines: Vec<Dataset>,
+    /// The grid axes' keys, in grid order (their dimension scales).
+    scale_names: Vec<String>,
 }
 
 /// Writes a text attribute (netCDF readers take variable-length UTF-8).
@@ -292,6 +294,7 @@ impl MapWriter {
             shard_ranges,
             maps: Vec::new(),
             baselines: Vec::new(),
+            scale_names: info.axes.iter().map(|a| a.key.clone()).collect(),
         };
         write_str_attr(&file, schema::SCENE, &info.scene_text)?;
         write_str_attr(&file, schema::NAME, &info.name)?;
@@ -476,6 +479,34 @@ impl MapWriter {
                 start + n
             ),
         }
+    }
+
+    /// Writes `/maps/inferred` of a refined run: a u8 map shaped like the
+    /// grid, with the dimension scales and root link every map has.
+    pub fn write_inferred(&mut self, mask: &[u8]) -> Result<()> {
+        if !self.shard_ranges.is_empty() {
+            bail!("internal: a shard file has no inferred map");
+        }
+        let file = self.file();
+        let maps = file.group(schema::MAPS)?;
+        let builder = maps.new_dataset::<u8>().shape(self.shape.clone());
+        let ds = match chunk_shape(&self.shape) {
+            Some(chunk) => builder.chunk(chunk).create(schema::INFERRED_NAME)?,
+            None => builder.create(schema::INFERRED_NAME)?,
+        };
+        write_flat(&ds, &self.shape, 0, mask)?;
+        write_str_attr(&ds, schema::UNITS, "1")?;
+        write_str_attr(&ds, schema::LONG_NAME, schema::INFERRED_LONG_NAME)?;
+        let axes = file.group(schema::AXES)?;
+        for (dim, key) in self.scale_names.iter().enumerate() {
+            let scale = axes.dataset(key)?;
+            dimension_scales::attach(&ds, &scale, dim as u32)?;
+        }
+        file.link_hard(
+            schema::INFERRED,
+            &root_name(schema::MAPS, schema::INFERRED_NAME),
+        )?;
+        Ok(())
     }
 
     /// The open result file, for extra groups written beside the maps (the

@@ -164,6 +164,40 @@ pub const STATUS: &str = "maps/status";
 /// (absent from files written before the steady measurement).
 pub const STEP_SE: [&str; 2] = ["maps/step_x_se", "maps/step_y_se"];
 
+/// A refined run's map of inferred values (`crate::refine`), u8 shaped like
+/// the grid: 1 where the value was interpolated (its standard errors are
+/// interpolated too, not estimates), 0 where it was integrated. Only in
+/// files of scenes with `[refine]`.
+pub const INFERRED_NAME: &str = "inferred";
+pub const INFERRED: &str = "maps/inferred";
+/// Its `long_name`.
+pub const INFERRED_LONG_NAME: &str =
+    "1 where the value is interpolated from integrated neighbours (adaptive refinement)";
+
+/// The group of a refined run: what was integrated and what each level did.
+pub const REFINE: &str = "refine";
+/// The flat row-major index of each integrated point, ascending (u64).
+pub const REFINE_INDEX: &str = "refine/index";
+/// The level that integrated each point of [`REFINE_INDEX`] (u8, 0 = the
+/// coarse grid).
+pub const REFINE_LEVEL: &str = "refine/level";
+/// Per level (0 = the coarse grid), u64: the points it integrated, the
+/// cells it judged and refined, the cells audited and those only the audit
+/// flagged.
+pub const REFINE_LEVEL_INTEGRATED: &str = "refine/level_integrated";
+pub const REFINE_LEVEL_CANDIDATES: &str = "refine/level_candidates";
+pub const REFINE_LEVEL_FLAGGED: &str = "refine/level_flagged";
+pub const REFINE_LEVEL_AUDITED: &str = "refine/level_audited";
+pub const REFINE_LEVEL_AUDIT_FINDS: &str = "refine/level_audit_finds";
+/// Per level, f64 [m]: the largest difference between the interpolant and
+/// an integrated probe.
+pub const REFINE_LEVEL_LARGEST_MISS: &str = "refine/level_largest_miss";
+/// Attributes of the refine group: `levels` (u64), `tolerance` [m] and
+/// `coarse_shape` (u64 per axis).
+pub const REFINE_LEVELS: &str = "levels";
+pub const REFINE_TOLERANCE: &str = "tolerance";
+pub const REFINE_COARSE_SHAPE: &str = "coarse_shape";
+
 /// The optional group of the 1-DOF runs beside the maps.
 pub const BASELINE: &str = "baseline";
 /// The 1-DOF step per axis, shaped like the grid.

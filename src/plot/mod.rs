@@ -51,6 +51,7 @@ mod placement;
 mod read;
 mod read_trajectories;
 mod regime;
+pub use regime::{Regime, ZERO_STEP_M};
 mod staging;
 mod text;
 mod trajectory;

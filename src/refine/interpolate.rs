@@ -1,0 +1,71 @@
+//! The finest raster of a refinement: integrated records where computed,
+//! the bilinear interpolant of the smallest leaf cell elsewhere.
+//!
+//! An inferred point takes the bilinear interpolant of its leaf's four
+//! corners for every value a map shows (steps, velocities, standard errors,
+//! baseline steps); a point on the edge of two leaves takes the smaller
+//! leaf's, whose corners are nearer. Its status is 0: a leaf's corners all
+//! finished normally (a corner that did not flags its cell), so its
+//! interior is taken to as well, and `/maps/inferred` says it was not
+//! integrated. Its counts (`steps`, `periods`, `period_lag`) are 0: no
+//! integration took place there.
+
+use super::grid::Cell;
+use super::rule::weights;
+use super::waves::{INFERRED, Refinement};
+use crate::model::AXES;
+use crate::sweep::Record;
+
+/// The bilinear interpolant of the corner records (in
+/// [`Cell::corners`] order) at (u, v).
+pub fn bilinear(corners: &[Record; 4], u: f64, v: f64) -> Record {
+    let w = weights(u, v);
+    let mix = |f: &dyn Fn(&Record) -> [f64; AXES]| -> [f64; AXES] {
+        let mut out = [0.0; AXES];
+        for (c, w) in corners.iter().zip(w) {
+            for (o, x) in out.iter_mut().zip(f(c)) {
+                *o += w * x;
+            }
+        }
+        out
+    };
+    Record {
+        step: mix(&|r| r.step),
+        velocity: mix(&|r| r.velocity),
+        // Interpolated errors are no errors of an estimate: inferred = 1
+        // marks them (README, "Adaptive maps").
+        step_se: mix(&|r| r.step_se),
+        baseline_step: mix(&|r| r.baseline_step),
+        ..Record::default()
+    }
+}
+
+/// The raster and the inferred mask (1 where interpolated). `records`
+/// holds a record for every point the refinement integrated.
+pub fn raster(r: &Refinement, records: &[Option<Record>]) -> (Vec<Record>, Vec<u8>) {
+    let grid = r.grid;
+    let mut out = vec![Record::default(); grid.len()];
+    let mut inferred = vec![1u8; grid.len()];
+    // Largest leaves first, so a smaller one's values win on shared edges.
+    let mut leaves: Vec<Cell> = r.leaves.clone();
+    leaves.sort_by(|a, b| b.size.cmp(&a.size));
+    for leaf in &leaves {
+        let corners = leaf
+            .corners()
+            .map(|p| records[grid.index(p)].expect("a leaf's corners are integrated"));
+        for p in leaf.points() {
+            let k = grid.index(p);
+            if r.level_of[k] == INFERRED {
+                let (u, v) = leaf.local(p);
+                out[k] = bilinear(&corners, u, v);
+            }
+        }
+    }
+    for (k, level) in r.level_of.iter().enumerate() {
+        if *level != INFERRED {
+            out[k] = records[k].expect("an integrated point has its record");
+            inferred[k] = 0;
+        }
+    }
+    (out, inferred)
+}

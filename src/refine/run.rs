@@ -1,0 +1,223 @@
+//! A refined run into its result file: the output claimed by the caller's
+//! [`OutputClaim`], the checkpoint created or replayed, the waves run with
+//! each batch a sweep of finest-grid indices (every finished chunk
+//! journalled), the raster interpolated and the file finished.
+//!
+//! Resuming replays the journal's records into the store and reruns the
+//! waves: they are deterministic given the records, so they ask for the
+//! same points, and those already integrated are not integrated again.
+
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+
+use super::grid::FineGrid;
+use super::interpolate;
+use super::output;
+use super::rule::Sample;
+use super::waves::{self, LevelStats, Options};
+use crate::backend::Backend;
+use crate::checkpoint::Checkpoint;
+use crate::output::{FileInfo, MapWriter, OutputClaim};
+use crate::progress::{Progress, ProgressMode};
+use crate::scene::{Refine, Scene};
+use crate::sweep::{self, BaselineMemo, Plan, Record, Summary};
+
+/// How the caller runs the refinement (`crate::run::RunScope`'s part that
+/// applies).
+#[derive(Clone, Copy, Debug)]
+pub struct Scope {
+    pub resume: bool,
+    pub chunk_size: Option<usize>,
+    pub verify: bool,
+    pub progress: ProgressMode,
+    /// Keep the raster's records for the caller when the grid has at most
+    /// this many points.
+    pub keep: u64,
+}
+
+/// What a refined run did, for the summary.
+#[derive(Clone, Debug)]
+pub struct Report {
+    /// Points of the finest grid.
+    pub points: u64,
+    /// Points integrated (this run and the checkpoint's).
+    pub integrated: u64,
+    /// Per level, from 0 (the coarse grid).
+    pub levels: Vec<LevelStats>,
+}
+
+/// What [`run`] produced.
+pub struct Outcome {
+    pub path: std::path::PathBuf,
+    /// Over the integrated points, the checkpoint's included.
+    pub summary: Summary,
+    pub wall_time_s: f64,
+    pub total_wall_time_s: f64,
+    /// The raster's records, kept only for small grids.
+    pub records: Vec<Record>,
+    pub from_checkpoint: u64,
+    pub report: Report,
+}
+
+/// Runs a refined scene (its grid is the finest grid) into `claim`'s
+/// output. `identity` names the run in the checkpoint.
+pub fn run(
+    scene: &Scene,
+    refine: &Refine,
+    backend: &dyn Backend,
+    claim: &OutputClaim,
+    info: &FileInfo,
+    scope: Scope,
+    identity: &str,
+) -> Result<Outcome> {
+    let grid = FineGrid::new(refine.coarse, refine.levels);
+    let count = grid.len();
+    if scene.instance_count() != count as u64 {
+        bail!("internal: the refined scene's grid is not its finest grid");
+    }
+    let mut records: Vec<Option<Record>> = vec![None; count];
+    let mut summary = Summary::default();
+    let mut from_checkpoint = 0;
+    let checkpoint_path = claim.checkpoint_path();
+    let (mut checkpoint, mut writer) = if scope.resume {
+        if !checkpoint_path.exists() {
+            bail!(
+                "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
+                checkpoint_path.display()
+            );
+        }
+        let writer = MapWriter::create(claim, info)?;
+        let (checkpoint, _) = Checkpoint::resume(&checkpoint_path, identity, &mut |start, got| {
+            let end = start.checked_add(got.len() as u64);
+            if end.is_none_or(|e| e > count as u64) {
+                bail!(
+                    "the checkpoint {} holds instances {start}.. that this run does not \
+                     compute; delete it to start over",
+                    checkpoint_path.display()
+                );
+            }
+            for (k, r) in got.iter().enumerate() {
+                let index = start + k as u64;
+                if records[index as usize].replace(*r).is_none() {
+                    from_checkpoint += 1;
+                    summary.add(r, index);
+                }
+            }
+            Ok(())
+        })?;
+        eprintln!(
+            "pidm: resuming from {}: {from_checkpoint} of the finest grid's {count} points \
+             integrated; the waves are recomputed and go on from there",
+            checkpoint_path.display()
+        );
+        (checkpoint, writer)
+    } else {
+        if checkpoint_path.exists() {
+            bail!(
+                "{} holds the finished part of an interrupted run of this output; continue it \
+                 with --resume, or delete it to start over",
+                checkpoint_path.display()
+            );
+        }
+        let checkpoint = Checkpoint::create(&checkpoint_path, identity)?;
+        (checkpoint, MapWriter::create(claim, info)?)
+    };
+
+    let baselines = scene.baselines;
+    let known: Vec<Option<Sample>> = records
+        .iter()
+        .map(|r| r.as_ref().map(|r| Sample::of_record(r, baselines)))
+        .collect();
+    let instance = |i: u64| scene.instance(i);
+    let chunk = scope.chunk_size.unwrap_or_else(|| backend.chunk_size());
+    let mut memo = BaselineMemo::default();
+    let started = Instant::now();
+    let opts = Options::standard(refine.tolerance, baselines);
+    let mut integrate = |indices: &[u64]| -> Result<Vec<Sample>> {
+        let progress = Progress::new(scope.progress, 0, indices.len() as u64);
+        // One sweep per chunk, so that the chunk's scattered ranges (one
+        // journal entry each) are synced to the checkpoint once.
+        for part in indices.chunks(chunk.max(1)) {
+            let mut work: Vec<std::ops::Range<u64>> = Vec::new();
+            for &i in part {
+                match work.last_mut() {
+                    Some(r) if r.end == i => r.end += 1,
+                    _ => work.push(i..i + 1),
+                }
+            }
+            let plan = Plan {
+                work,
+                instance: &instance,
+                settings: scene.settings,
+                baselines,
+                verify: scope.verify,
+            };
+            let result = sweep::run_with_memo(
+                &plan,
+                backend,
+                part.len(),
+                &|n| progress.inc(n),
+                &mut |start, got| {
+                    for (k, r) in got.iter().enumerate() {
+                        records[start as usize + k] = Some(*r);
+                    }
+                    checkpoint.append_unsynced(start, got)
+                },
+                &mut memo,
+            );
+            let result = result.and_then(|s| checkpoint.sync().map(|()| s));
+            if result.is_err() {
+                progress.abandon();
+            }
+            summary.merge(&result?);
+        }
+        progress.finish();
+        Ok(indices
+            .iter()
+            .map(|&i| {
+                Sample::of_record(
+                    records[i as usize]
+                        .as_ref()
+                        .expect("a swept point has its record"),
+                    baselines,
+                )
+            })
+            .collect())
+    };
+    let refinement = waves::refine(grid, &opts, known, &mut integrate).with_context(|| {
+        format!(
+            "the finished instances are kept in {}; the same command with --resume \
+             continues the run",
+            checkpoint_path.display()
+        )
+    })?;
+    let (raster, inferred) = interpolate::raster(&refinement, &records);
+    writer.write(0, &raster)?;
+    writer.write_inferred(&inferred)?;
+    output::write_group(writer.file(), refine, &refinement)?;
+    let wall_time_s = started.elapsed().as_secs_f64();
+    crate::trajectory::record_and_write(writer.file(), scene)?;
+    let mut parts = checkpoint.earlier_parts().to_vec();
+    parts.push(wall_time_s);
+    let path = writer.finish(&parts)?;
+    checkpoint.remove()?;
+    let integrated = inferred.iter().filter(|&&m| m == 0).count() as u64;
+    Ok(Outcome {
+        path,
+        summary,
+        wall_time_s,
+        total_wall_time_s: parts.iter().sum(),
+        records: if count as u64 <= scope.keep {
+            raster
+        } else {
+            Vec::new()
+        },
+        from_checkpoint,
+        report: Report {
+            points: count as u64,
+            integrated,
+            levels: refinement.stats,
+        },
+    })
+}
