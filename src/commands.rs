@@ -974,3 +974,104 @@ pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<()> {
     );
     Ok(())
 }
+
+/// `pidm refine-study`: the refinement rule's variants replayed on a uniform
+/// run of a refined scene's finest grid, and optionally a refined run's
+/// file against it; prints Markdown tables.
+pub fn refine_study(scene_path: &Path, uniform: &Path, refined: Option<&Path>) -> Result<()> {
+    use crate::refine::study;
+    let scene = load_scene(scene_path)?;
+    let Some(refine) = scene.refine else {
+        bail!("{}: the scene has no [refine]", scene_path.display());
+    };
+    let pct = |x: f64| format!("{:.2} %", 100.0 * x);
+    let row = |name: &str, m: &study::Metrics| {
+        println!(
+            "| {name} | {} | {} | {} | {} | {} | {} | {} | {:.4} |",
+            m.integrated,
+            pct(m.integrated as f64 / m.points as f64),
+            pct(m.sign_mismatch),
+            pct(m.zero_sign_mismatch),
+            m.regime_mismatch.map_or("-".to_string(), pct),
+            m.regime_tol_mismatch.map_or("-".to_string(), pct),
+            pct(m.within),
+            m.worst * 1e6
+        );
+    };
+    println!(
+        "scene {:?}: coarse {} x {}, levels {}, tolerance {:e} m; uniform reference {}\n",
+        scene.name,
+        refine.coarse[0],
+        refine.coarse[1],
+        refine.levels,
+        refine.tolerance,
+        uniform.display()
+    );
+    println!(
+        "| rule | integrated | share | sign labels differ (dead zone tol) | sign differs (0.001 \
+         um) | coupling regime differs (0.001 um) | coupling regime differs (tol) | step values within tol + 1 % | largest error [um] |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let mut levels = Vec::new();
+    for (name, m, r) in study::study(uniform, refine.coarse, refine.levels, refine.tolerance)? {
+        row(name, &m);
+        levels.push((name, r.stats));
+    }
+    println!(
+        "\n| rule | level | points | cells judged | refined | by labels | by probes | by \
+         neighbours | audited | audit finds | largest miss [um] |\n|---|---|---|---|---|---|---|---|---|---|---|"
+    );
+    for (name, stats) in levels {
+        for (level, st) in stats.iter().enumerate() {
+            println!(
+                "| {name} | {level} | {} | {} | {} | {} | {} | {} | {} | {} | {:.4} |",
+                st.integrated,
+                st.candidates,
+                st.flagged,
+                st.by_label,
+                st.by_probe,
+                st.by_neighbours,
+                st.audited,
+                st.audit_finds,
+                st.largest_miss * 1e6
+            );
+        }
+    }
+    if let Some(refined) = refined {
+        let (_, uniform_records, baselines) = study::read_records(uniform)?;
+        let (_, raster, _) = study::read_records(refined)?;
+        let file = hdf5::File::open(refined)?;
+        let index: Vec<u64> = file
+            .dataset(crate::output::schema::REFINE_INDEX)?
+            .read_raw()?;
+        let same = index.iter().all(|&k| {
+            let (a, b) = (&raster[k as usize], &uniform_records[k as usize]);
+            a.step.map(f64::to_bits) == b.step.map(f64::to_bits)
+                && a.step_se.map(f64::to_bits) == b.step_se.map(f64::to_bits)
+                && a.velocity.map(f64::to_bits) == b.velocity.map(f64::to_bits)
+                && a.baseline_step.map(f64::to_bits) == b.baseline_step.map(f64::to_bits)
+                && a.status == b.status
+        });
+        let mut m = study::compare(&raster, &uniform_records, refine.tolerance, baselines);
+        m.integrated = index.len() as u64;
+        println!("\nthe refined run's file {}:\n", refined.display());
+        println!("|---|---|---|---|---|---|---|---|---|");
+        row("refined run", &m);
+        let wall = |path: &Path| -> Result<f64> {
+            let f = hdf5::File::open(path)?;
+            Ok(f.attr(crate::output::schema::WALL_TIME_S)?
+                .read_scalar::<f64>()?)
+        };
+        let (tu, tr) = (wall(uniform)?, wall(refined)?);
+        let share = m.integrated as f64 / m.points as f64;
+        println!(
+            "\nintegrated points bit-identical to the uniform run's: {}\nwall time: uniform \
+             {tu:.3} s, refined {tr:.3} s = {:.3} of uniform; integrated share {share:.3} \
+             (bound: share x 1.2 = {:.3})",
+            if same { "yes" } else { "NO" },
+            tr / tu,
+            share * 1.2
+        );
+    }
+    Ok(())
+}

@@ -87,6 +87,23 @@ enum Command {
         #[arg(required = true)]
         shards: Vec<PathBuf>,
     },
+    /// Measures the refinement rule of a scene with [refine] against a
+    /// uniform run of its finest grid: the waves replayed on the uniform
+    /// file's values for several rule variants (integrated share, label
+    /// mismatches, values within the tolerance + 1 %), and with --refined
+    /// a refined run's file compared too (its integrated points bit for bit,
+    /// its wall time against the uniform run's).
+    RefineStudy {
+        /// The scene with [refine].
+        scene: PathBuf,
+        /// A uniform run of the finest grid (the scene without [refine] and
+        /// with (steps - 1) * 2^levels + 1 steps per axis).
+        #[arg(long)]
+        uniform: PathBuf,
+        /// A refined run of the scene (`pidm run SCENE`).
+        #[arg(long)]
+        refined: Option<PathBuf>,
+    },
     /// Lists GPU adapters: type, backend, limits, f64 support.
     Info,
     /// Validates a scene and prints its grid, instance count and cost
@@ -291,6 +308,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
             y,
             at,
         } => pidm::plot::run(&file, out.as_deref(), &pidm::plot::View { x, y, at })?,
+        Command::RefineStudy {
+            scene,
+            uniform,
+            refined,
+        } => commands::refine_study(&scene, &uniform, refined.as_deref())?,
         Command::Info => commands::info()?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Accuracy {

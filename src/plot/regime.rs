@@ -49,14 +49,21 @@ impl Regime {
     /// Classifies a 2-DOF step against its 1-DOF step [m]; `ok` is false
     /// when either run ended with a non-zero status.
     pub fn classify(two_dof: f64, one_dof: f64, ok: bool) -> Regime {
-        let moves = |s: f64| s.abs() >= ZERO_STEP_M;
+        Regime::classify_within(two_dof, one_dof, ok, ZERO_STEP_M)
+    }
+
+    /// [`Regime::classify`] with `zero` [m] in place of [`ZERO_STEP_M`]:
+    /// steps (and differences) smaller than it count as none. The adaptive
+    /// refinement labels points with its tolerance.
+    pub fn classify_within(two_dof: f64, one_dof: f64, ok: bool, zero: f64) -> Regime {
+        let moves = |s: f64| s.abs() >= zero;
         if !ok || !two_dof.is_finite() || !one_dof.is_finite() {
             Regime::Failed
         } else if !moves(two_dof) && !moves(one_dof) {
             Regime::AtRest
         } else if !moves(two_dof) {
             Regime::Stalled
-        } else if (two_dof - one_dof).abs() < ZERO_STEP_M {
+        } else if (two_dof - one_dof).abs() < zero {
             Regime::Unchanged
         } else if !moves(one_dof) {
             Regime::Started

@@ -19,6 +19,7 @@ pub mod interpolate;
 pub mod output;
 pub mod rule;
 pub mod run;
+pub mod study;
 pub mod waves;
 
 pub use run::{Outcome, Report, Scope};

@@ -87,8 +87,10 @@ pub struct Label {
     pub ok: bool,
 }
 
-/// The label of a sample; `tolerance` [m] is the sign's dead zone.
-pub fn label(s: &Sample, tolerance: f64, baselines: bool) -> Label {
+/// The label of a sample; `tolerance` [m] is the sign's dead zone, and
+/// `coupling`, for a scene with baselines, the coupling regime's zero [m]
+/// (what counts as no step, or as no change: [`Regime::classify_within`]).
+pub fn label(s: &Sample, tolerance: f64, coupling: Option<f64>) -> Label {
     let sign = s.step.map(|x| {
         if x > tolerance {
             1
@@ -98,8 +100,8 @@ pub fn label(s: &Sample, tolerance: f64, baselines: bool) -> Label {
             0
         }
     });
-    let coupling =
-        baselines.then(|| [0, 1].map(|a| Regime::classify(s.step[a], s.baseline[a], s.ok)));
+    let coupling = coupling
+        .map(|zero| [0, 1].map(|a| Regime::classify_within(s.step[a], s.baseline[a], s.ok, zero)));
     Label {
         sign,
         coupling,
@@ -125,7 +127,13 @@ pub struct Judgement {
 }
 
 /// Judges the interpolant at one integrated point.
-pub fn judge(interpolated: &Sample, exact: &Sample, tolerance: f64, baselines: bool) -> Judgement {
+pub fn judge(
+    interpolated: &Sample,
+    exact: &Sample,
+    tolerance: f64,
+    coupling: Option<f64>,
+    baselines: bool,
+) -> Judgement {
     let compared = if baselines { 2 * AXES } else { AXES };
     let (a, b) = (interpolated.values(), exact.values());
     let mut miss: f64 = 0.0;
@@ -134,18 +142,18 @@ pub fn judge(interpolated: &Sample, exact: &Sample, tolerance: f64, baselines: b
         miss = miss.max((a[k] - b[k]).abs());
         off |= !within(a[k], b[k], tolerance);
     }
-    off |= label(interpolated, tolerance, baselines) != label(exact, tolerance, baselines);
+    off |= label(interpolated, tolerance, coupling) != label(exact, tolerance, coupling);
     Judgement { miss, off }
 }
 
 /// Whether the corners of a cell carry one label (and all finished
 /// normally): a cell whose corners disagree is always refined.
-pub fn corners_agree(corners: &[Sample; 4], tolerance: f64, baselines: bool) -> bool {
-    let first = label(&corners[0], tolerance, baselines);
+pub fn corners_agree(corners: &[Sample; 4], tolerance: f64, coupling: Option<f64>) -> bool {
+    let first = label(&corners[0], tolerance, coupling);
     first.ok
         && corners[1..]
             .iter()
-            .all(|c| label(c, tolerance, baselines) == first)
+            .all(|c| label(c, tolerance, coupling) == first)
 }
 
 #[cfg(test)]
@@ -172,16 +180,16 @@ mod tests {
     #[test]
     fn labels_are_signs_with_a_dead_zone_and_coupling() {
         let t = 2e-8;
-        assert_eq!(label(&sample(1e-7, -1e-8), t, false).sign, [1, 0]);
-        assert_eq!(label(&sample(-3e-8, 3e-8), t, false).sign, [-1, 1]);
+        assert_eq!(label(&sample(1e-7, -1e-8), t, None).sign, [1, 0]);
+        assert_eq!(label(&sample(-3e-8, 3e-8), t, None).sign, [-1, 1]);
         let corners = [sample(1e-7, 0.0); 4];
-        assert!(corners_agree(&corners, t, true));
+        assert!(corners_agree(&corners, t, Some(t)));
         let mut bad = corners;
         bad[3].ok = false;
-        assert!(!corners_agree(&bad, t, true));
+        assert!(!corners_agree(&bad, t, Some(t)));
         let mut flipped = corners;
         flipped[2].step[0] = -1e-7;
-        assert!(!corners_agree(&flipped, t, false));
+        assert!(!corners_agree(&flipped, t, None));
         // The 2-DOF step above its baseline: amplified, not unchanged.
         let mut amplified = corners;
         amplified[1].step[0] = 1.5e-7;
@@ -190,7 +198,7 @@ mod tests {
             t,
             false
         ));
-        assert!(!corners_agree(&amplified, t, true));
+        assert!(!corners_agree(&amplified, t, Some(t)));
     }
 
     #[test]
@@ -199,10 +207,10 @@ mod tests {
         let corners = [f(0.0, 0.0), f(0.0, 1.0), f(1.0, 0.0), f(1.0, 1.0)];
         for (u, v) in [(0.5, 0.5), (0.25, 0.75), (1.0, 0.0)] {
             let got = Sample::bilinear(&corners, u, v);
-            let j = judge(&got, &f(u, v), 1e-12, true);
+            let j = judge(&got, &f(u, v), 1e-12, Some(1e-12), true);
             assert!(!j.off && j.miss < 1e-20, "{u} {v}: {j:?}");
         }
-        let j = judge(&sample(0.0, 0.0), &sample(1e-7, 0.0), 2e-8, false);
+        let j = judge(&sample(0.0, 0.0), &sample(1e-7, 0.0), 2e-8, None, false);
         assert!(j.off);
         assert_eq!(j.miss, 1e-7);
     }

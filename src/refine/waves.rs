@@ -44,11 +44,31 @@ pub struct Options {
     /// Whether the samples carry baselines (coupling labels, compared
     /// baseline steps).
     pub baselines: bool,
+    /// Whether the labels include the coupling regime (2-DOF against 1-DOF
+    /// step, `pidm plot`'s classes) when the samples carry baselines, and
+    /// the probes compare the baseline steps too. Off
+    /// in the standard rule: on the coupling map its class boundaries
+    /// (where 2-DOF and 1-DOF steps differ by a few nm) cover so much of
+    /// the map that following them integrates 28-36 % of it
+    /// (results/refine.md).
+    pub coupling_labels: bool,
+    /// The coupling regime's zero [m]: steps, and differences between the
+    /// 2-DOF and 1-DOF step, smaller than it count as none.
+    pub coupling_zero: f64,
     /// Probe the edge midpoints of every candidate too, not only its centre.
     pub edge_probes: bool,
     /// Judge unflagged candidates on the edge midpoints their flagged
     /// neighbours integrated, again until nothing changes.
     pub neighbour_checks: bool,
+    /// Refine every cell whose corners carry different labels (the issue's
+    /// rule); when false such a cell is refined only where its probes miss
+    /// the interpolant or its label there (a smooth crossing of a label's
+    /// threshold is left to the interpolant, which places it within the
+    /// tolerance). Corners that did not finish normally always refine.
+    pub corner_labels: bool,
+    /// Levels at the fine end (the last ones) where [`Options::corner_labels`]
+    /// does not apply: their label-boundary cells are judged on probes only.
+    pub probe_labels_last: u32,
     /// Also refine the same-size candidates beside every flagged cell.
     pub buffer: bool,
     /// Share of the unflagged candidates of each level that get an audit
@@ -65,12 +85,23 @@ pub const AUDIT_FRACTION: f64 = 0.02;
 pub const AUDIT_SEED: u64 = 0x5eed_0022;
 
 impl Options {
-    /// The rule `pidm run` uses: centre probes, neighbour checks, no
-    /// buffer, a 2 % audit (the choices measured in results/refine.md).
+    /// The coupling regime's zero, when the samples carry baselines.
+    pub fn coupling(&self) -> Option<f64> {
+        (self.baselines && self.coupling_labels).then_some(self.coupling_zero)
+    }
+
+    /// The rule `pidm run` uses: sign labels at the corners of every level
+    /// but the last (where labels are judged at the probes), centre probes,
+    /// neighbour checks, no buffer, a 2 % audit (the choices measured in
+    /// results/refine.md).
     pub fn standard(tolerance: f64, baselines: bool) -> Options {
         Options {
             tolerance,
             baselines,
+            coupling_labels: false,
+            coupling_zero: tolerance,
+            corner_labels: true,
+            probe_labels_last: 1,
             edge_probes: false,
             neighbour_checks: true,
             buffer: false,
@@ -89,6 +120,11 @@ pub struct LevelStats {
     pub candidates: u64,
     /// Cells refined.
     pub flagged: u64,
+    /// Of those, the cells whose corners disagreed, those a probe flagged,
+    /// and those a neighbour's edge midpoints flagged.
+    pub by_label: u64,
+    pub by_probe: u64,
+    pub by_neighbours: u64,
     /// The largest difference between the interpolant and an integrated
     /// probe, audit or neighbour point of the level [m].
     pub largest_miss: f64,
@@ -196,7 +232,8 @@ impl Waves<'_, '_> {
                     &Sample::bilinear(&corners, u, v),
                     &exact,
                     self.opts.tolerance,
-                    self.opts.baselines,
+                    self.opts.coupling(),
+                    self.opts.coupling().is_some(),
                 );
                 worst = (worst.0.max(j.miss), worst.1 || j.off);
             }
@@ -258,8 +295,16 @@ pub fn refine(
         // 1. Labels.
         let mut flagged: Vec<bool> = candidates
             .iter()
-            .map(|c| !rule::corners_agree(&w.corners(c), opts.tolerance, opts.baselines))
+            .map(|c| {
+                let corners = w.corners(c);
+                if opts.corner_labels && level + opts.probe_labels_last <= grid.levels {
+                    !rule::corners_agree(&corners, opts.tolerance, opts.coupling())
+                } else {
+                    corners.iter().any(|s| !s.ok)
+                }
+            })
             .collect();
+        st.by_label = flagged.iter().filter(|f| **f).count() as u64;
         // 2. Probes and audit points, one batch.
         let audits: Vec<Option<Point>> = candidates
             .iter()
@@ -284,6 +329,7 @@ pub fn refine(
             st.largest_miss = st.largest_miss.max(miss);
             if !flagged[k] && off {
                 flagged[k] = true;
+                st.by_probe += 1;
             }
             if let Some(a) = audits[k] {
                 let (miss, off) = w.judge(c, &[a]);
@@ -327,6 +373,7 @@ pub fn refine(
                         st.largest_miss = st.largest_miss.max(miss);
                         if off {
                             flagged[k] = true;
+                            st.by_neighbours += 1;
                             newly.push(k);
                         }
                     }
