@@ -244,7 +244,7 @@ impl Waves<'_, '_> {
 
 /// The audit point of a cell, if it is audited: an interior point off its
 /// midlines, chosen by a hash of the seed, the level and the cell.
-fn audit_point(cell: &Cell, level: u32, opts: &Options) -> Option<Point> {
+pub fn audit_point(cell: &Cell, level: u32, opts: &Options) -> Option<Point> {
     let h = cell.size / 2;
     if h < 2 || opts.audit_fraction <= 0.0 {
         return None;

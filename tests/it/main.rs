@@ -16,6 +16,7 @@ mod plot_fuzz;
 mod progress;
 mod python;
 mod reference;
+mod refine;
 mod scene;
 mod scene_fuzz;
 mod slurm;
