@@ -740,6 +740,62 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "invalid TOML: TOML parse error at line 2",
         ),
         ("[axis.x]\nvoltage = 1\nvoltage = 2", "line 3"),
+        // [refine]: its keys, and the grid it can refine.
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 150, steps = 5 }\n\
+             [axis.y]\nvoltage = { from = 0, to = 150, steps = 5 }\n[refine]\nlevels = 0",
+            "refine.levels = 0: expected an integer from 1 to 10",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 150, steps = 5 }\n\
+             [axis.y]\nvoltage = { from = 0, to = 150, steps = 5 }\n[refine]\nlevels = 2.5",
+            "refine.levels = 2.5: expected an integer from 1 to 10",
+        ),
+        (
+            "[refine]\nlevels = \"2\"",
+            "refine.levels: expected an integer from 1 to 10, found a string \"2\"",
+        ),
+        (
+            "[refine]\nlevels = 2\ntolerance = -1e-8",
+            "refine.tolerance = -1e-8: expected a step tolerance in m per own drive cycle, > 0",
+        ),
+        (
+            "[refine]\nlevels = 2\ntolerance = 1e-3",
+            "refine.tolerance = 0.001",
+        ),
+        (
+            "[refine]\nlevel = 2",
+            "unknown key `refine.level` (did you mean `levels`?)",
+        ),
+        ("[refine]\ntolerance = 1e-8", "refine.levels: missing"),
+        (
+            "refine = 3",
+            "refine: expected a table ([refine]), found an integer 3",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 150, steps = 5 }\n[refine]\nlevels = 2",
+            "refine: the scene has 1 grid axes (axis.x.voltage); expected exactly two range axes",
+        ),
+        (
+            "[mechanism]\nstatic_friction = [1.0, 2.0]\n\
+             [axis.x]\nvoltage = { from = 0, to = 150, steps = 5 }\n\
+             [axis.y]\nvoltage = { from = 0, to = 150, steps = 5 }\n[refine]\nlevels = 2",
+            "refine: the scene has 3 grid axes",
+        ),
+        (
+            "[axis.x]\nvoltage = [0.0, 50.0, 150.0]\n\
+             [axis.y]\nvoltage = { from = 0, to = 150, steps = 5 }\n[refine]\nlevels = 2",
+            "axis.x.voltage = [0.0, 50.0, 150.0]: [refine] needs a range { from, to, steps }",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 150, steps = 200000 }\n\
+             [axis.y]\nvoltage = { from = 0, to = 150, steps = 5 }\n[refine]\nlevels = 10",
+            "the finest grid would have more than",
+        ),
+        (
+            "[refine]\nlevels = 2\n[[points]]\nlabel = \"a\"",
+            "refine: a scene with [[points]] cannot be refined",
+        ),
     ];
     for (text, needle) in cases {
         check(text, needle);
@@ -1478,4 +1534,34 @@ fn every_shipped_scene_validates() {
         }
     }
     assert!(count >= 6, "only {count} scenes in {}", dir.display());
+}
+
+#[test]
+fn a_refined_scene_is_its_finest_grid_with_the_coarse_one_inside() {
+    let refined = parse(
+        "[axis.x]\nvoltage = { from = -150, to = 150, steps = 5 }\n\
+         [axis.y]\nfrequency = { from = 5, to = 40, steps = 3, log = true }\n\
+         [refine]\nlevels = 2",
+    );
+    let uniform = parse(
+        "[axis.x]\nvoltage = { from = -150, to = 150, steps = 17 }\n\
+         [axis.y]\nfrequency = { from = 5, to = 40, steps = 9, log = true }",
+    );
+    let refine = refined.refine.expect("[refine] is read");
+    assert_eq!(refine.levels, 2);
+    assert_eq!(refine.tolerance, pidm::scene::DEFAULT_REFINE_TOLERANCE_M);
+    assert_eq!(refine.coarse, [5, 3]);
+    assert_eq!(refined.shape(), vec![17, 9]);
+    assert_eq!(refined.layout, uniform.layout);
+    // Every instance is the uniform finest grid's, bit for bit.
+    for k in 0..refined.instance_count() {
+        assert_eq!(refined.instance(k).key(), uniform.instance(k).key(), "{k}");
+    }
+    let tol = parse(
+        "[axis.x]\nvoltage = { from = -150, to = 150, steps = 5 }\n\
+         [axis.y]\nvoltage = { from = -150, to = 150, steps = 5 }\n\
+         [refine]\nlevels = 1\ntolerance = 5e-8",
+    );
+    assert_eq!(tol.refine.unwrap().tolerance, 5e-8);
+    assert!(uniform.refine.is_none());
 }
