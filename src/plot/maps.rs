@@ -292,6 +292,15 @@ pub(super) fn grid_maps(
                 cells.len()
             )
         });
+        let inferred = |k: usize| data.inferred.as_ref().is_some_and(|m| m[k] == 1);
+        let n_inferred = cells.iter().filter(|&&k| inferred(k)).count();
+        let inferred_line = data.inferred.is_some().then(|| {
+            format!(
+                "paler: {n_inferred} of {} values inferred (bilinear) by the adaptive \
+                 refinement, not integrated (/maps/inferred)",
+                cells.len()
+            )
+        });
         for axis in 0..2 {
             let steps_um: Vec<f64> = cells
                 .iter()
@@ -320,6 +329,7 @@ pub(super) fn grid_maps(
             title.extend(data.fixed.clone());
             title.extend(failed_line.clone());
             title.extend(unsteady_line.clone());
+            title.extend(inferred_line.clone());
             let path = dir.join(format!("step_{}{suffix}.png", AXIS_NAMES[axis]));
             let mut swatches = Vec::new();
             if failed > 0 {
@@ -336,6 +346,7 @@ pub(super) fn grid_maps(
                 &|i, j| {
                     let k = flat(i, j);
                     match data.status[k] {
+                        0 if inferred(k) => paler(scale.colour(data.step[axis][k] * 1e6)),
                         0 => scale.colour(data.step[axis][k] * 1e6),
                         STATUS_NOT_STEADY => NOT_STEADY,
                         _ => FAILED,
@@ -597,4 +608,12 @@ mod tests {
         let scene = Scene::from_toml("[axis.x]\nvoltage = [50.0, 100.0]\n", Some("t")).unwrap();
         assert_eq!(fixed_drive(&scene), None);
     }
+}
+
+/// The lighter colour an inferred value of a refined map is drawn in: a
+/// third of the way to white, so the map reads the same and the inferred
+/// plains show as a light veil.
+fn paler(c: RGBColor) -> RGBColor {
+    let mix = |v: u8| v + (255 - v) / 3;
+    RGBColor(mix(c.0), mix(c.1), mix(c.2))
 }

@@ -55,6 +55,9 @@ pub(super) struct Data {
     /// The standard errors of the steps per axis [m per own drive cycle],
     /// when stored (files of the steady measurement).
     pub(super) step_se: Option<[Vec<f64>; 2]>,
+    /// 1 where a refined map's value was interpolated (`/maps/inferred`),
+    /// when stored.
+    pub(super) inferred: Option<Vec<u32>>,
     pub(super) trajectories: Vec<TrajectoryData>,
     /// Things the reader should know (guessed axis order, values left out).
     pub(super) notes: Vec<String>,
@@ -124,6 +127,19 @@ impl Data {
         } else {
             None
         };
+        let inferred = if file.exists(schema::INFERRED) {
+            let mask = file.integers(schema::INFERRED)?;
+            file.expect_shape(&mask, &shape, format!("the shape of /{}", schema::STEP[0]))?;
+            if let Some(v) = mask.values.iter().find(|v| **v > 1) {
+                return Err(file.dataset_error(
+                    schema::INFERRED,
+                    Problem::Invalid(format!("holds {v}: expected 0 or 1")),
+                ));
+            }
+            Some(mask.values)
+        } else {
+            None
+        };
         let points = matches!(
             scene,
             Some(Scene {
@@ -152,6 +168,7 @@ impl Data {
             status,
             baseline,
             step_se,
+            inferred,
             trajectories,
             notes,
             fixed,
