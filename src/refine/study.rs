@@ -191,6 +191,27 @@ pub fn variants(tolerance: f64, baselines: bool) -> Vec<(&'static str, Options)>
         ),
         ("standard (probe labels on the last level)", standard),
         (
+            "standard + buffer beside misses > 10 tol",
+            Options {
+                miss_buffer: Some(10.0),
+                ..standard
+            },
+        ),
+        (
+            "standard + buffer beside misses > 25 tol",
+            Options {
+                miss_buffer: Some(25.0),
+                ..standard
+            },
+        ),
+        (
+            "standard + buffer beside misses > 50 tol",
+            Options {
+                miss_buffer: Some(50.0),
+                ..standard
+            },
+        ),
+        (
             "standard, no audit",
             Options {
                 audit_fraction: 0.0,

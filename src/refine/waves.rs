@@ -71,6 +71,11 @@ pub struct Options {
     pub probe_labels_last: u32,
     /// Also refine the same-size candidates beside every flagged cell.
     pub buffer: bool,
+    /// Also refine the same-size candidates beside every cell whose probes
+    /// missed the interpolant by more than this many tolerances: a miss far
+    /// beyond the tolerance is structure the cell size does not resolve,
+    /// which may reach into the neighbours unseen by their probes.
+    pub miss_buffer: Option<f64>,
     /// Share of the unflagged candidates of each level that get an audit
     /// point.
     pub audit_fraction: f64,
@@ -105,6 +110,7 @@ impl Options {
             edge_probes: false,
             neighbour_checks: true,
             buffer: false,
+            miss_buffer: None,
             audit_fraction: AUDIT_FRACTION,
             seed: AUDIT_SEED,
         }
@@ -322,11 +328,15 @@ pub fn refine(
         }
         w.ask(batch, lv, st)?;
         // 3. Judge the probes, then the audit points.
+        let mut big_miss: HashSet<Cell> = HashSet::new();
         for (k, c) in candidates.iter().enumerate() {
             let mut probes = vec![c.centre()];
             probes.extend(c.edge_midpoints());
             let (miss, off) = w.judge(c, &probes);
             st.largest_miss = st.largest_miss.max(miss);
+            if opts.miss_buffer.is_some_and(|f| miss > f * opts.tolerance) {
+                big_miss.insert(*c);
+            }
             if !flagged[k] && off {
                 flagged[k] = true;
                 st.by_probe += 1;
@@ -340,13 +350,17 @@ pub fn refine(
                 }
             }
         }
-        if opts.buffer {
-            let set: HashSet<Cell> = candidates
-                .iter()
-                .zip(&flagged)
-                .filter(|(_, f)| **f)
-                .map(|(c, _)| *c)
-                .collect();
+        if opts.buffer || !big_miss.is_empty() {
+            let set: HashSet<Cell> = if opts.buffer {
+                candidates
+                    .iter()
+                    .zip(&flagged)
+                    .filter(|(_, f)| **f)
+                    .map(|(c, _)| *c)
+                    .collect()
+            } else {
+                big_miss
+            };
             for (k, c) in candidates.iter().enumerate() {
                 if !flagged[k] && c.neighbours().iter().any(|n| set.contains(n)) {
                     flagged[k] = true;
