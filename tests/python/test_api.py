@@ -294,3 +294,26 @@ def builds_without_isolation() -> bool:
         pass
     version = tuple(int(p) for p in setuptools.__version__.split(".")[:2] if p.isdigit())
     return version >= (70, 1)
+
+
+def test_a_refined_map_reads_like_a_uniform_one_with_its_inferred_mask(tmp_path: Path) -> None:
+    scene = {
+        "name": "refined",
+        "axis": {
+            "x": {"voltage": {"from": -150.0, "to": 150.0, "steps": 9}},
+            "y": {"voltage": {"from": -150.0, "to": 150.0, "steps": 9}},
+        },
+        "simulation": {"measure": "window", "cycles": 3, "settle": 1},
+        "refine": {"levels": 2},
+    }
+    out = tmp_path / "refined.h5"
+    ds = pidm.run(scene, backend="cpu", out=out, progress=False)
+    assert dict(ds.sizes) == {"axis.x.voltage": 33, "axis.y.voltage": 33}
+    assert ds.inferred.dtype == np.uint8
+    assert ds.inferred.dims == ds.step_x.dims
+    with h5py.File(out, "r") as f:
+        index = f["refine/index"][()]
+    # The integrated points are those the mask leaves at 0.
+    assert np.array_equal(np.flatnonzero(ds.inferred.values.ravel() == 0), index)
+    assert 81 <= index.size < 33 * 33
+    assert_same_maps(pidm.open(out), out)
