@@ -43,6 +43,8 @@ pub struct Checkpoint {
     started: std::time::Instant,
     /// The wall time of each earlier part up to its last entry [s].
     earlier: Vec<f64>,
+    /// Entries appended but not yet written ([`Checkpoint::append_unsynced`]).
+    pending: Vec<u8>,
 }
 
 /// FNV-1a, 64 bit: enough to tell a torn or garbled entry.
@@ -117,6 +119,7 @@ impl Checkpoint {
             part: 0,
             started: std::time::Instant::now(),
             earlier: Vec::new(),
+            pending: Vec::new(),
         })
     }
 
@@ -234,6 +237,7 @@ impl Checkpoint {
                 part: earlier.len() as u64,
                 started: std::time::Instant::now(),
                 earlier,
+                pending: Vec::new(),
             },
             done,
         ))
@@ -246,17 +250,21 @@ impl Checkpoint {
         self.sync()
     }
 
-    /// Syncs the entries appended so far to disk.
+    /// Writes the entries appended so far and syncs them to disk.
     pub fn sync(&mut self) -> Result<()> {
+        if !self.pending.is_empty() {
+            self.file.write_all(&self.pending)?;
+            self.pending.clear();
+        }
         self.file
             .sync_data()
             .with_context(|| format!("cannot sync the checkpoint {}", self.path.display()))
     }
 
-    /// Appends an entry without syncing it: for a chunk of many scattered
-    /// ranges (a refined run's), whose entries are synced together by
-    /// [`Checkpoint::sync`] (a crash before then tears at most the entries
-    /// since the last sync, which resume drops).
+    /// Appends an entry without writing it yet: for a chunk of many
+    /// scattered ranges (a refined run's), whose entries are written and
+    /// synced together by [`Checkpoint::sync`] (a crash before then loses
+    /// them, or tears the last, which resume drops).
     pub fn append_unsynced(&mut self, start: u64, records: &[Record]) -> Result<()> {
         let mut entry = Vec::with_capacity(HEAD_BYTES + 8 + records.len() * RECORD_BYTES);
         entry.extend_from_slice(&start.to_le_bytes());
@@ -269,7 +277,7 @@ impl Checkpoint {
         }
         let sum = checksum(&entry);
         entry.extend_from_slice(&sum.to_le_bytes());
-        self.file.write_all(&entry)?;
+        self.pending.extend_from_slice(&entry);
         Ok(())
     }
 

@@ -96,13 +96,18 @@ enum Command {
     RefineStudy {
         /// The scene with [refine].
         scene: PathBuf,
-        /// A uniform run of the finest grid (the scene without [refine] and
-        /// with (steps - 1) * 2^levels + 1 steps per axis).
+        /// Folder of the two runs' files, <name>.uniform.h5 and
+        /// <name>.refined.h5.
+        #[arg(long, default_value = "results/refine_study")]
+        out_dir: PathBuf,
+        /// Backend of both runs, as `pidm run --backend`.
+        #[arg(long, value_enum, default_value_t = backend::BackendChoice::Auto)]
+        backend: backend::BackendChoice,
+        /// Reuse this uniform run of the finest grid (the same scene
+        /// without [refine] and with (steps - 1) * 2^levels + 1 steps per
+        /// axis) instead of running one.
         #[arg(long)]
-        uniform: PathBuf,
-        /// A refined run of the scene (`pidm run SCENE`).
-        #[arg(long)]
-        refined: Option<PathBuf>,
+        uniform: Option<PathBuf>,
     },
     /// Lists GPU adapters: type, backend, limits, f64 support.
     Info,
@@ -237,7 +242,9 @@ impl Command {
     /// Whether the command may look for GPU adapters.
     fn looks_for_gpu(&self) -> bool {
         match self {
-            Command::Run { backend, .. } => *backend != backend::BackendChoice::Cpu,
+            Command::Run { backend, .. } | Command::RefineStudy { backend, .. } => {
+                *backend != backend::BackendChoice::Cpu
+            }
             Command::Info | Command::Bench { .. } => true,
             Command::Accuracy { gpu, .. } => *gpu,
             _ => false,
@@ -310,9 +317,10 @@ fn run(cli: Cli) -> Result<ExitCode> {
         } => pidm::plot::run(&file, out.as_deref(), &pidm::plot::View { x, y, at })?,
         Command::RefineStudy {
             scene,
+            out_dir,
+            backend,
             uniform,
-            refined,
-        } => commands::refine_study(&scene, &uniform, refined.as_deref())?,
+        } => commands::refine_study(&scene, &out_dir, backend, uniform.as_deref())?,
         Command::Info => commands::info()?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Accuracy {
