@@ -134,10 +134,16 @@ pub fn run(
     let mut memo = BaselineMemo::default();
     let started = Instant::now();
     let opts = Options::standard(refine.tolerance, baselines);
+    // Records journalled since the last sync: the journal is synced once
+    // per `chunk` records, as a uniform run syncs once per chunk, not once
+    // per batch (a level's small batches would each pay a sync), and on an
+    // interrupt or error; the last records are not synced at all, since the
+    // finished file follows at once and the journal is removed.
+    let mut unsynced = 0;
     let mut integrate = |indices: &[u64]| -> Result<Vec<Sample>> {
         let progress = Progress::new(scope.progress, 0, indices.len() as u64);
         // One sweep per chunk, so that the chunk's scattered ranges (one
-        // journal entry each) are synced to the checkpoint once.
+        // journal entry each) are written to the checkpoint together.
         for part in indices.chunks(chunk.max(1)) {
             let mut work: Vec<std::ops::Range<u64>> = Vec::new();
             for &i in part {
@@ -166,7 +172,19 @@ pub fn run(
                 },
                 &mut memo,
             );
-            let result = result.and_then(|s| checkpoint.sync().map(|()| s));
+            unsynced += part.len();
+            let result = match result {
+                Ok(s) if unsynced < chunk => Ok(s),
+                Ok(s) => {
+                    unsynced = 0;
+                    checkpoint.sync().map(|()| s)
+                }
+                // What finished before the interrupt or error is kept.
+                Err(e) => {
+                    let _ = checkpoint.sync();
+                    Err(e)
+                }
+            };
             if result.is_err() {
                 progress.abandon();
             }
