@@ -196,7 +196,7 @@ mod tests {
         assert!(corners_agree(
             &amplified[..2].repeat(2).try_into().unwrap(),
             t,
-            false
+            None
         ));
         assert!(!corners_agree(&amplified, t, Some(t)));
     }

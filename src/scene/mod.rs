@@ -16,6 +16,12 @@
 //! grid is stored row-major with the last axis varying fastest. A grid axis
 //! over an `axis.x` key that `axis.y` inherits moves both axes together.
 //!
+//! A grid of exactly two range axes may carry `[refine]` (`levels`,
+//! `tolerance`): the scene's grid is then the coarse grid of an adaptive
+//! regime map, and the validated [`Scene`] holds the finest grid (each
+//! range with `(steps - 1) * 2^levels + 1` values) with [`Scene::refine`]
+//! set; `crate::refine` decides which of its instances are integrated.
+//!
 //! Instead of a grid, a scene may list `[[points]]`: partial scenes of
 //! single values applied on top of the base, each with an optional `label`.
 //!
@@ -75,7 +81,8 @@
 //! accepts), `values` (scalars, lists and ranges), `parser` (the TOML
 //! document into layers of keys), `suggest` (hints for unknown keys),
 //! `layer` (what an upper layer takes from the one below), `plan` (from raw
-//! key values to instances), `assemble` (the validated scene), `memory` (the
+//! key values to instances), `refine` (the `[refine]` table and the finest
+//! grid), `assemble` (the validated scene), `memory` (the
 //! output budget), `describe` (the human summary), `format` (numbers in
 //! messages) and [`trajectories`].
 
