@@ -543,6 +543,14 @@ pub(super) fn grid_maps(
 /// Ratio colour scales reach at most this far from 1.
 const RATIO_HALF_WIDTH: f64 = 3.0;
 
+/// The lighter colour an inferred value of a refined map is drawn in: a
+/// third of the way to white, so the map reads the same and the inferred
+/// plains show as a light veil.
+fn paler(c: RGBColor) -> RGBColor {
+    let mix = |v: u8| v + (255 - v) / 3;
+    RGBColor(mix(c.0), mix(c.1), mix(c.2))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -608,12 +616,4 @@ mod tests {
         let scene = Scene::from_toml("[axis.x]\nvoltage = [50.0, 100.0]\n", Some("t")).unwrap();
         assert_eq!(fixed_drive(&scene), None);
     }
-}
-
-/// The lighter colour an inferred value of a refined map is drawn in: a
-/// third of the way to white, so the map reads the same and the inferred
-/// plains show as a light veil.
-fn paler(c: RGBColor) -> RGBColor {
-    let mix = |v: u8| v + (255 - v) / 3;
-    RGBColor(mix(c.0), mix(c.1), mix(c.2))
 }

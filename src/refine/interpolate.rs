@@ -48,7 +48,7 @@ pub fn raster(r: &Refinement, records: &[Option<Record>]) -> (Vec<Record>, Vec<u
     let mut inferred = vec![1u8; grid.len()];
     // Largest leaves first, so a smaller one's values win on shared edges.
     let mut leaves: Vec<Cell> = r.leaves.clone();
-    leaves.sort_by(|a, b| b.size.cmp(&a.size));
+    leaves.sort_by_key(|c| std::cmp::Reverse(c.size));
     for leaf in &leaves {
         let corners = leaf
             .corners()

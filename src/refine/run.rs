@@ -140,8 +140,11 @@ pub fn run(
     // interrupt or error; the last records are not synced at all, since the
     // finished file follows at once and the journal is removed.
     let mut unsynced = 0;
+    // One progress over the finest grid: it counts the integrated points
+    // and jumps to the whole grid when the waves are done (the rest is
+    // interpolated then).
+    let progress = Progress::new(scope.progress, from_checkpoint, count as u64);
     let mut integrate = |indices: &[u64]| -> Result<Vec<Sample>> {
-        let progress = Progress::new(scope.progress, 0, indices.len() as u64);
         // One sweep per chunk, so that the chunk's scattered ranges (one
         // journal entry each) are written to the checkpoint together.
         for part in indices.chunks(chunk.max(1)) {
@@ -185,12 +188,8 @@ pub fn run(
                     Err(e)
                 }
             };
-            if result.is_err() {
-                progress.abandon();
-            }
             summary.merge(&result?);
         }
-        progress.finish();
         Ok(indices
             .iter()
             .map(|&i| {
@@ -203,7 +202,12 @@ pub fn run(
             })
             .collect())
     };
-    let refinement = waves::refine(grid, &opts, known, &mut integrate).with_context(|| {
+    let refinement = waves::refine(grid, &opts, known, &mut integrate);
+    match &refinement {
+        Ok(_) => progress.finish(),
+        Err(_) => progress.abandon(),
+    }
+    let refinement = refinement.with_context(|| {
         format!(
             "the finished instances are kept in {}; the same command with --resume \
              continues the run",

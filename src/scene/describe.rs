@@ -49,6 +49,15 @@ impl Scene {
                 }
             }
         }
+        if let Some(refine) = &self.refine {
+            let _ = writeln!(
+                out,
+                "refined adaptively: a {} x {} coarse grid, {} levels, tolerance {:e} m; only \
+                 the points near regime changes are integrated (the cost below is that of \
+                 the whole finest grid, an upper bound)",
+                refine.coarse[0], refine.coarse[1], refine.levels, refine.tolerance
+            );
+        }
         let _ = writeln!(
             out,
             "baselines: {}",

@@ -35,7 +35,7 @@ fn raster(r: &Refinement) -> Vec<Sample> {
     let grid = r.grid;
     let mut out = vec![None; grid.len()];
     let mut leaves = r.leaves.clone();
-    leaves.sort_by(|a, b| b.size.cmp(&a.size));
+    leaves.sort_by_key(|c| std::cmp::Reverse(c.size));
     for leaf in &leaves {
         let corners = leaf
             .corners()
@@ -355,9 +355,9 @@ fn integrated_points_equal_the_uniform_run_bit_for_bit_and_the_labels_a_dense_ru
 fn a_refined_run_resumes_in_the_middle_of_a_level_to_the_uninterrupted_file() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    // Long instances (60 periods), one thread and chunks of 4, so a run
+    // Long instances (200 periods), one thread and chunks of 4, so a run
     // can be stopped after the coarse grid, inside level 1 or later.
-    let path = scene(d, "long", 5, 2, 60);
+    let path = scene(d, "long", 5, 2, 200);
     let whole = d.join("whole.h5");
     ok(&pidm(
         &["run", s(&path), "--out", s(&whole), "--backend", "cpu"],
