@@ -852,3 +852,104 @@ fn steady_measurements_match_the_cpu() {
         }
     }
 }
+
+/// Issue 19: `pidm random-scene` instances (the generator of
+/// `pidm::random`, fixed windows of 4 periods) through the f32 shader
+/// against the CPU in f64, every instance at 0.005 um + 1 %, the worst case
+/// printed. Measured at this commit on lavapipe: seeds 2 and 3 have none
+/// outside, seed 1 one (instance 105: x step -0.631 um against -0.575 um,
+/// a well-conditioned instance; the open f32 error left, results/gpu.md).
+/// The f32 shader of 7916a32 (with its rounding-noise allowances and its
+/// 4-band approach shortcut) had 5 outside on these seeds, up to 6.6 um.
+#[test]
+fn f32_random_scenes_hold_the_step_tolerance() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let settings = Settings::default();
+    let mut outside = Vec::new();
+    let mut worst = (0.0, String::new());
+    for seed in 1..=3u64 {
+        let instances = pidm::random::random_instances(seed, 300, 4, 1);
+        let cpu = cpu_reference(&instances, &settings);
+        let options = BatchOptions {
+            cpu_tail: Some(0),
+            ..BatchOptions::default()
+        };
+        let gpu = gpu_batch(ctx, &instances, &settings, Precision::F32, &options);
+        for (k, inst) in instances.iter().enumerate() {
+            assert_eq!(cpu[k].status, STATUS_OK, "seed {seed} #{k}: CPU status");
+            assert_eq!(gpu[k].status, STATUS_OK, "seed {seed} #{k}: f32 status");
+            let d_cpu = displacement(inst, &cpu[k]);
+            for i in 0..2 {
+                let c = step_um(inst, i, d_cpu[i]);
+                let v = step_um(inst, i, gpu[k].displacement[i]);
+                let ratio = (v - c).abs() / f32_allowance(c);
+                let what = format!("seed {seed} #{k} axis {i}: f32 {v:.5} um, CPU {c:.5} um");
+                if ratio > worst.0 {
+                    worst = (ratio, what.clone());
+                }
+                if ratio > 1.0 {
+                    eprintln!("f32 outside its allowance: {what}");
+                    outside.push(what);
+                }
+            }
+        }
+    }
+    eprintln!(
+        "f32 random scenes: worst error {:.3} of the allowance ({})",
+        worst.0, worst.1
+    );
+    // One known instance (see above) out of 900; nothing far outside.
+    assert!(outside.len() <= 1, "outside the allowance: {outside:#?}");
+    assert!(worst.0 <= 10.0, "worst: {}", worst.1);
+}
+
+/// Issue 19: band approaches with large absolute and tiny relative
+/// velocities. Table 1's mechanism driven hard on both axes (stage speeds
+/// of about 0.05 m/s) with detection bands down to 3e-8 m/s: every slip
+/// that ends in the band slows a relative velocity a million times smaller
+/// than the stage speeds into it, where f32 resolves the stage speeds to
+/// about 6e-9 m/s. The f32 shader must agree with the CPU in f64 at 0.005
+/// um + 1 % on every one.
+#[test]
+fn f32_band_approaches_next_to_fast_stages_match_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let settings = Settings::default();
+    let mut instances = Vec::new();
+    for band in [1e-5, 1e-6, 1e-7, 3e-8] {
+        for (vx, vy, fy, phase) in [
+            (150.0, 120.0, 20.0, 0.25),
+            (-150.0, 90.0, 30.0, 0.6),
+            (120.0, -140.0, 10.0, 0.1),
+        ] {
+            let mut inst = Instance::TABLE1;
+            inst.mechanism.velocity_band = band;
+            inst.axes[0].voltage = vx;
+            inst.axes[0].frequency = 10.0;
+            inst.axes[1].voltage = vy;
+            inst.axes[1].frequency = fy;
+            inst.axes[1].phase = phase;
+            inst.cycles = 3;
+            inst.settle = 1;
+            instances.push(inst);
+        }
+    }
+    let cpu = cpu_reference(&instances, &settings);
+    let gpu = gpu_batch(
+        ctx,
+        &instances,
+        &settings,
+        Precision::F32,
+        &BatchOptions::default(),
+    );
+    check(
+        "band approaches next to fast stages",
+        Precision::F32,
+        &instances,
+        &cpu,
+        &gpu,
+    );
+}
