@@ -97,6 +97,7 @@ mod parser;
 mod plan;
 mod rules;
 mod suggest;
+mod ties;
 pub mod trajectories;
 mod values;
 

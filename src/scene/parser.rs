@@ -14,10 +14,11 @@ use super::keys::{
     SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot,
     slot_field, slot_path,
 };
-use super::layer::{Layer, PointSpec};
+use super::layer::{Layer, PointSpec, Tie};
 use super::memory::MAP_MEMORY_BUDGET_BYTES;
 use super::name::check_name;
 use super::suggest::{home_of, suggest};
+use super::ties::SAME_AS_KEY;
 use super::trajectories::SpecAt;
 use super::values::{Entry, MAX_RANGE_STEPS, Values};
 use crate::model::AXIS_NAMES;
@@ -241,6 +242,11 @@ impl Parser<'_> {
             }
         }
         self.check_stage_keys(&parsed.base)?;
+        self.check_ties(&parsed.base)?;
+        for (index, point) in parsed.points.iter().flatten().enumerate() {
+            self.check_frequency_keys(&point.layer)
+                .map_err(|e| e.in_point(index, &point.label))?;
+        }
         if !parsed.whole_cycles {
             self.check_phases(&parsed.base)?;
             for (index, point) in parsed.points.iter().flatten().enumerate() {
@@ -468,6 +474,24 @@ impl Parser<'_> {
                      the whole scene (set them in the base [simulation])"
                 ),
             ));
+        }
+        if field == Field::FrequencyRatio && slot_base == axis_slot(0, 0) {
+            return Err(self.invalid(
+                key.span(),
+                "axis.x.frequency_ratio: only axis.y takes a frequency ratio (axis.y's frequency \
+                 is frequency_ratio x axis.x.frequency); give axis.x a frequency",
+            ));
+        }
+        if let DeValue::Table(table) = value.get_ref()
+            && table.iter().any(|(k, _)| k.get_ref() == SAME_AS_KEY)
+        {
+            let slot = slot_base + index;
+            let target = self.tie(&key_path, slot, table, value, context)?;
+            layer.ties[slot] = Some(Tie {
+                target,
+                span: value.span(),
+            });
+            return Ok(());
         }
         let values = self.values(&key_path, field, value)?;
         if values.len() > 1 && (field.scene_wide() || context == Context::Point) {
