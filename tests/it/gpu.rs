@@ -960,3 +960,39 @@ fn f32_band_approaches_next_to_fast_stages_match_the_cpu() {
         &gpu,
     );
 }
+
+/// The self-test refuses a pipeline whose results disagree with the CPU
+/// reference, in f32 as in f64, with a message that names the precision,
+/// the axis and both values: fed a reference shifted by 1 um per step
+/// (beyond f32's 0.01 um allowance) it fails, and unshifted, or shifted by
+/// a fraction of the allowance, it passes.
+#[test]
+fn the_self_test_refuses_a_pipeline_that_disagrees_with_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    for precision in precisions(ctx) {
+        ctx.self_test_skewed(precision, 0.0)
+            .unwrap_or_else(|e| panic!("{precision} without skew: {e}"));
+        let small = match precision {
+            Precision::F32 => 0.002e-6,
+            Precision::F64 => 1e-14,
+        };
+        ctx.self_test_skewed(precision, small)
+            .unwrap_or_else(|e| panic!("{precision} skewed by {small:e} m: {e}"));
+        match ctx.self_test_skewed(precision, 1e-6) {
+            Err(err @ pidm::gpu::GpuError::SelfTest { .. }) => {
+                let message = err.to_string();
+                eprintln!("{message}");
+                assert!(
+                    message.contains(&format!("the {precision} pipeline"))
+                        && message.contains("failed its self-test against the CPU")
+                        && message.contains("where the CPU gives"),
+                    "{message}"
+                );
+            }
+            Err(e) => panic!("{precision}: refused, but not by the self-test: {e}"),
+            Ok(()) => panic!("{precision}: a reference 1 um off passed the self-test"),
+        }
+    }
+}
