@@ -66,7 +66,6 @@ pub fn pass_boundaries(c: &Coefficients, st: &mut State) {
     }
 }
 
-/// The fractional part, u - floor(u).
 /// The high word of the 64-bit product of two u32 (WGSL has no wide
 /// multiply; the shader builds it from 16-bit halves).
 pub fn mul_hi(a: u32, b: u32) -> u32 {
@@ -91,6 +90,7 @@ pub fn fixed_start_phase(c: &Coefficients, period: u32) -> Vec2 {
     Vec2::new(at(0), at(1))
 }
 
+/// The fractional part, u - floor(u).
 pub fn frac(u: f64) -> f64 {
     u - u.floor()
 }
