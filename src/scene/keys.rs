@@ -288,6 +288,9 @@ pub(super) const ROOT_KEYS: [&str; 8] = [
 /// Keys of one `[[points]]` entry.
 pub(super) const POINT_KEYS: [&str; 4] = ["label", "mechanism", "axis", "simulation"];
 
+/// The one key of a tie's table, `{ same_as = "axis.x.voltage" }`.
+pub(super) const SAME_AS_KEY: &str = "same_as";
+
 /// Keys of a range table.
 pub(super) const RANGE_KEYS: [&str; 4] = ["from", "to", "steps", "log"];
 

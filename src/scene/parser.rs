@@ -11,14 +11,13 @@ use super::format::{fmt_num, fmt_short, human_bytes};
 use super::keys::{
     AXIS_FIELDS, DAMPING, Field, MEASURE_KEY, MECHANISM_FIELDS, Mode, NUMERIC_EXPECTED,
     OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, RANGE_KEYS, RESONANCE, ROOT_KEYS,
-    SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot,
-    slot_field, slot_path,
+    SAME_AS_KEY, SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS,
+    axis_slot, slot_field, slot_path,
 };
 use super::layer::{Layer, PointSpec, Tie};
 use super::memory::MAP_MEMORY_BUDGET_BYTES;
 use super::name::check_name;
 use super::suggest::{home_of, suggest};
-use super::ties::SAME_AS_KEY;
 use super::trajectories::SpecAt;
 use super::values::{Entry, MAX_RANGE_STEPS, Values};
 use crate::model::AXIS_NAMES;

@@ -12,15 +12,12 @@ use toml::de::{DeTable, DeValue};
 
 use super::error::SceneError;
 use super::keys::{
-    AXIS_FIELDS, AXIS_SLOTS, FREQUENCY, FREQUENCY_RATIO, SIMULATION_SLOTS, TIEABLE, axis_slot,
-    slot_path,
+    AXIS_FIELDS, AXIS_SLOTS, FREQUENCY, FREQUENCY_RATIO, SAME_AS_KEY, SIMULATION_SLOTS, TIEABLE,
+    axis_slot, slot_path,
 };
 use super::layer::Layer;
 use super::parser::{Context, Parser, Value};
 use crate::model::AXIS_NAMES;
-
-/// The one key of a tie's table.
-pub(super) const SAME_AS_KEY: &str = "same_as";
 
 /// The axis and the index into [`AXIS_FIELDS`] of an axis slot; `None` for
 /// the mechanism's and the simulation's slots.
