@@ -181,8 +181,9 @@ fn print_summary(scene: &Scene, result: &RunResult) {
     }
     if s.on_cpu > 0 {
         println!(
-            "  {} of the integrations ran on the CPU in f64 (the slow tail of a GPU batch, or \
-             iterations the driver's loop limiter cut)",
+            "  {} of the integrations ran on the CPU in f64 (the slow tail of a GPU batch, \
+             continued from the GPU's state in f64 and started over in f32, or iterations the \
+             driver's loop limiter cut)",
             s.on_cpu
         );
     }
@@ -303,9 +304,11 @@ fn short_number(value: f64) -> String {
 }
 
 /// `pidm info`: every GPU adapter wgpu finds, with type, backend, limits
-/// and f64 support, and which one `--backend auto` and `gpu` would take.
+/// and f64 support, which precisions it runs and trusts (each compiled and
+/// self-tested against the CPU), and which one `--backend auto` and `gpu`
+/// would take.
 pub fn info() -> Result<()> {
-    let adapters = crate::gpu::list_adapters();
+    let adapters = crate::gpu::check_adapters();
     println!(
         "WGPU_BACKEND={}",
         std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "(unset: all)".into())
@@ -313,7 +316,7 @@ pub fn info() -> Result<()> {
     if adapters.is_empty() {
         println!("no GPU adapters found");
     }
-    for a in &adapters {
+    for (a, checks) in &adapters {
         println!(
             "- {} ({}, {}, {}): f64 {}, pipeline cache {}, max storage binding {} MiB, \
              max buffer {} MiB, max workgroups per dimension {}",
@@ -327,6 +330,8 @@ pub fn info() -> Result<()> {
             a.max_buffer_size >> 20,
             a.max_compute_workgroups_per_dimension
         );
+        let checks: Vec<String> = checks.iter().map(|c| c.describe()).collect();
+        println!("  runs and trusts: {}", checks.join(", "));
     }
     for (label, software) in [
         ("--backend auto (a run large enough for a GPU)", false),
@@ -334,7 +339,7 @@ pub fn info() -> Result<()> {
     ] {
         match crate::gpu::GpuContext::new(software) {
             Ok(ctx) if !software && !ctx.supports_f64() => println!(
-                "{label}: the CPU path ({} has no f64 in shaders; --precision f32 uses it)",
+                "{label}: {} in f32 (it has no f64 in shaders)",
                 ctx.describe()
             ),
             Ok(ctx) => println!("{label}: {}", ctx.describe()),

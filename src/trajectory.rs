@@ -12,7 +12,9 @@
 //!
 //! Stored in the result file as `/trajectories/<k>/` (k = 0, 1, ... in the
 //! order of `output.trajectories`):
-//! - `time` [s]; `stage_x`, `stage_y`, `slider_x`, `slider_y` [m];
+//! - `time` [s], a netCDF dimension scale that every other series of the
+//!   group is attached to (so the group opens in xarray with `time` as its
+//!   dimension); `stage_x`, `stage_y`, `slider_x`, `slider_y` [m];
 //!   `voltage_x`, `voltage_y` [V] (the drive);
 //! - every dataset has `units` and `long_name` attributes; the group has
 //!   `point` (a human name), `label` (a points scene's label, or ""),
@@ -38,7 +40,7 @@ use crate::cpu::integrate::{
 };
 use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
 use crate::output::schema;
-use crate::output::{write_f64_attr, write_str_attr, write_u64_attr};
+use crate::output::{dimension_scales, write_f64_attr, write_str_attr, write_u64_attr};
 use crate::scene::{Scene, TrajectoryPoint};
 
 /// The motion of one instance on a uniform time grid.
@@ -214,13 +216,28 @@ pub fn record_scene(scene: &Scene) -> Vec<Recorded> {
         .collect()
 }
 
+/// Writes one series of a trajectory group, attached to the group's `time`
+/// scale (so netCDF readers such as xarray see `time` as its dimension).
 fn series(
     group: &hdf5::Group,
+    time: &hdf5::Dataset,
     name: &str,
     data: &[f64],
     units: &str,
     long_name: &str,
 ) -> Result<()> {
+    let ds = dataset(group, name, data, units, long_name)?;
+    dimension_scales::attach(&ds, time, 0)
+}
+
+/// A dataset of `data` with its units and long name.
+fn dataset(
+    group: &hdf5::Group,
+    name: &str,
+    data: &[f64],
+    units: &str,
+    long_name: &str,
+) -> Result<hdf5::Dataset> {
     let ds = group
         .new_dataset_builder()
         .with_data(data)
@@ -228,12 +245,13 @@ fn series(
         .with_context(|| format!("cannot write trajectory dataset {name}"))?;
     write_str_attr(&ds, schema::UNITS, units)?;
     write_str_attr(&ds, schema::LONG_NAME, long_name)?;
-    Ok(())
+    Ok(ds)
 }
 
 /// The attributes every trajectory group carries: run timing, status and
-/// drive per axis.
-fn run_attrs(g: &hdf5::Group, inst: &Instance, t: &Trajectory) -> Result<()> {
+/// drive per axis; and its `time`, a dimension scale the group's series are
+/// attached to (returned).
+fn run_attrs(g: &hdf5::Group, inst: &Instance, t: &Trajectory) -> Result<hdf5::Dataset> {
     write_u64_attr(g, schema::RUN_STATUS, t.state.status as u64)?;
     write_u64_attr(g, "samples_per_cycle", t.samples_per_cycle as u64)?;
     write_f64_attr(g, schema::PERIOD_S, inst.period())?;
@@ -247,14 +265,15 @@ fn run_attrs(g: &hdf5::Group, inst: &Instance, t: &Trajectory) -> Result<()> {
         write_f64_attr(g, &attr(schema::DUTY), axis.duty)?;
         write_f64_attr(g, &attr(schema::PHASE), axis.phase)?;
     }
-    series(
+    let time = dataset(
         g,
         schema::TIME,
         &t.time,
         "s",
         "time from the start of the run",
     )?;
-    Ok(())
+    dimension_scales::set_scale(&time, schema::TIME)?;
+    Ok(time)
 }
 
 /// Writes `recorded` as `/trajectories/0`, `/1`, ... under `parent` (the
@@ -270,10 +289,11 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
         write_str_attr(&g, schema::POINT, &rec.point.name)?;
         write_str_attr(&g, schema::LABEL, &rec.point.label)?;
         write_u64_attr(&g, schema::INDEX, rec.point.index)?;
-        run_attrs(&g, &rec.instance, main)?;
+        let time = run_attrs(&g, &rec.instance, main)?;
         for (i, name) in AXIS_NAMES.iter().enumerate() {
             series(
                 &g,
+                &time,
                 schema::STAGE[i],
                 &main.stage[i],
                 "m",
@@ -281,6 +301,7 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
             )?;
             series(
                 &g,
+                &time,
                 schema::SLIDER[i],
                 &main.slider[i],
                 "m",
@@ -288,6 +309,7 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
             )?;
             series(
                 &g,
+                &time,
                 &format!("voltage_{name}"),
                 &main.voltage[i],
                 "V",
@@ -308,11 +330,12 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
                      the map's baseline run"
                 ),
             )?;
-            run_attrs(&b, &base.instance, &base.trajectory)?;
+            let time = run_attrs(&b, &base.instance, &base.trajectory)?;
             write_u64_attr(&b, schema::MEASURED_CYCLES, base.measured_cycles as u64)?;
             let t = &base.trajectory;
             series(
                 &b,
+                &time,
                 schema::BASELINE_STAGE,
                 &t.stage[i],
                 "m",
@@ -320,6 +343,7 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
             )?;
             series(
                 &b,
+                &time,
                 schema::BASELINE_SLIDER,
                 &t.slider[i],
                 "m",
@@ -327,6 +351,7 @@ pub fn write(parent: &hdf5::Group, recorded: &[Recorded]) -> Result<()> {
             )?;
             series(
                 &b,
+                &time,
                 "voltage",
                 &t.voltage[i],
                 "V",

@@ -52,7 +52,13 @@ struct Coefficients {
     budget: u32,
     frictionless: u32,
     driven: vec2<u32>,
+    // The phase and the cycles per period in fixed point (2^-32 and 2^-64
+    // cycles): the f32 period starts (drive.wgsl, fixed_start_phase).
+    phase_fixed: vec2<u32>,
+    cycles_fixed: vec2<u32>,
+    cycles_fixed_lo: vec2<u32>,
     _pad: vec2<u32>,
+    _pad2: vec2<u32>,
     // The steady measurement (src/cpu/integrate/measure.rs).
     se_limit2: V2,
     repeat_x: Real,

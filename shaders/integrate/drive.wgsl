@@ -41,7 +41,10 @@ fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
         (*st).time = Real(0.0);
         (*st).time_lo = Real(0.0);
         let end_phase = (*st).cycle_phase + c.frequency * c.period;
-        let start_phase = frac(c.phase + Real((*st).period) * c.cycles_per_period);
+        var start_phase = frac(c.phase + Real((*st).period) * c.cycles_per_period);
+        if FIXED_PHASE {
+            start_phase = fixed_start_phase(c, (*st).period);
+        }
         let shift = round(end_phase - start_phase);
         (*st).cycle_phase = start_phase;
         (*st).next_corner = (*st).next_corner - shift;
@@ -55,6 +58,29 @@ fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
             start_slip(c, st, need);
         }
     }
+}
+
+// The high word of the 64-bit product a * b, from 16-bit halves.
+fn mul_hi(a: u32, b: u32) -> u32 {
+    let a0 = a & 0xffffu;
+    let a1 = a >> 16u;
+    let b0 = b & 0xffffu;
+    let b1 = b >> 16u;
+    let p00 = a0 * b0;
+    let p01 = a0 * b1;
+    let p10 = a1 * b0;
+    let mid = (p00 >> 16u) + (p01 & 0xffffu) + (p10 & 0xffffu);
+    return a1 * b1 + (p01 >> 16u) + (p10 >> 16u) + (mid >> 16u);
+}
+
+// frac(phase + period * cycles_per_period) as an exact integer sum in
+// units of 2^-32 cycles, converted once (f32 resolves the sum itself only
+// to about 1e-6 cycles by the fifth period).
+fn fixed_start_phase(c: Coefficients, period: u32) -> V2 {
+    let s = c.phase_fixed + period * c.cycles_fixed
+        + vec2<u32>(mul_hi(period, c.cycles_fixed_lo.x), mul_hi(period, c.cycles_fixed_lo.y));
+    let p = ldexp(V2(s), vec2<i32>(-32));
+    return select(p, V2(0.0), p >= V2(1.0));
 }
 
 fn frac(u: V2) -> V2 {

@@ -214,15 +214,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u
             var turned = INFINITY;
             if u.ok {
                 let d = u.u - flow.b0;
-                turned = root(dot(d, d)) - direction_noise(s);
-            }
-            // In f32 the velocity across a straight slip is known only to
-            // about 1e-4 of the velocity, which near the band is as large
-            // as the band itself: a relative velocity within a few bands
-            // of zero is taken to enter it.
-            let v = relative_velocity(s);
-            if NOISE > Real(0.0) && dot(v, v) <= F32_APPROACH_BANDS * c.band2 {
-                turned = Real(0.0);
+                turned = root(dot(d, d));
             }
             if turned > c.tolerance {
                 reject(c, st, h, INFINITY);
@@ -257,16 +249,8 @@ fn any_primary_event(c: Coefficients, kind: u32, flow: Flow, s: Sample) -> V2 {
 }
 
 // The error of one sample after the start (see `direction_error`); the
-// relative velocity of the previous sample comes in `prev_v`, and the
-// rounding noise of the start's direction, which the model interpolates
-// with weight (1 - th)(1 - 2 th), in `start_noise`.
-fn sample_direction_error(
-    dir: DirectionModel,
-    s: Sample,
-    th: Real,
-    prev_v: V2,
-    start_noise: Real,
-) -> Real {
+// relative velocity of the previous sample comes in `prev_v`.
+fn sample_direction_error(dir: DirectionModel, s: Sample, th: Real, prev_v: V2) -> Real {
     let v = relative_velocity(s);
     if dot(v, prev_v) <= Real(0.0) {
         return INFINITY;
@@ -277,20 +261,7 @@ fn sample_direction_error(
     }
     let model = dir.b0 + (dir.b1 + dir.b2 * th) * th;
     let d = u.u - model;
-    let weight = abs((Real(1.0) - th) * (Real(1.0) - Real(2.0) * th));
-    return root(dot(d, d)) - direction_noise(s) - weight * start_noise;
-}
-
-// The rounding noise of the direction of the relative velocity, a
-// difference of two larger velocities: not a direction error. NOISE is
-// zero in f64, where this is zero.
-fn direction_noise(s: Sample) -> Real {
-    if NOISE > Real(0.0) {
-        let v = relative_velocity(s);
-        let scale = abs(s.v_p) + abs(s.v_s);
-        return NOISE * EPSILON * div(scale.x + scale.y, root(dot(v, v)));
-    }
-    return Real(0.0);
+    return root(dot(d, d));
 }
 
 // The error at samples 1 to `last`.
@@ -304,18 +275,17 @@ fn direction_error(
     last: u32,
 ) -> Real {
     var err = Real(0.0);
-    let start_noise = direction_noise(s0);
     if last >= 1u {
-        err = max(err, sample_direction_error(dir, s1, Real(0.25), relative_velocity(s0), start_noise));
+        err = max(err, sample_direction_error(dir, s1, Real(0.25), relative_velocity(s0)));
     }
     if last >= 2u {
-        err = max(err, sample_direction_error(dir, s2, Real(0.5), relative_velocity(s1), start_noise));
+        err = max(err, sample_direction_error(dir, s2, Real(0.5), relative_velocity(s1)));
     }
     if last >= 3u {
-        err = max(err, sample_direction_error(dir, s3, Real(0.75), relative_velocity(s2), start_noise));
+        err = max(err, sample_direction_error(dir, s3, Real(0.75), relative_velocity(s2)));
     }
     if last >= 4u {
-        err = max(err, sample_direction_error(dir, s4, Real(1.0), relative_velocity(s3), start_noise));
+        err = max(err, sample_direction_error(dir, s4, Real(1.0), relative_velocity(s3)));
     }
     return err;
 }
@@ -376,8 +346,7 @@ fn initial_slip_step(c: Coefficients, st: State, h_max: Real) -> Real {
     let v = relative_velocity(s);
     let a = relative_acceleration(s);
     let speed = root(dot(v, v));
-    // A turn below the rounding noise of the direction is no turn (f32).
-    let across = max(div(abs(v.x * a.y - v.y * a.x), speed) - root(dot(a, a)) * direction_noise(s), Real(0.0));
+    let across = div(abs(v.x * a.y - v.y * a.x), speed);
     var turn = INFINITY;
     if across > Real(0.0) {
         turn = div(Real(0.1) * speed, across);

@@ -9,8 +9,9 @@ use crate::gpu::GpuContext;
 /// Which integrator runs a scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum BackendChoice {
-    /// A hardware GPU adapter with f64 when there is one and the run is
-    /// large enough for it to pay, else the CPU path.
+    /// A hardware GPU adapter when there is one and the run is large enough
+    /// for it to pay (in f64 where the adapter has it, else in f32), else
+    /// the CPU path.
     #[default]
     Auto,
     /// The WGSL shader on any adapter, software ones (lavapipe) included.
@@ -34,6 +35,37 @@ pub const GPU_MIN_INTEGRATIONS_PER_THREAD: u64 = 256;
 /// [`GPU_MIN_INTEGRATIONS_PER_THREAD`]).
 pub fn too_few_for_gpu(integrations: u64, threads: usize) -> bool {
     integrations < GPU_MIN_INTEGRATIONS_PER_THREAD.saturating_mul(threads.max(1) as u64)
+}
+
+/// What `--backend auto` knows of the hardware adapter it found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AdapterFacts {
+    /// The adapter offers `SHADER_F64`.
+    pub f64: bool,
+}
+
+/// Where `--backend auto` runs a scene large enough for a GPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AutoChoice {
+    /// The GPU in this precision (its self-test may still refuse it).
+    Gpu(Precision),
+    /// The CPU path: the adapter cannot run the precision asked for.
+    Cpu,
+}
+
+/// `--backend auto`'s choice on a hardware adapter (software ones, lavapipe,
+/// are slower than the CPU path and never chosen): f64 where the adapter
+/// has it, else f32, which since issue 19 holds 0.005 um + 1 % of the f64
+/// step on the random scenes of results/gpu.md and is self-tested against
+/// the CPU before any run; the precision asked for where the adapter runs
+/// it.
+pub fn auto_choice(adapter: AdapterFacts, precision: Option<Precision>) -> AutoChoice {
+    match precision {
+        Some(Precision::F64) if !adapter.f64 => AutoChoice::Cpu,
+        Some(p) => AutoChoice::Gpu(p),
+        None if adapter.f64 => AutoChoice::Gpu(Precision::F64),
+        None => AutoChoice::Gpu(Precision::F32),
+    }
 }
 
 /// Picks the backend and says which in one line on stderr. `integrations`
@@ -98,21 +130,28 @@ pub fn select_backend(
             Box::new(CpuBackend::new(Some(threads))?)
         }
         BackendChoice::Auto => match GpuContext::new(false) {
-            // f32 steps can be off by more than 1 % where a velocity band is
-            // too narrow for f32 to resolve (results/gpu.md): auto runs
-            // f32 only when asked to.
-            Ok(ctx) if !ctx.supports_f64() && precision.is_none() => {
-                eprintln!(
-                    "pidm: {} has no 64-bit floats in shaders, and f32 steps can be off by more \
-                     than 1 % where a velocity band is narrow; using the CPU path \
-                     (--precision f32 runs the GPU in f32)",
-                    ctx.describe()
-                );
-                Box::new(CpuBackend::new(threads)?)
-            }
             Ok(ctx) => {
                 let adapter = ctx.describe();
-                let precision = gpu_precision(&ctx);
+                let facts = AdapterFacts {
+                    f64: ctx.supports_f64(),
+                };
+                let precision = match auto_choice(facts, precision) {
+                    AutoChoice::Gpu(p) => p,
+                    AutoChoice::Cpu => {
+                        eprintln!(
+                            "pidm: {adapter} has no 64-bit floats in shaders; using the CPU \
+                             path in f64 (--precision f32, or no --precision, runs the GPU in \
+                             f32)"
+                        );
+                        return finish(Box::new(CpuBackend::new(threads)?));
+                    }
+                };
+                if precision == Precision::F32 && !facts.f64 {
+                    eprintln!(
+                        "pidm: {adapter} has no 64-bit floats in shaders; running the GPU in f32 \
+                         (self-tested against the CPU in f64; --backend cpu runs f64)"
+                    );
+                }
                 match GpuBackend::new(ctx, precision) {
                     Ok(gpu) => {
                         eprintln!("pidm: {}", gpu.readiness());
@@ -137,6 +176,11 @@ pub fn select_backend(
             }
         },
     };
+    finish(backend)
+}
+
+/// Says which backend runs, in one line on stderr.
+fn finish(backend: Box<dyn Backend>) -> Result<Box<dyn Backend>> {
     eprintln!(
         "pidm: backend {} ({})",
         backend.describe(),
@@ -155,6 +199,27 @@ mod tests {
             too_few_for_gpu(integrations, threads),
             cpu,
             "{integrations} integrations on {threads} threads"
+        );
+    }
+
+    #[test]
+    fn auto_runs_f32_on_adapters_without_f64() {
+        let no_f64 = AdapterFacts { f64: false };
+        let with_f64 = AdapterFacts { f64: true };
+        assert_eq!(auto_choice(no_f64, None), AutoChoice::Gpu(Precision::F32));
+        assert_eq!(auto_choice(with_f64, None), AutoChoice::Gpu(Precision::F64));
+        assert_eq!(
+            auto_choice(no_f64, Some(Precision::F32)),
+            AutoChoice::Gpu(Precision::F32)
+        );
+        assert_eq!(
+            auto_choice(with_f64, Some(Precision::F32)),
+            AutoChoice::Gpu(Precision::F32)
+        );
+        assert_eq!(auto_choice(no_f64, Some(Precision::F64)), AutoChoice::Cpu);
+        assert_eq!(
+            auto_choice(with_f64, Some(Precision::F64)),
+            AutoChoice::Gpu(Precision::F64)
         );
     }
 

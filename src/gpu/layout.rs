@@ -175,6 +175,10 @@ macro_rules! precision_structs {
             /// The unit system this precision computes in.
             pub const UNITS: Units = $units;
 
+            fn u32x2(v: [u32; 2]) -> U32x2 {
+                U32x2 { x: v[0], y: v[1] }
+            }
+
             fn v2(v: Vec2) -> V2 {
                 V2 {
                     x: v.x as Real,
@@ -234,7 +238,11 @@ macro_rules! precision_structs {
                     pub budget: u32,
                     pub frictionless: u32,
                     pub driven: U32x2,
+                    pub phase_fixed: U32x2,
+                    pub cycles_fixed: U32x2,
+                    pub cycles_fixed_lo: U32x2,
                     pub _pad: U32x2,
+                    pub _pad2: U32x2,
                     pub se_limit2: V2,
                     pub repeat_x: Real,
                     pub repeat_v: Real,
@@ -420,7 +428,11 @@ macro_rules! precision_structs {
                         x: c.driven[0] as u32,
                         y: c.driven[1] as u32,
                     },
+                    phase_fixed: u32x2(c.phase_fixed),
+                    cycles_fixed: u32x2(c.cycles_fixed),
+                    cycles_fixed_lo: u32x2(c.cycles_fixed_lo),
                     _pad: U32x2::default(),
+                    _pad2: U32x2::default(),
                     se_limit2: v2(c.se_limit2),
                     repeat_x: c.repeat_x as Real,
                     repeat_v: c.repeat_v as Real,

@@ -203,7 +203,7 @@ fn chunk_shape(shape: &[usize]) -> Option<Vec<usize>> {
 
 /// HDF5 dimension scales (the `H5DS` API of the HDF5 high-level library,
 /// which netCDF-4 uses for its dimensions). hdf5-metno does not wrap it.
-mod dimension_scales {
+pub(crate) mod dimension_scales {
     use std::ffi::{CString, c_char};
 
     use anyhow::{Result, bail};

@@ -10,6 +10,7 @@ fn key_meaning(key: &str) -> Option<String> {
     let what = match field {
         "voltage" => "drive amplitude",
         "frequency" => "drive frequency",
+        "frequency_ratio" => "drive frequency / x drive frequency",
         "phase" => "drive phase",
         "duty" => "drive rise fraction",
         "gain" => "actuator gain",

@@ -8,7 +8,8 @@ use toml::de::DeTable;
 use super::error::{SceneError, point_name};
 use super::format::fmt_short;
 use super::keys::{
-    AXIS_FIELDS, Field, MAX_STEPS_SLOT, SLOTS, TOLERANCE_SLOT, axis_slot, slot_field, slot_path,
+    AXIS_FIELDS, FREQUENCY, FREQUENCY_RATIO, Field, MAX_STEPS_SLOT, SLOTS, TOLERANCE_SLOT,
+    axis_slot, slot_field, slot_path,
 };
 use super::layer::{Layer, kept_from_lower};
 use super::memory::{MAP_MEMORY_BUDGET_BYTES, check_memory};
@@ -74,7 +75,9 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     grid.sort_by_key(|(_, entry)| entry.span.start);
 
     let mode = parsed.measure.unwrap_or_default();
-    let plan = Plan::build(&given, mode);
+    let ties: [Option<usize>; SLOTS] =
+        std::array::from_fn(|slot| base.ties[slot].as_ref().map(|tie| tie.target));
+    let plan = Plan::build(&given, &ties, mode);
     // Locates an error by the first culprit found, layer by layer (the
     // point first).
     let locate_slot = |culprits: Culprits, layers: &[&Layer]| {
@@ -144,7 +147,18 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
                     point_given[axis_slot(axis, j)] = upper[j] || kept[j];
                 }
             }
-            let point_plan = Plan::build(&point_given, mode);
+            // A point that gives a tied key (or, for axis.y's frequency, its
+            // ratio) replaces the tie.
+            let mut point_ties = ties;
+            for (slot, tie) in point_ties.iter_mut().enumerate() {
+                let replaced = point.layer.entries[slot].is_some()
+                    || (slot == axis_slot(1, FREQUENCY)
+                        && point.layer.entries[axis_slot(1, FREQUENCY_RATIO)].is_some());
+                if replaced {
+                    *tie = None;
+                }
+            }
+            let point_plan = Plan::build(&point_given, &point_ties, mode);
             let instance = point_plan.resolve(&point_raw);
             check_instance(&instance, &point_plan).map_err(|(message, slot)| {
                 SceneError::Invalid {
@@ -205,6 +219,8 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
                     | Field::Stiffness
                     | Field::ResonanceHz
                     | Field::QualityFactor
+                    | Field::Frequency
+                    | Field::FrequencyRatio
                     | Field::Cycles
                     | Field::Settle
                     | Field::MaxCycles
@@ -239,6 +255,8 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     for a in 0..AXES {
         scene.driven[a] = match plan.axes[a].voltage {
             Src::Const(v) => v != 0.0,
+            // Only a frequency is a ratio.
+            Src::Ratio { .. } => true,
             Src::Slot(slot) => match scene.grid_slots.iter().position(|&s| s == slot) {
                 Some(g) => axes[g].values.iter().any(|&v| v != 0.0),
                 None => raw[slot] != 0.0,

@@ -24,6 +24,7 @@ pub(super) enum Field {
     Frequency,
     Duty,
     Phase,
+    FrequencyRatio,
     Cycles,
     Settle,
     Tolerance,
@@ -50,6 +51,7 @@ impl Field {
             Field::Frequency => "frequency",
             Field::Duty => "duty",
             Field::Phase => "phase",
+            Field::FrequencyRatio => "frequency_ratio",
             Field::Cycles => "cycles",
             Field::Settle => "settle",
             Field::Tolerance => "tolerance",
@@ -68,7 +70,10 @@ impl Field {
             Field::Stiffness => "N/m",
             Field::Damping => "N s/m",
             Field::ResonanceHz | Field::Frequency => "Hz",
-            Field::QualityFactor | Field::Duty | Field::MaxStepsPerPeriod => "1",
+            Field::QualityFactor
+            | Field::Duty
+            | Field::MaxStepsPerPeriod
+            | Field::FrequencyRatio => "1",
             Field::Gain => "N/V",
             Field::Voltage => "V",
             Field::Phase | Field::Cycles | Field::Settle | Field::MaxCycles => "cycles",
@@ -146,8 +151,10 @@ pub(super) const MECHANISM_FIELDS: [Field; 4] = [
     Field::VelocityBand,
 ];
 
-/// The keys of `[axis.x]` and `[axis.y]`, in slot order.
-pub(super) const AXIS_FIELDS: [Field; 10] = [
+/// The keys of `[axis.x]` and `[axis.y]`, in slot order. `frequency_ratio`
+/// has a slot on both axes but only `axis.y` accepts it (the parser refuses
+/// it on `axis.x`).
+pub(super) const AXIS_FIELDS: [Field; 11] = [
     Field::StageMass,
     Field::Stiffness,
     Field::Damping,
@@ -158,6 +165,7 @@ pub(super) const AXIS_FIELDS: [Field; 10] = [
     Field::Frequency,
     Field::Duty,
     Field::Phase,
+    Field::FrequencyRatio,
 ];
 
 /// The numeric keys of `[simulation]`, in slot order. `measure`, its one
@@ -207,6 +215,12 @@ pub(super) const FREQUENCY: usize = 7;
 pub(super) const DUTY: usize = 8;
 /// Index of `phase`.
 pub(super) const PHASE: usize = 9;
+/// Index of `frequency_ratio`: f_y = frequency_ratio x f_x, `axis.y` only.
+pub(super) const FREQUENCY_RATIO: usize = 10;
+
+/// The drive keys one axis may tie to the same key of the other axis with
+/// `{ same_as = "axis.<other>.<key>" }` (indices into [`AXIS_FIELDS`]).
+pub(super) const TIEABLE: [usize; 5] = [GAIN, VOLTAGE, FREQUENCY, DUTY, PHASE];
 
 /// The first raw slot of the axes (the mechanism's come before).
 pub(super) const AXIS_SLOTS: usize = MECHANISM_FIELDS.len();
@@ -277,6 +291,9 @@ pub(super) const REFINE_KEYS: [&str; 2] = ["levels", "tolerance"];
 
 /// Keys of one `[[points]]` entry.
 pub(super) const POINT_KEYS: [&str; 4] = ["label", "mechanism", "axis", "simulation"];
+
+/// The one key of a tie's table, `{ same_as = "axis.x.voltage" }`.
+pub(super) const SAME_AS_KEY: &str = "same_as";
 
 /// Keys of a range table.
 pub(super) const RANGE_KEYS: [&str; 4] = ["from", "to", "steps", "log"];

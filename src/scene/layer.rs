@@ -2,23 +2,40 @@
 //! their own level, and an upper layer (`axis.y` over `axis.x`, a point over
 //! the base) takes from the one below what it does not give itself.
 
+use std::ops::Range;
+
 use super::keys::{
-    AXIS_FIELDS, DAMPING, DUTY, FREQUENCY, GAIN, PHASE, QUALITY, RESONANCE, SLOTS, STAGE_MASS,
-    STIFFNESS, VOLTAGE, axis_slot,
+    AXIS_FIELDS, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, GAIN, PHASE, QUALITY, RESONANCE, SLOTS,
+    STAGE_MASS, STIFFNESS, VOLTAGE, axis_slot,
 };
 use super::values::Entry;
+
+/// A key given as `{ same_as = "..." }`: it takes another key's value in
+/// every instance (only in the base, only a drive key of one axis to the
+/// same key of the other).
+#[derive(Clone, Debug)]
+pub(super) struct Tie {
+    /// The raw slot whose value the tied key takes.
+    pub(super) target: usize,
+    /// Where the tie is in the text.
+    pub(super) span: Range<usize>,
+}
 
 /// The keys given at one level (the base, or one point), by raw slot.
 #[derive(Clone, Debug)]
 pub(super) struct Layer {
     /// The entry of each raw slot, when given.
     pub(super) entries: [Option<Entry>; SLOTS],
+    /// The tie of each raw slot given as `{ same_as = "..." }`; such a slot
+    /// has no entry.
+    pub(super) ties: [Option<Tie>; SLOTS],
 }
 
 impl Default for Layer {
     fn default() -> Self {
         Layer {
             entries: std::array::from_fn(|_| None),
+            ties: std::array::from_fn(|_| None),
         }
     }
 }
@@ -49,10 +66,18 @@ pub(super) fn kept_from_lower(
     voltage: bool,
 ) -> [bool; AXIS_FIELDS.len()] {
     let mut kept = [false; AXIS_FIELDS.len()];
-    for j in [GAIN, VOLTAGE, FREQUENCY, DUTY, PHASE] {
+    for j in [GAIN, VOLTAGE, FREQUENCY, DUTY, PHASE, FREQUENCY_RATIO] {
         kept[j] = lower[j] && !upper[j];
     }
     kept[VOLTAGE] &= voltage;
+    // A frequency and a frequency ratio are two ways to give one value: an
+    // upper layer that gives either takes neither from below. The x axis
+    // never has a ratio, so `axis.y` over `axis.x` inherits the frequency
+    // unless it gives one of the two.
+    if upper[FREQUENCY] || upper[FREQUENCY_RATIO] {
+        kept[FREQUENCY] = false;
+        kept[FREQUENCY_RATIO] = false;
+    }
     let triple = [RESONANCE, STIFFNESS, STAGE_MASS];
     let mut count = triple.iter().filter(|&&j| upper[j]).count();
     for j in triple {

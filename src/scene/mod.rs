@@ -105,6 +105,7 @@ mod plan;
 mod refine;
 mod rules;
 mod suggest;
+mod ties;
 pub mod trajectories;
 mod values;
 

@@ -11,10 +11,10 @@ use super::format::{fmt_num, fmt_short, human_bytes};
 use super::keys::{
     AXIS_FIELDS, DAMPING, Field, MEASURE_KEY, MECHANISM_FIELDS, Mode, NUMERIC_EXPECTED,
     OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, RANGE_KEYS, RESONANCE, ROOT_KEYS,
-    SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot,
-    slot_field, slot_path,
+    SAME_AS_KEY, SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS,
+    axis_slot, slot_field, slot_path,
 };
-use super::layer::{Layer, PointSpec};
+use super::layer::{Layer, PointSpec, Tie};
 use super::memory::MAP_MEMORY_BUDGET_BYTES;
 use super::name::check_name;
 use super::refine::RefineSpec;
@@ -245,6 +245,11 @@ impl Parser<'_> {
             }
         }
         self.check_stage_keys(&parsed.base)?;
+        self.check_ties(&parsed.base)?;
+        for (index, point) in parsed.points.iter().flatten().enumerate() {
+            self.check_frequency_keys(&point.layer)
+                .map_err(|e| e.in_point(index, &point.label))?;
+        }
         if !parsed.whole_cycles {
             self.check_phases(&parsed.base)?;
             for (index, point) in parsed.points.iter().flatten().enumerate() {
@@ -472,6 +477,24 @@ impl Parser<'_> {
                      the whole scene (set them in the base [simulation])"
                 ),
             ));
+        }
+        if field == Field::FrequencyRatio && slot_base == axis_slot(0, 0) {
+            return Err(self.invalid(
+                key.span(),
+                "axis.x.frequency_ratio: only axis.y takes a frequency ratio (axis.y's frequency \
+                 is frequency_ratio x axis.x.frequency); give axis.x a frequency",
+            ));
+        }
+        if let DeValue::Table(table) = value.get_ref()
+            && table.iter().any(|(k, _)| k.get_ref() == SAME_AS_KEY)
+        {
+            let slot = slot_base + index;
+            let target = self.tie(&key_path, slot, table, value, context)?;
+            layer.ties[slot] = Some(Tie {
+                target,
+                span: value.span(),
+            });
+            return Ok(());
         }
         let values = self.values(&key_path, field, value)?;
         if values.len() > 1 && (field.scene_wide() || context == Context::Point) {

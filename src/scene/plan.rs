@@ -5,9 +5,9 @@
 
 use super::format::fmt_num;
 use super::keys::{
-    AXIS_FIELDS, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, Field, GAIN, MAX_CYCLES_SLOT, Mode, PHASE,
-    QUALITY, RESONANCE, SETTLE_SLOT, SLOTS, STAGE_MASS, STEP_TOLERANCE_SLOT, STIFFNESS, VOLTAGE,
-    axis_slot, slot_path,
+    AXIS_FIELDS, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, Field, GAIN,
+    MAX_CYCLES_SLOT, Mode, PHASE, QUALITY, RESONANCE, SETTLE_SLOT, SLOTS, STAGE_MASS,
+    STEP_TOLERANCE_SLOT, STIFFNESS, TIEABLE, VOLTAGE, axis_slot, slot_path,
 };
 use super::layer::kept_from_lower;
 use crate::model::{AXES, AXIS_NAMES, Axis, Instance, Measure, Mechanism};
@@ -19,6 +19,13 @@ pub(super) enum Src {
     Slot(usize),
     /// A default.
     Const(f64),
+    /// A raw slot (`axis.y.frequency_ratio`) times another source that is a
+    /// slot (`base`, when given) or a default (`default`).
+    Ratio {
+        ratio: usize,
+        base: Option<usize>,
+        default: f64,
+    },
 }
 
 impl Src {
@@ -27,6 +34,28 @@ impl Src {
         match self {
             Src::Slot(slot) => raw[slot],
             Src::Const(value) => value,
+            Src::Ratio {
+                ratio,
+                base,
+                default,
+            } => raw[ratio] * base.map_or(default, |slot| raw[slot]),
+        }
+    }
+
+    /// `ratio` (a raw slot) times this source, which is a slot or a
+    /// default.
+    fn times(self, ratio: usize) -> Src {
+        let (base, default) = match self {
+            Src::Slot(slot) => (Some(slot), 0.0),
+            Src::Const(value) => (None, value),
+            // No source is scaled twice: only axis.y's frequency is a
+            // ratio, of axis.x's, which never is.
+            Src::Ratio { .. } => unreachable!("a ratio of a ratio"),
+        };
+        Src::Ratio {
+            ratio,
+            base,
+            default,
         }
     }
 
@@ -35,6 +64,17 @@ impl Src {
         match self {
             Src::Slot(slot) => slot_path(slot),
             Src::Const(value) => format!("the default {} {}", field.name(), fmt_num(value)),
+            Src::Ratio {
+                ratio,
+                base,
+                default,
+            } => {
+                let base = match base {
+                    Some(slot) => Src::Slot(slot),
+                    None => Src::Const(default),
+                };
+                format!("{} x {}", slot_path(ratio), base.describe(field))
+            }
         }
     }
 }
@@ -101,7 +141,11 @@ impl Plan {
     /// The plan for a set of given keys (after points are overlaid) in a
     /// measurement mode. The keys of the other mode were refused by the
     /// parser, so none is given here.
-    pub(super) fn build(given: &[bool; SLOTS], mode: Mode) -> Plan {
+    ///
+    /// `ties` holds, for each tied raw slot, the slot it is tied to (checked
+    /// by the parser: only drive keys, to the same key of the other axis,
+    /// whose source is final); the tied key takes that key's source.
+    pub(super) fn build(given: &[bool; SLOTS], ties: &[Option<usize>; SLOTS], mode: Mode) -> Plan {
         let own = |axis: usize| -> [bool; AXIS_FIELDS.len()] {
             std::array::from_fn(|j| given[axis_slot(axis, j)])
         };
@@ -132,12 +176,25 @@ impl Plan {
                 Src::Const(default)
             }
         };
+        let mut axes = [
+            AxisPlan::build(&x_sources, Axis::TABLE1.voltage),
+            AxisPlan::build(&y_sources, 0.0),
+        ];
+        if let Some(ratio) = y_sources[FREQUENCY_RATIO] {
+            axes[1].frequency = axes[0].frequency.times(ratio);
+        }
+        for axis in 0..AXES {
+            for j in TIEABLE {
+                if let Some(target) = ties[axis_slot(axis, j)] {
+                    debug_assert_eq!(target, axis_slot(1 - axis, j), "ties are checked");
+                    let source = axes[1 - axis].drive(j);
+                    *axes[axis].drive_mut(j) = source;
+                }
+            }
+        }
         Plan {
             mechanism: std::array::from_fn(|i| or_default(i, mechanism_defaults[i])),
-            axes: [
-                AxisPlan::build(&x_sources, Axis::TABLE1.voltage),
-                AxisPlan::build(&y_sources, 0.0),
-            ],
+            axes,
             mode,
             cycles: match mode {
                 Mode::Window => or_default(CYCLES_SLOT, Instance::TABLE1.cycles as f64),
@@ -215,6 +272,24 @@ impl AxisPlan {
         }
     }
 
+    /// The source of drive key `j` (one of [`TIEABLE`]).
+    fn drive(&self, j: usize) -> Src {
+        let mut copy = *self;
+        *copy.drive_mut(j)
+    }
+
+    /// The source of drive key `j` (one of [`TIEABLE`]), to set it.
+    fn drive_mut(&mut self, j: usize) -> &mut Src {
+        match j {
+            GAIN => &mut self.gain,
+            VOLTAGE => &mut self.voltage,
+            FREQUENCY => &mut self.frequency,
+            DUTY => &mut self.duty,
+            PHASE => &mut self.phase,
+            _ => unreachable!("axis key {j} is not a drive key"),
+        }
+    }
+
     /// The axis for a set of raw key values.
     pub(super) fn resolve(&self, raw: &[f64; SLOTS]) -> Axis {
         let (stage_mass, stiffness) = match self.stage {
@@ -256,7 +331,7 @@ pub(super) type Culprits = [Option<usize>; 2];
 /// The slot of a source, when it comes from the file.
 pub(super) fn src_slot(src: Src) -> Option<usize> {
     match src {
-        Src::Slot(slot) => Some(slot),
+        Src::Slot(slot) | Src::Ratio { ratio: slot, .. } => Some(slot),
         Src::Const(_) => None,
     }
 }
@@ -302,6 +377,18 @@ pub(super) fn check_instance(instance: &Instance, plan: &Plan) -> Result<(), (St
                     fmt_num(value)
                 ),
                 [src_slot(resonance), None],
+            ));
+        }
+        if let Src::Ratio { ratio, base, .. } = axis_plan.frequency
+            && let Some(expected) = derived_expected(Field::Frequency, axis.frequency)
+        {
+            return Err((
+                format!(
+                    "axis.{name}.frequency = {} (derived from {}): {expected}",
+                    fmt_num(axis.frequency),
+                    axis_plan.frequency.describe(Field::Frequency)
+                ),
+                [Some(ratio), base],
             ));
         }
         if let DampingPlan::Quality(quality) = axis_plan.damping

@@ -175,6 +175,15 @@ const FREQUENCY: Bounds = Bounds {
     max: 1e6,
 };
 
+/// Ratio of the y drive's frequency to the x drive's, 1e-3 to 1e3 [1]: two
+/// drives of one actuator three decades apart already make the scene
+/// period (1 / the lowest frequency) a thousand periods of the faster one;
+/// the derived f_y is also held to the frequency bounds above.
+const FREQUENCY_RATIO: Bounds = Bounds {
+    min: 1e-3,
+    max: 1e3,
+};
+
 /// Duty of the sawtooth, 1e-6 to 1 [1]: a rise shorter than a millionth of
 /// the period would make the drive's slope, voltage / (duty x period),
 /// enormous for no physical reason. `sweeps/stress.toml` goes down to 0.6.
@@ -225,6 +234,7 @@ impl Field {
             | Field::ResonanceHz
             | Field::QualityFactor
             | Field::Frequency
+            | Field::FrequencyRatio
             | Field::Tolerance
             | Field::StepTolerance => Rule::Positive,
             Field::CoulombFriction | Field::Damping => Rule::NonNegative,
@@ -252,6 +262,7 @@ impl Field {
             Field::Gain => GAIN,
             Field::Voltage => VOLTAGE,
             Field::Frequency => FREQUENCY,
+            Field::FrequencyRatio => FREQUENCY_RATIO,
             Field::Duty => DUTY,
             Field::Phase => PHASE,
             Field::Tolerance => TOLERANCE,

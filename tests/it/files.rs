@@ -57,6 +57,11 @@ fn xarray_opens_a_result_with_coordinates_units_and_values() {
     }
     let dir = tempfile::tempdir().unwrap();
     let scene = grid_scene(dir.path(), "grid", "[50.0, 100.0, 150.0]", 3);
+    // Two trajectories with their two 1-DOF runs each: six groups, each
+    // opens in xarray as its own Dataset.
+    let mut text = std::fs::read_to_string(&scene).unwrap();
+    text.push_str("trajectories = [0, 5]\n");
+    std::fs::write(&scene, text).unwrap();
     let out = dir.path().join("grid.h5");
     ok(&pidm(
         &["run", s(&scene), "--out", s(&out), "--backend", "cpu"],
@@ -77,6 +82,10 @@ fn xarray_opens_a_result_with_coordinates_units_and_values() {
         String::from_utf8_lossy(&check.stderr)
     );
     assert!(stdout.contains("ok:"), "{stdout}");
+    assert!(
+        stdout.contains("6 trajectory groups open in xarray over time"),
+        "{stdout}"
+    );
 
     // The example script loads the same file and draws it.
     let example = concat!(env!("CARGO_MANIFEST_DIR"), "/examples/plot_map.py");

@@ -852,3 +852,150 @@ fn steady_measurements_match_the_cpu() {
         }
     }
 }
+
+/// Issue 19: `pidm random-scene` instances (the generator of
+/// `pidm::random`, fixed windows of 4 periods) through the f32 shader
+/// against the CPU in f64, every instance at 0.005 um + 1 %, the worst case
+/// printed. On lavapipe none is outside (worst 0.141 of the allowance,
+/// seed 1 #113). Seed 1's instance 105 was (x step -0.631 um against
+/// -0.575 um) until the f32 shader computed its period start phases in
+/// fixed point: f32's frac(phase + period * cycles_per_period) was off by
+/// about 1e-6 cycles, and a 3e-7 change of that instance's y duty moves the
+/// CPU in f64 to the same -0.631 um (results/gpu.md).
+/// The f32 shader of 7916a32 (with its rounding-noise allowances and its
+/// 4-band approach shortcut) had 5 outside on these seeds, up to 6.6 um.
+#[test]
+fn f32_random_scenes_hold_the_step_tolerance() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let settings = Settings::default();
+    let mut outside = Vec::new();
+    let mut worst = (0.0, String::new());
+    for seed in 1..=3u64 {
+        let instances = pidm::random::random_instances(seed, 300, 4, 1);
+        let cpu = cpu_reference(&instances, &settings);
+        let options = BatchOptions {
+            cpu_tail: Some(0),
+            ..BatchOptions::default()
+        };
+        let gpu = gpu_batch(ctx, &instances, &settings, Precision::F32, &options);
+        for (k, inst) in instances.iter().enumerate() {
+            assert_eq!(cpu[k].status, STATUS_OK, "seed {seed} #{k}: CPU status");
+            assert_eq!(gpu[k].status, STATUS_OK, "seed {seed} #{k}: f32 status");
+            let d_cpu = displacement(inst, &cpu[k]);
+            for (i, &d) in d_cpu.iter().enumerate() {
+                let c = step_um(inst, i, d);
+                let v = step_um(inst, i, gpu[k].displacement[i]);
+                let ratio = (v - c).abs() / f32_allowance(c);
+                let what = format!("seed {seed} #{k} axis {i}: f32 {v:.5} um, CPU {c:.5} um");
+                if ratio > worst.0 {
+                    worst = (ratio, what.clone());
+                }
+                if ratio > 1.0 {
+                    eprintln!("f32 outside its allowance: {what}");
+                    outside.push(what);
+                }
+            }
+        }
+    }
+    eprintln!(
+        "f32 random scenes: worst error {:.3} of the allowance ({})",
+        worst.0, worst.1
+    );
+    // None of the 900 outside since the fixed-point period start phases.
+    assert!(outside.is_empty(), "outside the allowance: {outside:#?}");
+    assert!(worst.0 <= 1.0, "worst: {}", worst.1);
+}
+
+/// Issue 19: band approaches with large absolute and tiny relative
+/// velocities. Table 1's mechanism driven hard on both axes (stage speeds
+/// of about 0.05 m/s) with detection bands down to 3e-8 m/s: every slip
+/// that ends in the band slows a relative velocity a million times smaller
+/// than the stage speeds into it, where f32 resolves the stage speeds to
+/// about 6e-9 m/s (the shader of 7916a32 passed these too); and the six
+/// `pidm random-scene --count 3000` instances of seeds 7 and 21 that that
+/// shader got most wrong (up to 9.1 um), each with bands of 1e-7 to 3e-6
+/// m/s, which it took as entered at up to 4 bands. The f32 shader must
+/// agree with the CPU in f64 at 0.005 um + 1 % on every one.
+#[test]
+fn f32_band_approaches_next_to_fast_stages_match_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let settings = Settings::default();
+    let mut instances = Vec::new();
+    for band in [1e-5, 1e-6, 1e-7, 3e-8] {
+        for (vx, vy, fy, phase) in [
+            (150.0, 120.0, 20.0, 0.25),
+            (-150.0, 90.0, 30.0, 0.6),
+            (120.0, -140.0, 10.0, 0.1),
+        ] {
+            let mut inst = Instance::TABLE1;
+            inst.mechanism.velocity_band = band;
+            inst.axes[0].voltage = vx;
+            inst.axes[0].frequency = 10.0;
+            inst.axes[1].voltage = vy;
+            inst.axes[1].frequency = fy;
+            inst.axes[1].phase = phase;
+            inst.cycles = 3;
+            inst.settle = 1;
+            instances.push(inst);
+        }
+    }
+    for (seed, picks) in [(7u64, [1617, 2862, 1127]), (21, [1699, 1244, 1290])] {
+        let scene = pidm::random::random_instances(seed, 3000, 4, 1);
+        instances.extend(picks.iter().map(|&k| scene[k]));
+    }
+    let cpu = cpu_reference(&instances, &settings);
+    let gpu = gpu_batch(
+        ctx,
+        &instances,
+        &settings,
+        Precision::F32,
+        &BatchOptions::default(),
+    );
+    check(
+        "band approaches next to fast stages",
+        Precision::F32,
+        &instances,
+        &cpu,
+        &gpu,
+    );
+}
+
+/// The self-test refuses a pipeline whose results disagree with the CPU
+/// reference, in f32 as in f64, with a message that names the precision,
+/// the axis and both values: fed a reference shifted by 1 um per step
+/// (beyond f32's 0.01 um allowance) it fails, and unshifted, or shifted by
+/// a fraction of the allowance, it passes.
+#[test]
+fn the_self_test_refuses_a_pipeline_that_disagrees_with_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    for precision in precisions(ctx) {
+        ctx.self_test_skewed(precision, 0.0)
+            .unwrap_or_else(|e| panic!("{precision} without skew: {e}"));
+        let small = match precision {
+            Precision::F32 => 0.002e-6,
+            Precision::F64 => 1e-14,
+        };
+        ctx.self_test_skewed(precision, small)
+            .unwrap_or_else(|e| panic!("{precision} skewed by {small:e} m: {e}"));
+        match ctx.self_test_skewed(precision, 1e-6) {
+            Err(err @ pidm::gpu::GpuError::SelfTest { .. }) => {
+                let message = err.to_string();
+                eprintln!("{message}");
+                assert!(
+                    message.contains(&format!("the {precision} pipeline"))
+                        && message.contains("failed its self-test against the CPU")
+                        && message.contains("where the CPU gives"),
+                    "{message}"
+                );
+            }
+            Err(e) => panic!("{precision}: refused, but not by the self-test: {e}"),
+            Ok(()) => panic!("{precision}: a reference 1 um off passed the self-test"),
+        }
+    }
+}

@@ -796,6 +796,75 @@ fn bad_scenes_are_refused_with_clear_messages() {
             "[refine]\nlevels = 2\n[[points]]\nlabel = \"a\"",
             "refine: a scene with [[points]] cannot be refined",
         ),
+        // Ties and the frequency ratio.
+        (
+            "[axis.y]\nvoltage = { same_as = \"axis.x.frequency\" }",
+            "axis.y.voltage.same_as = \"axis.x.frequency\": expected same_as = \"axis.x.voltage\" (the same key of the other axis)",
+        ),
+        (
+            "[axis.y]\nvoltage = { same_as = \"axis.y.voltage\" }",
+            "expected same_as = \"axis.x.voltage\"",
+        ),
+        (
+            "[axis.y]\nstiffness = { same_as = \"axis.x.stiffness\" }",
+            "axis.y.stiffness = { same_as = \"axis.x.stiffness\" }: only an axis' drive keys (gain, voltage, frequency, duty, phase) can be tied",
+        ),
+        (
+            "[simulation]\nsettle = { same_as = \"simulation.cycles\" }",
+            "simulation.settle = { same_as = \"simulation.cycles\" }: only an axis' drive keys",
+        ),
+        (
+            "[axis.y]\nvoltage = { same_as = 3 }",
+            "axis.y.voltage.same_as: expected same_as = \"axis.x.voltage\" (the same key of the other axis), found an integer 3",
+        ),
+        (
+            "[axis.y]\nvoltage = { same_as = \"axis.x.voltage\", steps = 3 }",
+            "axis.y.voltage.steps: a tie takes only `same_as`",
+        ),
+        (
+            "[axis.x]\nvoltage = { same_as = \"axis.y.voltage\" }",
+            "axis.y.voltage is not given in the scene",
+        ),
+        (
+            "[axis.x]\nvoltage = { same_as = \"axis.y.voltage\" }\n[axis.y]\nvoltage = { same_as = \"axis.x.voltage\" }",
+            "axis.x.voltage and axis.y.voltage are tied to each other",
+        ),
+        (
+            "[[points]]\naxis.y.voltage = { same_as = \"axis.x.voltage\" }",
+            "points[0]: axis.y.voltage = { same_as = \"axis.x.voltage\" }: a point cannot tie keys",
+        ),
+        (
+            "[axis.x]\nfrequency_ratio = 2",
+            "axis.x.frequency_ratio: only axis.y takes a frequency ratio",
+        ),
+        (
+            "[axis.y]\nfrequency = 5\nfrequency_ratio = 2",
+            "axis.y.frequency_ratio and a frequency both set axis.y's drive frequency",
+        ),
+        (
+            "[axis.y]\nfrequency = { same_as = \"axis.x.frequency\" }\nfrequency_ratio = 2",
+            "axis.y.frequency_ratio and a tied frequency both set",
+        ),
+        (
+            "[[points]]\naxis.y.frequency = 5\naxis.y.frequency_ratio = 2",
+            "points[0]: axis.y.frequency_ratio and a frequency both set",
+        ),
+        (
+            "[axis.y]\nfrequency_ratio = 0",
+            "axis.y.frequency_ratio = 0: expected a number > 0",
+        ),
+        (
+            "[axis.y]\nfrequency_ratio = 2000",
+            "axis.y.frequency_ratio = 2000: expected a number from 0.001 to 1000",
+        ),
+        (
+            "[axis.x]\nfrequency = [10, 5000]\n[axis.y]\nfrequency_ratio = { from = 1, to = 900, steps = 3 }",
+            "axis.y.frequency = 4500000 (derived from axis.y.frequency_ratio x axis.x.frequency): expected a number from 0.001 to 1000000 Hz",
+        ),
+        (
+            "[axis.x]\nfrequency = 0.001\n[[points]]\naxis.y.frequency_ratio = 0.5",
+            "points[0]: axis.y.frequency = 0.0005 (derived from axis.y.frequency_ratio x axis.x.frequency): expected a number from 0.001",
+        ),
     ];
     for (text, needle) in cases {
         check(text, needle);
@@ -941,6 +1010,87 @@ fn phases_of_a_whole_cycle_or_more_need_phase_units() {
     );
     assert_eq!(scene.instance(0).axes[1].phase, 90.0);
     assert_eq!(scene.instance(0).axes[0].phase, 2.5);
+}
+
+#[test]
+fn a_tied_key_takes_the_other_axis_value_in_every_instance() {
+    // The same voltage on both axes, over a grid axis of the x voltage.
+    let scene = parse(
+        "[axis.x]\n\
+         voltage = [40, 80, 120]\n\
+         phase = 0.25\n\
+         [axis.y]\n\
+         voltage = { same_as = \"axis.x.voltage\" }\n\
+         phase = { same_as = \"axis.x.phase\" }\n",
+    );
+    let Layout::Grid { axes } = &scene.layout else {
+        panic!("a grid")
+    };
+    let keys: Vec<&str> = axes.iter().map(|a| a.key.as_str()).collect();
+    assert_eq!(keys, ["axis.x.voltage"], "a tie is not a grid axis");
+    for (index, volts) in [40.0, 80.0, 120.0].into_iter().enumerate() {
+        let [x, y] = scene.instance(index as u64).axes;
+        assert_eq!((x.voltage, y.voltage), (volts, volts));
+        assert_eq!((x.phase, y.phase), (0.25, 0.25));
+        assert!(scene.axis_ever_driven(1));
+    }
+    // A tie to axis.x's default voltage, and x tied to a given y.
+    let scene = parse("[axis.y]\nvoltage = { same_as = \"axis.x.voltage\" }\n");
+    assert_eq!(scene.instance(0).axes[1].voltage, Axis::TABLE1.voltage);
+    let scene =
+        parse("[axis.x]\nduty = { same_as = \"axis.y.duty\" }\n[axis.y]\nduty = [0.6, 0.8]\n");
+    for (index, duty) in [0.6, 0.8].into_iter().enumerate() {
+        let [x, y] = scene.instance(index as u64).axes;
+        assert_eq!((x.duty, y.duty), (duty, duty));
+    }
+    // A point that gives the tied key replaces the tie; one that gives the
+    // key tied to moves both.
+    let scene = parse(
+        "[axis.y]\nvoltage = { same_as = \"axis.x.voltage\" }\n\
+         [[points]]\naxis.y.voltage = 7\n\
+         [[points]]\naxis.x.voltage = 33\n",
+    );
+    assert_eq!(scene.instance(0).axes[1].voltage, 7.0);
+    assert_eq!(scene.instance(0).axes[0].voltage, Axis::TABLE1.voltage);
+    assert_eq!(scene.instance(1).axes[1].voltage, 33.0);
+    assert_eq!(scene.instance(1).axes[0].voltage, 33.0);
+}
+
+#[test]
+fn a_frequency_ratio_gives_the_y_drive_a_multiple_of_the_x_frequency() {
+    let scene = parse(
+        "[axis.x]\n\
+         frequency = [10, 20]\n\
+         [axis.y]\n\
+         voltage = 100\n\
+         frequency_ratio = { from = 0.5, to = 2, steps = 4 }\n",
+    );
+    let Layout::Grid { axes } = &scene.layout else {
+        panic!("a grid")
+    };
+    assert_eq!(axes[1].key, "axis.y.frequency_ratio");
+    assert_eq!(axes[1].units, "1");
+    assert_eq!(scene.instance_count(), 8);
+    for index in 0..8u64 {
+        let [x, y] = scene.instance(index).axes;
+        let ratio = axes[1].values[(index % 4) as usize];
+        assert_eq!(x.frequency, [10.0, 20.0][(index / 4) as usize]);
+        assert_eq!(y.frequency, ratio * x.frequency, "instance {index}");
+    }
+    // Over x's default frequency; a point giving a frequency replaces the
+    // base's ratio, and a point's ratio replaces the base's frequency.
+    let scene = parse(
+        "[axis.y]\nfrequency_ratio = 1.4\n\
+         [[points]]\naxis.y.frequency = 3\n\
+         [[points]]\naxis.x.frequency = 20\n",
+    );
+    assert_eq!(scene.instance(0).axes[1].frequency, 3.0);
+    assert_eq!(scene.instance(1).axes[1].frequency, 1.4 * 20.0);
+    let scene = parse("[axis.y]\nfrequency = 3\n[[points]]\naxis.y.frequency_ratio = 2\n");
+    assert_eq!(
+        scene.instance(0).axes[1].frequency,
+        2.0 * Axis::TABLE1.frequency
+    );
 }
 
 #[test]

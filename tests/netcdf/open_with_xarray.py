@@ -42,7 +42,40 @@ def main() -> None:
         # dimension picks the first entry.
         first = step.sel({d: ds.coords[d].values[0] for d in dims})
         assert first.item() == raw["maps"]["step_x"][()].flat[0]
+        groups = trajectory_groups(raw)
+    for group in groups:
+        check_trajectory(path, group)
     print(f"ok: {path} opens in xarray with dims {dims}")
+    print(f"{len(groups)} trajectory groups open in xarray over time")
+
+
+def trajectory_groups(raw: h5py.File) -> list[str]:
+    """Every trajectory group of the file and its 1-DOF runs."""
+    groups = []
+    for k, run in raw.get("trajectories", {}).items():
+        groups.append(f"trajectories/{k}")
+        groups += [f"trajectories/{k}/{sub}" for sub in run if isinstance(run[sub], h5py.Group)]
+    return groups
+
+
+def check_trajectory(path: str, group: str) -> None:
+    """A trajectory group opens in xarray as its own Dataset: `time` [s] is
+    its dimension and coordinate, every series lies along it with its units,
+    and the values are the stored ones."""
+    ds = xr.open_dataset(path, engine="h5netcdf", group=group)
+    with h5py.File(path, "r") as raw:
+        stored = raw[group]
+        assert list(ds.dims) == ["time"], f"{group}: dims {dict(ds.sizes)}"
+        assert ds.coords["time"].attrs["units"] == "s", f"{group}: time units"
+        series = [n for n in stored if isinstance(stored[n], h5py.Dataset) and n != "time"]
+        assert series, f"{group} has no series"
+        assert sorted(ds.data_vars) == sorted(series), f"{group}: {list(ds.data_vars)}"
+        for name in series + ["time"]:
+            var = ds[name]
+            assert var.dims == ("time",), f"{group}/{name}: dims {var.dims}"
+            assert var.attrs["units"] == stored[name].attrs["units"], f"{group}/{name}"
+            assert var.values.tobytes() == stored[name][()].tobytes(), f"{group}/{name} differs"
+        assert int(ds.attrs["status"]) == int(stored.attrs["status"])
 
 
 if __name__ == "__main__":

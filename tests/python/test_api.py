@@ -238,6 +238,29 @@ def test_dict_scenes_keep_their_key_order_and_numpy_values() -> None:
     assert 'c = "q\\"\\n"' in text
 
 
+def test_tied_keys_and_a_frequency_ratio_make_a_map_over_the_ratio() -> None:
+    scene = {
+        "axis": {
+            "x": {"voltage": [60.0, 120.0]},
+            "y": {
+                "voltage": {"same_as": "axis.x.voltage"},
+                "frequency_ratio": {"from": 1.0, "to": 2.0, "steps": 3},
+            },
+        },
+        "simulation": {"measure": "window", "cycles": 4, "settle": 1},
+    }
+    ds = pidm.run(scene, backend="cpu", progress=False)
+    assert ds.step_x.dims == ("axis.x.voltage", "axis.y.frequency_ratio")
+    assert ds["axis.y.frequency_ratio"].values.tolist() == [1.0, 1.5, 2.0]
+    assert ds["axis.y.frequency_ratio"].attrs["units"] == "1"
+    # At a ratio of 1 the two axes are the same drive: equal steps.
+    same = ds.sel({"axis.y.frequency_ratio": 1.0})
+    assert same.step_x.values.tolist() == same.step_y.values.tolist()
+    assert (same.step_y != 0).all()
+    with pytest.raises(pidm.SceneError, match="axis.x.frequency_ratio"):
+        pidm.run({"axis": {"x": {"frequency_ratio": 2.0}}}, backend="cpu", progress=False)
+
+
 def test_failed_instances_warn_and_keep_their_status() -> None:
     # A step budget far too small: every instance ends with status 1.
     scene = {

@@ -72,6 +72,15 @@ pub struct Coefficients {
     /// Drive phase [cycles] and drive cycles per scene period.
     pub phase: Vec2,
     pub cycles_per_period: Vec2,
+    /// The same in fixed point, for the f32 shader's period start phases
+    /// (`drive::fixed_start_phase`): the phase's fraction in units of
+    /// 2^-32 cycles, and the fraction of the cycles per period in units of
+    /// 2^-64 cycles as a high and a low word. Period starts are then exact
+    /// integer sums, where `phase + period * cycles_per_period` in f32
+    /// loses about 1e-6 cycles by the fifth period.
+    pub phase_fixed: [u32; 2],
+    pub cycles_fixed: [u32; 2],
+    pub cycles_fixed_lo: [u32; 2],
     /// m_p / (m_p + m_s) and m_s / (m_p + m_s): the momentum-conserving
     /// common velocity is the sum of the two velocities weighted by them.
     pub stage_share: Vec2,
@@ -206,6 +215,13 @@ impl Coefficients {
             }),
             phase: per_axis(&|a| a.phase),
             cycles_per_period,
+            phase_fixed: [ax.phase, ay.phase].map(fixed_fraction_32),
+            cycles_fixed: cycles_per_period
+                .to_array()
+                .map(|n| (fixed_fraction_64(n) >> 32) as u32),
+            cycles_fixed_lo: cycles_per_period
+                .to_array()
+                .map(|n| fixed_fraction_64(n) as u32),
             stage_share: stage_mass.map(|mp| mp / (mp + ms)),
             slider_share: stage_mass.map(|mp| ms / (mp + ms)),
             slip_scale,
@@ -238,4 +254,17 @@ impl Coefficients {
             frictionless: fc == 0.0,
         }
     }
+}
+
+/// The fraction of `u` in units of 2^-32 cycles, rounded (wrapping to 0 at
+/// a whole cycle).
+pub fn fixed_fraction_32(u: f64) -> u32 {
+    ((u - u.floor()) * 4_294_967_296.0).round() as u64 as u32
+}
+
+/// The fraction of `u` in units of 2^-64 cycles, truncated.
+pub fn fixed_fraction_64(u: f64) -> u64 {
+    // Exact scaling by 2^64; the cast saturates below 2^64 for fractions
+    // that round up to a whole cycle, an error of 2^-64 cycles.
+    ((u - u.floor()) * 18_446_744_073_709_551_616.0) as u64
 }
