@@ -13,10 +13,12 @@
 //! error) are plain text and never start with `{`.
 
 use std::io::{IsTerminal, Write};
+use std::path::Path;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
+use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// How a run shows its progress.
@@ -165,6 +167,23 @@ impl Progress {
         if let Kind::Bar(bar) = &self.kind {
             bar.finish_and_clear();
         }
+    }
+
+    /// Ends the progress of a sweep with its result: finished, or abandoned
+    /// with the error saying that the finished instances are kept in the
+    /// checkpoint at `checkpoint` and `--resume` continues.
+    pub fn conclude<T>(&self, result: anyhow::Result<T>, checkpoint: &Path) -> anyhow::Result<T> {
+        match &result {
+            Ok(_) => self.finish(),
+            Err(_) => self.abandon(),
+        }
+        result.with_context(|| {
+            format!(
+                "the finished instances are kept in {}; the same command with --resume \
+                 continues the run",
+                checkpoint.display()
+            )
+        })
     }
 }
 

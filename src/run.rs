@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicI32, Ordering};
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
 use crate::backend::{Backend, Hardware};
 use crate::checkpoint::{self, Checkpoint};
@@ -290,17 +290,7 @@ pub fn run_scene(
             Ok(())
         },
     );
-    match &result {
-        Ok(_) => progress.finish(),
-        Err(_) => progress.abandon(),
-    }
-    let new = result.with_context(|| {
-        format!(
-            "the finished instances are kept in {}; the same command with --resume \
-             continues the run",
-            checkpoint_path.display()
-        )
-    })?;
+    let new = progress.conclude(result, &checkpoint_path)?;
     summary.merge(&new);
     let wall_time_s = started.elapsed().as_secs_f64();
     // Trajectories belong to the whole scene: a shard leaves them to

@@ -9,7 +9,7 @@
 
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
 use super::grid::FineGrid;
 use super::interpolate;
@@ -202,18 +202,10 @@ pub fn run(
             })
             .collect())
     };
-    let refinement = waves::refine(grid, &opts, known, &mut integrate);
-    match &refinement {
-        Ok(_) => progress.finish(),
-        Err(_) => progress.abandon(),
-    }
-    let refinement = refinement.with_context(|| {
-        format!(
-            "the finished instances are kept in {}; the same command with --resume \
-             continues the run",
-            checkpoint_path.display()
-        )
-    })?;
+    let refinement = progress.conclude(
+        waves::refine(grid, &opts, known, &mut integrate),
+        &checkpoint_path,
+    )?;
     let (raster, inferred) = interpolate::raster(&refinement, &records);
     writer.write(0, &raster)?;
     writer.write_inferred(&inferred)?;
