@@ -227,6 +227,77 @@ impl BaselineMemo {
     }
 }
 
+/// The 1-DOF baselines of `instances`: for each instance and axis, the
+/// baseline's step along that axis [m per own drive cycle] and its status.
+/// Each distinct baseline is integrated once, in one batch, and those
+/// `memo` holds are not integrated again (the new ones are added to it).
+/// `None`, with nothing integrated, when more than `most` would have to be:
+/// the adaptive refinement asks for the exact baselines of its inferred
+/// points only where they are few (a V_x by V_y map has one per grid line
+/// and axis).
+pub fn baselines_of(
+    instances: &[Instance],
+    backend: &dyn Backend,
+    settings: &Settings,
+    memo: &mut BaselineMemo,
+    most: usize,
+) -> Result<Option<Vec<[(f64, u32); AXES]>>> {
+    let mut jobs: Vec<Instance> = Vec::new();
+    let mut seen = DigestMap::default();
+    for inst in instances {
+        for axis in 0..AXES {
+            let base = inst.baseline(axis);
+            let d = digest(&base.key());
+            if memo.get(&base, d).is_some() {
+                continue;
+            }
+            match seen.get(&d) {
+                Some(&j) if jobs[j].key() == base.key() => continue,
+                // A digest shared by two keys: the later one is integrated
+                // on its own (and looked up by key below).
+                _ => {
+                    seen.insert(d, jobs.len());
+                    jobs.push(base);
+                }
+            }
+            if jobs.len() > most {
+                return Ok(None);
+            }
+        }
+    }
+    let outcomes = if jobs.is_empty() {
+        Vec::new()
+    } else {
+        backend.run(&jobs, settings, &|_| {})?
+    };
+    let fresh: Vec<(Instance, Outcome)> = jobs.into_iter().zip(outcomes).collect();
+    for (inst, outcome) in &fresh {
+        memo.insert(inst, *outcome);
+    }
+    let memo = &*memo;
+    let out = instances
+        .par_iter()
+        .map(|inst| {
+            std::array::from_fn(|axis| {
+                let base = inst.baseline(axis);
+                let key = base.key();
+                // A key whose digest another one took in the memo is found
+                // among this batch's own.
+                let outcome = memo.get(&base, digest(&key)).unwrap_or_else(|| {
+                    fresh
+                        .iter()
+                        .find(|(known, _)| known.key() == key)
+                        .map(|(_, o)| *o)
+                        .expect("every baseline was integrated or remembered")
+                });
+                let rec = record(&base, &outcome);
+                (rec.step[axis], rec.status)
+            })
+        })
+        .collect();
+    Ok(Some(out))
+}
+
 pub use crate::interrupt::{interrupt_requested, request_interrupt};
 
 pub use crate::measurement::Outcome;

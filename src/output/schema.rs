@@ -196,6 +196,9 @@ pub const REFINE_LEVEL_LARGEST_MISS: &str = "refine/level_largest_miss";
 /// `coarse_shape` (u64 per axis).
 pub const REFINE_LEVELS: &str = "levels";
 pub const REFINE_TOLERANCE: &str = "tolerance";
+/// Attribute of `/refine`: 1 when the 1-DOF baselines of the inferred
+/// points were integrated (few distinct ones), 0 when interpolated.
+pub const REFINE_EXACT_BASELINES: &str = "exact_baselines";
 pub const REFINE_COARSE_SHAPE: &str = "coarse_shape";
 
 /// The optional group of the 1-DOF runs beside the maps.

@@ -11,8 +11,20 @@ use crate::output::{write_f64_attr, write_str_attr, write_u64_attr};
 use crate::scene::Refine;
 
 /// Writes `/refine` into an open result file.
-pub fn write_group(file: &File, refine: &Refine, r: &Refinement) -> Result<()> {
+/// `exact_baselines` says whether the inferred points' 1-DOF baselines were
+/// integrated rather than interpolated.
+pub fn write_group(
+    file: &File,
+    refine: &Refine,
+    r: &Refinement,
+    exact_baselines: bool,
+) -> Result<()> {
     let group = file.create_group(schema::REFINE)?;
+    write_u64_attr(
+        &group,
+        schema::REFINE_EXACT_BASELINES,
+        exact_baselines as u64,
+    )?;
     write_u64_attr(&group, schema::REFINE_LEVELS, refine.levels as u64)?;
     write_f64_attr(&group, schema::REFINE_TOLERANCE, refine.tolerance)?;
     {

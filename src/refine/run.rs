@@ -18,6 +18,7 @@ use super::rule::Sample;
 use super::waves::{self, LevelStats, Options};
 use crate::backend::Backend;
 use crate::checkpoint::Checkpoint;
+use crate::model::Instance;
 use crate::output::{FileInfo, MapWriter, OutputClaim};
 use crate::progress::{Progress, ProgressMode};
 use crate::scene::{Refine, Scene};
@@ -206,17 +207,37 @@ pub fn run(
         waves::refine(grid, &opts, known, &mut integrate),
         &checkpoint_path,
     )?;
-    let (raster, inferred) = interpolate::raster(&refinement, &records);
+    let (mut raster, inferred) = interpolate::raster(&refinement, &records);
+    let integrated = inferred.iter().filter(|&&m| m == 0).count() as u64;
+    // The inferred points' 1-DOF baselines, integrated where they are few
+    // (at most a tenth of the points integrated: a V_x by V_y map has one
+    // per grid line and axis), so that their coupling regimes compare the
+    // interpolated 2-DOF step with the exact 1-DOF one; interpolated
+    // otherwise (a baseline that depends on both axes).
+    let exact_baselines = baselines && {
+        let points: Vec<usize> = (0..count).filter(|&k| inferred[k] == 1).collect();
+        let instances: Vec<Instance> = points.iter().map(|&k| scene.instance(k as u64)).collect();
+        let most = (integrated / 10) as usize;
+        match sweep::baselines_of(&instances, backend, &scene.settings, &mut memo, most)? {
+            Some(found) => {
+                for (&k, axes) in points.iter().zip(found) {
+                    raster[k].baseline_step = axes.map(|(step, _)| step);
+                    raster[k].baseline_status = axes[0].1.max(axes[1].1);
+                }
+                true
+            }
+            None => false,
+        }
+    };
     writer.write(0, &raster)?;
     writer.write_inferred(&inferred)?;
-    output::write_group(writer.file(), refine, &refinement)?;
+    output::write_group(writer.file(), refine, &refinement, exact_baselines)?;
     let wall_time_s = started.elapsed().as_secs_f64();
     crate::trajectory::record_and_write(writer.file(), scene)?;
     let mut parts = checkpoint.earlier_parts().to_vec();
     parts.push(wall_time_s);
     let path = writer.finish(&parts)?;
     checkpoint.remove()?;
-    let integrated = inferred.iter().filter(|&&m| m == 0).count() as u64;
     Ok(Outcome {
         path,
         summary,

@@ -333,6 +333,29 @@ fn integrated_points_equal_the_uniform_run_bit_for_bit_and_the_labels_a_dense_ru
             assert_eq!(a[k as usize], b[k as usize], "{map} at {k}");
         }
     }
+    // The 1-DOF baselines depend on one voltage each, so the inferred
+    // points' are few and integrated: every point's equals the uniform
+    // run's, bit for bit.
+    let exact: u64 = hdf5::File::open(&refined)
+        .unwrap()
+        .group("refine")
+        .unwrap()
+        .attr(schema::REFINE_EXACT_BASELINES)
+        .unwrap()
+        .read_scalar()
+        .unwrap();
+    assert_eq!(exact, 1);
+    for map in ["baseline/step_x", "baseline/step_y"] {
+        let (a, b): (Vec<f64>, Vec<f64>) = (read(&refined, map), read(&uniform, map));
+        for k in 0..n {
+            assert_eq!(a[k].to_bits(), b[k].to_bits(), "{map} at {k}");
+        }
+    }
+    let (a, b): (Vec<u32>, Vec<u32>) = (
+        read(&refined, "baseline/status"),
+        read(&uniform, "baseline/status"),
+    );
+    assert_eq!(a, b);
     let steps = |path: &Path| -> Vec<[f64; 2]> {
         let (x, y): (Vec<f64>, Vec<f64>) = (read(path, "maps/step_x"), read(path, "maps/step_y"));
         x.into_iter().zip(y).map(|(x, y)| [x, y]).collect()
