@@ -227,6 +227,10 @@ impl BaselineMemo {
     }
 }
 
+/// One instance's 1-DOF baselines, axis by axis: the baseline's step along
+/// that axis [m per own drive cycle] and its status.
+pub type BaselinePair = [(f64, u32); AXES];
+
 /// The 1-DOF baselines of `instances`: for each instance and axis, the
 /// baseline's step along that axis [m per own drive cycle] and its status.
 /// Each distinct baseline is integrated once, in one batch, and those
@@ -241,7 +245,7 @@ pub fn baselines_of(
     settings: &Settings,
     memo: &mut BaselineMemo,
     most: usize,
-) -> Result<Option<Vec<[(f64, u32); AXES]>>> {
+) -> Result<Option<Vec<BaselinePair>>> {
     let mut jobs: Vec<Instance> = Vec::new();
     let mut seen = DigestMap::default();
     for inst in instances {
