@@ -205,25 +205,31 @@ pub fn distinct_integrations(instances: &[Instance], baselines: bool) -> Vec<Ins
     Jobs::new(instances, baselines, &BaselineMemo::default()).jobs
 }
 
-/// Baseline outcomes of earlier chunks, by digest (with the instance, to
+/// Baseline outcomes of earlier chunks, by digest (with the instance key, to
 /// tell digests apart). A caller that runs several sweeps of one scene
 /// (the waves of `crate::refine`) keeps one across them with
 /// [`run_with_memo`], so each baseline runs once.
 #[derive(Default)]
 pub struct BaselineMemo(
-    HashMap<u64, (Instance, Outcome), std::hash::BuildHasherDefault<KeyHasher>>,
+    HashMap<u64, (InstanceKey, Outcome), std::hash::BuildHasherDefault<KeyHasher>>,
 );
 
 impl BaselineMemo {
     fn get(&self, inst: &Instance, d: u64) -> Option<Outcome> {
+        self.get_by_key(&inst.key(), d)
+    }
+
+    /// The outcome remembered for the instance of `key` (digest `d`).
+    fn get_by_key(&self, key: &InstanceKey, d: u64) -> Option<Outcome> {
         self.0
             .get(&d)
-            .filter(|(known, _)| known.key() == inst.key())
+            .filter(|(known, _)| known == key)
             .map(|(_, outcome)| *outcome)
     }
 
     fn insert(&mut self, inst: &Instance, outcome: Outcome) {
-        self.0.insert(digest(&inst.key()), (*inst, outcome));
+        let key = inst.key();
+        self.0.insert(digest(&key), (key, outcome));
     }
 }
 
@@ -246,24 +252,41 @@ pub fn baselines_of(
     memo: &mut BaselineMemo,
     most: usize,
 ) -> Result<Option<Vec<BaselinePair>>> {
+    // Each baseline's key and digest once, in parallel, with what the memo
+    // already holds.
+    let looked_up: Vec<[(InstanceKey, u64, Option<Outcome>); AXES]> = {
+        let memo = &*memo;
+        instances
+            .par_iter()
+            .map(|inst| {
+                std::array::from_fn(|axis| {
+                    let key = inst.baseline(axis).key();
+                    let d = digest(&key);
+                    let known = memo.get_by_key(&key, d);
+                    (key, d, known)
+                })
+            })
+            .collect()
+    };
+    // The distinct baselines the memo lacks, in first-seen order.
     let mut jobs: Vec<Instance> = Vec::new();
+    let mut keys: Vec<InstanceKey> = Vec::new();
     let mut seen = DigestMap::default();
-    for inst in instances {
-        for axis in 0..AXES {
-            let base = inst.baseline(axis);
-            let d = digest(&base.key());
-            if memo.get(&base, d).is_some() {
+    for (inst, axes) in instances.iter().zip(&looked_up) {
+        for (axis, (key, d, known)) in axes.iter().enumerate() {
+            if known.is_some() {
                 continue;
             }
-            match seen.get(&d) {
-                Some(&j) if jobs[j].key() == base.key() => continue,
-                // A digest shared by two keys: the later one is integrated
-                // on its own (and looked up by key below).
-                _ => {
-                    seen.insert(d, jobs.len());
-                    jobs.push(base);
-                }
+            if let Some(&j) = seen.get(d)
+                && keys[j] == *key
+            {
+                continue;
             }
+            // A digest shared by two keys: the later one is integrated on
+            // its own (and found by key below).
+            seen.insert(*d, jobs.len());
+            jobs.push(inst.baseline(axis));
+            keys.push(*key);
             if jobs.len() > most {
                 return Ok(None);
             }
@@ -274,31 +297,31 @@ pub fn baselines_of(
     } else {
         backend.run(&jobs, settings, &|_| {})?
     };
-    let fresh: Vec<(Instance, Outcome)> = jobs.into_iter().zip(outcomes).collect();
-    for (inst, outcome) in &fresh {
-        memo.insert(inst, *outcome);
-    }
-    let memo = &*memo;
+    let fresh = |key: &InstanceKey, d: u64| -> Outcome {
+        let j = match seen.get(&d) {
+            Some(&j) if keys[j] == *key => j,
+            _ => keys
+                .iter()
+                .position(|k| k == key)
+                .expect("every baseline was integrated or remembered"),
+        };
+        outcomes[j]
+    };
     let out = instances
         .par_iter()
-        .map(|inst| {
+        .zip(&looked_up)
+        .map(|(inst, axes)| {
             std::array::from_fn(|axis| {
-                let base = inst.baseline(axis);
-                let key = base.key();
-                // A key whose digest another one took in the memo is found
-                // among this batch's own.
-                let outcome = memo.get(&base, digest(&key)).unwrap_or_else(|| {
-                    fresh
-                        .iter()
-                        .find(|(known, _)| known.key() == key)
-                        .map(|(_, o)| *o)
-                        .expect("every baseline was integrated or remembered")
-                });
-                let rec = record(&base, &outcome);
+                let (key, d, known) = &axes[axis];
+                let outcome = known.unwrap_or_else(|| fresh(key, *d));
+                let rec = record(&inst.baseline(axis), &outcome);
                 (rec.step[axis], rec.status)
             })
         })
         .collect();
+    for (inst, outcome) in jobs.iter().zip(&outcomes) {
+        memo.insert(inst, *outcome);
+    }
     Ok(Some(out))
 }
 
