@@ -7,8 +7,17 @@ use std::process::{Command, Output};
 use pidm::model::{Axis, Instance};
 
 /// Runs the `pidm` binary built with these tests in `dir`.
+///
+/// The child runs with `HDF5_USE_FILE_LOCKING=FALSE`: tests run in threads
+/// of one process, libhdf5 opens files without close-on-exec, so a child
+/// that another test starts while this process has an HDF5 file open
+/// inherits the descriptor and its lock, and a `pidm` opening that file
+/// (a damaged copy edited in-process, say) would fail with "unable to lock
+/// file" for as long as the unrelated child runs. pidm's own output claim
+/// (`flock` on `.NAME.lock`) is not HDF5's and stays on.
 pub fn pidm(args: &[&str], dir: &Path) -> Output {
     Command::new(env!("CARGO_BIN_EXE_pidm"))
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
         .args(args)
         .current_dir(dir)
         .output()

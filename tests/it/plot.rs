@@ -180,10 +180,13 @@ fn valid_file() -> &'static Path {
     })
 }
 
-/// Opens the copy at `path` for writing and applies `change`.
+/// Opens the copy at `path` for writing and applies `change`, then closes
+/// it explicitly (every handle into it invalidated) before `pidm plot`
+/// opens it (see `common::pidm` on HDF5's file locks).
 fn edit(path: &Path, change: impl FnOnce(&hdf5::File) -> hdf5::Result<()>) {
     let file = hdf5::File::open_rw(path).unwrap();
     change(&file).unwrap();
+    file.close().unwrap();
 }
 
 /// Replaces the dataset `name` by one of `shape` holding `values`.
