@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
+use crate::output::MapWriter;
 use crate::sweep::Record;
 
 const MAGIC: &[u8; 12] = b"PIDM-CKPT-2\n";
@@ -121,12 +122,6 @@ impl Checkpoint {
             earlier: Vec::new(),
             pending: Vec::new(),
         })
-    }
-
-    /// The wall time of each earlier part of the run, up to the last chunk
-    /// it finished [s]: none for a new run.
-    pub fn earlier_parts(&self) -> &[f64] {
-        &self.earlier
     }
 
     /// Opens an existing journal for resuming, checks that it belongs to
@@ -279,6 +274,18 @@ impl Checkpoint {
         entry.extend_from_slice(&sum.to_le_bytes());
         self.pending.extend_from_slice(&entry);
         Ok(())
+    }
+
+    /// Ends a run whose output file is complete but for its closing: the
+    /// file is finished with the wall time of every part of the run (the
+    /// earlier parts and this one's `wall_time_s`) and renamed into place,
+    /// then the journal is removed. Returns the file's path and the parts.
+    pub fn finish(self, writer: MapWriter, wall_time_s: f64) -> Result<(PathBuf, Vec<f64>)> {
+        let mut parts = self.earlier.clone();
+        parts.push(wall_time_s);
+        let path = writer.finish(&parts)?;
+        self.remove()?;
+        Ok((path, parts))
     }
 
     /// Deletes the journal once the output file is complete.

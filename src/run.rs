@@ -299,10 +299,7 @@ pub fn run_scene(
     if scope.shard.is_none() {
         crate::trajectory::record_and_write(writer.file(), scene)?;
     }
-    let mut parts = checkpoint.earlier_parts().to_vec();
-    parts.push(wall_time_s);
-    let path = writer.finish(&parts)?;
-    checkpoint.remove()?;
+    let (path, parts) = checkpoint.finish(writer, wall_time_s)?;
     Ok(RunResult {
         path,
         summary,

@@ -234,10 +234,7 @@ pub fn run(
     output::write_group(writer.file(), refine, &refinement, exact_baselines)?;
     let wall_time_s = started.elapsed().as_secs_f64();
     crate::trajectory::record_and_write(writer.file(), scene)?;
-    let mut parts = checkpoint.earlier_parts().to_vec();
-    parts.push(wall_time_s);
-    let path = writer.finish(&parts)?;
-    checkpoint.remove()?;
+    let (path, parts) = checkpoint.finish(writer, wall_time_s)?;
     Ok(Outcome {
         path,
         summary,
