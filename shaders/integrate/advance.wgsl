@@ -2,7 +2,9 @@
 // integrator.
 
 // The integrator state, as `pidm::cpu::integrate::State`, plus `time_lo`,
-// the low part of the time (always zero unless COMPENSATED_TIME).
+// the low part of the time (always zero unless COMPENSATED_TIME), and
+// `corner_at` + `corner_at_lo`, the local time of each axis' next corner in
+// two parts, which only CORNER_CLOCK (f32) keeps (drive.wgsl).
 struct State {
     x_p: V2,
     v_p: V2,
@@ -13,6 +15,8 @@ struct State {
     settle_x_s: V2,
     cycle_phase: V2,
     next_corner: V2,
+    corner_at: V2,
+    corner_at_lo: V2,
     time: Real,
     time_lo: Real,
     h_slip: Real,
@@ -42,6 +46,8 @@ fn initial_state(c: Coefficients) -> State {
     st.settle_x_s = V2(0.0);
     st.cycle_phase = p;
     st.next_corner = select(V2(1.0), c.duty, rising);
+    st.corner_at = c.first_corner;
+    st.corner_at_lo = c.first_corner_lo;
     st.time = Real(0.0);
     st.time_lo = Real(0.0);
     st.h_slip = Real(0.0);
@@ -61,14 +67,37 @@ fn is_finished(c: Coefficients, st: State) -> bool {
     return st.status != STATUS_OK || st.period >= c.cycles || st.measured == 1u;
 }
 
-// `st.time >= t` on the two-part time.
-fn time_reached(st: State, t: Real) -> bool {
-    return st.time > t || (st.time == t && st.time_lo >= Real(0.0));
+// `st.time >= t + t_lo` on two-part times (t_lo is zero unless
+// CORNER_CLOCK).
+fn time_reached(st: State, t: Real, t_lo: Real) -> bool {
+    return st.time > t || (st.time == t && st.time_lo >= t_lo);
 }
 
-fn stop_time(c: Coefficients, st: State) -> Real {
+// The next stop (the period end or a drive corner) in two parts.
+struct Stop {
+    at: Real,
+    lo: Real,
+}
+
+fn stop_time(c: Coefficients, st: State) -> Stop {
     let corners = corner_time(c, st);
-    return min(min(c.period, corners.x), corners.y);
+    let at = min(min(c.period, corners.x), corners.y);
+    var lo = Real(0.0);
+    if CORNER_CLOCK {
+        // The low part of the stop that ends first (of equal high parts,
+        // the earlier one).
+        lo = INFINITY;
+        if c.period == at {
+            lo = c.period_lo;
+        }
+        if corners.x == at {
+            lo = min(lo, corner_time_lo(c, st).x);
+        }
+        if corners.y == at {
+            lo = min(lo, corner_time_lo(c, st).y);
+        }
+    }
+    return Stop(at, lo);
 }
 
 fn iterate(c: Coefficients, st: ptr<function, State>) {
@@ -76,20 +105,23 @@ fn iterate(c: Coefficients, st: ptr<function, State>) {
         (*st).settle_x_s = (*st).x_s;
     }
     var stop = stop_time(c, *st);
-    if time_reached(*st, stop) {
+    if time_reached(*st, stop.at, stop.lo) {
         pass_boundaries(c, st);
         if is_finished(c, *st) {
             return;
         }
         stop = stop_time(c, *st);
-        if time_reached(*st, stop) {
+        if time_reached(*st, stop.at, stop.lo) {
             return;
         }
     }
-    let h_max = (stop - (*st).time) - (*st).time_lo;
+    var h_max = (stop.at - (*st).time) - (*st).time_lo;
+    if CORNER_CLOCK {
+        h_max = (stop.at - (*st).time) + (stop.lo - (*st).time_lo);
+    }
     let time_before = (*st).time;
     let time_lo_before = (*st).time_lo;
-    let outcome = step(c, st, h_max, stop);
+    let outcome = step(c, st, h_max, stop.at, stop.lo);
     (*st).steps += 1u;
     if outcome == STEP_MOVED || (*st).status != STATUS_OK {
         if (*st).time > time_before || ((*st).time == time_before && (*st).time_lo > time_lo_before) {

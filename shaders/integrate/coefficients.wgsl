@@ -29,6 +29,14 @@ struct Coefficients {
     fall_slope: V2,
     phase: V2,
     cycles_per_period: V2,
+    // The corner clock (f32, CORNER_CLOCK; drive.wgsl): segment durations
+    // and the first corner's time, each in two parts.
+    rise_time: V2,
+    rise_time_lo: V2,
+    fall_time: V2,
+    fall_time_lo: V2,
+    first_corner: V2,
+    first_corner_lo: V2,
     stage_share: V2,
     slider_share: V2,
     slip_scale: V2,
@@ -42,6 +50,8 @@ struct Coefficients {
     band: Real,
     band2: Real,
     period: Real,
+    period_lo: Real,
+    _pad_real: Real,
     event_step_stuck: Real,
     event_step_slip: Real,
     min_step: Real,

@@ -2,8 +2,19 @@
 
 // Local time of each axis' next drive corner, or INFINITY where undriven.
 fn corner_time(c: Coefficients, st: State) -> V2 {
-    let t = max(div2(st.next_corner - st.cycle_phase, c.frequency), V2(0.0));
+    var t = max(div2(st.next_corner - st.cycle_phase, c.frequency), V2(0.0));
+    if CORNER_CLOCK {
+        t = st.corner_at;
+    }
     return select(V2(INFINITY), t, c.driven == vec2<u32>(1u));
+}
+
+// The low part of `corner_time` (zero unless CORNER_CLOCK).
+fn corner_time_lo(c: Coefficients, st: State) -> V2 {
+    if CORNER_CLOCK {
+        return select(V2(0.0), st.corner_at_lo, c.driven == vec2<u32>(1u));
+    }
+    return V2(0.0);
 }
 
 // The drive force of each axis now, and its slope.
@@ -16,7 +27,13 @@ fn drive_force(c: Coefficients, st: State) -> Drive {
     // With the two-part time (f32) the low part adds its own phase; in f64
     // it is zero and this is the CPU's sum.
     let u = st.cycle_phase + c.frequency * st.time + c.frequency * st.time_lo;
-    let to_corner = max(st.next_corner - u, V2(0.0));
+    var to_corner = max(st.next_corner - u, V2(0.0));
+    if CORNER_CLOCK {
+        // The distance to the corner from the two-part times: exact where
+        // the step stops at the corner, and relative to itself elsewhere.
+        let ahead = (st.corner_at - st.time) + (st.corner_at_lo - st.time_lo);
+        to_corner = max(c.frequency * ahead, V2(0.0));
+    }
     let rising = st.rising == vec2<u32>(1u);
     let w = select(to_corner * c.inv_fall, Real(1.0) - to_corner * c.inv_duty, rising);
     let slope = select(c.fall_slope, c.rise_slope, rising);
@@ -28,15 +45,34 @@ fn drive_force(c: Coefficients, st: State) -> Drive {
 // 1) demands it.
 fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
     let corners = corner_time(c, *st);
-    let reached = vec2<bool>(time_reached(*st, corners.x), time_reached(*st, corners.y));
+    let corners_lo = corner_time_lo(c, *st);
+    let reached = vec2<bool>(
+        time_reached(*st, corners.x, corners_lo.x),
+        time_reached(*st, corners.y, corners_lo.y),
+    );
     let jump = c.duty >= V2(1.0);
     let rising = (*st).rising == vec2<u32>(1u);
     // Duty 1: one corner per cycle; otherwise the rise ends or begins.
     let advance_by = select(select(c.duty, Real(1.0) - c.duty, rising), V2(1.0), jump);
     (*st).next_corner = select((*st).next_corner, (*st).next_corner + advance_by, reached);
     let flips = reached & !jump;
+    if CORNER_CLOCK {
+        // The next corner is a fall after a rise, a rise after a fall, and
+        // a cycle after a jump (duty 1, whose rise_time is the cycle).
+        let falls = flips & rising;
+        let next = select(c.rise_time, c.fall_time, falls);
+        let next_lo = select(c.rise_time_lo, c.fall_time_lo, falls);
+        let moved = add_parts((*st).corner_at, (*st).corner_at_lo, next, next_lo);
+        (*st).corner_at = select((*st).corner_at, moved.hi, reached);
+        (*st).corner_at_lo = select((*st).corner_at_lo, moved.lo, reached);
+    }
     (*st).rising = select((*st).rising, select(vec2<u32>(1u), vec2<u32>(0u), rising), flips);
-    if time_reached(*st, c.period) {
+    if time_reached(*st, c.period, c.period_lo) {
+        if CORNER_CLOCK {
+            let back = add_parts((*st).corner_at, (*st).corner_at_lo, V2(-c.period), V2(-c.period_lo));
+            (*st).corner_at = back.hi;
+            (*st).corner_at_lo = back.lo;
+        }
         (*st).period += 1u;
         (*st).time = Real(0.0);
         (*st).time_lo = Real(0.0);
@@ -81,6 +117,42 @@ fn fixed_start_phase(c: Coefficients, period: u32) -> V2 {
         + vec2<u32>(mul_hi(period, c.cycles_fixed_lo.x), mul_hi(period, c.cycles_fixed_lo.y));
     let p = ldexp(V2(s), vec2<i32>(-32));
     return select(p, V2(0.0), p >= V2(1.0));
+}
+
+// Two-part values (CORNER_CLOCK and the two-part time): Knuth's two-sum
+// keeps the rounding error of an addition. Shader compilers may simplify
+// floating-point algebra (Mesa turns a - (sum - (sum - a)) into 0);
+// multiplying by a 1 they cannot see through (it comes from the control
+// buffer) keeps the sums exact. Mirrored by `two_sum` and `add_parts` in
+// src/cpu/integrate/drive.rs.
+struct Parts {
+    hi: Real,
+    lo: Real,
+}
+
+struct Parts2 {
+    hi: V2,
+    lo: V2,
+}
+
+fn two_sum(a: Real, b: Real) -> Parts {
+    let one = Real(control.one);
+    let sum = (a + b) * one;
+    let bb = (sum - a) * one;
+    return Parts(sum, (a - (sum - bb)) + (b - bb));
+}
+
+fn two_sum2(a: V2, b: V2) -> Parts2 {
+    let one = Real(control.one);
+    let sum = (a + b) * one;
+    let bb = (sum - a) * one;
+    return Parts2(sum, (a - (sum - bb)) + (b - bb));
+}
+
+// (a_hi + a_lo) + (b_hi + b_lo) in two parts.
+fn add_parts(a_hi: V2, a_lo: V2, b_hi: V2, b_lo: V2) -> Parts2 {
+    let s = two_sum2(a_hi, b_hi);
+    return two_sum2(s.hi, s.lo + (a_lo + b_lo));
 }
 
 fn frac(u: V2) -> V2 {

@@ -57,7 +57,7 @@ fn initial_measure(c: Coefficients) -> Measure {
 // checks `c.steady` first and reads `next_end` from the instance's
 // Measure).
 fn at_period_end(c: Coefficients, st: State, next_end: u32) -> bool {
-    return c.steady == 1u && time_reached(st, c.period) && next_end == st.period;
+    return c.steady == 1u && time_reached(st, c.period, c.period_lo) && next_end == st.period;
 }
 
 fn period_end(c: Coefficients, st: ptr<function, State>, m: ptr<function, Measure>) {

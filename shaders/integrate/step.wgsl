@@ -28,7 +28,7 @@ fn direction(s: Sample) -> Direction {
     return out;
 }
 
-fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u32 {
+fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32 {
     let drive = drive_force(c, *st);
     let stuck = (*st).mode == MODE_STICK;
     let slipping = (*st).mode == MODE_SLIP;
@@ -197,7 +197,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u
         }
     }
     if event == EVENT_NONE {
-        move_to(st, end, h, h_max, stop);
+        move_to(st, end, h, h_max, stop, stop_lo);
         if slipping {
             if h < h_max {
                 (*st).h_slip = h * grow_factor(c, err);
@@ -221,7 +221,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real) -> u
                 return STEP_REJECTED;
             }
         }
-        move_to(st, s, event_tau, h_max, stop);
+        move_to(st, s, event_tau, h_max, stop, stop_lo);
         if event == EVENT_BREAKAWAY {
             let need = stick_force(c, *st);
             start_slip(c, st, need);
@@ -311,7 +311,7 @@ fn grow_factor(c: Coefficients, err: Real) -> Real {
     return Real(4.0);
 }
 
-fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Real) {
+fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Real, stop_lo: Real) {
     (*st).x_p = s.x_p;
     (*st).v_p = s.v_p;
     (*st).x_s = s.x_s;
@@ -319,19 +319,11 @@ fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Re
     (*st).v_rel = s.v_rel;
     if tau >= h_max {
         (*st).time = stop;
-        (*st).time_lo = Real(0.0);
+        (*st).time_lo = stop_lo;
     } else if COMPENSATED_TIME {
-        // Knuth's two-sum keeps the rounding error of the addition. Shader
-        // compilers may simplify floating-point algebra (Mesa turns
-        // a - (sum - (sum - a)) into 0); multiplying by a 1 they cannot see
-        // through (it comes from the control buffer) keeps the sum exact.
-        let one = Real(control.one);
-        let a = (*st).time;
-        let b = tau + (*st).time_lo;
-        let sum = (a + b) * one;
-        let bb = (sum - a) * one;
-        (*st).time_lo = (a - (sum - bb)) + (b - bb);
-        (*st).time = sum;
+        let t = two_sum((*st).time, tau + (*st).time_lo);
+        (*st).time = t.hi;
+        (*st).time_lo = t.lo;
     } else {
         (*st).time += tau;
     }

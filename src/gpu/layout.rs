@@ -164,6 +164,7 @@ macro_rules! precision_structs {
         pub mod $module {
             use super::*;
             use crate::cpu::integrate::coefficients::Oscillator as ExactOscillator;
+            use crate::cpu::integrate::drive::CornerClock;
             use crate::cpu::integrate::measure;
             use crate::cpu::integrate::{Coefficients as Exact, Vec2};
 
@@ -215,6 +216,12 @@ macro_rules! precision_structs {
                     pub fall_slope: V2,
                     pub phase: V2,
                     pub cycles_per_period: V2,
+                    pub rise_time: V2,
+                    pub rise_time_lo: V2,
+                    pub fall_time: V2,
+                    pub fall_time_lo: V2,
+                    pub first_corner: V2,
+                    pub first_corner_lo: V2,
                     pub stage_share: V2,
                     pub slider_share: V2,
                     pub slip_scale: V2,
@@ -228,6 +235,8 @@ macro_rules! precision_structs {
                     pub band: Real,
                     pub band2: Real,
                     pub period: Real,
+                    pub period_lo: Real,
+                    pub _pad_real: Real,
                     pub event_step_stuck: Real,
                     pub event_step_slip: Real,
                     pub min_step: Real,
@@ -266,6 +275,8 @@ macro_rules! precision_structs {
                     pub settle_x_s: V2,
                     pub cycle_phase: V2,
                     pub next_corner: V2,
+                    pub corner_at: V2,
+                    pub corner_at_lo: V2,
                     pub time: Real,
                     pub time_lo: Real,
                     pub h_slip: Real,
@@ -387,6 +398,7 @@ macro_rules! precision_structs {
             /// these units and rounded once.
             pub fn pack(inst: &Instance, settings: &Settings) -> Coefficients {
                 let c = Exact::new(&UNITS.scale(inst), settings, $time_epsilon);
+                let clock = CornerClock::new(&c, |x| x as Real as f64);
                 Coefficients {
                     stiffness: v2(c.stiffness),
                     damping: v2(c.damping),
@@ -402,6 +414,12 @@ macro_rules! precision_structs {
                     fall_slope: v2(c.fall_slope),
                     phase: v2(c.phase),
                     cycles_per_period: v2(c.cycles_per_period),
+                    rise_time: v2(clock.rise.0),
+                    rise_time_lo: v2(clock.rise.1),
+                    fall_time: v2(clock.fall.0),
+                    fall_time_lo: v2(clock.fall.1),
+                    first_corner: v2(clock.first.0),
+                    first_corner_lo: v2(clock.first.1),
                     stage_share: v2(c.stage_share),
                     slider_share: v2(c.slider_share),
                     slip_scale: v2(c.slip_scale),
@@ -414,7 +432,9 @@ macro_rules! precision_structs {
                     fc_over_ms: c.fc_over_ms as Real,
                     band: c.band as Real,
                     band2: c.band2 as Real,
-                    period: c.period as Real,
+                    period: clock.period.0 as Real,
+                    period_lo: clock.period.1 as Real,
+                    _pad_real: 0.0,
                     event_step_stuck: c.event_step_stuck as Real,
                     event_step_slip: c.event_step_slip as Real,
                     min_step: c.min_step as Real,

@@ -90,6 +90,79 @@ pub fn fixed_start_phase(c: &Coefficients, period: u32) -> Vec2 {
     Vec2::new(at(0), at(1))
 }
 
+/// The f32 shader's corner clock (`CORNER_CLOCK`): each axis' next drive
+/// corner as a local time in two parts, hi + lo, each in the shader's
+/// precision, advanced by the two-part durations of the drive's segments
+/// and moved back by the two-part period at each period end, so a corner
+/// is known to about 1e-14 of the period where one f32 time within the
+/// period knows it to 6e-8 of the period (about 1e-7 drive cycles): the
+/// random scenes' f32 misses of issue 19 went with per-corner noise of that
+/// size (results/gpu.md). The drive reads its distance to the corner from
+/// the same two parts, so the force reaches its corner value exactly where
+/// the step stops. The f64 paths keep the phase of [`drive_force`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CornerClock {
+    /// Duration of a rise (a whole cycle for duty 1) and of a fall, as
+    /// (hi, lo) [time units].
+    pub rise: (Vec2, Vec2),
+    pub fall: (Vec2, Vec2),
+    /// The local time of the first corner (as [`corner_time`] of the
+    /// initial state).
+    pub first: (Vec2, Vec2),
+    /// The scene period.
+    pub period: (f64, f64),
+}
+
+impl CornerClock {
+    /// The clock of coefficients `c`, each value split into a part that
+    /// `round` (to the shader's precision) leaves unchanged and the rounded
+    /// rest; zero on undriven axes. With `round` the identity (f64) the low
+    /// parts are zero.
+    pub fn new(c: &Coefficients, round: impl Fn(f64) -> f64) -> CornerClock {
+        let split = |x: f64| {
+            let hi = round(x);
+            (hi, round(x - hi))
+        };
+        let per_axis = |f: &dyn Fn(usize) -> f64| {
+            let x = split(if c.driven[0] { f(0) } else { 0.0 });
+            let y = split(if c.driven[1] { f(1) } else { 0.0 });
+            (Vec2::new(x.0, y.0), Vec2::new(x.1, y.1))
+        };
+        let first = |i: usize| {
+            let p = frac(c.phase[i]);
+            let corner = if p < c.duty[i] { c.duty[i] } else { 1.0 };
+            ((corner - p) / c.frequency[i]).max(0.0)
+        };
+        CornerClock {
+            rise: per_axis(&|i| c.duty[i].min(1.0) / c.frequency[i]),
+            fall: per_axis(&|i| (1.0 - c.duty[i]).max(0.0) / c.frequency[i]),
+            first: per_axis(&first),
+            period: split(c.period),
+        }
+    }
+}
+
+/// Knuth's two-sum: `a + b` and its rounding error, exactly (the shader's
+/// `two_sum`, which guards the same operations against compiler algebra).
+pub fn two_sum<T>(a: T, b: T) -> (T, T)
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Sub<Output = T>,
+{
+    let sum = a + b;
+    let bb = sum - a;
+    (sum, (a - (sum - bb)) + (b - bb))
+}
+
+/// (a_hi + a_lo) + (b_hi + b_lo) as a two-part value (the shader's
+/// `add_parts`).
+pub fn add_parts<T>(a: (T, T), b: (T, T)) -> (T, T)
+where
+    T: Copy + std::ops::Add<Output = T> + std::ops::Sub<Output = T>,
+{
+    let (s, e) = two_sum(a.0, b.0);
+    two_sum(s, e + (a.1 + b.1))
+}
+
 /// The fractional part, u - floor(u).
 pub fn frac(u: f64) -> f64 {
     u - u.floor()
@@ -105,6 +178,52 @@ mod tests {
     use super::*;
     use crate::cpu::integrate::Settings;
     use crate::model::Instance;
+
+    /// A corner clock in f32 parts, run through a thousand periods of rises
+    /// and falls the way the shader runs it, stays within 1e-12 of the
+    /// period of the f64 corner times, where one f32 time drifts by 1e-7.
+    #[test]
+    fn two_part_corner_times_stay_exact_in_f32() {
+        let mut inst = Instance::TABLE1;
+        inst.axes[0].duty = 0.8346873373227778;
+        inst.axes[0].frequency = 18.810317121061885;
+        inst.axes[0].phase = 0.9206799357119667;
+        let c = Coefficients::new(&inst, &Settings::default(), f64::EPSILON);
+        let f32_parts = CornerClock::new(&c, |x| x as f32 as f64);
+        let exact = CornerClock::new(&c, |x| x);
+        assert_eq!(exact.rise.1, Vec2::ZERO);
+        let part = |p: (Vec2, Vec2)| (p.0.x as f32, p.1.x as f32);
+        let (rise, fall) = (part(f32_parts.rise), part(f32_parts.fall));
+        let period = (f32_parts.period.0 as f32, f32_parts.period.1 as f32);
+        let mut at = part(f32_parts.first);
+        let mut plain = at.0;
+        let mut truth = exact.first.0.x;
+        let mut rising = frac(inst.axes[0].phase) < inst.axes[0].duty;
+        let mut worst: f64 = 0.0;
+        let mut worst_plain: f64 = 0.0;
+        for _ in 0..1000 {
+            while truth < c.period {
+                let seg = if rising { fall } else { rise };
+                let seg_exact = if rising {
+                    exact.fall.0.x
+                } else {
+                    exact.rise.0.x
+                };
+                at = add_parts(at, seg);
+                plain += seg.0;
+                truth += seg_exact;
+                rising = !rising;
+                let got = at.0 as f64 + at.1 as f64;
+                worst = worst.max((got - truth).abs());
+                worst_plain = worst_plain.max((plain as f64 - truth).abs());
+            }
+            at = add_parts(at, (-period.0, -period.1));
+            plain -= period.0;
+            truth -= c.period;
+        }
+        assert!(worst < 1e-12 * c.period, "two-part {worst:e} s");
+        assert!(worst_plain > 1e-8 * c.period, "one f32 {worst_plain:e} s");
+    }
 
     #[test]
     fn mul_hi_is_the_high_word() {
