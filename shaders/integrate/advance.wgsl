@@ -60,6 +60,12 @@ fn initial_state(c: Coefficients) -> State {
     st.rejections = 0u;
     st.measured = 0u;
     st._pad = Real(0.0);
+    if DEFLECTION {
+        // At rest at zero: deflected by minus the drive's static motion.
+        let drive = drive_force(c, st);
+        st.x_p = -drive.force * c.inv_stiffness;
+        st.v_p = -drive.slope * c.inv_stiffness;
+    }
     return st;
 }
 

@@ -44,6 +44,7 @@ fn drive_force(c: Coefficients, st: State) -> Drive {
 // time, then lets a stuck slider break loose if a jump of the drive (duty
 // 1) demands it.
 fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
+    let before = drive_force(c, *st);
     let corners = corner_time(c, *st);
     let corners_lo = corner_time_lo(c, *st);
     let reached = vec2<bool>(
@@ -67,6 +68,15 @@ fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
         (*st).corner_at_lo = select((*st).corner_at_lo, moved.lo, reached);
     }
     (*st).rising = select((*st).rising, select(vec2<u32>(1u), vec2<u32>(0u), rising), flips);
+    if DEFLECTION {
+        // The deflections follow the drive's static motion across the
+        // corner: its slope changes, and its force jumps at duty 1.
+        let after = drive_force(c, *st);
+        let d = (before.force - after.force) * c.inv_stiffness;
+        let u = (before.slope - after.slope) * c.inv_stiffness;
+        (*st).x_p = select((*st).x_p, (*st).x_p + d, reached);
+        (*st).v_p = select((*st).v_p, (*st).v_p + u, reached);
+    }
     if time_reached(*st, c.period, c.period_lo) {
         if CORNER_CLOCK {
             let back = add_parts((*st).corner_at, (*st).corner_at_lo, V2(-c.period), V2(-c.period_lo));

@@ -52,6 +52,13 @@ struct Flow {
     g0: V2,
     g1: V2,
     g2: V2,
+    // DEFLECTION (f32): g0 - drive force, g1 - drive slope, and the drive's
+    // static velocity slope / k; x_p and v_p are then the stage's
+    // deflection from the drive's static position F / k and its velocity
+    // relative to slope / k (see `make_flow`).
+    g0_rel: V2,
+    g1_rel: V2,
+    ramp: V2,
     taylor: vec2<bool>,
 }
 
@@ -158,14 +165,18 @@ fn make_flow(
 ) -> Flow {
     let inv_h = recip(h);
     var osc = c.slip;
-    var g0 = force - c.coulomb * dir.b0;
-    var g1 = slope - c.coulomb * dir.b1 * inv_h;
+    var g0_rel = -c.coulomb * dir.b0;
+    var g1_rel = -c.coulomb * dir.b1 * inv_h;
+    var g0 = force + g0_rel;
+    var g1 = slope + g1_rel;
     var g2 = -c.coulomb * dir.b2 * (inv_h * inv_h);
     if stuck {
         osc = c.stick;
         g0 = force;
         g1 = slope;
         g2 = V2(0.0);
+        g0_rel = V2(0.0);
+        g1_rel = V2(0.0);
     }
     let x2 = g2 * c.inv_stiffness;
     let x1 = (g1 - Real(2.0) * c.damping * x2) * c.inv_stiffness;
@@ -183,6 +194,19 @@ fn make_flow(
     f.part2 = x2;
     f.y0 = x_p - x0;
     f.w0 = v_p - x1;
+    f.g0_rel = g0_rel;
+    f.g1_rel = g1_rel;
+    f.ramp = slope * c.inv_stiffness;
+    if DEFLECTION {
+        // x_p and v_p are deflections (x_p - F / k, v_p - slope / k): the
+        // homogeneous part's start is their sum with the small offsets of
+        // the particular solution from the drive's static motion, with no
+        // difference of two large positions (f32 would know it only to
+        // 6e-8 of the stage's position).
+        f.part1 = (g1_rel - Real(2.0) * c.damping * x2) * c.inv_stiffness;
+        f.y0 = x_p + (c.damping * x1 + Real(2.0) * osc.mass * x2 - g0_rel) * c.inv_stiffness;
+        f.w0 = v_p + (Real(2.0) * c.damping * x2 - g1_rel) * c.inv_stiffness;
+    }
     f.x_p = x_p;
     f.v_p = v_p;
     f.x_s = x_s;
@@ -227,6 +251,11 @@ fn eval_stage_taylor(f: Flow, tau: Real) -> Stage {
     var d1 = f.v_p;
     var d2 = (f.g0 - f.damping * d1 - f.stiffness * d0) * o.inv_mass;
     var d3 = (f.g1 - f.damping * d2 - f.stiffness * d1) * o.inv_mass;
+    if DEFLECTION {
+        // The same derivatives from the deflections (F - k x_p = -k d).
+        d2 = (f.g0_rel - f.damping * (d1 + f.ramp) - f.stiffness * d0) * o.inv_mass;
+        d3 = (f.g1_rel - f.damping * d2 - f.stiffness * d1) * o.inv_mass;
+    }
     var t = Real(1.0);
     let rate_tau = o.rate * tau;
     var bound = V2(1.0);
@@ -276,6 +305,10 @@ fn eval_flow(flow: Flow, prop: Propagator, tau: Real) -> Sample {
     if flow.stuck {
         s.x_s = flow.x_s + (st.x - flow.x_p);
         s.v_s = v;
+        if DEFLECTION {
+            s.x_s = flow.x_s + ((st.x - flow.x_p) + flow.ramp * tau);
+            s.v_s = v + flow.ramp;
+        }
         s.a_s = st.a;
         s.v_rel = V2(0.0);
     } else {

@@ -354,9 +354,14 @@ fn initial_slip_step(c: Coefficients, st: State, h_max: Real) -> Real {
 }
 
 fn stick_force(c: Coefficients, st: State) -> V2 {
-    let force = drive_force(c, st).force;
+    let drive = drive_force(c, st);
+    if DEFLECTION {
+        // F - k x_p = -k d: the force balance without the drive force.
+        let v = c.stage_share * (st.v_p + drive.slope * c.inv_stiffness) + c.slider_share * st.v_s;
+        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p);
+    }
     let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
-    let p = force - c.damping * v - c.stiffness * st.x_p;
+    let p = drive.force - c.damping * v - c.stiffness * st.x_p;
     return c.slider_share * p;
 }
 
@@ -395,9 +400,18 @@ fn start_slip(c: Coefficients, st: ptr<function, State>, need: V2) {
 
 fn try_stick(c: Coefficients, st: ptr<function, State>) {
     let need = stick_force(c, *st);
-    let v = c.stage_share * (*st).v_p + c.slider_share * (*st).v_s;
-    (*st).v_p = v;
-    (*st).v_s = v;
+    if DEFLECTION {
+        // The merged velocity relative to the drive's static velocity
+        // (with v_s = v_p - v_rel, no difference of two speeds), and
+        // absolute for the slider.
+        let u = (*st).v_p - c.slider_share * (*st).v_rel;
+        (*st).v_p = u;
+        (*st).v_s = u + drive_force(c, *st).slope * c.inv_stiffness;
+    } else {
+        let v = c.stage_share * (*st).v_p + c.slider_share * (*st).v_s;
+        (*st).v_p = v;
+        (*st).v_s = v;
+    }
     (*st).v_rel = V2(0.0);
     if dot(need, need) <= c.hold2 {
         (*st).mode = MODE_STICK;
