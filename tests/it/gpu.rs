@@ -997,6 +997,28 @@ fn f32_drive_corners_from_the_two_part_clock_match_the_cpu() {
     check_f32(ctx, "drive corners of the two-part clock", &instances);
 }
 
+/// Issue 19: the f32 stage deflections. The eight `pidm random-scene
+/// --count 3000` instances (seeds 4, 11, 21, 32, 34) that the f32 shader
+/// with the corner clock but absolute stage positions got wrong (1.1 to
+/// 124 times the allowance, up to 9.4 um, at band entries and breakaways
+/// within 1e-3 of their thresholds) and that it gets right with the stage's
+/// deflection from the drive's static position as its state
+/// (results/gpu.md). They must agree with the CPU in f64 at 0.005 um + 1 %.
+#[test]
+fn f32_stage_deflections_decide_close_calls_as_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let instances = random_picks(&[
+        (4, &[43, 382, 1809]),
+        (11, &[902]),
+        (21, &[2776]),
+        (32, &[1524]),
+        (34, &[943, 2689]),
+    ]);
+    check_f32(ctx, "stage deflections", &instances);
+}
+
 /// The self-test refuses a pipeline whose results disagree with the CPU
 /// reference, in f32 as in f64, with a message that names the precision,
 /// the axis and both values: fed a reference shifted by 1 um per step
