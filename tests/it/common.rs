@@ -2,9 +2,18 @@
 //! repository, and the paper's reference cases.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::{Child, Command, Output};
 
 use pidm::model::{Axis, Instance};
+
+/// Sends signal `name` ("INT", "KILL", "STOP", ...) to a child process.
+pub fn signal(child: &Child, name: &str) {
+    let sent = Command::new("kill")
+        .args([&format!("-{name}"), &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success(), "kill -{name} failed");
+}
 
 /// Runs the `pidm` binary built with these tests in `dir`.
 ///

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{pidm, s};
+use crate::common::{pidm, s, signal};
 use pidm::output::compare_contents;
 
 fn ok(out: &Output) -> String {
@@ -292,11 +292,7 @@ fn a_killed_or_interrupted_run_resumes_to_the_uninterrupted_file() {
             child.try_wait().unwrap().is_none(),
             "the run ended too soon"
         );
-        let kill = Command::new("kill")
-            .args([&format!("-{signal}"), &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(kill.success());
+        crate::common::signal(&child, signal);
         let ended = child.wait_with_output().unwrap();
         assert!(!ended.status.success(), "{signal}: the run was not stopped");
         if signal == "INT" {
@@ -355,15 +351,8 @@ fn a_killed_or_interrupted_run_resumes_to_the_uninterrupted_file() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let signal = |name: &str| {
-        let sent = Command::new("kill")
-            .args([name, &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(sent.success());
-    };
     wait_for_checkpoint(&checkpoint, 1, chunk);
-    signal("-STOP");
+    signal(&child, "STOP");
     let partial = d.join(".long.h5.partial");
     let journal = std::fs::read(&checkpoint).unwrap();
     let partial_len = std::fs::metadata(&partial).unwrap().len();
@@ -375,7 +364,7 @@ fn a_killed_or_interrupted_run_resumes_to_the_uninterrupted_file() {
         assert_eq!(std::fs::read(&checkpoint).unwrap(), journal);
         assert_eq!(std::fs::metadata(&partial).unwrap().len(), partial_len);
     }
-    signal("-CONT");
+    signal(&child, "CONT");
     let ended = child.wait_with_output().unwrap();
     assert!(ended.status.success());
     compare_contents(&whole, &out).unwrap();
@@ -603,11 +592,7 @@ fn ctrl_c_stops_a_long_instance_at_once_and_writes_nothing() {
     wait_for_checkpoint(&d.join(".endless.h5.checkpoint"), 0, 1);
     std::thread::sleep(Duration::from_millis(300));
     let asked = Instant::now();
-    let kill = Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(kill.success());
+    signal(&child, "INT");
     let ended = child.wait_with_output().unwrap();
     let waited = asked.elapsed();
     let err = String::from_utf8_lossy(&ended.stderr);

@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{pidm, s};
+use crate::common::{pidm, s, signal};
 
 /// A 4 x 5 grid with baselines, `cycles` cycles each (40: a few hundred
 /// milliseconds of work on one thread).
@@ -175,14 +175,6 @@ fn spawn(args: &[&str], dir: &Path) -> Child {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap()
-}
-
-fn signal(child: &Child, name: &str) {
-    let sent = Command::new("kill")
-        .args([&format!("-{name}"), &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(sent.success());
 }
 
 /// One instance of ten million cycles (hours), stopped by `name` once its

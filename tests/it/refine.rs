@@ -429,11 +429,7 @@ fn a_refined_run_resumes_in_the_middle_of_a_level_to_the_uninterrupted_file() {
             child.try_wait().unwrap().is_none(),
             "the run ended too soon"
         );
-        let kill = Command::new("kill")
-            .args([&format!("-{signal}"), &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(kill.success());
+        crate::common::signal(&child, signal);
         let ended = child.wait_with_output().unwrap();
         assert!(!ended.status.success(), "{signal}: the run was not stopped");
         assert!(!out.exists());
