@@ -92,15 +92,16 @@ fn stop_time(c: Coefficients, st: State) -> Stop {
     if CORNER_CLOCK {
         // The low part of the stop that ends first (of equal high parts,
         // the earlier one).
+        let corners_lo = corner_time_lo(c, st);
         lo = INFINITY;
         if c.period == at {
             lo = c.period_lo;
         }
         if corners.x == at {
-            lo = min(lo, corner_time_lo(c, st).x);
+            lo = min(lo, corners_lo.x);
         }
         if corners.y == at {
-            lo = min(lo, corner_time_lo(c, st).y);
+            lo = min(lo, corners_lo.y);
         }
     }
     return Stop(at, lo);

@@ -44,7 +44,11 @@ fn drive_force(c: Coefficients, st: State) -> Drive {
 // time, then lets a stuck slider break loose if a jump of the drive (duty
 // 1) demands it.
 fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
-    let before = drive_force(c, *st);
+    // The drive just before the corners, which DEFLECTION follows.
+    var before = Drive(V2(0.0), V2(0.0));
+    if DEFLECTION {
+        before = drive_force(c, *st);
+    }
     let corners = corner_time(c, *st);
     let corners_lo = corner_time_lo(c, *st);
     let reached = vec2<bool>(
