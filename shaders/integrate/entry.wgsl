@@ -44,7 +44,10 @@ struct Control {
 @group(0) @binding(4) var<storage, read_write> lanes: array<u32>;
 // The steady measurement's accumulators per instance (measure.wgsl), read
 // and written only at the period ends of steady instances; a batch of
-// windows binds a single unused entry.
+// windows binds a single unused entry. The pipeline of a batch of windows
+// is compiled with STEADY false and has none of this code: on llvmpipe its
+// mere presence in the loop made every window run about a third slower
+// (results/gpu.md).
 @group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -65,7 +68,7 @@ fn advance_slice(
     var st: State;
     if control.initialize == 1u {
         st = initial_state(c);
-        if c.steady == 1u {
+        if STEADY && c.steady == 1u {
             measures[index] = initial_measure(c);
         }
     } else {
@@ -83,7 +86,7 @@ fn advance_slice(
             }
             c = coefficients[index];
             st = initial_state(c);
-            if c.steady == 1u {
+            if STEADY && c.steady == 1u {
                 measures[index] = initial_measure(c);
             }
         }
@@ -122,7 +125,7 @@ fn advance(c: Coefficients, st: ptr<function, State>, index: u32, max_iterations
         if is_finished(c, *st) {
             break;
         }
-        if c.steady == 1u && at_period_end(c, *st, measures[index].next_end) {
+        if STEADY && c.steady == 1u && at_period_end(c, *st, measures[index].next_end) {
             var m = measures[index];
             if LOOP_LIMITER {
                 let before = *st;
