@@ -93,6 +93,27 @@ fn advance_slice(
         if left == 0u {
             break;
         }
+        if STEADY && c.steady == 1u && at_period_end(c, st, measures[index].next_end) {
+            // A period end of a steady measurement, before the iteration
+            // that passes it (as the CPU's `advance_observed`); its
+            // accumulators are copied in and written back only here, and
+            // only once the loop limiter has let the update complete. It
+            // stands outside `advance` so that the loop of iterations
+            // carries none of its code (on llvmpipe that code's presence in
+            // the loop slows every iteration).
+            var m = measures[index];
+            let before = st;
+            period_end(c, &st, &m);
+            if LOOP_LIMITER && !loop_limiter_intact(st.steps) {
+                st = before;
+                if left == control.max_iterations {
+                    st.status = STATUS_LOOP_LIMIT;
+                }
+                break;
+            }
+            measures[index] = m;
+            continue;
+        }
         let run = advance(c, &st, index, left, left == control.max_iterations);
         left -= run.iterations;
         if run.cut {
@@ -126,24 +147,8 @@ fn advance(c: Coefficients, st: ptr<function, State>, index: u32, max_iterations
             break;
         }
         if STEADY && c.steady == 1u && at_period_end(c, *st, measures[index].next_end) {
-            var m = measures[index];
-            if LOOP_LIMITER {
-                let before = *st;
-                period_end(c, st, &m);
-                if !loop_limiter_intact((*st).steps) {
-                    *st = before;
-                    if iteration == 0u && fresh {
-                        (*st).status = STATUS_LOOP_LIMIT;
-                    }
-                    return Advance(iteration, true);
-                }
-            } else {
-                period_end(c, st, &m);
-            }
-            measures[index] = m;
-            if is_finished(c, *st) {
-                break;
-            }
+            // The lane's loop processes it (above).
+            break;
         }
         if LOOP_LIMITER {
             // An iteration cut short by the driver's loop limiter is undone
