@@ -46,7 +46,6 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         opts.precision,
         opts.threads,
         integrations_for_choice(&scene, opts.scope),
-        matches!(scene.instance(0).measure, Measure::Steady { .. }),
     )?;
     let backend = selected.as_ref();
     let out = match (&opts.out, opts.scope.shard) {
@@ -996,13 +995,7 @@ pub fn refine_study(
         bail!("{}: the scene has no [refine]", scene_path.display());
     };
     crate::run::install_interrupt_handler();
-    let selected = select_backend(
-        choice,
-        None,
-        None,
-        scene.instance_count(),
-        matches!(scene.instance(0).measure, Measure::Steady { .. }),
-    )?;
+    let selected = select_backend(choice, None, None, scene.instance_count())?;
     let backend = selected.as_ref();
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;

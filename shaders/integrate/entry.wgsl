@@ -44,10 +44,7 @@ struct Control {
 @group(0) @binding(4) var<storage, read_write> lanes: array<u32>;
 // The steady measurement's accumulators per instance (measure.wgsl), read
 // and written only at the period ends of steady instances; a batch of
-// windows binds a single unused entry. The pipeline of a batch of windows
-// is compiled with STEADY false and has none of this code: on llvmpipe its
-// mere presence in the loop made every window run about a third slower
-// (results/gpu.md).
+// windows binds a single unused entry.
 @group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -68,7 +65,7 @@ fn advance_slice(
     var st: State;
     if control.initialize == 1u {
         st = initial_state(c);
-        if STEADY && c.steady == 1u {
+        if c.steady == 1u {
             measures[index] = initial_measure(c);
         }
     } else {
@@ -86,14 +83,14 @@ fn advance_slice(
             }
             c = coefficients[index];
             st = initial_state(c);
-            if STEADY && c.steady == 1u {
+            if c.steady == 1u {
                 measures[index] = initial_measure(c);
             }
         }
         if left == 0u {
             break;
         }
-        if STEADY && c.steady == 1u && at_period_end(c, st, measures[index].next_end) {
+        if c.steady == 1u && at_period_end(c, st, measures[index].next_end) {
             // A period end of a steady measurement, before the iteration
             // that passes it (as the CPU's `advance_observed`); its
             // accumulators are copied in and written back only here, and
@@ -146,7 +143,7 @@ fn advance(c: Coefficients, st: ptr<function, State>, index: u32, max_iterations
         if is_finished(c, *st) {
             break;
         }
-        if STEADY && c.steady == 1u && at_period_end(c, *st, measures[index].next_end) {
+        if c.steady == 1u && at_period_end(c, *st, measures[index].next_end) {
             // The lane's loop processes it (above).
             break;
         }

@@ -37,16 +37,6 @@ impl GpuBackend {
         Ok(GpuBackend { ctx, precision })
     }
 
-    /// Compiles and self-tests the pipeline of steady measurements too
-    /// (batches of windows run one without their code, `Variant::steady`):
-    /// for a scene that measures steadily, so that a driver that cannot
-    /// run it is found before any work, as [`GpuBackend::new`] does for
-    /// windows. Without this call it is built at the first steady batch.
-    pub fn prepare_steady(&self) -> Result<()> {
-        self.ctx.prepare_variant(self.precision, true)?;
-        Ok(())
-    }
-
     /// "GPU ready in 0.21 s (...)": what opening the device, creating the
     /// pipeline and its self-test cost.
     pub fn readiness(&self) -> String {

@@ -72,23 +72,13 @@ pub fn auto_choice(adapter: AdapterFacts, precision: Option<Precision>) -> AutoC
 
 /// Picks the backend and says which in one line on stderr. `integrations`
 /// is the number of distinct integrations the run will compute (an upper
-/// bound will do), which `auto` weighs against the CPU's threads; `steady`
-/// says the run measures steadily, so a GPU prepares that pipeline too
-/// ([`GpuBackend::prepare_steady`]) before any work.
+/// bound will do), which `auto` weighs against the CPU's threads.
 pub fn select_backend(
     choice: BackendChoice,
     precision: Option<Precision>,
     threads: Option<usize>,
     integrations: u64,
-    steady: bool,
 ) -> Result<Box<dyn Backend>> {
-    let open = |ctx: GpuContext, precision: Precision| -> Result<GpuBackend> {
-        let gpu = GpuBackend::new(ctx, precision)?;
-        if steady {
-            gpu.prepare_steady()?;
-        }
-        Ok(gpu)
-    };
     // f64 where the adapter has it: on the GPUs measured it costs no more
     // than f32 (the integrator waits on branches, not arithmetic) and it
     // follows the CPU reference to rounding.
@@ -120,7 +110,7 @@ pub fn select_backend(
                      CPU: {name}"
                 );
             }
-            let gpu = open(ctx, precision)?;
+            let gpu = GpuBackend::new(ctx, precision)?;
             eprintln!("pidm: {}", gpu.readiness());
             Box::new(gpu)
         }
@@ -166,7 +156,7 @@ pub fn select_backend(
                          results/gpu.md; --backend cpu runs f64)"
                     );
                 }
-                match open(ctx, precision) {
+                match GpuBackend::new(ctx, precision) {
                     Ok(gpu) => {
                         eprintln!("pidm: {}", gpu.readiness());
                         Box::new(gpu)

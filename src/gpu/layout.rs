@@ -585,7 +585,6 @@ mod tests {
             let variant = crate::gpu::Variant {
                 precision,
                 loop_limiter: false,
-                steady: true,
             };
             let (module, _info) = match crate::gpu::shader::parse_and_validate(variant) {
                 Ok(m) => m,

@@ -470,10 +470,9 @@ pub struct GpuContext {
     health: Arc<DeviceHealth>,
     /// The driver's pipeline cache, where the adapter offers one.
     cache: Option<cache::DiskCache>,
-    /// Compiled and self-tested pipelines, [F32 windows, F32 steady, F64
-    /// windows, F64 steady] (see [`Variant::steady`]), built on first use,
+    /// Compiled and self-tested pipelines, [F32, F64], built on first use,
     /// with what building them cost.
-    pipelines: Mutex<[Option<(wgpu::ComputePipeline, Preparation)>; 4]>,
+    pipelines: Mutex<[Option<(wgpu::ComputePipeline, Preparation)>; 2]>,
     /// Time to find the adapter and open the device [s].
     opened_in: f64,
     /// The part of `opened_in` before the device was requested [s].
@@ -602,7 +601,7 @@ impl GpuContext {
             limits,
             health,
             cache,
-            pipelines: Mutex::new([None, None, None, None]),
+            pipelines: Mutex::new([None, None]),
             opened_in: started.elapsed().as_secs_f64(),
             adapters_in: 0.0,
             busy: Mutex::new(()),
@@ -651,13 +650,11 @@ impl GpuContext {
         &self.queue
     }
 
-    /// The shader variant this adapter runs in a precision, for batches
-    /// with steady measurements or of windows only.
-    pub fn variant(&self, precision: Precision, steady: bool) -> Variant {
+    /// The shader variant this adapter runs in a precision.
+    pub fn variant(&self, precision: Precision) -> Variant {
         Variant {
             precision,
             loop_limiter: has_loop_limiter(&self.info),
-            steady,
         }
     }
 
@@ -672,10 +669,10 @@ impl GpuContext {
         }
     }
 
-    /// Compiles the pipeline of a precision for batches of windows and
-    /// tests it against the CPU, once per context; a later call returns the
-    /// first outcome's pipeline. Every driver failure becomes an error here,
-    /// before any instance of a run is integrated.
+    /// Compiles the pipeline of a precision and tests it against the CPU,
+    /// once per context; a later call returns the first outcome's pipeline.
+    /// Every driver failure becomes an error here, before any instance of a
+    /// run is integrated.
     pub fn prepare(&self, precision: Precision) -> Result<wgpu::ComputePipeline, GpuError> {
         self.prepare_timed(precision).map(|(p, _)| p)
     }
@@ -686,16 +683,6 @@ impl GpuContext {
         &self,
         precision: Precision,
     ) -> Result<(wgpu::ComputePipeline, Preparation), GpuError> {
-        self.prepare_variant(precision, false)
-    }
-
-    /// [`GpuContext::prepare_timed`] for the pipeline that also runs steady
-    /// measurements (`steady`) or for the one of windows only.
-    pub fn prepare_variant(
-        &self,
-        precision: Precision,
-        steady: bool,
-    ) -> Result<(wgpu::ComputePipeline, Preparation), GpuError> {
         if precision == Precision::F64 && !self.f64 {
             return Err(GpuError::F64Unsupported {
                 adapter: self.describe(),
@@ -703,14 +690,14 @@ impl GpuContext {
         }
         let slot = match precision {
             Precision::F32 => 0,
-            Precision::F64 => 2,
-        } + steady as usize;
+            Precision::F64 => 1,
+        };
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(p) = &pipelines[slot] {
             return Ok(p.clone());
         }
         let started = std::time::Instant::now();
-        let variant = self.variant(precision, steady);
+        let variant = self.variant(precision);
         let pipeline = create_pipeline(
             &self.device,
             variant,
@@ -718,7 +705,7 @@ impl GpuContext {
         )?;
         self.check_health()?;
         let compiled = started.elapsed().as_secs_f64();
-        self.self_test(&pipeline, variant, 0.0)?;
+        self.self_test(&pipeline, precision, 0.0)?;
         let tested = started.elapsed().as_secs_f64();
         if let Some(cache) = &self.cache {
             cache.save();
@@ -744,29 +731,26 @@ impl GpuContext {
                 adapter: self.describe(),
             });
         }
-        let variant = self.variant(precision, true);
         let pipeline = create_pipeline(
             &self.device,
-            variant,
+            self.variant(precision),
             self.cache.as_ref().map(|c| c.cache()),
         )?;
         self.check_health()?;
-        self.self_test(&pipeline, variant, skew)
+        self.self_test(&pipeline, precision, skew)
     }
 
     /// Runs the self-test batch (MODEL.md's Fig. 8 case, two periods, and
-    /// its 1-DOF x baseline, and for a steady pipeline a steady measurement)
-    /// on a fresh pipeline and compares with the CPU.
+    /// its 1-DOF x baseline) on a fresh pipeline and compares with the CPU.
     /// `skew` [m] is added to the CPU reference's steps: zero for the real
     /// test; [`GpuContext::self_test_skewed`] lets tests feed a wrong
     /// reference to check that the pipeline is refused.
     fn self_test(
         &self,
         pipeline: &wgpu::ComputePipeline,
-        variant: Variant,
+        precision: Precision,
         skew: f64,
     ) -> Result<(), GpuError> {
-        let precision = variant.precision;
         let mut fig8 = Instance::TABLE1;
         fig8.axes[1].frequency = 20.0;
         fig8.cycles = 2;
@@ -779,8 +763,7 @@ impl GpuContext {
         steady.measure = Measure::Steady {
             step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
         };
-        let all = [fig8, fig8.baseline(0), steady];
-        let instances = &all[..if variant.steady { 3 } else { 2 }];
+        let instances = [fig8, fig8.baseline(0), steady];
         let settings = Settings::default();
         let fail = |message: String| GpuError::SelfTest {
             precision,
@@ -792,9 +775,9 @@ impl GpuContext {
             &self.queue,
             pipeline,
             &self.limits,
-            instances,
+            &instances,
             &settings,
-            variant,
+            precision,
             &BatchOptions::default(),
             &mut |_, _| {},
         );
@@ -917,8 +900,7 @@ pub fn run_batch_with(
     options: &BatchOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
-    let steady = has_steady(instances);
-    let (pipeline, _) = ctx.prepare_variant(precision, steady)?;
+    let pipeline = ctx.prepare(precision)?;
     let out = {
         let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
         execute_gpu_inner(
@@ -928,7 +910,7 @@ pub fn run_batch_with(
             &ctx.limits,
             instances,
             settings,
-            ctx.variant(precision, steady),
+            precision,
             options,
             progress,
         )
@@ -939,17 +921,9 @@ pub fn run_batch_with(
     out
 }
 
-/// Whether a batch has steady measurements, so needs the pipeline of
-/// [`Variant::steady`].
-pub fn has_steady(instances: &[Instance]) -> bool {
-    instances
-        .iter()
-        .any(|inst| matches!(inst.measure, Measure::Steady { .. }))
-}
-
 /// The work of [`run_batch`] on any device: `pipeline` must come from
-/// [`create_pipeline`] on that device with `variant`, steady where the
-/// batch [`has_steady`] measurements, and `limits` are the device's.
+/// [`create_pipeline`] on that device with the same precision, and `limits`
+/// are the device's.
 #[allow(clippy::too_many_arguments)]
 pub fn execute_gpu_inner(
     device: &wgpu::Device,
@@ -958,17 +932,10 @@ pub fn execute_gpu_inner(
     limits: &wgpu::Limits,
     instances: &[Instance],
     settings: &Settings,
-    variant: Variant,
+    precision: Precision,
     options: &BatchOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
-    // A pipeline of windows has no steady code: it would run a steady
-    // instance to max_cycles as a window, silently.
-    assert!(
-        variant.steady || !has_steady(instances),
-        "a batch with steady measurements needs the steady pipeline"
-    );
-    let precision = variant.precision;
     let run = Runner {
         device,
         queue,

@@ -66,11 +66,6 @@ pub struct Variant {
     /// (llvmpipe): the shader then checks every iteration and undoes those
     /// the limiter cut short. Hardware adapters leave the check out.
     pub loop_limiter: bool,
-    /// The pipeline runs steady measurements (MODEL.md section 4). Batches
-    /// of windows only leave the steady measurement's code out (`STEADY`
-    /// false): on llvmpipe its presence in the loop, never executed, made
-    /// windows about a third slower (results/gpu.md).
-    pub steady: bool,
 }
 
 /// The f64 arithmetic helpers. NVIDIA's Vulkan compiler (driver 580) fails
@@ -207,11 +202,9 @@ pub fn prelude(variant: Variant) -> String {
          {body}alias V2 = vec2<Real>;\n\
          const WORKGROUP_SIZE: u32 = {workgroup}u;\n\
          const LOOP_LIMITER: bool = {limiter};\n\
-         const STEADY: bool = {steady};\n\
          const STATUS_LOOP_LIMIT: u32 = {STATUS_LOOP_LIMIT}u;\n\
          {constants}\n{helpers}\n{COMMON_HELPERS}\n{inverse}\n",
         limiter = variant.loop_limiter,
-        steady = variant.steady,
         workgroup = workgroup_size(),
         constants = constants::wgsl_constants() + &measure::wgsl_constants(),
         inverse = inverse_integer_fn(),
@@ -264,13 +257,10 @@ mod tests {
     fn variants() -> Vec<Variant> {
         let mut out = Vec::new();
         for precision in [Precision::F32, Precision::F64] {
-            for (loop_limiter, steady) in
-                [(false, false), (false, true), (true, false), (true, true)]
-            {
+            for loop_limiter in [false, true] {
                 out.push(Variant {
                     precision,
                     loop_limiter,
-                    steady,
                 });
             }
         }
@@ -428,7 +418,6 @@ mod tests {
         let variant = Variant {
             precision: Precision::F64,
             loop_limiter: false,
-            steady: true,
         };
         let (module, info) = parse_and_validate(variant).unwrap();
         let is_f64 = |ty: &naga::TypeInner| {

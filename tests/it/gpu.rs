@@ -462,48 +462,6 @@ fn split_batches_match_one_batch() {
     assert!(seen.len() >= 3);
 }
 
-/// A batch of windows runs on the pipeline without the steady
-/// measurement's code (`Variant::steady` false, a third faster on
-/// lavapipe): its outcomes equal the steady pipeline's bit for bit, in both
-/// precisions, and a batch with a steady measurement is refused by it.
-#[test]
-fn windows_run_on_the_pipeline_without_steady_code_unchanged() {
-    let Some(ctx) = context() else {
-        return;
-    };
-    let instances = table1_cases();
-    let settings = Settings::default();
-    for precision in precisions(ctx) {
-        let run = |steady: bool, instances: &[Instance]| {
-            let variant = ctx.variant(precision, steady);
-            let pipeline = pidm::gpu::create_pipeline(ctx.device(), variant, None).unwrap();
-            pidm::gpu::execute_gpu_inner(
-                ctx.device(),
-                ctx.queue(),
-                &pipeline,
-                ctx.limits(),
-                instances,
-                &settings,
-                variant,
-                &BatchOptions::default(),
-                &mut |_, _| {},
-            )
-            .unwrap()
-        };
-        assert_eq!(run(false, &instances), run(true, &instances), "{precision}");
-        let mut steady = instances[0];
-        steady.measure = Measure::Steady {
-            step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
-        };
-        let refused =
-            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| run(false, &[steady])));
-        assert!(
-            refused.is_err(),
-            "{precision}: a steady batch ran as windows"
-        );
-    }
-}
-
 /// Lanes that take one instance after another (two lanes for seven
 /// instances, in 7-iteration slices, so instances end and begin inside
 /// dispatches) give the outcomes of one lane per instance, bit for bit.
@@ -643,7 +601,7 @@ fn loop_limit_falls_back_to_the_cpu() {
         assert!(gpu.iter().all(|g| g.status != pidm::gpu::STATUS_LOOP_LIMIT));
         // On llvmpipe no iteration completes its probe, so every instance
         // falls back (and says so); other drivers run them all.
-        let expected = ctx.variant(precision, false).loop_limiter;
+        let expected = ctx.variant(precision).loop_limiter;
         assert!(
             gpu.iter().all(|g| g.cpu_fallback == expected),
             "{precision:?}: fallbacks {:?}, expected all {expected}",
