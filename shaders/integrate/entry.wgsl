@@ -132,11 +132,9 @@ struct Advance {
 }
 
 // At most `max_iterations` iterations of one instance (`index`), up to its
-// end. `fresh` says the lane has completed no iteration in this dispatch
-// yet. As the CPU's `advance_observed`, a steady measurement processes each
-// period end before the iteration that passes it; its accumulators are
-// copied in and written back only then, and only once the loop limiter
-// has let the update complete.
+// end or to a steady measurement's next period end, which the lane's loop
+// in `advance_slice` processes. `fresh` says the lane has completed no
+// iteration in this dispatch yet.
 fn advance(c: Coefficients, st: ptr<function, State>, index: u32, max_iterations: u32, fresh: bool) -> Advance {
     var iteration = 0u;
     for (; iteration < max_iterations; iteration++) {
