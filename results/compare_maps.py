@@ -1,0 +1,32 @@
+"""Compares two result files map by map: whether each `/maps/*` array is
+equal bit for bit, and for the step maps the largest difference [um] and
+how many points differ by more than 1e-9 um on either axis.
+
+    python3 results/compare_maps.py A.h5 B.h5
+"""
+
+import sys
+
+import h5py
+import numpy as np
+
+
+def main():
+    with h5py.File(sys.argv[1], "r") as a, h5py.File(sys.argv[2], "r") as b:
+        for name in sorted(a["maps"]):
+            x, y = a["maps"][name][...], b["maps"][name][...]
+            same = np.array_equal(x, y, equal_nan=x.dtype.kind == "f")
+            print(f"{name}: {'bit for bit' if same else 'differs'}")
+        steps = [
+            np.abs(a["maps"][k][...] - b["maps"][k][...]).ravel() * 1e6
+            for k in ("step_x", "step_y")
+        ]
+        worst = np.maximum(*steps)
+        print(
+            f"steps: largest difference {worst.max():.3e} um, "
+            f"{int((worst > 1e-9).sum())} points over 1e-9 um"
+        )
+
+
+if __name__ == "__main__":
+    main()
