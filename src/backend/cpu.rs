@@ -1,24 +1,33 @@
-//! The rayon CPU path in f64: every instance through
-//! [`run_one`], one per task.
+//! The rayon CPU path: every instance through [`run_one`], one per task,
+//! in f64 (the reference) or in f32 (the f32 shader's mirror,
+//! `pidm::cpu::single`).
 
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision};
-use crate::cpu::integrate;
+use crate::cpu::{integrate, single};
 use crate::cpu::integrate::Settings;
 use crate::interrupt::interrupt_requested;
 use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
 
-/// The rayon CPU path in f64: the reference.
+/// The rayon CPU path: in f64 the reference.
 pub struct CpuBackend {
     pool: rayon::ThreadPool,
+    precision: Precision,
 }
 
 impl CpuBackend {
-    /// A backend on `threads` threads, or on every core when `None`.
+    /// A backend in f64 on `threads` threads, or on every core when `None`.
     pub fn new(threads: Option<usize>) -> Result<CpuBackend> {
+        CpuBackend::with_precision(threads, Precision::F64)
+    }
+
+    /// A backend in `precision`: f64 is the reference; f32 is the f32
+    /// shader's mirror, the same formulation in the same units, for
+    /// checking the shader and for seeing what f32 does without a GPU.
+    pub fn with_precision(threads: Option<usize>, precision: Precision) -> Result<CpuBackend> {
         let mut builder = rayon::ThreadPoolBuilder::new();
         if let Some(n) = threads {
             if n == 0 {
@@ -28,6 +37,7 @@ impl CpuBackend {
         }
         Ok(CpuBackend {
             pool: builder.build()?,
+            precision,
         })
     }
 
@@ -44,14 +54,18 @@ impl CpuBackend {
 
 impl Backend for CpuBackend {
     fn describe(&self) -> String {
+        let mirror = match self.precision {
+            Precision::F64 => "",
+            Precision::F32 => ", f32 mirror of the shader",
+        };
         match self.threads() {
-            1 => "cpu (rayon, 1 thread)".to_owned(),
-            n => format!("cpu (rayon, {n} threads)"),
+            1 => format!("cpu (rayon, 1 thread{mirror})"),
+            n => format!("cpu (rayon, {n} threads{mirror})"),
         }
     }
 
     fn precision(&self) -> Precision {
-        Precision::F64
+        self.precision
     }
 
     fn chunk_size(&self) -> usize {
@@ -80,7 +94,7 @@ impl Backend for CpuBackend {
                     if interrupt_requested() {
                         return Outcome::default();
                     }
-                    let out = run_one(inst, settings);
+                    let out = run_one_in(inst, settings, self.precision);
                     done(1);
                     out
                 })
@@ -89,13 +103,26 @@ impl Backend for CpuBackend {
     }
 }
 
-/// Integrates one instance on the CPU.
+/// Integrates one instance on the CPU in f64 (the reference).
 ///
 /// A stop request ([`request_interrupt`]) ends the integration within about
 /// a millisecond; the outcome is then a default one that the sweep discards
 /// with the rest of its chunk.
 pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
-    let Some(run) = integrate::run_instance_until(inst, settings, interrupt_requested) else {
+    run_one_in(inst, settings, Precision::F64)
+}
+
+/// Integrates one instance on the CPU in `precision` (f32 results are
+/// reduced in f64 and SI units, as the GPU's are); stops as [`run_one`].
+pub fn run_one_in(inst: &Instance, settings: &Settings, precision: Precision) -> Outcome {
+    let run = match precision {
+        Precision::F64 => integrate::run_instance_until(inst, settings, interrupt_requested),
+        Precision::F32 => {
+            single::integrate::run_instance_until(inst, settings, interrupt_requested)
+                .map(|r| single::si::run(&r))
+        }
+    };
+    let Some(run) = run else {
         return Outcome::default();
     };
     Outcome::of(&reduce(inst, &run), run.state.steps, false)

@@ -1,7 +1,7 @@
 //! From the command line's choice to a backend, said in one line on
 //! stderr.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 
 use super::{Backend, CpuBackend, GpuBackend, Precision};
 use crate::gpu::GpuContext;
@@ -89,12 +89,10 @@ pub fn select_backend(
     };
     let cpu_threads = CpuBackend::default_threads(threads);
     let backend: Box<dyn Backend> = match choice {
-        BackendChoice::Cpu => {
-            if precision == Some(Precision::F32) {
-                bail!("--precision f32: the CPU path runs in f64 only");
-            }
-            Box::new(CpuBackend::new(threads)?)
-        }
+        BackendChoice::Cpu => Box::new(CpuBackend::with_precision(
+            threads,
+            precision.unwrap_or(Precision::F64),
+        )?),
         BackendChoice::Gpu => {
             let ctx = GpuContext::new(true).context("--backend gpu")?;
             let precision = gpu_precision(&ctx);

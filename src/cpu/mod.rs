@@ -1,5 +1,14 @@
-//! CPU mirrors of the WGSL shader stages, in f64: `integrate/` follows
-//! `shaders/integrate/` file by file and function by function.
+//! CPU mirrors of the WGSL shader stages: `integrate/` follows
+//! `shaders/integrate/` file by file and function by function, and is
+//! compiled twice, as the shader is, with the scalar `Real` of each
+//! precision: [`double`] (f64, SI units: the reference every backend is
+//! held to) and [`single`] (f32 in micrometres and milliseconds: the f32
+//! shader's mirror). [`integrate`] is the f64 one.
 
-pub mod integrate;
+pub mod double;
 pub mod karnopp;
+pub mod settings;
+pub mod single;
+pub mod units;
+
+pub use double::integrate;

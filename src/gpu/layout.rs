@@ -14,59 +14,9 @@
 //! [`crate::cpu::integrate::Coefficients`], computed in f64 and rounded once.
 
 use crate::cpu::integrate::{STATUS_OK, Settings};
-use crate::model::{AXES, Instance, Measure};
+use crate::model::{AXES, Instance};
 
-/// The unit system of one precision: how many length units make a metre and
-/// how many time units make a second. Masses stay in kilograms, so forces
-/// scale by [`Units::newton`]; voltages, phases and duties are unchanged.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Units {
-    /// Length units per metre.
-    pub metre: f64,
-    /// Time units per second.
-    pub second: f64,
-}
-
-impl Units {
-    /// SI units: the f64 shader computes exactly what the CPU computes.
-    pub const SI: Units = Units {
-        metre: 1.0,
-        second: 1.0,
-    };
-
-    /// Micrometres and milliseconds: every quantity of the paper's
-    /// mechanism is then of order one (the stage resonance is 20 rad/ms,
-    /// the stroke 60 um, the force unit stays one newton).
-    pub const MICRO_MILLI: Units = Units {
-        metre: 1.0e6,
-        second: 1.0e3,
-    };
-
-    /// Force units per newton (mass units are kilograms).
-    pub fn newton(&self) -> f64 {
-        self.metre / (self.second * self.second)
-    }
-
-    /// The instance in these units (in f64).
-    pub fn scale(&self, inst: &Instance) -> Instance {
-        let newton = self.newton();
-        let mut out = *inst;
-        for a in &mut out.axes {
-            a.stiffness *= newton / self.metre;
-            a.damping *= newton * self.second / self.metre;
-            a.gain *= newton;
-            a.frequency /= self.second;
-        }
-        if let Measure::Steady { step_tolerance } = &mut out.measure {
-            *step_tolerance *= self.metre;
-        }
-        let m = &mut out.mechanism;
-        m.static_friction *= newton;
-        m.coulomb_friction *= newton;
-        m.velocity_band *= self.metre / self.second;
-        out
-    }
-}
+pub use crate::cpu::units::Units;
 
 /// A struct shared with the shader: its WGSL name and the byte offset of
 /// every member, in declaration order, which a unit test holds against
@@ -159,32 +109,34 @@ pub mod control {
 /// Declares the storage structs of one precision in a module, with the
 /// packing of instances and the unpacking of results.
 macro_rules! precision_structs {
-    ($module:ident, $real:ty, $v2:ident, $units:expr, $time_epsilon:expr) => {
+    ($module:ident, $real:ty, $v2:ident, $mirror:ident) => {
         /// Storage structs of one precision.
         pub mod $module {
             use super::*;
-            use crate::cpu::integrate::coefficients::Oscillator as ExactOscillator;
-            use crate::cpu::integrate::drive::CornerClock;
+            use crate::cpu::$mirror::integrate as mirror;
+            use crate::cpu::integrate::Vec2;
             use crate::cpu::integrate::measure;
-            use crate::cpu::integrate::{Coefficients as Exact, Vec2};
+            use mirror::coefficients::Oscillator as MirrorOscillator;
 
             /// The scalar type of this precision.
             pub type Real = $real;
             /// WGSL's `vec2<Real>`.
             pub type V2 = $v2;
 
-            /// The unit system this precision computes in.
-            pub const UNITS: Units = $units;
+            /// The unit system this precision computes in (the CPU
+            /// mirror's).
+            pub const UNITS: Units = crate::cpu::$mirror::precision::UNITS;
 
             fn u32x2(v: [u32; 2]) -> U32x2 {
                 U32x2 { x: v[0], y: v[1] }
             }
 
-            fn v2(v: Vec2) -> V2 {
-                V2 {
-                    x: v.x as Real,
-                    y: v.y as Real,
-                }
+            fn v2(v: mirror::Vec2) -> V2 {
+                V2 { x: v.x, y: v.y }
+            }
+
+            fn vec2(v: V2) -> mirror::Vec2 {
+                mirror::Vec2::new(v.x, v.y)
             }
 
             host_struct! {
@@ -372,7 +324,7 @@ macro_rules! precision_structs {
             /// finished shader state: status, period and slider positions.
             pub fn reduced_state(st: &State) -> crate::cpu::integrate::State {
                 let length = |v: V2| Vec2::new(v.x as f64, v.y as f64) * (1.0 / UNITS.metre);
-                let mut out = crate::cpu::integrate::initial_state(&Exact::default());
+                let mut out = crate::cpu::integrate::initial_state(&crate::cpu::integrate::Coefficients::default());
                 out.x_s = length(st.x_s);
                 out.settle_x_s = length(st.settle_x_s);
                 out.status = st.status;
@@ -382,7 +334,7 @@ macro_rules! precision_structs {
                 out
             }
 
-            fn oscillator(o: &ExactOscillator) -> Oscillator {
+            fn oscillator(o: &MirrorOscillator) -> Oscillator {
                 Oscillator {
                     mass: v2(o.mass),
                     sigma: v2(o.sigma),
@@ -394,11 +346,10 @@ macro_rules! precision_structs {
             }
 
             /// Packs one instance and the batch settings in shader units:
-            /// the coefficients are computed in f64 from the instance in
-            /// these units and rounded once.
+            /// the CPU mirror's coefficients (`Coefficients::of`: computed
+            /// in f64 from the instance in these units and rounded once).
             pub fn pack(inst: &Instance, settings: &Settings) -> Coefficients {
-                let c = Exact::new(&UNITS.scale(inst), settings, $time_epsilon);
-                let clock = CornerClock::new(&c, |x| x as Real as f64);
+                let c = mirror::Coefficients::of(inst, settings);
                 Coefficients {
                     stiffness: v2(c.stiffness),
                     damping: v2(c.damping),
@@ -414,32 +365,32 @@ macro_rules! precision_structs {
                     fall_slope: v2(c.fall_slope),
                     phase: v2(c.phase),
                     cycles_per_period: v2(c.cycles_per_period),
-                    rise_time: v2(clock.rise.0),
-                    rise_time_lo: v2(clock.rise.1),
-                    fall_time: v2(clock.fall.0),
-                    fall_time_lo: v2(clock.fall.1),
-                    first_corner: v2(clock.first.0),
-                    first_corner_lo: v2(clock.first.1),
+                    rise_time: v2(c.rise_time),
+                    rise_time_lo: v2(c.rise_time_lo),
+                    fall_time: v2(c.fall_time),
+                    fall_time_lo: v2(c.fall_time_lo),
+                    first_corner: v2(c.first_corner),
+                    first_corner_lo: v2(c.first_corner_lo),
                     stage_share: v2(c.stage_share),
                     slider_share: v2(c.slider_share),
                     slip_scale: v2(c.slip_scale),
                     slip_b: v2(c.slip_b),
-                    slip_b_max: c.slip_b_max as Real,
-                    hold2: c.hold2 as Real,
-                    ms2: c.ms2 as Real,
-                    two_ms2: c.two_ms2 as Real,
-                    coulomb: c.coulomb as Real,
-                    fc_over_ms: c.fc_over_ms as Real,
-                    band: c.band as Real,
-                    band2: c.band2 as Real,
-                    period: clock.period.0 as Real,
-                    period_lo: clock.period.1 as Real,
+                    slip_b_max: c.slip_b_max,
+                    hold2: c.hold2,
+                    ms2: c.ms2,
+                    two_ms2: c.two_ms2,
+                    coulomb: c.coulomb,
+                    fc_over_ms: c.fc_over_ms,
+                    band: c.band,
+                    band2: c.band2,
+                    period: c.period,
+                    period_lo: c.period_lo,
                     _pad_real: 0.0,
-                    event_step_stuck: c.event_step_stuck as Real,
-                    event_step_slip: c.event_step_slip as Real,
-                    min_step: c.min_step as Real,
-                    tolerance: c.tolerance as Real,
-                    collocation_tolerance: c.collocation_tolerance as Real,
+                    event_step_stuck: c.event_step_stuck,
+                    event_step_slip: c.event_step_slip,
+                    min_step: c.min_step,
+                    tolerance: c.tolerance,
+                    collocation_tolerance: c.collocation_tolerance,
                     cycles: c.cycles,
                     settle: c.settle,
                     budget: c.budget,
@@ -454,12 +405,42 @@ macro_rules! precision_structs {
                     _pad: U32x2::default(),
                     _pad2: U32x2::default(),
                     se_limit2: v2(c.se_limit2),
-                    repeat_x: c.repeat_x as Real,
-                    repeat_v: c.repeat_v as Real,
+                    repeat_x: c.repeat_x,
+                    repeat_v: c.repeat_v,
                     steady: c.steady as u32,
                     common_period: c.common_period,
                     batch_length: c.batch_length,
                     min_batch: c.min_batch,
+                }
+            }
+
+            /// The CPU mirror's state this shader state stands for: the
+            /// same quantities in the same units, so the mirror can
+            /// continue an instance where the GPU stopped.
+            pub fn to_cpu(st: &State) -> mirror::State {
+                mirror::State {
+                    x_p: vec2(st.x_p),
+                    v_p: vec2(st.v_p),
+                    x_s: vec2(st.x_s),
+                    v_s: vec2(st.v_s),
+                    v_rel: vec2(st.v_rel),
+                    held: vec2(st.held),
+                    settle_x_s: vec2(st.settle_x_s),
+                    cycle_phase: vec2(st.cycle_phase),
+                    next_corner: vec2(st.next_corner),
+                    corner_at: vec2(st.corner_at),
+                    corner_at_lo: vec2(st.corner_at_lo),
+                    time: st.time,
+                    time_lo: st.time_lo,
+                    h_slip: st.h_slip,
+                    rising: [st.rising.x, st.rising.y],
+                    mode: st.mode,
+                    period: st.period,
+                    status: st.status,
+                    steps: st.steps,
+                    stalled: st.stalled,
+                    rejections: st.rejections,
+                    measured: st.measured,
                 }
             }
 
@@ -495,46 +476,8 @@ macro_rules! precision_structs {
     };
 }
 
-precision_structs!(
-    single,
-    f32,
-    F32x2,
-    Units::MICRO_MILLI,
-    crate::gpu::shader::F32_TIME_EPSILON
-);
-precision_structs!(double, f64, F64x2, Units::SI, f64::EPSILON);
-
-impl double::State {
-    /// The CPU integrator's state this f64 shader state stands for: the
-    /// same quantities in the same (SI) units, so the CPU can continue an
-    /// instance where the GPU stopped (the f64 shader keeps no low part of
-    /// the time; `time_lo` is zero).
-    pub fn to_cpu(&self) -> crate::cpu::integrate::State {
-        use crate::cpu::integrate::Vec2;
-        let v = |a: F64x2| Vec2::new(a.x, a.y);
-        crate::cpu::integrate::State {
-            x_p: v(self.x_p),
-            v_p: v(self.v_p),
-            x_s: v(self.x_s),
-            v_s: v(self.v_s),
-            v_rel: v(self.v_rel),
-            held: v(self.held),
-            settle_x_s: v(self.settle_x_s),
-            cycle_phase: v(self.cycle_phase),
-            next_corner: v(self.next_corner),
-            time: self.time + self.time_lo,
-            h_slip: self.h_slip,
-            rising: [self.rising.x, self.rising.y],
-            mode: self.mode,
-            period: self.period,
-            status: self.status,
-            steps: self.steps,
-            stalled: self.stalled,
-            rejections: self.rejections,
-            measured: self.measured,
-        }
-    }
-}
+precision_structs!(single, f32, F32x2, single);
+precision_structs!(double, f64, F64x2, double);
 
 #[cfg(test)]
 mod tests {
@@ -662,7 +605,7 @@ mod tests {
         st.steps = 15;
         st.stalled = 16;
         st.rejections = 17;
-        let cpu = st.to_cpu();
+        let cpu = double::to_cpu(&st);
         let v = |k: f64| crate::cpu::integrate::Vec2::new(k, k + 0.5);
         assert_eq!(
             [cpu.x_p, cpu.v_p, cpu.x_s, cpu.v_s, cpu.v_rel, cpu.held],

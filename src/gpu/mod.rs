@@ -1030,7 +1030,7 @@ impl Layout for Double {
         layout::double::unpack(inst, st)
     }
     fn reduce(inst: &Instance, st: &Self::State, m: &Self::Measure) -> GpuOutcome {
-        reduce_shader(inst, st.to_cpu(), layout::double::measure_to_cpu(m))
+        reduce_shader(inst, layout::double::to_cpu(st), layout::double::measure_to_cpu(m))
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::double::finished(inst, st)
@@ -1038,7 +1038,7 @@ impl Layout for Double {
     fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run> {
         let c = crate::cpu::integrate::Coefficients::new(inst, &Settings::default(), f64::EPSILON);
         Some(Run {
-            state: st.to_cpu(),
+            state: layout::double::to_cpu(st),
             measure: match m {
                 Some(m) => layout::double::measure_to_cpu(m),
                 None => initial_measure(&c),

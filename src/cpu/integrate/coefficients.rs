@@ -1,14 +1,14 @@
 //! Everything the integrator derives from an instance and the settings,
-//! computed once per instance in f64. The CPU integrator reads it in SI
-//! units; the GPU packs the same numbers in its own units
-//! (`pidm::gpu::layout`), so the shader divides by no parameter and takes no
-//! square root of one.
+//! computed once per instance in Real ([`Coefficients::new`], which exists
+//! in Real only) and rounded once to the precision in its units
+//! ([`Coefficients::of`]). The Real integrator reads them in SI units; the
+//! GPU packs the same numbers (`pidm::gpu::layout`), so the shader divides
+//! by no parameter and takes no square root of one.
 
-use super::Settings;
-use super::constants::{COLLOCATION_CONVERGED, EVENT_STEP_PERIODS, MIN_STEP_EPSILONS};
-use super::measure;
+use super::precision::{TIME_EPSILON, UNITS, only_f64};
 use super::vec2::Vec2;
-use crate::model::{Instance, Measure};
+use super::{Real, Settings};
+use crate::model::Instance;
 
 /// One mode's oscillator per axis: m x'' + c x' + k x = g, with the stage
 /// alone (slip) or stage and slider together (stick).
@@ -27,21 +27,6 @@ pub struct Oscillator {
     pub inv_mass: Vec2,
     /// 1 / w^2 [s^2].
     pub inv_w2: Vec2,
-}
-
-impl Oscillator {
-    fn new(mass: Vec2, damping: Vec2, stiffness: Vec2) -> Oscillator {
-        let sigma = damping.zip(mass, |c, m| c / (2.0 * m));
-        let w2 = stiffness / mass;
-        Oscillator {
-            mass,
-            sigma,
-            w2,
-            rate: w2.zip(sigma, |w2, s| w2.sqrt() + 2.0 * s),
-            inv_mass: mass.map(|m| 1.0 / m),
-            inv_w2: w2.map(|w2| 1.0 / w2),
-        }
-    }
 }
 
 /// The per-instance constants of the integrator, in one unit system
@@ -90,34 +75,46 @@ pub struct Coefficients {
     pub slip_scale: Vec2,
     pub slip_b: Vec2,
     /// The larger component of `slip_b`.
-    pub slip_b_max: f64,
+    pub slip_b_max: Real,
     /// max(f_s, f_c)^2 [N^2]: the interface holds while |f_need|^2 <= hold2.
-    pub hold2: f64,
+    pub hold2: Real,
     /// m_s^2 and 2 m_s^2 [kg^2].
-    pub ms2: f64,
-    pub two_ms2: f64,
+    pub ms2: Real,
+    pub two_ms2: Real,
     /// Kinetic friction f_c [N] and f_c / m_s [m/s^2].
-    pub coulomb: f64,
-    pub fc_over_ms: f64,
+    pub coulomb: Real,
+    pub fc_over_ms: Real,
     /// Detection band a [m/s] and a^2 [m^2/s^2].
-    pub band: f64,
-    pub band2: f64,
-    /// Scene period T [s].
-    pub period: f64,
+    pub band: Real,
+    pub band2: Real,
+    /// Scene period T [s], and the rest of it below the precision (zero
+    /// in f64).
+    pub period: Real,
+    pub period_lo: Real,
+    /// The corner clock (`drive::CornerClock`, f32's `CORNER_CLOCK`): the
+    /// durations of a rise (a cycle at duty 1) and of a fall, and the local
+    /// time of the first corner, each as hi + lo [s]; zero on undriven
+    /// axes.
+    pub rise_time: Vec2,
+    pub rise_time_lo: Vec2,
+    pub fall_time: Vec2,
+    pub fall_time_lo: Vec2,
+    pub first_corner: Vec2,
+    pub first_corner_lo: Vec2,
     /// Step lengths that sample the fastest oscillation of stick and of
     /// slip densely enough for event detection [s].
-    pub event_step_stuck: f64,
-    pub event_step_slip: f64,
+    pub event_step_stuck: Real,
+    pub event_step_slip: Real,
     /// The smallest slip step before the instance gives up [s].
-    pub min_step: f64,
+    pub min_step: Real,
     /// Simulated and discarded scene periods.
     pub cycles: u32,
     pub settle: u32,
     /// The accuracy knob [rad] ([`Settings::tolerance`]).
-    pub tolerance: f64,
+    pub tolerance: Real,
     /// The change of the direction model below which its fixed-point
     /// iteration stops [rad].
-    pub collocation_tolerance: f64,
+    pub collocation_tolerance: Real,
     /// Steps allowed in the whole run, saturated at `u32::MAX`.
     pub budget: u32,
     /// Whether each axis is driven (a non-zero voltage).
@@ -137,10 +134,119 @@ pub struct Coefficients {
     pub se_limit2: Vec2,
     /// The recurrence test's tolerances on positions [m] and velocities
     /// [m/s].
-    pub repeat_x: f64,
-    pub repeat_v: f64,
+    pub repeat_x: Real,
+    pub repeat_v: Real,
     /// f_c = 0: slip does not depend on the friction direction.
     pub frictionless: bool,
+}
+
+impl Coefficients {
+    /// The coefficients of an instance in this precision's units: computed
+    /// in f64 from the instance in those units and rounded once, exactly
+    /// as the GPU packs them (`pidm::gpu::layout`), the corner clock's
+    /// values split into a rounded part and the rounded rest. In f64 they
+    /// are those of [`Coefficients::new`] in SI units.
+    pub fn of(inst: &Instance, settings: &Settings) -> Coefficients {
+        let exact = crate::cpu::double::integrate::Coefficients::new(
+            &UNITS.scale(inst),
+            settings,
+            TIME_EPSILON,
+        );
+        Coefficients::rounded(&exact)
+    }
+
+    /// `exact` (f64) rounded once to this precision, with the corner clock
+    /// in two parts (zero low parts in f64).
+    #[allow(clippy::unnecessary_cast)]
+    pub fn rounded(exact: &crate::cpu::double::integrate::Coefficients) -> Coefficients {
+        use crate::cpu::double::integrate as exact_integrate;
+        let v = |x: exact_integrate::Vec2| Vec2::new(x.x as Real, x.y as Real);
+        let r = |x: f64| x as Real;
+        let osc = |o: &exact_integrate::coefficients::Oscillator| Oscillator {
+            mass: v(o.mass),
+            sigma: v(o.sigma),
+            w2: v(o.w2),
+            rate: v(o.rate),
+            inv_mass: v(o.inv_mass),
+            inv_w2: v(o.inv_w2),
+        };
+        let clock = exact_integrate::drive::CornerClock::new(exact, |x| x as Real as f64);
+        let e = exact;
+        Coefficients {
+            stiffness: v(e.stiffness),
+            damping: v(e.damping),
+            inv_stiffness: v(e.inv_stiffness),
+            stick: osc(&e.stick),
+            slip: osc(&e.slip),
+            amplitude: v(e.amplitude),
+            frequency: v(e.frequency),
+            duty: v(e.duty),
+            inv_duty: v(e.inv_duty),
+            inv_fall: v(e.inv_fall),
+            rise_slope: v(e.rise_slope),
+            fall_slope: v(e.fall_slope),
+            phase: v(e.phase),
+            cycles_per_period: v(e.cycles_per_period),
+            phase_fixed: e.phase_fixed,
+            cycles_fixed: e.cycles_fixed,
+            cycles_fixed_lo: e.cycles_fixed_lo,
+            stage_share: v(e.stage_share),
+            slider_share: v(e.slider_share),
+            slip_scale: v(e.slip_scale),
+            slip_b: v(e.slip_b),
+            slip_b_max: r(e.slip_b_max),
+            hold2: r(e.hold2),
+            ms2: r(e.ms2),
+            two_ms2: r(e.two_ms2),
+            coulomb: r(e.coulomb),
+            fc_over_ms: r(e.fc_over_ms),
+            band: r(e.band),
+            band2: r(e.band2),
+            period: r(clock.period.0),
+            period_lo: r(clock.period.1),
+            rise_time: v(clock.rise.0),
+            rise_time_lo: v(clock.rise.1),
+            fall_time: v(clock.fall.0),
+            fall_time_lo: v(clock.fall.1),
+            first_corner: v(clock.first.0),
+            first_corner_lo: v(clock.first.1),
+            event_step_stuck: r(e.event_step_stuck),
+            event_step_slip: r(e.event_step_slip),
+            min_step: r(e.min_step),
+            cycles: e.cycles,
+            settle: e.settle,
+            tolerance: r(e.tolerance),
+            collocation_tolerance: r(e.collocation_tolerance),
+            budget: e.budget,
+            driven: e.driven,
+            steady: e.steady,
+            common_period: e.common_period,
+            batch_length: e.batch_length,
+            min_batch: e.min_batch,
+            se_limit2: v(e.se_limit2),
+            repeat_x: r(e.repeat_x),
+            repeat_v: r(e.repeat_v),
+            frictionless: e.frictionless,
+        }
+    }
+}
+
+only_f64! {
+use super::constants::{COLLOCATION_CONVERGED, EVENT_STEP_PERIODS, MIN_STEP_EPSILONS};
+
+impl Oscillator {
+    fn new(mass: Vec2, damping: Vec2, stiffness: Vec2) -> Oscillator {
+        let sigma = damping.zip(mass, |c, m| c / (2.0 * m));
+        let w2 = stiffness / mass;
+        Oscillator {
+            mass,
+            sigma,
+            w2,
+            rate: w2.zip(sigma, |w2, s| w2.sqrt() + 2.0 * s),
+            inv_mass: mass.map(|m| 1.0 / m),
+            inv_w2: w2.map(|w2| 1.0 / w2),
+        }
+    }
 }
 
 impl Coefficients {
@@ -148,6 +254,7 @@ impl Coefficients {
     /// `time_epsilon` is the relative resolution of the time within a
     /// period (f64's epsilon on the CPU; the f32 shader's two-part time
     /// resolves far finer than its own epsilon).
+    #[allow(clippy::unnecessary_cast)]
     pub fn new(inst: &Instance, settings: &Settings, time_epsilon: f64) -> Coefficients {
         let [ax, ay] = &inst.axes;
         let per_axis = |f: &dyn Fn(&crate::model::Axis) -> f64| Vec2::new(f(ax), f(ay));
@@ -181,7 +288,7 @@ impl Coefficients {
         let se_limit = cycles_per_period * step_tolerance;
         let deflection = (amplitude.abs() * stiffness.map(|k| 1.0 / k)).max_element();
         let (repeat_x, repeat_v) =
-            measure::repeat_tolerances(settings.tolerance, deflection, slip.rate.max_element());
+            super::measure::repeat_tolerances(settings.tolerance, deflection, slip.rate.max_element());
         Coefficients {
             stiffness,
             damping,
@@ -235,6 +342,13 @@ impl Coefficients {
             band: m.velocity_band,
             band2: m.velocity_band * m.velocity_band,
             period,
+            period_lo: 0.0,
+            rise_time: Vec2::ZERO,
+            rise_time_lo: Vec2::ZERO,
+            fall_time: Vec2::ZERO,
+            fall_time_lo: Vec2::ZERO,
+            first_corner: Vec2::ZERO,
+            first_corner_lo: Vec2::ZERO,
             event_step_stuck: event_step(&stick),
             event_step_slip: event_step(&slip),
             min_step: MIN_STEP_EPSILONS * time_epsilon * period,
@@ -244,10 +358,10 @@ impl Coefficients {
             collocation_tolerance: COLLOCATION_CONVERGED * settings.tolerance,
             budget,
             driven,
-            steady: matches!(inst.measure, Measure::Steady { .. }),
-            common_period: measure::common_period(cycles_per_period, driven),
-            batch_length: measure::first_batch_length(cycles_per_period, driven, inst.cycles),
-            min_batch: measure::beat_batch_length(cycles_per_period, driven),
+            steady: matches!(inst.measure, crate::model::Measure::Steady { .. }),
+            common_period: super::measure::common_period(cycles_per_period, driven),
+            batch_length: super::measure::first_batch_length(cycles_per_period, driven, inst.cycles),
+            min_batch: super::measure::beat_batch_length(cycles_per_period, driven),
             se_limit2: se_limit * se_limit,
             repeat_x,
             repeat_v,
@@ -267,4 +381,5 @@ pub fn fixed_fraction_64(u: f64) -> u64 {
     // Exact scaling by 2^64; the cast saturates below 2^64 for fractions
     // that round up to a whole cycle, an error of 2^-64 cycles.
     ((u - u.floor()) * 18_446_744_073_709_551_616.0) as u64
+}
 }

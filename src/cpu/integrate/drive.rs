@@ -1,8 +1,10 @@
 //! The sawtooth drives: the force and its slope now, the time of each
 //! axis' next corner, and the passing of corners and period ends.
 
-use super::State;
+use super::precision::only_f64;
 use super::coefficients::Coefficients;
+use super::precision::{CORNER_CLOCK, DEFLECTION, FIXED_PHASE};
+use super::{Real, State, time_reached};
 use super::constants::MODE_STICK;
 use super::step::{start_slip, stick_force};
 use super::vec2::{Vec2, norm2};
@@ -13,14 +15,33 @@ use super::vec2::{Vec2, norm2};
 /// and 1 cycle at 10 Hz) then coincide in floating point too, and their
 /// force jumps are passed together, as the model has them.
 pub fn corner_time(c: &Coefficients, st: &State) -> Vec2 {
-    let t = ((st.next_corner - st.cycle_phase) / c.frequency).map(|t| t.max(0.0));
-    Vec2::select(Vec2::splat(f64::INFINITY), t, c.driven)
+    let mut t = ((st.next_corner - st.cycle_phase) / c.frequency).map(|t| t.max(0.0));
+    if CORNER_CLOCK {
+        t = st.corner_at;
+    }
+    Vec2::select(Vec2::splat(Real::INFINITY), t, c.driven)
+}
+
+/// The low part of [`corner_time`] (zero unless `CORNER_CLOCK`).
+pub fn corner_time_lo(c: &Coefficients, st: &State) -> Vec2 {
+    if CORNER_CLOCK {
+        Vec2::select(Vec2::ZERO, st.corner_at_lo, c.driven)
+    } else {
+        Vec2::ZERO
+    }
 }
 
 /// The drive force of each axis now, and its slope [N, N/s].
 pub fn drive_force(c: &Coefficients, st: &State) -> (Vec2, Vec2) {
-    let u = st.cycle_phase + c.frequency * st.time;
-    let to_corner = (st.next_corner - u).map(|d| d.max(0.0));
+    let to_corner = if CORNER_CLOCK {
+        // The distance to the corner from the two-part times: exact where
+        // the step stops at the corner, and relative to itself elsewhere.
+        let ahead = (st.corner_at - st.time) + (st.corner_at_lo - st.time_lo);
+        (c.frequency * ahead).map(|d| d.max(0.0))
+    } else {
+        let u = st.cycle_phase + c.frequency * st.time;
+        (st.next_corner - u).map(|d| d.max(0.0))
+    };
     let rising = [st.rising[0] == 1, st.rising[1] == 1];
     let w = Vec2::select(to_corner * c.inv_fall, 1.0 - to_corner * c.inv_duty, rising);
     let slope = Vec2::select(c.fall_slope, c.rise_slope, rising);
@@ -31,26 +52,71 @@ pub fn drive_force(c: &Coefficients, st: &State) -> (Vec2, Vec2) {
 /// time, then lets a stuck slider break loose if a jump of the drive (duty
 /// 1) demands it.
 pub fn pass_boundaries(c: &Coefficients, st: &mut State) {
+    // The drive just before the corners, which DEFLECTION follows.
+    let before = if DEFLECTION {
+        drive_force(c, st)
+    } else {
+        (Vec2::ZERO, Vec2::ZERO)
+    };
     let corners = corner_time(c, st);
+    let corners_lo = corner_time_lo(c, st);
     for i in 0..2 {
-        if corners[i] <= st.time {
+        if time_reached(st, corners[i], corners_lo[i]) {
             let duty = c.duty[i];
+            let rising = st.rising[i] == 1;
             if duty >= 1.0 {
                 st.next_corner[i] += 1.0;
-            } else if st.rising[i] == 1 {
+            } else if rising {
                 st.rising[i] = 0;
                 st.next_corner[i] += 1.0 - duty;
             } else {
                 st.rising[i] = 1;
                 st.next_corner[i] += duty;
             }
+            if CORNER_CLOCK {
+                // The next corner is a fall after a rise, a rise after a
+                // fall, and a cycle after a jump (duty 1, whose rise time
+                // is the cycle).
+                let falls = rising && duty < 1.0;
+                let next = if falls {
+                    (c.fall_time[i], c.fall_time_lo[i])
+                } else {
+                    (c.rise_time[i], c.rise_time_lo[i])
+                };
+                let moved = add_parts((st.corner_at[i], st.corner_at_lo[i]), next);
+                st.corner_at[i] = moved.0;
+                st.corner_at_lo[i] = moved.1;
+            }
+            if DEFLECTION {
+                // The deflections follow the drive's static motion across
+                // the corner: its slope changes, and its force jumps at
+                // duty 1.
+                let after = drive_force(c, st);
+                st.x_p[i] += (before.0[i] - after.0[i]) * c.inv_stiffness[i];
+                st.v_p[i] += (before.1[i] - after.1[i]) * c.inv_stiffness[i];
+            }
         }
     }
-    if st.time >= c.period {
+    if time_reached(st, c.period, c.period_lo) {
+        if CORNER_CLOCK {
+            for i in 0..2 {
+                let back = add_parts(
+                    (st.corner_at[i], st.corner_at_lo[i]),
+                    (-c.period, -c.period_lo),
+                );
+                st.corner_at[i] = back.0;
+                st.corner_at_lo[i] = back.1;
+            }
+        }
         st.period += 1;
         st.time = 0.0;
+        st.time_lo = 0.0;
         let end_phase = st.cycle_phase + c.frequency * c.period;
-        let start_phase = (c.phase + st.period as f64 * c.cycles_per_period).map(frac);
+        let start_phase = if FIXED_PHASE {
+            fixed_start_phase(c, st.period)
+        } else {
+            (c.phase + st.period as Real * c.cycles_per_period).map(frac)
+        };
         let shift = (end_phase - start_phase).map(round_half_even);
         st.cycle_phase = start_phase;
         st.next_corner = st.next_corner - shift;
@@ -84,12 +150,13 @@ pub fn fixed_start_phase(c: &Coefficients, period: u32) -> Vec2 {
         let s = c.phase_fixed[i]
             .wrapping_add(period.wrapping_mul(c.cycles_fixed[i]))
             .wrapping_add(mul_hi(period, c.cycles_fixed_lo[i]));
-        let p = s as f64 * (1.0 / 4_294_967_296.0);
+        let p = s as Real * (1.0 / 4_294_967_296.0);
         if p >= 1.0 { 0.0 } else { p }
     };
     Vec2::new(at(0), at(1))
 }
 
+only_f64! {
 /// The f32 shader's corner clock (`CORNER_CLOCK`): each axis' next drive
 /// corner as a local time in two parts, hi + lo, each in the shader's
 /// precision, advanced by the two-part durations of the drive's segments
@@ -110,7 +177,7 @@ pub struct CornerClock {
     /// initial state).
     pub first: (Vec2, Vec2),
     /// The scene period.
-    pub period: (f64, f64),
+    pub period: (Real, Real),
 }
 
 impl CornerClock {
@@ -118,12 +185,12 @@ impl CornerClock {
     /// `round` (to the shader's precision) leaves unchanged and the rounded
     /// rest; zero on undriven axes. With `round` the identity (f64) the low
     /// parts are zero.
-    pub fn new(c: &Coefficients, round: impl Fn(f64) -> f64) -> CornerClock {
-        let split = |x: f64| {
+    pub fn new(c: &Coefficients, round: impl Fn(Real) -> Real) -> CornerClock {
+        let split = |x: Real| {
             let hi = round(x);
             (hi, round(x - hi))
         };
-        let per_axis = |f: &dyn Fn(usize) -> f64| {
+        let per_axis = |f: &dyn Fn(usize) -> Real| {
             let x = split(if c.driven[0] { f(0) } else { 0.0 });
             let y = split(if c.driven[1] { f(1) } else { 0.0 });
             (Vec2::new(x.0, y.0), Vec2::new(x.1, y.1))
@@ -140,6 +207,7 @@ impl CornerClock {
             period: split(c.period),
         }
     }
+}
 }
 
 /// Knuth's two-sum: `a + b` and its rounding error, exactly (the shader's
@@ -164,15 +232,16 @@ where
 }
 
 /// The fractional part, u - floor(u).
-pub fn frac(u: f64) -> f64 {
+pub fn frac(u: Real) -> Real {
     u - u.floor()
 }
 
 /// WGSL's `round`: to the nearest integer, halves to even.
-fn round_half_even(x: f64) -> f64 {
+fn round_half_even(x: Real) -> Real {
     x.round_ties_even()
 }
 
+only_f64! {
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -188,8 +257,8 @@ mod tests {
         inst.axes[0].duty = 0.8346873373227778;
         inst.axes[0].frequency = 18.810317121061885;
         inst.axes[0].phase = 0.9206799357119667;
-        let c = Coefficients::new(&inst, &Settings::default(), f64::EPSILON);
-        let f32_parts = CornerClock::new(&c, |x| x as f32 as f64);
+        let c = Coefficients::new(&inst, &Settings::default(), Real::EPSILON);
+        let f32_parts = CornerClock::new(&c, |x| x as f32 as Real);
         let exact = CornerClock::new(&c, |x| x);
         assert_eq!(exact.rise.1, Vec2::ZERO);
         let part = |p: (Vec2, Vec2)| (p.0.x as f32, p.1.x as f32);
@@ -199,8 +268,8 @@ mod tests {
         let mut plain = at.0;
         let mut truth = exact.first.0.x;
         let mut rising = frac(inst.axes[0].phase) < inst.axes[0].duty;
-        let mut worst: f64 = 0.0;
-        let mut worst_plain: f64 = 0.0;
+        let mut worst: Real = 0.0;
+        let mut worst_plain: Real = 0.0;
         for _ in 0..1000 {
             while truth < c.period {
                 let seg = if rising { fall } else { rise };
@@ -213,9 +282,9 @@ mod tests {
                 plain += seg.0;
                 truth += seg_exact;
                 rising = !rising;
-                let got = at.0 as f64 + at.1 as f64;
+                let got = at.0 as Real + at.1 as Real;
                 worst = worst.max((got - truth).abs());
-                worst_plain = worst_plain.max((plain as f64 - truth).abs());
+                worst_plain = worst_plain.max((plain as Real - truth).abs());
             }
             at = add_parts(at, (-period.0, -period.1));
             plain -= period.0;
@@ -247,11 +316,11 @@ mod tests {
         inst.axes[1].phase = 0.7407242613911252;
         inst.axes[0].frequency = 6.703568273604459;
         inst.axes[1].frequency = 39.40968822913329;
-        let c = Coefficients::new(&inst, &Settings::default(), f64::EPSILON);
-        let mut worst: f64 = 0.0;
+        let c = Coefficients::new(&inst, &Settings::default(), Real::EPSILON);
+        let mut worst: Real = 0.0;
         for n in [0u32, 1, 2, 3, 5, 17, 100, 999] {
             let fixed = fixed_start_phase(&c, n);
-            let exact = (c.phase + n as f64 * c.cycles_per_period).map(frac);
+            let exact = (c.phase + n as Real * c.cycles_per_period).map(frac);
             for i in 0..2 {
                 let d = (fixed[i] - exact[i]).abs();
                 worst = worst.max(d.min(1.0 - d));
@@ -259,4 +328,5 @@ mod tests {
         }
         assert!(worst < 1e-9, "worst {worst:e} cycles");
     }
+}
 }

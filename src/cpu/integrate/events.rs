@@ -8,6 +8,8 @@
 //! and, in band slip, the reversal of the relative velocity against the
 //! held direction.
 
+use super::Real;
+use super::precision::{TIME_EPSILON, TINY};
 use super::State;
 use super::coefficients::Coefficients;
 use super::constants::{EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_NOISE, ROOT_ITERATIONS};
@@ -15,19 +17,19 @@ use super::flow::{Flow, Sample, eval_at};
 use super::vec2::{Vec2, dot, norm2};
 
 /// Value and time derivative of an event function.
-pub type EventValue = [f64; 2];
+pub type EventValue = [Real; 2];
 
 /// The first bracket of a crossing in step time: the function is positive
 /// at `lo` and not positive at `hi`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Crossing {
     pub found: bool,
-    pub lo: f64,
-    pub hi: f64,
+    pub lo: Real,
+    pub hi: Real,
 }
 
 /// Fractions of a step at which every step is sampled.
-pub const THETA: [f64; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
+pub const THETA: [Real; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
 
 pub fn relative_velocity(s: &Sample) -> Vec2 {
     s.v_rel
@@ -65,7 +67,7 @@ pub fn approach_event(c: &Coefficients, flow: &Flow, s: &Sample) -> EventValue {
 }
 
 /// The magnitude of the terms of the approach event.
-pub fn approach_scale(c: &Coefficients, flow: &Flow, s: &Sample) -> f64 {
+pub fn approach_scale(c: &Coefficients, flow: &Flow, s: &Sample) -> Real {
     c.band + dot(s.v_p.abs() + s.v_s.abs(), flow.b0.abs())
 }
 
@@ -79,7 +81,7 @@ pub fn reversal_event(st: &State, s: &Sample) -> EventValue {
 
 /// The magnitude of the terms the primary event function is the difference
 /// of, for its rounding noise.
-pub fn primary_scale(c: &Coefficients, kind: u32, s: &Sample) -> f64 {
+pub fn primary_scale(c: &Coefficients, kind: u32, s: &Sample) -> Real {
     if kind == EVENT_BREAKAWAY {
         // The stage acceleration is the small difference of the drive,
         // spring and damper forces, so its rounding is relative to those
@@ -96,7 +98,7 @@ pub fn primary_scale(c: &Coefficients, kind: u32, s: &Sample) -> f64 {
 }
 
 /// The magnitude of the terms of the reversal event.
-pub fn reversal_scale(st: &State, s: &Sample) -> f64 {
+pub fn reversal_scale(st: &State, s: &Sample) -> Real {
     dot(s.v_p.abs() + s.v_s.abs(), st.held.abs())
 }
 
@@ -107,11 +109,11 @@ pub fn find_crossing(
     c: &Coefficients,
     st: &State,
     kind: u32,
-    sign: f64,
+    sign: Real,
     ev: &[EventValue; 5],
-    scale: f64,
+    scale: Real,
     flow: &Flow,
-    h: f64,
+    h: Real,
 ) -> Crossing {
     let mut prev = [sign * ev[0][0], sign * ev[0][1]];
     // A function already past its event when the step starts fires at once;
@@ -120,7 +122,7 @@ pub fn find_crossing(
     // root of the previous event (the function is then zero up to
     // rounding) from depending on the last bit, which differs between
     // backends that fuse multiply-adds differently.
-    let noise = EVENT_NOISE * f64::EPSILON * scale;
+    let noise = EVENT_NOISE as Real * Real::EPSILON * scale;
     if prev[0] < -noise {
         return Crossing {
             found: true,
@@ -167,9 +169,9 @@ pub fn event_at(
     c: &Coefficients,
     st: &State,
     kind: u32,
-    sign: f64,
+    sign: Real,
     flow: &Flow,
-    tau: f64,
+    tau: Real,
 ) -> EventValue {
     let s = eval_at(flow, tau);
     let ev = if kind == super::constants::EVENT_REVERSAL {
@@ -185,7 +187,7 @@ pub fn event_at(
 /// Position of the minimum of the cubic Hermite interpolant of (value,
 /// slope) pairs at 0 and len, given a negative slope at 0 and a positive one
 /// at len.
-pub fn hermite_minimum(a: EventValue, b: EventValue, len: f64) -> f64 {
+pub fn hermite_minimum(a: EventValue, b: EventValue, len: Real) -> Real {
     // p(s) = a + a' s + c2 s^2 + c3 s^3 on [0, len].
     let d = (b[0] - a[0]) / len;
     let c2 = (3.0 * d - 2.0 * a[1] - b[1]) / len;
@@ -194,7 +196,7 @@ pub fn hermite_minimum(a: EventValue, b: EventValue, len: f64) -> f64 {
     let qa = 3.0 * c3;
     let qb = 2.0 * c2;
     let qc = a[1];
-    let s = if qa.abs() < 1e-300 || (qa * len).abs() < 1e-12 * qb.abs() {
+    let s = if qa.abs() < TINY || (qa * len).abs() < 1e-12 * qb.abs() {
         -qc / qb
     } else {
         let disc = (qb * qb - 4.0 * qa * qc).max(0.0).sqrt();
@@ -203,7 +205,7 @@ pub fn hermite_minimum(a: EventValue, b: EventValue, len: f64) -> f64 {
         let r = -0.5 * (qb + signum * disc);
         let r1 = r / qa;
         let r2 = if r != 0.0 { qc / r } else { r1 };
-        let good = |s: f64| s > 0.0 && s < len && (qb + 2.0 * qa * s) > 0.0;
+        let good = |s: Real| s > 0.0 && s < len && (qb + 2.0 * qa * s) > 0.0;
         if good(r1) {
             r1
         } else if good(r2) {
@@ -221,14 +223,17 @@ pub fn locate(
     c: &Coefficients,
     st: &State,
     kind: u32,
-    sign: f64,
+    sign: Real,
     flow: &Flow,
-    lo_in: f64,
-    hi_in: f64,
-) -> f64 {
+    lo_in: Real,
+    hi_in: Real,
+) -> Real {
     let mut lo = lo_in;
     let mut hi = hi_in;
-    let resolution = 4.0 * f64::EPSILON * c.period;
+    // In f64 the second term never wins (hi <= period and TIME_EPSILON is
+    // f64's epsilon); in f32 it stops the bisection at the resolution of
+    // tau.
+    let resolution = (4.0 * TIME_EPSILON as Real * c.period).max(4.0 * Real::EPSILON * hi);
     let mut tau = 0.5 * (lo + hi);
     for _ in 0..ROOT_ITERATIONS {
         if hi - lo <= resolution {

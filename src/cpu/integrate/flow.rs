@@ -2,11 +2,20 @@
 //! oscillators, the flow (particular solution plus homogeneous part per
 //! axis, and the slider), and its evaluation at any time inside the step.
 
+use super::precision::only_f64;
 use super::coefficients::{Coefficients, Oscillator};
 use super::constants::{
     MAX_SQUARINGS, ONE_SIXTH, ONE_THIRD, ONE_TWELFTH, TAYLOR_STAGE_CONVERGED, TAYLOR_STAGE_TERMS,
 };
+use super::Real;
+use super::precision::DEFLECTION;
 use super::vec2::Vec2;
+
+/// 1 / n as the shader's literal of it (`inverse_integer`): the f64
+/// quotient, rounded once to the precision.
+fn inverse_integer(n: u32) -> Real {
+    (1.0 / n as f64) as Real
+}
 
 /// exp(A tau) = (1 + a0m1) I + a1 A per axis, for the oscillator matrix
 /// A = [[0, 1], [-w2, -2 sigma]]. Keeping a0 - 1 rather than a0 makes short
@@ -61,8 +70,8 @@ pub struct Flow {
     pub damping: Vec2,
     pub stiffness: Vec2,
     /// Step length the slider polynomial is scaled to [s], and its inverse.
-    pub h: f64,
-    pub inv_h: f64,
+    pub h: Real,
+    pub inv_h: Real,
     /// Particular solution x(tau) = x0 + part1 tau + part2 tau^2 (its
     /// constant x0 enters only through y0).
     pub part1: Vec2,
@@ -86,6 +95,13 @@ pub struct Flow {
     pub g0: Vec2,
     pub g1: Vec2,
     pub g2: Vec2,
+    /// `DEFLECTION` (f32): g0 - drive force, g1 - drive slope, and the
+    /// drive's static velocity slope / k; x_p and v_p are then the stage's
+    /// deflection from the drive's static position F / k and its velocity
+    /// relative to slope / k (see [`make_flow`]).
+    pub g0_rel: Vec2,
+    pub g1_rel: Vec2,
+    pub ramp: Vec2,
     /// Per axis: the stage is evaluated by its Taylor series in tau rather
     /// than particular solution plus propagator (on short steps the
     /// particular solution of a steep force polynomial cancels badly).
@@ -104,7 +120,7 @@ pub struct DirectionModel {
 /// The exponential of the oscillator matrix over `tau`, per axis: Taylor
 /// series after halving the time until its norm is at most 1/2, then
 /// repeated squaring.
-pub fn propagator(osc: &Oscillator, tau: f64) -> Propagator {
+pub fn propagator(osc: &Oscillator, tau: Real) -> Propagator {
     let mut scale = osc.rate * tau;
     let mut t = Vec2::splat(tau);
     let mut squarings = [0u32; 2];
@@ -141,7 +157,7 @@ fn taylor_propagator(osc: &Oscillator, t: Vec2) -> Propagator {
     let mut a0m1 = Vec2::ZERO;
     let mut a1 = Vec2::ZERO;
     for n in 1..=super::constants::TAYLOR_TERMS {
-        let f = t * (1.0 / n as f64);
+        let f = t * inverse_integer(n);
         let next_p = -osc.w2 * q * f;
         let next_q = (p - 2.0 * osc.sigma * q) * f;
         p = next_p;
@@ -164,7 +180,7 @@ pub fn compose(osc: &Oscillator, a: Propagator, b: Propagator) -> Propagator {
 
 /// The propagators at the four sample points of a step of length h after
 /// its start.
-pub fn sample_propagators(flow: &Flow, h: f64) -> SamplePropagators {
+pub fn sample_propagators(flow: &Flow, h: Real) -> SamplePropagators {
     let osc = &flow.osc;
     let quarter = propagator(osc, 0.25 * h);
     let half = compose(osc, quarter, quarter);
@@ -192,18 +208,23 @@ pub fn make_flow(
     force: Vec2,
     slope: Vec2,
     dir: &DirectionModel,
-    h: f64,
+    h: Real,
 ) -> Flow {
     let inv_h = 1.0 / h;
-    let (osc, g0, g1, g2) = if stuck {
-        (c.stick, force, slope, Vec2::ZERO)
+    let (osc, g0_rel, g1_rel, g2) = if stuck {
+        (c.stick, Vec2::ZERO, Vec2::ZERO, Vec2::ZERO)
     } else {
         (
             c.slip,
-            force - c.coulomb * dir.b0,
-            slope - c.coulomb * dir.b1 * inv_h,
+            -c.coulomb * dir.b0,
+            -c.coulomb * dir.b1 * inv_h,
             -c.coulomb * dir.b2 * (inv_h * inv_h),
         )
+    };
+    let (g0, g1) = if stuck {
+        (force, slope)
+    } else {
+        (force + g0_rel, slope + g1_rel)
     };
     // Polynomial particular solution of m x'' + c x' + k x = g.
     let x2 = g2 * c.inv_stiffness;
@@ -214,6 +235,17 @@ pub fn make_flow(
         dir.b1.y != 0.0 || dir.b2.y != 0.0,
     ];
     let short = [osc.rate.x * h <= 1.0, osc.rate.y * h <= 1.0];
+    let (mut part1, mut y0, mut w0) = (x1, x_p - x0, v_p - x1);
+    if DEFLECTION {
+        // x_p and v_p are deflections (x_p - F / k, v_p - slope / k): the
+        // homogeneous part's start is their sum with the small offsets of
+        // the particular solution from the drive's static motion, with no
+        // difference of two large positions (f32 would know it only to
+        // 6e-8 of the stage's position).
+        part1 = (g1_rel - 2.0 * c.damping * x2) * c.inv_stiffness;
+        y0 = x_p + (c.damping * x1 + 2.0 * osc.mass * x2 - g0_rel) * c.inv_stiffness;
+        w0 = v_p + (2.0 * c.damping * x2 - g1_rel) * c.inv_stiffness;
+    }
     Flow {
         stuck,
         osc,
@@ -221,10 +253,10 @@ pub fn make_flow(
         stiffness: c.stiffness,
         h,
         inv_h,
-        part1: x1,
+        part1,
         part2: x2,
-        y0: x_p - x0,
-        w0: v_p - x1,
+        y0,
+        w0,
         x_p,
         v_p,
         x_s,
@@ -237,6 +269,9 @@ pub fn make_flow(
         g0,
         g1,
         g2,
+        g0_rel,
+        g1_rel,
+        ramp: slope * c.inv_stiffness,
         taylor: [
             !stuck && turning[0] && short[0],
             !stuck && turning[1] && short[1],
@@ -246,7 +281,7 @@ pub fn make_flow(
 
 /// Stage (x, change of v since the start, a, jerk) at tau with the
 /// propagator for tau.
-fn eval_stage(f: &Flow, prop: Propagator, tau: f64) -> (Vec2, Vec2, Vec2, Vec2) {
+fn eval_stage(f: &Flow, prop: Propagator, tau: Real) -> (Vec2, Vec2, Vec2, Vec2) {
     let o = &f.osc;
     // Changes of the homogeneous part since tau = 0, then the state as the
     // start value plus changes, so tau = 0 reproduces the start exactly.
@@ -266,13 +301,18 @@ fn eval_stage(f: &Flow, prop: Propagator, tau: f64) -> (Vec2, Vec2, Vec2, Vec2) 
 /// with derivatives from m x'' = g - c x' - k x. Valid and accurate to
 /// rounding for rate * tau <= 1. Each axis stops adding terms once the
 /// bound on its next term is negligible.
-fn eval_stage_taylor(f: &Flow, tau: f64) -> (Vec2, Vec2, Vec2, Vec2) {
+fn eval_stage_taylor(f: &Flow, tau: Real) -> (Vec2, Vec2, Vec2, Vec2) {
     let o = &f.osc;
     // Sliding window of derivatives d[n..n+3].
     let mut d0 = f.x_p;
     let mut d1 = f.v_p;
     let mut d2 = (f.g0 - f.damping * d1 - f.stiffness * d0) * o.inv_mass;
     let mut d3 = (f.g1 - f.damping * d2 - f.stiffness * d1) * o.inv_mass;
+    if DEFLECTION {
+        // The same derivatives from the deflections (F - k x_p = -k d).
+        d2 = (f.g0_rel - f.damping * (d1 + f.ramp) - f.stiffness * d0) * o.inv_mass;
+        d3 = (f.g1_rel - f.damping * d2 - f.stiffness * d1) * o.inv_mass;
+    }
     let mut t = 1.0;
     // The n-th term is bounded by (rate tau)^n / n! times the state's scale.
     let rate_tau = o.rate * tau;
@@ -280,13 +320,13 @@ fn eval_stage_taylor(f: &Flow, tau: f64) -> (Vec2, Vec2, Vec2, Vec2) {
     let (mut x, mut v, mut a, mut j) = (Vec2::ZERO, Vec2::ZERO, Vec2::ZERO, Vec2::ZERO);
     for n in 0..TAYLOR_STAGE_TERMS {
         let live = [
-            n < 3 || bound.x >= TAYLOR_STAGE_CONVERGED,
-            n < 3 || bound.y >= TAYLOR_STAGE_CONVERGED,
+            n < 3 || bound.x >= TAYLOR_STAGE_CONVERGED as Real,
+            n < 3 || bound.y >= TAYLOR_STAGE_CONVERGED as Real,
         ];
         if !live[0] && !live[1] {
             break;
         }
-        let inv_n1 = 1.0 / (n + 1) as f64;
+        let inv_n1 = inverse_integer(n + 1);
         bound = Vec2::select(bound, bound * rate_tau * inv_n1, live);
         x = Vec2::select(x, x + d0 * t, live);
         // The velocity's change leaves out its start value (n = 0).
@@ -308,7 +348,7 @@ fn eval_stage_taylor(f: &Flow, tau: f64) -> (Vec2, Vec2, Vec2, Vec2) {
 }
 
 /// Evaluates the flow at tau, given the propagator for tau.
-pub fn eval_flow(flow: &Flow, prop: Propagator, tau: f64) -> Sample {
+pub fn eval_flow(flow: &Flow, prop: Propagator, tau: Real) -> Sample {
     let (mut x, mut dv, mut a, mut j) = eval_stage(flow, prop, tau);
     if flow.taylor[0] || flow.taylor[1] {
         let (tx, tdv, ta, tj) = eval_stage_taylor(flow, tau);
@@ -319,13 +359,21 @@ pub fn eval_flow(flow: &Flow, prop: Propagator, tau: f64) -> Sample {
     }
     let v = flow.v_p + dv;
     if flow.stuck {
+        let (x_s, v_s) = if DEFLECTION {
+            (
+                flow.x_s + ((x - flow.x_p) + flow.ramp * tau),
+                v + flow.ramp,
+            )
+        } else {
+            (flow.x_s + (x - flow.x_p), v)
+        };
         Sample {
             x_p: x,
             v_p: v,
             a_p: a,
             j_p: j,
-            x_s: flow.x_s + (x - flow.x_p),
-            v_s: v,
+            x_s,
+            v_s,
             a_s: a,
             v_rel: Vec2::ZERO,
         }
@@ -333,7 +381,7 @@ pub fn eval_flow(flow: &Flow, prop: Propagator, tau: f64) -> Sample {
         let th = tau * flow.inv_h;
         let h = flow.h;
         let (c0, c1, c2) = (flow.slider0, flow.slider1, flow.slider2);
-        let dv_s = (h * th) * (c0 + (c1 * 0.5 + c2 * (ONE_THIRD * th)) * th);
+        let dv_s = (h * th) * (c0 + (c1 * 0.5 + c2 * (ONE_THIRD as Real * th)) * th);
         Sample {
             x_p: x,
             v_p: v,
@@ -341,7 +389,7 @@ pub fn eval_flow(flow: &Flow, prop: Propagator, tau: f64) -> Sample {
             j_p: j,
             x_s: flow.x_s
                 + flow.v_s * tau
-                + (h * h * th * th) * (c0 * 0.5 + (c1 * ONE_SIXTH + c2 * (ONE_TWELFTH * th)) * th),
+                + (h * h * th * th) * (c0 * 0.5 + (c1 * ONE_SIXTH as Real + c2 * (ONE_TWELFTH as Real * th)) * th),
             v_s: flow.v_s + dv_s,
             a_s: c0 + (c1 + c2 * th) * th,
             v_rel: flow.v_rel + (dv - dv_s),
@@ -350,10 +398,11 @@ pub fn eval_flow(flow: &Flow, prop: Propagator, tau: f64) -> Sample {
 }
 
 /// Evaluates the flow at any tau inside its step (dense output).
-pub fn eval_at(flow: &Flow, tau: f64) -> Sample {
+pub fn eval_at(flow: &Flow, tau: Real) -> Sample {
     eval_flow(flow, propagator(&flow.osc, tau), tau)
 }
 
+only_f64! {
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -365,7 +414,7 @@ mod tests {
     /// wd t) for x(0) = 1, v(0) = 0.
     #[test]
     fn propagator_matches_the_damped_oscillator() {
-        let c = Coefficients::new(&Instance::TABLE1, &Settings::default(), f64::EPSILON);
+        let c = Coefficients::new(&Instance::TABLE1, &Settings::default(), Real::EPSILON);
         let osc = c.slip;
         let (sigma, w2) = (osc.sigma.x, osc.w2.x);
         let wd = (w2 - sigma * sigma).sqrt();
@@ -382,4 +431,5 @@ mod tests {
             assert_eq!(p.a0m1.x, p.a0m1.y, "identical axes, tau {tau}");
         }
     }
+}
 }

@@ -41,9 +41,10 @@
 //! halves of the kept batches agree (Geweke 1992's comparison of early and
 //! late means), which a motion still changing on a longer scale fails.
 
-use super::State;
 use super::coefficients::Coefficients;
+use super::precision::only_f64;
 use super::vec2::Vec2;
+use super::{Real, State};
 
 /// Common-period ends whose states are kept for the recurrence test: the
 /// longest lag found is this many common periods (subharmonic motion of
@@ -135,8 +136,8 @@ pub fn initial_measure(c: &Coefficients) -> Measure {
     Measure {
         last_x_s: Vec2::ZERO,
         batch_start: Vec2::ZERO,
-        d_min: Vec2::splat(f64::INFINITY),
-        d_max: Vec2::splat(-f64::INFINITY),
+        d_min: Vec2::splat(Real::INFINITY),
+        d_max: Vec2::splat(-Real::INFINITY),
         travel: Vec2::ZERO,
         sums: [Vec2::ZERO; BATCHES],
         snaps: [Snapshot::default(); SNAPSHOTS],
@@ -154,7 +155,7 @@ pub fn initial_measure(c: &Coefficients) -> Measure {
 /// Whether the state sits at a period end that [`period_end`] has not
 /// processed yet (a steady measurement only).
 pub fn at_period_end(c: &Coefficients, st: &State, m: &Measure) -> bool {
-    c.steady && st.time >= c.period && m.next_end == st.period
+    c.steady && super::time_reached(st, c.period, c.period_lo) && m.next_end == st.period
 }
 
 /// Processes the end of period `st.period`: the state is at t = (period + 1)
@@ -168,8 +169,8 @@ pub fn period_end(c: &Coefficients, st: &mut State, m: &mut Measure) {
     }
     if ended > c.settle {
         let d = st.x_s - m.last_x_s;
-        m.d_min = m.d_min.zip(d, f64::min);
-        m.d_max = m.d_max.zip(d, f64::max);
+        m.d_min = m.d_min.zip(d, Real::min);
+        m.d_max = m.d_max.zip(d, Real::max);
         m.measured += 1;
         m.in_batch += 1;
         if m.in_batch == m.batch_length {
@@ -241,7 +242,7 @@ fn recurrence(c: &Coefficients, st: &State, m: &mut Measure) {
     m.snapshots += 1;
 }
 
-fn close(a: Vec2, b: Vec2, tolerance: f64) -> bool {
+fn close(a: Vec2, b: Vec2, tolerance: Real) -> bool {
     let d = (a - b).abs();
     d.x <= tolerance && d.y <= tolerance
 }
@@ -298,8 +299,8 @@ pub fn statistics(m: &Measure, start: u32, end: u32) -> Statistics {
     for j in start..end {
         total = total + m.sums[j as usize];
     }
-    let b = m.batch_length as f64;
-    let inv_count = 1.0 / count as f64;
+    let b = m.batch_length as Real;
+    let inv_count = 1.0 / count as Real;
     let per_batch = total * inv_count;
     let mut squares = Vec2::ZERO;
     let mut lagged = Vec2::ZERO;
@@ -313,15 +314,16 @@ pub fn statistics(m: &Measure, start: u32, end: u32) -> Statistics {
         lagged = lagged + e * previous;
         previous = e;
         walk = walk + e;
-        low = low.zip(walk, f64::min);
-        high = high.zip(walk, f64::max);
+        low = low.zip(walk, Real::min);
+        high = high.zip(walk, Real::max);
     }
-    let inv_span = 1.0 / (count as f64 * b);
+    let inv_span = 1.0 / (count as Real * b);
     let range = (high - low) * inv_span;
     let inv_b = 1.0 / b;
-    let batch = squares * (inv_count * (1.0 / (count - 1) as f64)) * (inv_b * inv_b);
+    let batch = squares * (inv_count * (1.0 / (count - 1) as Real)) * (inv_b * inv_b);
     // lagged / squares > CORRELATION_Z / sqrt(count), without a root.
-    let bound = squares * squares * (CORRELATION_Z * CORRELATION_Z * inv_count);
+    let z = CORRELATION_Z as Real;
+    let bound = squares * squares * (z * z * inv_count);
     Statistics {
         total,
         mean: total * inv_span,
@@ -349,7 +351,7 @@ pub fn estimate(m: &Measure) -> Estimate {
         for j in cut..n {
             total = total + m.sums[j as usize];
         }
-        let largest = m.d_min.abs().zip(m.d_max.abs(), f64::max);
+        let largest = m.d_min.abs().zip(m.d_max.abs(), Real::max);
         return Estimate {
             travel: total,
             span,
@@ -364,7 +366,8 @@ pub fn estimate(m: &Measure) -> Estimate {
         let first = statistics(m, cut, cut + half);
         let last = statistics(m, n - half, n);
         let d = first.mean - last.mean;
-        let allowed = (first.se2 + last.se2) * (STATIONARY_Z * STATIONARY_Z);
+        let z = STATIONARY_Z as Real;
+        let allowed = (first.se2 + last.se2) * (z * z);
         stationary = d.x * d.x <= allowed.x && d.y * d.y <= allowed.y;
     }
     Estimate {
@@ -379,10 +382,10 @@ pub fn estimate(m: &Measure) -> Estimate {
 /// that minimises the squared deviations of the rest over (n - d)^2.
 fn mser_cut(m: &Measure) -> Vec2 {
     let n = m.filled;
-    let mut best = Vec2::splat(f64::INFINITY);
+    let mut best = Vec2::splat(Real::INFINITY);
     let mut cut = Vec2::ZERO;
     for d in 0..=n / 2 {
-        let left = (n - d) as f64;
+        let left = (n - d) as Real;
         let inv_left = 1.0 / left;
         let mut total = Vec2::ZERO;
         for j in d..n {
@@ -398,13 +401,14 @@ fn mser_cut(m: &Measure) -> Vec2 {
         for i in 0..2 {
             if score[i] < best[i] {
                 best[i] = score[i];
-                cut[i] = d as f64;
+                cut[i] = d as Real;
             }
         }
     }
     cut
 }
 
+only_f64! {
 /// The drives' common period [scene periods]: the smallest q <=
 /// [`MAX_COMMON_PERIOD`] at which every driven axis completes a whole
 /// number of its cycles (the drive then repeats, phases included), or 0.
@@ -463,6 +467,8 @@ pub fn first_batch_length(cycles_per_period: Vec2, driven: [bool; 2], max_cycles
 pub fn repeat_tolerances(tolerance: f64, deflection: f64, stage_rate: f64) -> (f64, f64) {
     let x = REPEAT_PER_RADIAN * tolerance * deflection;
     (x, x * stage_rate)
+}
+
 }
 
 /// The constants above that the shader reads, as WGSL declarations for

@@ -1,7 +1,12 @@
-//! The event-locating stick-slip integrator in f64: the CPU mirror of the
-//! shader in `shaders/integrate/` (one Rust file per WGSL file, the same
-//! function names, the same order of operations) and the reference every
-//! backend is held to.
+//! The event-locating stick-slip integrator: the CPU mirror of the shader in
+//! `shaders/integrate/` (one Rust file per WGSL file, the same function
+//! names, the same order of operations). Like the shader it is written for
+//! a scalar `Real` and compiled once per precision (`pidm::cpu::double`,
+//! the f64 reference every backend is held to, and `pidm::cpu::single`,
+//! the f32 shader's mirror); the f32 formulation's branches
+//! (`COMPENSATED_TIME`, `FIXED_PHASE`, `CORNER_CLOCK`, `DEFLECTION`,
+//! `APPROACH_NOISE`) are constants of the precision, as in the shader.
+//! Units are those of the precision (SI for f64; the docs below give SI).
 //!
 //! Each axis' stage is a linear oscillator driven by a force that is affine
 //! in time between drive corners. The integrator uses that structure:
@@ -56,35 +61,17 @@ pub use measure::{Measure, initial_measure};
 pub use vec2::Vec2;
 
 use constants::MAX_STALLED_EVENTS;
-use drive::{corner_time, frac, pass_boundaries};
+use drive::{corner_time, corner_time_lo, drive_force, frac, pass_boundaries};
 use flow::{Flow, Sample, eval_at};
 use step::StepOutcome;
 
+pub use super::precision::Real;
+// The precision module of this instance, for the files below.
+use super::precision;
+pub use crate::cpu::settings::Settings;
+
+use super::precision::{COMPENSATED_TIME, CORNER_CLOCK, DEFLECTION};
 use crate::model::{AXES, Instance};
-
-/// The one accuracy knob and the per-instance work limit.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Settings {
-    /// Largest deviation, in radians, allowed between the friction direction
-    /// and its quadratic model within one slip step. Only a turning friction
-    /// direction (genuine 2-DOF slip) is affected; stick, 1-DOF slip and
-    /// slip along a fixed direction are integrated exactly. Measured error in
-    /// the step maps is about tolerance / 4 micrometres (`pidm accuracy`);
-    /// the default 1e-4 keeps every MODEL.md reference case within 3e-5 um.
-    pub tolerance: f64,
-    /// Steps (accepted, rejected and events) allowed per scene period before
-    /// the instance stops with [`STATUS_STEP_BUDGET`].
-    pub max_steps_per_period: u32,
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Settings {
-            tolerance: 1e-4,
-            max_steps_per_period: 2_000_000,
-        }
-    }
-}
 
 /// The complete integrator state of one instance. It is everything needed to
 /// continue a run, so a run may be cut into slices anywhere between
@@ -109,10 +96,17 @@ pub struct State {
     pub cycle_phase: Vec2,
     /// Drive phase of each axis' next corner, on the same scale.
     pub next_corner: Vec2,
+    /// Drive corners' local times in two parts, hi + lo [s] (f32 only,
+    /// `CORNER_CLOCK`: `drive::CornerClock`; zero in f64).
+    pub corner_at: Vec2,
+    pub corner_at_lo: Vec2,
     /// Time within the current scene period [s].
-    pub time: f64,
+    pub time: Real,
+    /// The low part of the two-part time (f32 only, `COMPENSATED_TIME`;
+    /// zero in f64).
+    pub time_lo: Real,
     /// Next trial step in slip [s].
-    pub h_slip: f64,
+    pub h_slip: Real,
     /// 1 while an axis' drive is on its rise, 0 on its fall.
     pub rising: [u32; AXES],
     pub mode: u32,
@@ -134,7 +128,7 @@ pub struct State {
 pub fn initial_state(c: &Coefficients) -> State {
     let p = c.phase.map(frac);
     let rising = [p.x < c.duty.x, p.y < c.duty.y];
-    State {
+    let mut st = State {
         x_p: Vec2::ZERO,
         v_p: Vec2::ZERO,
         x_s: Vec2::ZERO,
@@ -144,7 +138,14 @@ pub fn initial_state(c: &Coefficients) -> State {
         settle_x_s: Vec2::ZERO,
         cycle_phase: p,
         next_corner: Vec2::select(Vec2::splat(1.0), c.duty, rising),
+        corner_at: if CORNER_CLOCK { c.first_corner } else { Vec2::ZERO },
+        corner_at_lo: if CORNER_CLOCK {
+            c.first_corner_lo
+        } else {
+            Vec2::ZERO
+        },
         time: 0.0,
+        time_lo: 0.0,
         h_slip: 0.0,
         rising: [rising[0] as u32, rising[1] as u32],
         mode: MODE_STICK,
@@ -154,12 +155,25 @@ pub fn initial_state(c: &Coefficients) -> State {
         stalled: 0,
         rejections: 0,
         measured: 0,
+    };
+    if DEFLECTION {
+        // At rest at zero: deflected by minus the drive's static motion.
+        let (force, slope) = drive_force(c, &st);
+        st.x_p = -force * c.inv_stiffness;
+        st.v_p = -slope * c.inv_stiffness;
     }
+    st
 }
 
 /// True once the instance has finished, normally or not.
 pub fn is_finished(c: &Coefficients, st: &State) -> bool {
     st.status != STATUS_OK || st.period >= c.cycles || st.measured == 1
+}
+
+/// `st.time >= t + t_lo` on two-part times (`t_lo` and the state's
+/// `time_lo` are zero but in f32).
+pub fn time_reached(st: &State, t: Real, t_lo: Real) -> bool {
+    st.time > t || (st.time == t && st.time_lo >= t_lo)
 }
 
 /// Where a run ended: the integrator's state and the measurement's
@@ -189,7 +203,7 @@ pub fn run_instance_until(
     settings: &Settings,
     stop: impl Fn() -> bool,
 ) -> Option<Run> {
-    let c = Coefficients::new(inst, settings, f64::EPSILON);
+    let c = Coefficients::of(inst, settings);
     let run = Run {
         state: initial_state(&c),
         measure: initial_measure(&c),
@@ -207,7 +221,7 @@ pub fn continue_instance_until(
     mut run: Run,
     stop: impl Fn() -> bool,
 ) -> Option<Run> {
-    let c = Coefficients::new(inst, settings, f64::EPSILON);
+    let c = Coefficients::of(inst, settings);
     while !is_finished(&c, &run.state) {
         if stop() {
             return None;
@@ -251,29 +265,29 @@ impl StepObserver for NoObserver {
 pub struct StepMotion<'a> {
     flow: &'a Flow,
     /// Step length [s].
-    tau: f64,
+    tau: Real,
     /// Local time within the period where the step ends [s].
-    end: f64,
+    end: Real,
     /// The state the step ends in.
     at_end: &'a Sample,
 }
 
 impl StepMotion<'_> {
     /// Step length [s].
-    pub fn length(&self) -> f64 {
+    pub fn length(&self) -> Real {
         self.tau
     }
 
     /// Local time within the scene period where the step ends [s] (the
     /// step starts at the observed state's `time`).
-    pub fn end(&self) -> f64 {
+    pub fn end(&self) -> Real {
         self.end
     }
 
     /// Stage and slider positions [m] per axis at `tau` seconds into the
     /// step, 0 <= tau <= [`StepMotion::length`]; at the end exactly the
     /// state the integrator moves to.
-    pub fn positions_at(&self, tau: f64) -> ([f64; AXES], [f64; AXES]) {
+    pub fn positions_at(&self, tau: Real) -> ([Real; AXES], [Real; AXES]) {
         if tau >= self.tau {
             return (self.at_end.x_p.to_array(), self.at_end.x_s.to_array());
         }
@@ -308,34 +322,58 @@ pub fn advance_observed<O: StepObserver>(
 
 /// The end of the current step interval: the period end or the next drive
 /// corner, whichever comes first.
-fn stop_time(c: &Coefficients, st: &State) -> f64 {
+fn stop_time(c: &Coefficients, st: &State) -> (Real, Real) {
     let corners = corner_time(c, st);
-    c.period.min(corners.x).min(corners.y)
+    let at = c.period.min(corners.x).min(corners.y);
+    let mut lo = 0.0;
+    if CORNER_CLOCK {
+        // The low part of the stop that ends first (of equal high parts,
+        // the earlier one).
+        let corners_lo = corner_time_lo(c, st);
+        lo = Real::INFINITY;
+        if c.period == at {
+            lo = c.period_lo;
+        }
+        if corners.x == at {
+            lo = lo.min(corners_lo.x);
+        }
+        if corners.y == at {
+            lo = lo.min(corners_lo.y);
+        }
+    }
+    (at, lo)
 }
 
 /// One iteration: passes the boundaries at the current time if any, then
 /// (unless the run ended there) takes one step or one rejected slip trial.
 pub fn iterate<O: StepObserver>(c: &Coefficients, st: &mut State, observer: &mut O) {
-    if st.period == c.settle && st.time == 0.0 {
+    if st.period == c.settle && st.time == 0.0 && st.time_lo == 0.0 {
         st.settle_x_s = st.x_s;
     }
     let mut stop = stop_time(c, st);
-    if st.time >= stop {
+    if time_reached(st, stop.0, stop.1) {
         pass_boundaries(c, st);
         if is_finished(c, st) {
             return;
         }
         stop = stop_time(c, st);
-        if st.time >= stop {
+        if time_reached(st, stop.0, stop.1) {
             return;
         }
     }
-    let h_max = stop - st.time;
+    let h_max = if CORNER_CLOCK {
+        (stop.0 - st.time) + (stop.1 - st.time_lo)
+    } else if COMPENSATED_TIME {
+        (stop.0 - st.time) - st.time_lo
+    } else {
+        stop.0 - st.time
+    };
     let time_before = st.time;
+    let time_lo_before = st.time_lo;
     let outcome = step::step(c, st, h_max, stop, observer);
     st.steps += 1;
     if outcome == StepOutcome::Moved || st.status != STATUS_OK {
-        if st.time > time_before {
+        if st.time > time_before || (st.time == time_before && st.time_lo > time_lo_before) {
             st.stalled = 0;
         } else {
             st.stalled += 1;

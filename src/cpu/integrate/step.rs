@@ -31,8 +31,10 @@ use super::flow::{
     DirectionModel, Flow, IDENTITY, Sample, SamplePropagators, eval_at, eval_flow, make_flow,
     sample_propagators,
 };
+use super::drive::two_sum;
+use super::precision::{APPROACH_NOISE, COMPENSATED_TIME, DEFLECTION, TINY};
 use super::vec2::{Vec2, dot, norm2};
-use super::{State, StepMotion, StepObserver};
+use super::{Real, State, StepMotion, StepObserver};
 
 /// What one call of [`step`] did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,7 +53,7 @@ fn mode_flow(
     force: Vec2,
     slope: Vec2,
     dir: &DirectionModel,
-    h: f64,
+    h: Real,
 ) -> Flow {
     make_flow(
         c,
@@ -80,12 +82,13 @@ fn direction(s: &Sample) -> Option<Vec2> {
     }
 }
 
-/// One step of at most `h_max`, ending no later than the local time `stop`.
+/// One step of at most `h_max`, ending no later than the local time `stop`
+/// (hi, lo: the low part is zero but in f32).
 pub fn step<O: StepObserver>(
     c: &Coefficients,
     st: &mut State,
-    h_max: f64,
-    stop: f64,
+    h_max: Real,
+    stop: (Real, Real),
     observer: &mut O,
 ) -> StepOutcome {
     let (force, slope) = drive_force(c, st);
@@ -130,7 +133,7 @@ pub fn step<O: StepObserver>(
         let u0 = dir.b0;
         for _ in 0..COLLOCATION_ITERATIONS {
             let (Some(um), Some(ue)) = (direction(&mid), direction(&end)) else {
-                err = f64::INFINITY;
+                err = Real::INFINITY;
                 break;
             };
             let b1 = 4.0 * um - 3.0 * u0 - ue;
@@ -163,7 +166,7 @@ pub fn step<O: StepObserver>(
         if err == 0.0 {
             err = direction_error(&dir, &samples, 4);
         }
-        if err == f64::INFINITY {
+        if err == Real::INFINITY {
             // The relative velocity reversed (or vanished) within the trial,
             // so no quadratic follows its direction; but the band is
             // entered before any reversal. Take the constant direction u of
@@ -269,10 +272,21 @@ pub fn step<O: StepObserver>(
         if event == EVENT_APPROACH {
             let turned = match direction(&s) {
                 Some(u) => norm2(u - flow.b0).sqrt(),
-                None => f64::INFINITY,
+                None => Real::INFINITY,
             };
-            if turned > c.tolerance {
-                reject(c, st, h, f64::INFINITY);
+            let mut allowed = c.tolerance;
+            if APPROACH_NOISE {
+                // f32 knows v_rel here only to the rounding of the stage's
+                // and the slider's velocity changes it is the difference
+                // of (their deflection form makes that all): a turn below
+                // it is not one f32 can see, and shorter steps, which
+                // shrink the changes, only cost steps (results/gpu.md).
+                let dv = (s.v_p - flow.v_p).abs() + (s.v_s - flow.v_s).abs();
+                let v = s.v_rel;
+                allowed += (4.0 * Real::EPSILON * (dv.x + dv.y)) / norm2(v).max(TINY).sqrt();
+            }
+            if turned > allowed {
+                reject(c, st, h, Real::INFINITY);
                 return StepOutcome::Rejected;
             }
         }
@@ -295,7 +309,7 @@ pub fn step<O: StepObserver>(
 }
 
 /// The five samples of a flow over a step of length h.
-fn sample_flow(flow: &Flow, props: &SamplePropagators, h: f64) -> [Sample; 5] {
+fn sample_flow(flow: &Flow, props: &SamplePropagators, h: Real) -> [Sample; 5] {
     [
         eval_flow(flow, IDENTITY, 0.0),
         eval_flow(flow, props.quarter, 0.25 * h),
@@ -308,17 +322,17 @@ fn sample_flow(flow: &Flow, props: &SamplePropagators, h: f64) -> [Sample; 5] {
 /// The largest distance between the direction model and the true direction
 /// of the resulting motion at samples 1 to `last`, or infinity where the
 /// relative velocity turns by a right angle between samples or vanishes.
-fn direction_error(dir: &DirectionModel, samples: &[Sample; 5], last: usize) -> f64 {
-    let mut err: f64 = 0.0;
+fn direction_error(dir: &DirectionModel, samples: &[Sample; 5], last: usize) -> Real {
+    let mut err: Real = 0.0;
     let mut prev_v = relative_velocity(&samples[0]);
     for (s, th) in samples.iter().zip(THETA).skip(1).take(last) {
         let v = relative_velocity(s);
         if dot(v, prev_v) <= 0.0 {
-            return f64::INFINITY;
+            return Real::INFINITY;
         }
         prev_v = v;
         let Some(u) = direction(s) else {
-            return f64::INFINITY;
+            return Real::INFINITY;
         };
         let model = dir.b0 + (dir.b1 + dir.b2 * th) * th;
         let d = u - model;
@@ -329,7 +343,7 @@ fn direction_error(dir: &DirectionModel, samples: &[Sample; 5], last: usize) -> 
 
 /// A rejected slip trial: the next one is shorter, unless the step has
 /// become too short or too many were rejected in a row.
-fn reject(c: &Coefficients, st: &mut State, h: f64, err: f64) {
+fn reject(c: &Coefficients, st: &mut State, h: Real, err: Real) {
     st.rejections += 1;
     let factor = if err.is_finite() {
         step_factor(c.tolerance / err, 0.1, 0.9)
@@ -345,7 +359,7 @@ fn reject(c: &Coefficients, st: &mut State, h: f64, err: f64) {
 }
 
 /// How much longer the next slip step may be after one with error `err`.
-fn grow_factor(c: &Coefficients, err: f64) -> f64 {
+fn grow_factor(c: &Coefficients, err: Real) -> Real {
     if err > 0.0 {
         step_factor(c.tolerance / err, 0.2, 4.0)
     } else {
@@ -358,13 +372,13 @@ fn grow_factor(c: &Coefficients, err: f64) -> f64 {
 fn move_to<O: StepObserver>(
     st: &mut State,
     s: &Sample,
-    tau: f64,
-    h_max: f64,
-    stop: f64,
+    tau: Real,
+    h_max: Real,
+    stop: (Real, Real),
     flow: &Flow,
     observer: &mut O,
 ) {
-    let end = if tau >= h_max { stop } else { st.time + tau };
+    let end = if tau >= h_max { stop.0 } else { st.time + tau };
     observer.step(
         st,
         &StepMotion {
@@ -380,7 +394,12 @@ fn move_to<O: StepObserver>(
     st.v_s = s.v_s;
     st.v_rel = s.v_rel;
     if tau >= h_max {
-        st.time = stop;
+        st.time = stop.0;
+        st.time_lo = stop.1;
+    } else if COMPENSATED_TIME {
+        let (hi, lo) = two_sum(st.time, tau + st.time_lo);
+        st.time = hi;
+        st.time_lo = lo;
     } else {
         st.time += tau;
     }
@@ -393,7 +412,7 @@ fn move_to<O: StepObserver>(
 /// difference of large velocities, so the turn time carries rounding noise
 /// that differs between backends, and a power-of-two step does not follow
 /// it (only a turn time on a power of two could tip it).
-fn initial_slip_step(c: &Coefficients, st: &State, h_max: f64) -> f64 {
+fn initial_slip_step(c: &Coefficients, st: &State, h_max: Real) -> Real {
     let (force, slope) = drive_force(c, st);
     let v = st.v_rel;
     let dir = DirectionModel {
@@ -411,7 +430,7 @@ fn initial_slip_step(c: &Coefficients, st: &State, h_max: f64) -> f64 {
     let turn = if across > 0.0 {
         0.1 * speed / across
     } else {
-        f64::INFINITY
+        Real::INFINITY
     };
     let mut h = c.event_step_slip;
     for _ in 0..MAX_SQUARINGS {
@@ -426,7 +445,12 @@ fn initial_slip_step(c: &Coefficients, st: &State, h_max: f64) -> f64 {
 /// The static friction force on the slider that stick would need now, with
 /// both bodies at their common (momentum-conserving) velocity.
 pub fn stick_force(c: &Coefficients, st: &State) -> Vec2 {
-    let (force, _) = drive_force(c, st);
+    let (force, slope) = drive_force(c, st);
+    if DEFLECTION {
+        // F - k x_p = -k d: the force balance without the drive force.
+        let v = c.stage_share * (st.v_p + slope * c.inv_stiffness) + c.slider_share * st.v_s;
+        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p);
+    }
     let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
     let p = force - c.damping * v - c.stiffness * st.x_p;
     c.slider_share * p
@@ -492,9 +516,18 @@ pub fn start_slip(c: &Coefficients, st: &mut State, need: Vec2) {
 /// make it re-enter the band at once, over and over.
 fn try_stick(c: &Coefficients, st: &mut State) {
     let need = stick_force(c, st);
-    let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
-    st.v_p = v;
-    st.v_s = v;
+    if DEFLECTION {
+        // The merged velocity relative to the drive's static velocity
+        // (with v_s = v_p - v_rel, no difference of two speeds), and
+        // absolute for the slider.
+        let u = st.v_p - c.slider_share * st.v_rel;
+        st.v_p = u;
+        st.v_s = u + drive_force(c, st).1 * c.inv_stiffness;
+    } else {
+        let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
+        st.v_p = v;
+        st.v_s = v;
+    }
     st.v_rel = Vec2::ZERO;
     if norm2(need) <= c.hold2 {
         st.mode = MODE_STICK;

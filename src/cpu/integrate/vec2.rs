@@ -6,43 +6,44 @@
 //! arithmetic in the same order, and the same two reductions ([`dot`] and
 //! [`Vec2::max_element`]), so both compute the same numbers.
 
+use super::Real;
 use std::ops::{Add, Div, Index, IndexMut, Mul, Neg, Sub};
 
 /// An (x, y) pair of per-axis values.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Vec2 {
-    pub x: f64,
-    pub y: f64,
+    pub x: Real,
+    pub y: Real,
 }
 
 impl Vec2 {
     pub const ZERO: Vec2 = Vec2 { x: 0.0, y: 0.0 };
 
-    pub const fn new(x: f64, y: f64) -> Vec2 {
+    pub const fn new(x: Real, y: Real) -> Vec2 {
         Vec2 { x, y }
     }
 
     /// The same value on both axes.
-    pub const fn splat(v: f64) -> Vec2 {
+    pub const fn splat(v: Real) -> Vec2 {
         Vec2 { x: v, y: v }
     }
 
     /// Applies `f` to each component.
-    pub fn map(self, f: impl Fn(f64) -> f64) -> Vec2 {
+    pub fn map(self, f: impl Fn(Real) -> Real) -> Vec2 {
         Vec2::new(f(self.x), f(self.y))
     }
 
     /// Component-wise `f(self, other)`.
-    pub fn zip(self, other: Vec2, f: impl Fn(f64, f64) -> f64) -> Vec2 {
+    pub fn zip(self, other: Vec2, f: impl Fn(Real, Real) -> Real) -> Vec2 {
         Vec2::new(f(self.x, other.x), f(self.y, other.y))
     }
 
     pub fn abs(self) -> Vec2 {
-        self.map(f64::abs)
+        self.map(Real::abs)
     }
 
     /// The larger component.
-    pub fn max_element(self) -> f64 {
+    pub fn max_element(self) -> Real {
         self.x.max(self.y)
     }
 
@@ -55,24 +56,24 @@ impl Vec2 {
     }
 
     /// The components as an array, x first.
-    pub fn to_array(self) -> [f64; 2] {
+    pub fn to_array(self) -> [Real; 2] {
         [self.x, self.y]
     }
 }
 
 /// x a.x + y b.y, in that order (WGSL `dot` of a `vec2`).
-pub fn dot(a: Vec2, b: Vec2) -> f64 {
+pub fn dot(a: Vec2, b: Vec2) -> Real {
     a.x * b.x + a.y * b.y
 }
 
 /// |v|^2.
-pub fn norm2(v: Vec2) -> f64 {
+pub fn norm2(v: Vec2) -> Real {
     dot(v, v)
 }
 
 impl Index<usize> for Vec2 {
-    type Output = f64;
-    fn index(&self, i: usize) -> &f64 {
+    type Output = Real;
+    fn index(&self, i: usize) -> &Real {
         match i {
             0 => &self.x,
             1 => &self.y,
@@ -82,7 +83,7 @@ impl Index<usize> for Vec2 {
 }
 
 impl IndexMut<usize> for Vec2 {
-    fn index_mut(&mut self, i: usize) -> &mut f64 {
+    fn index_mut(&mut self, i: usize) -> &mut Real {
         match i {
             0 => &mut self.x,
             1 => &mut self.y,
@@ -119,28 +120,35 @@ impl Div for Vec2 {
     }
 }
 
-impl Mul<f64> for Vec2 {
+impl Mul<Real> for Vec2 {
     type Output = Vec2;
-    fn mul(self, s: f64) -> Vec2 {
+    fn mul(self, s: Real) -> Vec2 {
         self.map(|a| a * s)
     }
 }
 
-impl Mul<Vec2> for f64 {
+impl Mul<Vec2> for Real {
     type Output = Vec2;
     fn mul(self, v: Vec2) -> Vec2 {
         v.map(|a| self * a)
     }
 }
 
-impl Add<f64> for Vec2 {
+impl Add<Real> for Vec2 {
     type Output = Vec2;
-    fn add(self, s: f64) -> Vec2 {
+    fn add(self, s: Real) -> Vec2 {
         self.map(|a| a + s)
     }
 }
 
-impl Sub<Vec2> for f64 {
+impl Sub<Real> for Vec2 {
+    type Output = Vec2;
+    fn sub(self, s: Real) -> Vec2 {
+        self.map(|a| a - s)
+    }
+}
+
+impl Sub<Vec2> for Real {
     type Output = Vec2;
     fn sub(self, v: Vec2) -> Vec2 {
         v.map(|a| self - a)
