@@ -36,6 +36,9 @@ pub mod precision {
     pub(crate) use only_f64;
 }
 
+// The same source as the other precision's, on purpose (the shader's
+// `alias Real`): see `pidm::cpu`.
+#[allow(clippy::duplicate_mod)]
 #[path = "../integrate/mod.rs"]
 #[allow(dead_code)]
 pub mod integrate;
