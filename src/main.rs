@@ -49,8 +49,10 @@ enum Command {
         /// none; cpu.
         #[arg(long, value_enum, default_value_t = backend::BackendChoice::Auto)]
         backend: backend::BackendChoice,
-        /// Precision of the GPU path [default: f64 where the adapter has
-        /// it, else f32]; the CPU path is f64.
+        /// Precision [default: f64 where the adapter has it, else f32, on
+        /// the GPU; f64 on the CPU]. With --backend cpu, f32 runs the f32
+        /// shader's CPU mirror (for checking f32 without a GPU); auto falls
+        /// back to the CPU in f64.
         #[arg(long, value_enum)]
         precision: Option<backend::Precision>,
         /// Run only shard K of N (1 <= K <= N) into its own file [default

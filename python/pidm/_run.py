@@ -146,8 +146,8 @@ def run(
         ``"auto"`` (a hardware GPU with f64 when the run is large enough, else the
         CPU), ``"gpu"`` or ``"cpu"``.
     precision
-        ``"f32"`` or ``"f64"`` on the GPU [default: f64 where the adapter has it];
-        the CPU path is f64.
+        ``"f32"`` or ``"f64"`` [default: f64 where the adapter has it, f64 on the
+        CPU]. With ``backend="cpu"``, ``"f32"`` runs the f32 shader's CPU mirror.
     threads
         Worker threads of the CPU path [default: every core].
     out

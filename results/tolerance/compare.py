@@ -15,6 +15,9 @@ PAIRS = [
     ("cpu_1e-5", "cpu_1e-6", "CPU at 1e-5 rad against CPU at 1e-6 rad"),
     ("f32", "cpu_1e-4", "f32 (default tolerance) against CPU default"),
     ("f32", "cpu_1e-6", "f32 (default tolerance) against CPU at 1e-6 rad"),
+    ("mirror", "cpu_1e-4", "f32 CPU mirror against CPU default"),
+    ("mirror", "cpu_1e-6", "f32 CPU mirror against CPU at 1e-6 rad"),
+    ("mirror", "f32", "f32 CPU mirror against f32 shader"),
 ]
 
 

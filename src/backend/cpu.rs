@@ -6,8 +6,8 @@ use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision};
-use crate::cpu::{integrate, single};
 use crate::cpu::integrate::Settings;
+use crate::cpu::{integrate, single};
 use crate::interrupt::interrupt_requested;
 use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;

@@ -16,7 +16,8 @@ pub enum BackendChoice {
     Auto,
     /// The WGSL shader on any adapter, software ones (lavapipe) included.
     Gpu,
-    /// The rayon CPU path in f64.
+    /// The rayon CPU path: f64 (the reference), or with `--precision
+    /// f32` the f32 shader's CPU mirror.
     Cpu,
 }
 

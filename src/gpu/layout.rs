@@ -113,9 +113,9 @@ macro_rules! precision_structs {
         /// Storage structs of one precision.
         pub mod $module {
             use super::*;
-            use crate::cpu::$mirror::integrate as mirror;
             use crate::cpu::integrate::Vec2;
             use crate::cpu::integrate::measure;
+            use crate::cpu::$mirror::integrate as mirror;
             use mirror::coefficients::Oscillator as MirrorOscillator;
 
             /// The scalar type of this precision.
@@ -324,7 +324,9 @@ macro_rules! precision_structs {
             /// finished shader state: status, period and slider positions.
             pub fn reduced_state(st: &State) -> crate::cpu::integrate::State {
                 let length = |v: V2| Vec2::new(v.x as f64, v.y as f64) * (1.0 / UNITS.metre);
-                let mut out = crate::cpu::integrate::initial_state(&crate::cpu::integrate::Coefficients::default());
+                let mut out = crate::cpu::integrate::initial_state(
+                    &crate::cpu::integrate::Coefficients::default(),
+                );
                 out.x_s = length(st.x_s);
                 out.settle_x_s = length(st.settle_x_s);
                 out.status = st.status;

@@ -921,6 +921,62 @@ pub fn run_batch_with(
     out
 }
 
+/// The shader's state of every instance after `iterations` iterations of
+/// the integrator (one dispatch, each instance on a lane of its own), as
+/// the CPU mirror of precision `L` holds it: for tests that pin the shader
+/// to its mirror step by step. On lavapipe `iterations` must stay small
+/// enough (hundreds) for the loop limiter never to undo one.
+fn states_after<L: Layout>(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    iterations: u32,
+) -> Result<Vec<L::Mirror>, GpuError> {
+    let pipeline = ctx.prepare(L::PRECISION)?;
+    let options = BatchOptions {
+        slice_iterations: iterations.max(1),
+        lanes: instances.len().max(1),
+        cpu_tail: Some(0),
+        ..BatchOptions::default()
+    };
+    let states = {
+        let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
+        let run = Runner {
+            device: &ctx.device,
+            queue: &ctx.queue,
+            pipeline: &pipeline,
+            limits: &ctx.limits,
+            settings,
+            options: &options,
+        };
+        run.slices::<L>(instances, &mut |_| {}, Some(1))?.0
+    };
+    ctx.check_health()?;
+    Ok(states.iter().map(L::mirror).collect())
+}
+
+/// [`states_after`] in f32: the states of the f32 shader as its CPU mirror
+/// (`pidm::cpu::single`) holds them.
+pub fn f32_states_after(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    iterations: u32,
+) -> Result<Vec<crate::cpu::single::integrate::State>, GpuError> {
+    states_after::<Single>(ctx, instances, settings, iterations)
+}
+
+/// [`states_after`] in f64: the states of the f64 shader as the CPU
+/// reference holds them.
+pub fn f64_states_after(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    iterations: u32,
+) -> Result<Vec<crate::cpu::integrate::State>, GpuError> {
+    states_after::<Double>(ctx, instances, settings, iterations)
+}
+
 /// The work of [`run_batch`] on any device: `pipeline` must come from
 /// [`create_pipeline`] on that device with the same precision, and `limits`
 /// are the device's.
@@ -956,6 +1012,9 @@ trait Layout {
     type Coefficients: HostLayout + Send;
     type State: HostLayout + Send + Sync;
     type Measure: HostLayout + Send + Sync;
+    /// The CPU mirror's state of this precision.
+    type Mirror;
+    fn mirror(st: &Self::State) -> Self::Mirror;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
     /// The outcome of a finished fixed window.
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
@@ -997,6 +1056,10 @@ impl Layout for Single {
     type Coefficients = layout::single::Coefficients;
     type State = layout::single::State;
     type Measure = layout::single::Measure;
+    type Mirror = crate::cpu::single::integrate::State;
+    fn mirror(st: &Self::State) -> Self::Mirror {
+        layout::single::to_cpu(st)
+    }
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::single::pack(inst, settings)
     }
@@ -1023,6 +1086,10 @@ impl Layout for Double {
     type Coefficients = layout::double::Coefficients;
     type State = layout::double::State;
     type Measure = layout::double::Measure;
+    type Mirror = crate::cpu::integrate::State;
+    fn mirror(st: &Self::State) -> Self::Mirror {
+        layout::double::to_cpu(st)
+    }
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::double::pack(inst, settings)
     }
@@ -1030,7 +1097,11 @@ impl Layout for Double {
         layout::double::unpack(inst, st)
     }
     fn reduce(inst: &Instance, st: &Self::State, m: &Self::Measure) -> GpuOutcome {
-        reduce_shader(inst, layout::double::to_cpu(st), layout::double::measure_to_cpu(m))
+        reduce_shader(
+            inst,
+            layout::double::to_cpu(st),
+            layout::double::measure_to_cpu(m),
+        )
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::double::finished(inst, st)
@@ -1148,11 +1219,15 @@ impl Runner<'_> {
         result
     }
 
-    fn batch_inner<L: Layout>(
+    /// Dispatches slices until the batch is done, or only its slow tail is
+    /// left, or `slice_limit` slices have run; returns every state and,
+    /// for a batch with a steady instance, every measurement.
+    fn slices<L: Layout>(
         &self,
         instances: &[Instance],
         progress: &mut dyn FnMut(u64),
-    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        slice_limit: Option<u64>,
+    ) -> Result<(Vec<L::State>, Vec<L::Measure>), GpuError> {
         let device = self.device;
         let queue = self.queue;
         let n = instances.len();
@@ -1295,6 +1370,9 @@ impl Runner<'_> {
             if unfinished == 0 || (next >= n as u64 && (unfinished as u64) <= tail_size) {
                 break;
             }
+            if slice_limit.is_some_and(|limit| slice >= limit) {
+                break;
+            }
             if crate::sweep::interrupt_requested() {
                 return Err(GpuError::Interrupted);
             }
@@ -1321,22 +1399,29 @@ impl Runner<'_> {
         } else {
             Vec::new()
         };
-        let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
-        // The outcomes, read in place from the mapped states, and the
-        // states of the unfinished ones.
-        let (mut out, tail) = with_mapped(device, &states_read, |bytes| {
-            let owned: Vec<L::State>;
-            let states: &[L::State] = match bytemuck::try_cast_slice(bytes) {
-                Ok(states) => states,
+        let states: Vec<L::State> = with_mapped(device, &states_read, |bytes| {
+            match bytemuck::try_cast_slice(bytes) {
+                Ok(states) => states.to_vec(),
                 // A mapping not aligned for the struct (no driver seen).
-                Err(_) => {
-                    owned = bytes
-                        .chunks_exact(size_of::<L::State>())
-                        .map(bytemuck::pod_read_unaligned)
-                        .collect();
-                    &owned
-                }
-            };
+                Err(_) => bytes
+                    .chunks_exact(size_of::<L::State>())
+                    .map(bytemuck::pod_read_unaligned)
+                    .collect(),
+            }
+        })?;
+        Ok((states, measure_list))
+    }
+
+    fn batch_inner<L: Layout>(
+        &self,
+        instances: &[Instance],
+        progress: &mut dyn FnMut(u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let n = instances.len();
+        let (states, measure_list) = self.slices::<L>(instances, progress, None)?;
+        let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
+        // The outcomes, and the states of the unfinished ones.
+        let (mut out, tail) = {
             let out: Vec<GpuOutcome> = (0..n)
                 .into_par_iter()
                 .map(|k| {
@@ -1353,7 +1438,7 @@ impl Runner<'_> {
                 .map(|k| (k, states[k]))
                 .collect();
             (out, tail)
-        })?;
+        };
         // The slow tail, if the GPU stopped before it: on the CPU, in
         // parallel, from where the GPU left it (f64) or from the start
         // (f32).

@@ -202,7 +202,13 @@ pub fn prelude(variant: Variant) -> String {
             F64_HELPERS
         ),
     };
-    let [compensated, fixed_phase, corner_clock, deflection, approach_noise] = switches;
+    let [
+        compensated,
+        fixed_phase,
+        corner_clock,
+        deflection,
+        approach_noise,
+    ] = switches;
     let body = format!(
         "alias Real = {real};\n\
          const EPSILON: Real = {eps:e};\n\
@@ -353,13 +359,10 @@ mod tests {
             "hermite_good",
             "any_primary_event",
             "sample_direction_error",
-            "time_reached",
             "is_finite",
             "is_finite2",
-            // No generics: the V2 form of `two_sum`; and the low part of
-            // the corner time, which only the f32 corner clock keeps.
+            // No generics: the V2 form of `two_sum`.
             "two_sum2",
-            "corner_time_lo",
         ];
         // CPU only: constructors, the observer of trajectories (its `step`
         // method and `StepMotion`), the whole run (stoppable, also from a
@@ -368,6 +371,11 @@ mod tests {
         let cpu_only = [
             "new",
             "default",
+            // The coefficients in a precision (computed on the host), and
+            // 1 / n, which the prelude generates for the shader.
+            "of",
+            "rounded",
+            "inverse_integer",
             "run_instance",
             "run_instance_until",
             "continue_instance_until",

@@ -10,6 +10,7 @@ mod crosscheck;
 mod extreme;
 mod files;
 mod gpu;
+mod mirror;
 mod output;
 mod plot;
 mod plot_fuzz;

@@ -2,11 +2,11 @@
 //! so the CPU computes exactly what the shader computes.
 
 use super::Real;
-use super::precision::only_f64;
 use super::constants::{
     CUBE_ROOT_GUESS, CUBE_ROOT_ITERATIONS, ONE_THIRD, STEP_FACTOR_QUANTUM, STEP_RATIO_MAX,
     STEP_RATIO_MIN,
 };
+use super::precision::only_f64;
 
 /// The cube root of `c` in [1e-3, 1e2] by range reduction to [1/8, 1]
 /// (exact scalings by 8) and Newton's iteration from a linear guess. WGSL

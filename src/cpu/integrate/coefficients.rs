@@ -289,7 +289,7 @@ impl Coefficients {
         let deflection = (amplitude.abs() * stiffness.map(|k| 1.0 / k)).max_element();
         let (repeat_x, repeat_v) =
             super::measure::repeat_tolerances(settings.tolerance, deflection, slip.rate.max_element());
-        Coefficients {
+        let mut c = Coefficients {
             stiffness,
             damping,
             inv_stiffness: stiffness.map(|k| 1.0 / k),
@@ -342,6 +342,7 @@ impl Coefficients {
             band: m.velocity_band,
             band2: m.velocity_band * m.velocity_band,
             period,
+            // The corner clock, exact in f64 (below).
             period_lo: 0.0,
             rise_time: Vec2::ZERO,
             rise_time_lo: Vec2::ZERO,
@@ -366,7 +367,12 @@ impl Coefficients {
             repeat_x,
             repeat_v,
             frictionless: fc == 0.0,
-        }
+        };
+        let clock = super::drive::CornerClock::new(&c, |x| x);
+        (c.rise_time, c.rise_time_lo) = clock.rise;
+        (c.fall_time, c.fall_time_lo) = clock.fall;
+        (c.first_corner, c.first_corner_lo) = clock.first;
+        c
     }
 }
 

@@ -1,13 +1,13 @@
 //! The sawtooth drives: the force and its slope now, the time of each
 //! axis' next corner, and the passing of corners and period ends.
 
-use super::precision::only_f64;
 use super::coefficients::Coefficients;
-use super::precision::{CORNER_CLOCK, DEFLECTION, FIXED_PHASE};
-use super::{Real, State, time_reached};
 use super::constants::MODE_STICK;
+use super::precision::only_f64;
+use super::precision::{CORNER_CLOCK, DEFLECTION, FIXED_PHASE};
 use super::step::{start_slip, stick_force};
 use super::vec2::{Vec2, norm2};
+use super::{Real, State, time_reached};
 
 /// Local time of each axis' next drive corner, or infinity where undriven.
 /// It divides by the frequency rather than multiplying by its inverse:

@@ -9,11 +9,11 @@
 //! held direction.
 
 use super::Real;
-use super::precision::{TIME_EPSILON, TINY};
 use super::State;
 use super::coefficients::Coefficients;
 use super::constants::{EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_NOISE, ROOT_ITERATIONS};
 use super::flow::{Flow, Sample, eval_at};
+use super::precision::{TIME_EPSILON, TINY};
 use super::vec2::{Vec2, dot, norm2};
 
 /// Value and time derivative of an event function.

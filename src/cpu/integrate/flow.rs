@@ -2,13 +2,13 @@
 //! oscillators, the flow (particular solution plus homogeneous part per
 //! axis, and the slider), and its evaluation at any time inside the step.
 
-use super::precision::only_f64;
+use super::Real;
 use super::coefficients::{Coefficients, Oscillator};
 use super::constants::{
     MAX_SQUARINGS, ONE_SIXTH, ONE_THIRD, ONE_TWELFTH, TAYLOR_STAGE_CONVERGED, TAYLOR_STAGE_TERMS,
 };
-use super::Real;
 use super::precision::DEFLECTION;
+use super::precision::only_f64;
 use super::vec2::Vec2;
 
 /// 1 / n as the shader's literal of it (`inverse_integer`): the f64
@@ -360,10 +360,7 @@ pub fn eval_flow(flow: &Flow, prop: Propagator, tau: Real) -> Sample {
     let v = flow.v_p + dv;
     if flow.stuck {
         let (x_s, v_s) = if DEFLECTION {
-            (
-                flow.x_s + ((x - flow.x_p) + flow.ramp * tau),
-                v + flow.ramp,
-            )
+            (flow.x_s + ((x - flow.x_p) + flow.ramp * tau), v + flow.ramp)
         } else {
             (flow.x_s + (x - flow.x_p), v)
         };
@@ -389,7 +386,8 @@ pub fn eval_flow(flow: &Flow, prop: Propagator, tau: Real) -> Sample {
             j_p: j,
             x_s: flow.x_s
                 + flow.v_s * tau
-                + (h * h * th * th) * (c0 * 0.5 + (c1 * ONE_SIXTH as Real + c2 * (ONE_TWELFTH as Real * th)) * th),
+                + (h * h * th * th)
+                    * (c0 * 0.5 + (c1 * ONE_SIXTH as Real + c2 * (ONE_TWELFTH as Real * th)) * th),
             v_s: flow.v_s + dv_s,
             a_s: c0 + (c1 + c2 * th) * th,
             v_rel: flow.v_rel + (dv - dv_s),

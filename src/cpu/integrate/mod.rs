@@ -138,7 +138,11 @@ pub fn initial_state(c: &Coefficients) -> State {
         settle_x_s: Vec2::ZERO,
         cycle_phase: p,
         next_corner: Vec2::select(Vec2::splat(1.0), c.duty, rising),
-        corner_at: if CORNER_CLOCK { c.first_corner } else { Vec2::ZERO },
+        corner_at: if CORNER_CLOCK {
+            c.first_corner
+        } else {
+            Vec2::ZERO
+        },
         corner_at_lo: if CORNER_CLOCK {
             c.first_corner_lo
         } else {

@@ -23,6 +23,7 @@ use super::constants::{
     SLIP_DIRECTION_ITERATIONS, STATUS_STEP_UNDERFLOW,
 };
 use super::drive::drive_force;
+use super::drive::two_sum;
 use super::events::{
     THETA, approach_event, approach_scale, find_crossing, locate, primary_event, primary_scale,
     relative_acceleration, relative_velocity, reversal_event, reversal_scale,
@@ -31,7 +32,6 @@ use super::flow::{
     DirectionModel, Flow, IDENTITY, Sample, SamplePropagators, eval_at, eval_flow, make_flow,
     sample_propagators,
 };
-use super::drive::two_sum;
 use super::precision::{APPROACH_NOISE, COMPENSATED_TIME, DEFLECTION, TINY};
 use super::vec2::{Vec2, dot, norm2};
 use super::{Real, State, StepMotion, StepObserver};
