@@ -1048,6 +1048,10 @@ fn any_steady(instances: &[Instance]) -> bool {
         .any(|inst| matches!(inst.measure, Measure::Steady { .. }))
 }
 
+/// Every state of a batch and, for a batch with a steady instance, every
+/// measurement, as read back from the device.
+type Readback<L> = (Vec<<L as Layout>::State>, Vec<<L as Layout>::Measure>);
+
 struct Single;
 struct Double;
 
@@ -1227,7 +1231,7 @@ impl Runner<'_> {
         instances: &[Instance],
         progress: &mut dyn FnMut(u64),
         slice_limit: Option<u64>,
-    ) -> Result<(Vec<L::State>, Vec<L::Measure>), GpuError> {
+    ) -> Result<Readback<L>, GpuError> {
         let device = self.device;
         let queue = self.queue;
         let n = instances.len();
