@@ -1271,3 +1271,67 @@ fn the_f32_shader_takes_the_steps_of_its_mirror() {
         "{choices} other choices in {steps} iterations"
     );
 }
+
+/// f32 instances that fail (here step underflow: a 1e-9 m/s velocity band
+/// next to stage speeds f32 resolves to about 1e-8 m/s, from
+/// `sweeps/stress.toml`) are integrated again on the CPU in f64: the map
+/// gets the CPU's value and status, and the outcome says it ran there.
+#[test]
+fn f32_failures_are_integrated_again_on_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    use pidm::cpu::single::integrate as mirror;
+    let settings = Settings::default();
+    let mut instances = Vec::new();
+    for (duty, fy, phase, vy, fc) in [
+        (0.6, 10.0, 0.0, 120.0, 1.0),
+        (0.6, 10.0, 0.0, 120.0, 1.2),
+        (0.6, 10.0, 0.37, 120.0, 1.0),
+        (0.6, 13.0, 0.37, 120.0, 1.0),
+        (0.98, 20.0, 0.5, 120.0, 1.0),
+        (1.0, 35.0, 0.37, 40.0, 1.0),
+    ] {
+        let mut inst = Instance::TABLE1;
+        inst.axes[0].duty = duty;
+        inst.axes[0].voltage = 100.0;
+        inst.axes[1].frequency = fy;
+        inst.axes[1].phase = phase;
+        inst.axes[1].voltage = vy;
+        inst.mechanism.coulomb_friction = fc;
+        inst.mechanism.velocity_band = 1e-9;
+        inst.cycles = 3;
+        inst.settle = 1;
+        instances.push(inst);
+    }
+    let mirror_failures = instances
+        .iter()
+        .filter(|inst| {
+            let status = mirror::run_instance(inst, &settings).state.status;
+            pidm::gpu::is_integrator_failure(status)
+        })
+        .count();
+    let cpu = cpu_reference(&instances, &settings);
+    let gpu = gpu_batch(
+        ctx,
+        &instances,
+        &settings,
+        Precision::F32,
+        &BatchOptions::default(),
+    );
+    let mut fallbacks = 0;
+    for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+        assert_eq!(g.status, c.status, "#{k}: status");
+        if g.cpu_fallback {
+            fallbacks += 1;
+            assert_eq!(g.displacement, displacement(&instances[k], c), "#{k}: the CPU's value");
+        }
+    }
+    eprintln!(
+        "f32 failures: {mirror_failures} of {} in the CPU mirror, {fallbacks} integrated again on \
+         the CPU",
+        instances.len()
+    );
+    assert!(mirror_failures > 0 && fallbacks > 0);
+    agree("f32 failures", Precision::F32, &instances, &cpu, &gpu);
+}
