@@ -735,22 +735,25 @@ fn extreme_points_are_finite_and_match_the_cpu_or_say_why_not() {
             Precision::F64 => {
                 check("extreme", precision, &instances, &cpu, &gpu);
             }
-            // f32 either agrees within its allowance or reports a non-zero
-            // status (with zeros in the map), never a silent wrong value. It
-            // may give up only on a band below its velocity resolution next
-            // to stage speeds of about 0.05 m/s.
+            // f32 agrees within its allowance, or where it failed the CPU
+            // integrated the point again (and a status there is the CPU's,
+            // with zeros in the map), never a silent wrong value. It may
+            // fail only on a band below its velocity resolution next to
+            // stage speeds of about 0.05 m/s.
             Precision::F32 => {
                 let mut worst = (0.0, String::new());
                 for (k, g) in gpu.iter().enumerate() {
-                    if g.status != STATUS_OK {
-                        assert_eq!(g.displacement, [0.0; 2], "{}", names[k]);
+                    if g.cpu_fallback {
                         assert!(
                             instances[k].mechanism.velocity_band < F32_RESOLVED_BAND,
-                            "{}: status {} with a band f32 resolves",
-                            names[k],
-                            g.status
+                            "{}: f32 failed with a band f32 resolves",
+                            names[k]
                         );
-                        eprintln!("extreme F32: {} ended with status {}", names[k], g.status);
+                        eprintln!("extreme F32: {} failed and ran on the CPU", names[k]);
+                    }
+                    if g.status != STATUS_OK {
+                        assert_eq!(g.displacement, [0.0; 2], "{}", names[k]);
+                        assert_eq!(g.status, cpu[k].status, "{}: the CPU's status", names[k]);
                         continue;
                     }
                     for i in 0..2 {
@@ -1324,7 +1327,11 @@ fn f32_failures_are_integrated_again_on_the_cpu() {
         assert_eq!(g.status, c.status, "#{k}: status");
         if g.cpu_fallback {
             fallbacks += 1;
-            assert_eq!(g.displacement, displacement(&instances[k], c), "#{k}: the CPU's value");
+            assert_eq!(
+                g.displacement,
+                displacement(&instances[k], c),
+                "#{k}: the CPU's value"
+            );
         }
     }
     eprintln!(
