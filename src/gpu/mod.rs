@@ -213,8 +213,9 @@ pub struct BatchOptions {
     /// started and at most this many are unfinished, the GPU stops and the
     /// CPU finishes those, in parallel: from where the GPU left them in f64
     /// (the shader mirrors the CPU step for step, so no work is lost), from
-    /// their start in f32 (an f32 state is not continued: it runs in other
-    /// units with a two-part time), so those f32 instances carry the CPU's
+    /// their start in f32 (the f32 mirror could continue an f32 state, but
+    /// the slow tail is where f32 is least sure of itself, and the f64
+    /// reference costs the CPU no more), so those f32 instances carry the CPU's
     /// f64 values and the run's summary counts them among the integrations
     /// that ran on the CPU. `None` is the default of
     /// [`BatchOptions::tail_size`] for batches of at least
@@ -1044,7 +1045,8 @@ trait Layout {
     /// The CPU integrator's run for an unfinished shader state (and the
     /// accumulators of a steady measurement), where the CPU can continue
     /// from it (f64), or `None` where the CPU must start the instance over
-    /// (f32: its state is f32's approximation).
+    /// (f32: the slow tail is where f32 is least sure; the f64 reference
+    /// starts it over).
     fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run>;
 }
 
