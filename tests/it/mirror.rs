@@ -90,3 +90,54 @@ fn f32_mirror_runs_in_slices_and_repeats_bit_for_bit() {
         assert_eq!(st, whole.state);
     }
 }
+
+/// The mirror's steady measurement (MODEL.md section 4) measures as the
+/// reference does: the same status on the periodic, the quasi-periodic
+/// and the cut-short instances of `gpu.rs`'s steady test, and every step
+/// within three combined standard errors + 0.002 um plus the f32
+/// allowance of the f64 value.
+#[test]
+fn f32_mirror_measures_steady_steps_as_the_reference() {
+    use pidm::measurement::reduce;
+    use pidm::model::Measure;
+    let steady = |fx: f64, fy: f64, vy: f64, tolerance: f64, max_cycles: u32| {
+        let mut inst = Instance::TABLE1;
+        inst.axes[0].frequency = fx;
+        inst.axes[1].frequency = fy;
+        inst.axes[1].voltage = vy;
+        inst.cycles = max_cycles;
+        inst.measure = Measure::Steady {
+            step_tolerance: tolerance,
+        };
+        inst
+    };
+    let mut phased = steady(10.0, 10.0, 100.0, 1e-8, 2000);
+    phased.axes[1].phase = 0.3;
+    let instances = [
+        steady(10.0, 10.0, 100.0, 1e-8, 2000),
+        phased,
+        steady(10.0, 15.0, 100.0, 1e-8, 2000),
+        steady(10.0, 14.0, 100.0, 1e-8, 2000),
+        steady(10.0, 20.0, 50.0, 1e-8, 2000),
+        steady(10.0, 10.0, 0.0, 1e-8, 2000),
+        steady(10.0, 10.0 * 3f64.sqrt(), 100.0, 3e-8, 2000),
+        steady(10.0, 10.0 * 3f64.sqrt(), 100.0, 1e-8, 12),
+    ];
+    let settings = Settings::default();
+    for (k, inst) in instances.iter().enumerate() {
+        let exact = reduce(inst, &reference::run_instance(inst, &settings));
+        let single = reduce(inst, &si::run(&mirror::run_instance(inst, &settings)));
+        assert_eq!(single.status, exact.status, "#{k}: status");
+        assert_eq!(single.lag, exact.lag, "#{k}: the detected cycle");
+        assert_eq!(single.periods, exact.periods, "#{k}: periods run");
+        for i in 0..2 {
+            let a = inst.measure_over(i, single.travel[i], single.span).1 * 1e6;
+            let b = inst.measure_over(i, exact.travel[i], exact.span).1 * 1e6;
+            let bound = 3.0 * (single.se[i] + exact.se[i]) * 1e6 + 0.002 + f32_allowance(b);
+            assert!(
+                (a - b).abs() <= bound,
+                "#{k} axis {i}: f32 {a} um, f64 {b} um"
+            );
+        }
+    }
+}
