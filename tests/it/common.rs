@@ -4,7 +4,7 @@
 use std::path::Path;
 use std::process::{Child, Command, Output};
 
-use pidm::model::{Axis, Instance};
+use pidm::model::{Axis, Instance, Measure};
 
 /// Sends signal `name` ("INT", "KILL", "STOP", ...) to a child process.
 pub fn signal(child: &Child, name: &str) {
@@ -123,5 +123,35 @@ pub fn reference_cases() -> Vec<(&'static str, Instance, [f64; 2])> {
             case(50.0, 0.0, 10.0, 10.0, x),
             [0.0, 0.0],
         ),
+    ]
+}
+
+/// Steady measurements (MODEL.md section 4) of Table 1 at several drive
+/// frequency pairs: six periodic ones (equal frequencies, a phase offset,
+/// ratios 1.5, 1.4 and 2, one axis undriven), then a quasi-periodic one
+/// converged statistically and the same one cut at 12 periods.
+pub fn steady_instances() -> [Instance; 8] {
+    let steady = |fx: f64, fy: f64, vy: f64, tolerance: f64, max_cycles: u32| {
+        let mut inst = Instance::TABLE1;
+        inst.axes[0].frequency = fx;
+        inst.axes[1].frequency = fy;
+        inst.axes[1].voltage = vy;
+        inst.cycles = max_cycles;
+        inst.measure = Measure::Steady {
+            step_tolerance: tolerance,
+        };
+        inst
+    };
+    let mut phased = steady(10.0, 10.0, 100.0, 1e-8, 2000);
+    phased.axes[1].phase = 0.3;
+    [
+        steady(10.0, 10.0, 100.0, 1e-8, 2000),
+        phased,
+        steady(10.0, 15.0, 100.0, 1e-8, 2000),
+        steady(10.0, 14.0, 100.0, 1e-8, 2000),
+        steady(10.0, 20.0, 50.0, 1e-8, 2000),
+        steady(10.0, 10.0, 0.0, 1e-8, 2000),
+        steady(10.0, 10.0 * 3f64.sqrt(), 100.0, 3e-8, 2000),
+        steady(10.0, 10.0 * 3f64.sqrt(), 100.0, 1e-8, 12),
     ]
 }

@@ -99,30 +99,7 @@ fn f32_mirror_runs_in_slices_and_repeats_bit_for_bit() {
 #[test]
 fn f32_mirror_measures_steady_steps_as_the_reference() {
     use pidm::measurement::reduce;
-    use pidm::model::Measure;
-    let steady = |fx: f64, fy: f64, vy: f64, tolerance: f64, max_cycles: u32| {
-        let mut inst = Instance::TABLE1;
-        inst.axes[0].frequency = fx;
-        inst.axes[1].frequency = fy;
-        inst.axes[1].voltage = vy;
-        inst.cycles = max_cycles;
-        inst.measure = Measure::Steady {
-            step_tolerance: tolerance,
-        };
-        inst
-    };
-    let mut phased = steady(10.0, 10.0, 100.0, 1e-8, 2000);
-    phased.axes[1].phase = 0.3;
-    let instances = [
-        steady(10.0, 10.0, 100.0, 1e-8, 2000),
-        phased,
-        steady(10.0, 15.0, 100.0, 1e-8, 2000),
-        steady(10.0, 14.0, 100.0, 1e-8, 2000),
-        steady(10.0, 20.0, 50.0, 1e-8, 2000),
-        steady(10.0, 10.0, 0.0, 1e-8, 2000),
-        steady(10.0, 10.0 * 3f64.sqrt(), 100.0, 3e-8, 2000),
-        steady(10.0, 10.0 * 3f64.sqrt(), 100.0, 1e-8, 12),
-    ];
+    let instances = crate::common::steady_instances();
     let settings = Settings::default();
     for (k, inst) in instances.iter().enumerate() {
         let exact = reduce(inst, &reference::run_instance(inst, &settings));
