@@ -55,9 +55,6 @@ pub const FILES: [(&str, &str); 9] = [
 /// The name of the compute entry point.
 pub const ENTRY_POINT: &str = "advance_slice";
 
-/// Resolution of the f32 two-part time, relative to the period.
-pub const F32_TIME_EPSILON: f64 = crate::cpu::single::precision::TIME_EPSILON;
-
 /// What one compiled pipeline is specialised to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Variant {
