@@ -183,7 +183,7 @@ fn print_summary(scene: &Scene, result: &RunResult) {
         println!(
             "  {} of the integrations ran on the CPU in f64 (the slow tail of a GPU batch, \
              continued from the GPU's state in f64 and started over in f32; instances that \
-             failed in f32; or iterations the driver's loop limiter cut)",
+             failed or met a band graze in f32; or iterations the driver's loop limiter cut)",
             s.on_cpu
         );
     }

@@ -143,8 +143,9 @@ pub struct Outcome {
     pub lag: u32,
     pub status: u32,
     pub steps: u32,
-    /// A GPU backend integrated this one on the CPU instead (the slow tail
-    /// of a batch, or an iteration the driver's loop limiter cut).
+    /// A GPU or f32 backend integrated this one on the CPU in f64 instead
+    /// (the slow tail of a batch, an iteration the driver's loop limiter
+    /// cut, or an f32 run that failed or met a band graze).
     pub on_cpu: bool,
 }
 

@@ -461,7 +461,7 @@ pub struct Summary {
     pub integrations: u64,
     /// Wall time spent integrating (in the backend) [s].
     pub integration_s: f64,
-    /// Integrations a GPU backend ran on the CPU instead.
+    /// Integrations an f32 or GPU backend ran on the CPU in f64 instead.
     pub on_cpu: u64,
     /// Simulated time over all integrated instances, baselines included [s].
     pub simulated_s: f64,

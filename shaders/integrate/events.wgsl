@@ -6,6 +6,8 @@ struct Crossing {
     found: bool,
     lo: Real,
     hi: Real,
+    // The smallest positive value at a dip that did not cross.
+    closest: Real,
 }
 
 // Fractions of a step at which every step is sampled (`THETA[j]`).
@@ -81,26 +83,28 @@ fn find_crossing(
     var prev = sign * (*ev).v[0];
     let noise = EVENT_NOISE * EPSILON * scale;
     if prev.x < -noise {
-        return Crossing(true, Real(0.0), Real(0.0));
+        return Crossing(true, Real(0.0), Real(0.0), INFINITY);
     }
+    var closest = INFINITY;
     for (var j = 0u; j < 4u; j++) {
         let next = sign * (*ev).v[j + 1u];
         let lo = theta(j) * h;
         let hi = theta(j + 1u) * h;
         let armed = prev.x > Real(0.0) || j == 0u;
         if armed && next.x <= Real(0.0) && (prev.x > Real(0.0) || next.x < Real(0.0)) {
-            return Crossing(true, lo, hi);
+            return Crossing(true, lo, hi, closest);
         }
         if prev.x > Real(0.0) && next.x > Real(0.0) && prev.y < Real(0.0) && next.y > Real(0.0) {
             let tau = hermite_minimum(prev, next, hi - lo);
             let e = event_at(c, st, kind, sign, flow, lo + tau).x;
             if e <= Real(0.0) {
-                return Crossing(true, lo, lo + tau);
+                return Crossing(true, lo, lo + tau, closest);
             }
+            closest = min(closest, e);
         }
         prev = next;
     }
-    return Crossing(false, Real(0.0), Real(0.0));
+    return Crossing(false, Real(0.0), Real(0.0), closest);
 }
 
 fn event_at(c: Coefficients, st: State, kind: u32, sign: Real, flow: Flow, tau: Real) -> V2 {

@@ -164,6 +164,8 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
     let watch_reversal = (*st).mode == MODE_BAND && sign != Real(0.0);
     var event = EVENT_NONE;
     var event_tau = Real(0.0);
+    // A slip that passes the band closer than the graze margin.
+    var grazed = false;
     for (var k = 0u; k < 2u; k++) {
         var kind = primary;
         var kind_sign = Real(1.0);
@@ -188,6 +190,9 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
         } else {
             crossing = find_crossing(c, *st, kind, kind_sign, &ev_reversal, scale, flow, h);
         }
+        if kind == EVENT_ENTER_BAND && !crossing.found {
+            grazed = crossing.closest < GRAZE_MARGIN * c.band2;
+        }
         if crossing.found {
             let tau = locate(c, *st, kind, kind_sign, flow, crossing.lo, crossing.hi);
             if event == EVENT_NONE || tau < event_tau {
@@ -198,6 +203,9 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
     }
     if event == EVENT_NONE {
         move_to(st, end, h, h_max, stop, stop_lo);
+        if GRAZE_GUARD && c.steady == 0u && grazed {
+            (*st).status = STATUS_GRAZE;
+        }
         if slipping {
             if h < h_max {
                 (*st).h_slip = h * grow_factor(c, err);
@@ -233,6 +241,9 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
             }
         }
         move_to(st, s, event_tau, h_max, stop, stop_lo);
+        if GRAZE_GUARD && c.steady == 0u && event == EVENT_ENTER_BAND && skims_band(c, s) {
+            (*st).status = STATUS_GRAZE;
+        }
         if event == EVENT_BREAKAWAY {
             let need = stick_force(c, *st);
             start_slip(c, st, need);
@@ -248,6 +259,13 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
     }
     (*st).rejections = 0u;
     return STEP_MOVED;
+}
+
+// Whether a band entry only skims the band (see step.rs).
+fn skims_band(c: Coefficients, s: Sample) -> bool {
+    let a = relative_acceleration(s);
+    let va = dot(relative_velocity(s), a);
+    return va * va < GRAZE_MARGIN * c.band2 * dot(a, a);
 }
 
 // The primary event of a step (the `if primary == EVENT_APPROACH` of

@@ -5,7 +5,7 @@
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 
-use super::{Backend, Hardware, Precision};
+use super::{Backend, Hardware, Precision, f32_needs_f64};
 use crate::cpu::integrate::Settings;
 use crate::cpu::{integrate, single};
 use crate::interrupt::interrupt_requested;
@@ -114,16 +114,27 @@ pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
 
 /// Integrates one instance on the CPU in `precision` (f32 results are
 /// reduced in f64 and SI units, as the GPU's are); stops as [`run_one`].
+/// An f32 run that fails or meets a band graze is integrated again in f64,
+/// as the f32 shader's are ([`f32_needs_f64`]), and marked `on_cpu`: the
+/// mirror's backend gives what the f32 GPU path gives.
 pub fn run_one_in(inst: &Instance, settings: &Settings, precision: Precision) -> Outcome {
-    let run = match precision {
-        Precision::F64 => integrate::run_instance_until(inst, settings, interrupt_requested),
+    let (run, again) = match precision {
+        Precision::F64 => (
+            integrate::run_instance_until(inst, settings, interrupt_requested),
+            false,
+        ),
         Precision::F32 => {
-            single::integrate::run_instance_until(inst, settings, interrupt_requested)
-                .map(|r| single::si::run(&r))
+            match single::integrate::run_instance_until(inst, settings, interrupt_requested) {
+                Some(r) if f32_needs_f64(r.state.status) => (
+                    integrate::run_instance_until(inst, settings, interrupt_requested),
+                    true,
+                ),
+                r => (r.map(|r| single::si::run(&r)), false),
+            }
         }
     };
     let Some(run) = run else {
         return Outcome::default();
     };
-    Outcome::of(&reduce(inst, &run), run.state.steps, false)
+    Outcome::of(&reduce(inst, &run), run.state.steps, again)
 }

@@ -65,23 +65,7 @@ pub const STATUS_LOOP_LIMIT: u32 = 100;
 
 pub use crate::backend::Precision;
 
-/// Whether `status` says the integration failed (step budget, non-finite
-/// state, step underflow, event storm), as opposed to finishing or to a
-/// steady measurement's verdict. In f32 such a failure is f32's own far
-/// more often than the instance's (a velocity band below what f32 resolves
-/// next to the stage speeds ends in step underflow: 279 of `stress.toml`'s
-/// 432 instances with a 1e-9 m/s band), so [`run_batch`] integrates those
-/// instances again on the CPU in f64 ([`GpuOutcome::cpu_fallback`]), which
-/// gives them its value or its own status.
-pub fn is_integrator_failure(status: u32) -> bool {
-    use crate::cpu::integrate::{
-        STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
-    };
-    matches!(
-        status,
-        STATUS_STEP_BUDGET | STATUS_NON_FINITE | STATUS_STEP_UNDERFLOW | STATUS_EVENT_STORM
-    )
-}
+pub use crate::backend::{f32_needs_f64, is_integrator_failure};
 
 /// What went wrong on the GPU path.
 #[derive(Debug, Error)]
@@ -184,7 +168,7 @@ pub struct GpuOutcome {
     pub steps: u32,
     /// True when the CPU integrated this instance instead (in f64): the
     /// driver's loop limiter kept the shader from advancing it at all, or
-    /// it failed in f32 ([`is_integrator_failure`]).
+    /// it failed or met a band graze in f32 ([`f32_needs_f64`]).
     pub cpu_fallback: bool,
     /// True when the instance was among the last unfinished ones of a
     /// large batch and the CPU finished it (in f64) while the GPU stopped:
@@ -1208,13 +1192,14 @@ impl Runner<'_> {
             out.extend(self.batch::<L>(chunk, &mut chunk_progress)?);
         }
         // Instances the driver's loop limiter kept from advancing at all,
-        // and f32 instances that failed, are integrated on the CPU.
+        // and f32 instances that failed or met a band graze, are
+        // integrated on the CPU.
         out.par_iter_mut()
             .zip(instances)
             .with_max_len(1)
             .filter(|(outcome, _)| {
                 outcome.status == STATUS_LOOP_LIMIT
-                    || (L::PRECISION == Precision::F32 && is_integrator_failure(outcome.status))
+                    || (L::PRECISION == Precision::F32 && f32_needs_f64(outcome.status))
             })
             .for_each(|(outcome, inst)| {
                 *outcome = GpuOutcome {

@@ -3,10 +3,13 @@
 //! reference. Its agreement with the shader itself is pinned in `gpu.rs`
 //! (`the_f32_shader_takes_the_steps_of_its_mirror`).
 
+use pidm::backend::Precision;
+use pidm::backend::cpu::{run_one, run_one_in};
+use pidm::cpu::integrate::constants::STATUS_GRAZE;
 use pidm::cpu::integrate::{self as reference, STATUS_OK, Settings};
 use pidm::cpu::single::{integrate as mirror, si};
 use pidm::measurement::window_displacement;
-use pidm::model::Instance;
+use pidm::model::{Instance, Measure};
 
 /// Allowed f32 error per axis: 0.005 um + 1 % of the f64 step [um] (issue
 /// 19's bar for the f32 shader).
@@ -30,20 +33,35 @@ fn f64_coefficients_of_an_instance_are_the_reference_ones() {
 }
 
 /// The mirror holds the f32 shader's bar on random scenes: every step
-/// within 0.005 um + 1 % of the f64 reference's, every status OK.
+/// within 0.005 um + 1 % of the f64 reference's, every status OK but the
+/// band grazes it stops at (`STATUS_GRAZE`), which are few; through the
+/// backend those carry the reference's own value.
 #[test]
 fn f32_mirror_holds_the_step_tolerance_on_random_scenes() {
     let settings = Settings::default();
     let mut worst = (0.0, String::new());
     let mut outside = Vec::new();
+    let (mut grazes, mut instances) = (0, 0);
     for seed in [1u64, 2, 3] {
         for (k, inst) in pidm::random::random_instances(seed, 300, 4, 1)
             .iter()
             .enumerate()
         {
+            instances += 1;
             let exact = reference::run_instance(inst, &settings).state;
             let f32_run = si::run(&mirror::run_instance(inst, &settings));
             assert_eq!(exact.status, STATUS_OK, "seed {seed} #{k}: f64 status");
+            if f32_run.state.status == STATUS_GRAZE {
+                grazes += 1;
+                let via_backend = run_one_in(inst, &settings, Precision::F32);
+                assert!(via_backend.on_cpu, "seed {seed} #{k}: a graze runs in f64");
+                assert_eq!(
+                    via_backend.displacement,
+                    run_one(inst, &settings).displacement,
+                    "seed {seed} #{k}: a graze carries the reference's value"
+                );
+                continue;
+            }
             assert_eq!(
                 f32_run.state.status, STATUS_OK,
                 "seed {seed} #{k}: f32 status"
@@ -67,10 +85,78 @@ fn f32_mirror_holds_the_step_tolerance_on_random_scenes() {
         }
     }
     eprintln!(
-        "f32 mirror, random scenes: worst {:.3} of the allowance ({})",
+        "f32 mirror, random scenes: worst {:.3} of the allowance ({}); {grazes} of {instances} \
+         stopped at a band graze",
         worst.0, worst.1
     );
     assert!(outside.is_empty(), "outside the allowance: {outside:#?}");
+    // About 4 % of random instances graze (results/gpu.md); far more would
+    // make the f32 path a CPU path.
+    assert!(
+        grazes * 100 <= 8 * instances,
+        "{grazes} of {instances} grazes"
+    );
+}
+
+/// One instance the f32 formulation without the graze guard got wrong:
+/// the mirror stops it at a graze, and through the backend it carries the
+/// f64 reference's value. (seed, index) of `pidm random-scene --count
+/// 3000`, and f32's error without the guard in allowances.
+fn check_graze(seed: u64, k: usize, unguarded_error: f64) {
+    let settings = Settings::default();
+    let inst = pidm::random::random_instances(seed, k + 1, 4, 1)[k];
+    let what = format!("seed {seed} #{k} (unguarded f32 {unguarded_error} allowances off)");
+    let raw = mirror::run_instance(&inst, &settings).state;
+    assert_eq!(raw.status, STATUS_GRAZE, "{what}: the mirror's status");
+    let via_backend = run_one_in(&inst, &settings, Precision::F32);
+    let reference = run_one(&inst, &settings);
+    assert!(via_backend.on_cpu, "{what}: integrated again in f64");
+    assert_eq!(via_backend.status, reference.status, "{what}: status");
+    assert_eq!(
+        via_backend.displacement, reference.displacement,
+        "{what}: the reference's value"
+    );
+}
+
+/// Issue 19: band grazes decide these steps, and f32 without the guard
+/// decided them otherwise than the f64 reference (results/gpu.md, "Band
+/// grazes"): the f32 shader's three misses over eighteen seeds, and four
+/// of the mirror's.
+#[test]
+fn f32_hands_band_grazes_to_the_reference() {
+    for (seed, k, error) in [
+        (5, 1920, 2.2),
+        (21, 83, 3.5),
+        (56, 2196, 40.8),
+        (4, 43, 2.8),
+        (21, 2776, 1.0),
+        (34, 934, 17.6),
+        (52, 1525, 40.6),
+    ] {
+        check_graze(seed, k, error);
+    }
+}
+
+/// A steady measurement is not stopped at a graze: its value is the long
+/// run's mean, which a graze on the way does not move (`sweeps/
+/// frequency.toml`: 312 of 1,296 instances graze, and the unguarded f32
+/// mirror is within 0.01 of the allowance on all), so the mirror runs the
+/// steady twin of a grazing window to its end.
+#[test]
+fn f32_steady_measurements_run_through_grazes() {
+    let settings = Settings::default();
+    let mut inst = pidm::random::random_instances(21, 84, 4, 1)[83];
+    assert_eq!(
+        mirror::run_instance(&inst, &settings).state.status,
+        STATUS_GRAZE
+    );
+    inst.measure = Measure::Steady {
+        step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
+    };
+    inst.cycles = 12;
+    let steady = mirror::run_instance(&inst, &settings).state;
+    assert_ne!(steady.status, STATUS_GRAZE);
+    assert!(!run_one_in(&inst, &settings, Precision::F32).on_cpu);
 }
 
 /// Like the reference, the mirror integrates in slices to the same state

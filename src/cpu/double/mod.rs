@@ -21,6 +21,7 @@ pub mod precision {
     pub const CORNER_CLOCK: bool = false;
     pub const DEFLECTION: bool = false;
     pub const APPROACH_NOISE: bool = false;
+    pub const GRAZE_GUARD: bool = false;
 
     /// Keeps its items: they exist in f64 only (the coefficients are computed
     /// in f64, then rounded for f32).

@@ -20,6 +20,12 @@ pub const STATUS_NON_FINITE: u32 = 2;
 pub const STATUS_STEP_UNDERFLOW: u32 = 3;
 /// Mode changes kept following each other without time advancing.
 pub const STATUS_EVENT_STORM: u32 = 4;
+/// An f32 run met a band graze it cannot decide like the f64 reference
+/// ([`GRAZE_MARGIN`]) and stopped there. Set only where the precision's
+/// `GRAZE_GUARD` is on (f32); the host integrates such an instance again
+/// in f64 on the CPU (`pidm::backend::needs_f64`), so the code never
+/// reaches a result file.
+pub const STATUS_GRAZE: u32 = 7;
 /// A steady measurement reached `max_cycles` without its motion repeating
 /// or its standard error falling within the step tolerance: the map keeps
 /// the best estimate and its standard error (set by the host's reduction,
@@ -47,6 +53,21 @@ pub const EVENT_REVERSAL: u32 = 4;
 /// `step::step`), linear in the velocity where |v_rel|^2 - a^2 is
 /// quadratic, so f32 resolves it too.
 pub const EVENT_APPROACH: u32 = 5;
+
+/// The band grazes that an f32 run hands to the f64 reference, as a
+/// fraction of the band: slip whose relative velocity passes the velocity
+/// band a with a closest approach |v_rel|^2 within `GRAZE_MARGIN` a^2 of
+/// a^2, on either side (a near miss, or an entry that only skims the band).
+/// Whether such a slip ends in the band is decided by the relative
+/// velocity at the level of the direction tolerance, not of f32's rounding
+/// (a tolerance of 1e-4 rad keeps v_rel to a few per cent of a 1e-6 m/s
+/// band over a millisecond of slip), so two correct integrations that take
+/// slightly different steps decide it differently, and the step that
+/// follows can move by micrometres. Over 54,000 random instances
+/// (`results/gpu.md`, "Band grazes") every f32 step that missed the f64
+/// reference's by more than 0.005 um + 1 % had a graze within 0.065 a^2;
+/// 0.1 hands about 4 % of those instances to the CPU.
+pub const GRAZE_MARGIN: f64 = 0.1;
 
 /// Number of Taylor terms of the propagator after scaling to norm <= 1/2:
 /// the truncation error is below 0.5^15 / 15! = 2.3e-17.
@@ -125,6 +146,8 @@ pub fn wgsl_constants() -> String {
         u("STATUS_NON_FINITE", STATUS_NON_FINITE),
         u("STATUS_STEP_UNDERFLOW", STATUS_STEP_UNDERFLOW),
         u("STATUS_EVENT_STORM", STATUS_EVENT_STORM),
+        u("STATUS_GRAZE", STATUS_GRAZE),
+        r("GRAZE_MARGIN", GRAZE_MARGIN),
         u("EVENT_NONE", EVENT_NONE),
         u("EVENT_BREAKAWAY", EVENT_BREAKAWAY),
         u("EVENT_ENTER_BAND", EVENT_ENTER_BAND),

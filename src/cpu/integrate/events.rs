@@ -26,6 +26,10 @@ pub struct Crossing {
     pub found: bool,
     pub lo: Real,
     pub hi: Real,
+    /// The smallest positive value the function took at a dip between
+    /// samples that did not cross (infinity where none was looked at): how
+    /// close the step came to an event it did not have.
+    pub closest: Real,
 }
 
 /// Fractions of a step at which every step is sampled.
@@ -128,8 +132,10 @@ pub fn find_crossing(
             found: true,
             lo: 0.0,
             hi: 0.0,
+            closest: Real::INFINITY,
         };
     }
+    let mut closest = Real::INFINITY;
     for j in 0..4 {
         let next = [sign * ev[j + 1][0], sign * ev[j + 1][1]];
         let lo = THETA[j] * h;
@@ -140,6 +146,7 @@ pub fn find_crossing(
                 found: true,
                 lo,
                 hi,
+                closest,
             };
         }
         if prev[0] > 0.0 && next[0] > 0.0 && prev[1] < 0.0 && next[1] > 0.0 {
@@ -152,8 +159,10 @@ pub fn find_crossing(
                     found: true,
                     lo,
                     hi: lo + tau,
+                    closest,
                 };
             }
+            closest = closest.min(e);
         }
         prev = next;
     }
@@ -161,6 +170,7 @@ pub fn find_crossing(
         found: false,
         lo: 0.0,
         hi: 0.0,
+        closest,
     }
 }
 

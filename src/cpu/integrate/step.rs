@@ -19,8 +19,8 @@ use super::arith::step_factor;
 use super::coefficients::Coefficients;
 use super::constants::{
     COLLOCATION_ITERATIONS, EVENT_APPROACH, EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_LEAVE_BAND,
-    EVENT_NONE, EVENT_REVERSAL, MAX_REJECTIONS, MAX_SQUARINGS, MODE_BAND, MODE_SLIP, MODE_STICK,
-    SLIP_DIRECTION_ITERATIONS, STATUS_STEP_UNDERFLOW,
+    EVENT_NONE, EVENT_REVERSAL, GRAZE_MARGIN, MAX_REJECTIONS, MAX_SQUARINGS, MODE_BAND, MODE_SLIP,
+    MODE_STICK, SLIP_DIRECTION_ITERATIONS, STATUS_GRAZE, STATUS_STEP_UNDERFLOW,
 };
 use super::drive::drive_force;
 use super::drive::two_sum;
@@ -32,7 +32,7 @@ use super::flow::{
     DirectionModel, Flow, IDENTITY, Sample, SamplePropagators, eval_at, eval_flow, make_flow,
     sample_propagators,
 };
-use super::precision::{APPROACH_NOISE, COMPENSATED_TIME, DEFLECTION, TINY};
+use super::precision::{APPROACH_NOISE, COMPENSATED_TIME, DEFLECTION, GRAZE_GUARD, TINY};
 use super::vec2::{Vec2, dot, norm2};
 use super::{Real, State, StepMotion, StepObserver};
 
@@ -222,6 +222,9 @@ pub fn step<O: StepObserver>(
     let watch_reversal = st.mode == MODE_BAND && sign != 0.0;
     let mut event = EVENT_NONE;
     let mut event_tau = 0.0;
+    // A slip that passes the band without entering it, closer than the
+    // graze margin (see `GRAZE_MARGIN`).
+    let mut grazed = false;
     for k in 0..2 {
         let (kind, kind_sign, ev, scale) = if k == 0 {
             let scale = if primary == EVENT_APPROACH {
@@ -246,6 +249,9 @@ pub fn step<O: StepObserver>(
             continue;
         }
         let crossing = find_crossing(c, st, kind, kind_sign, ev, scale, &flow, h);
+        if kind == EVENT_ENTER_BAND && !crossing.found {
+            grazed = crossing.closest < GRAZE_MARGIN as Real * c.band2;
+        }
         if crossing.found {
             let tau = locate(c, st, kind, kind_sign, &flow, crossing.lo, crossing.hi);
             if event == EVENT_NONE || tau < event_tau {
@@ -256,6 +262,9 @@ pub fn step<O: StepObserver>(
     }
     if event == EVENT_NONE {
         move_to(st, &end, h, h_max, stop, &flow, observer);
+        if GRAZE_GUARD && !c.steady && grazed {
+            st.status = STATUS_GRAZE;
+        }
         if slipping {
             // A step cut short by the stop says nothing about the next one.
             st.h_slip = if h < h_max {
@@ -291,6 +300,9 @@ pub fn step<O: StepObserver>(
             }
         }
         move_to(st, &s, event_tau, h_max, stop, &flow, observer);
+        if GRAZE_GUARD && !c.steady && event == EVENT_ENTER_BAND && skims_band(c, &s) {
+            st.status = STATUS_GRAZE;
+        }
         if event == EVENT_BREAKAWAY {
             let need = stick_force(c, st);
             start_slip(c, st, need);
@@ -306,6 +318,16 @@ pub fn step<O: StepObserver>(
     }
     st.rejections = 0;
     StepOutcome::Moved
+}
+
+/// Whether a band entry at sample `s` only skims the band: where the
+/// relative velocity v moves along its acceleration a, its closest approach
+/// to zero is |v|^2 - (v . a)^2 / |a|^2, which lies below a^2 (|v| = a at
+/// the entry) by (v . a)^2 / |a|^2; an entry shallower than the graze
+/// margin is a graze (see `GRAZE_MARGIN`).
+fn skims_band(c: &Coefficients, s: &Sample) -> bool {
+    let va = dot(relative_velocity(s), relative_acceleration(s));
+    va * va < GRAZE_MARGIN as Real * c.band2 * norm2(relative_acceleration(s))
 }
 
 /// The five samples of a flow over a step of length h.

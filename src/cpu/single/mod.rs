@@ -28,6 +28,9 @@ pub mod precision {
     pub const DEFLECTION: bool = true;
     /// The approach's turn test allows for f32's rounding of v_rel.
     pub const APPROACH_NOISE: bool = true;
+    /// A band graze stops the run for the f64 reference
+    /// (`integrate::constants::GRAZE_MARGIN`).
+    pub const GRAZE_GUARD: bool = true;
 
     /// Drops its items: they exist in f64 only (`double::precision`).
     macro_rules! only_f64 {
