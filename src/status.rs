@@ -6,7 +6,10 @@
 //! generated); the sweep sets 5 after `--verify`; the measurement's
 //! reduction (`crate::measurement`) sets 6. Every non-zero status but 6
 //! leaves 0 in the instance's map entries, never NaN; 6 ("not steady")
-//! keeps the best estimate and its standard error.
+//! keeps the best estimate and its standard error. Code 7 (an f32 band
+//! graze, `cpu::integrate::constants::STATUS_GRAZE`) never reaches a file:
+//! every f32 path integrates such an instance again in f64
+//! (`backend::f32_needs_f64`).
 
 use crate::cpu::integrate::constants::{STATUS_NOT_STEADY, STATUS_UNCONVERGED};
 use crate::cpu::integrate::{

@@ -471,6 +471,7 @@ macro_rules! precision_structs {
                     status: st.status,
                     steps: st.steps,
                     cpu_fallback: false,
+                    shader_status: 0,
                     finished_on_cpu: false,
                 }
             }

@@ -170,6 +170,11 @@ pub struct GpuOutcome {
     /// driver's loop limiter kept the shader from advancing it at all, or
     /// it failed or met a band graze in f32 ([`f32_needs_f64`]).
     pub cpu_fallback: bool,
+    /// Where [`GpuOutcome::cpu_fallback`] is set, the status the shader
+    /// ended the instance with, which sent it to the CPU
+    /// ([`STATUS_LOOP_LIMIT`], an f32 failure, or an f32 band graze,
+    /// `STATUS_GRAZE`); 0 otherwise.
+    pub shader_status: u32,
     /// True when the instance was among the last unfinished ones of a
     /// large batch and the CPU finished it (in f64) while the GPU stopped:
     /// see [`BatchOptions::cpu_tail`].
@@ -1204,6 +1209,7 @@ impl Runner<'_> {
             .for_each(|(outcome, inst)| {
                 *outcome = GpuOutcome {
                     cpu_fallback: true,
+                    shader_status: outcome.status,
                     ..on_cpu(inst, self.settings, None)
                 };
             });
@@ -1523,6 +1529,7 @@ impl GpuOutcome {
             status: m.status,
             steps,
             cpu_fallback: false,
+            shader_status: 0,
             finished_on_cpu: false,
         }
     }

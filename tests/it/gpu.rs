@@ -8,7 +8,7 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
-use pidm::cpu::integrate::constants::STATUS_NOT_STEADY;
+use pidm::cpu::integrate::constants::{STATUS_GRAZE, STATUS_NOT_STEADY};
 use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::gpu::{BatchOptions, GpuContext, GpuOutcome, Precision, run_batch, run_batch_with};
 use pidm::measurement::window_displacement as displacement;
@@ -251,8 +251,53 @@ fn agree(
     a
 }
 
-/// [`agree`] for a batch that ran on the GPU alone: the CPU fallback of the
-/// loop limiter and the CPU tail have tests of their own.
+/// [`agree`] for a batch that ran on the GPU alone, but for the f32 band
+/// grazes (`STATUS_GRAZE`), which every f32 run hands to the CPU: at most
+/// `max_grazes` of them, each with the CPU's own value. The CPU fallback
+/// of the loop limiter, of f32 failures and the CPU tail have tests of
+/// their own.
+fn check_grazing(
+    label: &str,
+    precision: Precision,
+    instances: &[Instance],
+    cpu: &[pidm::cpu::integrate::State],
+    gpu: &[GpuOutcome],
+    max_grazes: usize,
+) -> Agreement {
+    let mut grazes = 0;
+    for (k, o) in gpu.iter().enumerate() {
+        let graze = o.cpu_fallback && o.shader_status == STATUS_GRAZE;
+        assert!(
+            graze || !(o.cpu_fallback || o.finished_on_cpu),
+            "{label} {precision:?} #{k}: ran on the CPU (shader status {})",
+            o.shader_status
+        );
+        if graze {
+            grazes += 1;
+            assert_eq!(precision, Precision::F32, "{label} #{k}: a graze in f64");
+            assert_eq!(
+                o.displacement,
+                displacement(&instances[k], &cpu[k]),
+                "{label} #{k}: a graze carries the CPU's value"
+            );
+        }
+    }
+    if grazes > 0 {
+        eprintln!(
+            "{label} {precision:?}: {grazes} of {} instances grazed the band in f32 and ran on \
+             the CPU",
+            instances.len()
+        );
+    }
+    assert!(
+        grazes <= max_grazes,
+        "{label} {precision:?}: {grazes} grazes, more than {max_grazes}"
+    );
+    agree(label, precision, instances, cpu, gpu)
+}
+
+/// [`check_grazing`] for a batch that ran on the GPU alone: no instance
+/// grazes.
 fn check(
     label: &str,
     precision: Precision,
@@ -260,15 +305,7 @@ fn check(
     cpu: &[pidm::cpu::integrate::State],
     gpu: &[GpuOutcome],
 ) -> Agreement {
-    let on_cpu = gpu
-        .iter()
-        .filter(|o| o.cpu_fallback || o.finished_on_cpu)
-        .count();
-    assert_eq!(
-        on_cpu, 0,
-        "{label} {precision:?}: {on_cpu} instances ran on the CPU"
-    );
-    agree(label, precision, instances, cpu, gpu)
+    check_grazing(label, precision, instances, cpu, gpu, 0)
 }
 
 /// Fails unless every instance took as many steps on the GPU as on the CPU:
@@ -395,7 +432,8 @@ fn random_scene_matches_the_cpu() {
             t.elapsed(),
             ctx.describe()
         );
-        check("random", precision, &instances, &cpu, &gpu);
+        // 7 of the 64 graze the band in f32 (on lavapipe).
+        check_grazing("random", precision, &instances, &cpu, &gpu, 8);
     }
 }
 
@@ -743,7 +781,18 @@ fn extreme_points_are_finite_and_match_the_cpu_or_say_why_not() {
             Precision::F32 => {
                 let mut worst = (0.0, String::new());
                 for (k, g) in gpu.iter().enumerate() {
-                    if g.cpu_fallback {
+                    if g.cpu_fallback && g.shader_status == STATUS_GRAZE {
+                        eprintln!(
+                            "extreme F32: {} grazed the band and ran on the CPU",
+                            names[k]
+                        );
+                        assert_eq!(
+                            g.displacement,
+                            displacement(&instances[k], &cpu[k]),
+                            "{}: the CPU's value",
+                            names[k]
+                        );
+                    } else if g.cpu_fallback {
                         assert!(
                             instances[k].mechanism.velocity_band < F32_RESOLVED_BAND,
                             "{}: f32 failed with a band f32 resolves",
@@ -866,6 +915,7 @@ fn f32_random_scenes_hold_the_step_tolerance() {
     let settings = Settings::default();
     let mut outside = Vec::new();
     let mut worst = (0.0, String::new());
+    let (mut handed_over, mut total) = (0, 0);
     for (seed, count) in [(1u64, 300), (2, 300), (3, 300), (4, 3000)] {
         let instances = pidm::random::random_instances(seed, count, 4, 1);
         let cpu = cpu_reference(&instances, &settings);
@@ -874,6 +924,8 @@ fn f32_random_scenes_hold_the_step_tolerance() {
             ..BatchOptions::default()
         };
         let gpu = gpu_batch(ctx, &instances, &settings, Precision::F32, &options);
+        handed_over += gpu.iter().filter(|g| g.cpu_fallback).count();
+        total += instances.len();
         for (k, inst) in instances.iter().enumerate() {
             assert_eq!(cpu[k].status, STATUS_OK, "seed {seed} #{k}: CPU status");
             assert_eq!(gpu[k].status, STATUS_OK, "seed {seed} #{k}: f32 status");
@@ -894,12 +946,45 @@ fn f32_random_scenes_hold_the_step_tolerance() {
         }
     }
     eprintln!(
-        "f32 random scenes: worst error {:.3} of the allowance ({})",
+        "f32 random scenes: worst error {:.3} of the allowance ({}); {handed_over} of {total} \
+         band grazes or failures integrated again on the CPU",
         worst.0, worst.1
     );
     // None of the 3,900 outside since the deflection state.
     assert!(outside.is_empty(), "outside the allowance: {outside:#?}");
     assert!(worst.0 <= 1.0, "worst: {}", worst.1);
+    // About 4 % graze (results/gpu.md, "Band grazes"); far more would make
+    // the f32 path a CPU path.
+    assert!(handed_over * 100 <= 8 * total, "{handed_over} of {total}");
+}
+
+/// Issue 19: the f32 shader's three misses over eighteen random seeds of
+/// 3,000 (results/gpu.md, "Band grazes": 2.2, 3.5 and 40.8 times the
+/// allowance) pass the velocity band within the graze margin; the shader
+/// stops there and the CPU integrates them in f64, so they carry the
+/// CPU's own values. No slow tail, so nothing else sends them there.
+#[test]
+fn f32_grazes_are_integrated_again_on_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let settings = Settings::default();
+    let instances = random_picks(&[(5, &[1920]), (21, &[83]), (56, &[2196])]);
+    let cpu = cpu_reference(&instances, &settings);
+    let options = BatchOptions {
+        cpu_tail: Some(0),
+        ..BatchOptions::default()
+    };
+    let gpu = gpu_batch(ctx, &instances, &settings, Precision::F32, &options);
+    for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+        assert!(g.cpu_fallback, "#{k}: integrated again on the CPU");
+        assert_eq!(g.status, c.status, "#{k}: status");
+        assert_eq!(
+            g.displacement,
+            displacement(&instances[k], c),
+            "#{k}: the CPU's value"
+        );
+    }
 }
 
 /// Issue 19: band approaches with large absolute and tiny relative
@@ -940,7 +1025,8 @@ fn f32_band_approaches_next_to_fast_stages_match_the_cpu() {
         (7, &[1617, 2862, 1127]),
         (21, &[1699, 1244, 1290]),
     ]));
-    check_f32(ctx, "band approaches next to fast stages", &instances);
+    // 4 of the 18 graze the band and run on the CPU (on lavapipe).
+    check_f32(ctx, "band approaches next to fast stages", &instances, 5);
 }
 
 /// Instances of `pidm random-scene --seed S --count 3000` (4 periods, 1
@@ -955,8 +1041,9 @@ fn random_picks(picks: &[(u64, &[usize])]) -> Vec<Instance> {
 }
 
 /// `instances` in one f32 batch against the CPU in f64, at the f32
-/// allowance of [`check`].
-fn check_f32(ctx: &GpuContext, name: &str, instances: &[Instance]) {
+/// allowance of [`check`], with at most `max_grazes` of them handed to the
+/// CPU at a band graze ([`check_grazing`]).
+fn check_f32(ctx: &GpuContext, name: &str, instances: &[Instance], max_grazes: usize) {
     let settings = Settings::default();
     let cpu = cpu_reference(instances, &settings);
     let gpu = gpu_batch(
@@ -966,7 +1053,7 @@ fn check_f32(ctx: &GpuContext, name: &str, instances: &[Instance]) {
         Precision::F32,
         &BatchOptions::default(),
     );
-    check(name, Precision::F32, instances, &cpu, &gpu);
+    check_grazing(name, Precision::F32, instances, &cpu, &gpu, max_grazes);
 }
 
 /// Issue 19: the f32 corner clock. The five `pidm random-scene --count 3000`
@@ -988,7 +1075,9 @@ fn f32_drive_corners_from_the_two_part_clock_match_the_cpu() {
         (11, &[2083]),
         (21, &[1696]),
     ]);
-    check_f32(ctx, "drive corners of the two-part clock", &instances);
+    // Two of the five graze the band and carry the CPU's values since the
+    // graze guard; the clock is what the other three test.
+    check_f32(ctx, "drive corners of the two-part clock", &instances, 2);
 }
 
 /// Issue 19: the f32 stage deflections. The eight `pidm random-scene
@@ -1010,7 +1099,9 @@ fn f32_stage_deflections_decide_close_calls_as_the_cpu() {
         (32, &[1524]),
         (34, &[943, 2689]),
     ]);
-    check_f32(ctx, "stage deflections", &instances);
+    // Five of the eight graze the band and carry the CPU's values since the
+    // graze guard; the deflections are what the other three test.
+    check_f32(ctx, "stage deflections", &instances, 5);
 }
 
 /// Issue 19: f32 takes about the CPU's steps on the coupling map. Its
