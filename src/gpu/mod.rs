@@ -798,6 +798,15 @@ impl GpuContext {
             Precision::F64 => 1e-12,
         };
         for (inst, got) in instances.iter().zip(&outcomes) {
+            // An instance the batch handed to the CPU (a failure or a graze
+            // in f32, the loop limiter) would compare the CPU with itself:
+            // the shader must finish every self-test instance on its own.
+            if got.cpu_fallback || got.finished_on_cpu {
+                return Err(fail(format!(
+                    "the shader ended an instance with status {} and left it to the CPU",
+                    got.shader_status
+                )));
+            }
             let want = reduce(inst, &run_instance(inst, &settings));
             if got.status != want.status || got.lag != want.lag {
                 return Err(fail(format!(
