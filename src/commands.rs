@@ -187,6 +187,15 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             s.on_cpu
         );
     }
+    if s.grazes > 0 {
+        println!(
+            "  {} of them were f32 runs whose slip passed the velocity band a within {} a^2 \
+             (in |v_rel|^2), where the direction tolerance decides whether the slip ends \
+             (README, \"Precision\")",
+            s.grazes,
+            crate::cpu::integrate::constants::GRAZE_MARGIN
+        );
+    }
     for (code, &n) in s.status_counts.iter().enumerate() {
         if n > 0 {
             let meaning = crate::status::Status::describe(code as u32);

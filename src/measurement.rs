@@ -147,6 +147,9 @@ pub struct Outcome {
     /// (the slow tail of a batch, an iteration the driver's loop limiter
     /// cut, or an f32 run that failed or met a band graze).
     pub on_cpu: bool,
+    /// Of those, an f32 run that stopped at a band graze
+    /// (`cpu::integrate::constants::STATUS_GRAZE`).
+    pub graze: bool,
 }
 
 impl Outcome {
@@ -161,6 +164,7 @@ impl Outcome {
             status: m.status,
             steps,
             on_cpu,
+            graze: false,
         }
     }
 

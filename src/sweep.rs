@@ -416,6 +416,7 @@ fn verify(inst: &Instance, outcome: &mut Outcome, check: &Outcome) {
             steps: outcome.steps,
             periods: outcome.periods,
             on_cpu: outcome.on_cpu,
+            graze: outcome.graze,
             ..Outcome::default()
         };
     }
@@ -463,6 +464,8 @@ pub struct Summary {
     pub integration_s: f64,
     /// Integrations an f32 or GPU backend ran on the CPU in f64 instead.
     pub on_cpu: u64,
+    /// Of those, f32 runs that stopped at a band graze.
+    pub grazes: u64,
     /// Simulated time over all integrated instances, baselines included [s].
     pub simulated_s: f64,
     pub extreme_step: [f64; 2],
@@ -485,6 +488,7 @@ impl Default for Summary {
             integrations: 0,
             integration_s: 0.0,
             on_cpu: 0,
+            grazes: 0,
             simulated_s: 0.0,
             extreme_step: [f64::INFINITY, f64::NEG_INFINITY],
             best: [[(f64::INFINITY, u64::MAX), (f64::NEG_INFINITY, u64::MAX)]; AXES],
@@ -507,6 +511,7 @@ impl Summary {
         self.integrations += other.integrations;
         self.integration_s += other.integration_s;
         self.on_cpu += other.on_cpu;
+        self.grazes += other.grazes;
         self.simulated_s += other.simulated_s;
         self.extreme_step[0] = self.extreme_step[0].min(other.extreme_step[0]);
         self.extreme_step[1] = self.extreme_step[1].max(other.extreme_step[1]);
@@ -728,6 +733,7 @@ pub fn run_with_memo(
             .sum::<f64>();
         summary.integrations += jobs.len() as u64;
         summary.on_cpu += outcomes.iter().filter(|o| o.on_cpu).count() as u64;
+        summary.grazes += outcomes.iter().filter(|o| o.graze).count() as u64;
         // Keep this chunk's baselines for the chunks after it (a grid's
         // baselines repeat along every other axis), within a bound.
         if plan.baselines {

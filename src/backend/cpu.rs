@@ -7,6 +7,7 @@ use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision, f32_needs_f64};
 use crate::cpu::integrate::Settings;
+use crate::cpu::integrate::constants::STATUS_GRAZE;
 use crate::cpu::{integrate, single};
 use crate::interrupt::interrupt_requested;
 use crate::measurement::{Outcome, reduce};
@@ -118,23 +119,27 @@ pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
 /// as the f32 shader's are ([`f32_needs_f64`]), and marked `on_cpu`: the
 /// mirror's backend gives what the f32 GPU path gives.
 pub fn run_one_in(inst: &Instance, settings: &Settings, precision: Precision) -> Outcome {
-    let (run, again) = match precision {
+    // The f32 status that sent the instance to f64, if one did.
+    let (run, sent) = match precision {
         Precision::F64 => (
             integrate::run_instance_until(inst, settings, interrupt_requested),
-            false,
+            None,
         ),
         Precision::F32 => {
             match single::integrate::run_instance_until(inst, settings, interrupt_requested) {
                 Some(r) if f32_needs_f64(r.state.status) => (
                     integrate::run_instance_until(inst, settings, interrupt_requested),
-                    true,
+                    Some(r.state.status),
                 ),
-                r => (r.map(|r| single::si::run(&r)), false),
+                r => (r.map(|r| single::si::run(&r)), None),
             }
         }
     };
     let Some(run) = run else {
         return Outcome::default();
     };
-    Outcome::of(&reduce(inst, &run), run.state.steps, again)
+    Outcome {
+        graze: sent == Some(STATUS_GRAZE),
+        ..Outcome::of(&reduce(inst, &run), run.state.steps, sent.is_some())
+    }
 }

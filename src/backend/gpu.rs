@@ -4,6 +4,7 @@ use anyhow::{Result, bail};
 
 use super::{Backend, Hardware, Precision};
 use crate::cpu::integrate::Settings;
+use crate::cpu::integrate::constants::STATUS_GRAZE;
 use crate::gpu::{GpuContext, run_batch};
 use crate::measurement::Outcome;
 use crate::model::Instance;
@@ -110,6 +111,7 @@ impl Backend for GpuBackend {
                 status: o.status,
                 steps: o.steps,
                 on_cpu: o.cpu_fallback || o.finished_on_cpu,
+                graze: o.cpu_fallback && o.shader_status == STATUS_GRAZE,
             })
             .collect())
     }
