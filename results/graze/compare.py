@@ -6,31 +6,24 @@ and the integrations each f32 run handed to the CPU in f64.
     python3 results/graze/compare.py OUT_DIR SEED [SEED ...]
 """
 
+import importlib.util
 import re
 import sys
+from pathlib import Path
 
-import h5py
-import numpy as np
+# The same reading and counting as the tolerance study's.
+_spec = importlib.util.spec_from_file_location(
+    "tolerance_compare", Path(__file__).resolve().parent.parent / "tolerance" / "compare.py"
+)
+_tolerance = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_tolerance)
+load, compare = _tolerance.load, _tolerance.compare
 
 RUNS = [
     ("nudged", "f64, parameters nudged by 6e-8"),
     ("f32", "f32 shader"),
     ("mirror", "f32 CPU mirror"),
 ]
-
-
-def load(path):
-    with h5py.File(path, "r") as f:
-        steps = np.stack([f["maps/step_x"][...].ravel(), f["maps/step_y"][...].ravel()])
-        return steps * 1e6, f["maps/status"][...].ravel()
-
-
-def compare(ref, run):
-    (a, sa), (b, sb) = ref, run
-    ratio = np.max(np.abs(a - b) / (0.005 + 0.01 * np.abs(a)), axis=0)
-    both = (sa == 0) & (sb == 0)
-    over = np.nonzero(both & (ratio > 1))[0]
-    return [(int(k), float(ratio[k])) for k in over], int(((sa == 0) & (sb != 0)).sum())
 
 
 def handed_over(log):
