@@ -30,7 +30,9 @@
 //!   one is not enough).
 //! * f32 runs everywhere; f64 where the adapter offers `SHADER_F64`. The f32
 //!   shader computes in micrometres and milliseconds and keeps the time as
-//!   a two-part number (see [`layout::Units`]).
+//!   a two-part number (see [`layout::Units`]). An f32 instance that fails
+//!   or stops at a band graze is integrated again on the CPU in f64
+//!   ([`f32_needs_f64`]; [`GpuOutcome::shader_status`] says which).
 //! * Compiled pipelines are kept in a [`wgpu::PipelineCache`] on disk where
 //!   the adapter supports one (Vulkan), so a later run skips the driver's
 //!   compile ([`cache`]).
