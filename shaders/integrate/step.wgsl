@@ -164,7 +164,8 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
     let watch_reversal = (*st).mode == MODE_BAND && sign != Real(0.0);
     var event = EVENT_NONE;
     var event_tau = Real(0.0);
-    // A slip that passes the band closer than the graze margin.
+    // A slip that passes the band closer than the graze margin, or enters
+    // it only skimming (see step.rs).
     var grazed = false;
     for (var k = 0u; k < 2u; k++) {
         var kind = primary;
@@ -203,9 +204,6 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
     }
     if event == EVENT_NONE {
         move_to(st, end, h, h_max, stop, stop_lo);
-        if GRAZE_GUARD && c.steady == 0u && grazed {
-            (*st).status = STATUS_GRAZE;
-        }
         if slipping {
             if h < h_max {
                 (*st).h_slip = h * grow_factor(c, err);
@@ -241,9 +239,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
             }
         }
         move_to(st, s, event_tau, h_max, stop, stop_lo);
-        if GRAZE_GUARD && c.steady == 0u && event == EVENT_ENTER_BAND && skims_band(c, s) {
-            (*st).status = STATUS_GRAZE;
-        }
+        grazed = event == EVENT_ENTER_BAND && skims_band(c, s);
         if event == EVENT_BREAKAWAY {
             let need = stick_force(c, *st);
             start_slip(c, st, need);
@@ -256,6 +252,9 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
             }
             try_stick(c, st);
         }
+    }
+    if GRAZE_GUARD && c.steady == 0u && grazed {
+        (*st).status = STATUS_GRAZE;
     }
     (*st).rejections = 0u;
     return STEP_MOVED;

@@ -222,8 +222,8 @@ pub fn step<O: StepObserver>(
     let watch_reversal = st.mode == MODE_BAND && sign != 0.0;
     let mut event = EVENT_NONE;
     let mut event_tau = 0.0;
-    // A slip that passes the band without entering it, closer than the
-    // graze margin (see `GRAZE_MARGIN`).
+    // A slip that passes the band closer than the graze margin, or enters
+    // it only skimming (see `GRAZE_MARGIN`).
     let mut grazed = false;
     for k in 0..2 {
         let (kind, kind_sign, ev, scale) = if k == 0 {
@@ -262,9 +262,6 @@ pub fn step<O: StepObserver>(
     }
     if event == EVENT_NONE {
         move_to(st, &end, h, h_max, stop, &flow, observer);
-        if GRAZE_GUARD && !c.steady && grazed {
-            st.status = STATUS_GRAZE;
-        }
         if slipping {
             // A step cut short by the stop says nothing about the next one.
             st.h_slip = if h < h_max {
@@ -300,9 +297,7 @@ pub fn step<O: StepObserver>(
             }
         }
         move_to(st, &s, event_tau, h_max, stop, &flow, observer);
-        if GRAZE_GUARD && !c.steady && event == EVENT_ENTER_BAND && skims_band(c, &s) {
-            st.status = STATUS_GRAZE;
-        }
+        grazed = event == EVENT_ENTER_BAND && skims_band(c, &s);
         if event == EVENT_BREAKAWAY {
             let need = stick_force(c, st);
             start_slip(c, st, need);
@@ -315,6 +310,9 @@ pub fn step<O: StepObserver>(
             }
             try_stick(c, st);
         }
+    }
+    if GRAZE_GUARD && !c.steady && grazed {
+        st.status = STATUS_GRAZE;
     }
     st.rejections = 0;
     StepOutcome::Moved
