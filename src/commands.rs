@@ -183,7 +183,8 @@ fn print_summary(scene: &Scene, result: &RunResult) {
         println!(
             "  {} of the integrations ran on the CPU in f64 (the slow tail of a GPU batch, \
              continued from the GPU's state in f64 and started over in f32; instances that \
-             failed or met a band graze in f32; or iterations the driver's loop limiter cut)",
+             failed or met a band graze in f32, or that f32's check of its heaviest runs sent \
+             there; or iterations the driver's loop limiter cut)",
             s.on_cpu
         );
     }
@@ -194,6 +195,19 @@ fn print_summary(scene: &Scene, result: &RunResult) {
              (README, \"Precision\")",
             s.grazes,
             crate::cpu::integrate::constants::GRAZE_MARGIN
+        );
+    }
+    if s.checked > 0 {
+        println!(
+            "  {} f32 runs, the heaviest {} % of those f32 finished itself, were checked for \
+             steps that f32 does not determine (chaotic ones): {} carry the f64 reference's \
+             value (their twin at {}x the tolerance disagreed, or the check integrated them in \
+             f64 directly), {} keep f32's (their twin agreed within half of 0.005 um + 1 %)",
+            s.checked,
+            crate::backend::check::CHECK_SHARE * 100.0,
+            s.checked_on_cpu,
+            crate::backend::check::TWIN_LOOSENING,
+            s.checked - s.checked_on_cpu
         );
     }
     for (code, &n) in s.status_counts.iter().enumerate() {

@@ -150,6 +150,10 @@ pub struct Outcome {
     /// Of those, an f32 run that stopped at a band graze
     /// (`cpu::integrate::constants::STATUS_GRAZE`).
     pub graze: bool,
+    /// An f32 window run among the heaviest of its batch, checked
+    /// (`backend::check`): by a twin that agreed (f32's value kept), or
+    /// integrated again in f64 (`on_cpu` set too).
+    pub checked: bool,
 }
 
 impl Outcome {
@@ -165,6 +169,7 @@ impl Outcome {
             steps,
             on_cpu,
             graze: false,
+            checked: false,
         }
     }
 

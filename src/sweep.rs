@@ -417,6 +417,7 @@ fn verify(inst: &Instance, outcome: &mut Outcome, check: &Outcome) {
             periods: outcome.periods,
             on_cpu: outcome.on_cpu,
             graze: outcome.graze,
+            checked: outcome.checked,
             ..Outcome::default()
         };
     }
@@ -466,6 +467,12 @@ pub struct Summary {
     pub on_cpu: u64,
     /// Of those, f32 runs that stopped at a band graze.
     pub grazes: u64,
+    /// f32 window runs among the heaviest of their batch, checked
+    /// (`backend::check`); those that carry the f64 reference's value are
+    /// counted in `on_cpu` too.
+    pub checked: u64,
+    /// Of the checked, those that carry the f64 reference's value.
+    pub checked_on_cpu: u64,
     /// Simulated time over all integrated instances, baselines included [s].
     pub simulated_s: f64,
     pub extreme_step: [f64; 2],
@@ -489,6 +496,8 @@ impl Default for Summary {
             integration_s: 0.0,
             on_cpu: 0,
             grazes: 0,
+            checked: 0,
+            checked_on_cpu: 0,
             simulated_s: 0.0,
             extreme_step: [f64::INFINITY, f64::NEG_INFINITY],
             best: [[(f64::INFINITY, u64::MAX), (f64::NEG_INFINITY, u64::MAX)]; AXES],
@@ -512,6 +521,8 @@ impl Summary {
         self.integration_s += other.integration_s;
         self.on_cpu += other.on_cpu;
         self.grazes += other.grazes;
+        self.checked += other.checked;
+        self.checked_on_cpu += other.checked_on_cpu;
         self.simulated_s += other.simulated_s;
         self.extreme_step[0] = self.extreme_step[0].min(other.extreme_step[0]);
         self.extreme_step[1] = self.extreme_step[1].max(other.extreme_step[1]);
@@ -734,6 +745,8 @@ pub fn run_with_memo(
         summary.integrations += jobs.len() as u64;
         summary.on_cpu += outcomes.iter().filter(|o| o.on_cpu).count() as u64;
         summary.grazes += outcomes.iter().filter(|o| o.graze).count() as u64;
+        summary.checked += outcomes.iter().filter(|o| o.checked).count() as u64;
+        summary.checked_on_cpu += outcomes.iter().filter(|o| o.checked && o.on_cpu).count() as u64;
         // Keep this chunk's baselines for the chunks after it (a grid's
         // baselines repeat along every other axis), within a bound.
         if plan.baselines {

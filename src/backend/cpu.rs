@@ -6,12 +6,13 @@ use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision, f32_needs_f64};
+use crate::cpu::integrate::STATUS_OK;
 use crate::cpu::integrate::Settings;
 use crate::cpu::integrate::constants::STATUS_GRAZE;
 use crate::cpu::{integrate, single};
 use crate::interrupt::interrupt_requested;
 use crate::measurement::{Outcome, reduce};
-use crate::model::Instance;
+use crate::model::{Instance, Measure};
 
 /// The rayon CPU path: in f64 the reference.
 pub struct CpuBackend {
@@ -86,7 +87,7 @@ impl Backend for CpuBackend {
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
         Ok(self.pool.install(|| {
-            instances
+            let mut out: Vec<Outcome> = instances
                 .par_iter()
                 .with_max_len(1)
                 .map(|inst| {
@@ -99,8 +100,44 @@ impl Backend for CpuBackend {
                     done(1);
                     out
                 })
-                .collect()
+                .collect();
+            if self.precision == Precision::F32 && !interrupt_requested() {
+                check_heaviest(instances, settings, &mut out);
+            }
+            out
         }))
+    }
+}
+
+/// The f32 mirror's check of its heaviest window runs
+/// ([`super::check`]): on the CPU a twin would cost about what the f64
+/// reference costs, so the mirror always takes [`super::check::Route::Reference`]:
+/// the checked runs carry the reference's value, as they do on a software
+/// adapter.
+fn check_heaviest(instances: &[Instance], settings: &Settings, out: &mut [Outcome]) {
+    let candidates: Vec<(usize, u32)> = out
+        .iter()
+        .zip(instances)
+        .enumerate()
+        .filter(|(_, (o, inst))| {
+            matches!(inst.measure, Measure::Window) && o.status == STATUS_OK && !o.on_cpu
+        })
+        .map(|(k, (o, _))| (k, o.steps))
+        .collect();
+    let picked = super::check::heaviest(&candidates);
+    let reference: Vec<Outcome> = picked
+        .par_iter()
+        .with_max_len(1)
+        .map(|&k| Outcome {
+            checked: true,
+            ..run_one_in(&instances[k], settings, Precision::F64)
+        })
+        .collect();
+    for (&k, outcome) in picked.iter().zip(reference) {
+        out[k] = Outcome {
+            on_cpu: true,
+            ..outcome
+        };
     }
 }
 

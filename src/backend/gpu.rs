@@ -112,6 +112,7 @@ impl Backend for GpuBackend {
                 steps: o.steps,
                 on_cpu: o.cpu_fallback || o.finished_on_cpu,
                 graze: o.cpu_fallback && o.shader_status == STATUS_GRAZE,
+                checked: o.checked,
             })
             .collect())
     }

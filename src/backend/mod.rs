@@ -11,6 +11,7 @@ use crate::cpu::integrate::Settings;
 use crate::measurement::Outcome;
 use crate::model::Instance;
 
+pub mod check;
 pub mod cpu;
 pub mod gpu;
 pub mod select;

@@ -5,6 +5,8 @@
 use std::str::FromStr;
 use std::sync::OnceLock;
 
+use super::{F32Check, Route};
+
 /// Invocations per workgroup; the shader reads it from its prelude. A warp
 /// on NVIDIA, and small enough that lavapipe spreads a batch of 64 over two
 /// CPU threads.
@@ -59,6 +61,46 @@ pub fn slice_iterations() -> u32 {
             "an integer of at least 1",
         )
     })
+}
+
+/// How f32 batches check their heaviest runs: [`F32Check::Auto`], or
+/// `PIDM_F32_CHECK` = `auto`, `twins`, `reference` or `off` (for
+/// measuring the check's cost and what it catches; `off` leaves f32's
+/// chaotic misses in the maps, results/gpu.md).
+pub fn f32_check() -> F32Check {
+    static CHECK: OnceLock<F32Check> = OnceLock::new();
+    *CHECK.get_or_init(|| {
+        knob(
+            "PIDM_F32_CHECK",
+            F32Check::Auto,
+            |_| true,
+            "auto, twins, reference or off",
+        )
+    })
+}
+
+impl FromStr for F32Check {
+    type Err = ();
+    fn from_str(text: &str) -> Result<F32Check, ()> {
+        match text {
+            "auto" => Ok(F32Check::Auto),
+            "twins" => Ok(F32Check::Route(Route::Twins)),
+            "reference" => Ok(F32Check::Route(Route::Reference)),
+            "off" => Ok(F32Check::Off),
+            _ => Err(()),
+        }
+    }
+}
+
+impl std::fmt::Display for F32Check {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            F32Check::Auto => "auto",
+            F32Check::Route(Route::Twins) => "twins",
+            F32Check::Route(Route::Reference) => "reference",
+            F32Check::Off => "off",
+        })
+    }
 }
 
 /// The value of the environment variable `name`, or `default` where it is

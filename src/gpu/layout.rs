@@ -473,6 +473,7 @@ macro_rules! precision_structs {
                     cpu_fallback: false,
                     shader_status: 0,
                     finished_on_cpu: false,
+                    checked: false,
                 }
             }
         }

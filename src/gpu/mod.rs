@@ -42,7 +42,9 @@ mod knobs;
 pub mod layout;
 pub mod shader;
 
-pub use knobs::{LANES, SLICE_ITERATIONS, WORKGROUP_SIZE, lanes, slice_iterations, workgroup_size};
+pub use knobs::{
+    LANES, SLICE_ITERATIONS, WORKGROUP_SIZE, f32_check, lanes, slice_iterations, workgroup_size,
+};
 pub use shader::Variant;
 
 use std::sync::{Arc, Mutex};
@@ -52,6 +54,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 use wgpu::util::DeviceExt;
 
+use crate::backend::check;
 use crate::cpu::integrate::{Run, Settings, initial_measure, run_instance};
 use crate::measurement::{Measured, reduce};
 use crate::model::{Instance, Measure};
@@ -67,6 +70,7 @@ pub const STATUS_LOOP_LIMIT: u32 = 100;
 
 pub use crate::backend::Precision;
 
+pub use crate::backend::check::Route;
 pub use crate::backend::{f32_needs_f64, is_integrator_failure};
 
 /// What went wrong on the GPU path.
@@ -181,6 +185,12 @@ pub struct GpuOutcome {
     /// large batch and the CPU finished it (in f64) while the GPU stopped:
     /// see [`BatchOptions::cpu_tail`].
     pub finished_on_cpu: bool,
+    /// True for an f32 window run among the heaviest of its batch, which
+    /// was checked ([`crate::backend::check`]): it keeps f32's value where
+    /// its twin agreed, and carries the f64 reference's (with
+    /// [`GpuOutcome::cpu_fallback`] set) where the twin disagreed or the
+    /// check ran the reference directly.
+    pub checked: bool,
 }
 
 /// Tuning knobs of [`run_batch_with`]; [`Default`] is what [`run_batch`]
@@ -222,6 +232,39 @@ pub struct BatchOptions {
     /// f32's own error in f32 (within 0.005 um + 1 % of the f64 step on the
     /// random scenes of results/gpu.md since issue 19).
     pub cpu_tail: Option<usize>,
+    /// How an f32 batch checks its heaviest window runs
+    /// ([`crate::backend::check`]); f64 batches are not checked.
+    pub check: F32Check,
+}
+
+/// How an f32 batch checks its heaviest window runs
+/// ([`crate::backend::check`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum F32Check {
+    /// [`Route::Reference`] on a software adapter (its "GPU" is the CPU's
+    /// own cores, where native f64 code takes about a third of the
+    /// shader's time per step), [`Route::Twins`] on any other. A batch run
+    /// through [`execute_gpu_inner`], which does not see the adapter,
+    /// takes twins.
+    Auto,
+    /// Always this route.
+    Route(Route),
+    /// No check: the self-test's (it judges the shader alone), and for
+    /// measurements (`PIDM_F32_CHECK=off`).
+    Off,
+}
+
+impl F32Check {
+    /// The route of this choice on an adapter that `is_hardware` or not;
+    /// `None` when off.
+    pub fn route(self, is_hardware: bool) -> Option<Route> {
+        match self {
+            F32Check::Auto if is_hardware => Some(Route::Twins),
+            F32Check::Auto => Some(Route::Reference),
+            F32Check::Route(route) => Some(route),
+            F32Check::Off => None,
+        }
+    }
 }
 
 /// The smallest batch whose slow tail goes to the CPU by default (smaller
@@ -259,6 +302,7 @@ impl Default for BatchOptions {
             probe_passes: layout::PROBE_PASSES,
             lanes: lanes(),
             cpu_tail: None,
+            check: f32_check(),
         }
     }
 }
@@ -789,7 +833,10 @@ impl GpuContext {
             &instances,
             &settings,
             precision,
-            &BatchOptions::default(),
+            &BatchOptions {
+                check: F32Check::Off,
+                ..BatchOptions::default()
+            },
             &mut |_, _| {},
         );
         self.check_health()?;
@@ -921,6 +968,14 @@ pub fn run_batch_with(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
     let pipeline = ctx.prepare(precision)?;
+    // The adapter decides the check's route (`F32Check::Auto`).
+    let options = &BatchOptions {
+        check: match options.check.route(ctx.is_hardware()) {
+            Some(route) => F32Check::Route(route),
+            None => F32Check::Off,
+        },
+        ..*options
+    };
     let out = {
         let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
         execute_gpu_inner(
@@ -1224,7 +1279,90 @@ impl Runner<'_> {
                     ..on_cpu(inst, self.settings, None)
                 };
             });
+        if L::PRECISION == Precision::F32 {
+            self.check_heaviest::<L>(instances, &mut out, per_batch)?;
+        }
         Ok(out)
+    }
+
+    /// f32's check of its heaviest window runs ([`crate::backend::check`]),
+    /// by the route [`BatchOptions::check`] names (an unresolved
+    /// [`F32Check::Auto`] takes twins): the twins run in batches of at most
+    /// `per_batch`, to their end on the device (no slow tail), and a run
+    /// whose twin disagrees, or did not finish on the device with status
+    /// ok, is integrated in f64 on the CPU.
+    fn check_heaviest<L: Layout>(
+        &self,
+        instances: &[Instance],
+        out: &mut [GpuOutcome],
+        per_batch: usize,
+    ) -> Result<(), GpuError> {
+        let Some(route) = self.options.check.route(true) else {
+            return Ok(());
+        };
+        let candidates: Vec<(usize, u32)> = out
+            .iter()
+            .zip(instances)
+            .enumerate()
+            .filter(|(_, (o, inst))| {
+                matches!(inst.measure, Measure::Window)
+                    && o.status == crate::cpu::integrate::STATUS_OK
+                    && !o.cpu_fallback
+                    && !o.finished_on_cpu
+            })
+            .map(|(k, (o, _))| (k, o.steps))
+            .collect();
+        let picked = check::heaviest(&candidates);
+        let to_reference: Vec<usize> = match route {
+            Route::Reference => picked,
+            Route::Twins => {
+                let twin_settings = check::twin_settings(self.settings);
+                let twin_options = BatchOptions {
+                    cpu_tail: Some(0),
+                    ..*self.options
+                };
+                let twin_runner = Runner {
+                    settings: &twin_settings,
+                    options: &twin_options,
+                    ..*self
+                };
+                let twin_instances: Vec<Instance> = picked.iter().map(|&k| instances[k]).collect();
+                let mut twins = Vec::with_capacity(picked.len());
+                for chunk in twin_instances.chunks(per_batch.max(1)) {
+                    twins.extend(twin_runner.batch::<L>(chunk, &mut |_| {})?);
+                }
+                let mut disagree = Vec::new();
+                for (&k, twin) in picked.iter().zip(&twins) {
+                    out[k].checked = true;
+                    let inst = &instances[k];
+                    let agree = twin.status == out[k].status
+                        && !twin.cpu_fallback
+                        && !twin.finished_on_cpu
+                        && check::twins_agree(
+                            inst,
+                            (out[k].displacement, out[k].span),
+                            (twin.displacement, twin.span),
+                        );
+                    if !agree {
+                        disagree.push(k);
+                    }
+                }
+                disagree
+            }
+        };
+        let reference: Vec<GpuOutcome> = to_reference
+            .par_iter()
+            .with_max_len(1)
+            .map(|&k| GpuOutcome {
+                cpu_fallback: true,
+                checked: true,
+                ..on_cpu(&instances[k], self.settings, None)
+            })
+            .collect();
+        for (&k, outcome) in to_reference.iter().zip(reference) {
+            out[k] = outcome;
+        }
+        Ok(())
     }
 
     /// Runs one batch that fits the device in one dispatch.
@@ -1542,6 +1680,7 @@ impl GpuOutcome {
             cpu_fallback: false,
             shader_status: 0,
             finished_on_cpu: false,
+            checked: false,
         }
     }
 }
