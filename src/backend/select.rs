@@ -58,10 +58,12 @@ pub enum AutoChoice {
 /// are slower than the CPU path and never chosen): f64 where the adapter
 /// has it, else f32; the precision asked for where the adapter runs it.
 /// f32 misses 0.005 um + 1 % of the CPU's f64 step on about 1 random
-/// instance in 18,000, fewer than the CPU's own f64 step moves by that much
-/// when its tolerance is made 100 times tighter (1 in 3,600): on the
-/// random scenes of results/gpu.md, f32 is as close to the CPU's map as that
-/// map is to a converged one, and `--verify` finds both kinds.
+/// instance in 30,000 with its checks (2 of 60,000 fresh ones with twins,
+/// results/gpu.md "The heaviest tenth"), fewer than the CPU's own f64 step
+/// moves by that much when its tolerance is made 100 times tighter (1 in
+/// 3,600): on the random scenes of results/gpu.md, f32 is as close to the
+/// CPU's map as that map is to a converged one, and `--verify` finds both
+/// kinds.
 pub fn auto_choice(adapter: AdapterFacts, precision: Option<Precision>) -> AutoChoice {
     match precision {
         Some(Precision::F64) if !adapter.f64 => AutoChoice::Cpu,

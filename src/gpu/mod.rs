@@ -32,7 +32,11 @@
 //!   shader computes in micrometres and milliseconds and keeps the time as
 //!   a two-part number (see [`layout::Units`]). An f32 instance that fails
 //!   or stops at a band graze is integrated again on the CPU in f64
-//!   ([`f32_needs_f64`]; [`GpuOutcome::shader_status`] says which).
+//!   ([`f32_needs_f64`]; [`GpuOutcome::shader_status`] says which). The
+//!   heaviest tenth of an f32 call's window runs is checked
+//!   ([`crate::backend::check`], [`BatchOptions::check`]): by twins at a
+//!   looser tolerance on a hardware adapter, by the f64 reference on the
+//!   CPU on a software one ([`GpuOutcome::checked`]).
 //! * Compiled pipelines are kept in a [`wgpu::PipelineCache`] on disk where
 //!   the adapter supports one (Vulkan), so a later run skips the driver's
 //!   compile ([`cache`]).
