@@ -35,8 +35,9 @@
 //!   ([`f32_needs_f64`]; [`GpuOutcome::shader_status`] says which). The
 //!   heaviest tenth of an f32 call's window runs is checked
 //!   ([`crate::backend::check`], [`BatchOptions::check`]): by twins at a
-//!   looser tolerance on a hardware adapter, by the f64 reference on the
-//!   CPU on a software one ([`GpuOutcome::checked`]).
+//!   looser tolerance on a hardware adapter (while the CPU integrates the
+//!   failures and grazes), by the f64 reference on the CPU on a software
+//!   one ([`GpuOutcome::checked`]).
 //! * Compiled pipelines are kept in a [`wgpu::PipelineCache`] on disk where
 //!   the adapter supports one (Vulkan), so a later run skips the driver's
 //!   compile ([`cache`]).
@@ -1268,105 +1269,127 @@ impl Runner<'_> {
         }
         // Instances the driver's loop limiter kept from advancing at all,
         // and f32 instances that failed or met a band graze, are
-        // integrated on the CPU.
-        out.par_iter_mut()
-            .zip(instances)
-            .with_max_len(1)
-            .filter(|(outcome, _)| {
-                outcome.status == STATUS_LOOP_LIMIT
-                    || (L::PRECISION == Precision::F32 && f32_needs_f64(outcome.status))
+        // integrated on the CPU; f32's heaviest window runs are checked
+        // (`backend::check`), on the CPU (the reference route) or by twins
+        // on the device while the CPU integrates the others.
+        let fallback: Vec<CpuJob> = out
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| {
+                o.status == STATUS_LOOP_LIMIT
+                    || (L::PRECISION == Precision::F32 && f32_needs_f64(o.status))
             })
-            .for_each(|(outcome, inst)| {
-                *outcome = GpuOutcome {
-                    cpu_fallback: true,
-                    shader_status: outcome.status,
-                    ..on_cpu(inst, self.settings, None)
-                };
-            });
-        if L::PRECISION == Precision::F32 {
-            self.check_heaviest::<L>(instances, &mut out, per_batch)?;
+            .map(|(k, o)| CpuJob {
+                index: k,
+                shader_status: o.status,
+                checked: false,
+            })
+            .collect();
+        let route = match L::PRECISION {
+            Precision::F32 => self.options.check.route(true),
+            Precision::F64 => None,
+        };
+        // Chosen among the runs the device finished itself, so the CPU's
+        // work on the others cannot change which.
+        let picked = match route {
+            Some(_) => check::heaviest(&heaviest_candidates(instances, &out)),
+            None => Vec::new(),
+        };
+        let checked_job = |k: usize| CpuJob {
+            index: k,
+            shader_status: 0,
+            checked: true,
+        };
+        let cpu_outcomes = match route {
+            Some(Route::Twins) => {
+                let (fallback_outcomes, twins) = std::thread::scope(|scope| {
+                    let cpu = scope.spawn(|| self.on_cpu_all(instances, &fallback));
+                    let twins = self.twins::<L>(instances, &out, &picked, per_batch);
+                    (cpu.join().expect("the CPU's runs do not panic"), twins)
+                });
+                let disagree = twins?;
+                for &k in &picked {
+                    out[k].checked = true;
+                }
+                let jobs: Vec<CpuJob> = disagree.into_iter().map(checked_job).collect();
+                let mut outcomes = fallback_outcomes;
+                outcomes.extend(self.on_cpu_all(instances, &jobs));
+                outcomes
+            }
+            Some(Route::Reference) => {
+                let mut jobs = fallback;
+                jobs.extend(picked.into_iter().map(checked_job));
+                self.on_cpu_all(instances, &jobs)
+            }
+            None => self.on_cpu_all(instances, &fallback),
+        };
+        for (k, outcome) in cpu_outcomes {
+            out[k] = outcome;
         }
         Ok(out)
     }
 
-    /// f32's check of its heaviest window runs ([`crate::backend::check`]),
-    /// by the route [`BatchOptions::check`] names (an unresolved
-    /// [`F32Check::Auto`] takes twins): the twins run in batches of at most
-    /// `per_batch`, to their end on the device (no slow tail), and a run
-    /// whose twin disagrees, or did not finish on the device with status
-    /// ok, is integrated in f64 on the CPU.
-    fn check_heaviest<L: Layout>(
+    /// The CPU's f64 runs of `jobs`, in parallel: (index, outcome) each.
+    fn on_cpu_all(&self, instances: &[Instance], jobs: &[CpuJob]) -> Vec<(usize, GpuOutcome)> {
+        jobs.par_iter()
+            .with_max_len(1)
+            .map(|job| {
+                (
+                    job.index,
+                    GpuOutcome {
+                        cpu_fallback: true,
+                        shader_status: job.shader_status,
+                        checked: job.checked,
+                        ..on_cpu(&instances[job.index], self.settings, None)
+                    },
+                )
+            })
+            .collect()
+    }
+
+    /// The twins of f32's `picked` runs ([`crate::backend::check`]) at the
+    /// looser tolerance, in batches of at most `per_batch`, each to its end
+    /// on the device (no slow tail); returns the runs whose twin
+    /// disagrees, or did not finish on the device with the run's status.
+    fn twins<L: Layout>(
         &self,
         instances: &[Instance],
-        out: &mut [GpuOutcome],
+        out: &[GpuOutcome],
+        picked: &[usize],
         per_batch: usize,
-    ) -> Result<(), GpuError> {
-        let Some(route) = self.options.check.route(true) else {
-            return Ok(());
+    ) -> Result<Vec<usize>, GpuError> {
+        let twin_settings = check::twin_settings(self.settings);
+        let twin_options = BatchOptions {
+            cpu_tail: Some(0),
+            ..*self.options
         };
-        let candidates: Vec<(usize, u32)> = out
-            .iter()
-            .zip(instances)
-            .enumerate()
-            .filter(|(_, (o, inst))| {
-                matches!(inst.measure, Measure::Window)
-                    && o.status == crate::cpu::integrate::STATUS_OK
-                    && !o.cpu_fallback
-                    && !o.finished_on_cpu
-            })
-            .map(|(k, (o, _))| (k, o.steps))
-            .collect();
-        let picked = check::heaviest(&candidates);
-        let to_reference: Vec<usize> = match route {
-            Route::Reference => picked,
-            Route::Twins => {
-                let twin_settings = check::twin_settings(self.settings);
-                let twin_options = BatchOptions {
-                    cpu_tail: Some(0),
-                    ..*self.options
-                };
-                let twin_runner = Runner {
-                    settings: &twin_settings,
-                    options: &twin_options,
-                    ..*self
-                };
-                let twin_instances: Vec<Instance> = picked.iter().map(|&k| instances[k]).collect();
-                let mut twins = Vec::with_capacity(picked.len());
-                for chunk in twin_instances.chunks(per_batch.max(1)) {
-                    twins.extend(twin_runner.batch::<L>(chunk, &mut |_| {})?);
-                }
-                let mut disagree = Vec::new();
-                for (&k, twin) in picked.iter().zip(&twins) {
-                    out[k].checked = true;
-                    let inst = &instances[k];
-                    let agree = twin.status == out[k].status
-                        && !twin.cpu_fallback
-                        && !twin.finished_on_cpu
-                        && check::twins_agree(
-                            inst,
-                            (out[k].displacement, out[k].span),
-                            (twin.displacement, twin.span),
-                        );
-                    if !agree {
-                        disagree.push(k);
-                    }
-                }
-                disagree
-            }
+        let twin_runner = Runner {
+            settings: &twin_settings,
+            options: &twin_options,
+            ..*self
         };
-        let reference: Vec<GpuOutcome> = to_reference
-            .par_iter()
-            .with_max_len(1)
-            .map(|&k| GpuOutcome {
-                cpu_fallback: true,
-                checked: true,
-                ..on_cpu(&instances[k], self.settings, None)
-            })
-            .collect();
-        for (&k, outcome) in to_reference.iter().zip(reference) {
-            out[k] = outcome;
+        let twin_instances: Vec<Instance> = picked.iter().map(|&k| instances[k]).collect();
+        let mut twins = Vec::with_capacity(picked.len());
+        for chunk in twin_instances.chunks(per_batch.max(1)) {
+            twins.extend(twin_runner.batch::<L>(chunk, &mut |_| {})?);
         }
-        Ok(())
+        Ok(picked
+            .iter()
+            .zip(&twins)
+            .filter(|&(&k, twin)| {
+                let run = &out[k];
+                let agree = twin.status == run.status
+                    && !twin.cpu_fallback
+                    && !twin.finished_on_cpu
+                    && check::twins_agree(
+                        &instances[k],
+                        (run.displacement, run.span),
+                        (twin.displacement, twin.span),
+                    );
+                !agree
+            })
+            .map(|(&k, _)| k)
+            .collect())
     }
 
     /// Runs one batch that fits the device in one dispatch.
@@ -1656,6 +1679,30 @@ fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
         most = most.max(budget + boundaries + 2);
     }
     most + 2
+}
+
+/// An instance the CPU integrates in f64 after the device's batches: why
+/// ([`GpuOutcome::shader_status`], [`GpuOutcome::checked`]).
+struct CpuJob {
+    index: usize,
+    shader_status: u32,
+    checked: bool,
+}
+
+/// f32 window runs the device finished itself with status ok, as (index,
+/// steps): those [`check::heaviest`] chooses from.
+fn heaviest_candidates(instances: &[Instance], out: &[GpuOutcome]) -> Vec<(usize, u32)> {
+    out.iter()
+        .zip(instances)
+        .enumerate()
+        .filter(|(_, (o, inst))| {
+            matches!(inst.measure, Measure::Window)
+                && o.status == crate::cpu::integrate::STATUS_OK
+                && !o.cpu_fallback
+                && !o.finished_on_cpu
+        })
+        .map(|(k, (o, _))| (k, o.steps))
+        .collect()
 }
 
 /// One instance integrated on the CPU, which the shader mirrors, as a GPU
