@@ -1261,10 +1261,25 @@ impl Runner<'_> {
             self.options,
         );
         let total = instances.len() as u64;
+        let route = match L::PRECISION {
+            Precision::F32 => self.options.check.route(true),
+            Precision::F64 => None,
+        };
+        // Progress keeps a share for the check's twins, which run after the
+        // batches: the main runs count up to `main_share` of `total`, the
+        // twins the rest.
+        let main_share = match route {
+            Some(Route::Twins) => {
+                let twins = (total as f64 * check::CHECK_SHARE).ceil() as u64;
+                total * total / (total + twins).max(1)
+            }
+            _ => total,
+        };
         let mut out = Vec::with_capacity(instances.len());
         for chunk in instances.chunks(per_batch) {
             let done_before = out.len() as u64;
-            let mut chunk_progress = |done: u64| progress(done_before + done, total);
+            let mut chunk_progress =
+                |done: u64| progress((done_before + done) * main_share / total.max(1), total);
             out.extend(self.batch::<L>(chunk, &mut chunk_progress)?);
         }
         // Instances the driver's loop limiter kept from advancing at all,
@@ -1285,10 +1300,6 @@ impl Runner<'_> {
                 checked: false,
             })
             .collect();
-        let route = match L::PRECISION {
-            Precision::F32 => self.options.check.route(true),
-            Precision::F64 => None,
-        };
         // Chosen among the runs the device finished itself, so the CPU's
         // work on the others cannot change which.
         let picked = match route {
@@ -1304,7 +1315,12 @@ impl Runner<'_> {
             Some(Route::Twins) => {
                 let (fallback_outcomes, twins) = std::thread::scope(|scope| {
                     let cpu = scope.spawn(|| self.on_cpu_all(instances, &fallback));
-                    let twins = self.twins::<L>(instances, &out, &picked, per_batch);
+                    let rest = total - main_share;
+                    let n = (picked.len() as u64).max(1);
+                    let mut twin_progress =
+                        |done: u64| progress(main_share + done.min(n) * rest / n, total);
+                    let twins =
+                        self.twins::<L>(instances, &out, &picked, per_batch, &mut twin_progress);
                     (cpu.join().expect("the CPU's runs do not panic"), twins)
                 });
                 let disagree = twins?;
@@ -1326,6 +1342,7 @@ impl Runner<'_> {
         for (k, outcome) in cpu_outcomes {
             out[k] = outcome;
         }
+        progress(total, total);
         Ok(out)
     }
 
@@ -1351,12 +1368,14 @@ impl Runner<'_> {
     /// looser tolerance, in batches of at most `per_batch`, each to its end
     /// on the device (no slow tail); returns the runs whose twin
     /// disagrees, or did not finish on the device with the run's status.
+    /// `progress(done)` counts finished twins.
     fn twins<L: Layout>(
         &self,
         instances: &[Instance],
         out: &[GpuOutcome],
         picked: &[usize],
         per_batch: usize,
+        progress: &mut dyn FnMut(u64),
     ) -> Result<Vec<usize>, GpuError> {
         let twin_settings = check::twin_settings(self.settings);
         let twin_options = BatchOptions {
@@ -1371,7 +1390,8 @@ impl Runner<'_> {
         let twin_instances: Vec<Instance> = picked.iter().map(|&k| instances[k]).collect();
         let mut twins = Vec::with_capacity(picked.len());
         for chunk in twin_instances.chunks(per_batch.max(1)) {
-            twins.extend(twin_runner.batch::<L>(chunk, &mut |_| {})?);
+            let done_before = twins.len() as u64;
+            twins.extend(twin_runner.batch::<L>(chunk, &mut |done| progress(done_before + done))?);
         }
         Ok(picked
             .iter()

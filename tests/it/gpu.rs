@@ -1049,16 +1049,27 @@ fn f32_checks_its_heaviest_runs_by_twins_or_by_the_reference() {
         cpu_tail: Some(0),
         ..BatchOptions::default()
     };
+    let n = instances.len() as u64;
     let with = |check| {
-        run_batch_with(
+        let mut seen = Vec::new();
+        let out = run_batch_with(
             ctx,
             &instances,
             &settings,
             Precision::F32,
             &BatchOptions { check, ..base },
-            &mut |_, _| {},
+            &mut |done, total| seen.push((done, total)),
         )
-        .expect("batch runs")
+        .expect("batch runs");
+        // Progress never goes back and ends with the whole batch (with
+        // twins, the main runs count to a share of it and the twins the
+        // rest).
+        assert!(
+            seen.windows(2).all(|w| w[0].0 <= w[1].0),
+            "{check:?}: {seen:?}"
+        );
+        assert_eq!(seen.last(), Some(&(n, n)), "{check:?}");
+        out
     };
     let error = |k: usize, g: &GpuOutcome| {
         let c = displacement(&instances[k], &cpu[k]);
