@@ -1,7 +1,8 @@
 //! Backends: the ways of integrating many instances, behind one trait the
 //! sweep drives. The CPU path ([`CpuBackend`], rayon, f64) is the
 //! reference; the GPU path ([`GpuBackend`]) runs the WGSL shader through
-//! wgpu in f32 or f64. [`select`] turns the command line's choice into one.
+//! wgpu in f32 or f64. [`select`] turns the command line's choice into one;
+//! [`check`] is the rule by which both f32 paths check their heaviest runs.
 
 use std::fmt;
 

@@ -1364,8 +1364,8 @@ impl Runner<'_> {
             .collect()
     }
 
-    /// The twins of f32's `picked` runs ([`crate::backend::check`]) at the
-    /// looser tolerance, in batches of at most `per_batch`, each to its end
+    /// The twins of f32's `picked` runs ([`crate::backend::check`]),
+    /// nudged and at the looser tolerance, in batches of at most `per_batch`, each to its end
     /// on the device (no slow tail); returns the runs whose twin
     /// disagrees, or did not finish on the device with the run's status.
     /// `progress(done)` counts finished twins.
@@ -1387,7 +1387,10 @@ impl Runner<'_> {
             options: &twin_options,
             ..*self
         };
-        let twin_instances: Vec<Instance> = picked.iter().map(|&k| instances[k]).collect();
+        let twin_instances: Vec<Instance> = picked
+            .iter()
+            .map(|&k| check::twin_instance(&instances[k]))
+            .collect();
         let mut twins = Vec::with_capacity(picked.len());
         for chunk in twin_instances.chunks(per_batch.max(1)) {
             let done_before = twins.len() as u64;
