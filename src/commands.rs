@@ -201,7 +201,7 @@ fn print_summary(scene: &Scene, result: &RunResult) {
         println!(
             "  {} f32 runs, the heaviest {} % of those f32 finished itself, were checked for \
              steps that f32 does not determine (chaotic ones): {} carry the f64 reference's \
-             value (their twin at {}x the tolerance disagreed, or the check integrated them in \
+             value (their twin, nudged and at {}x the tolerance, disagreed, or the check integrated them in \
              f64 directly), {} keep f32's (their twin agreed within half of 0.005 um + 1 %)",
             s.checked,
             crate::backend::check::CHECK_SHARE * 100.0,

@@ -13,7 +13,8 @@
 //! this rule, two of the shader's three misses were within the heaviest
 //! 3.4 %, the third at 20 %). So the heaviest [`CHECK_SHARE`] of an
 //! f32 batch's window runs are checked, in one of two ways ([`Route`]):
-//! by a twin at a looser tolerance, on the same device, whose step must
+//! by a twin with its parameters nudged by two f32 roundings and at a
+//! looser tolerance, on the same device, whose step must
 //! agree with the f32 run's within [`TWIN_AGREEMENT`] of the allowance
 //! (where it does not, the instance is integrated again in f64 on the
 //! CPU); or by integrating them in f64 on the CPU directly, where that is
@@ -47,7 +48,9 @@ pub const TWIN_LOOSENING: f64 = 3.0;
 /// than round back to the run's. A twin made only looser repeats a branch
 /// that f32 takes its own way at both tolerances (seed 98 #2592 of
 /// results/gpu.md, -12.15 um in f32 at 1e-4 and 3e-4 rad where f64 gives
-/// -10.92); nudged as well, five of six twins of it land elsewhere. A
+/// -10.92); nudged as well by random signs, five of six twins of it land
+/// elsewhere, but the fixed signs of [`twin_instance`] land on f32's branch
+/// again (-12.17 um): the nudge makes such a catch likely, not sure. A
 /// well-conditioned step moves by about the nudge's share of itself.
 pub const TWIN_NUDGE: f64 = 2.4e-7;
 
