@@ -7,18 +7,13 @@ run's summary.
     python3 results/check/compare.py OUT_DIR SEED [SEED ...]
 """
 
-import importlib.util
 import re
 import sys
 from pathlib import Path
 
 # The same reading and counting as the tolerance study's.
-_spec = importlib.util.spec_from_file_location(
-    "tolerance_compare", Path(__file__).resolve().parent.parent / "tolerance" / "compare.py"
-)
-_tolerance = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(_tolerance)
-load, compare = _tolerance.load, _tolerance.compare
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from tolerance.compare import compare, load
 
 RUNS = [
     ("off", "f32 shader, no check"),

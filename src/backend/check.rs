@@ -26,8 +26,8 @@
 //! Steady measurements are not checked: their value is the long run's
 //! mean with a standard error, which f32's rounding moves within it.
 
-use crate::cpu::integrate::Settings;
-use crate::model::Instance;
+use crate::cpu::integrate::{STATUS_OK, Settings};
+use crate::model::{Instance, Measure};
 
 /// Share of an f32 batch's window runs (those f32 finished itself, status
 /// ok) that are checked: the heaviest by steps. 0.1: the ill-conditioned
@@ -83,12 +83,24 @@ pub fn allowance(reference: f64) -> f64 {
     F32_ALLOWANCE_M + F32_ALLOWANCE_RELATIVE * reference.abs()
 }
 
-/// The indices of the heaviest [`CHECK_SHARE`] (rounded up) of
-/// `candidates`, given as (index, steps): most steps first, the lower
-/// index first among equals, so the choice does not depend on the order
-/// the candidates come in.
+/// Whether a run may be checked: a window measurement that f32 finished
+/// itself (`handed_over` false: not a fallback, not the CPU's slow tail)
+/// with status ok.
+pub fn is_candidate(inst: &Instance, status: u32, handed_over: bool) -> bool {
+    matches!(inst.measure, Measure::Window) && status == STATUS_OK && !handed_over
+}
+
+/// How many of `candidates` runs are checked: [`CHECK_SHARE`] of them,
+/// rounded up.
+pub fn checked_count(candidates: usize) -> usize {
+    (candidates as f64 * CHECK_SHARE).ceil() as usize
+}
+
+/// The indices of the heaviest [`checked_count`] of `candidates`, given as
+/// (index, steps): most steps first, the lower index first among equals,
+/// so the choice does not depend on the order the candidates come in.
 pub fn heaviest(candidates: &[(usize, u32)]) -> Vec<usize> {
-    let take = (candidates.len() as f64 * CHECK_SHARE).ceil() as usize;
+    let take = checked_count(candidates.len());
     let mut sorted = candidates.to_vec();
     sorted.sort_unstable_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
     sorted.into_iter().take(take).map(|(k, _)| k).collect()

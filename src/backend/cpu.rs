@@ -6,13 +6,12 @@ use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision, f32_needs_f64};
-use crate::cpu::integrate::STATUS_OK;
 use crate::cpu::integrate::Settings;
 use crate::cpu::integrate::constants::STATUS_GRAZE;
 use crate::cpu::{integrate, single};
 use crate::interrupt::interrupt_requested;
 use crate::measurement::{Outcome, reduce};
-use crate::model::{Instance, Measure};
+use crate::model::Instance;
 
 /// The rayon CPU path: in f64 the reference.
 pub struct CpuBackend {
@@ -119,9 +118,7 @@ fn check_heaviest(instances: &[Instance], settings: &Settings, out: &mut [Outcom
         .iter()
         .zip(instances)
         .enumerate()
-        .filter(|(_, (o, inst))| {
-            matches!(inst.measure, Measure::Window) && o.status == STATUS_OK && !o.on_cpu
-        })
+        .filter(|(_, (o, inst))| super::check::is_candidate(inst, o.status, o.on_cpu))
         .map(|(k, (o, _))| (k, o.steps))
         .collect();
     let picked = super::check::heaviest(&candidates);

@@ -1270,7 +1270,7 @@ impl Runner<'_> {
         // twins the rest.
         let main_share = match route {
             Some(Route::Twins) => {
-                let twins = (total as f64 * check::CHECK_SHARE).ceil() as u64;
+                let twins = check::checked_count(instances.len()) as u64;
                 total * total / (total + twins).max(1)
             }
             _ => total,
@@ -1719,10 +1719,7 @@ fn heaviest_candidates(instances: &[Instance], out: &[GpuOutcome]) -> Vec<(usize
         .zip(instances)
         .enumerate()
         .filter(|(_, (o, inst))| {
-            matches!(inst.measure, Measure::Window)
-                && o.status == crate::cpu::integrate::STATUS_OK
-                && !o.cpu_fallback
-                && !o.finished_on_cpu
+            check::is_candidate(inst, o.status, o.cpu_fallback || o.finished_on_cpu)
         })
         .map(|(k, (o, _))| (k, o.steps))
         .collect()
