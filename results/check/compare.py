@@ -34,10 +34,12 @@ def summary(log):
 
 def main():
     out, seeds = sys.argv[1], sys.argv[2:]
-    totals = {run: [0, 0, 0, 0.0, 0] for run, _ in RUNS}
+    # The runs written for every seed (run.sh's CHECKS and MIRROR choose them).
+    runs = [(r, label) for r, label in RUNS if all(Path(f"{out}/{r}_{s}.h5").exists() for s in seeds)]
+    totals = {run: [0, 0, 0, 0.0, 0] for run, _ in runs}
     for seed in seeds:
         ref = load(f"{out}/cpu_{seed}.h5")
-        for run, label in RUNS:
+        for run, label in runs:
             over, failed = compare(ref, load(f"{out}/{run}_{seed}.h5"))
             seconds, cpu = summary(f"{out}/{run}_{seed}.log")
             t = totals[run]
@@ -50,7 +52,7 @@ def main():
                 listed = ", ".join(f"#{k} ({r:.1f}x)" for k, r in over)
                 print(f"seed {seed}: {label}: over {listed or '-'}; failed only there: {failed}")
     print()
-    for run, label in RUNS:
+    for run, label in runs:
         over, failed, n, seconds, cpu = totals[run]
         print(
             f"{label}: {over} of {n} over, {failed} failed only there, "

@@ -9,6 +9,9 @@
 #
 #   bash results/check/run.sh OUT_DIR [SEED ...]
 #
+# CHECKS (default "off twins reference") chooses the check settings run on
+# the GPU; MIRROR=0 leaves out the CPU mirror (on the lent GPU machine).
+#
 # About 3 s a seed on the CPU's 2 cores plus 3 x 20 s of lavapipe.
 set -euo pipefail
 out=$1; shift
@@ -19,8 +22,8 @@ for s in $seeds; do
   scene=$out/r$s.toml
   [ -f "$scene" ] || "$pidm" random-scene --seed "$s" --count 3000 > "$scene"
   [ -f "$out/cpu_$s.h5" ] || "$pidm" run "$scene" --backend cpu --out "$out/cpu_$s.h5" --progress none > /dev/null
-  [ -f "$out/mirror_$s.h5" ] || "$pidm" run "$scene" --backend cpu --precision f32 --out "$out/mirror_$s.h5" --progress none > "$out/mirror_$s.log"
-  for check in off twins reference; do
+  [ "${MIRROR:-1}" = 0 ] || [ -f "$out/mirror_$s.h5" ] || "$pidm" run "$scene" --backend cpu --precision f32 --out "$out/mirror_$s.h5" --progress none > "$out/mirror_$s.log"
+  for check in ${CHECKS:-off twins reference}; do
     [ -f "$out/${check}_$s.h5" ] || PIDM_F32_CHECK=$check WGPU_BACKEND=vulkan "$pidm" run "$scene" \
       --backend gpu --precision f32 --out "$out/${check}_$s.h5" --progress none > "$out/${check}_$s.log"
   done

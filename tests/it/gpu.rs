@@ -1025,10 +1025,14 @@ fn f32_grazes_are_integrated_again_on_the_cpu() {
 /// The two instances the guarded f32 shader still got wrong on the fresh
 /// seeds 61-80 (results/gpu.md, "The heaviest tenth": seed 63 #1160 at
 /// 20.5 and seed 65 #2480 at 2.7 times the allowance, both chaotic) among
-/// eighteen light ones: they are the batch's heaviest tenth. Without the
-/// check the shader misses at least one; by either route both are checked
-/// and carry the f64 reference's value (their twins at 3x the tolerance
-/// disagree), and no other instance is checked.
+/// eighteen light ones: they are the batch's heaviest tenth. By either
+/// route both are checked and no other instance is; each ends within the
+/// allowance of the f64 reference, with its value or, where a twin agreed,
+/// with the shader's own. The two were picked for lavapipe's arithmetic
+/// (CI's adapter): there the shader alone misses at least one and both
+/// twins disagree. NVIDIA's f32 (an H200, results/gpu.md "f32 on an H200")
+/// got both right alone, so on hardware adapters those two premises are
+/// printed, not asserted.
 #[test]
 fn f32_checks_its_heaviest_runs_by_twins_or_by_the_reference() {
     let Some(ctx) = context() else {
@@ -1082,22 +1086,45 @@ fn f32_checks_its_heaviest_runs_by_twins_or_by_the_reference() {
     };
     let off = with(F32Check::Off);
     let errors: Vec<f64> = (0..2).map(|k| error(k, &off[k])).collect();
+    let software = !ctx.is_hardware();
     eprintln!("the shader alone: {errors:?} of the allowance");
-    assert!(
-        errors.iter().any(|&e| e > 1.0),
-        "the shader alone now gets both right: pick instances it misses"
-    );
+    if software {
+        assert!(
+            errors.iter().any(|&e| e > 1.0),
+            "the shader alone now gets both right: pick instances it misses"
+        );
+    }
     for route in [Route::Twins, Route::Reference] {
         let out = with(F32Check::Route(route));
         for (k, g) in out.iter().enumerate() {
             assert_eq!(g.checked, k < 2, "{route:?} #{k}: checked");
             if k < 2 {
-                assert!(g.cpu_fallback, "{route:?} #{k}: the reference's value");
-                assert_eq!(
-                    g.displacement,
-                    displacement(&instances[k], &cpu[k]),
-                    "{route:?} #{k}: the reference's value"
+                eprintln!(
+                    "{route:?} #{k}: {}",
+                    if g.cpu_fallback {
+                        "the reference's value"
+                    } else {
+                        "the shader's value (its twin agreed)"
+                    }
                 );
+                if g.cpu_fallback {
+                    assert_eq!(
+                        g.displacement,
+                        displacement(&instances[k], &cpu[k]),
+                        "{route:?} #{k}: the reference's value"
+                    );
+                } else {
+                    assert_eq!(route, Route::Twins, "#{k}: only a twin keeps f32's value");
+                    assert_eq!(g.displacement, off[k].displacement, "{route:?} #{k}");
+                }
+                assert!(
+                    error(k, g) <= 1.0,
+                    "{route:?} #{k}: {} of the allowance",
+                    error(k, g)
+                );
+                if software {
+                    assert!(g.cpu_fallback, "{route:?} #{k}: the reference's value");
+                }
             } else {
                 assert!(!g.cpu_fallback, "{route:?} #{k}: the shader's value");
                 assert_eq!(g.displacement, off[k].displacement, "{route:?} #{k}");
