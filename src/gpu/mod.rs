@@ -52,6 +52,7 @@ pub use knobs::{
 };
 pub use shader::Variant;
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
@@ -271,6 +272,11 @@ impl F32Check {
         }
     }
 }
+
+/// How often progress is reported while the CPU integrates the checked runs
+/// and fallbacks after the batches: often enough for a progress bar, and
+/// the wait ends as soon as the pass does.
+const CPU_PASS_REPORT: std::time::Duration = std::time::Duration::from_millis(100);
 
 /// The smallest batch whose slow tail goes to the CPU by default (smaller
 /// ones, the self-test's and most tests', stay on the GPU to their end).
@@ -1265,15 +1271,16 @@ impl Runner<'_> {
             Precision::F32 => self.options.check.route(true),
             Precision::F64 => None,
         };
-        // Progress keeps a share for the check's twins, which run after the
-        // batches: the main runs count up to `main_share` of `total`, the
-        // twins the rest.
+        // Progress keeps a share for the check's work after the batches
+        // (the twins, or the CPU's pass over the checked runs and the
+        // fallbacks): the main runs count up to `main_share` of `total`,
+        // that work the rest.
         let main_share = match route {
-            Some(Route::Twins) => {
-                let twins = check::checked_count(instances.len()) as u64;
-                total * total / (total + twins).max(1)
+            Some(_) => {
+                let checked = check::checked_count(instances.len()) as u64;
+                total * total / (total + checked).max(1)
             }
-            _ => total,
+            None => total,
         };
         let mut out = Vec::with_capacity(instances.len());
         for chunk in instances.chunks(per_batch) {
@@ -1335,7 +1342,11 @@ impl Runner<'_> {
             Some(Route::Reference) => {
                 let mut jobs = fallback;
                 jobs.extend(picked.into_iter().map(checked_job));
-                self.on_cpu_all(instances, &jobs)
+                let rest = total - main_share;
+                let n = (jobs.len() as u64).max(1);
+                self.on_cpu_all_reporting(instances, &jobs, &mut |done| {
+                    progress(main_share + done.min(n) * rest / n, total)
+                })
             }
             None => self.on_cpu_all(instances, &fallback),
         };
@@ -1348,20 +1359,56 @@ impl Runner<'_> {
 
     /// The CPU's f64 runs of `jobs`, in parallel: (index, outcome) each.
     fn on_cpu_all(&self, instances: &[Instance], jobs: &[CpuJob]) -> Vec<(usize, GpuOutcome)> {
+        self.on_cpu_counted(instances, jobs, &AtomicU64::new(0))
+    }
+
+    /// [`Self::on_cpu_all`], counting finished jobs in `done`.
+    fn on_cpu_counted(
+        &self,
+        instances: &[Instance],
+        jobs: &[CpuJob],
+        done: &AtomicU64,
+    ) -> Vec<(usize, GpuOutcome)> {
         jobs.par_iter()
             .with_max_len(1)
             .map(|job| {
-                (
-                    job.index,
-                    GpuOutcome {
-                        cpu_fallback: true,
-                        shader_status: job.shader_status,
-                        checked: job.checked,
-                        ..on_cpu(&instances[job.index], self.settings, None)
-                    },
-                )
+                let outcome = GpuOutcome {
+                    cpu_fallback: true,
+                    shader_status: job.shader_status,
+                    checked: job.checked,
+                    ..on_cpu(&instances[job.index], self.settings, None)
+                };
+                done.fetch_add(1, Ordering::Relaxed);
+                (job.index, outcome)
             })
             .collect()
+    }
+
+    /// [`Self::on_cpu_all`] on another thread, with `progress(done jobs)`
+    /// called from this one every [`CPU_PASS_REPORT`] while it runs (the
+    /// reference route's pass can take as long as the batches on a
+    /// software adapter).
+    fn on_cpu_all_reporting(
+        &self,
+        instances: &[Instance],
+        jobs: &[CpuJob],
+        progress: &mut dyn FnMut(u64),
+    ) -> Vec<(usize, GpuOutcome)> {
+        let done = AtomicU64::new(0);
+        let caller = std::thread::current();
+        std::thread::scope(|scope| {
+            let pass = scope.spawn(|| {
+                let outcomes = self.on_cpu_counted(instances, jobs, &done);
+                caller.unpark();
+                outcomes
+            });
+            while !pass.is_finished() {
+                progress(done.load(Ordering::Relaxed));
+                std::thread::park_timeout(CPU_PASS_REPORT);
+            }
+            progress(done.load(Ordering::Relaxed));
+            pass.join().expect("the CPU's runs do not panic")
+        })
     }
 
     /// The twins of f32's `picked` runs ([`crate::backend::check`]),

@@ -1065,14 +1065,20 @@ fn f32_checks_its_heaviest_runs_by_twins_or_by_the_reference() {
             &mut |done, total| seen.push((done, total)),
         )
         .expect("batch runs");
-        // Progress never goes back and ends with the whole batch (with
-        // twins, the main runs count to a share of it and the twins the
-        // rest).
+        // Progress never goes back and ends with the whole batch. With the
+        // check on, the batches count to a share of it, and the twins or
+        // the CPU's pass over the checked runs the rest.
         assert!(
             seen.windows(2).all(|w| w[0].0 <= w[1].0),
             "{check:?}: {seen:?}"
         );
         assert_eq!(seen.last(), Some(&(n, n)), "{check:?}");
+        if check != F32Check::Off {
+            let checked = pidm::backend::check::checked_count(instances.len()) as u64;
+            let batches = n * n / (n + checked);
+            assert!(batches < n);
+            assert!(seen.contains(&(batches, n)), "{check:?}: {seen:?}");
+        }
         out
     };
     let error = |k: usize, g: &GpuOutcome| {
