@@ -35,7 +35,9 @@ def summary(log):
 def main():
     out, seeds = sys.argv[1], sys.argv[2:]
     # The runs written for every seed (run.sh's CHECKS and MIRROR choose them).
-    runs = [(r, label) for r, label in RUNS if all(Path(f"{out}/{r}_{s}.h5").exists() for s in seeds)]
+    runs = [
+        (r, label) for r, label in RUNS if all(Path(f"{out}/{r}_{s}.h5").exists() for s in seeds)
+    ]
     totals = {run: [0, 0, 0, 0.0, 0] for run, _ in runs}
     for seed in seeds:
         ref = load(f"{out}/cpu_{seed}.h5")

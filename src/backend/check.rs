@@ -2,16 +2,15 @@
 //! both f32 paths (the shader's batches and the CPU mirror's backend)
 //! follow.
 //!
-//! Why (results/gpu.md, "The heaviest tenth"): after the band-graze guard
-//! the f32 values that still miss 0.005 um + 1 % of the f64 reference are
-//! chaotic instances, whose step is not determined at f32's resolution (an
-//! f64 run with its parameters changed by f32's rounding moves as much).
-//! No single-run margin singles them out, but they take many steps: every
-//! instance on the fresh seeds 61-80 that a nudged twin found
-//! ill-conditioned, among the runs f32 finished itself, was within the
-//! heaviest 7 % of them by steps (on the seeds 81-100, not used to fit
-//! this rule, two of the shader's three misses were within the heaviest
-//! 3.4 %, the third at 20 %). So the heaviest [`CHECK_SHARE`] of an
+//! Why (results/gpu.md, "The heaviest tenth" and "The heaviest fifth"):
+//! after the band-graze guard the f32 values that still miss 0.005 um +
+//! 1 % of the f64 reference are mostly chaotic instances, whose step is
+//! not determined at f32's resolution (an f64 run with its parameters
+//! changed by f32's rounding moves as much), and close calls that f32
+//! decides its own way. No single-run margin singles them out, but they
+//! take many steps: of the misses seen on lavapipe and an H200, all but
+//! one were within the heaviest 15 % by steps, and that one within 20 %. So
+//! the heaviest [`CHECK_SHARE`] of an
 //! f32 batch's window runs are checked, in one of two ways ([`Route`]):
 //! by a twin with its parameters nudged by two f32 roundings and at a
 //! looser tolerance, on the same device, whose step must
@@ -30,11 +29,13 @@ use crate::cpu::integrate::{STATUS_OK, Settings};
 use crate::model::{Instance, Measure};
 
 /// Share of an f32 batch's window runs (those f32 finished itself, status
-/// ok) that are checked: the heaviest by steps. 0.1: the ill-conditioned
-/// runs found on the fresh seeds sat within the heaviest 0.3-7 %; a tenth
-/// leaves a margin and costs a twin about 30 % more steps (the heaviest
-/// tenth hold about a third of a random scene's steps).
-pub const CHECK_SHARE: f64 = 0.1;
+/// ok) that are checked: the heaviest by steps. 0.2: the misses of f32
+/// unchecked (15 instances: the shader on lavapipe and on an H200, and
+/// the CPU mirror) ranked from 0.3 % to 19.7 % from the top of their
+/// scene, five of them beyond the tenth that the first share, 0.1, took.
+/// The fifth costs lavapipe's reference route 1.02 and its twins 1.10 of
+/// the tenth's time (results/gpu.md, "The heaviest fifth").
+pub const CHECK_SHARE: f64 = 0.2;
 
 /// The twin's tolerance over the run's: looser, so the twin takes fewer
 /// steps (0.84 of them at 3x) while still resolving every well-conditioned
@@ -152,19 +153,19 @@ pub fn twins_agree(inst: &Instance, run: ([f64; 2], f64), twin: ([f64; 2], f64))
 mod tests {
     use super::*;
 
-    /// The heaviest tenth of `steps` (indexed from 0) is `expected`.
+    /// The heaviest fifth of `steps` (indexed from 0) is `expected`.
     fn check(steps: &[u32], expected: &[usize]) {
         let candidates: Vec<(usize, u32)> = steps.iter().copied().enumerate().collect();
         assert_eq!(heaviest(&candidates), expected, "{steps:?}");
     }
 
     #[test]
-    fn the_heaviest_tenth_rounds_up_and_breaks_ties_by_index() {
+    fn the_heaviest_fifth_rounds_up_and_breaks_ties_by_index() {
         check(&[], &[]);
         check(&[5], &[0]);
-        check(&[1, 9, 3, 4, 5, 6, 7, 8, 2, 0], &[1]);
-        check(&[1, 9, 3, 4, 5, 6, 7, 8, 2, 0, 9], &[1, 10]);
-        check(&[7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7], &[0, 1]);
+        check(&[1, 9, 3, 4, 5, 6, 7, 8, 2, 0], &[1, 7]);
+        check(&[1, 9, 3, 4, 5, 6, 7, 8, 2, 0, 9], &[1, 10, 7]);
+        check(&[7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7], &[0, 1, 2]);
     }
 
     #[test]

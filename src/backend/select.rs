@@ -57,9 +57,10 @@ pub enum AutoChoice {
 /// `--backend auto`'s choice on a hardware adapter (software ones, lavapipe,
 /// are slower than the CPU path and never chosen): f64 where the adapter
 /// has it, else f32; the precision asked for where the adapter runs it.
-/// f32 misses 0.005 um + 1 % of the CPU's f64 step on about 1 random
-/// instance in 30,000 with its checks (2 of 60,000 fresh ones with twins,
-/// results/gpu.md "The heaviest tenth"), fewer than the CPU's own f64 step
+/// f32 misses 0.005 um + 1 % of the CPU's f64 step on fewer than 1 random
+/// instance in 100,000 with its checks (0 of 267,000 on lavapipe, 2 of
+/// 300,000 with twins on an H200: results/gpu.md "The heaviest fifth" and
+/// "f32 on an H200"), fewer than the CPU's own f64 step
 /// moves by that much when its tolerance is made 100 times tighter (1 in
 /// 3,600): on the random scenes of results/gpu.md, f32 is as close to the
 /// CPU's map as that map is to a converged one, and `--verify` finds both

@@ -33,7 +33,7 @@
 //!   a two-part number (see [`layout::Units`]). An f32 instance that fails
 //!   or stops at a band graze is integrated again on the CPU in f64
 //!   ([`f32_needs_f64`]; [`GpuOutcome::shader_status`] says which). The
-//!   heaviest tenth of an f32 call's window runs is checked
+//!   heaviest fifth of an f32 call's window runs is checked
 //!   ([`crate::backend::check`], [`BatchOptions::check`]): by twins at a
 //!   looser tolerance on a hardware adapter (while the CPU integrates the
 //!   failures and grazes), by the f64 reference on the CPU on a software

@@ -355,17 +355,17 @@ fn the_f32_summary_counts_band_grazes_and_their_values_are_the_references() {
         })
         .unwrap_or_else(|| panic!("no graze line in:\n{text32}"));
     assert!(grazes >= 1, "{text32}");
-    // The mirror checks the heaviest tenth of the runs it finished itself
+    // The mirror checks the heaviest fifth of the runs it finished itself
     // against the reference (`backend::check`), and says how many.
     let checked: Vec<u64> = text32
         .lines()
-        .find(|l| l.contains("the heaviest 10 % of those f32 finished itself"))
+        .find(|l| l.contains("the heaviest 20 % of those f32 finished itself"))
         .unwrap_or_else(|| panic!("no check line in:\n{text32}"))
         .split_whitespace()
         .filter_map(|w| w.parse().ok())
         .collect();
     let (n, on_cpu, kept) = (checked[0], checked[2], checked[3]);
-    assert!((1..=9).contains(&n), "{text32}");
+    assert!((1..=17).contains(&n), "{text32}");
     assert_eq!((on_cpu, kept), (n, 0), "{text32}");
     assert!(!text64.contains("heaviest"), "{text64}");
     let read = |path: &std::path::Path, map: &str| -> Vec<f64> {

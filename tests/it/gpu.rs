@@ -86,7 +86,7 @@ fn gpu_batch(
 
 /// `options` with f32's check of its heaviest runs off, so that a test
 /// judges the shader alone (on lavapipe the check would hand the heaviest
-/// tenth to the CPU); the check has tests of its own
+/// fifth to the CPU); the check has tests of its own
 /// (`f32_checks_its_heaviest_runs_by_twins_or_by_the_reference`).
 fn shader_only(options: &BatchOptions) -> BatchOptions {
     BatchOptions {
@@ -1025,7 +1025,7 @@ fn f32_grazes_are_integrated_again_on_the_cpu() {
 /// The two instances the guarded f32 shader still got wrong on the fresh
 /// seeds 61-80 (results/gpu.md, "The heaviest tenth": seed 63 #1160 at
 /// 20.5 and seed 65 #2480 at 2.7 times the allowance, both chaotic) among
-/// eighteen light ones: they are the batch's heaviest tenth. By either
+/// eight light ones: they are the batch's heaviest fifth. By either
 /// route both are checked and no other instance is; each ends within the
 /// allowance of the f64 reference, with its value or, where a twin agreed,
 /// with the shader's own. The two were picked for lavapipe's arithmetic
@@ -1040,9 +1040,9 @@ fn f32_checks_its_heaviest_runs_by_twins_or_by_the_reference() {
     };
     let settings = Settings::default();
     let mut instances = random_picks(&[(63, &[1160]), (65, &[2480])]);
-    for k in 0..18 {
+    for k in 0..8 {
         let mut inst = Instance::TABLE1;
-        inst.axes[0].voltage = 40.0 + 3.0 * k as f64;
+        inst.axes[0].voltage = 40.0 + 6.0 * k as f64;
         inst.axes[1].frequency = 15.0;
         inst.cycles = 2;
         inst.settle = 1;

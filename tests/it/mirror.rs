@@ -208,8 +208,8 @@ fn f32_mirror_measures_steady_steps_as_the_reference() {
 /// Issue 19: the mirror's backend checks its heaviest runs as the shader's
 /// batches do on a software adapter (`pidm::backend::check`, the reference
 /// route). The six instances the guarded mirror still got wrong on the
-/// fresh seeds 61-80 (results/gpu.md, "The heaviest tenth"), among 54
-/// light ones, are the heaviest tenth: each is checked and carries the f64
+/// fresh seeds 61-80 (results/gpu.md, "The heaviest tenth"), among 24
+/// light ones, are the heaviest fifth: each is checked and carries the f64
 /// reference's value, and no other is checked.
 #[test]
 fn the_f32_mirror_checks_its_heaviest_runs_against_the_reference() {
@@ -226,9 +226,9 @@ fn the_f32_mirror_checks_its_heaviest_runs_against_the_reference() {
     ] {
         instances.push(pidm::random::random_instances(seed, 3000, 4, 1)[k]);
     }
-    for k in 0..54 {
+    for k in 0..24 {
         let mut inst = Instance::TABLE1;
-        inst.axes[0].voltage = 40.0 + k as f64;
+        inst.axes[0].voltage = 40.0 + 2.0 * k as f64;
         inst.axes[1].frequency = 15.0;
         inst.cycles = 2;
         inst.settle = 1;
