@@ -58,7 +58,7 @@ pub enum AutoChoice {
 /// are slower than the CPU path and never chosen): f64 where the adapter
 /// has it, else f32; the precision asked for where the adapter runs it.
 /// f32 misses 0.005 um + 1 % of the CPU's f64 step on fewer than 1 random
-/// instance in 100,000 with its checks (0 of 267,000 on lavapipe, 2 of
+/// instance in 100,000 with its checks (1 of 327,000 on lavapipe, 2 of
 /// 300,000 with twins on an H200: results/gpu.md "The heaviest fifth" and
 /// "f32 on an H200"), fewer than the CPU's own f64 step
 /// moves by that much when its tolerance is made 100 times tighter (1 in
