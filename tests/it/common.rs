@@ -56,6 +56,23 @@ pub fn case(vx: f64, vy: f64, fx: f64, fy: f64, axis: Axis) -> Instance {
     inst
 }
 
+/// `n` light window runs for the tests of f32's check of its heaviest runs
+/// (`pidm::backend::check`): Table 1 with x at 40 V and up by `volts` [V]
+/// each, y at 15 Hz, 2 periods of which 1 settles. Each takes far fewer
+/// steps than a random scene's heavy instances, so a check passes them by.
+pub fn light_instances(n: usize, volts: f64) -> Vec<Instance> {
+    (0..n)
+        .map(|k| {
+            let mut inst = Instance::TABLE1;
+            inst.axes[0].voltage = 40.0 + volts * k as f64;
+            inst.axes[1].frequency = 15.0;
+            inst.cycles = 2;
+            inst.settle = 1;
+            inst
+        })
+        .collect()
+}
+
 /// MODEL.md section 6: (name, instance, step_x, step_y) in um, given to 4
 /// decimals there.
 pub fn reference_cases() -> Vec<(&'static str, Instance, [f64; 2])> {

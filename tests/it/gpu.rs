@@ -1040,14 +1040,7 @@ fn f32_checks_its_heaviest_runs_by_twins_or_by_the_reference() {
     };
     let settings = Settings::default();
     let mut instances = random_picks(&[(63, &[1160]), (65, &[2480])]);
-    for k in 0..8 {
-        let mut inst = Instance::TABLE1;
-        inst.axes[0].voltage = 40.0 + 6.0 * k as f64;
-        inst.axes[1].frequency = 15.0;
-        inst.cycles = 2;
-        inst.settle = 1;
-        instances.push(inst);
-    }
+    instances.extend(crate::common::light_instances(8, 6.0));
     let cpu = cpu_reference(&instances, &settings);
     let base = BatchOptions {
         cpu_tail: Some(0),

@@ -226,14 +226,7 @@ fn the_f32_mirror_checks_its_heaviest_runs_against_the_reference() {
     ] {
         instances.push(pidm::random::random_instances(seed, 3000, 4, 1)[k]);
     }
-    for k in 0..24 {
-        let mut inst = Instance::TABLE1;
-        inst.axes[0].voltage = 40.0 + 2.0 * k as f64;
-        inst.axes[1].frequency = 15.0;
-        inst.cycles = 2;
-        inst.settle = 1;
-        instances.push(inst);
-    }
+    instances.extend(crate::common::light_instances(24, 2.0));
     let backend = CpuBackend::with_precision(Some(2), Precision::F32).expect("a pool");
     let out = backend
         .run(&instances, &settings, &|_| {})
