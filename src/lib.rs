@@ -10,6 +10,7 @@ pub mod cpu;
 pub mod estimate;
 pub mod gpu;
 pub mod interrupt;
+pub mod knob;
 pub mod measurement;
 pub mod model;
 pub mod output;

@@ -21,6 +21,9 @@ struct Counters {
 struct Control {
     // Iterations of `iterate` in this dispatch.
     max_iterations: u32,
+    // Iterations a lane runs a steady instance before it looks for its
+    // next period end again (at least 1).
+    steady_chunk: u32,
     // 1 when the states must first be set to `initial_state`.
     initialize: u32,
     // Always 1.0; see `move_to`.
@@ -111,7 +114,13 @@ fn advance_slice(
             measures[index] = m;
             continue;
         }
-        let run = advance(c, &st, index, left, left == control.max_iterations);
+        // A steady lane runs at most a chunk before it looks for its next
+        // period end again, so that it waits less for its warp there.
+        var run_for = left;
+        if c.steady == 1u {
+            run_for = min(left, control.steady_chunk);
+        }
+        let run = advance(c, &st, index, run_for, left == control.max_iterations);
         left -= run.iterations;
         if run.cut {
             break;

@@ -27,6 +27,8 @@
 //! Steady measurements are not checked: their value is the long run's
 //! mean with a standard error, which f32's rounding moves within it.
 
+use std::sync::OnceLock;
+
 use crate::cpu::integrate::{STATUS_OK, Settings};
 use crate::model::{Instance, Measure};
 
@@ -38,6 +40,21 @@ use crate::model::{Instance, Measure};
 /// The fifth costs lavapipe's reference route 1.02 and its twins 1.10 of
 /// the tenth's time (results/gpu.md, "The heaviest fifth").
 pub const CHECK_SHARE: f64 = 0.2;
+
+/// The share this process checks: [`CHECK_SHARE`], or
+/// `PIDM_F32_CHECK_SHARE` (above 0, at most 1), for measuring what another
+/// share costs and catches (results/check). Both f32 paths read it here.
+pub fn share() -> f64 {
+    static SHARE: OnceLock<f64> = OnceLock::new();
+    *SHARE.get_or_init(|| {
+        crate::knob::knob(
+            "PIDM_F32_CHECK_SHARE",
+            CHECK_SHARE,
+            |s: &f64| *s > 0.0 && *s <= 1.0,
+            "a number above 0 and at most 1",
+        )
+    })
+}
 
 /// The twin's tolerance over the run's: looser, so the twin takes fewer
 /// steps (0.84 of them at 3x) while still resolving every well-conditioned
@@ -93,10 +110,10 @@ pub fn is_candidate(inst: &Instance, status: u32, handed_over: bool) -> bool {
     matches!(inst.measure, Measure::Window) && status == STATUS_OK && !handed_over
 }
 
-/// How many of `candidates` runs are checked: [`CHECK_SHARE`] of them,
-/// rounded up.
+/// How many of `candidates` runs are checked: [`share`] of them, rounded
+/// up.
 pub fn checked_count(candidates: usize) -> usize {
-    (candidates as f64 * CHECK_SHARE).ceil() as usize
+    (candidates as f64 * share()).ceil() as usize
 }
 
 /// The indices of the heaviest [`checked_count`] of `candidates`, given as

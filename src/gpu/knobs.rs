@@ -6,6 +6,7 @@ use std::str::FromStr;
 use std::sync::OnceLock;
 
 use super::{F32Check, Route};
+use crate::knob::knob;
 
 /// Invocations per workgroup; the shader reads it from its prelude. A warp
 /// on NVIDIA, and small enough that lavapipe spreads a batch of 64 over two
@@ -15,6 +16,15 @@ pub const WORKGROUP_SIZE: u32 = 32;
 /// Iterations of `iterate` per instance and dispatch: a dispatch then takes
 /// milliseconds on a GPU, far from any watchdog.
 pub const SLICE_ITERATIONS: u32 = 1024;
+
+/// Iterations a lane holding a steady instance runs in one go before it
+/// looks for the instance's next period end again: the whole slice
+/// ([`SLICE_ITERATIONS`]) until measured otherwise. A lane that reaches a
+/// period end sooner waits there, on SIMT hardware, until the other lanes
+/// of its warp end their run; a smaller chunk bounds that wait, at the
+/// cost of the lane loop's checks between chunks (results/gpu.md,
+/// "Steady maps on the GPU").
+pub const STEADY_CHUNK: u32 = SLICE_ITERATIONS;
 
 /// Lanes (invocations) that work through a batch's instances, at most:
 /// enough to fill an H100 (132 multiprocessors x 2048 threads) about once.
@@ -63,6 +73,20 @@ pub fn slice_iterations() -> u32 {
     })
 }
 
+/// The steady chunk this process uses: [`STEADY_CHUNK`], or
+/// `PIDM_GPU_STEADY_CHUNK` (at least 1).
+pub fn steady_chunk() -> u32 {
+    static CHUNK: OnceLock<u32> = OnceLock::new();
+    *CHUNK.get_or_init(|| {
+        knob(
+            "PIDM_GPU_STEADY_CHUNK",
+            STEADY_CHUNK,
+            |n| *n >= 1,
+            "an integer of at least 1",
+        )
+    })
+}
+
 /// How f32 batches check their heaviest runs: [`F32Check::Auto`], or
 /// `PIDM_F32_CHECK` = `auto`, `twins`, `reference` or `off` (for
 /// measuring the check's cost and what it catches; `off` leaves f32's
@@ -100,60 +124,5 @@ impl std::fmt::Display for F32Check {
             F32Check::Route(Route::Reference) => "reference",
             F32Check::Off => "off",
         })
-    }
-}
-
-/// The value of the environment variable `name`, or `default` where it is
-/// unset. A value that does not parse or is not `valid` is reported, with
-/// what was `expected`, and the default is used.
-fn knob<T: FromStr + std::fmt::Display>(
-    name: &str,
-    default: T,
-    valid: impl Fn(&T) -> bool,
-    expected: &str,
-) -> T {
-    let text = std::env::var(name).ok();
-    match parse_knob(text.as_deref(), valid) {
-        Ok(value) => value.unwrap_or(default),
-        Err(text) => {
-            eprintln!("pidm: ignoring {name} = {text:?}: expected {expected}; using {default}");
-            default
-        }
-    }
-}
-
-/// A knob's value from its text: `None` where unset, the text itself as the
-/// error where it does not parse or is not `valid`.
-fn parse_knob<T: FromStr>(
-    text: Option<&str>,
-    valid: impl Fn(&T) -> bool,
-) -> Result<Option<T>, &str> {
-    let Some(text) = text else {
-        return Ok(None);
-    };
-    match text.trim().parse::<T>() {
-        Ok(value) if valid(&value) => Ok(Some(value)),
-        _ => Err(text),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_knob;
-
-    /// Parses `text` as a power-of-two workgroup knob.
-    fn check(text: Option<&str>, expected: Result<Option<u32>, &str>) {
-        let power_of_two = |n: &u32| n.is_power_of_two() && *n <= 256;
-        assert_eq!(parse_knob(text, power_of_two), expected, "{text:?}");
-    }
-
-    #[test]
-    fn knobs_take_valid_values_and_refuse_the_rest() {
-        check(None, Ok(None));
-        check(Some("64"), Ok(Some(64)));
-        check(Some(" 8 "), Ok(Some(8)));
-        check(Some("300"), Err("300"));
-        check(Some("0"), Err("0"));
-        check(Some("many"), Err("many"));
     }
 }

@@ -88,6 +88,9 @@ pub mod control {
         pub struct Control {
             /// Iterations of `iterate` in the dispatch.
             pub max_iterations: u32,
+            /// Iterations a lane runs a steady instance before it looks
+            /// for its next period end again (at least 1).
+            pub steady_chunk: u32,
             /// 1 when the shader must first set every state to its initial
             /// value.
             pub initialize: u32,

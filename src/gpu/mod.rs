@@ -48,7 +48,8 @@ pub mod layout;
 pub mod shader;
 
 pub use knobs::{
-    LANES, SLICE_ITERATIONS, WORKGROUP_SIZE, f32_check, lanes, slice_iterations, workgroup_size,
+    LANES, SLICE_ITERATIONS, STEADY_CHUNK, WORKGROUP_SIZE, f32_check, lanes, slice_iterations,
+    steady_chunk, workgroup_size,
 };
 pub use shader::Variant;
 
@@ -205,6 +206,11 @@ pub struct GpuOutcome {
 pub struct BatchOptions {
     /// Iterations of `iterate` per dispatch.
     pub slice_iterations: u32,
+    /// Iterations a lane holding a steady instance runs before it looks
+    /// for that instance's next period end again ([`knobs::STEADY_CHUNK`]).
+    /// Scheduling only: the instance's iterations are the same whatever
+    /// the chunk, so its results are too.
+    pub steady_chunk: u32,
     /// Largest number of instances per dispatch batch, on top of the
     /// device's limits (tests force small batches with it).
     pub max_batch: Option<usize>,
@@ -309,6 +315,7 @@ impl Default for BatchOptions {
     fn default() -> Self {
         BatchOptions {
             slice_iterations: slice_iterations(),
+            steady_chunk: steady_chunk(),
             max_batch: None,
             probe_passes: layout::PROBE_PASSES,
             lanes: lanes(),
@@ -1561,6 +1568,7 @@ impl Runner<'_> {
                 label: Some("control"),
                 contents: bytemuck::bytes_of(&Control {
                     max_iterations: self.options.slice_iterations,
+                    steady_chunk: self.options.steady_chunk.max(1),
                     initialize,
                     one: 1.0,
                     probe: self.options.probe_passes.max(layout::PROBE_PASSES),
