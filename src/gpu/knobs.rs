@@ -87,6 +87,14 @@ pub fn steady_chunk() -> u32 {
     })
 }
 
+/// Whether batches print how long their phases took (dispatches, mapping
+/// and reading the results, the outcomes) on stderr: `PIDM_GPU_PHASES` =
+/// 1, for measurements (results/gpu.md, "Steady maps on the GPU").
+pub fn gpu_phases() -> bool {
+    static PHASES: OnceLock<bool> = OnceLock::new();
+    *PHASES.get_or_init(|| knob("PIDM_GPU_PHASES", 0u8, |n| *n <= 1, "0 or 1") == 1)
+}
+
 /// How f32 batches check their heaviest runs: [`F32Check::Auto`], or
 /// `PIDM_F32_CHECK` = `auto`, `twins`, `reference` or `off` (for
 /// measuring the check's cost and what it catches; `off` leaves f32's

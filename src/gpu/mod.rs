@@ -48,8 +48,8 @@ pub mod layout;
 pub mod shader;
 
 pub use knobs::{
-    LANES, SLICE_ITERATIONS, STEADY_CHUNK, WORKGROUP_SIZE, f32_check, lanes, slice_iterations,
-    steady_chunk, workgroup_size,
+    LANES, SLICE_ITERATIONS, STEADY_CHUNK, WORKGROUP_SIZE, f32_check, gpu_phases, lanes,
+    slice_iterations, steady_chunk, workgroup_size,
 };
 pub use shader::Variant;
 
@@ -1623,6 +1623,7 @@ impl Runner<'_> {
             self.options
                 .tail_size(L::PRECISION, n, rayon::current_num_threads()) as u64;
         let mut slice: u64 = 0;
+        let dispatching = std::time::Instant::now();
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
             {
@@ -1656,14 +1657,16 @@ impl Runner<'_> {
                 });
             }
         }
+        let dispatched = dispatching.elapsed();
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
         if steady {
             encoder.copy_buffer_to_buffer(&measures, 0, &measures_read, 0, measure_bytes);
         }
         queue.submit([encoder.finish()]);
+        let mut measures_timed = Mapped::default();
         let measure_list: Vec<L::Measure> = if steady {
-            with_mapped(device, &measures_read, |bytes| {
+            with_mapped_timed(device, &measures_read, &mut measures_timed, |bytes| {
                 bytes
                     .chunks_exact(size_of::<L::Measure>())
                     .map(bytemuck::pod_read_unaligned)
@@ -1672,16 +1675,33 @@ impl Runner<'_> {
         } else {
             Vec::new()
         };
-        let states: Vec<L::State> = with_mapped(device, &states_read, |bytes| {
-            match bytemuck::try_cast_slice(bytes) {
-                Ok(states) => states.to_vec(),
-                // A mapping not aligned for the struct (no driver seen).
-                Err(_) => bytes
-                    .chunks_exact(size_of::<L::State>())
-                    .map(bytemuck::pod_read_unaligned)
-                    .collect(),
-            }
-        })?;
+        let mut states_timed = Mapped::default();
+        let states: Vec<L::State> =
+            with_mapped_timed(device, &states_read, &mut states_timed, |bytes| {
+                match bytemuck::try_cast_slice(bytes) {
+                    Ok(states) => states.to_vec(),
+                    // A mapping not aligned for the struct (no driver seen).
+                    Err(_) => bytes
+                        .chunks_exact(size_of::<L::State>())
+                        .map(bytemuck::pod_read_unaligned)
+                        .collect(),
+                }
+            })?;
+        if gpu_phases() {
+            let mb = |bytes: u64| bytes as f64 / 1e6;
+            eprintln!(
+                "pidm: GPU batch of {n}: {slice} dispatches in {:.3} s; accumulators {:.1} MB \
+                 mapped in {:.3} s and read in {:.3} s; states {:.1} MB mapped in {:.3} s and \
+                 read in {:.3} s",
+                dispatched.as_secs_f64(),
+                if steady { mb(measure_bytes) } else { 0.0 },
+                measures_timed.wait.as_secs_f64(),
+                measures_timed.read.as_secs_f64(),
+                mb(state_bytes),
+                states_timed.wait.as_secs_f64(),
+                states_timed.read.as_secs_f64(),
+            );
+        }
         Ok((states, measure_list))
     }
 
@@ -1692,6 +1712,7 @@ impl Runner<'_> {
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let n = instances.len();
         let (states, measure_list) = self.slices::<L>(instances, progress, None)?;
+        let reducing = std::time::Instant::now();
         let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
         // The outcomes, and the states of the unfinished ones.
         let (mut out, tail) = {
@@ -1712,6 +1733,13 @@ impl Runner<'_> {
                 .collect();
             (out, tail)
         };
+        if gpu_phases() {
+            eprintln!(
+                "pidm: GPU batch of {n}: outcomes in {:.3} s, {} left to the CPU",
+                reducing.elapsed().as_secs_f64(),
+                tail.len()
+            );
+        }
         // The slow tail, if the GPU stopped before it: on the CPU, in
         // parallel, from where the GPU left it (f64) or from the start
         // (f32).
@@ -1823,6 +1851,27 @@ fn with_mapped<T>(
     buffer: &wgpu::Buffer,
     read: impl FnOnce(&[u8]) -> T,
 ) -> Result<T, GpuError> {
+    with_mapped_timed(device, buffer, &mut Mapped::default(), read)
+}
+
+/// How long [`with_mapped_timed`] waited for a mapping and took to read it.
+#[derive(Default)]
+struct Mapped {
+    /// From the request to the mapped range: the queue's work before it
+    /// and the copy into the mappable buffer.
+    wait: std::time::Duration,
+    /// `read` on the mapped bytes.
+    read: std::time::Duration,
+}
+
+/// [`with_mapped`], timing its two parts into `timed`.
+fn with_mapped_timed<T>(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+    timed: &mut Mapped,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T, GpuError> {
+    let started = std::time::Instant::now();
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -1838,7 +1887,11 @@ fn with_mapped<T>(
         let view = slice
             .get_mapped_range()
             .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
-        read(&view)
+        timed.wait = started.elapsed();
+        let reading = std::time::Instant::now();
+        let out = read(&view);
+        timed.read = reading.elapsed();
+        out
     };
     buffer.unmap();
     Ok(out)
