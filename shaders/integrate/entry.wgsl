@@ -21,9 +21,6 @@ struct Counters {
 struct Control {
     // Iterations of `iterate` in this dispatch.
     max_iterations: u32,
-    // Iterations a lane runs a steady instance before it looks for its
-    // next period end again (at least 1).
-    steady_chunk: u32,
     // 1 when the states must first be set to `initial_state`.
     initialize: u32,
     // Always 1.0; see `move_to`.
@@ -49,6 +46,20 @@ struct Control {
 // and written only at the period ends of steady instances; a batch of
 // windows binds a single unused entry.
 @group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
+
+// What the host reads of every finished steady measurement: all that the
+// reduction of a periodic verdict reads (`pidm::gpu::layout::*::Head`). The
+// host copies the whole accumulators of the others only.
+struct Head {
+    travel: V2,
+    next_end: u32,
+    lag: u32,
+    verdict: u32,
+    _pad: u32,
+}
+// One per instance where any instance is steady, written when a steady
+// instance finishes; a batch of windows binds a single unused entry.
+@group(0) @binding(6) var<storage, read_write> heads: array<Head>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn advance_slice(
@@ -78,6 +89,15 @@ fn advance_slice(
     loop {
         if is_finished(c, st) {
             states[index] = st;
+            if c.steady == 1u {
+                heads[index] = Head(
+                    measures[index].travel,
+                    measures[index].next_end,
+                    measures[index].lag,
+                    measures[index].verdict,
+                    0u,
+                );
+            }
             atomicAdd(&counters.finished, 1u);
             index = atomicAdd(&counters.next, 1u);
             if index >= count {
@@ -114,13 +134,7 @@ fn advance_slice(
             measures[index] = m;
             continue;
         }
-        // A steady lane runs at most a chunk before it looks for its next
-        // period end again, so that it waits less for its warp there.
-        var run_for = left;
-        if c.steady == 1u {
-            run_for = min(left, control.steady_chunk);
-        }
-        let run = advance(c, &st, index, run_for, left == control.max_iterations);
+        let run = advance(c, &st, index, left, left == control.max_iterations);
         left -= run.iterations;
         if run.cut {
             break;

@@ -17,15 +17,6 @@ pub const WORKGROUP_SIZE: u32 = 32;
 /// milliseconds on a GPU, far from any watchdog.
 pub const SLICE_ITERATIONS: u32 = 1024;
 
-/// Iterations a lane holding a steady instance runs in one go before it
-/// looks for the instance's next period end again: the whole slice
-/// ([`SLICE_ITERATIONS`]) until measured otherwise. A lane that reaches a
-/// period end sooner waits there, on SIMT hardware, until the other lanes
-/// of its warp end their run; a smaller chunk bounds that wait, at the
-/// cost of the lane loop's checks between chunks (results/gpu.md,
-/// "Steady maps on the GPU").
-pub const STEADY_CHUNK: u32 = SLICE_ITERATIONS;
-
 /// Lanes (invocations) that work through a batch's instances, at most:
 /// enough to fill an H100 (132 multiprocessors x 2048 threads) about once.
 /// A lane that finishes an instance takes the next one, so a batch of more
@@ -67,20 +58,6 @@ pub fn slice_iterations() -> u32 {
         knob(
             "PIDM_GPU_SLICE",
             SLICE_ITERATIONS,
-            |n| *n >= 1,
-            "an integer of at least 1",
-        )
-    })
-}
-
-/// The steady chunk this process uses: [`STEADY_CHUNK`], or
-/// `PIDM_GPU_STEADY_CHUNK` (at least 1).
-pub fn steady_chunk() -> u32 {
-    static CHUNK: OnceLock<u32> = OnceLock::new();
-    *CHUNK.get_or_init(|| {
-        knob(
-            "PIDM_GPU_STEADY_CHUNK",
-            STEADY_CHUNK,
             |n| *n >= 1,
             "an integer of at least 1",
         )

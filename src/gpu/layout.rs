@@ -88,9 +88,6 @@ pub mod control {
         pub struct Control {
             /// Iterations of `iterate` in the dispatch.
             pub max_iterations: u32,
-            /// Iterations a lane runs a steady instance before it looks
-            /// for its next period end again (at least 1).
-            pub steady_chunk: u32,
             /// 1 when the shader must first set every state to its initial
             /// value.
             pub initialize: u32,
@@ -280,6 +277,40 @@ macro_rules! precision_structs {
                     pub snapshots: u32,
                     pub lag: u32,
                     pub verdict: u32,
+                }
+            }
+
+            host_struct! {
+                /// What the host reads of every finished steady
+                /// measurement (WGSL's `Head`, entry.wgsl): all that the
+                /// reduction of a periodic verdict reads
+                /// ([`crate::measurement::reduce`]).
+                pub struct Head {
+                    pub travel: V2,
+                    pub next_end: u32,
+                    pub lag: u32,
+                    pub verdict: u32,
+                    pub _pad: u32,
+                }
+            }
+
+            impl Head {
+                /// Whether the measurement ended periodic: its head is then
+                /// all that its reduction reads.
+                pub fn is_periodic(&self) -> bool {
+                    self.verdict == measure::VERDICT_PERIODIC
+                }
+
+                /// Accumulators with the head's members and zero elsewhere:
+                /// all that the reduction of a periodic verdict reads.
+                pub fn measure(&self) -> Measure {
+                    Measure {
+                        travel: self.travel,
+                        next_end: self.next_end,
+                        lag: self.lag,
+                        verdict: self.verdict,
+                        ..Measure::default()
+                    }
                 }
             }
 
@@ -552,6 +583,7 @@ mod tests {
                     check_struct::<single::State>(&module, &layouter, precision);
                     check_struct::<single::Snapshot>(&module, &layouter, precision);
                     check_struct::<single::Measure>(&module, &layouter, precision);
+                    check_struct::<single::Head>(&module, &layouter, precision);
                 }
                 Precision::F64 => {
                     check_struct::<double::Oscillator>(&module, &layouter, precision);
@@ -559,6 +591,7 @@ mod tests {
                     check_struct::<double::State>(&module, &layouter, precision);
                     check_struct::<double::Snapshot>(&module, &layouter, precision);
                     check_struct::<double::Measure>(&module, &layouter, precision);
+                    check_struct::<double::Head>(&module, &layouter, precision);
                 }
             }
         }

@@ -45,11 +45,12 @@
 pub mod cache;
 mod knobs;
 pub mod layout;
+pub mod readback;
 pub mod shader;
 
 pub use knobs::{
-    LANES, SLICE_ITERATIONS, STEADY_CHUNK, WORKGROUP_SIZE, f32_check, gpu_phases, lanes,
-    slice_iterations, steady_chunk, workgroup_size,
+    LANES, SLICE_ITERATIONS, WORKGROUP_SIZE, f32_check, gpu_phases, lanes, slice_iterations,
+    workgroup_size,
 };
 pub use shader::Variant;
 
@@ -206,14 +207,13 @@ pub struct GpuOutcome {
 pub struct BatchOptions {
     /// Iterations of `iterate` per dispatch.
     pub slice_iterations: u32,
-    /// Iterations a lane holding a steady instance runs before it looks
-    /// for that instance's next period end again ([`knobs::STEADY_CHUNK`]).
-    /// Scheduling only: the instance's iterations are the same whatever
-    /// the chunk, so its results are too.
-    pub steady_chunk: u32,
     /// Largest number of instances per dispatch batch, on top of the
     /// device's limits (tests force small batches with it).
     pub max_batch: Option<usize>,
+    /// Read every steady instance's whole accumulators back, not only the
+    /// heads and the accumulators that the reductions need
+    /// ([`readback`]); tests compare the two.
+    pub whole_accumulators: bool,
     /// Passes the shader's loop-limiter probe makes; at least
     /// [`layout::PROBE_PASSES`]. Tests raise it beyond 65,535 so that on
     /// llvmpipe no iteration can complete its probe, which exercises the
@@ -315,8 +315,8 @@ impl Default for BatchOptions {
     fn default() -> Self {
         BatchOptions {
             slice_iterations: slice_iterations(),
-            steady_chunk: steady_chunk(),
             max_batch: None,
+            whole_accumulators: false,
             probe_passes: layout::PROBE_PASSES,
             lanes: lanes(),
             cpu_tail: None,
@@ -1105,6 +1105,12 @@ trait Layout {
     type Coefficients: HostLayout + Send;
     type State: HostLayout + Send + Sync;
     type Measure: HostLayout + Send + Sync;
+    /// What the host reads of every finished steady measurement.
+    type Head: HostLayout + Send + Sync;
+    /// Whether a measurement with this head ended periodic.
+    fn periodic(h: &Self::Head) -> bool;
+    /// The accumulators that the reduction of a periodic head reads.
+    fn from_head(h: &Self::Head) -> Self::Measure;
     /// The CPU mirror's state of this precision.
     type Mirror;
     fn mirror(st: &Self::State) -> Self::Mirror;
@@ -1154,6 +1160,13 @@ impl Layout for Single {
     type Coefficients = layout::single::Coefficients;
     type State = layout::single::State;
     type Measure = layout::single::Measure;
+    type Head = layout::single::Head;
+    fn periodic(h: &Self::Head) -> bool {
+        h.is_periodic()
+    }
+    fn from_head(h: &Self::Head) -> Self::Measure {
+        h.measure()
+    }
     type Mirror = crate::cpu::single::integrate::State;
     fn mirror(st: &Self::State) -> Self::Mirror {
         layout::single::to_cpu(st)
@@ -1184,6 +1197,13 @@ impl Layout for Double {
     type Coefficients = layout::double::Coefficients;
     type State = layout::double::State;
     type Measure = layout::double::Measure;
+    type Head = layout::double::Head;
+    fn periodic(h: &Self::Head) -> bool {
+        h.is_periodic()
+    }
+    fn from_head(h: &Self::Head) -> Self::Measure {
+        h.measure()
+    }
     type Mirror = crate::cpu::integrate::State;
     fn mirror(st: &Self::State) -> Self::Mirror {
         layout::double::to_cpu(st)
@@ -1503,6 +1523,7 @@ impl Runner<'_> {
         let device = self.device;
         let queue = self.queue;
         let n = instances.len();
+        let preparing = std::time::Instant::now();
         let coefficients: Vec<L::Coefficients> = instances
             .par_iter()
             .map(|inst| L::pack(inst, self.settings))
@@ -1536,9 +1557,16 @@ impl Runner<'_> {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
-        let measures_read = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("measures readback"),
-            size: measure_bytes,
+        let head_bytes = (size_of::<L::Head>() * if steady { n } else { 1 }) as u64;
+        let heads = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("heads"),
+            size: head_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let heads_read = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("heads readback"),
+            size: head_bytes,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -1568,7 +1596,6 @@ impl Runner<'_> {
                 label: Some("control"),
                 contents: bytemuck::bytes_of(&Control {
                     max_iterations: self.options.slice_iterations,
-                    steady_chunk: self.options.steady_chunk.max(1),
                     initialize,
                     one: 1.0,
                     probe: self.options.probe_passes.max(layout::PROBE_PASSES),
@@ -1611,6 +1638,10 @@ impl Runner<'_> {
                             binding: 5,
                             resource: measures.as_entire_binding(),
                         },
+                        wgpu::BindGroupEntry {
+                            binding: 6,
+                            resource: heads.as_entire_binding(),
+                        },
                     ],
                 })
             })
@@ -1623,6 +1654,7 @@ impl Runner<'_> {
             self.options
                 .tail_size(L::PRECISION, n, rayon::current_num_threads()) as u64;
         let mut slice: u64 = 0;
+        let prepared = preparing.elapsed();
         let dispatching = std::time::Instant::now();
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
@@ -1661,20 +1693,9 @@ impl Runner<'_> {
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
         if steady {
-            encoder.copy_buffer_to_buffer(&measures, 0, &measures_read, 0, measure_bytes);
+            encoder.copy_buffer_to_buffer(&heads, 0, &heads_read, 0, head_bytes);
         }
         queue.submit([encoder.finish()]);
-        let mut measures_timed = Mapped::default();
-        let measure_list: Vec<L::Measure> = if steady {
-            with_mapped_timed(device, &measures_read, &mut measures_timed, |bytes| {
-                bytes
-                    .chunks_exact(size_of::<L::Measure>())
-                    .map(bytemuck::pod_read_unaligned)
-                    .collect()
-            })?
-        } else {
-            Vec::new()
-        };
         let mut states_timed = Mapped::default();
         let states: Vec<L::State> =
             with_mapped_timed(device, &states_read, &mut states_timed, |bytes| {
@@ -1687,22 +1708,105 @@ impl Runner<'_> {
                         .collect(),
                 }
             })?;
+        let mut read = AccumulatorsRead::default();
+        let measure_list: Vec<L::Measure> = if steady {
+            self.accumulators::<L>(instances, &states, &heads_read, &measures, &mut read)?
+        } else {
+            Vec::new()
+        };
         if gpu_phases() {
             let mb = |bytes: u64| bytes as f64 / 1e6;
             eprintln!(
-                "pidm: GPU batch of {n}: {slice} dispatches in {:.3} s; accumulators {:.1} MB \
-                 mapped in {:.3} s and read in {:.3} s; states {:.1} MB mapped in {:.3} s and \
-                 read in {:.3} s",
+                "pidm: GPU batch of {n}: coefficients packed and buffers made in {:.3} s; \
+                 {slice} dispatches in {:.3} s; states {:.1} MB mapped in {:.3} s and read in \
+                 {:.3} s; heads {:.1} MB read in {:.3} s; accumulators ({:?}, {} of them) {:.1} \
+                 MB mapped in {:.3} s and read in {:.3} s",
+                prepared.as_secs_f64(),
                 dispatched.as_secs_f64(),
-                if steady { mb(measure_bytes) } else { 0.0 },
-                measures_timed.wait.as_secs_f64(),
-                measures_timed.read.as_secs_f64(),
                 mb(state_bytes),
                 states_timed.wait.as_secs_f64(),
                 states_timed.read.as_secs_f64(),
+                if steady { mb(head_bytes) } else { 0.0 },
+                read.heads.wait.as_secs_f64() + read.heads.read.as_secs_f64(),
+                read.plan,
+                read.count,
+                mb((read.count * size_of::<L::Measure>()) as u64),
+                read.whole.wait.as_secs_f64(),
+                read.whole.read.as_secs_f64(),
             );
         }
         Ok((states, measure_list))
+    }
+
+    /// The accumulators of a steady batch's instances
+    /// ([`readback::Accumulators`]): every instance's head, mapped from
+    /// `heads_read` (already copied there), and the whole accumulators from
+    /// `measures` of those that need them: the steady instances that did
+    /// not finish with a periodic verdict, whose reduction reads more than
+    /// the head, or did not finish at all (the CPU may continue them).
+    fn accumulators<L: Layout>(
+        &self,
+        instances: &[Instance],
+        states: &[L::State],
+        heads_read: &wgpu::Buffer,
+        measures: &wgpu::Buffer,
+        read: &mut AccumulatorsRead,
+    ) -> Result<Vec<L::Measure>, GpuError> {
+        let device = self.device;
+        let n = instances.len();
+        let heads: Vec<L::Head> =
+            with_mapped_timed(device, heads_read, &mut read.heads, |bytes| {
+                bytes
+                    .chunks_exact(size_of::<L::Head>())
+                    .map(bytemuck::pod_read_unaligned)
+                    .collect()
+            })?;
+        let needed: Vec<usize> = (0..n)
+            .filter(|&k| {
+                matches!(instances[k].measure, Measure::Steady { .. })
+                    && !(L::finished(&instances[k], &states[k]) && L::periodic(&heads[k]))
+            })
+            .collect();
+        read.plan = readback::plan(n, needed.len(), self.options.whole_accumulators);
+        let size = size_of::<L::Measure>() as u64;
+        // The copies (source instance, length) into one mappable buffer.
+        let copies = match read.plan {
+            readback::Accumulators::Heads => {
+                return Ok(heads.iter().map(L::from_head).collect());
+            }
+            readback::Accumulators::Gather => readback::runs(&needed),
+            readback::Accumulators::Whole => vec![(0, n)],
+        };
+        read.count = copies.iter().map(|&(_, length)| length).sum();
+        let target = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("measures readback"),
+            size: read.count as u64 * size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        let mut at = 0u64;
+        for &(first, length) in &copies {
+            let bytes = length as u64 * size;
+            encoder.copy_buffer_to_buffer(measures, first as u64 * size, &target, at, bytes);
+            at += bytes;
+        }
+        self.queue.submit([encoder.finish()]);
+        let copied: Vec<L::Measure> =
+            with_mapped_timed(device, &target, &mut read.whole, |bytes| {
+                bytes
+                    .chunks_exact(size_of::<L::Measure>())
+                    .map(bytemuck::pod_read_unaligned)
+                    .collect()
+            })?;
+        if read.plan == readback::Accumulators::Whole {
+            return Ok(copied);
+        }
+        let mut list: Vec<L::Measure> = heads.iter().map(L::from_head).collect();
+        for (&k, m) in needed.iter().zip(copied) {
+            list[k] = m;
+        }
+        Ok(list)
     }
 
     fn batch_inner<L: Layout>(
@@ -1711,7 +1815,9 @@ impl Runner<'_> {
         progress: &mut dyn FnMut(u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let n = instances.len();
+        let slicing = std::time::Instant::now();
         let (states, measure_list) = self.slices::<L>(instances, progress, None)?;
+        let sliced = slicing.elapsed();
         let reducing = std::time::Instant::now();
         let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
         // The outcomes, and the states of the unfinished ones.
@@ -1735,7 +1841,9 @@ impl Runner<'_> {
         };
         if gpu_phases() {
             eprintln!(
-                "pidm: GPU batch of {n}: outcomes in {:.3} s, {} left to the CPU",
+                "pidm: GPU batch of {n}: {:.3} s from packing to freeing the buffers; outcomes \
+                 in {:.3} s, {} left to the CPU",
+                sliced.as_secs_f64(),
                 reducing.elapsed().as_secs_f64(),
                 tail.len()
             );
@@ -1852,6 +1960,27 @@ fn with_mapped<T>(
     read: impl FnOnce(&[u8]) -> T,
 ) -> Result<T, GpuError> {
     with_mapped_timed(device, buffer, &mut Mapped::default(), read)
+}
+
+/// How a steady batch's accumulators came back ([`Runner::accumulators`]),
+/// for `PIDM_GPU_PHASES`.
+struct AccumulatorsRead {
+    plan: readback::Accumulators,
+    /// Whole accumulators copied back.
+    count: usize,
+    heads: Mapped,
+    whole: Mapped,
+}
+
+impl Default for AccumulatorsRead {
+    fn default() -> Self {
+        AccumulatorsRead {
+            plan: readback::Accumulators::Heads,
+            count: 0,
+            heads: Mapped::default(),
+            whole: Mapped::default(),
+        }
+    }
 }
 
 /// How long [`with_mapped_timed`] waited for a mapping and took to read it.

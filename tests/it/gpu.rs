@@ -9,6 +9,7 @@ use std::sync::OnceLock;
 use std::time::Instant;
 
 use pidm::cpu::integrate::constants::{STATUS_GRAZE, STATUS_NOT_STEADY};
+use pidm::cpu::integrate::measure::VERDICT_PERIODIC;
 use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::gpu::{
     BatchOptions, F32Check, GpuContext, GpuOutcome, Precision, Route, run_batch, run_batch_with,
@@ -1336,44 +1337,71 @@ fn f32_steps_on_the_coupling_map_stay_near_the_cpu() {
     );
 }
 
-/// A steady lane's chunk (`BatchOptions::steady_chunk`) is scheduling
-/// only: a lane looks for its instance's next period end after every
-/// chunk, and the instance's iterations are the same whatever the chunk.
-/// The coupling map's steady instances (every 61st, 8 lanes, so each lane
-/// takes several and slices end mid-period) give equal outcomes, bit for
-/// bit, with chunks of 1 and 7 iterations and the whole slice, in both
-/// precisions.
+/// A steady batch reads back every instance's head and the whole
+/// accumulators only of those whose reduction needs more
+/// (`pidm::gpu::readback`): its outcomes equal, bit for bit, those of the
+/// same batch reading every instance's whole accumulators, in both
+/// precisions, whether the heads suffice (coupling-map points, periodic at
+/// equal frequencies), a few accumulators are gathered (two random
+/// instances measured steady over at most 6 periods, which end not
+/// steady, among 64 such points) or all are read (8 of each).
 #[test]
-fn steady_outcomes_do_not_depend_on_the_steady_chunk() {
+fn steady_outcomes_are_the_same_from_heads_as_from_whole_accumulators() {
+    use pidm::gpu::readback::{self, Accumulators};
     use pidm::scene::Scene;
     let Some(ctx) = context() else {
         return;
     };
     let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/sweeps/coupling.toml").as_ref())
         .expect("the coupling scene loads");
-    let instances: Vec<Instance> = (0..3721u64)
-        .step_by(61)
-        .map(|k| scene.instance(k))
-        .collect();
-    assert!(
-        instances
+    let points = |count: usize| -> Vec<Instance> {
+        (0..count as u64).map(|k| scene.instance(k * 58)).collect()
+    };
+    let unsteady = |count: usize| -> Vec<Instance> {
+        pidm::random::random_instances(9, count, 4, 1)
+            .into_iter()
+            .map(|mut inst| {
+                inst.measure = scene.instance(0).measure;
+                inst.cycles = 6;
+                inst.settle = 2;
+                inst
+            })
+            .collect()
+    };
+    let mut gathered = points(64);
+    for (at, inst) in [10, 40].into_iter().zip(unsteady(2)) {
+        gathered.insert(at, inst);
+    }
+    let mixed: Vec<Instance> = points(8).into_iter().chain(unsteady(8)).collect();
+    let settings = scene.settings;
+    for (name, instances, expected) in [
+        ("heads", points(64), Accumulators::Heads),
+        ("gathered", gathered, Accumulators::Gather),
+        ("whole", mixed, Accumulators::Whole),
+    ] {
+        // The CPU's verdicts say which path the batch takes.
+        let needed = instances
             .iter()
-            .all(|inst| matches!(inst.measure, Measure::Steady { .. }))
-    );
-    for precision in [Precision::F64, Precision::F32] {
-        let run = |steady_chunk: u32| {
-            let options = BatchOptions {
-                steady_chunk,
-                slice_iterations: 100,
-                lanes: 8,
-                ..BatchOptions::default()
+            .filter(|inst| run_instance(inst, &settings).measure.verdict != VERDICT_PERIODIC)
+            .count();
+        assert_eq!(
+            readback::plan(instances.len(), needed, false),
+            expected,
+            "{name}"
+        );
+        for precision in [Precision::F64, Precision::F32] {
+            let run = |whole_accumulators: bool| {
+                let options = BatchOptions {
+                    whole_accumulators,
+                    ..BatchOptions::default()
+                };
+                gpu_batch(ctx, &instances, &settings, precision, &options)
             };
-            gpu_batch(ctx, &instances, &scene.settings, precision, &options)
-        };
-        let whole = run(100);
-        assert!(whole.iter().all(|o| o.status == STATUS_OK && o.periods > 0));
-        for chunk in [1, 7] {
-            assert_eq!(run(chunk), whole, "{precision:?}, chunk {chunk}");
+            let from_heads = run(false);
+            assert_eq!(from_heads, run(true), "{name}, {precision:?}");
+            let statuses: Vec<u32> = from_heads.iter().map(|o| o.status).collect();
+            let unsteady = statuses.iter().filter(|&&s| s == STATUS_NOT_STEADY).count();
+            assert_eq!(unsteady, needed, "{name}, {precision:?}: {statuses:?}");
         }
     }
 }
