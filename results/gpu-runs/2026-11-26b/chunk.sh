@@ -3,9 +3,10 @@
 # changes, then the coupling map at 1000 x 1000 (steady, no baselines) with
 # PIDM_GPU_STEADY_CHUNK from the whole slice (1024) down to 1, against its
 # 10-period window; every chunk's map must equal the whole slice's.
+# (The knob was removed after this run, in 3c7b2b9: it changed nothing.)
 #
 #   ../shared/gpu/pack --tests it      # here; then on the lent machine:
-#   bash results/gpu-runs/2026-11-26/chunk.sh
+#   bash results/gpu-runs/2026-11-26b/chunk.sh
 set -uo pipefail
 source .devpack/env.sh
 O=${OUT:-/tmp/chunk-out}

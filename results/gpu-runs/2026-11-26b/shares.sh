@@ -8,7 +8,7 @@
 # against the CPU in f64 with the check off and by twins at 0.2 and 0.3.
 #
 #   ../shared/gpu/pack --tests it      # here; then on the lent machine:
-#   bash results/gpu-runs/2026-11-26/shares.sh
+#   bash results/gpu-runs/2026-11-26b/shares.sh
 set -uo pipefail
 source .devpack/env.sh
 O=${OUT:-/tmp/shares-out}
