@@ -1666,7 +1666,7 @@ impl Runner<'_> {
             }
             encoder.copy_buffer_to_buffer(&counters, 0, &counters_read, 0, 8);
             queue.submit([encoder.finish()]);
-            let bytes = read_buffer(device, &counters_read)?;
+            let bytes = readback::read_buffer(device, &counters_read)?;
             let next = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]) as u64;
             let finished = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as u64;
             let unfinished = (n as u64).saturating_sub(finished) as u32;
@@ -1696,9 +1696,9 @@ impl Runner<'_> {
             encoder.copy_buffer_to_buffer(&heads, 0, &heads_read, 0, head_bytes);
         }
         queue.submit([encoder.finish()]);
-        let mut states_timed = Mapped::default();
+        let mut states_timed = readback::Mapped::default();
         let states: Vec<L::State> =
-            with_mapped_timed(device, &states_read, &mut states_timed, |bytes| {
+            readback::with_mapped_timed(device, &states_read, &mut states_timed, |bytes| {
                 match bytemuck::try_cast_slice(bytes) {
                     Ok(states) => states.to_vec(),
                     // A mapping not aligned for the struct (no driver seen).
@@ -1708,9 +1708,17 @@ impl Runner<'_> {
                         .collect(),
                 }
             })?;
-        let mut read = AccumulatorsRead::default();
+        let mut read = readback::AccumulatorsRead::default();
         let measure_list: Vec<L::Measure> = if steady {
-            self.accumulators::<L>(instances, &states, &heads_read, &measures, &mut read)?
+            readback::accumulators::<L>(
+                device,
+                queue,
+                self.options.whole_accumulators,
+                instances,
+                &states,
+                (&heads_read, &measures),
+                &mut read,
+            )?
         } else {
             Vec::new()
         };
@@ -1736,77 +1744,6 @@ impl Runner<'_> {
             );
         }
         Ok((states, measure_list))
-    }
-
-    /// The accumulators of a steady batch's instances
-    /// ([`readback::Accumulators`]): every instance's head, mapped from
-    /// `heads_read` (already copied there), and the whole accumulators from
-    /// `measures` of those that need them: the steady instances that did
-    /// not finish with a periodic verdict, whose reduction reads more than
-    /// the head, or did not finish at all (the CPU may continue them).
-    fn accumulators<L: Layout>(
-        &self,
-        instances: &[Instance],
-        states: &[L::State],
-        heads_read: &wgpu::Buffer,
-        measures: &wgpu::Buffer,
-        read: &mut AccumulatorsRead,
-    ) -> Result<Vec<L::Measure>, GpuError> {
-        let device = self.device;
-        let n = instances.len();
-        let heads: Vec<L::Head> =
-            with_mapped_timed(device, heads_read, &mut read.heads, |bytes| {
-                bytes
-                    .chunks_exact(size_of::<L::Head>())
-                    .map(bytemuck::pod_read_unaligned)
-                    .collect()
-            })?;
-        let needed: Vec<usize> = (0..n)
-            .filter(|&k| {
-                matches!(instances[k].measure, Measure::Steady { .. })
-                    && !(L::finished(&instances[k], &states[k]) && L::periodic(&heads[k]))
-            })
-            .collect();
-        read.plan = readback::plan(n, needed.len(), self.options.whole_accumulators);
-        let size = size_of::<L::Measure>() as u64;
-        // The copies (source instance, length) into one mappable buffer.
-        let copies = match read.plan {
-            readback::Accumulators::Heads => {
-                return Ok(heads.iter().map(L::from_head).collect());
-            }
-            readback::Accumulators::Gather => readback::runs(&needed),
-            readback::Accumulators::Whole => vec![(0, n)],
-        };
-        read.count = copies.iter().map(|&(_, length)| length).sum();
-        let target = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("measures readback"),
-            size: read.count as u64 * size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder = device.create_command_encoder(&Default::default());
-        let mut at = 0u64;
-        for &(first, length) in &copies {
-            let bytes = length as u64 * size;
-            encoder.copy_buffer_to_buffer(measures, first as u64 * size, &target, at, bytes);
-            at += bytes;
-        }
-        self.queue.submit([encoder.finish()]);
-        let copied: Vec<L::Measure> =
-            with_mapped_timed(device, &target, &mut read.whole, |bytes| {
-                bytes
-                    .chunks_exact(size_of::<L::Measure>())
-                    .map(bytemuck::pod_read_unaligned)
-                    .collect()
-            })?;
-        if read.plan == readback::Accumulators::Whole {
-            return Ok(copied);
-        }
-        let mut list: Vec<L::Measure> = heads.iter().map(L::from_head).collect();
-        for (&k, m) in needed.iter().zip(copied) {
-            list[k] = m;
-        }
-        Ok(list)
     }
 
     fn batch_inner<L: Layout>(
@@ -1945,85 +1882,6 @@ impl GpuOutcome {
             checked: false,
         }
     }
-}
-
-/// Copies a mappable buffer's contents to the host.
-fn read_buffer(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
-    with_mapped(device, buffer, <[u8]>::to_vec)
-}
-
-/// Maps a mappable buffer for reading and hands its bytes to `read`, with
-/// no copy of them on the host.
-fn with_mapped<T>(
-    device: &wgpu::Device,
-    buffer: &wgpu::Buffer,
-    read: impl FnOnce(&[u8]) -> T,
-) -> Result<T, GpuError> {
-    with_mapped_timed(device, buffer, &mut Mapped::default(), read)
-}
-
-/// How a steady batch's accumulators came back ([`Runner::accumulators`]),
-/// for `PIDM_GPU_PHASES`.
-struct AccumulatorsRead {
-    plan: readback::Accumulators,
-    /// Whole accumulators copied back.
-    count: usize,
-    heads: Mapped,
-    whole: Mapped,
-}
-
-impl Default for AccumulatorsRead {
-    fn default() -> Self {
-        AccumulatorsRead {
-            plan: readback::Accumulators::Heads,
-            count: 0,
-            heads: Mapped::default(),
-            whole: Mapped::default(),
-        }
-    }
-}
-
-/// How long [`with_mapped_timed`] waited for a mapping and took to read it.
-#[derive(Default)]
-struct Mapped {
-    /// From the request to the mapped range: the queue's work before it
-    /// and the copy into the mappable buffer.
-    wait: std::time::Duration,
-    /// `read` on the mapped bytes.
-    read: std::time::Duration,
-}
-
-/// [`with_mapped`], timing its two parts into `timed`.
-fn with_mapped_timed<T>(
-    device: &wgpu::Device,
-    buffer: &wgpu::Buffer,
-    timed: &mut Mapped,
-    read: impl FnOnce(&[u8]) -> T,
-) -> Result<T, GpuError> {
-    let started = std::time::Instant::now();
-    let slice = buffer.slice(..);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
-    rx.recv()
-        .map_err(|e| GpuError::BufferMapping(e.to_string()))?
-        .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
-    let out = {
-        let view = slice
-            .get_mapped_range()
-            .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
-        timed.wait = started.elapsed();
-        let reading = std::time::Instant::now();
-        let out = read(&view);
-        timed.read = reading.elapsed();
-        out
-    };
-    buffer.unmap();
-    Ok(out)
 }
 
 #[cfg(test)]

@@ -7,7 +7,11 @@
 //! equal drive frequencies reach, reads only the `Head` the shader writes
 //! when an instance finishes (32 bytes in f64). So the host reads every
 //! head, and the whole accumulators only of the instances that need them:
-//! those that ended otherwise, and those the CPU continues.
+//! those that ended otherwise, and those the CPU continues. Also the
+//! mapping of any readback buffer, timed for `PIDM_GPU_PHASES`.
+
+use super::{GpuError, Layout};
+use crate::model::{Instance, Measure};
 
 /// How a steady batch's accumulators are read back.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -52,6 +56,157 @@ pub fn runs(sorted: &[usize]) -> Vec<(usize, usize)> {
         }
     }
     out
+}
+
+/// The accumulators of a steady batch's instances
+/// ([`Accumulators`]): every instance's head, mapped from
+/// `heads_read` (already copied there), and the whole accumulators from
+/// `measures` of those that need them: the steady instances that did
+/// not finish with a periodic verdict, whose reduction reads more than
+/// the head, or did not finish at all (the CPU may continue them).
+pub(super) fn accumulators<L: Layout>(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    whole: bool,
+    instances: &[Instance],
+    states: &[L::State],
+    (heads_read, measures): (&wgpu::Buffer, &wgpu::Buffer),
+    read: &mut AccumulatorsRead,
+) -> Result<Vec<L::Measure>, GpuError> {
+    let n = instances.len();
+    let heads: Vec<L::Head> = with_mapped_timed(device, heads_read, &mut read.heads, |bytes| {
+        bytes
+            .chunks_exact(size_of::<L::Head>())
+            .map(bytemuck::pod_read_unaligned)
+            .collect()
+    })?;
+    let needed: Vec<usize> = (0..n)
+        .filter(|&k| {
+            matches!(instances[k].measure, Measure::Steady { .. })
+                && !(L::finished(&instances[k], &states[k]) && L::periodic(&heads[k]))
+        })
+        .collect();
+    read.plan = plan(n, needed.len(), whole);
+    let size = size_of::<L::Measure>() as u64;
+    // The copies (source instance, length) into one mappable buffer.
+    let copies = match read.plan {
+        Accumulators::Heads => {
+            return Ok(heads.iter().map(L::from_head).collect());
+        }
+        Accumulators::Gather => runs(&needed),
+        Accumulators::Whole => vec![(0, n)],
+    };
+    read.count = copies.iter().map(|&(_, length)| length).sum();
+    let target = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("measures readback"),
+        size: read.count as u64 * size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    let mut at = 0u64;
+    for &(first, length) in &copies {
+        let bytes = length as u64 * size;
+        encoder.copy_buffer_to_buffer(measures, first as u64 * size, &target, at, bytes);
+        at += bytes;
+    }
+    queue.submit([encoder.finish()]);
+    let copied: Vec<L::Measure> = with_mapped_timed(device, &target, &mut read.whole, |bytes| {
+        bytes
+            .chunks_exact(size_of::<L::Measure>())
+            .map(bytemuck::pod_read_unaligned)
+            .collect()
+    })?;
+    if read.plan == Accumulators::Whole {
+        return Ok(copied);
+    }
+    let mut list: Vec<L::Measure> = heads.iter().map(L::from_head).collect();
+    for (&k, m) in needed.iter().zip(copied) {
+        list[k] = m;
+    }
+    Ok(list)
+}
+
+/// Copies a mappable buffer's contents to the host.
+pub(super) fn read_buffer(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+) -> Result<Vec<u8>, GpuError> {
+    with_mapped(device, buffer, <[u8]>::to_vec)
+}
+
+/// Maps a mappable buffer for reading and hands its bytes to `read`, with
+/// no copy of them on the host.
+pub(super) fn with_mapped<T>(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T, GpuError> {
+    with_mapped_timed(device, buffer, &mut Mapped::default(), read)
+}
+
+/// How a steady batch's accumulators came back ([`accumulators`]),
+/// for `PIDM_GPU_PHASES`.
+pub(super) struct AccumulatorsRead {
+    pub plan: Accumulators,
+    /// Whole accumulators copied back.
+    pub count: usize,
+    pub heads: Mapped,
+    pub whole: Mapped,
+}
+
+impl Default for AccumulatorsRead {
+    fn default() -> Self {
+        AccumulatorsRead {
+            plan: Accumulators::Heads,
+            count: 0,
+            heads: Mapped::default(),
+            whole: Mapped::default(),
+        }
+    }
+}
+
+/// How long [`with_mapped_timed`] waited for a mapping and took to read it.
+#[derive(Default)]
+pub(super) struct Mapped {
+    /// From the request to the mapped range: the queue's work before it
+    /// and the copy into the mappable buffer.
+    pub wait: std::time::Duration,
+    /// `read` on the mapped bytes.
+    pub read: std::time::Duration,
+}
+
+/// [`with_mapped`], timing its two parts into `timed`.
+pub(super) fn with_mapped_timed<T>(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+    timed: &mut Mapped,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T, GpuError> {
+    let started = std::time::Instant::now();
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| GpuError::BufferMapping(e.to_string()))?
+        .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
+    let out = {
+        let view = slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
+        timed.wait = started.elapsed();
+        let reading = std::time::Instant::now();
+        let out = read(&view);
+        timed.read = reading.elapsed();
+        out
+    };
+    buffer.unmap();
+    Ok(out)
 }
 
 #[cfg(test)]
