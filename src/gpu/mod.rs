@@ -1534,42 +1534,17 @@ impl Runner<'_> {
             usage: wgpu::BufferUsages::STORAGE,
         });
         let state_bytes = (n * size_of::<L::State>()) as u64;
-        let states = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("states"),
-            size: state_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let states_read = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("states readback"),
-            size: state_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let states = storage(device, "states", state_bytes);
+        let states_read = readback::mappable(device, "states readback", state_bytes);
         // The steady measurement's accumulators: one per instance where
         // any instance is steady, else one unused entry (windows never
         // touch them).
         let steady = any_steady(instances);
         let measure_bytes = (size_of::<L::Measure>() * if steady { n } else { 1 }) as u64;
-        let measures = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("measures"),
-            size: measure_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let measures = storage(device, "measures", measure_bytes);
         let head_bytes = (size_of::<L::Head>() * if steady { n } else { 1 }) as u64;
-        let heads = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("heads"),
-            size: head_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let heads_read = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("heads readback"),
-            size: head_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let heads = storage(device, "heads", head_bytes);
+        let heads_read = readback::mappable(device, "heads readback", head_bytes);
         // Lane k starts on instance k; the counters say which instance is
         // next and how many finished.
         let lane_count = n.min(self.options.lanes.max(1));
@@ -1584,12 +1559,7 @@ impl Runner<'_> {
             contents: bytemuck::cast_slice(&[lane_count as u32, 0u32]),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         });
-        let counters_read = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("counters readback"),
-            size: 8,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let counters_read = readback::mappable(device, "counters readback", 8);
         // Two controls: the first dispatch initialises the states.
         let control = |initialize: u32| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -1809,6 +1779,16 @@ impl Runner<'_> {
         progress(n as u64);
         Ok(out)
     }
+}
+
+/// A storage buffer of `size` bytes that results can be copied out of.
+fn storage(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
 }
 
 /// An upper bound on the slices one instance can need. Every iteration of
