@@ -92,6 +92,7 @@ fn decode(bytes: &[u8]) -> Record {
         baseline_status: u(2),
         periods: u(3),
         period_lag: u(4),
+        motion: Default::default(),
     }
 }
 
@@ -335,6 +336,7 @@ mod tests {
             step_se: [value(i as f64 * 1e-12), 0.0],
             periods: 10 + i as u32,
             period_lag: i as u32 % 4,
+            motion: Default::default(),
             baseline_step: [0.25, -0.0],
             baseline_status: 5,
         }

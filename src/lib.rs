@@ -13,6 +13,7 @@ pub mod interrupt;
 pub mod knob;
 pub mod measurement;
 pub mod model;
+pub mod motion;
 pub mod output;
 pub mod plot;
 pub mod progress;

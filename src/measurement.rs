@@ -12,6 +12,7 @@ use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
 use crate::cpu::integrate::measure::{VERDICT_CONVERGED, VERDICT_PERIODIC, estimate};
 use crate::cpu::integrate::{Run, STATUS_OK, State};
 use crate::model::{AXES, Instance, Measure};
+use crate::motion::Motion;
 
 /// What one run measured. Lengths in metres.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -29,6 +30,8 @@ pub struct Measured {
     /// Scene periods of the detected cycle, 0 when none was detected.
     pub lag: u32,
     pub status: u32,
+    /// The kind of motion the measurement's verdict shows.
+    pub motion: Motion,
 }
 
 /// Whether a status keeps its instance's values: OK and "not steady" (the
@@ -62,6 +65,7 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                 periods: inst.cycles,
                 lag: 0,
                 status: STATUS_OK,
+                motion: Motion::Undetermined,
             }
         }
         Measure::Steady { .. } => {
@@ -75,6 +79,7 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                     periods,
                     lag: m.lag,
                     status: STATUS_OK,
+                    motion: Motion::Periodic,
                 };
             }
             let status = if m.verdict == VERDICT_CONVERGED {
@@ -111,6 +116,11 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                 periods,
                 lag: 0,
                 status,
+                motion: if status == STATUS_OK {
+                    Motion::Irregular
+                } else {
+                    Motion::Undetermined
+                },
             }
         }
     }
@@ -142,6 +152,8 @@ pub struct Outcome {
     /// Scene periods of the detected cycle, 0 when none.
     pub lag: u32,
     pub status: u32,
+    /// The kind of motion (`crate::motion`).
+    pub motion: Motion,
     pub steps: u32,
     /// A GPU or f32 backend integrated this one on the CPU in f64 instead
     /// (the slow tail of a batch, an iteration the driver's loop limiter
@@ -166,6 +178,7 @@ impl Outcome {
             periods: m.periods,
             lag: m.lag,
             status: m.status,
+            motion: m.motion,
             steps,
             on_cpu,
             graze: false,

@@ -160,6 +160,7 @@ impl ShardFile {
                 step_se: [se_x[k], se_y[k]],
                 periods: periods[k],
                 period_lag: lags[k],
+                motion: Default::default(),
                 baseline_step: [base_x[k], base_y[k]],
                 baseline_status: base_status[k],
             })

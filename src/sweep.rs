@@ -30,6 +30,7 @@ pub const VERIFY_ALLOWANCE_M: f64 = 1e-9;
 /// is.
 pub const VERIFY_TIGHTENING: f64 = 100.0;
 use crate::model::{AXES, Instance, InstanceKey};
+use crate::motion::Motion;
 
 /// Baseline outcomes kept from one chunk for the next, at most: about
 /// 200 MiB at 208 bytes an entry. The bound is checked between chunks, so a
@@ -343,6 +344,8 @@ pub struct Record {
     pub periods: u32,
     /// Scene periods of the detected cycle, 0 when none.
     pub period_lag: u32,
+    /// The kind of motion a steady measurement found.
+    pub motion: Motion,
     pub status: u32,
     pub steps: u32,
     /// 1-DOF steps with the other axis undriven [m] (zero when not asked).
@@ -431,6 +434,7 @@ pub fn record(inst: &Instance, out: &Outcome) -> Record {
         step_se: out.se,
         periods: out.periods,
         period_lag: out.lag,
+        motion: out.motion,
         ..Record::default()
     };
     for i in 0..AXES {

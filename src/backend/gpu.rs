@@ -109,6 +109,7 @@ impl Backend for GpuBackend {
                 periods: o.periods,
                 lag: o.lag,
                 status: o.status,
+                motion: o.motion,
                 steps: o.steps,
                 on_cpu: o.cpu_fallback || o.finished_on_cpu,
                 graze: o.cpu_fallback && o.shader_status == STATUS_GRAZE,

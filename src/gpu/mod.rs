@@ -178,6 +178,8 @@ pub struct GpuOutcome {
     pub lag: u32,
     /// One of the `STATUS_*` constants of [`crate::cpu::integrate`].
     pub status: u32,
+    /// The kind of motion the measurement found.
+    pub motion: crate::motion::Motion,
     /// Steps taken (accepted, rejected and events).
     pub steps: u32,
     /// True when the CPU integrated this instance instead (in f64): the
@@ -1855,6 +1857,7 @@ impl GpuOutcome {
             periods: m.periods,
             lag: m.lag,
             status: m.status,
+            motion: m.motion,
             steps,
             cpu_fallback: false,
             shader_status: 0,

@@ -39,6 +39,7 @@ fn record(i: usize) -> Record {
         step_se: [i as f64 * 1e-12, 0.0],
         periods: 10 + i as u32,
         period_lag: (i % 2) as u32,
+        motion: Default::default(),
         baseline_step: [i as f64 + 0.5, i as f64 - 0.5],
         baseline_status: 0,
     }

@@ -82,8 +82,11 @@ pub const REPEAT_PER_RADIAN: f64 = 1e-2;
 pub const VERDICT_RUNNING: u32 = 0;
 /// The motion repeated: the step is exact.
 pub const VERDICT_PERIODIC: u32 = 1;
-/// The standard error fell within the step tolerance.
+/// The batch means' standard error fell within the step tolerance.
 pub const VERDICT_CONVERGED: u32 = 2;
+/// The phase-resolved estimate's standard error fell within the step
+/// tolerance (`super::phase`).
+pub const VERDICT_PHASE: u32 = 3;
 
 /// The state at the end of one common period.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
