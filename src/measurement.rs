@@ -9,7 +9,9 @@
 //! reads what they left.
 
 use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
-use crate::cpu::integrate::measure::{VERDICT_CONVERGED, VERDICT_PERIODIC, estimate};
+use crate::cpu::integrate::measure::{
+    VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, estimate,
+};
 use crate::cpu::integrate::{Run, STATUS_OK, State};
 use crate::model::{AXES, Instance, Measure};
 use crate::motion::Motion;
@@ -82,12 +84,29 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                     motion: Motion::Periodic,
                 };
             }
+            // The phase ladder's judged window (module `cpu::integrate::
+            // phase`): the verdict's, or the latest, which a run that ends
+            // not steady reports where its standard error is smaller than
+            // the batch means'.
+            let phase = (m.span > 0).then_some((m.travel, m.span as f64, m.se2));
+            if m.verdict == VERDICT_PHASE {
+                let (travel, span, se2) = phase.expect("a phase verdict has a judged window");
+                return Measured {
+                    travel: travel.to_array(),
+                    span,
+                    se: std::array::from_fn(|i| se2[i].sqrt() / own_cycles(i)),
+                    periods,
+                    lag: 0,
+                    status: STATUS_OK,
+                    motion: Motion::QuasiPeriodic,
+                };
+            }
             let status = if m.verdict == VERDICT_CONVERGED {
                 STATUS_OK
             } else {
                 STATUS_NOT_STEADY
             };
-            let (travel, span, se2) = if m.filled > 0 {
+            let (mut travel, mut span, mut se2) = if m.filled > 0 {
                 let e = estimate(m);
                 (e.travel, e.span as f64, e.se2)
             } else {
@@ -102,6 +121,18 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                     largest * largest,
                 )
             };
+            // The larger of an estimate's standard errors per own cycle.
+            let worst = |se2: crate::cpu::integrate::Vec2| {
+                (0..AXES)
+                    .map(|i| se2[i].sqrt() / own_cycles(i))
+                    .fold(0.0, f64::max)
+            };
+            if let Some((p_travel, p_span, p_se2)) = phase
+                && status == STATUS_NOT_STEADY
+                && (span == 0.0 || worst(p_se2) < worst(se2))
+            {
+                (travel, span, se2) = (p_travel, p_span, p_se2);
+            }
             if span == 0.0 {
                 return Measured {
                     status,

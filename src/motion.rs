@@ -69,7 +69,9 @@ impl Motion {
             Motion::Undetermined => {
                 "undetermined (a fixed window, not steady, or failed: see status)"
             }
-            Motion::Periodic => "periodic (the state repeated after a whole number of common periods)",
+            Motion::Periodic => {
+                "periodic (the state repeated after a whole number of common periods)"
+            }
             Motion::QuasiPeriodic => {
                 "quasi-periodic (the increments are a smooth function of the faster drive's phase)"
             }

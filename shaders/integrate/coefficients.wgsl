@@ -77,4 +77,11 @@ struct Coefficients {
     common_period: u32,
     batch_length: u32,
     min_batch: u32,
+    // The phase ladder (src/cpu/integrate/phase.rs): the levels that may
+    // stop the run and those judged without their quarters, a bit each,
+    // and each window length's three-gap table.
+    phase_levels: u32,
+    phase_lattice: u32,
+    _pad4: vec2<u32>,
+    gaps: array<Gaps, LEVELS>,
 }

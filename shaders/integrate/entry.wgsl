@@ -48,14 +48,16 @@ struct Control {
 @group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
 
 // What the host reads of every finished steady measurement: all that the
-// reduction of a periodic verdict reads (`pidm::gpu::layout::*::Head`). The
-// host copies the whole accumulators of the others only.
+// reduction of a periodic or phase-resolved verdict reads
+// (`pidm::gpu::layout::*::Head`). The host copies the whole accumulators
+// of the others only.
 struct Head {
     travel: V2,
+    se2: V2,
     next_end: u32,
     lag: u32,
     verdict: u32,
-    _pad: u32,
+    span: u32,
 }
 // One per instance where any instance is steady, written when a steady
 // instance finishes; a batch of windows binds a single unused entry.
@@ -92,10 +94,11 @@ fn advance_slice(
             if c.steady == 1u {
                 heads[index] = Head(
                     measures[index].travel,
+                    measures[index].se2,
                     measures[index].next_end,
                     measures[index].lag,
                     measures[index].verdict,
-                    0u,
+                    measures[index].span,
                 );
             }
             atomicAdd(&counters.finished, 1u);

@@ -33,6 +33,11 @@ struct Measure {
     snapshots: u32,
     lag: u32,
     verdict: u32,
+    span: u32,
+    _pad: u32,
+    _pad_v: vec2<u32>,
+    se2: V2,
+    phase: Phase,
 }
 
 fn initial_measure(c: Coefficients) -> Measure {
@@ -50,6 +55,8 @@ fn initial_measure(c: Coefficients) -> Measure {
     m.snapshots = 0u;
     m.lag = 0u;
     m.verdict = VERDICT_RUNNING;
+    m.span = 0u;
+    m.se2 = V2(0.0);
     return m;
 }
 
@@ -81,6 +88,21 @@ fn period_end(c: Coefficients, st: ptr<function, State>, m: ptr<function, Measur
     (*m).last_x_s = (*st).x_s;
     if c.common_period > 0u && (ended - c.settle) % c.common_period == 0u {
         recurrence(c, *st, m);
+    }
+    if c.phase_levels != 0u {
+        // A whole variable to point at (a pointer to a member of one that
+        // is pointed at is not portable SPIR-V for naga).
+        var phase = (*m).phase;
+        let judged = phase_period_end(c, &phase, ended - c.settle, (*st).x_s);
+        (*m).phase = phase;
+        if judged.span > 0u && (*m).verdict == VERDICT_RUNNING {
+            (*m).travel = judged.value * Real(judged.span);
+            (*m).span = judged.span;
+            (*m).se2 = judged.se2;
+            if judged.se2.x <= c.se_limit2.x && judged.se2.y <= c.se_limit2.y {
+                (*m).verdict = VERDICT_PHASE;
+            }
+        }
     }
     if (*m).verdict == VERDICT_RUNNING && (*m).in_batch == 0u && (*m).filled >= MIN_BATCHES
         && (*m).batch_length >= c.min_batch {

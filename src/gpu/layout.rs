@@ -115,6 +115,7 @@ macro_rules! precision_structs {
             use super::*;
             use crate::cpu::integrate::Vec2;
             use crate::cpu::integrate::measure;
+            use crate::cpu::integrate::phase;
             use crate::cpu::$mirror::integrate as mirror;
             use mirror::coefficients::Oscillator as MirrorOscillator;
 
@@ -148,6 +149,17 @@ macro_rules! precision_structs {
                     pub rate: V2,
                     pub inv_mass: V2,
                     pub inv_w2: V2,
+                }
+            }
+
+            host_struct! {
+                /// `pidm::cpu::integrate::phase::Gaps`: the three-gap
+                /// table of one window length.
+                pub struct Gaps {
+                    pub a: u32,
+                    pub b: u32,
+                    pub alpha: Real,
+                    pub beta: Real,
                 }
             }
 
@@ -211,6 +223,10 @@ macro_rules! precision_structs {
                     pub common_period: u32,
                     pub batch_length: u32,
                     pub min_batch: u32,
+                    pub phase_levels: u32,
+                    pub phase_lattice: u32,
+                    pub _pad4: U32x2,
+                    pub gaps: [Gaps; phase::LEVELS],
                 }
             }
 
@@ -260,6 +276,15 @@ macro_rules! precision_structs {
             }
 
             host_struct! {
+                /// `pidm::cpu::integrate::phase::Phase` in shader units.
+                pub struct Phase {
+                    pub whole: [V2; phase::LEVELS],
+                    pub second: [V2; phase::LEVELS],
+                    pub quarters: [V2; 4],
+                }
+            }
+
+            host_struct! {
                 /// `pidm::cpu::integrate::Measure` in shader units.
                 pub struct Measure {
                     pub last_x_s: V2,
@@ -277,38 +302,48 @@ macro_rules! precision_structs {
                     pub snapshots: u32,
                     pub lag: u32,
                     pub verdict: u32,
+                    pub span: u32,
+                    pub _pad: u32,
+                    pub _pad_v: U32x2,
+                    pub se2: V2,
+                    pub phase: Phase,
                 }
             }
 
             host_struct! {
                 /// What the host reads of every finished steady
                 /// measurement (WGSL's `Head`, entry.wgsl): all that the
-                /// reduction of a periodic verdict reads
+                /// reduction of a periodic or phase-resolved verdict reads
                 /// ([`crate::measurement::reduce`]).
                 pub struct Head {
                     pub travel: V2,
+                    pub se2: V2,
                     pub next_end: u32,
                     pub lag: u32,
                     pub verdict: u32,
-                    pub _pad: u32,
+                    pub span: u32,
                 }
             }
 
             impl Head {
-                /// Whether the measurement ended periodic: its head is then
-                /// all that its reduction reads.
-                pub fn is_periodic(&self) -> bool {
+                /// Whether the measurement ended with a verdict whose
+                /// reduction reads only the head: periodic or
+                /// phase-resolved.
+                pub fn suffices(&self) -> bool {
                     self.verdict == measure::VERDICT_PERIODIC
+                        || self.verdict == measure::VERDICT_PHASE
                 }
 
                 /// Accumulators with the head's members and zero elsewhere:
-                /// all that the reduction of a periodic verdict reads.
+                /// all that the reduction of those verdicts reads.
                 pub fn measure(&self) -> Measure {
                     Measure {
                         travel: self.travel,
+                        se2: self.se2,
                         next_end: self.next_end,
                         lag: self.lag,
                         verdict: self.verdict,
+                        span: self.span,
                         ..Measure::default()
                     }
                 }
@@ -351,6 +386,14 @@ macro_rules! precision_structs {
                     snapshots: m.snapshots,
                     lag: m.lag,
                     verdict: m.verdict,
+                    span: m.span,
+                    se2: Vec2::new(m.se2.x as f64, m.se2.y as f64)
+                        * (1.0 / (UNITS.metre * UNITS.metre)),
+                    phase: crate::cpu::integrate::phase::Phase {
+                        whole: m.phase.whole.map(length),
+                        second: m.phase.second.map(length),
+                        quarters: m.phase.quarters.map(length),
+                    },
                 }
             }
 
@@ -447,6 +490,15 @@ macro_rules! precision_structs {
                     common_period: c.common_period,
                     batch_length: c.batch_length,
                     min_batch: c.min_batch,
+                    phase_levels: c.phase_levels,
+                    phase_lattice: c.phase_lattice,
+                    _pad4: U32x2::default(),
+                    gaps: c.gaps.map(|g| Gaps {
+                        a: g.a,
+                        b: g.b,
+                        alpha: g.alpha,
+                        beta: g.beta,
+                    }),
                 }
             }
 
@@ -583,6 +635,8 @@ mod tests {
                     check_struct::<single::Coefficients>(&module, &layouter, precision);
                     check_struct::<single::State>(&module, &layouter, precision);
                     check_struct::<single::Snapshot>(&module, &layouter, precision);
+                    check_struct::<single::Gaps>(&module, &layouter, precision);
+                    check_struct::<single::Phase>(&module, &layouter, precision);
                     check_struct::<single::Measure>(&module, &layouter, precision);
                     check_struct::<single::Head>(&module, &layouter, precision);
                 }
@@ -591,6 +645,8 @@ mod tests {
                     check_struct::<double::Coefficients>(&module, &layouter, precision);
                     check_struct::<double::State>(&module, &layouter, precision);
                     check_struct::<double::Snapshot>(&module, &layouter, precision);
+                    check_struct::<double::Gaps>(&module, &layouter, precision);
+                    check_struct::<double::Phase>(&module, &layouter, precision);
                     check_struct::<double::Measure>(&module, &layouter, precision);
                     check_struct::<double::Head>(&module, &layouter, precision);
                 }

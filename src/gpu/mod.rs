@@ -1109,9 +1109,10 @@ trait Layout {
     type Measure: HostLayout + Send + Sync;
     /// What the host reads of every finished steady measurement.
     type Head: HostLayout + Send + Sync;
-    /// Whether a measurement with this head ended periodic.
-    fn periodic(h: &Self::Head) -> bool;
-    /// The accumulators that the reduction of a periodic head reads.
+    /// Whether a measurement with this head ended with a verdict whose
+    /// reduction reads only the head (periodic or phase-resolved).
+    fn head_suffices(h: &Self::Head) -> bool;
+    /// The accumulators that the reduction of such a head reads.
     fn from_head(h: &Self::Head) -> Self::Measure;
     /// The CPU mirror's state of this precision.
     type Mirror;
@@ -1163,8 +1164,8 @@ impl Layout for Single {
     type State = layout::single::State;
     type Measure = layout::single::Measure;
     type Head = layout::single::Head;
-    fn periodic(h: &Self::Head) -> bool {
-        h.is_periodic()
+    fn head_suffices(h: &Self::Head) -> bool {
+        h.suffices()
     }
     fn from_head(h: &Self::Head) -> Self::Measure {
         h.measure()
@@ -1200,8 +1201,8 @@ impl Layout for Double {
     type State = layout::double::State;
     type Measure = layout::double::Measure;
     type Head = layout::double::Head;
-    fn periodic(h: &Self::Head) -> bool {
-        h.is_periodic()
+    fn head_suffices(h: &Self::Head) -> bool {
+        h.suffices()
     }
     fn from_head(h: &Self::Head) -> Self::Measure {
         h.measure()

@@ -1,14 +1,16 @@
 //! Which of a steady batch's accumulators come back to the host.
 //!
-//! Every steady instance has 1,264 bytes of accumulators in f64 (712 in
-//! f32), and reading them back cost an H200 0.6 s of a 1000 x 1000 map
-//! whose shader ran 0.1-0.25 s (results/gpu.md, "Where a steady map's GPU
-//! time goes"). The reduction of a periodic verdict, which most runs at
-//! equal drive frequencies reach, reads only the `Head` the shader writes
-//! when an instance finishes (32 bytes in f64). So the host reads every
-//! head, and the whole accumulators only of the instances that need them:
-//! those that ended otherwise, and those the CPU continues. Also the
-//! mapping of any readback buffer, timed for `PIDM_GPU_PHASES`.
+//! Every steady instance has 1,936 bytes of accumulators in f64 (1,056 in
+//! f32), and reading 1,264 of them back (before the phase ladder) cost an
+//! H200 0.6 s of a 1000 x 1000 map whose shader ran 0.1-0.25 s
+//! (results/gpu.md, "Where a steady map's GPU time goes"). The reduction
+//! of a periodic verdict, which most runs at equal drive frequencies
+//! reach, and of a phase-resolved one, which most two-frequency runs
+//! reach, reads only the `Head` the shader writes when an instance
+//! finishes (48 bytes in f64). So the host reads every head, and the whole
+//! accumulators only of the instances that need them: those that ended
+//! otherwise, and those the CPU continues. Also the mapping of any
+//! readback buffer, timed for `PIDM_GPU_PHASES`.
 
 use super::{GpuError, Layout};
 use crate::model::{Instance, Measure};
@@ -62,7 +64,7 @@ pub fn runs(sorted: &[usize]) -> Vec<(usize, usize)> {
 /// ([`Accumulators`]): every instance's head, mapped from
 /// `heads_read` (already copied there), and the whole accumulators from
 /// `measures` of those that need them: the steady instances that did
-/// not finish with a periodic verdict, whose reduction reads more than
+/// not finish with a periodic or phase-resolved verdict, whose reduction reads more than
 /// the head, or did not finish at all (the CPU may continue them).
 pub(super) fn accumulators<L: Layout>(
     device: &wgpu::Device,
@@ -83,7 +85,7 @@ pub(super) fn accumulators<L: Layout>(
     let needed: Vec<usize> = (0..n)
         .filter(|&k| {
             matches!(instances[k].measure, Measure::Steady { .. })
-                && !(L::finished(&instances[k], &states[k]) && L::periodic(&heads[k]))
+                && !(L::finished(&instances[k], &states[k]) && L::head_suffices(&heads[k]))
         })
         .collect();
     read.plan = plan(n, needed.len(), whole);
@@ -235,15 +237,18 @@ mod tests {
     }
 
     /// The sizes the module's documentation, the README and results/gpu.md
-    /// quote: a head of 32 bytes in f64 (24 in f32) against accumulators of
-    /// 1,264 (712).
+    /// quote: a head of 48 bytes in f64 (32 in f32) against accumulators of
+    /// 1,936 (1,056), of which the phase ladder's windows
+    /// (`cpu::integrate::phase`) take 640 (320).
     #[test]
     fn a_head_is_a_fortieth_of_the_accumulators_in_f64() {
         use crate::gpu::layout::{double, single};
-        assert_eq!(size_of::<double::Head>(), 32);
-        assert_eq!(size_of::<double::Measure>(), 1264);
-        assert_eq!(size_of::<single::Head>(), 24);
-        assert_eq!(size_of::<single::Measure>(), 712);
+        assert_eq!(size_of::<double::Head>(), 48);
+        assert_eq!(size_of::<double::Measure>(), 1936);
+        assert_eq!(size_of::<double::Phase>(), 640);
+        assert_eq!(size_of::<single::Head>(), 32);
+        assert_eq!(size_of::<single::Measure>(), 1056);
+        assert_eq!(size_of::<single::Phase>(), 320);
     }
 
     #[test]

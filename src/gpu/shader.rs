@@ -9,11 +9,11 @@
 
 use super::{GpuError, Precision, STATUS_LOOP_LIMIT, workgroup_size};
 use crate::cpu::integrate::constants::{self, TAYLOR_STAGE_TERMS, TAYLOR_TERMS};
-use crate::cpu::integrate::measure;
+use crate::cpu::integrate::{measure, phase};
 
 /// The shader files, in the order they are concatenated (WGSL declarations
 /// may come in any order; this one reads top-down), with their text.
-pub const FILES: [(&str, &str); 9] = [
+pub const FILES: [(&str, &str); 10] = [
     (
         "arith.wgsl",
         include_str!("../../shaders/integrate/arith.wgsl"),
@@ -45,6 +45,10 @@ pub const FILES: [(&str, &str); 9] = [
     (
         "measure.wgsl",
         include_str!("../../shaders/integrate/measure.wgsl"),
+    ),
+    (
+        "phase.wgsl",
+        include_str!("../../shaders/integrate/phase.wgsl"),
     ),
     (
         "entry.wgsl",
@@ -230,7 +234,8 @@ pub fn prelude(variant: Variant) -> String {
          {constants}\n{helpers}\n{COMMON_HELPERS}\n{inverse}\n",
         limiter = variant.loop_limiter,
         workgroup = workgroup_size(),
-        constants = constants::wgsl_constants() + &measure::wgsl_constants(),
+        constants =
+            constants::wgsl_constants() + &measure::wgsl_constants() + &phase::wgsl_constants(),
         inverse = inverse_integer_fn(),
     )
 }
@@ -311,6 +316,20 @@ mod tests {
         }
     }
 
+    /// wgpu hands Vulkan drivers naga's SPIR-V: every variant must get
+    /// there (naga's writer rejects, for one, a pointer to a member of a
+    /// struct behind a pointer parameter, which its validator accepts).
+    #[test]
+    fn every_variant_writes_spir_v() {
+        for variant in variants() {
+            let (module, info) = parse_and_validate(variant).unwrap();
+            let options = naga::back::spv::Options::default();
+            let words = naga::back::spv::write_vec(&module, &info, &options, None)
+                .unwrap_or_else(|e| panic!("{variant:?}: {e}"));
+            assert!(words.len() > 1000, "{variant:?}: {} words", words.len());
+        }
+    }
+
     /// Function names defined in a source text (`fn name(` at any
     /// indentation), leaving out a Rust file's test module.
     fn defined_functions(text: &str) -> Vec<String> {
@@ -349,6 +368,7 @@ mod tests {
             ("step.wgsl", include_str!("../cpu/integrate/step.rs")),
             ("advance.wgsl", include_str!("../cpu/integrate/mod.rs")),
             ("measure.wgsl", include_str!("../cpu/integrate/measure.rs")),
+            ("phase.wgsl", include_str!("../cpu/integrate/phase.rs")),
         ];
         // Shader only: WGSL has no Option, closures, methods or
         // is_finite, and splits some expressions into functions.
@@ -390,7 +410,16 @@ mod tests {
             // The host's part of the measurement: the common period, the
             // first batch, the tolerances (folded into Coefficients).
             "common_period",
+            "short_common_period",
+            "decimal_common_period",
+            "as_decimal",
+            "gcd",
             "is_whole",
+            // The host's phase ladder: each window length's three-gap
+            // table and the levels that may stop a run.
+            "gaps",
+            "largest_gap",
+            "ladder",
             "first_batch_length",
             "beat_batch_length",
             "repeat_tolerances",

@@ -5,6 +5,7 @@
 //! GPU packs the same numbers (`pidm::gpu::layout`), so the shader divides
 //! by no parameter and takes no square root of one.
 
+use super::phase::{Gaps, LEVELS};
 use super::precision::{TIME_EPSILON, UNITS, only_f64};
 use super::vec2::Vec2;
 use super::{Real, Settings};
@@ -122,8 +123,18 @@ pub struct Coefficients {
     /// A steady measurement (`measure::period_end` runs at period ends).
     pub steady: bool,
     /// The drives' common period [scene periods], 0 when there is none up
-    /// to `measure::MAX_COMMON_PERIOD`.
+    /// to `measure::MAX_COMMON_PERIOD` (`measure::common_period`).
     pub common_period: u32,
+    /// The phase ladder's three-gap table per window length
+    /// (`phase::gaps`; zero where the ladder is off).
+    pub gaps: [Gaps; LEVELS],
+    /// The ladder levels whose end may stop the run, a bit per level
+    /// (`phase::ladder`); 0 where the ladder is off, which then keeps no
+    /// windows at all.
+    pub phase_levels: u32,
+    /// The levels whose window is a near-complete lattice of the common
+    /// period, judged without their quarters (`phase::Ladder::lattice`).
+    pub phase_lattice: u32,
     /// The first batch length [scene periods].
     pub batch_length: u32,
     /// The batch length a statistical stop needs [scene periods]: the
@@ -221,6 +232,14 @@ impl Coefficients {
             driven: e.driven,
             steady: e.steady,
             common_period: e.common_period,
+            gaps: e.gaps.map(|g| Gaps {
+                a: g.a,
+                b: g.b,
+                alpha: r(g.alpha),
+                beta: r(g.beta),
+            }),
+            phase_levels: e.phase_levels,
+            phase_lattice: e.phase_lattice,
             batch_length: e.batch_length,
             min_batch: e.min_batch,
             se_limit2: v(e.se_limit2),
@@ -289,6 +308,17 @@ impl Coefficients {
         let deflection = (amplitude.abs() * stiffness.map(|k| 1.0 / k)).max_element();
         let (repeat_x, repeat_v) =
             super::measure::repeat_tolerances(settings.tolerance, deflection, slip.rate.max_element());
+        let frequency = per_axis(&|a| a.frequency);
+        let common_period = super::measure::common_period(frequency, cycles_per_period, driven);
+        let steady = matches!(inst.measure, crate::model::Measure::Steady { .. });
+        // The faster drive's advance per scene period [cycles].
+        let rho = cycles_per_period.max_element().fract();
+        let ladder_on = steady
+            && driven[0]
+            && driven[1]
+            && rho > 0.0
+            && (common_period == 0 || common_period > super::phase::MIN_WINDOW);
+        let ladder = super::phase::ladder(rho, ladder_on, common_period);
         let mut c = Coefficients {
             stiffness,
             damping,
@@ -296,7 +326,7 @@ impl Coefficients {
             stick,
             slip,
             amplitude,
-            frequency: per_axis(&|a| a.frequency),
+            frequency,
             duty: per_axis(&|a| a.duty),
             inv_duty: per_axis(&|a| 1.0 / a.duty),
             inv_fall: per_axis(&|a| {
@@ -359,8 +389,11 @@ impl Coefficients {
             collocation_tolerance: COLLOCATION_CONVERGED * settings.tolerance,
             budget,
             driven,
-            steady: matches!(inst.measure, crate::model::Measure::Steady { .. }),
-            common_period: super::measure::common_period(cycles_per_period, driven),
+            steady,
+            common_period,
+            gaps: ladder.gaps,
+            phase_levels: ladder.levels,
+            phase_lattice: ladder.lattice,
             batch_length: super::measure::first_batch_length(cycles_per_period, driven, inst.cycles),
             min_batch: super::measure::beat_batch_length(cycles_per_period, driven),
             se_limit2: se_limit * se_limit,

@@ -13,6 +13,10 @@
 //!   velocity, mode; not the slider position, which translates) repeats
 //!   after L common periods within [`repeat_tolerances`]: the travel over
 //!   those L common periods is the steady step exactly;
+//! * *phase-resolved*: with two drive frequencies, a window of the phase
+//!   ladder (`super::phase`: trapezoid sums over the faster drive's phase)
+//!   that may stop the run ends with every axis' standard error at most
+//!   the step tolerance;
 //! * *converged*: at least [`MIN_BATCHES`] batches, each spanning the
 //!   slowest beat of the drives (`Coefficients::min_batch`), are complete, what MSER keeps of them is
 //!   stationary (its halves agree), and every axis' standard error
@@ -42,6 +46,7 @@
 //! late means), which a motion still changing on a longer scale fails.
 
 use super::coefficients::Coefficients;
+use super::phase::{Phase, phase_period_end};
 use super::precision::only_f64;
 use super::vec2::Vec2;
 use super::{Real, State};
@@ -56,8 +61,21 @@ pub const BATCHES: usize = 32;
 /// Complete batches needed before a statistical stop: after MSER has cut
 /// at most half of them, at least 8 remain for batch means.
 pub const MIN_BATCHES: u32 = 16;
-/// The longest common period looked for [scene periods].
-pub const MAX_COMMON_PERIOD: u32 = 1000;
+/// The longest common period looked for [scene periods]: from the
+/// frequencies as decimals ([`decimal_common_period`]), so that a map's
+/// two-decimal frequencies (21.34 and 23.66 Hz: 1067 periods) repeat
+/// exactly.
+pub const MAX_COMMON_PERIOD: u32 = 100_000;
+/// The longest common period the search over the frequency ratio looks for
+/// ([`short_common_period`]), which also sets the batch length.
+pub const SHORT_COMMON_PERIOD: u32 = 1000;
+/// Decimal places a frequency is read with ([`decimal_common_period`]).
+pub const DECIMALS: u32 = 6;
+/// How close f 10^k must be to an integer, relative, for the frequency to
+/// count as k decimals: 64 roundings of f64 (grid values computed as
+/// `from + i step` are a few roundings off), so a frequency that is not a
+/// short decimal passes by chance with a probability of about 1e-7.
+pub const DECIMAL_ROUNDINGS: f64 = 64.0;
 /// Beats of order up to this (|q r - p| for the frequency ratio r) set the
 /// shortest batch when the drives have no common period. Stick-slip is
 /// not smooth: measured on random instances, beats of order 20 (203
@@ -111,7 +129,9 @@ pub struct Measure {
     /// Smallest and largest travel over one period, per axis.
     pub d_min: Vec2,
     pub d_max: Vec2,
-    /// Travel over the detected cycle (periodic verdict).
+    /// Travel over the detected cycle (periodic verdict), or the phase
+    /// ladder's latest judged estimate times its window's length
+    /// ([`Measure::span`]).
     pub travel: Vec2,
     /// Travel over each complete batch.
     pub sums: [Vec2; BATCHES],
@@ -132,6 +152,15 @@ pub struct Measure {
     /// The detected cycle [scene periods], 0 when none.
     pub lag: u32,
     pub verdict: u32,
+    /// The phase ladder's latest judged window (the stopping one under a
+    /// phase-resolved verdict): its length [scene periods] (0 when none
+    /// was judged; `travel` then holds its estimate times the length) and
+    /// the squared standard error of the mean travel per scene period
+    /// [m^2].
+    pub span: u32,
+    pub se2: Vec2,
+    /// The phase ladder's windows (`super::phase`).
+    pub phase: Phase,
 }
 
 /// The accumulators of a run that has not started.
@@ -152,6 +181,9 @@ pub fn initial_measure(c: &Coefficients) -> Measure {
         snapshots: 0,
         lag: 0,
         verdict: VERDICT_RUNNING,
+        span: 0,
+        se2: Vec2::ZERO,
+        phase: Phase::ZERO,
     }
 }
 
@@ -185,6 +217,17 @@ pub fn period_end(c: &Coefficients, st: &mut State, m: &mut Measure) {
     m.last_x_s = st.x_s;
     if c.common_period > 0 && (ended - c.settle).is_multiple_of(c.common_period) {
         recurrence(c, st, m);
+    }
+    if c.phase_levels != 0 {
+        let judged = phase_period_end(c, &mut m.phase, ended - c.settle, st.x_s);
+        if judged.span > 0 && m.verdict == VERDICT_RUNNING {
+            m.travel = judged.value * judged.span as Real;
+            m.span = judged.span;
+            m.se2 = judged.se2;
+            if judged.se2.x <= c.se_limit2.x && judged.se2.y <= c.se_limit2.y {
+                m.verdict = VERDICT_PHASE;
+            }
+        }
     }
     if m.verdict == VERDICT_RUNNING
         && m.in_batch == 0
@@ -412,13 +455,92 @@ fn mser_cut(m: &Measure) -> Vec2 {
 }
 
 only_f64! {
-/// The drives' common period [scene periods]: the smallest q <=
-/// [`MAX_COMMON_PERIOD`] at which every driven axis completes a whole
-/// number of its cycles (the drive then repeats, phases included), or 0.
-pub fn common_period(cycles_per_period: Vec2, driven: [bool; 2]) -> u32 {
-    (1..=MAX_COMMON_PERIOD)
+/// The drives' common period [scene periods]: the smallest q at which
+/// every driven axis completes a whole number of its cycles (the drive
+/// then repeats, phases included): from the ratio of the frequencies up to
+/// [`SHORT_COMMON_PERIOD`], else from the frequencies as the user wrote
+/// them (decimals) up to [`MAX_COMMON_PERIOD`]; 0 when there is none.
+pub fn common_period(frequency: Vec2, cycles_per_period: Vec2, driven: [bool; 2]) -> u32 {
+    match short_common_period(cycles_per_period, driven) {
+        0 => decimal_common_period(frequency, driven),
+        q => q,
+    }
+}
+
+/// The smallest q <= [`SHORT_COMMON_PERIOD`] at which every driven axis
+/// completes a whole number of its cycles per scene period (within
+/// [`COMMENSURATE`]), or 0: finds ratios such as 4:3 however the
+/// frequencies were written.
+pub fn short_common_period(cycles_per_period: Vec2, driven: [bool; 2]) -> u32 {
+    (1..=SHORT_COMMON_PERIOD)
         .find(|&q| (0..2).all(|i| !driven[i] || is_whole(q as f64 * cycles_per_period[i])))
         .unwrap_or(0)
+}
+
+/// The common period of frequencies that are decimals of at most
+/// [`DECIMALS`] places (rational reconstruction: f = n / 10^k exactly, to
+/// [`DECIMAL_ROUNDINGS`] roundings), in exact integer arithmetic: with the
+/// slowest driven frequency n_0 / d_0, axis i completes (n_i d_0) / (d_i
+/// n_0) cycles per scene period, and q is the least common multiple of
+/// those fractions' denominators; 0 if a frequency is no such decimal or q
+/// exceeds [`MAX_COMMON_PERIOD`]. 21.34 and 23.66 Hz give 1067.
+pub fn decimal_common_period(frequency: Vec2, driven: [bool; 2]) -> u32 {
+    let mut fractions = [(0u128, 1u128); 2];
+    for i in 0..2 {
+        if !driven[i] {
+            continue;
+        }
+        match as_decimal(frequency[i]) {
+            Some(f) => fractions[i] = f,
+            None => return 0,
+        }
+    }
+    let slowest = (0..2)
+        .filter(|&i| driven[i])
+        .min_by(|&i, &j| frequency[i].total_cmp(&frequency[j]));
+    let Some(s) = slowest else { return 0 };
+    let (n0, d0) = fractions[s];
+    let mut q: u128 = 1;
+    for i in 0..2 {
+        if !driven[i] {
+            continue;
+        }
+        let (n, d) = fractions[i];
+        let (num, den) = (n * d0, d * n0);
+        let den = den / gcd(num, den);
+        q = q / gcd(q, den) * den;
+        if q > MAX_COMMON_PERIOD as u128 {
+            return 0;
+        }
+    }
+    q as u32
+}
+
+/// `x` as n / 10^k with the fewest places k <= [`DECIMALS`], if it is one
+/// (module docs of [`DECIMAL_ROUNDINGS`]); n > 0.
+fn as_decimal(x: f64) -> Option<(u128, u128)> {
+    if !(x > 0.0 && x.is_finite()) {
+        return None;
+    }
+    let mut scale: u128 = 1;
+    for _ in 0..=DECIMALS {
+        let scaled = x * scale as f64;
+        let n = scaled.round();
+        if (scaled - n).abs() <= DECIMAL_ROUNDINGS * f64::EPSILON * scaled && n >= 1.0 {
+            let n = n as u128;
+            let g = gcd(n, scale);
+            return Some((n / g, scale / g));
+        }
+        scale *= 10;
+    }
+    None
+}
+
+fn gcd(mut a: u128, mut b: u128) -> u128 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
 }
 
 fn is_whole(x: f64) -> bool {
@@ -430,7 +552,7 @@ fn is_whole(x: f64) -> bool {
 /// up to [`BEAT_ORDER`] between the two drives, 1 / |q r - p| periods (r
 /// the cycles per period of the faster axis), rounded up.
 pub fn beat_batch_length(cycles_per_period: Vec2, driven: [bool; 2]) -> u32 {
-    let common = common_period(cycles_per_period, driven);
+    let common = short_common_period(cycles_per_period, driven);
     if common > 0 {
         return common;
     }
@@ -458,7 +580,7 @@ pub fn beat_batch_length(cycles_per_period: Vec2, driven: [bool; 2]) -> u32 {
 /// cannot stop statistically before its batches span the beat).
 pub fn first_batch_length(cycles_per_period: Vec2, driven: [bool; 2], max_cycles: u32) -> u32 {
     let beat = beat_batch_length(cycles_per_period, driven);
-    if common_period(cycles_per_period, driven) > 0 {
+    if short_common_period(cycles_per_period, driven) > 0 {
         return beat;
     }
     beat.min((max_cycles / MIN_BATCHES).max(1))
@@ -486,6 +608,7 @@ pub fn wgsl_constants() -> String {
         u("VERDICT_RUNNING", VERDICT_RUNNING),
         u("VERDICT_PERIODIC", VERDICT_PERIODIC),
         u("VERDICT_CONVERGED", VERDICT_CONVERGED),
+        u("VERDICT_PHASE", VERDICT_PHASE),
         r("STATIONARY_Z", STATIONARY_Z),
         r("CORRELATION_Z", CORRELATION_Z),
     ]

@@ -49,6 +49,7 @@ pub mod drive;
 pub mod events;
 pub mod flow;
 pub mod measure;
+pub mod phase;
 pub mod step;
 pub mod vec2;
 

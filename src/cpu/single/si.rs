@@ -73,6 +73,13 @@ pub fn measure(m: &Measure) -> si::Measure {
         snapshots: m.snapshots,
         lag: m.lag,
         verdict: m.verdict,
+        span: m.span,
+        se2: scaled(m.se2, 1.0 / (UNITS.metre * UNITS.metre)),
+        phase: si::phase::Phase {
+            whole: m.phase.whole.map(length),
+            second: m.phase.second.map(length),
+            quarters: m.phase.quarters.map(length),
+        },
     }
 }
 

@@ -1,0 +1,137 @@
+// Mirror of src/cpu/integrate/phase.rs: the phase-resolved estimate of the
+// steady step for two drive frequencies. A ladder of windows from the start
+// of the measurement, each the trapezoid rule over the faster drive's phase
+// as a combination of the slider positions at six periods; the host
+// computes each window length's three-gap table (Coefficients.gaps) and
+// the levels that may stop the run (Coefficients.phase_levels), and the
+// ladder's constants come from Rust through the prelude.
+
+// The three-gap table of one window length.
+struct Gaps {
+    a: u32,
+    b: u32,
+    alpha: Real,
+    beta: Real,
+}
+
+// The windows' sums, as `pidm::cpu::integrate::phase::Phase`.
+struct Phase {
+    whole: array<V2, LEVELS>,
+    second: array<V2, LEVELS>,
+    quarters: array<V2, 4>,
+}
+
+// A judged window: the mean travel per scene period, its squared standard
+// error per axis, and the window's length (0 when none was judged).
+struct PhaseEstimate {
+    value: V2,
+    se2: V2,
+    span: u32,
+}
+
+fn ladder_length(j: u32) -> u32 {
+    var base = LADDER_EVEN;
+    if j % 2u == 1u {
+        base = LADDER_ODD;
+    }
+    return base << (j / 2u);
+}
+
+fn window_weight(g: Gaps, length: u32, k: u32) -> Real {
+    var right = g.alpha + g.beta;
+    if k + g.a < length {
+        right = g.alpha;
+    } else if k >= g.b {
+        right = g.beta;
+    }
+    var left = g.alpha + g.beta;
+    if k >= g.a {
+        left = g.alpha;
+    } else if k + g.b < length {
+        left = g.beta;
+    }
+    return Real(0.5) * (left + right);
+}
+
+fn window_coefficient(g: Gaps, length: u32, i: u32) -> Real {
+    let cut = i == 0u || i == length || i == g.a || i == g.b || i + g.a == length || i + g.b == length;
+    if !cut {
+        return Real(0.0);
+    }
+    var before = Real(0.0);
+    if i > 0u {
+        before = window_weight(g, length, i - 1u);
+    }
+    var at = Real(0.0);
+    if i < length {
+        at = window_weight(g, length, i);
+    }
+    return before - at;
+}
+
+fn add_to_window(sum: V2, g: Gaps, length: u32, i: u32, x: V2) -> V2 {
+    let coefficient = window_coefficient(g, length, i);
+    if coefficient != Real(0.0) {
+        return sum + x * coefficient;
+    }
+    return sum;
+}
+
+fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> PhaseEstimate {
+    // A copy that may be indexed at run time (a parameter's array may not).
+    var gaps = c.gaps;
+    var judged = PhaseEstimate(V2(0.0), V2(0.0), 0u);
+    for (var j = 0u; j < LEVELS; j++) {
+        let length = ladder_length(j);
+        if k <= length {
+            (*p).whole[j] = add_to_window((*p).whole[j], gaps[j], length, k, x);
+        }
+        if j >= 2u {
+            let half = ladder_length(j - 2u);
+            if k >= half && k <= length {
+                (*p).second[j] = add_to_window((*p).second[j], gaps[j - 2u], half, k - half, x);
+            }
+        }
+        if j >= FIRST_JUDGED {
+            let quarter = ladder_length(j - 4u);
+            let ring = 2u * (j % 2u);
+            if k == 2u * quarter {
+                (*p).quarters[ring] = V2(0.0);
+                (*p).quarters[ring + 1u] = V2(0.0);
+            }
+            if k >= 2u * quarter && k <= 3u * quarter {
+                (*p).quarters[ring] = add_to_window((*p).quarters[ring], gaps[j - 4u], quarter, k - 2u * quarter, x);
+            }
+            if k >= 3u * quarter && k <= length {
+                (*p).quarters[ring + 1u] = add_to_window((*p).quarters[ring + 1u], gaps[j - 4u], quarter, k - 3u * quarter, x);
+            }
+            if k == length && ((c.phase_levels >> j) & 1u) == 1u {
+                judged = evaluate(p, j, ((c.phase_lattice >> j) & 1u) == 1u);
+            }
+        }
+    }
+    return judged;
+}
+
+fn evaluate(p: ptr<function, Phase>, j: u32, lattice: bool) -> PhaseEstimate {
+    let ring = 2u * (j % 2u);
+    let w = (*p).whole[j];
+    let half = (*p).whole[j - 2u];
+    let richardson = (w - half) * (w - half);
+    let halves = ((*p).second[j] - half) * ((*p).second[j] - half) * Real(0.25);
+    var q = array<V2, 4>((*p).whole[j - 4u], (*p).second[j - 2u], (*p).quarters[ring], (*p).quarters[ring + 1u]);
+    let mean = (q[0] + q[1] + q[2] + q[3]) * Real(0.25);
+    var squares = V2(0.0);
+    for (var i = 0u; i < 4u; i++) {
+        squares = squares + (q[i] - mean) * (q[i] - mean);
+    }
+    var quarters = squares * Real(1.0 / 12.0);
+    if ladder_length(j - 4u) >= QUARTER_TRUSTED {
+        quarters = squares * Real(1.0 / 27.0);
+    }
+    if lattice {
+        quarters = V2(0.0);
+    }
+    let se2 = max(max(richardson, halves), quarters);
+    return PhaseEstimate(w, se2, ladder_length(j));
+}

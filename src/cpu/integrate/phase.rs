@@ -1,0 +1,535 @@
+//! The phase-resolved estimate of the steady step for two drive
+//! frequencies (MODEL.md section 4): the CPU mirror of
+//! `shaders/integrate/phase.wgsl` (same functions, same order of
+//! operations); its constants reach the shader through the prelude and its
+//! per-instance tables through `Coefficients`.
+//!
+//! **The idea.** With two frequencies the slider's travel over scene period
+//! k is, once the motion has settled (measured: within one or two periods
+//! for Table 1 and the text's set), a function of the faster drive's phase
+//! at the start of that period, theta_k = frac(theta_0 + k rho), rho =
+//! frac(f_hi / f_lo): d_k = g(theta_k). The steady step is the mean of g
+//! over the circle (Weyl's equidistribution; for a rational rho = p / q the
+//! motion repeats after q periods and the mean over those q phases is
+//! exact). A running mean of d_k converges like 1/N because g has steep
+//! parts (a jump of 60 um within 0.02 cycles on Table 1) and ringing
+//! (wavelength about f_hi / f_r in cycles, f_r the stage resonance). The
+//! trapezoid rule over the theta-sorted increments converges far faster:
+//! measured on 10 incommensurate instances it is 10-100 times more accurate
+//! than the running mean of the same periods at 500-1000 periods.
+//!
+//! **Fixed size.** The points k rho (k < L) of a window of L consecutive
+//! periods have at most three distinct gaps (the three-gap theorem; Sós
+//! 1958, Świerczkowski 1959): with a the index of the point nearest above 0
+//! (gap alpha = frac(a rho)) and b that nearest below 1 (beta = 1 -
+//! frac(b rho)), point k's right neighbour is k + a (gap alpha) if k < L -
+//! a, else k - b (gap beta) if k >= b, else at gap alpha + beta; its left
+//! neighbour likewise. So the trapezoid weight of period k, half the gaps
+//! on either side, is constant between the cut indices {a, b, L - a, L -
+//! b}, and the trapezoid sum over the window, sum_k w_k (X_{k+1} - X_k)
+//! with X the slider position, is a combination of the slider positions
+//! at six periods: [`window_coefficient`]. The weights depend on L and rho
+//! only (a rotation of every phase changes no gap), so the host computes
+//! (a, b, alpha, beta) once per window length ([`Gaps`], in
+//! `Coefficients::gaps`) and the run adds each position to the windows
+//! that need it as the period passes: no per-period arrays.
+//!
+//! **The ladder.** Windows start where the measurement starts (`settle`).
+//! Their lengths L_j grow by sqrt 2 ([`ladder_length`]: 60, 85, 120, ...,
+//! 21,760 periods), so a window's first half and first quarter are windows
+//! of the ladder too. At the end of window j the estimate is W_j, the
+//! trapezoid over [0, L_j), and its error is judged by three comparisons,
+//! each a different way a trapezoid fails:
+//!
+//! * W_j against W_{j-2}, the first half: Richardson's check. The
+//!   trapezoid's error falls at least like 1 / L once g is resolved, so
+//!   |W_j - W_{j-2}| is at least the error of W_j;
+//! * the second half V_j against the first: both halves at the same
+//!   resolution but different phases, so an error that depends on where
+//!   the points fall shows as their difference (taken / 2);
+//! * the four quarters: their sample standard deviation (taken / 2, the
+//!   standard error of their mean; / 3 for quarters of at least
+//!   [`QUARTER_TRUSTED`] periods) shows errors that agree between halves
+//!   by chance.
+//!
+//! The standard error is the largest of the three, per axis
+//! ([`evaluate`]). The quarters guard against a window too coarse for
+//! the motion's features; a window of a rational ratio (a common period q)
+//! whose largest gap is at most 2 / q has every phase it misses between
+//! two it has, so it resolves the motion as finely as the whole period
+//! would up to a factor 2, and its quarters (which do not) are left out
+//! (`Coefficients::phase_lattice`). Measured against 20,000-40,000-period references on 46
+//! two-frequency instances (Table 1 and the text's set, incommensurate,
+//! near resonances, two-decimal frequencies, voltages from -100 to 100 V,
+//! duties 0.8-0.98) at 36-41 starting periods each: of 999 stops at the
+//! default tolerance, 997 were within 3 standard errors + 0.002 um of the
+//! reference; the other two (a text-set instance near a resonance) were
+//! 0.0057 um off with a standard error of 0.001 um.
+//!
+//! **When a window may stop the run.** A trapezoid that misses a feature
+//! narrower than its spacing agrees with itself at every coarser level:
+//! measured, such plateaus (errors of 0.01-0.02 um with all three
+//! comparisons below 0.005 um) lasted up to windows of 512 periods. So no
+//! window shorter than [`MIN_WINDOW`] stops a run. Near a resonance (rho
+//! close to a fraction p/q of small q) the points of a window bunch into q
+//! clusters and the window resolves only about q phases, however long;
+//! its quarters must resolve [`MIN_SITES`] / 4 phases each (1 / their
+//! largest gap), or the window does not stop the run either. The host
+//! folds both rules into [`Coefficients::phase_levels`], a bit per level.
+//! Where rho = p / q is rational (a common period q), only windows of at
+//! most q periods are used (longer ones repeat phases); the recurrence test
+//! (`measure::recurrence`) finds such a motion exact at q.
+//!
+//! **Where it is weak.** Near a resonance the first window that resolves
+//! enough phases is about the next continued-fraction denominator of rho
+//! (the beat period), which can exceed `max_cycles`; the instance then
+//! falls back to batch means (motion "irregular") or ends not steady.
+//! Features narrower than a 680-period window's spacing that no level
+//! resolves before the stop go unseen (the plateau above); the minimum
+//! window is an empirical guard, not a proof.
+
+use super::Real;
+use super::coefficients::Coefficients;
+use super::precision::only_f64;
+use super::vec2::Vec2;
+
+/// Levels of the window ladder.
+pub const LEVELS: usize = 18;
+/// The shortest windows of the two interleaved doubling ladders [scene
+/// periods]: even levels are 60 2^(j/2), odd ones 85 2^((j-1)/2) (85/60
+/// is about sqrt 2), so that windows end often enough for a run to stop
+/// soon after its error is small.
+pub const LADDER_EVEN: u32 = 60;
+pub const LADDER_ODD: u32 = 85;
+/// The shortest window that may stop a run [scene periods] (see the
+/// module docs: plateaus of a trapezoid that misses a narrow feature
+/// lasted up to 512-period windows).
+pub const MIN_WINDOW: u32 = 680;
+/// The phases a stopping window must resolve: four times the phases each
+/// of its quarters resolves (1 / its largest gap) must be at least this.
+pub const MIN_SITES: f64 = 340.0;
+/// The lowest level whose end is judged: its quarters are level j - 4.
+pub const FIRST_JUDGED: u32 = 4;
+/// Rounding allowed when a gap is compared with 2 / q [lattice gaps].
+pub const LATTICE_SLACK: f64 = 1e-6;
+/// Quarters of at least this many periods count their spread as an error
+/// scale of a trapezoid that converges like 1 / L or faster: the window,
+/// four times as long, is taken to be at least a third as far off as the
+/// quarters scatter (s_Q / 3). Shorter quarters are still in the
+/// pre-asymptotic regime and count as a sample of four (s_Q / 2). Measured
+/// on the 46 instances of the module docs: s_Q / 3 from 240 on added no
+/// miss; s_Q / 4 did.
+pub const QUARTER_TRUSTED: u32 = 240;
+
+/// Window length of ladder level `j` [scene periods].
+pub fn ladder_length(j: u32) -> u32 {
+    let base = if j.is_multiple_of(2) {
+        LADDER_EVEN
+    } else {
+        LADDER_ODD
+    };
+    base << (j / 2)
+}
+
+/// The three-gap structure of the phases k rho, 0 <= k < L, of a window of
+/// L periods (module docs): computed by the host in f64 and rounded once.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Gaps {
+    /// The index of the phase nearest above 0 and that nearest below 1.
+    pub a: u32,
+    pub b: u32,
+    /// frac(a rho) and 1 - frac(b rho) [cycles].
+    pub alpha: Real,
+    pub beta: Real,
+}
+
+/// The accumulators of the window ladder. Each window's entry adds up the
+/// slider positions at its cut periods times their coefficients; once the
+/// window has ended it holds the trapezoid estimate of the mean travel per
+/// scene period [m] over the window.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Phase {
+    /// W_j: the window [0, L_j).
+    pub whole: [Vec2; LEVELS],
+    /// V_j: its second half [L_{j-2}, L_j) (j >= 2).
+    pub second: [Vec2; LEVELS],
+    /// Its third and fourth quarters [2 L_{j-4}, 3 L_{j-4}) and [3
+    /// L_{j-4}, L_j) (j >= 4): a ring of two levels, `2 (j % 2)` and the
+    /// next, since a level's quarters are in progress only while its
+    /// second half is.
+    pub quarters: [Vec2; 4],
+}
+
+impl Phase {
+    pub const ZERO: Phase = Phase {
+        whole: [Vec2::ZERO; LEVELS],
+        second: [Vec2::ZERO; LEVELS],
+        quarters: [Vec2::ZERO; 4],
+    };
+}
+
+/// The trapezoid weight of phase `k` (0 <= k < `length`) of a window:
+/// half the gaps to its two neighbours [cycles].
+pub fn window_weight(g: &Gaps, length: u32, k: u32) -> Real {
+    let right = if k + g.a < length {
+        g.alpha
+    } else if k >= g.b {
+        g.beta
+    } else {
+        g.alpha + g.beta
+    };
+    let left = if k >= g.a {
+        g.alpha
+    } else if k + g.b < length {
+        g.beta
+    } else {
+        g.alpha + g.beta
+    };
+    0.5 * (left + right)
+}
+
+/// The coefficient of the slider position at the window's period `i` (0
+/// <= i <= `length`) in its trapezoid sum: w_{i-1} - w_i (w is 0 outside
+/// the window), non-zero only at the cuts 0, a, b, L - a, L - b and L.
+pub fn window_coefficient(g: &Gaps, length: u32, i: u32) -> Real {
+    let cut =
+        i == 0 || i == length || i == g.a || i == g.b || i + g.a == length || i + g.b == length;
+    if !cut {
+        return 0.0;
+    }
+    let mut before = 0.0;
+    if i > 0 {
+        before = window_weight(g, length, i - 1);
+    }
+    let mut at = 0.0;
+    if i < length {
+        at = window_weight(g, length, i);
+    }
+    before - at
+}
+
+/// The window's sum with the slider position `x` at its period `i` added.
+fn add_to_window(sum: Vec2, g: &Gaps, length: u32, i: u32, x: Vec2) -> Vec2 {
+    let coefficient = window_coefficient(g, length, i);
+    if coefficient != 0.0 {
+        return sum + x * coefficient;
+    }
+    sum
+}
+
+/// What a judged window found: the estimate of the mean travel per scene
+/// period [m] and its squared standard error per axis [m^2].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PhaseEstimate {
+    pub value: Vec2,
+    pub se2: Vec2,
+    /// The window's length [scene periods]; 0 when no window was judged.
+    pub span: u32,
+}
+
+/// Adds the slider position `x` at period `k` of the measurement (k = 0 at
+/// its start) to every window that has a cut there, and judges the window
+/// that ends there, if any may stop the run ([`Coefficients::phase_levels`]).
+/// Windows are processed level by level, and a level ending at `k` is
+/// judged before a longer level starts its quarters there.
+pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> PhaseEstimate {
+    let mut judged = PhaseEstimate::default();
+    for j in 0..LEVELS as u32 {
+        let length = ladder_length(j);
+        let level = j as usize;
+        if k <= length {
+            p.whole[level] = add_to_window(p.whole[level], &c.gaps[level], length, k, x);
+        }
+        if j >= 2 {
+            let half = ladder_length(j - 2);
+            if k >= half && k <= length {
+                p.second[level] =
+                    add_to_window(p.second[level], &c.gaps[level - 2], half, k - half, x);
+            }
+        }
+        if j >= FIRST_JUDGED {
+            let quarter = ladder_length(j - 4);
+            let ring = 2 * (j % 2) as usize;
+            if k == 2 * quarter {
+                p.quarters[ring] = Vec2::ZERO;
+                p.quarters[ring + 1] = Vec2::ZERO;
+            }
+            if k >= 2 * quarter && k <= 3 * quarter {
+                p.quarters[ring] = add_to_window(
+                    p.quarters[ring],
+                    &c.gaps[level - 4],
+                    quarter,
+                    k - 2 * quarter,
+                    x,
+                );
+            }
+            if k >= 3 * quarter && k <= length {
+                p.quarters[ring + 1] = add_to_window(
+                    p.quarters[ring + 1],
+                    &c.gaps[level - 4],
+                    quarter,
+                    k - 3 * quarter,
+                    x,
+                );
+            }
+            if k == length && (c.phase_levels >> j) & 1 == 1 {
+                judged = evaluate(p, j, (c.phase_lattice >> j) & 1 == 1);
+            }
+        }
+    }
+    judged
+}
+
+/// The estimate of level `j` (>= 4) at its end: W_j, with the squared
+/// standard error max(|W_j - W_{j-2}|, |V_j - W_{j-2}| / 2, s_Q / 2 or s_Q
+/// / 3 ([`QUARTER_TRUSTED`]))^2 per axis, s_Q the sample standard
+/// deviation of its four quarters (module docs), left out where the window
+/// is a near-complete `lattice`. No root and no division: squares are
+/// compared.
+pub fn evaluate(p: &Phase, j: u32, lattice: bool) -> PhaseEstimate {
+    let level = j as usize;
+    let ring = 2 * (j % 2) as usize;
+    let w = p.whole[level];
+    let half = p.whole[level - 2];
+    let richardson = (w - half) * (w - half);
+    let halves = (p.second[level] - half) * (p.second[level] - half) * 0.25;
+    let q = [
+        p.whole[level - 4],
+        p.second[level - 2],
+        p.quarters[ring],
+        p.quarters[ring + 1],
+    ];
+    let mean = (q[0] + q[1] + q[2] + q[3]) * 0.25;
+    let mut squares = Vec2::ZERO;
+    for v in q {
+        squares = squares + (v - mean) * (v - mean);
+    }
+    // The sample variance (3 degrees of freedom) over 4, the squared
+    // standard error of the quarters' mean; over 9 for trusted quarters.
+    let mut quarters = squares * (1.0 / 12.0);
+    if ladder_length(j - 4) >= QUARTER_TRUSTED {
+        quarters = squares * (1.0 / 27.0);
+    }
+    if lattice {
+        quarters = Vec2::ZERO;
+    }
+    let se2 = richardson.zip(halves, Real::max).zip(quarters, Real::max);
+    PhaseEstimate {
+        value: w,
+        se2,
+        span: ladder_length(j),
+    }
+}
+
+only_f64! {
+/// The gaps of the phases k rho, 0 <= k < `length`, for 0 < rho < 1
+/// (irrational, or rational with a denominator of at least `length`, so
+/// that no two phases coincide). The nearest phases to 0 from above and to
+/// 1 from below are records of k rho as k grows; each new record is the
+/// sum of the two current ones (the three-gap recursion), taken many at a
+/// time as in Euclid's algorithm, so this costs O(log length) steps.
+pub fn gaps(rho: f64, length: u32) -> Gaps {
+    let phase = |k: u64| (k as f64 * rho).fract();
+    let (mut a, mut b) = (1u64, 1u64);
+    let length = length.max(2) as u64;
+    loop {
+        let alpha = phase(a);
+        let beta = 1.0 - phase(b);
+        if a + b >= length || alpha <= 0.0 || beta <= 0.0 {
+            break;
+        }
+        if alpha > beta {
+            // a + m b lies at alpha - m beta: a new lowest phase for every
+            // m with alpha - m beta > 0.
+            let by_gap = ((alpha / beta).ceil() as u64).saturating_sub(1).max(1);
+            let by_length = (length - 1 - a) / b;
+            a += b * by_gap.min(by_length).max(1);
+        } else {
+            let by_gap = ((beta / alpha).ceil() as u64).saturating_sub(1).max(1);
+            let by_length = (length - 1 - b) / a;
+            b += a * by_gap.min(by_length).max(1);
+        }
+    }
+    Gaps {
+        a: a as u32,
+        b: b as u32,
+        alpha: phase(a),
+        beta: 1.0 - phase(b),
+    }
+}
+
+/// The largest gap between the phases of a window of `length` periods
+/// [cycles]: alpha + beta where some phase has that gap, else the larger.
+pub fn largest_gap(g: &Gaps, length: u32) -> f64 {
+    if (length as u64) < (g.a as u64 + g.b as u64) {
+        g.alpha + g.beta
+    } else {
+        g.alpha.max(g.beta)
+    }
+}
+
+/// The ladder of an instance whose faster drive advances by `rho` cycles
+/// per scene period (module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ladder {
+    /// Each window length's three-gap table.
+    pub gaps: [Gaps; LEVELS],
+    /// The levels that may stop the run, a bit each: none where the ladder
+    /// is off (one axis undriven, or a common period of at most
+    /// [`MIN_WINDOW`] periods, which the recurrence test settles), and only
+    /// levels of at most `common_period` periods where there is one.
+    pub levels: u32,
+    /// The levels whose window is a near-complete lattice of the common
+    /// period (largest gap at most 2 / q): judged without their quarters.
+    pub lattice: u32,
+}
+
+/// The ladder's tables and levels ([`Ladder`]).
+pub fn ladder(rho: f64, on: bool, common_period: u32) -> Ladder {
+    let mut tables = [Gaps::default(); LEVELS];
+    if !on {
+        return Ladder {
+            gaps: tables,
+            levels: 0,
+            lattice: 0,
+        };
+    }
+    for (j, g) in tables.iter_mut().enumerate() {
+        *g = gaps(rho, ladder_length(j as u32));
+    }
+    let mut levels = 0u32;
+    let mut lattice = 0u32;
+    for j in FIRST_JUDGED..LEVELS as u32 {
+        let length = ladder_length(j);
+        let quarter = ladder_length(j - 4);
+        let sites = 4.0 / largest_gap(&tables[(j - 4) as usize], quarter);
+        let fits = common_period == 0 || length <= common_period;
+        if length >= MIN_WINDOW && sites >= MIN_SITES && fits {
+            levels |= 1 << j;
+            let gap = largest_gap(&tables[j as usize], length);
+            if common_period > 0 && gap * common_period as f64 <= 2.0 + LATTICE_SLACK {
+                lattice |= 1 << j;
+            }
+        }
+    }
+    Ladder {
+        gaps: tables,
+        levels,
+        lattice,
+    }
+}
+}
+
+/// The constants above that the shader reads, as WGSL declarations for its
+/// prelude.
+pub fn wgsl_constants() -> String {
+    let u = |name: &str, v: u32| format!("const {name}: u32 = {v}u;\n");
+    [
+        u("LEVELS", LEVELS as u32),
+        u("LADDER_EVEN", LADDER_EVEN),
+        u("LADDER_ODD", LADDER_ODD),
+        u("FIRST_JUDGED", FIRST_JUDGED),
+        u("QUARTER_TRUSTED", QUARTER_TRUSTED),
+    ]
+    .concat()
+}
+
+only_f64! {
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The trapezoid weights of phases k rho, k < length, from sorting the
+    /// phases (the definition) [cycles].
+    fn sorted_weights(rho: f64, length: u32) -> Vec<f64> {
+        let phases: Vec<f64> = (0..length).map(|k| (k as f64 * rho).fract()).collect();
+        let mut order: Vec<usize> = (0..length as usize).collect();
+        order.sort_by(|&i, &j| phases[i].total_cmp(&phases[j]));
+        let n = order.len();
+        let mut w = vec![0.0; n];
+        for (r, &k) in order.iter().enumerate() {
+            let next = if r + 1 < n { phases[order[r + 1]] } else { phases[order[0]] + 1.0 };
+            let previous = if r > 0 { phases[order[r - 1]] } else { phases[order[n - 1]] - 1.0 };
+            w[k] = 0.5 * (next - previous);
+        }
+        w
+    }
+
+    /// The three-gap weights equal the sorted trapezoid's for irrational
+    /// ratios, near resonances and ladder lengths alike; and the window's
+    /// sum of coefficients times positions is the weighted sum of
+    /// increments.
+    #[test]
+    fn window_weights_are_the_sorted_trapezoid() {
+        let rhos = [
+            2f64.sqrt() - 1.0,
+            0.108_716_026_241_799_4,
+            (5f64.sqrt() - 1.0) / 2.0,
+            0.000_3,
+            0.501,
+            0.570_796_326_794_896_6,
+            0.999_7,
+        ];
+        for rho in rhos {
+            for length in [2, 3, 7, 60, 85, 240, 680, 985, 1000, 1360, 4096] {
+                // 0.501 = 501 / 1000 and 116 / 1067 repeat their phases
+                // beyond 1000 and 1067 periods (the ladder never uses such
+                // windows).
+                if (rho == 0.501 && length > 1000) || (rho < 0.2 && rho > 0.1 && length > 1067) {
+                    continue;
+                }
+                let g = gaps(rho, length);
+                let expected = sorted_weights(rho, length);
+                for (k, &e) in expected.iter().enumerate() {
+                    let w = window_weight(&g, length, k as u32);
+                    assert!((w - e).abs() < 1e-12, "rho {rho} L {length} k {k}: {w} != {e}");
+                }
+                // Increments d_k = sin-like values; positions their sums.
+                let d: Vec<f64> = (0..length).map(|k| (k as f64 * 0.37).sin() + 0.1).collect();
+                let direct: f64 = d.iter().zip(&expected).map(|(a, b)| a * b).sum();
+                let mut x = 0.0;
+                let mut sum = Vec2::ZERO;
+                for i in 0..=length {
+                    sum = add_to_window(sum, &g, length, i, Vec2::splat(x));
+                    if i < length {
+                        x += d[i as usize];
+                    }
+                }
+                assert!((sum.x - direct).abs() < 1e-9, "rho {rho} L {length}");
+            }
+        }
+    }
+
+    #[test]
+    fn ladder_lengths_nest_by_halves_and_quarters() {
+        for j in FIRST_JUDGED..LEVELS as u32 {
+            assert_eq!(ladder_length(j), 2 * ladder_length(j - 2));
+            assert_eq!(ladder_length(j), 4 * ladder_length(j - 4));
+        }
+        assert_eq!(ladder_length(7), MIN_WINDOW);
+        assert_eq!(ladder_length(LEVELS as u32 - 1), 21_760);
+    }
+
+    /// Near 10/9 (21.34 and 23.66 Hz) no window shorter than the common
+    /// period resolves enough phases; 14.14 / 10 Hz stops from 680 on.
+    #[test]
+    fn the_levels_that_may_stop_a_run() {
+        let near = ladder(0.108_716_026_241_799_4, true, 1067);
+        assert_eq!(near.levels, 0);
+        let irrational = ladder(2f64.sqrt() - 1.0, true, 0);
+        assert_eq!(irrational.levels.trailing_zeros(), 7);
+        assert_eq!(irrational.levels >> 7, (1 << (LEVELS - 7)) - 1);
+        assert_eq!(irrational.lattice, 0);
+        assert_eq!(ladder(2f64.sqrt() - 1.0, false, 0).levels, 0);
+        // 21.34 / 32.94 Hz: 1647 / 1067, whose 680- and 960-period windows
+        // have no gap above 2 / 1067; 25.98 / 37.58 Hz (1879 / 1299) has
+        // gaps of 3 / 1299 at 960.
+        let lattice = ladder(1647.0 / 1067.0 - 1.0, true, 1067);
+        assert_eq!(lattice.levels, (1 << 7) | (1 << 8));
+        assert_eq!(lattice.lattice, (1 << 7) | (1 << 8));
+        let gappy = ladder(1879.0 / 1299.0 - 1.0, true, 1299);
+        assert_eq!(gappy.levels, (1 << 7) | (1 << 8));
+        assert_eq!(gappy.lattice, 0);
+    }
+}
+}
