@@ -25,13 +25,19 @@ use anyhow::{Context, Result, bail};
 use crate::output::MapWriter;
 use crate::sweep::Record;
 
-const MAGIC: &[u8; 12] = b"PIDM-CKPT-2\n";
+/// The journal's first bytes: its format. Format 3 added the kind of motion
+/// to every record; a journal of another format is refused by name, never
+/// read with this format's record layout.
+const MAGIC: &[u8; 12] = b"PIDM-CKPT-3\n";
+/// What every format's magic starts with.
+const MAGIC_FAMILY: &[u8] = b"PIDM-CKPT-";
 
 /// Bytes of an entry's head: start, count, part, wall time so far.
 const HEAD_BYTES: usize = 32;
 
-/// Bytes of one record in the journal.
-const RECORD_BYTES: usize = 8 * 8 + 4 * 5;
+/// Bytes of one record in the journal: eight f64, five u32 and the motion
+/// code (one byte).
+const RECORD_BYTES: usize = 8 * 8 + 4 * 5 + 1;
 
 /// The checkpoint journal of one output file.
 pub struct Checkpoint {
@@ -77,12 +83,16 @@ fn encode(record: &Record, out: &mut Vec<u8>) {
     ] {
         out.extend_from_slice(&v.to_le_bytes());
     }
+    out.push(record.motion.code());
 }
 
-fn decode(bytes: &[u8]) -> Record {
+/// The record of one journal entry's bytes, or why it cannot be right (a
+/// motion code that does not exist; `Record` cannot hold one, so it is
+/// refused here, as [`Record::implausibility`] refuses the rest).
+fn decode(bytes: &[u8]) -> Result<Record, String> {
     let f = |k: usize| f64::from_le_bytes(bytes[8 * k..8 * k + 8].try_into().unwrap());
     let u = |k: usize| u32::from_le_bytes(bytes[64 + 4 * k..68 + 4 * k].try_into().unwrap());
-    Record {
+    Ok(Record {
         step: [f(0), f(1)],
         velocity: [f(2), f(3)],
         baseline_step: [f(4), f(5)],
@@ -92,8 +102,8 @@ fn decode(bytes: &[u8]) -> Record {
         baseline_status: u(2),
         periods: u(3),
         period_lag: u(4),
-        motion: Default::default(),
-    }
+        motion: crate::sweep::stored_motion(bytes[84])?,
+    })
 }
 
 impl Checkpoint {
@@ -143,10 +153,19 @@ impl Checkpoint {
         let mut reader = BufReader::new(&file);
         let mut magic = [0u8; MAGIC.len()];
         let mut len = [0u8; 8];
-        if reader.read_exact(&mut magic).is_err()
-            || &magic != MAGIC
-            || reader.read_exact(&mut len).is_err()
-        {
+        let read_magic = reader.read_exact(&mut magic).is_ok();
+        if read_magic && &magic != MAGIC && magic.starts_with(MAGIC_FAMILY) {
+            let format = String::from_utf8_lossy(&magic[MAGIC_FAMILY.len()..]);
+            bail!(
+                "the checkpoint {} is of another pidm (journal format {}; this pidm reads \
+                 format {} only); finish the run with the pidm that began it, or delete the \
+                 checkpoint to start over",
+                path.display(),
+                format.trim_end(),
+                String::from_utf8_lossy(&MAGIC[MAGIC_FAMILY.len()..]).trim_end()
+            );
+        }
+        if !read_magic || &magic != MAGIC || reader.read_exact(&mut len).is_err() {
             bail!("{} is not a pidm checkpoint", path.display());
         }
         let file_len = file
@@ -194,11 +213,16 @@ impl Checkpoint {
             if checksum(&summed) != u64::from_le_bytes(sum.try_into().unwrap()) {
                 break;
             }
-            let records: Vec<Record> = records_bytes.chunks(RECORD_BYTES).map(decode).collect();
-            if let Some((k, why)) = records
+            let decoded: Vec<Result<Record, String>> =
+                records_bytes.chunks(RECORD_BYTES).map(decode).collect();
+            let why_not = |r: &Result<Record, String>| match r {
+                Ok(r) => r.implausibility(),
+                Err(why) => Some(why.clone()),
+            };
+            if let Some((k, why)) = decoded
                 .iter()
                 .enumerate()
-                .find_map(|(k, r)| Some((k, r.implausibility()?)))
+                .find_map(|(k, r)| Some((k, why_not(r)?)))
             {
                 bail!(
                     "the checkpoint {} holds a record that cannot be right (instance {}: \
@@ -207,6 +231,7 @@ impl Checkpoint {
                     start.saturating_add(k as u64)
                 );
             }
+            let records: Vec<Record> = decoded.into_iter().flatten().collect();
             replay(start, &records)?;
             done.push(start..start + n);
             valid_len += HEAD_BYTES as u64 + body.len() as u64;
@@ -322,12 +347,19 @@ pub fn missing(all: &[Range<u64>], done: &[Range<u64>]) -> Vec<Range<u64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::motion::Motion;
 
     /// A record a run could have written: a failed instance (every third)
-    /// has zeros in its map entries.
+    /// has zeros in its map entries and no kind of motion; the others
+    /// take every kind in turn.
     fn record(i: u64) -> Record {
         let failed = i % 3 == 1;
         let value = |v: f64| if failed { 0.0 } else { v };
+        let motion = if failed {
+            Motion::Undetermined
+        } else {
+            Motion::ALL[i as usize % Motion::ALL.len()]
+        };
         Record {
             step: [value(i as f64 * 1e-9), value(-1.5)],
             velocity: [value(f64::MIN_POSITIVE), value(2.0)],
@@ -336,10 +368,109 @@ mod tests {
             step_se: [value(i as f64 * 1e-12), 0.0],
             periods: 10 + i as u32,
             period_lag: i as u32 % 4,
-            motion: Default::default(),
+            motion,
             baseline_step: [0.25, -0.0],
             baseline_status: 5,
         }
+    }
+
+    #[test]
+    fn every_kind_of_motion_survives_the_journal() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(".out.h5.checkpoint");
+        let mut ck = Checkpoint::create(&path, "run A").unwrap();
+        let records: Vec<Record> = (0..12).map(record).collect();
+        let kinds: Vec<Motion> = records.iter().map(|r| r.motion).collect();
+        for kind in Motion::ALL {
+            assert!(kinds.contains(&kind), "{kind:?} missing from {kinds:?}");
+        }
+        ck.append(0, &records).unwrap();
+        drop(ck);
+        let mut replayed = Vec::new();
+        Checkpoint::resume(&path, "run A", &mut |_, r| {
+            replayed.extend_from_slice(r);
+            Ok(())
+        })
+        .unwrap();
+        assert_eq!(replayed, records);
+    }
+
+    /// The journal of one record, and where that record's motion code sits.
+    fn journal_of(path: &Path, record: &Record) -> (Vec<u8>, usize) {
+        let mut ck = Checkpoint::create(path, "run A").unwrap();
+        ck.append(0, std::slice::from_ref(record)).unwrap();
+        drop(ck);
+        let bytes = std::fs::read(path).unwrap();
+        let header = MAGIC.len() + 8 + "run A".len();
+        (bytes, header + HEAD_BYTES + RECORD_BYTES - 1)
+    }
+
+    /// Sets the motion code of the journal's one record and its checksum
+    /// to match, as a journal written with a wrong code would be.
+    fn with_motion_code(path: &Path, mut bytes: Vec<u8>, at: usize, code: u8) {
+        bytes[at] = code;
+        let entry = at + 1 - RECORD_BYTES - HEAD_BYTES;
+        let sum = checksum(&bytes[entry..at + 1]);
+        bytes[at + 1..at + 9].copy_from_slice(&sum.to_le_bytes());
+        std::fs::write(path, &bytes).unwrap();
+    }
+
+    #[test]
+    fn a_journal_with_an_impossible_motion_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(".out.h5.checkpoint");
+        let (bytes, at) = journal_of(&path, &record(0));
+        assert_eq!(bytes[at], record(0).motion.code());
+        // No such code.
+        with_motion_code(&path, bytes.clone(), at, 9);
+        let err = Checkpoint::resume(&path, "run A", &mut |_, _| Ok(()))
+            .err()
+            .expect("refused");
+        let err = err.to_string();
+        assert!(
+            err.contains("holds a record that cannot be right (instance 0: its motion is 9, which is no motion code"),
+            "{err}"
+        );
+        // A kind of motion on a failed instance.
+        std::fs::remove_file(&path).unwrap();
+        let (bytes, at) = journal_of(&path, &record(1));
+        with_motion_code(&path, bytes, at, Motion::Periodic.code());
+        let err = Checkpoint::resume(&path, "run A", &mut |_, _| Ok(()))
+            .err()
+            .expect("refused");
+        let err = err.to_string();
+        assert!(
+            err.contains("but its motion is periodic, not undetermined"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_journal_of_an_older_format_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(".out.h5.checkpoint");
+        // A format 2 journal: its records lack the motion byte.
+        let mut bytes = b"PIDM-CKPT-2\n".to_vec();
+        bytes.extend_from_slice(&5u64.to_le_bytes());
+        bytes.extend_from_slice(b"run A");
+        std::fs::write(&path, &bytes).unwrap();
+        let err = Checkpoint::resume(&path, "run A", &mut |_, _| Ok(()))
+            .err()
+            .expect("refused");
+        let err = err.to_string();
+        assert!(
+            err.contains("is of another pidm (journal format 2; this pidm reads format 3 only)")
+                && err.contains("delete the checkpoint to start over"),
+            "{err}"
+        );
+        std::fs::write(&path, b"something else entirely").unwrap();
+        let err = Checkpoint::resume(&path, "run A", &mut |_, _| Ok(()))
+            .err()
+            .expect("refused");
+        assert!(
+            err.to_string().ends_with("is not a pidm checkpoint"),
+            "{err}"
+        );
     }
 
     #[test]

@@ -13,6 +13,7 @@ use crate::backend::{
 use crate::cpu::integrate::STATUS_OK;
 use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
 use crate::model::{AXES, AXIS_NAMES, Instance, Measure};
+use crate::motion::Motion;
 use crate::output::ShardInfo;
 use crate::run::{RunResult, RunScope, default_output, run_scene};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
@@ -216,7 +217,8 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             println!("  status {code} ({meaning}): {n}");
         }
     }
-    if matches!(scene.instance(0).measure, Measure::Steady { .. }) && s.instances > 0 {
+    let steady = matches!(scene.instance(0).measure, Measure::Steady { .. });
+    if steady && s.instances > 0 {
         let not_steady = s.status_counts[STATUS_NOT_STEADY as usize];
         let converged = s.status_counts[STATUS_OK as usize].saturating_sub(s.periodic);
         println!(
@@ -229,6 +231,7 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             s.periods as f64 / s.instances as f64,
             s.max_periods
         );
+        println!("  motion: {}", motion_counts(&s.motion));
     }
     if s.extreme_step[0].is_finite() {
         println!(
@@ -264,7 +267,11 @@ fn print_summary(scene: &Scene, result: &RunResult) {
         if scene.baselines {
             print!("  1-DOF x [um]  1-DOF y [um]");
         }
-        println!("  status");
+        print!("  status");
+        if steady {
+            print!("  motion");
+        }
+        println!();
         for (label, r) in labels.iter().zip(&result.records) {
             print!(
                 "  {label:width$}  {:>11}  {:>11}",
@@ -278,9 +285,28 @@ fn print_summary(scene: &Scene, result: &RunResult) {
                     um(r.baseline_step[1])
                 );
             }
-            println!("  {}", r.status.max(r.baseline_status));
+            print!("  {:>6}", r.status.max(r.baseline_status));
+            if steady {
+                print!("  {}", r.motion.name());
+            }
+            println!();
         }
     }
+}
+
+/// The run summary's counts of each kind of motion, the kinds a steady
+/// measurement decides first and undetermined last: "12 periodic, 40
+/// quasi_periodic, 3 irregular, 1 undetermined". `counts` is indexed by
+/// code, as `Summary::motion` is.
+fn motion_counts(counts: &[u64; Motion::ALL.len()]) -> String {
+    let order = Motion::ALL
+        .into_iter()
+        .filter(|&m| m != Motion::Undetermined)
+        .chain([Motion::Undetermined]);
+    order
+        .map(|m| format!("{} {}", counts[m.code() as usize], m.name()))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Names instance `index` of a scene by what sets it apart: its grid

@@ -17,7 +17,7 @@ use hdf5::File;
 use crate::output::claim::is_same_file;
 use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo, read_str_attr, schema};
 use crate::scene::Scene;
-use crate::sweep::Record;
+use crate::sweep::{Record, stored_motion};
 
 pub use crate::output::shard_spec::ShardSpec;
 
@@ -128,8 +128,9 @@ impl ShardFile {
 
     /// Reads the records at positions `at .. at + n` of the shard's maps,
     /// which hold the instances from flat index `first` on, and checks that
-    /// they can be right: a known status, finite values, and zeros where
-    /// an instance did not finish normally.
+    /// they can be right: a known status and motion, finite values, and
+    /// zeros (and no kind of motion) where an instance did not finish
+    /// normally.
     fn records(&self, at: u64, n: u64, first: u64, baselines: bool) -> Result<Vec<Record>> {
         let range = at as usize..(at + n) as usize;
         let f64s = |path: &str| self.column::<f64>(path, range.clone());
@@ -140,6 +141,7 @@ impl ShardFile {
         let (status, steps) = (u32s(schema::STATUS)?, u32s(&map(5))?);
         let (se_x, se_y) = (f64s(&map(6))?, f64s(&map(7))?);
         let (periods, lags) = (u32s(&map(8))?, u32s(&map(9))?);
+        let motion = self.column::<u8>(schema::MOTION, range.clone())?;
         let zeros_f = vec![0.0; n as usize];
         let zeros_u = vec![0; n as usize];
         let (base_x, base_y, base_status) = if baselines {
@@ -151,27 +153,33 @@ impl ShardFile {
         } else {
             (zeros_f.clone(), zeros_f, zeros_u)
         };
+        let cannot_be_right = |k: usize, why: String| {
+            anyhow!(
+                "{}: instance {} cannot be right: {why}",
+                self.path.display(),
+                first + k as u64
+            )
+        };
         let records: Vec<Record> = (0..n as usize)
-            .map(|k| Record {
-                step: [step_x[k], step_y[k]],
-                velocity: [vel_x[k], vel_y[k]],
-                status: status[k],
-                steps: steps[k],
-                step_se: [se_x[k], se_y[k]],
-                periods: periods[k],
-                period_lag: lags[k],
-                motion: Default::default(),
-                baseline_step: [base_x[k], base_y[k]],
-                baseline_status: base_status[k],
+            .map(|k| {
+                let motion = stored_motion(motion[k]).map_err(|why| cannot_be_right(k, why))?;
+                Ok(Record {
+                    step: [step_x[k], step_y[k]],
+                    velocity: [vel_x[k], vel_y[k]],
+                    status: status[k],
+                    steps: steps[k],
+                    step_se: [se_x[k], se_y[k]],
+                    periods: periods[k],
+                    period_lag: lags[k],
+                    motion,
+                    baseline_step: [base_x[k], base_y[k]],
+                    baseline_status: base_status[k],
+                })
             })
-            .collect();
+            .collect::<Result<_>>()?;
         for (k, record) in records.iter().enumerate() {
             if let Some(why) = record.implausibility() {
-                bail!(
-                    "{}: instance {} cannot be right: {why}",
-                    self.path.display(),
-                    first + k as u64
-                );
+                return Err(cannot_be_right(k, why));
             }
         }
         Ok(records)

@@ -344,7 +344,9 @@ pub struct Record {
     pub periods: u32,
     /// Scene periods of the detected cycle, 0 when none.
     pub period_lag: u32,
-    /// The kind of motion a steady measurement found.
+    /// The kind of motion a steady measurement found: undetermined for a
+    /// window, a failed or "not steady" run, and an inferred point of a
+    /// refined map (`/maps/motion`).
     pub motion: Motion,
     pub status: u32,
     pub steps: u32,
@@ -356,10 +358,12 @@ pub struct Record {
 
 impl Record {
     /// Why a stored record cannot have been written by a run, if it cannot:
-    /// every status must be a known code, every value finite, and an
-    /// instance that did not finish normally must have zeros in its map
-    /// entries. Readers of result files and checkpoints ask this of every
-    /// record they take in.
+    /// every status must be a known code, every value finite, an instance
+    /// that did not finish normally must have zeros in its map entries,
+    /// and only an instance with status 0 has a kind of motion (any other
+    /// status is undetermined; a motion code that does not exist is
+    /// refused as it is read, by [`stored_motion`]). Readers of result
+    /// files and checkpoints ask this of every record they take in.
     pub fn implausibility(&self) -> Option<String> {
         for (what, code) in [
             ("status", self.status),
@@ -368,6 +372,15 @@ impl Record {
             if Status::from_code(code).is_none() {
                 return Some(format!("its {what} is {code}, which is no status code"));
             }
+        }
+        if self.status != STATUS_OK && self.motion != Motion::Undetermined {
+            return Some(format!(
+                "its status is {} ({}) but its motion is {}, not {}",
+                self.status,
+                Status::describe(self.status),
+                self.motion.name(),
+                Motion::Undetermined.name()
+            ));
         }
         let values = [
             ("step_x", self.step[0]),
@@ -396,6 +409,19 @@ impl Record {
             _ => None,
         }
     }
+}
+
+/// The kind of motion of a stored code (`/maps/motion`, a checkpoint's
+/// record), or why it cannot be right, in the words of
+/// [`Record::implausibility`]: a `Record` holds a [`Motion`], so a code
+/// that is none is refused here, as it is read.
+pub fn stored_motion(code: u8) -> Result<Motion, String> {
+    Motion::from_code(code).ok_or_else(|| {
+        format!(
+            "its motion is {code}, which is no motion code (flag_values {:?})",
+            Motion::flag_values()
+        )
+    })
 }
 
 pub use crate::backend::cpu::run_one;
@@ -454,6 +480,8 @@ pub struct Summary {
     pub status_counts: [u64; 8],
     /// Instances whose motion was found periodic (a steady measurement).
     pub periodic: u64,
+    /// Instances per kind of motion (index = `Motion::code`).
+    pub motion: [u64; Motion::ALL.len()],
     /// Largest standard error of a step among instances that keep values
     /// [m per own drive cycle].
     pub largest_se: f64,
@@ -492,6 +520,7 @@ impl Default for Summary {
             instances: 0,
             status_counts: [0; 8],
             periodic: 0,
+            motion: [0; Motion::ALL.len()],
             largest_se: 0.0,
             periods: 0,
             max_periods: 0,
@@ -518,6 +547,9 @@ impl Summary {
         }
         self.steps += other.steps;
         self.periodic += other.periodic;
+        for (a, b) in self.motion.iter_mut().zip(other.motion) {
+            *a += b;
+        }
         self.largest_se = self.largest_se.max(other.largest_se);
         self.periods += other.periods;
         self.max_periods = self.max_periods.max(other.max_periods);
@@ -560,6 +592,7 @@ impl Summary {
         self.status_counts[(rec.status as usize).min(7)] += 1;
         self.steps += rec.steps as u64;
         self.periodic += (rec.period_lag > 0) as u64;
+        self.motion[rec.motion.code() as usize] += 1;
         if keeps_values(rec.status) {
             self.largest_se = self.largest_se.max(rec.step_se[0]).max(rec.step_se[1]);
         }
@@ -922,5 +955,69 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn only_a_finished_record_has_a_kind_of_motion() {
+        let ok = Record {
+            step: [1e-7, -2e-7],
+            motion: Motion::Periodic,
+            ..Record::default()
+        };
+        assert_eq!(ok.implausibility(), None);
+        // A window, an inferred point: status 0 and undetermined.
+        assert_eq!(Record::default().implausibility(), None);
+        // "Not steady" keeps its estimate but has no kind of motion.
+        let not_steady = Record {
+            status: crate::cpu::integrate::constants::STATUS_NOT_STEADY,
+            ..ok
+        };
+        let why = not_steady.implausibility().expect("refused");
+        assert!(
+            why.starts_with("its status is 6 (not steady")
+                && why.ends_with("but its motion is periodic, not undetermined"),
+            "{why}"
+        );
+        let failed = Record {
+            status: 1,
+            motion: Motion::Irregular,
+            ..Record::default()
+        };
+        let why = failed.implausibility().expect("refused");
+        assert!(why.contains("its motion is irregular"), "{why}");
+        let failed = Record {
+            motion: Motion::Undetermined,
+            ..failed
+        };
+        assert_eq!(failed.implausibility(), None);
+        // Stored codes: every kind, and no other.
+        for motion in Motion::ALL {
+            assert_eq!(stored_motion(motion.code()), Ok(motion));
+        }
+        let why = stored_motion(4).unwrap_err();
+        assert_eq!(
+            why,
+            "its motion is 4, which is no motion code (flag_values [0, 1, 2, 3])"
+        );
+    }
+
+    #[test]
+    fn the_summary_counts_every_kind_of_motion() {
+        let mut a = Summary::default();
+        for (k, motion) in [Motion::Periodic, Motion::Irregular, Motion::Periodic]
+            .into_iter()
+            .enumerate()
+        {
+            let rec = Record {
+                motion,
+                ..Record::default()
+            };
+            a.add(&rec, k as u64);
+        }
+        let mut b = Summary::default();
+        b.add(&Record::default(), 3);
+        b.merge(&a);
+        assert_eq!(a.motion, [0, 2, 0, 1]);
+        assert_eq!(b.motion, [1, 2, 0, 1]);
     }
 }

@@ -72,6 +72,16 @@ def open(path: PathLike) -> xr.Dataset:
       ``status``, ``steps``, ...) and under ``/baseline`` with the prefix
       ``baseline_`` (``baseline_step_x`` [m per own drive cycle], ...), each with
       its ``units`` and ``long_name``;
+    - ``motion`` (uint8, units 1): the kind of motion the steady measurement found,
+      with the CF attributes ``flag_values`` (the codes, a uint8 array) and
+      ``flag_meanings`` (their names, space separated, in code order):
+      0 ``undetermined`` (a fixed window, "not steady", a failed run or an
+      inferred point of a refined map), 1 ``periodic`` (the state repeated),
+      2 ``quasi_periodic`` (the increments are a smooth function of the faster
+      drive's phase), 3 ``irregular`` (only the batch means converged); absent
+      from files written before it existed. ``ds.motion == 1`` selects the
+      periodic instances; ``dict(zip(ds.motion.attrs["flag_meanings"].split(),
+      ds.motion.attrs["flag_values"]))`` names the codes;
     - attributes: the file's root attributes: ``scene`` (the TOML text), ``name``,
       ``pidm_version``, ``backend``, ``precision``, ``tolerance`` [rad],
       ``wall_time_s`` [s, every part of the run], ``wall_time_parts_s`` [s, each

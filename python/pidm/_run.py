@@ -169,8 +169,9 @@ def run(
         Loaded in memory (see :func:`pidm.open`): the grid axes as dimensions and
         coordinates with ``units``, every map as a data variable (``step_x``,
         ``step_y`` [m per own drive cycle], ``velocity_x``, ``velocity_y`` [m/s],
-        ``status``, ``steps``, ``baseline_*``, ...), the scene and run facts as
-        attributes. A run where some instances did not finish normally warns
+        ``status``, ``steps``, ``motion`` (uint8 kind of motion with CF
+        ``flag_values`` and ``flag_meanings``), ``baseline_*``, ...), the scene and
+        run facts as attributes. A run where some instances did not finish normally warns
         (RunWarning); mask the maps with ``status == 0``.
 
     Raises

@@ -8,7 +8,10 @@
 //!   `units` attribute (a points scene has `/axes/point` and `/labels`);
 //! - `/maps/step_x`, `/maps/step_y` [m per own drive cycle],
 //!   `/maps/velocity_x`, `/maps/velocity_y` [m/s], `/maps/status`,
-//!   `/maps/steps`, each shaped like the grid;
+//!   `/maps/steps`, `/maps/step_x_se`, `/maps/step_y_se` [m per own drive
+//!   cycle], `/maps/periods`, `/maps/period_lag`, and `/maps/motion` (u8,
+//!   the codes of `crate::motion::Motion`, with CF `flag_values` and
+//!   `flag_meanings`), each shaped like the grid;
 //! - `/baseline/step_x`, `/baseline/step_y`, `/baseline/status` when
 //!   baselines are asked for;
 //! - `/trajectories/<k>/` when the scene asks for trajectories (written by
@@ -238,6 +241,22 @@ pub(crate) mod dimension_scales {
     }
 }
 
+/// The CF attributes of `/maps/motion`: `flag_values`, every code as u8
+/// (the map's type, as CF asks), and `flag_meanings`, their names in code
+/// order, both from [`crate::motion::Motion`].
+fn write_motion_flags(ds: &Dataset) -> Result<()> {
+    let values = crate::motion::Motion::flag_values();
+    ds.new_attr::<u8>()
+        .shape(values.len())
+        .create(schema::FLAG_VALUES)?
+        .write_raw(&values)?;
+    write_str_attr(
+        ds,
+        schema::FLAG_MEANINGS,
+        &crate::motion::Motion::flag_meanings(),
+    )
+}
+
 pub(crate) fn write_f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> Result<()> {
     loc.new_attr::<f64>().create(name)?.write_scalar(&value)?;
     Ok(())
@@ -368,11 +387,11 @@ impl MapWriter {
             )?;
         }
 
-        let make = |group: &hdf5::Group, name: &str, integer: bool| -> Result<Dataset> {
-            let builder = if integer {
-                group.new_dataset::<u32>()
-            } else {
-                group.new_dataset::<f64>()
+        let make = |group: &hdf5::Group, name: &str, ty: schema::MapType| -> Result<Dataset> {
+            let builder = match ty {
+                schema::MapType::F64 => group.new_dataset::<f64>(),
+                schema::MapType::U32 => group.new_dataset::<u32>(),
+                schema::MapType::U8 => group.new_dataset::<u8>(),
             };
             let builder = builder.shape(map_shape.clone());
             let ds = match chunk_shape(&map_shape) {
@@ -398,14 +417,17 @@ impl MapWriter {
             };
         let maps = file.create_group(schema::MAPS)?;
         for d in schema::MAP_DATASETS {
-            let ds = make(&maps, d.name, d.integer)?;
+            let ds = make(&maps, d.name, d.ty)?;
             describe(&ds, schema::MAPS, d.name, d.units, d.long_name)?;
+            if d.name == schema::MOTION_NAME {
+                write_motion_flags(&ds)?;
+            }
             writer.maps.push(ds);
         }
         if info.baselines {
             let group = file.create_group(schema::BASELINE)?;
             for d in schema::BASELINE_DATASETS {
-                let ds = make(&group, d.name, d.integer)?;
+                let ds = make(&group, d.name, d.ty)?;
                 describe(&ds, schema::BASELINE, d.name, d.units, d.long_name)?;
                 writer.baselines.push(ds);
             }
@@ -440,6 +462,8 @@ impl MapWriter {
             start,
             &take_u32(&|r| r.period_lag),
         )?;
+        let motion: Vec<u8> = records.iter().map(|r| r.motion.code()).collect();
+        write_flat(&self.maps[10], &self.shape, start, &motion)?;
         if !self.baselines.is_empty() {
             write_flat(
                 &self.baselines[0],

@@ -17,58 +17,78 @@ pub struct MapDataset {
     pub units: &'static str,
     /// The `long_name` attribute.
     pub long_name: &'static str,
-    /// Whether it holds u32 (else f64).
-    pub integer: bool,
+    /// The type of its entries.
+    pub ty: MapType,
+}
+
+/// The element type of a map dataset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapType {
+    /// Values with units (steps, velocities, standard errors).
+    F64,
+    /// Codes and counts (status, steps, periods).
+    U32,
+    /// Small codes (the kind of motion, [`crate::motion::Motion`]).
+    U8,
+}
+
+impl MapType {
+    /// Bytes one entry takes.
+    pub const fn bytes(self) -> u64 {
+        match self {
+            MapType::F64 => 8,
+            MapType::U32 => 4,
+            MapType::U8 => 1,
+        }
+    }
 }
 
 impl MapDataset {
     /// Bytes one entry takes.
     pub const fn bytes(&self) -> u64 {
-        if self.integer { 4 } else { 8 }
+        self.ty.bytes()
     }
 }
 
+use MapType::{F64, U8, U32};
+
 /// The datasets under [`MAPS`], in the order `Record` fields are written.
-pub const MAP_DATASETS: [MapDataset; 10] = [
-    map(
-        "step_x",
-        "m",
-        "slider step along x per x drive cycle",
-        false,
-    ),
-    map(
-        "step_y",
-        "m",
-        "slider step along y per y drive cycle",
-        false,
-    ),
-    map("velocity_x", "m/s", "mean slider velocity along x", false),
-    map("velocity_y", "m/s", "mean slider velocity along y", false),
-    map("status", "1", "integrator status code (0 = ok)", true),
-    map("steps", "1", "integrator steps taken", true),
+pub const MAP_DATASETS: [MapDataset; 11] = [
+    map("step_x", "m", "slider step along x per x drive cycle", F64),
+    map("step_y", "m", "slider step along y per y drive cycle", F64),
+    map("velocity_x", "m/s", "mean slider velocity along x", F64),
+    map("velocity_y", "m/s", "mean slider velocity along y", F64),
+    map("status", "1", "integrator status code (0 = ok)", U32),
+    map("steps", "1", "integrator steps taken", U32),
     map(
         "step_x_se",
         "m",
         "standard error of step_x (0 when periodic or a fixed window)",
-        false,
+        F64,
     ),
     map(
         "step_y_se",
         "m",
         "standard error of step_y (0 when periodic or a fixed window)",
-        false,
+        F64,
     ),
     map(
         "periods",
         "1",
         "scene periods integrated, settle included",
-        true,
+        U32,
     ),
     map(
         "period_lag",
         "1",
         "scene periods of the detected cycle (0 when none)",
-        true,
+        U32,
+    ),
+    map(
+        MOTION_NAME,
+        "1",
+        "kind of motion the steady measurement found (flag_meanings)",
+        U8,
     ),
 ];
 
@@ -78,19 +98,19 @@ pub const BASELINE_DATASETS: [MapDataset; 3] = [
         "step_x",
         "m",
         "1-DOF step along x with the y drive off",
-        false,
+        F64,
     ),
     map(
         "step_y",
         "m",
         "1-DOF step along y with the x drive off",
-        false,
+        F64,
     ),
     map(
         "status",
         "1",
         "integrator status code of the baselines (0 = ok)",
-        true,
+        U32,
     ),
 ];
 
@@ -98,13 +118,13 @@ const fn map(
     name: &'static str,
     units: &'static str,
     long_name: &'static str,
-    integer: bool,
+    ty: MapType,
 ) -> MapDataset {
     MapDataset {
         name,
         units,
         long_name,
-        integer,
+        ty,
     }
 }
 
@@ -163,6 +183,17 @@ pub const STATUS: &str = "maps/status";
 /// The standard errors of the steps per axis, shaped like the grid
 /// (absent from files written before the steady measurement).
 pub const STEP_SE: [&str; 2] = ["maps/step_x_se", "maps/step_y_se"];
+
+/// The kind of motion per instance (u8, the codes of
+/// [`crate::motion::Motion`]), shaped like the grid, with the CF attributes
+/// [`FLAG_VALUES`] and [`FLAG_MEANINGS`]. Absent from files written before
+/// it existed; `pidm plot` draws such a file without it.
+pub const MOTION_NAME: &str = "motion";
+pub const MOTION: &str = "maps/motion";
+/// CF attributes of a map of codes: every code (of the map's type) and
+/// their one-word names, space separated, in code order.
+pub const FLAG_VALUES: &str = "flag_values";
+pub const FLAG_MEANINGS: &str = "flag_meanings";
 
 /// A refined run's map of inferred values (`crate::refine`), u8 shaped like
 /// the grid: 1 where the value was interpolated (its standard errors are
@@ -264,14 +295,54 @@ mod tests {
             [0, 1].map(|k| path(MAPS, &MAP_DATASETS[k]))
         );
         assert_eq!(STATUS, path(MAPS, &MAP_DATASETS[4]));
+        assert_eq!(MOTION, path(MAPS, &MAP_DATASETS[10]));
+        assert_eq!(MAP_DATASETS[10].ty, MapType::U8);
         assert_eq!(
             BASELINE_STEP.map(String::from),
             [0, 1].map(|k| path(BASELINE, &BASELINE_DATASETS[k]))
         );
         assert_eq!(BASELINE_STATUS, path(BASELINE, &BASELINE_DATASETS[2]));
         assert_eq!(SHARD_INSTANCE, format!("{SHARD}/instance"));
-        // Four f64 maps and two u32 maps; two f64 and one u32 baselines.
-        assert_eq!(bytes_per_instance(false), 64);
-        assert_eq!(bytes_per_instance(true), 84);
+        // Six f64 maps (steps, velocities, standard errors), four u32 maps
+        // (status, steps, periods, period_lag) and the u8 motion map:
+        // 6 x 8 + 4 x 4 + 1; two f64 and one u32 baselines add 20.
+        assert_eq!(bytes_per_instance(false), 65);
+        assert_eq!(bytes_per_instance(true), 85);
+    }
+
+    /// The README's table of the kinds of motion, the codes `/maps/motion`
+    /// holds, lists every kind of `crate::motion::Motion` with its name
+    /// and meaning, in code order (here beside the map's schema, as
+    /// `status.rs` holds the status table).
+    #[test]
+    fn the_readme_table_lists_every_kind_of_motion_with_its_meaning() {
+        use crate::motion::Motion;
+        let readme = include_str!("../../README.md");
+        let section = readme
+            .split("\n## Kinds of motion\n")
+            .nth(1)
+            .expect("README has a Kinds of motion section");
+        let section = section.split("\n## ").next().unwrap();
+        assert!(section.contains("`/maps/motion`"), "{section}");
+        let rows: Vec<[String; 3]> = section
+            .lines()
+            .filter_map(|line| {
+                let cols: Vec<&str> = line.trim().trim_matches('|').split('|').collect();
+                let code = cols.first()?.trim();
+                code.parse::<u8>().ok()?;
+                Some([code, cols.get(1)?, cols.get(2)?].map(|c| c.trim().to_string()))
+            })
+            .collect();
+        let want: Vec<[String; 3]> = Motion::ALL
+            .iter()
+            .map(|m| {
+                [
+                    m.code().to_string(),
+                    m.name().to_string(),
+                    m.meaning().to_string(),
+                ]
+            })
+            .collect();
+        assert_eq!(rows, want);
     }
 }

@@ -1,5 +1,6 @@
 //! The bar chart of a points scene (or of a single instance): the steps
-//! per point, with the baselines beside them.
+//! per point, with the baselines beside them, and under each label its kind
+//! of motion when the file has one.
 
 use std::path::{Path, PathBuf};
 
@@ -49,6 +50,13 @@ pub(super) fn point_bars(
         title.push(format!(
             "{failed} points ended with a non-zero status: drawn as grey stubs, no value"
         ));
+    }
+    let motion = data.motion_shown();
+    if motion.is_some() {
+        title.push(
+            "under each label: the kind of motion the steady measurement found (/maps/motion)"
+                .to_owned(),
+        );
     }
     let width = (1100u32).max(220 * n as u32 + LEGEND_WIDTH + 120).min(4000);
     let path = dir.join("steps.png");
@@ -121,6 +129,13 @@ pub(super) fn point_bars(
                 &font(16).pos(Pos::new(HPos::Center, VPos::Top)),
                 (px, py + 8),
             )?;
+            if let Some(motion) = motion {
+                root.draw_text(
+                    motion[k].name(),
+                    &font(14).pos(Pos::new(HPos::Center, VPos::Top)),
+                    (px, py + 28),
+                )?;
+            }
         }
         let mut items = vec![
             (X_COLOUR, "2-DOF step along x".to_owned()),

@@ -1,5 +1,6 @@
 //! Line plots of a grid with one axis: the steps against it, and the ratio
-//! of 2-DOF to 1-DOF steps with their regimes.
+//! of 2-DOF to 1-DOF steps with their regimes; beside them the strip of
+//! the kinds of motion (`motion`).
 
 use std::path::{Path, PathBuf};
 
@@ -193,6 +194,12 @@ pub(super) fn grid_lines(
     }
     .draw(&path)?;
     files.push(path);
+
+    if let Some(motion) = data.motion_shown() {
+        let path = dir.join("motion.png");
+        super::motion::motion_strip(&path, data, motion, axis)?;
+        files.push(path);
+    }
 
     let Some((base, bstatus)) = &data.baseline else {
         return Ok(());

@@ -1,5 +1,5 @@
-//! The maps of a grid with two or more axes: step, ratio and regime
-//! heatmaps for every 2-D slice.
+//! The maps of a grid with two or more axes: step, ratio, regime and
+//! motion heatmaps for every 2-D slice.
 
 use std::path::{Path, PathBuf};
 
@@ -534,6 +534,13 @@ pub(super) fn grid_maps(
                 &|i, j| regime(flat(i, j)).colour(),
                 &MapLegend::Categories(items),
             )?;
+            files.push(path);
+        }
+        if let Some(motion) = data.motion_shown() {
+            let mut extra: Vec<String> = slice_line.iter().cloned().collect();
+            extra.extend(data.fixed.clone());
+            let path = dir.join(format!("motion{suffix}.png"));
+            super::motion::motion_map(&path, data, motion, across, up, &flat, &cells, &extra)?;
             files.push(path);
         }
     }

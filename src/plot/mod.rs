@@ -10,11 +10,13 @@
 //!   on a diverging colour scale centred on zero with symmetric limits, so a
 //!   reversal of direction shows as a change of hue; with baselines also the
 //!   ratio of the 2-DOF step to the 1-DOF step per axis and a map of the
-//!   coupling regime ([`Regime`]);
+//!   coupling regime ([`Regime`]); with kinds of motion (`/maps/motion`
+//!   of a steady measurement), a categorical map of them per slice;
 //! - a grid with one axis: line plots of the steps (and baselines, ratios
-//!   and regimes);
+//!   and regimes), and a strip of the kinds of motion;
 //! - a points scene (or a single instance): a bar chart of the steps, with
-//!   the baselines beside them;
+//!   the baselines beside them and each point's kind of motion under its
+//!   label;
 //! - every stored trajectory: stage and slider displacement against time
 //!   per axis and the slider's path in the x-y plane, like the paper's
 //!   Figs. 5-8.
@@ -32,7 +34,8 @@
 //! - reading: `crate::output::schema` (the names read), `error`, `checked` (checked
 //!   access to one HDF5 file), `read` (maps, baselines, axes, labels) and
 //!   `read_trajectories`;
-//! - colours and classes: `colour`, `regime`;
+//! - colours and classes: `colour`, `regime`, `motion` (also its
+//!   pictures);
 //! - drawing helpers: `canvas` (fonts, titles, swatches, PNG writing),
 //!   `text` (labels and numbers), `placement` (linear or log axes);
 //! - pictures: `heatmap` (one map), `maps` (the maps of an N-D grid),
@@ -47,6 +50,7 @@ mod error;
 mod heatmap;
 mod lines;
 mod maps;
+mod motion;
 mod placement;
 mod read;
 mod read_trajectories;

@@ -17,6 +17,8 @@ use std::path::Path;
 use super::checked::{Array, Checked, ResultFile, is_plausible, join};
 use super::error::{Problem, ResultFileError};
 use super::read_trajectories::{TrajectoryData, read_trajectories};
+use crate::model::Measure;
+use crate::motion::Motion;
 use crate::output::schema;
 use crate::scene::{Layout, Scene};
 
@@ -58,6 +60,9 @@ pub(super) struct Data {
     /// 1 where a refined map's value was interpolated (`/maps/inferred`),
     /// when stored.
     pub(super) inferred: Option<Vec<u32>>,
+    /// The kind of motion per instance (`/maps/motion`), when stored (files
+    /// written before it existed have none).
+    pub(super) motion: Option<Vec<Motion>>,
     pub(super) trajectories: Vec<TrajectoryData>,
     /// Things the reader should know (guessed axis order, values left out).
     pub(super) notes: Vec<String>,
@@ -140,6 +145,22 @@ impl Data {
         } else {
             None
         };
+        let motion = read_motion(&file, &shape)?;
+        if motion
+            .as_ref()
+            .is_some_and(|m| m.iter().all(|&k| k == Motion::Undetermined))
+            && scene
+                .as_ref()
+                .is_some_and(|s| matches!(s.instance(0).measure, Measure::Steady { .. }))
+        {
+            notes.push(format!(
+                "every instance's /{} is {}: the steady measurement reached no verdict \
+                 (see /{}); no picture of the kinds of motion is drawn",
+                schema::MOTION,
+                Motion::Undetermined.name(),
+                schema::STATUS
+            ));
+        }
         let points = matches!(
             scene,
             Some(Scene {
@@ -169,11 +190,53 @@ impl Data {
             baseline,
             step_se,
             inferred,
+            motion,
             trajectories,
             notes,
             fixed,
         })
     }
+}
+
+impl Data {
+    /// The kinds of motion to draw: `/maps/motion` when the file has it
+    /// and some instance has a kind (a window measurement has none, so its
+    /// pictures are those of files without the map).
+    pub(super) fn motion_shown(&self) -> Option<&[Motion]> {
+        self.motion
+            .as_deref()
+            .filter(|m| m.iter().any(|&k| k != Motion::Undetermined))
+    }
+}
+
+/// Reads `/maps/motion` when the file has it: integer codes shaped like
+/// the maps, each one of [`Motion`]'s.
+fn read_motion(file: &ResultFile, shape: &[usize]) -> Checked<Option<Vec<Motion>>> {
+    if !file.exists(schema::MOTION) {
+        return Ok(None);
+    }
+    let codes = file.integers(schema::MOTION)?;
+    file.expect_shape(&codes, shape, format!("the shape of /{}", schema::STEP[0]))?;
+    let kinds = codes
+        .values
+        .iter()
+        .map(|&v| {
+            u8::try_from(v)
+                .ok()
+                .and_then(Motion::from_code)
+                .ok_or_else(|| {
+                    file.dataset_error(
+                        schema::MOTION,
+                        Problem::Invalid(format!(
+                            "holds {v}: expected one of the motion codes {:?} ({})",
+                            Motion::flag_values(),
+                            Motion::flag_meanings()
+                        )),
+                    )
+                })
+        })
+        .collect::<Checked<_>>()?;
+    Ok(Some(kinds))
 }
 
 /// Reads the step maps `step` and the status map `status`, checks that

@@ -7,8 +7,9 @@
 //! leaf's, whose corners are nearer. Its status is 0: a leaf's corners all
 //! finished normally (a corner that did not flags its cell), so its
 //! interior is taken to as well, and `/maps/inferred` says it was not
-//! integrated. Its counts (`steps`, `periods`, `period_lag`) are 0: no
-//! integration took place there.
+//! integrated. Its counts (`steps`, `periods`, `period_lag`) are 0 and its
+//! motion undetermined: no integration took place there, and a kind of
+//! motion is not interpolated.
 
 use super::grid::Cell;
 use super::rule::weights;
@@ -36,6 +37,7 @@ pub fn bilinear(corners: &[Record; 4], u: f64, v: f64) -> Record {
         // marks them (README, "Adaptive maps").
         step_se: mix(&|r| r.step_se),
         baseline_step: mix(&|r| r.baseline_step),
+        // Counts 0, motion undetermined: nothing was integrated here.
         ..Record::default()
     }
 }
@@ -68,4 +70,27 @@ pub fn raster(r: &Refinement, records: &[Option<Record>]) -> (Vec<Record>, Vec<u
         }
     }
     (out, inferred)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::motion::Motion;
+
+    #[test]
+    fn an_inferred_point_has_no_kind_of_motion_and_no_counts() {
+        let corner = |k: u32| Record {
+            step: [k as f64 * 1e-7, 0.0],
+            periods: 40 + k,
+            period_lag: 5,
+            steps: 1000,
+            motion: Motion::Periodic,
+            ..Record::default()
+        };
+        let got = bilinear(&[corner(0), corner(1), corner(2), corner(3)], 0.5, 0.5);
+        assert_eq!(got.motion, Motion::Undetermined);
+        assert_eq!((got.periods, got.period_lag, got.steps), (0, 0, 0));
+        assert!(got.step[0] > 0.0);
+        assert_eq!(got.implausibility(), None);
+    }
 }

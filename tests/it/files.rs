@@ -209,8 +209,9 @@ fn shards_merge_into_the_single_run_bit_for_bit() {
 /// Waits until the checkpoint holds at least `entries` chunk entries of
 /// `chunk` records, beyond its size when first seen (the header).
 fn wait_for_checkpoint(path: &Path, entries: u64, chunk: u64) {
-    // An entry is a 16-byte head, 60 bytes per record and an 8-byte sum.
-    let entry = 16 + 60 * chunk + 8;
+    // An entry is a 32-byte head, 85 bytes per record and an 8-byte sum
+    // (`src/checkpoint.rs`).
+    let entry = 32 + 85 * chunk + 8;
     let deadline = Instant::now() + Duration::from_secs(120);
     let mut header = None;
     loop {
@@ -529,6 +530,28 @@ fn a_merge_names_the_shard_and_dataset_that_cannot_be_right() {
         &write_u32("maps/status", 0, 17),
         "its status is 17, which is no status code",
     );
+    let write_u8 = |name: &'static str, at: usize, value: u8| {
+        move |f: &hdf5::File| {
+            let ds = f.dataset(name).unwrap();
+            let mut v: Vec<u8> = ds.read_raw().unwrap();
+            v[at] = value;
+            ds.write_raw(&v).unwrap();
+        }
+    };
+    check(
+        "a motion that does not exist",
+        &write_u8("maps/motion", 1, 9),
+        "cannot be right: its motion is 9, which is no motion code (flag_values [0, 1, 2, 3])",
+    );
+    check(
+        "a failed instance with a kind of motion",
+        &|f: &hdf5::File| {
+            write_u32("maps/status", 0, 1)(f);
+            write_u8("maps/motion", 0, 1)(f);
+        },
+        "its status is 1 (step budget exceeded (simulation.max_steps_per_period)) but its \
+         motion is periodic, not undetermined",
+    );
     check(
         "a failed instance with a step",
         &|f: &hdf5::File| {
@@ -681,9 +704,9 @@ fn shard_damage() -> impl proptest::strategy::Strategy<Value = Vec<ShardDamage>>
         any::<f64>(),
     ];
     let one = prop_oneof![
-        (0..10usize).prop_map(ShardDamage::Delete),
-        (0..10usize, 0..12usize).prop_map(|(k, n)| ShardDamage::Resize(k, n)),
-        (0..10usize, any::<usize>(), value).prop_map(|(k, at, v)| ShardDamage::Set(k, at, v)),
+        (0..15usize).prop_map(ShardDamage::Delete),
+        (0..15usize, 0..12usize).prop_map(|(k, n)| ShardDamage::Resize(k, n)),
+        (0..15usize, any::<usize>(), value).prop_map(|(k, at, v)| ShardDamage::Set(k, at, v)),
     ];
     proptest::collection::vec(one, 1..4)
 }
@@ -721,9 +744,12 @@ fn a_merge_of_damaged_shards_gives_an_error_or_a_plausible_file() {
                 let file = hdf5::File::open(&out).unwrap();
                 let status: Vec<u32> = file.dataset("maps/status").unwrap().read_raw().unwrap();
                 let step: Vec<f64> = file.dataset("maps/step_x").unwrap().read_raw().unwrap();
-                for (s, x) in status.iter().zip(&step) {
+                let motion: Vec<u8> = file.dataset("maps/motion").unwrap().read_raw().unwrap();
+                for ((s, x), m) in status.iter().zip(&step).zip(&motion) {
                     proptest::prop_assert!(pidm::status::Status::from_code(*s).is_some());
                     proptest::prop_assert!(x.is_finite());
+                    proptest::prop_assert!(pidm::motion::Motion::from_code(*m).is_some());
+                    proptest::prop_assert!(*s == 0 || *m == 0);
                 }
             } else {
                 proptest::prop_assert!(!out.exists());

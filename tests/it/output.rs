@@ -2,7 +2,8 @@
 //! is complete or absent.
 
 use hdf5::types::VarLenUnicode;
-use pidm::output::{AxisInfo, FileInfo, MapWriter, OutputClaim};
+use pidm::motion::Motion;
+use pidm::output::{AxisInfo, FileInfo, MapWriter, OutputClaim, schema};
 use pidm::sweep::Record;
 
 fn info(shape: Vec<usize>, baselines: bool) -> FileInfo {
@@ -30,6 +31,16 @@ fn info(shape: Vec<usize>, baselines: bool) -> FileInfo {
     }
 }
 
+/// The kind of motion of `record(i)`: every kind in turn where the status
+/// is 0, undetermined elsewhere (a failed run has no kind).
+fn motion(i: usize) -> Motion {
+    if i.is_multiple_of(3) {
+        Motion::ALL[(i / 3) % Motion::ALL.len()]
+    } else {
+        Motion::Undetermined
+    }
+}
+
 fn record(i: usize) -> Record {
     Record {
         step: [i as f64 * 1e-9, -(i as f64) * 1e-9],
@@ -39,7 +50,7 @@ fn record(i: usize) -> Record {
         step_se: [i as f64 * 1e-12, 0.0],
         periods: 10 + i as u32,
         period_lag: (i % 2) as u32,
-        motion: Default::default(),
+        motion: motion(i),
         baseline_step: [i as f64 + 0.5, i as f64 - 0.5],
         baseline_status: 0,
     }
@@ -86,6 +97,57 @@ fn maps_written_in_uneven_chunks_read_back_in_grid_order() {
         let v: VarLenUnicode = file.attr(name).unwrap().read_scalar().unwrap();
         assert!(!v.as_str().is_empty(), "{name}");
     }
+}
+
+/// `/maps/motion` reads back as u8 codes in grid order, with the CF
+/// attributes that name them, the units and long name, the dimension
+/// scales and the root link every map has.
+#[test]
+fn the_motion_map_reads_back_with_its_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("out.h5");
+    let shape = vec![4, 6];
+    let claim = OutputClaim::acquire(&path).unwrap();
+    let mut writer = MapWriter::create(&claim, &info(shape.clone(), false)).unwrap();
+    let recs: Vec<Record> = (0..24).map(record).collect();
+    writer.write(0, &recs[..11]).unwrap();
+    writer.write(11, &recs[11..]).unwrap();
+    writer.finish(&[0.5]).unwrap();
+
+    let file = hdf5::File::open(&path).unwrap();
+    let ds = file.dataset(schema::MOTION).unwrap();
+    assert_eq!(ds.shape(), shape);
+    assert!(ds.dtype().unwrap().is::<u8>(), "motion is u8");
+    let codes: Vec<u8> = ds.read_raw().unwrap();
+    let want: Vec<u8> = (0..24).map(|i| motion(i).code()).collect();
+    assert_eq!(codes, want);
+    // Every kind is there, so the read-back sees each code.
+    for kind in Motion::ALL {
+        assert!(codes.contains(&kind.code()), "{kind:?}");
+    }
+    let flag_values = ds.attr(schema::FLAG_VALUES).unwrap();
+    assert!(flag_values.dtype().unwrap().is::<u8>(), "flag_values is u8");
+    assert_eq!(flag_values.read_raw::<u8>().unwrap(), [0, 1, 2, 3]);
+    let text = |name: &str| -> String {
+        let v: VarLenUnicode = ds.attr(name).unwrap().read_scalar().unwrap();
+        v.as_str().to_owned()
+    };
+    assert_eq!(
+        text(schema::FLAG_MEANINGS),
+        "undetermined periodic quasi_periodic irregular"
+    );
+    assert_eq!(text("units"), "1");
+    assert!(text("long_name").contains("kind of motion"));
+    // The same dimension scales as every map, and the root link.
+    assert!(ds.attr("DIMENSION_LIST").is_ok());
+    let step = file.dataset("maps/step_x").unwrap();
+    assert_eq!(
+        ds.attr_names().unwrap().len(),
+        step.attr_names().unwrap().len() + 2,
+        "the attributes of a map and the two flags"
+    );
+    let linked: Vec<u8> = file.dataset("motion").unwrap().read_raw().unwrap();
+    assert_eq!(linked, want);
 }
 
 #[test]

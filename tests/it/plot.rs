@@ -155,6 +155,119 @@ fn a_one_axis_grid_gives_line_plots_and_a_missing_file_is_an_error() {
     assert!(err.contains("nothing.h5"), "{err}");
 }
 
+/// How many pixels of the PNG at `path` have exactly `colour`.
+fn pixels_of(path: &Path, colour: [u8; 3]) -> usize {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap();
+    let mut pixels = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut pixels).unwrap();
+    pixels[..info.buffer_size()]
+        .chunks(3)
+        .filter(|c| *c == colour)
+        .count()
+}
+
+/// The colours of periodic, irregular and not-steady cells in the motion
+/// pictures (`src/plot/motion.rs`).
+const PERIODIC: [u8; 3] = [33, 102, 172];
+const IRREGULAR: [u8; 3] = [230, 97, 1];
+const NOT_STEADY: [u8; 3] = [200, 200, 200];
+
+#[test]
+fn a_steady_grid_gives_a_map_of_the_kinds_of_motion() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 10 Hz against 14 Hz repeats (lag 5); against 10 sqrt(3) Hz it does
+    // not: batch means decide.
+    std::fs::write(
+        d.join("kinds.toml"),
+        "name = \"kinds\"\n\
+         [axis.x]\nvoltage = [60.0, 100.0]\nfrequency = 10.0\n\
+         [axis.y]\nvoltage = 100.0\nfrequency = [14.0, 17.320508075688775]\n\
+         [simulation]\nstep_tolerance = 3e-8\nmax_cycles = 5000\n",
+    )
+    .unwrap();
+    ok(&["run", "kinds.toml", "--out", "kinds.h5"], d);
+    let stdout = ok(&["plot", "kinds.h5", "--out", "pics"], d);
+    let pics = d.join("pics");
+    assert_eq!(
+        pictures_in(&pics),
+        [
+            "motion.png",
+            "step_x.png",
+            "step_x_se.png",
+            "step_y.png",
+            "step_y_se.png"
+        ]
+    );
+    assert!(stdout.contains("wrote pics/motion.png"), "{stdout}");
+    let picture = pics.join("motion.png");
+    check_png(&picture);
+    // Half the map is periodic, half irregular: large areas of each
+    // colour, beyond the legend's swatches (18 x 18 px).
+    for (what, colour) in [("periodic", PERIODIC), ("irregular", IRREGULAR)] {
+        let n = pixels_of(&picture, colour);
+        assert!(n > 10_000, "{what}: {n} pixels");
+    }
+
+    // A file written before /maps/motion existed plots as before, without
+    // that picture.
+    let old = d.join("old.h5");
+    std::fs::copy(d.join("kinds.h5"), &old).unwrap();
+    edit(&old, |f| {
+        f.unlink("maps/motion")?;
+        f.unlink("motion")
+    });
+    ok(&["plot", "old.h5", "--out", "old"], d);
+    assert_eq!(
+        pictures_in(&d.join("old")),
+        ["step_x.png", "step_x_se.png", "step_y.png", "step_y_se.png"]
+    );
+
+    // A code that is no kind of motion is an error naming the dataset.
+    let bad = d.join("bad.h5");
+    std::fs::copy(d.join("kinds.h5"), &bad).unwrap();
+    edit(&bad, |f| {
+        f.dataset("maps/motion")?.write_raw(&[1u8, 3, 7, 3])
+    });
+    let out = pidm(&["plot", "bad.h5", "--out", "bad"], d);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("bad.h5")
+            && err.contains("dataset /maps/motion holds 7: expected one of the motion codes"),
+        "{err}"
+    );
+    assert!(!d.join("bad").exists());
+}
+
+#[test]
+fn a_steady_line_gives_a_strip_of_the_kinds_of_motion() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // 14 Hz repeats; 10 sqrt(3) Hz is stopped at max_cycles, not steady.
+    std::fs::write(
+        d.join("strip.toml"),
+        "name = \"strip\"\n\
+         [axis.x]\nvoltage = 100.0\nfrequency = 10.0\n\
+         [axis.y]\nvoltage = 100.0\nfrequency = [14.0, 17.320508075688775]\n\
+         [simulation]\nstep_tolerance = 3e-8\nmax_cycles = 200\n",
+    )
+    .unwrap();
+    ok(&["run", "strip.toml", "--out", "strip.h5"], d);
+    ok(&["plot", "strip.h5", "--out", "pics"], d);
+    let pics = d.join("pics");
+    assert_eq!(pictures_in(&pics), ["motion.png", "steps.png"]);
+    let picture = pics.join("motion.png");
+    check_png(&picture);
+    for (what, colour) in [("periodic", PERIODIC), ("not steady", NOT_STEADY)] {
+        let n = pixels_of(&picture, colour);
+        assert!(n > 10_000, "{what}: {n} pixels");
+    }
+}
+
 // ---------------------------------------------------------------------------
 // Damaged result files: every one is an error that names the file and the
 // dataset, never a panic, and leaves no picture behind.

@@ -476,3 +476,48 @@ fn shards_are_refused_with_refine() {
         !d.join("results").exists() || std::fs::read_dir(d.join("results")).unwrap().count() == 0
     );
 }
+
+/// A refined steady map writes `/maps/motion` like a uniform one: the
+/// integrated points keep the kind their measurement found, an inferred
+/// point (whose values are interpolated) is undetermined, and the run
+/// summary counts the integrated points' kinds.
+#[test]
+fn a_refined_steady_map_has_kinds_only_where_it_integrated() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let path = d.join("kinds.toml");
+    // 10 Hz against 20 Hz: every integrated point repeats (lag 1).
+    std::fs::write(
+        &path,
+        "name = \"kinds\"\n\
+         [axis.x]\nvoltage = { from = 80.0, to = 150.0, steps = 5 }\nfrequency = 10.0\n\
+         [axis.y]\nvoltage = { from = 80.0, to = 150.0, steps = 5 }\nfrequency = 20.0\n\
+         [simulation]\nstep_tolerance = 3e-8\nmax_cycles = 2000\n\
+         [refine]\nlevels = 2\n",
+    )
+    .unwrap();
+    let out = d.join("kinds.h5");
+    let summary = ok(&pidm(
+        &["run", s(&path), "--out", s(&out), "--backend", "cpu"],
+        d,
+    ));
+    let inferred: Vec<u8> = read(&out, schema::INFERRED);
+    let motion: Vec<u8> = read(&out, schema::MOTION);
+    assert_eq!(motion.len(), 17 * 17);
+    let integrated = inferred.iter().filter(|&&m| m == 0).count();
+    assert!(
+        integrated < motion.len(),
+        "nothing inferred: the test needs plains"
+    );
+    let periodic = pidm::motion::Motion::Periodic.code();
+    for (k, (&m, &i)) in motion.iter().zip(&inferred).enumerate() {
+        let want = if i == 1 { 0 } else { periodic };
+        assert_eq!(m, want, "point {k} (inferred {i})");
+    }
+    assert!(
+        summary.contains(&format!(
+            "motion: {integrated} periodic, 0 quasi_periodic, 0 irregular, 0 undetermined"
+        )),
+        "{summary}"
+    );
+}

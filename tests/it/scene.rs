@@ -408,30 +408,30 @@ fn bad_scenes_are_refused_with_clear_messages() {
         // Too many steps says so, with the maximum.
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 9223372036854775807 }",
-            "axis.x.voltage.steps = 9223372036854775807: too large; expected at most 134217728 \
+            "axis.x.voltage.steps = 9223372036854775807: too large; expected at most 132152839 \
              steps",
         ),
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 1e300 }",
-            "axis.x.voltage.steps = 1e300: too large; expected at most 134217728 steps",
+            "axis.x.voltage.steps = 1e300: too large; expected at most 132152839 steps",
         ),
         (
-            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 134217729 }",
-            "axis.x.voltage.steps = 134217729: too large",
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 132152840 }",
+            "axis.x.voltage.steps = 132152840: too large",
         ),
         // The memory budget.
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 100000 }\n[axis.y]\nvoltage = { from = 0, to = 1, steps = 100000 }",
-            "do not fit the memory budget: grid 100000 x 100000 = 10000000000 instances x 64 bytes",
+            "do not fit the memory budget: grid 100000 x 100000 = 10000000000 instances x 65 bytes",
         ),
         (
-            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 134217728 }\n\
-             gain = { from = 0, to = 1, steps = 134217728 }\n\
-             frequency = { from = 1, to = 2, steps = 134217728 }\n\
-             duty = { from = 0.5, to = 1, steps = 134217728 }\n\
-             phase = { from = 0, to = 1, steps = 134217728 }",
-            "grid 134217728 x 134217728 x 134217728 x 134217728 x 134217728 = more than \
-             340282366920938463463374607431768211455 instances x 64 bytes per instance = more \
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 132152839 }\n\
+             gain = { from = 0, to = 1, steps = 132152839 }\n\
+             frequency = { from = 1, to = 2, steps = 132152839 }\n\
+             duty = { from = 0.5, to = 1, steps = 132152839 }\n\
+             phase = { from = 0, to = 1, steps = 132152839 }",
+            "grid 132152839 x 132152839 x 132152839 x 132152839 x 132152839 = more than \
+             340282366920938463463374607431768211455 instances x 65 bytes per instance = more \
              than 340282366920938463463374607431768211455 bytes, over the budget",
         ),
         // Stage definitions.
@@ -1227,10 +1227,10 @@ fn memory_budget_names_shape_count_and_bytes() {
     let message = error.to_string();
     for needle in [
         "61 x 61 = 3721 instances",
-        // Six f64 and four u32 maps, two f64 and one u32 baselines: the
-        // bytes the result file holds per instance.
-        "84 bytes",
-        "312564 bytes",
+        // Six f64, four u32 and one u8 (motion) maps, two f64 and one u32
+        // baselines: the bytes the result file holds per instance.
+        "85 bytes",
+        "316285 bytes",
         "1000 bytes",
     ] {
         assert!(

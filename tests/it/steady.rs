@@ -267,6 +267,10 @@ fn steady_shards_merge_into_the_single_run_bit_for_bit() {
         stdout.contains("2 periodic (exact), 2 converged"),
         "{stdout}"
     );
+    assert!(
+        stdout.contains("  motion: 2 periodic, 0 quasi_periodic, 2 irregular, 0 undetermined\n"),
+        "{stdout}"
+    );
     for k in 1..=2 {
         let out = pidm(
             &[
@@ -307,6 +311,21 @@ fn steady_shards_merge_into_the_single_run_bit_for_bit() {
     let periods: Vec<u32> = file.dataset("maps/periods").unwrap().read_raw().unwrap();
     // x slowest: (60 V, 14 Hz), (60 V, 17.3 Hz), (100 V, 14 Hz), ...
     assert_eq!(lag, [5, 0, 5, 0]);
+    // Periodic where a lag was found, irregular where batch means decided;
+    // the merged file holds the same (compare_contents above, attributes
+    // included), read here too.
+    let periodic = pidm::motion::Motion::Periodic.code();
+    let irregular = pidm::motion::Motion::Irregular.code();
+    for path in [&single, &merged] {
+        let file = hdf5::File::open(path).unwrap();
+        let motion: Vec<u8> = file.dataset("maps/motion").unwrap().read_raw().unwrap();
+        assert_eq!(
+            motion,
+            [periodic, irregular, periodic, irregular],
+            "{}",
+            path.display()
+        );
+    }
     assert!(
         se[0] == 0.0 && se[2] == 0.0 && se[1] > 0.0 && se[3] > 0.0,
         "{se:?}"

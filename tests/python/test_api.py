@@ -72,6 +72,8 @@ def test_the_dataset_has_the_grid_the_units_and_the_run_facts(tmp_path: Path) ->
         assert ds[name].dims == ds.step_x.dims
     assert ds.velocity_x.attrs["units"] == "m/s"
     assert (ds.status == 0).all()
+    # A fixed window decides no kind of motion.
+    assert (ds.motion == 0).all()
     for key in ("scene", "name", "pidm_version", "backend", "precision", "tolerance"):
         assert key in ds.attrs, key
     assert ds.attrs["name"] == "grid"
@@ -340,3 +342,38 @@ def test_a_refined_map_reads_like_a_uniform_one_with_its_inferred_mask(tmp_path:
     assert np.array_equal(np.flatnonzero(ds.inferred.values.ravel() == 0), index)
     assert 81 <= index.size < 33 * 33
     assert_same_maps(pidm.open(out), out)
+
+
+def test_a_steady_map_has_its_kinds_of_motion_with_their_flags(tmp_path: Path) -> None:
+    # 10 Hz against 14 Hz repeats (lag 5); against 10 sqrt(3) Hz only batch
+    # means converge.
+    scene = {
+        "name": "kinds",
+        "axis": {
+            "x": {"voltage": [60.0, 100.0], "frequency": 10.0},
+            "y": {"voltage": 100.0, "frequency": [14.0, 10.0 * 3.0**0.5]},
+        },
+        "simulation": {"step_tolerance": 3e-8, "max_cycles": 5000},
+    }
+    out = tmp_path / "kinds.h5"
+    ds = pidm.run(scene, backend="cpu", out=out, progress=False)
+    motion = ds.motion
+    assert motion.dtype == np.uint8
+    assert motion.dims == ds.step_x.dims
+    assert motion.attrs["units"] == "1"
+    assert "kind of motion" in motion.attrs["long_name"]
+    flag_values = motion.attrs["flag_values"]
+    assert isinstance(flag_values, np.ndarray) and flag_values.dtype == np.uint8
+    assert flag_values.tolist() == [0, 1, 2, 3]
+    assert motion.attrs["flag_meanings"] == "undetermined periodic quasi_periodic irregular"
+    codes = dict(zip(motion.attrs["flag_meanings"].split(), flag_values.tolist(), strict=True))
+    assert motion.values.tolist() == [[codes["periodic"], codes["irregular"]]] * 2
+    # The periodic instances are those with a lag.
+    assert ((motion == codes["periodic"]) == (ds.period_lag > 0)).all()
+    # pidm.open and xarray's own reading agree, attributes included.
+    assert_same_maps(pidm.open(out), out)
+    with xr.open_dataset(out, engine="h5netcdf") as ref:
+        assert ref.motion.dtype == np.uint8
+        assert ref.motion.values.tobytes() == motion.values.tobytes()
+        assert ref.motion.attrs["flag_meanings"] == motion.attrs["flag_meanings"]
+        assert ref.motion.attrs["flag_values"].tolist() == [0, 1, 2, 3]
