@@ -12,6 +12,7 @@ mod files;
 mod gpu;
 mod mirror;
 mod output;
+mod phase;
 mod plot;
 mod plot_fuzz;
 mod progress;

@@ -614,3 +614,49 @@ pub fn wgsl_constants() -> String {
     ]
     .concat()
 }
+
+only_f64! {
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `common_period` of `fx` and `fy` [Hz], both driven, with the
+    /// scene period of the slower.
+    fn common(fx: f64, fy: f64) -> u32 {
+        let lowest = fx.min(fy);
+        let frequency = Vec2::new(fx, fy);
+        common_period(frequency, frequency * (1.0 / lowest), [true, true])
+    }
+
+    /// Frequencies as decimals give their exact common period, grid values
+    /// (from + i step) included; ratios without one give 0; short periods
+    /// come from the ratio whatever the decimals.
+    #[test]
+    fn common_periods_from_the_frequencies_as_written() {
+        let step = (39.9 - 5.1) / 15.0;
+        let grid = |i: f64| 5.1 + i * step;
+        let cases = [
+            (21.34, 23.66, 1067),
+            (grid(7.0), grid(8.0), 1067),
+            (5.1, 7.42, 255),
+            (grid(0.0), grid(1.0), 255),
+            (37.58, 39.9, 1879),
+            (10.0, 14.0, 5),
+            (10.0, 10.0 * 4.0 / 3.0, 3),
+            (10.0, 10.003, 10_000),
+            (6.006519, 29.34, 0),
+            (10.0, 10.0 * 2f64.sqrt(), 0),
+            (25.98, 25.98 * 0.96 * 2f64.sqrt(), 0),
+            (9.99991, 10.0, 0),
+        ];
+        for (fx, fy, expected) in cases {
+            assert_eq!(common(fx, fy), expected, "{fx} Hz and {fy} Hz");
+            assert_eq!(common(fy, fx), expected, "{fy} Hz and {fx} Hz");
+        }
+        // An undriven axis does not count.
+        let f = Vec2::new(21.34, 23.66);
+        assert_eq!(decimal_common_period(f, [true, false]), 1);
+        assert_eq!(decimal_common_period(f, [false, false]), 0);
+    }
+}
+}
