@@ -19,13 +19,13 @@ use pidm::measurement::{Measured, reduce};
 use pidm::model::{Axis, Instance, Measure};
 
 /// Allowed f32 error per axis: 0.005 um + 1 % of the CPU step [um].
-fn f32_allowance(cpu_step_um: f64) -> f64 {
+pub fn f32_allowance(cpu_step_um: f64) -> f64 {
     0.005 + 0.01 * cpu_step_um.abs()
 }
 
 /// Allowed f64 error per axis [um]: the f64 shader mirrors the CPU, so
 /// anything beyond rounding is a defect (measured: at most 8e-11 um).
-const F64_ALLOWANCE: f64 = 1e-9;
+pub const F64_ALLOWANCE: f64 = 1e-9;
 
 /// The CPU steps per scene period beyond which an instance is taken to sit
 /// in a band-edge sliding mode: 2-D slip whose relative velocity stays on
@@ -41,7 +41,7 @@ const SLIDING_MODE_STEPS_PER_PERIOD: u32 = 5_000;
 /// The GPU context shared by every test (building the pipelines costs
 /// seconds on lavapipe), or None (with a loud notice) where there is no
 /// adapter and `CI` is unset.
-fn context() -> Option<&'static GpuContext> {
+pub fn context() -> Option<&'static GpuContext> {
     static CONTEXT: OnceLock<Option<GpuContext>> = OnceLock::new();
     CONTEXT
         .get_or_init(|| match GpuContext::new(true) {
@@ -67,7 +67,7 @@ fn context() -> Option<&'static GpuContext> {
 }
 
 /// A batch that must run, without progress reports.
-fn gpu_batch(
+pub fn gpu_batch(
     ctx: &GpuContext,
     instances: &[Instance],
     settings: &Settings,
@@ -340,7 +340,7 @@ fn same_steps(label: &str, cpu: &[pidm::cpu::integrate::State], gpu: &[GpuOutcom
 /// The precisions the context can run; f64 only where the adapter has it.
 /// Under `CI` an adapter without f64 fails the test: CI's lavapipe has f64,
 /// and a skipped f64 comparison must not pass for one that ran.
-fn precisions(ctx: &GpuContext) -> Vec<Precision> {
+pub fn precisions(ctx: &GpuContext) -> Vec<Precision> {
     if ctx.supports_f64() {
         vec![Precision::F32, Precision::F64]
     } else {

@@ -10,6 +10,7 @@ mod crosscheck;
 mod extreme;
 mod files;
 mod gpu;
+mod gpu_phase;
 mod mirror;
 mod output;
 mod phase;
