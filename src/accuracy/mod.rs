@@ -21,8 +21,8 @@ use crate::sweep::Outcome;
 mod measurement;
 mod report;
 pub use measurement::{
-    MEASUREMENT_REFERENCE_MAX_CYCLES, MEASUREMENT_REFERENCE_TOLERANCE, has_two_frequencies,
-    measurement_reference, steady_method, window_method,
+    MEASUREMENT_REFERENCE_MAX_CYCLES, MEASUREMENT_REFERENCE_TOLERANCE, REFERENCE_WINDOW,
+    has_two_frequencies, lattice_length, measurement_reference, steady_method, window_method,
 };
 pub use report::{Report, reference_note, setting};
 
@@ -53,6 +53,8 @@ pub struct Point {
     /// Instances that did not finish normally ("not steady" ones among
     /// them: their values are compared too, as a map shows them).
     pub failed: usize,
+    /// Scene periods integrated per compared instance, on average.
+    pub periods: f64,
 }
 
 /// Steps [um] per instance and axis.
@@ -199,10 +201,14 @@ pub fn study(
             let mut sum = 0.0;
             let mut n = 0;
             let mut failed = 0;
+            let mut periods = 0.0;
+            let mut compared = 0;
             for (k, (g, r)) in got.iter().zip(&reference).enumerate() {
                 if excluded[k] {
                     continue;
                 }
+                periods += outcomes[k].periods as f64;
+                compared += 1;
                 // "Not steady" values are on the map: they are compared,
                 // and counted as failed to converge.
                 if outcomes[k].status != STATUS_OK {
@@ -225,6 +231,7 @@ pub fn study(
                 rms_error_um: (sum / n.max(1) as f64).sqrt(),
                 wall_s,
                 failed,
+                periods: periods / compared.max(1) as f64,
             };
             log(&point);
             points.push(point);
@@ -234,7 +241,8 @@ pub fn study(
 }
 
 /// Writes the study's data to HDF5: one group per method with `setting`,
-/// `max_error_um`, `rms_error_um`, `wall_s`, `failed`.
+/// `max_error_um`, `rms_error_um`, `wall_s`, `failed` and `periods` (per
+/// compared instance, on average).
 pub fn write_hdf5(path: &Path, scene_name: &str, points: &[Point]) -> Result<()> {
     let temp = path.with_extension("h5.partial");
     {
@@ -261,6 +269,7 @@ pub fn write_hdf5(path: &Path, scene_name: &str, points: &[Point]) -> Result<()>
                 ("rms_error_um", column(&|p| p.rms_error_um)),
                 ("wall_s", column(&|p| p.wall_s)),
                 ("failed", column(&|p| p.failed as f64)),
+                ("periods", column(&|p| p.periods)),
             ] {
                 group.new_dataset_builder().with_data(&data).create(key)?;
             }

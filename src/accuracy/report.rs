@@ -50,6 +50,7 @@ impl Report {
             references,
             methods,
             points,
+            false,
         );
     }
 
@@ -66,10 +67,17 @@ impl Report {
         let title = format!("Scene `{name}`: the measurement ({integrations} integrations)");
         let picture = format!("accuracy_{name}_measure.png");
         let intro = format!(
-            "Errors here are against the long-run mean step (MODEL.md section 4): a steady \
-             measurement of every instance to a standard error of {:.0e} m per own drive \
-             cycle, at most {} periods, at the scene's integration tolerance. Failed counts \
-             \"not steady\" instances, whose estimates are compared too.\n\n",
+            "Errors here are against the long-run mean step (MODEL.md section 4), measured \
+             without the estimator under study: where two drive frequencies have no common \
+             period up to 1,000 periods, the running mean over a lattice window of at most \
+             {} periods (a whole number of common periods, or the largest continued-fraction \
+             denominator of the faster drive's advance per period: its error is at most the \
+             increments' variation over the phase divided by that denominator); otherwise a \
+             steady measurement to a standard error of {:.0e} m per own drive cycle, at most \
+             {} periods (such motions repeat and are found exactly), at the scene's \
+             integration tolerance. Failed counts \"not steady\" instances, whose estimates \
+             are compared too; periods are per instance, on average.\n\n",
+            super::REFERENCE_WINDOW,
             super::MEASUREMENT_REFERENCE_TOLERANCE,
             super::MEASUREMENT_REFERENCE_MAX_CYCLES
         );
@@ -81,6 +89,7 @@ impl Report {
             references,
             methods,
             points,
+            true,
         );
     }
 
@@ -94,6 +103,7 @@ impl Report {
         references: References,
         methods: &[Method<'_>],
         points: &[Point],
+        with_periods: bool,
     ) {
         let md = &mut self.markdown;
         let _ = writeln!(
@@ -104,15 +114,25 @@ impl Report {
         if !note.is_empty() {
             let _ = writeln!(md, "{note}\n");
         }
+        let (periods_head, periods_rule) = if with_periods {
+            (" periods |", "---|")
+        } else {
+            ("", "")
+        };
         let _ = writeln!(
             md,
-            "| method | setting | max error [um] | rms error [um] | wall [s] | failed |\n\
-             |---|---|---|---|---|---|"
+            "| method | setting | max error [um] | rms error [um] | wall [s] | failed |\
+             {periods_head}\n|---|---|---|---|---|---|{periods_rule}"
         );
         for p in points {
+            let periods = if with_periods {
+                format!(" {:.0} |", p.periods)
+            } else {
+                String::new()
+            };
             let _ = writeln!(
                 md,
-                "| {} | {} | {:.2e} | {:.2e} | {:.4} | {} |",
+                "| {} | {} | {:.2e} | {:.2e} | {:.4} | {} |{periods}",
                 p.method,
                 setting(p.setting),
                 p.max_error_um,

@@ -169,10 +169,10 @@ fn pixels_of(path: &Path, colour: [u8; 3]) -> usize {
         .count()
 }
 
-/// The colours of periodic, irregular and not-steady cells in the motion
-/// pictures (`src/plot/motion.rs`).
+/// The colours of periodic, quasi-periodic and not-steady cells in the
+/// motion pictures (`src/plot/motion.rs`).
 const PERIODIC: [u8; 3] = [33, 102, 172];
-const IRREGULAR: [u8; 3] = [230, 97, 1];
+const QUASI_PERIODIC: [u8; 3] = [90, 174, 97];
 const NOT_STEADY: [u8; 3] = [200, 200, 200];
 
 #[test]
@@ -180,7 +180,7 @@ fn a_steady_grid_gives_a_map_of_the_kinds_of_motion() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // 10 Hz against 14 Hz repeats (lag 5); against 10 sqrt(3) Hz it does
-    // not: batch means decide.
+    // not: the phase-resolved estimate decides (quasi-periodic).
     std::fs::write(
         d.join("kinds.toml"),
         "name = \"kinds\"\n\
@@ -205,9 +205,9 @@ fn a_steady_grid_gives_a_map_of_the_kinds_of_motion() {
     assert!(stdout.contains("wrote pics/motion.png"), "{stdout}");
     let picture = pics.join("motion.png");
     check_png(&picture);
-    // Half the map is periodic, half irregular: large areas of each
+    // Half the map is periodic, half quasi-periodic: large areas of each
     // colour, beyond the legend's swatches (18 x 18 px).
-    for (what, colour) in [("periodic", PERIODIC), ("irregular", IRREGULAR)] {
+    for (what, colour) in [("periodic", PERIODIC), ("quasi-periodic", QUASI_PERIODIC)] {
         let n = pixels_of(&picture, colour);
         assert!(n > 10_000, "{what}: {n} pixels");
     }

@@ -345,8 +345,8 @@ def test_a_refined_map_reads_like_a_uniform_one_with_its_inferred_mask(tmp_path:
 
 
 def test_a_steady_map_has_its_kinds_of_motion_with_their_flags(tmp_path: Path) -> None:
-    # 10 Hz against 14 Hz repeats (lag 5); against 10 sqrt(3) Hz only batch
-    # means converge.
+    # 10 Hz against 14 Hz repeats (lag 5); against 10 sqrt(3) Hz the
+    # phase-resolved estimate converges (quasi-periodic).
     scene = {
         "name": "kinds",
         "axis": {
@@ -367,7 +367,7 @@ def test_a_steady_map_has_its_kinds_of_motion_with_their_flags(tmp_path: Path) -
     assert flag_values.tolist() == [0, 1, 2, 3]
     assert motion.attrs["flag_meanings"] == "undetermined periodic quasi_periodic irregular"
     codes = dict(zip(motion.attrs["flag_meanings"].split(), flag_values.tolist(), strict=True))
-    assert motion.values.tolist() == [[codes["periodic"], codes["irregular"]]] * 2
+    assert motion.values.tolist() == [[codes["periodic"], codes["quasi_periodic"]]] * 2
     # The periodic instances are those with a lag.
     assert ((motion == codes["periodic"]) == (ds.period_lag > 0)).all()
     # pidm.open and xarray's own reading agree, attributes included.
