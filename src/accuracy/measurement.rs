@@ -87,8 +87,8 @@ pub fn lattice_length(inst: &Instance, longest: u32) -> Option<u32> {
     if q > 0 && q <= SHORT_COMMON_PERIOD {
         return None;
     }
-    if q > 0 {
-        return Some((longest / q).max(1) * q);
+    if let Some(whole) = longest.checked_div(q) {
+        return Some(whole.max(1) * q);
     }
     let rho = cycles.max_element().fract();
     // The continued fraction of rho: denominators q_n = a_n q_{n-1} +
