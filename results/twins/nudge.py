@@ -1,6 +1,6 @@
-"""Writes a twin of a random scene (results/gpu.md, "Twins: a check by
-nudged parameters, tried and not kept"): every point's slider mass, velocity
-band, and each axis' stage mass, stiffness, damping and voltage scaled by
+"""Writes a nudged twin of a random scene (results/gpu.md, "Band grazes"):
+every point's slider mass, velocity band, and each axis' stage mass,
+stiffness, damping and voltage scaled by
 1 + side * s * DELTA, and the friction pair by one such factor, with a sign
 s per parameter drawn from SEED (the same draws for both sides, so side +1
 and -1 are opposite nudges).

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Where a steady map's GPU time goes (PIDM_GPU_PHASES=1): the coupling map
 # at 1000 x 1000 (no baselines) steady and as a 10-period window, f64 and
-# f32, two rounds each. (phases.log came from this loop given inline to the
-# device tool, at commit "PIDM_GPU_PHASES: ...".)
+# f32, two rounds each. (phases.log, in git history, came from this loop
+# given inline to the device tool, at fbcbbc3.)
 #
 #   ../shared/gpu/pack      # here; then on the lent machine:
 #   bash results/gpu-runs/2026-11-26b/phases.sh
