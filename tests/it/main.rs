@@ -7,6 +7,7 @@ mod common;
 
 mod cli;
 mod crosscheck;
+mod docs;
 mod extreme;
 mod files;
 mod gpu;
