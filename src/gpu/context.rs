@@ -1,0 +1,466 @@
+//! The GPU context: the chosen adapter's device and queue, their health
+//! (device loss and uncaptured errors), the pipelines of each precision and
+//! their self-test against the CPU before any instance is integrated.
+
+use super::*;
+
+/// What making a pipeline ready cost, for the user's information.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Preparation {
+    /// Finding the adapter and opening the device [s].
+    pub open_s: f64,
+    /// The part of `open_s` spent loading the drivers and enumerating
+    /// their adapters, before the device is requested [s].
+    pub adapters_s: f64,
+    /// Creating the pipeline: the driver's compile, or a pipeline-cache hit
+    /// [s].
+    pub pipeline_s: f64,
+    /// The self-test batch [s].
+    pub self_test_s: f64,
+}
+
+/// Errors the device reported outside any error scope, and its loss.
+#[derive(Default)]
+pub(super) struct DeviceHealth {
+    failure: Mutex<Option<String>>,
+}
+
+impl DeviceHealth {
+    fn record(&self, message: String) {
+        let mut failure = self.failure.lock().unwrap_or_else(|e| e.into_inner());
+        if failure.is_none() {
+            *failure = Some(message);
+        }
+    }
+
+    fn failure(&self) -> Option<String> {
+        self.failure
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+    }
+}
+
+/// An open device with what the batches need to know about it.
+pub struct GpuContext {
+    pub(super) device: wgpu::Device,
+    pub(super) queue: wgpu::Queue,
+    info: wgpu::AdapterInfo,
+    f64: bool,
+    pub(super) limits: wgpu::Limits,
+    health: Arc<DeviceHealth>,
+    /// The driver's pipeline cache, where the adapter offers one.
+    cache: Option<cache::DiskCache>,
+    /// Compiled and self-tested pipelines, [F32, F64], built on first use,
+    /// with what building them cost.
+    pipelines: Mutex<[Option<(wgpu::ComputePipeline, Preparation)>; 2]>,
+    /// Time to find the adapter and open the device [s].
+    opened_in: f64,
+    /// The part of `opened_in` before the device was requested [s].
+    adapters_in: f64,
+    /// Held while a batch runs: batches on one context take turns (wgpu's
+    /// GL backend does not survive two threads submitting at once).
+    pub(super) busy: Mutex<()>,
+}
+
+impl GpuContext {
+    /// Opens the best adapter: a hardware one when there is one, a software
+    /// one (lavapipe and the like) only when `allow_software`.
+    pub fn new(allow_software: bool) -> Result<GpuContext, GpuError> {
+        let started = std::time::Instant::now();
+        let mut tried = Vec::new();
+        let mut best: Option<wgpu::Adapter> = None;
+        // The first software adapter refused, to say so plainly when it is
+        // the only kind there is.
+        let mut software_seen: Option<String> = None;
+        // Unless WGPU_BACKEND says otherwise, the primary backends
+        // (Vulkan, Metal, DX12) first: opening GL costs a tenth of a second,
+        // and a GL adapter has no f64.
+        let candidates = match wgpu::Backends::from_env() {
+            Some(backends) => adapters_on(backends),
+            None => {
+                let mut found = adapters_on(wgpu::Backends::PRIMARY);
+                let usable = |a: &wgpu::Adapter| allow_software || !is_software(&a.get_info());
+                if !found.iter().any(usable) {
+                    found.extend(adapters_on(wgpu::Backends::SECONDARY));
+                }
+                found
+            }
+        };
+        for adapter in candidates {
+            let info = adapter.get_info();
+            let label = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
+            let compute = adapter
+                .get_downlevel_capabilities()
+                .flags
+                .contains(wgpu::DownlevelFlags::COMPUTE_SHADERS);
+            if !compute {
+                tried.push(format!("{label}: no compute shaders"));
+                continue;
+            }
+            if is_software(&info) && !allow_software {
+                tried.push(format!("{label}: software, not allowed"));
+                software_seen.get_or_insert_with(|| {
+                    let kind = if has_loop_limiter(&info) {
+                        "lavapipe: "
+                    } else {
+                        ""
+                    };
+                    format!("{kind}{}, {:?}", info.name, info.backend)
+                });
+                continue;
+            }
+            tried.push(format!("{label}: usable"));
+            if best.as_ref().is_none_or(|b| rank(&adapter) > rank(b)) {
+                best = Some(adapter);
+            }
+        }
+        let adapters_in = started.elapsed().as_secs_f64();
+        if best.is_none()
+            && let Some(software) = software_seen
+        {
+            return Err(GpuError::OnlySoftware { software });
+        }
+        let Some(adapter) = best else {
+            let backends = wgpu::Backends::from_env()
+                .map(|b| format!("WGPU_BACKEND={b:?}"))
+                .unwrap_or_else(|| "all backends".to_string());
+            let tried = if tried.is_empty() {
+                format!("{backends}: none enumerated")
+            } else {
+                format!("{backends}: {}", tried.join("; "))
+            };
+            return Err(GpuError::NoAdapter { tried });
+        };
+        let mut ctx = Self::from_adapter(&adapter)?;
+        ctx.opened_in = started.elapsed().as_secs_f64();
+        ctx.adapters_in = adapters_in;
+        Ok(ctx)
+    }
+
+    /// Opens a device on a given adapter, with its full limits, and
+    /// `SHADER_F64` and `PIPELINE_CACHE` where offered.
+    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<GpuContext, GpuError> {
+        let started = std::time::Instant::now();
+        let info = adapter.get_info();
+        let offered = adapter.features();
+        let f64 = offered.contains(wgpu::Features::SHADER_F64);
+        let limits = adapter.limits();
+        let features = offered & (wgpu::Features::SHADER_F64 | wgpu::Features::PIPELINE_CACHE);
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("pidm"),
+            required_features: features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::DeviceRequest {
+            adapter: info.name.clone(),
+            message: e.to_string(),
+        })?;
+        // wgpu panics on errors outside any error scope unless a handler
+        // takes them: record them (and the device's loss) instead, and turn
+        // them into errors where the work checks.
+        let health = Arc::new(DeviceHealth::default());
+        let on_error = health.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            on_error.record(e.to_string())
+        }));
+        let on_lost = health.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            on_lost.record(format!("device lost ({reason:?}): {message}"))
+        });
+        let cache = if features.contains(wgpu::Features::PIPELINE_CACHE) {
+            cache::DiskCache::open(&device, &info)
+        } else {
+            None
+        };
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            f64,
+            limits,
+            health,
+            cache,
+            pipelines: Mutex::new([None, None]),
+            opened_in: started.elapsed().as_secs_f64(),
+            adapters_in: 0.0,
+            busy: Mutex::new(()),
+        })
+    }
+
+    /// "NVIDIA H100 (Vulkan, DiscreteGpu)": the adapter, its backend and
+    /// its type.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.info.name, self.info.backend, self.info.device_type
+        )
+    }
+
+    /// The driver and its version.
+    pub fn driver(&self) -> String {
+        driver_of(&self.info)
+    }
+
+    /// True unless the adapter is a software rasteriser.
+    pub fn is_hardware(&self) -> bool {
+        !is_software(&self.info)
+    }
+
+    /// True when the device runs f64 shaders.
+    pub fn supports_f64(&self) -> bool {
+        self.f64
+    }
+
+    /// Where compiled pipelines are kept between runs, if anywhere.
+    pub fn pipeline_cache_path(&self) -> Option<&std::path::Path> {
+        self.cache.as_ref().map(|c| c.path())
+    }
+
+    /// The device's limits (the adapter's best).
+    pub fn limits(&self) -> &wgpu::Limits {
+        &self.limits
+    }
+
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
+    /// The shader variant this adapter runs in a precision.
+    pub fn variant(&self, precision: Precision) -> Variant {
+        Variant {
+            precision,
+            loop_limiter: has_loop_limiter(&self.info),
+        }
+    }
+
+    /// An error if the device failed or was lost so far.
+    pub(super) fn check_health(&self) -> Result<(), GpuError> {
+        match self.health.failure() {
+            Some(message) => Err(GpuError::Device {
+                adapter: self.describe(),
+                message,
+            }),
+            None => Ok(()),
+        }
+    }
+
+    /// Compiles the pipeline of a precision and tests it against the CPU,
+    /// once per context; a later call returns the first outcome's pipeline.
+    /// Every driver failure becomes an error here, before any instance of a
+    /// run is integrated.
+    pub fn prepare(&self, precision: Precision) -> Result<wgpu::ComputePipeline, GpuError> {
+        self.prepare_timed(precision).map(|(p, _)| p)
+    }
+
+    /// [`GpuContext::prepare`], with what the preparation cost (the first
+    /// call's, also on later calls).
+    pub fn prepare_timed(
+        &self,
+        precision: Precision,
+    ) -> Result<(wgpu::ComputePipeline, Preparation), GpuError> {
+        if precision == Precision::F64 && !self.f64 {
+            return Err(GpuError::F64Unsupported {
+                adapter: self.describe(),
+            });
+        }
+        let slot = match precision {
+            Precision::F32 => 0,
+            Precision::F64 => 1,
+        };
+        let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = &pipelines[slot] {
+            return Ok(p.clone());
+        }
+        let started = std::time::Instant::now();
+        let variant = self.variant(precision);
+        let pipeline = create_pipeline(
+            &self.device,
+            variant,
+            self.cache.as_ref().map(|c| c.cache()),
+        )?;
+        self.check_health()?;
+        let compiled = started.elapsed().as_secs_f64();
+        self.self_test(&pipeline, precision, 0.0)?;
+        let tested = started.elapsed().as_secs_f64();
+        if let Some(cache) = &self.cache {
+            cache.save();
+        }
+        let preparation = Preparation {
+            open_s: self.opened_in,
+            adapters_s: self.adapters_in,
+            pipeline_s: compiled,
+            self_test_s: tested - compiled,
+        };
+        pipelines[slot] = Some((pipeline.clone(), preparation));
+        Ok((pipeline, preparation))
+    }
+
+    /// Compiles the pipeline of a precision (without caching it in this
+    /// context) and runs the self-test against a CPU reference whose steps
+    /// are shifted by `skew` [m]: a test hook for the refusal path (a skew
+    /// beyond the precision's allowance must fail with
+    /// [`GpuError::SelfTest`]).
+    pub fn self_test_skewed(&self, precision: Precision, skew: f64) -> Result<(), GpuError> {
+        if precision == Precision::F64 && !self.f64 {
+            return Err(GpuError::F64Unsupported {
+                adapter: self.describe(),
+            });
+        }
+        let pipeline = create_pipeline(
+            &self.device,
+            self.variant(precision),
+            self.cache.as_ref().map(|c| c.cache()),
+        )?;
+        self.check_health()?;
+        self.self_test(&pipeline, precision, skew)
+    }
+
+    /// Runs the self-test batch (MODEL.md's Fig. 8 case, two periods, and
+    /// its 1-DOF x baseline) on a fresh pipeline and compares with the CPU.
+    /// `skew` [m] is added to the CPU reference's steps: zero for the real
+    /// test; [`GpuContext::self_test_skewed`] lets tests feed a wrong
+    /// reference to check that the pipeline is refused.
+    fn self_test(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        precision: Precision,
+        skew: f64,
+    ) -> Result<(), GpuError> {
+        let mut fig8 = Instance::TABLE1;
+        fig8.axes[1].frequency = 20.0;
+        fig8.cycles = 2;
+        fig8.settle = 1;
+        // A steady measurement of 10 Hz against 14 Hz: periodic with a lag
+        // of 5 periods (a common period) after about 7.
+        let mut steady = Instance::TABLE1;
+        steady.axes[1].frequency = 14.0;
+        steady.cycles = 40;
+        steady.measure = Measure::Steady {
+            step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
+        };
+        let instances = [fig8, fig8.baseline(0), steady];
+        let settings = Settings::default();
+        let fail = |message: String| GpuError::SelfTest {
+            precision,
+            adapter: self.describe(),
+            message,
+        };
+        let outcomes = execute_gpu_inner(
+            &self.device,
+            &self.queue,
+            pipeline,
+            &self.limits,
+            &instances,
+            &settings,
+            precision,
+            &BatchOptions {
+                check: F32Check::Off,
+                ..BatchOptions::default()
+            },
+            &mut |_, _| {},
+        );
+        self.check_health()?;
+        let outcomes = outcomes.map_err(|e| fail(e.to_string()))?;
+        // f64 mirrors the CPU to rounding; f32 to its own precision.
+        let allowance = match precision {
+            Precision::F32 => 0.01e-6,
+            Precision::F64 => 1e-12,
+        };
+        for (inst, got) in instances.iter().zip(&outcomes) {
+            // An instance the batch handed to the CPU (a failure or a graze
+            // in f32, the loop limiter) would compare the CPU with itself:
+            // the shader must finish every self-test instance on its own.
+            if got.cpu_fallback || got.finished_on_cpu {
+                return Err(fail(format!(
+                    "the shader ended an instance with status {} and left it to the CPU",
+                    got.shader_status
+                )));
+            }
+            let want = reduce(inst, &run_instance(inst, &settings));
+            if got.status != want.status || got.lag != want.lag {
+                return Err(fail(format!(
+                    "status {} and cycle {} periods where the CPU ends with {} and {}",
+                    got.status, got.lag, want.status, want.lag
+                )));
+            }
+            for axis in 0..2 {
+                let step = |m: &GpuOutcome| inst.measure_over(axis, m.displacement[axis], m.span).1;
+                let (g, w) = (
+                    step(got),
+                    inst.measure_over(axis, want.travel[axis], want.span).1 + skew,
+                );
+                let err = (g - w).abs();
+                if err.is_nan() || err > allowance {
+                    return Err(fail(format!(
+                        "axis {axis} steps {g:.6e} m where the CPU gives {w:.6e} m, {err:.2e} m \
+                         apart, more than the {allowance:.0e} m allowed in {precision}"
+                    )));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Compiles the integrator for one precision on a device, with the variant
+/// a device of that kind needs (`loop_limiter` for llvmpipe), through the
+/// driver's pipeline `cache` where there is one. The source is validated
+/// with naga first, so errors come with source locations.
+pub fn create_pipeline(
+    device: &wgpu::Device,
+    variant: Variant,
+    cache: Option<&wgpu::PipelineCache>,
+) -> Result<wgpu::ComputePipeline, GpuError> {
+    let precision = variant.precision;
+    shader::parse_and_validate(variant)?;
+    let src = shader::source(variant);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
+    // wgpu's default runtime checks clamp every dynamic array index and add
+    // a counter to every loop. Both keep the driver's compiler from
+    // unrolling the integrator's short loops, so arrays stay in scratch
+    // memory: on lavapipe the shader then compiles six times slower and
+    // runs four times slower. The integrator needs neither check.
+    // Compilation happens here for most drivers and at the first dispatch
+    // for llvmpipe; either may take seconds.
+    let mut checks = wgpu::ShaderRuntimeChecks::checked();
+    checks.bounds_checks = false;
+    checks.force_loop_bounding = false;
+    // SAFETY: every array index in the shader is a constant or a counter of
+    // a loop bounded by the array's length, the storage arrays are indexed
+    // only below both their `arrayLength`s, and every loop is bounded: by a
+    // constant, by `max_iterations`, or (the loop-limiter probe) by
+    // `control.probe` passes.
+    let module = unsafe {
+        device.create_shader_module_trusted(
+            wgpu::ShaderModuleDescriptor {
+                label: Some("shaders/integrate"),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            },
+            checks,
+        )
+    };
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("advance_slice"),
+        layout: None,
+        module: &module,
+        entry_point: Some(shader::ENTRY_POINT),
+        compilation_options: Default::default(),
+        cache,
+    });
+    let internal = pollster::block_on(internal.pop());
+    let validation = pollster::block_on(validation.pop());
+    if let Some(e) = validation.or(internal) {
+        return Err(GpuError::ShaderCompile {
+            precision,
+            message: e.to_string(),
+        });
+    }
+    Ok(pipeline)
+}

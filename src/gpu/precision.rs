@@ -1,0 +1,142 @@
+//! One precision's side of a batch (`Layout`: the f32 and f64 shaders'
+//! storage structs, their packing and reduction) for the runner.
+
+use super::*;
+
+/// The host side of one precision: its storage structs and their packing.
+pub(super) trait Layout {
+    const PRECISION: Precision;
+    type Coefficients: HostLayout + Send;
+    type State: HostLayout + Send + Sync;
+    type Measure: HostLayout + Send + Sync;
+    /// What the host reads of every finished steady measurement.
+    type Head: HostLayout + Send + Sync;
+    /// Whether a measurement with this head ended with a verdict whose
+    /// reduction reads only the head (periodic or phase-resolved).
+    fn head_suffices(h: &Self::Head) -> bool;
+    /// The accumulators that the reduction of such a head reads.
+    fn from_head(h: &Self::Head) -> Self::Measure;
+    /// The CPU mirror's state of this precision.
+    type Mirror;
+    fn mirror(st: &Self::State) -> Self::Mirror;
+    fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
+    /// The outcome of a finished fixed window.
+    fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
+    /// The outcome of a finished steady measurement, through the one
+    /// reduction every backend's results pass through.
+    fn reduce(inst: &Instance, st: &Self::State, m: &Self::Measure) -> GpuOutcome;
+    fn finished(inst: &Instance, st: &Self::State) -> bool;
+    /// The CPU integrator's run for an unfinished shader state (and the
+    /// accumulators of a steady measurement), where the CPU can continue
+    /// from it (f64), or `None` where the CPU must start the instance over
+    /// (f32: the slow tail is where f32 is least sure; the f64 reference
+    /// starts it over).
+    fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run>;
+}
+
+/// A steady outcome from the shader's state and accumulators converted to
+/// the CPU's, in SI units.
+pub(super) fn reduce_shader(
+    inst: &Instance,
+    state: crate::cpu::integrate::State,
+    measure: crate::cpu::integrate::Measure,
+) -> GpuOutcome {
+    let steps = state.steps;
+    GpuOutcome::of(&reduce(inst, &Run { state, measure }), steps)
+}
+
+/// Whether any instance of a batch measures the steady step (its batch
+/// then needs one set of accumulators per instance).
+pub(super) fn any_steady(instances: &[Instance]) -> bool {
+    instances
+        .iter()
+        .any(|inst| matches!(inst.measure, Measure::Steady { .. }))
+}
+
+/// Every state of a batch and, for a batch with a steady instance, every
+/// measurement, as read back from the device.
+pub(super) type Readback<L> = (Vec<<L as Layout>::State>, Vec<<L as Layout>::Measure>);
+
+pub(super) struct Single;
+pub(super) struct Double;
+
+impl Layout for Single {
+    const PRECISION: Precision = Precision::F32;
+    type Coefficients = layout::single::Coefficients;
+    type State = layout::single::State;
+    type Measure = layout::single::Measure;
+    type Head = layout::single::Head;
+    fn head_suffices(h: &Self::Head) -> bool {
+        h.suffices()
+    }
+    fn from_head(h: &Self::Head) -> Self::Measure {
+        h.measure()
+    }
+    type Mirror = crate::cpu::single::integrate::State;
+    fn mirror(st: &Self::State) -> Self::Mirror {
+        layout::single::to_cpu(st)
+    }
+    fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
+        layout::single::pack(inst, settings)
+    }
+    fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
+        layout::single::unpack(inst, st)
+    }
+    fn reduce(inst: &Instance, st: &Self::State, m: &Self::Measure) -> GpuOutcome {
+        reduce_shader(
+            inst,
+            layout::single::reduced_state(st),
+            layout::single::measure_to_cpu(m),
+        )
+    }
+    fn finished(inst: &Instance, st: &Self::State) -> bool {
+        layout::single::finished(inst, st)
+    }
+    fn continuable(_: &Instance, _: &Self::State, _: Option<&Self::Measure>) -> Option<Run> {
+        None
+    }
+}
+
+impl Layout for Double {
+    const PRECISION: Precision = Precision::F64;
+    type Coefficients = layout::double::Coefficients;
+    type State = layout::double::State;
+    type Measure = layout::double::Measure;
+    type Head = layout::double::Head;
+    fn head_suffices(h: &Self::Head) -> bool {
+        h.suffices()
+    }
+    fn from_head(h: &Self::Head) -> Self::Measure {
+        h.measure()
+    }
+    type Mirror = crate::cpu::integrate::State;
+    fn mirror(st: &Self::State) -> Self::Mirror {
+        layout::double::to_cpu(st)
+    }
+    fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
+        layout::double::pack(inst, settings)
+    }
+    fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
+        layout::double::unpack(inst, st)
+    }
+    fn reduce(inst: &Instance, st: &Self::State, m: &Self::Measure) -> GpuOutcome {
+        reduce_shader(
+            inst,
+            layout::double::to_cpu(st),
+            layout::double::measure_to_cpu(m),
+        )
+    }
+    fn finished(inst: &Instance, st: &Self::State) -> bool {
+        layout::double::finished(inst, st)
+    }
+    fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run> {
+        let c = crate::cpu::integrate::Coefficients::new(inst, &Settings::default(), f64::EPSILON);
+        Some(Run {
+            state: layout::double::to_cpu(st),
+            measure: match m {
+                Some(m) => layout::double::measure_to_cpu(m),
+                None => initial_measure(&c),
+            },
+        })
+    }
+}

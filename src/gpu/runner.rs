@@ -1,0 +1,767 @@
+//! Integrating a batch: buffers sized by the adapter's limits, time-sliced
+//! dispatches until every instance has finished or only the slow tail is
+//! left, the readback of states and accumulators, and the CPU's part (the
+//! tail, loop-limited iterations, f32 fallbacks and the check).
+
+use super::*;
+
+/// Integrates a batch on the GPU and returns one outcome per instance, in
+/// order. `progress(done, total)` is called after every slice.
+pub fn run_batch(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    precision: Precision,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Vec<GpuOutcome>, GpuError> {
+    run_batch_with(
+        ctx,
+        instances,
+        settings,
+        precision,
+        &BatchOptions::default(),
+        progress,
+    )
+}
+
+/// [`run_batch`] with explicit [`BatchOptions`].
+pub fn run_batch_with(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    precision: Precision,
+    options: &BatchOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Vec<GpuOutcome>, GpuError> {
+    let pipeline = ctx.prepare(precision)?;
+    // The adapter decides the check's route (`F32Check::Auto`).
+    let options = &BatchOptions {
+        check: match options.check.route(ctx.is_hardware()) {
+            Some(route) => F32Check::Route(route),
+            None => F32Check::Off,
+        },
+        ..*options
+    };
+    let out = {
+        let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
+        execute_gpu_inner(
+            &ctx.device,
+            &ctx.queue,
+            &pipeline,
+            &ctx.limits,
+            instances,
+            settings,
+            precision,
+            options,
+            progress,
+        )
+    };
+    // A lost device fails the batch's readback with a generic mapping
+    // error; the device's own message says why.
+    ctx.check_health()?;
+    out
+}
+
+/// The shader's state of every instance after `iterations` iterations of
+/// the integrator (one dispatch, each instance on a lane of its own), as
+/// the CPU mirror of precision `L` holds it: for tests that pin the shader
+/// to its mirror step by step. On lavapipe `iterations` must stay small
+/// enough (hundreds) for the loop limiter never to undo one.
+pub(super) fn states_after<L: Layout>(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    iterations: u32,
+) -> Result<Vec<L::Mirror>, GpuError> {
+    let pipeline = ctx.prepare(L::PRECISION)?;
+    let options = BatchOptions {
+        slice_iterations: iterations.max(1),
+        lanes: instances.len().max(1),
+        cpu_tail: Some(0),
+        ..BatchOptions::default()
+    };
+    let states = {
+        let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
+        let run = Runner {
+            device: &ctx.device,
+            queue: &ctx.queue,
+            pipeline: &pipeline,
+            limits: &ctx.limits,
+            settings,
+            options: &options,
+        };
+        run.slices::<L>(instances, &mut |_| {}, Some(1))?.0
+    };
+    ctx.check_health()?;
+    Ok(states.iter().map(L::mirror).collect())
+}
+
+/// [`states_after`] in f32: the states of the f32 shader as its CPU mirror
+/// (`pidm::cpu::single`) holds them.
+pub fn f32_states_after(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    iterations: u32,
+) -> Result<Vec<crate::cpu::single::integrate::State>, GpuError> {
+    states_after::<Single>(ctx, instances, settings, iterations)
+}
+
+/// [`states_after`] in f64: the states of the f64 shader as the CPU
+/// reference holds them.
+pub fn f64_states_after(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    iterations: u32,
+) -> Result<Vec<crate::cpu::integrate::State>, GpuError> {
+    states_after::<Double>(ctx, instances, settings, iterations)
+}
+
+/// The work of [`run_batch`] on any device: `pipeline` must come from
+/// [`create_pipeline`] on that device with the same precision, and `limits`
+/// are the device's.
+#[allow(clippy::too_many_arguments)]
+pub fn execute_gpu_inner(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    pipeline: &wgpu::ComputePipeline,
+    limits: &wgpu::Limits,
+    instances: &[Instance],
+    settings: &Settings,
+    precision: Precision,
+    options: &BatchOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Vec<GpuOutcome>, GpuError> {
+    let run = Runner {
+        device,
+        queue,
+        pipeline,
+        limits,
+        settings,
+        options,
+    };
+    match precision {
+        Precision::F32 => run.all::<Single>(instances, progress),
+        Precision::F64 => run.all::<Double>(instances, progress),
+    }
+}
+
+/// Largest number of instances one dispatch batch may hold on a device.
+pub fn max_batch_instances(
+    limits: &wgpu::Limits,
+    coefficients_size: usize,
+    state_size: usize,
+    options: &BatchOptions,
+) -> usize {
+    let binding = limits.max_storage_buffer_binding_size;
+    let buffer = limits.max_buffer_size;
+    let largest = coefficients_size.max(state_size) as u64;
+    let by_memory = binding.min(buffer) / largest;
+    let dim = limits.max_compute_workgroups_per_dimension as u64;
+    let by_dispatch = dim * dim * workgroup_size() as u64;
+    let mut n = by_memory.min(by_dispatch).min(usize::MAX as u64) as usize;
+    if let Some(m) = options.max_batch {
+        n = n.min(m);
+    }
+    n.max(1)
+}
+
+/// Workgroup counts (x, y) covering `n` instances within the per-dimension
+/// limit. The shader numbers invocations `x + y * groups_x * WORKGROUP_SIZE`
+/// (the prelude's, [`workgroup_size`]).
+pub fn dispatch_size(n: usize, max_per_dimension: u32) -> (u32, u32) {
+    let groups = (n as u64).div_ceil(workgroup_size() as u64).max(1);
+    let x = groups.min(max_per_dimension as u64);
+    let y = groups.div_ceil(x);
+    (x as u32, y as u32)
+}
+
+pub(super) struct Runner<'a> {
+    device: &'a wgpu::Device,
+    queue: &'a wgpu::Queue,
+    pipeline: &'a wgpu::ComputePipeline,
+    limits: &'a wgpu::Limits,
+    settings: &'a Settings,
+    options: &'a BatchOptions,
+}
+
+impl Runner<'_> {
+    /// Runs all instances, batch by batch.
+    fn all<L: Layout>(
+        &self,
+        instances: &[Instance],
+        progress: &mut dyn FnMut(u64, u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let state_size = if any_steady(instances) {
+            size_of::<L::State>().max(size_of::<L::Measure>())
+        } else {
+            size_of::<L::State>()
+        };
+        let per_batch = max_batch_instances(
+            self.limits,
+            size_of::<L::Coefficients>(),
+            state_size,
+            self.options,
+        );
+        let total = instances.len() as u64;
+        let route = match L::PRECISION {
+            Precision::F32 => self.options.check.route(true),
+            Precision::F64 => None,
+        };
+        // Progress keeps a share for the check's work after the batches
+        // (the twins, or the CPU's pass over the checked runs and the
+        // fallbacks): the main runs count up to `main_share` of `total`,
+        // that work the rest.
+        let main_share = match route {
+            Some(_) => {
+                let checked = check::checked_count(instances.len()) as u64;
+                total * total / (total + checked).max(1)
+            }
+            None => total,
+        };
+        let mut out = Vec::with_capacity(instances.len());
+        for chunk in instances.chunks(per_batch) {
+            let done_before = out.len() as u64;
+            let mut chunk_progress =
+                |done: u64| progress((done_before + done) * main_share / total.max(1), total);
+            out.extend(self.batch::<L>(chunk, &mut chunk_progress)?);
+        }
+        // Instances the driver's loop limiter kept from advancing at all,
+        // and f32 instances that failed or met a band graze, are
+        // integrated on the CPU; f32's heaviest window runs are checked
+        // (`backend::check`), on the CPU (the reference route) or by twins
+        // on the device while the CPU integrates the others.
+        let fallback: Vec<CpuJob> = out
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| {
+                o.status == STATUS_LOOP_LIMIT
+                    || (L::PRECISION == Precision::F32 && f32_needs_f64(o.status))
+            })
+            .map(|(k, o)| CpuJob {
+                index: k,
+                shader_status: o.status,
+                checked: false,
+            })
+            .collect();
+        // Chosen among the runs the device finished itself, so the CPU's
+        // work on the others cannot change which.
+        let picked = match route {
+            Some(_) => check::heaviest(&heaviest_candidates(instances, &out)),
+            None => Vec::new(),
+        };
+        let checked_job = |k: usize| CpuJob {
+            index: k,
+            shader_status: 0,
+            checked: true,
+        };
+        let cpu_outcomes = match route {
+            Some(Route::Twins) => {
+                let (fallback_outcomes, twins) = std::thread::scope(|scope| {
+                    let cpu = scope.spawn(|| self.on_cpu_all(instances, &fallback));
+                    let rest = total - main_share;
+                    let n = (picked.len() as u64).max(1);
+                    let mut twin_progress =
+                        |done: u64| progress(main_share + done.min(n) * rest / n, total);
+                    let twins =
+                        self.twins::<L>(instances, &out, &picked, per_batch, &mut twin_progress);
+                    (cpu.join().expect("the CPU's runs do not panic"), twins)
+                });
+                let disagree = twins?;
+                for &k in &picked {
+                    out[k].checked = true;
+                }
+                let jobs: Vec<CpuJob> = disagree.into_iter().map(checked_job).collect();
+                let mut outcomes = fallback_outcomes;
+                outcomes.extend(self.on_cpu_all(instances, &jobs));
+                outcomes
+            }
+            Some(Route::Reference) => {
+                let mut jobs = fallback;
+                jobs.extend(picked.into_iter().map(checked_job));
+                let rest = total - main_share;
+                let n = (jobs.len() as u64).max(1);
+                self.on_cpu_all_reporting(instances, &jobs, &mut |done| {
+                    progress(main_share + done.min(n) * rest / n, total)
+                })
+            }
+            None => self.on_cpu_all(instances, &fallback),
+        };
+        for (k, outcome) in cpu_outcomes {
+            out[k] = outcome;
+        }
+        progress(total, total);
+        Ok(out)
+    }
+
+    /// The CPU's f64 runs of `jobs`, in parallel: (index, outcome) each.
+    fn on_cpu_all(&self, instances: &[Instance], jobs: &[CpuJob]) -> Vec<(usize, GpuOutcome)> {
+        self.on_cpu_counted(instances, jobs, &AtomicU64::new(0))
+    }
+
+    /// [`Self::on_cpu_all`], counting finished jobs in `done`.
+    fn on_cpu_counted(
+        &self,
+        instances: &[Instance],
+        jobs: &[CpuJob],
+        done: &AtomicU64,
+    ) -> Vec<(usize, GpuOutcome)> {
+        jobs.par_iter()
+            .with_max_len(1)
+            .map(|job| {
+                let outcome = GpuOutcome {
+                    cpu_fallback: true,
+                    shader_status: job.shader_status,
+                    checked: job.checked,
+                    ..on_cpu(&instances[job.index], self.settings, None)
+                };
+                done.fetch_add(1, Ordering::Relaxed);
+                (job.index, outcome)
+            })
+            .collect()
+    }
+
+    /// [`Self::on_cpu_all`] on another thread, with `progress(done jobs)`
+    /// called from this one every [`CPU_PASS_REPORT`] while it runs (the
+    /// reference route's pass can take as long as the batches on a
+    /// software adapter).
+    fn on_cpu_all_reporting(
+        &self,
+        instances: &[Instance],
+        jobs: &[CpuJob],
+        progress: &mut dyn FnMut(u64),
+    ) -> Vec<(usize, GpuOutcome)> {
+        let done = AtomicU64::new(0);
+        let caller = std::thread::current();
+        std::thread::scope(|scope| {
+            let pass = scope.spawn(|| {
+                let outcomes = self.on_cpu_counted(instances, jobs, &done);
+                caller.unpark();
+                outcomes
+            });
+            while !pass.is_finished() {
+                progress(done.load(Ordering::Relaxed));
+                std::thread::park_timeout(CPU_PASS_REPORT);
+            }
+            progress(done.load(Ordering::Relaxed));
+            pass.join().expect("the CPU's runs do not panic")
+        })
+    }
+
+    /// The twins of f32's `picked` runs ([`crate::backend::check`]),
+    /// nudged and at the looser tolerance, in batches of at most `per_batch`, each to its end
+    /// on the device (no slow tail); returns the runs whose twin
+    /// disagrees, or did not finish on the device with the run's status.
+    /// `progress(done)` counts finished twins.
+    fn twins<L: Layout>(
+        &self,
+        instances: &[Instance],
+        out: &[GpuOutcome],
+        picked: &[usize],
+        per_batch: usize,
+        progress: &mut dyn FnMut(u64),
+    ) -> Result<Vec<usize>, GpuError> {
+        let twin_settings = check::twin_settings(self.settings);
+        let twin_options = BatchOptions {
+            cpu_tail: Some(0),
+            ..*self.options
+        };
+        let twin_runner = Runner {
+            settings: &twin_settings,
+            options: &twin_options,
+            ..*self
+        };
+        let twin_instances: Vec<Instance> = picked
+            .iter()
+            .map(|&k| check::twin_instance(&instances[k]))
+            .collect();
+        let mut twins = Vec::with_capacity(picked.len());
+        for chunk in twin_instances.chunks(per_batch.max(1)) {
+            let done_before = twins.len() as u64;
+            twins.extend(twin_runner.batch::<L>(chunk, &mut |done| progress(done_before + done))?);
+        }
+        Ok(picked
+            .iter()
+            .zip(&twins)
+            .filter(|&(&k, twin)| {
+                let run = &out[k];
+                let agree = twin.status == run.status
+                    && !twin.cpu_fallback
+                    && !twin.finished_on_cpu
+                    && check::twins_agree(
+                        &instances[k],
+                        (run.displacement, run.span),
+                        (twin.displacement, twin.span),
+                    );
+                !agree
+            })
+            .map(|(&k, _)| k)
+            .collect())
+    }
+
+    /// Runs one batch that fits the device in one dispatch.
+    fn batch<L: Layout>(
+        &self,
+        instances: &[Instance],
+        progress: &mut dyn FnMut(u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let n = instances.len();
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let device = self.device;
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let result = self.batch_inner::<L>(instances, progress);
+        let memory_error = pollster::block_on(memory.pop());
+        let validation_error = pollster::block_on(validation.pop());
+        if let Some(e) = validation_error.or(memory_error) {
+            return Err(GpuError::Execution(e.to_string()));
+        }
+        result
+    }
+
+    /// Dispatches slices until the batch is done, or only its slow tail is
+    /// left, or `slice_limit` slices have run; returns every state and,
+    /// for a batch with a steady instance, every measurement.
+    fn slices<L: Layout>(
+        &self,
+        instances: &[Instance],
+        progress: &mut dyn FnMut(u64),
+        slice_limit: Option<u64>,
+    ) -> Result<Readback<L>, GpuError> {
+        let device = self.device;
+        let queue = self.queue;
+        let n = instances.len();
+        let preparing = std::time::Instant::now();
+        let coefficients: Vec<L::Coefficients> = instances
+            .par_iter()
+            .map(|inst| L::pack(inst, self.settings))
+            .collect();
+        let coefficients_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("coefficients"),
+            contents: bytemuck::cast_slice(&coefficients),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let state_bytes = (n * size_of::<L::State>()) as u64;
+        let states = storage(device, "states", state_bytes);
+        let states_read = readback::mappable(device, "states readback", state_bytes);
+        // The steady measurement's accumulators: one per instance where
+        // any instance is steady, else one unused entry (windows never
+        // touch them).
+        let steady = any_steady(instances);
+        let measure_bytes = (size_of::<L::Measure>() * if steady { n } else { 1 }) as u64;
+        let measures = storage(device, "measures", measure_bytes);
+        let head_bytes = (size_of::<L::Head>() * if steady { n } else { 1 }) as u64;
+        let heads = storage(device, "heads", head_bytes);
+        let heads_read = readback::mappable(device, "heads readback", head_bytes);
+        // Lane k starts on instance k; the counters say which instance is
+        // next and how many finished.
+        let lane_count = n.min(self.options.lanes.max(1));
+        let lane_indices: Vec<u32> = (0..lane_count as u32).collect();
+        let lanes_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("lanes"),
+            contents: bytemuck::cast_slice(&lane_indices),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let counters = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("counters"),
+            contents: bytemuck::cast_slice(&[lane_count as u32, 0u32]),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+        let counters_read = readback::mappable(device, "counters readback", 8);
+        // Two controls: the first dispatch initialises the states.
+        let control = |initialize: u32| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("control"),
+                contents: bytemuck::bytes_of(&Control {
+                    max_iterations: self.options.slice_iterations,
+                    initialize,
+                    one: 1.0,
+                    probe: self.options.probe_passes.max(layout::PROBE_PASSES),
+                    probe_min: self.options.probe_passes.max(layout::PROBE_PASSES),
+                    zero: 0,
+                }),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        };
+        let controls = [control(1), control(0)];
+        let layout = self.pipeline.get_bind_group_layout(0);
+        let bind_groups: Vec<wgpu::BindGroup> = controls
+            .iter()
+            .map(|c| {
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("integrate"),
+                    layout: &layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: coefficients_buffer.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: states.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: c.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: counters.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: lanes_buffer.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 5,
+                            resource: measures.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 6,
+                            resource: heads.as_entire_binding(),
+                        },
+                    ],
+                })
+            })
+            .collect();
+        let (gx, gy) = dispatch_size(lane_count, self.limits.max_compute_workgroups_per_dimension);
+        // A lane works through its instances one after another.
+        let rounds = n.div_ceil(lane_count) as u64;
+        let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds);
+        let tail_size =
+            self.options
+                .tail_size(L::PRECISION, n, rayon::current_num_threads()) as u64;
+        let mut slice: u64 = 0;
+        let prepared = preparing.elapsed();
+        let dispatching = std::time::Instant::now();
+        loop {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(self.pipeline);
+                pass.set_bind_group(0, &bind_groups[usize::from(slice > 0)], &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            encoder.copy_buffer_to_buffer(&counters, 0, &counters_read, 0, 8);
+            queue.submit([encoder.finish()]);
+            let bytes = readback::read_buffer(device, &counters_read)?;
+            let next = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]) as u64;
+            let finished = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as u64;
+            let unfinished = (n as u64).saturating_sub(finished) as u32;
+            slice += 1;
+            progress(finished.min(n as u64));
+            // Every instance started, and only the slow tail is left.
+            if unfinished == 0 || (next >= n as u64 && (unfinished as u64) <= tail_size) {
+                break;
+            }
+            if slice_limit.is_some_and(|limit| slice >= limit) {
+                break;
+            }
+            if crate::sweep::interrupt_requested() {
+                return Err(GpuError::Interrupted);
+            }
+            if slice >= max_slices {
+                return Err(GpuError::Stalled {
+                    unfinished,
+                    slices: slice,
+                });
+            }
+        }
+        let dispatched = dispatching.elapsed();
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
+        if steady {
+            encoder.copy_buffer_to_buffer(&heads, 0, &heads_read, 0, head_bytes);
+        }
+        queue.submit([encoder.finish()]);
+        let mut states_timed = readback::Mapped::default();
+        let states: Vec<L::State> =
+            readback::with_mapped_timed(device, &states_read, &mut states_timed, |bytes| {
+                match bytemuck::try_cast_slice(bytes) {
+                    Ok(states) => states.to_vec(),
+                    // A mapping not aligned for the struct (no driver seen).
+                    Err(_) => bytes
+                        .chunks_exact(size_of::<L::State>())
+                        .map(bytemuck::pod_read_unaligned)
+                        .collect(),
+                }
+            })?;
+        let mut read = readback::AccumulatorsRead::default();
+        let measure_list: Vec<L::Measure> = if steady {
+            readback::accumulators::<L>(
+                device,
+                queue,
+                self.options.whole_accumulators,
+                instances,
+                &states,
+                (&heads_read, &measures),
+                &mut read,
+            )?
+        } else {
+            Vec::new()
+        };
+        if gpu_phases() {
+            let mb = |bytes: u64| bytes as f64 / 1e6;
+            eprintln!(
+                "pidm: GPU batch of {n}: coefficients packed and buffers made in {:.3} s; \
+                 {slice} dispatches in {:.3} s; states {:.1} MB mapped in {:.3} s and read in \
+                 {:.3} s; heads {:.1} MB read in {:.3} s; accumulators ({:?}, {} of them) {:.1} \
+                 MB mapped in {:.3} s and read in {:.3} s",
+                prepared.as_secs_f64(),
+                dispatched.as_secs_f64(),
+                mb(state_bytes),
+                states_timed.wait.as_secs_f64(),
+                states_timed.read.as_secs_f64(),
+                if steady { mb(head_bytes) } else { 0.0 },
+                read.heads.wait.as_secs_f64() + read.heads.read.as_secs_f64(),
+                read.plan,
+                read.count,
+                mb((read.count * size_of::<L::Measure>()) as u64),
+                read.whole.wait.as_secs_f64(),
+                read.whole.read.as_secs_f64(),
+            );
+        }
+        Ok((states, measure_list))
+    }
+
+    fn batch_inner<L: Layout>(
+        &self,
+        instances: &[Instance],
+        progress: &mut dyn FnMut(u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let n = instances.len();
+        let slicing = std::time::Instant::now();
+        let (states, measure_list) = self.slices::<L>(instances, progress, None)?;
+        let sliced = slicing.elapsed();
+        let reducing = std::time::Instant::now();
+        let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
+        // The outcomes, and the states of the unfinished ones.
+        let (mut out, tail) = {
+            let out: Vec<GpuOutcome> = (0..n)
+                .into_par_iter()
+                .map(|k| {
+                    if is_steady(k) {
+                        L::reduce(&instances[k], &states[k], &measure_list[k])
+                    } else {
+                        L::unpack(&instances[k], &states[k])
+                    }
+                })
+                .collect();
+            let tail: Vec<(usize, L::State)> = (0..n)
+                .into_par_iter()
+                .filter(|&k| !L::finished(&instances[k], &states[k]))
+                .map(|k| (k, states[k]))
+                .collect();
+            (out, tail)
+        };
+        if gpu_phases() {
+            eprintln!(
+                "pidm: GPU batch of {n}: {:.3} s from packing to freeing the buffers; outcomes \
+                 in {:.3} s, {} left to the CPU",
+                sliced.as_secs_f64(),
+                reducing.elapsed().as_secs_f64(),
+                tail.len()
+            );
+        }
+        // The slow tail, if the GPU stopped before it: on the CPU, in
+        // parallel, from where the GPU left it (f64) or from the start
+        // (f32).
+        let tail_outcomes: Vec<GpuOutcome> = tail
+            .par_iter()
+            .with_max_len(1)
+            .map(|(k, st)| {
+                let m = is_steady(*k).then(|| &measure_list[*k]);
+                GpuOutcome {
+                    finished_on_cpu: true,
+                    ..on_cpu(
+                        &instances[*k],
+                        self.settings,
+                        L::continuable(&instances[*k], st, m),
+                    )
+                }
+            })
+            .collect();
+        for ((k, _), outcome) in tail.iter().zip(tail_outcomes) {
+            out[*k] = outcome;
+        }
+        progress(n as u64);
+        Ok(out)
+    }
+}
+
+/// A storage buffer of `size` bytes that results can be copied out of.
+pub(super) fn storage(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
+/// An upper bound on the slices one instance can need. Every iteration of
+/// `advance` either takes a counted step (bounded by the step budget) or
+/// passes drive corners and period ends (bounded by the drive cycles), and
+/// every slice completes at least one iteration of the instance each lane
+/// holds (the loop-limiter rollback may leave it at one) or finishes it
+/// with [`STATUS_LOOP_LIMIT`]; a lane holds its instances one after
+/// another.
+pub(super) fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
+    let mut most: u64 = 0;
+    for inst in instances {
+        let budget = settings.max_steps_per_period as u64 * inst.cycles as u64;
+        let mut boundaries = inst.cycles as u64 + 1;
+        for axis in &inst.axes {
+            let cycles = (axis.frequency * inst.period() * inst.cycles as f64).ceil();
+            boundaries += 2 * (cycles.max(0.0) as u64 + 1);
+        }
+        most = most.max(budget + boundaries + 2);
+    }
+    most + 2
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dispatch_covers_every_instance_within_the_limit() {
+        let wg = workgroup_size() as usize;
+        let cases = [
+            (1, 65535),
+            (wg, 65535),
+            (wg + 1, 65535),
+            (9 * wg, 3),
+            (9 * wg - 1, 3),
+            (49 * wg, 7),
+        ];
+        for (n, max) in cases {
+            let (x, y) = dispatch_size(n, max);
+            assert!(
+                x <= max && y <= max,
+                "{n} instances, limit {max}: {x} x {y}"
+            );
+            assert!((x as usize) * (y as usize) * workgroup_size() as usize >= n);
+        }
+    }
+
+    #[test]
+    fn batches_respect_binding_limits() {
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: 1000,
+            ..wgpu::Limits::default()
+        };
+        assert_eq!(
+            max_batch_instances(&limits, 100, 200, &BatchOptions::default()),
+            5
+        );
+        let small = BatchOptions {
+            max_batch: Some(3),
+            ..BatchOptions::default()
+        };
+        assert_eq!(max_batch_instances(&limits, 100, 200, &small), 3);
+    }
+}
