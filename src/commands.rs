@@ -899,11 +899,15 @@ pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> Result
         .enumerate()
     {
         let _ = writeln!(toml, "[[points]]\nlabel = \"random {k}\"");
-        let _ = writeln!(
-            toml,
-            "mechanism = {}",
-            inline_table(&inst.mechanism.parameters())
-        );
+        // Loads only where set (never, today): the text of unloaded
+        // instances is what it was before the load existed.
+        let mechanism: Vec<(&str, f64)> = inst
+            .mechanism
+            .parameters()
+            .into_iter()
+            .filter(|&(key, value)| !(key.starts_with("load_") && value == 0.0))
+            .collect();
+        let _ = writeln!(toml, "mechanism = {}", inline_table(&mechanism));
         for (name, a) in AXIS_NAMES.iter().zip(&inst.axes) {
             let _ = writeln!(toml, "axis.{name} = {}", inline_table(&a.parameters()));
         }

@@ -93,9 +93,20 @@ impl Scene {
             let first = self.instance(0);
             let m = first.mechanism;
             let _ = writeln!(out, "instance 0:");
+            // The load only where there is one: unloaded scenes read as
+            // they did before it existed.
+            let load = if m.load == [0.0; 2] {
+                String::new()
+            } else {
+                format!(
+                    ", load_x {} N, load_y {} N",
+                    fmt_short(m.load[0]),
+                    fmt_short(m.load[1])
+                )
+            };
             let _ = writeln!(
                 out,
-                "  mechanism: slider_mass {} kg, static_friction {} N, coulomb_friction {} N, velocity_band {} m/s",
+                "  mechanism: slider_mass {} kg, static_friction {} N, coulomb_friction {} N, velocity_band {} m/s{load}",
                 fmt_short(m.slider_mass),
                 fmt_short(m.static_friction),
                 fmt_short(m.coulomb_friction),

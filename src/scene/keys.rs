@@ -14,6 +14,8 @@ pub(super) enum Field {
     StaticFriction,
     CoulombFriction,
     VelocityBand,
+    LoadX,
+    LoadY,
     StageMass,
     Stiffness,
     Damping,
@@ -41,6 +43,8 @@ impl Field {
             Field::StaticFriction => "static_friction",
             Field::CoulombFriction => "coulomb_friction",
             Field::VelocityBand => "velocity_band",
+            Field::LoadX => "load_x",
+            Field::LoadY => "load_y",
             Field::StageMass => "stage_mass",
             Field::Stiffness => "stiffness",
             Field::Damping => "damping",
@@ -65,7 +69,7 @@ impl Field {
     pub(super) fn units(self) -> &'static str {
         match self {
             Field::SliderMass | Field::StageMass => "kg",
-            Field::StaticFriction | Field::CoulombFriction => "N",
+            Field::StaticFriction | Field::CoulombFriction | Field::LoadX | Field::LoadY => "N",
             Field::VelocityBand => "m/s",
             Field::Stiffness => "N/m",
             Field::Damping => "N s/m",
@@ -144,11 +148,13 @@ impl Mode {
 }
 
 /// The keys of `[mechanism]`, in slot order.
-pub(super) const MECHANISM_FIELDS: [Field; 4] = [
+pub(super) const MECHANISM_FIELDS: [Field; 6] = [
     Field::SliderMass,
     Field::StaticFriction,
     Field::CoulombFriction,
     Field::VelocityBand,
+    Field::LoadX,
+    Field::LoadY,
 ];
 
 /// The keys of `[axis.x]` and `[axis.y]`, in slot order. `frequency_ratio`

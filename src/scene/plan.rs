@@ -122,7 +122,7 @@ pub(super) struct AxisPlan {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Plan {
     /// The `[mechanism]` keys, in slot order.
-    pub(super) mechanism: [Src; 4],
+    pub(super) mechanism: [Src; 6],
     /// Each axis.
     pub(super) axes: [AxisPlan; AXES],
     /// How the steps are measured (`simulation.measure`, scene-wide).
@@ -168,6 +168,8 @@ impl Plan {
             Mechanism::TABLE1.static_friction,
             Mechanism::TABLE1.coulomb_friction,
             Mechanism::TABLE1.velocity_band,
+            Mechanism::TABLE1.load[0],
+            Mechanism::TABLE1.load[1],
         ];
         let or_default = |slot: usize, default: f64| {
             if given[slot] {
@@ -215,6 +217,8 @@ impl Plan {
             static_friction,
             coulomb_friction,
             velocity_band,
+            load_x,
+            load_y,
         ] = self.mechanism.map(|src| src.get(raw));
         Instance {
             mechanism: Mechanism {
@@ -222,6 +226,7 @@ impl Plan {
                 static_friction,
                 coulomb_friction,
                 velocity_band,
+                load: [load_x, load_y],
             },
             axes: [self.axes[0].resolve(raw), self.axes[1].resolve(raw)],
             cycles: self.cycles.get(raw) as u32,

@@ -11,6 +11,7 @@ mod extreme;
 mod files;
 mod gpu;
 mod gpu_phase;
+mod load;
 mod mirror;
 mod output;
 mod phase;
