@@ -157,6 +157,13 @@ pub(super) const MECHANISM_FIELDS: [Field; 6] = [
     Field::LoadY,
 ];
 
+/// The raw slot (and index in [`MECHANISM_FIELDS`]) of
+/// `mechanism.coulomb_friction`.
+pub(super) const COULOMB_SLOT: usize = 2;
+/// The raw slots (and indices in [`MECHANISM_FIELDS`]) of `mechanism.load_x`
+/// and `mechanism.load_y`.
+pub(super) const LOAD_SLOTS: [usize; 2] = [4, 5];
+
 /// The keys of `[axis.x]` and `[axis.y]`, in slot order. `frequency_ratio`
 /// has a slot on both axes but only `axis.y` accepts it (the parser refuses
 /// it on `axis.x`).
