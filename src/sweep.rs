@@ -373,6 +373,13 @@ impl Record {
                 return Some(format!("its {what} is {code}, which is no status code"));
             }
         }
+        if self.status == crate::status::STATUS_NO_STALL {
+            return Some(format!(
+                "its status is {} ({}), which only a stall map holds",
+                self.status,
+                Status::describe(self.status)
+            ));
+        }
         if self.status != STATUS_OK && self.motion != Motion::Undetermined {
             return Some(format!(
                 "its status is {} ({}) but its motion is {}, not {}",

@@ -287,7 +287,7 @@ pub(super) fn slot_path(slot: usize) -> String {
 pub(super) const PHASE_UNITS_KEY: &str = "phase_units";
 
 /// Keys of the document root.
-pub(super) const ROOT_KEYS: [&str; 9] = [
+pub(super) const ROOT_KEYS: [&str; 10] = [
     "name",
     "description",
     PHASE_UNITS_KEY,
@@ -297,10 +297,14 @@ pub(super) const ROOT_KEYS: [&str; 9] = [
     "output",
     "points",
     "refine",
+    "stall",
 ];
 
 /// Keys of `[refine]`.
 pub(super) const REFINE_KEYS: [&str; 2] = ["levels", "tolerance"];
+
+/// Keys of `[stall]`.
+pub(super) const STALL_KEYS: [&str; 2] = ["axis", "tolerance"];
 
 /// Keys of one `[[points]]` entry.
 pub(super) const POINT_KEYS: [&str; 4] = ["label", "mechanism", "axis", "simulation"];

@@ -24,5 +24,6 @@ mod refine;
 mod scene;
 mod scene_fuzz;
 mod slurm;
+mod stall;
 mod steady;
 mod trajectory;

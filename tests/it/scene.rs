@@ -1788,3 +1788,58 @@ fn loads_of_the_kinetic_friction_or_more_are_refused() {
     assert_eq!(scene.instance(1).mechanism.load, [0.25, 0.125]);
     assert_eq!(scene.instance(0).baseline(1).mechanism.load, [0.0, 0.125]);
 }
+
+/// `[stall]`: its keys and what a stall scene may not hold, each refusal
+/// naming the key, the value and why.
+#[test]
+fn stall_scenes_are_checked() {
+    let cases: &[(&str, &str)] = &[
+        (
+            "[stall]\ntolerance = 1e-3",
+            "stall.axis: missing; expected \"x\" or \"y\"",
+        ),
+        (
+            "[stall]\naxis = \"z\"",
+            "stall.axis = \"z\": expected \"x\" or \"y\"",
+        ),
+        ("[stall]\naxis = 1", "stall.axis: expected a string"),
+        (
+            "[stall]\naxis = \"x\"\ntolerance = 0",
+            "stall.tolerance = 0: expected a load in N, > 0",
+        ),
+        (
+            "[stall]\naxis = \"x\"\ntol = 1",
+            "unknown key `stall.tol` (did you mean `tolerance`?)",
+        ),
+        (
+            "[mechanism]\nload_x = -0.1\n[stall]\naxis = \"x\"",
+            "mechanism.load_x = -0.1: [stall] axis = \"x\" searches this load itself",
+        ),
+        (
+            "[mechanism]\nload_y = [0.0, 0.1]\n[stall]\naxis = \"y\"",
+            "mechanism.load_y = [0.0, 0.1]: [stall] axis = \"y\" searches this load itself",
+        ),
+        (
+            "[stall]\naxis = \"x\"\n[[points]]\nlabel = \"p\"\nmechanism = { load_x = 0.1 }",
+            "points[0] (\"p\"): mechanism.load_x = 0.1: [stall] axis = \"x\"",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 100, steps = 3 }\n\
+             frequency = { from = 10, to = 20, steps = 3 }\n\
+             [refine]\nlevels = 1\n[stall]\naxis = \"x\"",
+            "refine: a scene with [stall] cannot be refined",
+        ),
+    ];
+    for (text, needle) in cases {
+        check(text, needle);
+    }
+    // The other axis' load may be anything below f_c, a grid axis too.
+    let scene = parse("[mechanism]\nload_y = [-0.5, 0.5]\n[stall]\naxis = \"x\"\ntolerance = 1e-3");
+    let stall = scene.stall.expect("a stall scene");
+    assert_eq!((stall.axis, stall.tolerance), (0, 1e-3));
+    assert_eq!(
+        parse("[stall]\naxis = \"y\"").stall.unwrap().tolerance,
+        1e-4
+    );
+    assert!(parse("name = \"plain\"").stall.is_none());
+}
