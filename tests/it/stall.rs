@@ -273,3 +273,72 @@ fn stall_runs_shard_merge_and_resume_to_the_single_run() {
     assert!(!checkpoint.exists());
     compare_contents(&single, &out).unwrap();
 }
+
+/// The PNG files in a folder, sorted.
+fn pictures(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".png"))
+        .collect();
+    names.sort();
+    names
+}
+
+/// `pidm plot` draws the stall-load map of a grid of two axes (a heatmap),
+/// of one axis (a line) and of points (a dot each), beside the step maps;
+/// and a step against a load at two voltages as a family of lines, the
+/// picture read at a glance.
+#[test]
+fn pidm_plot_draws_the_stall_load_map_and_steps_against_a_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let window = "[simulation]\nmeasure = \"window\"\ncycles = 4\n";
+    let cases = [
+        (
+            "grid2",
+            format!(
+                "[mechanism]\ncoulomb_friction = [0.2, 1.0]\n[axis.x]\nvoltage = [60.0, 100.0, \
+                 140.0]\n{window}[stall]\naxis = \"x\"\n"
+            ),
+            vec!["stall_load_x.png", "step_x.png", "step_y.png"],
+        ),
+        (
+            "grid1",
+            format!("[axis.y]\nvoltage = [0.0, 50.0, 100.0]\n{window}[stall]\naxis = \"x\"\n"),
+            vec!["stall_load_x.png", "steps.png"],
+        ),
+        (
+            "points",
+            format!(
+                "{window}[stall]\naxis = \"y\"\n[axis.y]\nvoltage = 100.0\n\
+                 [[points]]\nlabel = \"a\"\n[[points]]\nlabel = \"b\"\naxis.y = {{ duty = 1.0 }}\n"
+            ),
+            vec!["stall_load_y.png", "steps.png"],
+        ),
+        (
+            "load",
+            format!(
+                "[mechanism]\nload_x = {{ from = -0.8, to = 0.8, steps = 9 }}\n\
+                 [axis.y]\nvoltage = [0.0, 100.0]\n{window}"
+            ),
+            vec![
+                "step_x.png",
+                "step_x_lines.png",
+                "step_y.png",
+                "step_y_lines.png",
+            ],
+        ),
+    ];
+    for (name, body, want) in cases {
+        let path = scene(d, name, &body);
+        let out = d.join(format!("{name}.h5"));
+        ok(&pidm(
+            &["run", s(&path), "--backend", "cpu", "--out", s(&out)],
+            d,
+        ));
+        let pics = d.join(format!("pics_{name}"));
+        ok(&pidm(&["plot", s(&out), "--out", s(&pics)], d));
+        assert_eq!(pictures(&pics), want, "{name}");
+    }
+}
