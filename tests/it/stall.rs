@@ -342,3 +342,58 @@ fn pidm_plot_draws_the_stall_load_map_and_steps_against_a_load() {
         assert_eq!(pictures(&pics), want, "{name}");
     }
 }
+
+/// The shipped scenes of the load (MODEL.md section 7): `sweeps/stall.toml`
+/// maps the stall load of x over V_x and duty (steady), holding the
+/// issue's -0.0379 N at 100 V and duty 0.98; `sweeps/load.toml` is the
+/// step against a load on x at two y voltages, holding the reference's
+/// ends of the sweep; each draws its picture.
+#[test]
+fn the_shipped_load_scenes_hold_the_reference_and_draw() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let stall = d.join("stall.h5");
+    let scene = crate::common::manifest("sweeps/stall.toml");
+    ok(&pidm(
+        &["run", &scene, "--backend", "cpu", "--out", s(&stall)],
+        d,
+    ));
+    let file = hdf5::File::open(&stall).unwrap();
+    let volts: Vec<f64> = file
+        .dataset("axes/axis.x.voltage")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    let duty: Vec<f64> = file
+        .dataset("axes/axis.x.duty")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    let (i, j) = (
+        volts.iter().position(|&v| v == 100.0).unwrap(),
+        duty.iter().position(|&v| (v - 0.98).abs() < 1e-12).unwrap(),
+    );
+    let load: Vec<f64> = map(&file, "stall_load_x");
+    let at = load[i * duty.len() + j];
+    assert!((at + 0.0379).abs() <= 1.5e-4, "{at}");
+    assert!(map::<u32>(&file, "stall_status_x").iter().all(|&s| s == 0));
+    ok(&pidm(&["plot", s(&stall), "--out", "pics_stall"], d));
+    assert!(pictures(&d.join("pics_stall")).contains(&"stall_load_x.png".to_owned()));
+
+    let sweep = d.join("load.h5");
+    let scene = crate::common::manifest("sweeps/load.toml");
+    ok(&pidm(
+        &["run", &scene, "--backend", "cpu", "--out", s(&sweep)],
+        d,
+    ));
+    let file = hdf5::File::open(&sweep).unwrap();
+    let step: Vec<f64> = map(&file, "step_x");
+    // load_x from -0.95 to 0.95 N (39 values) by y at 0 and 100 V.
+    let (first, last) = (step[1] * 1e6, step[2 * 38 + 1] * 1e6);
+    assert!(
+        (first + 77.7).abs() <= 0.1 && (last - 115.9).abs() <= 0.1,
+        "{first} {last}"
+    );
+    ok(&pidm(&["plot", s(&sweep), "--out", "pics_load"], d));
+    assert!(pictures(&d.join("pics_load")).contains(&"step_x_lines.png".to_owned()));
+}
