@@ -315,7 +315,7 @@ pub(super) fn family_lines(
     let stride = [data.shape[1], 1];
     let flat = |l: usize, s: usize| l * stride[long] + s * stride[short];
     let (along, over) = (&axes[long], &axes[short]);
-    for a in 0..2 {
+    for (a, name) in AXIS_NAMES.iter().enumerate() {
         let mut failed = Vec::new();
         let series = (0..over.values.len())
             .map(|s| Series {
@@ -338,20 +338,17 @@ pub(super) fn family_lines(
                     .collect(),
             })
             .collect();
-        let path = dir.join(format!("step_{}_lines.png", AXIS_NAMES[a]));
-        let y_title = format!(
-            "step along {} [µm per {} drive cycle]",
-            AXIS_NAMES[a], AXIS_NAMES[a]
-        );
+        let path = dir.join(format!("step_{}_lines.png", name));
+        let y_title = format!("step along {} [µm per {} drive cycle]", name, name);
         let mut title = vec![
             format!(
                 "{}: slider step along {} against {}, one line per {}",
-                data.name, AXIS_NAMES[a], along.key, over.key
+                data.name, name, along.key, over.key
             ),
             format!(
                 "above zero: moves towards +{a}; below zero: towards -{a}; where a line crosses \
                  zero the {a} step stops",
-                a = AXIS_NAMES[a]
+                a = name
             ),
         ];
         title.extend(data.fixed.clone());

@@ -58,6 +58,19 @@ impl Scene {
                 refine.coarse[0], refine.coarse[1], refine.levels, refine.tolerance
             );
         }
+        if let Some(stall) = &self.stall {
+            let a = AXIS_NAMES[stall.axis];
+            let _ = writeln!(
+                out,
+                "stall search along {a}: for every instance the load along {a}, against its \
+                 unloaded step, at which the {a} step stops, within {} N, by bracketing ({} \
+                 probes at most) and bisection in waves (each instance integrates 1 + the \
+                 probes it needs: 8.1 on average on sweeps/stall.toml, 14.3 where the step is \
+                 not 0; the cost below is the unloaded run's alone)",
+                fmt_short(stall.tolerance),
+                crate::stall::BRACKET.len()
+            );
+        }
         let _ = writeln!(
             out,
             "baselines: {}",

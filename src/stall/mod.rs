@@ -24,15 +24,17 @@ use anyhow::Result;
 pub use run::{Outcome, Report};
 pub use search::{BRACKET, DEFAULT_TOLERANCE_N, Search, StallRecord};
 
+/// The integration of one wave: its number (from 1) and its probes as
+/// (index into the searches, signed load [N]), to each probe's (step [m
+/// per own drive cycle], status).
+pub type Integrate<'a> = dyn FnMut(u32, &[(usize, f64)]) -> Result<Vec<(f64, u32)>> + 'a;
+
 /// Runs `searches` to their ends in waves: wave `w` (from 1) asks
 /// `integrate(w, probes)` for the (step [m per own drive cycle], status)
 /// of every open search's probe at once, probes as (index into
 /// `searches`, signed load [N]), and hands each back to its search.
 /// Returns the waves run.
-pub fn waves(
-    searches: &mut [Search],
-    integrate: &mut dyn FnMut(u32, &[(usize, f64)]) -> Result<Vec<(f64, u32)>>,
-) -> Result<u32> {
+pub fn waves(searches: &mut [Search], integrate: &mut Integrate<'_>) -> Result<u32> {
     let mut wave = 0;
     loop {
         let probes: Vec<(usize, f64)> = searches

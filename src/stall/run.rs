@@ -130,8 +130,7 @@ pub fn run(
         let (checkpoint, _) = Checkpoint::resume(&checkpoint_path, identity, &mut |start, got| {
             let n = got.len() as u64;
             let (wave, first) = (start / total.max(1), start % total.max(1));
-            let fits =
-                wave <= MAX_WAVES && first + n <= total && (first..first + n).all(|i| ours(i));
+            let fits = wave <= MAX_WAVES && first + n <= total && (first..first + n).all(&ours);
             if !fits {
                 bail!(
                     "the checkpoint {} holds instances {start}.. that this run does not \
