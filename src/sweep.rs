@@ -964,6 +964,19 @@ mod tests {
         }
     }
 
+    /// Code 8 (no stall load) is the stall search's, held in
+    /// `/maps/stall_status_*` only: a map record carrying it cannot be
+    /// right.
+    #[test]
+    fn a_stall_status_is_no_map_status() {
+        let rec = Record {
+            status: crate::status::STATUS_NO_STALL,
+            ..Record::default()
+        };
+        let why = rec.implausibility().expect("refused");
+        assert!(why.contains("which only a stall map holds"), "{why}");
+    }
+
     #[test]
     fn only_a_finished_record_has_a_kind_of_motion() {
         let ok = Record {
