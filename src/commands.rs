@@ -143,6 +143,39 @@ fn print_refine(report: &crate::refine::Report) {
     }
 }
 
+/// The stall search's lines of the run summary (MODEL.md section 7): the
+/// waves and probes it took, the stall loads found and the best, and the
+/// instances with no stall load or a failed probe.
+fn print_stall(scene: &Scene, report: &crate::stall::Report) {
+    let name = AXIS_NAMES[report.axis];
+    let found = report.status_counts[0] + report.status_counts[STATUS_NOT_STEADY as usize];
+    println!(
+        "  stall load along {name}: {} waves after the unloaded run, {} probe {} ({:.3} s \
+         integrating)",
+        report.waves,
+        report.probes,
+        plural(report.probes, "integration", "integrations"),
+        report.integration_s
+    );
+    if let (Some((load, index)), Some((lo, hi))) = (report.best, report.range) {
+        println!(
+            "    best: {load:+.5} N at {} (the largest load moved); stall loads {lo:+.5} .. \
+             {hi:+.5} N",
+            instance_name(scene, index)
+        );
+    }
+    println!(
+        "    found: {found}; no stall load below f_c: {}",
+        report.no_stall()
+    );
+    for (code, &n) in report.status_counts.iter().enumerate() {
+        if n > 0 && code != 0 {
+            let meaning = crate::status::Status::describe(code as u32);
+            println!("    stall status {code} ({meaning}): {n}");
+        }
+    }
+}
+
 /// Metres as signed micrometres to 4 decimals; a value that rounds to
 /// zero is "0.0000", never "-0.0000".
 pub fn um(x: f64) -> String {
@@ -179,6 +212,9 @@ fn print_summary(scene: &Scene, result: &RunResult) {
     );
     if let Some(report) = &result.refine {
         print_refine(report);
+    }
+    if let Some(report) = &result.stall {
+        print_stall(scene, report);
     }
     if s.on_cpu > 0 {
         println!(
@@ -271,8 +307,12 @@ fn print_summary(scene: &Scene, result: &RunResult) {
         if steady {
             print!("  motion");
         }
+        let stalls = &result.stall_records;
+        if let Some(report) = &result.stall {
+            print!("  stall load {} [N]  stall status", AXIS_NAMES[report.axis]);
+        }
         println!();
-        for (label, r) in labels.iter().zip(&result.records) {
+        for (k, (label, r)) in labels.iter().zip(&result.records).enumerate() {
             print!(
                 "  {label:width$}  {:>11}  {:>11}",
                 um(r.step[0]),
@@ -288,6 +328,9 @@ fn print_summary(scene: &Scene, result: &RunResult) {
             print!("  {:>6}", r.status.max(r.baseline_status));
             if steady {
                 print!("  {}", r.motion.name());
+            }
+            if let Some(stall) = stalls.get(k) {
+                print!("  {:>+18.5}  {:>12}", stall.load, stall.status);
             }
             println!();
         }
@@ -899,11 +942,15 @@ pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> Result
         .enumerate()
     {
         let _ = writeln!(toml, "[[points]]\nlabel = \"random {k}\"");
-        let _ = writeln!(
-            toml,
-            "mechanism = {}",
-            inline_table(&inst.mechanism.parameters())
-        );
+        // Loads only where set (never, today): the text of unloaded
+        // instances is what it was before the load existed.
+        let mechanism: Vec<(&str, f64)> = inst
+            .mechanism
+            .parameters()
+            .into_iter()
+            .filter(|&(key, value)| !(key.starts_with("load_") && value == 0.0))
+            .collect();
+        let _ = writeln!(toml, "mechanism = {}", inline_table(&mechanism));
         for (name, a) in AXIS_NAMES.iter().zip(&inst.axes) {
             let _ = writeln!(toml, "axis.{name} = {}", inline_table(&a.parameters()));
         }

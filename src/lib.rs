@@ -23,6 +23,7 @@ pub mod report;
 pub mod run;
 pub mod scene;
 pub mod shard;
+pub mod stall;
 pub mod status;
 pub mod sweep;
 pub mod trajectory;

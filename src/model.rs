@@ -44,6 +44,12 @@ pub struct Mechanism {
     pub coulomb_friction: f64,
     /// Karnopp detection band a on the relative speed [m/s].
     pub velocity_band: f64,
+    /// Constant external force on the slider, (L_x, L_y) [N] (MODEL.md
+    /// section 7: a weight, a cable, a preloaded spring). Default 0, which
+    /// reproduces every unloaded result bit for bit; a scene refuses
+    /// |L| >= f_c (a slider slipping along such a load is not stopped by
+    /// kinetic friction and may run away).
+    pub load: [f64; AXES],
 }
 
 impl Mechanism {
@@ -64,7 +70,7 @@ impl Mechanism {
 }
 
 /// The bits of every parameter of an [`Instance`] ([`Instance::key`]).
-pub type InstanceKey = [u64; 24];
+pub type InstanceKey = [u64; 26];
 
 /// How an instance's step is measured (MODEL.md section 4).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -201,13 +207,30 @@ impl Axis {
 
 impl Mechanism {
     /// Every parameter, named by its scene key, in storage order.
-    pub fn parameters(&self) -> [(&'static str, f64); 4] {
+    pub fn parameters(&self) -> [(&'static str, f64); 6] {
         [
             ("slider_mass", self.slider_mass),
             ("static_friction", self.static_friction),
             ("coulomb_friction", self.coulomb_friction),
             ("velocity_band", self.velocity_band),
+            ("load_x", self.load[0]),
+            ("load_y", self.load[1]),
         ]
+    }
+
+    /// The load's magnitude |L| [N] (the friction law is isotropic, so the
+    /// refusal of MODEL.md section 7 is on the vector's length).
+    pub fn load_magnitude(&self) -> f64 {
+        self.load[0].hypot(self.load[1])
+    }
+
+    /// Whether the load is refused (MODEL.md section 7): a non-zero load of
+    /// at least the kinetic friction f_c, along which a slipping slider is
+    /// not stopped by friction and may run away. A zero load is never
+    /// refused, also with f_c = 0.
+    pub fn load_refused(&self) -> bool {
+        let l = self.load_magnitude();
+        l > 0.0 && l >= self.coulomb_friction
     }
 
     /// Table 1 of the paper.
@@ -216,6 +239,7 @@ impl Mechanism {
         static_friction: 1.2,
         coulomb_friction: 1.0,
         velocity_band: 1.0e-6,
+        load: [0.0; AXES],
     };
 }
 
@@ -253,12 +277,15 @@ impl Instance {
     }
 
     /// The same mechanism with every axis but `keep` undriven: the 1-DOF
-    /// baseline of MODEL.md section 4 (paper curves d_s1, d_s2).
+    /// baseline of MODEL.md section 4 (paper curves d_s1, d_s2). It carries
+    /// only its own axis' load, (L_i, 0) on axis i (MODEL.md section 7),
+    /// so it is the 1-DOF actuator under the same load along its axis.
     pub fn baseline(&self, keep: usize) -> Instance {
         let mut out = *self;
         for (i, axis) in out.axes.iter_mut().enumerate() {
             if i != keep {
                 axis.voltage = 0.0;
+                out.mechanism.load[i] = 0.0;
             }
         }
         out
@@ -267,14 +294,14 @@ impl Instance {
     /// The instance's exact identity: every parameter's bits. Two instances
     /// with the same key integrate to the same result on any backend.
     pub fn key(&self) -> InstanceKey {
-        let mut key = [0; 24];
-        key[..4].copy_from_slice(&self.mechanism.parameters().map(|(_, v)| v.to_bits()));
-        key[4..6].copy_from_slice(&[self.cycles as u64, self.settle as u64]);
+        let mut key = [0; 26];
+        key[..6].copy_from_slice(&self.mechanism.parameters().map(|(_, v)| v.to_bits()));
+        key[6..8].copy_from_slice(&[self.cycles as u64, self.settle as u64]);
         for (i, a) in self.axes.iter().enumerate() {
-            key[6 + 8 * i..14 + 8 * i].copy_from_slice(&a.parameters().map(|(_, v)| v.to_bits()));
+            key[8 + 8 * i..16 + 8 * i].copy_from_slice(&a.parameters().map(|(_, v)| v.to_bits()));
         }
-        key[22] = matches!(self.measure, Measure::Steady { .. }) as u64;
-        key[23] = self.measure.step_tolerance().to_bits();
+        key[24] = matches!(self.measure, Measure::Steady { .. }) as u64;
+        key[25] = self.measure.step_tolerance().to_bits();
         key
     }
 

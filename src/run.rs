@@ -35,6 +35,10 @@ pub struct RunResult {
     pub from_checkpoint: u64,
     /// What the refinement did, for a scene with `[refine]`.
     pub refine: Option<crate::refine::Report>,
+    /// What the stall searches found, for a scene with `[stall]`.
+    pub stall: Option<crate::stall::Report>,
+    /// The stall records, kept like `records` (a scene with `[stall]`).
+    pub stall_records: Vec<crate::stall::StallRecord>,
 }
 
 /// The signal that stopped the run (SIGINT or SIGTERM), 0 while none did.
@@ -192,6 +196,26 @@ pub fn run_scene(
             records: refined.records,
             from_checkpoint: refined.from_checkpoint,
             refine: Some(refined.report),
+            stall: None,
+            stall_records: Vec::new(),
+        });
+    }
+    if let Some(stall) = scene.stall {
+        install_interrupt_handler();
+        let stalled = crate::stall::run::run(
+            scene, stall, backend, &claim, &info, scope, &identity, &all, keep,
+        )?;
+        return Ok(RunResult {
+            path: stalled.path,
+            summary: stalled.summary,
+            wall_time_s: stalled.wall_time_s,
+            total_wall_time_s: stalled.total_wall_time_s,
+            backend: backend.describe(),
+            records: stalled.records,
+            from_checkpoint: stalled.from_checkpoint,
+            refine: None,
+            stall: Some(stalled.report),
+            stall_records: stalled.stall,
         });
     }
     let (mut checkpoint, work, mut writer) = if scope.resume {
@@ -309,6 +333,8 @@ pub fn run_scene(
         records: kept.into_values().collect(),
         from_checkpoint,
         refine: None,
+        stall: None,
+        stall_records: Vec::new(),
     })
 }
 

@@ -17,6 +17,7 @@ use hdf5::File;
 use crate::output::claim::is_same_file;
 use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo, read_str_attr, schema};
 use crate::scene::Scene;
+use crate::stall::StallRecord;
 use crate::sweep::{Record, stored_motion};
 
 pub use crate::output::shard_spec::ShardSpec;
@@ -81,13 +82,19 @@ impl ShardFile {
     }
 
     /// Checks that every map the merge reads is a 1-D dataset of `len`
-    /// values, naming the file and the dataset that is not.
-    fn check_layout(&self, len: u64, baselines: bool) -> Result<()> {
+    /// values, naming the file and the dataset that is not: the stall maps
+    /// of `stall`'s axis too.
+    fn check_layout(&self, len: u64, baselines: bool, stall: Option<usize>) -> Result<()> {
         let in_group = |group: &str, d: &schema::MapDataset| format!("{group}/{}", d.name);
         let mut names: Vec<String> = schema::MAP_DATASETS
             .iter()
             .map(|d| in_group(schema::MAPS, d))
             .collect();
+        if let Some(axis) = stall {
+            names.extend(
+                (0..schema::STALL_DATASETS[axis].len()).map(|k| schema::stall_path(axis, k)),
+            );
+        }
         if baselines {
             names.extend(
                 schema::BASELINE_DATASETS
@@ -183,6 +190,38 @@ impl ShardFile {
             }
         }
         Ok(records)
+    }
+}
+
+impl ShardFile {
+    /// Reads the stall records of `axis` at positions `at .. at + n`,
+    /// which hold the instances from flat index `first` on, and checks
+    /// that they can be right (`StallRecord::implausibility`).
+    fn stall_records(&self, at: u64, n: u64, first: u64, axis: usize) -> Result<Vec<StallRecord>> {
+        let range = at as usize..(at + n) as usize;
+        let f64s = |k: usize| self.column::<f64>(&schema::stall_path(axis, k), range.clone());
+        let u32s = |k: usize| self.column::<u32>(&schema::stall_path(axis, k), range.clone());
+        let (load, near, far) = (f64s(0)?, f64s(1)?, f64s(2)?);
+        let (waves, status) = (u32s(3)?, u32s(4)?);
+        (0..n as usize)
+            .map(|k| {
+                let r = StallRecord {
+                    load: load[k],
+                    step_near: near[k],
+                    step_far: far[k],
+                    waves: waves[k],
+                    status: status[k],
+                };
+                match r.implausibility() {
+                    None => Ok(r),
+                    Some(why) => Err(anyhow!(
+                        "{}: instance {} cannot be right: {why}",
+                        self.path.display(),
+                        first + k as u64
+                    )),
+                }
+            })
+            .collect()
     }
 }
 
@@ -292,7 +331,8 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
             );
         }
         let expected: Vec<u64> = shard.spec.ranges(total).into_iter().flatten().collect();
-        shard.check_layout(expected.len() as u64, scene.baselines)?;
+        let stall = scene.stall.map(|stall| stall.axis);
+        shard.check_layout(expected.len() as u64, scene.baselines, stall)?;
         let stored: Vec<u64> = shard
             .file
             .dataset(schema::SHARD_INSTANCE)
@@ -325,6 +365,10 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
             let n = range.end - range.start;
             let records = shard.records(at, n, range.start, scene.baselines)?;
             writer.write(range.start, &records)?;
+            if let Some(stall) = scene.stall {
+                let stalls = shard.stall_records(at, n, range.start, stall.axis)?;
+                writer.write_stall(range.start, &stalls)?;
+            }
             at += n;
         }
     }

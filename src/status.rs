@@ -9,7 +9,9 @@
 //! keeps the best estimate and its standard error. Code 7 (an f32 band
 //! graze, `cpu::integrate::constants::STATUS_GRAZE`) never reaches a file:
 //! every f32 path integrates such an instance again in f64
-//! (`backend::f32_needs_f64`).
+//! (`backend::f32_needs_f64`), so it is no status here. Code 8 is the stall
+//! search's own (`crate::stall`, `/maps/stall_status`): the step does not
+//! change sign on the loaded side.
 
 use crate::cpu::integrate::constants::{STATUS_NOT_STEADY, STATUS_UNCONVERGED};
 use crate::cpu::integrate::{
@@ -36,11 +38,22 @@ pub enum Status {
     /// motion repeating or its standard error falling within
     /// `simulation.step_tolerance`; the map keeps the best estimate.
     NotSteady = STATUS_NOT_STEADY,
+    /// The stall search (`[stall]`, MODEL.md section 7) found no load
+    /// below the kinetic friction that stops the axis: its step keeps the
+    /// unloaded direction up to the largest load probed, so the actuator
+    /// pushes any load the interface can hold. The stall-load map holds 0
+    /// there, never a made-up number.
+    NoStall = STATUS_NO_STALL,
 }
+
+/// The stall search's status of an instance whose step does not change
+/// sign for |L| < f_c on the side against its unloaded step. 7 is the f32
+/// band graze, which never reaches a file.
+pub const STATUS_NO_STALL: u32 = 8;
 
 impl Status {
     /// Every status, in code order.
-    pub const ALL: [Status; 7] = [
+    pub const ALL: [Status; 8] = [
         Status::Ok,
         Status::StepBudget,
         Status::NonFinite,
@@ -48,6 +61,7 @@ impl Status {
         Status::EventStorm,
         Status::Unconverged,
         Status::NotSteady,
+        Status::NoStall,
     ];
 
     /// The code stored in result files.
@@ -78,6 +92,11 @@ impl Status {
                 "not steady (ran to simulation.max_cycles; the map keeps the best estimate and \
                  its standard error in step_*_se)"
             }
+            Status::NoStall => {
+                "no stall load ([stall] only: the step keeps its direction under every load \
+                 against it below the kinetic friction that was probed; the actuator pushes any \
+                 load it can hold)"
+            }
         }
     }
 
@@ -92,12 +111,19 @@ mod tests {
     use super::*;
 
     #[test]
-    fn codes_are_dense_and_round_trip() {
-        for (k, status) in Status::ALL.into_iter().enumerate() {
-            assert_eq!(status.code(), k as u32);
-            assert_eq!(Status::from_code(k as u32), Some(status));
+    fn codes_are_dense_but_for_the_graze_and_round_trip() {
+        use crate::cpu::integrate::constants::STATUS_GRAZE;
+        let codes: Vec<u32> = Status::ALL.iter().map(|s| s.code()).collect();
+        let dense: Vec<u32> = (0..=Status::ALL.len() as u32)
+            .filter(|&c| c != STATUS_GRAZE)
+            .collect();
+        assert_eq!(codes, dense);
+        for status in Status::ALL {
+            assert_eq!(Status::from_code(status.code()), Some(status));
         }
-        assert_eq!(Status::from_code(Status::ALL.len() as u32), None);
+        // The f32 graze never reaches a file: a stored 7 is refused.
+        assert_eq!(Status::from_code(STATUS_GRAZE), None);
+        assert_eq!(Status::from_code(STATUS_NO_STALL + 1), None);
         assert_eq!(Status::describe(99), "no such status");
     }
 

@@ -373,6 +373,13 @@ impl Record {
                 return Some(format!("its {what} is {code}, which is no status code"));
             }
         }
+        if self.status == crate::status::STATUS_NO_STALL {
+            return Some(format!(
+                "its status is {} ({}), which only a stall map holds",
+                self.status,
+                Status::describe(self.status)
+            ));
+        }
         if self.status != STATUS_OK && self.motion != Motion::Undetermined {
             return Some(format!(
                 "its status is {} ({}) but its motion is {}, not {}",
@@ -955,6 +962,19 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Code 8 (no stall load) is the stall search's, held in
+    /// `/maps/stall_status_*` only: a map record carrying it cannot be
+    /// right.
+    #[test]
+    fn a_stall_status_is_no_map_status() {
+        let rec = Record {
+            status: crate::status::STATUS_NO_STALL,
+            ..Record::default()
+        };
+        let why = rec.implausibility().expect("refused");
+        assert!(why.contains("which only a stall map holds"), "{why}");
     }
 
     #[test]

@@ -82,6 +82,11 @@ def open(path: PathLike) -> xr.Dataset:
       from files written before it existed. ``ds.motion == 1`` selects the
       periodic instances; ``dict(zip(ds.motion.attrs["flag_meanings"].split(),
       ds.motion.attrs["flag_values"]))`` names the codes;
+    - for a scene with ``[stall]`` (docs/model.md section 7): ``stall_load_x`` [N],
+      the load along x at which the x step stops (0 unless ``stall_status_x`` is 0
+      or 6; status 8: no stall load below the kinetic friction), the steps at the
+      bracket's ends ``stall_step_near_x`` and ``stall_step_far_x`` [m per own
+      drive cycle] and the integrations ``stall_waves_x`` (``_y`` for axis y);
     - attributes: the file's root attributes: ``scene`` (the TOML text), ``name``,
       ``pidm_version``, ``backend``, ``precision``, ``tolerance`` [rad],
       ``wall_time_s`` [s, every part of the run], ``wall_time_parts_s`` [s, each

@@ -156,7 +156,8 @@ def run(
     progress
         True shows a tqdm bar (``tqdm.auto``, so also in notebooks) when tqdm is
         installed, and nothing otherwise; False shows nothing; a function is called
-        with every progress record: a dict with ``done``, ``total`` (instances),
+        with every progress record: a dict with ``done``, ``total`` (instances; a
+        scene with ``[stall]`` counts each twice, its unloaded run and its search),
         ``elapsed_s`` [s], ``eta_s`` [s, None before the first instance finished]
         and ``instances_per_s``.
     **options
@@ -170,8 +171,10 @@ def run(
         coordinates with ``units``, every map as a data variable (``step_x``,
         ``step_y`` [m per own drive cycle], ``velocity_x``, ``velocity_y`` [m/s],
         ``status``, ``steps``, ``motion`` (uint8 kind of motion with CF
-        ``flag_values`` and ``flag_meanings``), ``baseline_*``, ...), the scene and
-        run facts as attributes. A run where some instances did not finish normally warns
+        ``flag_values`` and ``flag_meanings``), ``baseline_*``, and for a scene with
+        ``[stall]`` the stall maps ``stall_load_x`` [N], ``stall_step_near_x``,
+        ``stall_step_far_x`` [m per own drive cycle], ``stall_waves_x`` and
+        ``stall_status_x`` (or ``_y``), ...), the scene and run facts as attributes. A run where some instances did not finish normally warns
         (RunWarning); mask the maps with ``status == 0``.
 
     Raises

@@ -171,11 +171,13 @@ fn make_flow(
     var g1 = slope + g1_rel;
     var g2 = -c.coulomb * dir.b2 * (inv_h * inv_h);
     if stuck {
+        // The load acts on stage and slider as one body (MODEL.md section
+        // 7): only the particular solution moves.
         osc = c.stick;
-        g0 = force;
+        g0 = force - c.neg_load;
         g1 = slope;
         g2 = V2(0.0);
-        g0_rel = V2(0.0);
+        g0_rel = V2(0.0) - c.neg_load;
         g1_rel = V2(0.0);
     }
     let x2 = g2 * c.inv_stiffness;
@@ -213,7 +215,7 @@ fn make_flow(
     f.v_s = v_s;
     f.v_rel = v_rel;
     f.b0 = dir.b0;
-    f.slider0 = c.fc_over_ms * dir.b0;
+    f.slider0 = c.fc_over_ms * dir.b0 - c.neg_load_accel;
     f.slider1 = c.fc_over_ms * dir.b1;
     f.slider2 = c.fc_over_ms * dir.b2;
     f.g0 = g0;

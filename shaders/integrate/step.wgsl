@@ -54,7 +54,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
     var safe = false;
     if stuck {
         let bound = dot(start.a_p, start.a_p) + dot(start.j_p * start.j_p, flow.osc.inv_w2);
-        safe = c.ms2 * bound <= c.hold2;
+        safe = c.ms2 * bound <= c.safe_hold2;
         if !safe {
             h = min(h_max, c.event_step_stuck);
         }
@@ -386,11 +386,11 @@ fn stick_force(c: Coefficients, st: State) -> V2 {
     if DEFLECTION {
         // F - k x_p = -k d: the force balance without the drive force.
         let v = c.stage_share * (st.v_p + drive.slope * c.inv_stiffness) + c.slider_share * st.v_s;
-        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p);
+        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p) - c.load_need;
     }
     let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
     let p = drive.force - c.damping * v - c.stiffness * st.x_p;
-    return c.slider_share * p;
+    return c.slider_share * p - c.load_need;
 }
 
 fn slip_direction(c: Coefficients, need: V2) -> V2 {

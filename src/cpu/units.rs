@@ -51,6 +51,7 @@ impl Units {
         m.static_friction *= newton;
         m.coulomb_friction *= newton;
         m.velocity_band *= self.metre / self.second;
+        m.load = m.load.map(|l| l * newton);
         out
     }
 }

@@ -14,6 +14,10 @@
 //!   `flag_meanings`), each shaped like the grid;
 //! - `/baseline/step_x`, `/baseline/step_y`, `/baseline/status` when
 //!   baselines are asked for;
+//! - `/maps/stall_load_x` [N], `/maps/stall_step_near_x`,
+//!   `/maps/stall_step_far_x` [m per own drive cycle], `/maps/stall_waves_x`
+//!   and `/maps/stall_status_x` (or `_y`) for a scene with `[stall]`
+//!   (`crate::stall`), shaped like the grid;
 //! - `/trajectories/<k>/` when the scene asks for trajectories (written by
 //!   `crate::trajectory`, which documents its layout).
 //!
@@ -104,6 +108,9 @@ pub struct FileInfo {
     pub verify_tolerance: Option<f64>,
     /// Set for a shard file: which part of the scene it holds.
     pub shard: Option<ShardInfo>,
+    /// The stalled axis of a scene with `[stall]`: its stall maps are
+    /// written too (`schema::STALL_DATASETS`).
+    pub stall: Option<usize>,
 }
 
 impl FileInfo {
@@ -141,6 +148,7 @@ impl FileInfo {
             tolerance: scene.settings.tolerance,
             verify_tolerance: None,
             shard: None,
+            stall: scene.stall.map(|stall| stall.axis),
         }
     }
 }
@@ -156,6 +164,8 @@ pub struct MapWriter {
     shard_ranges: Vec<(Range<u64>, u64)>,
     maps: Vec<Dataset>,
     baselines: Vec<Dataset>,
+    /// The stall maps of a scene with `[stall]` (empty otherwise).
+    stall: Vec<Dataset>,
     /// The grid axes' keys, in grid order (their dimension scales).
     scale_names: Vec<String>,
 }
@@ -313,6 +323,7 @@ impl MapWriter {
             shard_ranges,
             maps: Vec::new(),
             baselines: Vec::new(),
+            stall: Vec::new(),
             scale_names: info.axes.iter().map(|a| a.key.clone()).collect(),
         };
         write_str_attr(&file, schema::SCENE, &info.scene_text)?;
@@ -424,6 +435,13 @@ impl MapWriter {
             }
             writer.maps.push(ds);
         }
+        if let Some(axis) = info.stall {
+            for d in schema::STALL_DATASETS[axis] {
+                let ds = make(&maps, d.name, d.ty)?;
+                describe(&ds, schema::MAPS, d.name, d.units, d.long_name)?;
+                writer.stall.push(ds);
+            }
+        }
         if info.baselines {
             let group = file.create_group(schema::BASELINE)?;
             for d in schema::BASELINE_DATASETS {
@@ -484,6 +502,27 @@ impl MapWriter {
                 &take_u32(&|r| r.baseline_status),
             )?;
         }
+        Ok(())
+    }
+
+    /// Writes the stall maps of instances `start .. start +
+    /// records.len()` (row-major flat indices) of a scene with `[stall]`.
+    pub fn write_stall(&mut self, start: u64, records: &[crate::stall::StallRecord]) -> Result<()> {
+        if self.stall.is_empty() {
+            bail!("internal: stall maps for a file of a scene without [stall]");
+        }
+        let start = self.position(start, records.len() as u64)?;
+        let f64s = |f: &dyn Fn(&crate::stall::StallRecord) -> f64| -> Vec<f64> {
+            records.iter().map(f).collect()
+        };
+        let u32s = |f: &dyn Fn(&crate::stall::StallRecord) -> u32| -> Vec<u32> {
+            records.iter().map(f).collect()
+        };
+        write_flat(&self.stall[0], &self.shape, start, &f64s(&|r| r.load))?;
+        write_flat(&self.stall[1], &self.shape, start, &f64s(&|r| r.step_near))?;
+        write_flat(&self.stall[2], &self.shape, start, &f64s(&|r| r.step_far))?;
+        write_flat(&self.stall[3], &self.shape, start, &u32s(&|r| r.waves))?;
+        write_flat(&self.stall[4], &self.shape, start, &u32s(&|r| r.status))?;
         Ok(())
     }
 

@@ -114,6 +114,77 @@ pub const BASELINE_DATASETS: [MapDataset; 3] = [
     ),
 ];
 
+/// The stall maps of one axis.
+macro_rules! stall_maps {
+    ($a:literal) => {
+        [
+            map(
+                concat!("stall_load_", $a),
+                "N",
+                concat!(
+                    "load along ",
+                    $a,
+                    " at which the ",
+                    $a,
+                    " step stops: the zero crossing nearest zero load, against the unloaded \
+                     step (0 unless stall_status_",
+                    $a,
+                    " is 0 or 6)"
+                ),
+                F64,
+            ),
+            map(
+                concat!("stall_step_near_", $a),
+                "m",
+                concat!(
+                    "step along ",
+                    $a,
+                    " per ",
+                    $a,
+                    " drive cycle at the stall bracket's end nearer zero load (still in the \
+                     unloaded direction)"
+                ),
+                F64,
+            ),
+            map(
+                concat!("stall_step_far_", $a),
+                "m",
+                concat!(
+                    "step along ",
+                    $a,
+                    " per ",
+                    $a,
+                    " drive cycle at the stall bracket's far end (stopped or reversed)"
+                ),
+                F64,
+            ),
+            map(
+                concat!("stall_waves_", $a),
+                "1",
+                "integrations of the stall search: the unloaded run and one probe per wave",
+                U32,
+            ),
+            map(
+                concat!("stall_status_", $a),
+                "1",
+                "stall search status (0 found, 6 found with a probe not steady, 8 no stall \
+                 load, 1-5 a probe failed)",
+                U32,
+            ),
+        ]
+    };
+}
+
+/// The datasets under [`MAPS`] of a scene with `[stall]`, per stalled
+/// axis (x, y): the values of `crate::stall::StallRecord`, in its field
+/// order.
+pub const STALL_DATASETS: [[MapDataset; 5]; 2] = [stall_maps!("x"), stall_maps!("y")];
+
+/// The path of stall map `k` (of [`STALL_DATASETS`]) of `axis`.
+pub fn stall_path(axis: usize, k: usize) -> String {
+    format!("{MAPS}/{}", STALL_DATASETS[axis][k].name)
+}
+
 const fn map(
     name: &'static str,
     units: &'static str,
@@ -129,8 +200,9 @@ const fn map(
 }
 
 /// Bytes the maps of one instance take in a result file (and in memory
-/// while a map is assembled), with or without its baselines.
-pub const fn bytes_per_instance(baselines: bool) -> u64 {
+/// while a map is assembled), with or without its baselines and stall
+/// maps.
+pub const fn bytes_per_instance(baselines: bool, stall: bool) -> u64 {
     let mut bytes = 0;
     let mut k = 0;
     while k < MAP_DATASETS.len() {
@@ -141,6 +213,13 @@ pub const fn bytes_per_instance(baselines: bool) -> u64 {
         let mut k = 0;
         while k < BASELINE_DATASETS.len() {
             bytes += BASELINE_DATASETS[k].bytes();
+            k += 1;
+        }
+    }
+    if stall {
+        let mut k = 0;
+        while k < STALL_DATASETS[0].len() {
+            bytes += STALL_DATASETS[0][k].bytes();
             k += 1;
         }
     }
@@ -306,8 +385,15 @@ mod tests {
         // Six f64 maps (steps, velocities, standard errors), four u32 maps
         // (status, steps, periods, period_lag) and the u8 motion map:
         // 6 x 8 + 4 x 4 + 1; two f64 and one u32 baselines add 20.
-        assert_eq!(bytes_per_instance(false), 65);
-        assert_eq!(bytes_per_instance(true), 85);
+        assert_eq!(bytes_per_instance(false, false), 65);
+        assert_eq!(bytes_per_instance(true, false), 85);
+        // The stall maps: three f64 (load, the steps at the bracket's
+        // ends) and two u32 (waves, status), named by their axis.
+        assert_eq!(bytes_per_instance(false, true), 65 + 32);
+        assert_eq!(STALL_DATASETS[0][0].name, "stall_load_x");
+        assert_eq!(STALL_DATASETS[1][4].name, "stall_status_y");
+        assert_eq!(stall_path(0, 0), "maps/stall_load_x");
+        assert_eq!(STALL_DATASETS[1][0].units, "N");
     }
 
     /// The README's table of the kinds of motion, the codes `/maps/motion`

@@ -11,6 +11,10 @@ pub const FAILED: RGBColor = RGBColor(120, 120, 120);
 /// value.
 pub const NOT_STEADY: RGBColor = RGBColor(200, 200, 200);
 
+/// Instances whose step keeps its direction under every load probed (no
+/// stall load, stall status 8): a violet no diverging scale here uses.
+pub const NO_STALL: RGBColor = RGBColor(118, 42, 131);
+
 /// The colour of cells where a ratio is undefined (1-DOF step about zero).
 pub const UNDEFINED: RGBColor = RGBColor(205, 205, 205);
 

@@ -196,7 +196,16 @@ fn colour_bar(area: &Area<'_>, scale: &Diverging, title: &str) -> Result<()> {
         .disable_x_axis()
         .y_desc(title)
         .y_labels(9)
-        .y_label_formatter(&|v| short(*v))
+        // A tick at the centre computed as lo + k step lands a rounding
+        // away from it (-5.55e-17 N): label it as the centre.
+        .y_label_formatter(&|v| {
+            let centre = scale.centre;
+            short(if (v - centre).abs() <= 1e-9 * (hi - lo) {
+                centre
+            } else {
+                *v
+            })
+        })
         .label_style(font(14))
         .axis_desc_style(font(15))
         .draw()?;

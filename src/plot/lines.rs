@@ -17,31 +17,31 @@ use super::text::{axis_title, short};
 use crate::model::AXIS_NAMES;
 
 /// One line of a line chart.
-struct Series {
-    name: String,
-    colour: RGBColor,
+pub(super) struct Series {
+    pub(super) name: String,
+    pub(super) colour: RGBColor,
     /// Dashed without dots (1-DOF), or solid with a dot per value.
-    dashed: bool,
+    pub(super) dashed: bool,
     /// (grid value, y) pairs.
-    points: Vec<(f64, f64)>,
+    pub(super) points: Vec<(f64, f64)>,
 }
 
 /// A line chart against one grid axis.
-struct LineChart<'a> {
-    title: Vec<String>,
-    axis: &'a AxisData,
-    y_title: &'a str,
+pub(super) struct LineChart<'a> {
+    pub(super) title: Vec<String>,
+    pub(super) axis: &'a AxisData,
+    pub(super) y_title: &'a str,
     /// A horizontal black line at this y.
-    reference: f64,
-    series: Vec<Series>,
+    pub(super) reference: f64,
+    pub(super) series: Vec<Series>,
     /// Extra dots (grid value, y, colour), drawn over the lines.
-    markers: Vec<(f64, f64, RGBColor)>,
+    pub(super) markers: Vec<(f64, f64, RGBColor)>,
     /// Swatches listed after the series in the legend.
-    extra_legend: Vec<(RGBColor, String)>,
+    pub(super) extra_legend: Vec<(RGBColor, String)>,
 }
 
 impl LineChart<'_> {
-    fn draw(&self, path: &Path) -> Result<()> {
+    pub(super) fn draw(&self, path: &Path) -> Result<()> {
         let axis = self.axis;
         save(path, (1100, 760), |root| {
             let body = title_block(root, &self.title)?;
@@ -76,7 +76,15 @@ impl LineChart<'_> {
                 .y_desc(self.y_title)
                 .x_labels(if place.log { 0 } else { 10 })
                 .x_label_formatter(&fx)
-                .y_label_formatter(&|v| short(*v))
+                // A tick at zero computed as lo + k step lands a rounding
+                // away from it: label it zero.
+                .y_label_formatter(&|v| {
+                    short(if v.abs() <= 1e-9 * (y_hi - y_lo) {
+                        0.0
+                    } else {
+                        *v
+                    })
+                })
                 .label_style(font(15))
                 .axis_desc_style(font(17))
                 .light_line_style(WHITE.mix(0.0))
@@ -258,5 +266,110 @@ pub(super) fn grid_lines(
     }
     .draw(&path)?;
     files.push(path);
+    Ok(())
+}
+
+/// The most values of the short axis of a two-axis grid drawn as a family
+/// of lines, and the fewest of its long axis: a few curves of many points
+/// each (a step against the load at two voltages) read at a glance, where
+/// a heatmap two cells tall does not.
+pub(super) const FAMILY_MOST_LINES: usize = 4;
+pub(super) const FAMILY_FEWEST_POINTS: usize = 8;
+
+/// The line colours of a family, one per value of the short axis.
+const FAMILY_COLOURS: [RGBColor; FAMILY_MOST_LINES] = [
+    RGBColor(33, 102, 172),
+    RGBColor(214, 96, 77),
+    RGBColor(27, 120, 55),
+    RGBColor(118, 42, 131),
+];
+
+/// For a grid of two axes, one with at most [`FAMILY_MOST_LINES`] values
+/// and the other with at least [`FAMILY_FEWEST_POINTS`]: the dimensions
+/// (long, short).
+pub(super) fn family_dims(shape: &[usize]) -> Option<(usize, usize)> {
+    let [a, b] = shape else {
+        return None;
+    };
+    let fits =
+        |long: usize, short: usize| long >= FAMILY_FEWEST_POINTS && short <= FAMILY_MOST_LINES;
+    if fits(*a, *b) {
+        Some((0, 1))
+    } else if fits(*b, *a) {
+        Some((1, 0))
+    } else {
+        None
+    }
+}
+
+/// Writes, per axis, the step against the long axis of a two-axis grid
+/// ([`family_dims`]), one line per value of the short axis:
+/// `step_x_lines.png` and `step_y_lines.png`.
+pub(super) fn family_lines(
+    data: &Data,
+    axes: &[AxisData],
+    (long, short): (usize, usize),
+    dir: &Path,
+    files: &mut Vec<PathBuf>,
+) -> Result<()> {
+    let stride = [data.shape[1], 1];
+    let flat = |l: usize, s: usize| l * stride[long] + s * stride[short];
+    let (along, over) = (&axes[long], &axes[short]);
+    for (a, name) in AXIS_NAMES.iter().enumerate() {
+        let mut failed = Vec::new();
+        let series = (0..over.values.len())
+            .map(|s| Series {
+                name: format!(
+                    "{} = {}",
+                    over.key,
+                    super::text::with_unit(over.values[s], &over.units)
+                ),
+                colour: FAMILY_COLOURS[s],
+                dashed: false,
+                points: (0..along.values.len())
+                    .filter(|&l| {
+                        let ok = data.status[flat(l, s)] == 0;
+                        if !ok {
+                            failed.push(along.values[l]);
+                        }
+                        ok
+                    })
+                    .map(|l| (along.values[l], data.step[a][flat(l, s)] * 1e6))
+                    .collect(),
+            })
+            .collect();
+        let path = dir.join(format!("step_{}_lines.png", name));
+        let y_title = format!("step along {} [µm per {} drive cycle]", name, name);
+        let mut title = vec![
+            format!(
+                "{}: slider step along {} against {}, one line per {}",
+                data.name, name, along.key, over.key
+            ),
+            format!(
+                "above zero: moves towards +{a}; below zero: towards -{a}; where a line crosses \
+                 zero the {a} step stops",
+                a = name
+            ),
+        ];
+        title.extend(data.fixed.clone());
+        LineChart {
+            title,
+            axis: along,
+            y_title: &y_title,
+            reference: 0.0,
+            series,
+            markers: failed.iter().map(|&v| (v, 0.0, FAILED)).collect(),
+            extra_legend: if failed.is_empty() {
+                Vec::new()
+            } else {
+                vec![(
+                    FAILED,
+                    format!("not computed (status ≠ 0): {}", failed.len()),
+                )]
+            },
+        }
+        .draw(&path)?;
+        files.push(path);
+    }
     Ok(())
 }

@@ -143,6 +143,67 @@ fn slices(rest: &[usize]) -> (Vec<Vec<usize>>, usize) {
     (combos, total)
 }
 
+/// One 2-D slice of a grid's maps, as [`grid_maps`] draws it.
+pub(super) struct Slice {
+    /// The file-name suffix naming the held values ("" for a 2-D grid).
+    pub(super) suffix: String,
+    /// The title line naming the held values, for grids of more axes.
+    pub(super) line: Option<String>,
+    /// The flat index of cell (i, j): value i across, value j up.
+    pub(super) flat: Vec<Vec<usize>>,
+}
+
+/// The slices of a grid with two or more axes that `plane` draws (at most
+/// [`MAX_SLICES`], evenly spaced), in the order [`grid_maps`] draws them.
+pub(super) fn plane_slices(data: &Data, axes: &[AxisData], plane: &Plane) -> Vec<Slice> {
+    let shape = &data.shape;
+    let (p, q) = (plane.across, plane.up);
+    let rest: Vec<usize> = plane.rest.iter().map(|(d, _)| *d).collect();
+    let rest_shape: Vec<usize> = plane.rest.iter().map(|(_, ix)| ix.len()).collect();
+    let mut strides = vec![1; shape.len()];
+    for d in (0..shape.len().saturating_sub(1)).rev() {
+        strides[d] = strides[d + 1] * shape[d + 1];
+    }
+    let (combos, _) = slices(&rest_shape);
+    combos
+        .into_iter()
+        .map(|combo| {
+            let combo: Vec<usize> = combo
+                .iter()
+                .zip(&plane.rest)
+                .map(|(&k, (_, ix))| ix[k])
+                .collect();
+            let offset: usize = combo.iter().zip(&rest).map(|(&i, &d)| i * strides[d]).sum();
+            let at: Vec<String> = combo
+                .iter()
+                .zip(&rest)
+                .map(|(&i, &d)| {
+                    format!(
+                        "{} = {}",
+                        axes[d].key,
+                        with_unit(axes[d].values[i], &axes[d].units)
+                    )
+                })
+                .collect();
+            Slice {
+                suffix: combo
+                    .iter()
+                    .zip(&rest)
+                    .map(|(&i, &d)| format!("__{}={}", axes[d].key, short(axes[d].values[i])))
+                    .collect(),
+                line: (!at.is_empty()).then(|| format!("slice at {}", at.join(", "))),
+                flat: (0..shape[p])
+                    .map(|i| {
+                        (0..shape[q])
+                            .map(|j| i * strides[p] + j * strides[q] + offset)
+                            .collect()
+                    })
+                    .collect(),
+            }
+        })
+        .collect()
+}
+
 /// The drive parameters of a grid scene that no grid axis changes, as a
 /// title line: "fixed: x 100 V, 10 Hz, duty 0.98, phase 0; y 10 Hz, ...".
 /// A parameter is fixed when one step along each grid axis leaves it as

@@ -17,6 +17,11 @@
 //! - a points scene (or a single instance): a bar chart of the steps, with
 //!   the baselines beside them and each point's kind of motion under its
 //!   label;
+//! - a grid of two axes, one of at most 4 values and the other of at least
+//!   8 (a step against the load at two voltages): also line plots of the
+//!   steps against the long axis, one line per value of the short one;
+//! - a scene with `[stall]`: the stall-load map (`stall`), a heatmap per
+//!   slice, a line for a 1-D grid or a dot per point;
 //! - every stored trajectory: stage and slider displacement against time
 //!   per axis and the slider's path in the x-y plane, like the paper's
 //!   Figs. 5-8.
@@ -57,6 +62,7 @@ mod read_trajectories;
 mod regime;
 pub use regime::{Regime, ZERO_STEP_M};
 mod staging;
+mod stall;
 mod text;
 mod trajectory;
 
@@ -168,8 +174,23 @@ fn draw(
                     &default
                 }
             };
-            maps::grid_maps(data, axes, plane, dir, files, notes)?
+            maps::grid_maps(data, axes, plane, dir, files, notes)?;
+            if let Some(dims) = lines::family_dims(&data.shape) {
+                lines::family_lines(data, axes, dims, dir, files)?;
+            }
         }
+    }
+    if let Some(stall) = &data.stall {
+        let default;
+        let plane = match (&data.kind, plane) {
+            (_, Some(plane)) => Some(plane),
+            (Kind::Grid(axes), None) if axes.len() >= 2 => {
+                default = maps::Plane::choose(axes, &data.shape, &View::default())?;
+                Some(&default)
+            }
+            _ => None,
+        };
+        stall::stall_pictures(data, stall, plane, dir, files, notes)?;
     }
     for (k, t) in data.trajectories.iter().enumerate() {
         if let Some(why) = &t.not_drawn {

@@ -69,6 +69,19 @@ pub(super) struct Data {
     /// The drive parameters that no grid axis changes, for map titles
     /// ("fixed: x 100 V, 10 Hz, ..."), when the scene parses.
     pub(super) fixed: Option<String>,
+    /// The stall maps of a scene with `[stall]`, when stored.
+    pub(super) stall: Option<StallData>,
+}
+
+/// The stall maps of one axis (`crate::stall`), row-major like the maps.
+pub(super) struct StallData {
+    /// The stalled axis (0 = x).
+    pub(super) axis: usize,
+    /// The stall load [N].
+    pub(super) load: Vec<f64>,
+    /// The stall search's status (0 found, 6 with a probe not steady, 8 no
+    /// stall load, 1-5 a probe failed).
+    pub(super) status: Vec<u32>,
 }
 
 impl Data {
@@ -181,6 +194,7 @@ impl Data {
         };
         let trajectories = read_trajectories(&file)?;
         let fixed = scene.as_ref().and_then(super::maps::fixed_drive);
+        let stall = read_stall(&file, &shape)?;
         Ok(Data {
             name,
             kind,
@@ -194,8 +208,41 @@ impl Data {
             trajectories,
             notes,
             fixed,
+            stall,
         })
     }
+}
+
+/// Reads the stall maps when the file has them (`/maps/stall_load_x` or
+/// `_y`): the load, finite and within ±1e100, and the status, each a known
+/// code, both shaped like the maps; a value only where the status keeps
+/// one.
+fn read_stall(file: &ResultFile, shape: &[usize]) -> Checked<Option<StallData>> {
+    let Some(axis) = (0..2).find(|&a| file.exists(&schema::stall_path(a, 0))) else {
+        return Ok(None);
+    };
+    let (load_path, status_path) = (schema::stall_path(axis, 0), schema::stall_path(axis, 4));
+    let reason = || format!("the shape of /{}", schema::STEP[0]);
+    let load = file.floats(&load_path)?;
+    file.expect_shape(&load, shape, reason())?;
+    file.expect_plausible(&load, "a stall load is a force below the kinetic friction")?;
+    let status = file.integers(&status_path)?;
+    file.expect_shape(&status, shape, reason())?;
+    if let Some(v) = status
+        .values
+        .iter()
+        .find(|&&v| crate::status::Status::from_code(v).is_none())
+    {
+        return Err(file.dataset_error(
+            &status_path,
+            Problem::Invalid(format!("holds {v}, which is no status code")),
+        ));
+    }
+    Ok(Some(StallData {
+        axis,
+        load: load.values,
+        status: status.values,
+    }))
 }
 
 impl Data {

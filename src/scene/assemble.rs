@@ -104,6 +104,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
         plan,
         raw,
         refine: None,
+        stall: parsed.stall,
         grid_slots: Vec::new(),
         points: Vec::new(),
         point_keys: Vec::new(),
@@ -204,11 +205,19 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
 
     // Refuse oversized grids before expanding any range.
     let shape: Vec<u64> = grid.iter().map(|(_, entry)| entry.values.len()).collect();
-    check_memory(&shape, false, scene.baselines, MAP_MEMORY_BUDGET_BYTES)?;
+    check_memory(
+        &shape,
+        false,
+        scene.baselines,
+        scene.stall.is_some(),
+        MAP_MEMORY_BUDGET_BYTES,
+    )?;
 
     // Per-key checks covered every value; derived quantities and
-    // settle < cycles (or max_cycles) are monotone in each key, so the corners of the
-    // grid over the keys involved cover every instance.
+    // settle < cycles (or max_cycles) are monotone in each key, and the
+    // load's magnitude |L| is convex in the loads, its limit f_c monotone,
+    // so the corners of the grid over the keys involved cover every
+    // instance (a refused corner is a grid point, named by its values).
     let involved: Vec<(usize, f64, f64)> = grid
         .iter()
         .filter(|(slot, _)| {
@@ -224,6 +233,9 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
                     | Field::Cycles
                     | Field::Settle
                     | Field::MaxCycles
+                    | Field::LoadX
+                    | Field::LoadY
+                    | Field::CoulombFriction
             )
         })
         .map(|(slot, entry)| {

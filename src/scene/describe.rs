@@ -58,6 +58,19 @@ impl Scene {
                 refine.coarse[0], refine.coarse[1], refine.levels, refine.tolerance
             );
         }
+        if let Some(stall) = &self.stall {
+            let a = AXIS_NAMES[stall.axis];
+            let _ = writeln!(
+                out,
+                "stall search along {a}: for every instance the load along {a}, against its \
+                 unloaded step, at which the {a} step stops, within {} N, by bracketing ({} \
+                 probes at most) and bisection in waves (each instance integrates 1 + the \
+                 probes it needs: 8.1 on average on sweeps/stall.toml, 14.3 where the step is \
+                 not 0; the cost below is the unloaded run's alone)",
+                fmt_short(stall.tolerance),
+                crate::stall::BRACKET.len()
+            );
+        }
         let _ = writeln!(
             out,
             "baselines: {}",
@@ -93,9 +106,20 @@ impl Scene {
             let first = self.instance(0);
             let m = first.mechanism;
             let _ = writeln!(out, "instance 0:");
+            // The load only where there is one: unloaded scenes read as
+            // they did before it existed.
+            let load = if m.load == [0.0; 2] {
+                String::new()
+            } else {
+                format!(
+                    ", load_x {} N, load_y {} N",
+                    fmt_short(m.load[0]),
+                    fmt_short(m.load[1])
+                )
+            };
             let _ = writeln!(
                 out,
-                "  mechanism: slider_mass {} kg, static_friction {} N, coulomb_friction {} N, velocity_band {} m/s",
+                "  mechanism: slider_mass {} kg, static_friction {} N, coulomb_friction {} N, velocity_band {} m/s{load}",
                 fmt_short(m.slider_mass),
                 fmt_short(m.static_friction),
                 fmt_short(m.coulomb_friction),

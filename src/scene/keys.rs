@@ -14,6 +14,8 @@ pub(super) enum Field {
     StaticFriction,
     CoulombFriction,
     VelocityBand,
+    LoadX,
+    LoadY,
     StageMass,
     Stiffness,
     Damping,
@@ -41,6 +43,8 @@ impl Field {
             Field::StaticFriction => "static_friction",
             Field::CoulombFriction => "coulomb_friction",
             Field::VelocityBand => "velocity_band",
+            Field::LoadX => "load_x",
+            Field::LoadY => "load_y",
             Field::StageMass => "stage_mass",
             Field::Stiffness => "stiffness",
             Field::Damping => "damping",
@@ -65,7 +69,7 @@ impl Field {
     pub(super) fn units(self) -> &'static str {
         match self {
             Field::SliderMass | Field::StageMass => "kg",
-            Field::StaticFriction | Field::CoulombFriction => "N",
+            Field::StaticFriction | Field::CoulombFriction | Field::LoadX | Field::LoadY => "N",
             Field::VelocityBand => "m/s",
             Field::Stiffness => "N/m",
             Field::Damping => "N s/m",
@@ -144,12 +148,21 @@ impl Mode {
 }
 
 /// The keys of `[mechanism]`, in slot order.
-pub(super) const MECHANISM_FIELDS: [Field; 4] = [
+pub(super) const MECHANISM_FIELDS: [Field; 6] = [
     Field::SliderMass,
     Field::StaticFriction,
     Field::CoulombFriction,
     Field::VelocityBand,
+    Field::LoadX,
+    Field::LoadY,
 ];
+
+/// The raw slot (and index in [`MECHANISM_FIELDS`]) of
+/// `mechanism.coulomb_friction`.
+pub(super) const COULOMB_SLOT: usize = 2;
+/// The raw slots (and indices in [`MECHANISM_FIELDS`]) of `mechanism.load_x`
+/// and `mechanism.load_y`.
+pub(super) const LOAD_SLOTS: [usize; 2] = [4, 5];
 
 /// The keys of `[axis.x]` and `[axis.y]`, in slot order. `frequency_ratio`
 /// has a slot on both axes but only `axis.y` accepts it (the parser refuses
@@ -274,7 +287,7 @@ pub(super) fn slot_path(slot: usize) -> String {
 pub(super) const PHASE_UNITS_KEY: &str = "phase_units";
 
 /// Keys of the document root.
-pub(super) const ROOT_KEYS: [&str; 9] = [
+pub(super) const ROOT_KEYS: [&str; 10] = [
     "name",
     "description",
     PHASE_UNITS_KEY,
@@ -284,10 +297,14 @@ pub(super) const ROOT_KEYS: [&str; 9] = [
     "output",
     "points",
     "refine",
+    "stall",
 ];
 
 /// Keys of `[refine]`.
 pub(super) const REFINE_KEYS: [&str; 2] = ["levels", "tolerance"];
+
+/// Keys of `[stall]`.
+pub(super) const STALL_KEYS: [&str; 2] = ["axis", "tolerance"];
 
 /// Keys of one `[[points]]` entry.
 pub(super) const POINT_KEYS: [&str; 4] = ["label", "mechanism", "axis", "simulation"];

@@ -8,22 +8,28 @@ pub const MAP_MEMORY_BUDGET_BYTES: u64 = 8 << 30;
 
 impl Scene {
     /// Output bytes per instance: the maps of the result-file schema, with
-    /// the baselines' when the scene asks for them.
+    /// the baselines' and the stall maps when the scene asks for them.
     pub fn bytes_per_instance(&self) -> u64 {
-        bytes_per_instance(self.baselines)
+        bytes_per_instance(self.baselines, self.stall.is_some())
     }
 
     /// Refuses the scene when its output maps exceed `budget_bytes`.
     pub fn check_memory(&self, budget_bytes: u64) -> Result<(), SceneError> {
         let shape: Vec<u64> = self.shape().iter().map(|&n| n as u64).collect();
         let points = matches!(self.layout, Layout::Points { .. });
-        check_memory(&shape, points, self.baselines, budget_bytes)
+        check_memory(
+            &shape,
+            points,
+            self.baselines,
+            self.stall.is_some(),
+            budget_bytes,
+        )
     }
 }
 
 /// Output bytes per instance, as the result file's schema lays them out.
-pub(super) fn bytes_per_instance(baselines: bool) -> u64 {
-    crate::output::schema::bytes_per_instance(baselines)
+pub(super) fn bytes_per_instance(baselines: bool, stall: bool) -> u64 {
+    crate::output::schema::bytes_per_instance(baselines, stall)
 }
 
 /// Refuses a layout whose output maps exceed `budget`.
@@ -31,13 +37,14 @@ pub(super) fn check_memory(
     shape: &[u64],
     points: bool,
     baselines: bool,
+    stall: bool,
     budget: u64,
 ) -> Result<(), SceneError> {
     let instances = shape
         .iter()
         .try_fold(1u128, |acc, &n| acc.checked_mul(n as u128))
         .unwrap_or(u128::MAX);
-    let per = bytes_per_instance(baselines);
+    let per = bytes_per_instance(baselines, stall);
     if instances.saturating_mul(per as u128) > budget as u128 {
         return Err(SceneError::Memory {
             shape: shape.to_vec(),

@@ -104,6 +104,7 @@ mod parser;
 mod plan;
 mod refine;
 mod rules;
+mod stall;
 mod suggest;
 mod ties;
 pub mod trajectories;
@@ -114,6 +115,7 @@ pub use file::MAX_SCENE_BYTES;
 pub use memory::MAP_MEMORY_BUDGET_BYTES;
 pub use name::MAX_NAME_BYTES;
 pub use refine::{DEFAULT_REFINE_TOLERANCE_M, MAX_REFINE_LEVELS, Refine};
+pub use stall::Stall;
 pub use trajectories::{DEFAULT_SAMPLES_PER_CYCLE, TrajectoryPoint};
 pub use values::MAX_RANGE_STEPS;
 
@@ -157,6 +159,9 @@ pub struct Scene {
     /// refinement of the scene's own (coarse) grid, which `crate::refine`
     /// integrates only where the regimes change.
     pub refine: Option<Refine>,
+    /// `[stall]`: when set, the run also searches every instance's stall
+    /// load along one axis (`crate::stall`), which the scene does not set.
+    pub stall: Option<Stall>,
     /// The raw key values of the base (grid slots hold their first value).
     raw: [f64; SLOTS],
     /// For each grid axis, the raw slot it sets.

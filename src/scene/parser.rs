@@ -18,6 +18,7 @@ use super::layer::{Layer, PointSpec, Tie};
 use super::memory::MAP_MEMORY_BUDGET_BYTES;
 use super::name::check_name;
 use super::refine::RefineSpec;
+use super::stall::Stall;
 use super::suggest::{home_of, suggest};
 use super::trajectories::SpecAt;
 use super::values::{Entry, MAX_RANGE_STEPS, Values};
@@ -46,6 +47,8 @@ pub(super) struct Parsed {
     pub(super) points: Option<Vec<PointSpec>>,
     /// `[refine]`, when given.
     pub(super) refine: Option<RefineSpec>,
+    /// `[stall]`, when given.
+    pub(super) stall: Option<Stall>,
 }
 
 /// Whether keys are read for the base scene or for one point.
@@ -241,6 +244,7 @@ impl Parser<'_> {
                 "output" => self.output(value, &mut parsed)?,
                 "points" => parsed.points = Some(self.points(value)?),
                 "refine" => parsed.refine = Some(self.refine(value)?),
+                "stall" => parsed.stall = Some(self.stall(value)?),
                 _ => return Err(self.unknown_key(key, "", &ROOT_KEYS)),
             }
         }
@@ -262,6 +266,21 @@ impl Parser<'_> {
         for (index, point) in parsed.points.iter().flatten().enumerate() {
             self.check_mode_keys(&point.layer, mode, parsed.measure.is_none())
                 .map_err(|e| e.in_point(index, &point.label))?;
+        }
+        if let Some(stall) = &parsed.stall {
+            if let Some(refine) = &parsed.refine {
+                return Err(self.invalid(
+                    refine.span.clone(),
+                    "refine: a scene with [stall] cannot be refined (the refinement chooses \
+                     which points to integrate, the stall search needs every instance's step); \
+                     expected one of [refine] and [stall]",
+                ));
+            }
+            self.check_stall_load(stall, &parsed.base, "")?;
+            for (index, point) in parsed.points.iter().flatten().enumerate() {
+                self.check_stall_load(stall, &point.layer, "")
+                    .map_err(|e| e.in_point(index, &point.label))?;
+            }
         }
         Ok(parsed)
     }

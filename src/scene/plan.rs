@@ -3,10 +3,10 @@
 //! the stage relations of paper eqs. 6-7), and [`check_instance`] checks what
 //! the per-key checks cannot.
 
-use super::format::fmt_num;
+use super::format::{fmt_num, fmt_short};
 use super::keys::{
-    AXIS_FIELDS, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, Field, GAIN,
-    MAX_CYCLES_SLOT, Mode, PHASE, QUALITY, RESONANCE, SETTLE_SLOT, SLOTS, STAGE_MASS,
+    AXIS_FIELDS, COULOMB_SLOT, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, Field, GAIN,
+    LOAD_SLOTS, MAX_CYCLES_SLOT, Mode, PHASE, QUALITY, RESONANCE, SETTLE_SLOT, SLOTS, STAGE_MASS,
     STEP_TOLERANCE_SLOT, STIFFNESS, TIEABLE, VOLTAGE, axis_slot, slot_path,
 };
 use super::layer::kept_from_lower;
@@ -122,7 +122,7 @@ pub(super) struct AxisPlan {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Plan {
     /// The `[mechanism]` keys, in slot order.
-    pub(super) mechanism: [Src; 4],
+    pub(super) mechanism: [Src; 6],
     /// Each axis.
     pub(super) axes: [AxisPlan; AXES],
     /// How the steps are measured (`simulation.measure`, scene-wide).
@@ -168,6 +168,8 @@ impl Plan {
             Mechanism::TABLE1.static_friction,
             Mechanism::TABLE1.coulomb_friction,
             Mechanism::TABLE1.velocity_band,
+            Mechanism::TABLE1.load[0],
+            Mechanism::TABLE1.load[1],
         ];
         let or_default = |slot: usize, default: f64| {
             if given[slot] {
@@ -215,6 +217,8 @@ impl Plan {
             static_friction,
             coulomb_friction,
             velocity_band,
+            load_x,
+            load_y,
         ] = self.mechanism.map(|src| src.get(raw));
         Instance {
             mechanism: Mechanism {
@@ -222,6 +226,7 @@ impl Plan {
                 static_friction,
                 coulomb_friction,
                 velocity_band,
+                load: [load_x, load_y],
             },
             axes: [self.axes[0].resolve(raw), self.axes[1].resolve(raw)],
             cycles: self.cycles.get(raw) as u32,
@@ -336,8 +341,9 @@ pub(super) fn src_slot(src: Src) -> Option<usize> {
     }
 }
 
-/// Checks what per-key checks cannot: derived stage quantities and
-/// settle < cycles (a window) or settle < max_cycles (steady). Returns the message and the slots to locate it by.
+/// Checks what per-key checks cannot: derived stage quantities, the load
+/// against the kinetic friction, and settle < cycles (a window) or settle <
+/// max_cycles (steady). Returns the message and the slots to locate it by.
 pub(super) fn check_instance(instance: &Instance, plan: &Plan) -> Result<(), (String, Culprits)> {
     for (a, (axis, axis_plan)) in instance.axes.iter().zip(&plan.axes).enumerate() {
         let name = AXIS_NAMES[a];
@@ -405,6 +411,9 @@ pub(super) fn check_instance(instance: &Instance, plan: &Plan) -> Result<(), (St
             ));
         }
     }
+    if let Some(refusal) = load_refusal(instance, plan) {
+        return Err(refusal);
+    }
     if instance.settle >= instance.cycles {
         let message = match plan.mode {
             Mode::Window => format!(
@@ -422,6 +431,49 @@ pub(super) fn check_instance(instance: &Instance, plan: &Plan) -> Result<(), (St
         return Err((message, [src_slot(plan.settle), src_slot(plan.cycles)]));
     }
     Ok(())
+}
+
+/// Why an instance's load is refused (MODEL.md section 7): a non-zero load
+/// whose magnitude |L| is at least the kinetic friction f_c, along which a
+/// slipping slider is not stopped by friction and may run away. The
+/// message names each non-zero load key and its value, |L| where both are
+/// set, and f_c with its source; the culprits are the load keys, the
+/// larger first.
+fn load_refusal(instance: &Instance, plan: &Plan) -> Option<(String, Culprits)> {
+    let m = &instance.mechanism;
+    if !m.load_refused() {
+        return None;
+    }
+    let keys: Vec<String> = (0..AXES)
+        .filter(|&a| m.load[a] != 0.0)
+        .map(|a| format!("{} = {}", slot_path(LOAD_SLOTS[a]), fmt_num(m.load[a])))
+        .collect();
+    let magnitude = if keys.len() > 1 {
+        format!(" (|L| = {} N)", fmt_short(m.load_magnitude()))
+    } else {
+        String::new()
+    };
+    let friction = match plan.mechanism[COULOMB_SLOT] {
+        Src::Slot(slot) => format!("{} = {} N", slot_path(slot), fmt_num(m.coulomb_friction)),
+        _ => format!(
+            "the kinetic friction f_c = {} N (the default coulomb_friction)",
+            fmt_num(m.coulomb_friction)
+        ),
+    };
+    let larger = usize::from(m.load[1].abs() > m.load[0].abs());
+    let culprits = [
+        src_slot(plan.mechanism[LOAD_SLOTS[larger]]),
+        src_slot(plan.mechanism[LOAD_SLOTS[1 - larger]]),
+    ];
+    Some((
+        format!(
+            "{}{magnitude}: expected a load of magnitude |L| < {friction}: a slider slipping \
+             along a load of the kinetic friction or more is not stopped by it and may run away \
+             (MODEL.md section 7)",
+            keys.join(" and ")
+        ),
+        culprits,
+    ))
 }
 
 /// What a derived stage quantity (stage mass, stiffness or damping) should

@@ -119,6 +119,15 @@ const STATIC_FRICTION: Bounds = Bounds {
 /// Coulomb (sliding) friction, none to 1 GN [N], like the static friction.
 const COULOMB_FRICTION: Bounds = Bounds { min: 0.0, max: 1e9 };
 
+/// A load on the slider, -1 GN to 1 GN per axis [N], like the friction it
+/// must stay below: the refusal that matters is the load's magnitude
+/// against the kinetic friction (MODEL.md section 7,
+/// `plan::check_instance`), which these bounds only keep finite.
+const LOAD: Bounds = Bounds {
+    min: -1e9,
+    max: 1e9,
+};
+
 /// The velocity band of the stick detection, 1 fm/s to 1 km/s [m/s].
 /// `sweeps/extreme.toml` uses 1e-9 to 1e-3 m/s; a band wider than any
 /// speed of the run only means the slider always sticks.
@@ -238,7 +247,9 @@ impl Field {
             | Field::Tolerance
             | Field::StepTolerance => Rule::Positive,
             Field::CoulombFriction | Field::Damping => Rule::NonNegative,
-            Field::Gain | Field::Voltage | Field::Phase => Rule::Finite,
+            Field::Gain | Field::Voltage | Field::Phase | Field::LoadX | Field::LoadY => {
+                Rule::Finite
+            }
             Field::Duty => Rule::Duty,
             // `max_cycles` is bounded like `cycles`: both are the most
             // periods an instance runs.
@@ -255,6 +266,7 @@ impl Field {
             Field::StaticFriction => STATIC_FRICTION,
             Field::CoulombFriction => COULOMB_FRICTION,
             Field::VelocityBand => VELOCITY_BAND,
+            Field::LoadX | Field::LoadY => LOAD,
             Field::Stiffness => STIFFNESS,
             Field::Damping => DAMPING,
             Field::ResonanceHz => RESONANCE,

@@ -172,3 +172,36 @@ pub fn steady_instances() -> [Instance; 8] {
         steady(10.0, 10.0 * 3f64.sqrt(), 100.0, 1e-8, 12),
     ]
 }
+
+/// `instances` under a seeded random load on the slider (MODEL.md section
+/// 7): a direction uniform in the plane and a magnitude uniform up to 0.9
+/// of each instance's kinetic friction (a load of f_c or more is refused).
+pub fn loaded(instances: &[Instance], seed: u64) -> Vec<Instance> {
+    let mut rng = pidm::random::Rng::new(seed);
+    instances
+        .iter()
+        .map(|inst| {
+            let mut inst = *inst;
+            let angle = std::f64::consts::TAU * rng.unit();
+            let magnitude = 0.9 * inst.mechanism.coulomb_friction * rng.unit();
+            inst.mechanism.load = [magnitude * angle.cos(), magnitude * angle.sin()];
+            inst
+        })
+        .collect()
+}
+
+/// The step-against-load points (MODEL.md section 7): Table 1 at 10
+/// Hz, duty 0.98, 100 V on x and 0 or 100 V on y, window 10 / 2, with the
+/// load on x at the sweep's ends, the stall loads and between.
+pub fn load_sweep_instances() -> Vec<Instance> {
+    let mut out = Vec::new();
+    for vy in [0.0, 100.0] {
+        for load in [-0.95, -0.5, -0.0379, 0.0792, 0.3, 0.95] {
+            let mut inst = Instance::TABLE1;
+            inst.axes[1].voltage = vy;
+            inst.mechanism.load = [load, 0.0];
+            out.push(inst);
+        }
+    }
+    out
+}

@@ -378,6 +378,34 @@ fn paper_cases_match_the_cpu() {
     }
 }
 
+/// A load on the slider (MODEL.md section 7) on the GPU: the issue's
+/// step-against-load points (steps up to 120 um) and the paper's cases
+/// under seeded random loads, with the CPU's steps in f64 and within the
+/// allowance in f32.
+#[test]
+fn loaded_instances_match_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let mut instances = crate::common::load_sweep_instances();
+    instances.extend(crate::common::loaded(&paper_cases(), 3));
+    let settings = Settings::default();
+    let cpu = cpu_reference(&instances, &settings);
+    for precision in precisions(ctx) {
+        let gpu = gpu_batch(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &shader_only(&BatchOptions::default()),
+        );
+        check_grazing("loaded", precision, &instances, &cpu, &gpu, 2);
+        if precision == Precision::F64 {
+            same_steps("loaded", &cpu, &gpu);
+        }
+    }
+}
+
 /// Fig. 8's 10/20 Hz case with small changes of one voltage, at two
 /// tolerances: the f64 shader must take the CPU's decisions for each (it
 /// once re-entered the velocity band right after leaving it, where its
@@ -878,14 +906,34 @@ fn steady_measurements_match_the_cpu() {
     let Some(ctx) = context() else {
         return;
     };
-    let instances = crate::common::steady_instances();
+    let cpu = steady_match(ctx, &crate::common::steady_instances());
+    assert!(cpu[..6].iter().all(|m| m.lag > 0), "{cpu:?}");
+    assert_eq!(cpu[7].status, STATUS_NOT_STEADY);
+}
+
+/// The same steady instances under seeded random loads on the slider
+/// (MODEL.md section 7), up to 0.9 f_c.
+#[test]
+fn loaded_steady_measurements_match_the_cpu() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    steady_match(
+        ctx,
+        &crate::common::loaded(&crate::common::steady_instances(), 7),
+    );
+}
+
+/// `instances` measured steady on the GPU in every precision, whole and
+/// with a CPU tail, against the CPU: f64 with the CPU's verdicts and, where
+/// periodic, its steps to rounding; f32 within its allowance plus the
+/// standard errors. Returns the CPU's measurements.
+fn steady_match(ctx: &GpuContext, instances: &[Instance]) -> Vec<Measured> {
     let settings = Settings::default();
     let cpu: Vec<Measured> = instances
         .iter()
         .map(|inst| reduce(inst, &run_instance(inst, &settings)))
         .collect();
-    assert!(cpu[..6].iter().all(|m| m.lag > 0), "{cpu:?}");
-    assert_eq!(cpu[7].status, STATUS_NOT_STEADY);
     let tail = BatchOptions {
         slice_iterations: 64,
         cpu_tail: Some(2),
@@ -893,7 +941,7 @@ fn steady_measurements_match_the_cpu() {
     };
     for precision in precisions(ctx) {
         for (label, options) in [("default", BatchOptions::default()), ("tail", tail)] {
-            let gpu = gpu_batch(ctx, &instances, &settings, precision, &options);
+            let gpu = gpu_batch(ctx, instances, &settings, precision, &options);
             for (k, (inst, (c, g))) in instances.iter().zip(cpu.iter().zip(&gpu)).enumerate() {
                 let name = format!("{label} {precision} #{k}");
                 let step =
@@ -927,6 +975,7 @@ fn steady_measurements_match_the_cpu() {
             }
         }
     }
+    cpu
 }
 
 /// Issue 19: `pidm random-scene` instances (the generator of
@@ -1543,9 +1592,26 @@ fn the_f32_shader_takes_the_steps_of_its_mirror() {
     let Some(ctx) = context() else {
         return;
     };
+    shader_follows_its_mirror(ctx, &pidm::random::random_instances(1, 300, 4, 1));
+}
+
+/// The same under seeded random loads on the slider (MODEL.md section 7):
+/// the load's terms are the same operations in both.
+#[test]
+fn the_f32_shader_takes_the_steps_of_its_mirror_under_loads() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let instances = pidm::random::random_instances(1, 300, 4, 1);
+    shader_follows_its_mirror(ctx, &crate::common::loaded(&instances, 5));
+}
+
+/// `instances` advanced one iteration at a time, 30 times, on the f32
+/// shader and in its CPU mirror from the shader's state: mostly equal bit
+/// for bit, the rest a few roundings apart or, rarely, another choice.
+fn shader_follows_its_mirror(ctx: &GpuContext, instances: &[Instance]) {
     use pidm::cpu::single::integrate as mirror;
     let settings = Settings::default();
-    let instances = pidm::random::random_instances(1, 300, 4, 1);
     let coefficients: Vec<_> = instances
         .iter()
         .map(|inst| mirror::Coefficients::of(inst, &settings))
@@ -1555,7 +1621,7 @@ fn the_f32_shader_takes_the_steps_of_its_mirror() {
     let mut worst = (0.0, String::new());
     for iteration in 1..=30u32 {
         let gpu =
-            pidm::gpu::f32_states_after(ctx, &instances, &settings, iteration).expect("slice runs");
+            pidm::gpu::f32_states_after(ctx, instances, &settings, iteration).expect("slice runs");
         for (k, c) in coefficients.iter().enumerate() {
             let mut st = before[k];
             let mut m = mirror::initial_measure(c);

@@ -28,6 +28,7 @@ fn info(shape: Vec<usize>, baselines: bool) -> FileInfo {
         tolerance: 1e-4,
         verify_tolerance: None,
         shard: None,
+        stall: None,
     }
 }
 

@@ -1715,3 +1715,131 @@ fn a_refined_scene_is_its_finest_grid_with_the_coarse_one_inside() {
     assert_eq!(tol.refine.unwrap().tolerance, 5e-8);
     assert!(uniform.refine.is_none());
 }
+
+/// MODEL.md section 7: a load whose magnitude |L| is the kinetic friction
+/// or more is refused, naming the keys, their values and the reason; on a
+/// grid the grid value that reaches it, before any work.
+#[test]
+fn loads_of_the_kinetic_friction_or_more_are_refused() {
+    let reason = "a slider slipping along a load of the kinetic friction or more is not \
+                  stopped by it and may run away (MODEL.md section 7)";
+    let cases: &[(&str, &str)] = &[
+        (
+            "[mechanism]\nload_x = 1.0",
+            "mechanism.load_x = 1: expected a load of magnitude |L| < the kinetic friction f_c \
+             = 1 N (the default coulomb_friction)",
+        ),
+        (
+            "[mechanism]\nload_x = 0.8\nload_y = -0.7",
+            "mechanism.load_x = 0.8 and mechanism.load_y = -0.7 (|L| = 1.06301 N): expected",
+        ),
+        // A grid: the value of the grid that reaches f_c, and the corner
+        // of two grids whose magnitude does.
+        (
+            "[mechanism]\nload_x = { from = -1.2, to = 0.5, steps = 5 }",
+            "mechanism.load_x = -1.2: expected a load of magnitude |L| <",
+        ),
+        (
+            "[mechanism]\nload_x = [-0.8, 0.0, 0.8]\nload_y = [0.0, 0.7]",
+            "mechanism.load_x = -0.8 and mechanism.load_y = 0.7 (|L| = 1.06301 N)",
+        ),
+        // The kinetic friction a grid or a point gives.
+        (
+            "[mechanism]\ncoulomb_friction = [0.2, 1.0]\nload_y = 0.5",
+            "mechanism.load_y = 0.5: expected a load of magnitude |L| < \
+             mechanism.coulomb_friction = 0.2 N",
+        ),
+        (
+            "[[points]]\nlabel = \"heavy\"\nmechanism = { load_y = -1.5 }",
+            "points[0] (\"heavy\"): mechanism.load_y = -1.5: expected",
+        ),
+        (
+            "[mechanism]\ncoulomb_friction = 0\nload_x = 0.01",
+            "mechanism.load_x = 0.01: expected a load of magnitude |L| < \
+             mechanism.coulomb_friction = 0 N",
+        ),
+        // The plausible range of the key itself.
+        (
+            "[mechanism]\nload_x = 2e9",
+            "mechanism.load_x = 2000000000: expected a number from -1000000000 to 1000000000 N",
+        ),
+        (
+            "[mechanism]\nload_y = nan",
+            "mechanism.load_y = nan: expected a finite number",
+        ),
+    ];
+    for (text, needle) in cases {
+        check(text, needle);
+        if needle.contains("|L| <") {
+            check(text, reason);
+        }
+    }
+    // Below f_c it is a load like any other: scalars, grids whose every
+    // corner is inside the circle, points; and no load with no friction.
+    for text in [
+        "[mechanism]\nload_x = -0.99",
+        "[mechanism]\nload_x = [-0.9, 0.9]\nload_y = [-0.4, 0.4]",
+        "[[points]]\nmechanism = { load_x = 0.5, load_y = 0.5 }",
+        "[mechanism]\ncoulomb_friction = 0",
+    ] {
+        parse(text);
+    }
+    let scene = parse("[mechanism]\nload_x = [-0.5, 0.25]\nload_y = 0.125");
+    assert_eq!(scene.instance(1).mechanism.load, [0.25, 0.125]);
+    assert_eq!(scene.instance(0).baseline(1).mechanism.load, [0.0, 0.125]);
+}
+
+/// `[stall]`: its keys and what a stall scene may not hold, each refusal
+/// naming the key, the value and why.
+#[test]
+fn stall_scenes_are_checked() {
+    let cases: &[(&str, &str)] = &[
+        (
+            "[stall]\ntolerance = 1e-3",
+            "stall.axis: missing; expected \"x\" or \"y\"",
+        ),
+        (
+            "[stall]\naxis = \"z\"",
+            "stall.axis = \"z\": expected \"x\" or \"y\"",
+        ),
+        ("[stall]\naxis = 1", "stall.axis: expected a string"),
+        (
+            "[stall]\naxis = \"x\"\ntolerance = 0",
+            "stall.tolerance = 0: expected a load in N, > 0",
+        ),
+        (
+            "[stall]\naxis = \"x\"\ntol = 1",
+            "unknown key `stall.tol` (did you mean `tolerance`?)",
+        ),
+        (
+            "[mechanism]\nload_x = -0.1\n[stall]\naxis = \"x\"",
+            "mechanism.load_x = -0.1: [stall] axis = \"x\" searches this load itself",
+        ),
+        (
+            "[mechanism]\nload_y = [0.0, 0.1]\n[stall]\naxis = \"y\"",
+            "mechanism.load_y = [0.0, 0.1]: [stall] axis = \"y\" searches this load itself",
+        ),
+        (
+            "[stall]\naxis = \"x\"\n[[points]]\nlabel = \"p\"\nmechanism = { load_x = 0.1 }",
+            "points[0] (\"p\"): mechanism.load_x = 0.1: [stall] axis = \"x\"",
+        ),
+        (
+            "[axis.x]\nvoltage = { from = 0, to = 100, steps = 3 }\n\
+             frequency = { from = 10, to = 20, steps = 3 }\n\
+             [refine]\nlevels = 1\n[stall]\naxis = \"x\"",
+            "refine: a scene with [stall] cannot be refined",
+        ),
+    ];
+    for (text, needle) in cases {
+        check(text, needle);
+    }
+    // The other axis' load may be anything below f_c, a grid axis too.
+    let scene = parse("[mechanism]\nload_y = [-0.5, 0.5]\n[stall]\naxis = \"x\"\ntolerance = 1e-3");
+    let stall = scene.stall.expect("a stall scene");
+    assert_eq!((stall.axis, stall.tolerance), (0, 1e-3));
+    assert_eq!(
+        parse("[stall]\naxis = \"y\"").stall.unwrap().tolerance,
+        1e-4
+    );
+    assert!(parse("name = \"plain\"").stall.is_none());
+}

@@ -377,3 +377,32 @@ def test_a_steady_map_has_its_kinds_of_motion_with_their_flags(tmp_path: Path) -
         assert ref.motion.values.tobytes() == motion.values.tobytes()
         assert ref.motion.attrs["flag_meanings"] == motion.attrs["flag_meanings"]
         assert ref.motion.attrs["flag_values"].tolist() == [0, 1, 2, 3]
+
+
+def test_a_stall_map_reads_with_its_units_and_the_grid(tmp_path: Path) -> None:
+    # MODEL.md section 7: Table 1 at 10 Hz, 100 V on x, stalls at -0.0379 N
+    # with y at 0 V and at +0.0792 N with y at 100 V (an independent
+    # reference); f_c = 0.2 N never stalls (stall status 8, map 0).
+    scene = {
+        "name": "stall",
+        "mechanism": {"coulomb_friction": [0.2, 1.0]},
+        "axis": {"y": {"voltage": [0.0, 100.0]}},
+        "simulation": {"measure": "window"},
+        "stall": {"axis": "x"},
+    }
+    out = tmp_path / "stall.h5"
+    ds = pidm.run(scene, backend="cpu", out=out, progress=False)
+    load = ds.stall_load_x
+    assert load.dims == ds.step_x.dims == ("mechanism.coulomb_friction", "axis.y.voltage")
+    assert load.attrs["units"] == "N"
+    assert "zero crossing nearest zero load" in load.attrs["long_name"]
+    assert ds.stall_status_x.dtype == np.uint32
+    found = load.sel({"mechanism.coulomb_friction": 1.0}).values
+    assert np.allclose(found, [-0.0379, 0.0792], atol=1.5e-4)
+    assert ds.stall_status_x.sel({"mechanism.coulomb_friction": 1.0}).values.tolist() == [0, 0]
+    weak = ds.sel({"mechanism.coulomb_friction": 0.2})
+    assert (weak.stall_status_x.values == 8).any()
+    assert (weak.stall_load_x.values[weak.stall_status_x.values == 8] == 0.0).all()
+    for name in ("stall_step_near_x", "stall_step_far_x", "stall_waves_x"):
+        assert ds[name].dims == load.dims, name
+    assert_same_maps(pidm.open(out), out)

@@ -75,10 +75,32 @@ pub struct Coefficients {
     /// A of `slip_direction`, and f_c into its B.
     pub slip_scale: Vec2,
     pub slip_b: Vec2,
+    /// The load on the slider (MODEL.md section 7), in the forms the
+    /// integrator uses it in: each enters only by a subtraction of a value
+    /// that is +0 at L = 0, so an unloaded run is bit for bit what it was
+    /// before the load existed (x - (+0) = x for every x, -0 included,
+    /// where x + 0 turns -0 into +0). `load_need` = m_p L / (m_p + m_s)
+    /// [N]: f_need = m_s P / (m_p + m_s) - load_need. `load_accel` = L /
+    /// m_s [m/s^2]: f_need = m_s (a_p - load_accel) in stick.
+    /// `neg_load` = -L [N], subtracted from the stuck body's force (stage
+    /// and slider together feel the load), and `neg_load_accel` = -L / m_s
+    /// [m/s^2], subtracted from the slipping slider's acceleration. Only
+    /// constant forces: the closed-form flows keep their form, with a
+    /// shifted particular solution.
+    pub load_need: Vec2,
+    pub load_accel: Vec2,
+    pub neg_load: Vec2,
+    pub neg_load_accel: Vec2,
     /// The larger component of `slip_b`.
     pub slip_b_max: Real,
     /// max(f_s, f_c)^2 [N^2]: the interface holds while |f_need|^2 <= hold2.
     pub hold2: Real,
+    /// (max(f_s, f_c) - |L|)^2 [N^2]: a stick segment whose homogeneous
+    /// acceleration a has m_s^2 |a|^2 below this for good cannot break,
+    /// since |f_need| = |m_s a - L| <= m_s |a| + |L| (the energy bound of
+    /// `step::step`); hold2 itself at L = 0. A scene's load is below f_c
+    /// <= max(f_s, f_c), so the difference is positive.
+    pub safe_hold2: Real,
     /// m_s^2 and 2 m_s^2 [kg^2].
     pub ms2: Real,
     pub two_ms2: Real,
@@ -205,8 +227,13 @@ impl Coefficients {
             slider_share: v(e.slider_share),
             slip_scale: v(e.slip_scale),
             slip_b: v(e.slip_b),
+            load_need: v(e.load_need),
+            load_accel: v(e.load_accel),
+            neg_load: v(e.neg_load),
+            neg_load_accel: v(e.neg_load_accel),
             slip_b_max: r(e.slip_b_max),
             hold2: r(e.hold2),
+            safe_hold2: r(e.safe_hold2),
             ms2: r(e.ms2),
             two_ms2: r(e.two_ms2),
             coulomb: r(e.coulomb),
@@ -319,6 +346,12 @@ impl Coefficients {
             && rho > 0.0
             && (common_period == 0 || common_period > super::phase::MIN_WINDOW);
         let ladder = super::phase::ladder(rho, ladder_on, common_period);
+        // The load per axis, each form +0 at L = 0 whatever the sign of
+        // the zero given (`0.0 - x` and `x + 0.0` are +0 for x = -0).
+        let load = Vec2::new(m.load[0], m.load[1]);
+        let plus_zero = |x: Vec2| x.map(|x| x + 0.0);
+        let hold = m.holding_friction();
+        let loose = hold - m.load_magnitude();
         let mut c = Coefficients {
             stiffness,
             damping,
@@ -363,8 +396,13 @@ impl Coefficients {
             slider_share: stage_mass.map(|mp| ms / (mp + ms)),
             slip_scale,
             slip_b,
+            load_need: plus_zero(stage_mass.map(|mp| mp / (mp + ms)) * load),
+            load_accel: plus_zero(load.map(|l| l / ms)),
+            neg_load: load.map(|l| 0.0 - l),
+            neg_load_accel: load.map(|l| 0.0 - l / ms),
             slip_b_max: slip_b.max_element().max(0.0),
-            hold2: m.holding_friction() * m.holding_friction(),
+            hold2: hold * hold,
+            safe_hold2: loose.max(0.0) * loose.max(0.0),
             ms2: ms * ms,
             two_ms2: 2.0 * (ms * ms),
             coulomb: fc,

@@ -47,8 +47,10 @@ pub fn relative_acceleration(s: &Sample) -> Vec2 {
 /// a sample.
 pub fn primary_event(c: &Coefficients, kind: u32, s: &Sample) -> EventValue {
     if kind == EVENT_BREAKAWAY {
-        let e = c.hold2 - c.ms2 * norm2(s.a_p);
-        return [e, -c.two_ms2 * dot(s.a_p, s.j_p)];
+        // f_need = m_s a_p - L = m_s (a_p - L / m_s) (MODEL.md section 7).
+        let a = s.a_p - c.load_accel;
+        let e = c.hold2 - c.ms2 * norm2(a);
+        return [e, -c.two_ms2 * dot(a, s.j_p)];
     }
     let v = relative_velocity(s);
     let a = relative_acceleration(s);
@@ -90,9 +92,10 @@ pub fn primary_scale(c: &Coefficients, kind: u32, s: &Sample) -> Real {
         // The stage acceleration is the small difference of the drive,
         // spring and damper forces, so its rounding is relative to those
         // forces, not to itself.
+        // The load's acceleration is one more term of the difference.
         let forces = c.stiffness * s.x_p.abs() + c.damping * s.v_p.abs();
-        let terms = s.a_p.abs() + 2.0 * forces * c.stick.inv_mass;
-        return c.hold2 + dot(c.two_ms2 * s.a_p.abs(), terms);
+        let terms = s.a_p.abs() + 2.0 * forces * c.stick.inv_mass + c.load_accel.abs();
+        return c.hold2 + dot(c.two_ms2 * (s.a_p - c.load_accel).abs(), terms);
     }
     // The relative velocity is a difference of two velocities that are
     // often far larger (a slider sliding with its stage), so its rounding

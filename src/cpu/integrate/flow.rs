@@ -193,9 +193,9 @@ pub fn sample_propagators(flow: &Flow, h: Real) -> SamplePropagators {
 }
 
 /// Sets up the closed-form motion from the current state: in stick
-/// (`stuck`) under the drive force alone with the slider riding on the
-/// stage, in slip under the drive force less f_c times the direction model
-/// with the slider accelerated by f_c / m_s times it. `h` scales the
+/// (`stuck`) under the drive force and the load with the slider riding on
+/// the stage, in slip under the drive force less f_c times the direction
+/// model with the slider accelerated by f_c / m_s times it plus L / m_s. `h` scales the
 /// direction model (ignored in stick).
 pub fn make_flow(
     c: &Coefficients,
@@ -211,8 +211,11 @@ pub fn make_flow(
     h: Real,
 ) -> Flow {
     let inv_h = 1.0 / h;
+    // The load (MODEL.md section 7) is a constant force: in stick it acts
+    // on stage and slider as one body, in slip on the slider alone; either
+    // way only the particular solution moves.
     let (osc, g0_rel, g1_rel, g2) = if stuck {
-        (c.stick, Vec2::ZERO, Vec2::ZERO, Vec2::ZERO)
+        (c.stick, Vec2::ZERO - c.neg_load, Vec2::ZERO, Vec2::ZERO)
     } else {
         (
             c.slip,
@@ -222,7 +225,7 @@ pub fn make_flow(
         )
     };
     let (g0, g1) = if stuck {
-        (force, slope)
+        (force - c.neg_load, slope)
     } else {
         (force + g0_rel, slope + g1_rel)
     };
@@ -263,7 +266,7 @@ pub fn make_flow(
         v_s,
         v_rel,
         b0: dir.b0,
-        slider0: c.fc_over_ms * dir.b0,
+        slider0: c.fc_over_ms * dir.b0 - c.neg_load_accel,
         slider1: c.fc_over_ms * dir.b1,
         slider2: c.fc_over_ms * dir.b2,
         g0,

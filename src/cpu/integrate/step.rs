@@ -112,11 +112,12 @@ pub fn step<O: StepObserver>(
     let mut start = eval_flow(&flow, IDENTITY, 0.0);
     // The homogeneous acceleration obeys the same oscillator equation, so
     // m a'' + c a' + k a = 0 and k a^2 + m a'^2 never grows: |a| stays below
-    // sqrt(a^2 + a'^2 / w2) for the rest of a stick segment.
+    // sqrt(a^2 + a'^2 / w2) for the rest of a stick segment, and |f_need| =
+    // |m_s a - L| below m_s times that plus |L| (`safe_hold2`).
     let mut safe = false;
     if stuck {
         let bound = norm2(start.a_p) + dot(start.j_p * start.j_p, flow.osc.inv_w2);
-        safe = c.ms2 * bound <= c.hold2;
+        safe = c.ms2 * bound <= c.safe_hold2;
         if !safe {
             h = h_max.min(c.event_step_stuck);
         }
@@ -463,22 +464,25 @@ fn initial_slip_step(c: &Coefficients, st: &State, h_max: Real) -> Real {
 }
 
 /// The static friction force on the slider that stick would need now, with
-/// both bodies at their common (momentum-conserving) velocity.
+/// both bodies at their common (momentum-conserving) velocity: f_need =
+/// (m_s P - m_p L) / (m_p + m_s) (MODEL.md section 7), section 3's at L = 0
+/// bit for bit.
 pub fn stick_force(c: &Coefficients, st: &State) -> Vec2 {
     let (force, slope) = drive_force(c, st);
     if DEFLECTION {
         // F - k x_p = -k d: the force balance without the drive force.
         let v = c.stage_share * (st.v_p + slope * c.inv_stiffness) + c.slider_share * st.v_s;
-        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p);
+        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p) - c.load_need;
     }
     let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
     let p = force - c.damping * v - c.stiffness * st.x_p;
-    c.slider_share * p
+    c.slider_share * p - c.load_need
 }
 
 /// The direction in which slip grows out of zero relative velocity. In
 /// slip the relative acceleration is A - B u per axis, with A_i = P_i /
-/// m_p,i and B_i = f_c (1 / m_p,i + 1 / m_s), so the friction direction u
+/// m_p,i - L_i / m_s = f_need,i (1 / m_p,i + 1 / m_s) (the load of MODEL.md
+/// section 7 is in f_need) and B_i = f_c (1 / m_p,i + 1 / m_s), so the friction direction u
 /// is consistent only where A - B u = lambda u with lambda > 0:
 /// u_i = A_i / (lambda + B_i) with sum_i A_i^2 / (lambda + B_i)^2 = 1. That
 /// root exists exactly when |f_need| > f_c. With equal stage masses B is
