@@ -229,7 +229,7 @@ fn print_summary(scene: &Scene, result: &RunResult) {
         println!(
             "  {} of them were f32 runs whose slip passed the velocity band a within {} a^2 \
              (in |v_rel|^2), where the direction tolerance decides whether the slip ends \
-             (README, \"Precision\")",
+             (docs/gpu.md, \"Precision\")",
             s.grazes,
             crate::cpu::integrate::constants::GRAZE_MARGIN
         );

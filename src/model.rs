@@ -63,7 +63,7 @@ impl Mechanism {
     /// grows like 1/a. The limit a -> 0 of that chatter is a slider held
     /// at the stage's velocity until |f_need| exceeds f_c, which is what
     /// this threshold integrates directly (measured: the chatter's steps
-    /// approach it as a shrinks; README "Extreme cases").
+    /// approach it as a shrinks; docs/extreme.md).
     pub fn holding_friction(&self) -> f64 {
         self.static_friction.max(self.coulomb_friction)
     }

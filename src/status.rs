@@ -128,12 +128,12 @@ mod tests {
     }
 
     #[test]
-    fn the_readme_table_lists_every_status_with_its_meaning() {
-        let readme = include_str!("../README.md");
+    fn the_output_docs_table_lists_every_status_with_its_meaning() {
+        let readme = include_str!("../docs/output.md");
         let section = readme
             .split("\n## Status codes\n")
             .nth(1)
-            .expect("README has a Status codes section");
+            .expect("docs/output.md has a Status codes section");
         let section = section.split("\n## ").next().unwrap();
         let rows: Vec<(String, String)> = section
             .lines()

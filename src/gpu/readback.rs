@@ -236,7 +236,7 @@ mod tests {
         check(1000, 0, true, Accumulators::Whole);
     }
 
-    /// The sizes the module's documentation, the README and results/gpu.md
+    /// The sizes the module's documentation, docs/steady.md and results/gpu.md
     /// quote: a head of 48 bytes in f64 (32 in f32) against accumulators of
     /// 1,936 (1,056), of which the phase ladder's windows
     /// (`cpu::integrate::phase`) take 640 (320).

@@ -396,18 +396,18 @@ mod tests {
         assert_eq!(STALL_DATASETS[1][0].units, "N");
     }
 
-    /// The README's table of the kinds of motion, the codes `/maps/motion`
+    /// docs/output.md's table of the kinds of motion, the codes `/maps/motion`
     /// holds, lists every kind of `crate::motion::Motion` with its name
     /// and meaning, in code order (here beside the map's schema, as
     /// `status.rs` holds the status table).
     #[test]
-    fn the_readme_table_lists_every_kind_of_motion_with_its_meaning() {
+    fn the_output_docs_table_lists_every_kind_of_motion_with_its_meaning() {
         use crate::motion::Motion;
-        let readme = include_str!("../../README.md");
+        let readme = include_str!("../../docs/output.md");
         let section = readme
             .split("\n## Kinds of motion\n")
             .nth(1)
-            .expect("README has a Kinds of motion section");
+            .expect("docs/output.md has a Kinds of motion section");
         let section = section.split("\n## ").next().unwrap();
         assert!(section.contains("`/maps/motion`"), "{section}");
         let rows: Vec<[String; 3]> = section

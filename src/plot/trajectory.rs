@@ -154,7 +154,7 @@ pub(super) fn trajectory_figure(
     ];
     if run.status != 0 {
         title.push(format!(
-            "the run ended early with status {} (README: status codes); the curves stop there",
+            "the run ended early with status {} (docs/output.md: status codes); the curves stop there",
             run.status
         ));
     }

@@ -34,7 +34,7 @@ pub fn bilinear(corners: &[Record; 4], u: f64, v: f64) -> Record {
         step: mix(&|r| r.step),
         velocity: mix(&|r| r.velocity),
         // Interpolated errors are no errors of an estimate: inferred = 1
-        // marks them (README, "Adaptive maps").
+        // marks them (docs/adaptive.md).
         step_se: mix(&|r| r.step_se),
         baseline_step: mix(&|r| r.baseline_step),
         // Counts 0, motion undetermined: nothing was integrated here.

@@ -79,7 +79,7 @@ f32's own claim is 0.005 um + 1 % against the CPU (tests/it/gpu.rs).
 EXCLUDED names instances left out of both checks, with the reason; they
 are still integrated and printed. It is empty: for bands of 1e-7 m/s and
 below a grazing pass of v_rel can land a result on another converged
-plateau depending on the tolerance (README), but no instance of the
+plateau depending on the tolerance (docs/extreme.md), but no instance of the
 default sets does (see its comment).
 
 Usage: crosscheck.py [--instances N] [--narrow N] [--long N] [--seed S]

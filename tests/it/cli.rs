@@ -349,7 +349,9 @@ fn the_f32_summary_counts_band_grazes_and_their_values_are_the_references() {
         .lines()
         .find_map(|l| {
             l.trim()
-                .strip_suffix("tolerance decides whether the slip ends (README, \"Precision\")")
+                .strip_suffix(
+                    "tolerance decides whether the slip ends (docs/gpu.md, \"Precision\")",
+                )
                 .and_then(|l| l.split_whitespace().next())
                 .and_then(|n| n.parse().ok())
         })

@@ -12,7 +12,7 @@ use pidm::scene::{Layout, Scene};
 const CLAIMED_ERROR_UM: f64 = 1e-3;
 
 /// The documented step bound for the extreme scene at the default
-/// tolerance: steps per scene period (README "Extreme cases"; the worst
+/// tolerance: steps per scene period (docs/extreme.md; the worst
 /// point, a 1 kg slider with f_c = f_s and a 1e-9 m/s band, took 0.49 M
 /// per period when last measured: close to the bound, a sliding mode on the
 /// rim of the band worth a look).

@@ -763,8 +763,7 @@ fn one_dof_instances_match_the_cpu_and_keep_y_at_rest() {
 /// lane, and the longest instance sets the batch's wall time). Three of the
 /// 30 points are heavier, all combinations with a 1e-9 m/s band: k = 1e9
 /// with f_c = 0, f_c = f_s with a 1 kg slider, and f_c > f_s. `pidm run
-/// sweeps/extreme.toml --backend gpu` runs them all (README "Extreme
-/// cases").
+/// sweeps/extreme.toml --backend gpu` runs them all (docs/extreme.md).
 const EXTREME_STEPS_PER_PERIOD: u32 = 5_000;
 
 /// The smallest velocity band [m/s] that f32 resolves next to stage speeds

@@ -172,8 +172,8 @@ fn the_audit_finds_an_island_the_probes_miss() {
     assert_eq!(r.level_of[grid.index(p)], 1);
     assert_eq!(raster(&r)[grid.index(p)].step[0], 1e-6);
 
-    // Without the audit the island is lost: the failure mode the README
-    // names.
+    // Without the audit the island is lost: the failure mode
+    // docs/adaptive.md names.
     let blind = Options {
         audit_fraction: 0.0,
         ..audited
