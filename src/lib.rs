@@ -21,6 +21,7 @@ pub mod random;
 pub mod refine;
 pub mod report;
 pub mod run;
+pub mod scope;
 pub mod scene;
 pub mod shard;
 pub mod stall;

@@ -15,7 +15,6 @@ use crate::checkpoint::{self, Checkpoint};
 use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo};
 use crate::progress::{Progress, ProgressMode};
 use crate::scene::{MAP_MEMORY_BUDGET_BYTES, Scene};
-use crate::shard::ShardSpec;
 use crate::sweep::{self, Plan, Record, Summary};
 
 /// What a run produced.
@@ -92,23 +91,7 @@ pub fn variant(scene: &Scene) -> String {
     }
 }
 
-/// How a run covers its scene.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct RunScope {
-    /// Run only this shard of the instances.
-    pub shard: Option<ShardSpec>,
-    /// Continue an interrupted run from its checkpoint.
-    pub resume: bool,
-    /// Instances per chunk (the checkpoint granularity) instead of the
-    /// backend's choice.
-    pub chunk_size: Option<usize>,
-    /// Rerun every instance 100 times tighter and mark the unconverged
-    /// ones (status 5).
-    pub verify: bool,
-    /// How progress is shown on stderr [default: the bar on a terminal,
-    /// else nothing].
-    pub progress: Option<ProgressMode>,
-}
+pub use crate::scope::RunScope;
 
 /// Everything that must match for a checkpoint to be resumed: results are
 /// bit-identical only on the same scene, version, precision and hardware

@@ -23,7 +23,7 @@ use crate::checkpoint::{self, Checkpoint};
 use crate::model::Instance;
 use crate::output::{FileInfo, MapWriter, OutputClaim};
 use crate::progress::{Progress, ProgressMode};
-use crate::run::RunScope;
+use crate::scope::RunScope;
 use crate::scene::{Scene, Stall};
 use crate::status::STATUS_NO_STALL;
 use crate::sweep::{self, BaselineMemo, Plan, Record, Summary};
