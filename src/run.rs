@@ -1,6 +1,6 @@
 //! A run of a scene into its result file: the output claimed, the
 //! checkpoint created or replayed, the sweep driven chunk by chunk, the
-//! file finished and renamed into place. `pidm run` (in `commands.rs`) and
+//! file finished and renamed into place. `pidm run` (in `commands/run.rs`) and
 //! every caller that wants a result file go through [`run_scene`].
 
 use std::collections::BTreeMap;

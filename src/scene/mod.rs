@@ -79,7 +79,8 @@
 //! `file` (reading a scene file), `name` (the name rule), `keys` (the
 //! numeric keys, their tables and raw slots), `rules` (what values each key
 //! accepts), `values` (scalars, lists and ranges), `parser` (the TOML
-//! document into layers of keys), `suggest` (hints for unknown keys),
+//! document into layers of keys), `numbers` (a numeric key's values read
+//! and checked), `suggest` (hints for unknown keys),
 //! `layer` (what an upper layer takes from the one below), `plan` (from raw
 //! key values to instances), `refine` (the `[refine]` table and the finest
 //! grid), `assemble` (the validated scene), `memory` (the
@@ -100,6 +101,7 @@ mod keys;
 mod layer;
 mod memory;
 mod name;
+mod numbers;
 mod parser;
 mod plan;
 mod refine;

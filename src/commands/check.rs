@@ -1,0 +1,261 @@
+//! `pidm check`: a scene validated and described without running it, with
+//! its cost estimated by a probe ([`crate::estimate`]), as text or as JSON.
+
+use std::path::Path;
+
+use anyhow::Result;
+
+use super::format::{human_duration, plural};
+use crate::estimate::NOMINAL_SIMULATED_PER_CORE;
+use crate::model::{AXES, Measure};
+use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
+
+/// What `pidm check` finds out about a scene: its size and a cost estimate.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CheckReport {
+    pub instances: u64,
+    /// The distinct integrations a run computes (instances and baselines
+    /// that repeat counted once; estimated beyond 65,536 instances).
+    pub integrations: u64,
+    /// Simulated time over every instance and distinct baseline [s], each
+    /// run to its `cycles` (`max_cycles` when steady: an upper bound).
+    pub simulated_s: f64,
+    /// The estimated cost [core-seconds], from the probe.
+    pub core_seconds: f64,
+    /// The cores of this machine: the CPU path's threads the estimate
+    /// assumes.
+    pub cores: usize,
+    /// The estimated wall time of the run on the CPU path on `cores`
+    /// threads [s]: its integrations (`sweep_s`), its trajectories
+    /// (`trajectories_s`) and [`crate::estimate::RUN_OVERHEAD_S`].
+    pub estimate_s: f64,
+    /// Of `estimate_s`, the integrations of the maps [s].
+    pub sweep_s: f64,
+    /// Of `estimate_s`, recording the trajectories [s].
+    pub trajectories_s: f64,
+    /// The estimate is an upper bound: a probed steady integration ran to
+    /// the probe's limit and was charged up to its `max_cycles`.
+    pub upper_bound: bool,
+    /// What the probe measured.
+    pub probe: crate::estimate::Probe,
+}
+
+/// Sizes up a scene and estimates its cost with a short probe (see
+/// [`crate::estimate`]).
+pub fn check_report(scene: &Scene) -> CheckReport {
+    let count = scene.instance_count();
+    // Exact total simulated time for up to a million instances, else a
+    // sample of evenly spaced ones.
+    let sample = count.clamp(1, 1_000_000);
+    let mut simulated = 0.0;
+    // A run integrates each distinct baseline once (they repeat along every
+    // other grid axis): those of the sampled instances, not scaled up.
+    let mut baselines = std::collections::HashSet::new();
+    let mut baseline_time = 0.0;
+    for k in 0..sample {
+        let i = if count <= sample {
+            k
+        } else {
+            k * count / sample
+        };
+        let inst = scene.instance(i);
+        simulated += inst.duration();
+        if scene.baselines {
+            for axis in 0..AXES {
+                let base = inst.baseline(axis);
+                if base != inst && baselines.insert(base.key()) {
+                    baseline_time += base.duration();
+                }
+            }
+        }
+    }
+    simulated = simulated * count as f64 / sample as f64 + baseline_time;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let (integrations, probe) = crate::estimate::probe(scene, cores);
+    let core_seconds = probe.mean_core_s * integrations as f64;
+    // The run spreads its integrations over the cores the probe had (fewer
+    // than the machine's where other work shares it), and cannot spread
+    // fewer integrations than cores over them all.
+    let spread = (integrations as f64).clamp(1.0, probe.parallelism);
+    // A probe of every integration, each to its end, was the run itself.
+    let whole = probe.integrations as u64 == integrations && probe.scaled + probe.cut == 0;
+    let sweep_s = if whole {
+        probe.wall_s
+    } else {
+        core_seconds / spread
+    };
+    let trajectories_s = crate::estimate::trajectories_s(scene, &probe);
+    let estimate_s = sweep_s + trajectories_s + crate::estimate::RUN_OVERHEAD_S;
+    CheckReport {
+        instances: count,
+        integrations,
+        simulated_s: simulated,
+        core_seconds,
+        cores,
+        estimate_s,
+        sweep_s,
+        trajectories_s,
+        upper_bound: probe.scaled + probe.cut > 0,
+        probe,
+    }
+}
+
+/// `pidm check`: validates and describes a scene without running it, as
+/// text or (`json`) as one JSON object on stdout (see [`check_json`]).
+pub fn check(path: &Path, json: bool) -> Result<()> {
+    let scene = Scene::load(path)?;
+    scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
+    let report = check_report(&scene);
+    if json {
+        println!("{}", check_json(&scene, &report));
+        return Ok(());
+    }
+    println!("{}", scene.describe());
+    let CheckReport {
+        instances,
+        integrations,
+        simulated_s,
+        core_seconds,
+        cores,
+        estimate_s,
+        sweep_s,
+        trajectories_s,
+        upper_bound,
+        ref probe,
+    } = report;
+    let steady = matches!(scene.instance(0).measure, Measure::Steady { .. });
+    println!(
+        "instances: {instances} ({integrations} distinct {}, baselines included)",
+        plural(integrations, "integration", "integrations")
+    );
+    if steady {
+        println!(
+            "simulated time: at most {simulated_s:.4e} s (each run to max_cycles; a steady \
+             measurement stops as soon as its steps are known, often long before)"
+        );
+    } else {
+        println!("simulated time: {simulated_s:.4e} s (baselines included)");
+    }
+    let at_most = if upper_bound { "at most " } else { "" };
+    println!(
+        "estimated cost: {at_most}{core_seconds:.3e} core-seconds: {at_most}{} on the CPU path \
+         (f64) on this machine's {cores} {} (--backend cpu; a GPU run is not estimated)",
+        human_duration(estimate_s),
+        plural(cores as u64, "core", "cores")
+    );
+    let trajectories = if trajectories_s > 0.0 {
+        format!(
+            ", {} recording trajectories",
+            human_duration(trajectories_s)
+        )
+    } else {
+        String::new()
+    };
+    println!(
+        "  {} integrating{trajectories}, {} starting and writing",
+        human_duration(sweep_s),
+        human_duration(crate::estimate::RUN_OVERHEAD_S)
+    );
+    println!("  {}", probe_note(probe));
+    Ok(())
+}
+
+/// How the estimate was made, in one sentence.
+fn probe_note(probe: &crate::estimate::Probe) -> String {
+    let mut note = format!(
+        "from a probe of {} {} ({:.2} s, {:.1} cores busy): {:.3} ms and {:.1} periods each \
+         on average",
+        probe.integrations,
+        plural(probe.integrations as u64, "integration", "integrations"),
+        probe.wall_s,
+        probe.parallelism,
+        probe.mean_core_s * 1e3,
+        probe.mean_periods
+    );
+    if probe.scaled > 0 {
+        note.push_str(&format!(
+            "; {} ran past {} periods and {} charged up to {} max_cycles",
+            probe.scaled,
+            crate::estimate::PROBE_PERIODS,
+            if probe.scaled == 1 { "is" } else { "are" },
+            if probe.scaled == 1 { "its" } else { "their" }
+        ));
+    }
+    if probe.cut > 0 {
+        note.push_str(&format!(
+            "; {} took over {} s and {} charged at {} simulated s per core-second",
+            probe.cut,
+            crate::estimate::PROBE_CUTOFF_S,
+            if probe.cut == 1 { "is" } else { "are" },
+            NOMINAL_SIMULATED_PER_CORE
+        ));
+    }
+    note
+}
+
+/// `pidm check --json`: the scene's name, layout (`"grid"` with its axes:
+/// key, units, size, first and last value; or `"points"` with their
+/// labels), instance count, shape, baselines, trajectory count, the bytes
+/// of its output maps, and the cost estimate: simulated time
+/// (`simulated_s`, to every `max_cycles` when steady), the distinct
+/// `integrations`, `core_seconds` and `estimate_s` on the CPU path
+/// (`estimate_backend`) on this machine's `cores` (of it
+/// `estimate_sweep_s` integrating the maps and `estimate_trajectories_s`
+/// recording trajectories, the rest starting and writing), measured by a probe
+/// (`probe`: integrations, scaled, cut, mean_periods, mean_core_s,
+/// wall_s); `estimate_is_upper_bound` where a probed steady integration
+/// was charged up to its `max_cycles`. `nominal_simulated_per_core_s` is
+/// the rate charged to a probed integration that was cut off.
+pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
+    use serde_json::json;
+    let (layout, axes, labels) = match &scene.layout {
+        Layout::Grid { axes } => {
+            let axes: Vec<serde_json::Value> = axes
+                .iter()
+                .map(|a| {
+                    json!({
+                        "key": a.key,
+                        "units": a.units,
+                        "size": a.values.len(),
+                        "first": a.values.first(),
+                        "last": a.values.last(),
+                    })
+                })
+                .collect();
+            ("grid", axes, Vec::new())
+        }
+        Layout::Points { labels } => ("points", Vec::new(), labels.clone()),
+    };
+    let probe = &report.probe;
+    json!({
+        "name": scene.name,
+        "layout": layout,
+        "instances": report.instances,
+        "integrations": report.integrations,
+        "shape": scene.shape(),
+        "axes": axes,
+        "labels": labels,
+        "baselines": scene.baselines,
+        "trajectories": scene.trajectories.len(),
+        "tolerance_rad": scene.settings.tolerance,
+        "output_bytes": scene.bytes_per_instance().saturating_mul(report.instances),
+        "simulated_s": report.simulated_s,
+        "core_seconds": report.core_seconds,
+        "cores": report.cores,
+        "estimate_s": report.estimate_s,
+        "estimate_backend": format!("cpu (f64, {} threads)", report.cores),
+        "estimate_sweep_s": report.sweep_s,
+        "estimate_trajectories_s": report.trajectories_s,
+        "estimate_is_upper_bound": report.upper_bound,
+        "probe": {
+            "integrations": probe.integrations,
+            "scaled": probe.scaled,
+            "cut": probe.cut,
+            "mean_periods": probe.mean_periods,
+            "mean_core_s": probe.mean_core_s,
+            "wall_s": probe.wall_s,
+            "parallelism": probe.parallelism,
+        },
+        "nominal_simulated_per_core_s": NOMINAL_SIMULATED_PER_CORE,
+    })
+}

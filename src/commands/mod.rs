@@ -1,0 +1,36 @@
+//! The subcommands behind the `pidm` binary. `main.rs` only parses the
+//! command line and prints errors; everything a command does is here, so
+//! tests can call it.
+//!
+//! One file per subcommand, as cargo's `commands/`: `run.rs`, `merge.rs`,
+//! `check.rs`, `info.rs`, `report.rs`, `accuracy.rs`, `random_scene.rs`,
+//! `bench.rs` and `refine_study.rs`. `summary.rs` is the one home of the
+//! run summary `pidm run` prints, `format.rs` of the numbers and words the
+//! commands write for people, and `scenes.rs` of how the commands load
+//! scenes.
+
+mod accuracy;
+mod bench;
+mod check;
+mod format;
+mod info;
+mod merge;
+mod random_scene;
+mod refine_study;
+mod report;
+mod run;
+mod scenes;
+mod summary;
+
+pub use crate::estimate::NOMINAL_SIMULATED_PER_CORE;
+pub use accuracy::accuracy;
+pub use bench::bench;
+pub use check::{CheckReport, check, check_json, check_report};
+pub use format::{human_duration, instance_name, plural, um};
+pub use info::info;
+pub use merge::merge;
+pub use random_scene::random_scene;
+pub use refine_study::refine_study;
+pub use report::report;
+pub use run::{RunOptions, run};
+pub use scenes::{DEFAULT_SCENE, load_scene};

@@ -1,0 +1,328 @@
+//! The chunk loop: a [`Plan`]'s instances run chunk by chunk, each
+//! chunk's distinct integrations once (`--verify` reruns them tighter),
+//! records made and handed to the sink, and baselines remembered for the
+//! chunks after it.
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use anyhow::{Result, bail};
+use rayon::prelude::*;
+
+use super::dedup::{JobRef, Jobs, digest};
+use super::{
+    BaselineMemo, Outcome, Record, STATUS_UNCONVERGED, Summary, interrupt_requested, record,
+};
+use crate::backend::Backend;
+use crate::cpu::integrate::{STATUS_OK, Settings};
+use crate::model::{AXES, Instance};
+
+/// How far a step may move under a 100 times tighter tolerance before
+/// `--verify` calls the instance unconverged [m per drive cycle]: the
+/// project's accuracy bar of 0.001 um (MODEL.md).
+pub const VERIFY_ALLOWANCE_M: f64 = 1e-9;
+
+/// How much tighter than the scene's the tolerance of a `--verify` rerun
+/// is.
+pub const VERIFY_TIGHTENING: f64 = 100.0;
+
+/// Baseline outcomes kept from one chunk for the next, at most: about
+/// 200 MiB at 208 bytes an entry. The bound is checked between chunks, so a
+/// chunk's own distinct baselines come on top (two per instance at most,
+/// 2,000 on a 1000 x 1000 map).
+const MAX_REMEMBERED_BASELINES: usize = 1 << 20;
+
+/// Marks `outcome` unconverged when its tighter rerun `check` finished and
+/// moved a step by more than the allowance. A check that did not finish
+/// (a tighter tolerance can underflow, status 3) leaves the outcome as it
+/// is: it neither confirms nor refutes it.
+fn verify(inst: &Instance, outcome: &mut Outcome, check: &Outcome) {
+    if outcome.status != STATUS_OK || check.status != STATUS_OK {
+        return;
+    }
+    let moved = (0..AXES).any(|i| {
+        let a = outcome.step(inst, i);
+        let b = check.step(inst, i);
+        (a - b).abs() > VERIFY_ALLOWANCE_M
+    });
+    if moved {
+        *outcome = Outcome {
+            status: STATUS_UNCONVERGED,
+            steps: outcome.steps,
+            periods: outcome.periods,
+            on_cpu: outcome.on_cpu,
+            graze: outcome.graze,
+            checked: outcome.checked,
+            ..Outcome::default()
+        };
+    }
+}
+
+/// Everything a sweep needs to know about its instances.
+pub struct Plan<'a> {
+    /// The flat instance indices to run: disjoint ranges in ascending
+    /// order (all of `0..count` for a whole run; fewer for a shard or a
+    /// resumed run).
+    pub work: Vec<Range<u64>>,
+    pub instance: &'a (dyn Fn(u64) -> Instance + Sync),
+    pub settings: Settings,
+    pub baselines: bool,
+    /// Rerun every integration with a [`VERIFY_TIGHTENING`] times tighter
+    /// tolerance and mark the instances whose steps move by more than
+    /// [`VERIFY_ALLOWANCE_M`] with [`STATUS_UNCONVERGED`].
+    pub verify: bool,
+}
+
+impl Plan<'_> {
+    /// The work list of a whole run of `count` instances.
+    #[allow(clippy::single_range_in_vec_init)]
+    pub fn everything(count: u64) -> Vec<Range<u64>> {
+        if count == 0 {
+            Vec::new()
+        } else {
+            vec![0..count]
+        }
+    }
+
+    /// How many instances the plan runs.
+    pub fn count(&self) -> u64 {
+        self.work.iter().map(|r| r.end - r.start).sum()
+    }
+}
+
+/// Splits the work list into chunks of at most `chunk` instances, each a
+/// list of contiguous segments.
+fn chunks(work: &[Range<u64>], chunk: u64) -> Vec<Vec<Range<u64>>> {
+    let mut out = Vec::new();
+    let mut current: Vec<Range<u64>> = Vec::new();
+    let mut filled = 0;
+    for range in work {
+        let mut start = range.start;
+        while start < range.end {
+            let take = (chunk - filled).min(range.end - start);
+            current.push(start..start + take);
+            filled += take;
+            start += take;
+            if filled == chunk {
+                out.push(std::mem::take(&mut current));
+                filled = 0;
+            }
+        }
+    }
+    if !current.is_empty() {
+        out.push(current);
+    }
+    out
+}
+
+/// Runs every instance of the plan in chunks, in index order, calling
+/// `sink(first_index, records)` for each finished chunk. `progress(n)` is
+/// called as instances finish (baselines count as part of their instance);
+/// when an interrupt is requested ([`request_interrupt`](super::request_interrupt)) the sweep ends
+/// with an error and hands nothing more to the sink.
+pub fn run(
+    plan: &Plan,
+    backend: &dyn Backend,
+    chunk: usize,
+    progress: &(dyn Fn(u64) + Sync),
+    sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
+) -> Result<Summary> {
+    run_with_memo(
+        plan,
+        backend,
+        chunk,
+        progress,
+        sink,
+        &mut BaselineMemo::default(),
+    )
+}
+
+/// [`run`], with the baselines of earlier sweeps of the same scene in
+/// `baselines_done` (and this sweep's added to it).
+pub fn run_with_memo(
+    plan: &Plan,
+    backend: &dyn Backend,
+    chunk: usize,
+    progress: &(dyn Fn(u64) + Sync),
+    sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
+    baselines_done: &mut BaselineMemo,
+) -> Result<Summary> {
+    let total = plan.count();
+    let mut summary = Summary::default();
+    let mut finished_before = 0;
+    for segments in chunks(&plan.work, chunk.max(1) as u64) {
+        if interrupt_requested() {
+            bail!("interrupted after {finished_before} of {total} instances");
+        }
+        let indices: Vec<u64> = segments.iter().flat_map(|r| r.clone()).collect();
+        let mains: Vec<Instance> = indices.par_iter().map(|&i| (plan.instance)(i)).collect();
+        let jobs = Jobs::new(&mains, plan.baselines, baselines_done);
+        let Jobs {
+            jobs,
+            main_job,
+            baseline_job,
+        } = jobs;
+        // Progress counts main instances; the other jobs add a proportional
+        // share.
+        let scale = mains.len() as f64 / jobs.len().max(1) as f64;
+        let finished = AtomicU64::new(0);
+        let reported = AtomicU64::new(0);
+        let done = |n: u64| {
+            let total = finished.fetch_add(n, Ordering::Relaxed) + n;
+            let target = (total as f64 * scale) as u64;
+            let before = reported.fetch_max(target, Ordering::Relaxed);
+            if target > before {
+                progress(target - before);
+            }
+        };
+        let started = std::time::Instant::now();
+        let mut outcomes = if jobs.is_empty() {
+            Vec::new()
+        } else {
+            backend.run(&jobs, &plan.settings, &done)?
+        };
+        if plan.verify && !interrupt_requested() {
+            let tight = Settings {
+                tolerance: plan.settings.tolerance / VERIFY_TIGHTENING,
+                ..plan.settings
+            };
+            let checks = backend.run(&jobs, &tight, &|_| {})?;
+            for ((job, outcome), check) in jobs.iter().zip(outcomes.iter_mut()).zip(&checks) {
+                verify(job, outcome, check);
+            }
+        }
+        summary.integration_s += started.elapsed().as_secs_f64();
+        if interrupt_requested() {
+            bail!("interrupted after {finished_before} of {total} instances");
+        }
+        let left = mains.len() as u64 - reported.load(Ordering::Relaxed);
+        if left > 0 {
+            progress(left);
+        }
+        let records: Vec<Record> = mains
+            .par_iter()
+            .enumerate()
+            .map(|(k, inst)| {
+                let mut rec = record(inst, &outcomes[main_job[k]]);
+                if plan.baselines {
+                    for (axis, job) in baseline_job[k].iter().enumerate() {
+                        let base_inst = inst.baseline(axis);
+                        let base = match *job {
+                            JobRef::Run(j) => outcomes[j],
+                            JobRef::Done => baselines_done
+                                .get(&base_inst, digest(&base_inst.key()))
+                                .expect("a baseline marked done was remembered"),
+                        };
+                        let base = record(&base_inst, &base);
+                        rec.baseline_step[axis] = base.step[axis];
+                        rec.baseline_status = rec.baseline_status.max(base.status);
+                    }
+                }
+                rec
+            })
+            .collect();
+        for (rec, &index) in records.iter().zip(&indices) {
+            summary.add(rec, index);
+        }
+        summary.simulated_s += jobs
+            .iter()
+            .zip(&outcomes)
+            .map(|(inst, out)| out.periods as f64 * inst.period())
+            .sum::<f64>();
+        summary.integrations += jobs.len() as u64;
+        summary.on_cpu += outcomes.iter().filter(|o| o.on_cpu).count() as u64;
+        summary.grazes += outcomes.iter().filter(|o| o.graze).count() as u64;
+        summary.checked += outcomes.iter().filter(|o| o.checked).count() as u64;
+        summary.checked_on_cpu += outcomes.iter().filter(|o| o.checked && o.on_cpu).count() as u64;
+        // Keep this chunk's baselines for the chunks after it (a grid's
+        // baselines repeat along every other axis), within a bound.
+        if plan.baselines {
+            if baselines_done.0.len() > MAX_REMEMBERED_BASELINES {
+                baselines_done.0.clear();
+            }
+            for (inst, refs) in mains.iter().zip(&baseline_job) {
+                for (axis, job) in refs.iter().enumerate() {
+                    if let JobRef::Run(j) = *job {
+                        baselines_done.insert(&inst.baseline(axis), outcomes[j]);
+                    }
+                }
+            }
+        }
+        let mut offset = 0;
+        for segment in &segments {
+            let n = (segment.end - segment.start) as usize;
+            sink(segment.start, &records[offset..offset + n])?;
+            offset += n;
+        }
+        finished_before += mains.len() as u64;
+    }
+    Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn verify_marks_only_finished_runs_that_a_finished_check_moves() {
+        let inst = Instance::TABLE1;
+        // Displacements over the measured periods [m]; 8 cycles of 10 Hz
+        // are measured, so 8e-9 m is a step of 1e-9 m per cycle.
+        let cycles = (inst.cycles - inst.settle) as f64;
+        let outcome = |status: u32, x: f64| Outcome {
+            displacement: [x * cycles, 0.0],
+            span: cycles,
+            status,
+            steps: 1,
+            periods: inst.cycles,
+            ..Outcome::default()
+        };
+        let check = |run: Outcome, tighter: Outcome, want: u32| {
+            let mut got = run;
+            verify(&inst, &mut got, &tighter);
+            assert_eq!(got.status, want, "{run:?} against {tighter:?}");
+            if want == STATUS_UNCONVERGED {
+                assert_eq!(got.displacement, [0.0; AXES]);
+            } else {
+                assert_eq!(got, run);
+            }
+        };
+        let step = 1e-6;
+        check(outcome(0, step), outcome(0, step + 0.5e-9), STATUS_OK);
+        check(
+            outcome(0, step),
+            outcome(0, step + 2e-9),
+            STATUS_UNCONVERGED,
+        );
+        check(
+            outcome(0, step),
+            outcome(0, step - 2e-9),
+            STATUS_UNCONVERGED,
+        );
+        // A check that did not finish neither confirms nor refutes.
+        check(outcome(0, step), outcome(3, 0.0), STATUS_OK);
+        // A failed run keeps its own status.
+        check(outcome(1, 0.0), outcome(0, step), 1);
+    }
+
+    #[test]
+    fn chunks_cover_the_work_in_order_and_respect_the_size() {
+        let work = vec![0..5, 7..8, 10..17];
+        for size in [1, 2, 3, 5, 100] {
+            let chunks = chunks(&work, size);
+            let flat: Vec<u64> = chunks.iter().flatten().flat_map(|r| r.clone()).collect();
+            assert_eq!(flat, [0, 1, 2, 3, 4, 7, 10, 11, 12, 13, 14, 15, 16]);
+            for chunk in &chunks {
+                let n: u64 = chunk.iter().map(|r| r.end - r.start).sum();
+                assert!(n <= size && n > 0, "size {size}: {chunk:?}");
+                // A segment never spans two work ranges.
+                for seg in chunk {
+                    assert!(
+                        work.iter()
+                            .any(|w| w.start <= seg.start && seg.end <= w.end)
+                    );
+                }
+            }
+        }
+    }
+}
