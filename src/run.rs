@@ -12,7 +12,7 @@ use anyhow::{Result, bail};
 
 use crate::backend::{Backend, Hardware};
 use crate::checkpoint::{self, Checkpoint};
-use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo};
+use crate::output::{MapWriter, OutputClaim, ShardInfo};
 use crate::progress::{Progress, ProgressMode};
 use crate::scene::{MAP_MEMORY_BUDGET_BYTES, Scene};
 use crate::sweep::{self, Plan, Record, Summary};
@@ -131,8 +131,7 @@ pub fn run_scene(
         );
     }
     let total = scene.instance_count();
-    let mut info = FileInfo::of_scene(
-        scene,
+    let mut info = scene.file_info(
         backend.describe(),
         backend.precision().to_string(),
         variant(scene),

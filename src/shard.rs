@@ -15,7 +15,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use hdf5::File;
 
 use crate::output::claim::is_same_file;
-use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo, read_str_attr, schema};
+use crate::output::{MapWriter, OutputClaim, ShardInfo, read_str_attr, schema};
 use crate::scene::Scene;
 use crate::stall::StallRecord;
 use crate::sweep::{Record, stored_motion};
@@ -350,8 +350,7 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
     let mut backends: Vec<&str> = shards.iter().map(|s| s.backend.as_str()).collect();
     backends.sort_unstable();
     backends.dedup();
-    let mut info = FileInfo::of_scene(
-        &scene,
+    let mut info = scene.file_info(
         backends.join("; "),
         first.precision.clone(),
         first.variant.clone(),
@@ -367,7 +366,7 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
             writer.write(range.start, &records)?;
             if let Some(stall) = scene.stall {
                 let stalls = shard.stall_records(at, n, range.start, stall.axis)?;
-                writer.write_stall(range.start, &stalls)?;
+                writer.write_stall(range.start, &crate::stall::StallRecord::columns(&stalls))?;
             }
             at += n;
         }

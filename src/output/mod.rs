@@ -43,8 +43,6 @@
 
 use std::ops::Range;
 
-use crate::scene::{Layout, Scene};
-
 mod attributes;
 mod blocks;
 pub mod claim;
@@ -59,7 +57,7 @@ pub use blocks::flat_to_blocks;
 pub use claim::OutputClaim;
 pub use compare::compare_contents;
 pub use shard_spec::ShardSpec;
-pub use writer::{MapWriter, root_name};
+pub use writer::{MapWriter, StallColumns, root_name};
 
 /// Where a shard file's instances sit in the scene.
 #[derive(Clone, Debug)]
@@ -121,44 +119,4 @@ pub struct FileInfo {
     /// The stalled axis of a scene with `[stall]`: its stall maps are
     /// written too (`schema::STALL_DATASETS`).
     pub stall: Option<usize>,
-}
-
-impl FileInfo {
-    /// The file layout of a scene's results, run on `backend` (its
-    /// description) in `precision` by the integrator `variant`.
-    pub fn of_scene(
-        scene: &Scene,
-        backend: String,
-        precision: String,
-        variant: String,
-    ) -> FileInfo {
-        let (axes, labels) = match &scene.layout {
-            Layout::Grid { axes } => (
-                axes.iter()
-                    .map(|a| AxisInfo {
-                        key: a.key.clone(),
-                        values: a.values.clone(),
-                        units: a.units.to_string(),
-                    })
-                    .collect(),
-                None,
-            ),
-            Layout::Points { labels } => (Vec::new(), Some(labels.clone())),
-        };
-        FileInfo {
-            name: scene.name.clone(),
-            scene_text: scene.text.clone(),
-            shape: scene.shape(),
-            axes,
-            labels,
-            baselines: scene.baselines,
-            backend,
-            precision,
-            variant,
-            tolerance: scene.settings.tolerance,
-            verify_tolerance: None,
-            shard: None,
-            stall: scene.stall.map(|stall| stall.axis),
-        }
-    }
 }

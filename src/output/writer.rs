@@ -280,24 +280,18 @@ impl MapWriter {
         Ok(())
     }
 
-    /// Writes the stall maps of instances `start .. start +
-    /// records.len()` (row-major flat indices) of a scene with `[stall]`.
-    pub fn write_stall(&mut self, start: u64, records: &[crate::stall::StallRecord]) -> Result<()> {
+    /// Writes the stall maps of instances `start .. start + n` (row-major
+    /// flat indices, n the columns' length) of a scene with `[stall]`.
+    pub fn write_stall(&mut self, start: u64, columns: &StallColumns) -> Result<()> {
         if self.stall.is_empty() {
             bail!("internal: stall maps for a file of a scene without [stall]");
         }
-        let start = self.position(start, records.len() as u64)?;
-        let f64s = |f: &dyn Fn(&crate::stall::StallRecord) -> f64| -> Vec<f64> {
-            records.iter().map(f).collect()
-        };
-        let u32s = |f: &dyn Fn(&crate::stall::StallRecord) -> u32| -> Vec<u32> {
-            records.iter().map(f).collect()
-        };
-        write_flat(&self.stall[0], &self.shape, start, &f64s(&|r| r.load))?;
-        write_flat(&self.stall[1], &self.shape, start, &f64s(&|r| r.step_near))?;
-        write_flat(&self.stall[2], &self.shape, start, &f64s(&|r| r.step_far))?;
-        write_flat(&self.stall[3], &self.shape, start, &u32s(&|r| r.waves))?;
-        write_flat(&self.stall[4], &self.shape, start, &u32s(&|r| r.status))?;
+        let start = self.position(start, columns.load.len() as u64)?;
+        write_flat(&self.stall[0], &self.shape, start, &columns.load)?;
+        write_flat(&self.stall[1], &self.shape, start, &columns.step_near)?;
+        write_flat(&self.stall[2], &self.shape, start, &columns.step_far)?;
+        write_flat(&self.stall[3], &self.shape, start, &columns.waves)?;
+        write_flat(&self.stall[4], &self.shape, start, &columns.status)?;
         Ok(())
     }
 
@@ -401,4 +395,20 @@ impl Drop for MapWriter {
             let _ = std::fs::remove_file(&self.temp_path);
         }
     }
+}
+
+/// The stall maps of consecutive instances, one column per dataset of
+/// `schema::STALL_DATASETS` in its order (`crate::stall::StallRecord::
+/// columns` makes them), so the writer needs nothing of the stall search.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StallColumns {
+    /// Stall loads [N].
+    pub load: Vec<f64>,
+    /// Steps at the bracket's ends [m per own drive cycle].
+    pub step_near: Vec<f64>,
+    pub step_far: Vec<f64>,
+    /// Integrations of each search.
+    pub waves: Vec<u32>,
+    /// Stall statuses.
+    pub status: Vec<u32>,
 }

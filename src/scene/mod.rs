@@ -262,3 +262,45 @@ impl Scene {
         self.driven.get(axis).copied().unwrap_or(false)
     }
 }
+
+impl Scene {
+    /// The result file's layout of this scene's results, run on `backend`
+    /// (its description) in `precision` by the integrator `variant`
+    /// (`crate::output::FileInfo`; here, so that the output layer needs
+    /// nothing of scenes).
+    pub fn file_info(
+        &self,
+        backend: String,
+        precision: String,
+        variant: String,
+    ) -> crate::output::FileInfo {
+        let (axes, labels) = match &self.layout {
+            Layout::Grid { axes } => (
+                axes.iter()
+                    .map(|a| crate::output::AxisInfo {
+                        key: a.key.clone(),
+                        values: a.values.clone(),
+                        units: a.units.to_string(),
+                    })
+                    .collect(),
+                None,
+            ),
+            Layout::Points { labels } => (Vec::new(), Some(labels.clone())),
+        };
+        crate::output::FileInfo {
+            name: self.name.clone(),
+            scene_text: self.text.clone(),
+            shape: self.shape(),
+            axes,
+            labels,
+            baselines: self.baselines,
+            backend,
+            precision,
+            variant,
+            tolerance: self.settings.tolerance,
+            verify_tolerance: None,
+            shard: None,
+            stall: self.stall.map(|stall| stall.axis),
+        }
+    }
+}

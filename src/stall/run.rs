@@ -23,8 +23,8 @@ use crate::checkpoint::{self, Checkpoint};
 use crate::model::Instance;
 use crate::output::{FileInfo, MapWriter, OutputClaim};
 use crate::progress::{Progress, ProgressMode};
-use crate::scope::RunScope;
 use crate::scene::{Scene, Stall};
+use crate::scope::RunScope;
 use crate::status::STATUS_NO_STALL;
 use crate::sweep::{self, BaselineMemo, Plan, Record, Summary};
 
@@ -314,7 +314,10 @@ pub fn run(
     let mut offset = 0;
     for range in all {
         let n = (range.end - range.start) as usize;
-        writer.write_stall(range.start, &stalls[offset..offset + n])?;
+        writer.write_stall(
+            range.start,
+            &StallRecord::columns(&stalls[offset..offset + n]),
+        )?;
         offset += n;
     }
     let wall_time_s = started.elapsed().as_secs_f64();

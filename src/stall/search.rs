@@ -81,6 +81,18 @@ pub struct StallRecord {
 }
 
 impl StallRecord {
+    /// The stall maps' columns of consecutive records, as the writer takes
+    /// them (`crate::output::StallColumns`).
+    pub fn columns(records: &[StallRecord]) -> crate::output::StallColumns {
+        crate::output::StallColumns {
+            load: records.iter().map(|r| r.load).collect(),
+            step_near: records.iter().map(|r| r.step_near).collect(),
+            step_far: records.iter().map(|r| r.step_far).collect(),
+            waves: records.iter().map(|r| r.waves).collect(),
+            status: records.iter().map(|r| r.status).collect(),
+        }
+    }
+
     /// Why a stored stall record cannot have been written by a run, if it
     /// cannot (the readers' check, like `sweep::Record::implausibility`):
     /// a known status, finite values, zeros where the status keeps none, a
