@@ -4,7 +4,7 @@
 //! folder back.
 
 use crate::progress::ProgressMode;
-use crate::shard::ShardSpec;
+use crate::output::ShardSpec;
 
 /// How a run covers its scene.
 #[derive(Clone, Copy, Debug, Default)]
