@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
-use crate::output::MapWriter;
+use crate::output::{FileInfo, MapWriter, OutputClaim};
 use crate::sweep::Record;
 
 /// The journal's first bytes: its format. Format 3 added the kind of motion
@@ -104,6 +104,27 @@ fn decode(bytes: &[u8]) -> Result<Record, String> {
         period_lag: u(4),
         motion: crate::sweep::stored_motion(bytes[84])?,
     })
+}
+
+/// A new run's journal and output writer, the journal first: it also keeps
+/// a second run of the same output from starting beside this one. Refuses
+/// where an interrupted run's journal is in the way (`--resume` continues
+/// it). Every kind of run starts here: plain, refined and stall runs.
+pub fn start(
+    path: &Path,
+    identity: &str,
+    claim: &OutputClaim,
+    info: &FileInfo,
+) -> Result<(Checkpoint, MapWriter)> {
+    if path.exists() {
+        bail!(
+            "{} holds the finished part of an interrupted run of this output; continue it \
+             with --resume, or delete it to start over",
+            path.display()
+        );
+    }
+    let checkpoint = Checkpoint::create(path, identity)?;
+    Ok((checkpoint, MapWriter::create(claim, info)?))
 }
 
 impl Checkpoint {

@@ -240,17 +240,8 @@ pub fn run_scene(
         );
         (checkpoint, work, writer)
     } else {
-        if checkpoint_path.exists() {
-            bail!(
-                "{} holds the finished part of an interrupted run of this output; continue it \
-                 with --resume, or delete it to start over",
-                checkpoint_path.display()
-            );
-        }
-        // The checkpoint is created first: it also keeps a second run of
-        // the same output from starting beside this one.
-        let checkpoint = Checkpoint::create(&checkpoint_path, &identity)?;
-        (checkpoint, all, MapWriter::create(&claim, &info)?)
+        let (checkpoint, writer) = checkpoint::start(&checkpoint_path, &identity, &claim, &info)?;
+        (checkpoint, all, writer)
     };
 
     let instance = |i: u64| scene.instance(i);

@@ -3,8 +3,8 @@
 //! search, `crate::stall::run`) read, so that neither imports the other's
 //! folder back.
 
-use crate::progress::ProgressMode;
 use crate::output::ShardSpec;
+use crate::progress::ProgressMode;
 
 /// How a run covers its scene.
 #[derive(Clone, Copy, Debug, Default)]

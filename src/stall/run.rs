@@ -162,15 +162,7 @@ pub fn run(
         );
         (checkpoint, writer)
     } else {
-        if checkpoint_path.exists() {
-            bail!(
-                "{} holds the finished part of an interrupted run of this output; continue it \
-                 with --resume, or delete it to start over",
-                checkpoint_path.display()
-            );
-        }
-        let checkpoint = Checkpoint::create(&checkpoint_path, identity)?;
-        (checkpoint, MapWriter::create(claim, info)?)
+        crate::checkpoint::start(&checkpoint_path, identity, claim, info)?
     };
 
     // An instance counts twice: its unloaded run, and its stall search.
