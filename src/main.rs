@@ -73,6 +73,12 @@ enum Command {
         /// (status 5, map entries 0). Costs about 3 times the run.
         #[arg(long)]
         verify: bool,
+        /// Print where the run's wall time went on stderr at the end, one
+        /// table: the backend's opening, packing, uploads, dispatches,
+        /// readback, reduction, the CPU's part, HDF5 writing, and what no
+        /// phase claims (also `PIDM_GPU_PHASES=1`).
+        #[arg(long)]
+        profile: bool,
         /// How progress is shown on stderr: bar (a bar with an ETA), jsonl
         /// (one JSON object per line: done, total, elapsed_s, eta_s,
         /// instances_per_s; the last has done == total) or none [default:
@@ -276,7 +282,11 @@ fn run(cli: Cli) -> Result<ExitCode> {
             chunk_size,
             verify,
             progress,
+            profile,
         } => {
+            if profile {
+                pidm::profile::enable();
+            }
             if chunk_size == Some(0) {
                 anyhow::bail!("--chunk-size must be at least 1");
             }
@@ -372,6 +382,7 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    pidm::profile::start();
     let cli = Cli::parse();
     // Mesa's GL driver complains of an unset or invalid XDG_RUNTIME_DIR on
     // stderr when wgpu looks for adapters (machines without a desktop

@@ -200,6 +200,7 @@ pub fn run_scene(
             stall_records: stalled.stall,
         });
     }
+    let opening = crate::profile::span(crate::profile::Phase::Open);
     let (mut checkpoint, work, mut writer) = if scope.resume {
         if !checkpoint_path.exists() {
             bail!(
@@ -244,6 +245,7 @@ pub fn run_scene(
         (checkpoint, all, writer)
     };
 
+    drop(opening);
     let instance = |i: u64| scene.instance(i);
     let plan = Plan {
         work,
@@ -288,6 +290,7 @@ pub fn run_scene(
         },
     );
     let new = progress.conclude(result, &checkpoint_path)?;
+    let _finishing = crate::profile::span(crate::profile::Phase::Finish);
     summary.merge(&new);
     let wall_time_s = started.elapsed().as_secs_f64();
     // Trajectories belong to the whole scene: a shard leaves them to

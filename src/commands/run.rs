@@ -37,12 +37,15 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
     // (exit 130 or 143), not by ending the process mid-write.
     crate::run::install_interrupt_handler();
     let scene = Scene::load(&opts.scene)?;
+    crate::profile::close_start();
+    let selecting = crate::profile::span(crate::profile::Phase::Backend);
     let selected = select_backend(
         opts.backend,
         opts.precision,
         opts.threads,
         integrations_for_choice(&scene, opts.scope),
     )?;
+    drop(selecting);
     let backend = selected.as_ref();
     let out = match (&opts.out, opts.scope.shard) {
         (Some(out), _) => out.clone(),
@@ -77,7 +80,12 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         );
     }
     let result = run_scene(&scene, backend, &out, opts.table_limit, opts.scope)?;
-    print_summary(&scene, &result);
+    crate::profile::time(crate::profile::Phase::Finish, || {
+        print_summary(&scene, &result)
+    });
+    if crate::profile::enabled() {
+        eprint!("{}", crate::profile::table());
+    }
     // Closing a GPU device costs NVIDIA's driver 0.03-0.05 s, as long as
     // the whole integration of a 200 x 200 map. The output is complete and
     // closed here and the process ends right after this command, so the

@@ -4,6 +4,7 @@
 //! tail, loop-limited iterations, f32 fallbacks and the check).
 
 use super::*;
+use crate::profile::{self, Phase};
 
 /// Integrates a batch on the GPU and returns one outcome per instance, in
 /// order. `progress(done, total)` is called after every slice.
@@ -274,6 +275,7 @@ impl Runner<'_> {
                 }
                 let jobs: Vec<CpuJob> = disagree.into_iter().map(checked_job).collect();
                 let mut outcomes = fallback_outcomes;
+                let _cpu = profile::span(Phase::CpuPart);
                 outcomes.extend(self.on_cpu_all(instances, &jobs));
                 outcomes
             }
@@ -282,11 +284,12 @@ impl Runner<'_> {
                 jobs.extend(picked.into_iter().map(checked_job));
                 let rest = total - main_share;
                 let n = (jobs.len() as u64).max(1);
+                let _cpu = profile::span(Phase::CpuPart);
                 self.on_cpu_all_reporting(instances, &jobs, &mut |done| {
                     progress(main_share + done.min(n) * rest / n, total)
                 })
             }
-            None => self.on_cpu_all(instances, &fallback),
+            None => profile::time(Phase::CpuPart, || self.on_cpu_all(instances, &fallback)),
         };
         for (k, outcome) in cpu_outcomes {
             out[k] = outcome;
@@ -434,11 +437,13 @@ impl Runner<'_> {
         let device = self.device;
         let queue = self.queue;
         let n = instances.len();
-        let preparing = std::time::Instant::now();
-        let coefficients: Vec<L::Coefficients> = instances
-            .par_iter()
-            .map(|inst| L::pack(inst, self.settings))
-            .collect();
+        let coefficients: Vec<L::Coefficients> = profile::time(Phase::Pack, || {
+            instances
+                .par_iter()
+                .map(|inst| L::pack(inst, self.settings))
+                .collect()
+        });
+        let uploading = profile::span(Phase::Upload);
         let coefficients_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("coefficients"),
             contents: bytemuck::cast_slice(&coefficients),
@@ -535,8 +540,8 @@ impl Runner<'_> {
             self.options
                 .tail_size(L::PRECISION, n, rayon::current_num_threads()) as u64;
         let mut slice: u64 = 0;
-        let prepared = preparing.elapsed();
-        let dispatching = std::time::Instant::now();
+        drop(uploading);
+        let dispatching = profile::span(Phase::Dispatch);
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
             {
@@ -570,7 +575,8 @@ impl Runner<'_> {
                 });
             }
         }
-        let dispatched = dispatching.elapsed();
+        drop(dispatching);
+        let _reading = profile::span(Phase::Readback);
         let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
         if steady {
@@ -603,27 +609,11 @@ impl Runner<'_> {
         } else {
             Vec::new()
         };
-        if gpu_phases() {
-            let mb = |bytes: u64| bytes as f64 / 1e6;
-            eprintln!(
-                "pidm: GPU batch of {n}: coefficients packed and buffers made in {:.3} s; \
-                 {slice} dispatches in {:.3} s; states {:.1} MB mapped in {:.3} s and read in \
-                 {:.3} s; heads {:.1} MB read in {:.3} s; accumulators ({:?}, {} of them) {:.1} \
-                 MB mapped in {:.3} s and read in {:.3} s",
-                prepared.as_secs_f64(),
-                dispatched.as_secs_f64(),
-                mb(state_bytes),
-                states_timed.wait.as_secs_f64(),
-                states_timed.read.as_secs_f64(),
-                if steady { mb(head_bytes) } else { 0.0 },
-                read.heads.wait.as_secs_f64() + read.heads.read.as_secs_f64(),
-                read.plan,
-                read.count,
-                mb((read.count * size_of::<L::Measure>()) as u64),
-                read.whole.wait.as_secs_f64(),
-                read.whole.read.as_secs_f64(),
-            );
-        }
+        profile::add_bytes_read(
+            state_bytes
+                + if steady { head_bytes } else { 0 }
+                + (read.count * size_of::<L::Measure>()) as u64,
+        );
         Ok((states, measure_list))
     }
 
@@ -633,10 +623,8 @@ impl Runner<'_> {
         progress: &mut dyn FnMut(u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let n = instances.len();
-        let slicing = std::time::Instant::now();
         let (states, measure_list) = self.slices::<L>(instances, progress, None)?;
-        let sliced = slicing.elapsed();
-        let reducing = std::time::Instant::now();
+        let reducing = profile::span(Phase::Reduce);
         let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
         // The outcomes, and the states of the unfinished ones.
         let (mut out, tail) = {
@@ -657,15 +645,8 @@ impl Runner<'_> {
                 .collect();
             (out, tail)
         };
-        if gpu_phases() {
-            eprintln!(
-                "pidm: GPU batch of {n}: {:.3} s from packing to freeing the buffers; outcomes \
-                 in {:.3} s, {} left to the CPU",
-                sliced.as_secs_f64(),
-                reducing.elapsed().as_secs_f64(),
-                tail.len()
-            );
-        }
+        drop(reducing);
+        let _tail = profile::span(Phase::CpuPart);
         // The slow tail, if the GPU stopped before it: on the CPU, in
         // parallel, from where the GPU left it (f64) or from the start
         // (f32).

@@ -6,7 +6,7 @@
 use std::ops::Range;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use rayon::prelude::*;
 
 use super::dedup::{JobRef, Jobs, digest};
@@ -16,6 +16,7 @@ use super::{
 use crate::backend::Backend;
 use crate::cpu::integrate::{STATUS_OK, Settings};
 use crate::model::{AXES, Instance};
+use crate::profile::{self, Phase};
 
 /// How far a step may move under a 100 times tighter tolerance before
 /// `--verify` calls the instance unconverged [m per drive cycle]: the
@@ -138,7 +139,8 @@ pub fn run(
 }
 
 /// [`run`], with the baselines of earlier sweeps of the same scene in
-/// `baselines_done` (and this sweep's added to it).
+/// `baselines_done` (and this sweep's added to it). Chunks run in a
+/// pipeline ([`pipelining`]).
 pub fn run_with_memo(
     plan: &Plan,
     backend: &dyn Backend,
@@ -147,58 +149,183 @@ pub fn run_with_memo(
     sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
     baselines_done: &mut BaselineMemo,
 ) -> Result<Summary> {
-    let total = plan.count();
-    let mut summary = Summary::default();
-    let mut finished_before = 0;
-    for segments in chunks(&plan.work, chunk.max(1) as u64) {
-        if interrupt_requested() {
-            bail!("interrupted after {finished_before} of {total} instances");
-        }
-        let indices: Vec<u64> = segments.iter().flat_map(|r| r.clone()).collect();
-        let mains: Vec<Instance> = indices.par_iter().map(|&i| (plan.instance)(i)).collect();
-        let jobs = Jobs::new(&mains, plan.baselines, baselines_done);
-        let Jobs {
-            jobs,
-            main_job,
-            baseline_job,
-        } = jobs;
-        // Progress counts main instances; the other jobs add a proportional
-        // share.
-        let scale = mains.len() as f64 / jobs.len().max(1) as f64;
-        let finished = AtomicU64::new(0);
-        let reported = AtomicU64::new(0);
-        let done = |n: u64| {
-            let total = finished.fetch_add(n, Ordering::Relaxed) + n;
-            let target = (total as f64 * scale) as u64;
-            let before = reported.fetch_max(target, Ordering::Relaxed);
-            if target > before {
-                progress(target - before);
+    run_chunks(
+        plan,
+        backend,
+        chunk,
+        progress,
+        sink,
+        baselines_done,
+        pipelining(),
+    )
+}
+
+/// Whether sweeps overlap their chunks: the backend integrates chunk k on
+/// a thread of its own while this thread writes chunk k-1's records and
+/// expands chunk k+1's instances. On by default; `PIDM_PIPELINE=0` runs
+/// the chunks one after another, for measuring what the overlap saves.
+/// The results are the same either way, bit for bit: every chunk hands
+/// the backend the same jobs (tested).
+pub fn pipelining() -> bool {
+    static ON: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *ON.get_or_init(|| crate::knob::knob("PIDM_PIPELINE", 1u8, |n| *n <= 1, "0 or 1") == 1)
+}
+
+/// A chunk ready for the backend: its instances and distinct jobs.
+struct Prepared {
+    segments: Vec<Range<u64>>,
+    indices: Vec<u64>,
+    mains: Vec<Instance>,
+    jobs: Jobs,
+    /// The baselines this chunk runs that the memo will remember after
+    /// it, keys only: the next chunk, expanded before this one's outcomes
+    /// are in, counts them as run.
+    pending: BaselineMemo,
+}
+
+/// A chunk's integrations: outcomes in job order.
+struct Integrated {
+    outcomes: Vec<Outcome>,
+    seconds: f64,
+    /// Instances `progress` was told of.
+    reported: u64,
+}
+
+/// Expands a chunk's instances into jobs; `known` says which baselines
+/// earlier chunks run.
+fn prepare(
+    plan: &Plan,
+    segments: Vec<Range<u64>>,
+    known: &(dyn Fn(&Instance, u64) -> bool + Sync),
+) -> Prepared {
+    let _span = profile::span(Phase::Expand);
+    let indices: Vec<u64> = segments.iter().flat_map(|r| r.clone()).collect();
+    let mains: Vec<Instance> = indices.par_iter().map(|&i| (plan.instance)(i)).collect();
+    let jobs = Jobs::new_known(&mains, plan.baselines, known);
+    let mut pending = BaselineMemo::default();
+    if plan.baselines {
+        for (inst, refs) in mains.iter().zip(&jobs.baseline_job) {
+            for (axis, job) in refs.iter().enumerate() {
+                if let JobRef::Run(_) = *job {
+                    pending.insert(&inst.baseline(axis), Outcome::default());
+                }
             }
-        };
-        let started = std::time::Instant::now();
-        let mut outcomes = if jobs.is_empty() {
-            Vec::new()
-        } else {
-            backend.run(&jobs, &plan.settings, &done)?
-        };
-        if plan.verify && !interrupt_requested() {
-            let tight = Settings {
-                tolerance: plan.settings.tolerance / VERIFY_TIGHTENING,
-                ..plan.settings
-            };
-            let checks = backend.run(&jobs, &tight, &|_| {})?;
-            for ((job, outcome), check) in jobs.iter().zip(outcomes.iter_mut()).zip(&checks) {
-                verify(job, outcome, check);
-            }
         }
-        summary.integration_s += started.elapsed().as_secs_f64();
+    }
+    Prepared {
+        segments,
+        indices,
+        mains,
+        jobs,
+        pending,
+    }
+}
+
+/// Runs a chunk's jobs on the backend (and `--verify`'s tighter reruns).
+fn integrate(
+    plan: &Plan,
+    backend: &dyn Backend,
+    chunk: &Prepared,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Integrated> {
+    let _span = profile::span(Phase::Integrate);
+    let jobs = &chunk.jobs.jobs;
+    // Progress counts main instances; the other jobs add a proportional
+    // share.
+    let scale = chunk.mains.len() as f64 / jobs.len().max(1) as f64;
+    let finished = AtomicU64::new(0);
+    let reported = AtomicU64::new(0);
+    let done = |n: u64| {
+        let total = finished.fetch_add(n, Ordering::Relaxed) + n;
+        let target = (total as f64 * scale) as u64;
+        let before = reported.fetch_max(target, Ordering::Relaxed);
+        if target > before {
+            progress(target - before);
+        }
+    };
+    let started = std::time::Instant::now();
+    let mut outcomes = if jobs.is_empty() {
+        Vec::new()
+    } else {
+        backend.run(jobs, &plan.settings, &done)?
+    };
+    if plan.verify && !interrupt_requested() {
+        let tight = Settings {
+            tolerance: plan.settings.tolerance / VERIFY_TIGHTENING,
+            ..plan.settings
+        };
+        let checks = backend.run(jobs, &tight, &|_| {})?;
+        for ((job, outcome), check) in jobs.iter().zip(outcomes.iter_mut()).zip(&checks) {
+            verify(job, outcome, check);
+        }
+    }
+    Ok(Integrated {
+        outcomes,
+        seconds: started.elapsed().as_secs_f64(),
+        reported: reported.load(Ordering::Relaxed),
+    })
+}
+
+/// What the driver thread keeps across chunks.
+struct Driver<'s, 'p> {
+    plan: &'p Plan<'p>,
+    progress: &'p (dyn Fn(u64) + Sync),
+    sink: &'s mut dyn FnMut(u64, &[Record]) -> Result<()>,
+    memo: &'s mut BaselineMemo,
+    summary: Summary,
+    finished_before: u64,
+    total: u64,
+    /// The chunk integrated last, still to finish.
+    finishing: Option<(Prepared, Integrated)>,
+}
+
+impl Driver<'_, '_> {
+    fn interrupted(&self) -> anyhow::Error {
+        anyhow::anyhow!(
+            "interrupted after {} of {} instances",
+            self.finished_before,
+            self.total
+        )
+    }
+
+    /// Whether the memo forgets what it holds before it takes the next
+    /// chunk's baselines (it is bounded).
+    fn memo_full(&self) -> bool {
+        self.memo.0.len() > MAX_REMEMBERED_BASELINES
+    }
+
+    /// Records of an integrated chunk, into the summary, the memo and the
+    /// sink. Nothing goes to the sink once an interrupt is requested.
+    fn finish(&mut self, chunk: Prepared, integrated: Integrated) -> Result<()> {
+        let plan = self.plan;
         if interrupt_requested() {
-            bail!("interrupted after {finished_before} of {total} instances");
+            return Err(self.interrupted());
         }
-        let left = mains.len() as u64 - reported.load(Ordering::Relaxed);
+        let Prepared {
+            segments,
+            indices,
+            mains,
+            jobs:
+                Jobs {
+                    jobs,
+                    main_job,
+                    baseline_job,
+                },
+            pending: _,
+        } = chunk;
+        let Integrated {
+            outcomes,
+            seconds,
+            reported,
+        } = integrated;
+        let left = mains.len() as u64 - reported;
         if left > 0 {
-            progress(left);
+            (self.progress)(left);
         }
+        let records_span = profile::span(Phase::Records);
+        let summary = &mut self.summary;
+        summary.integration_s += seconds;
+        let memo = &*self.memo;
         let records: Vec<Record> = mains
             .par_iter()
             .enumerate()
@@ -209,7 +336,7 @@ pub fn run_with_memo(
                         let base_inst = inst.baseline(axis);
                         let base = match *job {
                             JobRef::Run(j) => outcomes[j],
-                            JobRef::Done => baselines_done
+                            JobRef::Done => memo
                                 .get(&base_inst, digest(&base_inst.key()))
                                 .expect("a baseline marked done was remembered"),
                         };
@@ -237,26 +364,104 @@ pub fn run_with_memo(
         // Keep this chunk's baselines for the chunks after it (a grid's
         // baselines repeat along every other axis), within a bound.
         if plan.baselines {
-            if baselines_done.0.len() > MAX_REMEMBERED_BASELINES {
-                baselines_done.0.clear();
+            if self.memo_full() {
+                self.memo.0.clear();
             }
             for (inst, refs) in mains.iter().zip(&baseline_job) {
                 for (axis, job) in refs.iter().enumerate() {
                     if let JobRef::Run(j) = *job {
-                        baselines_done.insert(&inst.baseline(axis), outcomes[j]);
+                        self.memo.insert(&inst.baseline(axis), outcomes[j]);
                     }
                 }
             }
         }
+        drop(records_span);
+        let _write = profile::span(Phase::Write);
         let mut offset = 0;
         for segment in &segments {
             let n = (segment.end - segment.start) as usize;
-            sink(segment.start, &records[offset..offset + n])?;
+            (self.sink)(segment.start, &records[offset..offset + n])?;
             offset += n;
         }
-        finished_before += mains.len() as u64;
+        self.finished_before += mains.len() as u64;
+        Ok(())
     }
-    Ok(summary)
+}
+
+/// The chunk loop. With `overlap` the backend integrates chunk k on a
+/// thread of its own while this thread finishes chunk k-1 (records, the
+/// sink) and prepares chunk k+1; without, each chunk is prepared,
+/// integrated and finished before the next. Both hand the backend the
+/// same jobs: chunk k+1 is expanded knowing the baselines the memo will
+/// hold after chunk k (its own, or none where it is full, and chunk k's).
+pub(super) fn run_chunks(
+    plan: &Plan,
+    backend: &dyn Backend,
+    chunk: usize,
+    progress: &(dyn Fn(u64) + Sync),
+    sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
+    baselines_done: &mut BaselineMemo,
+    overlap: bool,
+) -> Result<Summary> {
+    let mut driver = Driver {
+        plan,
+        progress,
+        sink,
+        memo: baselines_done,
+        summary: Summary::default(),
+        finished_before: 0,
+        total: plan.count(),
+        finishing: None,
+    };
+    let mut segments = chunks(&plan.work, chunk.max(1) as u64).into_iter();
+    let mut next = segments.next().map(|s| {
+        let memo = &*driver.memo;
+        prepare(plan, s, &|inst, d| memo.get(inst, d).is_some())
+    });
+    while let Some(mut current) = next.take() {
+        if interrupt_requested() {
+            return Err(driver.interrupted());
+        }
+        if !overlap {
+            let integrated = profile::time(Phase::Wait, || {
+                integrate(plan, backend, &current, progress)
+            })?;
+            driver.finish(current, integrated)?;
+            next = segments.next().map(|s| {
+                let memo = &*driver.memo;
+                prepare(plan, s, &|inst, d| memo.get(inst, d).is_some())
+            });
+            continue;
+        }
+        let pending = std::mem::take(&mut current.pending);
+        let previous = driver.finishing.take();
+        let (integrated, driven) = std::thread::scope(|scope| {
+            let integrating = scope.spawn(|| integrate(plan, backend, &current, progress));
+            let driven = (|| -> Result<Option<Prepared>> {
+                if let Some((chunk, integrated)) = previous {
+                    driver.finish(chunk, integrated)?;
+                }
+                let forget = driver.memo_full();
+                let memo = &*driver.memo;
+                let known = |inst: &Instance, d: u64| {
+                    (!forget && memo.get(inst, d).is_some()) || pending.get(inst, d).is_some()
+                };
+                Ok(segments.next().map(|s| prepare(plan, s, &known)))
+            })();
+            let waiting = profile::span(Phase::Wait);
+            let integrated = integrating
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            drop(waiting);
+            (integrated, driven)
+        });
+        next = driven?;
+        driver.finishing = Some((current, integrated?));
+    }
+    if let Some((chunk, integrated)) = driver.finishing.take() {
+        driver.finish(chunk, integrated)?;
+    }
+    Ok(driver.summary)
 }
 
 #[cfg(test)]

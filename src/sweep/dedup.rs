@@ -83,6 +83,17 @@ impl Jobs {
     /// [`DEDUP_BUCKETS`] by digest, and each bucket is searched in item
     /// order); only the numbering of the jobs is a sequential pass.
     pub(super) fn new(mains: &[Instance], baselines: bool, done: &BaselineMemo) -> Jobs {
+        Jobs::new_known(mains, baselines, &|inst, d| done.get(inst, d).is_some())
+    }
+
+    /// [`Jobs::new`] where `known(baseline, digest)` says whether an
+    /// earlier chunk runs the baseline (the pipeline asks this before that
+    /// chunk's outcomes are in the memo).
+    pub(super) fn new_known(
+        mains: &[Instance],
+        baselines: bool,
+        known: &(dyn Fn(&Instance, u64) -> bool + Sync),
+    ) -> Jobs {
         let n = mains.len();
         let total = if baselines { n * (1 + AXES) } else { n };
         let item = |i: usize| -> Instance {
@@ -99,7 +110,7 @@ impl Jobs {
             .map(|i| {
                 let inst = item(i);
                 let d = digest(&inst.key());
-                (d, i >= n && done.get(&inst, d).is_some())
+                (d, i >= n && known(&inst, d))
             })
             .unzip();
         let bucket = |d: u64| (d >> 56) as usize % DEDUP_BUCKETS;
