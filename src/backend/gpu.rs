@@ -5,7 +5,7 @@ use anyhow::{Result, bail};
 use super::{Backend, Hardware, Precision};
 use crate::cpu::integrate::Settings;
 use crate::cpu::integrate::constants::STATUS_GRAZE;
-use crate::gpu::{GpuContext, run_batch};
+use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, run_batch_with};
 use crate::measurement::Outcome;
 use crate::model::Instance;
 
@@ -19,6 +19,7 @@ const GPU_CHUNK: usize = 1 << 20;
 pub struct GpuBackend {
     ctx: GpuContext,
     precision: Precision,
+    options: BatchOptions,
 }
 
 impl GpuBackend {
@@ -35,7 +36,24 @@ impl GpuBackend {
             );
         }
         ctx.prepare(precision)?;
-        Ok(GpuBackend { ctx, precision })
+        Ok(GpuBackend {
+            ctx,
+            precision,
+            options: BatchOptions::default(),
+        })
+    }
+
+    /// [`GpuBackend::new`] with batches run with `options` (tests force
+    /// small batches and a CPU tail with them).
+    pub fn with_options(
+        ctx: GpuContext,
+        precision: Precision,
+        options: BatchOptions,
+    ) -> Result<GpuBackend> {
+        Ok(GpuBackend {
+            options,
+            ..GpuBackend::new(ctx, precision)?
+        })
     }
 
     /// "GPU ready in 0.21 s (...)": what opening the device, creating the
@@ -88,11 +106,12 @@ impl Backend for GpuBackend {
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
         let mut reported = 0;
-        let outcomes = run_batch(
+        let outcomes = run_batch_with(
             &self.ctx,
             instances,
             settings,
             self.precision,
+            &self.options,
             &mut |finished, _total| {
                 if finished > reported {
                     done(finished - reported);
@@ -100,21 +119,27 @@ impl Backend for GpuBackend {
                 }
             },
         )?;
-        Ok(outcomes
-            .into_iter()
-            .map(|o| Outcome {
-                displacement: o.displacement,
-                span: o.span,
-                se: o.se,
-                periods: o.periods,
-                lag: o.lag,
-                status: o.status,
-                motion: o.motion,
-                steps: o.steps,
-                on_cpu: o.cpu_fallback || o.finished_on_cpu,
-                graze: o.cpu_fallback && o.shader_status == STATUS_GRAZE,
-                checked: o.checked,
-            })
-            .collect())
+        Ok(outcomes.into_iter().map(GpuOutcome::into_outcome).collect())
+    }
+}
+
+impl GpuOutcome {
+    /// The sweep's [`Outcome`] of a GPU outcome: on the CPU where the CPU
+    /// finished or redid it, a graze where an f32 graze sent it there.
+    pub fn into_outcome(self) -> Outcome {
+        let o = self;
+        Outcome {
+            displacement: o.displacement,
+            span: o.span,
+            se: o.se,
+            periods: o.periods,
+            lag: o.lag,
+            status: o.status,
+            motion: o.motion,
+            steps: o.steps,
+            on_cpu: o.cpu_fallback || o.finished_on_cpu,
+            graze: o.cpu_fallback && o.shader_status == STATUS_GRAZE,
+            checked: o.checked,
+        }
     }
 }

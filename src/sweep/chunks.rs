@@ -394,7 +394,7 @@ impl Driver<'_, '_> {
 /// integrated and finished before the next. Both hand the backend the
 /// same jobs: chunk k+1 is expanded knowing the baselines the memo will
 /// hold after chunk k (its own, or none where it is full, and chunk k's).
-pub(super) fn run_chunks(
+pub fn run_chunks(
     plan: &Plan,
     backend: &dyn Backend,
     chunk: usize,

@@ -24,7 +24,9 @@ pub use crate::cpu::integrate::constants::STATUS_UNCONVERGED;
 pub use crate::interrupt::{interrupt_requested, request_interrupt};
 pub use crate::measurement::Outcome;
 pub use baselines::{BaselineMemo, BaselinePair, baselines_of};
-pub use chunks::{Plan, VERIFY_ALLOWANCE_M, VERIFY_TIGHTENING, run, run_with_memo};
+pub use chunks::{
+    Plan, VERIFY_ALLOWANCE_M, VERIFY_TIGHTENING, pipelining, run, run_chunks, run_with_memo,
+};
 pub use dedup::distinct_integrations;
 pub use record::{Record, record, stored_motion};
 pub use summary::Summary;

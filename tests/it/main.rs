@@ -16,6 +16,7 @@ mod load;
 mod mirror;
 mod output;
 mod phase;
+mod pipeline;
 mod plot;
 mod plot_fuzz;
 mod progress;
