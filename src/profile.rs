@@ -2,17 +2,17 @@
 //! one table per `pidm run` (issue 32), every second of the process
 //! accounted for.
 //!
-//! Two threads do a run's work ([`crate::sweep`]'s pipeline): the *driver*
-//! (the main thread) starts the process, opens the backend, expands each
-//! chunk's instances into jobs, makes records and writes them, and
-//! finishes the file; the *integrator* thread runs the backend on one
-//! chunk while the driver works on the chunks beside it. The driver's
-//! phases ([`Phase::DRIVER`]) follow one another, so with its wait for the
-//! integrator they add up to the wall time, and what they leave is the
-//! "left over" line: time no phase claims. The integrator's phases
-//! ([`Phase::INTEGRATOR`]) split its time on the backend (on the GPU:
-//! packing, uploads, dispatches, readback, reduction, the CPU's part);
-//! they run beside the driver's, which is what the pipeline is for.
+//! Three threads do a run's work ([`crate::sweep::run_chunks`]): the
+//! *driver* (the main thread) starts the process, opens the backend,
+//! expands each chunk's instances into jobs, makes records and finishes
+//! the file; the *integrator* runs the backend on one chunk and the
+//! *writer* hands another's records to the HDF5 file and the checkpoint,
+//! both beside the driver. The driver's phases ([`Phase::DRIVER`]) follow
+//! one another, so with its waits for the integrator and the writer they
+//! add up to the wall time, and what they leave is the "left over" line:
+//! time no phase claims. The integrator's phases ([`Phase::INTEGRATOR`])
+//! split its time on the backend (on the GPU: packing, uploads,
+//! dispatches, readback, reduction, the CPU's part).
 //!
 //! Spans are always timed (two clock reads and an atomic add each, a few
 //! per chunk and batch); only the table is optional.
@@ -39,8 +39,9 @@ pub enum Phase {
     Wait,
     /// Records of finished integrations: baselines joined, the summary.
     Records,
-    /// Writing records to the HDF5 file and the checkpoint.
-    Write,
+    /// The driver waiting for the writer thread (or writing itself, where
+    /// chunks do not overlap): writing that nothing beside it hid.
+    WaitWriter,
     /// After the last chunk: trajectories, closing and renaming the file.
     Finish,
     /// The integrator thread on the backend, each chunk's whole call.
@@ -58,6 +59,8 @@ pub enum Phase {
     /// GPU: the CPU's part, the slow tail of a batch continued, loop-limited
     /// and f32 fallbacks integrated, f32's check (twins or reference).
     CpuPart,
+    /// The writer thread: records into the HDF5 file and the checkpoint.
+    Write,
 }
 
 impl Phase {
@@ -67,9 +70,9 @@ impl Phase {
         Phase::Backend,
         Phase::Open,
         Phase::Expand,
-        Phase::Wait,
         Phase::Records,
-        Phase::Write,
+        Phase::Wait,
+        Phase::WaitWriter,
         Phase::Finish,
     ];
 
@@ -83,7 +86,7 @@ impl Phase {
         Phase::CpuPart,
     ];
 
-    const COUNT: usize = 15;
+    const COUNT: usize = 16;
 
     fn index(self) -> usize {
         self as usize
@@ -98,7 +101,8 @@ impl Phase {
             Phase::Expand => "expanding instances into jobs",
             Phase::Wait => "integration not hidden (waited for)",
             Phase::Records => "records and summary",
-            Phase::Write => "HDF5 writing and checkpoint",
+            Phase::WaitWriter => "writing not hidden (waited for)",
+            Phase::Write => "writer thread: HDF5 file and checkpoint",
             Phase::Finish => "finishing (trajectories, closing, rename)",
             Phase::Integrate => "integrator thread, whole",
             Phase::Pack => "packing coefficients",
@@ -247,7 +251,7 @@ fn render(wall: f64, seconds: &dyn Fn(Phase) -> f64, bytes_read: u64) -> String 
     let integrate = seconds(Phase::Integrate);
     let _ = writeln!(
         out,
-        "pidm: phase table (integrator thread, beside the driver; % of the wall time)"
+        "pidm: phase table (integrator and writer threads, beside the driver; % of the wall time)"
     );
     line(&mut out, Phase::Integrate.label(), integrate);
     let mut parts = 0.0;
@@ -265,6 +269,13 @@ fn render(wall: f64, seconds: &dyn Fn(Phase) -> f64, bytes_read: u64) -> String 
         &mut out,
         "integration hidden behind the driver's work",
         (integrate - seconds(Phase::Wait)).max(0.0),
+    );
+    let write = seconds(Phase::Write);
+    line(&mut out, Phase::Write.label(), write);
+    line(
+        &mut out,
+        "writing hidden behind the driver's work",
+        (write - seconds(Phase::WaitWriter)).max(0.0),
     );
     if bytes_read > 0 {
         let _ = writeln!(
@@ -286,7 +297,8 @@ mod tests {
             Phase::Start => 0.1,
             Phase::Backend => 0.2,
             Phase::Wait => 0.3,
-            Phase::Write => 0.25,
+            Phase::WaitWriter => 0.25,
+            Phase::Write => 0.3,
             Phase::Integrate => 0.5,
             Phase::Dispatch => 0.4,
             _ => 0.0,
@@ -301,9 +313,14 @@ mod tests {
         // Integration not waited for was hidden behind the driver.
         let hidden = table
             .lines()
-            .find(|l| l.contains("hidden"))
-            .expect("a hidden line");
+            .find(|l| l.contains("integration hidden"))
+            .expect("an integration-hidden line");
         assert!(hidden.contains("0.200 s"), "{table}");
+        let hidden = table
+            .lines()
+            .find(|l| l.contains("writing hidden"))
+            .expect("a writing-hidden line");
+        assert!(hidden.contains("0.050 s"), "{table}");
         let rest = table.lines().find(|l| l.contains("rest of")).unwrap();
         assert!(rest.contains("0.100 s"), "{table}");
     }
@@ -314,6 +331,7 @@ mod tests {
             .iter()
             .chain(&[Phase::Integrate])
             .chain(&Phase::INTEGRATOR)
+            .chain(&[Phase::Write])
             .copied()
             .collect();
         assert_eq!(all.len(), Phase::COUNT);

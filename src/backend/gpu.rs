@@ -9,11 +9,6 @@ use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, run_batch_with};
 use crate::measurement::Outcome;
 use crate::model::Instance;
 
-/// Instances per sweep chunk on the GPU: a million, enough to fill a large
-/// GPU several times over (so the slowest instances of a chunk, which the
-/// chunk waits for, are a small part of it), and about a second of work
-/// between checkpoints.
-const GPU_CHUNK: usize = 1 << 20;
 
 /// The WGSL shader on one adapter at one precision.
 pub struct GpuBackend {
@@ -91,8 +86,11 @@ impl Backend for GpuBackend {
         self.precision
     }
 
+    /// One batch of the device's, at most one instance per lane
+    /// ([`crate::gpu::chunk_instances`]): 262,144 on hardware, so a
+    /// 1000 x 1000 map is four chunks that the sweep's pipeline overlaps.
     fn chunk_size(&self) -> usize {
-        GPU_CHUNK
+        crate::gpu::chunk_instances(&self.ctx, self.precision)
     }
 
     fn hardware(&self) -> Hardware {

@@ -69,7 +69,7 @@ pub use adapters::{
 pub use context::{GpuContext, Preparation, create_pipeline};
 pub use options::{BatchOptions, CPU_TAIL_MIN_BATCH, CPU_TAIL_PER_THREAD, F32Check};
 pub use runner::{
-    dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, max_batch_instances,
+    chunk_instances, dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, max_batch_instances,
     run_batch, run_batch_with,
 };
 // The module's other items, for its files (`use super::*`).

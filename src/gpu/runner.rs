@@ -168,6 +168,29 @@ pub fn max_batch_instances(
     n.max(1)
 }
 
+/// Instances per sweep chunk on `ctx` in `precision`: the most one batch
+/// of steady instances may hold on the device ([`max_batch_instances`] of
+/// its limits), and at most one per lane ([`lanes`]): every lane is busy
+/// on a periodic map, and a map larger than the lanes is several chunks,
+/// so the device integrates one while the host writes the one before and
+/// expands the one after (`crate::sweep::run_chunks`).
+pub fn chunk_instances(ctx: &GpuContext, precision: Precision) -> usize {
+    fn of<L: Layout>(limits: &wgpu::Limits) -> usize {
+        let state = size_of::<L::State>().max(size_of::<L::Measure>());
+        max_batch_instances(
+            limits,
+            size_of::<L::Coefficients>(),
+            state,
+            &BatchOptions::default(),
+        )
+    }
+    let batch = match precision {
+        Precision::F32 => of::<Single>(&ctx.limits),
+        Precision::F64 => of::<Double>(&ctx.limits),
+    };
+    batch.min(lanes()).max(1)
+}
+
 /// Workgroup counts (x, y) covering `n` instances within the per-dimension
 /// limit. The shader numbers invocations `x + y * groups_x * WORKGROUP_SIZE`
 /// (the prelude's, [`workgroup_size`]).

@@ -126,7 +126,7 @@ pub fn run(
     backend: &dyn Backend,
     chunk: usize,
     progress: &(dyn Fn(u64) + Sync),
-    sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
+    sink: &mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send),
 ) -> Result<Summary> {
     run_with_memo(
         plan,
@@ -146,7 +146,7 @@ pub fn run_with_memo(
     backend: &dyn Backend,
     chunk: usize,
     progress: &(dyn Fn(u64) + Sync),
-    sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
+    sink: &mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send),
     baselines_done: &mut BaselineMemo,
 ) -> Result<Summary> {
     run_chunks(
@@ -266,26 +266,63 @@ fn integrate(
     })
 }
 
+/// A chunk's records on their way to the sink: its segments of flat
+/// indices and their records, in order.
+type Written = (Vec<Range<u64>>, Vec<Record>);
+
+/// Where finished chunks go: the sink itself, called on the driver thread
+/// (chunks one after another), or the writer thread's queue.
+enum Out<'a, 's> {
+    Direct(&'a mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send + 's)),
+    Queue(&'a std::sync::mpsc::SyncSender<Written>),
+}
+
+/// Hands a chunk's records to the sink, segment by segment.
+fn write(
+    sink: &mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send + '_),
+    (segments, records): &Written,
+) -> Result<u64> {
+    let _span = profile::span(Phase::Write);
+    let mut offset = 0;
+    for segment in segments {
+        let n = (segment.end - segment.start) as usize;
+        sink(segment.start, &records[offset..offset + n])?;
+        offset += n;
+    }
+    Ok(offset as u64)
+}
+
 /// What the driver thread keeps across chunks.
-struct Driver<'s, 'p> {
+struct Driver<'p> {
     plan: &'p Plan<'p>,
     progress: &'p (dyn Fn(u64) + Sync),
-    sink: &'s mut dyn FnMut(u64, &[Record]) -> Result<()>,
-    memo: &'s mut BaselineMemo,
+    memo: &'p mut BaselineMemo,
     summary: Summary,
-    finished_before: u64,
+    /// Instances handed to the sink so far.
+    written: &'p AtomicU64,
     total: u64,
     /// The chunk integrated last, still to finish.
     finishing: Option<(Prepared, Integrated)>,
 }
 
-impl Driver<'_, '_> {
+/// The error of a sweep stopped by an interrupt after `written` of
+/// `total` instances.
+fn interrupted(written: &AtomicU64, total: u64) -> anyhow::Error {
+    anyhow::anyhow!(
+        "interrupted after {} of {total} instances",
+        written.load(Ordering::Relaxed)
+    )
+}
+
+/// The driver's error where the writer thread stopped taking chunks (its
+/// own error says why).
+#[derive(Debug, thiserror::Error)]
+#[error("the writer thread stopped")]
+struct WriterGone;
+
+impl Driver<'_> {
     fn interrupted(&self) -> anyhow::Error {
-        anyhow::anyhow!(
-            "interrupted after {} of {} instances",
-            self.finished_before,
-            self.total
-        )
+        interrupted(self.written, self.total)
     }
 
     /// Whether the memo forgets what it holds before it takes the next
@@ -294,9 +331,9 @@ impl Driver<'_, '_> {
         self.memo.0.len() > MAX_REMEMBERED_BASELINES
     }
 
-    /// Records of an integrated chunk, into the summary, the memo and the
-    /// sink. Nothing goes to the sink once an interrupt is requested.
-    fn finish(&mut self, chunk: Prepared, integrated: Integrated) -> Result<()> {
+    /// Records of an integrated chunk, into the summary, the memo and
+    /// `out`. Nothing goes out once an interrupt is requested.
+    fn finish(&mut self, chunk: Prepared, integrated: Integrated, out: &mut Out) -> Result<()> {
         let plan = self.plan;
         if interrupt_requested() {
             return Err(self.interrupted());
@@ -376,92 +413,144 @@ impl Driver<'_, '_> {
             }
         }
         drop(records_span);
-        let _write = profile::span(Phase::Write);
-        let mut offset = 0;
-        for segment in &segments {
-            let n = (segment.end - segment.start) as usize;
-            (self.sink)(segment.start, &records[offset..offset + n])?;
-            offset += n;
+        let chunk = (segments, records);
+        match out {
+            Out::Direct(sink) => {
+                let n = profile::time(Phase::WaitWriter, || write(&mut **sink, &chunk))?;
+                self.written.fetch_add(n, Ordering::Relaxed);
+            }
+            Out::Queue(queue) => {
+                let _waiting = profile::span(Phase::WaitWriter);
+                queue.send(chunk).map_err(|_| WriterGone)?;
+            }
         }
-        self.finished_before += mains.len() as u64;
+        Ok(())
+    }
+
+    /// The chunk loop of [`run_chunks`] on the driver thread.
+    fn drive(
+        &mut self,
+        backend: &dyn Backend,
+        chunk: usize,
+        overlap: bool,
+        out: &mut Out,
+    ) -> Result<()> {
+        let plan = self.plan;
+        let progress = self.progress;
+        let mut segments = chunks(&plan.work, chunk.max(1) as u64).into_iter();
+        let mut next = segments.next().map(|s| {
+            let memo = &*self.memo;
+            prepare(plan, s, &|inst, d| memo.get(inst, d).is_some())
+        });
+        while let Some(mut current) = next.take() {
+            if interrupt_requested() {
+                return Err(self.interrupted());
+            }
+            if !overlap {
+                let integrated = profile::time(Phase::Wait, || {
+                    integrate(plan, backend, &current, progress)
+                })?;
+                self.finish(current, integrated, out)?;
+                next = segments.next().map(|s| {
+                    let memo = &*self.memo;
+                    prepare(plan, s, &|inst, d| memo.get(inst, d).is_some())
+                });
+                continue;
+            }
+            let pending = std::mem::take(&mut current.pending);
+            let previous = self.finishing.take();
+            let (integrated, driven) = std::thread::scope(|scope| {
+                let integrating = scope.spawn(|| integrate(plan, backend, &current, progress));
+                let driven = (|| -> Result<Option<Prepared>> {
+                    if let Some((chunk, integrated)) = previous {
+                        self.finish(chunk, integrated, out)?;
+                    }
+                    let forget = self.memo_full();
+                    let memo = &*self.memo;
+                    let known = |inst: &Instance, d: u64| {
+                        (!forget && memo.get(inst, d).is_some()) || pending.get(inst, d).is_some()
+                    };
+                    Ok(segments.next().map(|s| prepare(plan, s, &known)))
+                })();
+                let waiting = profile::span(Phase::Wait);
+                let integrated = integrating
+                    .join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+                drop(waiting);
+                (integrated, driven)
+            });
+            next = driven?;
+            self.finishing = Some((current, integrated?));
+        }
+        if let Some((chunk, integrated)) = self.finishing.take() {
+            self.finish(chunk, integrated, out)?;
+        }
         Ok(())
     }
 }
 
-/// The chunk loop. With `overlap` the backend integrates chunk k on a
-/// thread of its own while this thread finishes chunk k-1 (records, the
-/// sink) and prepares chunk k+1; without, each chunk is prepared,
-/// integrated and finished before the next. Both hand the backend the
-/// same jobs: chunk k+1 is expanded knowing the baselines the memo will
-/// hold after chunk k (its own, or none where it is full, and chunk k's).
+/// The chunk loop. With `overlap` three threads share the work: the
+/// backend integrates chunk k on one, a writer hands chunk k-1's records
+/// to the sink (the HDF5 file and the checkpoint) on another, and this
+/// one, the driver, makes chunk k-1's records and expands chunk k+1's
+/// instances. Without, each chunk is expanded, integrated, recorded and
+/// written before the next. Both hand the backend the same jobs: chunk
+/// k+1 is expanded knowing the baselines the memo will hold after chunk k
+/// (its own, or none where it is full, and chunk k's), so the records are
+/// the same bit for bit. Once an interrupt is requested nothing more goes
+/// to the sink, and the sweep ends with an error.
 pub fn run_chunks(
     plan: &Plan,
     backend: &dyn Backend,
     chunk: usize,
     progress: &(dyn Fn(u64) + Sync),
-    sink: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
+    sink: &mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send),
     baselines_done: &mut BaselineMemo,
     overlap: bool,
 ) -> Result<Summary> {
+    let written = AtomicU64::new(0);
+    let total = plan.count();
     let mut driver = Driver {
         plan,
         progress,
-        sink,
         memo: baselines_done,
         summary: Summary::default(),
-        finished_before: 0,
-        total: plan.count(),
+        written: &written,
+        total,
         finishing: None,
     };
-    let mut segments = chunks(&plan.work, chunk.max(1) as u64).into_iter();
-    let mut next = segments.next().map(|s| {
-        let memo = &*driver.memo;
-        prepare(plan, s, &|inst, d| memo.get(inst, d).is_some())
-    });
-    while let Some(mut current) = next.take() {
-        if interrupt_requested() {
-            return Err(driver.interrupted());
-        }
-        if !overlap {
-            let integrated = profile::time(Phase::Wait, || {
-                integrate(plan, backend, &current, progress)
-            })?;
-            driver.finish(current, integrated)?;
-            next = segments.next().map(|s| {
-                let memo = &*driver.memo;
-                prepare(plan, s, &|inst, d| memo.get(inst, d).is_some())
-            });
-            continue;
-        }
-        let pending = std::mem::take(&mut current.pending);
-        let previous = driver.finishing.take();
-        let (integrated, driven) = std::thread::scope(|scope| {
-            let integrating = scope.spawn(|| integrate(plan, backend, &current, progress));
-            let driven = (|| -> Result<Option<Prepared>> {
-                if let Some((chunk, integrated)) = previous {
-                    driver.finish(chunk, integrated)?;
+    if !overlap {
+        driver.drive(backend, chunk, false, &mut Out::Direct(sink))?;
+        return Ok(driver.summary);
+    }
+    let (queue, chunks_written) = std::sync::mpsc::sync_channel::<Written>(1);
+    let (driven, wrote) = std::thread::scope(|scope| {
+        let writer = scope.spawn(|| -> Result<()> {
+            for chunk in chunks_written {
+                if interrupt_requested() {
+                    return Err(interrupted(&written, total));
                 }
-                let forget = driver.memo_full();
-                let memo = &*driver.memo;
-                let known = |inst: &Instance, d: u64| {
-                    (!forget && memo.get(inst, d).is_some()) || pending.get(inst, d).is_some()
-                };
-                Ok(segments.next().map(|s| prepare(plan, s, &known)))
-            })();
-            let waiting = profile::span(Phase::Wait);
-            let integrated = integrating
-                .join()
-                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-            drop(waiting);
-            (integrated, driven)
+                let n = write(&mut *sink, &chunk)?;
+                written.fetch_add(n, Ordering::Relaxed);
+            }
+            Ok(())
         });
-        next = driven?;
-        driver.finishing = Some((current, integrated?));
+        let driven = driver.drive(backend, chunk, true, &mut Out::Queue(&queue));
+        drop(queue);
+        let waiting = profile::span(Phase::WaitWriter);
+        let wrote = writer
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        drop(waiting);
+        (driven, wrote)
+    });
+    match (driven, wrote) {
+        // The writer's error is why the driver could not go on.
+        (Err(e), Err(w)) if e.is::<WriterGone>() => Err(w),
+        (Err(e), _) => Err(e),
+        (Ok(()), Err(w)) => Err(w),
+        (Ok(()), Ok(())) => Ok(driver.summary),
     }
-    if let Some((chunk, integrated)) = driver.finishing.take() {
-        driver.finish(chunk, integrated)?;
-    }
-    Ok(driver.summary)
 }
 
 #[cfg(test)]
