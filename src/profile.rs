@@ -117,6 +117,12 @@ impl Phase {
 
 static TOTALS: [AtomicU64; Phase::COUNT] = [const { AtomicU64::new(0) }; Phase::COUNT];
 static BYTES_READ: AtomicU64 = AtomicU64::new(0);
+/// Lane-nanoseconds of dispatches: every lane's, and those of lanes that
+/// held an instance; nanoseconds of slices with idle lanes; most lanes.
+static LANE_NS: AtomicU64 = AtomicU64::new(0);
+static BUSY_LANE_NS: AtomicU64 = AtomicU64::new(0);
+static TAIL_NS: AtomicU64 = AtomicU64::new(0);
+static MOST_LANES: AtomicU64 = AtomicU64::new(0);
 static FORCED: AtomicBool = AtomicBool::new(false);
 
 /// The process's start, as [`start`] marked it (or the first use).
@@ -164,6 +170,22 @@ pub fn add(phase: Phase, time: Duration) {
 /// Counts bytes read back from a device.
 pub fn add_bytes_read(bytes: u64) {
     BYTES_READ.fetch_add(bytes, Ordering::Relaxed);
+}
+
+/// Counts one slice of `time` on a device with `lanes` lanes of which
+/// `busy` held an instance (at the slice's start: an upper bound, as
+/// lanes finish during the slice).
+pub fn add_lanes(lanes: u64, busy: u64, time: Duration) {
+    if !INTEGRATING.with(|i| i.get()) {
+        return;
+    }
+    let ns = time.as_nanos() as u64;
+    LANE_NS.fetch_add(lanes.saturating_mul(ns), Ordering::Relaxed);
+    BUSY_LANE_NS.fetch_add(busy.saturating_mul(ns), Ordering::Relaxed);
+    if busy < lanes {
+        TAIL_NS.fetch_add(ns, Ordering::Relaxed);
+    }
+    MOST_LANES.fetch_max(lanes, Ordering::Relaxed);
 }
 
 /// Times a phase until dropped.
@@ -282,6 +304,17 @@ fn render(wall: f64, seconds: &dyn Fn(Phase) -> f64, bytes_read: u64) -> String 
             out,
             "pidm: phase read back from the device: {:.1} MB",
             bytes_read as f64 / 1e6
+        );
+    }
+    let lane_ns = LANE_NS.load(Ordering::Relaxed);
+    if lane_ns > 0 {
+        let _ = writeln!(
+            out,
+            "pidm: phase lanes: up to {}; at most {:.1} % of the dispatches' lane-time held an \
+             instance; {:.3} s of dispatches had idle lanes (batch tails)",
+            MOST_LANES.load(Ordering::Relaxed),
+            100.0 * BUSY_LANE_NS.load(Ordering::Relaxed) as f64 / lane_ns as f64,
+            TAIL_NS.load(Ordering::Relaxed) as f64 * 1e-9
         );
     }
     out

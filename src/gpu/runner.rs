@@ -565,7 +565,11 @@ impl Runner<'_> {
         let mut slice: u64 = 0;
         drop(uploading);
         let dispatching = profile::span(Phase::Dispatch);
+        // Lanes with an instance during each slice: all of them until the
+        // unfinished instances are fewer (the batch's tail).
+        let mut unfinished_before = n as u64;
         loop {
+            let slice_started = std::time::Instant::now();
             let mut encoder = device.create_command_encoder(&Default::default());
             {
                 let mut pass = encoder.begin_compute_pass(&Default::default());
@@ -579,6 +583,12 @@ impl Runner<'_> {
             let next = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]) as u64;
             let finished = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as u64;
             let unfinished = (n as u64).saturating_sub(finished) as u32;
+            profile::add_lanes(
+                lane_count as u64,
+                unfinished_before.min(lane_count as u64),
+                slice_started.elapsed(),
+            );
+            unfinished_before = unfinished as u64;
             slice += 1;
             progress(finished.min(n as u64));
             // Every instance started, and only the slow tail is left.
