@@ -248,7 +248,11 @@ pub fn close_start() {
 /// The table for a run that ends now: each driver phase with its share of
 /// the wall time and what is left over, then the integrator's.
 pub fn table() -> String {
-    render(elapsed().as_secs_f64(), &|p| seconds(p), BYTES_READ.load(Ordering::Relaxed))
+    render(
+        elapsed().as_secs_f64(),
+        &|p| seconds(p),
+        BYTES_READ.load(Ordering::Relaxed),
+    )
 }
 
 fn render(wall: f64, seconds: &dyn Fn(Phase) -> f64, bytes_read: u64) -> String {
@@ -256,7 +260,11 @@ fn render(wall: f64, seconds: &dyn Fn(Phase) -> f64, bytes_read: u64) -> String 
     let share = |s: f64| 100.0 * s / wall.max(1e-12);
     let mut out = String::new();
     let line = |out: &mut String, label: &str, s: f64| {
-        let _ = writeln!(out, "pidm: phase {label:<48} {s:>9.3} s {:>6.1} %", share(s));
+        let _ = writeln!(
+            out,
+            "pidm: phase {label:<48} {s:>9.3} s {:>6.1} %",
+            share(s)
+        );
     };
     let _ = writeln!(
         out,
@@ -285,7 +293,11 @@ fn render(wall: f64, seconds: &dyn Fn(Phase) -> f64, bytes_read: u64) -> String 
         }
     }
     if parts > 0.0 {
-        line(&mut out, "  rest of the backend's calls", (integrate - parts).max(0.0));
+        line(
+            &mut out,
+            "  rest of the backend's calls",
+            (integrate - parts).max(0.0),
+        );
     }
     line(
         &mut out,

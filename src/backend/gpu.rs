@@ -2,13 +2,12 @@
 
 use anyhow::{Result, bail};
 
-use super::{Backend, Hardware, Precision};
+use super::{Backend, Hardware, Precision, Staged};
 use crate::cpu::integrate::Settings;
 use crate::cpu::integrate::constants::STATUS_GRAZE;
-use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, run_batch_with};
+use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, run_batch_packed};
 use crate::measurement::Outcome;
 use crate::model::Instance;
-
 
 /// The WGSL shader on one adapter at one precision.
 pub struct GpuBackend {
@@ -103,10 +102,25 @@ impl Backend for GpuBackend {
         settings: &Settings,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
+        self.run_staged(instances, settings, Staged::default(), done)
+    }
+
+    fn stage(&self, instances: &[Instance], settings: &Settings) -> Staged {
+        Staged(Some(crate::gpu::pack(instances, settings, self.precision)))
+    }
+
+    fn run_staged(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        staged: Staged,
+        done: &(dyn Fn(u64) + Sync),
+    ) -> Result<Vec<Outcome>> {
         let mut reported = 0;
-        let outcomes = run_batch_with(
+        let outcomes = run_batch_packed(
             &self.ctx,
             instances,
+            staged.0.as_ref(),
             settings,
             self.precision,
             &self.options,

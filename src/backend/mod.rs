@@ -98,4 +98,26 @@ pub trait Backend: Sync {
         settings: &Settings,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>>;
+    /// The part of [`Backend::run`]'s work on `instances` that can be done
+    /// ahead, on the sweep's driver thread while the chunk before them
+    /// integrates: the GPU packs their coefficients. Nothing by default.
+    fn stage(&self, _instances: &[Instance], _settings: &Settings) -> Staged {
+        Staged::default()
+    }
+    /// [`Backend::run`] with what [`Backend::stage`] made of the same
+    /// instances and settings.
+    fn run_staged(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        _staged: Staged,
+        done: &(dyn Fn(u64) + Sync),
+    ) -> Result<Vec<Outcome>> {
+        self.run(instances, settings, done)
+    }
 }
+
+/// What [`Backend::stage`] did ahead for a chunk: on the GPU its packed
+/// coefficients.
+#[derive(Default)]
+pub struct Staged(pub(crate) Option<crate::gpu::Packed>);

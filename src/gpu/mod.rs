@@ -69,8 +69,8 @@ pub use adapters::{
 pub use context::{GpuContext, Preparation, create_pipeline};
 pub use options::{BatchOptions, CPU_TAIL_MIN_BATCH, CPU_TAIL_PER_THREAD, F32Check};
 pub use runner::{
-    chunk_instances, dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, max_batch_instances,
-    run_batch, run_batch_with,
+    Packed, chunk_instances, dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after,
+    max_batch_instances, pack, run_batch, run_batch_packed, run_batch_with,
 };
 // The module's other items, for its files (`use super::*`).
 use adapters::*;

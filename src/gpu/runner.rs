@@ -34,6 +34,58 @@ pub fn run_batch_with(
     options: &BatchOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
+    run_batch_packed(ctx, instances, None, settings, precision, options, progress)
+}
+
+/// The coefficients of a batch's instances, packed for the device ahead of
+/// its turn ([`pack`]): the sweep's driver packs chunk k+1 while the
+/// device integrates chunk k.
+pub struct Packed {
+    precision: Precision,
+    settings: Settings,
+    count: usize,
+    bytes: Vec<u8>,
+}
+
+/// Packs `instances`' coefficients for a batch in `precision` under
+/// `settings`, in parallel: what [`run_batch_packed`] would otherwise do
+/// first.
+pub fn pack(instances: &[Instance], settings: &Settings, precision: Precision) -> Packed {
+    fn of<L: Layout>(instances: &[Instance], settings: &Settings) -> Vec<u8> {
+        let coefficients: Vec<L::Coefficients> = instances
+            .par_iter()
+            .map(|inst| L::pack(inst, settings))
+            .collect();
+        bytemuck::cast_slice(&coefficients).to_vec()
+    }
+    Packed {
+        precision,
+        settings: *settings,
+        count: instances.len(),
+        bytes: match precision {
+            Precision::F32 => of::<Single>(instances, settings),
+            Precision::F64 => of::<Double>(instances, settings),
+        },
+    }
+}
+
+/// [`run_batch_with`], with the instances' coefficients already packed
+/// where `packed` is given and was packed for these instances' count, this
+/// precision and these settings (else they are packed here).
+pub fn run_batch_packed(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    packed: Option<&Packed>,
+    settings: &Settings,
+    precision: Precision,
+    options: &BatchOptions,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Vec<GpuOutcome>, GpuError> {
+    let packed = packed
+        .filter(|p| {
+            p.precision == precision && p.settings == *settings && p.count == instances.len()
+        })
+        .map(|p| p.bytes.as_slice());
     let pipeline = ctx.prepare(precision)?;
     // The adapter decides the check's route (`F32Check::Auto`).
     let options = &BatchOptions {
@@ -45,17 +97,18 @@ pub fn run_batch_with(
     };
     let out = {
         let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-        execute_gpu_inner(
-            &ctx.device,
-            &ctx.queue,
-            &pipeline,
-            &ctx.limits,
-            instances,
+        let run = Runner {
+            device: &ctx.device,
+            queue: &ctx.queue,
+            pipeline: &pipeline,
+            limits: &ctx.limits,
             settings,
-            precision,
             options,
-            progress,
-        )
+        };
+        match precision {
+            Precision::F32 => run.all::<Single>(instances, packed, progress),
+            Precision::F64 => run.all::<Double>(instances, packed, progress),
+        }
     };
     // A lost device fails the batch's readback with a generic mapping
     // error; the device's own message says why.
@@ -91,7 +144,7 @@ pub(super) fn states_after<L: Layout>(
             settings,
             options: &options,
         };
-        run.slices::<L>(instances, &mut |_| {}, Some(1))?.0
+        run.slices::<L>(instances, None, &mut |_| {}, Some(1))?.0
     };
     ctx.check_health()?;
     Ok(states.iter().map(L::mirror).collect())
@@ -143,8 +196,8 @@ pub fn execute_gpu_inner(
         options,
     };
     match precision {
-        Precision::F32 => run.all::<Single>(instances, progress),
-        Precision::F64 => run.all::<Double>(instances, progress),
+        Precision::F32 => run.all::<Single>(instances, None, progress),
+        Precision::F64 => run.all::<Double>(instances, None, progress),
     }
 }
 
@@ -211,10 +264,12 @@ pub(super) struct Runner<'a> {
 }
 
 impl Runner<'_> {
-    /// Runs all instances, batch by batch.
+    /// Runs all instances, batch by batch; `packed` holds their
+    /// coefficients where they were packed ahead.
     fn all<L: Layout>(
         &self,
         instances: &[Instance],
+        packed: Option<&[u8]>,
         progress: &mut dyn FnMut(u64, u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let state_size = if any_steady(instances) {
@@ -245,11 +300,14 @@ impl Runner<'_> {
             None => total,
         };
         let mut out = Vec::with_capacity(instances.len());
+        let stride = size_of::<L::Coefficients>();
         for chunk in instances.chunks(per_batch) {
             let done_before = out.len() as u64;
             let mut chunk_progress =
                 |done: u64| progress((done_before + done) * main_share / total.max(1), total);
-            out.extend(self.batch::<L>(chunk, &mut chunk_progress)?);
+            let first = out.len() * stride;
+            let chunk_packed = packed.map(|b| &b[first..first + chunk.len() * stride]);
+            out.extend(self.batch::<L>(chunk, chunk_packed, &mut chunk_progress)?);
         }
         // Instances the driver's loop limiter kept from advancing at all,
         // and f32 instances that failed or met a band graze, are
@@ -405,7 +463,9 @@ impl Runner<'_> {
         let mut twins = Vec::with_capacity(picked.len());
         for chunk in twin_instances.chunks(per_batch.max(1)) {
             let done_before = twins.len() as u64;
-            twins.extend(twin_runner.batch::<L>(chunk, &mut |done| progress(done_before + done))?);
+            twins.extend(
+                twin_runner.batch::<L>(chunk, None, &mut |done| progress(done_before + done))?,
+            );
         }
         Ok(picked
             .iter()
@@ -430,6 +490,7 @@ impl Runner<'_> {
     fn batch<L: Layout>(
         &self,
         instances: &[Instance],
+        packed: Option<&[u8]>,
         progress: &mut dyn FnMut(u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let n = instances.len();
@@ -439,7 +500,7 @@ impl Runner<'_> {
         let device = self.device;
         let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let memory = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let result = self.batch_inner::<L>(instances, progress);
+        let result = self.batch_inner::<L>(instances, packed, progress);
         let memory_error = pollster::block_on(memory.pop());
         let validation_error = pollster::block_on(validation.pop());
         if let Some(e) = validation_error.or(memory_error) {
@@ -454,22 +515,30 @@ impl Runner<'_> {
     fn slices<L: Layout>(
         &self,
         instances: &[Instance],
+        packed: Option<&[u8]>,
         progress: &mut dyn FnMut(u64),
         slice_limit: Option<u64>,
     ) -> Result<Readback<L>, GpuError> {
         let device = self.device;
         let queue = self.queue;
         let n = instances.len();
-        let coefficients: Vec<L::Coefficients> = profile::time(Phase::Pack, || {
-            instances
-                .par_iter()
-                .map(|inst| L::pack(inst, self.settings))
-                .collect()
-        });
+        let packed_here: Vec<L::Coefficients>;
+        let coefficients: &[u8] = match packed {
+            Some(bytes) => bytes,
+            None => {
+                packed_here = profile::time(Phase::Pack, || {
+                    instances
+                        .par_iter()
+                        .map(|inst| L::pack(inst, self.settings))
+                        .collect()
+                });
+                bytemuck::cast_slice(&packed_here)
+            }
+        };
         let uploading = profile::span(Phase::Upload);
         let coefficients_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("coefficients"),
-            contents: bytemuck::cast_slice(&coefficients),
+            contents: coefficients,
             usage: wgpu::BufferUsages::STORAGE,
         });
         let state_bytes = (n * size_of::<L::State>()) as u64;
@@ -653,10 +722,11 @@ impl Runner<'_> {
     fn batch_inner<L: Layout>(
         &self,
         instances: &[Instance],
+        packed: Option<&[u8]>,
         progress: &mut dyn FnMut(u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let n = instances.len();
-        let (states, measure_list) = self.slices::<L>(instances, progress, None)?;
+        let (states, measure_list) = self.slices::<L>(instances, packed, progress, None)?;
         let reducing = profile::span(Phase::Reduce);
         let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
         // The outcomes, and the states of the unfinished ones.

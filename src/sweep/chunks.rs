@@ -13,7 +13,7 @@ use super::dedup::{JobRef, Jobs, digest};
 use super::{
     BaselineMemo, Outcome, Record, STATUS_UNCONVERGED, Summary, interrupt_requested, record,
 };
-use crate::backend::Backend;
+use crate::backend::{Backend, Staged};
 use crate::cpu::integrate::{STATUS_OK, Settings};
 use crate::model::{AXES, Instance};
 use crate::profile::{self, Phase};
@@ -181,6 +181,9 @@ struct Prepared {
     /// it, keys only: the next chunk, expanded before this one's outcomes
     /// are in, counts them as run.
     pending: BaselineMemo,
+    /// The backend's work done ahead ([`Backend::stage`]), taken by the
+    /// run.
+    staged: Staged,
 }
 
 /// A chunk's integrations: outcomes in job order.
@@ -191,10 +194,11 @@ struct Integrated {
     reported: u64,
 }
 
-/// Expands a chunk's instances into jobs; `known` says which baselines
-/// earlier chunks run.
+/// Expands a chunk's instances into jobs, and stages them on `backend`
+/// where chunks overlap; `known` says which baselines earlier chunks run.
 fn prepare(
     plan: &Plan,
+    backend: Option<&dyn Backend>,
     segments: Vec<Range<u64>>,
     known: &(dyn Fn(&Instance, u64) -> bool + Sync),
 ) -> Prepared {
@@ -212,12 +216,17 @@ fn prepare(
             }
         }
     }
+    let staged = match backend {
+        Some(backend) if !jobs.jobs.is_empty() => backend.stage(&jobs.jobs, &plan.settings),
+        _ => Staged::default(),
+    };
     Prepared {
         segments,
         indices,
         mains,
         jobs,
         pending,
+        staged,
     }
 }
 
@@ -226,6 +235,7 @@ fn integrate(
     plan: &Plan,
     backend: &dyn Backend,
     chunk: &Prepared,
+    staged: Staged,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Integrated> {
     let _span = profile::span(Phase::Integrate);
@@ -247,7 +257,7 @@ fn integrate(
     let mut outcomes = if jobs.is_empty() {
         Vec::new()
     } else {
-        backend.run(jobs, &plan.settings, &done)?
+        backend.run_staged(jobs, &plan.settings, staged, &done)?
     };
     if plan.verify && !interrupt_requested() {
         let tight = Settings {
@@ -349,6 +359,7 @@ impl Driver<'_> {
                     baseline_job,
                 },
             pending: _,
+            staged: _,
         } = chunk;
         let Integrated {
             outcomes,
@@ -437,30 +448,35 @@ impl Driver<'_> {
     ) -> Result<()> {
         let plan = self.plan;
         let progress = self.progress;
+        // Staging ahead pays only where it runs beside another chunk.
+        let stage = overlap.then_some(backend);
         let mut segments = chunks(&plan.work, chunk.max(1) as u64).into_iter();
         let mut next = segments.next().map(|s| {
             let memo = &*self.memo;
-            prepare(plan, s, &|inst, d| memo.get(inst, d).is_some())
+            prepare(plan, stage, s, &|inst, d| memo.get(inst, d).is_some())
         });
         while let Some(mut current) = next.take() {
             if interrupt_requested() {
                 return Err(self.interrupted());
             }
             if !overlap {
+                let staged = std::mem::take(&mut current.staged);
                 let integrated = profile::time(Phase::Wait, || {
-                    integrate(plan, backend, &current, progress)
+                    integrate(plan, backend, &current, staged, progress)
                 })?;
                 self.finish(current, integrated, out)?;
                 next = segments.next().map(|s| {
                     let memo = &*self.memo;
-                    prepare(plan, s, &|inst, d| memo.get(inst, d).is_some())
+                    prepare(plan, stage, s, &|inst, d| memo.get(inst, d).is_some())
                 });
                 continue;
             }
             let pending = std::mem::take(&mut current.pending);
+            let staged = std::mem::take(&mut current.staged);
             let previous = self.finishing.take();
             let (integrated, driven) = std::thread::scope(|scope| {
-                let integrating = scope.spawn(|| integrate(plan, backend, &current, progress));
+                let integrating =
+                    scope.spawn(|| integrate(plan, backend, &current, staged, progress));
                 let driven = (|| -> Result<Option<Prepared>> {
                     if let Some((chunk, integrated)) = previous {
                         self.finish(chunk, integrated, out)?;
@@ -470,7 +486,9 @@ impl Driver<'_> {
                     let known = |inst: &Instance, d: u64| {
                         (!forget && memo.get(inst, d).is_some()) || pending.get(inst, d).is_some()
                     };
-                    Ok(segments.next().map(|s| prepare(plan, s, &known)))
+                    Ok(segments
+                        .next()
+                        .map(|s| prepare(plan, Some(backend), s, &known)))
                 })();
                 let waiting = profile::span(Phase::Wait);
                 let integrated = integrating

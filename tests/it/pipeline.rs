@@ -7,62 +7,12 @@
 
 use std::process::{Command, Stdio};
 
-use anyhow::Result;
-
-use pidm::backend::{Backend, CpuBackend, Hardware, Precision};
-use pidm::cpu::integrate::Settings;
-use pidm::gpu::{BatchOptions, GpuContext, run_batch_with};
-use pidm::measurement::Outcome;
-use pidm::model::Instance;
+use pidm::backend::{Backend, CpuBackend, GpuBackend, Precision};
+use pidm::gpu::{BatchOptions, GpuContext};
 use pidm::scene::Scene;
 use pidm::sweep::{BaselineMemo, Plan, Record, Summary, run_chunks};
 
 use crate::common::s;
-
-/// The shared lavapipe (or other) context as a sweep backend with explicit
-/// batch options.
-struct Device {
-    ctx: &'static GpuContext,
-    precision: Precision,
-    options: BatchOptions,
-}
-
-impl Backend for Device {
-    fn describe(&self) -> String {
-        format!("gpu: {}", self.ctx.describe())
-    }
-    fn precision(&self) -> Precision {
-        self.precision
-    }
-    fn chunk_size(&self) -> usize {
-        1 << 20
-    }
-    fn hardware(&self) -> Hardware {
-        Hardware::Gpu
-    }
-    fn run(
-        &self,
-        instances: &[Instance],
-        settings: &Settings,
-        done: &(dyn Fn(u64) + Sync),
-    ) -> Result<Vec<Outcome>> {
-        let mut told = 0;
-        let outcomes = run_batch_with(
-            self.ctx,
-            instances,
-            settings,
-            self.precision,
-            &self.options,
-            &mut |finished, _| {
-                if finished > told {
-                    done(finished - told);
-                    told = finished;
-                }
-            },
-        )?;
-        Ok(outcomes.into_iter().map(|o| o.into_outcome()).collect())
-    }
-}
 
 /// A 5 x 5 voltage map with baselines and a non-round y frequency, steady
 /// or in a window of 3 cycles.
@@ -82,7 +32,12 @@ fn scene(steady: bool) -> Scene {
 }
 
 /// Every record of a sweep in index order, and its summary.
-fn sweep(scene: &Scene, backend: &dyn Backend, chunk: usize, overlap: bool) -> (Vec<Record>, Summary) {
+fn sweep(
+    scene: &Scene,
+    backend: &dyn Backend,
+    chunk: usize,
+    overlap: bool,
+) -> (Vec<Record>, Summary) {
     let instance = |i: u64| scene.instance(i);
     let plan = Plan {
         work: Plan::everything(scene.instance_count()),
@@ -164,11 +119,11 @@ fn overlapping_chunks_give_the_records_of_chunks_one_after_another_on_the_gpu() 
                 cpu_tail: Some(2),
                 ..BatchOptions::default()
             };
-            let device = Device {
-                ctx,
-                precision,
-                options,
-            };
+            // The backend a run uses, on a context of its own: it packs
+            // each chunk's coefficients ahead, on the driver thread.
+            let device =
+                GpuBackend::with_options(GpuContext::new(true).unwrap(), precision, options)
+                    .unwrap();
             let label = format!("gpu {precision} steady {steady}");
             let summary = check(&label, &device, steady, 9);
             assert!(summary.on_cpu > 0, "{label}: no CPU tail");
@@ -226,7 +181,10 @@ fn a_run_stopped_mid_pipeline_on_the_gpu_leaves_no_partial_file() {
         assert!(started.elapsed().as_secs() < 120, "no chunk finished");
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
-    assert!(child.try_wait().unwrap().is_none(), "the run ended too soon");
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "the run ended too soon"
+    );
     crate::common::signal(&child, "INT");
     let ended = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&ended.stderr);
