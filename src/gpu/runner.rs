@@ -41,30 +41,50 @@ pub fn run_batch_with(
 /// its turn ([`pack`]): the sweep's driver packs chunk k+1 while the
 /// device integrates chunk k.
 pub struct Packed {
-    precision: Precision,
     settings: Settings,
-    count: usize,
-    bytes: Vec<u8>,
+    coefficients: PackedCoefficients,
+}
+
+/// Each precision's coefficients, as the device takes them.
+enum PackedCoefficients {
+    F32(Vec<<Single as Layout>::Coefficients>),
+    F64(Vec<<Double as Layout>::Coefficients>),
+}
+
+impl Packed {
+    /// The bytes to upload, where they were packed for `count` instances
+    /// in `precision` under `settings`.
+    fn bytes_for(&self, count: usize, precision: Precision, settings: &Settings) -> Option<&[u8]> {
+        if self.settings != *settings {
+            return None;
+        }
+        match (&self.coefficients, precision) {
+            (PackedCoefficients::F32(c), Precision::F32) if c.len() == count => {
+                Some(bytemuck::cast_slice(c))
+            }
+            (PackedCoefficients::F64(c), Precision::F64) if c.len() == count => {
+                Some(bytemuck::cast_slice(c))
+            }
+            _ => None,
+        }
+    }
 }
 
 /// Packs `instances`' coefficients for a batch in `precision` under
 /// `settings`, in parallel: what [`run_batch_packed`] would otherwise do
 /// first.
 pub fn pack(instances: &[Instance], settings: &Settings, precision: Precision) -> Packed {
-    fn of<L: Layout>(instances: &[Instance], settings: &Settings) -> Vec<u8> {
-        let coefficients: Vec<L::Coefficients> = instances
+    fn of<L: Layout>(instances: &[Instance], settings: &Settings) -> Vec<L::Coefficients> {
+        instances
             .par_iter()
             .map(|inst| L::pack(inst, settings))
-            .collect();
-        bytemuck::cast_slice(&coefficients).to_vec()
+            .collect()
     }
     Packed {
-        precision,
         settings: *settings,
-        count: instances.len(),
-        bytes: match precision {
-            Precision::F32 => of::<Single>(instances, settings),
-            Precision::F64 => of::<Double>(instances, settings),
+        coefficients: match precision {
+            Precision::F32 => PackedCoefficients::F32(of::<Single>(instances, settings)),
+            Precision::F64 => PackedCoefficients::F64(of::<Double>(instances, settings)),
         },
     }
 }
@@ -81,11 +101,7 @@ pub fn run_batch_packed(
     options: &BatchOptions,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
-    let packed = packed
-        .filter(|p| {
-            p.precision == precision && p.settings == *settings && p.count == instances.len()
-        })
-        .map(|p| p.bytes.as_slice());
+    let packed = packed.and_then(|p| p.bytes_for(instances.len(), precision, settings));
     let pipeline = ctx.prepare(precision)?;
     // The adapter decides the check's route (`F32Check::Auto`).
     let options = &BatchOptions {
