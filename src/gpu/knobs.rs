@@ -64,9 +64,8 @@ pub fn slice_iterations() -> u32 {
     })
 }
 
-/// Whether batches print how long their phases took (dispatches, mapping
-/// and reading the results, the outcomes) on stderr: `PIDM_GPU_PHASES` =
-/// 1, for measurements (results/gpu.md, "Where a steady map's GPU time goes").
+/// Whether `pidm run` prints its phase table ([`crate::profile`]) on
+/// stderr: `PIDM_GPU_PHASES` = 1, as `--profile` does.
 pub fn gpu_phases() -> bool {
     static PHASES: OnceLock<bool> = OnceLock::new();
     *PHASES.get_or_init(|| knob("PIDM_GPU_PHASES", 0u8, |n| *n <= 1, "0 or 1") == 1)

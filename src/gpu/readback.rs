@@ -10,7 +10,7 @@
 //! finishes (48 bytes in f64). So the host reads every head, and the whole
 //! accumulators only of the instances that need them: those that ended
 //! otherwise, and those the CPU continues. Also the mapping of any
-//! readback buffer, timed for `PIDM_GPU_PHASES`.
+//! readback buffer.
 
 use super::{GpuError, Layout};
 use crate::model::{Instance, Measure};
@@ -76,7 +76,7 @@ pub(super) fn accumulators<L: Layout>(
     read: &mut AccumulatorsRead,
 ) -> Result<Vec<L::Measure>, GpuError> {
     let n = instances.len();
-    let heads: Vec<L::Head> = with_mapped_timed(device, heads_read, &mut read.heads, |bytes| {
+    let heads: Vec<L::Head> = with_mapped(device, heads_read, |bytes| {
         bytes
             .chunks_exact(size_of::<L::Head>())
             .map(bytemuck::pod_read_unaligned)
@@ -108,7 +108,7 @@ pub(super) fn accumulators<L: Layout>(
         at += bytes;
     }
     queue.submit([encoder.finish()]);
-    let copied: Vec<L::Measure> = with_mapped_timed(device, &target, &mut read.whole, |bytes| {
+    let copied: Vec<L::Measure> = with_mapped(device, &target, |bytes| {
         bytes
             .chunks_exact(size_of::<L::Measure>())
             .map(bytemuck::pod_read_unaligned)
@@ -143,24 +143,11 @@ pub(super) fn read_buffer(
     with_mapped(device, buffer, <[u8]>::to_vec)
 }
 
-/// Maps a mappable buffer for reading and hands its bytes to `read`, with
-/// no copy of them on the host.
-pub(super) fn with_mapped<T>(
-    device: &wgpu::Device,
-    buffer: &wgpu::Buffer,
-    read: impl FnOnce(&[u8]) -> T,
-) -> Result<T, GpuError> {
-    with_mapped_timed(device, buffer, &mut Mapped::default(), read)
-}
-
-/// How a steady batch's accumulators came back ([`accumulators`]),
-/// for `PIDM_GPU_PHASES`.
+/// How a steady batch's accumulators came back ([`accumulators`]).
 pub(super) struct AccumulatorsRead {
     pub plan: Accumulators,
     /// Whole accumulators copied back.
     pub count: usize,
-    pub heads: Mapped,
-    pub whole: Mapped,
 }
 
 impl Default for AccumulatorsRead {
@@ -168,30 +155,17 @@ impl Default for AccumulatorsRead {
         AccumulatorsRead {
             plan: Accumulators::Heads,
             count: 0,
-            heads: Mapped::default(),
-            whole: Mapped::default(),
         }
     }
 }
 
-/// How long [`with_mapped_timed`] waited for a mapping and took to read it.
-#[derive(Default)]
-pub(super) struct Mapped {
-    /// From the request to the mapped range: the queue's work before it
-    /// and the copy into the mappable buffer.
-    pub wait: std::time::Duration,
-    /// `read` on the mapped bytes.
-    pub read: std::time::Duration,
-}
-
-/// [`with_mapped`], timing its two parts into `timed`.
-pub(super) fn with_mapped_timed<T>(
+/// Maps a mappable buffer for reading and hands its bytes to `read`, with
+/// no copy of them on the host.
+pub(super) fn with_mapped<T>(
     device: &wgpu::Device,
     buffer: &wgpu::Buffer,
-    timed: &mut Mapped,
     read: impl FnOnce(&[u8]) -> T,
 ) -> Result<T, GpuError> {
-    let started = std::time::Instant::now();
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -207,11 +181,7 @@ pub(super) fn with_mapped_timed<T>(
         let view = slice
             .get_mapped_range()
             .map_err(|e| GpuError::BufferMapping(e.to_string()))?;
-        timed.wait = started.elapsed();
-        let reading = std::time::Instant::now();
-        let out = read(&view);
-        timed.read = reading.elapsed();
-        out
+        read(&view)
     };
     buffer.unmap();
     Ok(out)

@@ -701,9 +701,8 @@ impl Runner<'_> {
             encoder.copy_buffer_to_buffer(&heads, 0, &heads_read, 0, head_bytes);
         }
         queue.submit([encoder.finish()]);
-        let mut states_timed = readback::Mapped::default();
         let states: Vec<L::State> =
-            readback::with_mapped_timed(device, &states_read, &mut states_timed, |bytes| {
+            readback::with_mapped(device, &states_read, |bytes| {
                 match bytemuck::try_cast_slice(bytes) {
                     Ok(states) => states.to_vec(),
                     // A mapping not aligned for the struct (no driver seen).
