@@ -276,7 +276,13 @@ fn render(wall: f64, seconds: &dyn Fn(Phase) -> f64, bytes_read: u64) -> String 
         claimed += s;
         line(&mut out, p.label(), s);
     }
-    line(&mut out, "left over (no phase)", (wall - claimed).max(0.0));
+    // A refined or stall run plans its waves between sweeps: that time is
+    // here too.
+    line(
+        &mut out,
+        "left over (no phase; refine and stall plans)",
+        (wall - claimed).max(0.0),
+    );
     line(&mut out, "wall time of the process", wall);
     let integrate = seconds(Phase::Integrate);
     let _ = writeln!(

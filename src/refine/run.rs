@@ -114,7 +114,9 @@ pub fn run(
         );
         (checkpoint, writer)
     } else {
-        crate::checkpoint::start(&checkpoint_path, identity, claim, info)?
+        crate::profile::time(crate::profile::Phase::Open, || {
+            crate::checkpoint::start(&checkpoint_path, identity, claim, info)
+        })?
     };
 
     let baselines = scene.baselines;
@@ -221,6 +223,7 @@ pub fn run(
             None => false,
         }
     };
+    let _finishing = crate::profile::span(crate::profile::Phase::Finish);
     writer.write(0, &raster)?;
     writer.write_inferred(&inferred)?;
     output::write_group(writer.file(), refine, &refinement, exact_baselines)?;

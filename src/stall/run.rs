@@ -162,7 +162,9 @@ pub fn run(
         );
         (checkpoint, writer)
     } else {
-        crate::checkpoint::start(&checkpoint_path, identity, claim, info)?
+        crate::profile::time(crate::profile::Phase::Open, || {
+            crate::checkpoint::start(&checkpoint_path, identity, claim, info)
+        })?
     };
 
     // An instance counts twice: its unloaded run, and its stall search.
@@ -298,6 +300,7 @@ pub fn run(
             .map(|s| s.result().expect("the waves end every search"))
             .collect())
     })();
+    let _finishing = crate::profile::span(crate::profile::Phase::Finish);
     let stalls = progress.conclude(result, &checkpoint_path)?;
     let indices: Vec<u64> = all.iter().flat_map(|r| r.clone()).collect();
     for (&i, r) in indices.iter().zip(&stalls) {
