@@ -701,17 +701,16 @@ impl Runner<'_> {
             encoder.copy_buffer_to_buffer(&heads, 0, &heads_read, 0, head_bytes);
         }
         queue.submit([encoder.finish()]);
-        let states: Vec<L::State> =
-            readback::with_mapped(device, &states_read, |bytes| {
-                match bytemuck::try_cast_slice(bytes) {
-                    Ok(states) => states.to_vec(),
-                    // A mapping not aligned for the struct (no driver seen).
-                    Err(_) => bytes
-                        .chunks_exact(size_of::<L::State>())
-                        .map(bytemuck::pod_read_unaligned)
-                        .collect(),
-                }
-            })?;
+        let states: Vec<L::State> = readback::with_mapped(device, &states_read, |bytes| {
+            match bytemuck::try_cast_slice(bytes) {
+                Ok(states) => states.to_vec(),
+                // A mapping not aligned for the struct (no driver seen).
+                Err(_) => bytes
+                    .chunks_exact(size_of::<L::State>())
+                    .map(bytemuck::pod_read_unaligned)
+                    .collect(),
+            }
+        })?;
         let mut read = readback::AccumulatorsRead::default();
         let measure_list: Vec<L::Measure> = if steady {
             readback::accumulators::<L>(

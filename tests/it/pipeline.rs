@@ -200,3 +200,60 @@ fn a_run_stopped_mid_pipeline_on_the_gpu_leaves_no_partial_file() {
         .collect();
     assert!(left.is_empty(), "{left:?}");
 }
+
+/// `--profile` prints one table, whose driver phases and left-over line
+/// add up to the process's wall time (to the table's rounding), with the
+/// integrator's and writer's lines beside it.
+#[test]
+fn the_profile_table_accounts_for_the_wall_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = d.join("small.toml");
+    std::fs::write(
+        &scene,
+        "name = \"small\"\n[axis.x]\nvoltage = { from = -150.0, to = 150.0, steps = 9 }\n\
+         [axis.y]\nvoltage = { from = -150.0, to = 150.0, steps = 9 }\n\
+         [output]\nbaselines = true\n",
+    )
+    .unwrap();
+    let out = crate::common::pidm(
+        &[
+            "run",
+            s(&scene),
+            "--out",
+            s(&d.join("small.h5")),
+            "--backend",
+            "cpu",
+            "--chunk-size",
+            "10",
+            "--profile",
+        ],
+        d,
+    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert_eq!(err.matches("phase table (driver").count(), 1, "{err}");
+    // "pidm: phase <label> <seconds> s <share> %".
+    let seconds = |line: &str| -> f64 {
+        let fields: Vec<&str> = line.split_whitespace().collect();
+        let s = fields.iter().rposition(|f| *f == "s").expect(line);
+        fields[s - 1].parse().expect(line)
+    };
+    let driver: Vec<&str> = err
+        .lines()
+        .skip_while(|l| !l.contains("phase table (driver"))
+        .skip(1)
+        .take_while(|l| !l.contains("wall time of the process"))
+        .collect();
+    let wall = err
+        .lines()
+        .find(|l| l.contains("wall time of the process"))
+        .map(seconds)
+        .expect("a wall-time line");
+    assert_eq!(driver.len(), 9, "{err}");
+    let sum: f64 = driver.iter().map(|l| seconds(l)).sum();
+    assert!((sum - wall).abs() <= 0.006, "{sum} against {wall}: {err}");
+    for beside in ["integrator thread, whole", "writer thread", "hidden behind"] {
+        assert!(err.contains(beside), "{beside}: {err}");
+    }
+}
