@@ -260,18 +260,16 @@ pub fn probe_instances(
             .collect()
     };
     let cut = Arc::new(AtomicBool::new(false));
-    let done = Arc::new(AtomicBool::new(false));
+    // The watchdog cuts the probe off at its limit, and wakes as soon as
+    // the probe drops `done` (a probe of a cheap scene takes milliseconds:
+    // it must not wait for a polling interval).
+    let (done, finished) = std::sync::mpsc::channel::<()>();
     let watchdog = {
-        let (cut, done) = (Arc::clone(&cut), Arc::clone(&done));
+        let cut = Arc::clone(&cut);
         std::thread::spawn(move || {
-            let until = Instant::now() + Duration::from_secs_f64(PROBE_BUDGET_S + PROBE_CUTOFF_S);
-            while !done.load(Ordering::Relaxed) {
-                let now = Instant::now();
-                if now >= until {
-                    cut.store(true, Ordering::Relaxed);
-                    return;
-                }
-                std::thread::sleep((until - now).min(Duration::from_millis(5)));
+            let limit = Duration::from_secs_f64(PROBE_BUDGET_S + PROBE_CUTOFF_S);
+            if let Err(std::sync::mpsc::RecvTimeoutError::Timeout) = finished.recv_timeout(limit) {
+                cut.store(true, Ordering::Relaxed);
             }
         })
     };
@@ -295,7 +293,7 @@ pub fn probe_instances(
         Err(_) => run(),
     };
     let wall_s = started.elapsed().as_secs_f64();
-    done.store(true, Ordering::Relaxed);
+    drop(done);
     let _ = watchdog.join();
     let n = results.len().max(1) as f64;
     let busy: f64 = results.iter().map(|r| r.wall).sum();
