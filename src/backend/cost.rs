@@ -178,11 +178,20 @@ pub struct CpuEstimate {
 
 impl CpuEstimate {
     /// The estimate for `integrations` on `threads` threads from a probe
-    /// run with those threads.
-    pub fn from_probe(integrations: u64, probe: &Probe, threads: usize) -> CpuEstimate {
+    /// run with those threads on a machine of `cores` cores. More threads
+    /// than cores share them, and each probed integration's wall time then
+    /// counts the others' turns too: its core-seconds are its wall time
+    /// times cores over threads.
+    pub fn from_probe(
+        integrations: u64,
+        probe: &Probe,
+        threads: usize,
+        cores: usize,
+    ) -> CpuEstimate {
+        let shared = (cores.max(1) as f64 / threads.max(1) as f64).min(1.0);
         CpuEstimate {
             seconds: crate::estimate::cpu_sweep_s(integrations, probe),
-            core_s: probe.mean_core_s * integrations as f64,
+            core_s: probe.mean_core_s * integrations as f64 * shared,
             threads,
         }
     }
@@ -277,7 +286,8 @@ pub enum Plan {
 }
 
 /// auto's plan for a run of `integrations` distinct integrations on
-/// `threads` CPU threads: below the floor the CPU path, unprobed; with an
+/// `threads` CPU threads of a machine of `cores` cores: below the floor the
+/// CPU path, unprobed; with an
 /// explicit `--precision f32` a GPU, unprobed (as before costs were
 /// weighed: the CPU path runs f64); else the probe (`probe(k)` probes `k`
 /// integrations on `threads` threads) weighed against the cheapest for
@@ -286,6 +296,7 @@ pub enum Plan {
 pub fn plan(
     integrations: u64,
     threads: usize,
+    cores: usize,
     precision: Option<Precision>,
     known: impl FnOnce() -> Vec<GpuCosts>,
     probe: impl FnOnce(usize) -> Probe,
@@ -300,7 +311,7 @@ pub fn plan(
         };
     }
     let probe = probe(probe_size(integrations));
-    let cpu = CpuEstimate::from_probe(integrations, &probe, threads.max(1));
+    let cpu = CpuEstimate::from_probe(integrations, &probe, threads.max(1), cores);
     let cheapest = known()
         .into_iter()
         .map(|gpu| Estimate {
@@ -365,7 +376,14 @@ mod tests {
                 ..Probe::default()
             }
         };
-        let plan = plan(integrations, threads, precision, || known.to_vec(), probe);
+        let plan = plan(
+            integrations,
+            threads,
+            16,
+            precision,
+            || known.to_vec(),
+            probe,
+        );
         let (outcome, estimate) = match plan {
             Plan::TooFew { .. } => (Outcome::TooFew, None),
             Plan::Cpu(e) => (Outcome::Cpu, Some(e)),
@@ -454,6 +472,24 @@ mod tests {
             &[slow[0].clone(), fast[0].clone()],
             Gpu,
         );
+    }
+
+    #[test]
+    fn threads_beyond_the_cores_share_them() {
+        // 64 threads on 16 cores: each probed integration's wall time is
+        // four times its core time.
+        let probe = Probe {
+            integrations: 256,
+            mean_core_s: 8e-3,
+            parallelism: 64.0,
+            wall_s: 0.05,
+            ..Probe::default()
+        };
+        let e = CpuEstimate::from_probe(100_000, &probe, 64, 16);
+        assert!((e.seconds - 12.5).abs() < 1e-9, "{e:?}");
+        assert!((e.core_s - 200.0).abs() < 1e-9, "{e:?}");
+        let e = CpuEstimate::from_probe(100_000, &probe, 16, 64);
+        assert!((e.core_s - 800.0).abs() < 1e-9, "{e:?}");
     }
 
     #[test]

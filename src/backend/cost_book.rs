@@ -259,22 +259,26 @@ pub fn load() -> Book {
 /// Adds a run to this machine's file; a failure is said on stderr, never
 /// returned.
 pub fn record(entry: Entry) {
-    let Some(path) = path() else {
-        return;
-    };
-    // A file that is not a book is replaced (its warning was said when
-    // auto read it, or is said here).
-    let (mut book, warning) = Book::load(&path);
-    if let Some(warning) = warning {
-        eprintln!("{warning}");
+    if let Some(path) = path() {
+        for line in record_at(&path, entry) {
+            eprintln!("{line}");
+        }
     }
+}
+
+/// Adds a run to the book at `path`, replacing a file that is not a book;
+/// returns what there is to say (a warning, a failure to write).
+pub fn record_at(path: &Path, entry: Entry) -> Vec<String> {
+    let (mut book, warning) = Book::load(path);
+    let mut said: Vec<String> = warning.into_iter().collect();
     book.add(entry);
-    if let Err(e) = book.save(&path) {
-        eprintln!(
+    if let Err(e) = book.save(path) {
+        said.push(format!(
             "pidm: could not record the GPU's costs in {}: {e}",
             path.display()
-        );
+        ));
     }
+    said
 }
 
 #[cfg(test)]
@@ -383,5 +387,20 @@ mod tests {
         let (book, warning) = Book::load(&folder);
         assert_eq!(book, Book::default());
         assert!(warning.is_some());
+        assert_eq!(
+            record_at(&folder, entry(H100, Precision::F64, 0.1, None)).len(),
+            2
+        );
+        // A foreign file is replaced by the next record, with a warning.
+        std::fs::write(&path, "something else\n").unwrap();
+        let said = record_at(&path, entry(H100, Precision::F32, 0.14, Some(20.0)));
+        assert_eq!(said.len(), 1, "{said:?}");
+        let (book, warning) = Book::load(&path);
+        assert_eq!(warning, None);
+        assert_eq!(book.costs(H100, Precision::F32).cores, 20.0);
+        assert_eq!(book.costs(H100, Precision::F64), GpuCosts::default());
+        // Later records add to it.
+        assert!(record_at(&path, entry(H100, Precision::F32, 0.16, Some(30.0))).is_empty());
+        assert_eq!(Book::load(&path).0.costs(H100, Precision::F32).cores, 25.0);
     }
 }

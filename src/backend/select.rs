@@ -210,9 +210,11 @@ fn auto(
 ) -> Result<Selected> {
     let cpu_threads = CpuBackend::default_threads(threads);
     let mut book = None;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let plan = cost::plan(
         work.integrations,
         cpu_threads,
+        cores,
         precision,
         || {
             let loaded = cost_book::load();

@@ -84,6 +84,7 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     let auto = crate::backend::cost::plan(
         integrations,
         cores,
+        cores,
         None,
         || crate::backend::cost_book::load().known(None),
         |_| probe.clone(),
