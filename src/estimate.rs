@@ -84,6 +84,23 @@ pub fn trajectories_s(scene: &Scene, probe: &Probe) -> f64 {
         .sum()
 }
 
+/// The wall time of a run's `integrations` on the CPU path [s], from the
+/// probe: its cost per integration times the integrations, over the cores
+/// the probe's threads had (fewer than the threads where other work shares
+/// the machine), and no more cores than integrations; a probe of every
+/// integration, each to its end, was the run itself, and its wall time is
+/// the estimate. `pidm check` and `--backend auto` both estimate so.
+pub fn cpu_sweep_s(integrations: u64, probe: &Probe) -> f64 {
+    let core_seconds = probe.mean_core_s * integrations as f64;
+    let spread = (integrations as f64).clamp(1.0, probe.parallelism.max(1.0));
+    let whole = probe.integrations as u64 == integrations && probe.scaled + probe.cut == 0;
+    if whole {
+        probe.wall_s
+    } else {
+        core_seconds / spread
+    }
+}
+
 /// Scenes with more instances than this are probed on a sample of evenly
 /// spaced instances and their baselines rather than on every distinct
 /// integration.
@@ -115,8 +132,9 @@ pub struct Probe {
 
 /// The integrations a run computes (exact up to [`COUNTED`] instances,
 /// else the instances and the distinct baselines of a sample), and the
-/// candidates the probe picks from.
-fn integrations(scene: &Scene) -> (u64, Vec<Instance>) {
+/// candidates the probe picks from (every distinct integration, or those
+/// of the sample).
+pub fn integrations(scene: &Scene) -> (u64, Vec<Instance>) {
     let count = scene.instance_count();
     if count <= COUNTED {
         let instances: Vec<Instance> = (0..count).map(|i| scene.instance(i)).collect();
@@ -210,12 +228,28 @@ fn probe_one(
 /// the run and what the probe measured.
 pub fn probe(scene: &Scene, threads: usize) -> (u64, Probe) {
     let (count, candidates) = integrations(scene);
-    let k = candidates.len().min(PROBE_MAX);
+    let probe = probe_instances(&candidates, &scene.settings, threads, PROBE_MAX);
+    (count, probe)
+}
+
+/// Probes the cost of at most `max` of `candidates` (a run's distinct
+/// integrations, or a sample of them: [`integrations`]) on the CPU path
+/// with a pool of `threads` threads, within [`PROBE_BUDGET_S`]. `pidm
+/// check` probes [`PROBE_MAX`]; `--backend auto` fewer for a small run, so
+/// that the probe stays a small part of it.
+pub fn probe_instances(
+    candidates: &[Instance],
+    settings: &Settings,
+    threads: usize,
+    max: usize,
+) -> Probe {
+    let max = max.max(1);
+    let k = candidates.len().min(max);
     // Every candidate when there are few; else spread by the golden ratio,
     // so that the ones probed before the budget ran out (any stretch of
     // the list, as the threads split it) are spread over the whole scene.
-    let picked: Vec<Instance> = if candidates.len() <= PROBE_MAX {
-        candidates
+    let picked: Vec<Instance> = if candidates.len() <= max {
+        candidates.to_vec()
     } else {
         let golden = 0.5 * (5f64.sqrt() - 1.0);
         (0..k)
@@ -226,18 +260,16 @@ pub fn probe(scene: &Scene, threads: usize) -> (u64, Probe) {
             .collect()
     };
     let cut = Arc::new(AtomicBool::new(false));
-    let done = Arc::new(AtomicBool::new(false));
+    // The watchdog cuts the probe off at its limit, and wakes as soon as
+    // the probe drops `done` (a probe of a cheap scene takes milliseconds:
+    // it must not wait for a polling interval).
+    let (done, finished) = std::sync::mpsc::channel::<()>();
     let watchdog = {
-        let (cut, done) = (Arc::clone(&cut), Arc::clone(&done));
+        let cut = Arc::clone(&cut);
         std::thread::spawn(move || {
-            let until = Instant::now() + Duration::from_secs_f64(PROBE_BUDGET_S + PROBE_CUTOFF_S);
-            while !done.load(Ordering::Relaxed) {
-                let now = Instant::now();
-                if now >= until {
-                    cut.store(true, Ordering::Relaxed);
-                    return;
-                }
-                std::thread::sleep((until - now).min(Duration::from_millis(5)));
+            let limit = Duration::from_secs_f64(PROBE_BUDGET_S + PROBE_CUTOFF_S);
+            if let Err(std::sync::mpsc::RecvTimeoutError::Timeout) = finished.recv_timeout(limit) {
+                cut.store(true, Ordering::Relaxed);
             }
         })
     };
@@ -249,12 +281,11 @@ pub fn probe(scene: &Scene, threads: usize) -> (u64, Probe) {
         pool.broadcast(|_| ());
     }
     let started = Instant::now();
-    let settings = scene.settings;
     let run = || -> Vec<Probed> {
         picked
             .par_iter()
             .with_max_len(1)
-            .filter_map(|inst| probe_one(inst, &settings, started, &cut))
+            .filter_map(|inst| probe_one(inst, settings, started, &cut))
             .collect()
     };
     let results = match pool {
@@ -262,11 +293,11 @@ pub fn probe(scene: &Scene, threads: usize) -> (u64, Probe) {
         Err(_) => run(),
     };
     let wall_s = started.elapsed().as_secs_f64();
-    done.store(true, Ordering::Relaxed);
+    drop(done);
     let _ = watchdog.join();
     let n = results.len().max(1) as f64;
     let busy: f64 = results.iter().map(|r| r.wall).sum();
-    let probe = Probe {
+    Probe {
         integrations: results.len(),
         scaled: results.iter().filter(|r| r.scaled).count(),
         cut: results.iter().filter(|r| r.cut).count(),
@@ -280,6 +311,5 @@ pub fn probe(scene: &Scene, threads: usize) -> (u64, Probe) {
         } else {
             (busy / wall_s).clamp(1.0, threads.max(1) as f64)
         },
-    };
-    (count, probe)
+    }
 }

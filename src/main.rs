@@ -43,10 +43,10 @@ enum Command {
         /// [default: every core].
         #[arg(long, value_parser = thread_count)]
         threads: Option<usize>,
-        /// auto: a hardware GPU with f64 when there is one and the run has
-        /// at least 256 distinct integrations per CPU thread, else the
-        /// CPU; gpu: any adapter (lavapipe included), failing when there is
-        /// none; cpu.
+        /// auto: a hardware GPU with f64 when there is one and the run is
+        /// estimated to end sooner there (a short probe of its cost against
+        /// the GPU's fixed costs and throughput), else the CPU; gpu: any
+        /// adapter (lavapipe included), failing when there is none; cpu.
         #[arg(long, value_enum, default_value_t = backend::BackendChoice::Auto)]
         backend: backend::BackendChoice,
         /// Precision [default: f64 where the adapter has it, else f32, on

@@ -74,6 +74,12 @@ impl GpuBackend {
     pub fn context(&self) -> &GpuContext {
         &self.ctx
     }
+
+    /// What opening the device, creating the pipeline and its self-test
+    /// cost (`None` where the pipeline is not ready).
+    pub fn preparation(&self) -> Option<crate::gpu::Preparation> {
+        self.ctx.prepare_timed(self.precision).ok().map(|(_, p)| p)
+    }
 }
 
 impl Backend for GpuBackend {

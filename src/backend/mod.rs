@@ -1,7 +1,8 @@
 //! Backends: the ways of integrating many instances, behind one trait the
 //! sweep drives. The CPU path ([`CpuBackend`], rayon, f64) is the
 //! reference; the GPU path ([`GpuBackend`]) runs the WGSL shader through
-//! wgpu in f32 or f64. [`select`] turns the command line's choice into one;
+//! wgpu in f32 or f64. [`select`] turns the command line's choice into one,
+//! `auto` by [`cost`]'s estimates and the GPU costs [`cost_book`] keeps;
 //! [`check`] is the rule by which both f32 paths check their heaviest runs.
 
 use std::fmt;
@@ -13,13 +14,15 @@ use crate::measurement::Outcome;
 use crate::model::Instance;
 
 pub mod check;
+pub mod cost;
+pub mod cost_book;
 pub mod cpu;
 pub mod gpu;
 pub mod select;
 
 pub use cpu::CpuBackend;
 pub use gpu::GpuBackend;
-pub use select::{BackendChoice, select_backend};
+pub use select::{BackendChoice, Selected, Workload, select_backend};
 
 /// Floating-point precision of an integration.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]

@@ -3,8 +3,12 @@
 
 use anyhow::{Context, Result};
 
-use super::{Backend, CpuBackend, GpuBackend, Precision};
+use super::cost::{self, Estimate, Plan};
+use super::{Backend, CpuBackend, GpuBackend, Precision, cost_book};
+use crate::cpu::integrate::Settings;
 use crate::gpu::GpuContext;
+use crate::model::Instance;
+use crate::scene::Scene;
 
 /// Which integrator runs a scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -19,23 +23,6 @@ pub enum BackendChoice {
     /// The rayon CPU path: f64 (the reference), or with `--precision
     /// f32` the f32 shader's CPU mirror.
     Cpu,
-}
-
-/// Fewest distinct integrations per CPU thread for which `--backend auto`
-/// opens a GPU. One step takes a GPU lane tens of times as long as a CPU
-/// core, and opening the device costs about 0.2 s before any work: on the
-/// H100 machine of results/gpu.md (16 threads) whole runs of up to 1,024
-/// random instances, or up to 20,000 instances of the coupling map, end
-/// sooner on the CPU, and 4,096 random instances take both about as long.
-/// Below this many per thread the CPU wins or loses only fractions of a
-/// second.
-pub const GPU_MIN_INTEGRATIONS_PER_THREAD: u64 = 256;
-
-/// True when `--backend auto` should not even look for a GPU: the run has
-/// too few integrations for one to pay (see
-/// [`GPU_MIN_INTEGRATIONS_PER_THREAD`]).
-pub fn too_few_for_gpu(integrations: u64, threads: usize) -> bool {
-    integrations < GPU_MIN_INTEGRATIONS_PER_THREAD.saturating_mul(threads.max(1) as u64)
 }
 
 /// What `--backend auto` knows of the hardware adapter it found.
@@ -74,32 +61,124 @@ pub fn auto_choice(adapter: AdapterFacts, precision: Option<Precision>) -> AutoC
     }
 }
 
-/// Picks the backend and says which in one line on stderr. `integrations`
-/// is the number of distinct integrations the run will compute (an upper
-/// bound will do), which `auto` weighs against the CPU's threads.
+/// What `--backend auto` weighs a run by.
+#[derive(Clone, Debug)]
+pub struct Workload {
+    /// The distinct integrations the run computes (an upper bound will do).
+    pub integrations: u64,
+    /// The integrations auto's probe picks from: the run's distinct
+    /// integrations, or a sample of them ([`crate::estimate::integrations`]).
+    pub candidates: Vec<Instance>,
+    pub settings: Settings,
+}
+
+impl Workload {
+    /// A whole scene's integrations.
+    pub fn of_scene(scene: &Scene) -> Workload {
+        let (integrations, candidates) = crate::estimate::integrations(scene);
+        Workload {
+            integrations,
+            candidates,
+            settings: scene.settings,
+        }
+    }
+}
+
+/// The backend chosen, and what a finished run on a hardware GPU measures
+/// of it for later `auto` decisions ([`Selected::record`]).
+pub struct Selected {
+    backend: Box<dyn Backend>,
+    measure: Option<Measure>,
+}
+
+/// What is known of a GPU run before it runs: the adapter's fixed costs,
+/// and the run's core-seconds on the CPU path where auto probed it.
+struct Measure {
+    adapter: String,
+    precision: Precision,
+    open_s: f64,
+    ready_s: f64,
+    core_s: Option<f64>,
+}
+
+impl Selected {
+    pub fn backend(&self) -> &dyn Backend {
+        self.backend.as_ref()
+    }
+
+    /// After a complete run on a hardware GPU whose pipeline came from
+    /// pidm's cache (a compile is a one-time cost, not the adapter's):
+    /// records the adapter's fixed costs and, where auto probed the run and
+    /// `integration_s` is the GPU's integrating time for the integrations
+    /// probed (not a resumed, refined or stall run's), its throughput
+    /// ([`cost_book`]). Does nothing for other backends.
+    pub fn record(&self, integration_s: Option<f64>) {
+        let Some(m) = &self.measure else {
+            return;
+        };
+        let cores = match (m.core_s, integration_s) {
+            (Some(core_s), Some(s)) if s >= cost_book::MIN_INTEGRATING_S => Some(core_s / s),
+            _ => None,
+        };
+        cost_book::record(cost_book::Entry {
+            adapter: m.adapter.clone(),
+            precision: m.precision,
+            open_s: m.open_s,
+            ready_s: m.ready_s,
+            cores,
+        });
+    }
+}
+
+/// What to record of a GPU backend once its run finishes: `None` on a
+/// software adapter, or where the pipeline was compiled rather than taken
+/// from pidm's cache.
+fn measure_of(gpu: &GpuBackend, core_s: Option<f64>) -> Option<Measure> {
+    let ctx = gpu.context();
+    if !ctx.is_hardware() || !ctx.pipeline_from_cache() {
+        return None;
+    }
+    let p = gpu.preparation()?;
+    Some(Measure {
+        adapter: ctx.describe(),
+        precision: gpu.precision(),
+        open_s: p.open_s,
+        ready_s: p.pipeline_s + p.self_test_s,
+        core_s,
+    })
+}
+
+/// Picks the backend and says which in one line on stderr. `work` is what
+/// `auto` weighs: the run's distinct integrations against the CPU's
+/// threads, and where there are enough for a GPU to pay, a probe of their
+/// cost ([`cost`]).
 pub fn select_backend(
     choice: BackendChoice,
     precision: Option<Precision>,
     threads: Option<usize>,
-    integrations: u64,
-) -> Result<Box<dyn Backend>> {
-    // f64 where the adapter has it: on the GPUs measured it costs no more
-    // than f32 (the integrator waits on branches, not arithmetic) and it
-    // follows the CPU reference to rounding.
-    let gpu_precision = |ctx: &GpuContext| match precision {
-        Some(p) => p,
-        None if ctx.supports_f64() => Precision::F64,
-        None => Precision::F32,
+    work: &Workload,
+) -> Result<Selected> {
+    let cpu = |threads: Option<usize>| -> Result<Selected> {
+        finish(Box::new(CpuBackend::new(threads)?), None)
     };
-    let cpu_threads = CpuBackend::default_threads(threads);
-    let backend: Box<dyn Backend> = match choice {
-        BackendChoice::Cpu => Box::new(CpuBackend::with_precision(
-            threads,
-            precision.unwrap_or(Precision::F64),
-        )?),
+    match choice {
+        BackendChoice::Cpu => finish(
+            Box::new(CpuBackend::with_precision(
+                threads,
+                precision.unwrap_or(Precision::F64),
+            )?),
+            None,
+        ),
         BackendChoice::Gpu => {
             let ctx = GpuContext::new(true).context("--backend gpu")?;
-            let precision = gpu_precision(&ctx);
+            // f64 where the adapter has it: on the GPUs measured it costs no
+            // more than f32 (the integrator waits on branches, not
+            // arithmetic) and it follows the CPU reference to rounding.
+            let precision = match precision {
+                Some(p) => p,
+                None if ctx.supports_f64() => Precision::F64,
+                None => Precision::F32,
+            };
             if !ctx.is_hardware() {
                 let name = ctx.describe();
                 let kind = if name.contains("llvmpipe") {
@@ -114,12 +193,42 @@ pub fn select_backend(
             }
             let gpu = GpuBackend::new(ctx, precision)?;
             eprintln!("pidm: {}", gpu.readiness());
-            Box::new(gpu)
+            let measure = measure_of(&gpu, None);
+            finish(Box::new(gpu), measure)
         }
-        BackendChoice::Auto
-            if precision != Some(Precision::F32) && too_few_for_gpu(integrations, cpu_threads) =>
-        {
-            let threads = cpu_threads;
+        BackendChoice::Auto => auto(precision, threads, work, cpu),
+    }
+}
+
+/// `--backend auto`: the plan ([`cost::plan`]) before anything is opened,
+/// then, where a GPU may pay, the hardware adapter's own costs.
+fn auto(
+    precision: Option<Precision>,
+    threads: Option<usize>,
+    work: &Workload,
+    cpu: impl Fn(Option<usize>) -> Result<Selected>,
+) -> Result<Selected> {
+    let cpu_threads = CpuBackend::default_threads(threads);
+    let mut book = None;
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let plan = cost::plan(
+        work.integrations,
+        cpu_threads,
+        cores,
+        precision,
+        || {
+            let loaded = cost_book::load();
+            let known = loaded.known(precision);
+            book = Some(loaded);
+            known
+        },
+        |k| crate::estimate::probe_instances(&work.candidates, &work.settings, cpu_threads, k),
+    );
+    let estimate = match plan {
+        Plan::TooFew {
+            integrations,
+            threads,
+        } => {
             eprintln!(
                 "pidm: {integrations} {} too few for a GPU to beat {threads} CPU {} (it needs {} \
                  or more); using the CPU path (--backend gpu uses the GPU anyway)",
@@ -129,84 +238,97 @@ pub fn select_backend(
                     "integrations are"
                 },
                 if threads == 1 { "thread" } else { "threads" },
-                GPU_MIN_INTEGRATIONS_PER_THREAD * threads as u64
+                cost::min_integrations(threads)
             );
-            Box::new(CpuBackend::new(Some(threads))?)
+            return cpu(Some(threads));
         }
-        BackendChoice::Auto => match GpuContext::new(false) {
-            Ok(ctx) => {
-                let adapter = ctx.describe();
-                let facts = AdapterFacts {
-                    f64: ctx.supports_f64(),
-                };
-                let precision = match auto_choice(facts, precision) {
-                    AutoChoice::Gpu(p) => p,
-                    AutoChoice::Cpu => {
-                        eprintln!(
-                            "pidm: {adapter} has no 64-bit floats in shaders; using the CPU \
-                             path in f64 (--precision f64 needs them; leave --precision out \
-                             to run the GPU in f32)"
-                        );
-                        return finish(Box::new(CpuBackend::new(threads)?));
-                    }
-                };
-                if precision == Precision::F32 && !facts.f64 {
-                    eprintln!(
-                        "pidm: {adapter} has no 64-bit floats in shaders; running the GPU in f32 \
-                         (self-tested against the CPU; on random scenes within 0.005 um + 1 % \
-                         of the CPU's f64 step on all but about 1 instance in 18,000: \
-                         results/gpu.md; --backend cpu runs f64)"
-                    );
-                }
-                match GpuBackend::new(ctx, precision) {
-                    Ok(gpu) => {
-                        eprintln!("pidm: {}", gpu.readiness());
-                        Box::new(gpu)
-                    }
-                    Err(err) => {
-                        eprintln!(
-                            "pidm: the GPU path cannot run on {adapter}, using the CPU path \
-                             ({err:#})"
-                        );
-                        Box::new(CpuBackend::new(threads)?)
-                    }
-                }
-            }
-            Err(err @ crate::gpu::GpuError::OnlySoftware { .. }) => {
-                eprintln!("pidm: {err}: using the CPU path (--backend gpu runs lavapipe anyway)");
-                Box::new(CpuBackend::new(threads)?)
-            }
-            Err(err) => {
-                eprintln!("pidm: no hardware GPU adapter, using the CPU path ({err})");
-                Box::new(CpuBackend::new(threads)?)
-            }
-        },
+        Plan::Cpu(estimate) => {
+            eprintln!("pidm: {}", estimate.say("a GPU", false));
+            return cpu(Some(cpu_threads));
+        }
+        Plan::LookForGpu(estimate) => estimate,
     };
-    finish(backend)
+    // What auto weighed before looking, said too where no GPU is found.
+    let weighed = estimate.as_ref().map_or(String::new(), |e| {
+        format!("auto: {}; but ", e.weighed("a GPU"))
+    });
+    let ctx = match GpuContext::new(false) {
+        Ok(ctx) => ctx,
+        Err(err @ crate::gpu::GpuError::OnlySoftware { .. }) => {
+            eprintln!(
+                "pidm: {weighed}{err}: using the CPU path (--backend gpu runs lavapipe anyway)"
+            );
+            return cpu(threads);
+        }
+        Err(err) => {
+            eprintln!("pidm: {weighed}no hardware GPU adapter, using the CPU path ({err})");
+            return cpu(threads);
+        }
+    };
+    let adapter = ctx.describe();
+    let facts = AdapterFacts {
+        f64: ctx.supports_f64(),
+    };
+    let precision = match auto_choice(facts, precision) {
+        AutoChoice::Gpu(p) => p,
+        AutoChoice::Cpu => {
+            eprintln!(
+                "pidm: {adapter} has no 64-bit floats in shaders; using the CPU path in f64 \
+                 (--precision f64 needs them; leave --precision out to run the GPU in f32)"
+            );
+            // Closing a device costs NVIDIA's driver 0.03-0.05 s; the
+            // operating system frees it at exit either way.
+            std::mem::forget(ctx);
+            return cpu(threads);
+        }
+    };
+    // The adapter's own costs, with the device open already.
+    if let Some(estimate) = &estimate {
+        let book = book.unwrap_or_else(cost_book::load);
+        let estimate = Estimate {
+            cpu: estimate.cpu.clone(),
+            gpu: book.costs(&adapter, precision),
+        };
+        eprintln!("pidm: {}", estimate.say(&adapter, true));
+        if estimate.cpu_wins(true) {
+            std::mem::forget(ctx);
+            return cpu(Some(estimate.cpu.threads));
+        }
+    }
+    if precision == Precision::F32 && !facts.f64 {
+        eprintln!(
+            "pidm: {adapter} has no 64-bit floats in shaders; running the GPU in f32 \
+             (self-tested against the CPU; on random scenes within 0.005 um + 1 % \
+             of the CPU's f64 step on all but about 1 instance in 18,000: \
+             results/gpu.md; --backend cpu runs f64)"
+        );
+    }
+    match GpuBackend::new(ctx, precision) {
+        Ok(gpu) => {
+            eprintln!("pidm: {}", gpu.readiness());
+            let measure = measure_of(&gpu, estimate.map(|e| e.cpu.core_s));
+            finish(Box::new(gpu), measure)
+        }
+        Err(err) => {
+            eprintln!("pidm: the GPU path cannot run on {adapter}, using the CPU path ({err:#})");
+            cpu(threads)
+        }
+    }
 }
 
 /// Says which backend runs, in one line on stderr.
-fn finish(backend: Box<dyn Backend>) -> Result<Box<dyn Backend>> {
+fn finish(backend: Box<dyn Backend>, measure: Option<Measure>) -> Result<Selected> {
     eprintln!(
         "pidm: backend {} ({})",
         backend.describe(),
         backend.precision()
     );
-    Ok(backend)
+    Ok(Selected { backend, measure })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// One row: integrations, CPU threads, whether auto stays on the CPU.
-    fn check(integrations: u64, threads: usize, cpu: bool) {
-        assert_eq!(
-            too_few_for_gpu(integrations, threads),
-            cpu,
-            "{integrations} integrations on {threads} threads"
-        );
-    }
 
     /// One row: whether the adapter has f64, the precision asked for, what
     /// auto runs.
@@ -228,22 +350,5 @@ mod tests {
         choose(true, Some(F32), Gpu(F32));
         choose(false, Some(F64), Cpu);
         choose(true, Some(F64), Gpu(F64));
-    }
-
-    #[test]
-    fn auto_leaves_small_runs_to_the_cpu() {
-        // sweeps/paper.toml: 12 integrations.
-        check(12, 16, true);
-        check(12, 2, true);
-        check(0, 1, true);
-        // The threshold itself opens the GPU.
-        check(4095, 16, true);
-        check(4096, 16, false);
-        check(512, 2, false);
-        // A 200 x 200 map.
-        check(40_000, 16, false);
-        // A thread count of zero counts as one.
-        check(255, 0, true);
-        check(256, 0, false);
     }
 }

@@ -6,6 +6,7 @@ use std::path::Path;
 use anyhow::Result;
 
 use super::format::{human_duration, plural};
+use crate::backend::cost::Plan;
 use crate::estimate::NOMINAL_SIMULATED_PER_CORE;
 use crate::model::{AXES, Measure};
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
@@ -38,6 +39,10 @@ pub struct CheckReport {
     pub upper_bound: bool,
     /// What the probe measured.
     pub probe: crate::estimate::Probe,
+    /// What `--backend auto` would do on `cores` threads, from the same
+    /// probe ([`crate::backend::cost::plan`]): the CPU path unweighed (too
+    /// few integrations), the CPU path, or a hardware GPU where one opens.
+    pub auto: Plan,
 }
 
 /// Sizes up a scene and estimates its cost with a short probe (see
@@ -73,18 +78,17 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let (integrations, probe) = crate::estimate::probe(scene, cores);
     let core_seconds = probe.mean_core_s * integrations as f64;
-    // The run spreads its integrations over the cores the probe had (fewer
-    // than the machine's where other work shares it), and cannot spread
-    // fewer integrations than cores over them all.
-    let spread = (integrations as f64).clamp(1.0, probe.parallelism);
-    // A probe of every integration, each to its end, was the run itself.
-    let whole = probe.integrations as u64 == integrations && probe.scaled + probe.cut == 0;
-    let sweep_s = if whole {
-        probe.wall_s
-    } else {
-        core_seconds / spread
-    };
+    let sweep_s = crate::estimate::cpu_sweep_s(integrations, &probe);
     let trajectories_s = crate::estimate::trajectories_s(scene, &probe);
+    // auto's plan from this probe (it probes fewer integrations itself).
+    let auto = crate::backend::cost::plan(
+        integrations,
+        cores,
+        cores,
+        None,
+        || crate::backend::cost_book::load().known(None),
+        |_| probe.clone(),
+    );
     let estimate_s = sweep_s + trajectories_s + crate::estimate::RUN_OVERHEAD_S;
     CheckReport {
         instances: count,
@@ -97,6 +101,7 @@ pub fn check_report(scene: &Scene) -> CheckReport {
         trajectories_s,
         upper_bound: probe.scaled + probe.cut > 0,
         probe,
+        auto,
     }
 }
 
@@ -122,6 +127,7 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
         trajectories_s,
         upper_bound,
         ref probe,
+        ref auto,
     } = report;
     let steady = matches!(scene.instance(0).measure, Measure::Steady { .. });
     println!(
@@ -157,7 +163,50 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
         human_duration(crate::estimate::RUN_OVERHEAD_S)
     );
     println!("  {}", probe_note(probe));
+    println!("--backend auto: {}", auto_note(auto));
     Ok(())
+}
+
+/// What `--backend auto` would do, in one sentence.
+fn auto_note(plan: &Plan) -> String {
+    match plan {
+        Plan::TooFew {
+            integrations,
+            threads,
+        } => format!(
+            "the CPU path ({integrations} {} too few for a GPU to beat {threads} CPU {}; it \
+             needs {} or more)",
+            plural(*integrations, "integration is", "integrations are"),
+            plural(*threads as u64, "thread", "threads"),
+            crate::backend::cost::min_integrations(*threads)
+        ),
+        Plan::Cpu(estimate) => format!("the CPU path: {}", estimate.weighed("a GPU")),
+        Plan::LookForGpu(Some(estimate)) => format!(
+            "a hardware GPU where one opens (weighing its own measured costs), else the CPU \
+             path: {}",
+            estimate.weighed("a GPU")
+        ),
+        Plan::LookForGpu(None) => "a hardware GPU where one opens, else the CPU path".into(),
+    }
+}
+
+/// `pidm check --json`'s `auto`: what `--backend auto` would do and the
+/// estimates it weighed [s].
+fn auto_json(plan: &Plan) -> serde_json::Value {
+    use serde_json::json;
+    match plan {
+        Plan::TooFew { .. } => json!({ "backend": "cpu", "weighed": false }),
+        Plan::Cpu(e) | Plan::LookForGpu(Some(e)) => json!({
+            "backend": if matches!(plan, Plan::Cpu(_)) { "cpu" } else { "gpu" },
+            "weighed": true,
+            "cpu_s": e.cpu.seconds,
+            "gpu_fixed_s": e.gpu.fixed_s(),
+            "gpu_work_s": e.gpu_work_s(),
+            "gpu_cores": e.gpu.cores,
+            "gpu_costs": e.gpu.source(),
+        }),
+        Plan::LookForGpu(None) => json!({ "backend": "gpu", "weighed": false }),
+    }
 }
 
 /// How the estimate was made, in one sentence.
@@ -205,7 +254,12 @@ fn probe_note(probe: &crate::estimate::Probe) -> String {
 /// (`probe`: integrations, scaled, cut, mean_periods, mean_core_s,
 /// wall_s); `estimate_is_upper_bound` where a probed steady integration
 /// was charged up to its `max_cycles`. `nominal_simulated_per_core_s` is
-/// the rate charged to a probed integration that was cut off.
+/// the rate charged to a probed integration that was cut off. `auto` says
+/// what `--backend auto` would do on this machine's cores (`backend`:
+/// `"cpu"`, or `"gpu"` where a hardware one opens) and, where it `weighed`
+/// the run's cost, its estimates: `cpu_s`, `gpu_fixed_s`, `gpu_work_s`,
+/// `gpu_cores` (the GPU's throughput in CPU cores) and `gpu_costs` (where
+/// the GPU's figures come from).
 pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
     use serde_json::json;
     let (layout, axes, labels) = match &scene.layout {
@@ -257,5 +311,6 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
             "parallelism": probe.parallelism,
         },
         "nominal_simulated_per_core_s": NOMINAL_SIMULATED_PER_CORE,
+        "auto": auto_json(&report.auto),
     })
 }

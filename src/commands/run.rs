@@ -8,7 +8,7 @@ use anyhow::{Result, bail};
 
 use super::format::plural;
 use super::summary::print_summary;
-use crate::backend::{BackendChoice, Hardware, Precision, select_backend};
+use crate::backend::{BackendChoice, Hardware, Precision, Workload, select_backend};
 use crate::cpu::integrate::STATUS_OK;
 use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
 use crate::model::Instance;
@@ -43,10 +43,10 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         opts.backend,
         opts.precision,
         opts.threads,
-        integrations_for_choice(&scene, opts.scope),
+        &workload(&scene, opts.scope),
     )?;
     drop(selecting);
-    let backend = selected.as_ref();
+    let backend = selected.backend();
     let out = match (&opts.out, opts.scope.shard) {
         (Some(out), _) => out.clone(),
         (None, Some(shard)) => shard.default_output(&scene.name),
@@ -81,7 +81,13 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
     }
     let result = run_scene(&scene, backend, &out, opts.table_limit, opts.scope)?;
     crate::profile::time(crate::profile::Phase::Finish, || {
-        print_summary(&scene, &result)
+        print_summary(&scene, &result);
+        // A hardware GPU's measured costs, for later `--backend auto` runs;
+        // its throughput only where the integrations were the ones auto
+        // estimated: all of them, in one pass.
+        let as_estimated =
+            result.from_checkpoint == 0 && result.refine.is_none() && result.stall.is_none();
+        selected.record(as_estimated.then_some(result.summary.integration_s));
     });
     if crate::profile::enabled() {
         eprint!("{}", crate::profile::table());
@@ -102,17 +108,28 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
 /// choosing a backend; larger runs count as their instances.
 const COUNTED_RUN: u64 = 1 << 16;
 
-/// The integrations a run computes, for `--backend auto`'s choice: small
-/// runs are counted exactly (repeated instances and shared baselines once),
-/// larger ones and shards by their instances, an upper bound.
-fn integrations_for_choice(scene: &Scene, scope: RunScope) -> u64 {
+/// What `--backend auto` weighs a run by: its distinct integrations (small
+/// runs counted exactly, repeated instances and shared baselines once;
+/// larger ones and shards by their instances, an upper bound), and the
+/// integrations its probe picks from (those, or a sample of the scene's).
+fn workload(scene: &Scene, scope: RunScope) -> Workload {
     let count = match scope.shard {
         Some(shard) => ShardInfo::new(shard, scene.instance_count()).len(),
         None => scene.instance_count(),
     };
     if scope.shard.is_some() || count > COUNTED_RUN {
-        return count;
+        let (_, candidates) = crate::estimate::integrations(scene);
+        return Workload {
+            integrations: count,
+            candidates,
+            settings: scene.settings,
+        };
     }
     let instances: Vec<Instance> = (0..count).map(|i| scene.instance(i)).collect();
-    crate::sweep::distinct_integrations(&instances, scene.baselines).len() as u64
+    let candidates = crate::sweep::distinct_integrations(&instances, scene.baselines);
+    Workload {
+        integrations: candidates.len() as u64,
+        candidates,
+        settings: scene.settings,
+    }
 }

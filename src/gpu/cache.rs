@@ -14,6 +14,8 @@ use std::path::{Path, PathBuf};
 pub struct DiskCache {
     cache: wgpu::PipelineCache,
     path: PathBuf,
+    /// The cache was filled from its file (else it starts empty).
+    loaded: bool,
 }
 
 /// The folder pipeline caches are kept in, or `None` when disabled or no
@@ -50,7 +52,11 @@ impl DiskCache {
                 fallback: true,
             })
         };
-        Some(DiskCache { cache, path })
+        Some(DiskCache {
+            cache,
+            path,
+            loaded: data.is_some(),
+        })
     }
 
     pub fn cache(&self) -> &wgpu::PipelineCache {
@@ -59,6 +65,13 @@ impl DiskCache {
 
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// Whether the cache was filled from its file: the driver then takes
+    /// the pipelines it holds from there (unless the file is stale or
+    /// foreign) instead of compiling them.
+    pub fn loaded(&self) -> bool {
+        self.loaded
     }
 
     /// Writes the cache to its file (to a temporary name, then renamed).

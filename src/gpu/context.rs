@@ -213,6 +213,14 @@ impl GpuContext {
         self.f64
     }
 
+    /// Whether creating a pipeline took it from pidm's cache file rather
+    /// than compiling it (true also where there is no pipeline cache, so
+    /// that every run compiles): a run's preparation then measures what
+    /// later runs pay.
+    pub fn pipeline_from_cache(&self) -> bool {
+        self.cache.as_ref().is_none_or(|c| c.loaded())
+    }
+
     /// Where compiled pipelines are kept between runs, if anywhere.
     pub fn pipeline_cache_path(&self) -> Option<&std::path::Path> {
         self.cache.as_ref().map(|c| c.path())

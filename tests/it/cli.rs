@@ -100,16 +100,16 @@ fn check_counts_each_distinct_baseline_once() {
     assert!(stdout.contains("simulated time: 2.2000e0 s"), "{stdout}");
 }
 
-/// `--backend auto` counts a run's distinct integrations before it looks
-/// for a GPU: the coupling map's 3,721 instances hold their own baselines
+/// `--backend auto` counts a run's distinct integrations before it weighs
+/// a GPU: the coupling map's 3,721 instances hold their own baselines
 /// (3,721 integrations, not 11,163), fewer than the 4,096 a GPU needs
-/// against 16 CPU threads, so the run stays on the CPU without opening a
-/// device; against 8 threads (2,048) it looks for one.
+/// against 64 CPU threads, so the run stays on the CPU without a probe or
+/// a device; against 8 threads (512) auto estimates the cost.
 #[test]
 fn auto_counts_distinct_integrations_and_leaves_small_runs_to_the_cpu() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("coupling.h5");
-    for (threads, too_few) in [("16", true), ("8", false)] {
+    for (threads, too_few) in [("64", true), ("8", false)] {
         let run = pidm(
             &[
                 "run",
@@ -123,7 +123,7 @@ fn auto_counts_distinct_integrations_and_leaves_small_runs_to_the_cpu() {
         );
         let stderr = String::from_utf8_lossy(&run.stderr);
         assert!(run.status.success(), "{stderr}");
-        let notice = "pidm: 3721 integrations are too few for a GPU to beat 16 CPU threads \
+        let notice = "pidm: 3721 integrations are too few for a GPU to beat 64 CPU threads \
                       (it needs 4096 or more); using the CPU path";
         assert_eq!(
             stderr.contains(notice),
@@ -135,7 +135,48 @@ fn auto_counts_distinct_integrations_and_leaves_small_runs_to_the_cpu() {
             too_few,
             "{threads} threads: {stderr}"
         );
+        assert_eq!(
+            stderr.contains("pidm: auto: estimated "),
+            !too_few,
+            "{threads} threads: {stderr}"
+        );
     }
+}
+
+/// `--backend auto` on a run above the floor says what it estimated and
+/// which path it took: a 20 x 20 coupling map (400 integrations) on 2
+/// threads takes milliseconds on the CPU against a GPU's fixed costs of
+/// tenths of a second, so it stays there without opening a device; were
+/// the estimate otherwise, the only adapter in CI is lavapipe, which auto
+/// refuses. Either way the CPU runs it and the line says why.
+#[test]
+fn auto_says_its_estimate_and_runs_a_small_map_on_the_cpu() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = std::fs::read_to_string(manifest("sweeps/coupling.toml"))
+        .unwrap()
+        .replace("steps = 61", "steps = 20");
+    std::fs::write(dir.path().join("c20.toml"), scene).unwrap();
+    let run = pidm(
+        &["run", "c20.toml", "--threads", "2", "--out", "c20.h5"],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{stderr}");
+    let line = stderr
+        .lines()
+        .find(|l| l.starts_with("pidm: auto: estimated "))
+        .unwrap_or_else(|| panic!("no estimate: {stderr}"));
+    assert!(line.contains(" on 2 CPU threads against "), "{line}");
+    assert!(line.contains("using the CPU path"), "{line}");
+    assert!(
+        stderr.contains("pidm: backend cpu (rayon, 2 threads) (f64)"),
+        "{stderr}"
+    );
+    // `pidm check` says what auto would do, from its own probe.
+    let check = pidm(&["check", "c20.toml"], dir.path());
+    let stdout = String::from_utf8_lossy(&check.stdout);
+    assert!(check.status.success(), "{stdout}");
+    assert!(stdout.contains("--backend auto: "), "{stdout}");
 }
 
 #[test]
