@@ -50,15 +50,27 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
     let runs = std::fs::read_to_string(out.path().join("runs.log")).unwrap();
     for row in &rows {
         // Instances, then the CPU, GPU f64, GPU f32 and auto seconds.
+        // The two-frequency map's CPU time is its sample's, scaled: "(x4)".
         for cell in &row[1..6] {
-            assert!(cell.parse::<f64>().is_ok(), "{cell:?} in {row:?}\n{runs}");
+            let number = cell.trim_end_matches(" (x4)");
+            assert!(number.parse::<f64>().is_ok(), "{cell:?} in {row:?}\n{runs}");
         }
+        assert_eq!(
+            row[2].ends_with("(x4)"),
+            row[0].starts_with("two-frequency"),
+            "{row:?}"
+        );
         // The smoke scenes are small, and lavapipe is never auto's: it
         // runs them on the CPU.
         assert_eq!(row[6], "cpu", "{row:?}\n{runs}");
     }
     let phases = std::fs::read_to_string(out.path().join("phases.txt")).unwrap();
     assert!(phases.contains("pidm: GPU ready in "), "{phases}");
+    // Every GPU run's phase table.
+    assert!(
+        phases.matches("pidm: phase table (driver").count() >= 8,
+        "{phases}"
+    );
     assert!(
         phases.contains("== whole processes [s], mode smoke"),
         "{phases}"
