@@ -96,7 +96,7 @@ impl Phase {
     pub fn label(self) -> &'static str {
         match self {
             Phase::Start => "start (arguments, scene, claim)",
-            Phase::Backend => "backend (auto's probe, device, pipeline, self-test)",
+            Phase::Backend => "backend (probe, device, pipeline, self-test)",
             Phase::Open => "opening the output and checkpoint",
             Phase::Expand => "expanding instances into jobs",
             Phase::Wait => "integration not hidden (waited for)",
