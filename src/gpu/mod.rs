@@ -46,6 +46,7 @@
 //! `pidm info` reports), `context.rs` (the device, its health, the
 //! pipelines and their self-test), `options.rs` (a batch's knobs),
 //! `runner.rs` (a batch in time slices: buffers, dispatches, readback),
+//! `staging.rs` (a sweep chunk's size, coefficients packed ahead),
 //! `precision.rs` (each precision's side of a batch), `tail.rs` (what the
 //! CPU takes over), `readback.rs` (which accumulators come back),
 //! `layout.rs` (the structs shared with WGSL), `shader.rs` (the WGSL
@@ -61,6 +62,7 @@ mod precision;
 pub mod readback;
 mod runner;
 pub mod shader;
+mod staging;
 mod tail;
 
 pub use adapters::{
@@ -69,9 +71,10 @@ pub use adapters::{
 pub use context::{GpuContext, Preparation, create_pipeline};
 pub use options::{BatchOptions, CPU_TAIL_MIN_BATCH, CPU_TAIL_PER_THREAD, F32Check};
 pub use runner::{
-    Packed, chunk_instances, dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after,
-    max_batch_instances, pack, run_batch, run_batch_packed, run_batch_with,
+    dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, max_batch_instances,
+    run_batch, run_batch_packed, run_batch_with,
 };
+pub use staging::{Packed, chunk_instances, pack};
 // The module's other items, for its files (`use super::*`).
 use adapters::*;
 use options::*;

@@ -33,6 +33,10 @@ pub const VERIFY_TIGHTENING: f64 = 100.0;
 /// 2,000 on a 1000 x 1000 map).
 const MAX_REMEMBERED_BASELINES: usize = 1 << 20;
 
+/// Where a sweep's finished chunks go, `sink(first_index, records)`: the
+/// HDF5 writer and the checkpoint, on the pipeline's writer thread.
+pub type Sink<'a> = dyn FnMut(u64, &[Record]) -> Result<()> + Send + 'a;
+
 /// Marks `outcome` unconverged when its tighter rerun `check` finished and
 /// moved a step by more than the allowance. A check that did not finish
 /// (a tighter tolerance can underflow, status 3) leaves the outcome as it
@@ -126,7 +130,7 @@ pub fn run(
     backend: &dyn Backend,
     chunk: usize,
     progress: &(dyn Fn(u64) + Sync),
-    sink: &mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send),
+    sink: &mut Sink,
 ) -> Result<Summary> {
     run_with_memo(
         plan,
@@ -146,7 +150,7 @@ pub fn run_with_memo(
     backend: &dyn Backend,
     chunk: usize,
     progress: &(dyn Fn(u64) + Sync),
-    sink: &mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send),
+    sink: &mut Sink,
     baselines_done: &mut BaselineMemo,
 ) -> Result<Summary> {
     run_chunks(
@@ -283,15 +287,12 @@ type Written = (Vec<Range<u64>>, Vec<Record>);
 /// Where finished chunks go: the sink itself, called on the driver thread
 /// (chunks one after another), or the writer thread's queue.
 enum Out<'a, 's> {
-    Direct(&'a mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send + 's)),
+    Direct(&'a mut Sink<'s>),
     Queue(&'a std::sync::mpsc::SyncSender<Written>),
 }
 
 /// Hands a chunk's records to the sink, segment by segment.
-fn write(
-    sink: &mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send + '_),
-    (segments, records): &Written,
-) -> Result<u64> {
+fn write(sink: &mut Sink<'_>, (segments, records): &Written) -> Result<u64> {
     let _span = profile::span(Phase::Write);
     let mut offset = 0;
     for segment in segments {
@@ -522,7 +523,7 @@ pub fn run_chunks(
     backend: &dyn Backend,
     chunk: usize,
     progress: &(dyn Fn(u64) + Sync),
-    sink: &mut (dyn FnMut(u64, &[Record]) -> Result<()> + Send),
+    sink: &mut Sink,
     baselines_done: &mut BaselineMemo,
     overlap: bool,
 ) -> Result<Summary> {

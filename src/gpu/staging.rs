@@ -1,0 +1,85 @@
+//! What a sweep prepares for the device ahead of a batch: its chunk size
+//! from the adapter's limits, and the batch's coefficients packed on the
+//! host ([`Packed`]) while the batch before it integrates.
+
+use super::*;
+
+/// Instances per sweep chunk on `ctx` in `precision`: the most one batch
+/// of steady instances may hold on the device ([`max_batch_instances`] of
+/// its limits), and at most one per lane ([`lanes`]): every lane is busy
+/// on a periodic map, and a map larger than the lanes is several chunks,
+/// so the device integrates one while the host writes the one before and
+/// expands the one after (`crate::sweep::run_chunks`).
+pub fn chunk_instances(ctx: &GpuContext, precision: Precision) -> usize {
+    fn of<L: Layout>(limits: &wgpu::Limits) -> usize {
+        let state = size_of::<L::State>().max(size_of::<L::Measure>());
+        max_batch_instances(
+            limits,
+            size_of::<L::Coefficients>(),
+            state,
+            &BatchOptions::default(),
+        )
+    }
+    let batch = match precision {
+        Precision::F32 => of::<Single>(&ctx.limits),
+        Precision::F64 => of::<Double>(&ctx.limits),
+    };
+    batch.min(lanes()).max(1)
+}
+
+/// The coefficients of a batch's instances, packed for the device ahead of
+/// its turn ([`pack`]): the sweep's driver packs chunk k+1 while the
+/// device integrates chunk k.
+pub struct Packed {
+    settings: Settings,
+    coefficients: PackedCoefficients,
+}
+
+/// Each precision's coefficients, as the device takes them.
+enum PackedCoefficients {
+    F32(Vec<<Single as Layout>::Coefficients>),
+    F64(Vec<<Double as Layout>::Coefficients>),
+}
+
+impl Packed {
+    /// The bytes to upload, where they were packed for `count` instances
+    /// in `precision` under `settings`.
+    pub(super) fn bytes_for(
+        &self,
+        count: usize,
+        precision: Precision,
+        settings: &Settings,
+    ) -> Option<&[u8]> {
+        if self.settings != *settings {
+            return None;
+        }
+        match (&self.coefficients, precision) {
+            (PackedCoefficients::F32(c), Precision::F32) if c.len() == count => {
+                Some(bytemuck::cast_slice(c))
+            }
+            (PackedCoefficients::F64(c), Precision::F64) if c.len() == count => {
+                Some(bytemuck::cast_slice(c))
+            }
+            _ => None,
+        }
+    }
+}
+
+/// Packs `instances`' coefficients for a batch in `precision` under
+/// `settings`, in parallel: what [`run_batch_packed`] would otherwise do
+/// first.
+pub fn pack(instances: &[Instance], settings: &Settings, precision: Precision) -> Packed {
+    fn of<L: Layout>(instances: &[Instance], settings: &Settings) -> Vec<L::Coefficients> {
+        instances
+            .par_iter()
+            .map(|inst| L::pack(inst, settings))
+            .collect()
+    }
+    Packed {
+        settings: *settings,
+        coefficients: match precision {
+            Precision::F32 => PackedCoefficients::F32(of::<Single>(instances, settings)),
+            Precision::F64 => PackedCoefficients::F64(of::<Double>(instances, settings)),
+        },
+    }
+}
