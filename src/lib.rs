@@ -16,6 +16,7 @@ pub mod model;
 pub mod motion;
 pub mod output;
 pub mod plot;
+pub mod probe;
 pub mod profile;
 pub mod progress;
 pub mod random;

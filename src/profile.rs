@@ -149,7 +149,10 @@ pub fn enable() {
 /// Whether the run prints its table: `--profile`, or `PIDM_GPU_PHASES` =
 /// 1.
 pub fn enabled() -> bool {
-    FORCED.load(Ordering::Relaxed) || crate::gpu::gpu_phases()
+    static ASKED: OnceLock<bool> = OnceLock::new();
+    FORCED.load(Ordering::Relaxed)
+        || *ASKED
+            .get_or_init(|| crate::knob::knob("PIDM_GPU_PHASES", 0u8, |n| *n <= 1, "0 or 1") == 1)
 }
 
 thread_local! {

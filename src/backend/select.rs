@@ -8,7 +8,6 @@ use super::{Backend, CpuBackend, GpuBackend, Precision, cost_book};
 use crate::cpu::integrate::Settings;
 use crate::gpu::GpuContext;
 use crate::model::Instance;
-use crate::scene::Scene;
 
 /// Which integrator runs a scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
@@ -67,21 +66,9 @@ pub struct Workload {
     /// The distinct integrations the run computes (an upper bound will do).
     pub integrations: u64,
     /// The integrations auto's probe picks from: the run's distinct
-    /// integrations, or a sample of them ([`crate::estimate::integrations`]).
+    /// integrations, or a sample of them (`crate::estimate::integrations`).
     pub candidates: Vec<Instance>,
     pub settings: Settings,
-}
-
-impl Workload {
-    /// A whole scene's integrations.
-    pub fn of_scene(scene: &Scene) -> Workload {
-        let (integrations, candidates) = crate::estimate::integrations(scene);
-        Workload {
-            integrations,
-            candidates,
-            settings: scene.settings,
-        }
-    }
 }
 
 /// The backend chosen, and what a finished run on a hardware GPU measures
@@ -222,7 +209,7 @@ fn auto(
             book = Some(loaded);
             known
         },
-        |k| crate::estimate::probe_instances(&work.candidates, &work.settings, cpu_threads, k),
+        |k| crate::probe::probe_instances(&work.candidates, &work.settings, cpu_threads, k),
     );
     let estimate = match plan {
         Plan::TooFew {

@@ -6,7 +6,7 @@ use std::path::Path;
 use anyhow::{Context, Result, bail};
 
 use super::scenes::load_scene;
-use crate::backend::{BackendChoice, Hardware, Workload, select_backend};
+use crate::backend::{BackendChoice, Hardware, select_backend};
 use crate::run::{RunScope, run_scene};
 use crate::sweep;
 
@@ -25,7 +25,7 @@ pub fn refine_study(
         bail!("{}: the scene has no [refine]", scene_path.display());
     };
     crate::run::install_interrupt_handler();
-    let selected = select_backend(choice, None, None, &Workload::of_scene(&scene))?;
+    let selected = select_backend(choice, None, None, &crate::estimate::workload(&scene))?;
     let backend = selected.backend();
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;

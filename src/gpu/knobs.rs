@@ -64,13 +64,6 @@ pub fn slice_iterations() -> u32 {
     })
 }
 
-/// Whether `pidm run` prints its phase table ([`crate::profile`]) on
-/// stderr: `PIDM_GPU_PHASES` = 1, as `--profile` does.
-pub fn gpu_phases() -> bool {
-    static PHASES: OnceLock<bool> = OnceLock::new();
-    *PHASES.get_or_init(|| knob("PIDM_GPU_PHASES", 0u8, |n| *n <= 1, "0 or 1") == 1)
-}
-
 /// How f32 batches check their heaviest runs: [`F32Check::Auto`], or
 /// `PIDM_F32_CHECK` = `auto`, `twins`, `reference` or `off` (for
 /// measuring the check's cost and what it catches; `off` leaves f32's

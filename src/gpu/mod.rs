@@ -82,8 +82,7 @@ use precision::*;
 use tail::*;
 
 pub use knobs::{
-    LANES, SLICE_ITERATIONS, WORKGROUP_SIZE, f32_check, gpu_phases, lanes, slice_iterations,
-    workgroup_size,
+    LANES, SLICE_ITERATIONS, WORKGROUP_SIZE, f32_check, lanes, slice_iterations, workgroup_size,
 };
 pub use shader::Variant;
 
