@@ -491,12 +491,7 @@ impl Driver<'_> {
                         .next()
                         .map(|s| prepare(plan, Some(backend), s, &known)))
                 })();
-                let waiting = profile::span(Phase::Wait);
-                let integrated = integrating
-                    .join()
-                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-                drop(waiting);
-                (integrated, driven)
+                (wait_for(integrating, Phase::Wait), driven)
             });
             next = driven?;
             self.finishing = Some((current, integrated?));
@@ -506,6 +501,15 @@ impl Driver<'_> {
         }
         Ok(())
     }
+}
+
+/// Joins a thread of the pipeline, timing the wait as `phase`; its panic
+/// goes on in this thread.
+fn wait_for<T>(thread: std::thread::ScopedJoinHandle<'_, T>, phase: Phase) -> T {
+    let _waiting = profile::span(phase);
+    thread
+        .join()
+        .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
 }
 
 /// The chunk loop. With `overlap` three threads share the work: the
@@ -556,12 +560,7 @@ pub fn run_chunks(
         });
         let driven = driver.drive(backend, chunk, true, &mut Out::Queue(&queue));
         drop(queue);
-        let waiting = profile::span(Phase::WaitWriter);
-        let wrote = writer
-            .join()
-            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        drop(waiting);
-        (driven, wrote)
+        (driven, wait_for(writer, Phase::WaitWriter))
     });
     match (driven, wrote) {
         // The writer's error is why the driver could not go on.
