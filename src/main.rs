@@ -64,8 +64,10 @@ enum Command {
         /// file, computing only the instances that are missing.
         #[arg(long)]
         resume: bool,
-        /// Instances per chunk: how often the run checkpoints [default: the
-        /// backend's choice, thousands of instances].
+        /// Instances per chunk: how often the run checkpoints, and what the
+        /// pipeline overlaps [default: the backend's choice: 4,096 or 256
+        /// per thread on the CPU, one device batch of at most 262,144 on
+        /// the GPU].
         #[arg(long)]
         chunk_size: Option<usize>,
         /// Rerun every instance with a 100 times tighter tolerance and mark
