@@ -196,6 +196,11 @@ enum Command {
         /// Leading periods discarded.
         #[arg(long, default_value_t = 1)]
         settle: u32,
+        /// Write the scene as a `[random]` table (seed and count, a few
+        /// lines) instead of one `[[points]]` entry per instance (about 680
+        /// bytes each): the same instances, bit for bit.
+        #[arg(long)]
+        compact: bool,
     },
     /// Measures simulated seconds per wall second per core on a scene.
     Bench {
@@ -348,7 +353,15 @@ fn run(cli: Cli) -> Result<ExitCode> {
             count,
             cycles,
             settle,
-        } => print!("{}", commands::random_scene(seed, count, cycles, settle)?),
+            compact,
+        } => print!(
+            "{}",
+            if compact {
+                commands::random_scene_compact(seed, count, cycles, settle)?
+            } else {
+                commands::random_scene(seed, count, cycles, settle)?
+            }
+        ),
         Command::Bench { scene, seconds } => commands::bench(scene.as_deref(), seconds)?,
     }
     Ok(ExitCode::SUCCESS)

@@ -51,6 +51,23 @@ pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> Result
     Ok(toml)
 }
 
+/// [`random_scene`]'s instances as a `[random]` table: the same scene in a
+/// few lines, whatever the count.
+pub fn random_scene_compact(seed: u64, count: usize, cycles: u32, settle: u32) -> Result<String> {
+    if count == 0 {
+        bail!("random-scene --count 0: expected at least 1 instance");
+    }
+    let toml = format!(
+        "# {count} seeded random 2-DOF instances (seed {seed}): written by\n\
+         # `pidm random-scene --seed {seed} --count {count} --cycles {cycles} --settle {settle} \
+         --compact`.\n\
+         name = \"random\"\n\n[simulation]\nmeasure = \"window\"\ncycles = {cycles}\n\
+         settle = {settle}\n\n[random]\nseed = {seed}\ncount = {count}\n"
+    );
+    Scene::from_toml(&toml, None).context("random-scene: the flags do not make a valid scene")?;
+    Ok(toml)
+}
+
 /// A TOML inline table of named values, each written so that it reads back
 /// bit for bit.
 fn inline_table(entries: &[(&str, f64)]) -> String {

@@ -111,6 +111,29 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
         driven: [false; AXES],
     };
 
+    if let Some(spec) = &parsed.random {
+        let beside = [
+            (parsed.points.is_some(), "[[points]]"),
+            (parsed.refine.is_some(), "[refine]"),
+            (parsed.stall.is_some(), "[stall]"),
+        ];
+        random_points(
+            &parser,
+            spec,
+            beside,
+            parsed.measure,
+            base,
+            (&plan, &raw),
+            &mut scene,
+        )?;
+        scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
+        scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
+        for (a, driven) in scene.driven.iter_mut().enumerate() {
+            *driven = scene.points.iter().any(|p| p.axes[a].is_driven());
+        }
+        return Ok(scene);
+    }
+
     if let Some(points) = parsed.points {
         if let Some(spec) = &parsed.refine {
             return Err(parser.invalid(
@@ -278,4 +301,58 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     scene.layout = Layout::Grid { axes };
     scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
     Ok(scene)
+}
+
+/// A `[random]` scene's instances as points: `count` random instances from
+/// `seed` (`crate::random`, as `pidm random-scene` writes them), measured
+/// over the window of the scene's `[simulation]`; labelled "random K" as
+/// that command labels them. Refuses what does not apply beside
+/// `[random]`: points, refinement, stall searches, a steady measurement
+/// and any mechanism or axis key.
+fn random_points(
+    parser: &Parser,
+    spec: &super::random::RandomSpec,
+    beside: [(bool, &str); 3],
+    measure: Option<super::keys::Mode>,
+    base: &Layer,
+    (plan, raw): (&Plan, &[f64; SLOTS]),
+    scene: &mut Scene,
+) -> Result<(), SceneError> {
+    let refuse = |what: &str| {
+        Err(parser.invalid(
+            spec.span.clone(),
+            format!(
+                "random: a scene with [random] lists its own instances, so it cannot have \
+                 {what}; expected [random] with [simulation] (measure = \"window\", cycles, \
+                 settle), [output] and a name only"
+            ),
+        ))
+    };
+    if let Some((_, what)) = beside.iter().find(|(given, _)| *given) {
+        return refuse(what);
+    }
+    if measure != Some(super::keys::Mode::Window) {
+        return Err(parser.invalid(
+            spec.span.clone(),
+            "random: random instances are measured over a fixed window, as `pidm \
+             random-scene` writes them; expected [simulation] measure = \"window\" (with \
+             cycles and settle)",
+        ));
+    }
+    parser.check_random_keys(base)?;
+    // The window: the base instance's cycles and settle.
+    let base = plan.resolve(raw);
+    check_instance(&base, plan).map_err(|(message, _)| SceneError::Invalid {
+        message,
+        location: None,
+    })?;
+    let count = spec.count as usize;
+    scene.points = crate::random::random_instances(spec.seed, count, base.cycles, base.settle);
+    scene.point_keys = (0..count)
+        .map(|k| format!("random instance {k} of seed {}", spec.seed))
+        .collect();
+    scene.layout = Layout::Points {
+        labels: (0..count).map(|k| format!("random {k}")).collect(),
+    };
+    Ok(())
 }

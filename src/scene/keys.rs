@@ -287,7 +287,7 @@ pub(super) fn slot_path(slot: usize) -> String {
 pub(super) const PHASE_UNITS_KEY: &str = "phase_units";
 
 /// Keys of the document root.
-pub(super) const ROOT_KEYS: [&str; 10] = [
+pub(super) const ROOT_KEYS: [&str; 11] = [
     "name",
     "description",
     PHASE_UNITS_KEY,
@@ -298,7 +298,11 @@ pub(super) const ROOT_KEYS: [&str; 10] = [
     "points",
     "refine",
     "stall",
+    "random",
 ];
+
+/// Keys of `[random]`.
+pub(super) const RANDOM_KEYS: [&str; 2] = ["seed", "count"];
 
 /// Keys of `[refine]`.
 pub(super) const REFINE_KEYS: [&str; 2] = ["levels", "tolerance"];

@@ -104,6 +104,7 @@ mod name;
 mod numbers;
 mod parser;
 mod plan;
+mod random;
 mod refine;
 mod rules;
 mod stall;

@@ -48,6 +48,8 @@ pub(super) struct Parsed {
     pub(super) refine: Option<RefineSpec>,
     /// `[stall]`, when given.
     pub(super) stall: Option<Stall>,
+    /// `[random]`, when given.
+    pub(super) random: Option<super::random::RandomSpec>,
 }
 
 /// Whether keys are read for the base scene or for one point.
@@ -206,6 +208,7 @@ impl Parser<'_> {
                 "points" => parsed.points = Some(self.points(value)?),
                 "refine" => parsed.refine = Some(self.refine(value)?),
                 "stall" => parsed.stall = Some(self.stall(value)?),
+                "random" => parsed.random = Some(self.random(value)?),
                 _ => return Err(self.unknown_key(key, "", &ROOT_KEYS)),
             }
         }

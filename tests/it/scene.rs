@@ -1843,3 +1843,73 @@ fn stall_scenes_are_checked() {
     );
     assert!(parse("name = \"plain\"").stall.is_none());
 }
+
+/// `[random]` lists the instances `pidm random-scene` writes as points, bit
+/// for bit, labels included.
+#[test]
+fn a_random_table_lists_the_instances_random_scene_writes_as_points() {
+    use pidm::commands::{random_scene, random_scene_compact};
+    for (seed, count, cycles, settle) in [(7, 300, 4, 1), (3, 40, 10, 3), (0, 1, 2, 1)] {
+        let points = parse(&random_scene(seed, count, cycles, settle).unwrap());
+        let table = random_scene_compact(seed, count, cycles, settle).unwrap();
+        assert!(table.len() < 400, "{table}");
+        let compact = parse(&table);
+        assert_eq!(compact.instance_count(), count as u64);
+        assert_eq!(compact.layout, points.layout, "labels of seed {seed}");
+        for i in 0..count as u64 {
+            assert_eq!(
+                format!("{:?}", compact.instance(i)),
+                format!("{:?}", points.instance(i)),
+                "seed {seed}, instance {i}"
+            );
+        }
+    }
+}
+
+/// What does not apply beside `[random]` is refused, naming the key.
+#[test]
+fn a_random_table_refuses_what_does_not_apply() {
+    let window = "name = \"r\"\n[simulation]\nmeasure = \"window\"\ncycles = 4\nsettle = 1\n";
+    let with = |extra: &str| format!("{window}{extra}");
+    check(
+        &with("[random]\nseed = 1\n"),
+        "random.count: missing; expected an integer",
+    );
+    check(
+        &with("[random]\nseed = -1\ncount = 3\n"),
+        "random.seed = -1: expected an integer from 0",
+    );
+    check(
+        &with("[random]\nseed = 1\ncount = 0\n"),
+        "random.count = 0: expected an integer from 1",
+    );
+    check(
+        &with("[random]\nseed = 1\ncount = 2.5\n"),
+        "random.count = 2.5",
+    );
+    check(
+        &with("[random]\nseed = 1\ncount = 3\nsize = 3\n"),
+        "unknown key `random.size`",
+    );
+    check(
+        &with("[axis.x]\nvoltage = 100.0\n[random]\nseed = 1\ncount = 3\n"),
+        "axis.x.voltage: a scene with [random] draws every mechanism and axis parameter",
+    );
+    check(
+        &with("[mechanism]\nslider_mass = 0.01\n[random]\nseed = 1\ncount = 3\n"),
+        "mechanism.slider_mass: a scene with [random] draws",
+    );
+    check(
+        &with("[random]\nseed = 1\ncount = 3\n[[points]]\nlabel = \"a\"\n"),
+        "cannot have [[points]]",
+    );
+    check(
+        "name = \"r\"\n[random]\nseed = 1\ncount = 3\n",
+        "expected [simulation] measure = \"window\"",
+    );
+    check(
+        "name = \"r\"\n[simulation]\nmeasure = \"window\"\ncycles = 2\nsettle = 2\n\
+         [random]\nseed = 1\ncount = 3\n",
+        "settle",
+    );
+}
