@@ -12,12 +12,10 @@ use std::path::Path;
 
 use super::error::SceneError;
 
-/// Largest scene file accepted [bytes]: 96 MiB, thousands of times the
-/// largest shipped scene, and room for a points scene of about 140,000
-/// random instances (`pidm random-scene` writes about 680 bytes each; the
-/// GPU benchmark, `results/gpu/bench.sh`, runs 100,000: 68 MB, which takes
-/// 4 s and 1.6 GB to read and check on the 2-core build machine).
-pub const MAX_SCENE_BYTES: u64 = 96 << 20;
+/// Largest scene file accepted [bytes]: 16 MiB, thousands of times the
+/// largest shipped scene, and room for a points scene of about 20,000
+/// random instances (`pidm random-scene` writes about 800 bytes each).
+pub const MAX_SCENE_BYTES: u64 = 16 << 20;
 
 /// Reads the scene file at `path` as text, refusing one larger than
 /// [`MAX_SCENE_BYTES`] or that is not UTF-8 text without NUL bytes.

@@ -1601,7 +1601,7 @@ fn scene_files_are_bounded_text() {
     let cases: Vec<(PathBuf, String)> = vec![
         (
             big.clone(),
-            format!("big.toml is larger than 96.0 MiB ({MAX_SCENE_BYTES} bytes)"),
+            format!("big.toml is larger than 16.0 MiB ({MAX_SCENE_BYTES} bytes)"),
         ),
         (
             write("nul.toml", b"name = \"a\"\0"),
@@ -1619,7 +1619,7 @@ fn scene_files_are_bounded_text() {
         // A device that never ends is cut at the bound, not read forever.
         cases.push((
             PathBuf::from("/dev/zero"),
-            "scene file /dev/zero is larger than 96.0 MiB".to_owned(),
+            "scene file /dev/zero is larger than 16.0 MiB".to_owned(),
         ));
         cases
     };
