@@ -14,7 +14,9 @@ use super::error::SceneError;
 
 /// Largest scene file accepted [bytes]: 16 MiB, thousands of times the
 /// largest shipped scene, and room for a points scene of about 20,000
-/// random instances (`pidm random-scene` writes about 800 bytes each).
+/// random instances (`pidm random-scene` writes about 680 bytes each;
+/// with `--compact` any number of them as a `[random]` table of a few
+/// lines).
 pub const MAX_SCENE_BYTES: u64 = 16 << 20;
 
 /// Reads the scene file at `path` as text, refusing one larger than
