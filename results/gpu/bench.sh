@@ -12,7 +12,8 @@
 # 8 x 8 two-frequency map of at most 20 periods):
 #   coupling200   sweeps/coupling.toml at steps = 200 (steady, with baselines)
 #   coupling1000  the same at steps = 1000
-#   random100k    pidm random-scene --seed 7 --count 100000 --cycles 4
+#   random100k    pidm random-scene --seed 7 --count 100000 --cycles 4 --compact
+#                 (the instances of the points scene, as a [random] table)
 #   twofreq128    a 128 x 128 map of both drive frequencies, 10.03-12.57 Hz by
 #                 14.11-17.93 Hz (non-round ratios) at 100 V, steady to the
 #                 phase-resolved estimate (hundreds to thousands of periods an
@@ -35,9 +36,8 @@
 # or is skipped for the budget shows as "failed", "timeout" or "skipped".
 #
 # Budget, estimated from the 2-core build machine (results/gpu.md, "The
-# device script"): about 5 minutes on the H100 machine, most of it the
-# two-frequency map's CPU run and the random scene's four (each process reads
-# the 68 MB scene, about 2-4 s).
+# device script"): about 3-5 minutes on the H100 machine, most of it the
+# random scene's CPU run and the two-frequency map's GPU runs.
 set -uo pipefail
 mode=${1:-full}
 case $mode in
@@ -86,7 +86,7 @@ sed -e "s/steps = 61/steps = $small/g" -e "s/^name = \"coupling\"/name = \"coupl
     "$root/sweeps/coupling.toml" > "$work/coupling200.toml"
 sed -e "s/steps = 61/steps = $big/g" -e "s/^name = \"coupling\"/name = \"coupling$big\"/" \
     "$root/sweeps/coupling.toml" > "$work/coupling1000.toml"
-"$pidm" random-scene --seed 7 --count "$count" --cycles 4 > "$work/random100k.toml"
+"$pidm" random-scene --seed 7 --count "$count" --cycles 4 --compact > "$work/random100k.toml"
 # The two-frequency map at n x n, named name.
 twofreq() {
     cat <<EOF
