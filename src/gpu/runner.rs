@@ -61,18 +61,7 @@ pub fn run_batch_packed(
     };
     let out = {
         let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-        let run = Runner {
-            device: &ctx.device,
-            queue: &ctx.queue,
-            pipeline: &pipeline,
-            limits: &ctx.limits,
-            settings,
-            options,
-        };
-        match precision {
-            Precision::F32 => run.all::<Single>(instances, packed, progress),
-            Precision::F64 => run.all::<Double>(instances, packed, progress),
-        }
+        Runner::on(ctx, &pipeline, settings, options).all_in(precision, instances, packed, progress)
     };
     // A lost device fails the batch's readback with a generic mapping
     // error; the device's own message says why.
@@ -100,15 +89,9 @@ pub(super) fn states_after<L: Layout>(
     };
     let states = {
         let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-        let run = Runner {
-            device: &ctx.device,
-            queue: &ctx.queue,
-            pipeline: &pipeline,
-            limits: &ctx.limits,
-            settings,
-            options: &options,
-        };
-        run.slices::<L>(instances, None, &mut |_| {}, Some(1))?.0
+        Runner::on(ctx, &pipeline, settings, &options)
+            .slices::<L>(instances, None, &mut |_| {}, Some(1))?
+            .0
     };
     ctx.check_health()?;
     Ok(states.iter().map(L::mirror).collect())
@@ -159,30 +142,7 @@ pub fn execute_gpu_inner(
         settings,
         options,
     };
-    match precision {
-        Precision::F32 => run.all::<Single>(instances, None, progress),
-        Precision::F64 => run.all::<Double>(instances, None, progress),
-    }
-}
-
-/// Largest number of instances one dispatch batch may hold on a device.
-pub fn max_batch_instances(
-    limits: &wgpu::Limits,
-    coefficients_size: usize,
-    state_size: usize,
-    options: &BatchOptions,
-) -> usize {
-    let binding = limits.max_storage_buffer_binding_size;
-    let buffer = limits.max_buffer_size;
-    let largest = coefficients_size.max(state_size) as u64;
-    let by_memory = binding.min(buffer) / largest;
-    let dim = limits.max_compute_workgroups_per_dimension as u64;
-    let by_dispatch = dim * dim * workgroup_size() as u64;
-    let mut n = by_memory.min(by_dispatch).min(usize::MAX as u64) as usize;
-    if let Some(m) = options.max_batch {
-        n = n.min(m);
-    }
-    n.max(1)
+    run.all_in(precision, instances, None, progress)
 }
 
 /// Workgroup counts (x, y) covering `n` instances within the per-dimension
@@ -204,7 +164,38 @@ pub(super) struct Runner<'a> {
     options: &'a BatchOptions,
 }
 
-impl Runner<'_> {
+impl<'a> Runner<'a> {
+    /// A runner on `ctx`'s device.
+    fn on(
+        ctx: &'a GpuContext,
+        pipeline: &'a wgpu::ComputePipeline,
+        settings: &'a Settings,
+        options: &'a BatchOptions,
+    ) -> Runner<'a> {
+        Runner {
+            device: &ctx.device,
+            queue: &ctx.queue,
+            pipeline,
+            limits: &ctx.limits,
+            settings,
+            options,
+        }
+    }
+
+    /// [`Self::all`] in `precision`.
+    fn all_in(
+        &self,
+        precision: Precision,
+        instances: &[Instance],
+        packed: Option<&[u8]>,
+        progress: &mut dyn FnMut(u64, u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        match precision {
+            Precision::F32 => self.all::<Single>(instances, packed, progress),
+            Precision::F64 => self.all::<Double>(instances, packed, progress),
+        }
+    }
+
     /// Runs all instances, batch by batch; `packed` holds their
     /// coefficients where they were packed ahead.
     fn all<L: Layout>(
@@ -769,22 +760,5 @@ mod tests {
             );
             assert!((x as usize) * (y as usize) * workgroup_size() as usize >= n);
         }
-    }
-
-    #[test]
-    fn batches_respect_binding_limits() {
-        let limits = wgpu::Limits {
-            max_storage_buffer_binding_size: 1000,
-            ..wgpu::Limits::default()
-        };
-        assert_eq!(
-            max_batch_instances(&limits, 100, 200, &BatchOptions::default()),
-            5
-        );
-        let small = BatchOptions {
-            max_batch: Some(3),
-            ..BatchOptions::default()
-        };
-        assert_eq!(max_batch_instances(&limits, 100, 200, &small), 3);
     }
 }

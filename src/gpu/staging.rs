@@ -1,8 +1,28 @@
-//! What a sweep prepares for the device ahead of a batch: its chunk size
-//! from the adapter's limits, and the batch's coefficients packed on the
+//! What a sweep prepares for the device ahead of a batch: batch and chunk
+//! sizes from the adapter's limits, and the batch's coefficients packed on the
 //! host ([`Packed`]) while the batch before it integrates.
 
 use super::*;
+
+/// Largest number of instances one dispatch batch may hold on a device.
+pub fn max_batch_instances(
+    limits: &wgpu::Limits,
+    coefficients_size: usize,
+    state_size: usize,
+    options: &BatchOptions,
+) -> usize {
+    let binding = limits.max_storage_buffer_binding_size;
+    let buffer = limits.max_buffer_size;
+    let largest = coefficients_size.max(state_size) as u64;
+    let by_memory = binding.min(buffer) / largest;
+    let dim = limits.max_compute_workgroups_per_dimension as u64;
+    let by_dispatch = dim * dim * workgroup_size() as u64;
+    let mut n = by_memory.min(by_dispatch).min(usize::MAX as u64) as usize;
+    if let Some(m) = options.max_batch {
+        n = n.min(m);
+    }
+    n.max(1)
+}
 
 /// Instances per sweep chunk on `ctx` in `precision`: the most one batch
 /// of steady instances may hold on the device ([`max_batch_instances`] of
@@ -81,5 +101,27 @@ pub fn pack(instances: &[Instance], settings: &Settings, precision: Precision) -
             Precision::F32 => PackedCoefficients::F32(of::<Single>(instances, settings)),
             Precision::F64 => PackedCoefficients::F64(of::<Double>(instances, settings)),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn batches_respect_binding_limits() {
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: 1000,
+            ..wgpu::Limits::default()
+        };
+        assert_eq!(
+            max_batch_instances(&limits, 100, 200, &BatchOptions::default()),
+            5
+        );
+        let small = BatchOptions {
+            max_batch: Some(3),
+            ..BatchOptions::default()
+        };
+        assert_eq!(max_batch_instances(&limits, 100, 200, &small), 3);
     }
 }

@@ -311,7 +311,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
 /// and any mechanism or axis key.
 fn random_points(
     parser: &Parser,
-    spec: &super::random::RandomSpec,
+    spec: &super::parser::RandomSpec,
     beside: [(bool, &str); 3],
     measure: Option<super::keys::Mode>,
     base: &Layer,

@@ -49,7 +49,7 @@ pub(super) struct Parsed {
     /// `[stall]`, when given.
     pub(super) stall: Option<Stall>,
     /// `[random]`, when given.
-    pub(super) random: Option<super::random::RandomSpec>,
+    pub(super) random: Option<RandomSpec>,
 }
 
 /// Whether keys are read for the base scene or for one point.
@@ -71,6 +71,15 @@ pub(super) struct Parser<'t> {
 pub(super) type Value<'a> = Spanned<DeValue<'a>>;
 /// A TOML key and where it is in the text.
 pub(super) type Key<'a> = Spanned<std::borrow::Cow<'a, str>>;
+
+/// `[random]` as read (`random.rs` reads it).
+#[derive(Clone, Debug)]
+pub(super) struct RandomSpec {
+    pub(super) seed: u64,
+    pub(super) count: u64,
+    /// Where the table is, for errors about the rest of the scene.
+    pub(super) span: Range<usize>,
+}
 
 impl Parser<'_> {
     /// The line and column of a byte offset.

@@ -6,12 +6,10 @@
 //! written scene bit for bit; their window is the scene's `[simulation]`
 //! `cycles` and `settle`.
 
-use std::ops::Range;
-
 use super::error::SceneError;
 use super::keys::{RANDOM_KEYS, SIMULATION_SLOTS, slot_path};
 use super::layer::Layer;
-use super::parser::{Parser, Value};
+use super::parser::{Parser, RandomSpec, Value};
 
 /// The most instances `[random] count` takes: a list held in memory (about
 /// 250 bytes an instance and its label).
@@ -20,15 +18,6 @@ pub const MAX_RANDOM_COUNT: u64 = 10_000_000;
 /// The largest `[random] seed`: every integer up to it is exact in the
 /// TOML reader's numbers.
 pub const MAX_RANDOM_SEED: u64 = 1 << 53;
-
-/// `[random]` as read.
-#[derive(Clone, Debug)]
-pub(super) struct RandomSpec {
-    pub(super) seed: u64,
-    pub(super) count: u64,
-    /// Where the table is, for errors about the rest of the scene.
-    pub(super) span: Range<usize>,
-}
 
 impl Parser<'_> {
     /// `[random]`: `seed` and `count`, both required integers.
