@@ -312,8 +312,6 @@ struct Driver<'p> {
     /// Instances handed to the sink so far.
     written: &'p AtomicU64,
     total: u64,
-    /// The chunk integrated last, still to finish.
-    finishing: Option<(Prepared, Integrated)>,
 }
 
 /// The error of a sweep stopped by an interrupt after `written` of
@@ -456,6 +454,8 @@ impl Driver<'_> {
             let memo = &*self.memo;
             prepare(plan, stage, s, &|inst, d| memo.get(inst, d).is_some())
         });
+        // The chunk integrated last, still to finish.
+        let mut finishing: Option<(Prepared, Integrated)> = None;
         while let Some(mut current) = next.take() {
             if interrupt_requested() {
                 return Err(self.interrupted());
@@ -474,7 +474,7 @@ impl Driver<'_> {
             }
             let pending = std::mem::take(&mut current.pending);
             let staged = std::mem::take(&mut current.staged);
-            let previous = self.finishing.take();
+            let previous = finishing.take();
             let (integrated, driven) = std::thread::scope(|scope| {
                 let integrating =
                     scope.spawn(|| integrate(plan, backend, &current, staged, progress));
@@ -494,9 +494,9 @@ impl Driver<'_> {
                 (wait_for(integrating, Phase::Wait), driven)
             });
             next = driven?;
-            self.finishing = Some((current, integrated?));
+            finishing = Some((current, integrated?));
         }
-        if let Some((chunk, integrated)) = self.finishing.take() {
+        if let Some((chunk, integrated)) = finishing.take() {
             self.finish(chunk, integrated, out)?;
         }
         Ok(())
@@ -540,7 +540,6 @@ pub fn run_chunks(
         summary: Summary::default(),
         written: &written,
         total,
-        finishing: None,
     };
     if !overlap {
         driver.drive(backend, chunk, false, &mut Out::Direct(sink))?;
