@@ -107,7 +107,8 @@ fn stop_time(c: Coefficients, st: State) -> Stop {
     return Stop(at, lo);
 }
 
-fn iterate(c: Coefficients, st: ptr<function, State>) {
+// Returns what the iteration did (ITERATION_*), for the lane's counts.
+fn iterate(c: Coefficients, st: ptr<function, State>) -> u32 {
     if (*st).period == c.settle && (*st).time == Real(0.0) && (*st).time_lo == Real(0.0) {
         (*st).settle_x_s = (*st).x_s;
     }
@@ -115,11 +116,11 @@ fn iterate(c: Coefficients, st: ptr<function, State>) {
     if time_reached(*st, stop.at, stop.lo) {
         pass_boundaries(c, st);
         if is_finished(c, *st) {
-            return;
+            return ITERATION_BOUNDARY;
         }
         stop = stop_time(c, *st);
         if time_reached(*st, stop.at, stop.lo) {
-            return;
+            return ITERATION_BOUNDARY;
         }
     }
     var h_max = (stop.at - (*st).time) - (*st).time_lo;
@@ -128,9 +129,10 @@ fn iterate(c: Coefficients, st: ptr<function, State>) {
     }
     let time_before = (*st).time;
     let time_lo_before = (*st).time_lo;
+    let stuck = (*st).mode == MODE_STICK;
     let outcome = step(c, st, h_max, stop.at, stop.lo);
     (*st).steps += 1u;
-    if outcome == STEP_MOVED || (*st).status != STATUS_OK {
+    if outcome != STEP_REJECTED || (*st).status != STATUS_OK {
         if (*st).time > time_before || ((*st).time == time_before && (*st).time_lo > time_lo_before) {
             (*st).stalled = 0u;
         } else {
@@ -145,6 +147,17 @@ fn iterate(c: Coefficients, st: ptr<function, State>) {
     } else if (*st).steps > c.budget {
         (*st).status = STATUS_STEP_BUDGET;
     }
+    return iteration_kind(outcome, stuck);
+}
+
+fn iteration_kind(outcome: u32, stuck: bool) -> u32 {
+    if outcome == STEP_REJECTED {
+        return ITERATION_REJECTED;
+    }
+    if outcome == STEP_LOCATED {
+        return ITERATION_EVENT;
+    }
+    return select(ITERATION_SLIP, ITERATION_STICK, stuck);
 }
 
 // `f64::is_finite`, with INFINITY standing for infinity.

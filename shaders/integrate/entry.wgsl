@@ -2,16 +2,25 @@
 // `pidm::cpu::integrate::advance`). Each invocation is a lane that works
 // through instances for at most `control.max_iterations` iterations per
 // dispatch, keeping the state of the instance in hand in registers and in
-// the `states` buffer between dispatches. A lane whose instance finishes
-// takes the next unstarted one from an atomic counter, so no lane of a warp
-// idles while a slow neighbour finishes.
+// the `states` buffer between dispatches. The first dispatch of a batch
+// starts every instance on a lane of its own (`control.initialize`), a
+// short probe of each one's cost; the host then queues the unfinished ones
+// in `order`, most expensive first, and a lane whose instance finishes
+// takes the next queued one from an atomic counter and continues it from
+// its state, so no lane of a warp idles while instances are left
+// (`pidm::gpu::runner`; the host packs the lanes still busy into fewer
+// workgroups once the queue is empty). Every lane reports what it did in
+// each dispatch in `tallies` (`pidm::gpu::warps`).
 
 // The lane holds no instance.
 const NO_INSTANCE: u32 = 0xffffffffu;
+// The tally's count of instances taken from the queue (after the kinds of
+// iteration, ITERATION_*).
+const TAKEN: u32 = 6u;
 
 // The work counters of a batch.
 struct Counters {
-    // The next instance no lane has taken yet.
+    // The next position of `order` no lane has taken yet.
     next: atomic<u32>,
     // Instances finished (normally or not).
     finished: atomic<u32>,
@@ -21,7 +30,7 @@ struct Counters {
 struct Control {
     // Iterations of `iterate` in this dispatch.
     max_iterations: u32,
-    // 1 when the states must first be set to `initial_state`.
+    // 1 when each lane's instance must first be set to `initial_state`.
     initialize: u32,
     // Always 1.0; see `move_to`.
     one: f32,
@@ -31,6 +40,22 @@ struct Control {
     probe_min: u32,
     // Always 0; see `loop_limiter_intact`.
     zero: u32,
+    // Entries of `order` a lane may take (0 in the first dispatch).
+    queued: u32,
+    _pad: u32,
+}
+
+// What a lane did in one dispatch (`pidm::gpu::layout::Tally`).
+struct Tally {
+    // Iterations by kind: boundary, stick, slip, rejected trial.
+    kinds: vec4<u32>,
+    // Event locations, period ends, instances taken from the queue, and the
+    // instance held at the end (NO_INSTANCE when none).
+    more: vec4<u32>,
+    // Scene periods the held instance has run, at the end.
+    progress: f32,
+    _pad: u32,
+    _pad_v: vec2<u32>,
 }
 
 @group(0) @binding(0) var<storage, read> coefficients: array<Coefficients>;
@@ -40,28 +65,29 @@ struct Control {
 // would unroll the loop-limiter probe and fold the opaque 1.0 away.
 @group(0) @binding(2) var<storage, read> control: Control;
 @group(0) @binding(3) var<storage, read_write> counters: Counters;
-// The instance each lane holds (the host starts lane k on instance k).
+// The instance each lane holds.
 @group(0) @binding(4) var<storage, read_write> lanes: array<u32>;
-// The steady measurement's accumulators per instance (measure.wgsl), read
-// and written only at the period ends of steady instances; a batch of
-// windows binds a single unused entry.
-@group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
+// The queue: the instances lanes take after the first dispatch, in order.
+@group(0) @binding(7) var<storage, read> order: array<u32>;
+// One per lane: what it did in the last dispatch.
+@group(0) @binding(8) var<storage, read_write> tallies: array<Tally>;
 
-// What the host reads of every finished steady measurement: all that the
-// reduction of a periodic or phase-resolved verdict reads
-// (`pidm::gpu::layout::*::Head`). The host copies the whole accumulators
-// of the others only.
-struct Head {
-    travel: V2,
-    se2: V2,
-    next_end: u32,
-    lag: u32,
-    verdict: u32,
-    span: u32,
+// Counts one iteration of `kind` (ITERATION_*, or TAKEN), without
+// indexing (a local array indexed at run time would live in memory).
+fn count_kind(tally: ptr<function, Tally>, kind: u32) {
+    let k = vec4<u32>(kind);
+    (*tally).kinds += select(vec4<u32>(0u), vec4<u32>(1u), k == vec4<u32>(0u, 1u, 2u, 3u));
+    (*tally).more += select(vec4<u32>(0u), vec4<u32>(1u), k == vec4<u32>(4u, 5u, 6u, 7u));
 }
-// One per instance where any instance is steady, written when a steady
-// instance finishes; a batch of windows binds a single unused entry.
-@group(0) @binding(6) var<storage, read_write> heads: array<Head>;
+
+// Starts (`initialize`) or loads instance `index`.
+fn take(c: Coefficients, index: u32, initialize: bool) -> State {
+    if !initialize {
+        return states[index];
+    }
+    start_measure(c, index);
+    return initial_state(c);
+}
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn advance_slice(
@@ -72,72 +98,48 @@ fn advance_slice(
     if lane >= arrayLength(&lanes) {
         return;
     }
+    var tally: Tally;
     let count = min(arrayLength(&states), arrayLength(&coefficients));
     var index = lanes[lane];
     if index >= count {
+        tally.more.w = NO_INSTANCE;
+        tallies[lane] = tally;
         return;
     }
     var c = coefficients[index];
-    var st: State;
-    if control.initialize == 1u {
-        st = initial_state(c);
-        if c.steady == 1u {
-            measures[index] = initial_measure(c);
-        }
-    } else {
-        st = states[index];
-    }
+    var st = take(c, index, control.initialize == 1u);
     var left = control.max_iterations;
     loop {
         if is_finished(c, st) {
             states[index] = st;
-            if c.steady == 1u {
-                heads[index] = Head(
-                    measures[index].travel,
-                    measures[index].se2,
-                    measures[index].next_end,
-                    measures[index].lag,
-                    measures[index].verdict,
-                    measures[index].span,
-                );
-            }
+            finish_measure(c, index);
             atomicAdd(&counters.finished, 1u);
-            index = atomicAdd(&counters.next, 1u);
-            if index >= count {
+            let slot = atomicAdd(&counters.next, 1u);
+            if slot >= control.queued {
                 index = NO_INSTANCE;
                 break;
             }
+            index = order[slot];
             c = coefficients[index];
-            st = initial_state(c);
-            if c.steady == 1u {
-                measures[index] = initial_measure(c);
-            }
+            st = states[index];
+            count_kind(&tally, TAKEN);
         }
         if left == 0u {
             break;
         }
-        if c.steady == 1u && at_period_end(c, st, measures[index].next_end) {
+        if at_measured_end(c, st, index) {
             // A period end of a steady measurement, before the iteration
-            // that passes it (as the CPU's `advance_observed`); its
-            // accumulators are copied in and written back only here, and
-            // only once the loop limiter has let the update complete. It
-            // stands outside `advance` so that the loop of iterations
-            // carries none of its code (on llvmpipe that code's presence in
-            // the loop slows every iteration).
-            var m = measures[index];
-            let before = st;
-            period_end(c, &st, &m);
-            if LOOP_LIMITER && !loop_limiter_intact(st.steps) {
-                st = before;
-                if left == control.max_iterations {
-                    st.status = STATUS_LOOP_LIMIT;
-                }
+            // that passes it (as the CPU's `advance_observed`), processed
+            // here and not inside `advance`'s loop of iterations (on
+            // llvmpipe code there slows every iteration of every instance,
+            // windows included).
+            if !measure_period_end(c, &st, index, left == control.max_iterations) {
                 break;
             }
-            measures[index] = m;
+            count_kind(&tally, ITERATION_PERIOD_END);
             continue;
         }
-        let run = advance(c, &st, index, left, left == control.max_iterations);
+        let run = advance(c, &st, index, left, left == control.max_iterations, &tally);
         left -= run.iterations;
         if run.cut {
             break;
@@ -145,8 +147,11 @@ fn advance_slice(
     }
     if index != NO_INSTANCE {
         states[index] = st;
+        tally.progress = f32(st.period) + f32(st.time) / f32(c.period);
     }
     lanes[lane] = index;
+    tally.more.w = index;
+    tallies[lane] = tally;
 }
 
 // What a call of `advance` did.
@@ -160,14 +165,21 @@ struct Advance {
 // At most `max_iterations` iterations of one instance (`index`), up to its
 // end or to a steady measurement's next period end, which the lane's loop
 // in `advance_slice` processes. `fresh` says the lane has completed no
-// iteration in this dispatch yet.
-fn advance(c: Coefficients, st: ptr<function, State>, index: u32, max_iterations: u32, fresh: bool) -> Advance {
+// iteration in this dispatch yet. Each iteration is counted in `tally`.
+fn advance(
+    c: Coefficients,
+    st: ptr<function, State>,
+    index: u32,
+    max_iterations: u32,
+    fresh: bool,
+    tally: ptr<function, Tally>,
+) -> Advance {
     var iteration = 0u;
     for (; iteration < max_iterations; iteration++) {
         if is_finished(c, *st) {
             break;
         }
-        if c.steady == 1u && at_period_end(c, *st, measures[index].next_end) {
+        if at_measured_end(c, *st, index) {
             // The lane's loop processes it (above).
             break;
         }
@@ -176,7 +188,7 @@ fn advance(c: Coefficients, st: ptr<function, State>, index: u32, max_iterations
             // and redone by the next dispatch; one that cannot fit in a
             // whole dispatch is handed back to the host.
             let before = *st;
-            iterate(c, st);
+            let kind = iterate(c, st);
             if !loop_limiter_intact((*st).steps) {
                 *st = before;
                 if iteration == 0u && fresh {
@@ -184,8 +196,9 @@ fn advance(c: Coefficients, st: ptr<function, State>, index: u32, max_iterations
                 }
                 return Advance(iteration, true);
             }
+            count_kind(tally, kind);
         } else {
-            iterate(c, st);
+            count_kind(tally, iterate(c, st));
         }
     }
     return Advance(iteration, false);

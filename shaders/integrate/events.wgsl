@@ -27,7 +27,7 @@ fn relative_acceleration(s: Sample) -> V2 {
 fn primary_event(c: Coefficients, kind: u32, s: Sample) -> V2 {
     if kind == EVENT_BREAKAWAY {
         // f_need = m_s a_p - L = m_s (a_p - L / m_s) (MODEL.md section 7).
-        let a = s.a_p - c.load_accel;
+        let a = s.a_p - load_accel(c);
         let e = c.hold2 - c.ms2 * dot(a, a);
         return V2(e, -c.two_ms2 * dot(a, s.j_p));
     }
@@ -56,8 +56,8 @@ fn reversal_event(st: State, s: Sample) -> V2 {
 fn primary_scale(c: Coefficients, kind: u32, s: Sample) -> Real {
     if kind == EVENT_BREAKAWAY {
         let forces = c.stiffness * abs(s.x_p) + c.damping * abs(s.v_p);
-        let terms = abs(s.a_p) + Real(2.0) * forces * c.stick.inv_mass + abs(c.load_accel);
-        return c.hold2 + dot(c.two_ms2 * abs(s.a_p - c.load_accel), terms);
+        let terms = abs(s.a_p) + Real(2.0) * forces * c.stick.inv_mass + abs(load_accel(c));
+        return c.hold2 + dot(c.two_ms2 * abs(s.a_p - load_accel(c)), terms);
     }
     let v = relative_velocity(s);
     return c.band2 + dot(Real(2.0) * abs(v), abs(s.v_p) + abs(s.v_s));

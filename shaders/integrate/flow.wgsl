@@ -174,10 +174,10 @@ fn make_flow(
         // The load acts on stage and slider as one body (MODEL.md section
         // 7): only the particular solution moves.
         osc = c.stick;
-        g0 = force - c.neg_load;
+        g0 = force - neg_load(c);
         g1 = slope;
         g2 = V2(0.0);
-        g0_rel = V2(0.0) - c.neg_load;
+        g0_rel = V2(0.0) - neg_load(c);
         g1_rel = V2(0.0);
     }
     let x2 = g2 * c.inv_stiffness;
@@ -215,7 +215,7 @@ fn make_flow(
     f.v_s = v_s;
     f.v_rel = v_rel;
     f.b0 = dir.b0;
-    f.slider0 = c.fc_over_ms * dir.b0 - c.neg_load_accel;
+    f.slider0 = c.fc_over_ms * dir.b0 - neg_load_accel(c);
     f.slider1 = c.fc_over_ms * dir.b1;
     f.slider2 = c.fc_over_ms * dir.b2;
     f.g0 = g0;

@@ -16,6 +16,22 @@ struct Snapshot {
     _pad_v: vec2<u32>,
 }
 
+// The phase ladder's windows' sums, as
+// `pidm::cpu::integrate::phase::Phase` (phase.wgsl adds to them).
+struct Phase {
+    whole: array<V2, LEVELS>,
+    second: array<V2, LEVELS>,
+    quarters: array<V2, 4>,
+}
+
+// A judged window: the mean travel per scene period, its squared standard
+// error per axis, and the window's length (0 when none was judged).
+struct PhaseEstimate {
+    value: V2,
+    se2: V2,
+    span: u32,
+}
+
 // The per-instance accumulators, as `pidm::cpu::integrate::Measure`.
 struct Measure {
     last_x_s: V2,
@@ -89,7 +105,7 @@ fn period_end(c: Coefficients, st: ptr<function, State>, m: ptr<function, Measur
     if c.common_period > 0u && (ended - c.settle) % c.common_period == 0u {
         recurrence(c, *st, m);
     }
-    if c.phase_levels != 0u {
+    if PHASE && c.phase_levels != 0u {
         // A whole variable to point at (a pointer to a member of one that
         // is pointed at is not portable SPIR-V for naga).
         var phase = (*m).phase;

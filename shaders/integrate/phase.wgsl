@@ -6,28 +6,9 @@
 // the levels that may stop the run (Coefficients.phase_levels), and the
 // ladder's constants come from Rust through the prelude.
 
-// The three-gap table of one window length.
-struct Gaps {
-    a: u32,
-    b: u32,
-    alpha: Real,
-    beta: Real,
-}
-
-// The windows' sums, as `pidm::cpu::integrate::phase::Phase`.
-struct Phase {
-    whole: array<V2, LEVELS>,
-    second: array<V2, LEVELS>,
-    quarters: array<V2, 4>,
-}
-
-// A judged window: the mean travel per scene period, its squared standard
-// error per axis, and the window's length (0 when none was judged).
-struct PhaseEstimate {
-    value: V2,
-    se2: V2,
-    span: u32,
-}
+// Its structs live beside their users: `Gaps` in coefficients.wgsl, `Phase`
+// and `PhaseEstimate` in measure.wgsl, so a variant without the ladder
+// (`pidm::gpu::shader::Parts`) leaves this file out.
 
 fn ladder_length(j: u32) -> u32 {
     var base = LADDER_EVEN;

@@ -6,6 +6,7 @@
 // `StepOutcome`.
 const STEP_MOVED: u32 = 0u;
 const STEP_REJECTED: u32 = 1u;
+const STEP_LOCATED: u32 = 2u;
 
 fn mode_flow(c: Coefficients, st: State, drive: Drive, dir: DirectionModel, h: Real) -> Flow {
     return make_flow(c, st.mode == MODE_STICK, st.x_p, st.v_p, st.x_s, st.v_s, st.v_rel, drive.force, drive.slope, dir, h);
@@ -257,7 +258,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
         (*st).status = STATUS_GRAZE;
     }
     (*st).rejections = 0u;
-    return STEP_MOVED;
+    return select(STEP_LOCATED, STEP_MOVED, event == EVENT_NONE);
 }
 
 // Whether a band entry only skims the band (see step.rs).
@@ -386,11 +387,11 @@ fn stick_force(c: Coefficients, st: State) -> V2 {
     if DEFLECTION {
         // F - k x_p = -k d: the force balance without the drive force.
         let v = c.stage_share * (st.v_p + drive.slope * c.inv_stiffness) + c.slider_share * st.v_s;
-        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p) - c.load_need;
+        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p) - load_need(c);
     }
     let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
     let p = drive.force - c.damping * v - c.stiffness * st.x_p;
-    return c.slider_share * p - c.load_need;
+    return c.slider_share * p - load_need(c);
 }
 
 fn slip_direction(c: Coefficients, need: V2) -> V2 {

@@ -5,7 +5,7 @@ use anyhow::{Result, bail};
 use super::{Backend, Hardware, Precision, Staged};
 use crate::cpu::integrate::Settings;
 use crate::cpu::integrate::constants::STATUS_GRAZE;
-use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, run_batch_packed};
+use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, Parts, run_batch_packed};
 use crate::measurement::Outcome;
 use crate::model::Instance;
 
@@ -13,6 +13,9 @@ use crate::model::Instance;
 pub struct GpuBackend {
     ctx: GpuContext,
     precision: Precision,
+    /// The parts of the pipeline prepared up front (batches that need
+    /// others prepare theirs when they come).
+    parts: Parts,
     options: BatchOptions,
 }
 
@@ -22,6 +25,12 @@ impl GpuBackend {
     /// fails with a clear message when f64 is asked of an adapter without
     /// `SHADER_F64`.
     pub fn new(ctx: GpuContext, precision: Precision) -> Result<GpuBackend> {
+        GpuBackend::for_parts(ctx, precision, Parts::ALL)
+    }
+
+    /// [`GpuBackend::new`] with a pipeline of only `parts` prepared up
+    /// front: what a run's instances use (`Workload::parts`).
+    pub fn for_parts(ctx: GpuContext, precision: Precision, parts: Parts) -> Result<GpuBackend> {
         if precision == Precision::F64 && !ctx.supports_f64() {
             bail!(
                 "--precision f64: adapter {} does not support 64-bit floats in shaders \
@@ -29,10 +38,11 @@ impl GpuBackend {
                 ctx.describe()
             );
         }
-        ctx.prepare(precision)?;
+        ctx.prepare_parts(precision, parts)?;
         Ok(GpuBackend {
             ctx,
             precision,
+            parts,
             options: BatchOptions::default(),
         })
     }
@@ -53,7 +63,7 @@ impl GpuBackend {
     /// "GPU ready in 0.21 s (...)": what opening the device, creating the
     /// pipeline and its self-test cost.
     pub fn readiness(&self) -> String {
-        match self.ctx.prepare_timed(self.precision) {
+        match self.ctx.prepare_parts(self.precision, self.parts) {
             Ok((_, p)) => format!(
                 "GPU ready in {:.2} s (device {:.2} s of which drivers and adapters {:.2} s, \
                  pipeline {:.2} s{}, self-test {:.2} s)",
@@ -78,7 +88,10 @@ impl GpuBackend {
     /// What opening the device, creating the pipeline and its self-test
     /// cost (`None` where the pipeline is not ready).
     pub fn preparation(&self) -> Option<crate::gpu::Preparation> {
-        self.ctx.prepare_timed(self.precision).ok().map(|(_, p)| p)
+        self.ctx
+            .prepare_parts(self.precision, self.parts)
+            .ok()
+            .map(|(_, p)| p)
     }
 }
 

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use super::cost::{self, Estimate, Plan};
 use super::{Backend, CpuBackend, GpuBackend, Precision, cost_book};
 use crate::cpu::integrate::Settings;
-use crate::gpu::GpuContext;
+use crate::gpu::{GpuContext, Parts};
 use crate::model::Instance;
 
 /// Which integrator runs a scene.
@@ -69,6 +69,9 @@ pub struct Workload {
     /// integrations, or a sample of them (`crate::estimate::integrations`).
     pub candidates: Vec<Instance>,
     pub settings: Settings,
+    /// The shader's parts the run uses ([`crate::estimate::parts`]): the
+    /// pipeline a GPU prepares before any work.
+    pub parts: Parts,
 }
 
 /// The backend chosen, and what a finished run on a hardware GPU measures
@@ -178,7 +181,7 @@ pub fn select_backend(
                      CPU: {name}"
                 );
             }
-            let gpu = GpuBackend::new(ctx, precision)?;
+            let gpu = GpuBackend::for_parts(ctx, precision, work.parts)?;
             eprintln!("pidm: {}", gpu.readiness());
             let measure = measure_of(&gpu, None);
             finish(Box::new(gpu), measure)
@@ -290,7 +293,7 @@ fn auto(
              results/gpu.md; --backend cpu runs f64)"
         );
     }
-    match GpuBackend::new(ctx, precision) {
+    match GpuBackend::for_parts(ctx, precision, work.parts) {
         Ok(gpu) => {
             eprintln!("pidm: {}", gpu.readiness());
             let measure = measure_of(&gpu, estimate.map(|e| e.cpu.core_s));

@@ -51,9 +51,9 @@ pub struct GpuContext {
     health: Arc<DeviceHealth>,
     /// The driver's pipeline cache, where the adapter offers one.
     cache: Option<cache::DiskCache>,
-    /// Compiled and self-tested pipelines, [F32, F64], built on first use,
+    /// Compiled and self-tested pipelines by variant, built on first use,
     /// with what building them cost.
-    pipelines: Mutex<[Option<(wgpu::ComputePipeline, Preparation)>; 2]>,
+    pipelines: Mutex<HashMap<Variant, (wgpu::ComputePipeline, Preparation)>>,
     /// Time to find the adapter and open the device [s].
     opened_in: f64,
     /// The part of `opened_in` before the device was requested [s].
@@ -182,7 +182,7 @@ impl GpuContext {
             limits,
             health,
             cache,
-            pipelines: Mutex::new([None, None]),
+            pipelines: Mutex::new(HashMap::new()),
             opened_in: started.elapsed().as_secs_f64(),
             adapters_in: 0.0,
             busy: Mutex::new(()),
@@ -239,12 +239,19 @@ impl GpuContext {
         &self.queue
     }
 
-    /// The shader variant this adapter runs in a precision.
-    pub fn variant(&self, precision: Precision) -> Variant {
+    /// The shader variant this adapter runs in a precision with `parts`.
+    pub fn variant(&self, precision: Precision, parts: Parts) -> Variant {
         Variant {
             precision,
             loop_limiter: has_loop_limiter(&self.info),
+            parts,
         }
+    }
+
+    /// The lanes a batch keeps busy at once ([`lanes_for`]: the
+    /// `PIDM_GPU_LANES` knob, else what this kind of adapter runs at once).
+    pub fn lanes(&self) -> usize {
+        lanes_for(self.is_hardware())
     }
 
     /// An error if the device failed or was lost so far.
@@ -258,35 +265,64 @@ impl GpuContext {
         }
     }
 
-    /// Compiles the pipeline of a precision and tests it against the CPU,
-    /// once per context; a later call returns the first outcome's pipeline.
-    /// Every driver failure becomes an error here, before any instance of a
-    /// run is integrated.
+    /// Compiles the pipeline of a precision with every part and tests it
+    /// against the CPU, once per context (see [`GpuContext::prepare_parts`]).
     pub fn prepare(&self, precision: Precision) -> Result<wgpu::ComputePipeline, GpuError> {
-        self.prepare_timed(precision).map(|(p, _)| p)
+        self.prepare_parts(precision, Parts::ALL).map(|(p, _)| p)
     }
 
-    /// [`GpuContext::prepare`], with what the preparation cost (the first
-    /// call's, also on later calls).
-    pub fn prepare_timed(
+    /// The pipeline for a batch that needs `needs`: one already prepared
+    /// whose parts cover them (the fewest parts first), else a new one
+    /// with exactly `needs`, compiled and self-tested
+    /// ([`GpuContext::prepare_timed`]). Returns it with its variant.
+    pub fn pipeline_for(
         &self,
         precision: Precision,
+        needs: Parts,
+    ) -> Result<(wgpu::ComputePipeline, Variant), GpuError> {
+        {
+            let pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+            let best = pipelines
+                .iter()
+                .filter(|(v, _)| v.precision == precision && v.parts.covers(needs))
+                .min_by_key(|(v, _)| v.parts);
+            if let Some((variant, (pipeline, _))) = best {
+                return Ok((pipeline.clone(), *variant));
+            }
+        }
+        let variant = self.variant(precision, needs);
+        self.prepare_timed(variant).map(|(p, _)| (p, variant))
+    }
+
+    /// [`GpuContext::prepare_timed`] of the variant with `parts`.
+    pub fn prepare_parts(
+        &self,
+        precision: Precision,
+        parts: Parts,
     ) -> Result<(wgpu::ComputePipeline, Preparation), GpuError> {
+        self.prepare_timed(self.variant(precision, parts))
+    }
+
+    /// Compiles the pipeline of a variant and tests it against the CPU,
+    /// once per context; a later call returns the first outcome's pipeline,
+    /// with what the preparation cost (the first call's, also on later
+    /// calls). Every driver failure becomes an error here, before any
+    /// instance of a run is integrated on it.
+    pub fn prepare_timed(
+        &self,
+        variant: Variant,
+    ) -> Result<(wgpu::ComputePipeline, Preparation), GpuError> {
+        let precision = variant.precision;
         if precision == Precision::F64 && !self.f64 {
             return Err(GpuError::F64Unsupported {
                 adapter: self.describe(),
             });
         }
-        let slot = match precision {
-            Precision::F32 => 0,
-            Precision::F64 => 1,
-        };
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(p) = &pipelines[slot] {
+        if let Some(p) = pipelines.get(&variant) {
             return Ok(p.clone());
         }
         let started = std::time::Instant::now();
-        let variant = self.variant(precision);
         let pipeline = create_pipeline(
             &self.device,
             variant,
@@ -294,7 +330,7 @@ impl GpuContext {
         )?;
         self.check_health()?;
         let compiled = started.elapsed().as_secs_f64();
-        self.self_test(&pipeline, precision, 0.0)?;
+        self.self_test(&pipeline, variant, 0.0)?;
         let tested = started.elapsed().as_secs_f64();
         if let Some(cache) = &self.cache {
             cache.save();
@@ -305,7 +341,7 @@ impl GpuContext {
             pipeline_s: compiled,
             self_test_s: tested - compiled,
         };
-        pipelines[slot] = Some((pipeline.clone(), preparation));
+        pipelines.insert(variant, (pipeline.clone(), preparation));
         Ok((pipeline, preparation))
     }
 
@@ -320,26 +356,29 @@ impl GpuContext {
                 adapter: self.describe(),
             });
         }
+        let variant = self.variant(precision, Parts::ALL);
         let pipeline = create_pipeline(
             &self.device,
-            self.variant(precision),
+            variant,
             self.cache.as_ref().map(|c| c.cache()),
         )?;
         self.check_health()?;
-        self.self_test(&pipeline, precision, skew)
+        self.self_test(&pipeline, variant, skew)
     }
 
     /// Runs the self-test batch (MODEL.md's Fig. 8 case, two periods, and
-    /// its 1-DOF x baseline) on a fresh pipeline and compares with the CPU.
-    /// `skew` [m] is added to the CPU reference's steps: zero for the real
-    /// test; [`GpuContext::self_test_skewed`] lets tests feed a wrong
-    /// reference to check that the pipeline is refused.
+    /// its 1-DOF x baseline; with steady measurements a steady one; with a
+    /// load the Fig. 8 case under one) on a fresh pipeline of `variant` and
+    /// compares with the CPU. `skew` [m] is added to the CPU reference's
+    /// steps: zero for the real test; [`GpuContext::self_test_skewed`] lets
+    /// tests feed a wrong reference to check that the pipeline is refused.
     fn self_test(
         &self,
         pipeline: &wgpu::ComputePipeline,
-        precision: Precision,
+        variant: Variant,
         skew: f64,
     ) -> Result<(), GpuError> {
+        let precision = variant.precision;
         let mut fig8 = Instance::TABLE1;
         fig8.axes[1].frequency = 20.0;
         fig8.cycles = 2;
@@ -352,7 +391,15 @@ impl GpuContext {
         steady.measure = Measure::Steady {
             step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
         };
-        let instances = [fig8, fig8.baseline(0), steady];
+        let mut loaded = fig8;
+        loaded.mechanism.load = [0.3, -0.2];
+        let mut instances = vec![fig8, fig8.baseline(0)];
+        if variant.parts.steady {
+            instances.push(steady);
+        }
+        if variant.parts.load {
+            instances.push(loaded);
+        }
         let settings = Settings::default();
         let fail = |message: String| GpuError::SelfTest {
             precision,
@@ -362,7 +409,7 @@ impl GpuContext {
         let outcomes = execute_gpu_inner(
             &self.device,
             &self.queue,
-            pipeline,
+            (pipeline, variant),
             &self.limits,
             &instances,
             &settings,
@@ -416,8 +463,8 @@ impl GpuContext {
     }
 }
 
-/// Compiles the integrator for one precision on a device, with the variant
-/// a device of that kind needs (`loop_limiter` for llvmpipe), through the
+/// Compiles the integrator's `variant` on a device (its precision, the
+/// `loop_limiter` of llvmpipe, the parts its batches need), through the
 /// driver's pipeline `cache` where there is one. The source is validated
 /// with naga first, so errors come with source locations.
 pub fn create_pipeline(

@@ -102,6 +102,26 @@ pub mod control {
             pub probe_min: u32,
             /// Always 0: hidden from the shader compiler like `probe`.
             pub zero: u32,
+            /// Entries of the queue (`order`) lanes may take: 0 in a
+            /// batch's first dispatch, where every lane starts its own.
+            pub queued: u32,
+            pub _pad: u32,
+        }
+    }
+
+    host_struct! {
+        /// What one lane did in one dispatch (`pidm::gpu::warps`).
+        pub struct Tally {
+            /// Iterations by kind (`constants::ITERATION_*` 0-3): boundary,
+            /// stick, slip, rejected trial.
+            pub kinds: [u32; 4],
+            /// Event locations, period ends, instances taken from the
+            /// queue, and the instance held at the end (`u32::MAX`: none).
+            pub more: [u32; 4],
+            /// Scene periods the held instance has run, at the end.
+            pub progress: f32,
+            pub _pad: u32,
+            pub _pad_v: super::U32x2,
         }
     }
 }
@@ -540,6 +560,23 @@ macro_rules! precision_structs {
                 }
             }
 
+            impl Coefficients {
+                /// The shader's parts these coefficients use: a steady
+                /// measurement, the phase ladder, a non-zero load term
+                /// (`Parts::of_coefficients`, in this precision).
+                pub fn parts(&self) -> crate::gpu::shader::Parts {
+                    let nonzero = |v: V2| v.x != 0.0 || v.y != 0.0;
+                    crate::gpu::shader::Parts {
+                        steady: self.steady == 1,
+                        phase: self.steady == 1 && self.phase_levels != 0,
+                        load: nonzero(self.load_need)
+                            || nonzero(self.load_accel)
+                            || nonzero(self.neg_load)
+                            || nonzero(self.neg_load_accel),
+                    }
+                }
+            }
+
             /// True once the instance ended, normally or with a status.
             pub fn finished(inst: &Instance, st: &State) -> bool {
                 st.status != STATUS_OK || st.period >= inst.cycles || st.measured == 1
@@ -627,6 +664,7 @@ mod tests {
             let variant = crate::gpu::Variant {
                 precision,
                 loop_limiter: false,
+                parts: crate::gpu::shader::Parts::ALL,
             };
             let (module, _info) = match crate::gpu::shader::parse_and_validate(variant) {
                 Ok(m) => m,
@@ -637,6 +675,7 @@ mod tests {
                 .update(module.to_ctx())
                 .expect("the shader's types lay out");
             check_struct::<control::Control>(&module, &layouter, precision);
+            check_struct::<control::Tally>(&module, &layouter, precision);
             match precision {
                 Precision::F32 => {
                     check_struct::<single::Oscillator>(&module, &layouter, precision);

@@ -62,8 +62,10 @@ mod precision;
 pub mod readback;
 mod runner;
 pub mod shader;
+mod slices;
 mod staging;
 mod tail;
+pub mod warps;
 
 pub use adapters::{
     AdapterSummary, PrecisionCheck, check_adapters, list_adapters, private_runtime_dir,
@@ -82,10 +84,14 @@ use precision::*;
 use tail::*;
 
 pub use knobs::{
-    LANES, SLICE_ITERATIONS, WORKGROUP_SIZE, f32_check, lanes, slice_iterations, workgroup_size,
+    CHUNK_ROUNDS, LANES, PROBE_ITERATIONS, SLICE_ITERATIONS, SOFTWARE_CHUNK_ROUNDS,
+    SOFTWARE_LANES_PER_THREAD, WORKGROUP_SIZE, f32_check, lanes, lanes_for, order,
+    slice_iterations, workgroup_size,
 };
-pub use shader::Variant;
+pub use shader::{Parts, Variant};
+pub use warps::Order;
 
+use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 

@@ -21,9 +21,16 @@ pub struct BatchOptions {
     /// llvmpipe no iteration can complete its probe, which exercises the
     /// fallback of [`STATUS_LOOP_LIMIT`] instances to the CPU.
     pub probe_passes: u32,
-    /// Lanes working through a batch, at most (tests use few, so lanes
-    /// take several instances each).
-    pub lanes: usize,
+    /// Lanes working through a batch at once after its first dispatch, at
+    /// most; `None`: the adapter's ([`super::lanes_for`]; through
+    /// [`execute_gpu_inner`], which does not see the adapter, a hardware
+    /// one's). Tests use few, so lanes take several instances each.
+    pub lanes: Option<usize>,
+    /// Iterations of a batch's first dispatch, which starts every instance
+    /// on a lane of its own and ranks the rest ([`super::warps`]).
+    pub probe_iterations: u32,
+    /// The order of the queue after the first dispatch.
+    pub order: Order,
     /// Hand the slow tail of a batch to the CPU: once every instance has
     /// started and at most this many are unfinished, the GPU stops and the
     /// CPU finishes those, in parallel: from where the GPU left them in f64
@@ -120,7 +127,9 @@ impl Default for BatchOptions {
             max_batch: None,
             whole_accumulators: false,
             probe_passes: layout::PROBE_PASSES,
-            lanes: lanes(),
+            lanes: None,
+            probe_iterations: PROBE_ITERATIONS,
+            order: order(),
             cpu_tail: None,
             check: f32_check(),
         }

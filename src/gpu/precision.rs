@@ -6,7 +6,7 @@ use super::*;
 /// The host side of one precision: its storage structs and their packing.
 pub(super) trait Layout {
     const PRECISION: Precision;
-    type Coefficients: HostLayout + Send;
+    type Coefficients: HostLayout + Send + Sync;
     type State: HostLayout + Send + Sync;
     type Measure: HostLayout + Send + Sync;
     /// What the host reads of every finished steady measurement.
@@ -20,6 +20,10 @@ pub(super) trait Layout {
     type Mirror;
     fn mirror(st: &Self::State) -> Self::Mirror;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
+    /// The shader's parts that packed coefficients use.
+    fn parts(c: &Self::Coefficients) -> Parts;
+    /// The steps a state has taken.
+    fn steps(st: &Self::State) -> u32;
     /// The outcome of a finished fixed window.
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
     /// The outcome of a finished steady measurement, through the one
@@ -79,6 +83,12 @@ impl Layout for Single {
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::single::pack(inst, settings)
     }
+    fn parts(c: &Self::Coefficients) -> Parts {
+        c.parts()
+    }
+    fn steps(st: &Self::State) -> u32 {
+        st.steps
+    }
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
         layout::single::unpack(inst, st)
     }
@@ -115,6 +125,12 @@ impl Layout for Double {
     }
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::double::pack(inst, settings)
+    }
+    fn parts(c: &Self::Coefficients) -> Parts {
+        c.parts()
+    }
+    fn steps(st: &Self::State) -> u32 {
+        st.steps
     }
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
         layout::double::unpack(inst, st)

@@ -166,7 +166,18 @@ pub(super) fn with_mapped<T>(
     buffer: &wgpu::Buffer,
     read: impl FnOnce(&[u8]) -> T,
 ) -> Result<T, GpuError> {
-    let slice = buffer.slice(..);
+    with_mapped_prefix(device, buffer, buffer.size(), read)
+}
+
+/// [`with_mapped`] of the buffer's first `len` bytes (a multiple of 4, at
+/// least 4).
+pub(super) fn with_mapped_prefix<T>(
+    device: &wgpu::Device,
+    buffer: &wgpu::Buffer,
+    len: u64,
+    read: impl FnOnce(&[u8]) -> T,
+) -> Result<T, GpuError> {
+    let slice = buffer.slice(..len);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);

@@ -50,18 +50,19 @@ pub fn run_batch_packed(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Vec<GpuOutcome>, GpuError> {
     let packed = packed.and_then(|p| p.bytes_for(instances.len(), precision, settings));
-    let pipeline = ctx.prepare(precision)?;
-    // The adapter decides the check's route (`F32Check::Auto`).
+    // The adapter decides the check's route (`F32Check::Auto`) and the
+    // lanes.
     let options = &BatchOptions {
         check: match options.check.route(ctx.is_hardware()) {
             Some(route) => F32Check::Route(route),
             None => F32Check::Off,
         },
+        lanes: Some(options.lanes.unwrap_or_else(|| ctx.lanes())),
         ..*options
     };
     let out = {
         let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-        Runner::on(ctx, &pipeline, settings, options).all_in(precision, instances, packed, progress)
+        Runner::on(ctx, settings, options).all_in(precision, instances, packed, progress)
     };
     // A lost device fails the batch's readback with a generic mapping
     // error; the device's own message says why.
@@ -80,17 +81,26 @@ pub(super) fn states_after<L: Layout>(
     settings: &Settings,
     iterations: u32,
 ) -> Result<Vec<L::Mirror>, GpuError> {
-    let pipeline = ctx.prepare(L::PRECISION)?;
     let options = BatchOptions {
         slice_iterations: iterations.max(1),
-        lanes: instances.len().max(1),
+        probe_iterations: iterations.max(1),
+        lanes: Some(instances.len().max(1)),
         cpu_tail: Some(0),
         ..BatchOptions::default()
     };
     let states = {
         let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-        Runner::on(ctx, &pipeline, settings, &options)
-            .slices::<L>(instances, None, &mut |_| {}, Some(1))?
+        let runner = Runner::on(ctx, settings, &options);
+        let coefficients = runner.coefficients::<L>(instances, None);
+        let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
+        runner
+            .slices::<L>(
+                instances,
+                &coefficients,
+                (&pipeline, variant),
+                &mut |_| {},
+                Some(1),
+            )?
             .0
     };
     ctx.check_health()?;
@@ -120,13 +130,14 @@ pub fn f64_states_after(
 }
 
 /// The work of [`run_batch`] on any device: `pipeline` must come from
-/// [`create_pipeline`] on that device with the same precision, and `limits`
-/// are the device's.
+/// [`create_pipeline`] of its variant on that device, in the same
+/// precision, with every part the instances need (else the batch fails
+/// with [`GpuError::Execution`]), and `limits` are the device's.
 #[allow(clippy::too_many_arguments)]
 pub fn execute_gpu_inner(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
-    pipeline: &wgpu::ComputePipeline,
+    pipeline: (&wgpu::ComputePipeline, Variant),
     limits: &wgpu::Limits,
     instances: &[Instance],
     settings: &Settings,
@@ -137,7 +148,7 @@ pub fn execute_gpu_inner(
     let run = Runner {
         device,
         queue,
-        pipeline,
+        pipelines: Pipelines::Fixed(pipeline),
         limits,
         settings,
         options,
@@ -155,30 +166,82 @@ pub fn dispatch_size(n: usize, max_per_dimension: u32) -> (u32, u32) {
     (x as u32, y as u32)
 }
 
+/// Where a runner's batches get their pipeline.
+#[derive(Clone, Copy)]
+pub(super) enum Pipelines<'a> {
+    /// A context's: the one with the parts a batch needs
+    /// ([`GpuContext::pipeline_for`]).
+    Context(&'a GpuContext),
+    /// One compiled pipeline, for every batch.
+    Fixed((&'a wgpu::ComputePipeline, Variant)),
+}
+
 pub(super) struct Runner<'a> {
-    device: &'a wgpu::Device,
-    queue: &'a wgpu::Queue,
-    pipeline: &'a wgpu::ComputePipeline,
-    limits: &'a wgpu::Limits,
-    settings: &'a Settings,
-    options: &'a BatchOptions,
+    pub(super) device: &'a wgpu::Device,
+    pub(super) queue: &'a wgpu::Queue,
+    pipelines: Pipelines<'a>,
+    pub(super) limits: &'a wgpu::Limits,
+    pub(super) settings: &'a Settings,
+    pub(super) options: &'a BatchOptions,
 }
 
 impl<'a> Runner<'a> {
-    /// A runner on `ctx`'s device.
-    fn on(
-        ctx: &'a GpuContext,
-        pipeline: &'a wgpu::ComputePipeline,
-        settings: &'a Settings,
-        options: &'a BatchOptions,
-    ) -> Runner<'a> {
+    /// A runner on `ctx`'s device and pipelines.
+    fn on(ctx: &'a GpuContext, settings: &'a Settings, options: &'a BatchOptions) -> Runner<'a> {
         Runner {
             device: &ctx.device,
             queue: &ctx.queue,
-            pipeline,
+            pipelines: Pipelines::Context(ctx),
             limits: &ctx.limits,
             settings,
             options,
+        }
+    }
+
+    /// A batch's coefficients: `packed` where they were packed ahead, else
+    /// packed here.
+    fn coefficients<L: Layout>(
+        &self,
+        instances: &[Instance],
+        packed: Option<&[u8]>,
+    ) -> Vec<L::Coefficients> {
+        let _packing = profile::span(Phase::Pack);
+        match packed {
+            Some(bytes) => match bytemuck::try_cast_slice(bytes) {
+                Ok(c) => c.to_vec(),
+                Err(_) => bytes
+                    .chunks_exact(size_of::<L::Coefficients>())
+                    .map(bytemuck::pod_read_unaligned)
+                    .collect(),
+            },
+            None => instances
+                .par_iter()
+                .map(|inst| L::pack(inst, self.settings))
+                .collect(),
+        }
+    }
+
+    /// The pipeline for a batch with these coefficients: one whose variant
+    /// has every part they use.
+    fn pipeline<L: Layout>(
+        &self,
+        precision: Precision,
+        coefficients: &[L::Coefficients],
+    ) -> Result<(wgpu::ComputePipeline, Variant), GpuError> {
+        let needs = coefficients
+            .par_iter()
+            .map(L::parts)
+            .reduce(Parts::default, Parts::union);
+        match self.pipelines {
+            Pipelines::Context(ctx) => ctx.pipeline_for(precision, needs),
+            Pipelines::Fixed((pipeline, variant)) if variant.parts.covers(needs) => {
+                Ok((pipeline.clone(), variant))
+            }
+            Pipelines::Fixed((_, variant)) => Err(GpuError::Execution(format!(
+                "the pipeline of the {} variant cannot run instances that need {}",
+                variant.parts.name(),
+                needs.name()
+            ))),
         }
     }
 
@@ -441,214 +504,6 @@ impl<'a> Runner<'a> {
         result
     }
 
-    /// Dispatches slices until the batch is done, or only its slow tail is
-    /// left, or `slice_limit` slices have run; returns every state and,
-    /// for a batch with a steady instance, every measurement.
-    fn slices<L: Layout>(
-        &self,
-        instances: &[Instance],
-        packed: Option<&[u8]>,
-        progress: &mut dyn FnMut(u64),
-        slice_limit: Option<u64>,
-    ) -> Result<Readback<L>, GpuError> {
-        let device = self.device;
-        let queue = self.queue;
-        let n = instances.len();
-        let packed_here: Vec<L::Coefficients>;
-        let coefficients: &[u8] = match packed {
-            Some(bytes) => bytes,
-            None => {
-                packed_here = profile::time(Phase::Pack, || {
-                    instances
-                        .par_iter()
-                        .map(|inst| L::pack(inst, self.settings))
-                        .collect()
-                });
-                bytemuck::cast_slice(&packed_here)
-            }
-        };
-        let uploading = profile::span(Phase::Upload);
-        let coefficients_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("coefficients"),
-            contents: coefficients,
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let state_bytes = (n * size_of::<L::State>()) as u64;
-        let states = storage(device, "states", state_bytes);
-        let states_read = readback::mappable(device, "states readback", state_bytes);
-        // The steady measurement's accumulators: one per instance where
-        // any instance is steady, else one unused entry (windows never
-        // touch them).
-        let steady = any_steady(instances);
-        let measure_bytes = (size_of::<L::Measure>() * if steady { n } else { 1 }) as u64;
-        let measures = storage(device, "measures", measure_bytes);
-        let head_bytes = (size_of::<L::Head>() * if steady { n } else { 1 }) as u64;
-        let heads = storage(device, "heads", head_bytes);
-        let heads_read = readback::mappable(device, "heads readback", head_bytes);
-        // Lane k starts on instance k; the counters say which instance is
-        // next and how many finished.
-        let lane_count = n.min(self.options.lanes.max(1));
-        let lane_indices: Vec<u32> = (0..lane_count as u32).collect();
-        let lanes_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("lanes"),
-            contents: bytemuck::cast_slice(&lane_indices),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let counters = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("counters"),
-            contents: bytemuck::cast_slice(&[lane_count as u32, 0u32]),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        });
-        let counters_read = readback::mappable(device, "counters readback", 8);
-        // Two controls: the first dispatch initialises the states.
-        let control = |initialize: u32| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("control"),
-                contents: bytemuck::bytes_of(&Control {
-                    max_iterations: self.options.slice_iterations,
-                    initialize,
-                    one: 1.0,
-                    probe: self.options.probe_passes.max(layout::PROBE_PASSES),
-                    probe_min: self.options.probe_passes.max(layout::PROBE_PASSES),
-                    zero: 0,
-                }),
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        };
-        let controls = [control(1), control(0)];
-        let layout = self.pipeline.get_bind_group_layout(0);
-        let bind_groups: Vec<wgpu::BindGroup> = controls
-            .iter()
-            .map(|c| {
-                device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("integrate"),
-                    layout: &layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: coefficients_buffer.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: states.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: c.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 3,
-                            resource: counters.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 4,
-                            resource: lanes_buffer.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 5,
-                            resource: measures.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 6,
-                            resource: heads.as_entire_binding(),
-                        },
-                    ],
-                })
-            })
-            .collect();
-        let (gx, gy) = dispatch_size(lane_count, self.limits.max_compute_workgroups_per_dimension);
-        // A lane works through its instances one after another.
-        let rounds = n.div_ceil(lane_count) as u64;
-        let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds);
-        let tail_size =
-            self.options
-                .tail_size(L::PRECISION, n, rayon::current_num_threads()) as u64;
-        let mut slice: u64 = 0;
-        drop(uploading);
-        let dispatching = profile::span(Phase::Dispatch);
-        // Lanes with an instance during each slice: all of them until the
-        // unfinished instances are fewer (the batch's tail).
-        let mut unfinished_before = n as u64;
-        loop {
-            let slice_started = std::time::Instant::now();
-            let mut encoder = device.create_command_encoder(&Default::default());
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_pipeline(self.pipeline);
-                pass.set_bind_group(0, &bind_groups[usize::from(slice > 0)], &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
-            }
-            encoder.copy_buffer_to_buffer(&counters, 0, &counters_read, 0, 8);
-            queue.submit([encoder.finish()]);
-            let bytes = readback::read_buffer(device, &counters_read)?;
-            let next = u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]) as u64;
-            let finished = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) as u64;
-            let unfinished = (n as u64).saturating_sub(finished) as u32;
-            profile::add_lanes(
-                lane_count as u64,
-                unfinished_before.min(lane_count as u64),
-                slice_started.elapsed(),
-            );
-            unfinished_before = unfinished as u64;
-            slice += 1;
-            progress(finished.min(n as u64));
-            // Every instance started, and only the slow tail is left.
-            if unfinished == 0 || (next >= n as u64 && (unfinished as u64) <= tail_size) {
-                break;
-            }
-            if slice_limit.is_some_and(|limit| slice >= limit) {
-                break;
-            }
-            if crate::sweep::interrupt_requested() {
-                return Err(GpuError::Interrupted);
-            }
-            if slice >= max_slices {
-                return Err(GpuError::Stalled {
-                    unfinished,
-                    slices: slice,
-                });
-            }
-        }
-        drop(dispatching);
-        let _reading = profile::span(Phase::Readback);
-        let mut encoder = device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(&states, 0, &states_read, 0, state_bytes);
-        if steady {
-            encoder.copy_buffer_to_buffer(&heads, 0, &heads_read, 0, head_bytes);
-        }
-        queue.submit([encoder.finish()]);
-        let states: Vec<L::State> = readback::with_mapped(device, &states_read, |bytes| {
-            match bytemuck::try_cast_slice(bytes) {
-                Ok(states) => states.to_vec(),
-                // A mapping not aligned for the struct (no driver seen).
-                Err(_) => bytes
-                    .chunks_exact(size_of::<L::State>())
-                    .map(bytemuck::pod_read_unaligned)
-                    .collect(),
-            }
-        })?;
-        let mut read = readback::AccumulatorsRead::default();
-        let measure_list: Vec<L::Measure> = if steady {
-            readback::accumulators::<L>(
-                device,
-                queue,
-                self.options.whole_accumulators,
-                instances,
-                &states,
-                (&heads_read, &measures),
-                &mut read,
-            )?
-        } else {
-            Vec::new()
-        };
-        profile::add_bytes_read(
-            state_bytes
-                + if steady { head_bytes } else { 0 }
-                + (read.count * size_of::<L::Measure>()) as u64,
-        );
-        Ok((states, measure_list))
-    }
-
     fn batch_inner<L: Layout>(
         &self,
         instances: &[Instance],
@@ -656,7 +511,16 @@ impl<'a> Runner<'a> {
         progress: &mut dyn FnMut(u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let n = instances.len();
-        let (states, measure_list) = self.slices::<L>(instances, packed, progress, None)?;
+        let coefficients = self.coefficients::<L>(instances, packed);
+        let (pipeline, variant) = self.pipeline::<L>(L::PRECISION, &coefficients)?;
+        let (states, measure_list) = self.slices::<L>(
+            instances,
+            &coefficients,
+            (&pipeline, variant),
+            progress,
+            None,
+        )?;
+        drop(coefficients);
         let reducing = profile::span(Phase::Reduce);
         let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
         // The outcomes, and the states of the unfinished ones.

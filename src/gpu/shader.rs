@@ -9,11 +9,13 @@
 
 use super::{GpuError, Precision, STATUS_LOOP_LIMIT, workgroup_size};
 use crate::cpu::integrate::constants::{self, TAYLOR_STAGE_TERMS, TAYLOR_TERMS};
-use crate::cpu::integrate::{measure, phase};
+use crate::cpu::integrate::{Coefficients, Settings, Vec2, measure, phase};
+use crate::model::Instance;
 
 /// The shader files, in the order they are concatenated (WGSL declarations
-/// may come in any order; this one reads top-down), with their text.
-pub const FILES: [(&str, &str); 10] = [
+/// may come in any order; this one reads top-down), with their text and
+/// the part of the shader each belongs to ([`File::part`]).
+pub const FILES: [(&str, &str); 11] = [
     (
         "arith.wgsl",
         include_str!("../../shaders/integrate/arith.wgsl"),
@@ -51,6 +53,10 @@ pub const FILES: [(&str, &str); 10] = [
         include_str!("../../shaders/integrate/phase.wgsl"),
     ),
     (
+        "steady.wgsl",
+        include_str!("../../shaders/integrate/steady.wgsl"),
+    ),
+    (
         "entry.wgsl",
         include_str!("../../shaders/integrate/entry.wgsl"),
     ),
@@ -58,6 +64,121 @@ pub const FILES: [(&str, &str); 10] = [
 
 /// The name of the compute entry point.
 pub const ENTRY_POINT: &str = "advance_slice";
+
+/// The optional parts of the shader: a pipeline carries a part only where
+/// a batch's instances use it, so the driver compiles, and the device
+/// reserves registers for, only what the scene needs (issue 38). Whatever a
+/// variant leaves out, the instances it runs give the results of the whole
+/// shader, bit for bit (`tests/it/variants.rs`). Trajectories are never the
+/// shader's: the f64 CPU integrator records them (`crate::trajectory`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Parts {
+    /// Steady measurements (`measure.wgsl`, `steady.wgsl`: the per-period
+    /// bookkeeping, the accumulators and heads buffers).
+    pub steady: bool,
+    /// The phase ladder of two-frequency steady measurements
+    /// (`phase.wgsl`); only with `steady`.
+    pub phase: bool,
+    /// A load on the slider (MODEL.md section 7): without it the load terms
+    /// are the +0 they are at zero load, folded by the compiler.
+    pub load: bool,
+}
+
+impl Parts {
+    /// Every part: the whole shader.
+    pub const ALL: Parts = Parts {
+        steady: true,
+        phase: true,
+        load: true,
+    };
+
+    /// Every combination a variant may have (`phase` only with `steady`).
+    pub fn every() -> Vec<Parts> {
+        let mut out = Vec::new();
+        for steady in [false, true] {
+            for phase in [false, true] {
+                for load in [false, true] {
+                    if phase && !steady {
+                        continue;
+                    }
+                    out.push(Parts {
+                        steady,
+                        phase,
+                        load,
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// The parts both need.
+    pub fn union(self, other: Parts) -> Parts {
+        Parts {
+            steady: self.steady || other.steady,
+            phase: self.phase || other.phase,
+            load: self.load || other.load,
+        }
+    }
+
+    /// Whether a variant with these parts runs everything `needs` asks for.
+    pub fn covers(self, needs: Parts) -> bool {
+        self.union(needs) == self
+    }
+
+    /// The parts an instance's f64 coefficients use (what the shader would
+    /// read of them): a steady measurement, the phase ladder (levels that
+    /// may stop the run), a non-zero load term.
+    pub fn of_coefficients(c: &Coefficients) -> Parts {
+        let nonzero = |v: Vec2| v.x != 0.0 || v.y != 0.0;
+        Parts {
+            steady: c.steady,
+            phase: c.steady && c.phase_levels != 0,
+            load: nonzero(c.load_need)
+                || nonzero(c.load_accel)
+                || nonzero(c.neg_load)
+                || nonzero(c.neg_load_accel),
+        }
+    }
+
+    /// The parts `instances` use under `settings`: of every one, or of
+    /// [`SAMPLED_PARTS`] evenly spread over a longer list (what a run
+    /// prepares up front; each batch takes the pipeline its own
+    /// instances need).
+    pub fn of(instances: &[Instance], settings: &Settings) -> Parts {
+        let n = instances.len();
+        let picked = n.min(SAMPLED_PARTS);
+        (0..picked)
+            .map(|k| &instances[k * n / picked])
+            .fold(Parts::default(), |parts, inst| {
+                parts.union(Parts::of_coefficients(&Coefficients::of(inst, settings)))
+            })
+    }
+
+    /// "steady+phase+load", "window": the parts in words.
+    pub fn name(self) -> String {
+        let mut words = vec![if self.steady { "steady" } else { "window" }];
+        if self.phase {
+            words.push("phase");
+        }
+        if self.load {
+            words.push("load");
+        }
+        words.join("+")
+    }
+
+    /// Whether `file` belongs to a variant with these parts.
+    fn include(self, file: &str) -> bool {
+        match file {
+            "measure.wgsl" | "steady.wgsl" => self.steady,
+            "phase.wgsl" => self.steady && self.phase,
+            _ => true,
+        }
+    }
+}
+
+/// The most instances [`Parts::of`] looks at.
+pub const SAMPLED_PARTS: usize = 2048;
 
 /// What one compiled pipeline is specialised to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -67,6 +188,49 @@ pub struct Variant {
     /// (llvmpipe): the shader then checks every iteration and undoes those
     /// the limiter cut short. Hardware adapters leave the check out.
     pub loop_limiter: bool,
+    /// The optional parts it carries.
+    pub parts: Parts,
+}
+
+/// A variant without steady measurements: the steady half of the entry
+/// point (`steady.wgsl`) as functions that do nothing. Its pipelines bind
+/// neither the accumulators nor the heads.
+const WINDOW_ONLY: &str = "\
+fn start_measure(c: Coefficients, index: u32) {}
+
+fn finish_measure(c: Coefficients, index: u32) {}
+
+fn at_measured_end(c: Coefficients, st: State, index: u32) -> bool {
+    return false;
+}
+
+fn measure_period_end(c: Coefficients, st: ptr<function, State>, index: u32, fresh: bool) -> bool {
+    return true;
+}
+";
+
+/// A steady variant without the phase ladder: `phase_period_end` judges
+/// nothing (and is never called: `PHASE` is false).
+const NO_LADDER: &str = "\
+fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> PhaseEstimate {
+    return PhaseEstimate(V2(0.0), V2(0.0), 0u);
+}
+";
+
+/// The load terms a variant reads (MODEL.md section 7): the coefficients'
+/// with a load, else the +0 every one of them is at zero load.
+fn load_terms(load: bool) -> String {
+    ["load_need", "load_accel", "neg_load", "neg_load_accel"]
+        .iter()
+        .map(|name| {
+            let value = if load {
+                format!("c.{name}")
+            } else {
+                "V2(0.0)".to_string()
+            };
+            format!("fn {name}(c: Coefficients) -> V2 {{\n    return {value};\n}}\n")
+        })
+        .collect()
 }
 
 /// The f64 arithmetic helpers. NVIDIA's Vulkan compiler (driver 580) fails
@@ -230,9 +394,15 @@ pub fn prelude(variant: Variant) -> String {
          {body}alias V2 = vec2<Real>;\n\
          const WORKGROUP_SIZE: u32 = {workgroup}u;\n\
          const LOOP_LIMITER: bool = {limiter};\n\
+         const STEADY: bool = {steady};\n\
+         const PHASE: bool = {phase};\n\
+         const LOAD: bool = {load};\n\
          const STATUS_LOOP_LIMIT: u32 = {STATUS_LOOP_LIMIT}u;\n\
          {constants}\n{helpers}\n{COMMON_HELPERS}\n{inverse}\n",
         limiter = variant.loop_limiter,
+        steady = variant.parts.steady,
+        phase = variant.parts.steady && variant.parts.phase,
+        load = variant.parts.load,
         workgroup = workgroup_size(),
         constants =
             constants::wgsl_constants() + &measure::wgsl_constants() + &phase::wgsl_constants(),
@@ -240,12 +410,22 @@ pub fn prelude(variant: Variant) -> String {
     )
 }
 
-/// The complete shader source of one variant.
+/// The complete shader source of one variant: the prelude, the parts'
+/// stand-ins, and the files of its parts.
 pub fn source(variant: Variant) -> String {
+    let parts = variant.parts;
     let mut src = prelude(variant);
+    src += &load_terms(parts.load);
+    if !parts.steady {
+        src += WINDOW_ONLY;
+    } else if !parts.phase {
+        src += NO_LADDER;
+    }
     for (name, text) in FILES {
-        src += &format!("\n// ---- shaders/integrate/{name}\n");
-        src += text;
+        if parts.include(name) {
+            src += &format!("\n// ---- shaders/integrate/{name}\n");
+            src += text;
+        }
     }
     src
 }
@@ -287,10 +467,13 @@ mod tests {
         let mut out = Vec::new();
         for precision in [Precision::F32, Precision::F64] {
             for loop_limiter in [false, true] {
-                out.push(Variant {
-                    precision,
-                    loop_limiter,
-                });
+                for parts in Parts::every() {
+                    out.push(Variant {
+                        precision,
+                        loop_limiter,
+                        parts,
+                    });
+                }
             }
         }
         out
@@ -473,6 +656,7 @@ mod tests {
         let variant = Variant {
             precision: Precision::F64,
             loop_limiter: false,
+            parts: Parts::ALL,
         };
         let (module, info) = parse_and_validate(variant).unwrap();
         let is_f64 = |ty: &naga::TypeInner| {

@@ -24,12 +24,14 @@ pub fn max_batch_instances(
     n.max(1)
 }
 
-/// Instances per sweep chunk on `ctx` in `precision`: the most one batch
-/// of steady instances may hold on the device ([`max_batch_instances`] of
-/// its limits), and at most one per lane ([`lanes`]): every lane is busy
-/// on a periodic map, and a map larger than the lanes is several chunks,
-/// so the device integrates one while the host writes the one before and
-/// expands the one after (`crate::sweep::run_chunks`).
+/// Instances per sweep chunk on `ctx` in `precision`: the lanes the
+/// adapter keeps busy ([`GpuContext::lanes`]) [`CHUNK_ROUNDS`] times over
+/// ([`SOFTWARE_CHUNK_ROUNDS`] on a software adapter),
+/// so that lanes take instances from the queue for most of a chunk, but at
+/// most what one batch of steady instances may hold on the device
+/// ([`max_batch_instances`] of its limits). A map larger than that is
+/// several chunks, so the device integrates one while the host writes the
+/// one before and expands the one after (`crate::sweep::run_chunks`).
 pub fn chunk_instances(ctx: &GpuContext, precision: Precision) -> usize {
     fn of<L: Layout>(limits: &wgpu::Limits) -> usize {
         let state = size_of::<L::State>().max(size_of::<L::Measure>());
@@ -44,7 +46,12 @@ pub fn chunk_instances(ctx: &GpuContext, precision: Precision) -> usize {
         Precision::F32 => of::<Single>(&ctx.limits),
         Precision::F64 => of::<Double>(&ctx.limits),
     };
-    batch.min(lanes()).max(1)
+    let rounds = if ctx.is_hardware() {
+        CHUNK_ROUNDS
+    } else {
+        SOFTWARE_CHUNK_ROUNDS
+    };
+    batch.min(rounds * ctx.lanes()).max(1)
 }
 
 /// The coefficients of a batch's instances, packed for the device ahead of

@@ -582,7 +582,7 @@ fn few_lanes_work_through_every_instance() {
         )
         .expect("batch runs");
         let options = BatchOptions {
-            lanes: 2,
+            lanes: Some(2),
             slice_iterations: 7,
             ..BatchOptions::default()
         };
@@ -702,7 +702,7 @@ fn loop_limit_falls_back_to_the_cpu() {
         assert!(gpu.iter().all(|g| g.status != pidm::gpu::STATUS_LOOP_LIMIT));
         // On llvmpipe no iteration completes its probe, so every instance
         // falls back (and says so); other drivers run them all.
-        let expected = ctx.variant(precision).loop_limiter;
+        let expected = ctx.variant(precision, pidm::gpu::Parts::ALL).loop_limiter;
         assert!(
             gpu.iter().all(|g| g.cpu_fallback == expected),
             "{precision:?}: fallbacks {:?}, expected all {expected}",

@@ -115,7 +115,7 @@ fn overlapping_chunks_give_the_records_of_chunks_one_after_another_on_the_gpu() 
             // GPU's state in f64).
             let options = BatchOptions {
                 max_batch: Some(5),
-                lanes: 3,
+                lanes: Some(3),
                 cpu_tail: Some(2),
                 ..BatchOptions::default()
             };

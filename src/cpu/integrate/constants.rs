@@ -54,6 +54,26 @@ pub const EVENT_REVERSAL: u32 = 4;
 /// quadratic, so f32 resolves it too.
 pub const EVENT_APPROACH: u32 = 5;
 
+/// What one call of `iterate` did (its return value), for the lanes'
+/// counts the shader keeps (`pidm::gpu::warps`): lanes of one warp that do
+/// different kinds of iteration run each other's code. `iterate` passed
+/// drive corners or period ends and took no step (or finished there).
+pub const ITERATION_BOUNDARY: u32 = 0;
+/// A step in stick that located no event.
+pub const ITERATION_STICK: u32 = 1;
+/// A step in slip (in or outside the band) that located no event.
+pub const ITERATION_SLIP: u32 = 2;
+/// A slip trial rejected: only the step length changed.
+pub const ITERATION_REJECTED: u32 = 3;
+/// A step that located an event and moved to it.
+pub const ITERATION_EVENT: u32 = 4;
+/// Not an iteration of `iterate`: a steady measurement's bookkeeping at a
+/// period end (`measure::period_end`), which the lane's loop runs between
+/// iterations. The lanes' counts keep it beside the kinds above.
+pub const ITERATION_PERIOD_END: u32 = 5;
+/// The kinds of iteration a lane counts.
+pub const ITERATION_KINDS: usize = 6;
+
 /// The band grazes that an f32 run hands to the f64 reference, as a
 /// fraction of the band: slip whose relative velocity passes the velocity
 /// band a with a closest approach |v_rel|^2 within `GRAZE_MARGIN` a^2 of
@@ -151,6 +171,12 @@ pub fn wgsl_constants() -> String {
         u("STATUS_EVENT_STORM", STATUS_EVENT_STORM),
         u("STATUS_GRAZE", STATUS_GRAZE),
         r("GRAZE_MARGIN", GRAZE_MARGIN),
+        u("ITERATION_BOUNDARY", ITERATION_BOUNDARY),
+        u("ITERATION_STICK", ITERATION_STICK),
+        u("ITERATION_SLIP", ITERATION_SLIP),
+        u("ITERATION_REJECTED", ITERATION_REJECTED),
+        u("ITERATION_EVENT", ITERATION_EVENT),
+        u("ITERATION_PERIOD_END", ITERATION_PERIOD_END),
         u("EVENT_NONE", EVENT_NONE),
         u("EVENT_BREAKAWAY", EVENT_BREAKAWAY),
         u("EVENT_ENTER_BAND", EVENT_ENTER_BAND),

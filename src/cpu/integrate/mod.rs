@@ -61,7 +61,10 @@ pub use constants::{
 pub use measure::{Measure, initial_measure};
 pub use vec2::Vec2;
 
-use constants::MAX_STALLED_EVENTS;
+use constants::{
+    ITERATION_BOUNDARY, ITERATION_EVENT, ITERATION_REJECTED, ITERATION_SLIP, ITERATION_STICK,
+    MAX_STALLED_EVENTS,
+};
 use drive::{corner_time, corner_time_lo, drive_force, frac, pass_boundaries};
 use flow::{Flow, Sample, eval_at};
 use step::StepOutcome;
@@ -351,7 +354,9 @@ fn stop_time(c: &Coefficients, st: &State) -> (Real, Real) {
 
 /// One iteration: passes the boundaries at the current time if any, then
 /// (unless the run ended there) takes one step or one rejected slip trial.
-pub fn iterate<O: StepObserver>(c: &Coefficients, st: &mut State, observer: &mut O) {
+/// Returns what it did, one of `constants::ITERATION_*` (the shader's lanes
+/// count them; the CPU's callers need not).
+pub fn iterate<O: StepObserver>(c: &Coefficients, st: &mut State, observer: &mut O) -> u32 {
     if st.period == c.settle && st.time == 0.0 && st.time_lo == 0.0 {
         st.settle_x_s = st.x_s;
     }
@@ -359,11 +364,11 @@ pub fn iterate<O: StepObserver>(c: &Coefficients, st: &mut State, observer: &mut
     if time_reached(st, stop.0, stop.1) {
         pass_boundaries(c, st);
         if is_finished(c, st) {
-            return;
+            return ITERATION_BOUNDARY;
         }
         stop = stop_time(c, st);
         if time_reached(st, stop.0, stop.1) {
-            return;
+            return ITERATION_BOUNDARY;
         }
     }
     let h_max = if CORNER_CLOCK {
@@ -375,9 +380,10 @@ pub fn iterate<O: StepObserver>(c: &Coefficients, st: &mut State, observer: &mut
     };
     let time_before = st.time;
     let time_lo_before = st.time_lo;
+    let stuck = st.mode == MODE_STICK;
     let outcome = step::step(c, st, h_max, stop, observer);
     st.steps += 1;
-    if outcome == StepOutcome::Moved || st.status != STATUS_OK {
+    if outcome != StepOutcome::Rejected || st.status != STATUS_OK {
         if st.time > time_before || (st.time == time_before && st.time_lo > time_lo_before) {
             st.stalled = 0;
         } else {
@@ -391,6 +397,18 @@ pub fn iterate<O: StepObserver>(c: &Coefficients, st: &mut State, observer: &mut
         st.status = STATUS_NON_FINITE;
     } else if st.steps > c.budget {
         st.status = constants::STATUS_STEP_BUDGET;
+    }
+    iteration_kind(outcome, stuck)
+}
+
+/// The kind of an iteration that took a step ([`constants::ITERATION_STICK`]
+/// and the rest), for the lanes' counts.
+fn iteration_kind(outcome: StepOutcome, stuck: bool) -> u32 {
+    match outcome {
+        StepOutcome::Rejected => ITERATION_REJECTED,
+        StepOutcome::Located => ITERATION_EVENT,
+        StepOutcome::Moved if stuck => ITERATION_STICK,
+        StepOutcome::Moved => ITERATION_SLIP,
     }
 }
 

@@ -39,9 +39,11 @@ use super::{Real, State, StepMotion, StepObserver};
 /// What one call of [`step`] did.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StepOutcome {
-    /// The state moved (possibly by zero time, at an event that fires at
-    /// once) or the instance failed.
+    /// The state moved without meeting an event, or the instance failed.
     Moved,
+    /// The state moved to an event (possibly by zero time, one that fires
+    /// at once) and changed mode there.
+    Located,
     /// A slip trial was rejected: only the step length changed.
     Rejected,
 }
@@ -316,7 +318,11 @@ pub fn step<O: StepObserver>(
         st.status = STATUS_GRAZE;
     }
     st.rejections = 0;
-    StepOutcome::Moved
+    if event == EVENT_NONE {
+        StepOutcome::Moved
+    } else {
+        StepOutcome::Located
+    }
 }
 
 /// Whether a band entry at sample `s` only skims the band: where the

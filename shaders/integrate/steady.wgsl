@@ -1,0 +1,73 @@
+// The steady measurement's half of the entry point (GPU only, beside
+// entry.wgsl): the accumulators and heads of each instance and what the
+// lane's loop does with them. Only variants with steady instances carry
+// it; the others get `pidm::gpu::shader`'s empty twins of these functions
+// (`Parts`), and their pipelines bind neither buffer.
+
+// The steady measurement's accumulators per instance (measure.wgsl), read
+// and written only at the period ends of steady instances; a batch of
+// windows binds a single unused entry.
+@group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
+
+// What the host reads of every finished steady measurement: all that the
+// reduction of a periodic or phase-resolved verdict reads
+// (`pidm::gpu::layout::*::Head`). The host copies the whole accumulators
+// of the others only.
+struct Head {
+    travel: V2,
+    se2: V2,
+    next_end: u32,
+    lag: u32,
+    verdict: u32,
+    span: u32,
+}
+// One per instance where any instance is steady, written when a steady
+// instance finishes.
+@group(0) @binding(6) var<storage, read_write> heads: array<Head>;
+
+// A steady instance's accumulators start with its run.
+fn start_measure(c: Coefficients, index: u32) {
+    if c.steady == 1u {
+        measures[index] = initial_measure(c);
+    }
+}
+
+// A finished steady instance leaves its head for the host.
+fn finish_measure(c: Coefficients, index: u32) {
+    if c.steady == 1u {
+        heads[index] = Head(
+            measures[index].travel,
+            measures[index].se2,
+            measures[index].next_end,
+            measures[index].lag,
+            measures[index].verdict,
+            measures[index].span,
+        );
+    }
+}
+
+// Whether a steady instance sits at a period end its measurement has not
+// processed yet.
+fn at_measured_end(c: Coefficients, st: State, index: u32) -> bool {
+    return c.steady == 1u && at_period_end(c, st, measures[index].next_end);
+}
+
+// Processes that period end: the accumulators are copied in and written
+// back only here, and only once the loop limiter has let the update
+// complete. False when the limiter cut it short: the state is as before,
+// with STATUS_LOOP_LIMIT where the lane had done nothing yet in this
+// dispatch (`fresh`), and the lane's dispatch ends.
+fn measure_period_end(c: Coefficients, st: ptr<function, State>, index: u32, fresh: bool) -> bool {
+    var m = measures[index];
+    let before = *st;
+    period_end(c, st, &m);
+    if LOOP_LIMITER && !loop_limiter_intact((*st).steps) {
+        *st = before;
+        if fresh {
+            (*st).status = STATUS_LOOP_LIMIT;
+        }
+        return false;
+    }
+    measures[index] = m;
+    return true;
+}

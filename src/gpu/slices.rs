@@ -1,0 +1,421 @@
+//! One batch on the device, in time slices: its buffers; the first
+//! dispatch, which starts every instance on a lane of its own for
+//! [`BatchOptions::probe_iterations`] iterations; the queue of the
+//! unfinished ones, dearest first ([`warps::queue_order`]), that a few
+//! lanes ([`BatchOptions::lanes`]) work through, each taking the next one
+//! when its own finishes; the lanes still busy packed into fewer workgroups
+//! once the queue is empty; and the readback of states and accumulators.
+//! A batch so lasts its work over its lanes, not its longest instance,
+//! until only its slow tail is left, which the CPU may take
+//! ([`BatchOptions::cpu_tail`]). Which lane runs an instance, and when,
+//! changes nothing of its result: its state lives in the `states` buffer.
+
+use super::runner::{Runner, slice_bound, storage};
+use super::*;
+use crate::profile::{self, Phase};
+use layout::control::Tally;
+use warps::{CriticalPath, LaneBytes, NO_INSTANCE, Probed, Warps, queue_order};
+
+/// A compiled pipeline and the variant it was compiled from.
+pub(super) type Compiled<'p> = (&'p wgpu::ComputePipeline, Variant);
+
+/// A batch's device buffers.
+struct Buffers {
+    coefficients: wgpu::Buffer,
+    states: wgpu::Buffer,
+    measures: wgpu::Buffer,
+    heads: wgpu::Buffer,
+    /// The instance each lane holds, one entry per instance (the first
+    /// dispatch has a lane for each).
+    lanes: wgpu::Buffer,
+    lanes_read: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    counters_read: wgpu::Buffer,
+    order: wgpu::Buffer,
+    tallies: wgpu::Buffer,
+    tallies_read: wgpu::Buffer,
+}
+
+impl Buffers {
+    fn new<L: Layout>(
+        device: &wgpu::Device,
+        coefficients: &[L::Coefficients],
+        steady: bool,
+    ) -> Buffers {
+        let n = coefficients.len();
+        let init = |label: &str, contents: &[u8], copy: bool| {
+            let mut usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+            if copy {
+                usage |= wgpu::BufferUsages::COPY_SRC;
+            }
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage,
+            })
+        };
+        // The accumulators: one per instance where any instance is steady,
+        // else one unused entry (windows never touch them).
+        let per_steady = if steady { n } else { 1 };
+        let identity: Vec<u32> = (0..n as u32).collect();
+        Buffers {
+            coefficients: init("coefficients", bytemuck::cast_slice(coefficients), false),
+            states: storage(device, "states", (n * size_of::<L::State>()) as u64),
+            measures: storage(
+                device,
+                "measures",
+                (size_of::<L::Measure>() * per_steady) as u64,
+            ),
+            heads: storage(device, "heads", (size_of::<L::Head>() * per_steady) as u64),
+            lanes: init("lanes", bytemuck::cast_slice(&identity), true),
+            lanes_read: readback::mappable(device, "lanes readback", 4 * n as u64),
+            counters: init("counters", bytemuck::cast_slice(&[0u32, 0u32]), true),
+            counters_read: readback::mappable(device, "counters readback", 8),
+            order: init("order", bytemuck::cast_slice(&identity), false),
+            tallies: storage(device, "tallies", (n * size_of::<Tally>()) as u64),
+            tallies_read: readback::mappable(
+                device,
+                "tallies readback",
+                (n * size_of::<Tally>()) as u64,
+            ),
+        }
+    }
+
+    /// The bind group of a dispatch with `control`: the bindings of the
+    /// variant's parts (a variant without steady measurements binds
+    /// neither accumulators nor heads).
+    fn bind_group(
+        &self,
+        device: &wgpu::Device,
+        (pipeline, variant): Compiled,
+        control: &wgpu::Buffer,
+    ) -> wgpu::BindGroup {
+        let mut buffers = vec![
+            (0, &self.coefficients),
+            (1, &self.states),
+            (2, control),
+            (3, &self.counters),
+            (4, &self.lanes),
+            (7, &self.order),
+            (8, &self.tallies),
+        ];
+        if variant.parts.steady {
+            buffers.extend([(5, &self.measures), (6, &self.heads)]);
+        }
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .into_iter()
+            .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                binding,
+                resource: buffer.as_entire_binding(),
+            })
+            .collect();
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("integrate"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        })
+    }
+}
+
+/// Counts one dispatch's tallies into the run's warps and the batch's
+/// critical path.
+fn count(warps: &mut Warps, path: &mut CriticalPath, tallies: &[Tally]) {
+    warps.add_dispatch(tallies);
+    path.lockstep += tallies.iter().map(Tally::passes).max().unwrap_or(0);
+    path.work += tallies.iter().map(Tally::passes).sum::<u64>();
+}
+
+/// `n` lanes rounded up to whole workgroups.
+fn whole_workgroups(n: usize) -> usize {
+    n.div_ceil(workgroup_size() as usize) * workgroup_size() as usize
+}
+
+/// The periods an instance is expected to run, for ranking the queue: a
+/// window's cycles; a steady measurement's settling and sixteen batches of
+/// its beat (a common period or the slowest beat between the drives),
+/// which a periodic motion undercuts and an irregular one may outrun, but
+/// at most its `max_cycles`.
+pub(super) fn expected_periods(inst: &Instance) -> f64 {
+    use crate::cpu::integrate::{Vec2, measure};
+    match inst.measure {
+        Measure::Window => inst.cycles as f64,
+        Measure::Steady { .. } => {
+            let period = inst.period();
+            let [x, y] = inst.axes;
+            let cycles = Vec2::new(x.frequency * period, y.frequency * period);
+            let driven = [x.voltage != 0.0, y.voltage != 0.0];
+            let beat = measure::beat_batch_length(cycles, driven) as f64;
+            (inst.settle as f64 + measure::MIN_BATCHES as f64 * beat).min(inst.cycles as f64)
+        }
+    }
+}
+
+impl Runner<'_> {
+    /// One dispatch of `lanes` lanes with `group`; returns the counters
+    /// after it: queue entries taken (and overrun) and instances finished.
+    fn dispatch(
+        &self,
+        b: &Buffers,
+        pipeline: &wgpu::ComputePipeline,
+        group: &wgpu::BindGroup,
+        lanes: usize,
+    ) -> Result<(u64, u64), GpuError> {
+        let (gx, gy) = dispatch_size(lanes, self.limits.max_compute_workgroups_per_dimension);
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        encoder.copy_buffer_to_buffer(&b.counters, 0, &b.counters_read, 0, 8);
+        self.queue.submit([encoder.finish()]);
+        let bytes = readback::read_buffer(self.device, &b.counters_read)?;
+        let word = |k: usize| u32::from_le_bytes(bytes[4 * k..4 * k + 4].try_into().unwrap());
+        Ok((word(0) as u64, word(1) as u64))
+    }
+
+    /// The tallies of the first `lanes` lanes of the last dispatch.
+    fn tallies(&self, b: &Buffers, lanes: usize) -> Result<Vec<Tally>, GpuError> {
+        let bytes = (lanes * size_of::<Tally>()) as u64;
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&b.tallies, 0, &b.tallies_read, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        readback::with_mapped_prefix(self.device, &b.tallies_read, bytes, |bytes| {
+            bytes
+                .chunks_exact(size_of::<Tally>())
+                .map(bytemuck::pod_read_unaligned)
+                .collect()
+        })
+    }
+
+    /// Packs the instances the first `active` lanes hold into the first
+    /// lanes; returns how many lanes now hold one.
+    fn compact(&self, b: &Buffers, active: usize) -> Result<usize, GpuError> {
+        let bytes = 4 * active as u64;
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&b.lanes, 0, &b.lanes_read, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        let mut held: Vec<u32> =
+            readback::with_mapped_prefix(self.device, &b.lanes_read, bytes, |bytes| {
+                bytes
+                    .chunks_exact(4)
+                    .map(|w| u32::from_le_bytes(w.try_into().unwrap()))
+                    .filter(|&k| k != NO_INSTANCE)
+                    .collect()
+            })?;
+        let busy = held.len();
+        held.resize(active, NO_INSTANCE);
+        self.queue
+            .write_buffer(&b.lanes, 0, bytemuck::cast_slice(&held));
+        Ok(busy)
+    }
+
+    /// A control buffer.
+    fn control(&self, max_iterations: u32, initialize: u32, queued: u32) -> wgpu::Buffer {
+        let probe = self.options.probe_passes.max(layout::PROBE_PASSES);
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("control"),
+                contents: bytemuck::bytes_of(&Control {
+                    max_iterations,
+                    initialize,
+                    one: 1.0,
+                    probe,
+                    probe_min: probe,
+                    zero: 0,
+                    queued,
+                    _pad: 0,
+                }),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+    }
+
+    /// Dispatches slices until the batch is done, or only its slow tail is
+    /// left, or `slice_limit` slices have run; returns every state and,
+    /// for a batch with a steady instance, every measurement.
+    pub(super) fn slices<L: Layout>(
+        &self,
+        instances: &[Instance],
+        coefficients: &[L::Coefficients],
+        compiled: Compiled,
+        progress: &mut dyn FnMut(u64),
+        slice_limit: Option<u64>,
+    ) -> Result<Readback<L>, GpuError> {
+        let n = instances.len();
+        let (pipeline, variant) = compiled;
+        let steady = variant.parts.steady && any_steady(instances);
+        let uploading = profile::span(Phase::Upload);
+        let b = Buffers::new::<L>(self.device, coefficients, steady);
+        let probe_control = self.control(self.options.probe_iterations.max(1), 1, 0);
+        let probe_group = b.bind_group(self.device, compiled, &probe_control);
+        drop(uploading);
+        let dispatching = profile::span(Phase::Dispatch);
+        let profiling = profile::enabled();
+        let mut warps = Warps::default();
+        let mut path = CriticalPath {
+            instances: n,
+            lanes: n,
+            ..CriticalPath::default()
+        };
+        // The first dispatch: every instance on a lane of its own.
+        let started = std::time::Instant::now();
+        let (_, mut finished) = self.dispatch(&b, pipeline, &probe_group, n)?;
+        let tallies = self.tallies(&b, n)?;
+        profile::add_lanes(whole_workgroups(n) as u64, n as u64, started.elapsed());
+        if profiling {
+            count(&mut warps, &mut path, &tallies);
+        }
+        progress(finished.min(n as u64));
+        let mut slice: u64 = 1;
+        let probed: Vec<Probed> = tallies
+            .iter()
+            .enumerate()
+            .filter_map(|(k, tally)| {
+                tally.held().map(|_| Probed {
+                    index: k as u32,
+                    tally: *tally,
+                    expected_periods: expected_periods(&instances[k]),
+                })
+            })
+            .collect();
+        drop(tallies);
+        let queued = probed.len();
+        let tail_size =
+            self.options
+                .tail_size(L::PRECISION, n, rayon::current_num_threads()) as u64;
+        let stop_now = queued == 0
+            || queued as u64 <= tail_size
+            || slice_limit.is_some_and(|limit| slice >= limit);
+        if !stop_now {
+            // The queue, and its first entries on the lanes.
+            let order = queue_order(&probed, self.options.order);
+            let lanes = self.options.lanes.unwrap_or(LANES).clamp(1, queued);
+            let mut first = order[..lanes].to_vec();
+            first.resize(whole_workgroups(lanes).min(n), NO_INSTANCE);
+            self.queue
+                .write_buffer(&b.order, 0, bytemuck::cast_slice(&order));
+            self.queue
+                .write_buffer(&b.lanes, 0, bytemuck::cast_slice(&first));
+            self.queue.write_buffer(
+                &b.counters,
+                0,
+                bytemuck::cast_slice(&[lanes as u32, finished as u32]),
+            );
+            let control = self.control(self.options.slice_iterations, 0, queued as u32);
+            let group = b.bind_group(self.device, compiled, &control);
+            path.lanes = lanes;
+            let mut active = lanes;
+            let rounds = queued.div_ceil(lanes) as u64;
+            let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds) + 1;
+            let mut unfinished_before = n as u64 - finished;
+            loop {
+                let started = std::time::Instant::now();
+                let (next, done) = self.dispatch(&b, pipeline, &group, active)?;
+                finished = done;
+                let dispatched = whole_workgroups(active);
+                profile::add_lanes(
+                    dispatched as u64,
+                    unfinished_before.min(active as u64),
+                    started.elapsed(),
+                );
+                if profiling {
+                    let tallies = self.tallies(&b, dispatched.min(n))?;
+                    count(&mut warps, &mut path, &tallies);
+                }
+                let unfinished = (n as u64).saturating_sub(finished);
+                unfinished_before = unfinished;
+                slice += 1;
+                progress(finished.min(n as u64));
+                let drained = next >= queued as u64;
+                // Every instance started, and only the slow tail is left.
+                if unfinished == 0 || (drained && unfinished <= tail_size) {
+                    break;
+                }
+                if slice_limit.is_some_and(|limit| slice >= limit) {
+                    break;
+                }
+                if crate::sweep::interrupt_requested() {
+                    return Err(GpuError::Interrupted);
+                }
+                if slice >= max_slices {
+                    return Err(GpuError::Stalled {
+                        unfinished: unfinished as u32,
+                        slices: slice,
+                    });
+                }
+                // The queue is empty and a quarter of the lanes idle: the
+                // busy ones into fewer workgroups.
+                if drained && 4 * unfinished <= 3 * active as u64 {
+                    active = self.compact(&b, active)?.max(1);
+                }
+            }
+        }
+        drop(dispatching);
+        let out = self.read_back::<L>(instances, &b, steady)?;
+        if profiling {
+            path.longest_instance = out.0.iter().map(|s| L::steps(s) as u64).max().unwrap_or(0);
+            path.mean_instance =
+                out.0.iter().map(|s| L::steps(s) as f64).sum::<f64>() / n.max(1) as f64;
+            let bytes = LaneBytes {
+                coefficients: size_of::<L::Coefficients>(),
+                state: size_of::<L::State>(),
+                measure: if steady { size_of::<L::Measure>() } else { 0 },
+            };
+            profile::add_warps(&warps, path, bytes);
+        }
+        Ok(out)
+    }
+
+    /// Every state and, for a steady batch, every measurement
+    /// ([`readback::accumulators`]).
+    fn read_back<L: Layout>(
+        &self,
+        instances: &[Instance],
+        b: &Buffers,
+        steady: bool,
+    ) -> Result<Readback<L>, GpuError> {
+        let _reading = profile::span(Phase::Readback);
+        let n = instances.len();
+        let state_bytes = (n * size_of::<L::State>()) as u64;
+        let head_bytes = (n * size_of::<L::Head>()) as u64;
+        let states_read = readback::mappable(self.device, "states readback", state_bytes);
+        let heads_read =
+            steady.then(|| readback::mappable(self.device, "heads readback", head_bytes));
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&b.states, 0, &states_read, 0, state_bytes);
+        if let Some(heads_read) = &heads_read {
+            encoder.copy_buffer_to_buffer(&b.heads, 0, heads_read, 0, head_bytes);
+        }
+        self.queue.submit([encoder.finish()]);
+        let states: Vec<L::State> = readback::with_mapped(self.device, &states_read, |bytes| {
+            match bytemuck::try_cast_slice(bytes) {
+                Ok(states) => states.to_vec(),
+                // A mapping not aligned for the struct (no driver seen).
+                Err(_) => bytes
+                    .chunks_exact(size_of::<L::State>())
+                    .map(bytemuck::pod_read_unaligned)
+                    .collect(),
+            }
+        })?;
+        let mut read = readback::AccumulatorsRead::default();
+        let measure_list: Vec<L::Measure> = match &heads_read {
+            Some(heads_read) => readback::accumulators::<L>(
+                self.device,
+                self.queue,
+                self.options.whole_accumulators,
+                instances,
+                &states,
+                (heads_read, &b.measures),
+                &mut read,
+            )?,
+            None => Vec::new(),
+        };
+        profile::add_bytes_read(
+            state_bytes
+                + if steady { head_bytes } else { 0 }
+                + (read.count * size_of::<L::Measure>()) as u64,
+        );
+        Ok((states, measure_list))
+    }
+}
