@@ -248,6 +248,14 @@ impl GpuContext {
         }
     }
 
+    /// The variants this context has compiled and self-tested so far.
+    pub fn prepared_variants(&self) -> Vec<Variant> {
+        let pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        let mut out: Vec<Variant> = pipelines.keys().copied().collect();
+        out.sort_by_key(|v| (v.precision == Precision::F64, v.parts));
+        out
+    }
+
     /// The lanes a batch keeps busy at once ([`lanes_for`]: the
     /// `PIDM_GPU_LANES` knob, else what this kind of adapter runs at once).
     pub fn lanes(&self) -> usize {

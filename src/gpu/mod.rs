@@ -73,8 +73,8 @@ pub use adapters::{
 pub use context::{GpuContext, Preparation, create_pipeline};
 pub use options::{BatchOptions, CPU_TAIL_MIN_BATCH, CPU_TAIL_PER_THREAD, F32Check};
 pub use runner::{
-    dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, run_batch,
-    run_batch_packed, run_batch_with,
+    dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, f64_tallies_after,
+    run_batch, run_batch_packed, run_batch_with,
 };
 pub use staging::{Packed, chunk_instances, max_batch_instances, pack};
 // The module's other items, for its files (`use super::*`).

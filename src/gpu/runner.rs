@@ -81,6 +81,29 @@ pub(super) fn states_after<L: Layout>(
     settings: &Settings,
     iterations: u32,
 ) -> Result<Vec<L::Mirror>, GpuError> {
+    let ((states, _), _) = first_dispatch::<L>(ctx, instances, settings, iterations)?;
+    Ok(states.iter().map(L::mirror).collect())
+}
+
+/// What each lane did in a batch's first dispatch of `iterations`
+/// iterations, where instance k runs on lane k (`gpu::warps`): for tests
+/// that hold the lanes' counts against the CPU mirror's iterations.
+pub fn f64_tallies_after(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    iterations: u32,
+) -> Result<Vec<layout::control::Tally>, GpuError> {
+    Ok(first_dispatch::<Double>(ctx, instances, settings, iterations)?.1)
+}
+
+/// A batch's first dispatch alone, of `iterations` iterations.
+fn first_dispatch<L: Layout>(
+    ctx: &GpuContext,
+    instances: &[Instance],
+    settings: &Settings,
+    iterations: u32,
+) -> Result<(Readback<L>, Vec<layout::control::Tally>), GpuError> {
     let options = BatchOptions {
         slice_iterations: iterations.max(1),
         probe_iterations: iterations.max(1),
@@ -88,23 +111,21 @@ pub(super) fn states_after<L: Layout>(
         cpu_tail: Some(0),
         ..BatchOptions::default()
     };
-    let states = {
+    let out = {
         let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
         let runner = Runner::on(ctx, settings, &options);
         let coefficients = runner.coefficients::<L>(instances, None);
         let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
-        runner
-            .slices::<L>(
-                instances,
-                &coefficients,
-                (&pipeline, variant),
-                &mut |_| {},
-                Some(1),
-            )?
-            .0
+        runner.slices::<L>(
+            instances,
+            &coefficients,
+            (&pipeline, variant),
+            &mut |_| {},
+            Some(1),
+        )?
     };
     ctx.check_health()?;
-    Ok(states.iter().map(L::mirror).collect())
+    Ok(out)
 }
 
 /// [`states_after`] in f32: the states of the f32 shader as its CPU mirror
@@ -513,7 +534,7 @@ impl<'a> Runner<'a> {
         let n = instances.len();
         let coefficients = self.coefficients::<L>(instances, packed);
         let (pipeline, variant) = self.pipeline::<L>(L::PRECISION, &coefficients)?;
-        let (states, measure_list) = self.slices::<L>(
+        let ((states, measure_list), _) = self.slices::<L>(
             instances,
             &coefficients,
             (&pipeline, variant),

@@ -233,7 +233,8 @@ impl Runner<'_> {
 
     /// Dispatches slices until the batch is done, or only its slow tail is
     /// left, or `slice_limit` slices have run; returns every state and,
-    /// for a batch with a steady instance, every measurement.
+    /// for a batch with a steady instance, every measurement, and the
+    /// tallies of the first dispatch (instance k's on lane k).
     pub(super) fn slices<L: Layout>(
         &self,
         instances: &[Instance],
@@ -241,7 +242,7 @@ impl Runner<'_> {
         compiled: Compiled,
         progress: &mut dyn FnMut(u64),
         slice_limit: Option<u64>,
-    ) -> Result<Readback<L>, GpuError> {
+    ) -> Result<(Readback<L>, Vec<Tally>), GpuError> {
         let n = instances.len();
         let (pipeline, variant) = compiled;
         let steady = variant.parts.steady && any_steady(instances);
@@ -279,7 +280,6 @@ impl Runner<'_> {
                 })
             })
             .collect();
-        drop(tallies);
         let queued = probed.len();
         let tail_size =
             self.options
@@ -364,7 +364,7 @@ impl Runner<'_> {
             };
             profile::add_warps(&warps, path, bytes);
         }
-        Ok(out)
+        Ok((out, tallies))
     }
 
     /// Every state and, for a steady batch, every measurement
