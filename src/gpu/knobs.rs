@@ -103,6 +103,13 @@ pub fn lanes_for(hardware: bool) -> usize {
     })
 }
 
+/// Whether busy lanes are packed once a batch's queue is empty: yes, or
+/// `PIDM_GPU_COMPACT=0`.
+pub fn compact() -> bool {
+    static COMPACT: OnceLock<bool> = OnceLock::new();
+    *COMPACT.get_or_init(|| knob("PIDM_GPU_COMPACT", 1u8, |n| *n <= 1, "0 or 1") == 1)
+}
+
 /// How a batch's queue is ordered: [`Order::Cost`], or `PIDM_GPU_ORDER` =
 /// `cost` or `index` (for measuring what the order is worth).
 pub fn order() -> Order {

@@ -85,7 +85,7 @@ use tail::*;
 
 pub use knobs::{
     CHUNK_ROUNDS, LANES, PROBE_ITERATIONS, SLICE_ITERATIONS, SOFTWARE_CHUNK_ROUNDS,
-    SOFTWARE_LANES_PER_THREAD, WORKGROUP_SIZE, f32_check, lanes, lanes_for, order,
+    SOFTWARE_LANES_PER_THREAD, WORKGROUP_SIZE, compact, f32_check, lanes, lanes_for, order,
     slice_iterations, workgroup_size,
 };
 pub use shader::{Parts, Variant};

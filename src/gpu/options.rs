@@ -31,6 +31,10 @@ pub struct BatchOptions {
     pub probe_iterations: u32,
     /// The order of the queue after the first dispatch.
     pub order: Order,
+    /// Pack the busy lanes into fewer workgroups once the queue is empty
+    /// (`PIDM_GPU_COMPACT=0` leaves them where they are, for measuring
+    /// what packing is worth).
+    pub compact: bool,
     /// Hand the slow tail of a batch to the CPU: once every instance has
     /// started and at most this many are unfinished, the GPU stops and the
     /// CPU finishes those, in parallel: from where the GPU left them in f64
@@ -130,6 +134,7 @@ impl Default for BatchOptions {
             lanes: None,
             probe_iterations: PROBE_ITERATIONS,
             order: order(),
+            compact: compact(),
             cpu_tail: None,
             check: f32_check(),
         }

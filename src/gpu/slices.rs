@@ -346,7 +346,7 @@ impl Runner<'_> {
                 }
                 // The queue is empty and a quarter of the lanes idle: the
                 // busy ones into fewer workgroups.
-                if drained && 4 * unfinished <= 3 * active as u64 {
+                if self.options.compact && drained && 4 * unfinished <= 3 * active as u64 {
                     active = self.compact(&b, active)?.max(1);
                 }
             }
@@ -357,6 +357,17 @@ impl Runner<'_> {
             path.longest_instance = out.0.iter().map(|s| L::steps(s) as u64).max().unwrap_or(0);
             path.mean_instance =
                 out.0.iter().map(|s| L::steps(s) as f64).sum::<f64>() / n.max(1) as f64;
+            // Predicted against taken, of the queued instances the device
+            // finished.
+            let (predicted, taken): (Vec<f64>, Vec<f64>) = probed
+                .iter()
+                .filter(|p| L::finished(&instances[p.index as usize], &out.0[p.index as usize]))
+                .map(|p| {
+                    let taken = L::steps(&out.0[p.index as usize]) as f64;
+                    (warps::predicted_passes(p) + p.tally.passes() as f64, taken)
+                })
+                .unzip();
+            path.ranking = warps::rank_correlation(&predicted, &taken);
             let bytes = LaneBytes {
                 coefficients: size_of::<L::Coefficients>(),
                 state: size_of::<L::State>(),

@@ -210,6 +210,11 @@ pub struct CriticalPath {
     /// Its longest instance's iterations, and the mean instance's.
     pub longest_instance: u64,
     pub mean_instance: f64,
+    /// How well the first dispatch ranked the queue: the rank correlation
+    /// of the iterations it predicted for the queued instances with those
+    /// they took (of those the device finished), where there were two or
+    /// more.
+    pub ranking: Option<f64>,
 }
 
 impl CriticalPath {
@@ -238,8 +243,49 @@ impl CriticalPath {
             self.longest_instance,
             self.mean_instance,
             self.longest_instance as f64 / self.mean_instance.max(1.0)
-        )
+        ) + &match self.ranking {
+            Some(r) => format!(
+                "pidm: phase   the first dispatch's prediction ranks the queued instances' \
+                 iterations with rank correlation {r:.2}\n"
+            ),
+            None => String::new(),
+        }
     }
+}
+
+/// Spearman's rank correlation of two equally long series (ties share
+/// their mean rank); `None` for fewer than two pairs or a constant series.
+pub fn rank_correlation(a: &[f64], b: &[f64]) -> Option<f64> {
+    fn ranks(x: &[f64]) -> Vec<f64> {
+        let mut order: Vec<usize> = (0..x.len()).collect();
+        order.sort_by(|&i, &j| x[i].total_cmp(&x[j]));
+        let mut out = vec![0.0; x.len()];
+        let mut k = 0;
+        while k < order.len() {
+            let mut end = k;
+            while end + 1 < order.len() && x[order[end + 1]] == x[order[k]] {
+                end += 1;
+            }
+            let rank = (k + end) as f64 / 2.0;
+            for &i in &order[k..=end] {
+                out[i] = rank;
+            }
+            k = end + 1;
+        }
+        out
+    }
+    if a.len() != b.len() || a.len() < 2 {
+        return None;
+    }
+    let (ra, rb) = (ranks(a), ranks(b));
+    let mean = (a.len() - 1) as f64 / 2.0;
+    let (mut ab, mut aa, mut bb) = (0.0, 0.0, 0.0);
+    for (x, y) in ra.iter().zip(&rb) {
+        ab += (x - mean) * (y - mean);
+        aa += (x - mean) * (x - mean);
+        bb += (y - mean) * (y - mean);
+    }
+    (aa > 0.0 && bb > 0.0).then(|| ab / (aa * bb).sqrt())
 }
 
 /// What a lane keeps and moves: the sizes of a precision's structs [bytes].
@@ -404,6 +450,20 @@ mod tests {
     }
 
     #[test]
+    fn rank_correlation_is_one_for_a_monotone_map_and_minus_one_reversed() {
+        let a = [1.0, 5.0, 2.0, 9.0];
+        let up = [10.0, 50.0, 20.0, 1e9];
+        let down = [4.0, 2.0, 3.0, 1.0];
+        assert_eq!(rank_correlation(&a, &up), Some(1.0));
+        assert_eq!(rank_correlation(&a, &down), Some(-1.0));
+        assert_eq!(rank_correlation(&a, &[1.0; 4]), None);
+        assert_eq!(rank_correlation(&a[..1], &up[..1]), None);
+        // Ties share their mean rank: ranks (0.5, 0.5, 2) and (0, 1, 2).
+        let r = rank_correlation(&[1.0, 1.0, 3.0], &[1.0, 2.0, 3.0]).unwrap();
+        assert!((r - 0.75f64.sqrt()).abs() < 1e-12, "{r}");
+    }
+
+    #[test]
     fn the_critical_path_compares_lockstep_with_the_mean_lane() {
         let path = CriticalPath {
             instances: 10,
@@ -412,6 +472,7 @@ mod tests {
             work: 800,
             longest_instance: 150,
             mean_instance: 80.0,
+            ranking: None,
         };
         assert_eq!(path.stretch(), 1.5);
         assert!(path.describe(0).contains("(1.50x)"));
