@@ -24,13 +24,22 @@
 #                 The GPU and auto run the whole map.
 # Per scene, in this order: --backend cpu, --backend gpu --precision f64, the
 # same in f32, and --backend auto (which weighs the GPU costs the runs before
-# it recorded). GPU and auto runs run with PIDM_GPU_PHASES=1.
+# it recorded). GPU and auto runs run with PIDM_GPU_PHASES=1: their phase
+# lines carry the lanes' figures (issue 38: warp efficiency by kind of
+# iteration, each batch's critical path and how well the first dispatch
+# ranked it, the bytes a lane keeps and moves).
+# Then the saturation curve (issue 38): random instances of 4 cycles, 1k,
+# 4k, 16k, 64k, 256k and 1M (smoke: 100, 400, 1,600), each one GPU f64
+# process, in the last PIDM_BENCH_SATURATION seconds of the budget (default
+# 100): integrating seconds, instances and simulated seconds per wall
+# second, and the warp efficiency, against the instances in flight.
 #
 # Knobs (environment): PIDM (the binary, default `pidm`), OUT (results and
 # logs, default /tmp/pidm-gpu-bench), PIDM_BENCH_BUDGET (seconds from the
 # start by which every run has ended, default 420: 8 minutes less a minute
 # for unpacking and starting), PIDM_BENCH_TIMEOUT (seconds one run may take,
 # default 150), PIDM_BENCH_SCENES (the scenes to run, default all four),
+# PIDM_BENCH_SATURATION (seconds kept for the saturation curve, default 100),
 # PIDM_CACHE_DIR (the pipeline cache and auto's GPU costs, default
 # $OUT/cache: fresh on a fresh machine). A run that fails, runs out of time
 # or is skipped for the budget shows as "failed", "timeout" or "skipped".
@@ -54,6 +63,7 @@ if ! command -v "$pidm" > /dev/null; then
 fi
 out=${OUT:-/tmp/pidm-gpu-bench}
 budget=${PIDM_BENCH_BUDGET:-420}
+saturation=${PIDM_BENCH_SATURATION:-100}
 limit=${PIDM_BENCH_TIMEOUT:-150}
 scenes=${PIDM_BENCH_SCENES:-coupling200 coupling1000 random100k twofreq128}
 mkdir -p "$out"
@@ -65,8 +75,10 @@ started=$(date +%s.%N)
 
 if [ "$mode" = full ]; then
     small=200 big=1000 count=100000 side=128 sample=32
+    curve="1000 4000 16000 64000 256000 1000000"
 else
     small=20 big=30 count=400 side=8 sample=4
+    curve="100 400 1600"
 fi
 # The smoke mode's two-frequency runs stop at 20 periods (status 6), for a
 # quick pass on lavapipe; the full map runs to its estimate.
@@ -121,7 +133,7 @@ timed() {
     shift
     # No run goes past the budget: it gets what is left of it, at most
     # $limit, and none starts with under 5 s left.
-    local left=$((budget - $(elapsed)))
+    local left=$((${until:-$budget} - $(elapsed)))
     if [ "$left" -lt 5 ]; then
         echo "== $label: skipped (budget of $budget s spent)" >> "$out/runs.log"
         echo skipped
@@ -216,6 +228,8 @@ inner="$out/integrating.md"
     echo "| scene | CPU | GPU f64 | GPU f32 | auto |"
     echo "|---|---|---|---|---|"
 } > "$inner"
+# The scenes end by the budget less the saturation curve's share.
+until=$((budget - saturation))
 for scene in $scenes; do
     toml="$work/$scene.toml"
     if [ "$scene" = twofreq128 ]; then
@@ -244,7 +258,24 @@ for scene in $scenes; do
     echo "$row"
     echo "| ${shown[$scene]} | $(integrating "$scene-cpu") | $(integrating "$scene-f64") | $(integrating "$scene-f32") | $(integrating "$scene-auto") |" >> "$inner"
 done
-# Phases, then the table last.
+# The saturation curve, in the rest of the budget.
+until=$budget
+curve_table="$out/saturation.md"
+{
+    echo "| random instances (4 cycles) | GPU f64 integrating [s] | instances per s | simulated s per wall s | warp efficiency |"
+    echo "|---|---|---|---|---|"
+} > "$curve_table"
+for n in $curve; do
+    "$pidm" random-scene --seed 7 --count "$n" --cycles 4 --compact > "$work/curve$n.toml"
+    wall=$(PIDM_GPU_PHASES=1 timed "curve$n" "$work/curve$n.toml" --backend gpu --precision f64 --out "$work/curve$n.h5")
+    seconds=$(integrating "curve$n")
+    rate=$(grep -o '[0-9.]* simulated s per wall s' "$work/curve$n.log" 2>/dev/null | head -1 | cut -d' ' -f1)
+    warp=$(grep -o 'dispatch order: [0-9.]* %' "$work/curve$n.log" 2>/dev/null | head -1 | cut -d' ' -f3)
+    per=$(awk -v n="$n" -v t="$seconds" 'BEGIN { if (t + 0 > 0) printf "%.0f", n / t; else print "-" }')
+    echo "| $n | ${seconds} ($wall whole) | $per | ${rate:--} | ${warp:+$warp %} |" >> "$curve_table"
+done
+
+# Phases, then the tables last.
 {
     echo
     echo "== phases of the GPU runs (PIDM_GPU_PHASES=1)"
@@ -264,6 +295,9 @@ done
     echo
     echo "== integrating [s] (the runs' summaries)"
     cat "$inner"
+    echo
+    echo "== saturation: throughput against the instances in flight (GPU f64, one process each)"
+    cat "$curve_table"
     echo
     echo "== whole processes [s], mode $mode, $(elapsed) s in all; speed-up = CPU / GPU"
     cat "$table"

@@ -1,8 +1,9 @@
 //! `results/gpu/bench.sh`, the one device script (issue 32), end to end in
 //! its smoke mode: small versions of its scenes, every run a whole `pidm
 //! run` process on the CPU, the GPU in f64 and f32 (lavapipe in CI) and
-//! `--backend auto`, and one table. Not timed: the test checks that every
-//! run finished and was tabled, never how fast.
+//! `--backend auto`, and one table, with the lanes' figures of every GPU
+//! run and the saturation curve. Not timed: the test checks that every run
+//! finished and was tabled, never how fast.
 
 use std::process::Command;
 
@@ -75,4 +76,28 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
         phases.contains("== whole processes [s], mode smoke"),
         "{phases}"
     );
+    // The lanes' figures of every GPU run (issue 38).
+    assert!(
+        phases
+            .matches("warps of 32 lanes in dispatch order")
+            .count()
+            >= 8,
+        "{phases}"
+    );
+    assert!(phases.contains("critical path of batch 0"), "{phases}");
+    // The saturation curve: a row per count, each with its numbers.
+    let curve = std::fs::read_to_string(out.path().join("saturation.md")).unwrap();
+    let rows: Vec<Vec<&str>> = curve
+        .lines()
+        .skip(2)
+        .map(|l| l.trim_matches('|').split('|').map(str::trim).collect())
+        .collect();
+    let counts: Vec<&str> = rows.iter().map(|r| r[0]).collect();
+    assert_eq!(counts, ["100", "400", "1600"], "{curve}");
+    for row in &rows {
+        let seconds = row[1].split(' ').next().unwrap();
+        assert!(seconds.parse::<f64>().is_ok(), "{row:?}\n{runs}");
+        assert!(row[2].parse::<f64>().is_ok(), "{row:?}");
+        assert!(row[4].ends_with(" %"), "{row:?}");
+    }
 }
