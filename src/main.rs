@@ -66,8 +66,9 @@ enum Command {
         resume: bool,
         /// Instances per chunk: how often the run checkpoints, and what the
         /// pipeline overlaps [default: the backend's choice: 4,096 or 256
-        /// per thread on the CPU, one device batch of at most 262,144 on
-        /// the GPU].
+        /// per thread on the CPU, one device batch on the GPU: its lanes
+        /// four times over, at most 1,048,576 on hardware, 4,096 on a
+        /// 2-core software adapter].
         #[arg(long)]
         chunk_size: Option<usize>,
         /// Rerun every instance with a 100 times tighter tolerance and mark

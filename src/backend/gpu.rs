@@ -104,9 +104,9 @@ impl Backend for GpuBackend {
         self.precision
     }
 
-    /// One batch of the device's, at most one instance per lane
-    /// ([`crate::gpu::chunk_instances`]): 262,144 on hardware, so a
-    /// 1000 x 1000 map is four chunks that the sweep's pipeline overlaps.
+    /// One batch of the device's ([`crate::gpu::chunk_instances`]): the
+    /// queue's lanes four times over, 1,048,576 on hardware within the
+    /// device's limits, so lanes refill for most of a chunk.
     fn chunk_size(&self) -> usize {
         crate::gpu::chunk_instances(&self.ctx, self.precision)
     }
