@@ -117,12 +117,11 @@ impl Buffers {
     }
 }
 
-/// Counts one dispatch's tallies into the run's warps and the batch's
-/// critical path.
-fn count(warps: &mut Warps, path: &mut CriticalPath, tallies: &[Tally]) {
+/// Counts one dispatch of `lanes` lanes into the run's warps and the
+/// batch's critical path.
+fn count(warps: &mut Warps, path: &mut CriticalPath, tallies: &[Tally], lanes: usize) {
     warps.add_dispatch(tallies);
-    path.lockstep += tallies.iter().map(Tally::passes).max().unwrap_or(0);
-    path.work += tallies.iter().map(Tally::passes).sum::<u64>();
+    path.add_dispatch(tallies, lanes);
 }
 
 /// `n` lanes rounded up to whole workgroups.
@@ -265,7 +264,7 @@ impl Runner<'_> {
         let tallies = self.tallies(&b, n)?;
         profile::add_lanes(whole_workgroups(n) as u64, n as u64, started.elapsed());
         if profiling {
-            count(&mut warps, &mut path, &tallies);
+            count(&mut warps, &mut path, &tallies, n);
         }
         progress(finished.min(n as u64));
         let mut slice: u64 = 1;
@@ -321,7 +320,7 @@ impl Runner<'_> {
                 );
                 if profiling {
                     let tallies = self.tallies(&b, dispatched.min(n))?;
-                    count(&mut warps, &mut path, &tallies);
+                    count(&mut warps, &mut path, &tallies, lanes);
                 }
                 let unfinished = (n as u64).saturating_sub(finished);
                 unfinished_before = unfinished;

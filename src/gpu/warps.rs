@@ -201,12 +201,15 @@ fn share(part: u64, whole: u64) -> f64 {
 pub struct CriticalPath {
     /// Instances in the batch.
     pub instances: usize,
-    /// Lanes of its widest dispatch after the first.
+    /// Lanes that worked through its queue (after the first dispatch,
+    /// which has a lane per instance).
     pub lanes: usize,
     /// Its dispatches, each as long as its busiest lane, added up [passes].
     pub lockstep: u64,
-    /// Every lane's passes, added up.
-    pub work: u64,
+    /// Its dispatches, each as long as its lanes' passes spread evenly
+    /// over them (the first's over a lane per instance, the others' over
+    /// [`CriticalPath::lanes`]), added up [passes].
+    pub even: f64,
     /// Its longest instance's iterations, and the mean instance's.
     pub longest_instance: u64,
     pub mean_instance: f64,
@@ -218,12 +221,17 @@ pub struct CriticalPath {
 }
 
 impl CriticalPath {
-    /// The lockstep length over the mean lane's passes (work / lanes): 1
-    /// where every lane is busy until the batch ends.
+    /// Counts one dispatch of `lanes` lanes with these tallies.
+    pub fn add_dispatch(&mut self, tallies: &[Tally], lanes: usize) {
+        self.lockstep += tallies.iter().map(Tally::passes).max().unwrap_or(0);
+        self.even += tallies.iter().map(Tally::passes).sum::<u64>() as f64 / lanes.max(1) as f64;
+    }
+
+    /// The lockstep length over the even one: 1 where every lane is busy
+    /// until the batch ends.
     pub fn stretch(&self) -> f64 {
-        let mean_lane = self.work as f64 / self.lanes.max(1) as f64;
-        if mean_lane > 0.0 {
-            self.lockstep as f64 / mean_lane
+        if self.even > 0.0 {
+            self.lockstep as f64 / self.even
         } else {
             0.0
         }
@@ -232,13 +240,13 @@ impl CriticalPath {
     /// One line of the table.
     pub fn describe(&self, batch: usize) -> String {
         format!(
-            "pidm: phase critical path of batch {batch} ({} instances on {} lanes): {} passes in \
-             lockstep against a mean lane's {:.0} ({:.2}x); longest instance {} iterations, mean \
-             {:.0} ({:.1}x)\n",
+            "pidm: phase critical path of batch {batch} ({} instances, then {} lanes): {} passes \
+             in lockstep against {:.0} with its work spread evenly ({:.2}x); longest instance {} \
+             iterations, mean {:.0} ({:.1}x)\n",
             self.instances,
             self.lanes,
             self.lockstep,
-            self.work as f64 / self.lanes.max(1) as f64,
+            self.even,
             self.stretch(),
             self.longest_instance,
             self.mean_instance,
@@ -465,17 +473,30 @@ mod tests {
 
     #[test]
     fn the_critical_path_compares_lockstep_with_the_mean_lane() {
-        let path = CriticalPath {
+        let mut path = CriticalPath {
             instances: 10,
             lanes: 4,
-            lockstep: 300,
-            work: 800,
             longest_instance: 150,
             mean_instance: 80.0,
-            ranking: None,
+            ..CriticalPath::default()
         };
-        assert_eq!(path.stretch(), 1.5);
-        assert!(path.describe(0).contains("(1.50x)"));
+        // The first dispatch, a lane per instance: 10 passes each but one
+        // lane's 40; then two dispatches on 4 lanes, 100 passes each and
+        // one lane 30 fewer.
+        let tally = |passes: u32| Tally {
+            kinds: [0, passes, 0, 0],
+            ..Tally::default()
+        };
+        let mut first = vec![tally(10); 10];
+        first[3] = tally(40);
+        path.add_dispatch(&first, 10);
+        let later = [tally(100), tally(100), tally(100), tally(70)];
+        path.add_dispatch(&later, 4);
+        path.add_dispatch(&later, 4);
+        assert_eq!(path.lockstep, 240);
+        assert_eq!(path.even, 13.0 + 2.0 * 92.5);
+        assert_eq!(path.stretch(), 240.0 / 198.0);
+        assert!(path.describe(0).contains("(1.21x)"), "{}", path.describe(0));
     }
 
     /// Dearest first by the probe's prediction; an instance that covered
