@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The pipeline's cost and gain on the 2-core build machine (issue 32):
-# whole `pidm run` processes, paired with `farm-bench`, pipelined (the
+# whole `pidm run` processes, paired (results/paired.sh), pipelined (the
 # default) against chunks one after another (PIDM_PIPELINE=0) and against
 # an older build (OLD, default: none), on the CPU and on lavapipe; then one
 # profile table of each.
@@ -19,9 +19,10 @@ export WGPU_BACKEND=vulkan
 pair() {
     local label=$1 scene=$2 backend=$3 base=$4
     echo "== $label: A = pipelined, B = $base"
-    farm-bench -n 5 --warmup 1 --timeout 600 \
-        --vs "sh -c '$( [ "$base" = unpipelined ] && echo "PIDM_PIPELINE=0 exec $new" || echo "exec $old" ) run $scene --out $work/b.h5 --backend $backend'" \
-        -- "$new" run "$scene" --out "$work/a.h5" --backend "$backend" 2>&1 | grep -E "wall s|peak|A/B"
+    bash results/paired.sh 5 \
+        "$new run $scene --out $work/a.h5 --backend $backend" \
+        "$( [ "$base" = unpipelined ] && echo "PIDM_PIPELINE=0 $new" || echo "$old" ) run $scene --out $work/b.h5 --backend $backend" |
+        tail -1
 }
 pair "CPU, coupling 400 x 400" "$work/c400.toml" cpu unpipelined
 pair "lavapipe f64, coupling 200 x 200" "$work/c200.toml" gpu unpipelined
