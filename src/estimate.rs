@@ -18,7 +18,6 @@
 //! scene was the run itself, and its wall time is the estimate.
 
 use crate::backend::Workload;
-use crate::gpu::Parts;
 use crate::model::{AXES, Instance, Measure};
 use crate::scene::Scene;
 use crate::sweep::distinct_integrations;
@@ -108,19 +107,8 @@ pub fn workload(scene: &Scene) -> Workload {
     let (integrations, candidates) = integrations(scene);
     Workload {
         integrations,
-        parts: parts(scene, &candidates),
+        stall: scene.stall.is_some(),
         candidates,
         settings: scene.settings,
     }
-}
-
-/// The shader's parts a scene's run uses, from `candidates` (its
-/// distinct integrations or a sample of them): a load wherever a stall
-/// search will set one.
-pub fn parts(scene: &Scene, candidates: &[Instance]) -> Parts {
-    let mut parts = Parts::of(candidates, &scene.settings);
-    if scene.stall.is_some() {
-        parts.load = true;
-    }
-    parts
 }

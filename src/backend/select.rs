@@ -69,9 +69,20 @@ pub struct Workload {
     /// integrations, or a sample of them (`crate::estimate::integrations`).
     pub candidates: Vec<Instance>,
     pub settings: Settings,
-    /// The shader's parts the run uses ([`crate::estimate::parts`]): the
-    /// pipeline a GPU prepares before any work.
-    pub parts: Parts,
+    /// Whether the run searches stall loads (its probes carry a load).
+    pub stall: bool,
+}
+
+impl Workload {
+    /// The shader's parts the run uses, from its candidates, and a load
+    /// wherever a stall search will set one: the pipeline a GPU prepares
+    /// before any work (each batch takes one with the parts its own
+    /// instances use).
+    pub fn parts(&self) -> Parts {
+        let mut parts = Parts::of(&self.candidates, &self.settings);
+        parts.load |= self.stall;
+        parts
+    }
 }
 
 /// The backend chosen, and what a finished run on a hardware GPU measures
@@ -181,7 +192,7 @@ pub fn select_backend(
                      CPU: {name}"
                 );
             }
-            let gpu = GpuBackend::for_parts(ctx, precision, work.parts)?;
+            let gpu = GpuBackend::for_parts(ctx, precision, work.parts())?;
             eprintln!("pidm: {}", gpu.readiness());
             let measure = measure_of(&gpu, None);
             finish(Box::new(gpu), measure)
@@ -293,7 +304,7 @@ fn auto(
              results/gpu.md; --backend cpu runs f64)"
         );
     }
-    match GpuBackend::for_parts(ctx, precision, work.parts) {
+    match GpuBackend::for_parts(ctx, precision, work.parts()) {
         Ok(gpu) => {
             eprintln!("pidm: {}", gpu.readiness());
             let measure = measure_of(&gpu, estimate.map(|e| e.cpu.core_s));

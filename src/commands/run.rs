@@ -121,7 +121,7 @@ fn workload(scene: &Scene, scope: RunScope) -> Workload {
         let (_, candidates) = crate::estimate::integrations(scene);
         return Workload {
             integrations: count,
-            parts: crate::estimate::parts(scene, &candidates),
+            stall: scene.stall.is_some(),
             candidates,
             settings: scene.settings,
         };
@@ -130,7 +130,7 @@ fn workload(scene: &Scene, scope: RunScope) -> Workload {
     let candidates = crate::sweep::distinct_integrations(&instances, scene.baselines);
     Workload {
         integrations: candidates.len() as u64,
-        parts: crate::estimate::parts(scene, &candidates),
+        stall: scene.stall.is_some(),
         candidates,
         settings: scene.settings,
     }

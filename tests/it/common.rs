@@ -15,6 +15,31 @@ pub fn signal(child: &Child, name: &str) {
     assert!(sent.success(), "kill -{name} failed");
 }
 
+/// Waits for a run's checkpoint to hold its first finished chunk, then
+/// stops the run with Ctrl-C (asserting that it was still running) and
+/// returns how it ended.
+pub fn interrupt_after_first_chunk(child: Child, checkpoint: &Path) -> Output {
+    let started = std::time::Instant::now();
+    let header = loop {
+        if let Ok(m) = std::fs::metadata(checkpoint) {
+            break m.len();
+        }
+        assert!(started.elapsed().as_secs() < 120, "no checkpoint");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    };
+    while std::fs::metadata(checkpoint).map_or(0, |m| m.len()) <= header {
+        assert!(started.elapsed().as_secs() < 120, "no chunk finished");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let mut child = child;
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "the run ended too soon"
+    );
+    signal(&child, "INT");
+    child.wait_with_output().unwrap()
+}
+
 /// Runs the `pidm` binary built with these tests in `dir`.
 ///
 /// The child runs with `HDF5_USE_FILE_LOCKING=FALSE`: tests run in threads

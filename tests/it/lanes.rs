@@ -234,21 +234,8 @@ fn a_run_on_few_lanes_stopped_mid_chunk_resumes_to_the_uninterrupted_file() {
 
     let out = d.join("lanes.h5");
     let checkpoint = d.join(".lanes.h5.checkpoint");
-    let child = run(&out, Some("3"), false);
-    let started = std::time::Instant::now();
-    let header = loop {
-        if let Ok(m) = std::fs::metadata(&checkpoint) {
-            break m.len();
-        }
-        assert!(started.elapsed().as_secs() < 120, "no checkpoint");
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    };
-    while std::fs::metadata(&checkpoint).map_or(0, |m| m.len()) <= header {
-        assert!(started.elapsed().as_secs() < 120, "no chunk finished");
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
-    crate::common::signal(&child, "INT");
-    let ended = child.wait_with_output().unwrap();
+    let ended =
+        crate::common::interrupt_after_first_chunk(run(&out, Some("3"), false), &checkpoint);
     let err = String::from_utf8_lossy(&ended.stderr);
     assert_eq!(ended.status.code(), Some(130), "the run ended first: {err}");
     assert!(!out.exists());

@@ -151,7 +151,7 @@ fn a_run_stopped_mid_pipeline_on_the_gpu_leaves_no_partial_file() {
     .unwrap();
     let out = d.join("long.h5");
     let checkpoint = d.join(".long.h5.checkpoint");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_pidm"))
+    let child = Command::new(env!("CARGO_BIN_EXE_pidm"))
         .args([
             "run",
             s(&scene),
@@ -168,25 +168,7 @@ fn a_run_stopped_mid_pipeline_on_the_gpu_leaves_no_partial_file() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    // The checkpoint's header, then its first chunk entry.
-    let started = std::time::Instant::now();
-    let header = loop {
-        if let Ok(m) = std::fs::metadata(&checkpoint) {
-            break m.len();
-        }
-        assert!(started.elapsed().as_secs() < 120, "no checkpoint");
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    };
-    while std::fs::metadata(&checkpoint).map_or(0, |m| m.len()) <= header {
-        assert!(started.elapsed().as_secs() < 120, "no chunk finished");
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
-    assert!(
-        child.try_wait().unwrap().is_none(),
-        "the run ended too soon"
-    );
-    crate::common::signal(&child, "INT");
-    let ended = child.wait_with_output().unwrap();
+    let ended = crate::common::interrupt_after_first_chunk(child, &checkpoint);
     let err = String::from_utf8_lossy(&ended.stderr);
     assert_eq!(ended.status.code(), Some(130), "{err}");
     assert!(err.contains("interrupted"), "{err}");

@@ -139,7 +139,7 @@ fn each_scene_prepares_the_parts_it_uses() {
     let check = |path: &str, expected: Parts| {
         let scene = Scene::load(std::path::Path::new(&crate::common::manifest(path))).unwrap();
         let work = pidm::estimate::workload(&scene);
-        assert_eq!(work.parts, expected, "{path}");
+        assert_eq!(work.parts(), expected, "{path}");
     };
     let steady = Parts {
         steady: true,
