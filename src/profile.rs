@@ -17,9 +17,7 @@
 //! Spans are always timed (two clock reads and an atomic add each, a few
 //! per chunk and batch); only the table is optional.
 
-use std::sync::{Mutex, OnceLock};
-
-use crate::gpu::warps::{CriticalPath, LaneBytes, Warps};
+use std::sync::OnceLock;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
@@ -126,17 +124,6 @@ static BUSY_LANE_NS: AtomicU64 = AtomicU64::new(0);
 static TAIL_NS: AtomicU64 = AtomicU64::new(0);
 static MOST_LANES: AtomicU64 = AtomicU64::new(0);
 static FORCED: AtomicBool = AtomicBool::new(false);
-/// The lanes' figures of the GPU's batches (`gpu::warps`), each batch's
-/// critical path, and what a lane keeps and moves.
-static WARPS: Mutex<Option<LaneFigures>> = Mutex::new(None);
-
-/// What [`add_warps`] collects.
-#[derive(Default)]
-struct LaneFigures {
-    warps: Warps,
-    paths: Vec<CriticalPath>,
-    bytes: LaneBytes,
-}
 
 /// The process's start, as [`start`] marked it (or the first use).
 fn origin() -> Instant {
@@ -204,46 +191,10 @@ pub fn add_lanes(lanes: u64, busy: u64, time: Duration) {
     MOST_LANES.fetch_max(lanes, Ordering::Relaxed);
 }
 
-/// Counts one GPU batch's lane figures: its warps, its critical path and
-/// what its lanes keep and move (`gpu::warps`).
-pub fn add_warps(warps: &Warps, path: CriticalPath, bytes: LaneBytes) {
-    if !INTEGRATING.with(|i| i.get()) {
-        return;
-    }
-    let mut figures = WARPS.lock().unwrap_or_else(|e| e.into_inner());
-    let figures = figures.get_or_insert_with(LaneFigures::default);
-    figures.warps.merge(warps);
-    figures.paths.push(path);
-    figures.bytes = bytes;
-}
-
-/// The lane figures' lines of the table: the warps, the critical paths of
-/// the batches (the first few and the longest stretch), the bytes.
-fn lane_lines() -> String {
-    let figures = WARPS.lock().unwrap_or_else(|e| e.into_inner());
-    let Some(figures) = figures.as_ref() else {
-        return String::new();
-    };
-    let mut out = figures.warps.describe();
-    let shown = 4;
-    for (k, path) in figures.paths.iter().enumerate().take(shown) {
-        out += &path.describe(k);
-    }
-    if figures.paths.len() > shown {
-        let (k, worst) = figures
-            .paths
-            .iter()
-            .enumerate()
-            .max_by(|a, b| a.1.stretch().total_cmp(&b.1.stretch()))
-            .expect("some batches");
-        out += &format!(
-            "pidm: phase ({} batches in all; the longest stretch:)\n{}",
-            figures.paths.len(),
-            worst.describe(k)
-        );
-    }
-    out += &figures.bytes.describe(&figures.warps);
-    out
+/// Whether this thread is inside a [`Phase::Integrate`] span (the
+/// integrator's work, not the self-test batch that opening a GPU runs).
+pub fn integrating() -> bool {
+    INTEGRATING.with(|i| i.get())
 }
 
 /// Times a phase until dropped.
@@ -393,7 +344,6 @@ fn render(wall: f64, seconds: &dyn Fn(Phase) -> f64, bytes_read: u64) -> String 
             TAIL_NS.load(Ordering::Relaxed) as f64 * 1e-9
         );
     }
-    out += &lane_lines();
     out
 }
 

@@ -90,7 +90,11 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         selected.record(as_estimated.then_some(result.summary.integration_s));
     });
     if crate::profile::enabled() {
-        eprint!("{}", crate::profile::table());
+        eprint!(
+            "{}{}",
+            crate::profile::table(),
+            crate::gpu::warps::table_lines()
+        );
     }
     // Closing a GPU device costs NVIDIA's driver 0.03-0.05 s, as long as
     // the whole integration of a 200 x 200 map. The output is complete and

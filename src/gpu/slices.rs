@@ -372,7 +372,7 @@ impl Runner<'_> {
                 state: size_of::<L::State>(),
                 measure: if steady { size_of::<L::Measure>() } else { 0 },
             };
-            profile::add_warps(&warps, path, bytes);
+            warps::record(&warps, path, bytes);
         }
         Ok((out, tallies))
     }

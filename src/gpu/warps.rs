@@ -24,6 +24,7 @@
 //! one warp take instances alike in cost and in mode mix.
 
 use std::fmt::Write;
+use std::sync::Mutex;
 
 use super::layout::control::Tally;
 use crate::cpu::integrate::constants::ITERATION_KINDS;
@@ -348,6 +349,59 @@ pub enum Order {
     /// By index (for measuring what the order is worth:
     /// `PIDM_GPU_ORDER=index`).
     Index,
+}
+
+/// The lane figures of a run's GPU batches, for the phase table.
+#[derive(Default)]
+struct Run {
+    warps: Warps,
+    paths: Vec<CriticalPath>,
+    bytes: LaneBytes,
+}
+
+static RUN: Mutex<Option<Run>> = Mutex::new(None);
+
+/// Counts one GPU batch's lane figures into the run's (only inside the
+/// integrator's work, not the self-test's: `profile::integrating`).
+pub fn record(warps: &Warps, path: CriticalPath, bytes: LaneBytes) {
+    if !crate::profile::integrating() {
+        return;
+    }
+    let mut run = RUN.lock().unwrap_or_else(|e| e.into_inner());
+    let run = run.get_or_insert_with(Run::default);
+    run.warps.merge(warps);
+    run.paths.push(path);
+    run.bytes = bytes;
+}
+
+/// The phase table's lines of the run's lanes: its warps, the critical
+/// paths of its batches (the first few and the longest stretch), what a
+/// lane keeps and moves; empty where no GPU batch ran.
+pub fn table_lines() -> String {
+    let run = RUN.lock().unwrap_or_else(|e| e.into_inner());
+    let Some(run) = run.as_ref() else {
+        return String::new();
+    };
+    let mut out = run.warps.describe();
+    let shown = 4;
+    for (k, path) in run.paths.iter().enumerate().take(shown) {
+        out += &path.describe(k);
+    }
+    if run.paths.len() > shown {
+        let (k, worst) = run
+            .paths
+            .iter()
+            .enumerate()
+            .max_by(|a, b| a.1.stretch().total_cmp(&b.1.stretch()))
+            .expect("some batches");
+        out += &format!(
+            "pidm: phase ({} batches in all; the longest stretch:)\n{}",
+            run.paths.len(),
+            worst.describe(k)
+        );
+    }
+    out += &run.bytes.describe(&run.warps);
+    out
 }
 
 /// An unfinished instance after the first dispatch: its index, the passes
