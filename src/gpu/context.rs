@@ -297,6 +297,16 @@ impl GpuContext {
             if let Some((variant, (pipeline, _))) = best {
                 return Ok((pipeline.clone(), *variant));
             }
+            // A run that prepared its pipeline up front meets instances
+            // with a part it lacks: say why this batch waits for a compile.
+            if let Some(had) = pipelines.keys().find(|v| v.precision == precision) {
+                eprintln!(
+                    "pidm: a batch needs the GPU pipeline's {} parts where the run prepared {}: \
+                     compiling and self-testing that variant",
+                    needs.name(),
+                    had.parts.name()
+                );
+            }
         }
         let variant = self.variant(precision, needs);
         self.prepare_timed(variant).map(|(p, _)| (p, variant))
