@@ -70,7 +70,7 @@ fn initial_state(c: Coefficients) -> State {
 }
 
 fn is_finished(c: Coefficients, st: State) -> bool {
-    return st.status != STATUS_OK || st.period >= c.cycles || st.measured == 1u;
+    return st.status != STATUS_OK || st.period >= c.cycles || st.measured != 0u;
 }
 
 // `st.time >= t + t_lo` on two-part times (t_lo is zero unless

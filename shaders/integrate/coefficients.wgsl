@@ -97,6 +97,7 @@ struct Coefficients {
     // and each window length's three-gap table.
     phase_levels: u32,
     phase_lattice: u32,
-    _pad4: vec2<u32>,
+    replica: u32,
+    replicas: u32,
     gaps: array<Gaps, LEVELS>,
 }

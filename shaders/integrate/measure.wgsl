@@ -22,14 +22,30 @@ struct Phase {
     whole: array<V2, LEVELS>,
     second: array<V2, LEVELS>,
     quarters: array<V2, 4>,
+    pending: LevelSums,
 }
 
 // A judged window: the mean travel per scene period, its squared standard
-// error per axis, and the window's length (0 when none was judged).
+// error per axis, the window's length (0 when none was judged) and level.
 struct PhaseEstimate {
     value: V2,
     se2: V2,
     span: u32,
+    level: u32,
+}
+
+// Which replica of a split run this is, and of how many (phase.rs).
+struct Replica {
+    index: u32,
+    count: u32,
+}
+
+// What judging a level reads: W_j, W_{j-2}, V_j and the four quarters.
+struct LevelSums {
+    whole: V2,
+    half: V2,
+    second: V2,
+    quarters: array<V2, 4>,
 }
 
 // The per-instance accumulators, as `pidm::cpu::integrate::Measure`.
@@ -50,7 +66,7 @@ struct Measure {
     lag: u32,
     verdict: u32,
     span: u32,
-    _pad: u32,
+    pending_level: u32,
     _pad_v: vec2<u32>,
     se2: V2,
     phase: Phase,
@@ -112,11 +128,16 @@ fn period_end(c: Coefficients, st: ptr<function, State>, m: ptr<function, Measur
         let judged = phase_period_end(c, &phase, ended - c.settle, (*st).x_s);
         (*m).phase = phase;
         if judged.span > 0u && (*m).verdict == VERDICT_RUNNING {
-            (*m).travel = judged.value * Real(judged.span);
-            (*m).span = judged.span;
-            (*m).se2 = judged.se2;
-            if judged.se2.x <= c.se_limit2.x && judged.se2.y <= c.se_limit2.y {
-                (*m).verdict = VERDICT_PHASE;
+            if c.replicas > 1u {
+                (*m).pending_level = judged.level;
+                (*m).verdict = VERDICT_WAITING;
+            } else {
+                (*m).travel = judged.value * Real(judged.span);
+                (*m).span = judged.span;
+                (*m).se2 = judged.se2;
+                if judged.se2.x <= c.se_limit2.x && judged.se2.y <= c.se_limit2.y {
+                    (*m).verdict = VERDICT_PHASE;
+                }
             }
         }
     }
@@ -127,7 +148,9 @@ fn period_end(c: Coefficients, st: ptr<function, State>, m: ptr<function, Measur
             (*m).verdict = VERDICT_CONVERGED;
         }
     }
-    if (*m).verdict != VERDICT_RUNNING {
+    if (*m).verdict == VERDICT_WAITING {
+        (*st).measured = 2u;
+    } else if (*m).verdict != VERDICT_RUNNING {
         (*st).measured = 1u;
     }
 }

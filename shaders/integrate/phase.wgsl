@@ -34,24 +34,32 @@ fn window_weight(g: Gaps, length: u32, k: u32) -> Real {
     return Real(0.5) * (left + right);
 }
 
-fn window_coefficient(g: Gaps, length: u32, i: u32) -> Real {
-    let cut = i == 0u || i == length || i == g.a || i == g.b || i + g.a == length || i + g.b == length;
-    if !cut {
+// Whether cut c lies in (k - count, k].
+fn is_cut(c: u32, k: u32, count: u32) -> bool {
+    return k < c + count && c <= k;
+}
+
+fn window_coefficient(g: Gaps, length: u32, i: u32, index: u32, count: u32) -> Real {
+    let virtual_length = count * length;
+    let k = count * i + index;
+    if !(is_cut(0u, k, count) || is_cut(virtual_length, k, count) || is_cut(g.a, k, count)
+        || is_cut(g.b, k, count) || (g.a <= virtual_length && is_cut(virtual_length - g.a, k, count))
+        || (g.b <= virtual_length && is_cut(virtual_length - g.b, k, count))) {
         return Real(0.0);
     }
     var before = Real(0.0);
     if i > 0u {
-        before = window_weight(g, length, i - 1u);
+        before = window_weight(g, virtual_length, k - count);
     }
     var at = Real(0.0);
     if i < length {
-        at = window_weight(g, length, i);
+        at = window_weight(g, virtual_length, k);
     }
     return before - at;
 }
 
-fn add_to_window(sum: V2, g: Gaps, length: u32, i: u32, x: V2) -> V2 {
-    let coefficient = window_coefficient(g, length, i);
+fn add_to_window(sum: V2, g: Gaps, length: u32, i: u32, r: Replica, x: V2) -> V2 {
+    let coefficient = window_coefficient(g, length, i, r.index, r.count);
     if coefficient != Real(0.0) {
         return sum + x * coefficient;
     }
@@ -59,18 +67,19 @@ fn add_to_window(sum: V2, g: Gaps, length: u32, i: u32, x: V2) -> V2 {
 }
 
 fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> PhaseEstimate {
+    let r = Replica(c.replica, c.replicas);
     // A copy that may be indexed at run time (a parameter's array may not).
     var gaps = c.gaps;
-    var judged = PhaseEstimate(V2(0.0), V2(0.0), 0u);
+    var judged = PhaseEstimate(V2(0.0), V2(0.0), 0u, 0u);
     for (var j = 0u; j < LEVELS; j++) {
         let length = ladder_length(j);
         if k <= length {
-            (*p).whole[j] = add_to_window((*p).whole[j], gaps[j], length, k, x);
+            (*p).whole[j] = add_to_window((*p).whole[j], gaps[j], length, k, r, x);
         }
         if j >= 2u {
             let half = ladder_length(j - 2u);
             if k >= half && k <= length {
-                (*p).second[j] = add_to_window((*p).second[j], gaps[j - 2u], half, k - half, x);
+                (*p).second[j] = add_to_window((*p).second[j], gaps[j - 2u], half, k - half, r, x);
             }
         }
         if j >= FIRST_JUDGED {
@@ -81,38 +90,56 @@ fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> 
                 (*p).quarters[ring + 1u] = V2(0.0);
             }
             if k >= 2u * quarter && k <= 3u * quarter {
-                (*p).quarters[ring] = add_to_window((*p).quarters[ring], gaps[j - 4u], quarter, k - 2u * quarter, x);
+                (*p).quarters[ring] = add_to_window((*p).quarters[ring], gaps[j - 4u], quarter, k - 2u * quarter, r, x);
             }
             if k >= 3u * quarter && k <= length {
-                (*p).quarters[ring + 1u] = add_to_window((*p).quarters[ring + 1u], gaps[j - 4u], quarter, k - 3u * quarter, x);
+                (*p).quarters[ring + 1u] = add_to_window((*p).quarters[ring + 1u], gaps[j - 4u], quarter, k - 3u * quarter, r, x);
             }
             if k == length && ((c.phase_levels >> j) & 1u) == 1u {
-                judged = evaluate(p, j, ((c.phase_lattice >> j) & 1u) == 1u);
+                if r.count > 1u {
+                    (*p).pending = level_sums(p, j);
+                    judged = PhaseEstimate(V2(0.0), V2(0.0), r.count * length, j);
+                } else {
+                    judged = evaluate(p, j, ((c.phase_lattice >> j) & 1u) == 1u);
+                }
             }
         }
     }
     return judged;
 }
 
-fn evaluate(p: ptr<function, Phase>, j: u32, lattice: bool) -> PhaseEstimate {
+fn level_sums(p: ptr<function, Phase>, j: u32) -> LevelSums {
     let ring = 2u * (j % 2u);
-    let w = (*p).whole[j];
-    let half = (*p).whole[j - 2u];
+    return LevelSums(
+        (*p).whole[j],
+        (*p).whole[j - 2u],
+        (*p).second[j],
+        array<V2, 4>((*p).whole[j - 4u], (*p).second[j - 2u], (*p).quarters[ring], (*p).quarters[ring + 1u]),
+    );
+}
+
+fn evaluate(p: ptr<function, Phase>, j: u32, lattice: bool) -> PhaseEstimate {
+    return evaluate_sums(level_sums(p, j), j, lattice, 1u);
+}
+
+fn evaluate_sums(s: LevelSums, j: u32, lattice: bool, count: u32) -> PhaseEstimate {
+    let w = s.whole;
+    let half = s.half;
     let richardson = (w - half) * (w - half);
-    let halves = ((*p).second[j] - half) * ((*p).second[j] - half) * Real(0.25);
-    var q = array<V2, 4>((*p).whole[j - 4u], (*p).second[j - 2u], (*p).quarters[ring], (*p).quarters[ring + 1u]);
+    let halves = (s.second - half) * (s.second - half) * Real(0.25);
+    var q = s.quarters;
     let mean = (q[0] + q[1] + q[2] + q[3]) * Real(0.25);
     var squares = V2(0.0);
     for (var i = 0u; i < 4u; i++) {
         squares = squares + (q[i] - mean) * (q[i] - mean);
     }
     var quarters = squares * Real(1.0 / 12.0);
-    if ladder_length(j - 4u) >= QUARTER_TRUSTED {
+    if count * ladder_length(j - 4u) >= QUARTER_TRUSTED {
         quarters = squares * Real(1.0 / 27.0);
     }
     if lattice {
         quarters = V2(0.0);
     }
     let se2 = max(max(richardson, halves), quarters);
-    return PhaseEstimate(w, se2, ladder_length(j));
+    return PhaseEstimate(w, se2, count * ladder_length(j), j);
 }

@@ -249,7 +249,8 @@ macro_rules! precision_structs {
                     pub min_batch: u32,
                     pub phase_levels: u32,
                     pub phase_lattice: u32,
-                    pub _pad4: U32x2,
+                    pub replica: u32,
+                    pub replicas: u32,
                     pub gaps: [Gaps; phase::LEVELS],
                 }
             }
@@ -300,11 +301,22 @@ macro_rules! precision_structs {
             }
 
             host_struct! {
+                /// `pidm::cpu::integrate::phase::LevelSums` in shader units.
+                pub struct LevelSums {
+                    pub whole: V2,
+                    pub half: V2,
+                    pub second: V2,
+                    pub quarters: [V2; 4],
+                }
+            }
+
+            host_struct! {
                 /// `pidm::cpu::integrate::phase::Phase` in shader units.
                 pub struct Phase {
                     pub whole: [V2; phase::LEVELS],
                     pub second: [V2; phase::LEVELS],
                     pub quarters: [V2; 4],
+                    pub pending: LevelSums,
                 }
             }
 
@@ -327,7 +339,7 @@ macro_rules! precision_structs {
                     pub lag: u32,
                     pub verdict: u32,
                     pub span: u32,
-                    pub _pad: u32,
+                    pub pending_level: u32,
                     pub _pad_v: U32x2,
                     pub se2: V2,
                     pub phase: Phase,
@@ -411,12 +423,19 @@ macro_rules! precision_structs {
                     lag: m.lag,
                     verdict: m.verdict,
                     span: m.span,
+                    pending_level: m.pending_level,
                     se2: Vec2::new(m.se2.x as f64, m.se2.y as f64)
                         * (1.0 / (UNITS.metre * UNITS.metre)),
                     phase: crate::cpu::integrate::phase::Phase {
                         whole: m.phase.whole.map(length),
                         second: m.phase.second.map(length),
                         quarters: m.phase.quarters.map(length),
+                        pending: crate::cpu::integrate::phase::LevelSums {
+                            whole: length(m.phase.pending.whole),
+                            half: length(m.phase.pending.half),
+                            second: length(m.phase.pending.second),
+                            quarters: m.phase.pending.quarters.map(length),
+                        },
                     },
                 }
             }
@@ -520,7 +539,8 @@ macro_rules! precision_structs {
                     min_batch: c.min_batch,
                     phase_levels: c.phase_levels,
                     phase_lattice: c.phase_lattice,
-                    _pad4: U32x2::default(),
+                    replica: c.replica,
+                    replicas: c.replicas,
                     gaps: c.gaps.map(|g| Gaps {
                         a: g.a,
                         b: g.b,
@@ -579,7 +599,7 @@ macro_rules! precision_structs {
 
             /// True once the instance ended, normally or with a status.
             pub fn finished(inst: &Instance, st: &State) -> bool {
-                st.status != STATUS_OK || st.period >= inst.cycles || st.measured == 1
+                st.status != STATUS_OK || st.period >= inst.cycles || st.measured != 0
             }
 
             /// The outcome of a finished state, back in SI units: the slider

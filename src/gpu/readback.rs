@@ -1,6 +1,6 @@
 //! Which of a steady batch's accumulators come back to the host.
 //!
-//! Every steady instance has 1,936 bytes of accumulators in f64 (1,056 in
+//! Every steady instance has 2,048 bytes of accumulators in f64 (1,112 in
 //! f32), and reading 1,264 of them back (before the phase ladder) cost an
 //! H200 0.6 s of a 1000 x 1000 map whose shader ran 0.1-0.25 s
 //! (results/gpu.md, "Where a steady map's GPU time goes"). The reduction
@@ -219,17 +219,20 @@ mod tests {
 
     /// The sizes the module's documentation, docs/steady.md and results/gpu.md
     /// quote: a head of 48 bytes in f64 (32 in f32) against accumulators of
-    /// 1,936 (1,056), of which the phase ladder's windows
-    /// (`cpu::integrate::phase`) take 640 (320).
+    /// 2,048 (1,112), of which the phase ladder's windows
+    /// (`cpu::integrate::phase`) take 752 (376), a replica's sums for its
+    /// group's merge 112 (56) of those.
     #[test]
     fn a_head_is_a_fortieth_of_the_accumulators_in_f64() {
         use crate::gpu::layout::{double, single};
         assert_eq!(size_of::<double::Head>(), 48);
-        assert_eq!(size_of::<double::Measure>(), 1936);
-        assert_eq!(size_of::<double::Phase>(), 640);
+        assert_eq!(size_of::<double::Measure>(), 2048);
+        assert_eq!(size_of::<double::Phase>(), 752);
+        assert_eq!(size_of::<double::LevelSums>(), 112);
         assert_eq!(size_of::<single::Head>(), 32);
-        assert_eq!(size_of::<single::Measure>(), 1056);
-        assert_eq!(size_of::<single::Phase>(), 320);
+        assert_eq!(size_of::<single::Measure>(), 1112);
+        assert_eq!(size_of::<single::Phase>(), 376);
+        assert_eq!(size_of::<single::LevelSums>(), 56);
     }
 
     #[test]

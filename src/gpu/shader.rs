@@ -213,7 +213,7 @@ fn measure_period_end(c: Coefficients, st: ptr<function, State>, index: u32, fre
 /// nothing (and is never called: `PHASE` is false).
 const NO_LADDER: &str = "\
 fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> PhaseEstimate {
-    return PhaseEstimate(V2(0.0), V2(0.0), 0u);
+    return PhaseEstimate(V2(0.0), V2(0.0), 0u, 0u);
 }
 ";
 
@@ -566,6 +566,8 @@ mod tests {
             "is_finite2",
             // No generics: the V2 form of `two_sum`.
             "two_sum2",
+            // No closures: `window_coefficient`'s cut test.
+            "is_cut",
         ];
         // CPU only: constructors, the observer of trajectories (its `step`
         // method and `StepMotion`), the whole run (stoppable, also from a
@@ -574,9 +576,12 @@ mod tests {
         let cpu_only = [
             "new",
             "default",
-            // The coefficients in a precision (computed on the host), and
-            // 1 / n, which the prelude generates for the shader.
+            // The coefficients in a precision (computed on the host), also
+            // of a replica, and 1 / n, which the prelude generates for the
+            // shader.
             "of",
+            "of_replica",
+            "new_replica",
             "rounded",
             "inverse_integer",
             "run_instance",

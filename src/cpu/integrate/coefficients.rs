@@ -5,7 +5,7 @@
 //! GPU packs the same numbers (`pidm::gpu::layout`), so the shader divides
 //! by no parameter and takes no square root of one.
 
-use super::phase::{Gaps, LEVELS};
+use super::phase::{Gaps, LEVELS, Replica};
 use super::precision::{TIME_EPSILON, UNITS, only_f64};
 use super::vec2::Vec2;
 use super::{Real, Settings};
@@ -157,6 +157,11 @@ pub struct Coefficients {
     /// The levels whose window is a near-complete lattice of the common
     /// period, judged without their quarters (`phase::Ladder::lattice`).
     pub phase_lattice: u32,
+    /// Which replica of a split run this is, and of how many
+    /// (`phase::Replica`; 0 of 1 for a run of its own): the ladder's tables
+    /// and levels are then the virtual run's.
+    pub replica: u32,
+    pub replicas: u32,
     /// The first batch length [scene periods].
     pub batch_length: u32,
     /// The batch length a statistical stop needs [scene periods]: the
@@ -180,10 +185,18 @@ impl Coefficients {
     /// values split into a rounded part and the rounded rest. In f64 they
     /// are those of [`Coefficients::new`] in SI units.
     pub fn of(inst: &Instance, settings: &Settings) -> Coefficients {
-        let exact = crate::cpu::double::integrate::Coefficients::new(
+        Coefficients::of_replica(inst, settings, Replica::NONE)
+    }
+
+    /// [`Coefficients::of`] for replica `r` of a split run: `inst` is the
+    /// replica's instance (its faster drive's phase advanced,
+    /// `pidm::replicas::replica_instance`).
+    pub fn of_replica(inst: &Instance, settings: &Settings, r: Replica) -> Coefficients {
+        let exact = crate::cpu::double::integrate::Coefficients::new_replica(
             &UNITS.scale(inst),
             settings,
             TIME_EPSILON,
+            r,
         );
         Coefficients::rounded(&exact)
     }
@@ -267,6 +280,8 @@ impl Coefficients {
             }),
             phase_levels: e.phase_levels,
             phase_lattice: e.phase_lattice,
+            replica: e.replica,
+            replicas: e.replicas,
             batch_length: e.batch_length,
             min_batch: e.min_batch,
             se_limit2: v(e.se_limit2),
@@ -302,6 +317,17 @@ impl Coefficients {
     /// resolves far finer than its own epsilon).
     #[allow(clippy::unnecessary_cast)]
     pub fn new(inst: &Instance, settings: &Settings, time_epsilon: f64) -> Coefficients {
+        Coefficients::new_replica(inst, settings, time_epsilon, Replica::NONE)
+    }
+
+    /// [`Coefficients::new`] for replica `r` of a split run
+    /// ([`Coefficients::of_replica`]).
+    pub fn new_replica(
+        inst: &Instance,
+        settings: &Settings,
+        time_epsilon: f64,
+        r: Replica,
+    ) -> Coefficients {
         let [ax, ay] = &inst.axes;
         let per_axis = |f: &dyn Fn(&crate::model::Axis) -> f64| Vec2::new(f(ax), f(ay));
         let m = &inst.mechanism;
@@ -345,7 +371,7 @@ impl Coefficients {
             && driven[1]
             && rho > 0.0
             && (common_period == 0 || common_period > super::phase::MIN_WINDOW);
-        let ladder = super::phase::ladder(rho, ladder_on, common_period);
+        let ladder = super::phase::ladder(rho, ladder_on, common_period, r.count);
         // The load per axis, each form +0 at L = 0 whatever the sign of
         // the zero given (`0.0 - x` and `x + 0.0` are +0 for x = -0).
         let load = Vec2::new(m.load[0], m.load[1]);
@@ -432,6 +458,8 @@ impl Coefficients {
             gaps: ladder.gaps,
             phase_levels: ladder.levels,
             phase_lattice: ladder.lattice,
+            replica: r.index,
+            replicas: r.count,
             batch_length: super::measure::first_batch_length(cycles_per_period, driven, inst.cycles),
             min_batch: super::measure::beat_batch_length(cycles_per_period, driven),
             se_limit2: se_limit * se_limit,

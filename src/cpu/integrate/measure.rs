@@ -105,6 +105,11 @@ pub const VERDICT_CONVERGED: u32 = 2;
 /// The phase-resolved estimate's standard error fell within the step
 /// tolerance (`super::phase`).
 pub const VERDICT_PHASE: u32 = 3;
+/// A replica of a split run (`super::phase::Replica`) reached a level of
+/// the phase ladder that may stop the run: it waits, `State::measured`
+/// 2, while its group merges the replicas' sums of that level
+/// (`pidm::replicas`), which stops the group or lets it go on.
+pub const VERDICT_WAITING: u32 = 4;
 
 /// The state at the end of one common period.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -158,6 +163,9 @@ pub struct Measure {
     /// the squared standard error of the mean travel per scene period
     /// [m^2].
     pub span: u32,
+    /// A replica's last level reached (`super::phase::Replica`), whose
+    /// sums `phase.pending` holds for its group's merge.
+    pub pending_level: u32,
     pub se2: Vec2,
     /// The phase ladder's windows (`super::phase`).
     pub phase: Phase,
@@ -182,6 +190,7 @@ pub fn initial_measure(c: &Coefficients) -> Measure {
         lag: 0,
         verdict: VERDICT_RUNNING,
         span: 0,
+        pending_level: 0,
         se2: Vec2::ZERO,
         phase: Phase::ZERO,
     }
@@ -221,11 +230,16 @@ pub fn period_end(c: &Coefficients, st: &mut State, m: &mut Measure) {
     if c.phase_levels != 0 {
         let judged = phase_period_end(c, &mut m.phase, ended - c.settle, st.x_s);
         if judged.span > 0 && m.verdict == VERDICT_RUNNING {
-            m.travel = judged.value * judged.span as Real;
-            m.span = judged.span;
-            m.se2 = judged.se2;
-            if judged.se2.x <= c.se_limit2.x && judged.se2.y <= c.se_limit2.y {
-                m.verdict = VERDICT_PHASE;
+            if c.replicas > 1 {
+                m.pending_level = judged.level;
+                m.verdict = VERDICT_WAITING;
+            } else {
+                m.travel = judged.value * judged.span as Real;
+                m.span = judged.span;
+                m.se2 = judged.se2;
+                if judged.se2.x <= c.se_limit2.x && judged.se2.y <= c.se_limit2.y {
+                    m.verdict = VERDICT_PHASE;
+                }
             }
         }
     }
@@ -239,7 +253,9 @@ pub fn period_end(c: &Coefficients, st: &mut State, m: &mut Measure) {
             m.verdict = VERDICT_CONVERGED;
         }
     }
-    if m.verdict != VERDICT_RUNNING {
+    if m.verdict == VERDICT_WAITING {
+        st.measured = 2;
+    } else if m.verdict != VERDICT_RUNNING {
         st.measured = 1;
     }
 }
@@ -609,6 +625,7 @@ pub fn wgsl_constants() -> String {
         u("VERDICT_PERIODIC", VERDICT_PERIODIC),
         u("VERDICT_CONVERGED", VERDICT_CONVERGED),
         u("VERDICT_PHASE", VERDICT_PHASE),
+        u("VERDICT_WAITING", VERDICT_WAITING),
         r("STATIONARY_Z", STATIONARY_Z),
         r("CORRELATION_Z", CORRELATION_Z),
     ]

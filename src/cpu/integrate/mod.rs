@@ -123,7 +123,8 @@ pub struct State {
     pub stalled: u32,
     /// Slip trials rejected in a row.
     pub rejections: u32,
-    /// 1 once a steady measurement is complete (`measure::period_end`).
+    /// 1 once a steady measurement is complete (`measure::period_end`); 2
+    /// while a replica waits for its group's merge (`measure::VERDICT_WAITING`).
     pub measured: u32,
 }
 
@@ -175,7 +176,7 @@ pub fn initial_state(c: &Coefficients) -> State {
 
 /// True once the instance has finished, normally or not.
 pub fn is_finished(c: &Coefficients, st: &State) -> bool {
-    st.status != STATUS_OK || st.period >= c.cycles || st.measured == 1
+    st.status != STATUS_OK || st.period >= c.cycles || st.measured != 0
 }
 
 /// `st.time >= t + t_lo` on two-part times (`t_lo` and the state's

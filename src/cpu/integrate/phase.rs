@@ -158,12 +158,39 @@ pub struct Phase {
     /// next, since a level's quarters are in progress only while its
     /// second half is.
     pub quarters: [Vec2; 4],
+    /// A replica's sums of the last level it reached ([`LevelSums`]),
+    /// for its group's merge; unused by a run of its own.
+    pub pending: LevelSums,
 }
 
 impl Phase {
     pub const ZERO: Phase = Phase {
         whole: [Vec2::ZERO; LEVELS],
         second: [Vec2::ZERO; LEVELS],
+        quarters: [Vec2::ZERO; 4],
+        pending: LevelSums::ZERO,
+    };
+}
+
+pub use crate::cpu::settings::Replica;
+
+/// What judging ladder level j reads ([`evaluate_sums`]): W_j, W_{j-2}
+/// (its first half), V_j (its second half) and the sums of its four
+/// quarters. A replica keeps them at the level's end for its group's
+/// merge, which adds the replicas' sums and judges those.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LevelSums {
+    pub whole: Vec2,
+    pub half: Vec2,
+    pub second: Vec2,
+    pub quarters: [Vec2; 4],
+}
+
+impl LevelSums {
+    pub const ZERO: LevelSums = LevelSums {
+        whole: Vec2::ZERO,
+        half: Vec2::ZERO,
+        second: Vec2::ZERO,
         quarters: [Vec2::ZERO; 4],
     };
 }
@@ -188,29 +215,41 @@ pub fn window_weight(g: &Gaps, length: u32, k: u32) -> Real {
     0.5 * (left + right)
 }
 
-/// The coefficient of the slider position at the window's period `i` (0
-/// <= i <= `length`) in its trapezoid sum: w_{i-1} - w_i (w is 0 outside
-/// the window), non-zero only at the cuts 0, a, b, L - a, L - b and L.
-pub fn window_coefficient(g: &Gaps, length: u32, i: u32) -> Real {
-    let cut =
-        i == 0 || i == length || i == g.a || i == g.b || i + g.a == length || i + g.b == length;
-    if !cut {
+/// The coefficient of the slider position at a replica's period `i` (0
+/// <= i <= `length`) of a window of `length` of its periods in the virtual
+/// run's trapezoid sum ([`Replica`]; `g` is the virtual window's table,
+/// `count length` periods long): w_{K-count} - w_K with K = `count i +
+/// index` (w is 0 outside the virtual window), non-zero only where one of
+/// the cuts 0, a, b, L - a, L - b and L lies in (K - count, K]. For a run
+/// of its own, K = i, and the cut must be i itself.
+pub fn window_coefficient(g: &Gaps, length: u32, i: u32, index: u32, count: u32) -> Real {
+    let virtual_length = count * length;
+    let k = count * i + index;
+    // c in (k - count, k], without going below zero.
+    let cut = |c: u32| k < c + count && c <= k;
+    if !(cut(0)
+        || cut(virtual_length)
+        || cut(g.a)
+        || cut(g.b)
+        || (g.a <= virtual_length && cut(virtual_length - g.a))
+        || (g.b <= virtual_length && cut(virtual_length - g.b)))
+    {
         return 0.0;
     }
     let mut before = 0.0;
     if i > 0 {
-        before = window_weight(g, length, i - 1);
+        before = window_weight(g, virtual_length, k - count);
     }
     let mut at = 0.0;
     if i < length {
-        at = window_weight(g, length, i);
+        at = window_weight(g, virtual_length, k);
     }
     before - at
 }
 
 /// The window's sum with the slider position `x` at its period `i` added.
-fn add_to_window(sum: Vec2, g: &Gaps, length: u32, i: u32, x: Vec2) -> Vec2 {
-    let coefficient = window_coefficient(g, length, i);
+fn add_to_window(sum: Vec2, g: &Gaps, length: u32, i: u32, r: Replica, x: Vec2) -> Vec2 {
+    let coefficient = window_coefficient(g, length, i, r.index, r.count);
     if coefficient != 0.0 {
         return sum + x * coefficient;
     }
@@ -223,28 +262,38 @@ fn add_to_window(sum: Vec2, g: &Gaps, length: u32, i: u32, x: Vec2) -> Vec2 {
 pub struct PhaseEstimate {
     pub value: Vec2,
     pub se2: Vec2,
-    /// The window's length [scene periods]; 0 when no window was judged.
+    /// The window's length [scene periods of the virtual run: a replica's
+    /// periods times the replicas]; 0 when no window was judged.
     pub span: u32,
+    /// The window's ladder level.
+    pub level: u32,
 }
 
 /// Adds the slider position `x` at period `k` of the measurement (k = 0 at
 /// its start) to every window that has a cut there, and judges the window
 /// that ends there, if any may stop the run ([`Coefficients::phase_levels`]).
 /// Windows are processed level by level, and a level ending at `k` is
-/// judged before a longer level starts its quarters there.
+/// judged before a longer level starts its quarters there. A replica
+/// ([`Replica`]) does not judge its windows: it keeps the level's sums in
+/// `p.pending` for its group's merge and returns the level with a zero
+/// estimate.
 pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> PhaseEstimate {
+    let r = Replica {
+        index: c.replica,
+        count: c.replicas,
+    };
     let mut judged = PhaseEstimate::default();
     for j in 0..LEVELS as u32 {
         let length = ladder_length(j);
         let level = j as usize;
         if k <= length {
-            p.whole[level] = add_to_window(p.whole[level], &c.gaps[level], length, k, x);
+            p.whole[level] = add_to_window(p.whole[level], &c.gaps[level], length, k, r, x);
         }
         if j >= 2 {
             let half = ladder_length(j - 2);
             if k >= half && k <= length {
                 p.second[level] =
-                    add_to_window(p.second[level], &c.gaps[level - 2], half, k - half, x);
+                    add_to_window(p.second[level], &c.gaps[level - 2], half, k - half, r, x);
             }
         }
         if j >= FIRST_JUDGED {
@@ -260,6 +309,7 @@ pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> Pha
                     &c.gaps[level - 4],
                     quarter,
                     k - 2 * quarter,
+                    r,
                     x,
                 );
             }
@@ -269,36 +319,65 @@ pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> Pha
                     &c.gaps[level - 4],
                     quarter,
                     k - 3 * quarter,
+                    r,
                     x,
                 );
             }
             if k == length && (c.phase_levels >> j) & 1 == 1 {
-                judged = evaluate(p, j, (c.phase_lattice >> j) & 1 == 1);
+                if r.count > 1 {
+                    p.pending = level_sums(p, j);
+                    judged = PhaseEstimate {
+                        value: Vec2::ZERO,
+                        se2: Vec2::ZERO,
+                        span: r.count * length,
+                        level: j,
+                    };
+                } else {
+                    judged = evaluate(p, j, (c.phase_lattice >> j) & 1 == 1);
+                }
             }
         }
     }
     judged
 }
 
-/// The estimate of level `j` (>= 4) at its end: W_j, with the squared
-/// standard error max(|W_j - W_{j-2}|, |V_j - W_{j-2}| / 2, s_Q / 2 or s_Q
-/// / 3 ([`QUARTER_TRUSTED`]))^2 per axis, s_Q the sample standard
-/// deviation of its four quarters (module docs), left out where the window
-/// is a near-complete `lattice`. No root and no division: squares are
-/// compared.
-pub fn evaluate(p: &Phase, j: u32, lattice: bool) -> PhaseEstimate {
+/// The sums judging level `j` (>= 4) reads, at its end ([`LevelSums`]).
+pub fn level_sums(p: &Phase, j: u32) -> LevelSums {
     let level = j as usize;
     let ring = 2 * (j % 2) as usize;
-    let w = p.whole[level];
-    let half = p.whole[level - 2];
+    LevelSums {
+        whole: p.whole[level],
+        half: p.whole[level - 2],
+        second: p.second[level],
+        quarters: [
+            p.whole[level - 4],
+            p.second[level - 2],
+            p.quarters[ring],
+            p.quarters[ring + 1],
+        ],
+    }
+}
+
+/// The estimate of level `j` (>= 4) of a run of its own at its end
+/// ([`evaluate_sums`]).
+pub fn evaluate(p: &Phase, j: u32, lattice: bool) -> PhaseEstimate {
+    evaluate_sums(&level_sums(p, j), j, lattice, 1)
+}
+
+/// The estimate of level `j` (>= 4) from its sums (a run's own, or a
+/// group's of `count` replicas added up): W_j, with the squared standard
+/// error max(|W_j - W_{j-2}|, |V_j - W_{j-2}| / 2, s_Q / 2 or s_Q / 3
+/// ([`QUARTER_TRUSTED`]))^2 per axis, s_Q the sample standard deviation of
+/// its four quarters (module docs), left out where the window is a
+/// near-complete `lattice`. The window is `count` times the level's
+/// length in the virtual run's periods. No root and no division: squares
+/// are compared.
+pub fn evaluate_sums(s: &LevelSums, j: u32, lattice: bool, count: u32) -> PhaseEstimate {
+    let w = s.whole;
+    let half = s.half;
     let richardson = (w - half) * (w - half);
-    let halves = (p.second[level] - half) * (p.second[level] - half) * 0.25;
-    let q = [
-        p.whole[level - 4],
-        p.second[level - 2],
-        p.quarters[ring],
-        p.quarters[ring + 1],
-    ];
+    let halves = (s.second - half) * (s.second - half) * 0.25;
+    let q = s.quarters;
     let mean = (q[0] + q[1] + q[2] + q[3]) * 0.25;
     let mut squares = Vec2::ZERO;
     for v in q {
@@ -307,7 +386,7 @@ pub fn evaluate(p: &Phase, j: u32, lattice: bool) -> PhaseEstimate {
     // The sample variance (3 degrees of freedom) over 4, the squared
     // standard error of the quarters' mean; over 9 for trusted quarters.
     let mut quarters = squares * (1.0 / 12.0);
-    if ladder_length(j - 4) >= QUARTER_TRUSTED {
+    if count * ladder_length(j - 4) >= QUARTER_TRUSTED {
         quarters = squares * (1.0 / 27.0);
     }
     if lattice {
@@ -317,7 +396,8 @@ pub fn evaluate(p: &Phase, j: u32, lattice: bool) -> PhaseEstimate {
     PhaseEstimate {
         value: w,
         se2,
-        span: ladder_length(j),
+        span: count * ladder_length(j),
+        level: j,
     }
 }
 
@@ -384,8 +464,12 @@ pub struct Ladder {
     pub lattice: u32,
 }
 
-/// The ladder's tables and levels ([`Ladder`]).
-pub fn ladder(rho: f64, on: bool, common_period: u32) -> Ladder {
+/// The ladder's tables and levels ([`Ladder`]) for a run of its own, or
+/// for each of `count` replicas ([`Replica`]): then for the virtual run,
+/// whose faster drive advances by `rho / count` a period, whose windows are
+/// `count` times a replica's and whose common period is `count` times the
+/// instance's.
+pub fn ladder(rho: f64, on: bool, common_period: u32, count: u32) -> Ladder {
     let mut tables = [Gaps::default(); LEVELS];
     if !on {
         return Ladder {
@@ -394,14 +478,16 @@ pub fn ladder(rho: f64, on: bool, common_period: u32) -> Ladder {
             lattice: 0,
         };
     }
+    let rho = if count > 1 { rho / count as f64 } else { rho };
+    let common_period = common_period.saturating_mul(count);
     for (j, g) in tables.iter_mut().enumerate() {
-        *g = gaps(rho, ladder_length(j as u32));
+        *g = gaps(rho, count * ladder_length(j as u32));
     }
     let mut levels = 0u32;
     let mut lattice = 0u32;
     for j in FIRST_JUDGED..LEVELS as u32 {
-        let length = ladder_length(j);
-        let quarter = ladder_length(j - 4);
+        let length = count * ladder_length(j);
+        let quarter = count * ladder_length(j - 4);
         let sites = 4.0 / largest_gap(&tables[(j - 4) as usize], quarter);
         let fits = common_period == 0 || length <= common_period;
         if length >= MIN_WINDOW && sites >= MIN_SITES && fits {
@@ -490,7 +576,7 @@ mod tests {
                 let mut x = 0.0;
                 let mut sum = Vec2::ZERO;
                 for i in 0..=length {
-                    sum = add_to_window(sum, &g, length, i, Vec2::splat(x));
+                    sum = add_to_window(sum, &g, length, i, Replica::NONE, Vec2::splat(x));
                     if i < length {
                         x += d[i as usize];
                     }
@@ -514,20 +600,20 @@ mod tests {
     /// period resolves enough phases; 14.14 / 10 Hz stops from 680 on.
     #[test]
     fn the_levels_that_may_stop_a_run() {
-        let near = ladder(0.108_716_026_241_799_4, true, 1067);
+        let near = ladder(0.108_716_026_241_799_4, true, 1067, 1);
         assert_eq!(near.levels, 0);
-        let irrational = ladder(2f64.sqrt() - 1.0, true, 0);
+        let irrational = ladder(2f64.sqrt() - 1.0, true, 0, 1);
         assert_eq!(irrational.levels.trailing_zeros(), 7);
         assert_eq!(irrational.levels >> 7, (1 << (LEVELS - 7)) - 1);
         assert_eq!(irrational.lattice, 0);
-        assert_eq!(ladder(2f64.sqrt() - 1.0, false, 0).levels, 0);
+        assert_eq!(ladder(2f64.sqrt() - 1.0, false, 0, 1).levels, 0);
         // 21.34 / 32.94 Hz: 1647 / 1067, whose 680- and 960-period windows
         // have no gap above 2 / 1067; 25.98 / 37.58 Hz (1879 / 1299) has
         // gaps of 3 / 1299 at 960.
-        let lattice = ladder(1647.0 / 1067.0 - 1.0, true, 1067);
+        let lattice = ladder(1647.0 / 1067.0 - 1.0, true, 1067, 1);
         assert_eq!(lattice.levels, (1 << 7) | (1 << 8));
         assert_eq!(lattice.lattice, (1 << 7) | (1 << 8));
-        let gappy = ladder(1879.0 / 1299.0 - 1.0, true, 1299);
+        let gappy = ladder(1879.0 / 1299.0 - 1.0, true, 1299, 1);
         assert_eq!(gappy.levels, (1 << 7) | (1 << 8));
         assert_eq!(gappy.lattice, 0);
     }

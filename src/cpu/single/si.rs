@@ -74,11 +74,18 @@ pub fn measure(m: &Measure) -> si::Measure {
         lag: m.lag,
         verdict: m.verdict,
         span: m.span,
+        pending_level: m.pending_level,
         se2: scaled(m.se2, 1.0 / (UNITS.metre * UNITS.metre)),
         phase: si::phase::Phase {
             whole: m.phase.whole.map(length),
             second: m.phase.second.map(length),
             quarters: m.phase.quarters.map(length),
+            pending: si::phase::LevelSums {
+                whole: length(m.phase.pending.whole),
+                half: length(m.phase.pending.half),
+                second: length(m.phase.pending.second),
+                quarters: m.phase.pending.quarters.map(length),
+            },
         },
     }
 }
