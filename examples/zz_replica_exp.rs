@@ -33,11 +33,12 @@ fn trapezoid(mut pts: Vec<(f64, [f64; 2])>) -> [f64; 2] {
 }
 
 fn main() {
+    if std::env::var("Q").is_ok() { quality(); return; }
     if std::env::var("CMP").is_ok() { compare_g(); return; }
     if std::env::var("UNION").is_ok() { check_union(); return; }
     if std::env::var("LONG").is_ok() { long_shifted(); return; }
     let mut inst = Instance::TABLE1;
-    inst.axes[1].frequency = 10.0 * 2f64.sqrt();
+    inst.axes[1].frequency = std::env::var("FY").ok().and_then(|v| v.parse().ok()).unwrap_or(10.0 * 2f64.sqrt());
     inst.axes[1].voltage = 100.0;
     let rho = (inst.axes[1].frequency / inst.axes[0].frequency).fract();
     let s: usize = std::env::var("S").ok().and_then(|v| v.parse().ok()).unwrap_or(2);
@@ -56,7 +57,8 @@ fn main() {
         let mut own = Vec::new();
         for r in 0..big_r {
             let mut ri = inst;
-            ri.axes[1].phase = (ph0 + r as f64 * rho / big_r as f64).fract();
+            let m: f64 = std::env::var("M").ok().and_then(|v| v.parse().ok()).unwrap_or(0.0);
+            ri.axes[1].phase = (ph0 + r as f64 * (rho + m) / big_r as f64).fract();
             let xr = positions(&ri, (s + ell) as u32);
             let mine: Vec<(f64,[f64;2])> = (s..s+ell).map(|k| (((ri.axes[1].phase + k as f64 * rho).fract()), [xr[k+1][0]-xr[k][0], xr[k+1][1]-xr[k][1]])).collect();
             own.push(trapezoid(mine.clone()));
@@ -115,7 +117,7 @@ pub fn check_union() {
 #[allow(dead_code)]
 pub fn compare_g() {
     let mut inst = Instance::TABLE1;
-    inst.axes[1].frequency = 10.0 * 2f64.sqrt();
+    inst.axes[1].frequency = std::env::var("FY").ok().and_then(|v| v.parse().ok()).unwrap_or(10.0 * 2f64.sqrt());
     inst.axes[1].voltage = 100.0;
     let rho = (inst.axes[1].frequency / inst.axes[0].frequency).fract();
     let ell = 4000usize; let s = 10usize;
@@ -144,4 +146,21 @@ pub fn compare_g() {
     }
     // print a few points near phase 0.3
     for set in &sets { let idx = set.partition_point(|q| q.0 < 0.3); println!("{:?}", &set[idx..idx+3].iter().map(|q| (q.0, q.1[0]*1e6)).collect::<Vec<_>>()); }
+}
+
+#[allow(dead_code)]
+pub fn quality() {
+    use pidm::cpu::integrate::phase::{gaps, largest_gap, ladder_length};
+    for (name, rho) in [("golden", 0.6180339887498949f64), ("sqrt2", 2f64.sqrt() - 1.0), ("sqrt3", 3f64.sqrt() - 1.0)] {
+        for big_r in [2u32, 4, 8] {
+            let mut line = format!("{name} R={big_r}:");
+            for m in 0..big_r {
+                let beta = (rho + m as f64) / big_r as f64;
+                let worst = (7..14).map(|j| { let l = ladder_length(j); largest_gap(&gaps(beta, l), l) * l as f64 }).fold(0.0f64, f64::max);
+                line += &format!(" m{m} {worst:.2}");
+            }
+            let single = (7..14).map(|j| { let l = ladder_length(j); largest_gap(&gaps(rho, l), l) * l as f64 }).fold(0.0f64, f64::max);
+            println!("{line} | single {single:.2}");
+        }
+    }
 }

@@ -21,6 +21,7 @@ pub mod profile;
 pub mod progress;
 pub mod random;
 pub mod refine;
+pub mod replicas;
 pub mod report;
 pub mod run;
 pub mod scene;

@@ -17,7 +17,12 @@
 //!   of the phase (chaotic, or not yet on their attractor);
 //! * *undetermined*: no verdict: a fixed window (which measures no kind of
 //!   motion), a run that stopped "not steady" at `max_cycles`, or one that
-//!   failed (its `status` says how).
+//!   failed (its `status` says how);
+//! * *multistable*: the replicas of a split measurement (`crate::replicas`),
+//!   each started from rest at its own phase, disagreed beyond their
+//!   standard errors: they settled on different attractors. The map keeps
+//!   the instance's own run (unsplit, from rest at its own phase), whose
+//!   status and standard error are its own.
 
 /// What kind of motion an instance showed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -32,15 +37,18 @@ pub enum Motion {
     QuasiPeriodic = 2,
     /// Neither: only the batch means converged.
     Irregular = 3,
+    /// Replicas from other phases settled on other attractors.
+    Multistable = 4,
 }
 
 impl Motion {
     /// Every kind, in code order.
-    pub const ALL: [Motion; 4] = [
+    pub const ALL: [Motion; 5] = [
         Motion::Undetermined,
         Motion::Periodic,
         Motion::QuasiPeriodic,
         Motion::Irregular,
+        Motion::Multistable,
     ];
 
     /// The code stored in result files.
@@ -60,6 +68,7 @@ impl Motion {
             Motion::Periodic => "periodic",
             Motion::QuasiPeriodic => "quasi_periodic",
             Motion::Irregular => "irregular",
+            Motion::Multistable => "multistable",
         }
     }
 
@@ -77,6 +86,10 @@ impl Motion {
             }
             Motion::Irregular => {
                 "irregular (neither periodic nor smooth in the phase: only the batch means converged)"
+            }
+            Motion::Multistable => {
+                "multistable (replicas from other phases settled on other attractors: the \
+                 instance's own run is kept)"
             }
         }
     }
@@ -106,8 +119,8 @@ mod tests {
         assert_eq!(Motion::from_code(Motion::ALL.len() as u8), None);
         assert_eq!(
             Motion::flag_meanings(),
-            "undetermined periodic quasi_periodic irregular"
+            "undetermined periodic quasi_periodic irregular multistable"
         );
-        assert_eq!(Motion::flag_values(), vec![0, 1, 2, 3]);
+        assert_eq!(Motion::flag_values(), vec![0, 1, 2, 3, 4]);
     }
 }

@@ -34,36 +34,43 @@ fn window_weight(g: Gaps, length: u32, k: u32) -> Real {
     return Real(0.5) * (left + right);
 }
 
-// Whether cut c lies in (k - count, k].
-fn is_cut(c: u32, k: u32, count: u32) -> bool {
-    return k < c + count && c <= k;
+// Whether cut c lies in (at - count, at].
+fn is_cut(c: u32, at: u32, count: u32) -> bool {
+    return at < c + count && c <= at;
 }
 
-fn window_coefficient(g: Gaps, length: u32, i: u32, index: u32, count: u32) -> Real {
-    let virtual_length = count * length;
-    let k = count * i + index;
-    if !(is_cut(0u, k, count) || is_cut(virtual_length, k, count) || is_cut(g.a, k, count)
-        || is_cut(g.b, k, count) || (g.a <= virtual_length && is_cut(virtual_length - g.a, k, count))
-        || (g.b <= virtual_length && is_cut(virtual_length - g.b, k, count))) {
+fn window_coefficient(g: Gaps, length: u32, at: u32, count: u32) -> Real {
+    if !(is_cut(0u, at, count) || is_cut(length, at, count) || is_cut(g.a, at, count)
+        || is_cut(g.b, at, count) || (g.a <= length && is_cut(length - g.a, at, count))
+        || (g.b <= length && is_cut(length - g.b, at, count))) {
         return Real(0.0);
     }
     var before = Real(0.0);
-    if i > 0u {
-        before = window_weight(g, virtual_length, k - count);
+    if at >= count {
+        before = window_weight(g, length, at - count);
     }
-    var at = Real(0.0);
-    if i < length {
-        at = window_weight(g, virtual_length, k);
+    var here = Real(0.0);
+    if at < length {
+        here = window_weight(g, length, at);
     }
-    return before - at;
+    return before - here;
 }
 
-fn add_to_window(sum: V2, g: Gaps, length: u32, i: u32, r: Replica, x: V2) -> V2 {
-    let coefficient = window_coefficient(g, length, i, r.index, r.count);
+fn add_to_window(sum: V2, g: Gaps, start: u32, length: u32, k: u32, r: Replica, x: V2) -> V2 {
+    let v = r.count * k + r.index;
+    if v < start || v >= start + length + r.count {
+        return sum;
+    }
+    let coefficient = window_coefficient(g, length, v - start, r.count);
     if coefficient != Real(0.0) {
         return sum + x * coefficient;
     }
     return sum;
+}
+
+fn first_at(k: u32, r: Replica, at: u32) -> bool {
+    let v = r.count * k + r.index;
+    return v >= at && v < at + r.count;
 }
 
 fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> PhaseEstimate {
@@ -73,32 +80,24 @@ fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> 
     var judged = PhaseEstimate(V2(0.0), V2(0.0), 0u, 0u);
     for (var j = 0u; j < LEVELS; j++) {
         let length = ladder_length(j);
-        if k <= length {
-            (*p).whole[j] = add_to_window((*p).whole[j], gaps[j], length, k, r, x);
-        }
+        (*p).whole[j] = add_to_window((*p).whole[j], gaps[j], 0u, length, k, r, x);
         if j >= 2u {
             let half = ladder_length(j - 2u);
-            if k >= half && k <= length {
-                (*p).second[j] = add_to_window((*p).second[j], gaps[j - 2u], half, k - half, r, x);
-            }
+            (*p).second[j] = add_to_window((*p).second[j], gaps[j - 2u], half, half, k, r, x);
         }
         if j >= FIRST_JUDGED {
             let quarter = ladder_length(j - 4u);
             let ring = 2u * (j % 2u);
-            if k == 2u * quarter {
+            if first_at(k, r, 2u * quarter) {
                 (*p).quarters[ring] = V2(0.0);
                 (*p).quarters[ring + 1u] = V2(0.0);
             }
-            if k >= 2u * quarter && k <= 3u * quarter {
-                (*p).quarters[ring] = add_to_window((*p).quarters[ring], gaps[j - 4u], quarter, k - 2u * quarter, r, x);
-            }
-            if k >= 3u * quarter && k <= length {
-                (*p).quarters[ring + 1u] = add_to_window((*p).quarters[ring + 1u], gaps[j - 4u], quarter, k - 3u * quarter, r, x);
-            }
-            if k == length && ((c.phase_levels >> j) & 1u) == 1u {
+            (*p).quarters[ring] = add_to_window((*p).quarters[ring], gaps[j - 4u], 2u * quarter, quarter, k, r, x);
+            (*p).quarters[ring + 1u] = add_to_window((*p).quarters[ring + 1u], gaps[j - 4u], 3u * quarter, quarter, k, r, x);
+            if first_at(k, r, length) && ((c.phase_levels >> j) & 1u) == 1u {
                 if r.count > 1u {
                     (*p).pending = level_sums(p, j);
-                    judged = PhaseEstimate(V2(0.0), V2(0.0), r.count * length, j);
+                    judged = PhaseEstimate(V2(0.0), V2(0.0), length, j);
                 } else {
                     judged = evaluate(p, j, ((c.phase_lattice >> j) & 1u) == 1u);
                 }
@@ -119,10 +118,10 @@ fn level_sums(p: ptr<function, Phase>, j: u32) -> LevelSums {
 }
 
 fn evaluate(p: ptr<function, Phase>, j: u32, lattice: bool) -> PhaseEstimate {
-    return evaluate_sums(level_sums(p, j), j, lattice, 1u);
+    return evaluate_sums(level_sums(p, j), j, lattice);
 }
 
-fn evaluate_sums(s: LevelSums, j: u32, lattice: bool, count: u32) -> PhaseEstimate {
+fn evaluate_sums(s: LevelSums, j: u32, lattice: bool) -> PhaseEstimate {
     let w = s.whole;
     let half = s.half;
     let richardson = (w - half) * (w - half);
@@ -134,12 +133,12 @@ fn evaluate_sums(s: LevelSums, j: u32, lattice: bool, count: u32) -> PhaseEstima
         squares = squares + (q[i] - mean) * (q[i] - mean);
     }
     var quarters = squares * Real(1.0 / 12.0);
-    if count * ladder_length(j - 4u) >= QUARTER_TRUSTED {
+    if ladder_length(j - 4u) >= QUARTER_TRUSTED {
         quarters = squares * Real(1.0 / 27.0);
     }
     if lattice {
         quarters = V2(0.0);
     }
     let se2 = max(max(richardson, halves), quarters);
-    return PhaseEstimate(w, se2, count * ladder_length(j), j);
+    return PhaseEstimate(w, se2, ladder_length(j), j);
 }

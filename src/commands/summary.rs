@@ -225,12 +225,14 @@ pub(super) fn print_summary(scene: &Scene, result: &RunResult) {
 
 /// The run summary's counts of each kind of motion, the kinds a steady
 /// measurement decides first and undetermined last: "12 periodic, 40
-/// quasi_periodic, 3 irregular, 1 undetermined". `counts` is indexed by
-/// code, as `Summary::motion` is.
+/// quasi_periodic, 3 irregular, 1 undetermined"; multistable only where
+/// replicas found some (`crate::replicas`). `counts` is indexed by code,
+/// as `Summary::motion` is.
 fn motion_counts(counts: &[u64; Motion::ALL.len()]) -> String {
     let order = Motion::ALL
         .into_iter()
         .filter(|&m| m != Motion::Undetermined)
+        .filter(|&m| m != Motion::Multistable || counts[m.code() as usize] > 0)
         .chain([Motion::Undetermined]);
     order
         .map(|m| format!("{} {}", counts[m.code() as usize], m.name()))

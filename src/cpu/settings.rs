@@ -15,6 +15,9 @@ pub struct Settings {
     /// the instance stops with
     /// [`STATUS_STEP_BUDGET`](crate::cpu::integrate::STATUS_STEP_BUDGET).
     pub max_steps_per_period: u32,
+    /// How many replicas a steady measurement that can be split runs as
+    /// (`simulation.replicas`; `pidm::replicas`).
+    pub replicas: Replicas,
 }
 
 impl Default for Settings {
@@ -22,8 +25,20 @@ impl Default for Settings {
         Settings {
             tolerance: 1e-4,
             max_steps_per_period: 2_000_000,
+            replicas: Replicas::Auto,
         }
     }
+}
+
+/// `simulation.replicas`: how many replicas (`pidm::replicas`) each
+/// steady measurement that can be split runs as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Replicas {
+    /// As many as the backend's idle threads or lanes allow, up to
+    /// `pidm::replicas::MAX_AUTO` (the default).
+    Auto,
+    /// Exactly this many (1: none), whatever is idle.
+    Count(u32),
 }
 
 /// One replica of a run split into `count` replicas (`pidm::replicas`):
@@ -39,9 +54,30 @@ impl Default for Settings {
 pub struct Replica {
     pub index: u32,
     pub count: u32,
+    /// Which of the `count` virtual runs the replicas make (`turns` m =
+    /// 0..count): the virtual run's faster drive advances by (rho + m) /
+    /// count a period, whose `count` multiple is rho in the cycle as for
+    /// every m, and replica r starts r (rho + m) / count cycles later. The
+    /// host picks the m whose virtual run spaces its phases most evenly
+    /// (`pidm::replicas::split`).
+    pub turns: u32,
 }
 
 impl Replica {
     /// A run of its own: the phase ladder judges its own windows.
-    pub const NONE: Replica = Replica { index: 0, count: 1 };
+    pub const NONE: Replica = Replica {
+        index: 0,
+        count: 1,
+        turns: 0,
+    };
+
+    /// The virtual run's advance of the faster drive per period [cycles]
+    /// for a run whose own is `rho`: rho itself for a run of its own.
+    pub fn virtual_step(&self, rho: f64) -> f64 {
+        if self.count <= 1 {
+            rho
+        } else {
+            (rho + self.turns as f64) / self.count as f64
+        }
+    }
 }

@@ -586,6 +586,7 @@ mod tests {
             "inverse_integer",
             "run_instance",
             "run_instance_until",
+            "continue_until",
             "continue_instance_until",
             "displacement",
             "advance_observed",
@@ -607,6 +608,7 @@ mod tests {
             // table and the levels that may stop a run.
             "gaps",
             "largest_gap",
+            "spread",
             "ladder",
             "first_batch_length",
             "beat_batch_length",

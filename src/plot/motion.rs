@@ -37,10 +37,11 @@ pub(super) enum MotionClass {
 impl MotionClass {
     /// Every class, in legend order: the kinds a verdict decides, then the
     /// reasons for none.
-    pub(super) const ALL: [MotionClass; 7] = [
+    pub(super) const ALL: [MotionClass; 8] = [
         MotionClass::Kind(Motion::Periodic),
         MotionClass::Kind(Motion::QuasiPeriodic),
         MotionClass::Kind(Motion::Irregular),
+        MotionClass::Kind(Motion::Multistable),
         MotionClass::Kind(Motion::Undetermined),
         MotionClass::Inferred,
         MotionClass::NotSteady,
@@ -76,6 +77,7 @@ impl MotionClass {
             MotionClass::Kind(Motion::Periodic) => RGBColor(33, 102, 172),
             MotionClass::Kind(Motion::QuasiPeriodic) => RGBColor(90, 174, 97),
             MotionClass::Kind(Motion::Irregular) => RGBColor(230, 97, 1),
+            MotionClass::Kind(Motion::Multistable) => RGBColor(118, 42, 131),
             MotionClass::Kind(Motion::Undetermined) => RGBColor(245, 235, 200),
             MotionClass::Inferred => RGBColor(238, 238, 238),
             MotionClass::NotSteady => NOT_STEADY,
@@ -89,6 +91,7 @@ impl MotionClass {
             MotionClass::Kind(Motion::Periodic) => "periodic: the state repeats",
             MotionClass::Kind(Motion::QuasiPeriodic) => "quasi_periodic: smooth in phase",
             MotionClass::Kind(Motion::Irregular) => "irregular: batch means only",
+            MotionClass::Kind(Motion::Multistable) => "multistable: replicas disagreed",
             MotionClass::Kind(Motion::Undetermined) => "undetermined: no verdict",
             MotionClass::Inferred => "not integrated (inferred)",
             MotionClass::NotSteady => "not steady (status 6)",

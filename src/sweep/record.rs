@@ -183,10 +183,10 @@ mod tests {
         for motion in Motion::ALL {
             assert_eq!(stored_motion(motion.code()), Ok(motion));
         }
-        let why = stored_motion(4).unwrap_err();
+        let why = stored_motion(5).unwrap_err();
         assert_eq!(
             why,
-            "its motion is 4, which is no motion code (flag_values [0, 1, 2, 3])"
+            "its motion is 5, which is no motion code (flag_values [0, 1, 2, 3, 4])"
         );
     }
 }

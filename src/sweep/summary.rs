@@ -163,7 +163,7 @@ mod tests {
         let mut b = Summary::default();
         b.add(&Record::default(), 3);
         b.merge(&a);
-        assert_eq!(a.motion, [0, 2, 0, 1]);
-        assert_eq!(b.motion, [1, 2, 0, 1]);
+        assert_eq!(a.motion, [0, 2, 0, 1, 0]);
+        assert_eq!(b.motion, [1, 2, 0, 1, 0]);
     }
 }

@@ -371,7 +371,12 @@ impl Coefficients {
             && driven[1]
             && rho > 0.0
             && (common_period == 0 || common_period > super::phase::MIN_WINDOW);
-        let ladder = super::phase::ladder(rho, ladder_on, common_period, r.count);
+        // A replica's ladder is its group's virtual run's.
+        let ladder = super::phase::ladder(
+            r.virtual_step(rho),
+            ladder_on,
+            common_period.saturating_mul(r.count),
+        );
         // The load per axis, each form +0 at L = 0 whatever the sign of
         // the zero given (`0.0 - x` and `x + 0.0` are +0 for x = -0).
         let load = Vec2::new(m.load[0], m.load[1]);

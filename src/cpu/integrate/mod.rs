@@ -72,7 +72,7 @@ use step::StepOutcome;
 pub use super::precision::Real;
 // The precision module of this instance, for the files below.
 use super::precision;
-pub use crate::cpu::settings::Settings;
+pub use crate::cpu::settings::{Replica, Settings};
 
 use super::precision::{COMPENSATED_TIME, CORNER_CLOCK, DEFLECTION};
 use crate::model::{AXES, Instance};
@@ -227,16 +227,22 @@ pub fn run_instance_until(
 pub fn continue_instance_until(
     inst: &Instance,
     settings: &Settings,
-    mut run: Run,
+    run: Run,
     stop: impl Fn() -> bool,
 ) -> Option<Run> {
-    let c = Coefficients::of(inst, settings);
-    while !is_finished(&c, &run.state) {
+    continue_until(&Coefficients::of(inst, settings), run, stop)
+}
+
+/// [`continue_instance_until`] with the instance's coefficients (a
+/// replica's, `Coefficients::of_replica`): to its end, or where a replica
+/// waits for its group's merge (`measure::VERDICT_WAITING`).
+pub fn continue_until(c: &Coefficients, mut run: Run, stop: impl Fn() -> bool) -> Option<Run> {
+    while !is_finished(c, &run.state) {
         if stop() {
             return None;
         }
         advance(
-            &c,
+            c,
             &mut run.state,
             &mut run.measure,
             ITERATIONS_BETWEEN_STOP_CHECKS,

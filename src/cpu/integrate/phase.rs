@@ -215,45 +215,68 @@ pub fn window_weight(g: &Gaps, length: u32, k: u32) -> Real {
     0.5 * (left + right)
 }
 
-/// The coefficient of the slider position at a replica's period `i` (0
-/// <= i <= `length`) of a window of `length` of its periods in the virtual
-/// run's trapezoid sum ([`Replica`]; `g` is the virtual window's table,
-/// `count length` periods long): w_{K-count} - w_K with K = `count i +
-/// index` (w is 0 outside the virtual window), non-zero only where one of
-/// the cuts 0, a, b, L - a, L - b and L lies in (K - count, K]. For a run
-/// of its own, K = i, and the cut must be i itself.
-pub fn window_coefficient(g: &Gaps, length: u32, i: u32, index: u32, count: u32) -> Real {
-    let virtual_length = count * length;
-    let k = count * i + index;
-    // c in (k - count, k], without going below zero.
-    let cut = |c: u32| k < c + count && c <= k;
+/// The coefficient of the slider position at virtual period `at` of a
+/// window (its index from the window's start, `at < length + count`) in
+/// the window's trapezoid sum, for a run of its own (`count` 1: the
+/// window's own periods) or a replica of `count` ([`Replica`]: its period
+/// k is the virtual run's `count k + index`, and each of its positions
+/// closes the virtual periods since its previous one): w_{at - count} -
+/// w_at (w is 0 outside the window), non-zero only where one of the cuts
+/// 0, a, b, L - a, L - b and L lies in (at - count, at]. For a run of its
+/// own, the cut must be `at` itself.
+pub fn window_coefficient(g: &Gaps, length: u32, at: u32, count: u32) -> Real {
+    // c in (at - count, at], without going below zero.
+    let cut = |c: u32| at < c + count && c <= at;
     if !(cut(0)
-        || cut(virtual_length)
+        || cut(length)
         || cut(g.a)
         || cut(g.b)
-        || (g.a <= virtual_length && cut(virtual_length - g.a))
-        || (g.b <= virtual_length && cut(virtual_length - g.b)))
+        || (g.a <= length && cut(length - g.a))
+        || (g.b <= length && cut(length - g.b)))
     {
         return 0.0;
     }
     let mut before = 0.0;
-    if i > 0 {
-        before = window_weight(g, virtual_length, k - count);
+    if at >= count {
+        before = window_weight(g, length, at - count);
     }
-    let mut at = 0.0;
-    if i < length {
-        at = window_weight(g, virtual_length, k);
+    let mut here = 0.0;
+    if at < length {
+        here = window_weight(g, length, at);
     }
-    before - at
+    before - here
 }
 
-/// The window's sum with the slider position `x` at its period `i` added.
-fn add_to_window(sum: Vec2, g: &Gaps, length: u32, i: u32, r: Replica, x: Vec2) -> Vec2 {
-    let coefficient = window_coefficient(g, length, i, r.index, r.count);
+/// The window [`start`, `start + length`) of the virtual run (a run's own
+/// periods where it is of its own), its sum with the slider position `x`
+/// at the run's period `k` added where that position is in the window's
+/// sum (from the window's first period to the one that closes it).
+fn add_to_window(
+    sum: Vec2,
+    g: &Gaps,
+    start: u32,
+    length: u32,
+    k: u32,
+    r: Replica,
+    x: Vec2,
+) -> Vec2 {
+    let v = r.count * k + r.index;
+    if v < start || v >= start + length + r.count {
+        return sum;
+    }
+    let coefficient = window_coefficient(g, length, v - start, r.count);
     if coefficient != 0.0 {
         return sum + x * coefficient;
     }
     sum
+}
+
+/// Whether the run's period `k` is the first at or after virtual period
+/// `at`: where a window starting there takes its first position, and one
+/// ending there its last.
+fn first_at(k: u32, r: Replica, at: u32) -> bool {
+    let v = r.count * k + r.index;
+    v >= at && v < at + r.count
 }
 
 /// What a judged window found: the estimate of the mean travel per scene
@@ -262,8 +285,8 @@ fn add_to_window(sum: Vec2, g: &Gaps, length: u32, i: u32, r: Replica, x: Vec2) 
 pub struct PhaseEstimate {
     pub value: Vec2,
     pub se2: Vec2,
-    /// The window's length [scene periods of the virtual run: a replica's
-    /// periods times the replicas]; 0 when no window was judged.
+    /// The window's length [scene periods; of the virtual run for a
+    /// replica]; 0 when no window was judged.
     pub span: u32,
     /// The window's ladder level.
     pub level: u32,
@@ -274,62 +297,59 @@ pub struct PhaseEstimate {
 /// that ends there, if any may stop the run ([`Coefficients::phase_levels`]).
 /// Windows are processed level by level, and a level ending at `k` is
 /// judged before a longer level starts its quarters there. A replica
-/// ([`Replica`]) does not judge its windows: it keeps the level's sums in
+/// ([`Replica`]) adds its positions to the virtual run's windows, and does
+/// not judge them: where a level ends it keeps the level's sums in
 /// `p.pending` for its group's merge and returns the level with a zero
 /// estimate.
 pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> PhaseEstimate {
+    // The virtual run's step is the host's concern (its tables).
     let r = Replica {
         index: c.replica,
         count: c.replicas,
+        turns: 0,
     };
     let mut judged = PhaseEstimate::default();
     for j in 0..LEVELS as u32 {
         let length = ladder_length(j);
         let level = j as usize;
-        if k <= length {
-            p.whole[level] = add_to_window(p.whole[level], &c.gaps[level], length, k, r, x);
-        }
+        p.whole[level] = add_to_window(p.whole[level], &c.gaps[level], 0, length, k, r, x);
         if j >= 2 {
             let half = ladder_length(j - 2);
-            if k >= half && k <= length {
-                p.second[level] =
-                    add_to_window(p.second[level], &c.gaps[level - 2], half, k - half, r, x);
-            }
+            p.second[level] =
+                add_to_window(p.second[level], &c.gaps[level - 2], half, half, k, r, x);
         }
         if j >= FIRST_JUDGED {
             let quarter = ladder_length(j - 4);
             let ring = 2 * (j % 2) as usize;
-            if k == 2 * quarter {
+            if first_at(k, r, 2 * quarter) {
                 p.quarters[ring] = Vec2::ZERO;
                 p.quarters[ring + 1] = Vec2::ZERO;
             }
-            if k >= 2 * quarter && k <= 3 * quarter {
-                p.quarters[ring] = add_to_window(
-                    p.quarters[ring],
-                    &c.gaps[level - 4],
-                    quarter,
-                    k - 2 * quarter,
-                    r,
-                    x,
-                );
-            }
-            if k >= 3 * quarter && k <= length {
-                p.quarters[ring + 1] = add_to_window(
-                    p.quarters[ring + 1],
-                    &c.gaps[level - 4],
-                    quarter,
-                    k - 3 * quarter,
-                    r,
-                    x,
-                );
-            }
-            if k == length && (c.phase_levels >> j) & 1 == 1 {
+            p.quarters[ring] = add_to_window(
+                p.quarters[ring],
+                &c.gaps[level - 4],
+                2 * quarter,
+                quarter,
+                k,
+                r,
+                x,
+            );
+            p.quarters[ring + 1] = add_to_window(
+                p.quarters[ring + 1],
+                &c.gaps[level - 4],
+                3 * quarter,
+                quarter,
+                k,
+                r,
+                x,
+            );
+            if first_at(k, r, length) && (c.phase_levels >> j) & 1 == 1 {
                 if r.count > 1 {
                     p.pending = level_sums(p, j);
                     judged = PhaseEstimate {
                         value: Vec2::ZERO,
                         se2: Vec2::ZERO,
-                        span: r.count * length,
+                        span: length,
                         level: j,
                     };
                 } else {
@@ -361,18 +381,17 @@ pub fn level_sums(p: &Phase, j: u32) -> LevelSums {
 /// The estimate of level `j` (>= 4) of a run of its own at its end
 /// ([`evaluate_sums`]).
 pub fn evaluate(p: &Phase, j: u32, lattice: bool) -> PhaseEstimate {
-    evaluate_sums(&level_sums(p, j), j, lattice, 1)
+    evaluate_sums(&level_sums(p, j), j, lattice)
 }
 
-/// The estimate of level `j` (>= 4) from its sums (a run's own, or a
-/// group's of `count` replicas added up): W_j, with the squared standard
-/// error max(|W_j - W_{j-2}|, |V_j - W_{j-2}| / 2, s_Q / 2 or s_Q / 3
-/// ([`QUARTER_TRUSTED`]))^2 per axis, s_Q the sample standard deviation of
-/// its four quarters (module docs), left out where the window is a
-/// near-complete `lattice`. The window is `count` times the level's
-/// length in the virtual run's periods. No root and no division: squares
-/// are compared.
-pub fn evaluate_sums(s: &LevelSums, j: u32, lattice: bool, count: u32) -> PhaseEstimate {
+/// The estimate of level `j` (>= 4) from its sums (a run's own, or the
+/// virtual run's: a group's replicas' added up): W_j, with the squared
+/// standard error max(|W_j - W_{j-2}|, |V_j - W_{j-2}| / 2, s_Q / 2 or s_Q
+/// / 3 ([`QUARTER_TRUSTED`]))^2 per axis, s_Q the sample standard
+/// deviation of its four quarters (module docs), left out where the window
+/// is a near-complete `lattice`. No root and no division: squares are
+/// compared.
+pub fn evaluate_sums(s: &LevelSums, j: u32, lattice: bool) -> PhaseEstimate {
     let w = s.whole;
     let half = s.half;
     let richardson = (w - half) * (w - half);
@@ -386,7 +405,7 @@ pub fn evaluate_sums(s: &LevelSums, j: u32, lattice: bool, count: u32) -> PhaseE
     // The sample variance (3 degrees of freedom) over 4, the squared
     // standard error of the quarters' mean; over 9 for trusted quarters.
     let mut quarters = squares * (1.0 / 12.0);
-    if count * ladder_length(j - 4) >= QUARTER_TRUSTED {
+    if ladder_length(j - 4) >= QUARTER_TRUSTED {
         quarters = squares * (1.0 / 27.0);
     }
     if lattice {
@@ -396,7 +415,7 @@ pub fn evaluate_sums(s: &LevelSums, j: u32, lattice: bool, count: u32) -> PhaseE
     PhaseEstimate {
         value: w,
         se2,
-        span: count * ladder_length(j),
+        span: ladder_length(j),
         level: j,
     }
 }
@@ -448,6 +467,21 @@ pub fn largest_gap(g: &Gaps, length: u32) -> f64 {
     }
 }
 
+/// How unevenly the phases of the ladder's windows that may stop a run
+/// (from [`MIN_WINDOW`] on) lie for a faster drive that advances by `rho`
+/// cycles a period: the largest of their largest gaps times their lengths
+/// (1 for evenly spaced phases; about 2 for a run of its own at a badly
+/// approximable ratio). A trapezoid over unevenly spaced phases resolves
+/// fewer features than its periods, and its error estimates miss it
+/// (`pidm::replicas`).
+pub fn spread(rho: f64) -> f64 {
+    (0..LEVELS as u32)
+        .map(ladder_length)
+        .filter(|&length| length >= MIN_WINDOW)
+        .map(|length| largest_gap(&gaps(rho, length), length) * length as f64)
+        .fold(0.0, f64::max)
+}
+
 /// The ladder of an instance whose faster drive advances by `rho` cycles
 /// per scene period (module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -464,12 +498,12 @@ pub struct Ladder {
     pub lattice: u32,
 }
 
-/// The ladder's tables and levels ([`Ladder`]) for a run of its own, or
-/// for each of `count` replicas ([`Replica`]): then for the virtual run,
-/// whose faster drive advances by `rho / count` a period, whose windows are
-/// `count` times a replica's and whose common period is `count` times the
-/// instance's.
-pub fn ladder(rho: f64, on: bool, common_period: u32, count: u32) -> Ladder {
+/// The ladder's tables and levels ([`Ladder`]) of a run whose faster
+/// drive advances by `rho` cycles a period, with a common period of
+/// `common_period` periods (0: none): a run of its own, or the virtual run
+/// of a group of replicas ([`Replica::virtual_step`]), whose windows are a
+/// run's, each replica taking about a `count`th of their periods.
+pub fn ladder(rho: f64, on: bool, common_period: u32) -> Ladder {
     let mut tables = [Gaps::default(); LEVELS];
     if !on {
         return Ladder {
@@ -478,16 +512,14 @@ pub fn ladder(rho: f64, on: bool, common_period: u32, count: u32) -> Ladder {
             lattice: 0,
         };
     }
-    let rho = if count > 1 { rho / count as f64 } else { rho };
-    let common_period = common_period.saturating_mul(count);
     for (j, g) in tables.iter_mut().enumerate() {
-        *g = gaps(rho, count * ladder_length(j as u32));
+        *g = gaps(rho, ladder_length(j as u32));
     }
     let mut levels = 0u32;
     let mut lattice = 0u32;
     for j in FIRST_JUDGED..LEVELS as u32 {
-        let length = count * ladder_length(j);
-        let quarter = count * ladder_length(j - 4);
+        let length = ladder_length(j);
+        let quarter = ladder_length(j - 4);
         let sites = 4.0 / largest_gap(&tables[(j - 4) as usize], quarter);
         let fits = common_period == 0 || length <= common_period;
         if length >= MIN_WINDOW && sites >= MIN_SITES && fits {
@@ -576,12 +608,46 @@ mod tests {
                 let mut x = 0.0;
                 let mut sum = Vec2::ZERO;
                 for i in 0..=length {
-                    sum = add_to_window(sum, &g, length, i, Replica::NONE, Vec2::splat(x));
+                    sum = add_to_window(sum, &g, 0, length, i, Replica::NONE, Vec2::splat(x));
                     if i < length {
                         x += d[i as usize];
                     }
                 }
                 assert!((sum.x - direct).abs() < 1e-9, "rho {rho} L {length}");
+            }
+        }
+    }
+
+    /// A window of the virtual run split over `count` replicas: each
+    /// replica adds its own positions (offset by anything: only its own
+    /// differences count), and their sums add up to the virtual run's
+    /// trapezoid sum over its L periods, for windows that start anywhere.
+    #[test]
+    fn replica_sums_add_up_to_the_virtual_runs() {
+        let rho = 2f64.sqrt() - 1.0;
+        for count in [1u32, 2, 3, 8] {
+            for (start, length) in [(0u32, 680u32), (340, 340), (170, 85), (0, 60)] {
+                let virtual_rho = rho / count as f64;
+                let g = gaps(virtual_rho, length);
+                let expected = sorted_weights(virtual_rho, length);
+                // The travel over virtual period K (any function will do).
+                let d = |v: u32| ((v as f64) * 0.37).sin() + 0.1 + (v as f64 * 0.011).cos();
+                let direct: f64 = (0..length).map(|v| expected[v as usize] * d(start + v)).sum();
+                let mut total = 0.0;
+                for index in 0..count {
+                    let r = Replica { index, count, turns: 0 };
+                    let mut x = 17.0 * index as f64;
+                    let mut sum = Vec2::ZERO;
+                    for k in 0..=(start + length) / count + 1 {
+                        sum = add_to_window(sum, &g, start, length, k, r, Vec2::splat(x));
+                        x += d(count * k + index);
+                    }
+                    total += sum.x;
+                }
+                assert!(
+                    (total - direct).abs() < 1e-9,
+                    "count {count} window [{start}, +{length}): {total} against {direct}"
+                );
             }
         }
     }
@@ -600,20 +666,20 @@ mod tests {
     /// period resolves enough phases; 14.14 / 10 Hz stops from 680 on.
     #[test]
     fn the_levels_that_may_stop_a_run() {
-        let near = ladder(0.108_716_026_241_799_4, true, 1067, 1);
+        let near = ladder(0.108_716_026_241_799_4, true, 1067);
         assert_eq!(near.levels, 0);
-        let irrational = ladder(2f64.sqrt() - 1.0, true, 0, 1);
+        let irrational = ladder(2f64.sqrt() - 1.0, true, 0);
         assert_eq!(irrational.levels.trailing_zeros(), 7);
         assert_eq!(irrational.levels >> 7, (1 << (LEVELS - 7)) - 1);
         assert_eq!(irrational.lattice, 0);
-        assert_eq!(ladder(2f64.sqrt() - 1.0, false, 0, 1).levels, 0);
+        assert_eq!(ladder(2f64.sqrt() - 1.0, false, 0).levels, 0);
         // 21.34 / 32.94 Hz: 1647 / 1067, whose 680- and 960-period windows
         // have no gap above 2 / 1067; 25.98 / 37.58 Hz (1879 / 1299) has
         // gaps of 3 / 1299 at 960.
-        let lattice = ladder(1647.0 / 1067.0 - 1.0, true, 1067, 1);
+        let lattice = ladder(1647.0 / 1067.0 - 1.0, true, 1067);
         assert_eq!(lattice.levels, (1 << 7) | (1 << 8));
         assert_eq!(lattice.lattice, (1 << 7) | (1 << 8));
-        let gappy = ladder(1879.0 / 1299.0 - 1.0, true, 1299, 1);
+        let gappy = ladder(1879.0 / 1299.0 - 1.0, true, 1299);
         assert_eq!(gappy.levels, (1 << 7) | (1 << 8));
         assert_eq!(gappy.lattice, 0);
     }

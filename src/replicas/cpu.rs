@@ -1,0 +1,103 @@
+//! A group of replicas on the CPU's threads: every replica runs on a
+//! thread of its own (rayon) to the ladder level it waits at, the group
+//! merges ([`Group::step`]), and all go on or stop; where the group gives
+//! up the split, the instance runs as one run of its own. In f64, the
+//! reference.
+
+use rayon::prelude::*;
+
+use super::{Group, Member, Step};
+use crate::cpu::integrate::{
+    Coefficients, Replica, Run, STATUS_OK, Settings, continue_until, initial_measure,
+    initial_state, run_instance_until,
+};
+use crate::measurement::{Measured, reduce};
+use crate::model::Instance;
+use crate::motion::Motion;
+
+/// What a group's run gave: the instance's values and the replicas that
+/// made them (1 where it ran alone), and the steps every replica took.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroupRun {
+    pub measured: Measured,
+    pub replicas: u32,
+    pub steps: u32,
+}
+
+/// Runs `inst` split as `split` says (`super::split`; see the module docs
+/// of `crate::replicas`), or `None` once `stop` asks (within about a
+/// millisecond per replica).
+pub fn run_group(
+    inst: &Instance,
+    settings: &Settings,
+    split: Replica,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<GroupRun> {
+    let group = Group::new(inst, settings, split);
+    let count = group.count();
+    let mut replicas: Vec<(Coefficients, Run)> = group
+        .replicas()
+        .into_iter()
+        .map(|(replica, r)| {
+            let c = Coefficients::of_replica(&replica, settings, r);
+            let run = Run {
+                state: initial_state(&c),
+                measure: initial_measure(&c),
+            };
+            (c, run)
+        })
+        .collect();
+    loop {
+        let advanced: Option<Vec<Run>> = replicas
+            .par_iter()
+            .with_max_len(1)
+            .map(|(c, run)| continue_until(c, *run, stop))
+            .collect();
+        for ((_, run), done) in replicas.iter_mut().zip(advanced?) {
+            *run = done;
+        }
+        let members: Vec<Member> = replicas
+            .iter()
+            .map(|(_, run)| Member::of(inst, run))
+            .collect();
+        let steps = replicas.iter().map(|(_, run)| run.state.steps).sum::<u32>();
+        match group.step(&members) {
+            Step::Merged(measured) => {
+                return Some(GroupRun {
+                    measured,
+                    replicas: count,
+                    steps,
+                });
+            }
+            Step::Continue => {
+                for (_, run) in &mut replicas {
+                    release(run);
+                }
+            }
+            // Every replica ran to its wait or end: a wait is for all.
+            Step::Wait => unreachable!("every replica on the CPU runs to its wait"),
+            Step::Alone { multistable } => {
+                let alone = run_instance_until(inst, settings, stop)?;
+                let mut measured = reduce(inst, &alone);
+                // Only a finished run has a kind of motion (docs/output.md).
+                if multistable && measured.status == STATUS_OK {
+                    measured.motion = Motion::Multistable;
+                }
+                return Some(GroupRun {
+                    measured,
+                    replicas: 1,
+                    steps: steps.saturating_add(alone.state.steps),
+                });
+            }
+        }
+    }
+}
+
+/// Lets a replica that waits for its group's merge go on.
+pub fn release(run: &mut Run) {
+    use crate::cpu::integrate::measure::{VERDICT_RUNNING, VERDICT_WAITING};
+    if run.measure.verdict == VERDICT_WAITING {
+        run.measure.verdict = VERDICT_RUNNING;
+        run.state.measured = 0;
+    }
+}

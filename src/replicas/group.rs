@@ -1,0 +1,266 @@
+//! One instance's replicas as a group: what the backends read of each
+//! replica ([`Member`]), and what the group does next ([`Group::step`]):
+//! wait, let every replica go on, stop with the merged estimate, or give
+//! up the split. Plain values: the backends run the replicas (`super::cpu`
+//! on the CPU's threads, `gpu::slices` on lanes) and ask here.
+//!
+//! **The merge.** At a ladder level that may stop the run, every replica
+//! has kept its sums of that level's windows (`phase::LevelSums`); their
+//! sums are the virtual run's, and `phase::evaluate_sums` judges them as
+//! it judges one run's: the one home of the rule. The group stops where
+//! the merged standard error is within the step tolerance on both axes.
+//!
+//! **Never two attractors.** Each replica's own estimate is its sums, each
+//! over its share of its window's virtual weights ([`replica_weight`]),
+//! judged by the ladder's rule as one run's (Richardson, halves,
+//! quarters): a coarser estimate with its own standard error. A replica
+//! whose estimate differs from the merged one by more than
+//! [`DISAGREEMENT_Z`] times their combined standard errors plus
+//! [`DISAGREEMENT_FLOOR`] on either axis sits on another attractor: the
+//! group is not merged.
+
+use crate::cpu::integrate::measure::{VERDICT_PHASE, VERDICT_RUNNING};
+use crate::cpu::integrate::phase::{
+    Gaps, LevelSums, PhaseEstimate, evaluate_sums, ladder_length, window_weight,
+};
+use crate::cpu::integrate::{Coefficients, Measure, Replica, Run, STATUS_OK, Settings, Vec2};
+use crate::cpu::integrate::{initial_measure, initial_state};
+use crate::measurement::{Measured, reduce};
+use crate::model::Instance;
+
+/// How many of their combined errors a replica's estimate may differ from
+/// the merged one before the two count as different attractors. Measured
+/// (Table 1 at 10 Hz against 10 times sqrt 2, sqrt 3 and the golden
+/// ratio, 2 and 8 replicas, every merge): replicas on one attractor lay
+/// within 2.3 of their combined errors.
+pub const DISAGREEMENT_Z: f64 = 4.0;
+
+/// What a replica's estimate may differ from the merged one besides
+/// [`DISAGREEMENT_Z`] of their errors [m per own drive cycle]: the maps'
+/// own allowance (0.002 um, issue 39's), so that estimates that agree to
+/// it are never called different attractors.
+pub const DISAGREEMENT_FLOOR: f64 = 0.002e-6;
+
+/// What a backend reads of one replica, in SI units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Member {
+    /// The replica's status (`STATUS_OK` while it runs).
+    pub status: u32,
+    /// `State::measured`: 0 running, 1 finished, 2 waiting for the merge.
+    pub measured: u32,
+    /// It ran to its `max_cycles` without a verdict.
+    pub at_max: bool,
+    /// Scene periods it has run.
+    pub periods: u32,
+    /// The level it waits at and its sums there (while waiting).
+    pub level: u32,
+    pub sums: LevelSums,
+}
+
+impl Member {
+    /// What a CPU run of a replica of `inst` holds.
+    pub fn of(inst: &Instance, run: &Run) -> Member {
+        Member {
+            status: run.state.status,
+            measured: run.state.measured,
+            at_max: run.state.period >= inst.cycles,
+            periods: run.measure.next_end,
+            level: run.measure.pending_level,
+            sums: run.measure.phase.pending,
+        }
+    }
+}
+
+/// What a group does next.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Step {
+    /// Some replicas still run to the level the others wait at.
+    Wait,
+    /// The merged level did not stop the run: every replica goes on.
+    Continue,
+    /// The merged window stopped the run: the instance's result.
+    Merged(Measured),
+    /// No merge: the instance runs again as one run of its own, its motion
+    /// labelled multistable where replicas disagreed.
+    Alone { multistable: bool },
+}
+
+/// One instance split into replicas.
+#[derive(Clone, Debug)]
+pub struct Group {
+    inst: Instance,
+    /// The split: `index` unused.
+    split: Replica,
+    /// Replica 0's coefficients in f64 (the virtual run's ladder: every
+    /// replica's is the same but for the index).
+    c: Coefficients,
+}
+
+impl Group {
+    /// `inst` split as `split` says (`super::split`: its count >= 2 and
+    /// virtual run) under `settings`.
+    pub fn new(inst: &Instance, settings: &Settings, split: Replica) -> Group {
+        let split = Replica { index: 0, ..split };
+        Group {
+            inst: *inst,
+            split,
+            c: Coefficients::of_replica(inst, settings, split),
+        }
+    }
+
+    /// The replicas: each one's instance and index.
+    pub fn replicas(&self) -> Vec<(Instance, Replica)> {
+        (0..self.split.count)
+            .map(|index| {
+                let r = Replica {
+                    index,
+                    ..self.split
+                };
+                (super::replica_instance(&self.inst, r), r)
+            })
+            .collect()
+    }
+
+    pub fn count(&self) -> u32 {
+        self.split.count
+    }
+
+    /// What the group does after its members (in replica order) did what
+    /// they could.
+    pub fn step(&self, members: &[Member]) -> Step {
+        let ended = |m: &Member| m.status != STATUS_OK || m.measured == 1 || m.at_max;
+        if members.iter().any(ended) {
+            return Step::Alone { multistable: false };
+        }
+        if members.iter().any(|m| m.measured != 2) {
+            return Step::Wait;
+        }
+        let level = members[0].level;
+        if members.iter().any(|m| m.level != level) {
+            return Step::Alone { multistable: false };
+        }
+        let merged = self.merge(members, level);
+        if !self.agree(members, level, &merged) {
+            return Step::Alone { multistable: true };
+        }
+        let limit = self.c.se_limit2;
+        if merged.se2.x <= limit.x && merged.se2.y <= limit.y {
+            let periods = members.iter().map(|m| m.periods).max().unwrap_or(0);
+            return Step::Merged(self.measured(&merged, periods));
+        }
+        Step::Continue
+    }
+
+    /// The virtual run's estimate of `level` from the replicas' sums.
+    fn merge(&self, members: &[Member], level: u32) -> PhaseEstimate {
+        let mut total = LevelSums::ZERO;
+        for m in members {
+            total.whole = total.whole + m.sums.whole;
+            total.half = total.half + m.sums.half;
+            total.second = total.second + m.sums.second;
+            for (t, q) in total.quarters.iter_mut().zip(m.sums.quarters) {
+                *t = *t + q;
+            }
+        }
+        let lattice = (self.c.phase_lattice >> level) & 1 == 1;
+        evaluate_sums(&total, level, lattice)
+    }
+
+    /// Whether every replica's own estimate agrees with the merged one
+    /// within [`DISAGREEMENT_Z`] of their combined errors and
+    /// [`DISAGREEMENT_FLOOR`] (module docs).
+    fn agree(&self, members: &[Member], level: u32, merged: &PhaseEstimate) -> bool {
+        let floor = self.c.cycles_per_period * DISAGREEMENT_FLOOR;
+        members.iter().enumerate().all(|(r, m)| {
+            let own = self.own_estimate(r as u32, &m.sums, level);
+            let d = own.value - merged.value;
+            (0..2).all(|i| {
+                let allowed =
+                    DISAGREEMENT_Z * (own.se2[i] + merged.se2[i]).sqrt() + floor[i].abs();
+                d[i].abs() <= allowed
+            })
+        })
+    }
+
+    /// Replica `r`'s own estimate of `level` and its error: each of its
+    /// sums over its share of its window's virtual weights
+    /// ([`replica_weight`]), judged as one run's sums are.
+    fn own_estimate(&self, r: u32, sums: &LevelSums, level: u32) -> PhaseEstimate {
+        let count = self.split.count;
+        let share = |j: u32, start: u32, sum: Vec2| {
+            let length = ladder_length(j);
+            sum * (1.0 / replica_weight(&self.c.gaps[j as usize], start, length, r, count))
+        };
+        let (j, half, quarter) = (level, ladder_length(level - 2), ladder_length(level - 4));
+        let own = LevelSums {
+            whole: share(j, 0, sums.whole),
+            half: share(j - 2, 0, sums.half),
+            second: share(j - 2, half, sums.second),
+            quarters: [
+                share(j - 4, 0, sums.quarters[0]),
+                share(j - 4, quarter, sums.quarters[1]),
+                share(j - 4, 2 * quarter, sums.quarters[2]),
+                share(j - 4, 3 * quarter, sums.quarters[3]),
+            ],
+        };
+        let lattice = (self.c.phase_lattice >> level) & 1 == 1;
+        evaluate_sums(&own, level, lattice)
+    }
+
+    /// The map's values of a merged window, through the one reduction
+    /// every run's results pass through: a phase-resolved verdict.
+    fn measured(&self, merged: &PhaseEstimate, periods: u32) -> Measured {
+        let mut state = initial_state(&self.c);
+        state.period = periods;
+        state.measured = 1;
+        let measure = Measure {
+            verdict: VERDICT_PHASE,
+            travel: merged.value * merged.span as f64,
+            span: merged.span,
+            se2: merged.se2,
+            next_end: periods,
+            ..initial_measure(&self.c)
+        };
+        debug_assert_ne!(measure.verdict, VERDICT_RUNNING);
+        reduce(&self.inst, &Run { state, measure })
+    }
+}
+
+/// Replica `index`'s share of the trapezoid weights of the virtual window
+/// [`start`, `start + length`) (`g` its table): the weights at its periods,
+/// the virtual periods `count k + index` in the window. Its own estimate
+/// is its sums over this share.
+pub fn replica_weight(g: &Gaps, start: u32, length: u32, index: u32, count: u32) -> f64 {
+    let first = start + (index + count - start % count) % count;
+    (first..start + length)
+        .step_by(count as usize)
+        .map(|v| window_weight(g, length, v - start))
+        .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::integrate::phase::gaps;
+
+    /// The replicas' shares of a window's weights add up to the whole
+    /// circle, and each is about its fraction of it, wherever the window
+    /// starts.
+    #[test]
+    fn the_replicas_share_the_weights() {
+        let rho = 2f64.sqrt() - 1.0;
+        for count in [2, 3, 8] {
+            for (start, length) in [(0, 1360), (680, 680), (1020, 340), (7, 85)] {
+                let g = gaps((rho + 1.0) / count as f64, length);
+                let shares: Vec<f64> = (0..count)
+                    .map(|r| replica_weight(&g, start, length, r, count))
+                    .collect();
+                let total: f64 = shares.iter().sum();
+                assert!((total - 1.0).abs() < 1e-9, "{total}");
+                for s in &shares {
+                    assert!((s * count as f64 - 1.0).abs() < 0.35, "{count} {start}: {shares:?}");
+                }
+            }
+        }
+    }
+}

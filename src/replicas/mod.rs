@@ -1,0 +1,235 @@
+//! Replicas (issue 39): one slow steady measurement split over several
+//! lanes or threads that would otherwise wait, so that a map smaller than
+//! the machine still fills it and ends with its median instance rather than
+//! its slowest.
+//!
+//! A quasi-periodic motion's step is the mean over its attractor, and the
+//! phase ladder (`cpu::integrate::phase`) estimates it by a trapezoid rule
+//! over the faster drive's phase, whatever order the phases came in. So an
+//! instance whose ladder is on ([`splittable`]) runs as R replicas: replica
+//! r is the instance with its faster drive's phase advanced by r rho / R
+//! cycles ([`replica_instance`]), started from rest like the instance and
+//! settled for as many periods. Period k of replica r then starts at the
+//! phase of period R k + r of a virtual run whose faster drive advances by
+//! rho / R a period, and each replica adds its slider positions to the
+//! virtual run's trapezoid windows with that run's weights
+//! (`phase::window_coefficient`): the replicas' sums add up to the virtual
+//! run's, R times the phases for the same chain length. At each level of
+//! the ladder that may stop the run, every replica waits while its group
+//! adds the replicas' sums and judges them as one run's ([`group`]); the
+//! merged window stops all, or all go on.
+//!
+//! Replicas that disagree beyond their errors (coexisting attractors) are
+//! never merged: the instance then runs again as one run of its own, and
+//! the map keeps that run labelled `multistable`. A group that cannot merge
+//! for another reason (a replica failed, found its motion periodic or
+//! converged by batch means) runs the instance as one run too, unlabelled.
+//!
+//! Measured (CPU mirror, Table 1 at 10 and 10 sqrt 2 Hz, 100 V): replicas
+//! from rest at other phases land on the one run's attractor (the trapezoid
+//! of 20,000 periods from four phases agrees to 2e-6 um), and 8 replicas
+//! of 170 periods each estimate the step within 1e-4 um of it, as one run
+//! of 1,360 periods does.
+
+pub mod cpu;
+pub mod group;
+
+pub use group::{Group, Member, Step};
+
+use crate::cpu::integrate::{Coefficients, Replica, Settings, phase};
+use crate::model::{Instance, Measure};
+
+pub use crate::cpu::settings::Replicas;
+
+/// The most replicas `simulation.replicas = "auto"` makes of one instance:
+/// 8 cuts a chain to about an eighth plus its settling, where the lanes or
+/// threads are there; beyond, the replicas' settling and the merges cost
+/// more than the shorter chains save on the instances measured.
+pub const MAX_AUTO: u32 = 8;
+
+/// Whether `inst`'s steady measurement can be split: a steady measurement
+/// whose phase ladder is on (two driven axes at frequencies with no common
+/// period of at most 680 scene periods; `phase::ladder`). A periodic motion
+/// the recurrence test finds early is not split: nothing would be gained.
+pub fn splittable(inst: &Instance, settings: &Settings) -> bool {
+    matches!(inst.measure, Measure::Steady { .. })
+        && Coefficients::of(inst, settings).phase_levels != 0
+}
+
+/// The replicas each splittable instance of a batch runs as: the scene's
+/// count, or with `Auto` the `workers` (lanes or threads) per integration
+/// of the batch (`jobs`, splittable or not), at most [`MAX_AUTO`], and 1
+/// (no replicas) where there are as many integrations as workers.
+pub fn count(setting: Replicas, workers: usize, jobs: usize) -> u32 {
+    match setting {
+        Replicas::Count(n) => n.max(1),
+        Replicas::Auto => ((workers / jobs.max(1)).min(MAX_AUTO as usize) as u32).max(1),
+    }
+}
+
+/// The index of the faster drive (the one whose cycles per scene period
+/// are the most, as `Coefficients` takes it) and its advance per scene
+/// period [cycles].
+fn faster_drive(inst: &Instance) -> (usize, f64) {
+    let period = inst.period();
+    let cycles = inst.axes.map(|a| a.frequency * period);
+    let fast = if cycles[1] > cycles[0] { 1 } else { 0 };
+    (fast, cycles[fast].fract())
+}
+
+/// Replica `r` of `inst`: the instance with its faster drive's phase
+/// advanced by `r.index` times the virtual run's step (module docs).
+pub fn replica_instance(inst: &Instance, r: Replica) -> Instance {
+    let mut out = *inst;
+    if r.index == 0 || r.count <= 1 {
+        return out;
+    }
+    let (fast, rho) = faster_drive(inst);
+    let shift = r.index as f64 * r.virtual_step(rho);
+    let axis = &mut out.axes[fast];
+    axis.phase = (axis.phase + shift).fract();
+    out
+}
+
+/// How far a virtual run's phases may be spaced less evenly than the
+/// instance's own run's ([`phase::spread`]) for the split to be made by
+/// `auto`: measured (Table 1 at 10 Hz against 10 (1 + sqrt 5) / 2 Hz, 8
+/// replicas of 85 periods, against the trapezoid of 20,000 periods), the
+/// virtual run of spread 2.08 estimated the step within 0.0002 um, as one
+/// run of 680 periods does (0.0015 um); those of spread 5.2 were 0.014 and
+/// 0.046 um off, and their error estimates missed it.
+pub const SPREAD_SLACK: f64 = 1.2;
+
+/// The spread below which a virtual run is always even enough: a run of
+/// its own at a badly approximable ratio (the golden ratio: 1.88; sqrt 2:
+/// 2.01; sqrt 3: 2.08).
+pub const SPREAD_FLOOR: f64 = 2.2;
+
+/// How `inst` is split into `count` replicas (>= 2): the virtual run
+/// (`Replica::turns`) whose phases lie most evenly, and their spread.
+pub fn best_turns(inst: &Instance, count: u32) -> (u32, f64) {
+    let (_, rho) = faster_drive(inst);
+    (0..count)
+        .map(|turns| {
+            let r = Replica {
+                index: 0,
+                count,
+                turns,
+            };
+            (turns, phase::spread(r.virtual_step(rho)))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .expect("count >= 2")
+}
+
+/// The split of a splittable `inst` for a `count` from [`count`]: with
+/// `Replicas::Count`, `count` replicas on their most even virtual run;
+/// with `Auto`, the most replicas up to `count` whose most even virtual run
+/// is spaced within [`SPREAD_SLACK`] of the instance's own (or
+/// [`SPREAD_FLOOR`]); `None` (run alone) where `count` is 1 or no count
+/// is even enough.
+pub fn split(inst: &Instance, setting: Replicas, count: u32) -> Option<Replica> {
+    let replica = |(count, turns)| Replica {
+        index: 0,
+        count,
+        turns,
+    };
+    if count < 2 {
+        return None;
+    }
+    if let Replicas::Count(_) = setting {
+        return Some(replica((count, best_turns(inst, count).0)));
+    }
+    let (_, rho) = faster_drive(inst);
+    let limit = (SPREAD_SLACK * phase::spread(rho)).max(SPREAD_FLOOR);
+    (2..=count).rev().find_map(|n| {
+        let (turns, spread) = best_turns(inst, n);
+        (spread <= limit).then(|| replica((n, turns)))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn two_frequency(fy: f64) -> Instance {
+        let mut inst = Instance::TABLE1;
+        inst.axes[1].frequency = fy;
+        inst.axes[1].voltage = 100.0;
+        inst.cycles = 2000;
+        inst.measure = Measure::Steady {
+            step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
+        };
+        inst
+    }
+
+    #[test]
+    fn quasi_periodic_measurements_split_and_periodic_ones_do_not() {
+        let settings = Settings::default();
+        assert!(splittable(&two_frequency(10.0 * 2f64.sqrt()), &settings));
+        // 10 against 14 Hz repeats after 5 periods: the recurrence test's.
+        assert!(!splittable(&two_frequency(14.0), &settings));
+        let mut window = two_frequency(10.0 * 2f64.sqrt());
+        window.measure = Measure::Window;
+        assert!(!splittable(&window, &settings));
+    }
+
+    #[test]
+    fn auto_fills_the_idle_workers_up_to_the_cap() {
+        let check = |setting, workers, jobs, expected| {
+            assert_eq!(
+                count(setting, workers, jobs),
+                expected,
+                "{setting:?} {workers} {jobs}"
+            );
+        };
+        check(Replicas::Auto, 2, 1, 2);
+        check(Replicas::Auto, 16, 1, MAX_AUTO);
+        check(Replicas::Auto, 256, 36, 7);
+        check(Replicas::Auto, 2, 36, 1);
+        check(Replicas::Count(5), 2, 36, 5);
+        check(Replicas::Count(0), 2, 1, 1);
+    }
+
+    /// Replica r's faster drive starts r (rho + m) / R cycles later, so
+    /// its period k starts at the virtual run's period R k + r.
+    #[test]
+    fn a_replica_advances_the_faster_drive() {
+        let inst = two_frequency(10.0 * 2f64.sqrt());
+        let rho = 2f64.sqrt() - 1.0;
+        let r = |index| Replica {
+            index,
+            count: 8,
+            turns: 4,
+        };
+        let third = replica_instance(&inst, r(3));
+        assert!((third.axes[1].phase - (3.0 * (rho + 4.0) / 8.0).fract()).abs() < 1e-15);
+        assert_eq!(third.axes[0], inst.axes[0]);
+        assert_eq!(replica_instance(&inst, Replica::NONE), inst);
+    }
+}
+
+#[cfg(test)]
+mod split_tests {
+    use super::*;
+
+    /// Of the eight virtual runs of 8 replicas at the golden ratio, the
+    /// most even (m = 6, spread 2.03) is taken; auto takes 8 there, and
+    /// at 4 replicas, whose best is 2.82 against the run's own 1.88, fewer.
+    #[test]
+    fn the_split_takes_the_most_even_virtual_run() {
+        let mut inst = Instance::TABLE1;
+        inst.axes[1].frequency = 10.0 * (1.0 + 5f64.sqrt()) / 2.0;
+        inst.axes[1].voltage = 100.0;
+        let (turns, spread) = best_turns(&inst, 8);
+        assert_eq!(turns, 6);
+        assert!((spread - 2.03).abs() < 0.01, "{spread}");
+        let eight = split(&inst, Replicas::Auto, 8).unwrap();
+        assert_eq!((eight.count, eight.turns), (8, 6));
+        let four = split(&inst, Replicas::Auto, 4).unwrap();
+        assert!(four.count < 4, "{four:?}");
+        let asked = split(&inst, Replicas::Count(4), 4).unwrap();
+        assert_eq!(asked.count, 4);
+        assert_eq!(split(&inst, Replicas::Auto, 1), None);
+    }
+}
