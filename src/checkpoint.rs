@@ -35,9 +35,9 @@ const MAGIC_FAMILY: &[u8] = b"PIDM-CKPT-";
 /// Bytes of an entry's head: start, count, part, wall time so far.
 const HEAD_BYTES: usize = 32;
 
-/// Bytes of one record in the journal: eight f64, five u32 and the motion
+/// Bytes of one record in the journal: eight f64, six u32 and the motion
 /// code (one byte).
-const RECORD_BYTES: usize = 8 * 8 + 4 * 5 + 1;
+const RECORD_BYTES: usize = 8 * 8 + 4 * 6 + 1;
 
 /// The checkpoint journal of one output file.
 pub struct Checkpoint {
@@ -80,6 +80,7 @@ fn encode(record: &Record, out: &mut Vec<u8>) {
         record.baseline_status,
         record.periods,
         record.period_lag,
+        record.replicas,
     ] {
         out.extend_from_slice(&v.to_le_bytes());
     }
@@ -102,7 +103,8 @@ fn decode(bytes: &[u8]) -> Result<Record, String> {
         baseline_status: u(2),
         periods: u(3),
         period_lag: u(4),
-        motion: crate::sweep::stored_motion(bytes[84])?,
+        replicas: u(5),
+        motion: crate::sweep::stored_motion(bytes[88])?,
     })
 }
 

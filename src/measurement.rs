@@ -197,6 +197,9 @@ pub struct Outcome {
     /// (`backend::check`): by a twin that agreed (f32's value kept), or
     /// integrated again in f64 (`on_cpu` set too).
     pub checked: bool,
+    /// The replicas whose merged estimate it is (`crate::replicas`; 1: one
+    /// run of its own).
+    pub replicas: u32,
 }
 
 impl Outcome {
@@ -214,6 +217,7 @@ impl Outcome {
             on_cpu,
             graze: false,
             checked: false,
+            replicas: 1,
         }
     }
 

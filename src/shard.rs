@@ -148,6 +148,7 @@ impl ShardFile {
         let (status, steps) = (u32s(schema::STATUS)?, u32s(&map(5))?);
         let (se_x, se_y) = (f64s(&map(6))?, f64s(&map(7))?);
         let (periods, lags) = (u32s(&map(8))?, u32s(&map(9))?);
+        let replicas = u32s(&map(11))?;
         let motion = self.column::<u8>(schema::MOTION, range.clone())?;
         let zeros_f = vec![0.0; n as usize];
         let zeros_u = vec![0; n as usize];
@@ -179,6 +180,7 @@ impl ShardFile {
                     periods: periods[k],
                     period_lag: lags[k],
                     motion,
+                    replicas: replicas[k],
                     baseline_step: [base_x[k], base_y[k]],
                     baseline_status: base_status[k],
                 })

@@ -6,12 +6,13 @@ use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision, f32_needs_f64};
-use crate::cpu::integrate::Settings;
 use crate::cpu::integrate::constants::STATUS_GRAZE;
+use crate::cpu::integrate::{Replica, Settings};
 use crate::cpu::{integrate, single};
 use crate::interrupt::interrupt_requested;
 use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
+use crate::replicas;
 
 /// The rayon CPU path: in f64 the reference.
 pub struct CpuBackend {
@@ -85,6 +86,12 @@ impl Backend for CpuBackend {
         settings: &Settings,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
+        // Replicas on the threads a batch leaves idle (f64, the reference;
+        // the f32 mirror runs every instance alone).
+        let count = match self.precision {
+            Precision::F64 => replicas::count(settings.replicas, self.threads(), instances.len()),
+            Precision::F32 => 1,
+        };
         Ok(self.pool.install(|| {
             let mut out: Vec<Outcome> = instances
                 .par_iter()
@@ -95,7 +102,10 @@ impl Backend for CpuBackend {
                     if interrupt_requested() {
                         return Outcome::default();
                     }
-                    let out = run_one_in(inst, settings, self.precision);
+                    let out = match split_of(inst, settings, count) {
+                        Some(split) => run_split(inst, settings, split),
+                        None => run_one_in(inst, settings, self.precision),
+                    };
                     done(1);
                     out
                 })
@@ -135,6 +145,27 @@ fn check_heaviest(instances: &[Instance], settings: &Settings, out: &mut [Outcom
             on_cpu: true,
             ..outcome
         };
+    }
+}
+
+/// How `inst` splits into replicas on a batch that leaves `count` threads
+/// per integration (`replicas::count`), if it does.
+fn split_of(inst: &Instance, settings: &Settings, count: u32) -> Option<Replica> {
+    if count < 2 || !replicas::splittable(inst, settings) {
+        return None;
+    }
+    replicas::split(inst, settings.replicas, count)
+}
+
+/// Integrates one instance as a group of replicas on the CPU in f64
+/// (`replicas::cpu`); stops as [`run_one`].
+fn run_split(inst: &Instance, settings: &Settings, split: Replica) -> Outcome {
+    match replicas::cpu::run_group(inst, settings, split, &interrupt_requested) {
+        Some(group) => Outcome {
+            replicas: group.replicas,
+            ..Outcome::of(&group.measured, group.steps, false)
+        },
+        None => Outcome::default(),
     }
 }
 

@@ -171,6 +171,7 @@ impl GpuOutcome {
             on_cpu: o.cpu_fallback || o.finished_on_cpu,
             graze: o.cpu_fallback && o.shader_status == STATUS_GRAZE,
             checked: o.checked,
+            replicas: o.replicas,
         }
     }
 }

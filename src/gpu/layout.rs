@@ -626,6 +626,7 @@ macro_rules! precision_structs {
                     shader_status: 0,
                     finished_on_cpu: false,
                     checked: false,
+                    replicas: 1,
                 }
             }
         }

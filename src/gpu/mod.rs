@@ -221,6 +221,9 @@ pub struct GpuOutcome {
     /// [`GpuOutcome::cpu_fallback`] set) where the twin disagreed or the
     /// check ran the reference directly.
     pub checked: bool,
+    /// The replicas whose merged estimate it is (`crate::replicas`; 1: one
+    /// run of its own).
+    pub replicas: u32,
 }
 
 impl GpuOutcome {
@@ -239,6 +242,7 @@ impl GpuOutcome {
             shader_status: 0,
             finished_on_cpu: false,
             checked: false,
+            replicas: 1,
         }
     }
 }

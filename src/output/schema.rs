@@ -53,7 +53,7 @@ impl MapDataset {
 use MapType::{F64, U8, U32};
 
 /// The datasets under [`MAPS`], in the order `Record` fields are written.
-pub const MAP_DATASETS: [MapDataset; 11] = [
+pub const MAP_DATASETS: [MapDataset; 12] = [
     map("step_x", "m", "slider step along x per x drive cycle", F64),
     map("step_y", "m", "slider step along y per y drive cycle", F64),
     map("velocity_x", "m/s", "mean slider velocity along x", F64),
@@ -89,6 +89,12 @@ pub const MAP_DATASETS: [MapDataset; 11] = [
         "1",
         "kind of motion the steady measurement found (flag_meanings)",
         U8,
+    ),
+    map(
+        "replicas",
+        "1",
+        "replicas whose merged estimate the values are (1: one run; 0: not integrated)",
+        U32,
     ),
 ];
 

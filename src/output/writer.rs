@@ -257,6 +257,12 @@ impl MapWriter {
         )?;
         let motion: Vec<u8> = records.iter().map(|r| r.motion.code()).collect();
         write_flat(&self.maps[10], &self.shape, start, &motion)?;
+        write_flat(
+            &self.maps[11],
+            &self.shape,
+            start,
+            &take_u32(&|r| r.replicas),
+        )?;
         if !self.baselines.is_empty() {
             write_flat(
                 &self.baselines[0],

@@ -175,8 +175,7 @@ impl Group {
             let own = self.own_estimate(r as u32, &m.sums, level);
             let d = own.value - merged.value;
             (0..2).all(|i| {
-                let allowed =
-                    DISAGREEMENT_Z * (own.se2[i] + merged.se2[i]).sqrt() + floor[i].abs();
+                let allowed = DISAGREEMENT_Z * (own.se2[i] + merged.se2[i]).sqrt() + floor[i].abs();
                 d[i].abs() <= allowed
             })
         })
@@ -258,7 +257,10 @@ mod tests {
                 let total: f64 = shares.iter().sum();
                 assert!((total - 1.0).abs() < 1e-9, "{total}");
                 for s in &shares {
-                    assert!((s * count as f64 - 1.0).abs() < 0.35, "{count} {start}: {shares:?}");
+                    assert!(
+                        (s * count as f64 - 1.0).abs() < 0.35,
+                        "{count} {start}: {shares:?}"
+                    );
                 }
             }
         }

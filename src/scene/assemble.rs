@@ -56,6 +56,9 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     if let Some(entry) = &base.entries[MAX_STEPS_SLOT] {
         settings.max_steps_per_period = entry.values.value(0) as u32;
     }
+    if let Some((replicas, _)) = parsed.replicas {
+        settings.replicas = replicas;
+    }
 
     let mut raw = [0.0; SLOTS];
     let mut given = [false; SLOTS];

@@ -95,6 +95,19 @@ impl Scene {
             fmt_short(self.settings.tolerance),
             self.settings.max_steps_per_period
         );
+        if self.plan.mode == super::keys::Mode::Steady {
+            let _ = writeln!(
+                out,
+                "replicas: {} (split steady measurements whose phase ladder is on)",
+                match self.settings.replicas {
+                    crate::cpu::settings::Replicas::Auto => {
+                        "auto, as many as idle threads or lanes allow".to_string()
+                    }
+                    crate::cpu::settings::Replicas::Count(1) => "1, none".to_string(),
+                    crate::cpu::settings::Replicas::Count(n) => format!("{n} per instance"),
+                }
+            );
+        }
         let bytes = count as u128 * self.bytes_per_instance() as u128;
         let human = human_bytes(bytes as f64);
         if bytes < 1024 {

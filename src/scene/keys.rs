@@ -195,8 +195,16 @@ pub(super) const SIMULATION_FIELDS: [Field; 6] = [
 /// `[simulation]`'s string key: how the step is measured, scene-wide.
 pub(super) const MEASURE_KEY: &str = "measure";
 
+/// `[simulation]`'s key of replicas, "auto" or a whole number, scene-wide
+/// (`crate::replicas`).
+pub(super) const REPLICAS_KEY: &str = "replicas";
+
+/// The most replicas `simulation.replicas` may ask for one instance: far
+/// beyond what pays (`crate::replicas::MAX_AUTO`), for studies.
+pub(super) const MAX_REPLICAS: u32 = 64;
+
 /// Every key of `[simulation]`, for hints on unknown keys.
-pub(super) const SIMULATION_KEYS: [&str; 7] = [
+pub(super) const SIMULATION_KEYS: [&str; 8] = [
     "cycles",
     "settle",
     "tolerance",
@@ -204,6 +212,7 @@ pub(super) const SIMULATION_KEYS: [&str; 7] = [
     "step_tolerance",
     "max_cycles",
     MEASURE_KEY,
+    REPLICAS_KEY,
 ];
 
 // Indices of the axis keys within `AXIS_FIELDS`.

@@ -5,14 +5,17 @@
 use std::ops::Range;
 
 use toml::Spanned;
+
+use crate::cpu::settings::Replicas;
 use toml::de::{DeTable, DeValue};
 
 use super::error::{Location, SceneError};
 use super::format::{fmt_num, fmt_short};
 use super::keys::{
-    AXIS_FIELDS, DAMPING, Field, MEASURE_KEY, MECHANISM_FIELDS, Mode, OUTPUT_KEYS, PHASE,
-    PHASE_UNITS_KEY, POINT_KEYS, QUALITY, RESONANCE, ROOT_KEYS, SAME_AS_KEY, SIMULATION_FIELDS,
-    SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot, slot_field, slot_path,
+    AXIS_FIELDS, DAMPING, Field, MAX_REPLICAS, MEASURE_KEY, MECHANISM_FIELDS, Mode, OUTPUT_KEYS,
+    PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, REPLICAS_KEY, RESONANCE, ROOT_KEYS, SAME_AS_KEY,
+    SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot,
+    slot_field, slot_path,
 };
 use super::layer::{Layer, PointSpec, Tie};
 use super::name::check_name;
@@ -34,6 +37,9 @@ pub(super) struct Parsed {
     pub(super) base: Layer,
     /// `simulation.measure`, when given (the default is [`Mode::Steady`]).
     pub(super) measure: Option<Mode>,
+    /// `simulation.replicas`, when given (the default is
+    /// `Replicas::Auto`), and where.
+    pub(super) replicas: Option<(Replicas, Range<usize>)>,
     /// `phase_units = "cycles"`: phases beyond one whole cycle are meant.
     pub(super) whole_cycles: bool,
     /// `output.baselines`.
@@ -210,9 +216,12 @@ impl Parser<'_> {
                     Context::Base,
                 )?,
                 "axis" => self.axes(value, &mut parsed.base, Context::Base)?,
-                "simulation" => {
-                    self.simulation(value, &mut parsed.base, Context::Base, &mut parsed.measure)?
-                }
+                "simulation" => self.simulation(
+                    value,
+                    &mut parsed.base,
+                    Context::Base,
+                    (&mut parsed.measure, &mut parsed.replicas),
+                )?,
                 "output" => self.output(value, &mut parsed)?,
                 "points" => parsed.points = Some(self.points(value)?),
                 "refine" => parsed.refine = Some(self.refine(value)?),
@@ -236,6 +245,16 @@ impl Parser<'_> {
         }
         let mode = parsed.measure.unwrap_or_default();
         self.check_mode_keys(&parsed.base, mode, parsed.measure.is_none())?;
+        if let Some((_, span)) = &parsed.replicas
+            && mode == Mode::Window
+        {
+            return Err(self.invalid(
+                span.clone(),
+                "simulation.replicas applies to measure = \"steady\" (replicas split a steady \
+                 measurement); a fixed window runs every instance once. This scene sets \
+                 measure = \"window\": remove it, or set measure = \"steady\"",
+            ));
+        }
         for (index, point) in parsed.points.iter().flatten().enumerate() {
             self.check_mode_keys(&point.layer, mode, parsed.measure.is_none())
                 .map_err(|e| e.in_point(index, &point.label))?;
@@ -388,17 +407,28 @@ impl Parser<'_> {
         Ok(())
     }
 
-    /// `[simulation]`: its numeric keys and `measure`, which only the base
-    /// may set.
+    /// `[simulation]`: its numeric keys, `measure` and `replicas`, which
+    /// only the base may set.
     pub(super) fn simulation(
         &self,
         value: &Value<'_>,
         layer: &mut Layer,
         context: Context,
-        measure: &mut Option<Mode>,
+        (measure, replicas): (&mut Option<Mode>, &mut Option<(Replicas, Range<usize>)>),
     ) -> Result<(), SceneError> {
         let table = self.table("simulation", "expected a table", value)?;
         for (key, value) in table.iter() {
+            if key.get_ref().as_ref() == REPLICAS_KEY {
+                if context == Context::Point {
+                    return Err(self.invalid(
+                        key.span(),
+                        "simulation.replicas cannot be set per point: it applies to the whole \
+                         scene (set it in the base [simulation])",
+                    ));
+                }
+                *replicas = Some((self.replicas(value)?, value.span()));
+                continue;
+            }
             if key.get_ref().as_ref() != MEASURE_KEY {
                 self.field(
                     key,
@@ -440,6 +470,33 @@ impl Parser<'_> {
             *measure = Some(mode);
         }
         Ok(())
+    }
+
+    /// `simulation.replicas`: "auto" or a whole number of replicas from 1
+    /// to [`MAX_REPLICAS`].
+    fn replicas(&self, value: &Value<'_>) -> Result<Replicas, SceneError> {
+        let expected = format!(
+            "expected \"auto\" (as many replicas as idle threads or lanes allow, the \
+             default) or a whole number from 1 (no replicas) to {MAX_REPLICAS}"
+        );
+        match value.get_ref() {
+            DeValue::String(text) if text.as_ref() == "auto" => Ok(Replicas::Auto),
+            DeValue::Integer(n) => match n.to_string().parse::<u32>() {
+                Ok(n) if (1..=MAX_REPLICAS).contains(&n) => Ok(Replicas::Count(n)),
+                _ => Err(self.invalid(
+                    value.span(),
+                    format!(
+                        "simulation.replicas = {}: {expected}",
+                        self.source(value.span())
+                    ),
+                )),
+            },
+            DeValue::String(text) => Err(self.invalid(
+                value.span(),
+                format!("simulation.replicas = {:?}: {expected}", text.as_ref()),
+            )),
+            _ => Err(self.wrong_type("simulation.replicas", &expected, value)),
+        }
     }
 
     /// One numeric key of a table: its values, checked, into `layer`.
@@ -577,7 +634,9 @@ impl Parser<'_> {
                     Context::Point,
                 )?,
                 "axis" => self.axes(value, &mut layer, Context::Point)?,
-                "simulation" => self.simulation(value, &mut layer, Context::Point, &mut None)?,
+                "simulation" => {
+                    self.simulation(value, &mut layer, Context::Point, (&mut None, &mut None))?
+                }
                 name @ ("name" | "description" | "output" | "points" | PHASE_UNITS_KEY) => {
                     return Err(self.invalid(
                         key.span(),

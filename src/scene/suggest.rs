@@ -2,7 +2,8 @@
 //! key by edit distance.
 
 use super::keys::{
-    AXIS_FIELDS, Field, MEASURE_KEY, MECHANISM_FIELDS, OUTPUT_KEYS, ROOT_KEYS, SIMULATION_FIELDS,
+    AXIS_FIELDS, Field, MEASURE_KEY, MECHANISM_FIELDS, OUTPUT_KEYS, REPLICAS_KEY, ROOT_KEYS,
+    SIMULATION_FIELDS,
 };
 use crate::model::AXIS_NAMES;
 
@@ -13,7 +14,7 @@ pub(super) fn home_of(name: &str) -> Option<&'static str> {
         Some("[mechanism]")
     } else if is(&AXIS_FIELDS) {
         Some("[axis.x] or [axis.y]")
-    } else if is(&SIMULATION_FIELDS) || name == MEASURE_KEY {
+    } else if is(&SIMULATION_FIELDS) || name == MEASURE_KEY || name == REPLICAS_KEY {
         Some("[simulation]")
     } else if OUTPUT_KEYS.contains(&name) {
         Some("[output]")

@@ -27,6 +27,9 @@ pub struct Record {
     /// window, a failed or "not steady" run, and an inferred point of a
     /// refined map (`/maps/motion`).
     pub motion: Motion,
+    /// The replicas whose merged estimate the values are (`crate::replicas`;
+    /// 1: one run of its own; 0: not integrated, an inferred point).
+    pub replicas: u32,
     pub status: u32,
     pub steps: u32,
     /// 1-DOF steps with the other axis undriven [m] (zero when not asked).
@@ -119,6 +122,7 @@ pub fn record(inst: &Instance, out: &Outcome) -> Record {
         periods: out.periods,
         period_lag: out.lag,
         motion: out.motion,
+        replicas: out.replicas,
         ..Record::default()
     };
     for i in 0..AXES {
