@@ -26,9 +26,9 @@ use crate::output::{FileInfo, MapWriter, OutputClaim};
 use crate::sweep::Record;
 
 /// The journal's first bytes: its format. Format 3 added the kind of motion
-/// to every record; a journal of another format is refused by name, never
+/// to every record, format 4 its replica count; a journal of another format is refused by name, never
 /// read with this format's record layout.
-const MAGIC: &[u8; 12] = b"PIDM-CKPT-3\n";
+const MAGIC: &[u8; 12] = b"PIDM-CKPT-4\n";
 /// What every format's magic starts with.
 const MAGIC_FAMILY: &[u8] = b"PIDM-CKPT-";
 
@@ -37,7 +37,7 @@ const HEAD_BYTES: usize = 32;
 
 /// Bytes of one record in the journal: eight f64, six u32 and the motion
 /// code (one byte).
-const RECORD_BYTES: usize = 8 * 8 + 4 * 6 + 1;
+pub const RECORD_BYTES: usize = 8 * 8 + 4 * 6 + 1;
 
 /// The checkpoint journal of one output file.
 pub struct Checkpoint {
@@ -392,6 +392,7 @@ mod tests {
             periods: 10 + i as u32,
             period_lag: i as u32 % 4,
             motion,
+            replicas: 1 + i as u32 % 3,
             baseline_step: [0.25, -0.0],
             baseline_status: 5,
         }
@@ -472,8 +473,8 @@ mod tests {
     fn a_journal_of_an_older_format_is_refused_by_name() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join(".out.h5.checkpoint");
-        // A format 2 journal: its records lack the motion byte.
-        let mut bytes = b"PIDM-CKPT-2\n".to_vec();
+        // A format 3 journal: its records lack the replica count.
+        let mut bytes = b"PIDM-CKPT-3\n".to_vec();
         bytes.extend_from_slice(&5u64.to_le_bytes());
         bytes.extend_from_slice(b"run A");
         std::fs::write(&path, &bytes).unwrap();
@@ -482,7 +483,7 @@ mod tests {
             .expect("refused");
         let err = err.to_string();
         assert!(
-            err.contains("is of another pidm (journal format 2; this pidm reads format 3 only)")
+            err.contains("is of another pidm (journal format 3; this pidm reads format 4 only)")
                 && err.contains("delete the checkpoint to start over"),
             "{err}"
         );

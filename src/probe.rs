@@ -45,10 +45,25 @@ const MEASURABLE_S: f64 = 0.02;
 /// the machine), and no more cores than integrations; a probe of every
 /// integration, each to its end, was the run itself, and its wall time is
 /// the estimate. `pidm check` and `--backend auto` both estimate so.
+///
+/// A scene whose steady measurements split into replicas
+/// (`crate::replicas`) spreads its integrations over the threads they
+/// leave idle: a chain of replicas costs about the integration's
+/// core-seconds over its replicas (each settles on its own, its share
+/// of the periods is a little more than its fraction).
 pub fn cpu_sweep_s(integrations: u64, probe: &Probe) -> f64 {
     let core_seconds = probe.mean_core_s * integrations as f64;
-    let spread = (integrations as f64).clamp(1.0, probe.parallelism.max(1.0));
-    let whole = probe.integrations as u64 == integrations && probe.scaled + probe.cut == 0;
+    let replicas = match probe.splittable {
+        true => crate::replicas::count(probe.replicas, probe.threads, integrations as usize),
+        false => 1,
+    } as f64;
+    let spread = match replicas > 1.0 {
+        true => (integrations as f64 * replicas).clamp(1.0, probe.threads.max(1) as f64),
+        false => (integrations as f64).clamp(1.0, probe.parallelism.max(1.0)),
+    };
+    let whole = probe.integrations as u64 == integrations
+        && probe.scaled + probe.cut == 0
+        && replicas == 1.0;
     if whole {
         probe.wall_s
     } else {
@@ -78,6 +93,11 @@ pub struct Probe {
     /// integrating over its wall time, at least 1 (less than the threads
     /// where other work shares the machine).
     pub parallelism: f64,
+    /// The probe's threads, the scene's replicas setting, and whether a
+    /// probed integration splits into replicas (`crate::replicas`).
+    pub threads: usize,
+    pub replicas: crate::cpu::integrate::Replicas,
+    pub splittable: bool,
 }
 
 /// One probed integration.
@@ -223,5 +243,10 @@ pub fn probe_instances(
         } else {
             (busy / wall_s).clamp(1.0, threads.max(1) as f64)
         },
+        threads: threads.max(1),
+        replicas: settings.replicas,
+        splittable: picked
+            .iter()
+            .any(|inst| crate::replicas::splittable(inst, settings)),
     }
 }

@@ -69,7 +69,8 @@ def open(path: PathLike) -> xr.Dataset:
       ``instance``, the flat scene index of each of its instances;
     - data variables: every dataset the file has under ``/maps`` (``step_x``,
       ``step_y`` [m per own drive cycle], ``velocity_x``, ``velocity_y`` [m/s],
-      ``status``, ``steps``, ...) and under ``/baseline`` with the prefix
+      ``status``, ``steps``, ``replicas`` (the replicas whose merged estimate
+      the values are: 1 for a run of its own), ...) and under ``/baseline`` with the prefix
       ``baseline_`` (``baseline_step_x`` [m per own drive cycle], ...), each with
       its ``units`` and ``long_name``;
     - ``motion`` (uint8, units 1): the kind of motion the steady measurement found,
@@ -78,8 +79,10 @@ def open(path: PathLike) -> xr.Dataset:
       0 ``undetermined`` (a fixed window, "not steady", a failed run or an
       inferred point of a refined map), 1 ``periodic`` (the state repeated),
       2 ``quasi_periodic`` (the increments are a smooth function of the faster
-      drive's phase), 3 ``irregular`` (only the batch means converged); absent
-      from files written before it existed. ``ds.motion == 1`` selects the
+      drive's phase), 3 ``irregular`` (only the batch means converged),
+      4 ``multistable`` (replicas from other phases settled on other attractors:
+      the instance's own run is kept); absent from files written before it
+      existed. ``ds.motion == 1`` selects the
       periodic instances; ``dict(zip(ds.motion.attrs["flag_meanings"].split(),
       ds.motion.attrs["flag_values"]))`` names the codes;
     - for a scene with ``[stall]`` (docs/model.md section 7): ``stall_load_x`` [N],

@@ -29,7 +29,9 @@ struct State {
     stalled: u32,
     rejections: u32,
     measured: u32,
-    _pad_u: u32,
+    // GPU only (entry.wgsl): dispatches in a row in which the driver's
+    // loop limiter cut this instance's first iteration short.
+    limited: u32,
     _pad_v: vec2<u32>,
 }
 

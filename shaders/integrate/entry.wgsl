@@ -17,6 +17,22 @@ const NO_INSTANCE: u32 = 0xffffffffu;
 // The tally's count of instances taken from the queue (after the kinds of
 // iteration, ITERATION_*).
 const TAKEN: u32 = 6u;
+// Dispatches in a row in which the loop limiter must cut an instance's
+// first iteration (or period end) short before the instance is handed to
+// the CPU (STATUS_LOOP_LIMIT): lavapipe's limiter counts the loops of a
+// SIMD group's lanes together, so a lane that has done nothing yet may
+// find the count spent by its neighbours; an iteration that fits in no
+// dispatch is cut every time.
+const LIMITED_DISPATCHES: u32 = 3u;
+
+// Counts one more dispatch that cut the instance short at its start, and
+// hands it to the CPU after LIMITED_DISPATCHES of them.
+fn limited_at_start(st: ptr<function, State>) {
+    (*st).limited += 1u;
+    if (*st).limited >= LIMITED_DISPATCHES {
+        (*st).status = STATUS_LOOP_LIMIT;
+    }
+}
 
 // The work counters of a batch.
 struct Counters {
@@ -42,7 +58,9 @@ struct Control {
     zero: u32,
     // Entries of `order` a lane may take (0 in the first dispatch).
     queued: u32,
-    _pad: u32,
+    // Lanes below this one that hold no instance at the start take one
+    // from `order` (replicas queued again between dispatches).
+    lanes: u32,
 }
 
 // What a lane did in one dispatch (`pidm::gpu::layout::Tally`).
@@ -80,6 +98,21 @@ fn count_kind(tally: ptr<function, Tally>, kind: u32) {
     (*tally).more += select(vec4<u32>(0u), vec4<u32>(1u), k == vec4<u32>(4u, 5u, 6u, 7u));
 }
 
+// The queue's next instance for a lane that holds none, or NO_INSTANCE.
+// A lane idles only once the queue ran dry, so this takes only what the
+// host queued again since (`pidm::gpu::groups`); the load first keeps the
+// counter from running far past the queue's end on every dispatch.
+fn take_idle(lane: u32) -> u32 {
+    if lane >= control.lanes || atomicLoad(&counters.next) >= control.queued {
+        return NO_INSTANCE;
+    }
+    let slot = atomicAdd(&counters.next, 1u);
+    if slot >= control.queued {
+        return NO_INSTANCE;
+    }
+    return order[slot];
+}
+
 // Starts (`initialize`) or loads instance `index`.
 fn take(c: Coefficients, index: u32, initialize: bool) -> State {
     if !initialize {
@@ -102,9 +135,13 @@ fn advance_slice(
     let count = min(arrayLength(&states), arrayLength(&coefficients));
     var index = lanes[lane];
     if index >= count {
-        tally.more.w = NO_INSTANCE;
-        tallies[lane] = tally;
-        return;
+        index = take_idle(lane);
+        if index == NO_INSTANCE {
+            tally.more.w = NO_INSTANCE;
+            tallies[lane] = tally;
+            return;
+        }
+        count_kind(&tally, TAKEN);
     }
     var c = coefficients[index];
     var st = take(c, index, control.initialize == 1u);
@@ -192,10 +229,11 @@ fn advance(
             if !loop_limiter_intact((*st).steps) {
                 *st = before;
                 if iteration == 0u && fresh {
-                    (*st).status = STATUS_LOOP_LIMIT;
+                    limited_at_start(st);
                 }
                 return Advance(iteration, true);
             }
+            (*st).limited = 0u;
             count_kind(tally, kind);
         } else {
             count_kind(tally, iterate(c, st));

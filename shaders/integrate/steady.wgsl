@@ -55,8 +55,8 @@ fn at_measured_end(c: Coefficients, st: State, index: u32) -> bool {
 // Processes that period end: the accumulators are copied in and written
 // back only here, and only once the loop limiter has let the update
 // complete. False when the limiter cut it short: the state is as before,
-// with STATUS_LOOP_LIMIT where the lane had done nothing yet in this
-// dispatch (`fresh`), and the lane's dispatch ends.
+// counted as cut at its start where the lane had done nothing yet in this
+// dispatch (`fresh`: `limited_at_start`), and the lane's dispatch ends.
 fn measure_period_end(c: Coefficients, st: ptr<function, State>, index: u32, fresh: bool) -> bool {
     var m = measures[index];
     let before = *st;
@@ -64,10 +64,11 @@ fn measure_period_end(c: Coefficients, st: ptr<function, State>, index: u32, fre
     if LOOP_LIMITER && !loop_limiter_intact((*st).steps) {
         *st = before;
         if fresh {
-            (*st).status = STATUS_LOOP_LIMIT;
+            limited_at_start(st);
         }
         return false;
     }
+    (*st).limited = 0u;
     measures[index] = m;
     return true;
 }

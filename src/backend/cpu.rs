@@ -102,7 +102,7 @@ impl Backend for CpuBackend {
                     if interrupt_requested() {
                         return Outcome::default();
                     }
-                    let out = match split_of(inst, settings, count) {
+                    let out = match replicas::split_of(inst, settings, count) {
                         Some(split) => run_split(inst, settings, split),
                         None => run_one_in(inst, settings, self.precision),
                     };
@@ -146,15 +146,6 @@ fn check_heaviest(instances: &[Instance], settings: &Settings, out: &mut [Outcom
             ..outcome
         };
     }
-}
-
-/// How `inst` splits into replicas on a batch that leaves `count` threads
-/// per integration (`replicas::count`), if it does.
-fn split_of(inst: &Instance, settings: &Settings, count: u32) -> Option<Replica> {
-    if count < 2 || !replicas::splittable(inst, settings) {
-        return None;
-    }
-    replicas::split(inst, settings.replicas, count)
 }
 
 /// Integrates one instance as a group of replicas on the CPU in f64

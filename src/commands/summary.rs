@@ -154,6 +154,14 @@ pub(super) fn print_summary(scene: &Scene, result: &RunResult) {
             s.max_periods
         );
         println!("  motion: {}", motion_counts(&s.motion));
+        let multistable = s.motion[Motion::Multistable.code() as usize];
+        if s.merged > 0 || multistable > 0 {
+            println!(
+                "  replicas: {} instances merged from {} replicas; {multistable} whose replicas \
+                 disagreed (multistable: their own runs kept)",
+                s.merged, s.replicas
+            );
+        }
     }
     if s.extreme_step[0].is_finite() {
         println!(

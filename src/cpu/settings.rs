@@ -16,7 +16,10 @@ pub struct Settings {
     /// [`STATUS_STEP_BUDGET`](crate::cpu::integrate::STATUS_STEP_BUDGET).
     pub max_steps_per_period: u32,
     /// How many replicas a steady measurement that can be split runs as
-    /// (`simulation.replicas`; `pidm::replicas`).
+    /// (`simulation.replicas`, whose default is `Auto`; `pidm::replicas`).
+    /// `Settings::default()` runs every instance alone (`Count(1)`): the
+    /// library's callers ask for replicas, a scene gets them unless it
+    /// says otherwise.
     pub replicas: Replicas,
 }
 
@@ -25,7 +28,7 @@ impl Default for Settings {
         Settings {
             tolerance: 1e-4,
             max_steps_per_period: 2_000_000,
-            replicas: Replicas::Auto,
+            replicas: Replicas::default(),
         }
     }
 }
@@ -35,10 +38,17 @@ impl Default for Settings {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Replicas {
     /// As many as the backend's idle threads or lanes allow, up to
-    /// `pidm::replicas::MAX_AUTO` (the default).
+    /// `pidm::replicas::MAX_AUTO` (a scene's default).
     Auto,
     /// Exactly this many (1: none), whatever is idle.
     Count(u32),
+}
+
+impl Default for Replicas {
+    /// One run per instance: the library's callers ask for replicas.
+    fn default() -> Replicas {
+        Replicas::Count(1)
+    }
 }
 
 /// One replica of a run split into `count` replicas (`pidm::replicas`):

@@ -105,7 +105,10 @@ pub mod control {
             /// Entries of the queue (`order`) lanes may take: 0 in a
             /// batch's first dispatch, where every lane starts its own.
             pub queued: u32,
-            pub _pad: u32,
+            /// Lanes that take from the queue when they hold no instance
+            /// at the dispatch's start (replica members queued again,
+            /// `gpu::groups`); 0 in the first dispatch.
+            pub lanes: u32,
         }
     }
 
@@ -282,7 +285,9 @@ macro_rules! precision_structs {
                     pub stalled: u32,
                     pub rejections: u32,
                     pub measured: u32,
-                    pub _pad_u: u32,
+                    /// GPU only: dispatches in a row in which the loop limiter
+                    /// cut the instance's first iteration short (`entry.wgsl`).
+                    pub limited: u32,
                     pub _pad_v: U32x2,
                 }
             }
@@ -471,7 +476,17 @@ macro_rules! precision_structs {
             /// the CPU mirror's coefficients (`Coefficients::of`: computed
             /// in f64 from the instance in these units and rounded once).
             pub fn pack(inst: &Instance, settings: &Settings) -> Coefficients {
-                let c = mirror::Coefficients::of(inst, settings);
+                pack_replica(inst, settings, crate::cpu::integrate::Replica::NONE)
+            }
+
+            /// [`pack`] for replica `r` of a split run (`inst` the
+            /// replica's instance; `Coefficients::of_replica`).
+            pub fn pack_replica(
+                inst: &Instance,
+                settings: &Settings,
+                r: crate::cpu::integrate::Replica,
+            ) -> Coefficients {
+                let c = mirror::Coefficients::of_replica(inst, settings, r);
                 Coefficients {
                     stiffness: v2(c.stiffness),
                     damping: v2(c.damping),

@@ -55,6 +55,7 @@
 mod adapters;
 pub mod cache;
 mod context;
+mod groups;
 mod knobs;
 pub mod layout;
 mod options;

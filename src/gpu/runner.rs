@@ -122,6 +122,7 @@ fn first_dispatch<L: Layout>(
             (&pipeline, variant),
             &mut |_| {},
             Some(1),
+            None,
         )?
     };
     ctx.check_health()?;
@@ -219,6 +220,19 @@ impl<'a> Runner<'a> {
         }
     }
 
+    /// This runner with other settings and options.
+    pub(super) fn with<'b>(
+        &'b self,
+        settings: &'b Settings,
+        options: &'b BatchOptions,
+    ) -> Runner<'b> {
+        Runner {
+            settings,
+            options,
+            ..*self
+        }
+    }
+
     /// A batch's coefficients: `packed` where they were packed ahead, else
     /// packed here.
     fn coefficients<L: Layout>(
@@ -244,7 +258,7 @@ impl<'a> Runner<'a> {
 
     /// The pipeline for a batch with these coefficients: one whose variant
     /// has every part they use.
-    fn pipeline<L: Layout>(
+    pub(super) fn pipeline<L: Layout>(
         &self,
         precision: Precision,
         coefficients: &[L::Coefficients],
@@ -503,7 +517,7 @@ impl<'a> Runner<'a> {
     }
 
     /// Runs one batch that fits the device in one dispatch.
-    fn batch<L: Layout>(
+    pub(super) fn batch<L: Layout>(
         &self,
         instances: &[Instance],
         packed: Option<&[u8]>,
@@ -531,6 +545,15 @@ impl<'a> Runner<'a> {
         packed: Option<&[u8]>,
         progress: &mut dyn FnMut(u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
+        // Replicas on the lanes a small f64 batch leaves idle (f32 runs
+        // every instance alone, as on the CPU).
+        if L::PRECISION == Precision::F64 {
+            let lanes = self.options.lanes.unwrap_or(LANES);
+            let count = crate::replicas::count(self.settings.replicas, lanes, instances.len());
+            if let Some(split) = groups::Split::of(instances, self.settings, count) {
+                return self.batch_split(instances, split, progress);
+            }
+        }
         let n = instances.len();
         let coefficients = self.coefficients::<L>(instances, packed);
         let (pipeline, variant) = self.pipeline::<L>(L::PRECISION, &coefficients)?;
@@ -540,8 +563,23 @@ impl<'a> Runner<'a> {
             (&pipeline, variant),
             progress,
             None,
+            None,
         )?;
         drop(coefficients);
+        let out = self.outcomes::<L>(instances, &states, &measure_list);
+        progress(n as u64);
+        Ok(out)
+    }
+
+    /// The outcomes of a batch's jobs from their states and (steady)
+    /// measurements; the CPU finishes what the device left unfinished.
+    pub(super) fn outcomes<L: Layout>(
+        &self,
+        instances: &[Instance],
+        states: &[L::State],
+        measure_list: &[L::Measure],
+    ) -> Vec<GpuOutcome> {
+        let n = instances.len();
         let reducing = profile::span(Phase::Reduce);
         let is_steady = |k: usize| matches!(instances[k].measure, Measure::Steady { .. });
         // The outcomes, and the states of the unfinished ones.
@@ -586,17 +624,19 @@ impl<'a> Runner<'a> {
         for ((k, _), outcome) in tail.iter().zip(tail_outcomes) {
             out[*k] = outcome;
         }
-        progress(n as u64);
-        Ok(out)
+        out
     }
 }
 
-/// A storage buffer of `size` bytes that results can be copied out of.
+/// A storage buffer of `size` bytes that results can be copied out of and
+/// the host may write into (a replica group lets its jobs go on).
 pub(super) fn storage(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     })
 }

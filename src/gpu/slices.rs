@@ -19,6 +19,22 @@ use warps::{CriticalPath, LaneBytes, NO_INSTANCE, Probed, Warps, queue_order};
 /// A compiled pipeline and the variant it was compiled from.
 pub(super) type Compiled<'p> = (&'p wgpu::ComputePipeline, Variant);
 
+/// What a batch does between its dispatches besides refilling lanes: a
+/// replica batch's groups (`super::groups`) merge, and may send the jobs
+/// that waited for the merge back to the queue.
+pub(super) trait Between {
+    /// After a dispatch that left `finished` jobs finished or waiting (the
+    /// counter the shader keeps): the jobs to queue again, whose states
+    /// (in `states` and `measures`) it has already set going again.
+    fn after(
+        &mut self,
+        runner: &Runner,
+        states: &wgpu::Buffer,
+        measures: &wgpu::Buffer,
+        finished: u64,
+    ) -> Result<Vec<u32>, GpuError>;
+}
+
 /// A batch's device buffers.
 struct Buffers {
     coefficients: wgpu::Buffer,
@@ -117,11 +133,33 @@ impl Buffers {
     }
 }
 
-/// Counts one dispatch of `lanes` lanes into the run's warps and the
-/// batch's critical path.
-fn count(warps: &mut Warps, path: &mut CriticalPath, tallies: &[Tally], lanes: usize) {
-    warps.add_dispatch(tallies);
-    path.add_dispatch(tallies, lanes);
+/// The run's warps and the batch's critical path, counted where the run
+/// is profiled.
+struct Counted {
+    warps: Warps,
+    path: CriticalPath,
+    profiling: bool,
+}
+
+impl Counted {
+    /// Counts one dispatch of `lanes` lanes.
+    fn dispatch(&mut self, tallies: &[Tally], lanes: usize) {
+        if self.profiling {
+            self.warps.add_dispatch(tallies);
+            self.path.add_dispatch(tallies, lanes);
+        }
+    }
+}
+
+/// A batch's queue after its first dispatch, and when to stop.
+struct Queue {
+    /// The jobs still to start, dearest first.
+    order: Vec<u32>,
+    /// Jobs finished (or waiting) so far.
+    finished: u64,
+    /// Unfinished jobs the CPU may take once the queue is empty.
+    tail_size: u64,
+    slice_limit: Option<u64>,
 }
 
 /// `n` lanes rounded up to whole workgroups.
@@ -210,8 +248,15 @@ impl Runner<'_> {
         Ok(busy)
     }
 
-    /// A control buffer.
-    fn control(&self, max_iterations: u32, initialize: u32, queued: u32) -> wgpu::Buffer {
+    /// A control buffer: `queued` entries of the queue, which the first
+    /// `lanes` lanes may take when they hold no instance.
+    fn control(
+        &self,
+        max_iterations: u32,
+        initialize: u32,
+        queued: u32,
+        lanes: u32,
+    ) -> wgpu::Buffer {
         let probe = self.options.probe_passes.max(layout::PROBE_PASSES);
         self.device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -224,7 +269,7 @@ impl Runner<'_> {
                     probe_min: probe,
                     zero: 0,
                     queued,
-                    _pad: 0,
+                    lanes,
                 }),
                 usage: wgpu::BufferUsages::STORAGE,
             })
@@ -233,7 +278,8 @@ impl Runner<'_> {
     /// Dispatches slices until the batch is done, or only its slow tail is
     /// left, or `slice_limit` slices have run; returns every state and,
     /// for a batch with a steady instance, every measurement, and the
-    /// tallies of the first dispatch (instance k's on lane k).
+    /// tallies of the first dispatch (instance k's on lane k). `between`
+    /// runs after every dispatch (a replica batch's groups).
     pub(super) fn slices<L: Layout>(
         &self,
         instances: &[Instance],
@@ -241,33 +287,39 @@ impl Runner<'_> {
         compiled: Compiled,
         progress: &mut dyn FnMut(u64),
         slice_limit: Option<u64>,
+        mut between: Option<&mut dyn Between>,
     ) -> Result<(Readback<L>, Vec<Tally>), GpuError> {
         let n = instances.len();
         let (pipeline, variant) = compiled;
         let steady = variant.parts.steady && any_steady(instances);
         let uploading = profile::span(Phase::Upload);
         let b = Buffers::new::<L>(self.device, coefficients, steady);
-        let probe_control = self.control(self.options.probe_iterations.max(1), 1, 0);
+        let probe_control = self.control(self.options.probe_iterations.max(1), 1, 0, 0);
         let probe_group = b.bind_group(self.device, compiled, &probe_control);
         drop(uploading);
         let dispatching = profile::span(Phase::Dispatch);
         let profiling = profile::enabled();
-        let mut warps = Warps::default();
-        let mut path = CriticalPath {
-            instances: n,
-            lanes: n,
-            ..CriticalPath::default()
+        let mut count_in = Counted {
+            warps: Warps::default(),
+            path: CriticalPath {
+                instances: n,
+                lanes: n,
+                ..CriticalPath::default()
+            },
+            profiling,
         };
         // The first dispatch: every instance on a lane of its own.
         let started = std::time::Instant::now();
         let (_, mut finished) = self.dispatch(&b, pipeline, &probe_group, n)?;
         let tallies = self.tallies(&b, n)?;
         profile::add_lanes(whole_workgroups(n) as u64, n as u64, started.elapsed());
-        if profiling {
-            count(&mut warps, &mut path, &tallies, n);
-        }
+        count_in.dispatch(&tallies, n);
+        let mut again = match between.as_deref_mut() {
+            Some(between) => between.after(self, &b.states, &b.measures, finished)?,
+            None => Vec::new(),
+        };
+        finished -= again.len() as u64;
         progress(finished.min(n as u64));
-        let mut slice: u64 = 1;
         let probed: Vec<Probed> = tallies
             .iter()
             .enumerate()
@@ -279,102 +331,188 @@ impl Runner<'_> {
                 })
             })
             .collect();
-        let queued = probed.len();
+        let mut order = queue_order(&probed, self.options.order);
+        order.append(&mut again);
         let tail_size =
             self.options
                 .tail_size(L::PRECISION, n, rayon::current_num_threads()) as u64;
-        let stop_now = queued == 0
-            || queued as u64 <= tail_size
-            || slice_limit.is_some_and(|limit| slice >= limit);
+        let stop_now = order.is_empty()
+            || order.len() as u64 <= tail_size
+            || slice_limit.is_some_and(|limit| limit <= 1);
         if !stop_now {
-            // The queue, and its first entries on the lanes.
-            let order = queue_order(&probed, self.options.order);
-            let lanes = self.options.lanes.unwrap_or(LANES).clamp(1, queued);
-            let mut first = order[..lanes].to_vec();
-            first.resize(whole_workgroups(lanes).min(n), NO_INSTANCE);
-            self.queue
-                .write_buffer(&b.order, 0, bytemuck::cast_slice(&order));
-            self.queue
-                .write_buffer(&b.lanes, 0, bytemuck::cast_slice(&first));
-            self.queue.write_buffer(
-                &b.counters,
-                0,
-                bytemuck::cast_slice(&[lanes as u32, finished as u32]),
-            );
-            let control = self.control(self.options.slice_iterations, 0, queued as u32);
-            let group = b.bind_group(self.device, compiled, &control);
-            path.lanes = lanes;
-            let mut active = lanes;
-            let rounds = queued.div_ceil(lanes) as u64;
-            let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds) + 1;
-            let mut unfinished_before = n as u64 - finished;
-            loop {
-                let started = std::time::Instant::now();
-                let (next, done) = self.dispatch(&b, pipeline, &group, active)?;
-                finished = done;
-                let dispatched = whole_workgroups(active);
-                profile::add_lanes(
-                    dispatched as u64,
-                    unfinished_before.min(active as u64),
-                    started.elapsed(),
-                );
-                if profiling {
-                    let tallies = self.tallies(&b, dispatched.min(n))?;
-                    count(&mut warps, &mut path, &tallies, lanes);
-                }
-                let unfinished = (n as u64).saturating_sub(finished);
-                unfinished_before = unfinished;
-                slice += 1;
-                progress(finished.min(n as u64));
-                let drained = next >= queued as u64;
-                // Every instance started, and only the slow tail is left.
-                if unfinished == 0 || (drained && unfinished <= tail_size) {
-                    break;
-                }
-                if slice_limit.is_some_and(|limit| slice >= limit) {
-                    break;
-                }
-                if crate::sweep::interrupt_requested() {
-                    return Err(GpuError::Interrupted);
-                }
-                if slice >= max_slices {
-                    return Err(GpuError::Stalled {
-                        unfinished: unfinished as u32,
-                        slices: slice,
-                    });
-                }
-                // The queue is empty and a quarter of the lanes idle: the
-                // busy ones into fewer workgroups.
-                if self.options.compact && drained && 4 * unfinished <= 3 * active as u64 {
-                    active = self.compact(&b, active)?.max(1);
-                }
-            }
+            let queue = Queue {
+                order,
+                finished,
+                tail_size,
+                slice_limit,
+            };
+            self.work_through::<L>(
+                instances,
+                &b,
+                compiled,
+                queue,
+                progress,
+                between,
+                &mut count_in,
+            )?;
         }
         drop(dispatching);
         let out = self.read_back::<L>(instances, &b, steady)?;
         if profiling {
-            path.longest_instance = out.0.iter().map(|s| L::steps(s) as u64).max().unwrap_or(0);
-            path.mean_instance =
-                out.0.iter().map(|s| L::steps(s) as f64).sum::<f64>() / n.max(1) as f64;
-            // Predicted against taken, of the queued instances the device
-            // finished.
-            let (predicted, taken): (Vec<f64>, Vec<f64>) = probed
-                .iter()
-                .filter(|p| L::finished(&instances[p.index as usize], &out.0[p.index as usize]))
-                .map(|p| {
-                    let taken = L::steps(&out.0[p.index as usize]) as f64;
-                    (warps::predicted_passes(p) + p.tally.passes() as f64, taken)
-                })
-                .unzip();
-            path.ranking = warps::rank_correlation(&predicted, &taken);
-            let bytes = LaneBytes {
-                coefficients: size_of::<L::Coefficients>(),
-                state: size_of::<L::State>(),
-                measure: if steady { size_of::<L::Measure>() } else { 0 },
-            };
-            warps::record(&warps, path, bytes);
+            self.record_profile::<L>(instances, &out, &probed, steady, count_in);
         }
         Ok((out, tallies))
+    }
+
+    /// The dispatches after the first: `queue`'s first entries on the
+    /// lanes, each lane taking the next entry when its own instance
+    /// finishes, the busy lanes packed into fewer workgroups once the
+    /// queue is empty, and what `between` queues again added to its end.
+    #[allow(clippy::too_many_arguments)]
+    fn work_through<L: Layout>(
+        &self,
+        instances: &[Instance],
+        b: &Buffers,
+        compiled: Compiled,
+        queue: Queue,
+        progress: &mut dyn FnMut(u64),
+        mut between: Option<&mut dyn Between>,
+        count_in: &mut Counted,
+    ) -> Result<(), GpuError> {
+        let n = instances.len();
+        let Queue {
+            mut order,
+            mut finished,
+            tail_size,
+            slice_limit,
+        } = queue;
+        let (pipeline, _) = compiled;
+        // The queue, and its first entries on the lanes.
+        let lanes = self.options.lanes.unwrap_or(LANES).clamp(1, order.len());
+        let mut first = order[..lanes].to_vec();
+        first.resize(whole_workgroups(lanes).min(n), NO_INSTANCE);
+        self.queue
+            .write_buffer(&b.lanes, 0, bytemuck::cast_slice(&first));
+        let mut group = self.requeue(b, compiled, &order, lanes, lanes as u32, finished);
+        count_in.path.lanes = lanes;
+        let mut active = lanes;
+        let rounds = n.div_ceil(lanes) as u64;
+        let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds) + 1;
+        let mut unfinished_before = n as u64 - finished;
+        let mut slice: u64 = 1;
+        loop {
+            let started = std::time::Instant::now();
+            let (mut next, done) = self.dispatch(b, pipeline, &group, active)?;
+            finished = done;
+            let dispatched = whole_workgroups(active);
+            profile::add_lanes(
+                dispatched as u64,
+                unfinished_before.min(active as u64),
+                started.elapsed(),
+            );
+            if count_in.profiling {
+                let tallies = self.tallies(b, dispatched.min(n))?;
+                count_in.dispatch(&tallies, lanes);
+            }
+            if let Some(between) = between.as_deref_mut() {
+                let again = between.after(self, &b.states, &b.measures, finished)?;
+                if !again.is_empty() {
+                    // What no lane took yet, then the jobs queued again,
+                    // on every lane.
+                    let taken = (next as usize).min(order.len());
+                    order = [&order[taken..], &again[..]].concat();
+                    finished -= again.len() as u64;
+                    group = self.requeue(b, compiled, &order, 0, lanes as u32, finished);
+                    next = 0;
+                    active = lanes;
+                }
+            }
+            let unfinished = (n as u64).saturating_sub(finished);
+            unfinished_before = unfinished;
+            slice += 1;
+            progress(finished.min(n as u64));
+            let drained = next >= order.len() as u64;
+            // Every instance started, and only the slow tail is left.
+            if unfinished == 0 || (drained && unfinished <= tail_size) {
+                return Ok(());
+            }
+            if slice_limit.is_some_and(|limit| slice >= limit) {
+                return Ok(());
+            }
+            if crate::sweep::interrupt_requested() {
+                return Err(GpuError::Interrupted);
+            }
+            if slice >= max_slices {
+                return Err(GpuError::Stalled {
+                    unfinished: unfinished as u32,
+                    slices: slice,
+                });
+            }
+            // The queue is empty and a quarter of the lanes idle: the
+            // busy ones into fewer workgroups.
+            if self.options.compact && drained && 4 * unfinished <= 3 * active as u64 {
+                active = self.compact(b, active)?.max(1);
+            }
+        }
+    }
+
+    /// Writes `order` as the queue, of which `taken` entries are on lanes,
+    /// with `finished` jobs finished, and returns the bind group of the
+    /// dispatches that work through it on `lanes` lanes.
+    fn requeue(
+        &self,
+        b: &Buffers,
+        compiled: Compiled,
+        order: &[u32],
+        taken: usize,
+        lanes: u32,
+        finished: u64,
+    ) -> wgpu::BindGroup {
+        self.queue
+            .write_buffer(&b.order, 0, bytemuck::cast_slice(order));
+        self.queue.write_buffer(
+            &b.counters,
+            0,
+            bytemuck::cast_slice(&[taken as u32, finished as u32]),
+        );
+        let control = self.control(self.options.slice_iterations, 0, order.len() as u32, lanes);
+        b.bind_group(self.device, compiled, &control)
+    }
+
+    /// Records the batch's lanes, warps and critical path (`pidm
+    /// --profile`).
+    fn record_profile<L: Layout>(
+        &self,
+        instances: &[Instance],
+        out: &Readback<L>,
+        probed: &[Probed],
+        steady: bool,
+        counted: Counted,
+    ) {
+        let n = instances.len();
+        let Counted {
+            warps, mut path, ..
+        } = counted;
+        path.longest_instance = out.0.iter().map(|s| L::steps(s) as u64).max().unwrap_or(0);
+        path.mean_instance =
+            out.0.iter().map(|s| L::steps(s) as f64).sum::<f64>() / n.max(1) as f64;
+        // Predicted against taken, of the queued instances the device
+        // finished.
+        let (predicted, taken): (Vec<f64>, Vec<f64>) = probed
+            .iter()
+            .filter(|p| L::finished(&instances[p.index as usize], &out.0[p.index as usize]))
+            .map(|p| {
+                let taken = L::steps(&out.0[p.index as usize]) as f64;
+                (warps::predicted_passes(p) + p.tally.passes() as f64, taken)
+            })
+            .unzip();
+        path.ranking = warps::rank_correlation(&predicted, &taken);
+        let bytes = LaneBytes {
+            coefficients: size_of::<L::Coefficients>(),
+            state: size_of::<L::State>(),
+            measure: if steady { size_of::<L::Measure>() } else { 0 },
+        };
+        warps::record(&warps, path, bytes);
     }
 
     /// Every state and, for a steady batch, every measurement

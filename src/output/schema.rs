@@ -388,14 +388,15 @@ mod tests {
         );
         assert_eq!(BASELINE_STATUS, path(BASELINE, &BASELINE_DATASETS[2]));
         assert_eq!(SHARD_INSTANCE, format!("{SHARD}/instance"));
-        // Six f64 maps (steps, velocities, standard errors), four u32 maps
-        // (status, steps, periods, period_lag) and the u8 motion map:
-        // 6 x 8 + 4 x 4 + 1; two f64 and one u32 baselines add 20.
-        assert_eq!(bytes_per_instance(false, false), 65);
-        assert_eq!(bytes_per_instance(true, false), 85);
+        // Six f64 maps (steps, velocities, standard errors), five u32 maps
+        // (status, steps, periods, period_lag, replicas) and the u8 motion
+        // map: 6 x 8 + 5 x 4 + 1; two f64 and one u32 baselines add 20.
+        assert_eq!(MAP_DATASETS[11].name, "replicas");
+        assert_eq!(bytes_per_instance(false, false), 69);
+        assert_eq!(bytes_per_instance(true, false), 89);
         // The stall maps: three f64 (load, the steps at the bracket's
         // ends) and two u32 (waves, status), named by their axis.
-        assert_eq!(bytes_per_instance(false, true), 65 + 32);
+        assert_eq!(bytes_per_instance(false, true), 69 + 32);
         assert_eq!(STALL_DATASETS[0][0].name, "stall_load_x");
         assert_eq!(STALL_DATASETS[1][4].name, "stall_status_y");
         assert_eq!(stall_path(0, 0), "maps/stall_load_x");

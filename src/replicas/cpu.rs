@@ -16,12 +16,14 @@ use crate::model::Instance;
 use crate::motion::Motion;
 
 /// What a group's run gave: the instance's values and the replicas that
-/// made them (1 where it ran alone), and the steps every replica took.
+/// made them (1 where it ran alone), the steps every replica took, and the
+/// largest disagreement of its merges ([`Group::disagreement`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GroupRun {
     pub measured: Measured,
     pub replicas: u32,
     pub steps: u32,
+    pub disagreement: f64,
 }
 
 /// Runs `inst` split as `split` says (`super::split`; see the module docs
@@ -34,11 +36,22 @@ pub fn run_group(
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<GroupRun> {
     let group = Group::new(inst, settings, split);
+    run_replicas(inst, settings, &group, &group.replicas(), stop)
+}
+
+/// [`run_group`] with the replicas' instances given (`group.replicas()`
+/// unless a test plants one on another attractor).
+pub fn run_replicas(
+    inst: &Instance,
+    settings: &Settings,
+    group: &Group,
+    replicas: &[(Instance, Replica)],
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<GroupRun> {
     let count = group.count();
-    let mut replicas: Vec<(Coefficients, Run)> = group
-        .replicas()
-        .into_iter()
-        .map(|(replica, r)| {
+    let mut replicas: Vec<(Coefficients, Run)> = replicas
+        .iter()
+        .map(|&(replica, r)| {
             let c = Coefficients::of_replica(&replica, settings, r);
             let run = Run {
                 state: initial_state(&c),
@@ -47,6 +60,7 @@ pub fn run_group(
             (c, run)
         })
         .collect();
+    let mut disagreement: f64 = 0.0;
     loop {
         let advanced: Option<Vec<Run>> = replicas
             .par_iter()
@@ -61,12 +75,16 @@ pub fn run_group(
             .map(|(_, run)| Member::of(inst, run))
             .collect();
         let steps = replicas.iter().map(|(_, run)| run.state.steps).sum::<u32>();
+        if let Some(d) = group.disagreement(&members) {
+            disagreement = disagreement.max(d);
+        }
         match group.step(&members) {
             Step::Merged(measured) => {
                 return Some(GroupRun {
                     measured,
                     replicas: count,
                     steps,
+                    disagreement,
                 });
             }
             Step::Continue => {
@@ -87,6 +105,7 @@ pub fn run_group(
                     measured,
                     replicas: 1,
                     steps: steps.saturating_add(alone.state.steps),
+                    disagreement,
                 });
             }
         }

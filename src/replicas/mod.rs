@@ -105,10 +105,17 @@ pub const SPREAD_SLACK: f64 = 1.2;
 /// 2.01; sqrt 3: 2.08).
 pub const SPREAD_FLOOR: f64 = 2.2;
 
-/// How `inst` is split into `count` replicas (>= 2): the virtual run
-/// (`Replica::turns`) whose phases lie most evenly, and their spread.
+/// How `inst` is split into `count` replicas (>= 2), and the spread of
+/// that virtual run (`Replica::turns`): among the virtual runs even enough
+/// ([`spread_limit`]), the one whose ladder may stop soonest (its first
+/// level that may stop a run: a level's quarters must resolve enough
+/// phases, which a virtual step may deny the first levels; measured on
+/// the 36 instances of `examples/replicas_validate.rs`, the first level
+/// decides most of a replica's periods), then the most even; where none is
+/// even enough, the most even.
 pub fn best_turns(inst: &Instance, count: u32) -> (u32, f64) {
     let (_, rho) = faster_drive(inst);
+    let limit = spread_limit(rho);
     (0..count)
         .map(|turns| {
             let r = Replica {
@@ -116,10 +123,33 @@ pub fn best_turns(inst: &Instance, count: u32) -> (u32, f64) {
                 count,
                 turns,
             };
-            (turns, phase::spread(r.virtual_step(rho)))
+            let step = r.virtual_step(rho);
+            let first = phase::ladder(step, true, 0).levels.trailing_zeros();
+            (turns, phase::spread(step), first)
         })
-        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .min_by(|a, b| {
+            // Even enough first; among those, the soonest first level.
+            let key = |c: &(u32, f64, u32)| (c.1 > limit, if c.1 > limit { 0 } else { c.2 });
+            key(a).cmp(&key(b)).then(a.1.total_cmp(&b.1))
+        })
+        .map(|(turns, spread, _)| (turns, spread))
         .expect("count >= 2")
+}
+
+/// The spread a virtual run may have for a faster drive that advances by
+/// `rho` ([`SPREAD_SLACK`], [`SPREAD_FLOOR`]).
+fn spread_limit(rho: f64) -> f64 {
+    (SPREAD_SLACK * phase::spread(rho)).max(SPREAD_FLOOR)
+}
+
+/// How `inst` splits in a batch that leaves `count` workers per
+/// integration ([`count`]) under `settings`, if it does: the one rule
+/// both backends follow.
+pub fn split_of(inst: &Instance, settings: &Settings, count: u32) -> Option<Replica> {
+    if count < 2 || !splittable(inst, settings) {
+        return None;
+    }
+    split(inst, settings.replicas, count)
 }
 
 /// The split of a splittable `inst` for a `count` from [`count`]: with
@@ -141,7 +171,7 @@ pub fn split(inst: &Instance, setting: Replicas, count: u32) -> Option<Replica> 
         return Some(replica((count, best_turns(inst, count).0)));
     }
     let (_, rho) = faster_drive(inst);
-    let limit = (SPREAD_SLACK * phase::spread(rho)).max(SPREAD_FLOOR);
+    let limit = spread_limit(rho);
     (2..=count).rev().find_map(|n| {
         let (turns, spread) = best_turns(inst, n);
         (spread <= limit).then(|| replica((n, turns)))

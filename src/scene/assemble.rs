@@ -5,6 +5,8 @@
 
 use toml::de::DeTable;
 
+use crate::cpu::settings::Replicas;
+
 use super::error::{SceneError, point_name};
 use super::format::fmt_short;
 use super::keys::{
@@ -56,9 +58,10 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     if let Some(entry) = &base.entries[MAX_STEPS_SLOT] {
         settings.max_steps_per_period = entry.values.value(0) as u32;
     }
-    if let Some((replicas, _)) = parsed.replicas {
-        settings.replicas = replicas;
-    }
+    // A scene splits what it can unless it says otherwise.
+    settings.replicas = parsed
+        .replicas
+        .map_or(Replicas::Auto, |(replicas, _)| replicas);
 
     let mut raw = [0.0; SLOTS];
     let mut given = [false; SLOTS];

@@ -363,11 +363,13 @@ mod tests {
         assert_eq!(slot_path(SETTLE_SLOT), "simulation.settle");
         assert_eq!(Field::StepTolerance.units(), "m");
         assert_eq!(Field::MaxCycles.units(), "cycles");
-        // Every numeric key of [simulation] and `measure` are hinted.
+        // Every numeric key of [simulation], `measure` and `replicas` are
+        // hinted.
         for field in SIMULATION_FIELDS {
             assert!(SIMULATION_KEYS.contains(&field.name()), "{field:?}");
         }
         assert!(SIMULATION_KEYS.contains(&MEASURE_KEY));
-        assert_eq!(SIMULATION_KEYS.len(), SIMULATION_FIELDS.len() + 1);
+        assert!(SIMULATION_KEYS.contains(&REPLICAS_KEY));
+        assert_eq!(SIMULATION_KEYS.len(), SIMULATION_FIELDS.len() + 2);
     }
 }

@@ -5,8 +5,8 @@ use std::ops::Range;
 use super::memory::MAP_MEMORY_BUDGET_BYTES;
 
 /// Largest `steps` of a range: the most values one grid axis can have while
-/// its output maps (65 bytes per instance, without baselines) fit the
-/// default budget [`MAP_MEMORY_BUDGET_BYTES`], 132152839. A larger range could never
+/// its output maps (69 bytes per instance, without baselines) fit the
+/// default budget [`MAP_MEMORY_BUDGET_BYTES`], 124491805. A larger range could never
 /// run, and a cap keeps every count of values far from overflowing.
 pub const MAX_RANGE_STEPS: u64 =
     MAP_MEMORY_BUDGET_BYTES / crate::output::schema::bytes_per_instance(false, false);

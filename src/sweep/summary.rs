@@ -17,6 +17,10 @@ pub struct Summary {
     pub periodic: u64,
     /// Instances per kind of motion (index = `Motion::code`).
     pub motion: [u64; Motion::ALL.len()],
+    /// Instances whose values are merged from replicas
+    /// (`crate::replicas`), and the replicas they merged.
+    pub merged: u64,
+    pub replicas: u64,
     /// Largest standard error of a step among instances that keep values
     /// [m per own drive cycle].
     pub largest_se: f64,
@@ -56,6 +60,8 @@ impl Default for Summary {
             status_counts: [0; 8],
             periodic: 0,
             motion: [0; Motion::ALL.len()],
+            merged: 0,
+            replicas: 0,
             largest_se: 0.0,
             periods: 0,
             max_periods: 0,
@@ -85,6 +91,8 @@ impl Summary {
         for (a, b) in self.motion.iter_mut().zip(other.motion) {
             *a += b;
         }
+        self.merged += other.merged;
+        self.replicas += other.replicas;
         self.largest_se = self.largest_se.max(other.largest_se);
         self.periods += other.periods;
         self.max_periods = self.max_periods.max(other.max_periods);
@@ -128,6 +136,10 @@ impl Summary {
         self.steps += rec.steps as u64;
         self.periodic += (rec.period_lag > 0) as u64;
         self.motion[rec.motion.code() as usize] += 1;
+        if rec.replicas > 1 {
+            self.merged += 1;
+            self.replicas += rec.replicas as u64;
+        }
         if keeps_values(rec.status) {
             self.largest_se = self.largest_se.max(rec.step_se[0]).max(rec.step_se[1]);
         }

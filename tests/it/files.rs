@@ -209,9 +209,9 @@ fn shards_merge_into_the_single_run_bit_for_bit() {
 /// Waits until the checkpoint holds at least `entries` chunk entries of
 /// `chunk` records, beyond its size when first seen (the header).
 fn wait_for_checkpoint(path: &Path, entries: u64, chunk: u64) {
-    // An entry is a 32-byte head, 85 bytes per record and an 8-byte sum
+    // An entry is a 32-byte head, the records and an 8-byte sum
     // (`src/checkpoint.rs`).
-    let entry = 32 + 85 * chunk + 8;
+    let entry = 32 + pidm::checkpoint::RECORD_BYTES as u64 * chunk + 8;
     let deadline = Instant::now() + Duration::from_secs(120);
     let mut header = None;
     loop {
@@ -541,7 +541,7 @@ fn a_merge_names_the_shard_and_dataset_that_cannot_be_right() {
     check(
         "a motion that does not exist",
         &write_u8("maps/motion", 1, 9),
-        "cannot be right: its motion is 9, which is no motion code (flag_values [0, 1, 2, 3])",
+        "cannot be right: its motion is 9, which is no motion code (flag_values [0, 1, 2, 3, 4])",
     );
     check(
         "a failed instance with a kind of motion",

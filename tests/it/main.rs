@@ -4,6 +4,7 @@
 //! Run one module with `cargo test --release --test it gpu::`.
 
 mod common;
+mod golden;
 
 mod bench;
 mod cli;
@@ -25,6 +26,7 @@ mod progress;
 mod python;
 mod reference;
 mod refine;
+mod replicas;
 mod scene;
 mod scene_fuzz;
 mod slurm;

@@ -52,6 +52,7 @@ fn record(i: usize) -> Record {
         periods: 10 + i as u32,
         period_lag: (i % 2) as u32,
         motion: motion(i),
+        replicas: 1 + (i % 4) as u32,
         baseline_step: [i as f64 + 0.5, i as f64 - 0.5],
         baseline_status: 0,
     }
@@ -128,14 +129,14 @@ fn the_motion_map_reads_back_with_its_flags() {
     }
     let flag_values = ds.attr(schema::FLAG_VALUES).unwrap();
     assert!(flag_values.dtype().unwrap().is::<u8>(), "flag_values is u8");
-    assert_eq!(flag_values.read_raw::<u8>().unwrap(), [0, 1, 2, 3]);
+    assert_eq!(flag_values.read_raw::<u8>().unwrap(), [0, 1, 2, 3, 4]);
     let text = |name: &str| -> String {
         let v: VarLenUnicode = ds.attr(name).unwrap().read_scalar().unwrap();
         v.as_str().to_owned()
     };
     assert_eq!(
         text(schema::FLAG_MEANINGS),
-        "undetermined periodic quasi_periodic irregular"
+        "undetermined periodic quasi_periodic irregular multistable"
     );
     assert_eq!(text("units"), "1");
     assert!(text("long_name").contains("kind of motion"));

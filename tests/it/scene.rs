@@ -408,12 +408,12 @@ fn bad_scenes_are_refused_with_clear_messages() {
         // Too many steps says so, with the maximum.
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 9223372036854775807 }",
-            "axis.x.voltage.steps = 9223372036854775807: too large; expected at most 132152839 \
+            "axis.x.voltage.steps = 9223372036854775807: too large; expected at most 124491805 \
              steps",
         ),
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 1e300 }",
-            "axis.x.voltage.steps = 1e300: too large; expected at most 132152839 steps",
+            "axis.x.voltage.steps = 1e300: too large; expected at most 124491805 steps",
         ),
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 132152840 }",
@@ -422,16 +422,16 @@ fn bad_scenes_are_refused_with_clear_messages() {
         // The memory budget.
         (
             "[axis.x]\nvoltage = { from = 0, to = 1, steps = 100000 }\n[axis.y]\nvoltage = { from = 0, to = 1, steps = 100000 }",
-            "do not fit the memory budget: grid 100000 x 100000 = 10000000000 instances x 65 bytes",
+            "do not fit the memory budget: grid 100000 x 100000 = 10000000000 instances x 69 bytes",
         ),
         (
-            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 132152839 }\n\
-             gain = { from = 0, to = 1, steps = 132152839 }\n\
-             frequency = { from = 1, to = 2, steps = 132152839 }\n\
-             duty = { from = 0.5, to = 1, steps = 132152839 }\n\
-             phase = { from = 0, to = 1, steps = 132152839 }",
-            "grid 132152839 x 132152839 x 132152839 x 132152839 x 132152839 = more than \
-             340282366920938463463374607431768211455 instances x 65 bytes per instance = more \
+            "[axis.x]\nvoltage = { from = 0, to = 1, steps = 124491805 }\n\
+             gain = { from = 0, to = 1, steps = 124491805 }\n\
+             frequency = { from = 1, to = 2, steps = 124491805 }\n\
+             duty = { from = 0.5, to = 1, steps = 124491805 }\n\
+             phase = { from = 0, to = 1, steps = 124491805 }",
+            "grid 124491805 x 124491805 x 124491805 x 124491805 x 124491805 = more than \
+             340282366920938463463374607431768211455 instances x 69 bytes per instance = more \
              than 340282366920938463463374607431768211455 bytes, over the budget",
         ),
         // Stage definitions.
@@ -911,7 +911,12 @@ fn an_empty_scene_is_table_1_with_y_undriven() {
     assert_eq!(scene.instance_count(), 1);
     assert_eq!(scene.instance(0), steady(Instance::TABLE1.baseline(0)));
     assert!(!scene.baselines);
-    assert_eq!(scene.settings, pidm::cpu::integrate::Settings::default());
+    // A scene splits what it can; the library's default runs one chain.
+    let settings = pidm::cpu::integrate::Settings {
+        replicas: pidm::cpu::integrate::Replicas::Auto,
+        ..Default::default()
+    };
+    assert_eq!(scene.settings, settings);
     assert!(scene.axis_ever_driven(0));
     assert!(!scene.axis_ever_driven(1));
 }
@@ -1227,10 +1232,10 @@ fn memory_budget_names_shape_count_and_bytes() {
     let message = error.to_string();
     for needle in [
         "61 x 61 = 3721 instances",
-        // Six f64, four u32 and one u8 (motion) maps, two f64 and one u32
+        // Six f64, five u32 and one u8 (motion) maps, two f64 and one u32
         // baselines: the bytes the result file holds per instance.
-        "85 bytes",
-        "316285 bytes",
+        "89 bytes",
+        "331169 bytes",
         "1000 bytes",
     ] {
         assert!(

@@ -364,8 +364,10 @@ def test_a_steady_map_has_its_kinds_of_motion_with_their_flags(tmp_path: Path) -
     assert "kind of motion" in motion.attrs["long_name"]
     flag_values = motion.attrs["flag_values"]
     assert isinstance(flag_values, np.ndarray) and flag_values.dtype == np.uint8
-    assert flag_values.tolist() == [0, 1, 2, 3]
-    assert motion.attrs["flag_meanings"] == "undetermined periodic quasi_periodic irregular"
+    assert flag_values.tolist() == [0, 1, 2, 3, 4]
+    assert motion.attrs["flag_meanings"] == (
+        "undetermined periodic quasi_periodic irregular multistable"
+    )
     codes = dict(zip(motion.attrs["flag_meanings"].split(), flag_values.tolist(), strict=True))
     assert motion.values.tolist() == [[codes["periodic"], codes["quasi_periodic"]]] * 2
     # The periodic instances are those with a lag.
@@ -376,7 +378,7 @@ def test_a_steady_map_has_its_kinds_of_motion_with_their_flags(tmp_path: Path) -
         assert ref.motion.dtype == np.uint8
         assert ref.motion.values.tobytes() == motion.values.tobytes()
         assert ref.motion.attrs["flag_meanings"] == motion.attrs["flag_meanings"]
-        assert ref.motion.attrs["flag_values"].tolist() == [0, 1, 2, 3]
+        assert ref.motion.attrs["flag_values"].tolist() == [0, 1, 2, 3, 4]
 
 
 def test_a_stall_map_reads_with_its_units_and_the_grid(tmp_path: Path) -> None:

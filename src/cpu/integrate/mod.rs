@@ -72,7 +72,7 @@ use step::StepOutcome;
 pub use super::precision::Real;
 // The precision module of this instance, for the files below.
 use super::precision;
-pub use crate::cpu::settings::{Replica, Settings};
+pub use crate::cpu::settings::{Replica, Replicas, Settings};
 
 use super::precision::{COMPENSATED_TIME, CORNER_CLOCK, DEFLECTION};
 use crate::model::{AXES, Instance};

@@ -1,0 +1,315 @@
+//! Replicas on the device (`crate::replicas`): an f64 batch with fewer
+//! instances than lanes runs each splittable instance as a group of
+//! replica jobs, each on a lane of its own. A replica runs to the ladder
+//! level it waits at (`measured` 2, counted finished by the shader);
+//! between dispatches the host reads the groups whose replicas all
+//! stopped, and each group does what [`Group::step`] says, the rule the
+//! CPU's groups follow too: its jobs go back to the queue and the lanes
+//! that hold none take them (`entry.wgsl`, `take_idle`), or it stops with
+//! the merged estimate, or it gives up the split and the instance runs
+//! again alone after the batch, labelled multistable where its replicas
+//! disagreed. The batch's other instances run alongside, as in any batch;
+//! no CPU tail takes a replica.
+
+use std::mem::offset_of;
+
+use super::runner::Runner;
+use super::slices::Between;
+use super::*;
+use crate::cpu::integrate::measure::VERDICT_RUNNING;
+use crate::cpu::integrate::{Replica, Replicas, STATUS_OK};
+use crate::motion::Motion;
+use crate::replicas::{Group, Member, Step};
+use layout::double::{Coefficients as Coefficients64, Measure as Measure64, State as State64};
+
+/// A batch's jobs: its instances that run alone, in order, then every
+/// group's replicas, group after group.
+pub(super) struct Split {
+    jobs: Vec<(Instance, Replica)>,
+    /// The batch index of each job that runs alone (the first jobs).
+    alone: Vec<usize>,
+    groups: Groups,
+}
+
+impl Split {
+    /// The jobs of `instances` where `count` replicas per instance are
+    /// free (`replicas::count`), or `None` where no instance splits.
+    pub(super) fn of(instances: &[Instance], settings: &Settings, count: u32) -> Option<Split> {
+        let splits: Vec<Option<Replica>> = instances
+            .iter()
+            .map(|inst| crate::replicas::split_of(inst, settings, count))
+            .collect();
+        if splits.iter().all(Option::is_none) {
+            return None;
+        }
+        let alone: Vec<usize> = (0..instances.len())
+            .filter(|&k| splits[k].is_none())
+            .collect();
+        let mut jobs: Vec<(Instance, Replica)> = alone
+            .iter()
+            .map(|&k| (instances[k], Replica::NONE))
+            .collect();
+        let mut groups = Vec::new();
+        for (k, split) in splits.iter().enumerate() {
+            let Some(split) = split else { continue };
+            let group = Group::new(&instances[k], settings, *split);
+            let first = jobs.len();
+            jobs.extend(group.replicas());
+            groups.push(GpuGroup {
+                index: k,
+                inst: instances[k],
+                group,
+                first,
+                done: None,
+            });
+        }
+        let first = alone.len();
+        Some(Split {
+            jobs,
+            alone,
+            groups: Groups {
+                groups,
+                first,
+                seen: None,
+            },
+        })
+    }
+}
+
+/// One instance's replicas in a batch.
+struct GpuGroup {
+    /// The instance's index in the batch.
+    index: usize,
+    inst: Instance,
+    group: Group,
+    /// Its first job; its replicas are the next `group.count()` jobs.
+    first: usize,
+    done: Option<Done>,
+}
+
+/// How a group ended, with the steps its replicas took.
+#[derive(Clone, Copy)]
+enum Done {
+    Merged(Measured, u32),
+    Alone { multistable: bool, steps: u32 },
+}
+
+/// A batch's groups, stepped between its dispatches.
+struct Groups {
+    groups: Vec<GpuGroup>,
+    /// The first replica job: replicas run from here to the batch's end.
+    first: usize,
+    /// The finished count of the last look, after what it queued again: a
+    /// dispatch that finished nothing more changed no group.
+    seen: Option<u64>,
+}
+
+impl Between for Groups {
+    fn after(
+        &mut self,
+        runner: &Runner,
+        states: &wgpu::Buffer,
+        measures: &wgpu::Buffer,
+        finished: u64,
+    ) -> Result<Vec<u32>, GpuError> {
+        if self.seen == Some(finished) || self.groups.iter().all(|g| g.done.is_some()) {
+            return Ok(Vec::new());
+        }
+        let replicas = self
+            .groups
+            .last()
+            .map_or(0, |g| g.first + g.group.count() as usize - self.first);
+        let all: Vec<State64> = read(runner, states, self.first, replicas)?;
+        let mut again = Vec::new();
+        for g in self.groups.iter_mut().filter(|g| g.done.is_none()) {
+            let count = g.group.count() as usize;
+            let own = &all[g.first - self.first..][..count];
+            // As `Group::step` reads them: a replica that failed, measured
+            // by a rule of its own (a recurrence, batch means) or ran to
+            // its `max_cycles` has ended; one that does not wait runs.
+            let ended =
+                |s: &State64| s.status != STATUS_OK || s.measured == 1 || s.period >= g.inst.cycles;
+            let running = |s: &State64| !ended(s) && s.measured == 0;
+            let steps = own.iter().fold(0u32, |n, s| n.saturating_add(s.steps));
+            if own.iter().any(ended) {
+                // The split is given up: the replicas still running stop.
+                for (j, s) in (g.first..).zip(own) {
+                    if running(s) {
+                        write_u32(runner, states, state_field(j), 1);
+                    }
+                }
+                g.done = Some(Done::Alone {
+                    multistable: false,
+                    steps,
+                });
+                continue;
+            }
+            if own.iter().any(running) {
+                continue;
+            }
+            let taken: Vec<Measure64> = read(runner, measures, g.first, count)?;
+            let members: Vec<Member> = own
+                .iter()
+                .zip(&taken)
+                .map(|(s, m)| {
+                    let run = Run {
+                        state: layout::double::to_cpu(s),
+                        measure: layout::double::measure_to_cpu(m),
+                    };
+                    Member::of(&g.inst, &run)
+                })
+                .collect();
+            match g.group.step(&members) {
+                Step::Wait => {}
+                Step::Continue => {
+                    for j in g.first..g.first + count {
+                        write_u32(runner, states, state_field(j), 0);
+                        write_u32(runner, measures, verdict_field(j), VERDICT_RUNNING);
+                        again.push(j as u32);
+                    }
+                }
+                Step::Merged(measured) => g.done = Some(Done::Merged(measured, steps)),
+                Step::Alone { multistable } => g.done = Some(Done::Alone { multistable, steps }),
+            }
+        }
+        self.seen = Some(finished - again.len() as u64);
+        Ok(again)
+    }
+}
+
+/// The byte offset of job `j`'s `State::measured`.
+fn state_field(j: usize) -> u64 {
+    (j * size_of::<State64>() + offset_of!(State64, measured)) as u64
+}
+
+/// The byte offset of job `j`'s `Measure::verdict`.
+fn verdict_field(j: usize) -> u64 {
+    (j * size_of::<Measure64>() + offset_of!(Measure64, verdict)) as u64
+}
+
+fn write_u32(runner: &Runner, buffer: &wgpu::Buffer, offset: u64, value: u32) {
+    runner
+        .queue
+        .write_buffer(buffer, offset, bytemuck::bytes_of(&value));
+}
+
+/// Entries `first..first + count` of an array of `T` in `buffer`.
+fn read<T: bytemuck::Pod>(
+    runner: &Runner,
+    buffer: &wgpu::Buffer,
+    first: usize,
+    count: usize,
+) -> Result<Vec<T>, GpuError> {
+    let bytes = (count * size_of::<T>()) as u64;
+    let staging = readback::mappable(runner.device, "replicas readback", bytes.max(4));
+    let mut encoder = runner.device.create_command_encoder(&Default::default());
+    let offset = (first * size_of::<T>()) as u64;
+    encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, bytes);
+    runner.queue.submit([encoder.finish()]);
+    readback::with_mapped_prefix(runner.device, &staging, bytes, |bytes| {
+        bytes
+            .chunks_exact(size_of::<T>())
+            .map(bytemuck::pod_read_unaligned)
+            .collect()
+    })
+}
+
+impl Runner<'_> {
+    /// A batch with replica groups (`split`): its jobs on the device, no
+    /// CPU tail; the outcomes of its instances in order, each group's the
+    /// merged estimate or its instance's own run, integrated again alone.
+    pub(super) fn batch_split(
+        &self,
+        instances: &[Instance],
+        split: Split,
+        progress: &mut dyn FnMut(u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let n = instances.len();
+        let Split {
+            jobs,
+            alone,
+            mut groups,
+        } = split;
+        let options = BatchOptions {
+            cpu_tail: Some(0),
+            ..*self.options
+        };
+        let runner = self.with(self.settings, &options);
+        let coefficients: Vec<Coefficients64> = jobs
+            .par_iter()
+            .map(|(inst, r)| layout::double::pack_replica(inst, self.settings, *r))
+            .collect();
+        let job_instances: Vec<Instance> = jobs.iter().map(|(inst, _)| *inst).collect();
+        let (pipeline, variant) = runner.pipeline::<Double>(Precision::F64, &coefficients)?;
+        let total = job_instances.len() as u64;
+        let mut job_progress = |done: u64| progress(done * n as u64 / total);
+        let ((states, measure_list), _) = runner.slices::<Double>(
+            &job_instances,
+            &coefficients,
+            (&pipeline, variant),
+            &mut job_progress,
+            None,
+            Some(&mut groups),
+        )?;
+        drop(coefficients);
+        let first = groups.first;
+        let ran_alone = runner.outcomes::<Double>(
+            &job_instances[..first],
+            &states[..first],
+            &measure_list[..first.min(measure_list.len())],
+        );
+        let mut out: Vec<Option<GpuOutcome>> = vec![None; n];
+        for (&k, outcome) in alone.iter().zip(ran_alone) {
+            out[k] = Some(outcome);
+        }
+        self.merged_or_again(&groups.groups, &mut out)?;
+        progress(n as u64);
+        Ok(out
+            .into_iter()
+            .map(|o| o.expect("every instance has an outcome"))
+            .collect())
+    }
+
+    /// Each group's outcome into `out`: its merged estimate, or its
+    /// instance's own run (a batch of its own, replicas off), labelled
+    /// multistable where its replicas disagreed.
+    fn merged_or_again(
+        &self,
+        groups: &[GpuGroup],
+        out: &mut [Option<GpuOutcome>],
+    ) -> Result<(), GpuError> {
+        let mut again = Vec::new();
+        for g in groups {
+            match g.done {
+                Some(Done::Merged(measured, steps)) => {
+                    out[g.index] = Some(GpuOutcome {
+                        replicas: g.group.count(),
+                        ..GpuOutcome::of(&measured, steps)
+                    });
+                }
+                Some(Done::Alone { multistable, steps }) => again.push((g, multistable, steps)),
+                // A batch stopped early (tests' slice limits).
+                None => again.push((g, false, 0)),
+            }
+        }
+        if again.is_empty() {
+            return Ok(());
+        }
+        let settings = Settings {
+            replicas: Replicas::Count(1),
+            ..*self.settings
+        };
+        let runner = self.with(&settings, self.options);
+        let instances: Vec<Instance> = again.iter().map(|(g, _, _)| g.inst).collect();
+        let runs = runner.batch::<Double>(&instances, None, &mut |_| {})?;
+        for ((g, multistable, steps), mut run) in again.into_iter().zip(runs) {
+            run.steps = run.steps.saturating_add(steps);
+            // Only a finished run has a kind of motion (docs/output.md).
+            if multistable && run.status == STATUS_OK {
+                run.motion = Motion::Multistable;
+            }
+            out[g.index] = Some(run);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,320 @@
+//! Replicas (issue 39, `pidm::replicas`): one steady instance as several
+//! trajectories whose faster drive starts at other phases, merged into one
+//! estimate. `replicas = 1` is the run before replicas bit for bit; eight
+//! replicas of a quasi-periodic instance agree with a long run in a
+//! quarter of its periods; a periodic instance keeps its exact step; a
+//! replica planted on another attractor is not merged, and the instance
+//! is labelled multistable; an interrupted run resumes to the same map;
+//! the GPU's groups give the CPU's values.
+
+use std::process::{Command, Stdio};
+
+use pidm::cpu::integrate::{Replica, Replicas, STATUS_OK, Settings};
+use pidm::gpu::{BatchOptions, Precision};
+use pidm::measurement::Measured;
+use pidm::model::Instance;
+use pidm::motion::Motion;
+use pidm::replicas::{self, Group, cpu::run_group, cpu::run_replicas};
+
+use crate::common::{manifest, pidm, s};
+use crate::golden::{file_digests, golden_lines};
+use crate::gpu::{context, f32_allowance, gpu_batch};
+use crate::steady::{measure, quasi_periodic_reference, steady, step_um};
+
+/// The issue's quasi-periodic instance: 10 Hz against 10 sqrt 2 Hz at
+/// 100 V, steady to 0.01 um within 20,000 periods.
+fn quasi() -> Instance {
+    steady(10.0, 10.0 * 2f64.sqrt(), 2, 1e-8, 20_000)
+}
+
+/// `count` replicas of `inst` on the CPU.
+fn split_run(inst: &Instance, count: u32) -> (Measured, u32) {
+    let settings = Settings {
+        replicas: Replicas::Count(count),
+        ..Settings::default()
+    };
+    let split = replicas::split_of(inst, &settings, count).expect("splittable");
+    let run = run_group(inst, &settings, split, &|| false).expect("never stopped");
+    (run.measured, run.replicas)
+}
+
+/// Asserts each axis of `got` [um] within 3 of its standard errors +
+/// 0.002 um of `reference` [um].
+fn covers(name: &str, inst: &Instance, got: &Measured, reference: [f64; 2]) {
+    for (axis, b) in reference.into_iter().enumerate() {
+        let a = step_um(inst, got, axis);
+        let se = got.se[axis] * 1e6;
+        eprintln!(
+            "{name} axis {axis}: {a:+.5} +- {se:.5} um after {} periods; reference {b:+.5} um",
+            got.periods
+        );
+        assert!(
+            (a - b).abs() <= 3.0 * se + 0.002,
+            "{name} axis {axis}: {a} +- {se} um against {b} um"
+        );
+    }
+}
+
+#[test]
+fn eight_replicas_cover_a_long_run_in_a_quarter_of_its_periods() {
+    let inst = quasi();
+    let alone = measure(&inst);
+    assert_eq!(alone.motion, Motion::QuasiPeriodic, "{alone:?}");
+    let (merged, count) = split_run(&inst, 8);
+    assert_eq!(count, 8);
+    assert_eq!(merged.status, STATUS_OK, "{merged:?}");
+    assert_eq!(merged.motion, Motion::QuasiPeriodic, "{merged:?}");
+    // Each replica settles on its own: the quarter is of the periods
+    // measured.
+    let measured = |periods: u32| periods - inst.settle;
+    assert!(
+        measured(merged.periods) * 4 <= measured(alone.periods),
+        "{} periods per replica, {} alone",
+        merged.periods,
+        alone.periods
+    );
+    assert!(merged.se.iter().all(|&se| se <= 1e-8 * (1.0 + 1e-12)));
+    covers("8 replicas", &inst, &merged, quasi_periodic_reference());
+}
+
+/// 21.34 and 23.66 Hz repeat after 1067 periods: whether the split is
+/// refused up front (the recurrence within the window) or a replica finds
+/// the recurrence and the group gives up, the instance's own run gives
+/// its exact step, bit for bit the run without replicas.
+#[test]
+fn a_periodic_instance_keeps_its_exact_step() {
+    let inst = steady(21.34, 23.66, 2, 1e-8, 10_000);
+    let alone = measure(&inst);
+    assert_eq!(alone.motion, Motion::Periodic, "{alone:?}");
+    let settings = Settings {
+        replicas: Replicas::Count(4),
+        ..Settings::default()
+    };
+    let got = match replicas::split_of(&inst, &settings, 4) {
+        None => alone,
+        Some(split) => {
+            let run = run_group(&inst, &settings, split, &|| false).unwrap();
+            assert_eq!(run.replicas, 1, "{run:?}");
+            run.measured
+        }
+    };
+    assert_eq!(got, alone);
+}
+
+/// One replica planted on another attractor (its y drive at -100 V: its y
+/// steps run the other way): its own estimate disagrees with the merged
+/// one, the group is not merged, and the instance's own run is kept and
+/// labelled multistable.
+#[test]
+fn a_replica_on_another_attractor_is_not_merged() {
+    let inst = quasi();
+    let settings = Settings {
+        replicas: Replicas::Count(4),
+        ..Settings::default()
+    };
+    let split = replicas::split_of(&inst, &settings, 4).unwrap();
+    let group = Group::new(&inst, &settings, split);
+    let mut planted = group.replicas();
+    planted[2].0.axes[1].voltage = -100.0;
+    let run = run_replicas(&inst, &settings, &group, &planted, &|| false).unwrap();
+    assert_eq!(run.replicas, 1);
+    assert_eq!(run.measured.motion, Motion::Multistable);
+    assert!(
+        run.disagreement > replicas::group::DISAGREEMENT_Z,
+        "{run:?}"
+    );
+    let alone = measure(&inst);
+    assert_eq!(run.measured.travel, alone.travel);
+    assert_eq!(run.measured.se, alone.se);
+    // Unplanted, the same group merges.
+    let merged = run_replicas(&inst, &settings, &group, &group.replicas(), &|| false).unwrap();
+    assert_eq!(merged.replicas, 4);
+    assert_eq!(merged.measured.motion, Motion::QuasiPeriodic);
+    assert!(
+        merged.disagreement <= replicas::group::DISAGREEMENT_Z,
+        "{merged:?}"
+    );
+}
+
+/// `tests/golden/replicas_one.toml` with `replicas = 1` gives the digests
+/// the binary before replicas wrote, on the CPU and on the GPU in f64.
+#[test]
+fn one_replica_is_the_run_before_replicas_bit_for_bit() {
+    let golden =
+        std::fs::read_to_string(manifest("tests/golden/replicas_one_00e0549.txt")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(manifest("tests/golden/replicas_one.toml")).unwrap();
+    let scene = dir.path().join("replicas_one.toml");
+    std::fs::write(&scene, format!("{text}replicas = 1\n")).unwrap();
+    let mut runs = vec![("cpu_f64_steady", "cpu")];
+    if context().is_some() {
+        runs.push(("gpu_f64_steady", "gpu"));
+    }
+    for (label, backend) in runs {
+        let out = dir.path().join(format!("{label}.h5"));
+        let args = ["run", s(&scene), "--backend", backend, "--precision", "f64"];
+        let run = pidm(&[&args[..], &["--out", s(&out)]].concat(), dir.path());
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let file = hdf5::File::open(&out).unwrap();
+        let mut got = file_digests(&file);
+        let ones: Vec<u32> = file.dataset("maps/replicas").unwrap().read_raw().unwrap();
+        assert_eq!(ones, [1, 1], "{label}");
+        got.retain(|g| g.0 != "/maps/replicas");
+        assert_eq!(got, golden_lines(&golden, label), "{label}");
+    }
+}
+
+/// A CPU run of few instances (a chunk of one: both threads on its
+/// replicas) stopped with Ctrl-C while a group runs leaves no file, and
+/// its resume writes the uninterrupted run's map.
+#[test]
+fn an_interrupted_run_with_replicas_resumes_to_the_same_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let scene = d.join("split.toml");
+    std::fs::write(
+        &scene,
+        "name = \"split\"\n[simulation]\nmeasure = \"steady\"\nreplicas = 2\n\
+         [axis.x]\nvoltage = 100.0\nfrequency = 10.0\n\
+         [axis.y]\nvoltage = 100.0\nfrequency = { from = 13.1421356, to = 14.1421356, steps = 4 }\n",
+    )
+    .unwrap();
+    let run = |out: &std::path::Path, resume: bool| {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_pidm"));
+        command
+            .args(["run", s(&scene), "--out", s(out), "--backend", "cpu"])
+            .args(["--threads", "2", "--chunk-size", "1"])
+            .current_dir(d)
+            .env("HDF5_USE_FILE_LOCKING", "FALSE")
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        if resume {
+            command.arg("--resume");
+        }
+        command.spawn().unwrap()
+    };
+    let whole = d.join("whole.h5");
+    let done = run(&whole, false).wait_with_output().unwrap();
+    assert!(
+        done.status.success(),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    let replicas: Vec<u32> = hdf5::File::open(&whole)
+        .unwrap()
+        .dataset("maps/replicas")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    assert!(replicas.contains(&2), "{replicas:?}");
+
+    let out = d.join("split.h5");
+    let checkpoint = d.join(".split.h5.checkpoint");
+    let ended = crate::common::interrupt_after_first_chunk(run(&out, false), &checkpoint);
+    let err = String::from_utf8_lossy(&ended.stderr);
+    assert_eq!(ended.status.code(), Some(130), "the run ended first: {err}");
+    assert!(!out.exists());
+    let resumed = run(&out, true).wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&resumed.stderr);
+    assert!(resumed.status.success(), "{err}");
+    assert!(err.contains("resuming from"), "{err}");
+    pidm::output::compare_contents(&whole, &out).unwrap();
+}
+
+/// The GPU's groups against the CPU's, four replicas each: f64 merges the
+/// same windows (the same periods and kinds of motion, values within the
+/// f64 shader's rounding of the CPU's), f32 runs every instance alone
+/// (within the CPU's errors and f32's allowance).
+#[test]
+fn the_gpu_merges_replicas_as_the_cpu_does() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let instances = [
+        steady(10.0, 10.0 * 2f64.sqrt(), 2, 1e-8, 20_000),
+        steady(10.0, 10.0 * 3f64.sqrt(), 2, 3e-8, 20_000),
+        steady(21.34, 23.66, 2, 1e-8, 10_000),
+    ];
+    let settings = Settings {
+        replicas: Replicas::Count(4),
+        ..Settings::default()
+    };
+    let cpu: Vec<(Measured, u32)> = instances
+        .iter()
+        .map(|inst| match replicas::split_of(inst, &settings, 4) {
+            Some(split) => {
+                let run = run_group(inst, &settings, split, &|| false).unwrap();
+                (run.measured, run.replicas)
+            }
+            None => (measure(inst), 1),
+        })
+        .collect();
+    assert_eq!(
+        cpu.iter().map(|c| c.1).collect::<Vec<_>>(),
+        [4, 4, 1],
+        "{cpu:?}"
+    );
+    for precision in crate::gpu::precisions(ctx) {
+        let gpu = gpu_batch(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &BatchOptions::default(),
+        );
+        for (k, (inst, ((c, count), g))) in instances.iter().zip(cpu.iter().zip(&gpu)).enumerate() {
+            let name = format!("{precision} #{k}");
+            eprintln!("{name}: cpu {c:?} x {count}, gpu {g:?}");
+            for axis in 0..2 {
+                let a = inst.measure_over(axis, g.displacement[axis], g.span).1 * 1e6;
+                let b = step_um(inst, c, axis);
+                let allowed = match precision {
+                    Precision::F64 => 1e-6,
+                    Precision::F32 => 3.0 * c.se[axis] * 1e6 + f32_allowance(b),
+                };
+                assert!(
+                    (a - b).abs() <= allowed,
+                    "{name} axis {axis}: {a} um, cpu {b} um"
+                );
+            }
+            match precision {
+                Precision::F64 => assert_eq!(
+                    (g.replicas, g.periods, g.motion, g.status),
+                    (*count, c.periods, c.motion, c.status),
+                    "{name}"
+                ),
+                Precision::F32 => assert_eq!(g.replicas, 1, "{name}"),
+            }
+        }
+    }
+}
+
+/// The split follows the setting: a count of one never splits, `auto`
+/// splits only where workers are free, a window never.
+#[test]
+fn only_steady_instances_with_free_workers_split() {
+    let inst = quasi();
+    let auto = Settings {
+        replicas: Replicas::Auto,
+        ..Settings::default()
+    };
+    let one = Settings::default();
+    assert_eq!(one.replicas, Replicas::Count(1));
+    let count =
+        |settings: &Settings, workers, jobs| replicas::count(settings.replicas, workers, jobs);
+    assert_eq!(replicas::split_of(&inst, &one, count(&one, 16, 1)), None);
+    assert_eq!(count(&auto, 16, 1), replicas::MAX_AUTO);
+    assert_eq!(count(&auto, 16, 16), 1);
+    assert_eq!(count(&auto, 16, 5), 3);
+    let split: Option<Replica> = replicas::split_of(&inst, &auto, 3);
+    assert!(
+        split.is_some_and(|r| (2..=3).contains(&r.count)),
+        "{split:?}"
+    );
+    let window = crate::steady::window(&inst, 100);
+    assert_eq!(replicas::split_of(&window, &auto, 8), None);
+}
