@@ -418,13 +418,19 @@ impl Runner<'_> {
                 let again = between.after(self, &b.states, &b.measures, finished)?;
                 if !again.is_empty() {
                     // What no lane took yet, then the jobs queued again,
-                    // on every lane.
+                    // on the idle lanes right after the busy ones packed
+                    // together: scattered over every workgroup they
+                    // would fill few of a warp's slots.
                     let taken = (next as usize).min(order.len());
                     order = [&order[taken..], &again[..]].concat();
                     finished -= again.len() as u64;
-                    group = self.requeue(b, compiled, &order, 0, lanes as u32, finished);
+                    let busy = match self.options.compact {
+                        true => self.compact(b, active)?,
+                        false => active,
+                    };
+                    active = (busy + order.len()).clamp(1, lanes);
+                    group = self.requeue(b, compiled, &order, 0, active as u32, finished);
                     next = 0;
-                    active = lanes;
                 }
             }
             let unfinished = (n as u64).saturating_sub(finished);
