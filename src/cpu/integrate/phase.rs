@@ -468,18 +468,16 @@ pub fn largest_gap(g: &Gaps, length: u32) -> f64 {
 }
 
 /// How unevenly the phases of the ladder's windows that may stop a run
-/// (from [`MIN_WINDOW`] on, and of at most `common_period` periods where
-/// there is one, as [`ladder`] takes them) lie for a faster drive that
-/// advances by `rho` cycles a period: the largest of their largest gaps
-/// times their lengths (1 for evenly spaced phases; about 2 for a run of
-/// its own at a badly approximable ratio). A trapezoid over unevenly
-/// spaced phases resolves fewer features than its periods, and its error
-/// estimates miss it (`pidm::replicas`).
-pub fn spread(rho: f64, common_period: u32) -> f64 {
+/// (from [`MIN_WINDOW`] on) lie for a faster drive that advances by `rho`
+/// cycles a period: the largest of their largest gaps times their lengths
+/// (1 for evenly spaced phases; about 2 for a run of its own at a badly
+/// approximable ratio). A trapezoid over unevenly spaced phases resolves
+/// fewer features than its periods, and its error estimates miss it
+/// (`pidm::replicas`).
+pub fn spread(rho: f64) -> f64 {
     (0..LEVELS as u32)
         .map(ladder_length)
         .filter(|&length| length >= MIN_WINDOW)
-        .filter(|&length| common_period == 0 || length <= common_period)
         .map(|length| largest_gap(&gaps(rho, length), length) * length as f64)
         .fold(0.0, f64::max)
 }
