@@ -124,11 +124,10 @@ impl Between for Groups {
         for g in self.groups.iter_mut().filter(|g| g.done.is_none()) {
             let count = g.group.count() as usize;
             let own = &all[g.first - self.first..][..count];
-            // As `Group::step` reads them: a replica that failed, measured
-            // by a rule of its own (a recurrence, batch means) or ran to
-            // its `max_cycles` has ended; one that does not wait runs.
-            let ended =
-                |s: &State64| s.status != STATUS_OK || s.measured == 1 || s.period >= g.inst.cycles;
+            // As `Group::step` reads them; one that does not wait runs.
+            let ended = |s: &State64| {
+                crate::replicas::group::ended(s.status, s.measured, s.period >= g.inst.cycles)
+            };
             let running = |s: &State64| !ended(s) && s.measured == 0;
             let steps = own.iter().fold(0u32, |n, s| n.saturating_add(s.steps));
             if own.iter().any(ended) {

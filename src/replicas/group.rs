@@ -132,8 +132,10 @@ impl Group {
     /// What the group does after its members (in replica order) did what
     /// they could.
     pub fn step(&self, members: &[Member]) -> Step {
-        let ended = |m: &Member| m.status != STATUS_OK || m.measured == 1 || m.at_max;
-        if members.iter().any(ended) {
+        if members
+            .iter()
+            .any(|m| ended(m.status, m.measured, m.at_max))
+        {
             return Step::Alone { multistable: false };
         }
         if members.iter().any(|m| m.measured != 2) {
@@ -254,6 +256,14 @@ impl Group {
         debug_assert_ne!(measure.verdict, VERDICT_RUNNING);
         reduce(&self.inst, &Run { state, measure })
     }
+}
+
+/// Whether a replica with this status, `State::measured` and `at_max`
+/// (it ran to its `max_cycles`) has ended: it failed, was measured by a
+/// rule of its own (a recurrence, batch means) or ran out; the group then
+/// gives up the split.
+pub fn ended(status: u32, measured: u32, at_max: bool) -> bool {
+    status != STATUS_OK || measured == 1 || at_max
 }
 
 /// The level every member waits at, if they wait at one.
