@@ -1,9 +1,10 @@
 """pidm from Python: run scenes of the 2-DOF stick-slip piezo drive simulator and get
 their maps as xarray Datasets.
 
-The package runs the pidm binary as a child process (``$PIDM_BINARY``, else
-``pidm`` on ``PATH``; build one with ``cargo build --release``) and reads its HDF5
-result file::
+The package runs the pidm binary as a child process and reads its HDF5 result
+file. ``pip install ./python`` builds the binary and installs it with the package;
+``$PIDM_BINARY`` overrides it, and ``pidm`` on ``PATH`` serves a package installed
+without one (:func:`find_binary`). The binary must be of the package's version::
 
     import pidm
 
@@ -26,6 +27,7 @@ from ._errors import PidmError, SceneError
 from ._read import open, open_trajectory, trajectory_names
 from ._run import RunWarning, check, run
 from ._toml import dumps as scene_toml
+from ._version import package_version
 
 __all__ = [
     "BINARY_VARIABLE",
@@ -41,4 +43,4 @@ __all__ = [
     "trajectory_names",
 ]
 
-__version__ = "0.1.0"
+__version__ = package_version()

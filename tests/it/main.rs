@@ -14,6 +14,7 @@ mod extreme;
 mod files;
 mod gpu;
 mod gpu_phase;
+mod install;
 mod lanes;
 mod load;
 mod mirror;

@@ -2,7 +2,8 @@
 //! `tests/python/`, run on this build's `pidm` binary: `pidm.run` of a dict
 //! scene against the CLI's file bit for bit, dimensions, coordinates and
 //! attributes, `SceneError` and `PidmError`, progress records, Ctrl-C, the
-//! example `examples/python_map.py`, and `pip install ./python`.
+//! example `examples/python_map.py`, a binary of another version refused
+//! (`pip install ./python` itself: `install.rs`).
 //!
 //! The suite needs Python 3 with pytest, numpy, xarray, h5py and h5netcdf
 //! (`tests/requirements.txt`; tqdm and matplotlib for two of its tests).

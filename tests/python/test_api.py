@@ -2,10 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import shutil
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
@@ -14,7 +10,7 @@ import numpy as np
 import pidm
 import pytest
 import xarray as xr
-from conftest import GRID, GRID_TOML, ROOT, require
+from conftest import GRID, GRID_TOML, require
 
 
 def file_maps(path: Path) -> dict[str, np.ndarray]:
@@ -275,50 +271,16 @@ def test_failed_instances_warn_and_keep_their_status() -> None:
     assert int(ds.status) == 1
 
 
-def test_the_package_installs_with_pip(tmp_path: Path) -> None:
-    """`pip install ./python` gives an importable package (built here without
-    dependencies into a folder)."""
-    # From a copy: a build in place would leave its egg-info in the checkout.
-    source = tmp_path / "source"
-    ignore = shutil.ignore_patterns("*.egg-info", "build", "__pycache__")
-    shutil.copytree(ROOT / "python", source, ignore=ignore)
-    target = tmp_path / "site"
-    command = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--target"]
-    command += [str(target), str(source)]
-    if builds_without_isolation():
-        command.append("--no-build-isolation")
-    done = subprocess.run(command, capture_output=True, text=True, cwd=tmp_path, check=False)
-    assert done.returncode == 0, done.stderr
-    env = dict(os.environ, PYTHONPATH=str(target))
-    probe = "import pidm, sys; print(pidm.__file__); print(pidm.run.__doc__.splitlines()[0])"
-    shown = subprocess.run(
-        [sys.executable, "-c", probe],
-        capture_output=True,
-        text=True,
-        env=env,
-        cwd=tmp_path,
-        check=False,
-    )
-    assert shown.returncode == 0, shown.stderr
-    assert str(target) in shown.stdout
-    assert (target / "pidm" / "py.typed").exists()
-
-
-def builds_without_isolation() -> bool:
-    """Whether setuptools here builds wheels (70.1 and newer, or with `wheel`),
-    so pip need not fetch a build environment."""
-    try:
-        import setuptools
-    except ImportError:
-        return False
-    try:
-        import wheel  # noqa: F401
-
-        return True
-    except ImportError:
-        pass
-    version = tuple(int(p) for p in setuptools.__version__.split(".")[:2] if p.isdigit())
-    return version >= (70, 1)
+def test_a_binary_of_another_version_is_refused(tmp_path: Path, monkeypatch) -> None:
+    """A pidm binary whose --version is not the package's is refused, naming both."""
+    fake = tmp_path / "pidm"
+    fake.write_text("#!/bin/sh\necho 'pidm 9.9.9'\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("PIDM_BINARY", str(fake))
+    with pytest.raises(pidm.PidmError) as refused:
+        pidm.run({"name": "v"}, backend="cpu", progress=False)
+    said = str(refused.value)
+    assert "9.9.9" in said and pidm.__version__ in said, said
 
 
 def test_a_refined_map_reads_like_a_uniform_one_with_its_inferred_mask(tmp_path: Path) -> None:
