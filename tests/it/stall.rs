@@ -369,6 +369,12 @@ fn the_shipped_load_scenes_hold_the_reference_and_draw() {
         .unwrap()
         .read_raw()
         .unwrap();
+    // At least four samples a period of the step's swing with the duty
+    // (about 0.006, sweeps/stall.toml), so its bands are not aliased.
+    assert!(
+        duty.windows(2).all(|w| w[1] - w[0] <= 0.006 / 4.0),
+        "{duty:?}"
+    );
     let (i, j) = (
         volts.iter().position(|&v| v == 100.0).unwrap(),
         duty.iter().position(|&v| (v - 0.98).abs() < 1e-12).unwrap(),
