@@ -3,7 +3,8 @@
 //! scene against the CLI's file bit for bit, dimensions, coordinates and
 //! attributes, `SceneError` and `PidmError`, progress records, Ctrl-C, the
 //! example `examples/python_map.py`, a binary of another version refused
-//! (`pip install ./python` itself: `install.rs`).
+//! (`pip install ./python` itself: `install.rs`); and the notebook
+//! `examples/first_map.ipynb`, executed cell by cell.
 //!
 //! The suite needs Python 3 with pytest, numpy, xarray, h5py and h5netcdf
 //! (`tests/requirements.txt`; tqdm and matplotlib for two of its tests).
@@ -72,4 +73,45 @@ fn the_python_package_passes_its_pytest_suite() {
     if summary.contains("skipped") {
         cannot_run(&format!("some Python API tests were skipped: {summary}"));
     }
+}
+
+/// `examples/first_map.ipynb` executes top to bottom (nbclient, a python3
+/// kernel) on this build's binary, every cell without an error.
+#[test]
+fn the_first_map_notebook_runs() {
+    let root = env!("CARGO_MANIFEST_DIR");
+    let modules = "import nbclient, nbformat, ipykernel, matplotlib, tqdm, xarray, h5py";
+    let ready = Command::new("python3")
+        .args(["-c", modules])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !ready {
+        return cannot_run(
+            "python3 with nbclient, nbformat, ipykernel, matplotlib and tqdm is not \
+             available (pip install -r tests/requirements.txt)",
+        );
+    }
+    let run = "import sys, nbformat\n\
+               from nbclient import NotebookClient\n\
+               nb = nbformat.read(sys.argv[1], as_version=4)\n\
+               NotebookClient(nb, timeout=120, kernel_name='python3').execute()\n\
+               print(sum(c.cell_type == 'code' for c in nb.cells), 'code cells ran')\n";
+    let out = Command::new("python3")
+        .args(["-c", run, "examples/first_map.ipynb"])
+        .env("PIDM_BINARY", env!("CARGO_BIN_EXE_pidm"))
+        .env("PYTHONPATH", format!("{root}/python"))
+        .env("PYTHONDONTWRITEBYTECODE", "1")
+        .env("MPLBACKEND", "Agg")
+        .current_dir(root)
+        .output()
+        .expect("python3 runs");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "the notebook failed ({}):\n{stdout}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("7 code cells ran"), "{stdout}");
 }
