@@ -7,6 +7,7 @@
 
 pub mod double;
 pub mod karnopp;
+pub mod lugre;
 pub mod settings;
 pub mod single;
 pub mod units;
