@@ -1,4 +1,4 @@
-//! The LuGre prototype integrator (`pidm::cpu::lugre`, ROS2) against
+//! The LuGre integrator (`pidm::cpu::lugre`, Rodas4) against
 //! MODEL.md section 8's converged window steps, as the tolerance falls:
 //! the error [um], the steps and the run time of each, for the 1-DOF case
 //! (100 V, 10 Hz; +1.285861 um) and the 2-DOF 100 / 50 V case (+0.765918 /
