@@ -26,15 +26,10 @@
 //! drive is linear in time.
 //!
 //! **Where it stands** (`cargo run --release --example lugre_convergence`,
-//! one core): against MODEL.md's converged window steps, within 0.00011 um
-//! at a tolerance of 1e-10 m and 2e-6 um from 1e-12 m on, on the 1-DOF
-//! case and on 100 / 50 V (whose y step stays half of x). The cost is
-//! about 6 s per second of motion whatever the tolerance: 1.2-1.6 million
-//! steps, most of them while the slider sticks, where v_rel hovers about 0
-//! and |v_rel|'s kink rejects steps (measured before the no-growth-after-a-
-//! rejection rule: 3.3 rejected per accepted step). A second-order ROS2 with the same
-//! model needed 6.8 million steps for 0.0004 um. Making the sticking
-//! phases cheap is the next step of issue 40, before scenes use it.
+//! one core): against MODEL.md's converged window steps (1 s of motion),
+//! within 0.0005 um at a tolerance of 1e-10 m (about 5,000 steps, 0.01
+//! s), 0.00005 um at 1e-11 m and 4e-6 um at 1e-12 m (17,000 steps, 0.03
+//! s), on the 1-DOF case and on 100 / 50 V (whose y step stays half of x).
 
 use crate::model::{AXES, Instance};
 
@@ -445,9 +440,14 @@ impl Lu {
         Lu { a, pivot }
     }
 
+    /// Solves A x = b. The factorisation swapped whole rows, multipliers
+    /// included (as LAPACK's getrf), so every swap applies to `b` before
+    /// the forward substitution, not between its columns.
     fn solve(&self, mut b: State) -> State {
         for k in 0..N {
             b.swap(k, self.pivot[k]);
+        }
+        for k in 0..N {
             for i in k + 1..N {
                 b[i] -= self.a[i][k] * b[k];
             }
