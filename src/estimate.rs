@@ -108,6 +108,7 @@ pub fn workload(scene: &Scene) -> Workload {
     Workload {
         integrations,
         stall: scene.stall.is_some(),
+        lugre: scene.is_lugre(),
         candidates,
         settings: scene.settings,
     }

@@ -42,7 +42,8 @@ pub struct Mechanism {
     pub static_friction: f64,
     /// Coulomb (sliding) friction f_c [N].
     pub coulomb_friction: f64,
-    /// Karnopp detection band a on the relative speed [m/s].
+    /// Karnopp detection band a on the relative speed [m/s] (Karnopp
+    /// friction only: LuGre has no modes, and its scenes refuse the key).
     pub velocity_band: f64,
     /// Constant external force on the slider, (L_x, L_y) [N] (MODEL.md
     /// section 7: a weight, a cable, a preloaded spring). Default 0, which
@@ -50,9 +51,82 @@ pub struct Mechanism {
     /// |L| >= f_c (a slider slipping along such a load is not stopped by
     /// kinetic friction and may run away).
     pub load: [f64; AXES],
+    /// The friction law at the interface (`mechanism.friction`).
+    pub friction: Friction,
+}
+
+/// The friction law at the interface (`mechanism.friction`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Friction {
+    /// Coulomb friction with stiction in Karnopp's form, two modes (MODEL.md
+    /// section 3): the default, integrated in closed form.
+    #[default]
+    Karnopp,
+    /// The 2-D LuGre model (MODEL.md section 8): bristles with a state of
+    /// their own, no modes, a stiff right-hand side.
+    Lugre(Lugre),
+}
+
+/// The LuGre parameters of MODEL.md section 8. The defaults are
+/// illustrative, not identified for any device.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lugre {
+    /// sigma0, the bristles' stiffness [N/m]: 1e7 by default, a presliding
+    /// deflection f_s / sigma0 of 0.12 um at breakaway on Table 1.
+    pub bristle_stiffness: f64,
+    /// sigma1, the bristles' damping [N s/m]; `None` (the default):
+    /// sqrt(sigma0 m_s), a damping ratio of 0.5 of the slider on its
+    /// bristles, from the instance's own sigma0 and m_s.
+    pub bristle_damping: Option<f64>,
+    /// sigma2, viscous friction [N s/m]: 0 by default.
+    pub viscous_friction: f64,
+    /// v_S, the Stribeck velocity [m/s]: 1e-3 by default.
+    pub stribeck_velocity: f64,
+}
+
+impl Lugre {
+    /// MODEL.md section 8's defaults.
+    pub const DEFAULT: Lugre = Lugre {
+        bristle_stiffness: 1e7,
+        bristle_damping: None,
+        viscous_friction: 0.0,
+        stribeck_velocity: 1e-3,
+    };
+
+    /// sigma1 [N s/m] for a slider of `slider_mass` [kg]: the given value,
+    /// or sqrt(sigma0 m_s).
+    pub fn damping(&self, slider_mass: f64) -> f64 {
+        self.bristle_damping
+            .unwrap_or((self.bristle_stiffness * slider_mass).sqrt())
+    }
+
+    /// The parameters, named by their scene keys, in storage order;
+    /// `bristle_damping` is NaN where it is derived.
+    pub fn parameters(&self) -> [(&'static str, f64); 4] {
+        [
+            ("bristle_stiffness", self.bristle_stiffness),
+            ("bristle_damping", self.bristle_damping.unwrap_or(f64::NAN)),
+            ("viscous_friction", self.viscous_friction),
+            ("stribeck_velocity", self.stribeck_velocity),
+        ]
+    }
+}
+
+impl Default for Lugre {
+    fn default() -> Lugre {
+        Lugre::DEFAULT
+    }
 }
 
 impl Mechanism {
+    /// The LuGre parameters, if the interface is LuGre's.
+    pub fn lugre(&self) -> Option<&Lugre> {
+        match &self.friction {
+            Friction::Lugre(lugre) => Some(lugre),
+            Friction::Karnopp => None,
+        }
+    }
+
     /// The largest friction force the interface holds without slipping
     /// [N]: max(f_s, f_c). It is f_s whenever f_c <= f_s (every physical
     /// interface). With f_c > f_s, MODEL.md's rules chatter: a breakaway
@@ -70,7 +144,7 @@ impl Mechanism {
 }
 
 /// The bits of every parameter of an [`Instance`] ([`Instance::key`]).
-pub type InstanceKey = [u64; 26];
+pub type InstanceKey = [u64; 31];
 
 /// How an instance's step is measured (MODEL.md section 4).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -240,6 +314,7 @@ impl Mechanism {
         coulomb_friction: 1.0,
         velocity_band: 1.0e-6,
         load: [0.0; AXES],
+        friction: Friction::Karnopp,
     };
 }
 
@@ -294,7 +369,7 @@ impl Instance {
     /// The instance's exact identity: every parameter's bits. Two instances
     /// with the same key integrate to the same result on any backend.
     pub fn key(&self) -> InstanceKey {
-        let mut key = [0; 26];
+        let mut key = [0; 31];
         key[..6].copy_from_slice(&self.mechanism.parameters().map(|(_, v)| v.to_bits()));
         key[6..8].copy_from_slice(&[self.cycles as u64, self.settle as u64]);
         for (i, a) in self.axes.iter().enumerate() {
@@ -302,6 +377,10 @@ impl Instance {
         }
         key[24] = matches!(self.measure, Measure::Steady { .. }) as u64;
         key[25] = self.measure.step_tolerance().to_bits();
+        if let Some(lugre) = self.mechanism.lugre() {
+            key[26] = 1;
+            key[27..].copy_from_slice(&lugre.parameters().map(|(_, v)| v.to_bits()));
+        }
         key
     }
 

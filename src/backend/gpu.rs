@@ -9,6 +9,11 @@ use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, Parts, run_batch_packed};
 use crate::measurement::Outcome;
 use crate::model::Instance;
 
+/// Why a LuGre instance does not run on the GPU (issue 40's shader is not
+/// written yet).
+pub const NO_LUGRE_SHADER: &str = "the GPU has no LuGre shader yet: LuGre scenes (mechanism.friction \
+     = \"lugre\", MODEL.md section 8) run on the CPU in f64; use --backend cpu or auto";
+
 /// The WGSL shader on one adapter at one precision.
 pub struct GpuBackend {
     ctx: GpuContext,
@@ -135,6 +140,9 @@ impl Backend for GpuBackend {
         staged: Staged,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
+        if instances.iter().any(|i| i.mechanism.lugre().is_some()) {
+            bail!("{NO_LUGRE_SHADER}");
+        }
         let mut reported = 0;
         let outcomes = run_batch_packed(
             &self.ctx,

@@ -1,9 +1,10 @@
 //! From the command line's choice to a backend, said in one line on
 //! stderr.
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, anyhow, bail};
 
 use super::cost::{self, Estimate, Plan};
+use super::gpu::NO_LUGRE_SHADER;
 use super::{Backend, CpuBackend, GpuBackend, Precision, cost_book};
 use crate::cpu::integrate::Settings;
 use crate::gpu::{GpuContext, Parts};
@@ -71,6 +72,9 @@ pub struct Workload {
     pub settings: Settings,
     /// Whether the run searches stall loads (its probes carry a load).
     pub stall: bool,
+    /// Whether the scene's friction is LuGre's, which only the CPU runs,
+    /// in f64.
+    pub lugre: bool,
 }
 
 impl Workload {
@@ -162,6 +166,22 @@ pub fn select_backend(
     let cpu = |threads: Option<usize>| -> Result<Selected> {
         finish(Box::new(CpuBackend::new(threads)?), None)
     };
+    if work.lugre {
+        if precision == Some(Precision::F32) {
+            bail!(
+                "--precision f32: LuGre friction (mechanism.friction = \"lugre\") runs in f64 \
+                 only, on the CPU; leave --precision out or give f64"
+            );
+        }
+        return match choice {
+            BackendChoice::Gpu => Err(anyhow!("--backend gpu: {NO_LUGRE_SHADER}")),
+            BackendChoice::Cpu => cpu(threads),
+            BackendChoice::Auto => {
+                eprintln!("pidm: LuGre friction runs on the CPU path in f64 (no shader yet)");
+                cpu(threads)
+            }
+        };
+    }
     match choice {
         BackendChoice::Cpu => finish(
             Box::new(CpuBackend::with_precision(

@@ -59,7 +59,7 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         );
     }
     eprintln!(
-        "pidm: scene {:?}: {} {}{} on {}, {}, tolerance {:e} rad",
+        "pidm: scene {:?}: {} {}{} on {}, {}, {}",
         scene.name,
         scene.instance_count(),
         plural(scene.instance_count(), "instance", "instances"),
@@ -70,7 +70,7 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         },
         backend.describe(),
         backend.precision(),
-        scene.settings.tolerance
+        scene.tolerance_text()
     );
     if let Some(shard) = opts.scope.shard {
         eprintln!(
@@ -126,6 +126,7 @@ fn workload(scene: &Scene, scope: RunScope) -> Workload {
         return Workload {
             integrations: count,
             stall: scene.stall.is_some(),
+            lugre: scene.is_lugre(),
             candidates,
             settings: scene.settings,
         };
@@ -135,6 +136,7 @@ fn workload(scene: &Scene, scope: RunScope) -> Workload {
     Workload {
         integrations: candidates.len() as u64,
         stall: scene.stall.is_some(),
+        lugre: scene.is_lugre(),
         candidates,
         settings: scene.settings,
     }

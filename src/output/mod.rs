@@ -112,6 +112,11 @@ pub struct FileInfo {
     /// Which integrator variant ran (for example "2-DOF" or "1-DOF").
     pub variant: String,
     pub tolerance: f64,
+    /// The friction law, "karnopp" or "lugre" (`mechanism.friction`), and
+    /// LuGre's parameters as instance 0 has them (grid axes and points may
+    /// vary them; their coordinates then say so).
+    pub friction: String,
+    pub friction_parameters: Option<String>,
     /// The tolerance of the `--verify` reruns, when the run was verified.
     pub verify_tolerance: Option<f64>,
     /// Set for a shard file: which part of the scene it holds.

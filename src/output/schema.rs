@@ -248,6 +248,11 @@ pub const BACKEND: &str = "backend";
 pub const PRECISION: &str = "precision";
 pub const VARIANT: &str = "variant";
 pub const TOLERANCE: &str = "tolerance";
+/// Root attributes: the friction law ("karnopp" or "lugre", MODEL.md
+/// sections 3 and 8) and, under LuGre, its parameters with units as
+/// instance 0 has them.
+pub const FRICTION: &str = "friction";
+pub const FRICTION_PARAMETERS: &str = "friction_parameters";
 pub const VERIFY_TOLERANCE: &str = "verify_tolerance";
 pub const WALL_TIME_S: &str = "wall_time_s";
 /// Root attribute: the wall time of each part of the run [s]: the runs of

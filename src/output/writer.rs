@@ -108,6 +108,10 @@ impl MapWriter {
         write_str_attr(&file, schema::PRECISION, &info.precision)?;
         write_str_attr(&file, schema::VARIANT, &info.variant)?;
         write_f64_attr(&file, schema::TOLERANCE, info.tolerance)?;
+        write_str_attr(&file, schema::FRICTION, &info.friction)?;
+        if let Some(parameters) = &info.friction_parameters {
+            write_str_attr(&file, schema::FRICTION_PARAMETERS, parameters)?;
+        }
         if let Some(tolerance) = info.verify_tolerance {
             write_f64_attr(&file, schema::VERIFY_TOLERANCE, tolerance)?;
         }

@@ -53,6 +53,7 @@ pub const MAX_AUTO: u32 = 8;
 /// the recurrence test finds early is not split: nothing would be gained.
 pub fn splittable(inst: &Instance, settings: &Settings) -> bool {
     matches!(inst.measure, Measure::Steady { .. })
+        && inst.mechanism.lugre().is_none()
         && Coefficients::of(inst, settings).phase_levels != 0
 }
 

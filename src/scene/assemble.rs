@@ -81,9 +81,13 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     grid.sort_by_key(|(_, entry)| entry.span.start);
 
     let mode = parsed.measure.unwrap_or_default();
+    let friction = parsed
+        .friction
+        .as_ref()
+        .map_or_else(Default::default, |(law, _)| *law);
     let ties: [Option<usize>; SLOTS] =
         std::array::from_fn(|slot| base.ties[slot].as_ref().map(|tie| tie.target));
-    let plan = Plan::build(&given, &ties, mode);
+    let plan = Plan::build(&given, &ties, mode, friction);
     // Locates an error by the first culprit found, layer by layer (the
     // point first).
     let locate_slot = |culprits: Culprits, layers: &[&Layer]| {
@@ -122,6 +126,10 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
             (parsed.points.is_some(), "[[points]]"),
             (parsed.refine.is_some(), "[refine]"),
             (parsed.stall.is_some(), "[stall]"),
+            (
+                parsed.friction.is_some(),
+                "mechanism.friction (its instances are Karnopp's)",
+            ),
         ];
         random_points(
             &parser,
@@ -188,7 +196,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
                     *tie = None;
                 }
             }
-            let point_plan = Plan::build(&point_given, &point_ties, mode);
+            let point_plan = Plan::build(&point_given, &point_ties, mode, friction);
             let instance = point_plan.resolve(&point_raw);
             check_instance(&instance, &point_plan).map_err(|(message, slot)| {
                 SceneError::Invalid {
@@ -318,7 +326,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
 fn random_points(
     parser: &Parser,
     spec: &super::parser::RandomSpec,
-    beside: [(bool, &str); 3],
+    beside: [(bool, &str); 4],
     measure: Option<super::keys::Mode>,
     base: &Layer,
     (plan, raw): (&Plan, &[f64; SLOTS]),

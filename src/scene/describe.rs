@@ -91,8 +91,8 @@ impl Scene {
         }
         let _ = writeln!(
             out,
-            "integrator: tolerance {} rad, at most {} steps per period",
-            fmt_short(self.settings.tolerance),
+            "integrator: {}, at most {} steps per period",
+            self.tolerance_text(),
             self.settings.max_steps_per_period
         );
         if self.plan.mode == super::keys::Mode::Steady {
@@ -130,13 +130,17 @@ impl Scene {
                     fmt_short(m.load[1])
                 )
             };
+            // Karnopp's band, or LuGre's parameters (MODEL.md section 8).
+            let law = match m.lugre() {
+                None => format!("velocity_band {} m/s", fmt_short(m.velocity_band)),
+                Some(l) => format!("friction lugre: {}", lugre_parameters(l, m.slider_mass)),
+            };
             let _ = writeln!(
                 out,
-                "  mechanism: slider_mass {} kg, static_friction {} N, coulomb_friction {} N, velocity_band {} m/s{load}",
+                "  mechanism: slider_mass {} kg, static_friction {} N, coulomb_friction {} N, {law}{load}",
                 fmt_short(m.slider_mass),
                 fmt_short(m.static_friction),
                 fmt_short(m.coulomb_friction),
-                fmt_short(m.velocity_band)
             );
             for (axis, name) in first.axes.iter().zip(AXIS_NAMES) {
                 let _ = writeln!(
@@ -219,5 +223,23 @@ pub(super) fn describe_values(values: &[f64], units: &str) -> String {
         "{n} values from {}{unit} to {}{unit} ({spacing})",
         fmt_short(first),
         fmt_short(last)
+    )
+}
+
+/// LuGre's parameters with units, for a slider of `slider_mass` [kg]: the
+/// damping's value, and whether it was derived.
+pub(crate) fn lugre_parameters(l: &crate::model::Lugre, slider_mass: f64) -> String {
+    format!(
+        "bristle_stiffness {} N/m, bristle_damping {} N s/m{}, viscous_friction {} N s/m, \
+         stribeck_velocity {} m/s",
+        fmt_short(l.bristle_stiffness),
+        fmt_short(l.damping(slider_mass)),
+        if l.bristle_damping.is_none() {
+            " (derived: sqrt(bristle_stiffness slider_mass))"
+        } else {
+            ""
+        },
+        fmt_short(l.viscous_friction),
+        fmt_short(l.stribeck_velocity)
     )
 }

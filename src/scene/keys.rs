@@ -16,6 +16,10 @@ pub(super) enum Field {
     VelocityBand,
     LoadX,
     LoadY,
+    BristleStiffness,
+    BristleDamping,
+    ViscousFriction,
+    StribeckVelocity,
     StageMass,
     Stiffness,
     Damping,
@@ -45,6 +49,10 @@ impl Field {
             Field::VelocityBand => "velocity_band",
             Field::LoadX => "load_x",
             Field::LoadY => "load_y",
+            Field::BristleStiffness => "bristle_stiffness",
+            Field::BristleDamping => "bristle_damping",
+            Field::ViscousFriction => "viscous_friction",
+            Field::StribeckVelocity => "stribeck_velocity",
             Field::StageMass => "stage_mass",
             Field::Stiffness => "stiffness",
             Field::Damping => "damping",
@@ -70,9 +78,9 @@ impl Field {
         match self {
             Field::SliderMass | Field::StageMass => "kg",
             Field::StaticFriction | Field::CoulombFriction | Field::LoadX | Field::LoadY => "N",
-            Field::VelocityBand => "m/s",
-            Field::Stiffness => "N/m",
-            Field::Damping => "N s/m",
+            Field::VelocityBand | Field::StribeckVelocity => "m/s",
+            Field::Stiffness | Field::BristleStiffness => "N/m",
+            Field::Damping | Field::BristleDamping | Field::ViscousFriction => "N s/m",
             Field::ResonanceHz | Field::Frequency => "Hz",
             Field::QualityFactor
             | Field::Duty
@@ -83,6 +91,20 @@ impl Field {
             Field::Phase | Field::Cycles | Field::Settle | Field::MaxCycles => "cycles",
             Field::Tolerance => "rad",
             Field::StepTolerance => "m",
+        }
+    }
+
+    /// The one friction law the key applies to, if it applies to one only:
+    /// `velocity_band` to Karnopp's, the bristle keys to LuGre's. A scene
+    /// with the other law refuses the key.
+    pub(super) fn friction(self) -> Option<FrictionLaw> {
+        match self {
+            Field::VelocityBand => Some(FrictionLaw::Karnopp),
+            Field::BristleStiffness
+            | Field::BristleDamping
+            | Field::ViscousFriction
+            | Field::StribeckVelocity => Some(FrictionLaw::Lugre),
+            _ => None,
         }
     }
 
@@ -147,14 +169,50 @@ impl Mode {
     }
 }
 
+/// `mechanism.friction`: the friction law, one for the whole scene
+/// (MODEL.md sections 3 and 8).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(super) enum FrictionLaw {
+    /// Coulomb friction with stiction in Karnopp's form (the default).
+    #[default]
+    Karnopp,
+    /// The 2-D LuGre model.
+    Lugre,
+}
+
+impl FrictionLaw {
+    /// Every law, in the order messages list them.
+    pub(super) const ALL: [FrictionLaw; 2] = [FrictionLaw::Karnopp, FrictionLaw::Lugre];
+
+    /// The law's value of `mechanism.friction`.
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            FrictionLaw::Karnopp => "karnopp",
+            FrictionLaw::Lugre => "lugre",
+        }
+    }
+
+    /// The law a value of `mechanism.friction` names.
+    pub(super) fn from_name(name: &str) -> Option<FrictionLaw> {
+        FrictionLaw::ALL.into_iter().find(|law| law.name() == name)
+    }
+}
+
+/// `[mechanism]`'s string key: the friction law, scene-wide.
+pub(super) const FRICTION_KEY: &str = "friction";
+
 /// The keys of `[mechanism]`, in slot order.
-pub(super) const MECHANISM_FIELDS: [Field; 6] = [
+pub(super) const MECHANISM_FIELDS: [Field; 10] = [
     Field::SliderMass,
     Field::StaticFriction,
     Field::CoulombFriction,
     Field::VelocityBand,
     Field::LoadX,
     Field::LoadY,
+    Field::BristleStiffness,
+    Field::BristleDamping,
+    Field::ViscousFriction,
+    Field::StribeckVelocity,
 ];
 
 /// The raw slot (and index in [`MECHANISM_FIELDS`]) of

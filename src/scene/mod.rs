@@ -229,6 +229,27 @@ impl Scene {
         self.shape().iter().map(|&n| n as u64).product()
     }
 
+    /// `simulation.tolerance` and what it means for the scene's friction
+    /// law: Karnopp's direction error [rad], or LuGre's local error per
+    /// step (`cpu::lugre::LENGTH_PER_TOLERANCE`).
+    pub fn tolerance_text(&self) -> String {
+        let tolerance = self.settings.tolerance;
+        if self.is_lugre() {
+            format!(
+                "tolerance {tolerance:e} (LuGre: {:e} m local error per step)",
+                tolerance * crate::cpu::lugre::LENGTH_PER_TOLERANCE
+            )
+        } else {
+            format!("tolerance {tolerance:e} rad")
+        }
+    }
+
+    /// Whether the scene's friction is LuGre's (`mechanism.friction`,
+    /// scene-wide, so instance 0 says it).
+    pub fn is_lugre(&self) -> bool {
+        self.instance_count() > 0 && self.instance(0).mechanism.lugre().is_some()
+    }
+
     /// Instance `index`, row-major over the grid axes (the last fastest), or
     /// point `index`. Cheap: no allocation.
     pub fn instance(&self, index: u64) -> Instance {
@@ -299,6 +320,13 @@ impl Scene {
             precision,
             variant,
             tolerance: self.settings.tolerance,
+            friction: if self.is_lugre() { "lugre" } else { "karnopp" }.to_owned(),
+            friction_parameters: (self.instance_count() > 0)
+                .then(|| self.instance(0).mechanism)
+                .and_then(|m| {
+                    m.lugre()
+                        .map(|l| describe::lugre_parameters(l, m.slider_mass))
+                }),
             verify_tolerance: None,
             shard: None,
             stall: self.stall.map(|stall| stall.axis),

@@ -12,10 +12,10 @@ use toml::de::{DeTable, DeValue};
 use super::error::{Location, SceneError};
 use super::format::{fmt_num, fmt_short};
 use super::keys::{
-    AXIS_FIELDS, DAMPING, Field, MAX_REPLICAS, MEASURE_KEY, MECHANISM_FIELDS, Mode, OUTPUT_KEYS,
-    PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, REPLICAS_KEY, RESONANCE, ROOT_KEYS, SAME_AS_KEY,
-    SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot,
-    slot_field, slot_path,
+    AXIS_FIELDS, DAMPING, FRICTION_KEY, Field, FrictionLaw, MAX_REPLICAS, MEASURE_KEY,
+    MECHANISM_FIELDS, Mode, OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, REPLICAS_KEY,
+    RESONANCE, ROOT_KEYS, SAME_AS_KEY, SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS,
+    STAGE_MASS, STIFFNESS, axis_slot, slot_field, slot_path,
 };
 use super::layer::{Layer, PointSpec, Tie};
 use super::name::check_name;
@@ -37,6 +37,9 @@ pub(super) struct Parsed {
     pub(super) base: Layer,
     /// `simulation.measure`, when given (the default is [`Mode::Steady`]).
     pub(super) measure: Option<Mode>,
+    /// `mechanism.friction`, when given (the default is Karnopp's), and
+    /// where.
+    pub(super) friction: Option<(FrictionLaw, Range<usize>)>,
     /// `simulation.replicas`, when given (the default is
     /// `Replicas::Auto`), and where.
     pub(super) replicas: Option<(Replicas, Range<usize>)>,
@@ -207,14 +210,9 @@ impl Parser<'_> {
                     }
                     parsed.whole_cycles = true;
                 }
-                "mechanism" => self.group(
-                    value,
-                    "mechanism",
-                    &MECHANISM_FIELDS,
-                    0,
-                    &mut parsed.base,
-                    Context::Base,
-                )?,
+                "mechanism" => {
+                    self.mechanism(value, &mut parsed.base, Context::Base, &mut parsed.friction)?
+                }
                 "axis" => self.axes(value, &mut parsed.base, Context::Base)?,
                 "simulation" => self.simulation(
                     value,
@@ -245,6 +243,12 @@ impl Parser<'_> {
         }
         let mode = parsed.measure.unwrap_or_default();
         self.check_mode_keys(&parsed.base, mode, parsed.measure.is_none())?;
+        let law = parsed.friction.as_ref().map(|(law, _)| *law);
+        self.check_friction_keys(&parsed.base, law)?;
+        for (index, point) in parsed.points.iter().flatten().enumerate() {
+            self.check_friction_keys(&point.layer, law)
+                .map_err(|e| e.in_point(index, &point.label))?;
+        }
         if let Some((_, span)) = &parsed.replicas
             && mode == Mode::Window
         {
@@ -358,6 +362,105 @@ impl Parser<'_> {
                 mode.instead()
             ),
         ))
+    }
+
+    /// Refuses a key of `layer` that applies to the other friction law
+    /// than the scene's (`law`, `None` where Karnopp's is the default):
+    /// `velocity_band` under LuGre, the bristle keys under Karnopp. Never
+    /// silently ignored.
+    pub(super) fn check_friction_keys(
+        &self,
+        layer: &Layer,
+        law: Option<FrictionLaw>,
+    ) -> Result<(), SceneError> {
+        let scene_law = law.unwrap_or_default();
+        let mut given: Vec<(usize, &Entry)> = layer
+            .entries
+            .iter()
+            .enumerate()
+            .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e)))
+            .filter(|&(slot, _)| slot_field(slot).friction().is_some_and(|l| l != scene_law))
+            .collect();
+        given.sort_by_key(|(_, entry)| entry.span.start);
+        let Some(&(slot, entry)) = given.first() else {
+            return Ok(());
+        };
+        let (why, todo) = match scene_law {
+            FrictionLaw::Karnopp => (
+                "the bristle keys belong to the LuGre model (MODEL.md section 8)",
+                if law.is_none() {
+                    "This scene uses Karnopp friction (the default, as no mechanism.friction is                      given): set mechanism.friction = \"lugre\", or remove the key"
+                } else {
+                    "This scene sets friction = \"karnopp\": set it to \"lugre\", or remove                      the key"
+                },
+            ),
+            FrictionLaw::Lugre => (
+                "the velocity band is Karnopp's stick detection, and LuGre has no modes                  (MODEL.md section 8)",
+                "This scene sets friction = \"lugre\": remove the key, or set friction = \
+                 \"karnopp\"",
+            ),
+        };
+        Err(self.invalid(
+            entry.span.clone(),
+            format!(
+                "{} applies to mechanism.friction = {:?} only; {why}. {todo}",
+                slot_path(slot),
+                slot_field(slot)
+                    .friction()
+                    .expect("filtered on a law")
+                    .name(),
+            ),
+        ))
+    }
+
+    /// `[mechanism]`: its numeric keys and `friction`, which only the base
+    /// may set.
+    pub(super) fn mechanism(
+        &self,
+        value: &Value<'_>,
+        layer: &mut Layer,
+        context: Context,
+        friction: &mut Option<(FrictionLaw, Range<usize>)>,
+    ) -> Result<(), SceneError> {
+        let table = self.table("mechanism", "expected a table", value)?;
+        let names: Vec<&str> = MECHANISM_FIELDS
+            .iter()
+            .map(|f| f.name())
+            .chain([FRICTION_KEY])
+            .collect();
+        for (key, value) in table.iter() {
+            if key.get_ref().as_ref() != FRICTION_KEY {
+                self.field(
+                    key,
+                    value,
+                    "mechanism",
+                    &MECHANISM_FIELDS,
+                    &names,
+                    0,
+                    layer,
+                    context,
+                )?;
+                continue;
+            }
+            if context == Context::Point {
+                return Err(self.invalid(
+                    key.span(),
+                    "mechanism.friction cannot be set per point: it applies to the whole scene                      (set it in the base [mechanism])",
+                ));
+            }
+            let expected = "expected \"karnopp\" (the default, MODEL.md section 3) or \"lugre\"                             (MODEL.md section 8)";
+            let DeValue::String(name) = value.get_ref() else {
+                return Err(self.wrong_type("mechanism.friction", expected, value));
+            };
+            let Some(law) = FrictionLaw::from_name(name) else {
+                return Err(self.invalid(
+                    value.span(),
+                    format!("mechanism.friction = {:?}: {expected}", name.as_ref()),
+                ));
+            };
+            *friction = Some((law, value.span()));
+        }
+        Ok(())
     }
 
     /// `[axis]`: the tables `x` and `y`.
@@ -625,14 +728,7 @@ impl Parser<'_> {
         for (key, value) in table.iter() {
             match key.get_ref().as_ref() {
                 "label" => {}
-                "mechanism" => self.group(
-                    value,
-                    "mechanism",
-                    &MECHANISM_FIELDS,
-                    0,
-                    &mut layer,
-                    Context::Point,
-                )?,
+                "mechanism" => self.mechanism(value, &mut layer, Context::Point, &mut None)?,
                 "axis" => self.axes(value, &mut layer, Context::Point)?,
                 "simulation" => {
                     self.simulation(value, &mut layer, Context::Point, (&mut None, &mut None))?

@@ -5,12 +5,13 @@
 
 use super::format::{fmt_num, fmt_short};
 use super::keys::{
-    AXIS_FIELDS, COULOMB_SLOT, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, Field, GAIN,
-    LOAD_SLOTS, MAX_CYCLES_SLOT, Mode, PHASE, QUALITY, RESONANCE, SETTLE_SLOT, SLOTS, STAGE_MASS,
-    STEP_TOLERANCE_SLOT, STIFFNESS, TIEABLE, VOLTAGE, axis_slot, slot_path,
+    AXIS_FIELDS, COULOMB_SLOT, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, Field,
+    FrictionLaw, GAIN, LOAD_SLOTS, MAX_CYCLES_SLOT, MECHANISM_FIELDS, Mode, PHASE, QUALITY,
+    RESONANCE, SETTLE_SLOT, SLOTS, STAGE_MASS, STEP_TOLERANCE_SLOT, STIFFNESS, TIEABLE, VOLTAGE,
+    axis_slot, slot_path,
 };
 use super::layer::kept_from_lower;
-use crate::model::{AXES, AXIS_NAMES, Axis, Instance, Measure, Mechanism};
+use crate::model::{AXES, AXIS_NAMES, Axis, Friction, Instance, Lugre, Measure, Mechanism};
 
 /// Where a parameter's value comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -122,7 +123,9 @@ pub(super) struct AxisPlan {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct Plan {
     /// The `[mechanism]` keys, in slot order.
-    pub(super) mechanism: [Src; 6],
+    pub(super) mechanism: [Src; MECHANISM_FIELDS.len()],
+    /// The friction law (`mechanism.friction`, scene-wide).
+    pub(super) friction: FrictionLaw,
     /// Each axis.
     pub(super) axes: [AxisPlan; AXES],
     /// How the steps are measured (`simulation.measure`, scene-wide).
@@ -145,7 +148,12 @@ impl Plan {
     /// `ties` holds, for each tied raw slot, the slot it is tied to (checked
     /// by the parser: only drive keys, to the same key of the other axis,
     /// whose source is final); the tied key takes that key's source.
-    pub(super) fn build(given: &[bool; SLOTS], ties: &[Option<usize>; SLOTS], mode: Mode) -> Plan {
+    pub(super) fn build(
+        given: &[bool; SLOTS],
+        ties: &[Option<usize>; SLOTS],
+        mode: Mode,
+        friction: FrictionLaw,
+    ) -> Plan {
         let own = |axis: usize| -> [bool; AXIS_FIELDS.len()] {
             std::array::from_fn(|j| given[axis_slot(axis, j)])
         };
@@ -170,6 +178,11 @@ impl Plan {
             Mechanism::TABLE1.velocity_band,
             Mechanism::TABLE1.load[0],
             Mechanism::TABLE1.load[1],
+            Lugre::DEFAULT.bristle_stiffness,
+            // Derived from sigma0 and m_s ([`Lugre::damping`]) unless given.
+            f64::NAN,
+            Lugre::DEFAULT.viscous_friction,
+            Lugre::DEFAULT.stribeck_velocity,
         ];
         let or_default = |slot: usize, default: f64| {
             if given[slot] {
@@ -196,6 +209,7 @@ impl Plan {
         }
         Plan {
             mechanism: std::array::from_fn(|i| or_default(i, mechanism_defaults[i])),
+            friction,
             axes,
             mode,
             cycles: match mode {
@@ -219,7 +233,20 @@ impl Plan {
             velocity_band,
             load_x,
             load_y,
+            bristle_stiffness,
+            bristle_damping,
+            viscous_friction,
+            stribeck_velocity,
         ] = self.mechanism.map(|src| src.get(raw));
+        let friction = match self.friction {
+            FrictionLaw::Karnopp => Friction::Karnopp,
+            FrictionLaw::Lugre => Friction::Lugre(Lugre {
+                bristle_stiffness,
+                bristle_damping: (!bristle_damping.is_nan()).then_some(bristle_damping),
+                viscous_friction,
+                stribeck_velocity,
+            }),
+        };
         Instance {
             mechanism: Mechanism {
                 slider_mass,
@@ -227,6 +254,7 @@ impl Plan {
                 coulomb_friction,
                 velocity_band,
                 load: [load_x, load_y],
+                friction,
             },
             axes: [self.axes[0].resolve(raw), self.axes[1].resolve(raw)],
             cycles: self.cycles.get(raw) as u32,

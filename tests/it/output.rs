@@ -26,6 +26,8 @@ fn info(shape: Vec<usize>, baselines: bool) -> FileInfo {
         precision: "f64".into(),
         variant: "2-DOF".into(),
         tolerance: 1e-4,
+        friction: "karnopp".to_owned(),
+        friction_parameters: None,
         verify_tolerance: None,
         shard: None,
         stall: None,
