@@ -520,52 +520,77 @@ def draw_stage(f) -> tuple[float, float, float, float]:
 # Forced features of the first instances (on top of their random draws), so
 # that every default run covers them; later instances draw them at random.
 FORCED = [
-    {"dof": 1, "duty1": "x"},
-    {"dof": 2, "ratio": True, "duty1": "y", "equal": False},
-    {"dof": 2, "fs_eq_fc": True, "damping": "given", "viscous": True},
-    {"dof": 1, "load": True, "damping": "derived"},
-    {"dof": 2, "stiff": 10.0, "damping": "derived", "equal": False},
-    {"dof": 2, "soft": True, "load": True, "damping": "given", "equal": True},
-    {"dof": 2, "ratio": True, "load": True, "viscous": True, "duty1": "xy"},
-    {"dof": 1, "stiff": 9.0, "damping": "given", "fs_eq_fc": True, "equal": False},
+    {"dof": 1, "duty1": "x", "damping": "derived", "load": False, "fs_eq_fc": False},
+    {
+        "dof": 2,
+        "ratio": True,
+        "duty1": "y",
+        "equal": False,
+        "damping": "given",
+        "viscous": True,
+        "fs_eq_fc": False,
+    },
+    {"dof": 2, "fs_eq_fc": True, "equal": True, "load": True, "ratio": False},
+    {"dof": 1, "load": True, "equal": False, "fs_eq_fc": False},
+    {
+        "dof": 2,
+        "sigma0": (9.5, 10.0),
+        "damping": "derived",
+        "equal": False,
+        "ratio": False,
+        "fs_eq_fc": False,
+    },
+    {"dof": 2, "sigma0": (5.0, 6.0), "load": True, "damping": "given", "equal": True},
+    {"dof": 2, "ratio": True, "load": True, "viscous": True, "duty1": "xy", "fs_eq_fc": False},
+    {"dof": 1, "sigma0": (8.5, 9.0), "damping": "given", "fs_eq_fc": True, "equal": False},
 ]
 
 
 def draw(seed: int, j: int) -> Instance:
-    """Instance j, from its own random stream (independent of the count)."""
+    """Instance j, from its own random stream (independent of the count).
+
+    Every random number is drawn, in the same order, whatever is forced.
+    """
     rng = np.random.default_rng([seed, j])
 
     def f(lo: float, hi: float) -> float:
         return float(rng.uniform(lo, hi))
 
+    def chance(p: float) -> bool:
+        return bool(rng.uniform() < p)
+
     forced = FORCED[j] if j < len(FORCED) else {}
-    tags = []
     voltage = [f(-150.0, 150.0), f(-150.0, 150.0)]
     for i in range(2):  # not too weak a drive: most instances slip
         if abs(voltage[i]) < 30.0:
             voltage[i] = math.copysign(30.0, voltage[i])
-    frequency = [f(5.0, 40.0), f(5.0, 40.0)]
+    # y within a factor 1.5 of x (the cost of a period grows with the number
+    # of drive corners in it), or equal, or (forced below) twice x.
+    frequency = [f(5.0, 40.0), 0.0]
+    frequency[1] = frequency[0] * (1.0 if chance(0.3) else 1.5 ** f(-1.0, 1.0))
     phase = [f(0.0, 1.0), f(0.0, 1.0)]
     duty = [f(0.5, 1.0), f(0.5, 1.0)]
     slider_mass = f(2e-3, 2e-2)
     static_friction = f(0.8, 2.0)
     coulomb_friction = static_friction * f(0.4, 1.0)
-    equal = forced.get("equal", j % 2 == 0)
+    equal = j % 2 == 0
     x = draw_stage(f)
-    y = x if equal else draw_stage(f)
-    sigma0 = 10.0 ** f(5.0, 10.0)
-    damping_given = rng.uniform() < 0.5
-    damping_factor = 10.0 ** f(-1.0, math.log10(3.0))
-    viscous = f(0.0, 5.0) if rng.uniform() < 0.5 else 0.0
+    y = draw_stage(f)
+    log_sigma0 = f(5.0, 10.0)
+    damping_given = chance(0.5)
+    damping_factor = 10.0 ** f(-1.0, math.log10(3.0))  # 0.1 to 3 x sqrt(sigma0 m_s)
+    viscous = f(0.0, 5.0) if chance(0.5) else 0.0
     stribeck = 10.0 ** f(-5.0, -2.0)
-    dof = 1 if rng.uniform() < 0.3 else 2
-    ratio = rng.uniform() < 0.3
-    fs_eq_fc = rng.uniform() < 0.25
-    duty1 = rng.choice(["", "", "", "x", "y"])
-    has_load = rng.uniform() < 0.5
+    dof = 1 if chance(0.3) else 2
+    ratio = chance(0.2)
+    fs_eq_fc = chance(0.2)
+    duty1 = ["", "", "", "x", "y"][int(rng.integers(5))]
+    has_load = chance(0.5)
     load_size = f(0.0, 0.8)
     load_angle = f(0.0, 2.0 * math.pi)
+    forced_viscous = f(0.5, 5.0)
     # The forced features.
+    equal = forced.get("equal", equal)
     dof = forced.get("dof", dof)
     ratio = forced.get("ratio", ratio)
     fs_eq_fc = forced.get("fs_eq_fc", fs_eq_fc)
@@ -573,12 +598,13 @@ def draw(seed: int, j: int) -> Instance:
     has_load = forced.get("load", has_load)
     if "damping" in forced:
         damping_given = forced["damping"] == "given"
-    if forced.get("viscous"):
-        viscous = viscous or f(0.5, 5.0)
-    if "stiff" in forced:
-        sigma0 = 10.0 ** f(forced["stiff"] - 0.5, forced["stiff"])
-    if forced.get("soft"):
-        sigma0 = 10.0 ** f(5.0, 6.0)
+    if forced.get("viscous") and viscous == 0.0:
+        viscous = forced_viscous
+    if "sigma0" in forced:
+        lo, hi = forced["sigma0"]
+        log_sigma0 = lo + (hi - lo) * (log_sigma0 - 5.0) / 5.0
+    sigma0 = 10.0**log_sigma0
+    tags = []
     if dof == 1:
         voltage[1] = 0.0
         tags.append("1dof")
@@ -598,12 +624,15 @@ def draw(seed: int, j: int) -> Instance:
         size = load_size * coulomb_friction
         load = [size * math.cos(load_angle), size * math.sin(load_angle)]
         tags.append("load")
-    if not equal:
+    if equal:
+        y = x
+    else:
         tags.append("mp")
-    cycles, settle = STIFF_WINDOW if sigma0 >= STIFF else WINDOW
-    sigma1 = None
-    if damping_given:
-        sigma1 = damping_factor * math.sqrt(sigma0 * slider_mass)
+    # The window: 10 / 2, or 4 / 1 where a period is costly for Radau at
+    # rtol 1e-10 (stiff bristles, or y at twice x: twice the corners).
+    costly = sigma0 >= STIFF or (dof == 2 and ratio)
+    cycles, settle = STIFF_WINDOW if costly else WINDOW
+    sigma1 = damping_factor * math.sqrt(sigma0 * slider_mass) if damping_given else None
     return Instance(
         " ".join([f"e{j}", *tags]),
         voltage,

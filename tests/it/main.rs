@@ -17,6 +17,7 @@ mod gpu_phase;
 mod install;
 mod lanes;
 mod load;
+mod lugre;
 mod mirror;
 mod output;
 mod phase;
