@@ -18,8 +18,12 @@ use crate::measurement::keeps_values;
 use crate::model::{AXES, Instance};
 use crate::sweep::Outcome;
 
+mod limit;
 mod measurement;
 mod report;
+pub use limit::{
+    LIMIT_STIFFNESS, LIMIT_STRIBECK, LimitRow, karnopp_limit, limit_markdown, plot_limit,
+};
 pub use measurement::{
     MEASUREMENT_REFERENCE_MAX_CYCLES, MEASUREMENT_REFERENCE_TOLERANCE, REFERENCE_WINDOW,
     has_two_frequencies, lattice_length, measurement_reference, steady_method, window_method,
@@ -72,12 +76,22 @@ fn steps_um(instances: &[Instance], outcomes: &[Outcome]) -> Vec<[f64; AXES]> {
         .collect()
 }
 
-/// The event-locating CPU integrator at a ladder of tolerances.
-pub fn cpu_method<'a>(base: Settings) -> Method<'a> {
+/// The CPU integrator at a ladder of tolerances: the event-locating one,
+/// or for a LuGre scene (`lugre`) Rodas4, whose tolerance scales its local
+/// error per step (`cpu::lugre::LENGTH_PER_TOLERANCE`).
+pub fn cpu_method<'a>(base: Settings, lugre: bool) -> Method<'a> {
     let backend = CpuBackend::new(Some(1)).expect("a one-thread pool");
+    let (name, setting_name) = if lugre {
+        (
+            "LuGre Rodas4 f64 (cpu)",
+            "tolerance [x 0.1 um local error per step]",
+        )
+    } else {
+        ("event-locating f64 (cpu)", "tolerance [rad]")
+    };
     Method {
-        name: "event-locating f64 (cpu)".into(),
-        setting_name: "tolerance [rad]",
+        name: name.into(),
+        setting_name,
         settings: vec![1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
         run: Box::new(move |instances, tolerance| {
             let settings = Settings { tolerance, ..base };

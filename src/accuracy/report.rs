@@ -30,6 +30,11 @@ impl Report {
         }
     }
 
+    /// Adds a section written elsewhere (the Karnopp limit's).
+    pub fn add_markdown(&mut self, markdown: &str) {
+        self.markdown.push_str(markdown);
+    }
+
     /// Adds the section of one scene, studied with `methods` over
     /// `integrations` distinct integrations.
     pub fn add_scene(

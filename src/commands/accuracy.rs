@@ -36,6 +36,7 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
     }
     command.push(format!("--out-dir {}", out_dir.display()));
     let mut report = Report::new(&command.join(" "));
+    let mut limit_done = false;
     for scene in load_scenes(paths)? {
         let measured = scene_integrations(&scene);
         // The integrator is studied over the paper's fixed window (10
@@ -58,8 +59,11 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
             tolerance: 1e-9,
             ..scene.settings
         };
-        let mut methods = vec![accuracy::cpu_method(scene.settings)];
-        if gpu {
+        let lugre = scene.is_lugre();
+        let mut methods = vec![accuracy::cpu_method(scene.settings, lugre)];
+        if gpu && lugre {
+            println!("  gpu: not studied (the GPU has no LuGre shader yet)");
+        } else if gpu {
             // Every precision the adapter offers, software adapters included.
             match crate::gpu::GpuContext::new(true) {
                 Ok(ctx) => {
@@ -79,11 +83,18 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
                 Err(err) => println!("  gpu: not studied ({err})"),
             }
         }
-        methods.push(accuracy::karnopp_method(karnopp_steps.to_vec()));
+        if !lugre {
+            methods.push(accuracy::karnopp_method(karnopp_steps.to_vec()));
+        }
         println!(
-            "accuracy: scene {:?}, {} integrations, reference tolerance 1e-9 rad",
+            "accuracy: scene {:?}, {} integrations, reference tolerance 1e-9 {}",
             scene.name,
-            instances.len()
+            instances.len(),
+            if lugre {
+                "(LuGre: 1e-16 m local error per step)"
+            } else {
+                "rad"
+            }
         );
         let (points, references) = study_and_print(&instances, &instances, reference, &methods)?;
         let h5 = out_dir.join(format!("accuracy_{}.h5", scene.name));
@@ -96,6 +107,24 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
         )?;
         println!("  wrote {} and {}", h5.display(), png.display());
         report.add_scene(&scene.name, instances.len(), references, &methods, &points);
+        if lugre {
+            // The limit replaces the bristles' parameters: one study of it,
+            // on the first LuGre scene, is all there is to see.
+            if !limit_done {
+                karnopp_limit(
+                    &scene.name,
+                    &instances,
+                    scene.settings,
+                    out_dir,
+                    &mut report,
+                )?;
+                limit_done = true;
+            }
+            // The measurement's study needs windows of up to 40,000
+            // periods, minutes per instance under LuGre: Karnopp's scenes
+            // study the estimator, which is the same for both laws.
+            continue;
+        }
         // The measurement, where two drive frequencies make it matter.
         if accuracy::has_two_frequencies(&instances) {
             let methods = [
@@ -176,4 +205,39 @@ fn study_and_print(
         println!("  {note}");
     }
     Ok((points, references))
+}
+
+/// The Karnopp limit of a LuGre scene's instances (`accuracy::limit`):
+/// printed, drawn and added to the report.
+fn karnopp_limit(
+    name: &str,
+    instances: &[Instance],
+    settings: crate::cpu::integrate::Settings,
+    out_dir: &Path,
+    report: &mut crate::accuracy::Report,
+) -> Result<()> {
+    use crate::accuracy::{self, LIMIT_STRIBECK};
+    println!(
+        "accuracy: scene {name:?}, the Karnopp limit (stribeck_velocity {LIMIT_STRIBECK:e} m/s, \
+         bristle_damping derived)"
+    );
+    let (karnopp, rows) = accuracy::karnopp_limit(instances, settings)?;
+    for row in &rows {
+        println!(
+            "  sigma0 {:.0e} N/m: largest |LuGre - Karnopp| {:.3e} um, {:.4} s{}",
+            row.bristle_stiffness,
+            row.max_difference_um,
+            row.wall_s,
+            if row.failed > 0 {
+                format!(" ({} failed)", row.failed)
+            } else {
+                String::new()
+            }
+        );
+    }
+    let png = out_dir.join(format!("accuracy_{name}_limit.png"));
+    accuracy::plot_limit(&png, &format!("scene {name}: LuGre against Karnopp"), &rows)?;
+    report.add_markdown(&accuracy::limit_markdown(name, &karnopp, &rows));
+    println!("  wrote {}", png.display());
+    Ok(())
 }

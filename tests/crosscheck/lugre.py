@@ -566,7 +566,7 @@ def draw(seed: int, j: int) -> Instance:
             voltage[i] = math.copysign(30.0, voltage[i])
     # y within a factor 1.5 of x (the cost of a period grows with the number
     # of drive corners in it), or equal, or (forced below) twice x.
-    frequency = [f(5.0, 40.0), 0.0]
+    frequency = [f(10.0, 40.0), 0.0]
     frequency[1] = frequency[0] * (1.0 if chance(0.3) else 1.5 ** f(-1.0, 1.0))
     phase = [f(0.0, 1.0), f(0.0, 1.0)]
     duty = [f(0.5, 1.0), f(0.5, 1.0)]
@@ -610,7 +610,8 @@ def draw(seed: int, j: int) -> Instance:
         tags.append("1dof")
     if ratio:
         frequency[1] = 2.0 * frequency[0]
-        tags.append("2:1")
+        if dof == 2:
+            tags.append("2:1")
     if fs_eq_fc:
         coulomb_friction = static_friction
         tags.append("fs=fc")

@@ -15,27 +15,27 @@ use crate::model::{AXES, Instance, Lugre};
 /// and velocities, bristle deflections [m], and the time within the scene
 /// period [s] (carried as a state, so that the method sees the drive's time
 /// dependence).
-pub(super) const N: usize = 4 * AXES + AXES + 1;
-pub(super) const XP: usize = 0;
-pub(super) const VP: usize = 2;
-pub(super) const XS: usize = 4;
-pub(super) const VS: usize = 6;
-pub(super) const Z: usize = 8;
-pub(super) const T: usize = 10;
-pub(super) type State = [f64; N];
+pub(crate) const N: usize = 4 * AXES + AXES + 1;
+pub(crate) const XP: usize = 0;
+pub(crate) const VP: usize = 2;
+pub(crate) const XS: usize = 4;
+pub(crate) const VS: usize = 6;
+pub(crate) const Z: usize = 8;
+pub(crate) const T: usize = 10;
+pub(crate) type State = [f64; N];
 
 /// What the right-hand side reads of one instance.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Model {
-    pub(super) inst: Instance,
-    sigma0: f64,
-    sigma1: f64,
-    sigma2: f64,
-    v_s: f64,
+pub(crate) struct Model {
+    pub(crate) inst: Instance,
+    pub(crate) sigma0: f64,
+    pub(crate) sigma1: f64,
+    pub(crate) sigma2: f64,
+    pub(crate) v_s: f64,
 }
 
 impl Model {
-    pub(super) fn new(inst: &Instance, lugre: &Lugre) -> Model {
+    pub(crate) fn new(inst: &Instance, lugre: &Lugre) -> Model {
         Model {
             inst: *inst,
             sigma0: lugre.bristle_stiffness,
@@ -46,7 +46,7 @@ impl Model {
     }
 
     /// dy/dt, with each axis' drive voltage linear in time.
-    pub(super) fn rhs(&self, y: &State, drive: &[Linear; AXES]) -> State {
+    pub(crate) fn rhs(&self, y: &State, drive: &[Linear; AXES]) -> State {
         let m = &self.inst.mechanism;
         let vr = [y[VP] - y[VS], y[VP + 1] - y[VS + 1]];
         let s = vr[0].hypot(vr[1]);
@@ -72,7 +72,7 @@ impl Model {
     /// The Jacobian of [`Self::rhs`] (row: derivative, column: state). At
     /// v_rel = 0, where |v_rel| has no derivative, the bristle term's
     /// direction is dropped (its factor z h'(s) v_rel / s is bounded).
-    pub(super) fn jacobian(&self, y: &State, drive: &[Linear; AXES]) -> [[f64; N]; N] {
+    pub(crate) fn jacobian(&self, y: &State, drive: &[Linear; AXES]) -> [[f64; N]; N] {
         let m = &self.inst.mechanism;
         let vr = [y[VP] - y[VS], y[VP + 1] - y[VS + 1]];
         let s = vr[0].hypot(vr[1]);
@@ -119,13 +119,13 @@ impl Model {
 /// A drive voltage linear in time over a segment: `a + b t` [V], t the
 /// time within the scene period [s].
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Linear {
-    pub(super) a: f64,
-    pub(super) b: f64,
+pub(crate) struct Linear {
+    pub(crate) a: f64,
+    pub(crate) b: f64,
 }
 
 impl Linear {
-    pub(super) fn at(&self, t: f64) -> f64 {
+    pub(crate) fn at(&self, t: f64) -> f64 {
         self.a + self.b * t
     }
 }
@@ -134,13 +134,13 @@ impl Linear {
 /// time origin of [`drive_on`] and [`next_corner`], so that their times stay
 /// within one period (no cancellation after thousands of periods).
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Clock {
-    pub(super) start: [f64; AXES],
+pub(crate) struct Clock {
+    pub(crate) start: [f64; AXES],
 }
 
 impl Clock {
     /// The clock of scene period `period` (counted from 0).
-    pub(super) fn of(inst: &Instance, period: u32) -> Clock {
+    pub(crate) fn of(inst: &Instance, period: u32) -> Clock {
         let t = inst.period();
         Clock {
             start: std::array::from_fn(|i| {
@@ -160,7 +160,7 @@ impl Clock {
 
     /// Axis `i`'s drive over a segment that contains `t_mid` [s] and no
     /// corner (MODEL.md section 2), linear in time.
-    pub(super) fn drive_on(&self, inst: &Instance, i: usize, t_mid: f64) -> Linear {
+    pub(crate) fn drive_on(&self, inst: &Instance, i: usize, t_mid: f64) -> Linear {
         let a = &inst.axes[i];
         if a.voltage == 0.0 {
             return Linear { a: 0.0, b: 0.0 };
@@ -186,7 +186,7 @@ impl Clock {
 
     /// The first drive corner of axis `i` after `t` [s] (infinity
     /// undriven).
-    pub(super) fn next_corner(&self, inst: &Instance, i: usize, t: f64) -> f64 {
+    pub(crate) fn next_corner(&self, inst: &Instance, i: usize, t: f64) -> f64 {
         let a = &inst.axes[i];
         if a.voltage == 0.0 {
             return f64::INFINITY;

@@ -14,8 +14,8 @@ use crate::model::AXES;
 /// stage 5's start + k5) and C_ij (stage i's right-hand side adds sum_j
 /// C_ij k_j / h). The method is stiffly accurate: y_n+1 is stage 6's
 /// start + k6, and k6 is the embedded third-order solution's difference.
-const GAMMA: f64 = 0.25;
-const A: [[f64; 4]; 4] = [
+pub(crate) const GAMMA: f64 = 0.25;
+pub(crate) const A: [[f64; 4]; 4] = [
     [1.544, 0.0, 0.0, 0.0],
     [0.9466785280815826, 0.2557011698983284, 0.0, 0.0],
     [
@@ -31,7 +31,7 @@ const A: [[f64; 4]; 4] = [
         -0.687886036105895,
     ],
 ];
-const C: [[f64; 5]; 5] = [
+pub(crate) const C: [[f64; 5]; 5] = [
     [-5.6688, 0.0, 0.0, 0.0, 0.0],
     [-2.430093356833875, -0.2063599157091915, 0.0, 0.0, 0.0],
     [
@@ -97,7 +97,7 @@ pub(super) fn rodas4(model: &Model, drive: &[Linear; AXES], y: &State, h: f64) -
 
 /// The smallest step relative to the segment's end time: below it the
 /// run stops with `STATUS_STEP_UNDERFLOW` instead of creeping.
-const SMALLEST_STEP: f64 = 1e-14;
+pub(crate) const SMALLEST_STEP: f64 = 1e-14;
 
 /// Rodas4 steps from `y` to time `end` (an exact boundary); `h` carries the
 /// step size from segment to segment, `budget` the steps (accepted and

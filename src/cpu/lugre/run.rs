@@ -4,8 +4,10 @@
 //! stop rule). Its result is an `integrate::Run`, which
 //! `measurement::reduce` turns into a record as it does Karnopp's.
 
-use super::model::{Clock, Model, N, State, T, VP, VS, XP, XS, Z};
-use super::rodas::segment;
+// The model and Rodas4's coefficients, also for the GPU's mirror of both
+// (`crate::gpu::lugre` and `shaders/lugre/`).
+pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
+pub(crate) use super::rodas::{A, C, GAMMA, SMALLEST_STEP, segment};
 use crate::cpu::integrate::measure::{SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, period_end};
 use crate::cpu::integrate::{
     Coefficients, Run, STATUS_OK, Settings, Vec2, initial_measure, initial_state, is_finished,
@@ -23,7 +25,7 @@ use crate::model::{AXES, Instance, Lugre};
 pub const LENGTH_PER_TOLERANCE: f64 = 1e-7;
 
 /// The weights of the error control: each state's largest local error.
-fn error_scale(model: &Model, lugre: &Lugre, tolerance: f64) -> State {
+pub(crate) fn error_scale(model: &Model, lugre: &Lugre, tolerance: f64) -> State {
     let inst = &model.inst;
     let length = tolerance * LENGTH_PER_TOLERANCE;
     let omega = inst
@@ -48,7 +50,7 @@ fn error_scale(model: &Model, lugre: &Lugre, tolerance: f64) -> State {
 
 /// The first trial step [s]: a thousandth of the fastest stage's period;
 /// the control adapts it within a few steps.
-fn first_step(inst: &Instance) -> f64 {
+pub(crate) fn first_step(inst: &Instance) -> f64 {
     let omega = inst
         .axes
         .iter()
@@ -68,31 +70,16 @@ pub fn run_instance_until(
     settings: &Settings,
     stop: impl Fn() -> bool,
 ) -> Option<Run> {
-    let lugre = *inst.mechanism.lugre().expect("a LuGre instance");
-    let model = Model::new(inst, &lugre);
-    let mut c = Coefficients::of(inst, settings);
-    // The recurrence test compares z too: done here, not by `period_end`.
-    let common = std::mem::replace(&mut c.common_period, 0);
-    let mut recurrence = Recurrence::new(&c, inst, &lugre);
-    let scale = error_scale(&model, &lugre, settings.tolerance);
-    let mut run = Run {
-        state: initial_state(&c),
-        measure: initial_measure(&c),
-    };
-    let (st, m) = (&mut run.state, &mut run.measure);
+    let mut book = Periods::new(inst, settings);
     let period = inst.period();
     let mut y = [0.0; N];
     let mut h = first_step(inst);
-    let mut budget =
-        (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
-    if c.settle == 0 {
-        st.settle_x_s = st.x_s;
-    }
-    while !is_finished(&c, st) {
+    let mut budget = book.budget;
+    while !book.is_finished() {
         if stop() {
             return None;
         }
-        let clock = Clock::of(inst, st.period);
+        let clock = book.clock();
         y[T] = 0.0;
         while y[T] < period {
             let end = (0..AXES)
@@ -100,28 +87,112 @@ pub fn run_instance_until(
                 .fold(period, f64::min);
             let mid = 0.5 * (y[T] + end);
             let drive = [0, 1].map(|i| clock.drive_on(inst, i, mid));
-            match segment(&model, &drive, &scale, &mut y, end, (&mut h, &mut budget)) {
-                Ok(steps) => st.steps = st.steps.saturating_add(steps),
+            let model = &book.model;
+            match segment(model, &drive, &book.scale, &mut y, end, (&mut h, &mut budget)) {
+                Ok(steps) => book.add_steps(steps),
                 Err(status) => {
-                    st.status = status;
-                    return Some(run);
+                    book.run.state.status = status;
+                    return Some(book.run);
                 }
             }
         }
+        book.period_end(&y);
+    }
+    debug_assert_eq!(book.run.state.status, STATUS_OK);
+    Some(book.run)
+}
+
+/// A LuGre run's bookkeeping outside the integrator, period by period: the
+/// model, the error control's weights, the step budget, the run's
+/// `integrate::Run` and the measurement on top of it (`measure::period_end`
+/// and the recurrence test with z). The CPU's run ([`run_instance_until`])
+/// and the GPU's host (`crate::gpu::lugre`) share it, so both measure alike.
+pub(crate) struct Periods {
+    pub(crate) inst: Instance,
+    pub(crate) model: Model,
+    /// The error control's weights ([`error_scale`]).
+    pub(crate) scale: State,
+    /// Steps (accepted and rejected) the whole run may take.
+    pub(crate) budget: u32,
+    /// The run so far: its `state.steps` and `state.status` are the
+    /// integrator's to set ([`Periods::add_steps`]).
+    pub(crate) run: Run,
+    c: Coefficients,
+    /// The common period of the recurrence test (0: none).
+    common: u32,
+    recurrence: Recurrence,
+}
+
+impl Periods {
+    /// A run of `inst` at rest at the start of period 0.
+    ///
+    /// # Panics
+    /// If `inst`'s friction is not LuGre's.
+    pub(crate) fn new(inst: &Instance, settings: &Settings) -> Periods {
+        let lugre = *inst.mechanism.lugre().expect("a LuGre instance");
+        let model = Model::new(inst, &lugre);
+        let mut c = Coefficients::of(inst, settings);
+        // The recurrence test compares z too: done here, not by `period_end`.
+        let common = std::mem::replace(&mut c.common_period, 0);
+        let recurrence = Recurrence::new(&c, inst, &lugre);
+        let scale = error_scale(&model, &lugre, settings.tolerance);
+        let mut run = Run {
+            state: initial_state(&c),
+            measure: initial_measure(&c),
+        };
+        if c.settle == 0 {
+            run.state.settle_x_s = run.state.x_s;
+        }
+        let budget =
+            (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
+        Periods {
+            inst: *inst,
+            model,
+            scale,
+            budget,
+            run,
+            c,
+            common,
+            recurrence,
+        }
+    }
+
+    /// Whether the run has ended: measured, failed or out of periods.
+    pub(crate) fn is_finished(&self) -> bool {
+        is_finished(&self.c, &self.run.state)
+    }
+
+    /// The drive's clock of the current scene period.
+    pub(crate) fn clock(&self) -> Clock {
+        Clock::of(&self.inst, self.run.state.period)
+    }
+
+    /// Counts the steps of one segment.
+    pub(crate) fn add_steps(&mut self, steps: u32) {
+        let st = &mut self.run.state;
+        st.steps = st.steps.saturating_add(steps);
+    }
+
+    /// The end of the current scene period with the integrator's state `y`:
+    /// the state's positions and velocities, the steady measurement
+    /// (`measure::period_end` and the recurrence test), the next period.
+    pub(crate) fn period_end(&mut self, y: &State) {
+        let (c, common) = (&self.c, self.common);
+        let (st, m) = (&mut self.run.state, &mut self.run.measure);
         st.x_p = Vec2::new(y[XP], y[XP + 1]);
         st.v_p = Vec2::new(y[VP], y[VP + 1]);
         st.x_s = Vec2::new(y[XS], y[XS + 1]);
         st.v_s = Vec2::new(y[VS], y[VS + 1]);
         st.v_rel = st.v_p - st.v_s;
-        st.time = period;
+        st.time = self.inst.period();
         if c.steady {
-            period_end(&c, st, m);
+            period_end(c, st, m);
             let ended = st.period + 1;
             if common > 0
                 && ended >= c.settle
                 && (ended - c.settle).is_multiple_of(common)
                 && m.verdict == VERDICT_RUNNING
-                && recurrence.repeats(&y, common, m)
+                && self.recurrence.repeats(y, common, m)
             {
                 st.measured = 1;
             }
@@ -132,8 +203,6 @@ pub fn run_instance_until(
             st.settle_x_s = st.x_s;
         }
     }
-    debug_assert_eq!(st.status, STATUS_OK);
-    Some(run)
 }
 
 /// MODEL.md section 4's recurrence test under LuGre: the state at a common
