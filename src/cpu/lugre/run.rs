@@ -7,7 +7,8 @@
 // The model and Rodas4's coefficients, also for the GPU's mirror of both
 // (`crate::gpu::lugre` and `shaders/lugre/`).
 pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
-pub(crate) use super::rodas::{A, C, GAMMA, SMALLEST_STEP, segment};
+pub(crate) use super::rodas::{A, C, GAMMA, SMALLEST_STEP};
+use super::rodas::segment;
 use crate::cpu::integrate::measure::{SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, period_end};
 use crate::cpu::integrate::{
     Coefficients, Run, STATUS_OK, Settings, Vec2, initial_measure, initial_state, is_finished,
