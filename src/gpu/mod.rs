@@ -57,6 +57,7 @@ pub mod cache;
 mod context;
 mod groups;
 mod knobs;
+pub mod lugre;
 pub mod layout;
 mod options;
 mod precision;

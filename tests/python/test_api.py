@@ -370,3 +370,37 @@ def test_a_stall_map_reads_with_its_units_and_the_grid(tmp_path: Path) -> None:
     for name in ("stall_step_near_x", "stall_step_far_x", "stall_waves_x"):
         assert ds[name].dims == load.dims, name
     assert_same_maps(pidm.open(out), out)
+
+
+def test_a_lugre_map_says_which_friction_ran(tmp_path: Path) -> None:
+    # MODEL.md section 8: LuGre at its defaults, 1-DOF 100 V at 10 Hz over
+    # the paper's window, +1.285861 um; a map over the bristle stiffness
+    # whose attributes name the law and instance 0's values.
+    scene = {
+        "name": "lugre",
+        "mechanism": {"friction": "lugre", "bristle_stiffness": [1e7, 1e9]},
+        "axis": {"y": {"voltage": 0.0}},
+        "simulation": {"measure": "window"},
+    }
+    out = tmp_path / "lugre.h5"
+    ds = pidm.run(scene, backend="cpu", out=out, progress=False)
+    assert ds.attrs["friction"] == "lugre"
+    assert "bristle_stiffness 10000000 N/m" in ds.attrs["friction_parameters"]
+    assert "derived" in ds.attrs["friction_parameters"]
+    assert ds.step_x.dims == ("mechanism.bristle_stiffness",)
+    assert ds["mechanism.bristle_stiffness"].attrs["units"] == "N/m"
+    step = ds.step_x.sel({"mechanism.bristle_stiffness": 1e7}).item() * 1e6
+    assert abs(step - 1.285861) <= 1e-4
+    assert pidm.open(out).attrs["friction"] == "lugre"
+    karnopp = pidm.run({"axis": {"y": {"voltage": 0.0}}}, backend="cpu", progress=False)
+    assert karnopp.attrs["friction"] == "karnopp"
+    assert "friction_parameters" not in karnopp.attrs
+
+
+def test_a_key_of_the_other_friction_law_is_refused() -> None:
+    with pytest.raises(pidm.SceneError, match="mechanism.velocity_band applies to"):
+        pidm.run(
+            {"mechanism": {"friction": "lugre", "velocity_band": 1e-6}},
+            backend="cpu",
+            progress=False,
+        )
