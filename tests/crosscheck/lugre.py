@@ -46,31 +46,59 @@ Sub-commands:
   tighter allowed), each step within REF_BOUND_UM (2e-6 um) of the table, and
   the Karnopp limit (sigma0 1e10, v_S 1e-5, window 10 / 2: +0.612083 um) to the
   same bound. The bound is the table's rounding (5e-7 um) plus SciPy's own
-  error at rtol 1e-9 (measured: about 1e-8 um against rtol 1e-11) with room.
+  error at rtol 1e-9 (measured: 1e-8 um or less against LSODA at rtol 1e-12)
+  with room. About 130 s of CPU (the 10/20 Hz case 30 s).
   Section 8's exact invariants are asserted too: the y step of a 1-DOF case
   is exactly 0, the 70.71/70.71 V steps are equal and the 100/50 V y step is
   half the x step, both within INVARIANT_UM (1e-8 um). `--extra` adds the
   Karnopp-limit table of section 8 (window 5 / 2) and the soft-bristle values
   (window 6 / 2), printed to 4 decimals, within 5.1e-5 um.
-* `engine --pidm PATH`: seeded random LuGre instances (see make_instances)
-  written as ONE points scene with `[mechanism] friction = "lugre"`, run
-  through `PATH run scene.toml --out file.h5 --backend cpu` (`--backend gpu`
-  adds `--precision f64`), read back like crosscheck.py, and integrated
-  here at rtol 1e-10. Every instance must end with status 0 and every axis'
-  step must satisfy |engine - scipy| <= 0.001 um + 0.1 % of |scipy| per own
-  drive cycle: 0.001 um is the project's accuracy bar at the default
-  tolerance, and the relative part covers instances whose steps are
-  hundreds of um per cycle (a load near f_c), where the same absolute error
-  is out of reach of a relative tolerance. SciPy's own error at rtol 1e-10 is
-  below 1e-7 um on the reference cases, far inside the bound.
-  `--scipy-only` skips the engine (writes the scene under `--keep` if given)
-  and prints SciPy's steps: the SciPy half on its own.
+* `engine --pidm PATH`: `--instances` (10) seeded random LuGre instances,
+  instance j from its own stream [seed, j] (so the count changes no
+  instance), written as ONE points scene with `[mechanism] friction =
+  "lugre"` and each point's `mechanism = { ... }`, run through `PATH run
+  scene.toml --out file.h5 --backend cpu` (`--backend gpu` adds
+  `--precision f64`), read back as crosscheck.py does, and integrated here
+  at rtol 1e-10. The draws (draw(); the first eight force the features
+  listed in FORCED so that every default run has them): sigma0
+  log-uniform 1e5..1e10 N/m; sigma1 given (log-uniform 0.1..3 x
+  sqrt(sigma0 m_s)) or derived (key omitted); sigma2 0 or uniform up to
+  5 N s/m; v_S log-uniform 1e-5..1e-2 m/s; f_s 0.8..2 N, f_c 0.4..1 f_s or
+  f_s = f_c; m_s 2e-3..2e-2 kg; equal stages (even j) or a stage drawn per
+  axis (as crosscheck.py: resonance 1-4 kHz, Q 10-40, k 0.5-2 x 1e6 N/m,
+  gain 0.5-1.5 x -0.6 N/V); 1-DOF (y voltage 0) or 2-DOF, |V| 30..150 V;
+  f_x 10..40 Hz, f_y equal, within a factor 1.5, or twice f_x (2:1); duty
+  0.5..1, some exactly 1; phases 0..1; a load of magnitude up to 0.8 f_c in
+  any direction (the engine refuses |L| >= f_c). Window 10 / 2, or 4 / 1
+  where a period is costly for Radau (sigma0 >= 1e8, or 2:1 in 2-DOF):
+  about 240 s of CPU for the default 10, 1.5 to 3 minutes on 2 cores.
+  Every instance must end with status 0 and every axis' step must satisfy
+  |engine - scipy| <= 0.001 um + 0.1 % of |scipy| per own drive cycle:
+  0.001 um is the project's accuracy bar at the default tolerance, and the
+  relative part covers steps of tens of um per cycle (duty 1 with stiff
+  bristles, loads), where the engine's relative tolerance leaves a few
+  1e-3 um (measured: 2.8e-3 um on a 37.9 um step). SciPy's own error at
+  rtol 1e-10 is about 1e-7 um (Radau at 1e-11 and LSODA at 1e-12 agree
+  with it to that on the largest steps), far inside the bound.
+  `--scipy-only` skips the engine (writes the scene under `--keep` if
+  given) and prints SciPy's steps: the SciPy half on its own. `--method
+  LSODA` (also for `reference`) integrates with LSODA instead, an
+  independent check about 15 times faster.
 * `radau-time [--case NAME]`: for the 1-DOF 100 V 10 Hz and the 2-DOF 100/50 V
   reference cases (or the named ones), the window step at Radau rtol 1e-3 ...
   1e-10 (atol scaled as above), single-threaded, with its error against the
   converged table and its CPU time (time.process_time); the loosest rtol whose
   step is within 0.001 um per cycle of the table (and every tighter one too)
   is reported with the CPU time of that one integration.
+  Measured (one core of the build machine): rtol 1e-4 for both, 1.0 s and
+  0.9 s of CPU, errors 1.3e-4 and 4.4e-4 um (1e-3 misses: 2.6e-3 and
+  2.1e-3 um); rtol 1e-9 takes 13 s, 1e-10 22 s.
+
+Usage: lugre.py reference [--rtol R] [--method M] [--extra] [--jobs N]
+       lugre.py engine [--pidm PATH] [--instances N] [--seed S] [--backend cpu|gpu]
+                       [--tolerance TOL] [--rtol R] [--method M] [--jobs N]
+                       [--keep DIR] [--scipy-only] [-v]
+       lugre.py radau-time [--case NAME]...
 
 Exit status 1 when any assertion fails. Environment: PIDM_BIN = path of the
 pidm binary when `--pidm` is not given (else `cargo run --release`).
@@ -122,6 +150,9 @@ EXTRA_BOUND_UM = 5.1e-5  # tables printed to 4 decimals
 INVARIANT_UM = 1e-8
 # radau-time: within 0.001 um per own cycle of the converged table.
 TIME_BOUND_UM = 1e-3
+# solve_ivp methods offered by --method (Radau is the reference; LSODA, with
+# the same Jacobian, is an independent check and about 15 times faster).
+METHODS = ["Radau", "LSODA", "BDF"]
 TIME_RTOLS = [1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10]
 
 # Stiff instances (sigma0 >= STIFF) get a shorter window in `engine` mode.
@@ -363,13 +394,13 @@ def window_step(inst: Instance, rtol: float, method: str = "Radau") -> Integrate
     return Integrated(step, steps, nfev, njev, time.process_time() - started)
 
 
-def integrate(job: tuple[Instance, float]) -> Integrated:
+def integrate(job: tuple[Instance, float, str]) -> Integrated:
     """window_step for a worker process."""
-    inst, rtol = job
-    return window_step(inst, rtol)
+    inst, rtol, method = job
+    return window_step(inst, rtol, method)
 
 
-def run_pool(jobs: list[tuple[Instance, float]], workers: int) -> list[Integrated]:
+def run_pool(jobs: list[tuple[Instance, float, str]], workers: int) -> list[Integrated]:
     if workers <= 1:
         return [integrate(job) for job in jobs]
     # Longest jobs first keeps both cores busy to the end.
@@ -439,9 +470,10 @@ def cmd_reference(args) -> int:
     cases = [(inst, x, y, REF_BOUND_UM) for inst, x, y in REFERENCE]
     if args.extra:
         cases += [(inst, x, y, EXTRA_BOUND_UM) for inst, x, y in extra_cases()]
-    results = run_pool([(inst, args.rtol) for inst, *_ in cases], args.jobs)
+    results = run_pool([(inst, args.rtol, args.method) for inst, *_ in cases], args.jobs)
     print(
-        f"MODEL.md section 8 references: SciPy Radau rtol {args.rtol:g}, analytic Jacobian, "
+        f"MODEL.md section 8 references: SciPy {args.method} rtol {args.rtol:g}, "
+        "analytic Jacobian, "
         "atol scaled per component, restarted at every drive corner and period end"
     )
     print("steps in um per own drive cycle")
@@ -488,7 +520,8 @@ def cmd_reference(args) -> int:
         dev = abs(sx - sy) if b == 1 else abs(sx - 2.0 * sy)
         ok = dev <= INVARIANT_UM
         print(
-            f"invariant {label}: {what} within {dev:.2e} um (bound {INVARIANT_UM:g}){'' if ok else '  FAIL'}"
+            f"invariant {label}: {what} within {dev:.2e} um "
+            f"(bound {INVARIANT_UM:g}){'' if ok else '  FAIL'}"
         )
         if not ok:
             failures.append(f"{label}: {what} off by {dev:.2e} um")
@@ -764,8 +797,9 @@ def run_engine(
 
 def describe(inst: Instance) -> str:
     s1 = "derived" if inst.bristle_damping is None else f"{inst.bristle_damping:.3g}"
+    ratio = inst.sigma1() / math.sqrt(inst.bristle_stiffness * inst.slider_mass)
     return (
-        f"sigma0 {inst.bristle_stiffness:.2e}, sigma1 {s1} (x{inst.sigma1() / math.sqrt(inst.bristle_stiffness * inst.slider_mass):.2f}), "
+        f"sigma0 {inst.bristle_stiffness:.2e}, sigma1 {s1} (x{ratio:.2f}), "
         f"sigma2 {inst.viscous_friction:.2f}, v_S {inst.stribeck_velocity:.1e}, "
         f"f_s {inst.static_friction:.3f} f_c {inst.coulomb_friction:.3f}, "
         f"L ({inst.load[0]:+.3f}, {inst.load[1]:+.3f}), "
@@ -805,11 +839,12 @@ def cmd_engine(args) -> int:
         )
     )
     print(
-        f"steps in um per own drive cycle; SciPy Radau rtol {args.rtol:g}; pass: status 0 and "
+        f"steps in um per own drive cycle; SciPy {args.method} rtol {args.rtol:g}; "
+        "pass: status 0 and "
         f"|engine - scipy| <= {ENGINE_ABS_M * 1e6:g} um + {ENGINE_REL * 100:g} % of |scipy|"
     )
     wall = time.time()
-    refs = run_pool([(inst, args.rtol) for inst in instances], args.jobs)
+    refs = run_pool([(inst, args.rtol, args.method) for inst in instances], args.jobs)
     wall = time.time() - wall
     print(
         f"{'instance':<26} {'win':>5} {'st':>2} {'axis':>4} {'engine':>12} {'scipy':>12} "
@@ -877,7 +912,8 @@ def cmd_radau_time(args) -> int:
         "per own cycle of MODEL.md section 8's converged value"
     )
     print(
-        f"{'case':<16} {'rtol':>7} {'step_x':>11} {'step_y':>11} {'max err':>9} {'steps':>7} {'cpu s':>7}"
+        f"{'case':<16} {'rtol':>7} {'step_x':>11} {'step_y':>11} {'max err':>9} "
+        f"{'steps':>7} {'cpu s':>7}"
     )
     summary = []
     failed = False
@@ -932,6 +968,7 @@ def main() -> int:
     p = sub.add_parser("reference", help="MODEL.md section 8's converged reference values")
     p.add_argument("--rtol", type=float, default=REF_RTOL, help="Radau rtol (at most 1e-9)")
     p.add_argument("--jobs", type=int, default=jobs, help="integrations in parallel")
+    p.add_argument("--method", choices=METHODS, default="Radau", help="solve_ivp method")
     p.add_argument(
         "--extra",
         action="store_true",
@@ -946,6 +983,7 @@ def main() -> int:
     p.add_argument("--tolerance", type=float, help="simulation.tolerance for the engine")
     p.add_argument("--rtol", type=float, default=ENGINE_RTOL, help="SciPy's Radau rtol")
     p.add_argument("--jobs", type=int, default=jobs, help="SciPy integrations in parallel")
+    p.add_argument("--method", choices=METHODS, default="Radau", help="solve_ivp method")
     p.add_argument("--keep", type=Path, help="write the scene and the HDF5 file here")
     p.add_argument("--scipy-only", action="store_true", help="skip the engine")
     p.add_argument("--verbose", "-v", action="store_true", help="print each instance's parameters")

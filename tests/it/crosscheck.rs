@@ -1,6 +1,8 @@
 //! The engine against an independent SciPy integration of the same model:
 //! runs `tests/crosscheck/crosscheck.py` on this build's `pidm` binary,
-//! once on the CPU path and once on the f64 shader.
+//! once on the CPU path and once on the f64 shader, and
+//! `tests/crosscheck/lugre.py` (LuGre friction, MODEL.md section 8) on the
+//! CPU path.
 //!
 //! The script integrates seeded random 2-DOF instances (equal and unequal
 //! stages, bands down to 1e-9 m/s, runs of up to 10 cycles) and exits
@@ -47,6 +49,12 @@ fn python_has_deps() -> bool {
 /// Runs the script with `args` and asserts that it passed; outside CI,
 /// without Python or its packages, prints the notice instead.
 fn crosscheck(args: &[&str]) {
+    run_script("crosscheck.py", args, "crosscheck: 0 failure(s)");
+}
+
+/// Runs `tests/crosscheck/<script>` with `args` on this build's binary and
+/// asserts that it passed and printed `verdict`.
+fn run_script(script: &str, args: &[&str], verdict: &str) {
     if !python_has_deps() {
         cannot_run(
             "python3 with numpy, scipy and h5py is not available \
@@ -57,7 +65,7 @@ fn crosscheck(args: &[&str]) {
     let _serial = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
     let root = env!("CARGO_MANIFEST_DIR");
     let out = Command::new("python3")
-        .arg(format!("{root}/tests/crosscheck/crosscheck.py"))
+        .arg(format!("{root}/tests/crosscheck/{script}"))
         .args(args)
         .env("PIDM_BIN", env!("CARGO_BIN_EXE_pidm"))
         .current_dir(root)
@@ -75,8 +83,24 @@ fn crosscheck(args: &[&str]) {
     // A script that exited 0 without reaching its verdict (an early return
     // added by mistake) must not pass either.
     assert!(
-        stdout.contains("crosscheck: 0 failure(s)"),
+        stdout.contains(verdict),
         "no verdict from the SciPy cross-check:\n{stdout}"
+    );
+}
+
+/// LuGre friction (MODEL.md section 8) on the CPU path against SciPy's
+/// Radau at rtol 1e-10 (`tests/crosscheck/lugre.py engine`): ten seeded
+/// instances with bristle stiffness 1e5 to 1e10 N/m, given and derived
+/// damping, viscous friction, Stribeck velocities, f_s = f_c, equal and
+/// unequal stages, 1-DOF and 2-DOF, a 2:1 frequency ratio, duty 0.5 to 1
+/// (1 included) and loads, each within 0.001 um + 0.1 % per cycle. About
+/// three minutes, nearly all of it SciPy's.
+#[test]
+fn lugre_instances_agree_with_scipy_on_the_cpu() {
+    run_script(
+        "lugre.py",
+        &["engine", "--backend", "cpu"],
+        "lugre engine: 0 failure(s)",
     );
 }
 
