@@ -24,17 +24,18 @@ pub fn bench(path: Option<&Path>, min_seconds: f64) -> Result<()> {
     let instances = scene_integrations(&scene);
     let simulated: f64 = instances.iter().map(Instance::duration).sum();
     println!(
-        "bench: scene {:?}, {} integrations ({} simulated s per pass), tolerance {:e} rad",
+        "bench: scene {:?}, {} integrations ({} simulated s per pass), {}",
         scene.name,
         instances.len(),
         simulated,
-        scene.settings.tolerance
+        scene.tolerance_text()
     );
     let mut backends: Vec<Box<dyn Backend>> = vec![
         Box::new(CpuBackend::new(Some(1))?),
         Box::new(CpuBackend::new(None)?),
     ];
     match crate::gpu::GpuContext::new(true) {
+        _ if scene.is_lugre() => println!("  gpu: not measured (no LuGre shader yet)"),
         Ok(ctx) => {
             let f64_ok = ctx.supports_f64();
             backends.push(Box::new(GpuBackend::new(ctx, Precision::F32)?));
