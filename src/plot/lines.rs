@@ -11,7 +11,7 @@ use plotters::style::text_anchor::{HPos, Pos, VPos};
 use super::canvas::{LEGEND_WIDTH, font, save, swatch, title_block};
 use super::colour::{FAILED, axis_colour};
 use super::placement::{Placement, label_values};
-use super::read::{AxisData, Data};
+use super::read::{AxisData, Data, Kind};
 use super::regime::{Regime, ZERO_STEP_M};
 use super::text::{axis_title, short};
 use crate::model::AXIS_NAMES;
@@ -317,7 +317,7 @@ pub(super) fn family_lines(
     let (along, over) = (&axes[long], &axes[short]);
     for (a, name) in AXIS_NAMES.iter().enumerate() {
         let mut failed = Vec::new();
-        let series = (0..over.values.len())
+        let mut series: Vec<Series> = (0..over.values.len())
             .map(|s| Series {
                 name: format!(
                     "{} = {}",
@@ -338,6 +338,18 @@ pub(super) fn family_lines(
                     .collect(),
             })
             .collect();
+        // A LuGre map: each line's instance under Karnopp's friction, as
+        // the reference the bristles approach (MODEL.md section 8).
+        if let Some(twins) = karnopp_twins(data, (long, short), &flat) {
+            for (s, twin) in twins.iter().enumerate() {
+                series.push(Series {
+                    name: format!("Karnopp, {}", series[s].name),
+                    colour: FAMILY_COLOURS[s],
+                    dashed: true,
+                    points: along.values.iter().map(|&v| (v, twin[a] * 1e6)).collect(),
+                });
+            }
+        }
         let path = dir.join(format!("step_{}_lines.png", name));
         let y_title = format!("step along {} [µm per {} drive cycle]", name, name);
         let mut title = vec![
@@ -372,4 +384,43 @@ pub(super) fn family_lines(
         files.push(path);
     }
     Ok(())
+}
+
+/// For a LuGre file whose long axis is one of the bristle keys: the step
+/// [m per own cycle] of each line's instance (at the long axis' first
+/// value) integrated again under Karnopp's friction on the CPU, at the
+/// scene's settings; `None` for any other file.
+fn karnopp_twins(
+    data: &Data,
+    (long, short): (usize, usize),
+    flat: &dyn Fn(usize, usize) -> usize,
+) -> Option<Vec<[f64; 2]>> {
+    let scene = data.scene.as_ref().filter(|s| s.is_lugre())?;
+    let Kind::Grid(axes) = &data.kind else {
+        return None;
+    };
+    let bristle = [
+        "mechanism.bristle_stiffness",
+        "mechanism.bristle_damping",
+        "mechanism.viscous_friction",
+        "mechanism.stribeck_velocity",
+    ];
+    if !bristle.contains(&axes[long].key.as_str()) {
+        return None;
+    }
+    let twins = (0..axes[short].values.len())
+        .map(|s| {
+            let mut inst = scene.instance(flat(0, s) as u64);
+            inst.mechanism.friction = crate::model::Friction::Karnopp;
+            let out = crate::backend::cpu::run_one(&inst, &scene.settings);
+            std::array::from_fn(|i| {
+                if out.status == 0 {
+                    out.step(&inst, i)
+                } else {
+                    f64::NAN
+                }
+            })
+        })
+        .collect();
+    Some(twins)
 }

@@ -71,6 +71,8 @@ pub(super) struct Data {
     pub(super) fixed: Option<String>,
     /// The stall maps of a scene with `[stall]`, when stored.
     pub(super) stall: Option<StallData>,
+    /// The file's scene, when it parses.
+    pub(super) scene: Option<Scene>,
 }
 
 /// The stall maps of one axis (`crate::stall`), row-major like the maps.
@@ -209,6 +211,7 @@ impl Data {
             notes,
             fixed,
             stall,
+            scene,
         })
     }
 }

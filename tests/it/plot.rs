@@ -155,6 +155,37 @@ fn a_one_axis_grid_gives_line_plots_and_a_missing_file_is_an_error() {
     assert!(err.contains("nothing.h5"), "{err}");
 }
 
+/// A LuGre map over the bristle stiffness at four voltages
+/// (`sweeps/lugre.toml`) draws each voltage's Karnopp step as a dashed line
+/// in its colour: the same file with its scene text unreadable (so nothing
+/// says LuGre) draws the same lines without them, hundreds of pixels fewer
+/// of each colour.
+#[test]
+fn a_lugre_family_draws_the_karnopp_reference_lines() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = crate::common::manifest("sweeps/lugre.toml");
+    ok(&["run", &scene, "--out", "lugre.h5"], dir.path());
+    ok(&["plot", "lugre.h5", "--out", "with"], dir.path());
+    let picture = |sub: &str| dir.path().join(sub).join("step_x_lines.png");
+    check_png(&picture("with"));
+    // The same maps under a scene text that does not parse.
+    edit(&dir.path().join("lugre.h5"), |file| {
+        file.delete_attr("scene")?;
+        let text: hdf5::types::VarLenUnicode = "not a scene".parse().unwrap();
+        file.new_attr::<hdf5::types::VarLenUnicode>()
+            .create("scene")?
+            .write_scalar(&text)
+    });
+    ok(&["plot", "lugre.h5", "--out", "without"], dir.path());
+    for colour in [[33, 102, 172], [118, 42, 131]] {
+        let (with, without) = (
+            pixels_of(&picture("with"), colour),
+            pixels_of(&picture("without"), colour),
+        );
+        assert!(with > without + 300, "{colour:?}: {with} against {without}");
+    }
+}
+
 /// How many pixels of the PNG at `path` have exactly `colour`.
 fn pixels_of(path: &Path, colour: [u8; 3]) -> usize {
     let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
