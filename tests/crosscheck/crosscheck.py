@@ -311,8 +311,11 @@ class EngineRun:
     problems: list[str]
 
 
-def run_engine(scene: Path, out: Path, backend: str, precision: str | None) -> EngineRun:
-    binary = os.environ.get("PIDM_BIN")
+def run_engine(
+    scene: Path, out: Path, backend: str, precision: str | None, binary: str | None = None
+) -> EngineRun:
+    """`pidm run` on the scene (`binary`, else $PIDM_BIN, else cargo), read back."""
+    binary = binary or os.environ.get("PIDM_BIN")
     args = ["run", str(scene), "--out", str(out), "--backend", backend]
     if precision:
         args += ["--precision", precision]
@@ -321,7 +324,7 @@ def run_engine(scene: Path, out: Path, backend: str, precision: str | None) -> E
     else:
         cmd = ["cargo", "run", "--release", "--quiet", "--", *args]
     started = time.time()
-    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
+    proc = subprocess.run(cmd, check=False, cwd=REPO, capture_output=True, text=True)
     seconds = time.time() - started
     # Exit code 3 means some instance ended with a non-zero status: the maps
     # are still written, and the status check reports it.
@@ -757,7 +760,9 @@ def main() -> int:
                 continue
             scene = work / f"crosscheck_{which}.toml"
             scene.write_text(scene_toml(instances, tolerance))
-            runs[which] = run_engine(scene, work / f"crosscheck_{which}.h5", args.backend, precision)
+            runs[which] = run_engine(
+                scene, work / f"crosscheck_{which}.h5", args.backend, precision
+            )
     engine, tight = runs["default"], runs.get("tight")
     failures = []
     for run in runs.values():
@@ -776,7 +781,11 @@ def main() -> int:
     print(
         "steps in um per own drive cycle; pass: engine status 0, |engine - scipy| <= "
         f"{BOUND_M * 1e6:g} um at the default tolerance"
-        + (f" and <= {TIGHT_BOUND_M * 1e6:g} um at {args.tight:g}" if tight else " (tight check skipped)")
+        + (
+            f" and <= {TIGHT_BOUND_M * 1e6:g} um at {args.tight:g}"
+            if tight
+            else " (tight check skipped)"
+        )
     )
     print(
         f"{'instance':<18} {'cyc':>3} {'band':>7} {'mp y/x':>6} {'st':>2} {'axis':>4} "
@@ -829,7 +838,9 @@ def main() -> int:
                 f"{diff * 1e6:>9.2e} {d_tight * 1e6:>9.2e} {ref.events:>6} {secs:>5.1f}{mark}"
             )
         if ref.recovered:
-            print(f"{'':<18} ({ref.recovered} crossing(s) inside a step recovered from the dense output)")
+            print(
+                f"{'':<18} ({ref.recovered} crossing(s) inside a step recovered from the dense output)"
+            )
     for label, reason in EXCLUDED.items():
         print(f"excluded {label}: {reason}")
     print(

@@ -123,7 +123,6 @@ for _var in (
 import argparse
 import itertools
 import math
-import subprocess
 import sys
 import tempfile
 import time
@@ -131,8 +130,10 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import h5py
 import numpy as np
+
+# The engine's run and its file, read as the Karnopp cross-check reads them.
+from crosscheck import run_engine
 from scipy.integrate import solve_ivp
 
 REPO = Path(__file__).resolve().parents[2]
@@ -741,60 +742,6 @@ def scene_toml(instances: list[Instance], tolerance: float | None = None) -> str
     return "\n".join(lines)
 
 
-@dataclass
-class EngineRun:
-    step_x: np.ndarray
-    step_y: np.ndarray
-    status: np.ndarray
-    backend: str
-    precision: str
-    seconds: float
-    problems: list[str]
-
-
-def run_engine(
-    binary: str | None, scene: Path, out: Path, backend: str, precision: str | None
-) -> EngineRun:
-    """`pidm run` on the scene, read back as crosscheck.py does."""
-    args = ["run", str(scene), "--out", str(out), "--backend", backend]
-    if precision:
-        args += ["--precision", precision]
-    if binary:
-        cmd = [binary, *args]
-    else:
-        cmd = ["cargo", "run", "--release", "--quiet", "--", *args]
-    started = time.time()
-    proc = subprocess.run(cmd, check=False, cwd=REPO, capture_output=True, text=True)
-    seconds = time.time() - started
-    # Exit code 3 means some instance ended with a non-zero status: the maps
-    # are still written, and the status check reports it.
-    if proc.returncode not in (0, 3) or not out.exists():
-        sys.stderr.write(proc.stdout + proc.stderr)
-        raise SystemExit(f"engine failed: {' '.join(cmd)} (exit {proc.returncode})")
-    problems = []
-    with h5py.File(out, "r") as h5:
-        ran = str(h5.attrs["backend"])
-        ran_precision = str(h5.attrs["precision"])
-        run = EngineRun(
-            np.asarray(h5["/maps/step_x"][...], dtype=float),
-            np.asarray(h5["/maps/step_y"][...], dtype=float),
-            np.asarray(h5["/maps/status"][...], dtype=int),
-            ran,
-            ran_precision,
-            seconds,
-            problems,
-        )
-    # The file must say the backend asked for ran it, at the precision asked
-    # for: a GPU check that quietly ran on the CPU would prove nothing.
-    if not ran.startswith(backend):
-        problems.append(f"asked for --backend {backend}, the file says {ran!r}")
-    if precision and ran_precision != precision:
-        problems.append(f"asked for --precision {precision}, the file says {ran_precision!r}")
-    if backend == "gpu" and "ran on the CPU" in proc.stdout:
-        problems.append("some integrations were handed to the CPU: " + proc.stdout.strip())
-    return run
-
-
 def describe(inst: Instance) -> str:
     s1 = "derived" if inst.bristle_damping is None else f"{inst.bristle_damping:.3g}"
     ratio = inst.sigma1() / math.sqrt(inst.bristle_stiffness * inst.slider_mass)
@@ -824,7 +771,7 @@ def cmd_engine(args) -> int:
         scene.write_text(scene_toml(instances, args.tolerance))
         if not args.scipy_only:
             engine = run_engine(
-                binary, scene, work / "lugre_crosscheck.h5", args.backend, precision
+                scene, work / "lugre_crosscheck.h5", args.backend, precision, binary
             )
     failures = list(engine.problems) if engine else []
     if engine and len(engine.step_x) != len(instances):
