@@ -26,6 +26,18 @@ use super::trajectories::SpecAt;
 use super::values::Entry;
 use crate::model::AXIS_NAMES;
 
+/// The key of `layer` that comes first in the text among those whose field
+/// `refused` picks, with its slot.
+fn first_given(layer: &Layer, refused: impl Fn(Field) -> bool) -> Option<(usize, &Entry)> {
+    layer
+        .entries
+        .iter()
+        .enumerate()
+        .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e)))
+        .filter(|&(slot, _)| refused(slot_field(slot)))
+        .min_by_key(|(_, entry)| entry.span.start)
+}
+
 /// The document, parsed but not yet checked as a whole.
 #[derive(Debug, Default)]
 pub(super) struct Parsed {
@@ -327,15 +339,9 @@ impl Parser<'_> {
         mode: Mode,
         default: bool,
     ) -> Result<(), SceneError> {
-        let mut given: Vec<(usize, &Entry)> = layer
-            .entries
-            .iter()
-            .enumerate()
-            .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e)))
-            .filter(|&(slot, _)| slot_field(slot).mode().is_some_and(|m| m != mode))
-            .collect();
-        given.sort_by_key(|(_, entry)| entry.span.start);
-        let Some(&(slot, entry)) = given.first() else {
+        let Some((slot, entry)) =
+            first_given(layer, |field| field.mode().is_some_and(|m| m != mode))
+        else {
             return Ok(());
         };
         let key_mode = slot_field(slot).mode().unwrap_or(mode);
@@ -374,28 +380,25 @@ impl Parser<'_> {
         law: Option<FrictionLaw>,
     ) -> Result<(), SceneError> {
         let scene_law = law.unwrap_or_default();
-        let mut given: Vec<(usize, &Entry)> = layer
-            .entries
-            .iter()
-            .enumerate()
-            .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e)))
-            .filter(|&(slot, _)| slot_field(slot).friction().is_some_and(|l| l != scene_law))
-            .collect();
-        given.sort_by_key(|(_, entry)| entry.span.start);
-        let Some(&(slot, entry)) = given.first() else {
+        let Some((slot, entry)) = first_given(layer, |field| {
+            field.friction().is_some_and(|l| l != scene_law)
+        }) else {
             return Ok(());
         };
         let (why, todo) = match scene_law {
             FrictionLaw::Karnopp => (
                 "the bristle keys belong to the LuGre model (MODEL.md section 8)",
                 if law.is_none() {
-                    "This scene uses Karnopp friction (the default, as no mechanism.friction is                      given): set mechanism.friction = \"lugre\", or remove the key"
+                    "This scene uses Karnopp friction (the default, as no mechanism.friction is \
+                     given): set mechanism.friction = \"lugre\", or remove the key"
                 } else {
-                    "This scene sets friction = \"karnopp\": set it to \"lugre\", or remove                      the key"
+                    "This scene sets friction = \"karnopp\": set it to \"lugre\", or remove \
+                     the key"
                 },
             ),
             FrictionLaw::Lugre => (
-                "the velocity band is Karnopp's stick detection, and LuGre has no modes                  (MODEL.md section 8)",
+                "the velocity band is Karnopp's stick detection, and LuGre has no modes \
+                 (MODEL.md section 8)",
                 "This scene sets friction = \"lugre\": remove the key, or set friction = \
                  \"karnopp\"",
             ),
@@ -445,10 +448,12 @@ impl Parser<'_> {
             if context == Context::Point {
                 return Err(self.invalid(
                     key.span(),
-                    "mechanism.friction cannot be set per point: it applies to the whole scene                      (set it in the base [mechanism])",
+                    "mechanism.friction cannot be set per point: it applies to the whole scene \
+                     (set it in the base [mechanism])",
                 ));
             }
-            let expected = "expected \"karnopp\" (the default, MODEL.md section 3) or \"lugre\"                             (MODEL.md section 8)";
+            let expected = "expected \"karnopp\" (the default, MODEL.md section 3) or \"lugre\" \
+                            (MODEL.md section 8)";
             let DeValue::String(name) = value.get_ref() else {
                 return Err(self.wrong_type("mechanism.friction", expected, value));
             };

@@ -222,6 +222,7 @@ fn lugre_scenes_read_and_refuse() {
             .unwrap_or_else(|| panic!("accepted {text}"))
             .to_string();
         assert!(message.contains(needle), "{text}\ngave {message}");
+        assert!(!message.contains("  "), "a run of spaces in {message:?}");
     }
 }
 
