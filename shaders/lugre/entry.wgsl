@@ -6,12 +6,10 @@
 // (`pidm::gpu::lugre`), which measures the period as the CPU's run does
 // (`run::Periods::period_end`) and starts the next one.
 
-// A lane integrates (the host set it going at a period's start).
-const LANE_RUNNING: u32 = 0u;
-// A lane waits at the end of its scene period for the host.
-const LANE_PERIOD_END: u32 = 1u;
-// A lane has stopped: failed (its status says why) or finished.
-const LANE_STOPPED: u32 = 2u;
+// A lane's flag (the prelude's, from `pidm::gpu::lugre`): LANE_RUNNING
+// (the host set it going at a period's start), LANE_PERIOD_END (it waits at
+// the end of its scene period for the host) or LANE_STOPPED (failed, its
+// status says why, or finished).
 
 // One instance's integrator state between dispatches
 // (`pidm::gpu::lugre::Lane`).
@@ -69,7 +67,7 @@ fn advance(lane: Lane, attempts: u32) -> Lane {
     var rejected = lane.rejected != 0u;
     var in_segment = lane.in_segment != 0u;
     var steps = lane.steps;
-    for (var pass = 0u; pass < attempts; pass++) {
+    for (var round = 0u; round < attempts; round++) {
         close_segment(y, end, &in_segment, &steps, segment_steps);
         if !in_segment {
             if !(y[T] < model.period) {
@@ -144,16 +142,57 @@ fn lugre_advance(
         return;
     }
     model = models[index];
+    opaque_one = model.one;
     lanes[index] = advance(lanes[index], control.attempts);
 }
 
-// `exp_nonpositive` of each argument, for the tests
-// (`pidm::gpu::lugre::exp_on_gpu`).
-@group(0) @binding(3) var<storage, read_write> exp_values: array<Real>;
+// The shader-only functions of each (x, y) in `function_values` (five
+// numbers each: x, y, then exp_nonpositive(x), hypot(x, y) and
+// fourth_root(|y|); `models[0]` gives `keep` its 1), for the tests (`pidm::gpu::lugre::LugreGpu::
+// functions_on_gpu`).
+@group(0) @binding(3) var<storage, read_write> function_values: array<Real>;
 
 @compute @workgroup_size(LUGRE_WORKGROUP_SIZE)
-fn lugre_exp(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x < arrayLength(&exp_values) {
-        exp_values[gid.x] = exp_nonpositive(exp_values[gid.x]);
+fn lugre_functions(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = 5u * gid.x;
+    if i + 4u < arrayLength(&function_values) {
+        opaque_one = models[0].one;
+        let x = function_values[i];
+        let y = function_values[i + 1u];
+        function_values[i + 2u] = exp_nonpositive(x);
+        function_values[i + 3u] = hypot(x, y);
+        function_values[i + 4u] = fourth_root(abs(y));
     }
+}
+
+// The mirror's probes (`pidm::gpu::lugre::LugreGpu::mirror_on_gpu`): the
+// right-hand side, the Jacobian and one Rodas4 step of the instance in
+// `models[0]` at each probe's state, drive and step, for the tests to
+// compare with the CPU's functions.
+struct Probe {
+    y: State,
+    drive: Drive,
+    h: Real,
+}
+
+struct Probed {
+    rhs: State,
+    jacobian: Matrix,
+    next: State,
+    error: State,
+}
+
+@group(0) @binding(4) var<storage, read> probes: array<Probe>;
+@group(0) @binding(5) var<storage, read_write> probed: array<Probed>;
+
+@compute @workgroup_size(LUGRE_WORKGROUP_SIZE)
+fn lugre_mirror(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= arrayLength(&probes) || gid.x >= arrayLength(&probed) {
+        return;
+    }
+    model = models[0];
+    opaque_one = model.one;
+    let p = probes[gid.x];
+    let step = rodas4(p.drive, p.y, p.h);
+    probed[gid.x] = Probed(rhs(p.y, p.drive), jacobian(p.y, p.drive), step.next, step.error);
 }

@@ -2,7 +2,10 @@
 // section 8), its exact Jacobian, and the drive over one segment between
 // corners, linear in time. f64 only. The prelude (`pidm::gpu::lugre`)
 // defines Real, the state's layout (N, XP, VP, XS, VS, Z, T), the
-// constants of `exp_nonpositive` and the helpers recip, div and root.
+// constants of the shader-only functions, and `quotient` and
+// `square_root`: f64 division and square root, WGSL's own on llvmpipe
+// (IEEE's, as the CPU's), the Karnopp prelude's `div` and `root` (from
+// inverseSqrt and fma) on hardware.
 //
 //   g(s)  = f_c + (f_s - f_c) exp(-(s / v_S)^2)
 //   dz/dt = v_rel - sigma0 s z / g(s)
@@ -40,6 +43,8 @@ struct Model {
     // The error control's weights (`run::error_scale`): scale[T] is
     // infinite and never read.
     scale: array<Real, N>,
+    // 1 (`keep`).
+    one: Real,
 }
 
 // The instance the invocation integrates (Rust's `self`).
@@ -60,41 +65,125 @@ struct Clock {
     start: array<Real, 2>,
 }
 
-// exp(x) for x <= 0 (and NaN), from + - * and fma: x = k ln 2 + r with
-// |r| <= ln 2 / 2 (Cody and Waite's two-part ln 2), a Taylor polynomial of
-// degree EXP_DEGREE in r, then 2^k by halvings. Within 1e-15 of exp(x),
-// relative, where exp(x) is a normal number. The prelude writes the
-// polynomial (`exp_taylor`, Horner's scheme in fma) and the halvings
-// (`exp_halvings`: the small powers first, so that only the last product
-// may leave the normal range; 2^-1024 as two 2^-512) out as straight-line
-// code: loops would count against llvmpipe's loop limit. Mirrored on the CPU by
-// `pidm::gpu::lugre::exp_nonpositive`. Shader only (the CPU's model calls
-// Rust's exp).
+// A number in two parts, hi + lo (`two_sum`, `two_prod`).
+struct Pair {
+    hi: Real,
+    lo: Real,
+}
+
+// 1, from the instance's parameters (`Model::one`): see `keep`.
+var<private> opaque_one: Real;
+
+// x itself, as a product with a 1 the driver's compiler cannot see: it
+// keeps the compiler from rewriting the two-part sums' algebra (Mesa's NIR
+// folds c - (c - x) to x and (a + b) - a to b wherever it may reassociate,
+// which leaves nothing of their rounding errors). The CPU's mirrors
+// multiply by 1.0 alike.
+fn keep(x: Real) -> Real {
+    return x * opaque_one;
+}
+
+// a + b = s + e exactly (Knuth's two-sum). Mirror: `pidm::gpu::lugre::two_sum`.
+fn two_sum(a: Real, b: Real) -> Pair {
+    let s = keep(a + b);
+    let bb = keep(s - a);
+    return Pair(s, keep(a - keep(s - bb)) + keep(b - bb));
+}
+
+// x = hi + lo with hi of at most 26 significant bits (Veltkamp).
+fn split(x: Real) -> Pair {
+    let c = keep(SPLITTER * x);
+    let hi = keep(c - keep(c - x));
+    return Pair(hi, x - hi);
+}
+
+// a b = p + e exactly (Dekker's two-product): without fma, which llvmpipe
+// computes as a rounded product and a sum.
+fn two_prod(a: Real, b: Real) -> Pair {
+    let p = keep(a * b);
+    let sa = split(a);
+    let sb = split(b);
+    return Pair(p, ((keep(sa.hi * sb.hi) - p) + sa.hi * sb.lo + sa.lo * sb.hi) + sa.lo * sb.lo);
+}
+
+// exp(x) for x <= 0 (NaN stays NaN) from + - * alone: x = k ln 2 + r with
+// |r| <= ln 2 / 2 (Cody and Waite's two-part ln 2, r's rounding kept),
+// exp(r) = (1 + r) + (r^2 / 2 + r^3 P(r)) with 1 + r and r^2 in two parts
+// and one final rounding, then 2^k by exact halvings. Within one unit in
+// the last place, and glibc's exp but in about one argument in a hundred. The prelude writes
+// P (`exp_tail`) and the halvings (`exp_halvings`: the small powers first,
+// so that only the last product may leave the normal range; 2^-1024 as two
+// 2^-512) out as straight-line code. Shader only (the CPU's model calls
+// Rust's exp); mirrored by `pidm::gpu::lugre::exp_nonpositive`.
 fn exp_nonpositive(x: Real) -> Real {
     if !(x >= EXP_MIN) {
         // Below EXP_MIN exp(x) rounds to 0; NaN stays NaN.
         return select(Real(0.0), x, x != x);
     }
-    let k = floor(fma(x, EXP_INV_LN2, Real(0.5)));
-    let r = fma(-k, EXP_LN2_LO, x - k * EXP_LN2_HI);
-    return exp_halvings(exp_taylor(r), u32(-k));
+    let k = floor(x * EXP_INV_LN2 + Real(0.5));
+    let rh = keep(x - k * EXP_LN2_HI);
+    let kl = keep(k * EXP_LN2_LO);
+    let r = keep(rh - kl);
+    let r_lo = keep(rh - r) - kl;
+    let r2 = two_prod(r, r);
+    let tail = exp_tail(r) * r2.hi * r;
+    let one_r = two_sum(Real(1.0), r);
+    let small = Real(0.5) * r2.hi + ((Real(0.5) * r2.lo + tail) + r_lo * one_r.hi);
+    let e = one_r.hi + (one_r.lo + small);
+    return exp_halvings(e, u32(-k));
 }
 
-// |(x, y)| as f64::hypot (within its rounding), scaled by a power of two
-// where the squares would underflow or overflow. Shader only.
+// |(x, y)|: glibc's hypot (its kernel without fma), which Rust's
+// f64::hypot calls on the CPU: the same bits. Shader only; mirrored by
+// `pidm::gpu::lugre::hypot`.
 fn hypot(x: Real, y: Real) -> Real {
-    let big = max(abs(x), abs(y));
-    if big < HYPOT_SMALL {
-        let a = x * HYPOT_UP;
-        let b = y * HYPOT_UP;
-        return root(a * a + b * b) * HYPOT_DOWN;
+    if !is_finite(x) || !is_finite(y) {
+        if abs(x) > INFINITY || abs(y) > INFINITY {
+            return abs(x) + abs(y);
+        }
+        return x + y;
     }
-    if big > HYPOT_LARGE {
-        let a = x * HYPOT_DOWN;
-        let b = y * HYPOT_DOWN;
-        return root(a * a + b * b) * HYPOT_UP;
+    let ax = max(abs(x), abs(y));
+    let ay = min(abs(x), abs(y));
+    if ax > HYPOT_LARGE {
+        if ay <= ax * HYPOT_EPS {
+            return ax + ay;
+        }
+        return hypot_kernel(ax * HYPOT_SCALE, ay * HYPOT_SCALE) * HYPOT_UNSCALE;
     }
-    return root(x * x + y * y);
+    if ay < HYPOT_TINY {
+        if ax >= ay * HYPOT_INV_EPS {
+            return ax + ay;
+        }
+        return hypot_kernel(ax * HYPOT_UNSCALE, ay * HYPOT_UNSCALE) * HYPOT_SCALE;
+    }
+    if ay <= ax * HYPOT_EPS {
+        return ax + ay;
+    }
+    return hypot_kernel(ax, ay);
+}
+
+// glibc's hypot kernel for ax >= ay: the square root of the sum of
+// squares, corrected once.
+fn hypot_kernel(ax: Real, ay: Real) -> Real {
+    let h = square_root(ax * ax + ay * ay);
+    var t1: Real;
+    var t2: Real;
+    if h <= Real(2.0) * ay {
+        let delta = h - ay;
+        t1 = ax * (Real(2.0) * delta - ax);
+        t2 = (delta - Real(2.0) * (ax - ay)) * delta;
+    } else {
+        let delta = h - ax;
+        t1 = Real(2.0) * delta * (ax - Real(2.0) * ay);
+        t2 = (Real(4.0) * delta - ay) * ay + delta * delta;
+    }
+    return h - quotient(t1 + t2, Real(2.0) * h);
+}
+
+// Whether x is neither infinite nor NaN.
+fn is_finite(x: Real) -> bool {
+    return x == x && abs(x) <= INFINITY;
 }
 
 // Linear::at: the voltage at time t.
@@ -108,21 +197,21 @@ fn rhs(y: State, drive: Drive) -> State {
     var dr = drive;
     var vr = array<Real, 2>(yy[VP] - yy[VS], yy[VP + 1u] - yy[VS + 1u]);
     let s = hypot(vr[0], vr[1]);
-    let q = div(s, model.v_s);
+    let q = quotient(s, model.v_s);
     let g = model.coulomb_friction
         + (model.static_friction - model.coulomb_friction) * exp_nonpositive(-(q * q));
     var d: State;
     for (var i = 0u; i < 2u; i++) {
-        let dz = vr[i] - div(model.sigma0 * s * yy[Z + i], g);
+        let dz = vr[i] - quotient(model.sigma0 * s * yy[Z + i], g);
         let f = model.sigma0 * yy[Z + i] + model.sigma1 * dz + model.sigma2 * vr[i];
         let force = model.gain[i] * at(dr[i], yy[T]);
         d[XP + i] = yy[VP + i];
-        d[VP + i] = div(
+        d[VP + i] = quotient(
             force - model.damping[i] * yy[VP + i] - model.stiffness[i] * yy[XP + i] - f,
             model.stage_mass[i],
         );
         d[XS + i] = yy[VS + i];
-        d[VS + i] = div(f + model.load[i], model.slider_mass);
+        d[VS + i] = quotient(f + model.load[i], model.slider_mass);
         d[Z + i] = dz;
     }
     d[T] = Real(1.0);
@@ -137,13 +226,13 @@ fn jacobian(y: State, drive: Drive) -> Matrix {
     var dr = drive;
     var vr = array<Real, 2>(yy[VP] - yy[VS], yy[VP + 1u] - yy[VS + 1u]);
     let s = hypot(vr[0], vr[1]);
-    let q = div(s, model.v_s);
+    let q = quotient(s, model.v_s);
     let e = exp_nonpositive(-(q * q));
     let fs_fc = model.static_friction - model.coulomb_friction;
     let g = model.coulomb_friction + fs_fc * e;
-    let dg = fs_fc * e * div(Real(-2.0) * s, model.v_s * model.v_s);
-    let h = div(s, g);
-    let dh = div(g - s * dg, g * g);
+    let dg = fs_fc * e * quotient(Real(-2.0) * s, model.v_s * model.v_s);
+    let h = quotient(s, g);
+    let dh = quotient(g - s * dg, g * g);
     var jac: Matrix;
     for (var i = 0u; i < 2u; i++) {
         // d(dz_i)/d(v_rel_j) and d(dz_i)/d(z_i); f_i's likewise.
@@ -151,7 +240,7 @@ fn jacobian(y: State, drive: Drive) -> Matrix {
         var df_dvr: array<Real, 2>;
         for (var j = 0u; j < 2u; j++) {
             let own = select(Real(0.0), Real(1.0), i == j);
-            let turn = select(Real(0.0), div(vr[j], s), s > Real(0.0));
+            let turn = select(Real(0.0), quotient(vr[j], s), s > Real(0.0));
             ddz_dvr[j] = own - model.sigma0 * yy[Z + i] * dh * turn;
         }
         let ddz_dz = -model.sigma0 * h;
@@ -162,17 +251,17 @@ fn jacobian(y: State, drive: Drive) -> Matrix {
         let mass = model.stage_mass[i];
         jac[XP + i][VP + i] = Real(1.0);
         jac[XS + i][VS + i] = Real(1.0);
-        jac[VP + i][XP + i] = div(-model.stiffness[i], mass);
-        jac[VP + i][VP + i] = div(-model.damping[i], mass);
-        jac[VP + i][Z + i] = div(-df_dz, mass);
-        jac[VP + i][T] = div(model.gain[i] * dr[i].b, mass);
-        jac[VS + i][Z + i] = div(df_dz, model.slider_mass);
+        jac[VP + i][XP + i] = quotient(-model.stiffness[i], mass);
+        jac[VP + i][VP + i] = quotient(-model.damping[i], mass);
+        jac[VP + i][Z + i] = quotient(-df_dz, mass);
+        jac[VP + i][T] = quotient(model.gain[i] * dr[i].b, mass);
+        jac[VS + i][Z + i] = quotient(df_dz, model.slider_mass);
         jac[Z + i][Z + i] = ddz_dz;
         for (var j = 0u; j < 2u; j++) {
-            jac[VP + i][VP + j] -= div(df_dvr[j], mass);
-            jac[VP + i][VS + j] += div(df_dvr[j], mass);
-            jac[VS + i][VP + j] += div(df_dvr[j], model.slider_mass);
-            jac[VS + i][VS + j] -= div(df_dvr[j], model.slider_mass);
+            jac[VP + i][VP + j] -= quotient(df_dvr[j], mass);
+            jac[VP + i][VS + j] += quotient(df_dvr[j], mass);
+            jac[VS + i][VP + j] += quotient(df_dvr[j], model.slider_mass);
+            jac[VS + i][VS + j] -= quotient(df_dvr[j], model.slider_mass);
             jac[Z + i][VP + j] += ddz_dvr[j];
             jac[Z + i][VS + j] -= ddz_dvr[j];
         }
@@ -194,10 +283,10 @@ fn drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
     let n = floor(u0 + f * t_mid);
     // u = u0 + f t; rise: (u - n) / d, fall: (n + 1 - u) / (1 - d).
     if u0 + f * t_mid - n < duty {
-        let k = div(v, duty);
+        let k = quotient(v, duty);
         return Linear(k * (u0 - n), k * f);
     }
-    let k = div(v, Real(1.0) - duty);
+    let k = quotient(v, Real(1.0) - duty);
     return Linear(k * (n + Real(1.0) - u0), -k * f);
 }
 
@@ -214,13 +303,13 @@ fn next_corner(clock: Clock, i: u32, t: Real) -> Real {
     let duty = model.duty[i];
     var after = t;
     var at = t;
-    for (var pass = 0u; pass < CORNER_RETRIES; pass++) {
+    for (var retry = 0u; retry < CORNER_RETRIES; retry++) {
         let u = u0 + f * after;
         let n = floor(u);
         let corner = select(n + Real(1.0), n + duty, u - n < duty);
-        at = div(corner - u0, f);
-        if at <= after + Real(1e-15) * (abs(after) + div(Real(1.0), f)) {
-            after = at + div(Real(1e-12), f);
+        at = quotient(corner - u0, f);
+        if at <= after + Real(1e-15) * (abs(after) + quotient(Real(1.0), f)) {
+            after = at + quotient(Real(1e-12), f);
         } else {
             break;
         }

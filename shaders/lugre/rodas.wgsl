@@ -4,7 +4,8 @@
 // (`jacobian`); the step attempts of one segment (between drive corners
 // and period ends, inside which the drive is linear in time) and the LU
 // factorisation the stages solve with. The coefficients GAMMA, RODAS_A and
-// RODAS_C come from the Rust consts through the prelude.
+// RODAS_C, and the reduced system's R and REDUCED, come from the Rust
+// consts through the prelude.
 
 // One Rodas4 step: the new state and the local error estimate (k6).
 struct Step {
@@ -12,10 +13,24 @@ struct Step {
     error: State,
 }
 
-// An LU factorisation with partial pivoting of an N x N matrix.
+alias Reduced = array<Real, R>;
+alias ReducedMatrix = array<array<Real, R>, R>;
+
+// An LU factorisation with partial pivoting of the R x R reduced matrix.
 struct Lu {
-    a: Matrix,
-    pivot: array<u32, N>,
+    a: ReducedMatrix,
+    pivot: array<u32, R>,
+}
+
+// The stages' matrix W = I - gamma h J, reduced to the velocities and
+// deflections (REDUCED) and LU-factored (`w_matrix`).
+struct W {
+    lu: Lu,
+    g: Real,
+    // J's columns of the stage positions and of the time, on the reduced
+    // rows.
+    j_xp: array<array<Real, 2>, R>,
+    j_t: Reduced,
 }
 
 // One Rodas4 step of size `h` from `y`. The stages solve (I / (gamma h) -
@@ -43,7 +58,7 @@ fn rodas4(drive: Drive, y: State, h: Real) -> Step {
             for (var j = 0u; j < i; j++) {
                 let c = RODAS_C[i - 1u][j];
                 for (var n = 0u; n < N; n++) {
-                    f[n] += div(c * k[j][n], h);
+                    f[n] += quotient(c * k[j][n], h);
                 }
             }
         }
@@ -59,8 +74,17 @@ fn rodas4(drive: Drive, y: State, h: Real) -> Step {
     return Step(next, k[5]);
 }
 
-fn is_finite(x: Real) -> bool {
-    return x == x && abs(x) <= INFINITY;
+// x^(1/4) for x >= 0 (Rust's powf(0.25)): sqrt(sqrt(x)) with one Newton
+// correction on the exact residual, so that it is correctly rounded but
+// in rare cases (glibc's pow but in about one argument in a thousand).
+// Shader only; mirrored by `pidm::gpu::lugre::fourth_root`.
+fn fourth_root(x: Real) -> Real {
+    let s = square_root(square_root(x));
+    let p = two_prod(s, s);
+    let q = two_prod(p.hi, p.hi);
+    let rho = (keep(q.hi - x) + q.lo) + Real(2.0) * p.hi * p.lo;
+    let refined = s - quotient(rho, Real(4.0) * s * s * s);
+    return select(s, refined, is_finite(refined));
 }
 
 // One pass of the CPU's `segment` loop: one step attempt from `y` towards
@@ -99,7 +123,7 @@ fn segment(
     var finite = true;
     for (var n = 0u; n < N; n++) {
         if n != T {
-            let e = abs(div(attempt.error[n], model.scale[n]));
+            let e = abs(quotient(attempt.error[n], model.scale[n]));
             if e > err {
                 err = e;
             }
@@ -125,7 +149,7 @@ fn segment(
     // A third-order estimate: the error scales with the step's fourth
     // power. No growth right after a rejection (Hairer and Wanner's rule).
     let most = select(Real(4.0), Real(1.0), *rejected);
-    let factor = clamp(div(Real(0.9), root(root(max(err, Real(1e-16))))), Real(0.2), most);
+    let factor = clamp(quotient(Real(0.9), fourth_root(max(err, Real(1e-16)))), Real(0.2), most);
     *rejected = err > Real(1.0);
     if !(last && err <= Real(1.0)) {
         *h = step * factor;
@@ -133,69 +157,110 @@ fn segment(
     return SEGMENT_GOING;
 }
 
-// I - gamma h J with the exact Jacobian J of `rhs`, LU-factored.
-fn w_matrix(drive: Drive, y: State, gh: Real) -> Lu {
-    var w: Lu;
-    w.a = jacobian(y, drive);
-    for (var i = 0u; i < N; i++) {
-        for (var k = 0u; k < N; k++) {
-            w.a[i][k] = -gh * w.a[i][k];
+// The stages' matrix W = I - gamma h J with the exact Jacobian J of
+// `rhs`, reduced and LU-factored. The rows of the positions and the time
+// are trivial (x' = v, t' = 1, and nothing depends on the slider's
+// position), so W x = b is solved on the six velocities and deflections
+// alone, with x_XP = b_XP + g x_VP, x_XS = b_XS + g x_VS and x_T = b_T
+// substituted (g = gamma h).
+fn w_matrix(drive: Drive, y: State, g: Real) -> W {
+    var j = jacobian(y, drive);
+    var w: W;
+    var a: ReducedMatrix;
+    for (var r = 0u; r < R; r++) {
+        let n = REDUCED[r];
+        for (var c = 0u; c < R; c++) {
+            a[r][c] = -g * j[n][REDUCED[c]];
         }
-        w.a[i][i] += Real(1.0);
+        a[r][r] += Real(1.0);
+        for (var i = 0u; i < 2u; i++) {
+            // x_XP,i = b_XP,i + g x_VP,i: its column folds into VP,i's.
+            a[r][i] -= g * g * j[n][XP + i];
+            w.j_xp[r][i] = j[n][XP + i];
+        }
+        w.j_t[r] = j[n][T];
     }
-    factor(&w);
+    w.lu = factor(a);
+    w.g = g;
     return w;
 }
 
-// Lu::factor, in place: partial pivoting on the largest magnitude (the
-// last of equal ones, as Rust's max_by), whole rows swapped.
-fn factor(lu: ptr<function, Lu>) {
-    for (var k = 0u; k < N; k++) {
+// W::solve: W x = b.
+fn solve(w: ptr<function, W>, b: State) -> State {
+    var bb = b;
+    let g = (*w).g;
+    var reduced: Reduced;
+    for (var r = 0u; r < R; r++) {
+        // Rust's sum over the axes (from -0.0, which adds nothing).
+        let from_xp = (*w).j_xp[r][0] * bb[XP] + (*w).j_xp[r][1] * bb[XP + 1u];
+        reduced[r] = bb[REDUCED[r]] + g * from_xp + g * (*w).j_t[r] * bb[T];
+    }
+    var lu = (*w).lu;
+    let v = solve_lu(&lu, reduced);
+    var x: State;
+    for (var r = 0u; r < R; r++) {
+        x[REDUCED[r]] = v[r];
+    }
+    for (var i = 0u; i < 2u; i++) {
+        x[XP + i] = bb[XP + i] + g * x[VP + i];
+        x[XS + i] = bb[XS + i] + g * x[VS + i];
+    }
+    x[T] = bb[T];
+    return x;
+}
+
+// Lu::factor: partial pivoting on the largest magnitude (the last of equal
+// ones, as Rust's max_by), whole rows swapped.
+fn factor(matrix: ReducedMatrix) -> Lu {
+    var lu: Lu;
+    lu.a = matrix;
+    for (var k = 0u; k < R; k++) {
         var p = k;
-        var best = abs((*lu).a[k][k]);
-        for (var i = k + 1u; i < N; i++) {
-            let v = abs((*lu).a[i][k]);
+        var best = abs(lu.a[k][k]);
+        for (var i = k + 1u; i < R; i++) {
+            let v = abs(lu.a[i][k]);
             if v >= best {
                 best = v;
                 p = i;
             }
         }
-        let row = (*lu).a[k];
-        (*lu).a[k] = (*lu).a[p];
-        (*lu).a[p] = row;
-        (*lu).pivot[k] = p;
-        for (var i = k + 1u; i < N; i++) {
-            let l = div((*lu).a[i][k], (*lu).a[k][k]);
-            (*lu).a[i][k] = l;
-            for (var c = k + 1u; c < N; c++) {
-                (*lu).a[i][c] -= l * (*lu).a[k][c];
+        let row = lu.a[k];
+        lu.a[k] = lu.a[p];
+        lu.a[p] = row;
+        lu.pivot[k] = p;
+        for (var i = k + 1u; i < R; i++) {
+            let l = quotient(lu.a[i][k], lu.a[k][k]);
+            lu.a[i][k] = l;
+            for (var c = k + 1u; c < R; c++) {
+                lu.a[i][c] -= l * lu.a[k][c];
             }
         }
     }
+    return lu;
 }
 
-// Solves A x = b. The factorisation swapped whole rows, multipliers
+// Lu::solve: A x = b. The factorisation swapped whole rows, multipliers
 // included (as LAPACK's getrf), so every swap applies to `b` before the
 // forward substitution.
-fn solve(lu: ptr<function, Lu>, rhs_b: State) -> State {
+fn solve_lu(lu: ptr<function, Lu>, rhs_b: Reduced) -> Reduced {
     var b = rhs_b;
-    for (var k = 0u; k < N; k++) {
+    for (var k = 0u; k < R; k++) {
         let p = (*lu).pivot[k];
         let t = b[k];
         b[k] = b[p];
         b[p] = t;
     }
-    for (var k = 0u; k < N; k++) {
-        for (var i = k + 1u; i < N; i++) {
+    for (var k = 0u; k < R; k++) {
+        for (var i = k + 1u; i < R; i++) {
             b[i] -= (*lu).a[i][k] * b[k];
         }
     }
-    for (var kk = 0u; kk < N; kk++) {
-        let k = N - 1u - kk;
-        for (var j = k + 1u; j < N; j++) {
+    for (var kk = 0u; kk < R; kk++) {
+        let k = R - 1u - kk;
+        for (var j = k + 1u; j < R; j++) {
             b[k] -= (*lu).a[k][j] * b[j];
         }
-        b[k] = div(b[k], (*lu).a[k][k]);
+        b[k] = quotient(b[k], (*lu).a[k][k]);
     }
     return b;
 }

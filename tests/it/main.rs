@@ -13,6 +13,7 @@ mod docs;
 mod extreme;
 mod files;
 mod gpu;
+mod gpu_lugre;
 mod gpu_phase;
 mod install;
 mod lanes;

@@ -60,7 +60,7 @@ pub(crate) const C: [[f64; 5]; 5] = [
 /// One Rodas4 step of size `h` from `y`: the new state and the local
 /// error estimate (k6). The stages solve (I / (gamma h) - J) k = rhs, that
 /// is gamma h (I - gamma h J)^-1 rhs.
-pub(super) fn rodas4(model: &Model, drive: &[Linear; AXES], y: &State, h: f64) -> (State, State) {
+pub(crate) fn rodas4(model: &Model, drive: &[Linear; AXES], y: &State, h: f64) -> (State, State) {
     let w = w_matrix(model, drive, y, GAMMA * h);
     let mut k = [[0.0; N]; 6];
     let mut start = *y;
@@ -172,8 +172,8 @@ struct W {
 }
 
 /// The reduced unknowns: v_p, v_s and z of each axis, in this order.
-const R: usize = 3 * AXES;
-const REDUCED: [usize; R] = [VP, VP + 1, VS, VS + 1, Z, Z + 1];
+pub(crate) const R: usize = 3 * AXES;
+pub(crate) const REDUCED: [usize; R] = [VP, VP + 1, VS, VS + 1, Z, Z + 1];
 
 fn w_matrix(model: &Model, drive: &[Linear; AXES], y: &State, g: f64) -> W {
     let j = model.jacobian(y, drive);

@@ -7,8 +7,7 @@
 // The model and Rodas4's coefficients, also for the GPU's mirror of both
 // (`crate::gpu::lugre` and `shaders/lugre/`).
 pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
-pub(crate) use super::rodas::{A, C, GAMMA, SMALLEST_STEP};
-use super::rodas::segment;
+pub(crate) use super::rodas::{A, C, GAMMA, R, REDUCED, SMALLEST_STEP, rodas4, segment};
 use crate::cpu::integrate::measure::{SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, period_end};
 use crate::cpu::integrate::{
     Coefficients, Run, STATUS_OK, Settings, Vec2, initial_measure, initial_state, is_finished,
@@ -88,8 +87,14 @@ pub fn run_instance_until(
                 .fold(period, f64::min);
             let mid = 0.5 * (y[T] + end);
             let drive = [0, 1].map(|i| clock.drive_on(inst, i, mid));
-            let model = &book.model;
-            match segment(model, &drive, &book.scale, &mut y, end, (&mut h, &mut budget)) {
+            match segment(
+                &book.model,
+                &drive,
+                &book.scale,
+                &mut y,
+                end,
+                (&mut h, &mut budget),
+            ) {
                 Ok(steps) => book.add_steps(steps),
                 Err(status) => {
                     book.run.state.status = status;

@@ -1,0 +1,241 @@
+//! The structs the shader shares with the host, `#[repr(C)]` and `Pod`:
+//! one instance's parameters, a lane's state, and the probes of the
+//! function-by-function comparisons.
+
+use super::{LANE_RUNNING, LANE_STOPPED};
+use bytemuck::{Pod, Zeroable};
+
+use crate::cpu::lugre::run::{Linear, N, Periods, State, T, first_step};
+use crate::model::AXES;
+
+/// One instance's parameters (`model.wgsl`'s `Model`): the model, the
+/// drive and the error control's weights.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct Params {
+    pub gain: [f64; AXES],
+    pub damping: [f64; AXES],
+    pub stiffness: [f64; AXES],
+    pub stage_mass: [f64; AXES],
+    pub voltage: [f64; AXES],
+    pub frequency: [f64; AXES],
+    pub duty: [f64; AXES],
+    pub load: [f64; AXES],
+    pub slider_mass: f64,
+    pub coulomb_friction: f64,
+    pub static_friction: f64,
+    pub sigma0: f64,
+    pub sigma1: f64,
+    pub sigma2: f64,
+    pub v_s: f64,
+    pub period: f64,
+    pub scale: State,
+    /// 1: the shader's `keep` multiplies by it.
+    pub one: f64,
+}
+
+impl Params {
+    /// The parameters of a run's instance.
+    pub(super) fn of(book: &Periods) -> Params {
+        let inst = &book.inst;
+        let m = &book.model;
+        let axis = |f: fn(&crate::model::Axis) -> f64| [f(&inst.axes[0]), f(&inst.axes[1])];
+        Params {
+            gain: axis(|a| a.gain),
+            damping: axis(|a| a.damping),
+            stiffness: axis(|a| a.stiffness),
+            stage_mass: axis(|a| a.stage_mass),
+            voltage: axis(|a| a.voltage),
+            frequency: axis(|a| a.frequency),
+            duty: axis(|a| a.duty),
+            load: inst.mechanism.load,
+            slider_mass: inst.mechanism.slider_mass,
+            coulomb_friction: inst.mechanism.coulomb_friction,
+            static_friction: inst.mechanism.static_friction,
+            sigma0: m.sigma0,
+            sigma1: m.sigma1,
+            sigma2: m.sigma2,
+            v_s: m.v_s,
+            period: inst.period(),
+            scale: book.scale,
+            one: 1.0,
+        }
+    }
+}
+
+/// One instance's integrator state between dispatches (`entry.wgsl`'s
+/// `Lane`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Lane {
+    pub y: State,
+    /// The next trial step [s].
+    pub h: f64,
+    /// The current segment's end [s] and drive (a, b per axis).
+    pub end: f64,
+    pub drive: [f64; 2 * AXES],
+    /// The drive's clock of the current scene period [cycles].
+    pub clock: [f64; AXES],
+    /// Steps the run may still take.
+    pub budget: u32,
+    /// Steps of the completed segments (saturating).
+    pub steps: u32,
+    /// Attempts in the current segment.
+    pub segment_steps: u32,
+    /// 1 after a rejected attempt in the current segment.
+    pub rejected: u32,
+    /// 1 inside a segment.
+    pub in_segment: u32,
+    /// `STATUS_OK`, or why the run failed.
+    pub status: u32,
+    /// [`LANE_RUNNING`], [`LANE_PERIOD_END`] or [`LANE_STOPPED`].
+    pub flag: u32,
+    pub _pad: u32,
+}
+
+impl Lane {
+    /// A run at rest at the start of its first period (as the CPU's).
+    pub(super) fn start(book: &Periods) -> Lane {
+        let mut lane = Lane {
+            h: first_step(&book.inst),
+            budget: book.budget,
+            steps: book.run.state.steps,
+            ..Lane::zeroed()
+        };
+        lane.next_period(book);
+        lane
+    }
+
+    /// Sets the lane going at the start of its run's current period, or
+    /// stops it where the run has ended.
+    pub(super) fn next_period(&mut self, book: &Periods) {
+        if book.is_finished() {
+            self.flag = LANE_STOPPED;
+            return;
+        }
+        self.y[T] = 0.0;
+        self.clock = book.clock().start;
+        self.in_segment = 0;
+        self.flag = LANE_RUNNING;
+    }
+}
+
+/// A state, drive and step at which `mirror_on_gpu` evaluates the
+/// shader's functions (`entry.wgsl`'s `Probe`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Probe {
+    pub y: State,
+    /// a, b per axis.
+    pub drive: [f64; 2 * AXES],
+    pub h: f64,
+}
+
+/// The shader's right-hand side, Jacobian and Rodas4 step at a [`Probe`]
+/// (`entry.wgsl`'s `Probed`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Probed {
+    pub rhs: State,
+    pub jacobian: [State; N],
+    pub next: State,
+    pub error: State,
+}
+
+/// A lane's drive as the CPU's.
+pub(super) fn drive_of(drive: &[f64; 2 * AXES]) -> [Linear; AXES] {
+    std::array::from_fn(|i| Linear {
+        a: drive[2 * i],
+        b: drive[2 * i + 1],
+    })
+}
+
+/// What [`LugreGpu::mirror_check`] found: counts of results that differ
+/// from the CPU's in any bit, and the largest relative difference of a
+/// component where they differ.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct MirrorCheck {
+    /// Step attempts followed.
+    pub attempts: usize,
+    /// Segments started, and those whose end or drive differed.
+    pub segments: usize,
+    pub segment_mismatches: usize,
+    /// Attempts whose state after differed.
+    pub state_mismatches: usize,
+    /// Attempts whose next step size compares (the lane's `rejected`
+    /// false), and those where it differed.
+    pub step_sizes: usize,
+    pub step_size_mismatches: usize,
+    /// States at which the right-hand side, the Jacobian and the Rodas4
+    /// step were evaluated, and where each differed.
+    pub probes: usize,
+    pub rhs_mismatches: usize,
+    pub jacobian_mismatches: usize,
+    pub rodas4_mismatches: usize,
+    pub rhs_worst: f64,
+    pub jacobian_worst: f64,
+    pub next_worst: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::lugre::{Arithmetic, SOFTWARE_WORKGROUP_SIZE, parse_and_validate};
+
+    /// The buffers' Rust structs have the shader's layout.
+    #[test]
+    pub(super) fn params_and_lanes_have_the_shader_layout() {
+        let (module, _) = parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native).unwrap();
+        let mut layouter = naga::proc::Layouter::default();
+        layouter.update(module.to_ctx()).unwrap();
+        let find = |name: &str| {
+            module
+                .types
+                .iter()
+                .find(|(_, t)| t.name.as_deref() == Some(name))
+                .unwrap_or_else(|| panic!("no {name}"))
+        };
+        let offsets = |name: &str| -> (u32, Vec<(String, u32)>) {
+            let (handle, ty) = find(name);
+            let naga::TypeInner::Struct { members, span } = &ty.inner else {
+                panic!("{name} is no struct")
+            };
+            assert_eq!(layouter[handle].size, *span);
+            (
+                *span,
+                members
+                    .iter()
+                    .map(|m| (m.name.clone().unwrap(), m.offset))
+                    .collect(),
+            )
+        };
+        let (span, members) = offsets("Model");
+        assert_eq!(span as usize, size_of::<Params>());
+        let rust = [
+            ("gain", std::mem::offset_of!(Params, gain)),
+            ("load", std::mem::offset_of!(Params, load)),
+            ("slider_mass", std::mem::offset_of!(Params, slider_mass)),
+            ("period", std::mem::offset_of!(Params, period)),
+            ("scale", std::mem::offset_of!(Params, scale)),
+            ("one", std::mem::offset_of!(Params, one)),
+        ];
+        for (name, offset) in rust {
+            let (_, o) = members.iter().find(|(n, _)| n == name).unwrap();
+            assert_eq!(*o as usize, offset, "Model.{name}");
+        }
+        let (span, members) = offsets("Lane");
+        assert_eq!(span as usize, size_of::<Lane>());
+        let rust = [
+            ("h", std::mem::offset_of!(Lane, h)),
+            ("drive", std::mem::offset_of!(Lane, drive)),
+            ("clock", std::mem::offset_of!(Lane, clock)),
+            ("budget", std::mem::offset_of!(Lane, budget)),
+            ("status", std::mem::offset_of!(Lane, status)),
+            ("flag", std::mem::offset_of!(Lane, flag)),
+        ];
+        for (name, offset) in rust {
+            let (_, o) = members.iter().find(|(n, _)| n == name).unwrap();
+            assert_eq!(*o as usize, offset, "Lane.{name}");
+        }
+    }
+}

@@ -1,0 +1,137 @@
+//! The LuGre integrator on the GPU (MODEL.md section 8) in f64: the WGSL
+//! in `shaders/lugre/`, a function-for-function mirror of
+//! [`crate::cpu::lugre`] (`model.wgsl` of `model.rs`, `rodas.wgsl` of
+//! `rodas.rs`: Rodas4 on the reduced 6 x 6 system), and its host, which
+//! runs a batch period by period.
+//!
+//! * One invocation per instance. Each dispatch advances every running
+//!   instance by at most [`LugreGpu::attempts`] Rodas4 step attempts, and
+//!   no further than the end of its current scene period. The integrator's
+//!   state (the 11 numbers, the step size, the budget, the segment in hand
+//!   and its `rejected` flag) stays in a storage buffer between dispatches
+//!   ([`Lane`]), so that a run cut into dispatches anywhere gives the same
+//!   bits; the per-instance parameters are packed once ([`Params`]).
+//! * At a period's end the host reads the lane back and measures the
+//!   period with the CPU run's own bookkeeping
+//!   (`cpu::lugre::run::Periods::period_end`: `measure::period_end` and
+//!   the recurrence test that compares z), then starts the next period.
+//!   The result is an `integrate::Run` per instance, which
+//!   `measurement::reduce` turns into the record the CPU gives.
+//! * llvmpipe (lavapipe) ends every loop of an invocation once all its
+//!   loops together have run 65,535 passes, silently, counting the passes
+//!   of a SIMD group's lanes together. The entry's loop makes at most one
+//!   attempt per pass (no loop of attempts inside a loop of segments,
+//!   which would count the lanes' attempts one after the other), one
+//!   attempt has at most [`LOOP_PASSES_PER_ATTEMPT`] loop passes in the
+//!   source (llvmpipe 15 unrolls some: about 485 measured), and a software
+//!   adapter gets [`SOFTWARE_ATTEMPTS`] attempts per dispatch: about a
+//!   sixth of the limit. `tests/it/gpu_lugre.rs` checks that a batch gives
+//!   the same bits at 3 attempts per dispatch (an attempt cut short changes
+//!   the numbers: llvmpipe cuts from about 135 attempts).
+//! * Arithmetic ([`Arithmetic`]): on llvmpipe WGSL's own f64 division and
+//!   square root, which are IEEE's, as the CPU's; on hardware the Karnopp
+//!   prelude's `div` and `root` ([`crate::gpu::shader::prelude`]), as
+//!   NVIDIA's compiler requires. llvmpipe's f64 `fma` is not fused (a
+//!   rounded product and a sum), and its compiler rewrites a + b - a to b
+//!   where it may reassociate: the shader uses no fma, and `keep` guards
+//!   the two-part sums.
+//! * Rust's exp, hypot and powf(0.25) are libm's; the shader has its own,
+//!   mirrored here: [`exp_nonpositive`] (exp for x <= 0, within one unit in
+//!   the last place, libm's bits but in about one argument in a hundred),
+//!   [`hypot`] (glibc's algorithm: its bits) and [`fourth_root`] (libm's
+//!   bits but in about one in a thousand). With them the shader's
+//!   right-hand side, Jacobian and Rodas4 step are the CPU's to the last
+//!   bit on llvmpipe but where libm rounds otherwise
+//!   ([`LugreGpu::mirror_check`]). A run as a whole follows the CPU's
+//!   within the integrator's own noise: the step control is chaotic at the
+//!   tolerance's scale (one unit in the last place of the tolerance moves
+//!   the CPU's own steps by up to 8.5e-6 um per cycle at the default 1e-4,
+//!   2.3e-7 um at 1e-6).
+//!
+//! `crate::backend::gpu` hands a batch of LuGre instances to
+//! [`LugreGpu::run_until`].
+//!
+//! The files: `libm.rs` (the shader's exp, hypot and fourth root, mirrored
+//! in Rust), `source.rs` (the prelude generated from the Rust constants,
+//! and the source), `buffers.rs` (the structs shared with WGSL),
+//! `runner.rs` (a batch, dispatch by dispatch) and `probes.rs` (the
+//! function-by-function comparisons the tests run on a device).
+
+mod buffers;
+mod libm;
+mod probes;
+mod runner;
+mod source;
+
+pub use buffers::{Lane, MirrorCheck, Params, Probe, Probed};
+pub use libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};
+pub use runner::{BatchReport, LugreGpu};
+pub use source::{Arithmetic, parse_and_validate, prelude, source};
+
+/// The shader files, in the order they are concatenated after the prelude.
+pub const FILES: [(&str, &str); 3] = [
+    (
+        "model.wgsl",
+        include_str!("../../../shaders/lugre/model.wgsl"),
+    ),
+    (
+        "rodas.wgsl",
+        include_str!("../../../shaders/lugre/rodas.wgsl"),
+    ),
+    (
+        "entry.wgsl",
+        include_str!("../../../shaders/lugre/entry.wgsl"),
+    ),
+];
+
+/// The compute entry point of the integrator.
+pub const ENTRY_POINT: &str = "lugre_advance";
+
+/// The compute entry point that evaluates the shader-only functions
+/// `exp_nonpositive`, `hypot` and `fourth_root` (tests).
+pub const FUNCTIONS_ENTRY_POINT: &str = "lugre_functions";
+
+/// The compute entry point that evaluates `rhs`, `jacobian` and `rodas4`
+/// at given states (tests).
+pub const MIRROR_ENTRY_POINT: &str = "lugre_mirror";
+
+/// llvmpipe's limit on the loop passes of one invocation (all its loops
+/// together, a SIMD group's lanes counted together).
+pub const LOOP_LIMIT: u32 = 65_535;
+
+/// The loop passes of one step attempt, counted in the shader's source:
+/// the Jacobian 14, the reduced W 54 and its LU factorisation 91, six
+/// solves of 62, the stages' sums 394 and right-hand sides 12, the error's
+/// 11, the entry's pass 1, and a segment's start at most 10 (exp, hypot
+/// and the fourth root have no loops). llvmpipe 15 unrolls some of these
+/// loops: about 485 passes measured.
+pub const LOOP_PASSES_PER_ATTEMPT: u32 = 14 + 54 + 91 + 6 * 62 + 394 + 12 + 11 + 1 + 10;
+
+/// Step attempts per dispatch on a software adapter: the loop passes stay
+/// within a third of [`LOOP_LIMIT`] as counted in the source (a sixth as
+/// measured).
+pub const SOFTWARE_ATTEMPTS: u32 = LOOP_LIMIT / 3 / LOOP_PASSES_PER_ATTEMPT;
+
+/// Step attempts per dispatch on a hardware adapter (no loop limit; a few
+/// milliseconds of work per lane, not measured yet).
+pub const HARDWARE_ATTEMPTS: u32 = 1024;
+
+/// Invocations per workgroup on a software adapter (llvmpipe spreads
+/// workgroups over its threads: small groups share a small batch among
+/// the cores) and on a hardware one.
+pub const SOFTWARE_WORKGROUP_SIZE: u32 = 4;
+pub const HARDWARE_WORKGROUP_SIZE: u32 = 64;
+
+/// The attempts a next corner's search makes before it takes what it has
+/// (the CPU recurses; a corner rounded onto t once is already rare).
+pub const CORNER_RETRIES: u32 = 4;
+
+/// What `segment` returns after a step attempt that leaves the run going,
+/// and once the segment is complete (the other values are statuses).
+pub const SEGMENT_GOING: u32 = u32::MAX;
+pub const SEGMENT_DONE: u32 = u32::MAX - 1;
+
+/// The flags of a [`Lane`] (`entry.wgsl`'s LANE_*).
+pub const LANE_RUNNING: u32 = 0;
+pub const LANE_PERIOD_END: u32 = 1;
+pub const LANE_STOPPED: u32 = 2;

@@ -1,0 +1,286 @@
+//! The comparisons the tests run on a device: the shader's functions and
+//! steps against the CPU's, from the same inputs.
+
+use super::buffers::drive_of;
+use super::runner::{Batch, compile};
+use super::{
+    FUNCTIONS_ENTRY_POINT, LANE_PERIOD_END, LANE_RUNNING, Lane, LugreGpu, MIRROR_ENTRY_POINT,
+    MirrorCheck, Params, Probe, Probed,
+};
+
+use bytemuck::Zeroable;
+use wgpu::util::DeviceExt;
+
+use crate::cpu::integrate::Settings;
+use crate::cpu::lugre::run::{Clock, Periods, T, rodas4, segment};
+use crate::gpu::GpuError;
+use crate::gpu::readback::{mappable, read_buffer};
+use crate::model::{AXES, Instance};
+
+impl LugreGpu<'_> {
+    /// Follows `inst`'s run for `attempts` step attempts, one per dispatch,
+    /// and compares the shader with the CPU function by function from the
+    /// same inputs: each segment's end and drive (`next_corner`,
+    /// `drive_on`), each attempt's state and next step (`segment`), and at
+    /// the state before each attempt the right-hand side, the Jacobian and
+    /// the Rodas4 step.
+    pub fn mirror_check(
+        &self,
+        inst: &Instance,
+        settings: &Settings,
+        attempts: usize,
+    ) -> Result<MirrorCheck, GpuError> {
+        let mut book = Periods::new(inst, settings);
+        let params = Params::of(&book);
+        let mut lane = Lane::start(&book);
+        let mut batch = Batch::new(self, &[params], &[lane], 1);
+        let mut check = MirrorCheck::default();
+        let mut probes = Vec::new();
+        let mut drives = Vec::new();
+        let period = inst.period();
+        while check.attempts < attempts && lane.flag == LANE_RUNNING {
+            let before = lane;
+            batch.dirty = true;
+            let after = batch.dispatch(&[before])?[0];
+            lane = after;
+            let clock = Clock {
+                start: before.clock,
+            };
+            let within = before.in_segment == 1 && before.y[T] < before.end;
+            if !within && before.y[T] >= period {
+                // A period's end, without an attempt.
+                if after.flag == LANE_PERIOD_END {
+                    book.run.state.steps = after.steps;
+                    book.period_end(&after.y);
+                    lane.next_period(&book);
+                }
+                continue;
+            }
+            let (end, drive) = if within {
+                (before.end, drive_of(&before.drive))
+            } else {
+                // The segment the lane starts, as the CPU's run starts it.
+                let end = (0..AXES)
+                    .map(|i| clock.next_corner(inst, i, before.y[T]))
+                    .fold(period, f64::min);
+                let mid = 0.5 * (before.y[T] + end);
+                let drive = [0, 1].map(|i| clock.drive_on(inst, i, mid));
+                check.segments += 1;
+                if after.end != end
+                    || drive_of(&after.drive).map(|l| (l.a, l.b)) != drive.map(|l| (l.a, l.b))
+                {
+                    check.segment_mismatches += 1;
+                }
+                (end, drive)
+            };
+            // The CPU's segment from the same state, for one attempt (its
+            // `rejected` starts false: the step size compares where the
+            // lane's was too).
+            let (mut y, mut h, mut budget) = (before.y, before.h, 1);
+            let last = y[T] + h >= end * (1.0 - 1e-15);
+            let step = if last { end - y[T] } else { h };
+            let _ = segment(
+                &book.model,
+                &drive,
+                &book.scale,
+                &mut y,
+                end,
+                (&mut h, &mut budget),
+            );
+            check.attempts += 1;
+            if y != after.y {
+                check.state_mismatches += 1;
+            }
+            if !within || before.rejected == 0 {
+                check.step_sizes += 1;
+                if h != after.h {
+                    check.step_size_mismatches += 1;
+                }
+            }
+            probes.push(Probe {
+                y: before.y,
+                drive: [drive[0].a, drive[0].b, drive[1].a, drive[1].b],
+                h: step,
+            });
+            drives.push(drive);
+            if after.flag == LANE_PERIOD_END {
+                book.run.state.steps = after.steps;
+                book.period_end(&after.y);
+                lane.next_period(&book);
+            }
+        }
+        let probed = self.mirror_on_gpu(&params, &probes)?;
+        let relative = |a: &[f64], b: &[f64]| {
+            a.iter().zip(b).fold(0.0_f64, |m, (x, y)| {
+                if x == y {
+                    m
+                } else {
+                    m.max((x - y).abs() / x.abs().max(y.abs()))
+                }
+            })
+        };
+        for ((probe, drive), gpu) in probes.iter().zip(&drives).zip(&probed) {
+            let rhs = book.model.rhs(&probe.y, drive);
+            let jacobian = book.model.jacobian(&probe.y, drive);
+            let (next, error) = rodas4(&book.model, drive, &probe.y, probe.h);
+            check.probes += 1;
+            if rhs != gpu.rhs {
+                check.rhs_mismatches += 1;
+                check.rhs_worst = check.rhs_worst.max(relative(&rhs, &gpu.rhs));
+            }
+            if jacobian != gpu.jacobian {
+                check.jacobian_mismatches += 1;
+                check.jacobian_worst = check.jacobian_worst.max(relative(
+                    jacobian.as_flattened(),
+                    gpu.jacobian.as_flattened(),
+                ));
+            }
+            if next != gpu.next || error != gpu.error {
+                check.rodas4_mismatches += 1;
+                check.next_worst = check.next_worst.max(relative(&next, &gpu.next));
+            }
+        }
+        Ok(check)
+    }
+
+    /// The shader's `rhs`, `jacobian` and `rodas4` for the instance with
+    /// `params` at each of `probes` (the tests compare them with the CPU's
+    /// functions).
+    pub fn mirror_on_gpu(
+        &self,
+        params: &Params,
+        probes: &[Probe],
+    ) -> Result<Vec<Probed>, GpuError> {
+        if probes.is_empty() {
+            return Ok(Vec::new());
+        }
+        let device = self.ctx.device();
+        let pipeline = compile(
+            device,
+            self.workgroup_size,
+            self.arithmetic,
+            MIRROR_ENTRY_POINT,
+        )?;
+        let storage = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | usage,
+            })
+        };
+        let models = storage(
+            "lugre probe model",
+            bytemuck::bytes_of(params),
+            wgpu::BufferUsages::empty(),
+        );
+        let input = storage(
+            "lugre probes",
+            bytemuck::cast_slice(probes),
+            wgpu::BufferUsages::empty(),
+        );
+        let bytes = (probes.len() * size_of::<Probed>()) as u64;
+        let output = storage(
+            "lugre probed",
+            &vec![0; bytes as usize],
+            wgpu::BufferUsages::COPY_SRC,
+        );
+        let read = mappable(device, "lugre probed read", bytes);
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("lugre mirror"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: models.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: input.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: output.as_entire_binding(),
+                },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups((probes.len() as u32).div_ceil(self.workgroup_size), 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&output, 0, &read, 0, bytes);
+        self.ctx.queue().submit([encoder.finish()]);
+        let out = read_buffer(device, &read)?;
+        Ok(out
+            .chunks_exact(size_of::<Probed>())
+            .map(bytemuck::pod_read_unaligned)
+            .collect())
+    }
+
+    /// The shader's `exp_nonpositive(x)`, `hypot(x, y)` and
+    /// `fourth_root(|y|)` of each (x, y) of `args`, computed on the device
+    /// (the tests compare them with [`exp_nonpositive`], [`hypot`] and
+    /// [`fourth_root`]).
+    pub fn functions_on_gpu(&self, args: &[(f64, f64)]) -> Result<Vec<[f64; 3]>, GpuError> {
+        if args.is_empty() {
+            return Ok(Vec::new());
+        }
+        let device = self.ctx.device();
+        let pipeline = compile(
+            device,
+            self.workgroup_size,
+            self.arithmetic,
+            FUNCTIONS_ENTRY_POINT,
+        )?;
+        let values: Vec<f64> = args
+            .iter()
+            .flat_map(|&(x, y)| [x, y, 0.0, 0.0, 0.0])
+            .collect();
+        let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("lugre functions"),
+            contents: bytemuck::cast_slice(&values),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+        let bytes = buffer.size();
+        let read = mappable(device, "lugre functions read", bytes);
+        let one = Params {
+            one: 1.0,
+            ..Params::zeroed()
+        };
+        let models = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("lugre functions' one"),
+            contents: bytemuck::bytes_of(&one),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("lugre functions"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: models.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: buffer.as_entire_binding(),
+                },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups((args.len() as u32).div_ceil(self.workgroup_size), 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&buffer, 0, &read, 0, bytes);
+        self.ctx.queue().submit([encoder.finish()]);
+        let out: Vec<f64> = read_buffer(device, &read)?
+            .chunks_exact(8)
+            .map(bytemuck::pod_read_unaligned)
+            .collect();
+        Ok(out.chunks_exact(5).map(|v| [v[2], v[3], v[4]]).collect())
+    }
+}

@@ -1,0 +1,322 @@
+//! A batch of LuGre instances on the device, dispatch by dispatch, with
+//! the CPU run's period-end bookkeeping between dispatches.
+
+use super::{
+    Arithmetic, ENTRY_POINT, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_PERIOD_END,
+    LANE_RUNNING, LANE_STOPPED, Lane, Params, SOFTWARE_ATTEMPTS, SOFTWARE_WORKGROUP_SIZE,
+    parse_and_validate, source,
+};
+use std::time::Instant;
+
+use wgpu::util::DeviceExt;
+
+use crate::cpu::integrate::{Run, Settings};
+use crate::cpu::lugre::run::Periods;
+use crate::gpu::readback::{mappable, read_buffer};
+use crate::gpu::{GpuContext, GpuError, Precision};
+use crate::model::Instance;
+
+/// What a batch cost.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct BatchReport {
+    /// Dispatches (each followed by a readback).
+    pub dispatches: u64,
+    /// Scene periods measured on the host.
+    pub periods: u64,
+    /// Seconds of the whole batch, and of the dispatches with their
+    /// readbacks.
+    pub seconds: f64,
+    pub gpu_seconds: f64,
+}
+
+/// The LuGre pipeline on one device.
+pub struct LugreGpu<'a> {
+    pub(super) ctx: &'a GpuContext,
+    pub(super) pipeline: wgpu::ComputePipeline,
+    pub(super) workgroup_size: u32,
+    pub(super) arithmetic: Arithmetic,
+    /// Step attempts per lane and dispatch.
+    pub attempts: u32,
+}
+
+/// Compiles one entry point of the shader on `device` (runtime checks off:
+/// every loop is bounded, every index below its array's length).
+pub(super) fn compile(
+    device: &wgpu::Device,
+    workgroup_size: u32,
+    arithmetic: Arithmetic,
+    entry: &str,
+) -> Result<wgpu::ComputePipeline, GpuError> {
+    parse_and_validate(workgroup_size, arithmetic)?;
+    let src = source(workgroup_size, arithmetic);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
+    let mut checks = wgpu::ShaderRuntimeChecks::checked();
+    checks.bounds_checks = false;
+    checks.force_loop_bounding = false;
+    // SAFETY: every loop of the shader is bounded by a constant or by
+    // `control.attempts`; every index is a constant, a loop counter below
+    // its array's length, a pivot (below N) or an instance below both
+    // storage arrays' lengths.
+    let module = unsafe {
+        device.create_shader_module_trusted(
+            wgpu::ShaderModuleDescriptor {
+                label: Some("shaders/lugre"),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            },
+            checks,
+        )
+    };
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: None,
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let internal = pollster::block_on(internal.pop());
+    let validation = pollster::block_on(validation.pop());
+    if let Some(e) = validation.or(internal) {
+        return Err(GpuError::ShaderCompile {
+            precision: Precision::F64,
+            message: e.to_string(),
+        });
+    }
+    Ok(pipeline)
+}
+
+/// Workgroups for `n` invocations of `size`, in two dimensions where one
+/// is not enough.
+fn groups(n: usize, size: u32, max_per_dimension: u32) -> (u32, u32) {
+    let groups = (n as u64).div_ceil(size as u64).max(1);
+    let x = groups.min(max_per_dimension as u64);
+    (x as u32, groups.div_ceil(x) as u32)
+}
+
+/// A batch's buffers on the device.
+pub(super) struct Batch<'g> {
+    pub(super) gpu: &'g LugreGpu<'g>,
+    pub(super) lanes: wgpu::Buffer,
+    pub(super) read: wgpu::Buffer,
+    pub(super) group: wgpu::BindGroup,
+    pub(super) groups: (u32, u32),
+    /// The host changed the lanes since they were last on the device.
+    pub(super) dirty: bool,
+    // Kept alive with the bind group.
+    pub(super) _buffers: [wgpu::Buffer; 2],
+}
+
+impl<'g> Batch<'g> {
+    pub(super) fn new(
+        gpu: &'g LugreGpu<'g>,
+        params: &[Params],
+        lanes: &[Lane],
+        attempts: u32,
+    ) -> Batch<'g> {
+        let device = gpu.ctx.device();
+        let models = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("lugre models"),
+            contents: bytemuck::cast_slice(params),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let lane_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("lugre lanes"),
+            contents: bytemuck::cast_slice(lanes),
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+        });
+        let control = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("lugre control"),
+            contents: bytemuck::cast_slice(&[attempts, 0, 0, 0]),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let read = mappable(device, "lugre lanes read", lane_buffer.size());
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("lugre"),
+            layout: &gpu.pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: models.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: lane_buffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: control.as_entire_binding(),
+                },
+            ],
+        });
+        let groups = groups(
+            lanes.len(),
+            gpu.workgroup_size,
+            gpu.ctx.limits().max_compute_workgroups_per_dimension,
+        );
+        Batch {
+            gpu,
+            lanes: lane_buffer,
+            read,
+            group,
+            groups,
+            dirty: false,
+            _buffers: [models, control],
+        }
+    }
+
+    /// One dispatch: uploads `lanes` where the host changed them, advances
+    /// them, and reads them back.
+    pub(super) fn dispatch(&mut self, lanes: &[Lane]) -> Result<Vec<Lane>, GpuError> {
+        let (device, queue) = (self.gpu.ctx.device(), self.gpu.ctx.queue());
+        if self.dirty {
+            queue.write_buffer(&self.lanes, 0, bytemuck::cast_slice(lanes));
+            self.dirty = false;
+        }
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.gpu.pipeline);
+            pass.set_bind_group(0, &self.group, &[]);
+            pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&self.lanes, 0, &self.read, 0, self.lanes.size());
+        queue.submit([encoder.finish()]);
+        let bytes = read_buffer(device, &self.read)?;
+        Ok(bytes
+            .chunks_exact(size_of::<Lane>())
+            .map(bytemuck::pod_read_unaligned)
+            .collect())
+    }
+}
+
+impl<'a> LugreGpu<'a> {
+    /// Compiles the integrator on `ctx`, which must offer f64.
+    pub fn new(ctx: &'a GpuContext) -> Result<LugreGpu<'a>, GpuError> {
+        if !ctx.supports_f64() {
+            return Err(GpuError::F64Unsupported {
+                adapter: ctx.describe(),
+            });
+        }
+        let (workgroup_size, attempts) = if ctx.is_hardware() {
+            (HARDWARE_WORKGROUP_SIZE, HARDWARE_ATTEMPTS)
+        } else {
+            (SOFTWARE_WORKGROUP_SIZE, SOFTWARE_ATTEMPTS)
+        };
+        let arithmetic = Arithmetic::of(ctx);
+        let pipeline = compile(ctx.device(), workgroup_size, arithmetic, ENTRY_POINT)?;
+        Ok(LugreGpu {
+            ctx,
+            pipeline,
+            workgroup_size,
+            arithmetic,
+            attempts,
+        })
+    }
+
+    /// Integrates LuGre `instances` to the ends of their measurements: an
+    /// `integrate::Run` each, as `cpu::lugre::run_instance_until` gives.
+    ///
+    /// # Panics
+    /// If an instance's friction is not LuGre's.
+    pub fn run(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+    ) -> Result<(Vec<Run>, BatchReport), GpuError> {
+        self.run_until(instances, settings, || false)
+    }
+
+    /// [`LugreGpu::run`], asking `stop` between dispatches
+    /// ([`GpuError::Interrupted`] when it says yes).
+    pub fn run_until(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        stop: impl Fn() -> bool,
+    ) -> Result<(Vec<Run>, BatchReport), GpuError> {
+        let started = Instant::now();
+        let mut report = BatchReport::default();
+        let mut runs = Vec::with_capacity(instances.len());
+        for chunk in instances.chunks(self.max_batch()) {
+            runs.extend(self.run_batch(chunk, settings, &stop, &mut report)?);
+        }
+        report.seconds = started.elapsed().as_secs_f64();
+        Ok((runs, report))
+    }
+
+    /// The most instances one batch takes: what the device's storage
+    /// bindings, buffers and dispatches hold.
+    pub(super) fn max_batch(&self) -> usize {
+        let limits = self.ctx.limits();
+        let bytes = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
+        let buffers = bytes / size_of::<Params>().max(size_of::<Lane>()) as u64;
+        let groups = limits.max_compute_workgroups_per_dimension as u64;
+        let dispatch = groups * groups * self.workgroup_size as u64;
+        buffers.min(dispatch).max(1) as usize
+    }
+
+    /// One batch of [`LugreGpu::run_until`], counted in `report`.
+    pub(super) fn run_batch(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        stop: &impl Fn() -> bool,
+        report: &mut BatchReport,
+    ) -> Result<Vec<Run>, GpuError> {
+        let mut books: Vec<Periods> = instances
+            .iter()
+            .map(|inst| Periods::new(inst, settings))
+            .collect();
+        if books.is_empty() {
+            return Ok(Vec::new());
+        }
+        let params: Vec<Params> = books.iter().map(Params::of).collect();
+        let mut lanes: Vec<Lane> = books.iter().map(Lane::start).collect();
+        let mut batch = Batch::new(self, &params, &lanes, self.attempts);
+        while lanes.iter().any(|l| l.flag == LANE_RUNNING) {
+            if stop() {
+                return Err(GpuError::Interrupted);
+            }
+            let t = Instant::now();
+            let after = batch.dispatch(&lanes)?;
+            report.dispatches += 1;
+            report.gpu_seconds += t.elapsed().as_secs_f64();
+            let moved = lanes
+                .iter()
+                .zip(&after)
+                .any(|(before, now)| before.flag == LANE_RUNNING && before != now);
+            if !moved {
+                let unfinished = lanes.iter().filter(|l| l.flag == LANE_RUNNING).count();
+                return Err(GpuError::Stalled {
+                    unfinished: unfinished as u32,
+                    slices: report.dispatches,
+                });
+            }
+            lanes = after;
+            for (lane, book) in lanes.iter_mut().zip(books.iter_mut()) {
+                match lane.flag {
+                    LANE_PERIOD_END => {
+                        book.run.state.steps = lane.steps;
+                        book.period_end(&lane.y);
+                        report.periods += 1;
+                        lane.next_period(book);
+                        batch.dirty = true;
+                    }
+                    LANE_STOPPED if lane.status != book.run.state.status => {
+                        // Failed: the CPU's run keeps the steps of the
+                        // completed segments and the status.
+                        book.run.state.steps = lane.steps;
+                        book.run.state.status = lane.status;
+                    }
+                    _ => {}
+                }
+            }
+        }
+        Ok(books.into_iter().map(|b| b.run).collect())
+    }
+}
