@@ -5,14 +5,14 @@ use anyhow::{Result, bail};
 use super::{Backend, Hardware, Precision, Staged};
 use crate::cpu::integrate::Settings;
 use crate::cpu::integrate::constants::STATUS_GRAZE;
+use crate::gpu::lugre::LugreGpu;
 use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, Parts, run_batch_packed};
-use crate::measurement::Outcome;
+use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
 
-/// Why a LuGre instance does not run on the GPU (issue 40's shader is not
-/// written yet).
-pub const NO_LUGRE_SHADER: &str = "the GPU has no LuGre shader yet: LuGre scenes (mechanism.friction \
-     = \"lugre\", MODEL.md section 8) run on the CPU in f64; use --backend cpu or auto";
+/// Why a LuGre instance does not run in f32: its shader is f64's only.
+pub const LUGRE_F64_ONLY: &str = "LuGre friction (mechanism.friction = \"lugre\", MODEL.md \
+     section 8) runs in f64 only, on the CPU or on a GPU with f64; leave --precision out or give f64";
 
 /// The WGSL shader on one adapter at one precision.
 pub struct GpuBackend {
@@ -141,7 +141,7 @@ impl Backend for GpuBackend {
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
         if instances.iter().any(|i| i.mechanism.lugre().is_some()) {
-            bail!("{NO_LUGRE_SHADER}");
+            return self.run_lugre(instances, settings, done);
         }
         let mut reported = 0;
         let outcomes = run_batch_packed(
@@ -159,6 +159,32 @@ impl Backend for GpuBackend {
             },
         )?;
         Ok(outcomes.into_iter().map(GpuOutcome::into_outcome).collect())
+    }
+}
+
+impl GpuBackend {
+    /// A batch of LuGre instances (a scene's friction is one law for all)
+    /// on the LuGre shader (`crate::gpu::lugre`), in f64.
+    fn run_lugre(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        done: &(dyn Fn(u64) + Sync),
+    ) -> Result<Vec<Outcome>> {
+        if instances.iter().any(|i| i.mechanism.lugre().is_none()) {
+            bail!("a batch mixes LuGre and Karnopp friction; a scene has one law");
+        }
+        if self.precision != Precision::F64 {
+            bail!("--precision f32: {LUGRE_F64_ONLY}");
+        }
+        let gpu = LugreGpu::new(&self.ctx)?;
+        let (runs, _) = gpu.run_until(instances, settings, crate::sweep::interrupt_requested)?;
+        done(instances.len() as u64);
+        Ok(instances
+            .iter()
+            .zip(runs)
+            .map(|(inst, run)| Outcome::of(&reduce(inst, &run), run.state.steps, false))
+            .collect())
     }
 }
 

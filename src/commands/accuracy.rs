@@ -62,7 +62,15 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
         let lugre = scene.is_lugre();
         let mut methods = vec![accuracy::cpu_method(scene.settings, lugre)];
         if gpu && lugre {
-            println!("  gpu: not studied (the GPU has no LuGre shader yet)");
+            // The LuGre shader is f64's only.
+            match crate::gpu::GpuContext::new(true) {
+                Ok(ctx) if ctx.supports_f64() => methods.push(accuracy::backend_method(
+                    Box::new(GpuBackend::new(ctx, Precision::F64)?),
+                    scene.settings,
+                )),
+                Ok(ctx) => println!("  gpu: not studied ({} offers no f64)", ctx.describe()),
+                Err(err) => println!("  gpu: not studied ({err})"),
+            }
         } else if gpu {
             // Every precision the adapter offers, software adapters included.
             match crate::gpu::GpuContext::new(true) {

@@ -35,7 +35,13 @@ pub fn bench(path: Option<&Path>, min_seconds: f64) -> Result<()> {
         Box::new(CpuBackend::new(None)?),
     ];
     match crate::gpu::GpuContext::new(true) {
-        _ if scene.is_lugre() => println!("  gpu: not measured (no LuGre shader yet)"),
+        // The LuGre shader is f64's only.
+        Ok(ctx) if scene.is_lugre() && ctx.supports_f64() => {
+            backends.push(Box::new(GpuBackend::new(ctx, Precision::F64)?));
+        }
+        Ok(ctx) if scene.is_lugre() => {
+            println!("  gpu: not measured (no f64 on {})", ctx.describe())
+        }
         Ok(ctx) => {
             let f64_ok = ctx.supports_f64();
             backends.push(Box::new(GpuBackend::new(ctx, Precision::F32)?));

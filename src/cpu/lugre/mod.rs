@@ -1,6 +1,6 @@
 //! The 2-D LuGre friction model (MODEL.md section 8, `mechanism.friction =
-//! "lugre"`) on the CPU in f64: the reference for LuGre scenes. The GPU
-//! has no LuGre shader yet: its backend refuses these scenes.
+//! "lugre"`) on the CPU in f64: the reference for LuGre scenes, which the
+//! f64 shader of `crate::gpu::lugre` mirrors function for function.
 //!
 //! **The model** ([`model`]). The interface state z = (z_x, z_y) [m] is the
 //! bristles' mean deflection; the right-hand side is continuous (no modes)
@@ -20,6 +20,7 @@
 //! z as well. `simulation.tolerance` sets the local error per step
 //! ([`run::LENGTH_PER_TOLERANCE`]).
 
+pub mod libm;
 mod model;
 mod rodas;
 pub mod run;

@@ -9,6 +9,7 @@
 //! m_s a_s,i   = f_i + L_i
 //! ```
 
+use super::libm::{exp_nonpositive, hypot};
 use crate::model::{AXES, Instance, Lugre};
 
 /// The state: stage positions [m] and velocities [m/s], slider positions
@@ -49,9 +50,9 @@ impl Model {
     pub(crate) fn rhs(&self, y: &State, drive: &[Linear; AXES]) -> State {
         let m = &self.inst.mechanism;
         let vr = [y[VP] - y[VS], y[VP + 1] - y[VS + 1]];
-        let s = vr[0].hypot(vr[1]);
+        let s = hypot(vr[0], vr[1]);
         let g = m.coulomb_friction
-            + (m.static_friction - m.coulomb_friction) * (-(s / self.v_s).powi(2)).exp();
+            + (m.static_friction - m.coulomb_friction) * exp_nonpositive(-(s / self.v_s).powi(2));
         let mut d = [0.0; N];
         for i in 0..AXES {
             let a = &self.inst.axes[i];
@@ -75,8 +76,8 @@ impl Model {
     pub(crate) fn jacobian(&self, y: &State, drive: &[Linear; AXES]) -> [[f64; N]; N] {
         let m = &self.inst.mechanism;
         let vr = [y[VP] - y[VS], y[VP + 1] - y[VS + 1]];
-        let s = vr[0].hypot(vr[1]);
-        let e = (-(s / self.v_s).powi(2)).exp();
+        let s = hypot(vr[0], vr[1]);
+        let e = exp_nonpositive(-(s / self.v_s).powi(2));
         let g = m.coulomb_friction + (m.static_friction - m.coulomb_friction) * e;
         let dg = (m.static_friction - m.coulomb_friction) * e * (-2.0 * s / self.v_s.powi(2));
         let h = s / g;

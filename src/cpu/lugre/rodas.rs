@@ -4,6 +4,7 @@
 //! segment (between drive corners and period ends, inside which the drive
 //! is linear in time) and the LU factorisation the stages solve with.
 
+use super::libm::fourth_root;
 use super::model::{Linear, Model, N, State, T, VP, VS, XP, XS, Z};
 use crate::cpu::integrate::{STATUS_NON_FINITE, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW};
 use crate::model::AXES;
@@ -146,7 +147,7 @@ pub(crate) fn segment(
         // the error jumps where |v_rel| turns through 0, and growing at
         // once there rejects the next step again.
         let most = if rejected { 1.0 } else { 4.0 };
-        let factor = (0.9 / err.max(1e-16).powf(0.25)).clamp(0.2, most);
+        let factor = (0.9 / fourth_root(err.max(1e-16))).clamp(0.2, most);
         rejected = err > 1.0;
         if !(last && err <= 1.0) {
             *h = step * factor;

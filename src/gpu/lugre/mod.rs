@@ -35,18 +35,17 @@
 //!   rounded product and a sum), and its compiler rewrites a + b - a to b
 //!   where it may reassociate: the shader uses no fma, and `keep` guards
 //!   the two-part sums.
-//! * Rust's exp, hypot and powf(0.25) are libm's; the shader has its own,
-//!   mirrored here: [`exp_nonpositive`] (exp for x <= 0, within one unit in
-//!   the last place, libm's bits but in about one argument in a hundred),
-//!   [`hypot`] (glibc's algorithm: its bits) and [`fourth_root`] (libm's
-//!   bits but in about one in a thousand). With them the shader's
-//!   right-hand side, Jacobian and Rodas4 step are the CPU's to the last
-//!   bit on llvmpipe but where libm rounds otherwise
-//!   ([`LugreGpu::mirror_check`]). A run as a whole follows the CPU's
-//!   within the integrator's own noise: the step control is chaotic at the
-//!   tolerance's scale (one unit in the last place of the tolerance moves
-//!   the CPU's own steps by up to 8.5e-6 um per cycle at the default 1e-4,
-//!   2.3e-7 um at 1e-6).
+//! * WGSL's f64 has no exp or pow: the CPU's LuGre integrator computes
+//!   exp, hypot and the step control's fourth root with algorithms the
+//!   shader can run ([`crate::cpu::lugre::libm`]: [`exp_nonpositive`],
+//!   [`hypot`], [`fourth_root`]), and the shader runs them. So on llvmpipe
+//!   the shader's right-hand side, Jacobian and Rodas4 step are the CPU's
+//!   to the last bit ([`LugreGpu::mirror_check`]), and whole runs are too
+//!   (`tests/it/gpu_lugre.rs`). On hardware, division and square root go
+//!   through the Karnopp prelude's helpers and may round otherwise; the
+//!   step control is chaotic at the tolerance's scale (one unit in the
+//!   last place of the tolerance moves the CPU's own results by up to
+//!   8.5e-6 um per cycle at the default 1e-4, 2.3e-7 um at 1e-6).
 //!
 //! `crate::backend::gpu` hands a batch of LuGre instances to
 //! [`LugreGpu::run_until`].
@@ -58,13 +57,12 @@
 //! function-by-function comparisons the tests run on a device).
 
 mod buffers;
-mod libm;
 mod probes;
 mod runner;
 mod source;
 
+pub use crate::cpu::lugre::libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};
 pub use buffers::{Lane, MirrorCheck, Params, Probe, Probed};
-pub use libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};
 pub use runner::{BatchReport, LugreGpu};
 pub use source::{Arithmetic, parse_and_validate, prelude, source};
 

@@ -2,10 +2,10 @@
 //! (Rodas4's coefficients, the reduced layout, statuses, the exp
 //! polynomial), the arithmetic of the adapter, and the three files.
 
-use super::libm::*;
 use super::{
     CORNER_RETRIES, FILES, LANE_PERIOD_END, LANE_RUNNING, LANE_STOPPED, SEGMENT_DONE, SEGMENT_GOING,
 };
+use crate::cpu::lugre::libm::*;
 
 use crate::cpu::lugre::run::{A, C, GAMMA, N, R, REDUCED, SMALLEST_STEP, T, VP, VS, XP, XS, Z};
 use crate::gpu::shader::{self, Parts, Variant};

@@ -1,6 +1,9 @@
-//! The shader's exp (for x <= 0), hypot and fourth root, mirrored in
-//! Rust: WGSL's f64 has neither exp nor pow, and these give libm's bits on
-//! all but a few arguments (their tests).
+//! The LuGre integrator's exp (for x <= 0), hypot and fourth root, built
+//! from + - * / and sqrt so that the shader (`shaders/lugre/model.wgsl`,
+//! `rodas.wgsl`) computes the same bits: WGSL's f64 has neither exp nor
+//! pow, and a libm's rounding would differ from the shader's in a few
+//! arguments in a thousand, enough for the step control to take other
+//! steps. They give libm's bits on all but a few arguments (their tests).
 
 /// The degree of [`exp_nonpositive`]'s Taylor polynomial: its truncation
 /// error on |r| <= ln 2 / 2 is 4e-18 relative.
