@@ -11,8 +11,9 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
+use crate::cpu::integrate::Settings;
 use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
-use crate::cpu::integrate::{Settings, run_instance_until};
+use crate::cpu::run_until;
 use crate::model::{Instance, Measure};
 
 /// At most this many integrations are probed.
@@ -130,7 +131,7 @@ fn probe_one(
         ..*inst
     };
     let begin = Instant::now();
-    let run = run_instance_until(&capped, settings, || cut.load(Ordering::Relaxed));
+    let run = run_until(&capped, settings, || cut.load(Ordering::Relaxed));
     let wall = begin.elapsed().as_secs_f64();
     let Some(run) = run else {
         // Cut off: charged at the nominal rate, and at least what it took.

@@ -13,3 +13,21 @@ pub mod single;
 pub mod units;
 
 pub use double::integrate;
+
+use crate::model::Instance;
+
+/// Integrates one instance in f64 with its friction law's integrator
+/// (`integrate` for Karnopp's, `lugre` for LuGre's) to the end, or until
+/// `stop` says so (then `None`). Every caller that integrates an instance
+/// of any scene goes through here.
+pub fn run_until(
+    inst: &Instance,
+    settings: &integrate::Settings,
+    stop: impl Fn() -> bool,
+) -> Option<integrate::Run> {
+    if inst.mechanism.lugre().is_some() {
+        lugre::run_instance_until(inst, settings, stop)
+    } else {
+        integrate::run_instance_until(inst, settings, stop)
+    }
+}

@@ -160,6 +160,16 @@ impl Parser<'_> {
         specs: &[SpecAt],
         scene: &Scene,
     ) -> Result<Vec<TrajectoryPoint>, SceneError> {
+        if let Some(first) = specs.first()
+            && scene.is_lugre()
+        {
+            return Err(self.invalid(
+                first.span.clone(),
+                "output.trajectories: a LuGre scene (mechanism.friction = \"lugre\") records no \
+                 trajectories yet: the sampler follows Karnopp's closed-form steps; remove \
+                 output.trajectories, or run the instance with Karnopp friction",
+            ));
+        }
         let count = scene.instance_count();
         let mut out: Vec<TrajectoryPoint> = Vec::with_capacity(specs.len());
         for (k, at) in specs.iter().enumerate() {

@@ -2,7 +2,7 @@
 //! runs `tests/crosscheck/crosscheck.py` on this build's `pidm` binary,
 //! once on the CPU path and once on the f64 shader, and
 //! `tests/crosscheck/lugre.py` (LuGre friction, MODEL.md section 8) on the
-//! CPU path.
+//! CPU path and on the f64 LuGre shader.
 //!
 //! The script integrates seeded random 2-DOF instances (equal and unequal
 //! stages, bands down to 1e-9 m/s, runs of up to 10 cycles) and exits
@@ -143,4 +143,25 @@ fn random_instances_agree_with_scipy_on_the_gpu_in_f64() {
         "n6",
         "l3",
     ]);
+}
+
+/// The f64 LuGre shader against the same SciPy reference and bounds, on
+/// the first four of those instances (stiff bristles at duty 1, a 2:1
+/// ratio, f_s = f_c with a load, unequal stages). On lavapipe its maps are
+/// the CPU's bit for bit (`tests/it/gpu_lugre.rs`), so this holds the whole
+/// path, scene to file, on the GPU backend.
+#[test]
+fn lugre_instances_agree_with_scipy_on_the_gpu_in_f64() {
+    match GpuContext::new(true) {
+        Err(e) => return cannot_run(&format!("no GPU adapter is usable ({e})")),
+        Ok(ctx) if !ctx.supports_f64() => {
+            return cannot_run(&format!("{} offers no f64", ctx.describe()));
+        }
+        Ok(_) => {}
+    }
+    run_script(
+        "lugre.py",
+        &["engine", "--backend", "gpu", "--instances", "4"],
+        "lugre engine: 0 failure(s)",
+    );
 }
