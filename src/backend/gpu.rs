@@ -178,7 +178,8 @@ impl GpuBackend {
             bail!("--precision f32: {LUGRE_F64_ONLY}");
         }
         let gpu = LugreGpu::new(&self.ctx)?;
-        let (runs, _) = gpu.run_until(instances, settings, crate::sweep::interrupt_requested)?;
+        let (runs, _) =
+            gpu.run_until(instances, settings, crate::interrupt::interrupt_requested)?;
         done(instances.len() as u64);
         Ok(instances
             .iter()
