@@ -21,7 +21,10 @@ use crate::model::{AXES, Instance, Lugre};
 /// velocities, and the same force (times the stage's stiffness over
 /// sigma0) in the bristles' deflection. 0.1 um is about the presliding
 /// deflection f_s / sigma0 at the defaults. Measured on MODEL.md section 8's
-/// cases (`pidm accuracy --lugre`): about tolerance / 2 um per cycle.
+/// cases (`pidm accuracy sweeps/lugre_paper.toml sweeps/lugre_stiff.toml`):
+/// the largest error is about tolerance / 2 um per cycle at the defaults
+/// and up to 1.6 tolerance at sigma0 = 1e9 (4.8e-5 and 1.6e-4 um at the
+/// default tolerance).
 pub const LENGTH_PER_TOLERANCE: f64 = 1e-7;
 
 /// The weights of the error control: each state's largest local error.
