@@ -100,15 +100,25 @@ pub fn cpu_method<'a>(base: Settings, lugre: bool) -> Method<'a> {
     }
 }
 
-/// A backend (the GPU path) at the same ladder of tolerances as the CPU.
-pub fn backend_method<'a>(backend: Box<dyn Backend + 'a>, base: Settings) -> Method<'a> {
+/// A backend (the GPU path) at the same ladder of tolerances as the CPU,
+/// named for the integrator a LuGre scene (`lugre`) runs on it.
+pub fn backend_method<'a>(
+    backend: Box<dyn Backend + 'a>,
+    base: Settings,
+    lugre: bool,
+) -> Method<'a> {
+    let (integrator, setting_name) = if lugre {
+        ("LuGre Rodas4", "tolerance [x 0.1 um local error per step]")
+    } else {
+        ("event-locating", "tolerance [rad]")
+    };
     Method {
         name: format!(
-            "event-locating {} ({})",
+            "{integrator} {} ({})",
             backend.precision(),
             backend.describe()
         ),
-        setting_name: "tolerance [rad]",
+        setting_name,
         settings: vec![1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
         run: Box::new(move |instances, tolerance| {
             let settings = Settings { tolerance, ..base };

@@ -67,6 +67,7 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
                 Ok(ctx) if ctx.supports_f64() => methods.push(accuracy::backend_method(
                     Box::new(GpuBackend::new(ctx, Precision::F64)?),
                     scene.settings,
+                    true,
                 )),
                 Ok(ctx) => println!("  gpu: not studied ({} offers no f64)", ctx.describe()),
                 Err(err) => println!("  gpu: not studied ({err})"),
@@ -79,12 +80,14 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
                     methods.push(accuracy::backend_method(
                         Box::new(GpuBackend::new(ctx, Precision::F32)?),
                         scene.settings,
+                        false,
                     ));
                     if f64_ok {
                         let ctx = crate::gpu::GpuContext::new(true)?;
                         methods.push(accuracy::backend_method(
                             Box::new(GpuBackend::new(ctx, Precision::F64)?),
                             scene.settings,
+                            false,
                         ));
                     }
                 }
