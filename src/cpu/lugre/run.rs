@@ -23,7 +23,7 @@ use crate::model::{AXES, Instance, Lugre};
 /// deflection f_s / sigma0 at the defaults. Measured on MODEL.md section 8's
 /// cases (`pidm accuracy sweeps/lugre_paper.toml sweeps/lugre_stiff.toml`):
 /// the largest error is about tolerance / 2 um per cycle at the defaults
-/// and up to 1.6 tolerance at sigma0 = 1e9 (4.8e-5 and 1.6e-4 um at the
+/// and up to 1.7 tolerance at sigma0 = 1e9 (4.9e-5 and 1.7e-4 um at the
 /// default tolerance).
 pub const LENGTH_PER_TOLERANCE: f64 = 1e-7;
 
