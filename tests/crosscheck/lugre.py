@@ -132,8 +132,10 @@ from pathlib import Path
 
 import numpy as np
 
-# The engine's run and its file, read as the Karnopp cross-check reads them.
-from crosscheck import run_engine
+# The engine's run and its file, read as the Karnopp cross-check reads them,
+# and its draw of a stage (Table 1's stiffness and gain scaled, a resonance
+# and a Q).
+from crosscheck import draw_stage, run_engine
 from scipy.integrate import solve_ivp
 
 REPO = Path(__file__).resolve().parents[2]
@@ -538,17 +540,6 @@ def cmd_reference(args) -> int:
 
 # ----------------------------------------------------------------------------
 # engine: random instances, the scene, the engine run
-
-
-def draw_stage(f) -> tuple[float, float, float, float]:
-    """Stage mass, stiffness, damping and gain from a resonance and a Q (as crosscheck.py)."""
-    stiffness = K * f(0.5, 2.0)
-    resonance = f(1000.0, 4000.0)
-    quality = f(10.0, 40.0)
-    gain = GAIN * f(0.5, 1.5)
-    stage_mass = stiffness / (2.0 * math.pi * resonance) ** 2
-    damping = math.sqrt(stiffness * stage_mass) / quality
-    return stage_mass, stiffness, damping, gain
 
 
 # Forced features of the first instances (on top of their random draws), so
