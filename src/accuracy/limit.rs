@@ -9,9 +9,10 @@ use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use plotters::prelude::*;
 
+use super::{LogLog, log_log_png};
 use crate::backend::{Backend, CpuBackend};
 use crate::cpu::integrate::Settings;
 use crate::model::{AXES, Friction, Instance, Lugre};
@@ -123,34 +124,21 @@ pub fn limit_markdown(name: &str, karnopp: &[[f64; AXES]], rows: &[LimitRow]) ->
 
 /// Draws the largest difference against sigma0, log-log.
 pub fn plot_limit(path: &Path, title: &str, rows: &[LimitRow]) -> Result<()> {
-    let _ =
-        plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
-    let temp = path.with_extension("png.partial.png");
-    {
-        let root = BitMapBackend::new(&temp, (900, 600)).into_drawing_area();
-        root.fill(&WHITE)?;
-        let floor = 1e-6;
-        let top = rows
-            .iter()
-            .map(|r| r.max_difference_um)
-            .fold(floor, f64::max);
-        let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 22))
-            .margin(15)
-            .x_label_area_size(45)
-            .y_label_area_size(85)
-            .build_cartesian_2d(
-                (LIMIT_STIFFNESS[0] * 0.5..LIMIT_STIFFNESS[3] * 2.0).log_scale(),
-                (floor..top * 3.0).log_scale(),
-            )?;
-        chart
-            .configure_mesh()
-            .x_desc("bristle stiffness sigma0 [N/m]")
-            .y_desc("largest |LuGre - Karnopp| step [um]")
-            .x_label_formatter(&|x| format!("{x:.0e}"))
-            .y_label_formatter(&|y| format!("{y:.0e}"))
-            .label_style(("sans-serif", 15))
-            .draw()?;
+    let floor = 1e-6;
+    let top = rows
+        .iter()
+        .map(|r| r.max_difference_um)
+        .fold(floor, f64::max);
+    let (left, right) = (LIMIT_STIFFNESS[0] * 0.5, LIMIT_STIFFNESS[3] * 2.0);
+    let axes = LogLog {
+        title,
+        x: left..right,
+        y: floor..top * 3.0,
+        x_desc: "bristle stiffness sigma0 [N/m]",
+        y_desc: "largest |LuGre - Karnopp| step [um]",
+        legend: false,
+    };
+    log_log_png(path, &axes, |chart| {
         let series: Vec<(f64, f64)> = rows
             .iter()
             .map(|r| (r.bristle_stiffness, r.max_difference_um.max(floor)))
@@ -163,14 +151,9 @@ pub fn plot_limit(path: &Path, title: &str, rows: &[LimitRow]) -> Result<()> {
                 .map(|&(x, y)| Circle::new((x, y), 4, color.filled())),
         )?;
         chart.draw_series(LineSeries::new(
-            vec![
-                (LIMIT_STIFFNESS[0] * 0.5, 0.01),
-                (LIMIT_STIFFNESS[3] * 2.0, 0.01),
-            ],
+            vec![(left, 0.01), (right, 0.01)],
             BLACK.mix(0.3),
         ))?;
-        root.present()?;
-    }
-    std::fs::rename(&temp, path).with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
+        Ok(())
+    })
 }

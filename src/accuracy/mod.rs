@@ -307,40 +307,91 @@ pub fn write_hdf5(path: &Path, scene_name: &str, points: &[Point]) -> Result<()>
 /// Error floor drawn for exact results on the log axis [um].
 const PLOT_FLOOR_UM: f64 = 1e-9;
 
-/// Draws max error against wall time, log-log, one line per method.
-pub fn plot(path: &Path, title: &str, points: &[Point]) -> Result<()> {
+/// The axes of a log-log figure: the ranges and their titles.
+pub(crate) struct LogLog<'t> {
+    pub(crate) title: &'t str,
+    pub(crate) x: std::ops::Range<f64>,
+    pub(crate) y: std::ops::Range<f64>,
+    pub(crate) x_desc: &'t str,
+    pub(crate) y_desc: &'t str,
+    /// Whether the series' labels are listed (upper right).
+    pub(crate) legend: bool,
+}
+
+/// A log-log chart on a drawing area.
+pub(crate) type LogChart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<
+        plotters::coord::combinators::LogCoord<f64>,
+        plotters::coord::combinators::LogCoord<f64>,
+    >,
+>;
+
+/// Writes a 900 x 600 log-log figure to `path` (a temporary file renamed
+/// into place when complete): `draw` adds the series to the chart `axes`
+/// describes, with its mesh drawn.
+pub(crate) fn log_log_png(
+    path: &Path,
+    axes: &LogLog<'_>,
+    draw: impl FnOnce(&mut LogChart<'_, '_>) -> Result<()>,
+) -> Result<()> {
     let _ =
         plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
     let temp = path.with_extension("png.partial.png");
     {
         let root = BitMapBackend::new(&temp, (900, 600)).into_drawing_area();
         root.fill(&WHITE)?;
-        let t_min = points
-            .iter()
-            .map(|p| p.wall_s)
-            .fold(f64::INFINITY, f64::min);
-        let t_max = points.iter().map(|p| p.wall_s).fold(0.0, f64::max);
-        let e_max = points
-            .iter()
-            .map(|p| p.max_error_um)
-            .fold(PLOT_FLOOR_UM, f64::max);
         let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 22))
+            .caption(axes.title, ("sans-serif", 22))
             .margin(15)
             .x_label_area_size(45)
             .y_label_area_size(85)
-            .build_cartesian_2d(
-                (t_min * 0.5..t_max * 2.0).log_scale(),
-                (PLOT_FLOOR_UM * 0.5..e_max * 3.0).log_scale(),
-            )?;
+            .build_cartesian_2d(axes.x.clone().log_scale(), axes.y.clone().log_scale())?;
         chart
             .configure_mesh()
-            .x_desc("wall time on one core [s]")
-            .y_desc("largest error of a step [um]")
+            .x_desc(axes.x_desc)
+            .y_desc(axes.y_desc)
             .x_label_formatter(&|x| format!("{x:.0e}"))
             .y_label_formatter(&|y| format!("{y:.0e}"))
             .label_style(("sans-serif", 15))
             .draw()?;
+        draw(&mut chart)?;
+        if axes.legend {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.9))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 15))
+                .position(SeriesLabelPosition::UpperRight)
+                .draw()?;
+        }
+        root.present()?;
+    }
+    std::fs::rename(&temp, path).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
+
+/// Draws max error against wall time, log-log, one line per method.
+pub fn plot(path: &Path, title: &str, points: &[Point]) -> Result<()> {
+    let t_min = points
+        .iter()
+        .map(|p| p.wall_s)
+        .fold(f64::INFINITY, f64::min);
+    let t_max = points.iter().map(|p| p.wall_s).fold(0.0, f64::max);
+    let e_max = points
+        .iter()
+        .map(|p| p.max_error_um)
+        .fold(PLOT_FLOOR_UM, f64::max);
+    let axes = LogLog {
+        title,
+        x: t_min * 0.5..t_max * 2.0,
+        y: PLOT_FLOOR_UM * 0.5..e_max * 3.0,
+        x_desc: "wall time on one core [s]",
+        y_desc: "largest error of a step [um]",
+        legend: true,
+    };
+    log_log_png(path, &axes, |chart| {
         let mut methods: Vec<&str> = points.iter().map(|p| p.method.as_str()).collect();
         methods.dedup();
         for (m, method) in methods.iter().enumerate() {
@@ -368,17 +419,8 @@ pub fn plot(path: &Path, title: &str, points: &[Point]) -> Result<()> {
                 BLACK.mix(0.3),
             ))?;
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 15))
-            .position(SeriesLabelPosition::UpperRight)
-            .draw()?;
-        root.present()?;
-    }
-    std::fs::rename(&temp, path).with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
+        Ok(())
+    })
 }
 
 /// The cheapest setting of a method that reaches `target` um, if any:
