@@ -178,9 +178,12 @@ impl GpuBackend {
             bail!("--precision f32: {LUGRE_F64_ONLY}");
         }
         let gpu = LugreGpu::new(&self.ctx)?;
-        let (runs, _) =
-            gpu.run_until(instances, settings, crate::interrupt::interrupt_requested)?;
-        done(instances.len() as u64);
+        let (runs, _) = gpu.run_until(
+            instances,
+            settings,
+            crate::interrupt::interrupt_requested,
+            done,
+        )?;
         Ok(instances
             .iter()
             .zip(runs)

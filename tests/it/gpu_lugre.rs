@@ -341,3 +341,31 @@ fn dispatches_cut_nothing_short() {
         );
     }
 }
+
+/// A batch tells its progress as instances finish: windows of 2, 4 and 6
+/// periods finish in different dispatches, each counted once.
+#[test]
+fn the_batch_reports_each_finished_instance_once() {
+    let Some((gpu, _)) = lugre_gpu() else {
+        return;
+    };
+    let instances: Vec<Instance> = [2, 4, 6]
+        .into_iter()
+        .map(|cycles| {
+            let mut inst = lugre_case([100.0, 0.0], [10.0, 10.0], Lugre::DEFAULT);
+            inst.cycles = cycles;
+            inst.settle = 1;
+            inst
+        })
+        .collect();
+    let calls = std::sync::Mutex::new(Vec::new());
+    let (runs, _) = gpu
+        .run_until(&instances, &Settings::default(), || false, &|n| {
+            calls.lock().unwrap().push(n)
+        })
+        .expect("the GPU batch");
+    let calls = calls.into_inner().unwrap();
+    assert_eq!(calls.iter().sum::<u64>(), 3, "{calls:?}");
+    assert!(calls.len() >= 2, "{calls:?}");
+    assert!(runs.iter().all(|r| r.state.status == 0));
+}

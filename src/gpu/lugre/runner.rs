@@ -226,22 +226,24 @@ impl<'a> LugreGpu<'a> {
         instances: &[Instance],
         settings: &Settings,
     ) -> Result<(Vec<Run>, BatchReport), GpuError> {
-        self.run_until(instances, settings, || false)
+        self.run_until(instances, settings, || false, &|_| {})
     }
 
     /// [`LugreGpu::run`], asking `stop` between dispatches
-    /// ([`GpuError::Interrupted`] when it says yes).
+    /// ([`GpuError::Interrupted`] when it says yes) and telling `done` how
+    /// many instances each dispatch finished (for a progress bar).
     pub fn run_until(
         &self,
         instances: &[Instance],
         settings: &Settings,
         stop: impl Fn() -> bool,
+        done: &(dyn Fn(u64) + Sync),
     ) -> Result<(Vec<Run>, BatchReport), GpuError> {
         let started = Instant::now();
         let mut report = BatchReport::default();
         let mut runs = Vec::with_capacity(instances.len());
         for chunk in instances.chunks(self.max_batch()) {
-            runs.extend(self.run_batch(chunk, settings, &stop, &mut report)?);
+            runs.extend(self.run_batch(chunk, settings, (&stop, done), &mut report)?);
         }
         report.seconds = started.elapsed().as_secs_f64();
         Ok((runs, report))
@@ -265,7 +267,7 @@ impl<'a> LugreGpu<'a> {
         &self,
         instances: &[Instance],
         settings: &Settings,
-        stop: &impl Fn() -> bool,
+        (stop, done): (&impl Fn() -> bool, &(dyn Fn(u64) + Sync)),
         report: &mut BatchReport,
     ) -> Result<Vec<Run>, GpuError> {
         let mut books: Vec<Periods> = instances
@@ -278,6 +280,8 @@ impl<'a> LugreGpu<'a> {
         let params: Vec<Params> = books.iter().map(Params::of).collect();
         let mut lanes: Vec<Lane> = books.iter().map(Lane::start).collect();
         let mut batch = Batch::new(self, &params, &lanes, self.attempts);
+        let stopped = |lanes: &[Lane]| lanes.iter().filter(|l| l.flag == LANE_STOPPED).count();
+        let mut finished = stopped(&lanes);
         while lanes.iter().any(|l| l.flag == LANE_RUNNING) {
             if stop() {
                 return Err(GpuError::Interrupted);
@@ -315,6 +319,11 @@ impl<'a> LugreGpu<'a> {
                     }
                     _ => {}
                 }
+            }
+            let now = stopped(&lanes);
+            if now > finished {
+                done((now - finished) as u64);
+                finished = now;
             }
         }
         Ok(books.into_iter().map(|b| b.run).collect())
