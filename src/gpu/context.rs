@@ -493,37 +493,63 @@ pub fn create_pipeline(
     let precision = variant.precision;
     shader::parse_and_validate(variant)?;
     let src = shader::source(variant);
-    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
-    // wgpu's default runtime checks clamp every dynamic array index and add
-    // a counter to every loop. Both keep the driver's compiler from
-    // unrolling the integrator's short loops, so arrays stay in scratch
-    // memory: on lavapipe the shader then compiles six times slower and
-    // runs four times slower. The integrator needs neither check.
-    // Compilation happens here for most drivers and at the first dispatch
-    // for llvmpipe; either may take seconds.
-    let mut checks = wgpu::ShaderRuntimeChecks::checked();
-    checks.bounds_checks = false;
-    checks.force_loop_bounding = false;
     // SAFETY: every array index in the shader is a constant or a counter of
     // a loop bounded by the array's length, the storage arrays are indexed
     // only below both their `arrayLength`s, and every loop is bounded: by a
     // constant, by `max_iterations`, or (the loop-limiter probe) by
     // `control.probe` passes.
+    unsafe {
+        compile_trusted(
+            device,
+            src,
+            ("shaders/integrate", shader::ENTRY_POINT),
+            precision,
+            cache,
+        )
+    }
+}
+
+/// Compiles `src` into the compute pipeline of `entry` (`label` names the
+/// module in wgpu's messages) without wgpu's runtime checks, and turns any
+/// validation or internal error into [`GpuError::ShaderCompile`].
+///
+/// wgpu's default runtime checks clamp every dynamic array index and add
+/// a counter to every loop. Both keep the driver's compiler from unrolling
+/// the integrators' short loops, so arrays stay in scratch memory: on
+/// lavapipe the Karnopp shader then compiles six times slower and runs four
+/// times slower. Compilation happens here for most drivers and at the first
+/// dispatch for llvmpipe; either may take seconds.
+///
+/// # Safety
+/// Every array index of the shader must be in bounds and every loop
+/// bounded, as the caller states for its shader.
+pub(crate) unsafe fn compile_trusted(
+    device: &wgpu::Device,
+    src: String,
+    (label, entry): (&str, &str),
+    precision: Precision,
+    cache: Option<&wgpu::PipelineCache>,
+) -> Result<wgpu::ComputePipeline, GpuError> {
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
+    let mut checks = wgpu::ShaderRuntimeChecks::checked();
+    checks.bounds_checks = false;
+    checks.force_loop_bounding = false;
+    // SAFETY: the caller's (this function's contract).
     let module = unsafe {
         device.create_shader_module_trusted(
             wgpu::ShaderModuleDescriptor {
-                label: Some("shaders/integrate"),
+                label: Some(label),
                 source: wgpu::ShaderSource::Wgsl(src.into()),
             },
             checks,
         )
     };
     let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("advance_slice"),
+        label: Some(entry),
         layout: None,
         module: &module,
-        entry_point: Some(shader::ENTRY_POINT),
+        entry_point: Some(entry),
         compilation_options: Default::default(),
         cache,
     });

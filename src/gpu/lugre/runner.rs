@@ -49,41 +49,19 @@ pub(super) fn compile(
 ) -> Result<wgpu::ComputePipeline, GpuError> {
     parse_and_validate(workgroup_size, arithmetic)?;
     let src = source(workgroup_size, arithmetic);
-    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let internal = device.push_error_scope(wgpu::ErrorFilter::Internal);
-    let mut checks = wgpu::ShaderRuntimeChecks::checked();
-    checks.bounds_checks = false;
-    checks.force_loop_bounding = false;
     // SAFETY: every loop of the shader is bounded by a constant or by
     // `control.attempts`; every index is a constant, a loop counter below
-    // its array's length, a pivot (below N) or an instance below both
+    // its array's length, a pivot (below R) or an instance below both
     // storage arrays' lengths.
-    let module = unsafe {
-        device.create_shader_module_trusted(
-            wgpu::ShaderModuleDescriptor {
-                label: Some("shaders/lugre"),
-                source: wgpu::ShaderSource::Wgsl(src.into()),
-            },
-            checks,
+    unsafe {
+        crate::gpu::context::compile_trusted(
+            device,
+            src,
+            ("shaders/lugre", entry),
+            Precision::F64,
+            None,
         )
-    };
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(entry),
-        layout: None,
-        module: &module,
-        entry_point: Some(entry),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    let internal = pollster::block_on(internal.pop());
-    let validation = pollster::block_on(validation.pop());
-    if let Some(e) = validation.or(internal) {
-        return Err(GpuError::ShaderCompile {
-            precision: Precision::F64,
-            message: e.to_string(),
-        });
     }
-    Ok(pipeline)
 }
 
 /// Workgroups for `n` invocations of `size`, in two dimensions where one
