@@ -459,6 +459,28 @@ pub fn parse_and_validate(
     Ok((module, info))
 }
 
+/// Function names defined in a source text (`fn name(` at any
+/// indentation), leaving out a Rust file's test module.
+#[cfg(test)]
+pub(crate) fn defined_functions(text: &str) -> Vec<String> {
+    let text = text.split("#[cfg(test)]").next().unwrap_or(text);
+    let mut names = Vec::new();
+    for line in text.lines() {
+        let line = line.trim_start();
+        let rest = ["pub(crate) fn ", "pub(super) fn ", "pub fn ", "fn "]
+            .iter()
+            .find_map(|prefix| line.strip_prefix(prefix));
+        if let Some(rest) = rest {
+            let name: String = rest
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            names.push(name);
+        }
+    }
+    names
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -511,27 +533,6 @@ mod tests {
                 .unwrap_or_else(|e| panic!("{variant:?}: {e}"));
             assert!(words.len() > 1000, "{variant:?}: {} words", words.len());
         }
-    }
-
-    /// Function names defined in a source text (`fn name(` at any
-    /// indentation), leaving out a Rust file's test module.
-    fn defined_functions(text: &str) -> Vec<String> {
-        let text = text.split("#[cfg(test)]").next().unwrap_or(text);
-        let mut names = Vec::new();
-        for line in text.lines() {
-            let line = line.trim_start();
-            let rest = ["pub fn ", "pub(super) fn ", "fn "]
-                .iter()
-                .find_map(|prefix| line.strip_prefix(prefix));
-            if let Some(rest) = rest {
-                let name: String = rest
-                    .chars()
-                    .take_while(|c| c.is_alphanumeric() || *c == '_')
-                    .collect();
-                names.push(name);
-            }
-        }
-        names
     }
 
     /// Every shader file (but the entry point) defines the functions of its

@@ -188,6 +188,7 @@ pub fn parse_and_validate(
 mod tests {
     use super::*;
     use crate::gpu::lugre::{HARDWARE_WORKGROUP_SIZE, SOFTWARE_WORKGROUP_SIZE};
+    use crate::gpu::shader::defined_functions;
 
     #[test]
     fn the_shader_parses_validates_and_writes_spir_v() {
@@ -216,27 +217,6 @@ mod tests {
         {
             assert_eq!(lit(*v).parse::<f64>().unwrap(), *v);
         }
-    }
-
-    /// Function names defined in a source text (`fn name(` at any
-    /// indentation), leaving out a Rust file's test module.
-    fn defined_functions(text: &str) -> Vec<String> {
-        let text = text.split("#[cfg(test)]").next().unwrap_or(text);
-        let mut names = Vec::new();
-        for line in text.lines() {
-            let line = line.trim_start();
-            let rest = ["pub(crate) fn ", "pub(super) fn ", "pub fn ", "fn "]
-                .iter()
-                .find_map(|prefix| line.strip_prefix(prefix));
-            if let Some(rest) = rest {
-                let name: String = rest
-                    .chars()
-                    .take_while(|c| c.is_alphanumeric() || *c == '_')
-                    .collect();
-                names.push(name);
-            }
-        }
-        names
     }
 
     /// `model.wgsl` and `rodas.wgsl` define the functions of their Rust
