@@ -182,6 +182,19 @@ fn advance_slice(
             break;
         }
     }
+    // The driver's loop limiter may leave the lane's loop at any of its
+    // back edges, also right after a period end that finished the instance
+    // or set a replica waiting, before the loop's top hands it over. Hand
+    // it over here, outside any loop: a lane never keeps an instance whose
+    // state says it is done, which the host may already have queued again
+    // (a replica released by its group's merge: two lanes would then run
+    // it, each writing its state and accumulators).
+    if index != NO_INSTANCE && is_finished(c, st) {
+        states[index] = st;
+        finish_measure(c, index);
+        atomicAdd(&counters.finished, 1u);
+        index = NO_INSTANCE;
+    }
     if index != NO_INSTANCE {
         states[index] = st;
         tally.progress = f32(st.period) + f32(st.time) / f32(c.period);

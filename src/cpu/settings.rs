@@ -60,6 +60,13 @@ impl Default for Replicas {
 /// weights (`phase::window_coefficient`), so the replicas' sums add up to the
 /// virtual run's: `count` times the periods for the same chain length.
 /// `{ index: 0, count: 1 }` ([`Replica::NONE`]) is a run of its own.
+///
+/// A replica with a `cycle` q > 0 is instead one piece of a periodic
+/// motion's common period (`pidm::replicas`, "cycle splits"): replica r
+/// starts from rest at the drives' phases of period `start` of the
+/// instance's own run ([`Replica::cycle_segment`]), settles as that run
+/// does, and integrates the next `length` periods with no stop rule of its
+/// own; its group joins the pieces end to start.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Replica {
     pub index: u32,
@@ -71,6 +78,9 @@ pub struct Replica {
     /// host picks the m whose virtual run spaces its phases most evenly
     /// (`pidm::replicas::split`).
     pub turns: u32,
+    /// The common period [scene periods] a cycle split cuts into `count`
+    /// pieces, 0 for a phase split or a run of its own.
+    pub cycle: u32,
 }
 
 impl Replica {
@@ -79,6 +89,7 @@ impl Replica {
         index: 0,
         count: 1,
         turns: 0,
+        cycle: 0,
     };
 
     /// The virtual run's advance of the faster drive per period [cycles]
@@ -89,5 +100,15 @@ impl Replica {
         } else {
             (rho + self.turns as f64) / self.count as f64
         }
+    }
+
+    /// A cycle split's piece for this replica: the period of the
+    /// instance's own measurement it starts at and the periods it measures
+    /// [scene periods], `floor(index q / count)` up to the next replica's
+    /// start, so that the pieces tile the common period q.
+    pub fn cycle_segment(&self) -> (u32, u32) {
+        let at = |index: u32| (index as u64 * self.cycle as u64 / self.count.max(1) as u64) as u32;
+        let start = at(self.index);
+        (start, at(self.index + 1) - start)
     }
 }

@@ -33,7 +33,7 @@ pub(super) struct Split {
 
 impl Split {
     /// The jobs of `instances` where `count` replicas per instance are
-    /// free (`replicas::count`), or `None` where no instance splits.
+    /// free (`replicas::count_queued`), or `None` where no instance splits.
     pub(super) fn of(instances: &[Instance], settings: &Settings, count: u32) -> Option<Split> {
         let splits: Vec<Option<Replica>> = instances
             .iter()
@@ -71,6 +71,7 @@ impl Split {
                 groups,
                 first,
                 seen: None,
+                tail: 0,
             },
         })
     }
@@ -102,6 +103,35 @@ struct Groups {
     /// The finished count of the last look, after what it queued again: a
     /// dispatch that finished nothing more changed no group.
     seen: Option<u64>,
+    /// The jobs the CPU takes over once no more of them are left
+    /// ([`Groups::tail_of`]), 0 for none.
+    tail: u64,
+}
+
+impl Groups {
+    /// The jobs of a split batch of `jobs` that the CPU takes over with
+    /// `options` on `threads` threads: `BatchOptions::cpu_tail` where set,
+    /// else [`CPU_TAIL_PER_THREAD`] per thread, at most a quarter of the
+    /// batch. The last groups' replicas are long chains on few lanes: on
+    /// lavapipe the map's last groups of `results/pipeline/twofreq6.toml`
+    /// ran a fifth of its time on one workgroup, at about 190 iterations a
+    /// lane per dispatch (its loop limiter), where a CPU thread runs one
+    /// replica several times as fast (results/replicas.md).
+    fn tail_of(options: &BatchOptions, jobs: usize, threads: usize) -> u64 {
+        match options.cpu_tail {
+            Some(tail) => tail as u64,
+            None => (CPU_TAIL_PER_THREAD * threads).min(jobs / 4) as u64,
+        }
+    }
+
+    /// The jobs of the groups that have not ended.
+    fn undone_jobs(&self) -> u64 {
+        self.groups
+            .iter()
+            .filter(|g| g.done.is_none())
+            .map(|g| g.group.count() as u64)
+            .sum()
+    }
 }
 
 impl Between for Groups {
@@ -124,15 +154,15 @@ impl Between for Groups {
         for g in self.groups.iter_mut().filter(|g| g.done.is_none()) {
             let count = g.group.count() as usize;
             let own = &all[g.first - self.first..][..count];
-            // As `Group::step` reads them; one that does not wait runs.
-            let ended = |s: &State64| {
-                crate::replicas::group::ended(s.status, s.measured, s.period >= g.inst.cycles)
-            };
-            let running = |s: &State64| !ended(s) && s.measured == 0;
+            // As `Group::step` reads them.
+            let group = &g.group;
+            let ended = |s: &State64| group.gives_up(s.status, s.measured, s.period);
+            let running =
+                |(r, s): (usize, &State64)| group.runs(r as u32, s.status, s.measured, s.period);
             let steps = own.iter().fold(0u32, |n, s| n.saturating_add(s.steps));
             if own.iter().any(ended) {
                 // The split is given up: the replicas still running stop.
-                for (j, s) in (g.first..).zip(own) {
+                for (j, s) in (g.first..).zip(own.iter().enumerate()) {
                     if running(s) {
                         write_u32(runner, states, state_field(j), 1);
                     }
@@ -143,19 +173,20 @@ impl Between for Groups {
                 });
                 continue;
             }
-            if own.iter().any(running) {
+            if own.iter().enumerate().any(running) {
                 continue;
             }
             let taken: Vec<Measure64> = read(runner, measures, g.first, count)?;
             let members: Vec<Member> = own
                 .iter()
                 .zip(&taken)
-                .map(|(s, m)| {
+                .zip(group.replicas())
+                .map(|((s, m), (replica, _))| {
                     let run = Run {
                         state: layout::double::to_cpu(s),
                         measure: layout::double::measure_to_cpu(m),
                     };
-                    Member::of(&g.inst, &run)
+                    Member::of(&replica, &run)
                 })
                 .collect();
             match g.group.step(&members) {
@@ -173,6 +204,13 @@ impl Between for Groups {
         }
         self.seen = Some(finished - again.len() as u64);
         Ok(again)
+    }
+
+    /// Once the groups not ended hold at most `tail` jobs, and at most
+    /// `tail` jobs run: the CPU continues them from their states
+    /// ([`Runner::batch_split`]).
+    fn hand_over(&self, unfinished: u64) -> bool {
+        self.tail > 0 && unfinished <= self.tail && self.undone_jobs() <= self.tail
     }
 }
 
@@ -229,6 +267,7 @@ impl Runner<'_> {
             alone,
             mut groups,
         } = split;
+        groups.tail = Groups::tail_of(self.options, jobs.len(), rayon::current_num_threads());
         let options = BatchOptions {
             cpu_tail: Some(0),
             ..*self.options
@@ -261,7 +300,18 @@ impl Runner<'_> {
         for (&k, outcome) in alone.iter().zip(ran_alone) {
             out[k] = Some(outcome);
         }
-        self.merged_or_again(&groups.groups, &mut out)?;
+        let handed = groups.groups.iter().filter(|g| g.done.is_none());
+        let runs: Vec<Vec<Run>> = handed
+            .map(|g| {
+                (g.first..g.first + g.group.count() as usize)
+                    .map(|j| Run {
+                        state: layout::double::to_cpu(&states[j]),
+                        measure: layout::double::measure_to_cpu(&measure_list[j]),
+                    })
+                    .collect()
+            })
+            .collect();
+        self.on_cpu_merged_or_again(&groups.groups, runs, &mut out)?;
         progress(n as u64);
         Ok(out
             .into_iter()
@@ -269,14 +319,45 @@ impl Runner<'_> {
             .collect())
     }
 
-    /// Each group's outcome into `out`: its merged estimate, or its
-    /// instance's own run (a batch of its own, replicas off), labelled
-    /// multistable where its replicas disagreed.
-    fn merged_or_again(
+    /// Each group's outcome into `out`: its merged estimate; for the
+    /// groups the device handed over (`done` none: the batch's tail, or a
+    /// test's slice limit), in order, the CPU's continuation of their
+    /// replicas from `runs`; or its instance's own run (a batch of its
+    /// own, replicas off), labelled multistable where its replicas
+    /// disagreed.
+    fn on_cpu_merged_or_again(
         &self,
         groups: &[GpuGroup],
+        runs: Vec<Vec<Run>>,
         out: &mut [Option<GpuOutcome>],
     ) -> Result<(), GpuError> {
+        let handed: Vec<&GpuGroup> = groups.iter().filter(|g| g.done.is_none()).collect();
+        let _tail = crate::profile::span(crate::profile::Phase::CpuPart);
+        let on_cpu: Vec<Option<crate::replicas::cpu::GroupRun>> = handed
+            .par_iter()
+            .zip(runs)
+            .with_max_len(1)
+            .map(|(g, runs)| {
+                let replicas = g.group.replicas();
+                let stop = crate::sweep::interrupt_requested;
+                crate::replicas::cpu::continue_replicas(
+                    &g.inst,
+                    self.settings,
+                    &g.group,
+                    &replicas,
+                    runs,
+                    &stop,
+                )
+            })
+            .collect();
+        for (g, run) in handed.iter().zip(on_cpu) {
+            let run = run.ok_or(GpuError::Interrupted)?;
+            out[g.index] = Some(GpuOutcome {
+                replicas: run.replicas,
+                finished_on_cpu: true,
+                ..GpuOutcome::of(&run.measured, run.steps)
+            });
+        }
         let mut again = Vec::new();
         for g in groups {
             match g.done {
@@ -287,8 +368,7 @@ impl Runner<'_> {
                     });
                 }
                 Some(Done::Alone { multistable, steps }) => again.push((g, multistable, steps)),
-                // A batch stopped early (tests' slice limits).
-                None => again.push((g, false, 0)),
+                None => {}
             }
         }
         if again.is_empty() {

@@ -549,7 +549,8 @@ impl<'a> Runner<'a> {
         // every instance alone, as on the CPU).
         if L::PRECISION == Precision::F64 {
             let lanes = self.options.lanes.unwrap_or(LANES);
-            let count = crate::replicas::count(self.settings.replicas, lanes, instances.len());
+            let count =
+                crate::replicas::count_queued(self.settings.replicas, lanes, instances.len());
             if let Some(split) = groups::Split::of(instances, self.settings, count) {
                 return self.batch_split(instances, split, progress);
             }

@@ -614,6 +614,8 @@ mod tests {
             "first_batch_length",
             "beat_batch_length",
             "repeat_tolerances",
+            // The host's join of a cycle split (the shader inlines it).
+            "repeats",
             "wgsl_constants",
             // The host's fixed-point phase coefficients.
             "fixed_fraction_32",

@@ -33,6 +33,10 @@ pub(super) trait Between {
         measures: &wgpu::Buffer,
         finished: u64,
     ) -> Result<Vec<u32>, GpuError>;
+
+    /// Whether the CPU takes what is left of the batch now, with the queue
+    /// empty and `unfinished` jobs neither finished nor waiting.
+    fn hand_over(&self, unfinished: u64) -> bool;
 }
 
 /// A batch's device buffers.
@@ -439,7 +443,11 @@ impl Runner<'_> {
             progress(finished.min(n as u64));
             let drained = next >= order.len() as u64;
             // Every instance started, and only the slow tail is left.
-            if unfinished == 0 || (drained && unfinished <= tail_size) {
+            let handed = drained
+                && between
+                    .as_deref()
+                    .is_some_and(|between| between.hand_over(unfinished));
+            if unfinished == 0 || (drained && unfinished <= tail_size) || handed {
                 return Ok(());
             }
             if slice_limit.is_some_and(|limit| slice >= limit) {

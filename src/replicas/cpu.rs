@@ -48,17 +48,38 @@ pub fn run_replicas(
     replicas: &[(Instance, Replica)],
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<GroupRun> {
-    let count = group.count();
-    let mut replicas: Vec<(Coefficients, Run)> = replicas
+    let started: Vec<Run> = replicas
         .iter()
         .map(|&(replica, r)| {
             let c = Coefficients::of_replica(&replica, settings, r);
-            let run = Run {
+            Run {
                 state: initial_state(&c),
                 measure: initial_measure(&c),
-            };
-            (c, run)
+            }
         })
+        .collect();
+    continue_replicas(inst, settings, group, replicas, started, stop)
+}
+
+/// [`run_replicas`] from where the replicas stand (`runs`, in replica
+/// order): running, or waiting for their group's merge. A GPU batch hands
+/// its last groups over so (`gpu::groups`): the shader mirrors the CPU's
+/// integrator step for step in f64, so a group ends as it would have on
+/// the device, merges and all.
+pub fn continue_replicas(
+    inst: &Instance,
+    settings: &Settings,
+    group: &Group,
+    replicas: &[(Instance, Replica)],
+    runs: Vec<Run>,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<GroupRun> {
+    let count = group.count();
+    let instances: Vec<Instance> = replicas.iter().map(|(replica, _)| *replica).collect();
+    let mut replicas: Vec<(Coefficients, Run)> = replicas
+        .iter()
+        .zip(runs)
+        .map(|(&(replica, r), run)| (Coefficients::of_replica(&replica, settings, r), run))
         .collect();
     let mut disagreement: f64 = 0.0;
     loop {
@@ -72,7 +93,8 @@ pub fn run_replicas(
         }
         let members: Vec<Member> = replicas
             .iter()
-            .map(|(_, run)| Member::of(inst, run))
+            .zip(&instances)
+            .map(|((_, run), replica)| Member::of(replica, run))
             .collect();
         let steps = replicas.iter().map(|(_, run)| run.state.steps).sum::<u32>();
         if let Some(d) = group.disagreement(&members) {

@@ -1,7 +1,8 @@
 //! One instance's replicas as a group: what the backends read of each
 //! replica ([`Member`]), and what the group does next ([`Group::step`]):
-//! wait, let every replica go on, stop with the merged estimate, or give
-//! up the split. Plain values: the backends run the replicas (`super::cpu`
+//! wait, let every replica go on, stop with the merged estimate (a phase
+//! split) or the joined pieces (a cycle split, `Group::join`), or give up
+//! the split. Plain values: the backends run the replicas (`super::cpu`
 //! on the CPU's threads, `gpu::slices` on lanes) and ask here.
 //!
 //! **The merge.** At a ladder level that may stop the run, every replica
@@ -19,7 +20,9 @@
 //! [`DISAGREEMENT_FLOOR`] on either axis sits on another attractor: the
 //! group is not merged.
 
-use crate::cpu::integrate::measure::{VERDICT_PHASE, VERDICT_RUNNING};
+use crate::cpu::integrate::measure::{
+    Snapshot, VERDICT_PERIODIC, VERDICT_PHASE, VERDICT_RUNNING, repeats,
+};
 use crate::cpu::integrate::phase::{
     Gaps, LevelSums, PhaseEstimate, evaluate_sums, ladder_length, window_weight,
 };
@@ -59,19 +62,43 @@ pub struct Member {
     /// The level it waits at and its sums there (while waiting).
     pub level: u32,
     pub sums: LevelSums,
+    /// A cycle split's piece: the states where its piece starts and ends,
+    /// once it has run it.
+    pub ends: Option<(Snapshot, Snapshot)>,
 }
 
 impl Member {
-    /// What a CPU run of a replica of `inst` holds.
+    /// What a CPU run of replica `inst` (`Group::replicas`) holds.
     pub fn of(inst: &Instance, run: &Run) -> Member {
+        let m = &run.measure;
         Member {
             status: run.state.status,
             measured: run.state.measured,
             at_max: run.state.period >= inst.cycles,
-            periods: run.measure.next_end,
-            level: run.measure.pending_level,
-            sums: run.measure.phase.pending,
+            periods: m.next_end,
+            level: m.pending_level,
+            sums: m.phase.pending,
+            ends: piece_ends(m),
         }
+    }
+}
+
+/// Where a cycle split's piece started and ended: its recurrence test's
+/// first two states (a piece's "common period" is its length), or, where
+/// that test found the end repeating the start, the start moved by the
+/// travel between them.
+fn piece_ends(m: &Measure) -> Option<(Snapshot, Snapshot)> {
+    let start = m.snaps[0];
+    match (m.verdict, m.snapshots) {
+        (VERDICT_PERIODIC, _) => Some((
+            start,
+            Snapshot {
+                x_s: start.x_s + m.travel,
+                ..start
+            },
+        )),
+        (_, 2..) => Some((start, m.snaps[1])),
+        _ => None,
     }
 }
 
@@ -105,10 +132,15 @@ impl Group {
     /// virtual run) under `settings`.
     pub fn new(inst: &Instance, settings: &Settings, split: Replica) -> Group {
         let split = Replica { index: 0, ..split };
+        let c = match split.cycle {
+            0 => Coefficients::of_replica(inst, settings, split),
+            // The instance's own: its recurrence test's tolerances.
+            _ => Coefficients::of(inst, settings),
+        };
         Group {
             inst: *inst,
             split,
-            c: Coefficients::of_replica(inst, settings, split),
+            c,
         }
     }
 
@@ -132,6 +164,9 @@ impl Group {
     /// What the group does after its members (in replica order) did what
     /// they could.
     pub fn step(&self, members: &[Member]) -> Step {
+        if self.split.cycle > 0 {
+            return self.join(members);
+        }
         if members
             .iter()
             .any(|m| ended(m.status, m.measured, m.at_max))
@@ -154,6 +189,87 @@ impl Group {
             return Step::Merged(self.measured(&merged, periods));
         }
         Step::Continue
+    }
+
+    /// Whether this is a cycle split (`Replica::cycle`), whose pieces run
+    /// to their ends and are joined once, rather than a phase split.
+    pub fn is_cycle(&self) -> bool {
+        self.split.cycle > 0
+    }
+
+    /// Whether replica `r`, with this status, `State::measured` and
+    /// period, keeps its group waiting: it still runs, and has neither
+    /// reached what its group waits for (a phase split's level, a piece's
+    /// end) nor ended the split ([`Group::gives_up`]).
+    pub fn runs(&self, r: u32, status: u32, measured: u32, period: u32) -> bool {
+        status == STATUS_OK && measured == 0 && period < self.cycles_of(r)
+    }
+
+    /// Whether a replica in this state makes its group give up the
+    /// split: it failed, or (a phase split's replica) was measured by a
+    /// rule of its own or ran out ([`ended`]). A piece of a cycle split
+    /// ends at its `cycles`, as it should.
+    pub fn gives_up(&self, status: u32, measured: u32, period: u32) -> bool {
+        match self.split.cycle {
+            0 => ended(status, measured, period >= self.inst.cycles),
+            _ => status != STATUS_OK,
+        }
+    }
+
+    /// The periods replica `r` runs at most.
+    fn cycles_of(&self, r: u32) -> u32 {
+        match self.split.cycle {
+            0 => self.inst.cycles,
+            _ => {
+                let piece = Replica {
+                    index: r,
+                    ..self.split
+                };
+                self.inst.settle + piece.cycle_segment().1
+            }
+        }
+    }
+
+    /// A cycle split's step: once every piece has run to its end, the
+    /// pieces joined end to start within the recurrence test's tolerances
+    /// ([`repeats`]), the last one's end to the first one's start, are one
+    /// trajectory that repeats after the common period q: the instance's
+    /// motion is periodic and its travel over q is the pieces' travels
+    /// added. A piece that failed, or one join that does not hold (a motion
+    /// that does not repeat after q, a piece not yet settled, or pieces on
+    /// different attractors), gives up the split, unlabelled: the joins
+    /// cannot tell those apart.
+    fn join(&self, members: &[Member]) -> Step {
+        let count = members.len();
+        if members.iter().any(|m| m.status != STATUS_OK) {
+            return Step::Alone { multistable: false };
+        }
+        if members.iter().any(|m| m.measured == 0 && !m.at_max) {
+            return Step::Wait;
+        }
+        let ends: Option<Vec<(Snapshot, Snapshot)>> = members.iter().map(|m| m.ends).collect();
+        let Some(ends) = ends else {
+            return Step::Alone { multistable: false };
+        };
+        let joined = (0..count).all(|r| repeats(&self.c, &ends[r].1, &ends[(r + 1) % count].0));
+        if !joined {
+            return Step::Alone { multistable: false };
+        }
+        let travel = ends
+            .iter()
+            .fold(Vec2::ZERO, |sum, (start, end)| sum + (end.x_s - start.x_s));
+        let periods = members.iter().map(|m| m.periods).max().unwrap_or(0);
+        let mut state = initial_state(&self.c);
+        state.period = periods;
+        state.measured = 1;
+        let measure = Measure {
+            verdict: VERDICT_PERIODIC,
+            travel,
+            lag: self.split.cycle,
+            next_end: periods,
+            ..initial_measure(&self.c)
+        };
+        Step::Merged(reduce(&self.inst, &Run { state, measure }))
     }
 
     /// How far the replicas' own estimates lie from the merged one where

@@ -19,6 +19,14 @@
 //! adds the replicas' sums and judges them as one run's ([`group`]); the
 //! merged window stops all, or all go on.
 //!
+//! An instance whose drives repeat after a common period q and that no
+//! phase split takes (its ladder off, or no virtual run even enough: near
+//! a resonance, where the run alone waits for the recurrence test at
+//! `settle` plus q periods) makes a *cycle split* instead
+//! ([`cycle_split`]): R pieces of q, each from rest at the drives' phases
+//! of its first period, joined end to start by the recurrence test's
+//! tolerances into one periodic motion (`group::Group::step`).
+//!
 //! Replicas that disagree beyond their errors (coexisting attractors) are
 //! never merged: the instance then runs again as one run of its own, and
 //! the map keeps that run labelled `multistable`. A group that cannot merge
@@ -68,6 +76,23 @@ pub fn count(setting: Replicas, workers: usize, jobs: usize) -> u32 {
     }
 }
 
+/// [`count`] for workers that take queued jobs as they free (the GPU's
+/// lanes, `gpu::groups`): with `Auto`, the lanes per integration rounded
+/// up where that queues at most a quarter of the lanes' worth of jobs
+/// beyond the lanes (else rounded down, as [`count`]). The jobs left over
+/// wait in the queue for the first lanes a replica frees at its group's
+/// merge. Measured on `results/pipeline/twofreq6.toml` (36 instances on
+/// lavapipe's 256 lanes, f64, 2 pairs): 8 replicas each took 52.6 s
+/// against 61.6 s for 7 (results/replicas.md).
+pub fn count_queued(setting: Replicas, lanes: usize, jobs: usize) -> u32 {
+    let floor = count(setting, lanes, jobs);
+    let up = lanes.div_ceil(jobs.max(1)).min(MAX_AUTO as usize);
+    match setting {
+        Replicas::Auto if 4 * up * jobs <= 5 * lanes => up.max(1) as u32,
+        _ => floor,
+    }
+}
+
 /// The index of the faster drive (the one whose cycles per scene period
 /// are the most, as `Coefficients` takes it) and its advance per scene
 /// period [cycles].
@@ -82,6 +107,9 @@ fn faster_drive(inst: &Instance) -> (usize, f64) {
 /// advanced by `r.index` times the virtual run's step (module docs).
 pub fn replica_instance(inst: &Instance, r: Replica) -> Instance {
     let mut out = *inst;
+    if r.cycle > 0 {
+        return cycle_piece(inst, r);
+    }
     if r.index == 0 || r.count <= 1 {
         return out;
     }
@@ -90,6 +118,52 @@ pub fn replica_instance(inst: &Instance, r: Replica) -> Instance {
     let axis = &mut out.axes[fast];
     axis.phase = (axis.phase + shift).fract();
     out
+}
+
+/// Piece `r` of a cycle split of `inst` ([`cycle_split`]): the instance
+/// with its faster drive advanced to its phase at the piece's start period
+/// s (by s rho cycles; the slower drive completes whole cycles a scene
+/// period), running `settle` plus the piece's periods.
+fn cycle_piece(inst: &Instance, r: Replica) -> Instance {
+    let mut out = *inst;
+    let (start, length) = r.cycle_segment();
+    let (fast, rho) = faster_drive(inst);
+    let axis = &mut out.axes[fast];
+    axis.phase = (axis.phase + (start as f64 * rho).fract()).fract();
+    out.cycles = inst.settle + length;
+    out
+}
+
+/// The fewest periods a cycle split's piece measures: shorter pieces save
+/// less than their own settling (2 periods at the default `settle`, a
+/// sixteenth of this) and their group's join cost.
+pub const MIN_PIECE: u32 = 32;
+
+/// The cycle split of `inst` into at most `count` pieces, if it has one
+/// (`Replica::cycle`): a steady measurement of drives that repeat after a
+/// common period q (`Coefficients::common_period`) that the run alone
+/// could reach (`settle + q <= max_cycles`), cut into as many pieces as
+/// `count` allows with at least [`MIN_PIECE`] periods (and `settle`) each,
+/// none longer than the shortest phase window that may stop a run
+/// (`phase::MIN_WINDOW`): a motion that turns out not to repeat after q
+/// (the pieces do not join) then costs its pieces no more than the run
+/// alone spends before its first chance to stop.
+pub fn cycle_split(inst: &Instance, settings: &Settings, count: u32) -> Option<Replica> {
+    if !matches!(inst.measure, Measure::Steady { .. }) || inst.mechanism.lugre().is_some() {
+        return None;
+    }
+    let q = Coefficients::of(inst, settings).common_period;
+    if q == 0 || inst.settle.saturating_add(q) > inst.cycles {
+        return None;
+    }
+    let pieces = count.min(q / MIN_PIECE.max(inst.settle).max(1));
+    let split = Replica {
+        index: 0,
+        count: pieces,
+        turns: 0,
+        cycle: q,
+    };
+    (pieces >= 2 && q.div_ceil(pieces) <= phase::MIN_WINDOW).then_some(split)
 }
 
 /// How far a virtual run's phases may be spaced less evenly than the
@@ -127,6 +201,7 @@ pub fn best_turns(inst: &Instance, count: u32) -> (u32, f64) {
                 index: 0,
                 count,
                 turns,
+                cycle: 0,
             };
             let step = r.virtual_step(rho);
             let first = phase::ladder(step, true, 0).levels.trailing_zeros();
@@ -151,10 +226,13 @@ fn spread_limit(rho: f64) -> f64 {
 /// integration ([`count`]) under `settings`, if it does: the one rule
 /// both backends follow.
 pub fn split_of(inst: &Instance, settings: &Settings, count: u32) -> Option<Replica> {
-    if count < 2 || !splittable(inst, settings) {
+    if count < 2 {
         return None;
     }
-    split(inst, settings.replicas, count)
+    splittable(inst, settings)
+        .then(|| split(inst, settings.replicas, count))
+        .flatten()
+        .or_else(|| cycle_split(inst, settings, count))
 }
 
 /// The split of a splittable `inst` for a `count` from [`count`]: with
@@ -168,6 +246,7 @@ pub fn split(inst: &Instance, setting: Replicas, count: u32) -> Option<Replica> 
         index: 0,
         count,
         turns,
+        cycle: 0,
     };
     if count < 2 {
         return None;
@@ -226,6 +305,29 @@ mod tests {
         check(Replicas::Count(0), 2, 1, 1);
     }
 
+    /// Lanes that take queued jobs round the share up where at most a
+    /// quarter of the lanes' worth waits: 36 instances on 256 lanes make 8
+    /// each (288 jobs), 200 make 1 (2 would queue 144), 110 make 2 (3
+    /// would queue 74 > 64).
+    #[test]
+    fn queued_lanes_round_the_share_up() {
+        let check = |setting, lanes, jobs, expected| {
+            assert_eq!(
+                count_queued(setting, lanes, jobs),
+                expected,
+                "{setting:?} {lanes} {jobs}"
+            );
+        };
+        check(Replicas::Auto, 256, 36, 8);
+        check(Replicas::Auto, 256, 200, 1);
+        check(Replicas::Auto, 256, 110, 2);
+        check(Replicas::Auto, 256, 100, 3);
+        check(Replicas::Auto, 256, 1, MAX_AUTO);
+        check(Replicas::Auto, 256, 300, 1);
+        check(Replicas::Count(4), 256, 36, 4);
+        check(Replicas::Count(1), 256, 1, 1);
+    }
+
     /// Replica r's faster drive starts r (rho + m) / R cycles later, so
     /// its period k starts at the virtual run's period R k + r.
     #[test]
@@ -236,11 +338,85 @@ mod tests {
             index,
             count: 8,
             turns: 4,
+            cycle: 0,
         };
         let third = replica_instance(&inst, r(3));
         assert!((third.axes[1].phase - (3.0 * (rho + 4.0) / 8.0).fract()).abs() < 1e-15);
         assert_eq!(third.axes[0], inst.axes[0]);
         assert_eq!(replica_instance(&inst, Replica::NONE), inst);
+    }
+}
+
+#[cfg(test)]
+mod cycle_tests {
+    use super::*;
+
+    fn periodic(fy: f64, cycles: u32) -> Instance {
+        let mut inst = Instance::TABLE1;
+        inst.axes[0].frequency = 7.13;
+        inst.axes[1].frequency = fy;
+        inst.axes[1].voltage = 100.0;
+        inst.cycles = cycles;
+        inst.measure = Measure::Steady {
+            step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
+        };
+        inst
+    }
+
+    /// 7.13 against 23.858 Hz repeats after 3,565 periods, near 9 / 26:
+    /// no window of its ladder resolves enough phases to stop a run (its
+    /// phases bunch in 26 clusters), so no phase split; 8 workers make
+    /// a cycle split into 8 pieces that tile the common period; 4 would
+    /// make pieces longer than 680 periods, and too few `max_cycles` for
+    /// the run alone's recurrence leave it alone.
+    #[test]
+    fn a_long_common_period_is_cut_into_pieces() {
+        let settings = Settings {
+            replicas: Replicas::Auto,
+            ..Settings::default()
+        };
+        let inst = periodic(23.858, 20_000);
+        assert!(!splittable(&inst, &settings));
+        let eight = split_of(&inst, &settings, 8).unwrap();
+        assert_eq!((eight.count, eight.cycle), (8, 3565));
+        let pieces: Vec<(u32, u32)> = (0..8)
+            .map(|index| Replica { index, ..eight }.cycle_segment())
+            .collect();
+        assert_eq!(pieces[0], (0, 445));
+        assert_eq!(pieces[7], (3119, 446));
+        assert!(pieces.windows(2).all(|w| w[0].0 + w[0].1 == w[1].0));
+        assert_eq!(pieces.iter().map(|p| p.1).sum::<u32>(), 3565);
+        assert_eq!(split_of(&inst, &settings, 4), None);
+        assert_eq!(split_of(&periodic(23.858, 3000), &settings, 8), None);
+    }
+
+    /// Piece r is the instance with its faster drive at its phase of
+    /// period s_r and `settle` plus its periods to run; the slower drive
+    /// is untouched.
+    #[test]
+    fn a_piece_starts_at_its_period_of_the_run() {
+        let inst = periodic(23.858, 20_000);
+        let split = cycle_split(&inst, &Settings::default(), 8).unwrap();
+        let third = replica_instance(&inst, Replica { index: 3, ..split });
+        let (start, length) = Replica { index: 3, ..split }.cycle_segment();
+        let rho = (23.858f64 / 7.13).fract();
+        let expected = (start as f64 * rho).fract();
+        assert!((third.axes[1].phase - expected).abs() < 1e-9, "{third:?}");
+        assert_eq!(third.axes[0], inst.axes[0]);
+        assert_eq!(third.cycles, inst.settle + length);
+    }
+
+    /// A short common period is not cut (10 against 14 Hz: 5 periods), nor
+    /// is a window.
+    #[test]
+    fn short_common_periods_and_windows_are_not_cut() {
+        let settings = Settings::default();
+        let mut short = periodic(14.0, 2000);
+        short.axes[0].frequency = 10.0;
+        assert_eq!(cycle_split(&short, &settings, 8), None);
+        let mut window = periodic(23.858, 20_000);
+        window.measure = Measure::Window;
+        assert_eq!(cycle_split(&window, &settings, 8), None);
     }
 }
 

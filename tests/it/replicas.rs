@@ -77,28 +77,54 @@ fn eight_replicas_cover_a_long_run_in_a_quarter_of_its_periods() {
     covers("8 replicas", &inst, &merged, quasi_periodic_reference());
 }
 
-/// 21.34 and 23.66 Hz repeat after 1067 periods: whether the split is
-/// refused up front (the recurrence within the window) or a replica finds
-/// the recurrence and the group gives up, the instance's own run gives
-/// its exact step, bit for bit the run without replicas.
+/// 21.34 and 23.66 Hz repeat after 1067 periods, which the run alone
+/// finds by its recurrence test after settle + 1067. Four replicas make a
+/// cycle split: pieces of 266-267 periods, each from rest at the drives'
+/// phases of its first period, joined end to start within the recurrence
+/// test's tolerances. The motion is the run alone's (periodic, the same
+/// lag, no standard error), its step the same to far below the maps'
+/// 0.002 um, in a quarter of the periods.
 #[test]
 fn a_periodic_instance_keeps_its_exact_step() {
     let inst = steady(21.34, 23.66, 2, 1e-8, 10_000);
     let alone = measure(&inst);
     assert_eq!(alone.motion, Motion::Periodic, "{alone:?}");
+    let (merged, count) = split_run(&inst, 4);
+    assert_eq!(count, 4, "{merged:?}");
+    assert_eq!(
+        (merged.motion, merged.lag, merged.se, merged.status),
+        (alone.motion, alone.lag, [0.0; 2], STATUS_OK)
+    );
+    let measured = |periods: u32| periods - inst.settle;
+    assert_eq!(measured(merged.periods), 1067_u32.div_ceil(4));
+    for axis in 0..2 {
+        let (a, b) = (step_um(&inst, &merged, axis), step_um(&inst, &alone, axis));
+        eprintln!("axis {axis}: joined {a:+.12} um, alone {b:+.12} um");
+        assert!((a - b).abs() <= 1e-6, "axis {axis}: {a} um against {b} um");
+    }
+}
+
+/// A cycle split whose pieces do not join (one planted on another
+/// attractor, its y drive at -100 V) is given up: the instance's own run
+/// is kept bit for bit, unlabelled, since a join that fails may as well be
+/// a piece not yet settled.
+#[test]
+fn a_cycle_split_that_does_not_join_runs_alone() {
+    let inst = steady(21.34, 23.66, 2, 1e-8, 10_000);
     let settings = Settings {
         replicas: Replicas::Count(4),
         ..Settings::default()
     };
-    let got = match replicas::split_of(&inst, &settings, 4) {
-        None => alone,
-        Some(split) => {
-            let run = run_group(&inst, &settings, split, &|| false).unwrap();
-            assert_eq!(run.replicas, 1, "{run:?}");
-            run.measured
-        }
-    };
-    assert_eq!(got, alone);
+    let split = replicas::split_of(&inst, &settings, 4).unwrap();
+    assert_eq!((split.count, split.cycle), (4, 1067), "{split:?}");
+    let group = Group::new(&inst, &settings, split);
+    assert!(group.is_cycle());
+    let mut planted = group.replicas();
+    planted[1].0.axes[1].voltage = -100.0;
+    let run = run_replicas(&inst, &settings, &group, &planted, &|| false).unwrap();
+    assert_eq!(run.replicas, 1, "{run:?}");
+    assert_eq!(run.measured, measure(&inst));
+    assert_eq!(run.measured.motion, Motion::Periodic);
 }
 
 /// One replica planted on another attractor (its y drive at -100 V: its y
@@ -225,8 +251,9 @@ fn an_interrupted_run_with_replicas_resumes_to_the_same_map() {
     pidm::output::compare_contents(&whole, &out).unwrap();
 }
 
-/// The GPU's groups against the CPU's, four replicas each: f64 merges the
-/// same windows (the same periods and kinds of motion, values within the
+/// The GPU's groups against the CPU's, four replicas each (two phase
+/// splits and a cycle split): f64 merges the same windows and joins the
+/// same pieces (the same periods and kinds of motion, values within the
 /// f64 shader's rounding of the CPU's), f32 runs every instance alone
 /// (within the CPU's errors and f32's allowance).
 #[test]
@@ -255,7 +282,7 @@ fn the_gpu_merges_replicas_as_the_cpu_does() {
         .collect();
     assert_eq!(
         cpu.iter().map(|c| c.1).collect::<Vec<_>>(),
-        [4, 4, 1],
+        [4, 4, 4],
         "{cpu:?}"
     );
     for precision in crate::gpu::precisions(ctx) {
@@ -288,6 +315,69 @@ fn the_gpu_merges_replicas_as_the_cpu_does() {
                     "{name}"
                 ),
                 Precision::F32 => assert_eq!(g.replicas, 1, "{name}"),
+            }
+        }
+    }
+}
+
+/// Groups on fewer lanes than jobs (12 jobs on 5 lanes: replicas queued
+/// again at every merge, lanes taking them as others free) merge and join
+/// as on the CPU, whether the device runs every group to its end or hands
+/// the groups left to the CPU once its queue is empty
+/// (`BatchOptions::cpu_tail`): the same replicas, periods and kinds of
+/// motion, values within the f64 shader's rounding of the CPU's. Before
+/// the shader handed a finished instance over after its loop too, the loop
+/// limiter could leave a replica on its lane while its group queued it
+/// again, and two lanes ran it (the 6 x 6 map: 1,588 slices with a job on
+/// two lanes).
+#[test]
+fn queued_replicas_and_the_cpu_tail_merge_as_the_cpu_does() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    let instances = [
+        steady(10.0, 10.0 * 2f64.sqrt(), 2, 1e-8, 20_000),
+        steady(10.0, 10.0 * 3f64.sqrt(), 2, 3e-8, 20_000),
+        steady(21.34, 23.66, 2, 1e-8, 10_000),
+    ];
+    let settings = Settings {
+        replicas: Replicas::Count(4),
+        ..Settings::default()
+    };
+    let cpu: Vec<(Measured, u32)> = instances
+        .iter()
+        .map(|inst| {
+            let split = replicas::split_of(inst, &settings, 4).unwrap();
+            let run = run_group(inst, &settings, split, &|| false).unwrap();
+            (run.measured, run.replicas)
+        })
+        .collect();
+    for tail in [0, 1000] {
+        let options = BatchOptions {
+            lanes: Some(5),
+            cpu_tail: Some(tail),
+            ..BatchOptions::default()
+        };
+        let gpu = gpu_batch(ctx, &instances, &settings, Precision::F64, &options);
+        // The handover waits for an empty queue: with 12 jobs on 5 lanes,
+        // once the first groups have ended.
+        let handed = gpu.iter().filter(|g| g.finished_on_cpu).count();
+        assert_eq!(handed > 0, tail > 0, "tail {tail}: {handed} handed over");
+        for (k, (inst, ((c, count), g))) in instances.iter().zip(cpu.iter().zip(&gpu)).enumerate() {
+            let name = format!("tail {tail} #{k}");
+            eprintln!("{name}: cpu {c:?} x {count}, gpu {g:?}");
+            assert_eq!(
+                (g.replicas, g.periods, g.motion, g.status),
+                (*count, c.periods, c.motion, c.status),
+                "{name}"
+            );
+            for axis in 0..2 {
+                let a = inst.measure_over(axis, g.displacement[axis], g.span).1 * 1e6;
+                let b = step_um(inst, c, axis);
+                assert!(
+                    (a - b).abs() <= 1e-6,
+                    "{name} axis {axis}: {a} um, cpu {b} um"
+                );
             }
         }
     }

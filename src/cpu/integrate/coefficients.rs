@@ -362,11 +362,19 @@ impl Coefficients {
         let (repeat_x, repeat_v) =
             super::measure::repeat_tolerances(settings.tolerance, deflection, slip.rate.max_element());
         let frequency = per_axis(&|a| a.frequency);
-        let common_period = super::measure::common_period(frequency, cycles_per_period, driven);
+        // A cycle split's piece (`Replica::cycle`) has no stop rule of its
+        // own: its recurrence test keeps the states where its piece starts
+        // and ends (a "common period" of the piece's length), its ladder
+        // and batch means are off, and it runs to its `cycles`.
+        let piece = (r.cycle > 0).then(|| r.cycle_segment().1);
+        let common_period = piece.unwrap_or_else(|| {
+            super::measure::common_period(frequency, cycles_per_period, driven)
+        });
         let steady = matches!(inst.measure, crate::model::Measure::Steady { .. });
         // The faster drive's advance per scene period [cycles].
         let rho = cycles_per_period.max_element().fract();
         let ladder_on = steady
+            && piece.is_none()
             && driven[0]
             && driven[1]
             && rho > 0.0
@@ -463,10 +471,13 @@ impl Coefficients {
             gaps: ladder.gaps,
             phase_levels: ladder.levels,
             phase_lattice: ladder.lattice,
-            replica: r.index,
-            replicas: r.count,
+            replica: if piece.is_some() { 0 } else { r.index },
+            replicas: if piece.is_some() { 1 } else { r.count },
             batch_length: super::measure::first_batch_length(cycles_per_period, driven, inst.cycles),
-            min_batch: super::measure::beat_batch_length(cycles_per_period, driven),
+            min_batch: match piece {
+                Some(_) => u32::MAX,
+                None => super::measure::beat_batch_length(cycles_per_period, driven),
+            },
             se_limit2: se_limit * se_limit,
             repeat_x,
             repeat_v,

@@ -280,28 +280,38 @@ fn close_batch(m: &mut Measure, x_s: Vec2) {
 /// records the lag and the travel over it when one matches, else keeps the
 /// state.
 fn recurrence(c: &Coefficients, st: &State, m: &mut Measure) {
-    let kept = m.snapshots.min(SNAPSHOTS as u32);
-    for back in 1..=kept {
-        let s = &m.snaps[((m.snapshots - back) % SNAPSHOTS as u32) as usize];
-        if s.mode == st.mode
-            && close(st.x_p, s.x_p, c.repeat_x)
-            && close(st.v_p, s.v_p, c.repeat_v)
-            && close(st.v_s, s.v_s, c.repeat_v)
-        {
-            m.lag = back * c.common_period;
-            m.travel = st.x_s - s.x_s;
-            m.verdict = VERDICT_PERIODIC;
-            return;
-        }
-    }
-    m.snaps[(m.snapshots % SNAPSHOTS as u32) as usize] = Snapshot {
+    let now = Snapshot {
         x_p: st.x_p,
         v_p: st.v_p,
         v_s: st.v_s,
         x_s: st.x_s,
         mode: st.mode,
     };
+    let kept = m.snapshots.min(SNAPSHOTS as u32);
+    for back in 1..=kept {
+        let s = &m.snaps[((m.snapshots - back) % SNAPSHOTS as u32) as usize];
+        if repeats(c, &now, s) {
+            m.lag = back * c.common_period;
+            m.travel = st.x_s - s.x_s;
+            m.verdict = VERDICT_PERIODIC;
+            return;
+        }
+    }
+    m.snaps[(m.snapshots % SNAPSHOTS as u32) as usize] = now;
     m.snapshots += 1;
+}
+
+/// Whether state `a` repeats state `b` within [`repeat_tolerances`]: the
+/// same mode, and stage positions, stage velocities and slider velocities
+/// each within their tolerance (the slider position translates and is not
+/// compared). The recurrence test's rule, and the one a cycle split's
+/// group joins its pieces by (`pidm::replicas::group`); the shader's
+/// recurrence test inlines it.
+pub fn repeats(c: &Coefficients, a: &Snapshot, b: &Snapshot) -> bool {
+    a.mode == b.mode
+        && close(a.x_p, b.x_p, c.repeat_x)
+        && close(a.v_p, b.v_p, c.repeat_v)
+        && close(a.v_s, b.v_s, c.repeat_v)
 }
 
 fn close(a: Vec2, b: Vec2, tolerance: Real) -> bool {

@@ -307,6 +307,7 @@ pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> Pha
         index: c.replica,
         count: c.replicas,
         turns: 0,
+        cycle: 0,
     };
     let mut judged = PhaseEstimate::default();
     for j in 0..LEVELS as u32 {
@@ -635,7 +636,12 @@ mod tests {
                 let direct: f64 = (0..length).map(|v| expected[v as usize] * d(start + v)).sum();
                 let mut total = 0.0;
                 for index in 0..count {
-                    let r = Replica { index, count, turns: 0 };
+                    let r = Replica {
+                        index,
+                        count,
+                        turns: 0,
+                        cycle: 0,
+                    };
                     let mut x = 17.0 * index as f64;
                     let mut sum = Vec2::ZERO;
                     for k in 0..=(start + length) / count + 1 {
