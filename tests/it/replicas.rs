@@ -261,6 +261,25 @@ fn the_gpu_merges_replicas_as_the_cpu_does() {
     let Some(ctx) = context() else {
         return;
     };
+    let (instances, settings, cpu) = groups_on_the_cpu();
+    for precision in crate::gpu::precisions(ctx) {
+        let gpu = gpu_batch(
+            ctx,
+            &instances,
+            &settings,
+            precision,
+            &BatchOptions::default(),
+        );
+        for (k, (inst, (c, g))) in instances.iter().zip(cpu.iter().zip(&gpu)).enumerate() {
+            against_the_cpu(&format!("{precision} #{k}"), precision, inst, c, g);
+        }
+    }
+}
+
+/// Three instances split four ways on the GPU's groups' tests (two phase
+/// splits and a cycle split), the settings, and each one's group run on
+/// the CPU with the replicas it made.
+fn groups_on_the_cpu() -> ([Instance; 3], Settings, Vec<(Measured, u32)>) {
     let instances = [
         steady(10.0, 10.0 * 2f64.sqrt(), 2, 1e-8, 20_000),
         steady(10.0, 10.0 * 3f64.sqrt(), 2, 3e-8, 20_000),
@@ -272,12 +291,10 @@ fn the_gpu_merges_replicas_as_the_cpu_does() {
     };
     let cpu: Vec<(Measured, u32)> = instances
         .iter()
-        .map(|inst| match replicas::split_of(inst, &settings, 4) {
-            Some(split) => {
-                let run = run_group(inst, &settings, split, &|| false).unwrap();
-                (run.measured, run.replicas)
-            }
-            None => (measure(inst), 1),
+        .map(|inst| {
+            let split = replicas::split_of(inst, &settings, 4).expect("splits");
+            let run = run_group(inst, &settings, split, &|| false).unwrap();
+            (run.measured, run.replicas)
         })
         .collect();
     assert_eq!(
@@ -285,38 +302,40 @@ fn the_gpu_merges_replicas_as_the_cpu_does() {
         [4, 4, 4],
         "{cpu:?}"
     );
-    for precision in crate::gpu::precisions(ctx) {
-        let gpu = gpu_batch(
-            ctx,
-            &instances,
-            &settings,
-            precision,
-            &BatchOptions::default(),
+    (instances, settings, cpu)
+}
+
+/// A GPU outcome `g` of `inst` against its CPU group `(c, count)`: in f64
+/// the same replicas, periods, kind of motion and status, each step
+/// within 1e-6 um (the f64 shader's rounding); in f32 one run alone
+/// within the CPU's errors and f32's allowance.
+fn against_the_cpu(
+    name: &str,
+    precision: Precision,
+    inst: &Instance,
+    (c, count): &(Measured, u32),
+    g: &pidm::gpu::GpuOutcome,
+) {
+    eprintln!("{name}: cpu {c:?} x {count}, gpu {g:?}");
+    for axis in 0..2 {
+        let a = inst.measure_over(axis, g.displacement[axis], g.span).1 * 1e6;
+        let b = step_um(inst, c, axis);
+        let allowed = match precision {
+            Precision::F64 => 1e-6,
+            Precision::F32 => 3.0 * c.se[axis] * 1e6 + f32_allowance(b),
+        };
+        assert!(
+            (a - b).abs() <= allowed,
+            "{name} axis {axis}: {a} um, cpu {b} um"
         );
-        for (k, (inst, ((c, count), g))) in instances.iter().zip(cpu.iter().zip(&gpu)).enumerate() {
-            let name = format!("{precision} #{k}");
-            eprintln!("{name}: cpu {c:?} x {count}, gpu {g:?}");
-            for axis in 0..2 {
-                let a = inst.measure_over(axis, g.displacement[axis], g.span).1 * 1e6;
-                let b = step_um(inst, c, axis);
-                let allowed = match precision {
-                    Precision::F64 => 1e-6,
-                    Precision::F32 => 3.0 * c.se[axis] * 1e6 + f32_allowance(b),
-                };
-                assert!(
-                    (a - b).abs() <= allowed,
-                    "{name} axis {axis}: {a} um, cpu {b} um"
-                );
-            }
-            match precision {
-                Precision::F64 => assert_eq!(
-                    (g.replicas, g.periods, g.motion, g.status),
-                    (*count, c.periods, c.motion, c.status),
-                    "{name}"
-                ),
-                Precision::F32 => assert_eq!(g.replicas, 1, "{name}"),
-            }
-        }
+    }
+    match precision {
+        Precision::F64 => assert_eq!(
+            (g.replicas, g.periods, g.motion, g.status),
+            (*count, c.periods, c.motion, c.status),
+            "{name}"
+        ),
+        Precision::F32 => assert_eq!(g.replicas, 1, "{name}"),
     }
 }
 
@@ -335,23 +354,7 @@ fn queued_replicas_and_the_cpu_tail_merge_as_the_cpu_does() {
     let Some(ctx) = context() else {
         return;
     };
-    let instances = [
-        steady(10.0, 10.0 * 2f64.sqrt(), 2, 1e-8, 20_000),
-        steady(10.0, 10.0 * 3f64.sqrt(), 2, 3e-8, 20_000),
-        steady(21.34, 23.66, 2, 1e-8, 10_000),
-    ];
-    let settings = Settings {
-        replicas: Replicas::Count(4),
-        ..Settings::default()
-    };
-    let cpu: Vec<(Measured, u32)> = instances
-        .iter()
-        .map(|inst| {
-            let split = replicas::split_of(inst, &settings, 4).unwrap();
-            let run = run_group(inst, &settings, split, &|| false).unwrap();
-            (run.measured, run.replicas)
-        })
-        .collect();
+    let (instances, settings, cpu) = groups_on_the_cpu();
     for tail in [0, 1000] {
         let options = BatchOptions {
             lanes: Some(5),
@@ -363,22 +366,8 @@ fn queued_replicas_and_the_cpu_tail_merge_as_the_cpu_does() {
         // once the first groups have ended.
         let handed = gpu.iter().filter(|g| g.finished_on_cpu).count();
         assert_eq!(handed > 0, tail > 0, "tail {tail}: {handed} handed over");
-        for (k, (inst, ((c, count), g))) in instances.iter().zip(cpu.iter().zip(&gpu)).enumerate() {
-            let name = format!("tail {tail} #{k}");
-            eprintln!("{name}: cpu {c:?} x {count}, gpu {g:?}");
-            assert_eq!(
-                (g.replicas, g.periods, g.motion, g.status),
-                (*count, c.periods, c.motion, c.status),
-                "{name}"
-            );
-            for axis in 0..2 {
-                let a = inst.measure_over(axis, g.displacement[axis], g.span).1 * 1e6;
-                let b = step_um(inst, c, axis);
-                assert!(
-                    (a - b).abs() <= 1e-6,
-                    "{name} axis {axis}: {a} um, cpu {b} um"
-                );
-            }
+        for (k, (inst, (c, g))) in instances.iter().zip(cpu.iter().zip(&gpu)).enumerate() {
+            against_the_cpu(&format!("tail {tail} #{k}"), Precision::F64, inst, c, g);
         }
     }
 }
