@@ -248,6 +248,6 @@ pub fn probe_instances(
         replicas: settings.replicas,
         splittable: picked
             .iter()
-            .any(|inst| crate::replicas::splittable(inst, settings)),
+            .any(|inst| crate::replicas::may_split(inst, settings)),
     }
 }

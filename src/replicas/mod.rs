@@ -65,6 +65,13 @@ pub fn splittable(inst: &Instance, settings: &Settings) -> bool {
         && Coefficients::of(inst, settings).phase_levels != 0
 }
 
+/// Whether `inst` may split at all, by a phase split ([`splittable`]) or a
+/// cycle split ([`cycle_split`]) into up to [`MAX_AUTO`] pieces: what a
+/// cost estimate asks (`crate::probe`).
+pub fn may_split(inst: &Instance, settings: &Settings) -> bool {
+    splittable(inst, settings) || cycle_split(inst, settings, MAX_AUTO).is_some()
+}
+
 /// The replicas each splittable instance of a batch runs as: the scene's
 /// count, or with `Auto` the `workers` (lanes or threads) per integration
 /// of the batch (`jobs`, splittable or not), at most [`MAX_AUTO`], and 1
