@@ -70,7 +70,8 @@ def open(path: PathLike) -> xr.Dataset:
     - data variables: every dataset the file has under ``/maps`` (``step_x``,
       ``step_y`` [m per own drive cycle], ``velocity_x``, ``velocity_y`` [m/s],
       ``status``, ``steps``, ``replicas`` (the replicas whose merged estimate
-      the values are: 1 for a run of its own), ...) and under ``/baseline`` with the prefix
+      the values are, or the pieces of a cycle split whose joined travel
+      they are: 1 for a run of its own), ...) and under ``/baseline`` with the prefix
       ``baseline_`` (``baseline_step_x`` [m per own drive cycle], ...), each with
       its ``units`` and ``long_name``;
     - ``motion`` (uint8, units 1): the kind of motion the steady measurement found,
