@@ -1,15 +1,19 @@
 //! Replicas on the device (`crate::replicas`): an f64 batch with fewer
 //! instances than lanes runs each splittable instance as a group of
 //! replica jobs, each on a lane of its own. A replica runs to the ladder
-//! level it waits at (`measured` 2, counted finished by the shader);
+//! level it waits at (`measured` 2, counted finished by the shader), a
+//! cycle split's piece to its end;
 //! between dispatches the host reads the groups whose replicas all
 //! stopped, and each group does what [`Group::step`] says, the rule the
 //! CPU's groups follow too: its jobs go back to the queue and the lanes
 //! that hold none take them (`entry.wgsl`, `take_idle`), or it stops with
 //! the merged estimate, or it gives up the split and the instance runs
 //! again alone after the batch, labelled multistable where its replicas
-//! disagreed. The batch's other instances run alongside, as in any batch;
-//! no CPU tail takes a replica.
+//! disagreed. The batch's other instances run alongside, as in any batch.
+//! Once the queue is empty and the groups left hold few jobs
+//! ([`Groups::tail_of`]), the CPU continues them from their states
+//! (`replicas::cpu::continue_replicas`) and the batch's own unfinished
+//! instances too, as any batch's tail.
 
 use std::mem::offset_of;
 
