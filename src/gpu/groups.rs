@@ -304,18 +304,7 @@ impl Runner<'_> {
         for (&k, outcome) in alone.iter().zip(ran_alone) {
             out[k] = Some(outcome);
         }
-        let handed = groups.groups.iter().filter(|g| g.done.is_none());
-        let runs: Vec<Vec<Run>> = handed
-            .map(|g| {
-                (g.first..g.first + g.group.count() as usize)
-                    .map(|j| Run {
-                        state: layout::double::to_cpu(&states[j]),
-                        measure: layout::double::measure_to_cpu(&measure_list[j]),
-                    })
-                    .collect()
-            })
-            .collect();
-        self.on_cpu_merged_or_again(&groups.groups, runs, &mut out)?;
+        self.on_cpu_merged_or_again(&groups.groups, (&states, &measure_list), &mut out)?;
         progress(n as u64);
         Ok(out
             .into_iter()
@@ -325,24 +314,29 @@ impl Runner<'_> {
 
     /// Each group's outcome into `out`: its merged estimate; for the
     /// groups the device handed over (`done` none: the batch's tail, or a
-    /// test's slice limit), in order, the CPU's continuation of their
-    /// replicas from `runs`; or its instance's own run (a batch of its
+    /// test's slice limit), the CPU's continuation of their replicas from
+    /// the batch's `states` and accumulators; or its instance's own run (a batch of its
     /// own, replicas off), labelled multistable where its replicas
     /// disagreed.
     fn on_cpu_merged_or_again(
         &self,
         groups: &[GpuGroup],
-        runs: Vec<Vec<Run>>,
+        (states, measures): (&[State64], &[Measure64]),
         out: &mut [Option<GpuOutcome>],
     ) -> Result<(), GpuError> {
         let handed: Vec<&GpuGroup> = groups.iter().filter(|g| g.done.is_none()).collect();
         let _tail = crate::profile::span(crate::profile::Phase::CpuPart);
         let on_cpu: Vec<Option<crate::replicas::cpu::GroupRun>> = handed
             .par_iter()
-            .zip(runs)
             .with_max_len(1)
-            .map(|(g, runs)| {
+            .map(|g| {
                 let replicas = g.group.replicas();
+                let runs = (g.first..g.first + replicas.len())
+                    .map(|j| Run {
+                        state: layout::double::to_cpu(&states[j]),
+                        measure: layout::double::measure_to_cpu(&measures[j]),
+                    })
+                    .collect();
                 let stop = crate::sweep::interrupt_requested;
                 crate::replicas::cpu::continue_replicas(
                     &g.inst,

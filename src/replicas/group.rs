@@ -259,17 +259,15 @@ impl Group {
             .iter()
             .fold(Vec2::ZERO, |sum, (start, end)| sum + (end.x_s - start.x_s));
         let periods = members.iter().map(|m| m.periods).max().unwrap_or(0);
-        let mut state = initial_state(&self.c);
-        state.period = periods;
-        state.measured = 1;
-        let measure = Measure {
-            verdict: VERDICT_PERIODIC,
-            travel,
-            lag: self.split.cycle,
-            next_end: periods,
-            ..initial_measure(&self.c)
-        };
-        Step::Merged(reduce(&self.inst, &Run { state, measure }))
+        Step::Merged(self.finished(
+            periods,
+            Measure {
+                verdict: VERDICT_PERIODIC,
+                travel,
+                lag: self.split.cycle,
+                ..initial_measure(&self.c)
+            },
+        ))
     }
 
     /// How far the replicas' own estimates lie from the merged one where
@@ -358,16 +356,28 @@ impl Group {
     /// The map's values of a merged window, through the one reduction
     /// every run's results pass through: a phase-resolved verdict.
     fn measured(&self, merged: &PhaseEstimate, periods: u32) -> Measured {
+        self.finished(
+            periods,
+            Measure {
+                verdict: VERDICT_PHASE,
+                travel: merged.value * merged.span as f64,
+                span: merged.span,
+                se2: merged.se2,
+                ..initial_measure(&self.c)
+            },
+        )
+    }
+
+    /// The map's values of a group that ended after `periods` with the
+    /// verdict and travel `measure` holds, through [`reduce`] as any
+    /// finished run's.
+    fn finished(&self, periods: u32, measure: Measure) -> Measured {
         let mut state = initial_state(&self.c);
         state.period = periods;
         state.measured = 1;
         let measure = Measure {
-            verdict: VERDICT_PHASE,
-            travel: merged.value * merged.span as f64,
-            span: merged.span,
-            se2: merged.se2,
             next_end: periods,
-            ..initial_measure(&self.c)
+            ..measure
         };
         debug_assert_ne!(measure.verdict, VERDICT_RUNNING);
         reduce(&self.inst, &Run { state, measure })
