@@ -610,6 +610,7 @@ mod tests {
             "gaps",
             "largest_gap",
             "spread",
+            "ladder_on",
             "ladder",
             "first_batch_length",
             "beat_batch_length",

@@ -56,13 +56,25 @@ pub use crate::cpu::settings::Replicas;
 pub const MAX_AUTO: u32 = 8;
 
 /// Whether `inst`'s steady measurement can be split: a steady measurement
-/// whose phase ladder is on (two driven axes at frequencies with no common
-/// period of at most 680 scene periods; `phase::ladder`). A periodic motion
-/// the recurrence test finds early is not split: nothing would be gained.
+/// whose phase ladder has a level whose phases resolve enough for its run
+/// alone (two driven axes at frequencies with no common period of at
+/// most 680 scene periods; `phase::Ladder::resolving`), whether or not
+/// they bunch: a group's replicas interleave between a near resonance's
+/// clusters, and its virtual run is judged for bunching on its own
+/// ([`split`]). A periodic motion the recurrence test finds early is not
+/// split: nothing would be gained. Nor is a run no level resolves (near a
+/// resonance of few clusters): its replicas' coarse estimates were
+/// measured to disagree as if attractors coexisted (7.13 / 23.858 Hz); a
+/// cycle split takes those that repeat.
 pub fn splittable(inst: &Instance, settings: &Settings) -> bool {
-    matches!(inst.measure, Measure::Steady { .. })
-        && inst.mechanism.lugre().is_none()
-        && Coefficients::of(inst, settings).phase_levels != 0
+    if !matches!(inst.measure, Measure::Steady { .. }) || inst.mechanism.lugre().is_some() {
+        return false;
+    }
+    let c = Coefficients::of(inst, settings);
+    let rho = faster_drive(inst).1;
+    let on = phase::ladder_on(c.driven, rho, c.common_period);
+    let horizon = inst.cycles.saturating_sub(inst.settle);
+    phase::ladder(rho, on, c.common_period, horizon).resolving != 0
 }
 
 /// Whether `inst` may split at all, by a phase split ([`splittable`]) or a
@@ -151,18 +163,25 @@ pub const MIN_PIECE: u32 = 32;
 /// common period q (`Coefficients::common_period`) that the run alone
 /// could reach (`settle + q <= max_cycles`), cut into as many pieces as
 /// `count` allows with at least [`MIN_PIECE`] periods (and `settle`) each,
-/// none longer than the shortest phase window that may stop a run
-/// (`phase::MIN_WINDOW`): a motion that turns out not to repeat after q
-/// (the pieces do not join) then costs its pieces no more than the run
-/// alone spends before its first chance to stop.
+/// none longer than the run alone's first chance to stop: the shortest
+/// phase window that may stop it (at least `phase::MIN_WINDOW`), or q
+/// where none may (its phases bunch up to q, `phase::MAX_BUNCHING`). A
+/// motion that turns out not to repeat after q (the pieces do not join)
+/// then costs its pieces no more than the run alone spends before it
+/// could stop.
 pub fn cycle_split(inst: &Instance, settings: &Settings, count: u32) -> Option<Replica> {
     if !matches!(inst.measure, Measure::Steady { .. }) || inst.mechanism.lugre().is_some() {
         return None;
     }
-    let q = Coefficients::of(inst, settings).common_period;
+    let c = Coefficients::of(inst, settings);
+    let q = c.common_period;
     if q == 0 || inst.settle.saturating_add(q) > inst.cycles {
         return None;
     }
+    let first_stop = match c.phase_levels {
+        0 => q,
+        levels => phase::ladder_length(levels.trailing_zeros()),
+    };
     let pieces = count.min(q / MIN_PIECE.max(inst.settle).max(1));
     let split = Replica {
         index: 0,
@@ -170,7 +189,8 @@ pub fn cycle_split(inst: &Instance, settings: &Settings, count: u32) -> Option<R
         turns: 0,
         cycle: q,
     };
-    (pieces >= 2 && q.div_ceil(pieces) <= phase::MIN_WINDOW).then_some(split)
+    let longest = phase::MIN_WINDOW.max(first_stop);
+    (pieces >= 2 && q.div_ceil(pieces) <= longest).then_some(split)
 }
 
 /// How far a virtual run's phases may be spaced less evenly than the
@@ -210,9 +230,8 @@ pub fn best_turns(inst: &Instance, count: u32) -> (u32, f64) {
                 turns,
                 cycle: 0,
             };
-            let step = r.virtual_step(rho);
-            let first = phase::ladder(step, true, 0).levels.trailing_zeros();
-            (turns, phase::spread(step), first)
+            let first = virtual_levels(inst, count, turns).trailing_zeros();
+            (turns, phase::spread(r.virtual_step(rho)), first)
         })
         .min_by(|a, b| {
             // Even enough first; among those, the soonest first level.
@@ -221,6 +240,25 @@ pub fn best_turns(inst: &Instance, count: u32) -> (u32, f64) {
         })
         .map(|(turns, spread, _)| (turns, spread))
         .expect("count >= 2")
+}
+
+/// The ladder levels that may stop the virtual run of `count` replicas of
+/// `inst` turned by `turns` (`Replica::turns`), over their periods
+/// together: none where its phases bunch as a near resonance's
+/// (`phase::MAX_BUNCHING`). (Its common period, q times `count`, is left
+/// out: q > 680 where the ladder is on, so it bars no level this finds.)
+fn virtual_levels(inst: &Instance, count: u32, turns: u32) -> u32 {
+    let r = Replica {
+        index: 0,
+        count,
+        turns,
+        cycle: 0,
+    };
+    let horizon = inst
+        .cycles
+        .saturating_sub(inst.settle)
+        .saturating_mul(count);
+    phase::ladder(r.virtual_step(faster_drive(inst).1), true, 0, horizon).levels
 }
 
 /// The spread a virtual run may have for a faster drive that advances by
@@ -258,14 +296,17 @@ pub fn split(inst: &Instance, setting: Replicas, count: u32) -> Option<Replica> 
     if count < 2 {
         return None;
     }
+    // A virtual run no ladder level may stop would only run on.
+    let stops = |n, turns| virtual_levels(inst, n, turns) != 0;
     if let Replicas::Count(_) = setting {
-        return Some(replica((count, best_turns(inst, count).0)));
+        let turns = best_turns(inst, count).0;
+        return stops(count, turns).then(|| replica((count, turns)));
     }
     let (_, rho) = faster_drive(inst);
     let limit = spread_limit(rho);
     (2..=count).rev().find_map(|n| {
         let (turns, spread) = best_turns(inst, n);
-        (spread <= limit).then(|| replica((n, turns)))
+        (spread <= limit && stops(n, turns)).then(|| replica((n, turns)))
     })
 }
 
@@ -373,9 +414,10 @@ mod cycle_tests {
     /// 7.13 against 23.858 Hz repeats after 3,565 periods, near 9 / 26:
     /// no window of its ladder resolves enough phases to stop a run (its
     /// phases bunch in 26 clusters), so no phase split; 8 workers make
-    /// a cycle split into 8 pieces that tile the common period; 4 would
-    /// make pieces longer than 680 periods, and too few `max_cycles` for
-    /// the run alone's recurrence leave it alone.
+    /// a cycle split into 8 pieces that tile the common period; 4 make
+    /// pieces of 891-892 periods, longer than 680 but shorter than the run
+    /// alone's first chance to stop (q itself), and too few `max_cycles`
+    /// for the run alone's recurrence leave it alone.
     #[test]
     fn a_long_common_period_is_cut_into_pieces() {
         let settings = Settings {
@@ -393,7 +435,9 @@ mod cycle_tests {
         assert_eq!(pieces[7], (3119, 446));
         assert!(pieces.windows(2).all(|w| w[0].0 + w[0].1 == w[1].0));
         assert_eq!(pieces.iter().map(|p| p.1).sum::<u32>(), 3565);
-        assert_eq!(split_of(&inst, &settings, 4), None);
+        let four = split_of(&inst, &settings, 4).unwrap();
+        assert_eq!((four.count, four.cycle), (4, 3565));
+        assert_eq!(Replica { index: 3, ..four }.cycle_segment(), (2673, 892));
         assert_eq!(split_of(&periodic(23.858, 3000), &settings, 8), None);
     }
 

@@ -373,17 +373,17 @@ impl Coefficients {
         let steady = matches!(inst.measure, crate::model::Measure::Steady { .. });
         // The faster drive's advance per scene period [cycles].
         let rho = cycles_per_period.max_element().fract();
-        let ladder_on = steady
-            && piece.is_none()
-            && driven[0]
-            && driven[1]
-            && rho > 0.0
-            && (common_period == 0 || common_period > super::phase::MIN_WINDOW);
+        let ladder_on =
+            steady && piece.is_none() && super::phase::ladder_on(driven, rho, common_period);
         // A replica's ladder is its group's virtual run's.
+        // The periods the run (a group's virtual run: its replicas'
+        // together) may measure.
+        let horizon = inst.cycles.saturating_sub(inst.settle).saturating_mul(r.count);
         let ladder = super::phase::ladder(
             r.virtual_step(rho),
             ladder_on,
             common_period.saturating_mul(r.count),
+            horizon,
         );
         // The load per axis, each form +0 at L = 0 whatever the sign of
         // the zero given (`0.0 - x` and `x + 0.0` are +0 for x = -0).
