@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Issue 39 on a lent device, in one call (about 8 minutes):
 #   ../shared/gpu/pack --tests it            # here, then on the lent machine:
-#   source .devpack/env.sh && OUT=$OUT bash results/gpu-runs/2026-11-28/replicas.sh
+#   source .devpack/env.sh && OUT=/tmp/r PACK=$OUT/all.tgz bash results/gpu-runs/2026-11-28/replicas.sh
+# (the device tool returns at most 8 files of its $OUT: PACK puts every
+# log and result file into one archive there)
 # 1. the 6 x 6 two-frequency map: GPU f64 (cold, then warm, with --profile),
 #    GPU f32, the same without replicas (f64), the CPU on every core; each
 #    GPU map against the CPU's by issue 39's rule (results/replicas/within.py);
@@ -56,3 +58,4 @@ t=$(left)
     timed bench $((t - 2)) bash results/gpu/bench.sh
 rm -f "$out"/*.h5.tmp
 echo "done at $(($(date +%s) - t0)) s" >> "$out/times.txt"
+[ -n "${PACK:-}" ] && tar czf "$PACK" -C "$out" .
