@@ -35,7 +35,9 @@ def main():
         print(f"  {axis} #{i}: {sa:.5f} against {sb:.5f} um, {d:.4f} apart, allowed {allow:.4f}")
     for key in ("status", "motion", "replicas", "periods"):
         same = int((a[key] == b[key]).sum())
-        print(f"{key}: equal at {same} of {a[key].size}; B's sum {int(b[key].sum())}, A's {int(a[key].sum())}")
+        print(
+            f"{key}: equal at {same} of {a[key].size}; B's sum {int(b[key].sum())}, A's {int(a[key].sum())}"
+        )
     print(f"B's longest chain {int(b['periods'].max())} periods, A's {int(a['periods'].max())}")
 
 
