@@ -203,7 +203,11 @@ fn the_shader_s_functions_are_their_mirrors() {
 /// equal; the right-hand side, Jacobian and Rodas4 step equal but where
 /// libm's exp rounds otherwise (then within 1e-14, relative), and so the
 /// state after each attempt; the next step size equal but where libm's
-/// pow rounds otherwise.
+/// pow rounds otherwise. On hardware, whose compiler fuses and reorders
+/// (the H200 2026-11-28: 1,362 of 1,500 right-hand sides differed, up to
+/// 0.0076 relative in a component that cancels), the right-hand side and
+/// the Rodas4 step within a millionth of the error control's units
+/// (`MirrorCheck::rhs_scaled_worst`) and the Jacobian within 1e-13.
 #[test]
 fn the_shader_mirrors_the_cpu_function_by_function() {
     let Some((gpu, exact)) = lugre_gpu() else {
@@ -218,11 +222,21 @@ fn the_shader_mirrors_the_cpu_function_by_function() {
         eprintln!("{check:?}");
         assert_eq!(check.attempts, 1500);
         assert_eq!(check.segment_mismatches, 0, "{check:?}");
+        assert!(check.jacobian_worst <= 1e-13, "{check:?}");
+        // Rounding, measured in the error control's units, stays a
+        // millionth of the tolerance: a wrong term would not.
         assert!(
-            check.rhs_worst <= 1e-14 && check.jacobian_worst <= 1e-14 && check.next_worst <= 1e-14,
+            check.rhs_scaled_worst <= 1e-6 && check.next_scaled_worst <= 1e-6,
             "{check:?}"
         );
         if exact {
+            // Relatively too, but where libm's exp rounds otherwise.
+            assert!(
+                check.rhs_worst <= 1e-14
+                    && check.jacobian_worst <= 1e-14
+                    && check.next_worst <= 1e-14,
+                "{check:?}"
+            );
             // On llvmpipe only libm's last bits differ (measured: at most 3
             // of 1500).
             let fraction = |n: usize| n as f64 / check.attempts as f64;

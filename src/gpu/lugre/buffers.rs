@@ -175,6 +175,15 @@ pub struct MirrorCheck {
     pub rhs_worst: f64,
     pub jacobian_worst: f64,
     pub next_worst: f64,
+    /// The largest differences in units of the run's error control
+    /// (`cpu::lugre::run::error_scale`, each state's largest local error):
+    /// the right-hand side's times the attempt's step, and the Rodas4
+    /// step's next state and error estimate. A component that cancels
+    /// (the bristle equation near its steady deflection, a force balance)
+    /// differs relatively much where a compiler fuses or reorders its
+    /// terms; measured so, rounding stays far below the tolerance.
+    pub rhs_scaled_worst: f64,
+    pub next_scaled_worst: f64,
 }
 
 #[cfg(test)]

@@ -119,6 +119,13 @@ impl LugreGpu<'_> {
                 }
             })
         };
+        // The largest difference in units of `per` component.
+        let scaled = |a: &[f64], b: &[f64], per: &dyn Fn(usize) -> f64| {
+            a.iter()
+                .zip(b)
+                .enumerate()
+                .fold(0.0_f64, |m, (i, (x, y))| m.max((x - y).abs() / per(i)))
+        };
         for ((probe, drive), gpu) in probes.iter().zip(&drives).zip(&probed) {
             let rhs = book.model.rhs(&probe.y, drive);
             let jacobian = book.model.jacobian(&probe.y, drive);
@@ -127,6 +134,9 @@ impl LugreGpu<'_> {
             if rhs != gpu.rhs {
                 check.rhs_mismatches += 1;
                 check.rhs_worst = check.rhs_worst.max(relative(&rhs, &gpu.rhs));
+                let per_step = |i: usize| book.scale[i] / probe.h;
+                let worst = scaled(&rhs, &gpu.rhs, &per_step);
+                check.rhs_scaled_worst = check.rhs_scaled_worst.max(worst);
             }
             if jacobian != gpu.jacobian {
                 check.jacobian_mismatches += 1;
@@ -138,6 +148,9 @@ impl LugreGpu<'_> {
             if next != gpu.next || error != gpu.error {
                 check.rodas4_mismatches += 1;
                 check.next_worst = check.next_worst.max(relative(&next, &gpu.next));
+                let per = |i: usize| book.scale[i];
+                let worst = scaled(&next, &gpu.next, &per).max(scaled(&error, &gpu.error, &per));
+                check.next_scaled_worst = check.next_scaled_worst.max(worst);
             }
         }
         Ok(check)
