@@ -219,7 +219,8 @@ pub const SPREAD_FLOOR: f64 = 2.2;
 /// stops short of them: counting only the windows used tightened the limit
 /// for decimal frequencies, and the longest replica of 7.13 / 9.71 Hz grew
 /// from 0.25 to 0.50 of the run alone (same accuracy; tried and not kept).
-pub fn best_turns(inst: &Instance, count: u32) -> (u32, f64) {
+/// Also whether that virtual run has a level that may stop it at all.
+pub fn best_turns(inst: &Instance, count: u32) -> (u32, f64, bool) {
     let (_, rho) = faster_drive(inst);
     let limit = spread_limit(rho);
     (0..count)
@@ -238,7 +239,7 @@ pub fn best_turns(inst: &Instance, count: u32) -> (u32, f64) {
             let key = |c: &(u32, f64, u32)| (c.1 > limit, if c.1 > limit { 0 } else { c.2 });
             key(a).cmp(&key(b)).then(a.1.total_cmp(&b.1))
         })
-        .map(|(turns, spread, _)| (turns, spread))
+        .map(|(turns, spread, first)| (turns, spread, first < phase::LEVELS as u32))
         .expect("count >= 2")
 }
 
@@ -297,16 +298,15 @@ pub fn split(inst: &Instance, setting: Replicas, count: u32) -> Option<Replica> 
         return None;
     }
     // A virtual run no ladder level may stop would only run on.
-    let stops = |n, turns| virtual_levels(inst, n, turns) != 0;
     if let Replicas::Count(_) = setting {
-        let turns = best_turns(inst, count).0;
-        return stops(count, turns).then(|| replica((count, turns)));
+        let (turns, _, stops) = best_turns(inst, count);
+        return stops.then(|| replica((count, turns)));
     }
     let (_, rho) = faster_drive(inst);
     let limit = spread_limit(rho);
     (2..=count).rev().find_map(|n| {
-        let (turns, spread) = best_turns(inst, n);
-        (spread <= limit && stops(n, turns)).then(|| replica((n, turns)))
+        let (turns, spread, stops) = best_turns(inst, n);
+        (spread <= limit && stops).then(|| replica((n, turns)))
     })
 }
 
@@ -483,8 +483,9 @@ mod split_tests {
         let mut inst = Instance::TABLE1;
         inst.axes[1].frequency = 10.0 * (1.0 + 5f64.sqrt()) / 2.0;
         inst.axes[1].voltage = 100.0;
-        let (turns, spread) = best_turns(&inst, 8);
+        let (turns, spread, stops) = best_turns(&inst, 8);
         assert_eq!(turns, 6);
+        assert!(stops);
         assert!((spread - 2.03).abs() < 0.01, "{spread}");
         let eight = split(&inst, Replicas::Auto, 8).unwrap();
         assert_eq!((eight.count, eight.turns), (8, 6));
