@@ -20,6 +20,8 @@ struct State {
     time: Real,
     time_lo: Real,
     h_slip: Real,
+    h_accepted: Real,
+    err_accepted: Real,
     _pad: Real,
     rising: vec2<u32>,
     mode: u32,
@@ -53,6 +55,8 @@ fn initial_state(c: Coefficients) -> State {
     st.time = Real(0.0);
     st.time_lo = Real(0.0);
     st.h_slip = Real(0.0);
+    st.h_accepted = Real(0.0);
+    st.err_accepted = Real(0.0);
     st.rising = select(vec2<u32>(0u), vec2<u32>(1u), rising);
     st.mode = MODE_STICK;
     st.period = 0u;

@@ -52,6 +52,14 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
     }
     var flow = mode_flow(c, *st, drive, dir, flow_h);
     var start = eval_flow(flow, identity_propagator(), Real(0.0));
+    if slipping && c.frictionless == 0u {
+        let limit = approach_limit(c, (*st).v_rel, relative_acceleration(start), h);
+        if limit < h {
+            // The start does not depend on the step length (see step.rs).
+            h = limit;
+            flow = mode_flow(c, *st, drive, dir, h);
+        }
+    }
     var safe = false;
     if stuck {
         let bound = dot(start.a_p, start.a_p) + dot(start.j_p * start.j_p, flow.osc.inv_w2);
@@ -207,12 +215,13 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
         move_to(st, end, h, h_max, stop, stop_lo);
         if slipping {
             if h < h_max {
-                (*st).h_slip = h * grow_factor(c, err);
+                (*st).h_slip = next_slip_step(c, st, h, err);
             } else {
                 (*st).h_slip = max((*st).h_slip, h);
             }
         }
     } else {
+        (*st).h_accepted = Real(0.0);
         let s = eval_at(flow, event_tau);
         // The approach is the band entry only while v_rel still points
         // along the step's direction (see step.rs).
@@ -323,7 +332,7 @@ fn reject(c: Coefficients, st: ptr<function, State>, h: Real, err: Real) {
     (*st).rejections += 1u;
     var factor = Real(0.25);
     if is_finite(err) {
-        factor = step_factor(div(c.tolerance, err), Real(0.1), Real(0.9));
+        factor = step_factor(c.tolerance, err, Real(0.1), Real(0.9));
     }
     let shorter = h * factor;
     if shorter < c.min_step || (*st).rejections > MAX_REJECTIONS {
@@ -333,11 +342,59 @@ fn reject(c: Coefficients, st: ptr<function, State>, h: Real, err: Real) {
     }
 }
 
-fn grow_factor(c: Coefficients, err: Real) -> Real {
-    if err > Real(0.0) {
-        return step_factor(div(c.tolerance, err), Real(0.2), Real(4.0));
+// The plain, the predictive and the no-growth-after-rejection controllers'
+// smallest step (see step.rs).
+fn next_slip_step(c: Coefficients, st: ptr<function, State>, h: Real, err: Real) -> Real {
+    var factor = step_factor(c.tolerance, err, Real(0.2), Real(4.0));
+    if (*st).h_accepted > Real(0.0) && (*st).err_accepted > Real(0.0) && err > Real(0.0) {
+        let r = div(h, (*st).h_accepted);
+        let predicted = step_factor(c.tolerance * (*st).err_accepted * (r * r * r), err * err, Real(0.2), Real(4.0));
+        factor = min(factor, predicted);
     }
-    return Real(4.0);
+    if (*st).rejections > 0u {
+        factor = min(factor, Real(1.0));
+    }
+    (*st).h_accepted = h;
+    (*st).err_accepted = err;
+    return h * factor;
+}
+
+// The longest slip trial toward the coming band entry, halved and rounded
+// to the grid (see step.rs).
+fn approach_limit(c: Coefficients, v: V2, a: V2, h: Real) -> Real {
+    let closing = -dot(v, a);
+    let turning = abs(v.x * a.y - v.y * a.x);
+    let reach = APPROACH_SHARE * dot(v, v);
+    if !(closing > Real(0.0) && turning > c.tolerance * closing && h * closing > reach) {
+        return h;
+    }
+    var limit = h;
+    for (var k = 0u; k < MAX_SQUARINGS; k++) {
+        if limit * closing <= Real(2.0) * reach {
+            break;
+        }
+        limit *= Real(0.5);
+    }
+    return limit * grid_fraction(limit * closing, reach);
+}
+
+// The largest n / STEP_FACTOR_QUANTUM in [1/2, 1) with n x <= quantum bound.
+fn grid_fraction(x: Real, bound: Real) -> Real {
+    let scaled = STEP_FACTOR_QUANTUM * bound;
+    var below = Real(0.5) * STEP_FACTOR_QUANTUM;
+    var above = STEP_FACTOR_QUANTUM;
+    for (var k = 0u; k < STEP_FACTOR_BISECTIONS; k++) {
+        if above - below <= Real(1.0) {
+            break;
+        }
+        let n = floor(Real(0.5) * (above + below));
+        if n * x <= scaled {
+            below = n;
+        } else {
+            above = n;
+        }
+    }
+    return below * STEP_FACTOR_GRID;
 }
 
 fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Real, stop_lo: Real) {

@@ -91,8 +91,9 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
     });
     if crate::profile::enabled() {
         eprint!(
-            "{}{}",
+            "{}{}{}",
             crate::profile::table(),
+            crate::cpu::iteration_lines(),
             crate::gpu::warps::table_lines()
         );
     }

@@ -55,6 +55,7 @@
 mod adapters;
 pub mod cache;
 mod context;
+pub mod footprint;
 mod groups;
 mod knobs;
 pub mod layout;

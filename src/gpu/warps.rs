@@ -27,20 +27,11 @@ use std::fmt::Write;
 use std::sync::Mutex;
 
 use super::layout::control::Tally;
-use crate::cpu::integrate::constants::ITERATION_KINDS;
+pub use crate::cpu::integrate::constants::KIND_NAMES;
+use crate::cpu::integrate::constants::{ITERATION_KINDS, rejected_share};
 
 /// Lanes per warp in the figures: NVIDIA's warp.
 pub const WARP: usize = 32;
-
-/// The kinds of pass a lane counts (`constants::ITERATION_*`).
-pub const KIND_NAMES: [&str; ITERATION_KINDS] = [
-    "boundary",
-    "stick step",
-    "slip step",
-    "rejected trial",
-    "event location",
-    "period end",
-];
 
 /// The lane held no instance at the end of the dispatch.
 pub const NO_INSTANCE: u32 = u32::MAX;
@@ -173,6 +164,11 @@ impl Warps {
             .collect();
         by_kind.push(format!("idle {}", percent(1.0 - self.efficiency())));
         let _ = writeln!(out, "pidm: phase   slots by kind: {}", by_kind.join(", "));
+        let _ = writeln!(
+            out,
+            "pidm: phase   rejected trials: {} of slip trials (slip steps and rejected trials)",
+            percent(rejected_share(&self.passes))
+        );
         let alike: Vec<String> = KIND_NAMES
             .iter()
             .enumerate()

@@ -2,46 +2,39 @@
 //! so the CPU computes exactly what the shader computes.
 
 use super::Real;
-use super::constants::{
-    CUBE_ROOT_GUESS, CUBE_ROOT_ITERATIONS, ONE_THIRD, STEP_FACTOR_QUANTUM, STEP_RATIO_MAX,
-    STEP_RATIO_MIN,
-};
+use super::constants::{STEP_FACTOR_BISECTIONS, STEP_FACTOR_CUBE, STEP_FACTOR_QUANTUM};
 use super::precision::only_f64;
 
-/// The cube root of `c` in [1e-3, 1e2] by range reduction to [1/8, 1]
-/// (exact scalings by 8) and Newton's iteration from a linear guess. WGSL
-/// has no cube root, and f64 WGSL no `pow`; the CPU uses the same iteration
-/// so that both step-size controllers take the same steps.
-pub fn cube_root(c: Real) -> Real {
-    let mut x = c;
-    let mut scale = 1.0;
-    for _ in 0..4 {
-        if x > 1.0 {
-            x *= 0.125;
-            scale *= 2.0;
-        }
-    }
-    for _ in 0..4 {
-        if x < 0.125 {
-            x *= 8.0;
-            scale *= 0.5;
-        }
-    }
-    let mut y = CUBE_ROOT_GUESS[0] as Real + CUBE_ROOT_GUESS[1] as Real * x;
-    for _ in 0..CUBE_ROOT_ITERATIONS {
-        y = (2.0 * y + x / (y * y)) * ONE_THIRD as Real;
-    }
-    y * scale
-}
-
-/// A step-size factor 0.9 cbrt(ratio), rounded down to a multiple of
-/// 1 / [`STEP_FACTOR_QUANTUM`] and limited to [lo, hi]: the classic
-/// controller for an error that grows like the cube of the step.
-pub fn step_factor(ratio: Real, lo: Real, hi: Real) -> Real {
-    let r = ratio.clamp(STEP_RATIO_MIN as Real, STEP_RATIO_MAX as Real);
+/// The step-size factor `0.9 cbrt(allowed / err)` rounded down to a
+/// multiple of 1 / [`STEP_FACTOR_QUANTUM`] and limited to [lo, hi] (hi at
+/// most 8): the classic controller for an error that grows like the cube of
+/// the step. It neither divides nor takes a cube root (both are sequences
+/// of operations on the f64 shader): it bisects the grid's integers n for
+/// the largest with n^3 err <= (0.9 quantum)^3 allowed, products the shader
+/// rounds as the CPU does. An error of zero gives hi; an infinite or NaN
+/// one gives lo.
+pub fn step_factor(allowed: Real, err: Real, lo: Real, hi: Real) -> Real {
     let quantum = STEP_FACTOR_QUANTUM as Real;
-    let factor = (0.9 * cube_root(r) * quantum).floor() * (1.0 / STEP_FACTOR_QUANTUM) as Real;
-    factor.clamp(lo, hi)
+    let bound = STEP_FACTOR_CUBE as Real * allowed;
+    // Above: the first grid integer beyond hi (n there gives hi after the
+    // limit); below: the last one short of lo (lo where nothing passes).
+    let mut above = (hi * quantum).floor() + 1.0;
+    if above * above * above * err <= bound {
+        return hi;
+    }
+    let mut below = (lo * quantum).ceil() - 1.0;
+    for _ in 0..STEP_FACTOR_BISECTIONS {
+        if above - below <= 1.0 {
+            break;
+        }
+        let n = (0.5 * (above + below)).floor();
+        if n * n * n * err <= bound {
+            below = n;
+        } else {
+            above = n;
+        }
+    }
+    (below * (1.0 / STEP_FACTOR_QUANTUM) as Real).max(lo)
 }
 
 only_f64! {
@@ -49,31 +42,35 @@ only_f64! {
 mod tests {
     use super::*;
 
-    #[test]
-    fn cube_root_is_accurate_over_its_range() {
-        let mut worst: Real = 0.0;
-        let mut c = STEP_RATIO_MIN;
-        while c <= STEP_RATIO_MAX {
-            let err = (cube_root(c) - c.cbrt()).abs() / c.cbrt();
-            worst = worst.max(err);
-            c *= 1.0137;
-        }
-        assert!(worst <= 4.0 * Real::EPSILON, "relative error {worst:e}");
-    }
-
+    /// The factor is the continuous controller rounded down to the grid,
+    /// within the limits, for ratios across and beyond both limits.
     #[test]
     fn step_factor_is_the_controller_rounded_down() {
-        for ratio in [1e-9, 1e-4, 1e-3, 0.01, 0.5, 1.0, 2.0, 50.0, 1e3, 1e12] {
+        for err in [0.0, 1e-12, 1e-7, 1e-4, 3e-4, 1e-2, 0.5, 1.0, 7.0, 1e3, Real::INFINITY] {
             for (lo, hi) in [(0.1, 0.9), (0.2, 4.0)] {
-                let exact: Real = (0.9 * Real::cbrt(ratio)).clamp(lo, hi);
-                let got = step_factor(ratio, lo, hi);
+                let tol = 1e-4;
+                let exact: Real = (0.9 * Real::cbrt(tol / err)).clamp(lo, hi);
+                let got = step_factor(tol, err, lo, hi);
                 assert!(
                     got <= exact && exact - got < 1.0 / STEP_FACTOR_QUANTUM,
-                    "ratio {ratio}: {got} against {exact}"
+                    "err {err}: {got} against {exact}"
                 );
                 let on_grid = got == (got * STEP_FACTOR_QUANTUM).round() / STEP_FACTOR_QUANTUM;
                 assert!(on_grid || got == lo || got == hi, "{got} is off the grid");
             }
+        }
+        assert_eq!(step_factor(1e-4, Real::NAN, 0.2, 4.0), 0.2);
+    }
+
+    /// Where 0.9 cbrt(r) lands exactly on a grid point, that point passes.
+    #[test]
+    fn step_factor_keeps_exact_grid_points() {
+        for n in [13.0, 32.0, 57.0, 100.0, 255.0] {
+            let f: Real = n / STEP_FACTOR_QUANTUM;
+            // f^3 err = 0.729 allowed with err = 1: allowed = (f / 0.9)^3.
+            let allowed = (n * n * n) / STEP_FACTOR_CUBE;
+            let got = step_factor(allowed * (1.0 + 1e-12), 1.0, 0.2, 4.0);
+            assert_eq!(got, f, "n = {n}");
         }
     }
 }

@@ -62,11 +62,12 @@ pub use measure::{Measure, initial_measure};
 pub use vec2::Vec2;
 
 use constants::{
-    ITERATION_BOUNDARY, ITERATION_EVENT, ITERATION_REJECTED, ITERATION_SLIP, ITERATION_STICK,
-    MAX_STALLED_EVENTS,
+    ITERATION_BOUNDARY, ITERATION_EVENT, ITERATION_PERIOD_END, ITERATION_REJECTED, ITERATION_SLIP,
+    ITERATION_STICK, MAX_STALLED_EVENTS,
 };
 use drive::{corner_time, corner_time_lo, drive_force, frac, pass_boundaries};
 use flow::{Flow, Sample, eval_at};
+use std::sync::atomic::{AtomicU64, Ordering};
 use step::StepOutcome;
 
 pub use super::precision::Real;
@@ -111,6 +112,12 @@ pub struct State {
     pub time_lo: Real,
     /// Next trial step in slip [s].
     pub h_slip: Real,
+    /// The last accepted slip step that was neither cut by a stop nor
+    /// ended at an event [s], and its direction error [rad], for the
+    /// step-size controller's prediction (`step::next_slip_step`); 0 where
+    /// the slip has none yet.
+    pub h_accepted: Real,
+    pub err_accepted: Real,
     /// 1 while an axis' drive is on its rise, 0 on its fall.
     pub rising: [u32; AXES],
     pub mode: u32,
@@ -156,6 +163,8 @@ pub fn initial_state(c: &Coefficients) -> State {
         time: 0.0,
         time_lo: 0.0,
         h_slip: 0.0,
+        h_accepted: 0.0,
+        err_accepted: 0.0,
         rising: [rising[0] as u32, rising[1] as u32],
         mode: MODE_STICK,
         period: 0,
@@ -321,19 +330,33 @@ pub fn advance_observed<O: StepObserver>(
     max_iterations: u32,
     observer: &mut O,
 ) {
+    let mut kinds = [0u32; constants::ITERATION_KINDS];
     for _ in 0..max_iterations {
         if is_finished(c, st) {
-            return;
+            break;
         }
         if measure::at_period_end(c, st, m) {
             measure::period_end(c, st, m);
+            kinds[ITERATION_PERIOD_END as usize] += 1;
             if is_finished(c, st) {
-                return;
+                break;
             }
         }
-        iterate(c, st, observer);
+        kinds[iterate(c, st, observer) as usize] += 1;
+    }
+    for (total, k) in ITERATIONS.iter().zip(kinds) {
+        if k > 0 {
+            total.fetch_add(k as u64, Ordering::Relaxed);
+        }
     }
 }
+
+/// Iterations of this precision's CPU integrator by kind
+/// (`constants::ITERATION_*`, period ends included), over the process:
+/// what `--profile` reports of the CPU's work, as the shader's lanes count
+/// theirs in their tallies.
+pub static ITERATIONS: [AtomicU64; constants::ITERATION_KINDS] =
+    [const { AtomicU64::new(0) }; constants::ITERATION_KINDS];
 
 /// The end of the current step interval: the period end or the next drive
 /// corner, whichever comes first.
@@ -361,8 +384,8 @@ fn stop_time(c: &Coefficients, st: &State) -> (Real, Real) {
 
 /// One iteration: passes the boundaries at the current time if any, then
 /// (unless the run ended there) takes one step or one rejected slip trial.
-/// Returns what it did, one of `constants::ITERATION_*` (the shader's lanes
-/// count them; the CPU's callers need not).
+/// Returns what it did, one of `constants::ITERATION_*` (counted in
+/// [`ITERATIONS`], as the shader's lanes count theirs).
 pub fn iterate<O: StepObserver>(c: &Coefficients, st: &mut State, observer: &mut O) -> u32 {
     if st.period == c.settle && st.time == 0.0 && st.time_lo == 0.0 {
         st.settle_x_s = st.x_s;

@@ -18,9 +18,10 @@
 use super::arith::step_factor;
 use super::coefficients::Coefficients;
 use super::constants::{
-    COLLOCATION_ITERATIONS, EVENT_APPROACH, EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_LEAVE_BAND,
-    EVENT_NONE, EVENT_REVERSAL, GRAZE_MARGIN, MAX_REJECTIONS, MAX_SQUARINGS, MODE_BAND, MODE_SLIP,
-    MODE_STICK, SLIP_DIRECTION_ITERATIONS, STATUS_GRAZE, STATUS_STEP_UNDERFLOW,
+    APPROACH_SHARE, COLLOCATION_ITERATIONS, EVENT_APPROACH, EVENT_BREAKAWAY, EVENT_ENTER_BAND,
+    EVENT_LEAVE_BAND, EVENT_NONE, EVENT_REVERSAL, GRAZE_MARGIN, MAX_REJECTIONS, MAX_SQUARINGS,
+    MODE_BAND, MODE_SLIP, MODE_STICK, SLIP_DIRECTION_ITERATIONS, STATUS_GRAZE,
+    STATUS_STEP_UNDERFLOW, STEP_FACTOR_BISECTIONS, STEP_FACTOR_QUANTUM,
 };
 use super::drive::drive_force;
 use super::drive::two_sum;
@@ -112,6 +113,15 @@ pub fn step<O: StepObserver>(
     }
     let mut flow = mode_flow(c, st, force, slope, &dir, if stuck { 1.0 } else { h });
     let mut start = eval_flow(&flow, IDENTITY, 0.0);
+    if slipping && !c.frictionless {
+        let limit = approach_limit(c, st.v_rel, relative_acceleration(&start), h);
+        if limit < h {
+            // The start does not depend on the step length (the model is
+            // constant yet): only the flow's scale changes.
+            h = limit;
+            flow = mode_flow(c, st, force, slope, &dir, h);
+        }
+    }
     // The homogeneous acceleration obeys the same oscillator equation, so
     // m a'' + c a' + k a = 0 and k a^2 + m a'^2 never grows: |a| stays below
     // sqrt(a^2 + a'^2 / w2) for the rest of a stick segment, and |f_need| =
@@ -267,13 +277,14 @@ pub fn step<O: StepObserver>(
         move_to(st, &end, h, h_max, stop, &flow, observer);
         if slipping {
             // A step cut short by the stop says nothing about the next one.
-            st.h_slip = if h < h_max {
-                h * grow_factor(c, err)
+            if h < h_max {
+                st.h_slip = next_slip_step(c, st, h, err);
             } else {
-                st.h_slip.max(h)
-            };
+                st.h_slip = st.h_slip.max(h);
+            }
         }
     } else {
+        st.h_accepted = 0.0;
         let s = eval_at(&flow, event_tau);
         // v_rel . u = a is the band entry only while v_rel still points
         // along u: a relative velocity that turned on its way to zero (a
@@ -373,7 +384,7 @@ fn direction_error(dir: &DirectionModel, samples: &[Sample; 5], last: usize) -> 
 fn reject(c: &Coefficients, st: &mut State, h: Real, err: Real) {
     st.rejections += 1;
     let factor = if err.is_finite() {
-        step_factor(c.tolerance / err, 0.1, 0.9)
+        step_factor(c.tolerance, err, 0.1, 0.9)
     } else {
         0.25
     };
@@ -385,13 +396,88 @@ fn reject(c: &Coefficients, st: &mut State, h: Real, err: Real) {
     }
 }
 
-/// How much longer the next slip step may be after one with error `err`.
-fn grow_factor(c: &Coefficients, err: Real) -> Real {
-    if err > 0.0 {
-        step_factor(c.tolerance / err, 0.2, 4.0)
-    } else {
-        4.0
+/// The slip trial after an accepted step of length h with direction error
+/// err, which the stop did not cut short (issue 47: a third of all slip
+/// trials were rejected with the plain controller alone):
+///
+/// * the plain controller, 0.9 cbrt(tol / err), in [0.2, 4];
+/// * Gustafsson's predictive controller (1994; Hairer and Wanner, *Solving
+///   ODEs II*, IV.8), where the step before was accepted too: a direction
+///   that turns ever faster makes the error grow from step to step at the
+///   same length, and h (h / h_prev) 0.9 cbrt(tol err_prev / err^2)
+///   follows that trend where the plain rule lags one rejection behind;
+/// * no growth right after a rejection.
+///
+/// The smallest applies; it is remembered with err for the next one.
+fn next_slip_step(c: &Coefficients, st: &mut State, h: Real, err: Real) -> Real {
+    let mut factor = step_factor(c.tolerance, err, 0.2, 4.0);
+    if st.h_accepted > 0.0 && st.err_accepted > 0.0 && err > 0.0 {
+        let r = h / st.h_accepted;
+        let predicted = step_factor(
+            c.tolerance * st.err_accepted * (r * r * r),
+            err * err,
+            0.2,
+            4.0,
+        );
+        factor = factor.min(predicted);
     }
+    if st.rejections > 0 {
+        factor = factor.min(1.0);
+    }
+    st.h_accepted = h;
+    st.err_accepted = err;
+    h * factor
+}
+
+/// The longest slip trial from a relative velocity v that changes at rate
+/// a, given the step h the controller asks for: where v slows while it
+/// turns, at most [`APPROACH_SHARE`] of the time v . v / (-v . a) it would
+/// take to stop at its present rate. The direction of v turns ever faster
+/// as its speed nears zero, which no quadratic follows; a trial that
+/// reaches that far is rejected, and the controller, which knows only past
+/// errors, overshoots it again at the next step. A direction that does not
+/// turn (|v x a| within the tolerance of v . a: motion along a line) is
+/// exact at any length and keeps h, so its band entry is located in one
+/// step. The limit is h halved, then rounded down to a multiple of 1 /
+/// [`STEP_FACTOR_QUANTUM`] of that, as the controller's factors are: a
+/// step that followed v . v / (-v . a) continuously would turn last-bit
+/// differences between backends into different steps. No division.
+fn approach_limit(c: &Coefficients, v: Vec2, a: Vec2, h: Real) -> Real {
+    let closing = -dot(v, a);
+    let turning = (v.x * a.y - v.y * a.x).abs();
+    let reach = APPROACH_SHARE as Real * norm2(v);
+    if !(closing > 0.0 && turning > c.tolerance * closing && h * closing > reach) {
+        return h;
+    }
+    // Halvings to within a factor of two: reach < limit closing <= 2 reach.
+    let mut limit = h;
+    for _ in 0..MAX_SQUARINGS {
+        if limit * closing <= 2.0 * reach {
+            break;
+        }
+        limit *= 0.5;
+    }
+    limit * grid_fraction(limit * closing, reach)
+}
+
+/// The largest n / [`STEP_FACTOR_QUANTUM`] in [1/2, 1) with n x <= quantum
+/// bound, for x in (bound, 2 bound], by bisection.
+fn grid_fraction(x: Real, bound: Real) -> Real {
+    let quantum = STEP_FACTOR_QUANTUM as Real;
+    let scaled = quantum * bound;
+    let (mut below, mut above) = (0.5 * quantum, quantum);
+    for _ in 0..STEP_FACTOR_BISECTIONS {
+        if above - below <= 1.0 {
+            break;
+        }
+        let n = (0.5 * (above + below)).floor();
+        if n * x <= scaled {
+            below = n;
+        } else {
+            above = n;
+        }
+    }
+    below * (1.0 / STEP_FACTOR_QUANTUM) as Real
 }
 
 /// Moves the state to tau within the current step of flow `flow` (tau >=

@@ -37,6 +37,8 @@ pub fn state(st: &State) -> si::State {
         time: time(st.time),
         time_lo: time(st.time_lo),
         h_slip: time(st.h_slip),
+        h_accepted: time(st.h_accepted),
+        err_accepted: st.err_accepted as f64,
         rising: st.rising,
         mode: st.mode,
         period: st.period,
