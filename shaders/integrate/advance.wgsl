@@ -37,7 +37,8 @@ struct State {
     _pad_v: vec2<u32>,
 }
 
-fn initial_state(c: Coefficients) -> State {
+fn initial_state() -> State {
+    let c = &coefficients[held];
     let p = frac(c.phase);
     let rising = p < c.duty;
     var st: State;
@@ -68,14 +69,15 @@ fn initial_state(c: Coefficients) -> State {
     st._pad = Real(0.0);
     if DEFLECTION {
         // At rest at zero: deflected by minus the drive's static motion.
-        let drive = drive_force(c, st);
+        let drive = drive_force(st);
         st.x_p = -drive.force * c.inv_stiffness;
         st.v_p = -drive.slope * c.inv_stiffness;
     }
     return st;
 }
 
-fn is_finished(c: Coefficients, st: State) -> bool {
+fn is_finished(st: State) -> bool {
+    let c = &coefficients[held];
     return st.status != STATUS_OK || st.period >= c.cycles || st.measured != 0u;
 }
 
@@ -91,14 +93,15 @@ struct Stop {
     lo: Real,
 }
 
-fn stop_time(c: Coefficients, st: State) -> Stop {
-    let corners = corner_time(c, st);
+fn stop_time(st: State) -> Stop {
+    let c = &coefficients[held];
+    let corners = corner_time(st);
     let at = min(min(c.period, corners.x), corners.y);
     var lo = Real(0.0);
     if CORNER_CLOCK {
         // The low part of the stop that ends first (of equal high parts,
         // the earlier one).
-        let corners_lo = corner_time_lo(c, st);
+        let corners_lo = corner_time_lo(st);
         lo = INFINITY;
         if c.period == at {
             lo = c.period_lo;
@@ -114,17 +117,18 @@ fn stop_time(c: Coefficients, st: State) -> Stop {
 }
 
 // Returns what the iteration did (ITERATION_*), for the lane's counts.
-fn iterate(c: Coefficients, st: ptr<function, State>) -> u32 {
+fn iterate(st: ptr<function, State>) -> u32 {
+    let c = &coefficients[held];
     if (*st).period == c.settle && (*st).time == Real(0.0) && (*st).time_lo == Real(0.0) {
         (*st).settle_x_s = (*st).x_s;
     }
-    var stop = stop_time(c, *st);
+    var stop = stop_time(*st);
     if time_reached(*st, stop.at, stop.lo) {
-        pass_boundaries(c, st);
-        if is_finished(c, *st) {
+        pass_boundaries(st);
+        if is_finished(*st) {
             return ITERATION_BOUNDARY;
         }
-        stop = stop_time(c, *st);
+        stop = stop_time(*st);
         if time_reached(*st, stop.at, stop.lo) {
             return ITERATION_BOUNDARY;
         }
@@ -136,7 +140,7 @@ fn iterate(c: Coefficients, st: ptr<function, State>) -> u32 {
     let time_before = (*st).time;
     let time_lo_before = (*st).time_lo;
     let stuck = (*st).mode == MODE_STICK;
-    let outcome = step(c, st, h_max, stop.at, stop.lo);
+    let outcome = step(st, h_max, stop.at, stop.lo);
     (*st).steps += 1u;
     if outcome != STEP_REJECTED || (*st).status != STATUS_OK {
         if (*st).time > time_before || ((*st).time == time_before && (*st).time_lo > time_lo_before) {

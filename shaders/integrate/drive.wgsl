@@ -1,7 +1,8 @@
 // Mirror of src/cpu/integrate/drive.rs: the sawtooth drives.
 
 // Local time of each axis' next drive corner, or INFINITY where undriven.
-fn corner_time(c: Coefficients, st: State) -> V2 {
+fn corner_time(st: State) -> V2 {
+    let c = &coefficients[held];
     var t = max(div2(st.next_corner - st.cycle_phase, c.frequency), V2(0.0));
     if CORNER_CLOCK {
         t = st.corner_at;
@@ -10,7 +11,8 @@ fn corner_time(c: Coefficients, st: State) -> V2 {
 }
 
 // The low part of `corner_time` (zero unless CORNER_CLOCK).
-fn corner_time_lo(c: Coefficients, st: State) -> V2 {
+fn corner_time_lo(st: State) -> V2 {
+    let c = &coefficients[held];
     if CORNER_CLOCK {
         return select(V2(0.0), st.corner_at_lo, c.driven == vec2<u32>(1u));
     }
@@ -23,7 +25,8 @@ struct Drive {
     slope: V2,
 }
 
-fn drive_force(c: Coefficients, st: State) -> Drive {
+fn drive_force(st: State) -> Drive {
+    let c = &coefficients[held];
     // With the two-part time (f32) the low part adds its own phase; in f64
     // it is zero and this is the CPU's sum.
     let u = st.cycle_phase + c.frequency * st.time + c.frequency * st.time_lo;
@@ -43,14 +46,15 @@ fn drive_force(c: Coefficients, st: State) -> Drive {
 // Passes every drive corner and the period end that lie at the current
 // time, then lets a stuck slider break loose if a jump of the drive (duty
 // 1) demands it.
-fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
+fn pass_boundaries(st: ptr<function, State>) {
+    let c = &coefficients[held];
     // The drive just before the corners, which DEFLECTION follows.
     var before = Drive(V2(0.0), V2(0.0));
     if DEFLECTION {
-        before = drive_force(c, *st);
+        before = drive_force(*st);
     }
-    let corners = corner_time(c, *st);
-    let corners_lo = corner_time_lo(c, *st);
+    let corners = corner_time(*st);
+    let corners_lo = corner_time_lo(*st);
     let reached = vec2<bool>(
         time_reached(*st, corners.x, corners_lo.x),
         time_reached(*st, corners.y, corners_lo.y),
@@ -75,7 +79,7 @@ fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
     if DEFLECTION {
         // The deflections follow the drive's static motion across the
         // corner: its slope changes, and its force jumps at duty 1.
-        let after = drive_force(c, *st);
+        let after = drive_force(*st);
         let d = (before.force - after.force) * c.inv_stiffness;
         let u = (before.slope - after.slope) * c.inv_stiffness;
         (*st).x_p = select((*st).x_p, (*st).x_p + d, reached);
@@ -93,7 +97,7 @@ fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
         let end_phase = (*st).cycle_phase + c.frequency * c.period;
         var start_phase = frac(c.phase + Real((*st).period) * c.cycles_per_period);
         if FIXED_PHASE {
-            start_phase = fixed_start_phase(c, (*st).period);
+            start_phase = fixed_start_phase((*st).period);
         }
         let shift = round(end_phase - start_phase);
         (*st).cycle_phase = start_phase;
@@ -103,9 +107,9 @@ fn pass_boundaries(c: Coefficients, st: ptr<function, State>) {
         }
     }
     if (*st).mode == MODE_STICK {
-        let need = stick_force(c, *st);
+        let need = stick_force(*st);
         if dot(need, need) > c.hold2 {
-            start_slip(c, st, need);
+            start_slip(st, need);
         }
     }
 }
@@ -126,7 +130,8 @@ fn mul_hi(a: u32, b: u32) -> u32 {
 // frac(phase + period * cycles_per_period) as an exact integer sum in
 // units of 2^-32 cycles, converted once (f32 resolves the sum itself only
 // to about 1e-6 cycles by the fifth period).
-fn fixed_start_phase(c: Coefficients, period: u32) -> V2 {
+fn fixed_start_phase(period: u32) -> V2 {
+    let c = &coefficients[held];
     let s = c.phase_fixed + period * c.cycles_fixed
         + vec2<u32>(mul_hi(period, c.cycles_fixed_lo.x), mul_hi(period, c.cycles_fixed_lo.y));
     let p = ldexp(V2(s), vec2<i32>(-32));

@@ -114,13 +114,18 @@ fn take_idle(lane: u32) -> u32 {
 }
 
 // Starts (`initialize`) or loads instance `index`.
-fn take(c: Coefficients, index: u32, initialize: bool) -> State {
+fn take(index: u32, initialize: bool) -> State {
     if !initialize {
         return states[index];
     }
-    start_measure(c, index);
-    return initial_state(c);
+    start_measure(index);
+    return initial_state();
 }
+
+// The instance the lane holds, whose coefficients every function reads
+// where it uses them (`let c = &coefficients[held];`): a lane copies none
+// of them.
+var<private> held: u32;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn advance_slice(
@@ -143,13 +148,13 @@ fn advance_slice(
         }
         count_kind(&tally, TAKEN);
     }
-    var c = coefficients[index];
-    var st = take(c, index, control.initialize == 1u);
+    held = index;
+    var st = take(index, control.initialize == 1u);
     var left = control.max_iterations;
     loop {
-        if is_finished(c, st) {
+        if is_finished(st) {
             states[index] = st;
-            finish_measure(c, index);
+            finish_measure(index);
             atomicAdd(&counters.finished, 1u);
             let slot = atomicAdd(&counters.next, 1u);
             if slot >= control.queued {
@@ -157,26 +162,26 @@ fn advance_slice(
                 break;
             }
             index = order[slot];
-            c = coefficients[index];
+            held = index;
             st = states[index];
             count_kind(&tally, TAKEN);
         }
         if left == 0u {
             break;
         }
-        if at_measured_end(c, st, index) {
+        if at_measured_end(st, index) {
             // A period end of a steady measurement, before the iteration
             // that passes it (as the CPU's `advance_observed`), processed
             // here and not inside `advance`'s loop of iterations (on
             // llvmpipe code there slows every iteration of every instance,
             // windows included).
-            if !measure_period_end(c, &st, index, left == control.max_iterations) {
+            if !measure_period_end(&st, index, lane, left == control.max_iterations) {
                 break;
             }
             count_kind(&tally, ITERATION_PERIOD_END);
             continue;
         }
-        let run = advance(c, &st, index, left, left == control.max_iterations, &tally);
+        let run = advance(&st, index, left, left == control.max_iterations, &tally);
         left -= run.iterations;
         if run.cut {
             break;
@@ -189,15 +194,15 @@ fn advance_slice(
     // state says it is done, which the host may already have queued again
     // (a replica released by its group's merge: two lanes would then run
     // it, each writing its state and accumulators).
-    if index != NO_INSTANCE && is_finished(c, st) {
+    if index != NO_INSTANCE && is_finished(st) {
         states[index] = st;
-        finish_measure(c, index);
+        finish_measure(index);
         atomicAdd(&counters.finished, 1u);
         index = NO_INSTANCE;
     }
     if index != NO_INSTANCE {
         states[index] = st;
-        tally.progress = f32(st.period) + f32(st.time) / f32(c.period);
+        tally.progress = f32(st.period) + f32(st.time) / f32(coefficients[index].period);
     }
     lanes[lane] = index;
     tally.more.w = index;
@@ -217,7 +222,6 @@ struct Advance {
 // in `advance_slice` processes. `fresh` says the lane has completed no
 // iteration in this dispatch yet. Each iteration is counted in `tally`.
 fn advance(
-    c: Coefficients,
     st: ptr<function, State>,
     index: u32,
     max_iterations: u32,
@@ -226,10 +230,10 @@ fn advance(
 ) -> Advance {
     var iteration = 0u;
     for (; iteration < max_iterations; iteration++) {
-        if is_finished(c, *st) {
+        if is_finished(*st) {
             break;
         }
-        if at_measured_end(c, *st, index) {
+        if at_measured_end(*st, index) {
             // The lane's loop processes it (above).
             break;
         }
@@ -238,7 +242,7 @@ fn advance(
             // and redone by the next dispatch; one that cannot fit in a
             // whole dispatch is handed back to the host.
             let before = *st;
-            let kind = iterate(c, st);
+            let kind = iterate(st);
             if !loop_limiter_intact((*st).steps) {
                 *st = before;
                 if iteration == 0u && fresh {
@@ -249,7 +253,7 @@ fn advance(
             (*st).limited = 0u;
             count_kind(tally, kind);
         } else {
-            count_kind(tally, iterate(c, st));
+            count_kind(tally, iterate(st));
         }
     }
     return Advance(iteration, false);

@@ -24,10 +24,11 @@ fn relative_acceleration(s: Sample) -> V2 {
 }
 
 // Value and time derivative of the primary event of a kind.
-fn primary_event(c: Coefficients, kind: u32, s: Sample) -> V2 {
+fn primary_event(kind: u32, s: Sample) -> V2 {
+    let c = &coefficients[held];
     if kind == EVENT_BREAKAWAY {
         // f_need = m_s a_p - L = m_s (a_p - L / m_s) (MODEL.md section 7).
-        let a = s.a_p - load_accel(c);
+        let a = s.a_p - load_accel();
         let e = c.hold2 - c.ms2 * dot(a, a);
         return V2(e, -c.two_ms2 * dot(a, s.j_p));
     }
@@ -41,11 +42,13 @@ fn primary_event(c: Coefficients, kind: u32, s: Sample) -> V2 {
     return V2(-e, -de);
 }
 
-fn approach_event(c: Coefficients, flow: Flow, s: Sample) -> V2 {
+fn approach_event(flow: Flow, s: Sample) -> V2 {
+    let c = &coefficients[held];
     return V2(dot(relative_velocity(s), flow.b0) - c.band, dot(relative_acceleration(s), flow.b0));
 }
 
-fn approach_scale(c: Coefficients, flow: Flow, s: Sample) -> Real {
+fn approach_scale(flow: Flow, s: Sample) -> Real {
+    let c = &coefficients[held];
     return c.band + dot(abs(s.v_p) + abs(s.v_s), abs(flow.b0));
 }
 
@@ -53,11 +56,12 @@ fn reversal_event(st: State, s: Sample) -> V2 {
     return V2(dot(relative_velocity(s), st.held), dot(relative_acceleration(s), st.held));
 }
 
-fn primary_scale(c: Coefficients, kind: u32, s: Sample) -> Real {
+fn primary_scale(kind: u32, s: Sample) -> Real {
+    let c = &coefficients[held];
     if kind == EVENT_BREAKAWAY {
         let forces = c.stiffness * abs(s.x_p) + c.damping * abs(s.v_p);
-        let terms = abs(s.a_p) + Real(2.0) * forces * c.stick.inv_mass + abs(load_accel(c));
-        return c.hold2 + dot(c.two_ms2 * abs(s.a_p - load_accel(c)), terms);
+        let terms = abs(s.a_p) + Real(2.0) * forces * c.stick.inv_mass + abs(load_accel());
+        return c.hold2 + dot(c.two_ms2 * abs(s.a_p - load_accel()), terms);
     }
     let v = relative_velocity(s);
     return c.band2 + dot(Real(2.0) * abs(v), abs(s.v_p) + abs(s.v_s));
@@ -67,29 +71,43 @@ fn reversal_scale(st: State, s: Sample) -> Real {
     return dot(abs(s.v_p) + abs(s.v_s), abs(st.held));
 }
 
-// The event values at the five samples of a step.
+// The event values at the five samples of a step: five members, not an
+// array, so that nothing is indexed at run time (a private array indexed at
+// run time lives in memory, off-chip on NVIDIA).
 struct EventSamples {
-    v: array<V2, 5>,
+    v0: V2,
+    v1: V2,
+    v2: V2,
+    v3: V2,
+    v4: V2,
+}
+
+// `ev[j]` by selection.
+fn event_sample(ev: EventSamples, j: u32) -> V2 {
+    var out = ev.v0;
+    out = select(out, ev.v1, j == 1u);
+    out = select(out, ev.v2, j == 2u);
+    out = select(out, ev.v3, j == 3u);
+    return select(out, ev.v4, j == 4u);
 }
 
 fn find_crossing(
-    c: Coefficients,
     st: State,
     kind: u32,
     sign: Real,
-    ev: ptr<function, EventSamples>,
+    ev: EventSamples,
     scale: Real,
     flow: Flow,
     h: Real,
 ) -> Crossing {
-    var prev = sign * (*ev).v[0];
+    var prev = sign * ev.v0;
     let noise = EVENT_NOISE * EPSILON * scale;
     if prev.x < -noise {
         return Crossing(true, Real(0.0), Real(0.0), INFINITY);
     }
     var closest = INFINITY;
     for (var j = 0u; j < 4u; j++) {
-        let next = sign * (*ev).v[j + 1u];
+        let next = sign * event_sample(ev, j + 1u);
         let lo = theta(j) * h;
         let hi = theta(j + 1u) * h;
         let armed = prev.x > Real(0.0) || j == 0u;
@@ -98,7 +116,7 @@ fn find_crossing(
         }
         if prev.x > Real(0.0) && next.x > Real(0.0) && prev.y < Real(0.0) && next.y > Real(0.0) {
             let tau = hermite_minimum(prev, next, hi - lo);
-            let e = event_at(c, st, kind, sign, flow, lo + tau).x;
+            let e = event_at(st, kind, sign, flow, lo + tau).x;
             if e <= Real(0.0) {
                 return Crossing(true, lo, lo + tau, closest);
             }
@@ -109,15 +127,15 @@ fn find_crossing(
     return Crossing(false, Real(0.0), Real(0.0), closest);
 }
 
-fn event_at(c: Coefficients, st: State, kind: u32, sign: Real, flow: Flow, tau: Real) -> V2 {
+fn event_at(st: State, kind: u32, sign: Real, flow: Flow, tau: Real) -> V2 {
     let s = eval_at(flow, tau);
     var ev: V2;
     if kind == EVENT_REVERSAL {
         ev = reversal_event(st, s);
     } else if kind == EVENT_APPROACH {
-        ev = approach_event(c, flow, s);
+        ev = approach_event(flow, s);
     } else {
-        ev = primary_event(c, kind, s);
+        ev = primary_event(kind, s);
     }
     return sign * ev;
 }
@@ -158,7 +176,6 @@ fn hermite_minimum(a: V2, b: V2, len: Real) -> Real {
 }
 
 fn locate(
-    c: Coefficients,
     st: State,
     kind: u32,
     sign: Real,
@@ -166,6 +183,7 @@ fn locate(
     lo_in: Real,
     hi_in: Real,
 ) -> Real {
+    let c = &coefficients[held];
     var lo = lo_in;
     var hi = hi_in;
     // In f64 the second term never wins (hi <= period and TIME_EPSILON =
@@ -176,7 +194,7 @@ fn locate(
         if hi - lo <= resolution {
             break;
         }
-        let ev = event_at(c, st, kind, sign, flow, tau);
+        let ev = event_at(st, kind, sign, flow, tau);
         if ev.x > Real(0.0) {
             lo = tau;
         } else {

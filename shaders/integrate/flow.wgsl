@@ -151,7 +151,6 @@ fn sample_propagators(flow: Flow, h: Real) -> SamplePropagators {
 }
 
 fn make_flow(
-    c: Coefficients,
     stuck: bool,
     x_p: V2,
     v_p: V2,
@@ -162,8 +161,9 @@ fn make_flow(
     slope: V2,
     dir: DirectionModel,
     h: Real,
+    inv_h: Real,
 ) -> Flow {
-    let inv_h = recip(h);
+    let c = &coefficients[held];
     var osc = c.slip;
     var g0_rel = -c.coulomb * dir.b0;
     var g1_rel = -c.coulomb * dir.b1 * inv_h;
@@ -174,10 +174,10 @@ fn make_flow(
         // The load acts on stage and slider as one body (MODEL.md section
         // 7): only the particular solution moves.
         osc = c.stick;
-        g0 = force - neg_load(c);
+        g0 = force - neg_load();
         g1 = slope;
         g2 = V2(0.0);
-        g0_rel = V2(0.0) - neg_load(c);
+        g0_rel = V2(0.0) - neg_load();
         g1_rel = V2(0.0);
     }
     let x2 = g2 * c.inv_stiffness;
@@ -215,7 +215,7 @@ fn make_flow(
     f.v_s = v_s;
     f.v_rel = v_rel;
     f.b0 = dir.b0;
-    f.slider0 = c.fc_over_ms * dir.b0 - neg_load_accel(c);
+    f.slider0 = c.fc_over_ms * dir.b0 - neg_load_accel();
     f.slider1 = c.fc_over_ms * dir.b1;
     f.slider2 = c.fc_over_ms * dir.b2;
     f.g0 = g0;
@@ -290,7 +290,11 @@ fn eval_stage_taylor(f: Flow, tau: Real) -> Stage {
 }
 
 fn eval_flow(flow: Flow, prop: Propagator, tau: Real) -> Sample {
-    var st = eval_stage(flow, prop, tau);
+    // Each form only where an axis needs it (see flow.rs).
+    var st = Stage(V2(0.0), V2(0.0), V2(0.0), V2(0.0));
+    if !all(flow.taylor) {
+        st = eval_stage(flow, prop, tau);
+    }
     if any(flow.taylor) {
         let ts = eval_stage_taylor(flow, tau);
         st.x = select(st.x, ts.x, flow.taylor);

@@ -3,7 +3,10 @@
 // the common period, the first batch length and the tolerances
 // (Coefficients) and reduces what is left here to the map's values
 // (src/measurement.rs); the shader keeps each instance's Measure in the
-// `measures` buffer and copies it in only at a period end.
+// `measures` buffer (steady.wgsl) and updates it there, in place, at a
+// period end: `slot` is the entry the functions below work on (the
+// instance's own on hardware; steady.wgsl says why a loop-limited variant
+// works on a lane's scratch entry).
 
 // The state at the end of one common period.
 struct Snapshot {
@@ -40,12 +43,16 @@ struct Replica {
     count: u32,
 }
 
-// What judging a level reads: W_j, W_{j-2}, V_j and the four quarters.
+// What judging a level reads: W_j, W_{j-2}, V_j and the four quarters
+// (members, not an array: nothing indexed at run time).
 struct LevelSums {
     whole: V2,
     half: V2,
     second: V2,
-    quarters: array<V2, 4>,
+    q0: V2,
+    q1: V2,
+    q2: V2,
+    q3: V2,
 }
 
 // The per-instance accumulators, as `pidm::cpu::integrate::Measure`.
@@ -72,7 +79,8 @@ struct Measure {
     phase: Phase,
 }
 
-fn initial_measure(c: Coefficients) -> Measure {
+fn initial_measure() -> Measure {
+    let c = &coefficients[held];
     var m: Measure;
     m.last_x_s = V2(0.0);
     m.batch_start = V2(0.0);
@@ -95,89 +103,88 @@ fn initial_measure(c: Coefficients) -> Measure {
 // Whether the state sits at a period end not processed yet (the caller
 // checks `c.steady` first and reads `next_end` from the instance's
 // Measure).
-fn at_period_end(c: Coefficients, st: State, next_end: u32) -> bool {
+fn at_period_end(st: State, next_end: u32) -> bool {
+    let c = &coefficients[held];
     return c.steady == 1u && time_reached(st, c.period, c.period_lo) && next_end == st.period;
 }
 
-fn period_end(c: Coefficients, st: ptr<function, State>, m: ptr<function, Measure>) {
-    (*m).next_end = (*st).period + 1u;
+fn period_end(st: ptr<function, State>, slot: u32) {
+    let c = &coefficients[held];
+    measures[slot].next_end = (*st).period + 1u;
     let ended = (*st).period + 1u;
     if ended < c.settle {
         return;
     }
     if ended > c.settle {
-        let d = (*st).x_s - (*m).last_x_s;
-        (*m).d_min = min((*m).d_min, d);
-        (*m).d_max = max((*m).d_max, d);
-        (*m).measured += 1u;
-        (*m).in_batch += 1u;
-        if (*m).in_batch == (*m).batch_length {
-            close_batch(m, (*st).x_s);
+        let d = (*st).x_s - measures[slot].last_x_s;
+        measures[slot].d_min = min(measures[slot].d_min, d);
+        measures[slot].d_max = max(measures[slot].d_max, d);
+        measures[slot].measured += 1u;
+        measures[slot].in_batch += 1u;
+        if measures[slot].in_batch == measures[slot].batch_length {
+            close_batch(slot, (*st).x_s);
         }
     } else {
-        (*m).batch_start = (*st).x_s;
+        measures[slot].batch_start = (*st).x_s;
     }
-    (*m).last_x_s = (*st).x_s;
+    measures[slot].last_x_s = (*st).x_s;
     if c.common_period > 0u && (ended - c.settle) % c.common_period == 0u {
-        recurrence(c, *st, m);
+        recurrence(*st, slot);
     }
     if PHASE && c.phase_levels != 0u {
-        // A whole variable to point at (a pointer to a member of one that
-        // is pointed at is not portable SPIR-V for naga).
-        var phase = (*m).phase;
-        let judged = phase_period_end(c, &phase, ended - c.settle, (*st).x_s);
-        (*m).phase = phase;
-        if judged.span > 0u && (*m).verdict == VERDICT_RUNNING {
+        let judged = phase_period_end(slot, ended - c.settle, (*st).x_s);
+        if judged.span > 0u && measures[slot].verdict == VERDICT_RUNNING {
             if c.replicas > 1u {
-                (*m).pending_level = judged.level;
-                (*m).verdict = VERDICT_WAITING;
+                measures[slot].pending_level = judged.level;
+                measures[slot].verdict = VERDICT_WAITING;
             } else {
-                (*m).travel = judged.value * Real(judged.span);
-                (*m).span = judged.span;
-                (*m).se2 = judged.se2;
+                measures[slot].travel = judged.value * Real(judged.span);
+                measures[slot].span = judged.span;
+                measures[slot].se2 = judged.se2;
                 if judged.se2.x <= c.se_limit2.x && judged.se2.y <= c.se_limit2.y {
-                    (*m).verdict = VERDICT_PHASE;
+                    measures[slot].verdict = VERDICT_PHASE;
                 }
             }
         }
     }
-    if (*m).verdict == VERDICT_RUNNING && (*m).in_batch == 0u && (*m).filled >= MIN_BATCHES
-        && (*m).batch_length >= c.min_batch {
-        let e = estimate(m);
+    if measures[slot].verdict == VERDICT_RUNNING && measures[slot].in_batch == 0u && measures[slot].filled >= MIN_BATCHES
+        && measures[slot].batch_length >= c.min_batch {
+        let e = estimate(slot);
         if e.stationary && e.se2.x <= c.se_limit2.x && e.se2.y <= c.se_limit2.y {
-            (*m).verdict = VERDICT_CONVERGED;
+            measures[slot].verdict = VERDICT_CONVERGED;
         }
     }
-    if (*m).verdict == VERDICT_WAITING {
+    if measures[slot].verdict == VERDICT_WAITING {
         (*st).measured = 2u;
-    } else if (*m).verdict != VERDICT_RUNNING {
+    } else if measures[slot].verdict != VERDICT_RUNNING {
         (*st).measured = 1u;
     }
 }
 
-fn close_batch(m: ptr<function, Measure>, x_s: V2) {
-    (*m).sums[(*m).filled] = x_s - (*m).batch_start;
-    (*m).filled += 1u;
-    (*m).batch_start = x_s;
-    (*m).in_batch = 0u;
-    if (*m).filled == BATCHES {
+fn close_batch(slot: u32, x_s: V2) {
+    measures[slot].sums[measures[slot].filled] = x_s - measures[slot].batch_start;
+    measures[slot].filled += 1u;
+    measures[slot].batch_start = x_s;
+    measures[slot].in_batch = 0u;
+    if measures[slot].filled == BATCHES {
         for (var j = 0u; j < BATCHES / 2u; j++) {
-            (*m).sums[j] = (*m).sums[2u * j] + (*m).sums[2u * j + 1u];
+            measures[slot].sums[j] = measures[slot].sums[2u * j] + measures[slot].sums[2u * j + 1u];
         }
-        (*m).filled = BATCHES / 2u;
-        (*m).batch_length *= 2u;
+        measures[slot].filled = BATCHES / 2u;
+        measures[slot].batch_length *= 2u;
     }
 }
 
-fn recurrence(c: Coefficients, st: State, m: ptr<function, Measure>) {
-    let kept = min((*m).snapshots, SNAPSHOTS);
+fn recurrence(st: State, slot: u32) {
+    let c = &coefficients[held];
+    let kept = min(measures[slot].snapshots, SNAPSHOTS);
     for (var back = 1u; back <= kept; back++) {
-        let s = (*m).snaps[((*m).snapshots - back) % SNAPSHOTS];
+        let s = measures[slot].snaps[(measures[slot].snapshots - back) % SNAPSHOTS];
         if s.mode == st.mode && close(st.x_p, s.x_p, c.repeat_x) && close(st.v_p, s.v_p, c.repeat_v)
             && close(st.v_s, s.v_s, c.repeat_v) {
-            (*m).lag = back * c.common_period;
-            (*m).travel = st.x_s - s.x_s;
-            (*m).verdict = VERDICT_PERIODIC;
+            measures[slot].lag = back * c.common_period;
+            measures[slot].travel = st.x_s - s.x_s;
+            measures[slot].verdict = VERDICT_PERIODIC;
             return;
         }
     }
@@ -187,8 +194,8 @@ fn recurrence(c: Coefficients, st: State, m: ptr<function, Measure>) {
     s.v_s = st.v_s;
     s.x_s = st.x_s;
     s.mode = st.mode;
-    (*m).snaps[(*m).snapshots % SNAPSHOTS] = s;
-    (*m).snapshots += 1u;
+    measures[slot].snaps[measures[slot].snapshots % SNAPSHOTS] = s;
+    measures[slot].snapshots += 1u;
 }
 
 fn close(a: V2, b: V2, tolerance: Real) -> bool {
@@ -211,13 +218,13 @@ struct Statistics {
     correlated: vec2<bool>,
 }
 
-fn statistics(m: ptr<function, Measure>, start: u32, end: u32) -> Statistics {
+fn statistics(slot: u32, start: u32, end: u32) -> Statistics {
     let count = end - start;
     var total = V2(0.0);
     for (var j = start; j < end; j++) {
-        total = total + (*m).sums[j];
+        total = total + measures[slot].sums[j];
     }
-    let b = Real((*m).batch_length);
+    let b = Real(measures[slot].batch_length);
     let inv_count = recip(Real(count));
     let per_batch = total * inv_count;
     var squares = V2(0.0);
@@ -227,7 +234,7 @@ fn statistics(m: ptr<function, Measure>, start: u32, end: u32) -> Statistics {
     var low = V2(0.0);
     var high = V2(0.0);
     for (var j = start; j < end; j++) {
-        let e = (*m).sums[j] - per_batch;
+        let e = measures[slot].sums[j] - per_batch;
         squares = squares + e * e;
         lagged = lagged + e * previous;
         previous = e;
@@ -244,26 +251,26 @@ fn statistics(m: ptr<function, Measure>, start: u32, end: u32) -> Statistics {
     return Statistics(total, total * inv_span, batch + range * range, correlated);
 }
 
-fn estimate(m: ptr<function, Measure>) -> Estimate {
-    let n = (*m).filled;
-    let cuts = mser_cut(m);
+fn estimate(slot: u32) -> Estimate {
+    let n = measures[slot].filled;
+    let cuts = mser_cut(slot);
     let cut = u32(max(cuts.x, cuts.y));
     let kept = n - cut;
-    let span = kept * (*m).batch_length;
+    let span = kept * measures[slot].batch_length;
     if kept < 2u {
         var total = V2(0.0);
         for (var j = cut; j < n; j++) {
-            total = total + (*m).sums[j];
+            total = total + measures[slot].sums[j];
         }
-        let largest = max(abs((*m).d_min), abs((*m).d_max));
+        let largest = max(abs(measures[slot].d_min), abs(measures[slot].d_max));
         return Estimate(total, span, largest * largest, false);
     }
-    let whole = statistics(m, cut, n);
+    let whole = statistics(slot, cut, n);
     let half = kept / 2u;
     var stationary = false;
     if half >= 2u && cut < n / 2u && !any(whole.correlated) {
-        let first = statistics(m, cut, cut + half);
-        let last = statistics(m, n - half, n);
+        let first = statistics(slot, cut, cut + half);
+        let last = statistics(slot, n - half, n);
         let d = first.mean - last.mean;
         let allowed = (first.se2 + last.se2) * (STATIONARY_Z * STATIONARY_Z);
         stationary = d.x * d.x <= allowed.x && d.y * d.y <= allowed.y;
@@ -271,8 +278,8 @@ fn estimate(m: ptr<function, Measure>) -> Estimate {
     return Estimate(whole.total, span, whole.se2, stationary);
 }
 
-fn mser_cut(m: ptr<function, Measure>) -> V2 {
-    let n = (*m).filled;
+fn mser_cut(slot: u32) -> V2 {
+    let n = measures[slot].filled;
     var best = V2(INFINITY);
     var cut = V2(0.0);
     for (var d = 0u; d <= n / 2u; d++) {
@@ -280,12 +287,12 @@ fn mser_cut(m: ptr<function, Measure>) -> V2 {
         let inv_left = recip(left);
         var total = V2(0.0);
         for (var j = d; j < n; j++) {
-            total = total + (*m).sums[j];
+            total = total + measures[slot].sums[j];
         }
         let mean = total * inv_left;
         var squares = V2(0.0);
         for (var j = d; j < n; j++) {
-            let e = (*m).sums[j] - mean;
+            let e = measures[slot].sums[j] - mean;
             squares = squares + e * e;
         }
         let score = squares * (inv_left * inv_left);

@@ -73,33 +73,40 @@ fn first_at(k: u32, r: Replica, at: u32) -> bool {
     return v >= at && v < at + r.count;
 }
 
-fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> PhaseEstimate {
+// The ladder's windows live in the instance's accumulators (`slot`, see
+// measure.wgsl) and are updated there in place; each window length's
+// three-gap table is read from the coefficients where it is used.
+fn phase_period_end(slot: u32, k: u32, x: V2) -> PhaseEstimate {
+    let c = &coefficients[held];
     let r = Replica(c.replica, c.replicas);
-    // A copy that may be indexed at run time (a parameter's array may not).
-    var gaps = c.gaps;
     var judged = PhaseEstimate(V2(0.0), V2(0.0), 0u, 0u);
     for (var j = 0u; j < LEVELS; j++) {
         let length = ladder_length(j);
-        (*p).whole[j] = add_to_window((*p).whole[j], gaps[j], 0u, length, k, r, x);
+        let whole = add_to_window(measures[slot].phase.whole[j], c.gaps[j], 0u, length, k, r, x);
+        measures[slot].phase.whole[j] = whole;
         if j >= 2u {
             let half = ladder_length(j - 2u);
-            (*p).second[j] = add_to_window((*p).second[j], gaps[j - 2u], half, half, k, r, x);
+            let second = add_to_window(measures[slot].phase.second[j], c.gaps[j - 2u], half, half, k, r, x);
+            measures[slot].phase.second[j] = second;
         }
         if j >= FIRST_JUDGED {
             let quarter = ladder_length(j - 4u);
             let ring = 2u * (j % 2u);
             if first_at(k, r, 2u * quarter) {
-                (*p).quarters[ring] = V2(0.0);
-                (*p).quarters[ring + 1u] = V2(0.0);
+                measures[slot].phase.quarters[ring] = V2(0.0);
+                measures[slot].phase.quarters[ring + 1u] = V2(0.0);
             }
-            (*p).quarters[ring] = add_to_window((*p).quarters[ring], gaps[j - 4u], 2u * quarter, quarter, k, r, x);
-            (*p).quarters[ring + 1u] = add_to_window((*p).quarters[ring + 1u], gaps[j - 4u], 3u * quarter, quarter, k, r, x);
+            let g = c.gaps[j - 4u];
+            let early = add_to_window(measures[slot].phase.quarters[ring], g, 2u * quarter, quarter, k, r, x);
+            measures[slot].phase.quarters[ring] = early;
+            let late = add_to_window(measures[slot].phase.quarters[ring + 1u], g, 3u * quarter, quarter, k, r, x);
+            measures[slot].phase.quarters[ring + 1u] = late;
             if first_at(k, r, length) && ((c.phase_levels >> j) & 1u) == 1u {
                 if r.count > 1u {
-                    (*p).pending = level_sums(p, j);
+                    measures[slot].phase.pending = level_sums(slot, j);
                     judged = PhaseEstimate(V2(0.0), V2(0.0), length, j);
                 } else {
-                    judged = evaluate(p, j, ((c.phase_lattice >> j) & 1u) == 1u);
+                    judged = evaluate(slot, j, ((c.phase_lattice >> j) & 1u) == 1u);
                 }
             }
         }
@@ -107,18 +114,21 @@ fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> 
     return judged;
 }
 
-fn level_sums(p: ptr<function, Phase>, j: u32) -> LevelSums {
+fn level_sums(slot: u32, j: u32) -> LevelSums {
     let ring = 2u * (j % 2u);
     return LevelSums(
-        (*p).whole[j],
-        (*p).whole[j - 2u],
-        (*p).second[j],
-        array<V2, 4>((*p).whole[j - 4u], (*p).second[j - 2u], (*p).quarters[ring], (*p).quarters[ring + 1u]),
+        measures[slot].phase.whole[j],
+        measures[slot].phase.whole[j - 2u],
+        measures[slot].phase.second[j],
+        measures[slot].phase.whole[j - 4u],
+        measures[slot].phase.second[j - 2u],
+        measures[slot].phase.quarters[ring],
+        measures[slot].phase.quarters[ring + 1u],
     );
 }
 
-fn evaluate(p: ptr<function, Phase>, j: u32, lattice: bool) -> PhaseEstimate {
-    return evaluate_sums(level_sums(p, j), j, lattice);
+fn evaluate(slot: u32, j: u32, lattice: bool) -> PhaseEstimate {
+    return evaluate_sums(level_sums(slot, j), j, lattice);
 }
 
 fn evaluate_sums(s: LevelSums, j: u32, lattice: bool) -> PhaseEstimate {
@@ -126,12 +136,12 @@ fn evaluate_sums(s: LevelSums, j: u32, lattice: bool) -> PhaseEstimate {
     let half = s.half;
     let richardson = (w - half) * (w - half);
     let halves = (s.second - half) * (s.second - half) * Real(0.25);
-    var q = s.quarters;
-    let mean = (q[0] + q[1] + q[2] + q[3]) * Real(0.25);
+    let mean = (s.q0 + s.q1 + s.q2 + s.q3) * Real(0.25);
     var squares = V2(0.0);
-    for (var i = 0u; i < 4u; i++) {
-        squares = squares + (q[i] - mean) * (q[i] - mean);
-    }
+    squares = squares + (s.q0 - mean) * (s.q0 - mean);
+    squares = squares + (s.q1 - mean) * (s.q1 - mean);
+    squares = squares + (s.q2 - mean) * (s.q2 - mean);
+    squares = squares + (s.q3 - mean) * (s.q3 - mean);
     var quarters = squares * Real(1.0 / 12.0);
     if ladder_length(j - 4u) >= QUARTER_TRUSTED {
         quarters = squares * Real(1.0 / 27.0);

@@ -5,8 +5,9 @@
 // (`Parts`), and their pipelines bind neither buffer.
 
 // The steady measurement's accumulators per instance (measure.wgsl), read
-// and written only at the period ends of steady instances; a batch of
-// windows binds a single unused entry.
+// and written in place only at the period ends of steady instances; a
+// batch of windows binds a single unused entry. A loop-limited variant's
+// buffer ends with one scratch entry per lane (`measure_period_end`).
 @group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
 
 // What the host reads of every finished steady measurement: all that the
@@ -26,14 +27,16 @@ struct Head {
 @group(0) @binding(6) var<storage, read_write> heads: array<Head>;
 
 // A steady instance's accumulators start with its run.
-fn start_measure(c: Coefficients, index: u32) {
+fn start_measure(index: u32) {
+    let c = &coefficients[held];
     if c.steady == 1u {
-        measures[index] = initial_measure(c);
+        measures[index] = initial_measure();
     }
 }
 
 // A finished steady instance leaves its head for the host.
-fn finish_measure(c: Coefficients, index: u32) {
+fn finish_measure(index: u32) {
+    let c = &coefficients[held];
     if c.steady == 1u {
         heads[index] = Head(
             measures[index].travel,
@@ -48,27 +51,37 @@ fn finish_measure(c: Coefficients, index: u32) {
 
 // Whether a steady instance sits at a period end its measurement has not
 // processed yet.
-fn at_measured_end(c: Coefficients, st: State, index: u32) -> bool {
-    return c.steady == 1u && at_period_end(c, st, measures[index].next_end);
+fn at_measured_end(st: State, index: u32) -> bool {
+    let c = &coefficients[held];
+    return c.steady == 1u && at_period_end(st, measures[index].next_end);
 }
 
-// Processes that period end: the accumulators are copied in and written
-// back only here, and only once the loop limiter has let the update
-// complete. False when the limiter cut it short: the state is as before,
-// counted as cut at its start where the lane had done nothing yet in this
-// dispatch (`fresh`: `limited_at_start`), and the lane's dispatch ends.
-fn measure_period_end(c: Coefficients, st: ptr<function, State>, index: u32, fresh: bool) -> bool {
-    var m = measures[index];
+// Processes that period end, updating the accumulators in place (never
+// copied whole: a lane holds none of them). False when the driver's loop
+// limiter cut the update short: the state is as before, counted as cut at
+// its start where the lane had done nothing yet in this dispatch (`fresh`:
+// `limited_at_start`), and the lane's dispatch ends. A cut update must
+// leave the accumulators as they were, so a loop-limited variant updates
+// the lane's scratch entry (the buffer's last `arrayLength(&lanes)`
+// entries) and copies it back once the update is complete.
+fn measure_period_end(st: ptr<function, State>, index: u32, lane: u32, fresh: bool) -> bool {
+    var slot = index;
+    if LOOP_LIMITER {
+        slot = arrayLength(&measures) - arrayLength(&lanes) + lane;
+        measures[slot] = measures[index];
+    }
     let before = *st;
-    period_end(c, st, &m);
-    if LOOP_LIMITER && !loop_limiter_intact((*st).steps) {
-        *st = before;
-        if fresh {
-            limited_at_start(st);
+    period_end(st, slot);
+    if LOOP_LIMITER {
+        if !loop_limiter_intact((*st).steps) {
+            *st = before;
+            if fresh {
+                limited_at_start(st);
+            }
+            return false;
         }
-        return false;
+        measures[index] = measures[slot];
     }
     (*st).limited = 0u;
-    measures[index] = m;
     return true;
 }

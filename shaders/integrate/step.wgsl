@@ -8,8 +8,8 @@ const STEP_MOVED: u32 = 0u;
 const STEP_REJECTED: u32 = 1u;
 const STEP_LOCATED: u32 = 2u;
 
-fn mode_flow(c: Coefficients, st: State, drive: Drive, dir: DirectionModel, h: Real) -> Flow {
-    return make_flow(c, st.mode == MODE_STICK, st.x_p, st.v_p, st.x_s, st.v_s, st.v_rel, drive.force, drive.slope, dir, h);
+fn mode_flow(st: State, drive: Drive, dir: DirectionModel, h: Real, inv_h: Real) -> Flow {
+    return make_flow(st.mode == MODE_STICK, st.x_p, st.v_p, st.x_s, st.v_s, st.v_rel, drive.force, drive.slope, dir, h, inv_h);
 }
 
 // The `Option<Vec2>` of `direction`.
@@ -20,17 +20,18 @@ struct Direction {
 
 fn direction(s: Sample) -> Direction {
     let v = relative_velocity(s);
-    let n = root(dot(v, v));
+    let n2 = dot(v, v);
     var out = Direction(false, V2(0.0));
-    if n > Real(0.0) && is_finite(n) {
+    if n2 > Real(0.0) && is_finite(n2) {
         out.ok = true;
-        out.u = v * recip(n);
+        out.u = v * recip_root(n2);
     }
     return out;
 }
 
-fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32 {
-    let drive = drive_force(c, *st);
+fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32 {
+    let c = &coefficients[held];
+    let drive = drive_force(*st);
     let stuck = (*st).mode == MODE_STICK;
     let slipping = (*st).mode == MODE_SLIP;
     var dir = DirectionModel(V2(0.0), V2(0.0), V2(0.0));
@@ -41,24 +42,28 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
             h = min(c.event_step_slip, h_max);
         }
         let v = (*st).v_rel;
-        dir.b0 = v * recip(root(dot(v, v)));
+        dir.b0 = v * recip_root(dot(v, v));
     } else if (*st).mode == MODE_BAND {
         h = min(h_max, c.event_step_slip);
         dir.b0 = (*st).held;
     }
-    var flow_h = h;
-    if stuck {
-        flow_h = Real(1.0);
+    // A slip trial's limit from the start of a flow of unit length, and one
+    // reciprocal of the step length for every flow of the step (see step.rs).
+    let band = (*st).mode == MODE_BAND;
+    var inv_h = Real(1.0);
+    var flow_h = Real(1.0);
+    if band {
+        inv_h = recip(h);
+        flow_h = h;
     }
-    var flow = mode_flow(c, *st, drive, dir, flow_h);
+    var flow = mode_flow(*st, drive, dir, flow_h, inv_h);
     var start = eval_flow(flow, identity_propagator(), Real(0.0));
-    if slipping && c.frictionless == 0u {
-        let limit = approach_limit(c, (*st).v_rel, relative_acceleration(start), h);
-        if limit < h {
-            // The start does not depend on the step length (see step.rs).
-            h = limit;
-            flow = mode_flow(c, *st, drive, dir, h);
+    if slipping {
+        if c.frictionless == 0u {
+            h = approach_limit((*st).v_rel, relative_acceleration(start), h);
         }
+        inv_h = recip(h);
+        flow = mode_flow(*st, drive, dir, h, inv_h);
     }
     var safe = false;
     if stuck {
@@ -92,7 +97,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
             if change == Real(0.0) {
                 break;
             }
-            flow = mode_flow(c, *st, drive, dir, h);
+            flow = mode_flow(*st, drive, dir, h, inv_h);
             mid = eval_flow(flow, props.half, Real(0.5) * h);
             end = eval_flow(flow, props.full, h);
             if change <= c.collocation_tolerance {
@@ -115,20 +120,21 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
             // constant direction of the start up to where it slows into
             // the band (see step.rs).
             dir = DirectionModel(dir.b0, V2(0.0), V2(0.0));
-            flow = mode_flow(c, *st, drive, dir, h);
+            flow = mode_flow(*st, drive, dir, h, inv_h);
             start = eval_flow(flow, identity_propagator(), Real(0.0));
             quarter = eval_flow(flow, props.quarter, Real(0.25) * h);
             mid = eval_flow(flow, props.half, Real(0.5) * h);
             three_quarters = eval_flow(flow, props.three_quarters, Real(0.75) * h);
             end = eval_flow(flow, props.full, h);
-            var ev: EventSamples;
-            ev.v[0] = approach_event(c, flow, start);
-            ev.v[1] = approach_event(c, flow, quarter);
-            ev.v[2] = approach_event(c, flow, mid);
-            ev.v[3] = approach_event(c, flow, three_quarters);
-            ev.v[4] = approach_event(c, flow, end);
-            let scale = approach_scale(c, flow, start);
-            let entry = find_crossing(c, *st, EVENT_APPROACH, Real(1.0), &ev, scale, flow, h);
+            let ev = EventSamples(
+                approach_event(flow, start),
+                approach_event(flow, quarter),
+                approach_event(flow, mid),
+                approach_event(flow, three_quarters),
+                approach_event(flow, end),
+            );
+            let scale = approach_scale(flow, start);
+            let entry = find_crossing(*st, EVENT_APPROACH, Real(1.0), ev, scale, flow, h);
             if entry.found {
                 var before = 0u;
                 for (var j = 1u; j < 5u; j++) {
@@ -141,7 +147,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
             }
         }
         if err > c.tolerance {
-            reject(c, st, h, err);
+            reject(st, h, err);
             return STEP_REJECTED;
         }
     }
@@ -151,21 +157,23 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
     } else if slipping {
         primary = slip_event;
     }
-    var ev_primary: EventSamples;
-    var ev_reversal: EventSamples;
-    ev_primary.v[0] = any_primary_event(c, primary, flow, start);
-    ev_primary.v[1] = any_primary_event(c, primary, flow, quarter);
-    ev_primary.v[2] = any_primary_event(c, primary, flow, mid);
-    ev_primary.v[3] = any_primary_event(c, primary, flow, three_quarters);
-    ev_primary.v[4] = any_primary_event(c, primary, flow, end);
-    ev_reversal.v[0] = reversal_event(*st, start);
-    ev_reversal.v[1] = reversal_event(*st, quarter);
-    ev_reversal.v[2] = reversal_event(*st, mid);
-    ev_reversal.v[3] = reversal_event(*st, three_quarters);
-    ev_reversal.v[4] = reversal_event(*st, end);
+    let ev_primary = EventSamples(
+        any_primary_event(primary, flow, start),
+        any_primary_event(primary, flow, quarter),
+        any_primary_event(primary, flow, mid),
+        any_primary_event(primary, flow, three_quarters),
+        any_primary_event(primary, flow, end),
+    );
+    let ev_reversal = EventSamples(
+        reversal_event(*st, start),
+        reversal_event(*st, quarter),
+        reversal_event(*st, mid),
+        reversal_event(*st, three_quarters),
+        reversal_event(*st, end),
+    );
     var sign = Real(0.0);
     for (var j = 0u; j < 5u; j++) {
-        let d = ev_reversal.v[j].x;
+        let d = event_sample(ev_reversal, j).x;
         if sign == Real(0.0) && d != Real(0.0) {
             sign = select(Real(-1.0), Real(1.0), d > Real(0.0));
         }
@@ -182,9 +190,9 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
         var scale: Real;
         if k == 0u {
             if primary == EVENT_APPROACH {
-                scale = approach_scale(c, flow, start);
+                scale = approach_scale(flow, start);
             } else {
-                scale = primary_scale(c, primary, start);
+                scale = primary_scale(primary, start);
             }
         } else {
             kind = select(EVENT_NONE, EVENT_REVERSAL, watch_reversal);
@@ -196,15 +204,15 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
         }
         var crossing: Crossing;
         if k == 0u {
-            crossing = find_crossing(c, *st, kind, kind_sign, &ev_primary, scale, flow, h);
+            crossing = find_crossing(*st, kind, kind_sign, ev_primary, scale, flow, h);
         } else {
-            crossing = find_crossing(c, *st, kind, kind_sign, &ev_reversal, scale, flow, h);
+            crossing = find_crossing(*st, kind, kind_sign, ev_reversal, scale, flow, h);
         }
         if kind == EVENT_ENTER_BAND && !crossing.found {
             grazed = crossing.closest < GRAZE_MARGIN * c.band2;
         }
         if crossing.found {
-            let tau = locate(c, *st, kind, kind_sign, flow, crossing.lo, crossing.hi);
+            let tau = locate(*st, kind, kind_sign, flow, crossing.lo, crossing.hi);
             if event == EVENT_NONE || tau < event_tau {
                 event = kind;
                 event_tau = tau;
@@ -215,7 +223,7 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
         move_to(st, end, h, h_max, stop, stop_lo);
         if slipping {
             if h < h_max {
-                (*st).h_slip = next_slip_step(c, st, h, err);
+                (*st).h_slip = next_slip_step(st, h, err);
             } else {
                 (*st).h_slip = max((*st).h_slip, h);
             }
@@ -244,23 +252,23 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
                 allowed += div(Real(4.0) * EPSILON * (dv.x + dv.y), root(max(dot(v, v), TINY)));
             }
             if turned > allowed {
-                reject(c, st, h, INFINITY);
+                reject(st, h, INFINITY);
                 return STEP_REJECTED;
             }
         }
         move_to(st, s, event_tau, h_max, stop, stop_lo);
-        grazed = event == EVENT_ENTER_BAND && skims_band(c, s);
+        grazed = event == EVENT_ENTER_BAND && skims_band(s);
         if event == EVENT_BREAKAWAY {
-            let need = stick_force(c, *st);
-            start_slip(c, st, need);
+            let need = stick_force(*st);
+            start_slip(st, need);
         } else if event == EVENT_LEAVE_BAND {
             (*st).mode = MODE_SLIP;
-            (*st).h_slip = initial_slip_step(c, *st, h_max);
+            (*st).h_slip = initial_slip_step(*st, h_max);
         } else {
             if event == EVENT_ENTER_BAND || event == EVENT_APPROACH {
                 (*st).h_slip = h;
             }
-            try_stick(c, st);
+            try_stick(st);
         }
     }
     if GRAZE_GUARD && c.steady == 0u && grazed {
@@ -271,7 +279,8 @@ fn step(c: Coefficients, st: ptr<function, State>, h_max: Real, stop: Real, stop
 }
 
 // Whether a band entry only skims the band (see step.rs).
-fn skims_band(c: Coefficients, s: Sample) -> bool {
+fn skims_band(s: Sample) -> bool {
+    let c = &coefficients[held];
     let a = relative_acceleration(s);
     let va = dot(relative_velocity(s), a);
     return va * va < GRAZE_MARGIN * c.band2 * dot(a, a);
@@ -279,15 +288,15 @@ fn skims_band(c: Coefficients, s: Sample) -> bool {
 
 // The primary event of a step (the `if primary == EVENT_APPROACH` of
 // step.rs).
-fn any_primary_event(c: Coefficients, kind: u32, flow: Flow, s: Sample) -> V2 {
+fn any_primary_event(kind: u32, flow: Flow, s: Sample) -> V2 {
     if kind == EVENT_APPROACH {
-        return approach_event(c, flow, s);
+        return approach_event(flow, s);
     }
-    return primary_event(c, kind, s);
+    return primary_event(kind, s);
 }
 
-// The error of one sample after the start (see `direction_error`); the
-// relative velocity of the previous sample comes in `prev_v`.
+// The squared error of one sample after the start (see `direction_error`);
+// the relative velocity of the previous sample comes in `prev_v`.
 fn sample_direction_error(dir: DirectionModel, s: Sample, th: Real, prev_v: V2) -> Real {
     let v = relative_velocity(s);
     if dot(v, prev_v) <= Real(0.0) {
@@ -299,10 +308,11 @@ fn sample_direction_error(dir: DirectionModel, s: Sample, th: Real, prev_v: V2) 
     }
     let model = dir.b0 + (dir.b1 + dir.b2 * th) * th;
     let d = u.u - model;
-    return root(dot(d, d));
+    return dot(d, d);
 }
 
-// The error at samples 1 to `last`.
+// The error at samples 1 to `last`: one root of the largest square (see
+// step.rs).
 fn direction_error(
     dir: DirectionModel,
     s0: Sample,
@@ -325,10 +335,14 @@ fn direction_error(
     if last >= 4u {
         err = max(err, sample_direction_error(dir, s4, Real(1.0), relative_velocity(s3)));
     }
-    return err;
+    if err >= INFINITY {
+        return INFINITY;
+    }
+    return root(err);
 }
 
-fn reject(c: Coefficients, st: ptr<function, State>, h: Real, err: Real) {
+fn reject(st: ptr<function, State>, h: Real, err: Real) {
+    let c = &coefficients[held];
     (*st).rejections += 1u;
     var factor = Real(0.25);
     if is_finite(err) {
@@ -344,7 +358,8 @@ fn reject(c: Coefficients, st: ptr<function, State>, h: Real, err: Real) {
 
 // The plain, the predictive and the no-growth-after-rejection controllers'
 // smallest step (see step.rs).
-fn next_slip_step(c: Coefficients, st: ptr<function, State>, h: Real, err: Real) -> Real {
+fn next_slip_step(st: ptr<function, State>, h: Real, err: Real) -> Real {
+    let c = &coefficients[held];
     var factor = step_factor(c.tolerance, err, Real(0.2), Real(4.0));
     if (*st).h_accepted > Real(0.0) && (*st).err_accepted > Real(0.0) && err > Real(0.0) {
         let r = div(h, (*st).h_accepted);
@@ -361,7 +376,8 @@ fn next_slip_step(c: Coefficients, st: ptr<function, State>, h: Real, err: Real)
 
 // The longest slip trial toward the coming band entry, halved and rounded
 // to the grid (see step.rs).
-fn approach_limit(c: Coefficients, v: V2, a: V2, h: Real) -> Real {
+fn approach_limit(v: V2, a: V2, h: Real) -> Real {
+    let c = &coefficients[held];
     let closing = -dot(v, a);
     let turning = abs(v.x * a.y - v.y * a.x);
     let reach = APPROACH_SHARE * dot(v, v);
@@ -415,11 +431,12 @@ fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Re
     }
 }
 
-fn initial_slip_step(c: Coefficients, st: State, h_max: Real) -> Real {
-    let drive = drive_force(c, st);
+fn initial_slip_step(st: State, h_max: Real) -> Real {
+    let c = &coefficients[held];
+    let drive = drive_force(st);
     let v0 = st.v_rel;
-    let dir = DirectionModel(v0 * recip(root(dot(v0, v0))), V2(0.0), V2(0.0));
-    let flow = mode_flow(c, st, drive, dir, Real(1.0));
+    let dir = DirectionModel(v0 * recip_root(dot(v0, v0)), V2(0.0), V2(0.0));
+    let flow = mode_flow(st, drive, dir, Real(1.0), Real(1.0));
     let s = eval_flow(flow, identity_propagator(), Real(0.0));
     let v = relative_velocity(s);
     let a = relative_acceleration(s);
@@ -439,19 +456,21 @@ fn initial_slip_step(c: Coefficients, st: State, h_max: Real) -> Real {
     return min(h, max(h_max, Real(0.0)));
 }
 
-fn stick_force(c: Coefficients, st: State) -> V2 {
-    let drive = drive_force(c, st);
+fn stick_force(st: State) -> V2 {
+    let c = &coefficients[held];
+    let drive = drive_force(st);
     if DEFLECTION {
         // F - k x_p = -k d: the force balance without the drive force.
         let v = c.stage_share * (st.v_p + drive.slope * c.inv_stiffness) + c.slider_share * st.v_s;
-        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p) - load_need(c);
+        return c.slider_share * (-c.damping * v - c.stiffness * st.x_p) - load_need();
     }
     let v = c.stage_share * st.v_p + c.slider_share * st.v_s;
     let p = drive.force - c.damping * v - c.stiffness * st.x_p;
-    return c.slider_share * p - load_need(c);
+    return c.slider_share * p - load_need();
 }
 
-fn slip_direction(c: Coefficients, need: V2) -> V2 {
+fn slip_direction(need: V2) -> V2 {
+    let c = &coefficients[held];
     let a = need * c.slip_scale;
     let b = c.slip_b;
     var lambda = max(root(dot(a, a)) - c.slip_b_max, Real(0.0));
@@ -479,20 +498,21 @@ fn slip_direction(c: Coefficients, need: V2) -> V2 {
     return need * recip(root(dot(need, need)));
 }
 
-fn start_slip(c: Coefficients, st: ptr<function, State>, need: V2) {
-    (*st).held = slip_direction(c, need);
+fn start_slip(st: ptr<function, State>, need: V2) {
+    (*st).held = slip_direction(need);
     (*st).mode = MODE_BAND;
 }
 
-fn try_stick(c: Coefficients, st: ptr<function, State>) {
-    let need = stick_force(c, *st);
+fn try_stick(st: ptr<function, State>) {
+    let c = &coefficients[held];
+    let need = stick_force(*st);
     if DEFLECTION {
         // The merged velocity relative to the drive's static velocity
         // (with v_s = v_p - v_rel, no difference of two speeds), and
         // absolute for the slider.
         let u = (*st).v_p - c.slider_share * (*st).v_rel;
         (*st).v_p = u;
-        (*st).v_s = u + drive_force(c, *st).slope * c.inv_stiffness;
+        (*st).v_s = u + drive_force(*st).slope * c.inv_stiffness;
     } else {
         let v = c.stage_share * (*st).v_p + c.slider_share * (*st).v_s;
         (*st).v_p = v;
@@ -502,6 +522,6 @@ fn try_stick(c: Coefficients, st: ptr<function, State>) {
     if dot(need, need) <= c.hold2 {
         (*st).mode = MODE_STICK;
     } else {
-        start_slip(c, st, need);
+        start_slip(st, need);
     }
 }

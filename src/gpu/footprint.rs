@@ -58,6 +58,9 @@ pub struct Footprint {
     /// The private arrays indexed at run time after `spirv-opt`, or `None`
     /// where `spirv-opt` (Debian's spirv-tools) is not on the PATH.
     pub indexed: Option<Vec<IndexedArray>>,
+    /// Instructions after `spirv-opt`, which inlines every function as
+    /// Mesa's NIR does: the code a driver compiles (`None` as above).
+    pub instructions: Option<usize>,
 }
 
 impl Footprint {
@@ -74,10 +77,13 @@ impl Footprint {
 pub fn measure(variant: Variant) -> Result<Footprint, GpuError> {
     let words = spirv(variant)?;
     let declared_bytes = Module::parse(&words).function_variable_bytes();
-    let indexed = optimized(&words).map(|opt| Module::parse(&opt).indexed_arrays());
+    let opt = optimized(&words);
+    let indexed = opt.as_ref().map(|opt| Module::parse(opt).indexed_arrays());
+    let instructions = opt.as_ref().map(|opt| instruction_count(opt));
     Ok(Footprint {
         declared_bytes,
         indexed,
+        instructions,
     })
 }
 
@@ -158,6 +164,21 @@ pub fn variant_name(v: Variant) -> String {
         },
         v.parts.name()
     )
+}
+
+/// Instructions of a module (its header left out).
+fn instruction_count(words: &[u32]) -> usize {
+    let mut at = 5;
+    let mut count = 0;
+    while at < words.len() {
+        let n = (words[at] >> 16) as usize;
+        if n == 0 {
+            break;
+        }
+        count += 1;
+        at += n;
+    }
+    count
 }
 
 // SPIR-V opcodes (the specification's numbers).

@@ -308,12 +308,17 @@ macro_rules! precision_structs {
             }
 
             host_struct! {
-                /// `pidm::cpu::integrate::phase::LevelSums` in shader units.
+                /// `pidm::cpu::integrate::phase::LevelSums` in shader units
+                /// (its quarters as four members: the shader indexes no
+                /// private array at run time).
                 pub struct LevelSums {
                     pub whole: V2,
                     pub half: V2,
                     pub second: V2,
-                    pub quarters: [V2; 4],
+                    pub q0: V2,
+                    pub q1: V2,
+                    pub q2: V2,
+                    pub q3: V2,
                 }
             }
 
@@ -441,7 +446,13 @@ macro_rules! precision_structs {
                             whole: length(m.phase.pending.whole),
                             half: length(m.phase.pending.half),
                             second: length(m.phase.pending.second),
-                            quarters: m.phase.pending.quarters.map(length),
+                            quarters: [
+                                m.phase.pending.q0,
+                                m.phase.pending.q1,
+                                m.phase.pending.q2,
+                                m.phase.pending.q3,
+                            ]
+                            .map(length),
                         },
                     },
                 }

@@ -258,6 +258,15 @@ impl<'a> Runner<'a> {
 
     /// The pipeline for a batch with these coefficients: one whose variant
     /// has every part they use.
+    /// Whether this runner's adapter ends shader loops early (llvmpipe):
+    /// its pipelines then check every iteration.
+    fn loop_limiter(&self) -> bool {
+        match self.pipelines {
+            Pipelines::Context(ctx) => ctx.variant(Precision::F64, Parts::default()).loop_limiter,
+            Pipelines::Fixed((_, variant)) => variant.loop_limiter,
+        }
+    }
+
     pub(super) fn pipeline<L: Layout>(
         &self,
         precision: Precision,
@@ -303,7 +312,8 @@ impl<'a> Runner<'a> {
         progress: &mut dyn FnMut(u64, u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let state_size = if any_steady(instances) {
-            size_of::<L::State>().max(size_of::<L::Measure>())
+            size_of::<L::State>()
+                .max(size_of::<L::Measure>() * super::slices::measure_entries(self.loop_limiter()))
         } else {
             size_of::<L::State>()
         };

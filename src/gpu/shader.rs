@@ -196,15 +196,15 @@ pub struct Variant {
 /// point (`steady.wgsl`) as functions that do nothing. Its pipelines bind
 /// neither the accumulators nor the heads.
 const WINDOW_ONLY: &str = "\
-fn start_measure(c: Coefficients, index: u32) {}
+fn start_measure(index: u32) {}
 
-fn finish_measure(c: Coefficients, index: u32) {}
+fn finish_measure(index: u32) {}
 
-fn at_measured_end(c: Coefficients, st: State, index: u32) -> bool {
+fn at_measured_end(st: State, index: u32) -> bool {
     return false;
 }
 
-fn measure_period_end(c: Coefficients, st: ptr<function, State>, index: u32, fresh: bool) -> bool {
+fn measure_period_end(st: ptr<function, State>, index: u32, lane: u32, fresh: bool) -> bool {
     return true;
 }
 ";
@@ -212,7 +212,7 @@ fn measure_period_end(c: Coefficients, st: ptr<function, State>, index: u32, fre
 /// A steady variant without the phase ladder: `phase_period_end` judges
 /// nothing (and is never called: `PHASE` is false).
 const NO_LADDER: &str = "\
-fn phase_period_end(c: Coefficients, p: ptr<function, Phase>, k: u32, x: V2) -> PhaseEstimate {
+fn phase_period_end(slot: u32, k: u32, x: V2) -> PhaseEstimate {
     return PhaseEstimate(V2(0.0), V2(0.0), 0u, 0u);
 }
 ";
@@ -224,11 +224,11 @@ fn load_terms(load: bool) -> String {
         .iter()
         .map(|name| {
             let value = if load {
-                format!("c.{name}")
+                format!("coefficients[held].{name}")
             } else {
                 "V2(0.0)".to_string()
             };
-            format!("fn {name}(c: Coefficients) -> V2 {{\n    return {value};\n}}\n")
+            format!("fn {name}() -> V2 {{\n    return {value};\n}}\n")
         })
         .collect()
 }
@@ -269,6 +269,25 @@ fn div(a: Real, b: Real) -> Real {
     return fma(fma(-b, q, a), y, q);
 }
 
+// 1 / sqrt(x) rounded as the CPU's 1.0 / x.sqrt() (the reciprocal of the
+// rounded root): root's sequence, then the reciprocal from root's own
+// inverse square root, already within an ulp of it, in one Newton step and
+// recip's correction (not recip's whole sequence). x as root takes it.
+fn recip_root(x: Real) -> Real {
+    if !(x > Real(0.0)) || x > INFINITY {
+        return recip(root(x));
+    }
+    var y = inverseSqrt(x);
+    let half = Real(0.5) * x;
+    y = y * fma(-half * y, y, Real(1.5));
+    y = y * fma(-half * y, y, Real(1.5));
+    y = y * fma(-half * y, y, Real(1.5));
+    let s0 = x * y;
+    let s = fma(fma(-s0, s0, x), Real(0.5) * y, s0);
+    y = fma(y, fma(-s, y, Real(1.0)), y);
+    return fma(y, fma(-s, y, Real(1.0)), y);
+}
+
 // sqrt(x) for x >= 0 (and x itself for 0 and NaN).
 fn root(x: Real) -> Real {
     if !(x > Real(0.0)) || x > INFINITY {
@@ -296,6 +315,10 @@ fn div(a: Real, b: Real) -> Real {
 
 fn root(x: Real) -> Real {
     return sqrt(x);
+}
+
+fn recip_root(x: Real) -> Real {
+    return Real(1.0) / sqrt(x);
 }
 ";
 
@@ -560,6 +583,8 @@ mod tests {
             "identity_propagator",
             "series_term",
             "theta",
+            // No arrays indexed at run time: the event samples by selection.
+            "event_sample",
             "hermite_good",
             "any_primary_event",
             "sample_direction_error",

@@ -56,11 +56,19 @@ struct Buffers {
     tallies_read: wgpu::Buffer,
 }
 
+/// Accumulator entries per steady instance: two where the shader updates
+/// a lane's scratch entry and copies it back (`loop_limiter`: a cut update
+/// must leave no trace), one where it updates the instance's own in place.
+pub(super) fn measure_entries(loop_limiter: bool) -> usize {
+    if loop_limiter { 2 } else { 1 }
+}
+
 impl Buffers {
     fn new<L: Layout>(
         device: &wgpu::Device,
         coefficients: &[L::Coefficients],
         steady: bool,
+        loop_limiter: bool,
     ) -> Buffers {
         let n = coefficients.len();
         let init = |label: &str, contents: &[u8], copy: bool| {
@@ -74,9 +82,12 @@ impl Buffers {
                 usage,
             })
         };
-        // The accumulators: one per instance where any instance is steady,
-        // else one unused entry (windows never touch them).
+        // The accumulators: one per instance where any instance is steady
+        // (and a scratch entry per lane, one per instance at most, on a
+        // loop-limited adapter: `steady.wgsl`), else one unused entry
+        // (windows never touch them).
         let per_steady = if steady { n } else { 1 };
+        let measures = per_steady * measure_entries(steady && loop_limiter);
         let identity: Vec<u32> = (0..n as u32).collect();
         Buffers {
             coefficients: init("coefficients", bytemuck::cast_slice(coefficients), false),
@@ -84,7 +95,7 @@ impl Buffers {
             measures: storage(
                 device,
                 "measures",
-                (size_of::<L::Measure>() * per_steady) as u64,
+                (size_of::<L::Measure>() * measures) as u64,
             ),
             heads: storage(device, "heads", (size_of::<L::Head>() * per_steady) as u64),
             lanes: init("lanes", bytemuck::cast_slice(&identity), true),
@@ -297,7 +308,7 @@ impl Runner<'_> {
         let (pipeline, variant) = compiled;
         let steady = variant.parts.steady && any_steady(instances);
         let uploading = profile::span(Phase::Upload);
-        let b = Buffers::new::<L>(self.device, coefficients, steady);
+        let b = Buffers::new::<L>(self.device, coefficients, steady, variant.loop_limiter);
         let probe_control = self.control(self.options.probe_iterations.max(1), 1, 0, 0);
         let probe_group = b.bind_group(self.device, compiled, &probe_control);
         drop(uploading);

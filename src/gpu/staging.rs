@@ -33,8 +33,10 @@ pub fn max_batch_instances(
 /// several chunks, so the device integrates one while the host writes the
 /// one before and expands the one after (`crate::sweep::run_chunks`).
 pub fn chunk_instances(ctx: &GpuContext, precision: Precision) -> usize {
-    fn of<L: Layout>(limits: &wgpu::Limits) -> usize {
-        let state = size_of::<L::State>().max(size_of::<L::Measure>());
+    let limiter = ctx.variant(precision, Parts::default()).loop_limiter;
+    fn of<L: Layout>(limits: &wgpu::Limits, limiter: bool) -> usize {
+        let measure = size_of::<L::Measure>() * super::slices::measure_entries(limiter);
+        let state = size_of::<L::State>().max(measure);
         max_batch_instances(
             limits,
             size_of::<L::Coefficients>(),
@@ -43,8 +45,8 @@ pub fn chunk_instances(ctx: &GpuContext, precision: Precision) -> usize {
         )
     }
     let batch = match precision {
-        Precision::F32 => of::<Single>(&ctx.limits),
-        Precision::F64 => of::<Double>(&ctx.limits),
+        Precision::F32 => of::<Single>(&ctx.limits, limiter),
+        Precision::F64 => of::<Double>(&ctx.limits, limiter),
     };
     let rounds = if ctx.is_hardware() {
         CHUNK_ROUNDS

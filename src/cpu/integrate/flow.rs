@@ -209,8 +209,8 @@ pub fn make_flow(
     slope: Vec2,
     dir: &DirectionModel,
     h: Real,
+    inv_h: Real,
 ) -> Flow {
-    let inv_h = 1.0 / h;
     // The load (MODEL.md section 7) is a constant force: in stick it acts
     // on stage and slider as one body, in slip on the slider alone; either
     // way only the particular solution moves.
@@ -352,7 +352,12 @@ fn eval_stage_taylor(f: &Flow, tau: Real) -> (Vec2, Vec2, Vec2, Vec2) {
 
 /// Evaluates the flow at tau, given the propagator for tau.
 pub fn eval_flow(flow: &Flow, prop: Propagator, tau: Real) -> Sample {
-    let (mut x, mut dv, mut a, mut j) = eval_stage(flow, prop, tau);
+    // Each form only where an axis needs it (both where the axes differ).
+    let mut stage = (Vec2::ZERO, Vec2::ZERO, Vec2::ZERO, Vec2::ZERO);
+    if !(flow.taylor[0] && flow.taylor[1]) {
+        stage = eval_stage(flow, prop, tau);
+    }
+    let (mut x, mut dv, mut a, mut j) = stage;
     if flow.taylor[0] || flow.taylor[1] {
         let (tx, tdv, ta, tj) = eval_stage_taylor(flow, tau);
         x = Vec2::select(x, tx, flow.taylor);

@@ -57,6 +57,7 @@ fn mode_flow(
     slope: Vec2,
     dir: &DirectionModel,
     h: Real,
+    inv_h: Real,
 ) -> Flow {
     make_flow(
         c,
@@ -70,6 +71,7 @@ fn mode_flow(
         slope,
         dir,
         h,
+        inv_h,
     )
 }
 
@@ -111,16 +113,21 @@ pub fn step<O: StepObserver>(
         h = h_max.min(c.event_step_slip);
         dir.b0 = st.held;
     }
-    let mut flow = mode_flow(c, st, force, slope, &dir, if stuck { 1.0 } else { h });
+    // A flow's start does not depend on its length while the direction
+    // model is constant (stick, and a slip trial before its collocation):
+    // a slip trial reads its limit there, from a flow of unit length, then
+    // takes the flow of the length it keeps. One reciprocal of the step
+    // length serves every flow of the step.
+    let band = st.mode == MODE_BAND;
+    let mut inv_h = if band { 1.0 / h } else { 1.0 };
+    let mut flow = mode_flow(c, st, force, slope, &dir, if band { h } else { 1.0 }, inv_h);
     let mut start = eval_flow(&flow, IDENTITY, 0.0);
-    if slipping && !c.frictionless {
-        let limit = approach_limit(c, st.v_rel, relative_acceleration(&start), h);
-        if limit < h {
-            // The start does not depend on the step length (the model is
-            // constant yet): only the flow's scale changes.
-            h = limit;
-            flow = mode_flow(c, st, force, slope, &dir, h);
+    if slipping {
+        if !c.frictionless {
+            h = approach_limit(c, st.v_rel, relative_acceleration(&start), h);
         }
+        inv_h = 1.0 / h;
+        flow = mode_flow(c, st, force, slope, &dir, h, inv_h);
     }
     // The homogeneous acceleration obeys the same oscillator equation, so
     // m a'' + c a' + k a = 0 and k a^2 + m a'^2 never grows: |a| stays below
@@ -160,7 +167,7 @@ pub fn step<O: StepObserver>(
             if change == 0.0 {
                 break;
             }
-            flow = mode_flow(c, st, force, slope, &dir, h);
+            flow = mode_flow(c, st, force, slope, &dir, h, inv_h);
             mid = eval_flow(&flow, props.half, 0.5 * h);
             end = eval_flow(&flow, props.full, h);
             if change <= c.collocation_tolerance {
@@ -192,7 +199,7 @@ pub fn step<O: StepObserver>(
                 b0: dir.b0,
                 ..DirectionModel::default()
             };
-            flow = mode_flow(c, st, force, slope, &dir, h);
+            flow = mode_flow(c, st, force, slope, &dir, h, inv_h);
             samples = sample_flow(&flow, &props, h);
             let ev = samples.map(|s| approach_event(c, &flow, &s));
             let scale = approach_scale(c, &flow, &samples[0]);
@@ -360,8 +367,10 @@ fn sample_flow(flow: &Flow, props: &SamplePropagators, h: Real) -> [Sample; 5] {
 /// The largest distance between the direction model and the true direction
 /// of the resulting motion at samples 1 to `last`, or infinity where the
 /// relative velocity turns by a right angle between samples or vanishes.
+/// Squared distances are compared and one root taken (the root of the
+/// largest is the largest root, rounding included).
 fn direction_error(dir: &DirectionModel, samples: &[Sample; 5], last: usize) -> Real {
-    let mut err: Real = 0.0;
+    let mut err2: Real = 0.0;
     let mut prev_v = relative_velocity(&samples[0]);
     for (s, th) in samples.iter().zip(THETA).skip(1).take(last) {
         let v = relative_velocity(s);
@@ -374,9 +383,9 @@ fn direction_error(dir: &DirectionModel, samples: &[Sample; 5], last: usize) -> 
         };
         let model = dir.b0 + (dir.b1 + dir.b2 * th) * th;
         let d = u - model;
-        err = err.max(norm2(d).sqrt());
+        err2 = err2.max(norm2(d));
     }
-    err
+    err2.sqrt()
 }
 
 /// A rejected slip trial: the next one is shorter, unless the step has
@@ -532,7 +541,7 @@ fn initial_slip_step(c: &Coefficients, st: &State, h_max: Real) -> Real {
         b0: v * (1.0 / norm2(v).sqrt()),
         ..DirectionModel::default()
     };
-    let flow = mode_flow(c, st, force, slope, &dir, 1.0);
+    let flow = mode_flow(c, st, force, slope, &dir, 1.0, 1.0);
     let s = eval_flow(&flow, IDENTITY, 0.0);
     let v = relative_velocity(&s);
     let a = relative_acceleration(&s);
