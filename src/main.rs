@@ -120,8 +120,19 @@ enum Command {
         #[arg(long)]
         uniform: Option<PathBuf>,
     },
-    /// Lists GPU adapters: type, backend, limits, f64 support.
-    Info,
+    /// Lists GPU adapters: type, backend, limits, f64 support; with
+    /// --shader DIR, the shader's variants and what each lane carries.
+    Info {
+        /// Write the WGSL of every integrator pipeline variant (precision,
+        /// adapter kind, parts) into DIR and print each one's footprint:
+        /// bytes of private arrays indexed at run time (after `spirv-opt`,
+        /// from Debian's spirv-tools) and of function variables, its
+        /// instructions, and the emulated f64 divisions and roots per slip
+        /// trial on a probe of random instances (on any adapter, the
+        /// software one included), instead of listing adapters.
+        #[arg(long, value_name = "DIR")]
+        shader: Option<PathBuf>,
+    },
     /// Validates a scene and prints its grid, instance count and cost
     /// estimate without running it.
     Check {
@@ -261,7 +272,7 @@ impl Command {
             Command::Run { backend, .. } | Command::RefineStudy { backend, .. } => {
                 *backend != backend::BackendChoice::Cpu
             }
-            Command::Info | Command::Bench { .. } => true,
+            Command::Info { .. } | Command::Bench { .. } => true,
             Command::Accuracy { gpu, .. } => *gpu,
             _ => false,
         }
@@ -341,7 +352,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
             backend,
             uniform,
         } => commands::refine_study(&scene, &out_dir, backend, uniform.as_deref())?,
-        Command::Info => commands::info()?,
+        Command::Info { shader: None } => commands::info()?,
+        Command::Info { shader: Some(dir) } => commands::shader_info(&dir)?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Accuracy {
             scenes,

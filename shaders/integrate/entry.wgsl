@@ -72,7 +72,9 @@ struct Tally {
     more: vec4<u32>,
     // Scene periods the held instance has run, at the end.
     progress: f32,
-    _pad: u32,
+    // Emulated f64 divisions and roots in the dispatch (the prelude's
+    // `emulated`).
+    emulated: u32,
     _pad_v: vec2<u32>,
 }
 
@@ -206,6 +208,7 @@ fn advance_slice(
     }
     lanes[lane] = index;
     tally.more.w = index;
+    tally.emulated = emulated;
     tallies[lane] = tally;
 }
 

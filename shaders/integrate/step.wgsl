@@ -12,6 +12,58 @@ fn mode_flow(st: State, drive: Drive, dir: DirectionModel, h: Real, inv_h: Real)
     return make_flow(st.mode == MODE_STICK, st.x_p, st.v_p, st.x_s, st.v_s, st.v_rel, drive.force, drive.slope, dir, h, inv_h);
 }
 
+// The five samples of a step (`[Sample; 5]` on the CPU): members, not an
+// array.
+struct Samples {
+    s0: Sample,
+    s1: Sample,
+    s2: Sample,
+    s3: Sample,
+    s4: Sample,
+}
+
+// Which samples `sample_flow` evaluates: bit j for sample j.
+const SAMPLES_ALL: u32 = 31u;
+const SAMPLES_QUARTERS: u32 = 10u;
+
+// The samples of `mask` of a flow over a step of length h, in one loop: one
+// copy of the flow's evaluation, whatever the samples.
+fn sample_flow(flow: Flow, props: SamplePropagators, h: Real, out: ptr<function, Samples>, mask: u32) {
+    for (var j = 0u; j < 5u; j++) {
+        if ((mask >> j) & 1u) == 0u {
+            continue;
+        }
+        var prop = identity_propagator();
+        if j == 1u {
+            prop = props.quarter;
+        } else if j == 2u {
+            prop = props.half;
+        } else if j == 3u {
+            prop = props.three_quarters;
+        } else if j == 4u {
+            prop = props.full;
+        }
+        let s = eval_flow(flow, prop, theta(j) * h);
+        switch j {
+            case 0u: {
+                (*out).s0 = s;
+            }
+            case 1u: {
+                (*out).s1 = s;
+            }
+            case 2u: {
+                (*out).s2 = s;
+            }
+            case 3u: {
+                (*out).s3 = s;
+            }
+            default: {
+                (*out).s4 = s;
+            }
+        }
+    }
+}
+
 // The `Option<Vec2>` of `direction`.
 struct Direction {
     ok: bool,
@@ -57,63 +109,70 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
         flow_h = h;
     }
     var flow = mode_flow(*st, drive, dir, flow_h, inv_h);
-    var start = eval_flow(flow, identity_propagator(), Real(0.0));
+    let first = eval_flow(flow, identity_propagator(), Real(0.0));
     if slipping {
         if c.frictionless == 0u {
-            h = approach_limit((*st).v_rel, relative_acceleration(start), h);
+            h = approach_limit((*st).v_rel, relative_acceleration(first), h);
         }
         inv_h = recip(h);
         flow = mode_flow(*st, drive, dir, h, inv_h);
     }
     var safe = false;
     if stuck {
-        let bound = dot(start.a_p, start.a_p) + dot(start.j_p * start.j_p, flow.osc.inv_w2);
+        let bound = dot(first.a_p, first.a_p) + dot(first.j_p * first.j_p, flow.osc.inv_w2);
         safe = c.ms2 * bound <= c.safe_hold2;
         if !safe {
             h = min(h_max, c.event_step_stuck);
         }
     }
     let props = sample_propagators(flow, h);
-    var mid = eval_flow(flow, props.half, Real(0.5) * h);
-    var end = eval_flow(flow, props.full, h);
+    // SLIP: the collocation of the direction model, by the CPU's iteration
+    // with the samples evaluated at the top of each pass, so that the code
+    // evaluates a flow in one place (every copy of a flow's evaluation is
+    // code the driver compiles and the lanes fetch). Other modes evaluate
+    // once and leave.
+    let collocating = slipping && c.frictionless == 0u;
+    var samples = Samples(first, first, first, first, first);
     var err = Real(0.0);
     var failed = false;
-    if slipping && c.frictionless == 0u {
-        let u0 = dir.b0;
-        for (var k = 0u; k < COLLOCATION_ITERATIONS; k++) {
-            let um = direction(mid);
-            let ue = direction(end);
-            if !um.ok || !ue.ok {
-                failed = true;
-                break;
-            }
-            let b1 = Real(4.0) * um.u - Real(3.0) * u0 - ue.u;
-            let b2 = Real(2.0) * (ue.u - Real(2.0) * um.u + u0);
-            let db1 = abs(b1 - dir.b1);
-            let db2 = abs(b2 - dir.b2);
-            let change = max(max(db1.x, db1.y), max(db2.x, db2.y));
-            dir.b1 = b1;
-            dir.b2 = b2;
-            if change == Real(0.0) {
-                break;
-            }
-            flow = mode_flow(*st, drive, dir, h, inv_h);
-            mid = eval_flow(flow, props.half, Real(0.5) * h);
-            end = eval_flow(flow, props.full, h);
-            if change <= c.collocation_tolerance {
-                break;
-            }
+    var done = !collocating;
+    let u0 = dir.b0;
+    var k = 0u;
+    loop {
+        samples.s2 = eval_flow(flow, props.half, Real(0.5) * h);
+        samples.s4 = eval_flow(flow, props.full, h);
+        if done || k == COLLOCATION_ITERATIONS {
+            break;
         }
-        start = eval_flow(flow, identity_propagator(), Real(0.0));
+        let um = direction(samples.s2);
+        let ue = direction(samples.s4);
+        if !um.ok || !ue.ok {
+            failed = true;
+            break;
+        }
+        let b1 = Real(4.0) * um.u - Real(3.0) * u0 - ue.u;
+        let b2 = Real(2.0) * (ue.u - Real(2.0) * um.u + u0);
+        let db1 = abs(b1 - dir.b1);
+        let db2 = abs(b2 - dir.b2);
+        let change = max(max(db1.x, db1.y), max(db2.x, db2.y));
+        dir.b1 = b1;
+        dir.b2 = b2;
+        if change == Real(0.0) {
+            break;
+        }
+        flow = mode_flow(*st, drive, dir, h, inv_h);
+        done = change <= c.collocation_tolerance;
+        k++;
     }
-    var quarter = eval_flow(flow, props.quarter, Real(0.25) * h);
-    var three_quarters = eval_flow(flow, props.three_quarters, Real(0.75) * h);
+    // The start again where collocation changed the flow, and the
+    // quarters.
+    sample_flow(flow, props, h, &samples, select(SAMPLES_QUARTERS, SAMPLES_QUARTERS | 1u, collocating));
     var slip_event = EVENT_ENTER_BAND;
-    if slipping && c.frictionless == 0u {
+    if collocating {
         if failed {
             err = INFINITY;
         } else {
-            err = direction_error(dir, start, quarter, mid, three_quarters, end, 4u);
+            err = direction_error(dir, samples, 4u);
         }
         if err >= INFINITY {
             // The relative velocity reversed within the trial: the
@@ -121,19 +180,15 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
             // the band (see step.rs).
             dir = DirectionModel(dir.b0, V2(0.0), V2(0.0));
             flow = mode_flow(*st, drive, dir, h, inv_h);
-            start = eval_flow(flow, identity_propagator(), Real(0.0));
-            quarter = eval_flow(flow, props.quarter, Real(0.25) * h);
-            mid = eval_flow(flow, props.half, Real(0.5) * h);
-            three_quarters = eval_flow(flow, props.three_quarters, Real(0.75) * h);
-            end = eval_flow(flow, props.full, h);
+            sample_flow(flow, props, h, &samples, SAMPLES_ALL);
             let ev = EventSamples(
-                approach_event(flow, start),
-                approach_event(flow, quarter),
-                approach_event(flow, mid),
-                approach_event(flow, three_quarters),
-                approach_event(flow, end),
+                approach_event(flow, samples.s0),
+                approach_event(flow, samples.s1),
+                approach_event(flow, samples.s2),
+                approach_event(flow, samples.s3),
+                approach_event(flow, samples.s4),
             );
-            let scale = approach_scale(flow, start);
+            let scale = approach_scale(flow, samples.s0);
             let entry = find_crossing(*st, EVENT_APPROACH, Real(1.0), ev, scale, flow, h);
             if entry.found {
                 var before = 0u;
@@ -142,7 +197,7 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
                         before = j;
                     }
                 }
-                err = direction_error(dir, start, quarter, mid, three_quarters, end, before);
+                err = direction_error(dir, samples, before);
                 slip_event = EVENT_APPROACH;
             }
         }
@@ -157,18 +212,20 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
     } else if slipping {
         primary = slip_event;
     }
+    let start = samples.s0;
+    let end = samples.s4;
     let ev_primary = EventSamples(
         any_primary_event(primary, flow, start),
-        any_primary_event(primary, flow, quarter),
-        any_primary_event(primary, flow, mid),
-        any_primary_event(primary, flow, three_quarters),
+        any_primary_event(primary, flow, samples.s1),
+        any_primary_event(primary, flow, samples.s2),
+        any_primary_event(primary, flow, samples.s3),
         any_primary_event(primary, flow, end),
     );
     let ev_reversal = EventSamples(
         reversal_event(*st, start),
-        reversal_event(*st, quarter),
-        reversal_event(*st, mid),
-        reversal_event(*st, three_quarters),
+        reversal_event(*st, samples.s1),
+        reversal_event(*st, samples.s2),
+        reversal_event(*st, samples.s3),
         reversal_event(*st, end),
     );
     var sign = Real(0.0);
@@ -202,12 +259,12 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
         if kind == EVENT_NONE {
             continue;
         }
-        var crossing: Crossing;
-        if k == 0u {
-            crossing = find_crossing(*st, kind, kind_sign, ev_primary, scale, flow, h);
-        } else {
-            crossing = find_crossing(*st, kind, kind_sign, ev_reversal, scale, flow, h);
+        // One call for both kinds (one copy of its code).
+        var ev = ev_primary;
+        if k == 1u {
+            ev = ev_reversal;
         }
+        let crossing = find_crossing(*st, kind, kind_sign, ev, scale, flow, h);
         if kind == EVENT_ENTER_BAND && !crossing.found {
             grazed = crossing.closest < GRAZE_MARGIN * c.band2;
         }
@@ -313,27 +370,19 @@ fn sample_direction_error(dir: DirectionModel, s: Sample, th: Real, prev_v: V2) 
 
 // The error at samples 1 to `last`: one root of the largest square (see
 // step.rs).
-fn direction_error(
-    dir: DirectionModel,
-    s0: Sample,
-    s1: Sample,
-    s2: Sample,
-    s3: Sample,
-    s4: Sample,
-    last: u32,
-) -> Real {
+fn direction_error(dir: DirectionModel, s: Samples, last: u32) -> Real {
     var err = Real(0.0);
     if last >= 1u {
-        err = max(err, sample_direction_error(dir, s1, Real(0.25), relative_velocity(s0)));
+        err = max(err, sample_direction_error(dir, s.s1, Real(0.25), relative_velocity(s.s0)));
     }
     if last >= 2u {
-        err = max(err, sample_direction_error(dir, s2, Real(0.5), relative_velocity(s1)));
+        err = max(err, sample_direction_error(dir, s.s2, Real(0.5), relative_velocity(s.s1)));
     }
     if last >= 3u {
-        err = max(err, sample_direction_error(dir, s3, Real(0.75), relative_velocity(s2)));
+        err = max(err, sample_direction_error(dir, s.s3, Real(0.75), relative_velocity(s.s2)));
     }
     if last >= 4u {
-        err = max(err, sample_direction_error(dir, s4, Real(1.0), relative_velocity(s3)));
+        err = max(err, sample_direction_error(dir, s.s4, Real(1.0), relative_velocity(s.s3)));
     }
     if err >= INFINITY {
         return INFINITY;

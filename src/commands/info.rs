@@ -1,6 +1,9 @@
-//! `pidm info`: the GPU adapters and what the backends would take.
+//! `pidm info`: the GPU adapters and what the backends would take; `pidm
+//! info --shader DIR`: the integrator shader's variants and what a lane of
+//! each carries (issue 47).
 
-use anyhow::Result;
+use anyhow::{Context, Result};
+use std::path::Path;
 
 /// `pidm info`: every GPU adapter wgpu finds, with type, backend, limits
 /// and f64 support, which precisions it runs and trusts (each compiled and
@@ -56,5 +59,113 @@ pub fn info() -> Result<()> {
         "cpu: {} threads",
         std::thread::available_parallelism().map_or(1, |n| n.get())
     );
+    Ok(())
+}
+
+/// Random instances of the emulated-operation probe (seed 11, as the
+/// random 2,000 of `results/`), two periods each.
+const PROBE_INSTANCES: usize = 64;
+
+/// `pidm info --shader DIR`: every Karnopp pipeline variant's WGSL written
+/// into `dir` (one file each, named by [`crate::gpu::footprint::variant_name`])
+/// and a table of their footprints, then the emulated f64 operations per
+/// slip trial of the f64 pipeline on a probe batch.
+pub fn shader_info(dir: &Path) -> Result<()> {
+    use crate::backend::Precision;
+    use crate::gpu::footprint::{self, write_sources};
+    use crate::gpu::shader::{Parts, Variant};
+    let mut variants = Vec::new();
+    for precision in [Precision::F64, Precision::F32] {
+        for loop_limiter in [false, true] {
+            for parts in Parts::every() {
+                variants.push(Variant {
+                    precision,
+                    loop_limiter,
+                    parts,
+                });
+            }
+        }
+    }
+    let names = write_sources(dir, &variants)
+        .with_context(|| format!("writing the shader variants into {}", dir.display()))?;
+    println!(
+        "{} shader variants written into {} (hardware: no loop limiter; limiter: llvmpipe's)",
+        names.len(),
+        dir.display()
+    );
+    println!(
+        "{:<38} {:>14} {:>14} {:>13}",
+        "variant", "indexed [B]", "variables [B]", "instructions"
+    );
+    let mut measured = true;
+    for v in &variants {
+        let f = footprint::measure(*v)?;
+        let show = |x: Option<usize>| x.map_or("-".to_string(), |n| n.to_string());
+        measured &= f.indexed.is_some();
+        println!(
+            "{:<38} {:>14} {:>14} {:>13}",
+            footprint::variant_name(*v),
+            show(f.indexed_bytes()),
+            f.declared_bytes,
+            show(f.instructions)
+        );
+    }
+    println!(
+        "indexed: private arrays an access chain indexes at run time after `spirv-opt {}` \
+         (local memory on NVIDIA, at every access); variables: function variables of naga's \
+         SPIR-V, what the driver receives; instructions: after spirv-opt, which inlines \
+         everything",
+        footprint::SPIRV_OPT_ARGS.join(" ")
+    );
+    if !measured {
+        println!(
+            "(spirv-opt was not found: install Debian's spirv-tools for the indexed arrays and \
+             instructions)"
+        );
+    }
+    probe_emulated()
+}
+
+/// The f64 pipeline's emulated divisions and roots per slip trial on
+/// [`PROBE_INSTANCES`] random instances, on the adapter `--backend gpu`
+/// takes (the software one included); a line saying why not where there
+/// is none or it has no f64.
+fn probe_emulated() -> Result<()> {
+    use crate::backend::Precision;
+    let ctx = match crate::gpu::GpuContext::new(true) {
+        Ok(ctx) if ctx.supports_f64() => ctx,
+        Ok(ctx) => {
+            println!(
+                "emulated f64 operations: not probed ({} has no f64)",
+                ctx.describe()
+            );
+            return Ok(());
+        }
+        Err(e) => {
+            println!("emulated f64 operations: not probed (no GPU adapter: {e})");
+            return Ok(());
+        }
+    };
+    let instances = crate::random::random_instances(11, PROBE_INSTANCES, 2, 1);
+    crate::profile::enable();
+    {
+        let _integrating = crate::profile::span(crate::profile::Phase::Integrate);
+        crate::gpu::run_batch(
+            &ctx,
+            &instances,
+            &crate::cpu::integrate::Settings::default(),
+            Precision::F64,
+            &mut |_, _| {},
+        )?;
+    }
+    match crate::gpu::warps::emulated_per_slip_trial() {
+        Some((emulated, per_trial)) => println!(
+            "emulated f64 divisions and roots on {PROBE_INSTANCES} random instances (seed 11, 2 \
+             periods) on {}: {emulated}, {per_trial:.1} per slip trial (every kind of \
+             iteration's counted)",
+            ctx.describe()
+        ),
+        None => println!("emulated f64 operations: the probe took no slip trial"),
+    }
     Ok(())
 }

@@ -27,7 +27,7 @@ pub use accuracy::accuracy;
 pub use bench::bench;
 pub use check::{CheckReport, check, check_json, check_report};
 pub use format::{human_duration, instance_name, plural, um};
-pub use info::info;
+pub use info::{info, shader_info};
 pub use merge::merge;
 pub use random_scene::{random_scene, random_scene_compact};
 pub use refine_study::refine_study;

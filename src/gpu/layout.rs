@@ -123,7 +123,9 @@ pub mod control {
             pub more: [u32; 4],
             /// Scene periods the held instance has run, at the end.
             pub progress: f32,
-            pub _pad: u32,
+            /// The f64 helpers' emulated divisions and roots (`recip`,
+            /// `root`, `recip_root` calls; 0 in f32) in the dispatch.
+            pub emulated: u32,
             pub _pad_v: super::U32x2,
         }
     }
@@ -196,6 +198,7 @@ macro_rules! precision_structs {
                     pub slip: Oscillator,
                     pub amplitude: V2,
                     pub frequency: V2,
+                    pub inv_frequency: V2,
                     pub duty: V2,
                     pub inv_duty: V2,
                     pub inv_fall: V2,
@@ -508,6 +511,7 @@ macro_rules! precision_structs {
                     slip: oscillator(&c.slip),
                     amplitude: v2(c.amplitude),
                     frequency: v2(c.frequency),
+                    inv_frequency: v2(c.inv_frequency),
                     duty: v2(c.duty),
                     inv_duty: v2(c.inv_duty),
                     inv_fall: v2(c.inv_fall),

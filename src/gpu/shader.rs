@@ -248,6 +248,7 @@ const F64_HELPERS: &str = "\
 // 1 / b: a first guess from inverseSqrt(b^2), three Newton steps (each
 // doubles the correct digits of the driver's guess), then a correction.
 fn recip(b: Real) -> Real {
+    emulated += 1u;
     if b == Real(0.0) {
         return INFINITY;
     }
@@ -277,6 +278,7 @@ fn recip_root(x: Real) -> Real {
     if !(x > Real(0.0)) || x > INFINITY {
         return recip(root(x));
     }
+    emulated += 1u;
     var y = inverseSqrt(x);
     let half = Real(0.5) * x;
     y = y * fma(-half * y, y, Real(1.5));
@@ -290,6 +292,7 @@ fn recip_root(x: Real) -> Real {
 
 // sqrt(x) for x >= 0 (and x itself for 0 and NaN).
 fn root(x: Real) -> Real {
+    emulated += 1u;
     if !(x > Real(0.0)) || x > INFINITY {
         return x;
     }
@@ -322,8 +325,12 @@ fn recip_root(x: Real) -> Real {
 }
 ";
 
-/// Helpers common to both precisions.
+/// Helpers common to both precisions, and the count of emulated f64
+/// operations (`recip`, `root` and `recip_root` calls, a division counted
+/// as its `recip`) the lane's tally reports: f32 counts none.
 const COMMON_HELPERS: &str = "\
+var<private> emulated: u32;
+
 fn div2(a: V2, b: V2) -> V2 {
     return V2(div(a.x, b.x), div(a.y, b.y));
 }

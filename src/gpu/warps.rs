@@ -28,7 +28,9 @@ use std::sync::Mutex;
 
 use super::layout::control::Tally;
 pub use crate::cpu::integrate::constants::KIND_NAMES;
-use crate::cpu::integrate::constants::{ITERATION_KINDS, rejected_share};
+use crate::cpu::integrate::constants::{
+    ITERATION_KINDS, ITERATION_REJECTED, ITERATION_SLIP, rejected_share,
+};
 
 /// Lanes per warp in the figures: NVIDIA's warp.
 pub const WARP: usize = 32;
@@ -77,6 +79,8 @@ pub struct Warps {
     pub kind_warp_passes: [u64; ITERATION_KINDS],
     /// Instances lanes took from the queue.
     pub taken: u64,
+    /// Emulated f64 divisions and roots, every lane's.
+    pub emulated: u64,
 }
 
 impl Warps {
@@ -94,6 +98,7 @@ impl Warps {
                     most[k] = most[k].max(kinds[k]);
                 }
                 self.taken += lane.taken();
+                self.emulated += lane.emulated as u64;
             }
             for (sum, most) in self.kind_warp_passes.iter_mut().zip(most) {
                 *sum += most;
@@ -107,6 +112,7 @@ impl Warps {
         self.lane_slots += other.lane_slots;
         self.warp_passes += other.warp_passes;
         self.taken += other.taken;
+        self.emulated += other.emulated;
         for k in 0..ITERATION_KINDS {
             self.passes[k] += other.passes[k];
             self.kind_warp_passes[k] += other.kind_warp_passes[k];
@@ -169,6 +175,16 @@ impl Warps {
             "pidm: phase   rejected trials: {} of slip trials (slip steps and rejected trials)",
             percent(rejected_share(&self.passes))
         );
+        if self.emulated > 0 {
+            let trials =
+                self.passes[ITERATION_SLIP as usize] + self.passes[ITERATION_REJECTED as usize];
+            let _ = writeln!(
+                out,
+                "pidm: phase   emulated f64 divisions and roots: {} ({:.1} per slip trial, every kind of iteration's counted)",
+                self.emulated,
+                self.emulated as f64 / trials.max(1) as f64
+            );
+        }
         let alike: Vec<String> = KIND_NAMES
             .iter()
             .enumerate()
@@ -398,6 +414,16 @@ pub fn table_lines() -> String {
     }
     out += &run.bytes.describe(&run.warps);
     out
+}
+
+/// The run's emulated f64 divisions and roots and their number per slip
+/// trial (slip steps and rejected trials), where its GPU batches took any
+/// slip trial.
+pub fn emulated_per_slip_trial() -> Option<(u64, f64)> {
+    let run = RUN.lock().unwrap_or_else(|e| e.into_inner());
+    let warps = &run.as_ref()?.warps;
+    let trials = warps.passes[ITERATION_SLIP as usize] + warps.passes[ITERATION_REJECTED as usize];
+    (trials > 0).then(|| (warps.emulated, warps.emulated as f64 / trials as f64))
 }
 
 /// An unfinished instance after the first dispatch: its index, the passes
