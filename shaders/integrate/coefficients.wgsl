@@ -30,7 +30,6 @@ struct Coefficients {
     slip: Oscillator,
     amplitude: V2,
     frequency: V2,
-    inv_frequency: V2,
     duty: V2,
     inv_duty: V2,
     inv_fall: V2,

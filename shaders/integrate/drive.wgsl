@@ -3,7 +3,8 @@
 // Local time of each axis' next drive corner, or INFINITY where undriven.
 fn corner_time(st: State) -> V2 {
     let c = &coefficients[held];
-    var t = max((st.next_corner - st.cycle_phase) * c.inv_frequency, V2(0.0));
+    // A division (see drive.rs).
+    var t = max(div2(st.next_corner - st.cycle_phase, c.frequency), V2(0.0));
     if CORNER_CLOCK {
         t = st.corner_at;
     }

@@ -2,12 +2,12 @@
 """Writes a digest of every numeric dataset of result files, one line per
 dataset: the file's stem (the test's label of the run), the dataset's path, its element count and the
 64-bit FNV-1a hash of its bytes (little-endian, row-major).
-tests/it/load.rs compares the current binary's files with the lines
-zero_load_8894696.txt holds, which this script wrote from the files of the
-binary built at commit 8894696 (before the load existed) for every shipped
-scene the test runs (RUNS in tests/it/load.rs), each run into LABEL.h5:
+tests/it/load.rs and tests/it/replicas.rs compare the current binary's
+files with the lines zero_load.txt and replicas_one.txt hold, which
+write_goldens.sh writes with this script from a binary's runs of the
+scenes those tests run, each run into LABEL.h5:
 
-    python3 tests/golden/dump_digests.py LABEL.h5 ... > tests/golden/zero_load_8894696.txt
+    python3 tests/golden/dump_digests.py LABEL.h5 ...
 
 The test computes the same digest in Rust, so the two must stay one rule:
 FNV-1a 64 (offset 0xcbf29ce484222325, prime 0x100000001b3) over the bytes.

@@ -2,12 +2,12 @@
 """Writes the bits of a result file's window maps, one line per instance:
 step_x step_y velocity_x velocity_y baseline_step_x baseline_step_y as f64
 bits in hex, then status, steps and baseline_status. tests/it/steady.rs
-compares the current binary's maps with the lines window_7916a32.txt
-holds, which this script wrote from the maps of the binary built at commit
-7916a32 (before the steady measurement) for the scenes beside it, run with
-their `measure = "window"` line removed (that binary has no such key):
+compares the current binary's maps with the lines window.txt holds, which
+write_goldens.sh writes with this script from a binary's maps of the
+scenes beside it (7916a32's, before the steady measurement, until issue 47
+changed the integrator's steps):
 
-    python3 tests/golden/dump_window.py OLD.h5 ... > tests/golden/window_7916a32.txt
+    python3 tests/golden/dump_window.py A.h5 ...
 """
 
 import struct

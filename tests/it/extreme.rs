@@ -231,8 +231,9 @@ axis.y.phase = 0.37
 /// `--verify` keeps what a 100 times tighter tolerance confirms and marks
 /// (status 5, zero in the map) what it moves, pinned both ways: at the
 /// default tolerance both points, #513 included, are within the claimed
-/// error of the converged value and verify; at 1e-2 both are off by more
-/// than 0.1 um and are marked.
+/// error of the converged value and verify; at 1e-2 both move by more
+/// than verify's allowance and are marked, the regular point by more than
+/// 0.1 um.
 #[test]
 fn verify_marks_what_a_tighter_tolerance_moves_and_keeps_the_rest() {
     let dir = tempfile::tempdir().unwrap();
@@ -291,7 +292,13 @@ fn verify_marks_what_a_tighter_tolerance_moves_and_keeps_the_rest() {
                 verified_status[k]
             );
             if off {
-                assert!(error_um > 0.1, "point {k}: only {error_um} um off");
+                // The regular point is far off; #513's x step stays near
+                // the converged one (the slip step's limit toward the
+                // band resolves its pass at any tolerance: issue 47), but
+                // its y step moves by more than verify's 1e-9 m.
+                if k == 1 {
+                    assert!(error_um > 0.1, "point {k}: only {error_um} um off");
+                }
                 assert_eq!(verified_status[k], 5, "point {k}");
                 assert_eq!(verified[k], 0.0);
             } else {

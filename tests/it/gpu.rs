@@ -1657,16 +1657,20 @@ fn shader_follows_its_mirror(ctx: &GpuContext, instances: &[Instance]) {
          another mode or step count), the rest within {:.1} roundings ({})",
         worst.0, worst.1
     );
-    // Measured on lavapipe: 8,092 equal, 78 other choices, 5.2 roundings.
-    // A hardware GPU's compiler fuses and reorders more: an H200 gave
-    // 5,262 equal, 97 other choices and 189 roundings (a relative velocity
-    // next to stage speeds, results/gpu.md "f32 on an H200"). A formulation
+    // Measured on lavapipe: 3,315 equal, 128 other choices, 5.2 roundings
+    // (8,092 equal and 78 choices before issue 47: the lean shader reads
+    // its coefficients where it uses them and evaluates flows in loops, so
+    // llvmpipe fuses other multiply-adds, and the slip step's limit toward
+    // the band halves a step where a rounding tips it). A hardware GPU's
+    // compiler fuses and reorders more: an H200 gave 5,262 equal, 97 other
+    // choices and 189 roundings before issue 47 (a relative velocity next
+    // to stage speeds, results/gpu.md "f32 on an H200"). A formulation
     // that differed would move a state by thousands of roundings in one
     // step, and take other steps far more often.
     let (roundings, equal_share) = if ctx.is_hardware() {
-        (1024.0, 0.5)
+        (1024.0, 0.3)
     } else {
-        (16.0, 0.8)
+        (16.0, 0.3)
     };
     assert!(worst.0 <= roundings, "{} roundings at {}", worst.0, worst.1);
     assert!(

@@ -46,11 +46,8 @@ pub struct Coefficients {
     pub slip: Oscillator,
     /// Drive force amplitude delta V [N]: zero on an undriven axis.
     pub amplitude: Vec2,
-    /// Drive frequency f [1/s], and 1 / f [s] (0 on an undriven axis): a
-    /// drive corner's time is a product, not a division, at every
-    /// iteration.
+    /// Drive frequency f [1/s].
     pub frequency: Vec2,
-    pub inv_frequency: Vec2,
     /// Rise fraction d, 1 / d, and 1 / (1 - d) (0 where d = 1: no fall).
     pub duty: Vec2,
     pub inv_duty: Vec2,
@@ -229,7 +226,6 @@ impl Coefficients {
             slip: osc(&e.slip),
             amplitude: v(e.amplitude),
             frequency: v(e.frequency),
-            inv_frequency: v(e.inv_frequency),
             duty: v(e.duty),
             inv_duty: v(e.inv_duty),
             inv_fall: v(e.inv_fall),
@@ -403,13 +399,6 @@ impl Coefficients {
             slip,
             amplitude,
             frequency,
-            inv_frequency: per_axis(&|a| {
-                if a.is_driven() {
-                    1.0 / a.frequency
-                } else {
-                    0.0
-                }
-            }),
             duty: per_axis(&|a| a.duty),
             inv_duty: per_axis(&|a| 1.0 / a.duty),
             inv_fall: per_axis(&|a| {

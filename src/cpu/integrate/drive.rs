@@ -15,7 +15,11 @@ use super::{Real, State, time_reached};
 /// and 1 cycle at 10 Hz) then coincide in floating point too, and their
 /// force jumps are passed together, as the model has them.
 pub fn corner_time(c: &Coefficients, st: &State) -> Vec2 {
-    let mut t = ((st.next_corner - st.cycle_phase) * c.inv_frequency).map(|t| t.max(0.0));
+    // A division, not a product with 1 / f: the corner at the end of a
+    // cycle must fall on the period's end exactly, and a product moved a
+    // duty-1 drive's jump 4e-14 s into the next period (issue 47: a
+    // stress instance then failed at tolerance 1e-8).
+    let mut t = ((st.next_corner - st.cycle_phase) / c.frequency).map(|t| t.max(0.0));
     if CORNER_CLOCK {
         t = st.corner_at;
     }
