@@ -240,12 +240,15 @@ fn advance(
             // The lane's loop processes it (above).
             break;
         }
+        // An iteration cut short by the driver's loop limiter is undone
+        // and redone by the next dispatch; one that cannot fit in a whole
+        // dispatch is handed back to the host. One call of `iterate` for
+        // both kinds of adapter: drivers inline every call before they
+        // drop the branch LOOP_LIMITER rules out, so two calls would
+        // compile the integrator twice.
+        let before = *st;
+        let kind = iterate(st);
         if LOOP_LIMITER {
-            // An iteration cut short by the driver's loop limiter is undone
-            // and redone by the next dispatch; one that cannot fit in a
-            // whole dispatch is handed back to the host.
-            let before = *st;
-            let kind = iterate(st);
             if !loop_limiter_intact((*st).steps) {
                 *st = before;
                 if iteration == 0u && fresh {
@@ -254,10 +257,8 @@ fn advance(
                 return Advance(iteration, true);
             }
             (*st).limited = 0u;
-            count_kind(tally, kind);
-        } else {
-            count_kind(tally, iterate(st));
         }
+        count_kind(tally, kind);
     }
     return Advance(iteration, false);
 }

@@ -114,24 +114,26 @@ fn series_term(s: ptr<function, Series>, osc: Oscillator, f: V2) {
     (*s).a1 = (*s).a1 + next_q;
 }
 
-// The TAYLOR_TERMS terms, unrolled with constant factors 1 / n (the host
-// checks that the count matches).
+// The TAYLOR_TERMS terms, unrolled with constant factors 1 / n, the
+// prelude's INVERSE_n literals (a call of `inverse_integer` would be
+// inlined, switch and all, before its argument is folded; the host checks
+// that the count matches).
 fn taylor_propagator(osc: Oscillator, t: V2) -> Propagator {
     var s = Series(V2(1.0), V2(0.0), V2(0.0), V2(0.0));
-    series_term(&s, osc, t * inverse_integer(1u));
-    series_term(&s, osc, t * inverse_integer(2u));
-    series_term(&s, osc, t * inverse_integer(3u));
-    series_term(&s, osc, t * inverse_integer(4u));
-    series_term(&s, osc, t * inverse_integer(5u));
-    series_term(&s, osc, t * inverse_integer(6u));
-    series_term(&s, osc, t * inverse_integer(7u));
-    series_term(&s, osc, t * inverse_integer(8u));
-    series_term(&s, osc, t * inverse_integer(9u));
-    series_term(&s, osc, t * inverse_integer(10u));
-    series_term(&s, osc, t * inverse_integer(11u));
-    series_term(&s, osc, t * inverse_integer(12u));
-    series_term(&s, osc, t * inverse_integer(13u));
-    series_term(&s, osc, t * inverse_integer(14u));
+    series_term(&s, osc, t * INVERSE_1);
+    series_term(&s, osc, t * INVERSE_2);
+    series_term(&s, osc, t * INVERSE_3);
+    series_term(&s, osc, t * INVERSE_4);
+    series_term(&s, osc, t * INVERSE_5);
+    series_term(&s, osc, t * INVERSE_6);
+    series_term(&s, osc, t * INVERSE_7);
+    series_term(&s, osc, t * INVERSE_8);
+    series_term(&s, osc, t * INVERSE_9);
+    series_term(&s, osc, t * INVERSE_10);
+    series_term(&s, osc, t * INVERSE_11);
+    series_term(&s, osc, t * INVERSE_12);
+    series_term(&s, osc, t * INVERSE_13);
+    series_term(&s, osc, t * INVERSE_14);
     return Propagator(s.a0m1, s.a1);
 }
 

@@ -315,9 +315,10 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
         }
         move_to(st, s, event_tau, h_max, stop, stop_lo);
         grazed = event == EVENT_ENTER_BAND && skims_band(s);
+        // One call of `start_slip` for both ways slip starts (see step.rs).
+        var slip = SlipStart(false, V2(0.0));
         if event == EVENT_BREAKAWAY {
-            let need = stick_force(*st);
-            start_slip(st, need);
+            slip = SlipStart(true, stick_force(*st));
         } else if event == EVENT_LEAVE_BAND {
             (*st).mode = MODE_SLIP;
             (*st).h_slip = initial_slip_step(*st, h_max);
@@ -325,7 +326,10 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
             if event == EVENT_ENTER_BAND || event == EVENT_APPROACH {
                 (*st).h_slip = h;
             }
-            try_stick(st);
+            slip = try_stick(st);
+        }
+        if slip.starts {
+            start_slip(st, slip.need);
         }
     }
     if GRAZE_GUARD && c.steady == 0u && grazed {
@@ -552,7 +556,13 @@ fn start_slip(st: ptr<function, State>, need: V2) {
     (*st).mode = MODE_BAND;
 }
 
-fn try_stick(st: ptr<function, State>) {
+// The `Option<Vec2>` of `try_stick`: whether slip starts, and along what.
+struct SlipStart {
+    starts: bool,
+    need: V2,
+}
+
+fn try_stick(st: ptr<function, State>) -> SlipStart {
     let c = &coefficients[held];
     let need = stick_force(*st);
     if DEFLECTION {
@@ -570,7 +580,7 @@ fn try_stick(st: ptr<function, State>) {
     (*st).v_rel = V2(0.0);
     if dot(need, need) <= c.hold2 {
         (*st).mode = MODE_STICK;
-    } else {
-        start_slip(st, need);
+        return SlipStart(false, V2(0.0));
     }
+    return SlipStart(true, need);
 }

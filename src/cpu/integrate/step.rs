@@ -319,9 +319,11 @@ pub fn step<O: StepObserver>(
         }
         move_to(st, &s, event_tau, h_max, stop, &flow, observer);
         grazed = event == EVENT_ENTER_BAND && skims_band(c, &s);
+        // The force slip starts along, where it starts (one call of
+        // `start_slip` for both: the shader's code holds one copy).
+        let mut slip_need = None;
         if event == EVENT_BREAKAWAY {
-            let need = stick_force(c, st);
-            start_slip(c, st, need);
+            slip_need = Some(stick_force(c, st));
         } else if event == EVENT_LEAVE_BAND {
             st.mode = MODE_SLIP;
             st.h_slip = initial_slip_step(c, st, h_max);
@@ -329,7 +331,10 @@ pub fn step<O: StepObserver>(
             if event == EVENT_ENTER_BAND || event == EVENT_APPROACH {
                 st.h_slip = h;
             }
-            try_stick(c, st);
+            slip_need = try_stick(c, st);
+        }
+        if let Some(need) = slip_need {
+            start_slip(c, st, need);
         }
     }
     if GRAZE_GUARD && !c.steady && grazed {
@@ -638,8 +643,10 @@ pub fn start_slip(c: &Coefficients, st: &mut State, need: Vec2) {
 /// (in 1-D: the slider reverses). Starting the new slip from zero relative
 /// velocity keeps the relative velocity aligned with the friction when it
 /// leaves the band; holding the old, misaligned relative velocity would
-/// make it re-enter the band at once, over and over.
-fn try_stick(c: &Coefficients, st: &mut State) {
+/// make it re-enter the band at once, over and over. Returns the force slip
+/// starts along where the static friction cannot hold (the caller starts
+/// it).
+fn try_stick(c: &Coefficients, st: &mut State) -> Option<Vec2> {
     let need = stick_force(c, st);
     if DEFLECTION {
         // The merged velocity relative to the drive's static velocity
@@ -656,7 +663,8 @@ fn try_stick(c: &Coefficients, st: &mut State) {
     st.v_rel = Vec2::ZERO;
     if norm2(need) <= c.hold2 {
         st.mode = MODE_STICK;
+        None
     } else {
-        start_slip(c, st, need);
+        Some(need)
     }
 }
