@@ -399,7 +399,7 @@ fn reject(st: ptr<function, State>, h: Real, err: Real) {
     (*st).rejections += 1u;
     var factor = Real(0.25);
     if is_finite(err) {
-        factor = step_factor(c.tolerance, err, Real(0.1), Real(0.9));
+        factor = step_factor(c.tolerance, err, c.tolerance, Real(0.0), Real(0.1), Real(0.9));
     }
     let shorter = h * factor;
     if shorter < c.min_step || (*st).rejections > MAX_REJECTIONS {
@@ -413,12 +413,14 @@ fn reject(st: ptr<function, State>, h: Real, err: Real) {
 // smallest step (see step.rs).
 fn next_slip_step(st: ptr<function, State>, h: Real, err: Real) -> Real {
     let c = &coefficients[held];
-    var factor = step_factor(c.tolerance, err, Real(0.2), Real(4.0));
+    var allowed2 = c.tolerance;
+    var err2 = Real(0.0);
     if (*st).h_accepted > Real(0.0) && (*st).err_accepted > Real(0.0) && err > Real(0.0) {
         let r = div(h, (*st).h_accepted);
-        let predicted = step_factor(c.tolerance * (*st).err_accepted * (r * r * r), err * err, Real(0.2), Real(4.0));
-        factor = min(factor, predicted);
+        allowed2 = c.tolerance * (*st).err_accepted * (r * r * r);
+        err2 = err * err;
     }
+    var factor = step_factor(c.tolerance, err, allowed2, err2, Real(0.2), Real(4.0));
     if (*st).rejections > 0u {
         factor = min(factor, Real(1.0));
     }
@@ -450,20 +452,21 @@ fn approach_limit(v: V2, a: V2, h: Real) -> Real {
 // The largest n / STEP_FACTOR_QUANTUM in [1/2, 1) with n x <= quantum bound.
 fn grid_fraction(x: Real, bound: Real) -> Real {
     let scaled = STEP_FACTOR_QUANTUM * bound;
-    var below = Real(0.5) * STEP_FACTOR_QUANTUM;
-    var above = STEP_FACTOR_QUANTUM;
+    let quantum = STEP_FACTOR_QUANTUM_U32;
+    var below = quantum / 2u;
+    var above = quantum;
     for (var k = 0u; k < STEP_FACTOR_BISECTIONS; k++) {
-        if above - below <= Real(1.0) {
+        if above - below <= 1u {
             break;
         }
-        let n = floor(Real(0.5) * (above + below));
-        if n * x <= scaled {
+        let n = (above + below) / 2u;
+        if Real(n) * x <= scaled {
             below = n;
         } else {
             above = n;
         }
     }
-    return below * STEP_FACTOR_GRID;
+    return Real(below) * STEP_FACTOR_GRID;
 }
 
 fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Real, stop_lo: Real) {

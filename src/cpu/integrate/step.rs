@@ -398,7 +398,7 @@ fn direction_error(dir: &DirectionModel, samples: &[Sample; 5], last: usize) -> 
 fn reject(c: &Coefficients, st: &mut State, h: Real, err: Real) {
     st.rejections += 1;
     let factor = if err.is_finite() {
-        step_factor(c.tolerance, err, 0.1, 0.9)
+        step_factor(c.tolerance, err, c.tolerance, 0.0, 0.1, 0.9)
     } else {
         0.25
     };
@@ -424,17 +424,15 @@ fn reject(c: &Coefficients, st: &mut State, h: Real, err: Real) {
 ///
 /// The smallest applies; it is remembered with err for the next one.
 fn next_slip_step(c: &Coefficients, st: &mut State, h: Real, err: Real) -> Real {
-    let mut factor = step_factor(c.tolerance, err, 0.2, 4.0);
+    // The predictive bound, where the step before was accepted too (else
+    // a second bound that always holds).
+    let (mut allowed2, mut err2) = (c.tolerance, 0.0);
     if st.h_accepted > 0.0 && st.err_accepted > 0.0 && err > 0.0 {
         let r = h / st.h_accepted;
-        let predicted = step_factor(
-            c.tolerance * st.err_accepted * (r * r * r),
-            err * err,
-            0.2,
-            4.0,
-        );
-        factor = factor.min(predicted);
+        allowed2 = c.tolerance * st.err_accepted * (r * r * r);
+        err2 = err * err;
     }
+    let mut factor = step_factor(c.tolerance, err, allowed2, err2, 0.2, 4.0);
     if st.rejections > 0 {
         factor = factor.min(1.0);
     }
@@ -477,21 +475,21 @@ fn approach_limit(c: &Coefficients, v: Vec2, a: Vec2, h: Real) -> Real {
 /// The largest n / [`STEP_FACTOR_QUANTUM`] in [1/2, 1) with n x <= quantum
 /// bound, for x in (bound, 2 bound], by bisection.
 fn grid_fraction(x: Real, bound: Real) -> Real {
-    let quantum = STEP_FACTOR_QUANTUM as Real;
-    let scaled = quantum * bound;
-    let (mut below, mut above) = (0.5 * quantum, quantum);
+    let scaled = STEP_FACTOR_QUANTUM as Real * bound;
+    let quantum = STEP_FACTOR_QUANTUM as u32;
+    let (mut below, mut above) = (quantum / 2, quantum);
     for _ in 0..STEP_FACTOR_BISECTIONS {
-        if above - below <= 1.0 {
+        if above - below <= 1 {
             break;
         }
-        let n = (0.5 * (above + below)).floor();
-        if n * x <= scaled {
+        let n = (above + below) / 2;
+        if n as Real * x <= scaled {
             below = n;
         } else {
             above = n;
         }
     }
-    below * (1.0 / STEP_FACTOR_QUANTUM) as Real
+    below as Real * (1.0 / STEP_FACTOR_QUANTUM) as Real
 }
 
 /// Moves the state to tau within the current step of flow `flow` (tau >=
