@@ -94,8 +94,8 @@ pub fn shader_info(dir: &Path) -> Result<()> {
         dir.display()
     );
     println!(
-        "{:<38} {:>14} {:>14} {:>13}",
-        "variant", "indexed [B]", "variables [B]", "instructions"
+        "{:<38} {:>12} {:>14} {:>13} {:>9}",
+        "variant", "indexed [B]", "variables [B]", "instructions", "inlined"
     );
     let mut measured = true;
     for v in &variants {
@@ -103,18 +103,21 @@ pub fn shader_info(dir: &Path) -> Result<()> {
         let show = |x: Option<usize>| x.map_or("-".to_string(), |n| n.to_string());
         measured &= f.indexed.is_some();
         println!(
-            "{:<38} {:>14} {:>14} {:>13}",
+            "{:<38} {:>12} {:>14} {:>13} {:>9}",
             footprint::variant_name(*v),
             show(f.indexed_bytes()),
             f.declared_bytes,
-            show(f.instructions)
+            show(f.instructions),
+            f.inlined
         );
     }
     println!(
         "indexed: private arrays an access chain indexes at run time after `spirv-opt {}` \
          (local memory on NVIDIA, at every access); variables: function variables of naga's \
          SPIR-V, what the driver receives; instructions: after spirv-opt, which inlines \
-         everything",
+         everything and folds; inlined: naga's SPIR-V with every call inlined before any \
+         folding, what a driver that inlines first works through (lavapipe's pipeline \
+         creation scales with it)",
         footprint::SPIRV_OPT_ARGS.join(" ")
     );
     if !measured {

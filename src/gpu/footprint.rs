@@ -61,6 +61,11 @@ pub struct Footprint {
     /// Instructions after `spirv-opt`, which inlines every function as
     /// Mesa's NIR does: the code a driver compiles (`None` as above).
     pub instructions: Option<usize>,
+    /// Instructions of naga's SPIR-V with every call inlined before any
+    /// folding (a branch on a constant inlines both sides): what a driver
+    /// that inlines first works through (lavapipe's pipeline creation
+    /// scales with it).
+    pub inlined: usize,
 }
 
 impl Footprint {
@@ -76,7 +81,9 @@ impl Footprint {
 /// folder).
 pub fn measure(variant: Variant) -> Result<Footprint, GpuError> {
     let words = spirv(variant)?;
-    let declared_bytes = Module::parse(&words).function_variable_bytes();
+    let naga_module = Module::parse(&words);
+    let declared_bytes = naga_module.function_variable_bytes();
+    let inlined = naga_module.inlined_size();
     let opt = optimized(&words);
     let indexed = opt.as_ref().map(|opt| Module::parse(opt).indexed_arrays());
     let instructions = opt.as_ref().map(|opt| instruction_count(opt));
@@ -84,6 +91,7 @@ pub fn measure(variant: Variant) -> Result<Footprint, GpuError> {
         declared_bytes,
         indexed,
         instructions,
+        inlined,
     })
 }
 
@@ -223,6 +231,11 @@ struct Module {
     /// Access chains: result, base, indices.
     chains: Vec<(u32, u32, Vec<u32>)>,
     names: HashMap<u32, String>,
+    /// Per function: its instructions and the functions it calls (once per
+    /// call); the entry point's function.
+    functions: HashMap<u32, (usize, Vec<u32>)>,
+    current: Option<u32>,
+    entry: Option<u32>,
 }
 
 impl Module {
@@ -235,7 +248,9 @@ impl Module {
             if count == 0 || at + count > words.len() {
                 break;
             }
-            m.read(op, &words[at + 1..at + count]);
+            let operands = &words[at + 1..at + count];
+            m.read(op, operands);
+            m.read_function(op, operands);
             at += count;
         }
         m
@@ -284,6 +299,46 @@ impl Module {
                 }
             }
         }
+    }
+
+    /// Functions, their sizes and calls (OpFunction 54, OpFunctionEnd 56,
+    /// OpFunctionCall 57, OpEntryPoint 15).
+    fn read_function(&mut self, op: u16, w: &[u32]) {
+        match op {
+            15 => self.entry = w.get(1).copied(),
+            54 => {
+                self.current = Some(w[1]);
+                self.functions.insert(w[1], (0, Vec::new()));
+            }
+            56 => self.current = None,
+            _ => {
+                if let Some(f) = self.current {
+                    let entry = self.functions.get_mut(&f).expect("opened");
+                    entry.0 += 1;
+                    if op == 57 {
+                        entry.1.push(w[2]);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Instructions of the entry point with every call inlined, before any
+    /// folding: what a driver that inlines first (Mesa's NIR does) starts
+    /// from.
+    fn inlined_size(&self) -> usize {
+        fn size(m: &Module, f: u32, memo: &mut HashMap<u32, usize>) -> usize {
+            if let Some(&n) = memo.get(&f) {
+                return n;
+            }
+            let Some((own, calls)) = m.functions.get(&f) else {
+                return 0;
+            };
+            let n = own + calls.iter().map(|&g| size(m, g, memo)).sum::<usize>();
+            memo.insert(f, n);
+            n
+        }
+        self.entry.map_or(0, |e| size(self, e, &mut HashMap::new()))
     }
 
     /// Bytes of a type (booleans as 4, no padding).
@@ -401,6 +456,31 @@ mod tests {
                 variant_name(variant)
             );
             assert!(f.instructions.unwrap() > 1000, "{f:?}");
+        }
+    }
+
+    /// Every variant's integrator inlines once: with every call inlined
+    /// before folding the f64 window pipeline came to 63,568 instructions
+    /// when the lane's loop called `iterate` in both branches of
+    /// LOOP_LIMITER; 27,037 since (issue 47). The budget keeps a second
+    /// call site from coming back unnoticed.
+    #[test]
+    fn every_variant_inlines_its_integrator_once() {
+        for precision in [Precision::F64, Precision::F32] {
+            for loop_limiter in [false, true] {
+                let variant = Variant {
+                    precision,
+                    loop_limiter,
+                    parts: Parts::ALL,
+                };
+                let words = spirv(variant).unwrap();
+                let inlined = Module::parse(&words).inlined_size();
+                assert!(
+                    (10_000..40_000).contains(&inlined),
+                    "{}: {inlined} instructions inlined",
+                    variant_name(variant)
+                );
+            }
         }
     }
 
