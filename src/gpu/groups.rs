@@ -1,6 +1,6 @@
-//! Replicas on the device (`crate::replicas`): an f64 batch with fewer
+//! Replicas on the device (`crate::replicas`): a batch with fewer
 //! instances than lanes runs each splittable instance as a group of
-//! replica jobs, each on a lane of its own. A replica runs to the ladder
+//! replica jobs, each on a lane of its own, in either precision. A replica runs to the ladder
 //! level it waits at (`measured` 2, counted finished by the shader), a
 //! cycle split's piece to its end;
 //! between dispatches the host reads the groups whose replicas all
@@ -11,11 +11,13 @@
 //! again alone after the batch, labelled multistable where its replicas
 //! disagreed. The batch's other instances run alongside, as in any batch.
 //! Once the queue is empty and the groups left hold few jobs
-//! ([`Groups::tail_of`]), the CPU continues them from their states
+//! ([`Groups::tail_of`]), the CPU continues f64 groups from their states
 //! (`replicas::cpu::continue_replicas`) and the batch's own unfinished
-//! instances too, as any batch's tail.
+//! instances too, as any batch's tail; f32 groups run to their ends on the
+//! device (the CPU cannot continue an f32 state, and starting a replica
+//! over would lose what its group shares).
 
-use std::mem::offset_of;
+use std::marker::PhantomData;
 
 use super::runner::Runner;
 use super::slices::Between;
@@ -24,7 +26,6 @@ use crate::cpu::integrate::measure::VERDICT_RUNNING;
 use crate::cpu::integrate::{Replica, Replicas, STATUS_OK};
 use crate::motion::Motion;
 use crate::replicas::{Group, Member, Step};
-use layout::double::{Coefficients as Coefficients64, Measure as Measure64, State as State64};
 
 /// A batch's jobs: its instances that run alone, in order, then every
 /// group's replicas, group after group.
@@ -32,7 +33,7 @@ pub(super) struct Split {
     jobs: Vec<(Instance, Replica)>,
     /// The batch index of each job that runs alone (the first jobs).
     alone: Vec<usize>,
-    groups: Groups,
+    groups: Vec<GpuGroup>,
 }
 
 impl Split {
@@ -67,16 +68,10 @@ impl Split {
                 done: None,
             });
         }
-        let first = alone.len();
         Some(Split {
             jobs,
             alone,
-            groups: Groups {
-                groups,
-                first,
-                seen: None,
-                tail: 0,
-            },
+            groups,
         })
     }
 }
@@ -99,8 +94,8 @@ enum Done {
     Alone { multistable: bool, steps: u32 },
 }
 
-/// A batch's groups, stepped between its dispatches.
-struct Groups {
+/// A batch's groups in precision `L`, stepped between its dispatches.
+struct Groups<L> {
     groups: Vec<GpuGroup>,
     /// The first replica job: replicas run from here to the batch's end.
     first: usize,
@@ -110,9 +105,10 @@ struct Groups {
     /// The jobs the CPU takes over once no more of them are left
     /// ([`Groups::tail_of`]), 0 for none.
     tail: u64,
+    layout: PhantomData<L>,
 }
 
-impl Groups {
+impl<L> Groups<L> {
     /// The jobs of a split batch of `jobs` that the CPU takes over with
     /// `options` on `threads` threads: `BatchOptions::cpu_tail` where set,
     /// else [`CPU_TAIL_PER_THREAD`] per thread, at most a quarter of the
@@ -138,7 +134,7 @@ impl Groups {
     }
 }
 
-impl Between for Groups {
+impl<L: Layout> Between for Groups<L> {
     fn after(
         &mut self,
         runner: &Runner,
@@ -153,22 +149,27 @@ impl Between for Groups {
             .groups
             .last()
             .map_or(0, |g| g.first + g.group.count() as usize - self.first);
-        let all: Vec<State64> = read(runner, states, self.first, replicas)?;
+        let all: Vec<L::State> = read(runner, states, self.first, replicas)?;
         let mut again = Vec::new();
         for g in self.groups.iter_mut().filter(|g| g.done.is_none()) {
             let count = g.group.count() as usize;
             let own = &all[g.first - self.first..][..count];
             // As `Group::step` reads them.
             let group = &g.group;
-            let ended = |s: &State64| group.gives_up(s.status, s.measured, s.period);
-            let running =
-                |(r, s): (usize, &State64)| group.runs(r as u32, s.status, s.measured, s.period);
-            let steps = own.iter().fold(0u32, |n, s| n.saturating_add(s.steps));
+            let ended = |s: &L::State| {
+                let (status, measured, period) = L::progress(s);
+                group.gives_up(status, measured, period)
+            };
+            let running = |(r, s): (usize, &L::State)| {
+                let (status, measured, period) = L::progress(s);
+                group.runs(r as u32, status, measured, period)
+            };
+            let steps = own.iter().fold(0u32, |n, s| n.saturating_add(L::steps(s)));
             if own.iter().any(ended) {
                 // The split is given up: the replicas still running stop.
                 for (j, s) in (g.first..).zip(own.iter().enumerate()) {
                     if running(s) {
-                        write_u32(runner, states, state_field(j), 1);
+                        write_u32(runner, states, state_field::<L>(j), 1);
                     }
                 }
                 g.done = Some(Done::Alone {
@@ -180,25 +181,19 @@ impl Between for Groups {
             if own.iter().enumerate().any(running) {
                 continue;
             }
-            let taken: Vec<Measure64> = read(runner, measures, g.first, count)?;
+            let taken: Vec<L::Measure> = read(runner, measures, g.first, count)?;
             let members: Vec<Member> = own
                 .iter()
                 .zip(&taken)
                 .zip(group.replicas())
-                .map(|((s, m), (replica, _))| {
-                    let run = Run {
-                        state: layout::double::to_cpu(s),
-                        measure: layout::double::measure_to_cpu(m),
-                    };
-                    Member::of(&replica, &run)
-                })
+                .map(|((s, m), (replica, _))| Member::of(&replica, &L::group_run(s, m)))
                 .collect();
             match g.group.step(&members) {
                 Step::Wait => {}
                 Step::Continue => {
                     for j in g.first..g.first + count {
-                        write_u32(runner, states, state_field(j), 0);
-                        write_u32(runner, measures, verdict_field(j), VERDICT_RUNNING);
+                        write_u32(runner, states, state_field::<L>(j), 0);
+                        write_u32(runner, measures, verdict_field::<L>(j), VERDICT_RUNNING);
                         again.push(j as u32);
                     }
                 }
@@ -219,13 +214,13 @@ impl Between for Groups {
 }
 
 /// The byte offset of job `j`'s `State::measured`.
-fn state_field(j: usize) -> u64 {
-    (j * size_of::<State64>() + offset_of!(State64, measured)) as u64
+fn state_field<L: Layout>(j: usize) -> u64 {
+    (j * size_of::<L::State>() + L::MEASURED_OFFSET) as u64
 }
 
 /// The byte offset of job `j`'s `Measure::verdict`.
-fn verdict_field(j: usize) -> u64 {
-    (j * size_of::<Measure64>() + offset_of!(Measure64, verdict)) as u64
+fn verdict_field<L: Layout>(j: usize) -> u64 {
+    (j * size_of::<L::Measure>() + L::VERDICT_OFFSET) as u64
 }
 
 fn write_u32(runner: &Runner, buffer: &wgpu::Buffer, offset: u64, value: u32) {
@@ -259,7 +254,7 @@ impl Runner<'_> {
     /// A batch with replica groups (`split`): its jobs on the device, no
     /// CPU tail; the outcomes of its instances in order, each group's the
     /// merged estimate or its instance's own run, integrated again alone.
-    pub(super) fn batch_split(
+    pub(super) fn batch_split<L: Layout>(
         &self,
         instances: &[Instance],
         split: Split,
@@ -269,23 +264,37 @@ impl Runner<'_> {
         let Split {
             jobs,
             alone,
-            mut groups,
+            groups,
         } = split;
-        groups.tail = Groups::tail_of(self.options, jobs.len(), rayon::current_num_threads());
+        // f32 groups run to their ends on the device: the CPU cannot
+        // continue their states (module docs).
+        let continuable = L::PRECISION == Precision::F64;
+        let mut groups = Groups::<L> {
+            groups,
+            first: alone.len(),
+            seen: None,
+            tail: match continuable {
+                true => {
+                    Groups::<L>::tail_of(self.options, jobs.len(), rayon::current_num_threads())
+                }
+                false => 0,
+            },
+            layout: PhantomData,
+        };
         let options = BatchOptions {
             cpu_tail: Some(0),
             ..*self.options
         };
         let runner = self.with(self.settings, &options);
-        let coefficients: Vec<Coefficients64> = jobs
+        let coefficients: Vec<L::Coefficients> = jobs
             .par_iter()
-            .map(|(inst, r)| layout::double::pack_replica(inst, self.settings, *r))
+            .map(|(inst, r)| L::pack_replica(inst, self.settings, *r))
             .collect();
         let job_instances: Vec<Instance> = jobs.iter().map(|(inst, _)| *inst).collect();
-        let (pipeline, variant) = runner.pipeline::<Double>(Precision::F64, &coefficients)?;
+        let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
         let total = job_instances.len() as u64;
         let mut job_progress = |done: u64| progress(done * n as u64 / total);
-        let ((states, measure_list), _) = runner.slices::<Double>(
+        let ((states, measure_list), _) = runner.slices::<L>(
             &job_instances,
             &coefficients,
             (&pipeline, variant),
@@ -295,7 +304,7 @@ impl Runner<'_> {
         )?;
         drop(coefficients);
         let first = groups.first;
-        let ran_alone = runner.outcomes::<Double>(
+        let ran_alone = runner.outcomes::<L>(
             &job_instances[..first],
             &states[..first],
             &measure_list[..first.min(measure_list.len())],
@@ -304,7 +313,7 @@ impl Runner<'_> {
         for (&k, outcome) in alone.iter().zip(ran_alone) {
             out[k] = Some(outcome);
         }
-        self.on_cpu_merged_or_again(&groups.groups, (&states, &measure_list), &mut out)?;
+        self.on_cpu_merged_or_again::<L>(&groups.groups, (&states, &measure_list), &mut out)?;
         progress(n as u64);
         Ok(out
             .into_iter()
@@ -318,13 +327,19 @@ impl Runner<'_> {
     /// the batch's `states` and accumulators; or its instance's own run (a batch of its
     /// own, replicas off), labelled multistable where its replicas
     /// disagreed.
-    fn on_cpu_merged_or_again(
+    fn on_cpu_merged_or_again<L: Layout>(
         &self,
         groups: &[GpuGroup],
-        (states, measures): (&[State64], &[Measure64]),
+        (states, measures): (&[L::State], &[L::Measure]),
         out: &mut [Option<GpuOutcome>],
     ) -> Result<(), GpuError> {
-        let handed: Vec<&GpuGroup> = groups.iter().filter(|g| g.done.is_none()).collect();
+        // Groups the device handed over: f64 ones continue on the CPU; an
+        // f32 group (only a test's slice limit leaves one) runs again alone.
+        let continuable = L::PRECISION == Precision::F64;
+        let handed: Vec<&GpuGroup> = groups
+            .iter()
+            .filter(|g| g.done.is_none() && continuable)
+            .collect();
         let _tail = crate::profile::span(crate::profile::Phase::CpuPart);
         let on_cpu: Vec<Option<crate::replicas::cpu::GroupRun>> = handed
             .par_iter()
@@ -332,9 +347,9 @@ impl Runner<'_> {
             .map(|g| {
                 let replicas = g.group.replicas();
                 let runs = (g.first..g.first + replicas.len())
-                    .map(|j| Run {
-                        state: layout::double::to_cpu(&states[j]),
-                        measure: layout::double::measure_to_cpu(&measures[j]),
+                    .map(|j| {
+                        L::continuable(&g.inst, &states[j], Some(&measures[j]))
+                            .expect("an f64 state continues on the CPU")
                     })
                     .collect();
                 let stop = crate::sweep::interrupt_requested;
@@ -366,6 +381,7 @@ impl Runner<'_> {
                     });
                 }
                 Some(Done::Alone { multistable, steps }) => again.push((g, multistable, steps)),
+                None if !continuable => again.push((g, false, 0)),
                 None => {}
             }
         }
@@ -378,7 +394,7 @@ impl Runner<'_> {
         };
         let runner = self.with(&settings, self.options);
         let instances: Vec<Instance> = again.iter().map(|(g, _, _)| g.inst).collect();
-        let runs = runner.batch::<Double>(&instances, None, &mut |_| {})?;
+        let runs = runner.batch::<L>(&instances, None, &mut |_| {})?;
         for ((g, multistable, steps), mut run) in again.into_iter().zip(runs) {
             run.steps = run.steps.saturating_add(steps);
             // Only a finished run has a kind of motion (docs/output.md).

@@ -2,6 +2,7 @@
 //! storage structs, their packing and reduction) for the runner.
 
 use super::*;
+use crate::cpu::integrate::Replica;
 
 /// The host side of one precision: its storage structs and their packing.
 pub(super) trait Layout {
@@ -36,6 +37,18 @@ pub(super) trait Layout {
     /// (f32: the slow tail is where f32 is least sure; the f64 reference
     /// starts it over).
     fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run>;
+    /// Packs replica `r` of a split run (`inst` the replica's instance).
+    fn pack_replica(inst: &Instance, settings: &Settings, r: Replica) -> Self::Coefficients;
+    /// A replica's run as a group reads it (`replicas::Member::of`): status,
+    /// `measured` and period, and the accumulators, in SI units.
+    fn group_run(st: &Self::State, m: &Self::Measure) -> Run;
+    /// The status, `measured` and period of a state, as a group's step
+    /// reads them between dispatches.
+    fn progress(st: &Self::State) -> (u32, u32, u32);
+    /// Byte offsets of `State::measured` and `Measure::verdict`, which the
+    /// host writes to set a group's replicas going again.
+    const MEASURED_OFFSET: usize;
+    const VERDICT_OFFSET: usize;
 }
 
 /// A steady outcome from the shader's state and accumulators converted to
@@ -105,6 +118,20 @@ impl Layout for Single {
     fn continuable(_: &Instance, _: &Self::State, _: Option<&Self::Measure>) -> Option<Run> {
         None
     }
+    fn pack_replica(inst: &Instance, settings: &Settings, r: Replica) -> Self::Coefficients {
+        layout::single::pack_replica(inst, settings, r)
+    }
+    fn group_run(st: &Self::State, m: &Self::Measure) -> Run {
+        Run {
+            state: layout::single::reduced_state(st),
+            measure: layout::single::measure_to_cpu(m),
+        }
+    }
+    fn progress(st: &Self::State) -> (u32, u32, u32) {
+        (st.status, st.measured, st.period)
+    }
+    const MEASURED_OFFSET: usize = std::mem::offset_of!(layout::single::State, measured);
+    const VERDICT_OFFSET: usize = std::mem::offset_of!(layout::single::Measure, verdict);
 }
 
 impl Layout for Double {
@@ -155,4 +182,18 @@ impl Layout for Double {
             },
         })
     }
+    fn pack_replica(inst: &Instance, settings: &Settings, r: Replica) -> Self::Coefficients {
+        layout::double::pack_replica(inst, settings, r)
+    }
+    fn group_run(st: &Self::State, m: &Self::Measure) -> Run {
+        Run {
+            state: layout::double::to_cpu(st),
+            measure: layout::double::measure_to_cpu(m),
+        }
+    }
+    fn progress(st: &Self::State) -> (u32, u32, u32) {
+        (st.status, st.measured, st.period)
+    }
+    const MEASURED_OFFSET: usize = std::mem::offset_of!(layout::double::State, measured);
+    const VERDICT_OFFSET: usize = std::mem::offset_of!(layout::double::Measure, verdict);
 }

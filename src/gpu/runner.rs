@@ -555,15 +555,12 @@ impl<'a> Runner<'a> {
         packed: Option<&[u8]>,
         progress: &mut dyn FnMut(u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
-        // Replicas on the lanes a small f64 batch leaves idle (f32 runs
-        // every instance alone, as on the CPU).
-        if L::PRECISION == Precision::F64 {
-            let lanes = self.options.lanes.unwrap_or(LANES);
-            let count =
-                crate::replicas::count_queued(self.settings.replicas, lanes, instances.len());
-            if let Some(split) = groups::Split::of(instances, self.settings, count) {
-                return self.batch_split(instances, split, progress);
-            }
+        // Replicas on the lanes a small batch leaves idle, in either
+        // precision.
+        let lanes = self.options.lanes.unwrap_or(LANES);
+        let count = crate::replicas::count_queued(self.settings.replicas, lanes, instances.len());
+        if let Some(split) = groups::Split::of(instances, self.settings, count) {
+            return self.batch_split::<L>(instances, split, progress);
         }
         let n = instances.len();
         let coefficients = self.coefficients::<L>(instances, packed);

@@ -255,8 +255,9 @@ fn an_interrupted_run_with_replicas_resumes_to_the_same_map() {
 /// The GPU's groups against the CPU's, four replicas each (two phase
 /// splits and a cycle split): f64 merges the same windows and joins the
 /// same pieces (the same periods and kinds of motion, values within the
-/// f64 shader's rounding of the CPU's), f32 runs every instance alone
-/// (within the CPU's errors and f32's allowance).
+/// f64 shader's rounding of the CPU's); f32 merges its phase splits too
+/// (issue 47), within the CPU's errors and f32's allowance, and a cycle
+/// split's pieces join or the instance runs alone.
 #[test]
 fn the_gpu_merges_replicas_as_the_cpu_does() {
     let Some(ctx) = context() else {
@@ -308,8 +309,9 @@ fn groups_on_the_cpu() -> ([Instance; 3], Settings, Vec<(Measured, u32)>) {
 
 /// A GPU outcome `g` of `inst` against its CPU group `(c, count)`: in f64
 /// the same replicas, periods, kind of motion and status, each step
-/// within 1e-6 um (the f64 shader's rounding); in f32 one run alone
-/// within the CPU's errors and f32's allowance.
+/// within 1e-6 um (the f64 shader's rounding); in f32 within the CPU's
+/// errors and f32's allowance, from as many replicas where a phase split
+/// merges (a cycle split's f32 pieces may not join: then one run alone).
 fn against_the_cpu(
     name: &str,
     precision: Precision,
@@ -336,7 +338,10 @@ fn against_the_cpu(
             (*count, c.periods, c.motion, c.status),
             "{name}"
         ),
-        Precision::F32 => assert_eq!(g.replicas, 1, "{name}"),
+        Precision::F32 if c.lag > 0 => {
+            assert!(g.replicas == 1 || g.replicas == *count, "{name}")
+        }
+        Precision::F32 => assert_eq!(g.replicas, *count, "{name}"),
     }
 }
 
