@@ -71,21 +71,8 @@ const PROBE_INSTANCES: usize = 64;
 /// and a table of their footprints, then the emulated f64 operations per
 /// slip trial of the f64 pipeline on a probe batch.
 pub fn shader_info(dir: &Path) -> Result<()> {
-    use crate::backend::Precision;
     use crate::gpu::footprint::{self, write_sources};
-    use crate::gpu::shader::{Parts, Variant};
-    let mut variants = Vec::new();
-    for precision in [Precision::F64, Precision::F32] {
-        for loop_limiter in [false, true] {
-            for parts in Parts::every() {
-                variants.push(Variant {
-                    precision,
-                    loop_limiter,
-                    parts,
-                });
-            }
-        }
-    }
+    let variants = crate::gpu::shader::Variant::every();
     let names = write_sources(dir, &variants)
         .with_context(|| format!("writing the shader variants into {}", dir.display()))?;
     println!(

@@ -192,6 +192,26 @@ pub struct Variant {
     pub parts: Parts,
 }
 
+impl Variant {
+    /// Every variant: both precisions, both kinds of adapter, every
+    /// combination of parts.
+    pub fn every() -> Vec<Variant> {
+        let mut out = Vec::new();
+        for precision in [Precision::F64, Precision::F32] {
+            for loop_limiter in [false, true] {
+                for parts in Parts::every() {
+                    out.push(Variant {
+                        precision,
+                        loop_limiter,
+                        parts,
+                    });
+                }
+            }
+        }
+        out
+    }
+}
+
 /// A variant without steady measurements: the steady half of the entry
 /// point (`steady.wgsl`) as functions that do nothing. Its pipelines bind
 /// neither the accumulators nor the heads.
@@ -270,24 +290,22 @@ fn div(a: Real, b: Real) -> Real {
     return fma(fma(-b, q, a), y, q);
 }
 
-// 1 / sqrt(x) rounded as the CPU's 1.0 / x.sqrt() (the reciprocal of the
-// rounded root): root's sequence, then the reciprocal from root's own
-// inverse square root, already within an ulp of it, in one Newton step and
-// recip's correction (not recip's whole sequence). x as root takes it.
-fn recip_root(x: Real) -> Real {
-    if !(x > Real(0.0)) || x > INFINITY {
-        return recip(root(x));
-    }
-    emulated += 1u;
+// sqrt(x) for 0 < x < INFINITY, rounded as the CPU rounds it, and the
+// inverse square root it came from: inverseSqrt, three Newton steps, one
+// correction.
+struct RootParts {
+    s: Real,
+    y: Real,
+}
+
+fn root_parts(x: Real) -> RootParts {
     var y = inverseSqrt(x);
     let half = Real(0.5) * x;
     y = y * fma(-half * y, y, Real(1.5));
     y = y * fma(-half * y, y, Real(1.5));
     y = y * fma(-half * y, y, Real(1.5));
-    let s0 = x * y;
-    let s = fma(fma(-s0, s0, x), Real(0.5) * y, s0);
-    y = fma(y, fma(-s, y, Real(1.0)), y);
-    return fma(y, fma(-s, y, Real(1.0)), y);
+    let s = x * y;
+    return RootParts(fma(fma(-s, s, x), Real(0.5) * y, s), y);
 }
 
 // sqrt(x) for x >= 0 (and x itself for 0 and NaN).
@@ -296,13 +314,21 @@ fn root(x: Real) -> Real {
     if !(x > Real(0.0)) || x > INFINITY {
         return x;
     }
-    var y = inverseSqrt(x);
-    let half = Real(0.5) * x;
-    y = y * fma(-half * y, y, Real(1.5));
-    y = y * fma(-half * y, y, Real(1.5));
-    y = y * fma(-half * y, y, Real(1.5));
-    let s = x * y;
-    return fma(fma(-s, s, x), Real(0.5) * y, s);
+    return root_parts(x).s;
+}
+
+// 1 / sqrt(x) rounded as the CPU's 1.0 / x.sqrt() (the reciprocal of the
+// rounded root): the root, then its reciprocal from the root's own
+// inverse square root, already within an ulp of it, in one Newton step
+// and recip's correction (not recip's whole sequence). x as root takes it.
+fn recip_root(x: Real) -> Real {
+    if !(x > Real(0.0)) || x > INFINITY {
+        return recip(root(x));
+    }
+    emulated += 1u;
+    let r = root_parts(x);
+    let y = fma(r.y, fma(-r.s, r.y, Real(1.0)), r.y);
+    return fma(y, fma(-r.s, y, Real(1.0)), y);
 }
 ";
 
@@ -518,22 +544,6 @@ pub(crate) fn defined_functions(text: &str) -> Vec<String> {
 mod tests {
     use super::*;
 
-    fn variants() -> Vec<Variant> {
-        let mut out = Vec::new();
-        for precision in [Precision::F32, Precision::F64] {
-            for loop_limiter in [false, true] {
-                for parts in Parts::every() {
-                    out.push(Variant {
-                        precision,
-                        loop_limiter,
-                        parts,
-                    });
-                }
-            }
-        }
-        out
-    }
-
     #[test]
     fn prelude_literals_round_trip() {
         let max = format!("{:e}", f32::MAX as f64);
@@ -547,7 +557,7 @@ mod tests {
 
     #[test]
     fn every_variant_parses_and_validates() {
-        for variant in variants() {
+        for variant in Variant::every() {
             if let Err(e) = parse_and_validate(variant) {
                 panic!("{variant:?}: {e}");
             }
@@ -559,7 +569,7 @@ mod tests {
     /// struct behind a pointer parameter, which its validator accepts).
     #[test]
     fn every_variant_writes_spir_v() {
-        for variant in variants() {
+        for variant in Variant::every() {
             let (module, info) = parse_and_validate(variant).unwrap();
             let options = naga::back::spv::Options::default();
             let words = naga::back::spv::write_vec(&module, &info, &options, None)
