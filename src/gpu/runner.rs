@@ -313,7 +313,7 @@ impl<'a> Runner<'a> {
     ) -> Result<Vec<GpuOutcome>, GpuError> {
         let state_size = if any_steady(instances) {
             size_of::<L::State>()
-                .max(size_of::<L::Measure>() * super::slices::measure_entries(self.loop_limiter()))
+                .max(size_of::<L::Measure>() * super::staging::measure_entries(self.loop_limiter()))
         } else {
             size_of::<L::State>()
         };

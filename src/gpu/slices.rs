@@ -56,13 +56,6 @@ struct Buffers {
     tallies_read: wgpu::Buffer,
 }
 
-/// Accumulator entries per steady instance: two where the shader updates
-/// a lane's scratch entry and copies it back (`loop_limiter`: a cut update
-/// must leave no trace), one where it updates the instance's own in place.
-pub(super) fn measure_entries(loop_limiter: bool) -> usize {
-    if loop_limiter { 2 } else { 1 }
-}
-
 impl Buffers {
     fn new<L: Layout>(
         device: &wgpu::Device,
@@ -87,7 +80,7 @@ impl Buffers {
         // loop-limited adapter: `steady.wgsl`), else one unused entry
         // (windows never touch them).
         let per_steady = if steady { n } else { 1 };
-        let measures = per_steady * measure_entries(steady && loop_limiter);
+        let measures = per_steady * super::staging::measure_entries(steady && loop_limiter);
         let identity: Vec<u32> = (0..n as u32).collect();
         Buffers {
             coefficients: init("coefficients", bytemuck::cast_slice(coefficients), false),

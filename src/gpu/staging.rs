@@ -24,6 +24,13 @@ pub fn max_batch_instances(
     n.max(1)
 }
 
+/// Accumulator entries per steady instance: two where the shader updates
+/// a lane's scratch entry and copies it back (`loop_limiter`: a cut update
+/// must leave no trace), one where it updates the instance's own in place.
+pub(super) fn measure_entries(loop_limiter: bool) -> usize {
+    if loop_limiter { 2 } else { 1 }
+}
+
 /// Instances per sweep chunk on `ctx` in `precision`: the lanes the
 /// adapter keeps busy ([`GpuContext::lanes`]) [`CHUNK_ROUNDS`] times over
 /// ([`SOFTWARE_CHUNK_ROUNDS`] on a software adapter),
@@ -35,7 +42,7 @@ pub fn max_batch_instances(
 pub fn chunk_instances(ctx: &GpuContext, precision: Precision) -> usize {
     let limiter = ctx.variant(precision, Parts::default()).loop_limiter;
     fn of<L: Layout>(limits: &wgpu::Limits, limiter: bool) -> usize {
-        let measure = size_of::<L::Measure>() * super::slices::measure_entries(limiter);
+        let measure = size_of::<L::Measure>() * measure_entries(limiter);
         let state = size_of::<L::State>().max(measure);
         max_batch_instances(
             limits,
