@@ -58,8 +58,9 @@ Sub-commands:
   instance), written as ONE points scene with `[mechanism] friction =
   "lugre"` and each point's `mechanism = { ... }`, run through `PATH run
   scene.toml --out file.h5 --backend cpu` (`--backend gpu` adds
-  `--precision f64`), read back as crosscheck.py does, and integrated here
-  at rtol 1e-10. The draws (draw(); the first eight force the features
+  `--precision f64`; `--gpu-instances N` runs the f64 GPU on the first N
+  too, held to the same SciPy integration), read back as crosscheck.py
+  does, and integrated here at rtol 1e-10. The draws (draw(); the first eight force the features
   listed in FORCED so that every default run has them): sigma0
   log-uniform 1e5..1e10 N/m; sigma1 given (log-uniform 0.1..3 x
   sqrt(sigma0 m_s)) or derived (key omitted); sigma2 0 or uniform up to
@@ -750,30 +751,42 @@ def describe(inst: Instance) -> str:
 def cmd_engine(args) -> int:
     if args.instances < 1:
         raise SystemExit("--instances must be at least 1")
-    precision = "f64" if args.backend == "gpu" else None
+    if not 0 <= args.gpu_instances <= args.instances:
+        raise SystemExit("--gpu-instances must lie between 0 and --instances")
     binary = args.pidm or os.environ.get("PIDM_BIN")
     started = time.time()
     instances = make_instances(args.instances, args.seed)
-    engine = None
+    # The engines to check, each on the first `count` instances: --backend
+    # on all, and with --gpu-instances the f64 GPU on the first few too,
+    # against the one SciPy integration of them all.
+    runs = [(args.backend, len(instances))]
+    if args.gpu_instances and args.backend == "cpu":
+        runs.append(("gpu", args.gpu_instances))
+    engines = []
     with tempfile.TemporaryDirectory() as tmp:
         work = args.keep or Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
-        scene = work / "lugre_crosscheck.toml"
-        scene.write_text(scene_toml(instances, args.tolerance))
-        if not args.scipy_only:
-            engine = run_engine(
-                scene, work / "lugre_crosscheck.h5", args.backend, precision, binary
+        for backend, count in runs if not args.scipy_only else []:
+            scene = work / f"lugre_crosscheck_{backend}.toml"
+            scene.write_text(scene_toml(instances[:count], args.tolerance))
+            precision = "f64" if backend == "gpu" else None
+            out = work / f"lugre_crosscheck_{backend}.h5"
+            engines.append((count, run_engine(scene, out, backend, precision, binary)))
+    failures = []
+    for count, engine in engines:
+        failures.extend(engine.problems)
+        if len(engine.step_x) != count:
+            failures.append(
+                f"{engine.backend}: the file has {len(engine.step_x)} points, not {count}"
             )
-    failures = list(engine.problems) if engine else []
-    if engine and len(engine.step_x) != len(instances):
-        failures.append(f"the file has {len(engine.step_x)} points, the scene {len(instances)}")
-        engine = None
+    engines = [(count, e) for count, e in engines if len(e.step_x) == count]
     print(
-        f"{len(instances)} LuGre instances, seed {args.seed}; "
+        f"{len(instances)} LuGre instances, seed {args.seed}; engines: "
         + (
-            f"engine: {engine.backend} ({engine.precision}), {engine.seconds:.1f} s"
-            if engine
-            else "engine not run (--scipy-only)"
+            ", ".join(
+                f"{e.backend} ({e.precision}) on {count}, {e.seconds:.1f} s" for count, e in engines
+            )
+            or "not run (--scipy-only)"
         )
     )
     print(
@@ -784,6 +797,26 @@ def cmd_engine(args) -> int:
     wall = time.time()
     refs = run_pool([(inst, args.rtol, args.method) for inst in instances], args.jobs)
     wall = time.time() - wall
+    for j, (inst, ref) in enumerate(zip(instances, refs)):
+        if ref.error:
+            failures.append(f"{inst.label}: SciPy failed: {ref.error}")
+    for count, engine in engines or [(len(instances), None)]:
+        failures.extend(compare_engine(engine, instances[:count], refs, args.verbose))
+    for failure in failures:
+        print(f"FAIL: {failure}")
+    cpu = sum(r.cpu for r in refs)
+    print(
+        f"lugre engine: {len(failures)} failure(s); scipy {cpu:.1f} s CPU in {args.jobs} "
+        f"process(es), {wall:.1f} s wall; total {time.time() - started:.1f} s"
+    )
+    return 1 if failures else 0
+
+
+def compare_engine(engine, instances, refs, verbose) -> list[str]:
+    """One engine's steps (or none: SciPy's alone) against the references of
+    its instances: a table, the largest difference in bounds, the failures."""
+    failures = []
+    print(f"-- {f'{engine.backend} ({engine.precision})' if engine else 'SciPy alone'}")
     print(
         f"{'instance':<26} {'win':>5} {'st':>2} {'axis':>4} {'engine':>12} {'scipy':>12} "
         f"{'diff':>9} {'bound':>9} {'steps':>7} {'cpu s':>6}"
@@ -792,7 +825,6 @@ def cmd_engine(args) -> int:
     for j, (inst, ref) in enumerate(zip(instances, refs)):
         if ref.error:
             print(f"{inst.label:<26} SciPy failed: {ref.error}  FAIL")
-            failures.append(f"{inst.label}: SciPy failed: {ref.error}")
             continue
         for i, axis in enumerate("xy"):
             s = ref.step[i]
@@ -812,7 +844,7 @@ def cmd_engine(args) -> int:
                     worst, worst_at = diff / bound, f"{inst.name()} {axis}"
                 if bad:
                     mark = "  FAIL (" + ", ".join(bad) + ")"
-                    failures.append(f"{inst.label} {axis}: " + ", ".join(bad))
+                    failures.append(f"{engine.backend}: {inst.label} {axis}: " + ", ".join(bad))
             first = i == 0
             print(
                 f"{inst.label if first else '':<26} "
@@ -820,18 +852,11 @@ def cmd_engine(args) -> int:
                 f"{e_txt:>12} {s * 1e6:>+12.6f} {d_txt:>9} {bound * 1e6:>9.2e} "
                 f"{ref.steps if first else '':>7} {f'{ref.cpu:.1f}' if first else '':>6}{mark}"
             )
-        if args.verbose:
+        if verbose:
             print(f"{'':<26} {describe(inst)}")
     if engine:
         print(f"largest |engine - scipy| / bound = {worst:.3f} ({worst_at or 'none'})")
-    for failure in failures:
-        print(f"FAIL: {failure}")
-    cpu = sum(r.cpu for r in refs)
-    print(
-        f"lugre engine: {len(failures)} failure(s); scipy {cpu:.1f} s CPU in {args.jobs} "
-        f"process(es), {wall:.1f} s wall; total {time.time() - started:.1f} s"
-    )
-    return 1 if failures else 0
+    return failures
 
 
 # ----------------------------------------------------------------------------
@@ -918,6 +943,13 @@ def main() -> int:
     p.add_argument("--instances", type=int, default=INSTANCES)
     p.add_argument("--seed", type=int, default=SEED)
     p.add_argument("--backend", choices=["cpu", "gpu"], default="cpu")
+    p.add_argument(
+        "--gpu-instances",
+        type=int,
+        default=0,
+        help="with --backend cpu: also the f64 GPU on the first N instances, "
+        "against the same SciPy integration",
+    )
     p.add_argument("--tolerance", type=float, help="simulation.tolerance for the engine")
     p.add_argument("--rtol", type=float, default=ENGINE_RTOL, help="SciPy's Radau rtol")
     p.add_argument("--jobs", type=int, default=jobs, help="SciPy integrations in parallel")

@@ -93,15 +93,32 @@ fn run_script(script: &str, args: &[&str], verdict: &str) {
 /// instances with bristle stiffness 1e5 to 1e10 N/m, given and derived
 /// damping, viscous friction, Stribeck velocities, f_s = f_c, equal and
 /// unequal stages, 1-DOF and 2-DOF, a 2:1 frequency ratio, duty 0.5 to 1
-/// (1 included) and loads, each within 0.001 um + 0.1 % per cycle. About
-/// three minutes, nearly all of it SciPy's.
+/// (1 included) and loads, each within 0.001 um + 0.1 % per cycle; and the
+/// f64 LuGre shader on the first four of them (stiff bristles at duty 1, a
+/// 2:1 ratio, f_s = f_c with a load, unequal stages) against the same
+/// SciPy integration and bounds. On lavapipe the shader's maps are the
+/// CPU's bit for bit (`tests/it/gpu_lugre.rs`), so this holds the whole
+/// path, scene to file, on the GPU backend. About three minutes, nearly
+/// all of it SciPy's (integrated once for both backends: two tests that
+/// each integrated took five).
 #[test]
-fn lugre_instances_agree_with_scipy_on_the_cpu() {
-    run_script(
-        "lugre.py",
-        &["engine", "--backend", "cpu"],
-        "lugre engine: 0 failure(s)",
-    );
+fn lugre_instances_agree_with_scipy_on_the_cpu_and_the_gpu_in_f64() {
+    let gpu = match GpuContext::new(true) {
+        Err(e) => {
+            cannot_run(&format!("no GPU adapter is usable ({e}): the CPU alone"));
+            false
+        }
+        Ok(ctx) if !ctx.supports_f64() => {
+            cannot_run(&format!("{} offers no f64: the CPU alone", ctx.describe()));
+            false
+        }
+        Ok(_) => true,
+    };
+    let mut args = vec!["engine", "--backend", "cpu"];
+    if gpu {
+        args.extend(["--gpu-instances", "4"]);
+    }
+    run_script("lugre.py", &args, "lugre engine: 0 failure(s)");
 }
 
 /// Every instance of the three default sets (40 + 8 + 4) on the CPU path.
@@ -143,25 +160,4 @@ fn random_instances_agree_with_scipy_on_the_gpu_in_f64() {
         "n6",
         "l3",
     ]);
-}
-
-/// The f64 LuGre shader against the same SciPy reference and bounds, on
-/// the first four of those instances (stiff bristles at duty 1, a 2:1
-/// ratio, f_s = f_c with a load, unequal stages). On lavapipe its maps are
-/// the CPU's bit for bit (`tests/it/gpu_lugre.rs`), so this holds the whole
-/// path, scene to file, on the GPU backend.
-#[test]
-fn lugre_instances_agree_with_scipy_on_the_gpu_in_f64() {
-    match GpuContext::new(true) {
-        Err(e) => return cannot_run(&format!("no GPU adapter is usable ({e})")),
-        Ok(ctx) if !ctx.supports_f64() => {
-            return cannot_run(&format!("{} offers no f64", ctx.describe()));
-        }
-        Ok(_) => {}
-    }
-    run_script(
-        "lugre.py",
-        &["engine", "--backend", "gpu", "--instances", "4"],
-        "lugre engine: 0 failure(s)",
-    );
 }
