@@ -1,4 +1,4 @@
-//! The reduction of a finished run to what a map shows (MODEL.md section
+//! The reduction of a finished run to what a map shows (docs/model.md section
 //! 4): the mean travel and the periods it spans, each axis' standard error,
 //! the periods integrated, the detected cycle and the status. Every
 //! backend's results pass through [`reduce`]: the CPU's runs directly, the
@@ -8,11 +8,11 @@
 //! `cpu::integrate::measure` (mirrored by the shader); this module only
 //! reads what they left.
 
-use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
-use crate::cpu::integrate::measure::{
+use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::karnopp::integrate::measure::{
     VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, estimate,
 };
-use crate::cpu::integrate::{Run, STATUS_OK, State};
+use crate::laws::karnopp::integrate::{Run, STATUS_OK, State};
 use crate::model::{AXES, Instance, Measure};
 use crate::motion::Motion;
 
@@ -122,7 +122,7 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                 )
             };
             // The larger of an estimate's standard errors per own cycle.
-            let worst = |se2: crate::cpu::integrate::Vec2| {
+            let worst = |se2: crate::laws::karnopp::integrate::Vec2| {
                 (0..AXES)
                     .map(|i| se2[i].sqrt() / own_cycles(i))
                     .fold(0.0, f64::max)

@@ -1,4 +1,4 @@
-//! The physical model of `MODEL.md`: the parameters of one 2-DOF instance,
+//! The physical model of `docs/model.md`: the parameters of one 2-DOF instance,
 //! the sawtooth drive and the derived quantities every backend needs.
 //!
 //! The model never does I/O and never allocates: it is plain data and pure
@@ -11,7 +11,7 @@ pub const AXES: usize = 2;
 /// Axis names, in storage order.
 pub const AXIS_NAMES: [&str; AXES] = ["x", "y"];
 
-/// One actuator + stage axis and its drive (MODEL.md sections 1-2).
+/// One actuator + stage axis and its drive (docs/model.md sections 1-2).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Axis {
     /// Equivalent mass of actuator and stage, m_p [kg].
@@ -33,7 +33,7 @@ pub struct Axis {
     pub phase: f64,
 }
 
-/// The shared friction interface and its slider (MODEL.md section 3).
+/// The shared friction interface and its slider (docs/model.md section 3).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Mechanism {
     /// Slider mass m_s [kg].
@@ -45,7 +45,7 @@ pub struct Mechanism {
     /// Karnopp detection band a on the relative speed [m/s] (Karnopp
     /// friction only: LuGre has no modes, and its scenes refuse the key).
     pub velocity_band: f64,
-    /// Constant external force on the slider, (L_x, L_y) [N] (MODEL.md
+    /// Constant external force on the slider, (L_x, L_y) [N] (docs/model.md
     /// section 7: a weight, a cable, a preloaded spring). Default 0, which
     /// reproduces every unloaded result bit for bit; a scene refuses
     /// |L| >= f_c (a slider slipping along such a load is not stopped by
@@ -58,16 +58,16 @@ pub struct Mechanism {
 /// The friction law at the interface (`mechanism.friction`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub enum Friction {
-    /// Coulomb friction with stiction in Karnopp's form, two modes (MODEL.md
+    /// Coulomb friction with stiction in Karnopp's form, two modes (docs/model.md
     /// section 3): the default, integrated in closed form.
     #[default]
     Karnopp,
-    /// The 2-D LuGre model (MODEL.md section 8): bristles with a state of
+    /// The 2-D LuGre model (docs/model.md section 8): bristles with a state of
     /// their own, no modes, a stiff right-hand side.
     Lugre(Lugre),
 }
 
-/// The LuGre parameters of MODEL.md section 8. The defaults are
+/// The LuGre parameters of docs/model.md section 8. The defaults are
 /// illustrative, not identified for any device.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Lugre {
@@ -85,7 +85,7 @@ pub struct Lugre {
 }
 
 impl Lugre {
-    /// MODEL.md section 8's defaults.
+    /// docs/model.md section 8's defaults.
     pub const DEFAULT: Lugre = Lugre {
         bristle_stiffness: 1e7,
         bristle_damping: None,
@@ -129,7 +129,7 @@ impl Mechanism {
 
     /// The largest friction force the interface holds without slipping
     /// [N]: max(f_s, f_c). It is f_s whenever f_c <= f_s (every physical
-    /// interface). With f_c > f_s, MODEL.md's rules chatter: a breakaway
+    /// interface). With f_c > f_s, docs/model.md's rules chatter: a breakaway
     /// with f_s < |f_need| <= f_c starts a slip that the larger kinetic
     /// friction cannot let grow (the slip direction exists only for
     /// |f_need| > f_c, see `slip_direction`), so the relative velocity
@@ -146,7 +146,7 @@ impl Mechanism {
 /// The bits of every parameter of an [`Instance`] ([`Instance::key`]).
 pub type InstanceKey = [u64; 31];
 
-/// How an instance's step is measured (MODEL.md section 4).
+/// How an instance's step is measured (docs/model.md section 4).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Measure {
     /// The paper's fixed window: [`Instance::cycles`] scene periods, the
@@ -203,7 +203,7 @@ pub struct Instance {
     pub mechanism: Mechanism,
     pub axes: [Axis; AXES],
     /// Scene periods simulated (a window) or the most that may be
-    /// simulated (`max_cycles` of a steady measurement) (MODEL.md section 4).
+    /// simulated (`max_cycles` of a steady measurement) (docs/model.md section 4).
     pub cycles: u32,
     /// Leading periods discarded before measuring (at least, when steady).
     pub settle: u32,
@@ -293,12 +293,12 @@ impl Mechanism {
     }
 
     /// The load's magnitude |L| [N] (the friction law is isotropic, so the
-    /// refusal of MODEL.md section 7 is on the vector's length).
+    /// refusal of docs/model.md section 7 is on the vector's length).
     pub fn load_magnitude(&self) -> f64 {
         self.load[0].hypot(self.load[1])
     }
 
-    /// Whether the load is refused (MODEL.md section 7): a non-zero load of
+    /// Whether the load is refused (docs/model.md section 7): a non-zero load of
     /// at least the kinetic friction f_c, along which a slipping slider is
     /// not stopped by friction and may run away. A zero load is never
     /// refused, also with f_c = 0.
@@ -330,7 +330,7 @@ impl Instance {
     };
 
     /// Scene period T = 1 / (lowest frequency among driven axes), or 1 / f_x
-    /// when nothing is driven (MODEL.md section 4) [s].
+    /// when nothing is driven (docs/model.md section 4) [s].
     pub fn period(&self) -> f64 {
         let lowest = self
             .axes
@@ -352,8 +352,8 @@ impl Instance {
     }
 
     /// The same mechanism with every axis but `keep` undriven: the 1-DOF
-    /// baseline of MODEL.md section 4 (paper curves d_s1, d_s2). It carries
-    /// only its own axis' load, (L_i, 0) on axis i (MODEL.md section 7),
+    /// baseline of docs/model.md section 4 (paper curves d_s1, d_s2). It carries
+    /// only its own axis' load, (L_i, 0) on axis i (docs/model.md section 7),
     /// so it is the 1-DOF actuator under the same load along its axis.
     pub fn baseline(&self, keep: usize) -> Instance {
         let mut out = *self;
@@ -403,7 +403,7 @@ impl Instance {
     }
 }
 
-/// Normalised sawtooth w(u; d) of MODEL.md section 2: a rise from 0 to 1 over
+/// Normalised sawtooth w(u; d) of docs/model.md section 2: a rise from 0 to 1 over
 /// the first fraction `duty` of each cycle, then a fall back to 0.
 pub fn sawtooth(u: f64, duty: f64) -> f64 {
     let p = u - u.floor();

@@ -9,7 +9,7 @@
 //!   common periods (a lag was found); the step is exact;
 //! * *quasi-periodic*: the phase-resolved estimate converged: the slider's
 //!   increments over successive scene periods are a smooth function of
-//!   the faster drive's phase (MODEL.md section 4; the estimator is
+//!   the faster drive's phase (docs/model.md section 4; the estimator is
 //!   `cpu::integrate::phase`). A periodic motion whose period is longer
 //!   than the run needed to measure it counts here too;
 //! * *irregular*: only the batch means (with the cumulative-sum floor)

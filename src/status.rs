@@ -13,8 +13,8 @@
 //! search's own (`crate::stall`, `/maps/stall_status`): the step does not
 //! change sign on the loaded side.
 
-use crate::cpu::integrate::constants::{STATUS_NOT_STEADY, STATUS_UNCONVERGED};
-use crate::cpu::integrate::{
+use crate::laws::karnopp::integrate::constants::{STATUS_NOT_STEADY, STATUS_UNCONVERGED};
+use crate::laws::karnopp::integrate::{
     STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_OK, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
 };
 
@@ -38,7 +38,7 @@ pub enum Status {
     /// motion repeating or its standard error falling within
     /// `simulation.step_tolerance`; the map keeps the best estimate.
     NotSteady = STATUS_NOT_STEADY,
-    /// The stall search (`[stall]`, MODEL.md section 7) found no load
+    /// The stall search (`[stall]`, docs/model.md section 7) found no load
     /// below the kinetic friction that stops the axis: its step keeps the
     /// unloaded direction up to the largest load probed, so the actuator
     /// pushes any load the interface can hold. The stall-load map holds 0
@@ -112,7 +112,7 @@ mod tests {
 
     #[test]
     fn codes_are_dense_but_for_the_graze_and_round_trip() {
-        use crate::cpu::integrate::constants::STATUS_GRAZE;
+        use crate::laws::karnopp::integrate::constants::STATUS_GRAZE;
         let codes: Vec<u32> = Status::ALL.iter().map(|s| s.code()).collect();
         let dense: Vec<u32> = (0..=Status::ALL.len() as u32)
             .filter(|&c| c != STATUS_GRAZE)

@@ -34,7 +34,7 @@
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 
-use crate::cpu::integrate::{
+use crate::laws::karnopp::integrate::{
     self, Coefficients, Settings, State, StepMotion, StepObserver, advance_observed,
     initial_measure, initial_state, is_finished,
 };

@@ -1,4 +1,4 @@
-// Mirror of src/cpu/lugre/model.rs: the LuGre right-hand side (MODEL.md
+// Mirror of src/cpu/lugre/model.rs: the LuGre right-hand side (docs/model.md
 // section 8), its exact Jacobian, and the drive over one segment between
 // corners, linear in time. f64 only. The prelude (`pidm::gpu::lugre`)
 // defines Real, the state's layout (N, XP, VP, XS, VS, Z, T), the
@@ -270,7 +270,7 @@ fn jacobian(y: State, drive: Drive) -> Matrix {
 }
 
 // Axis `i`'s drive over a segment that contains `t_mid` [s] and no corner
-// (MODEL.md section 2), linear in time.
+// (docs/model.md section 2), linear in time.
 fn drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
     var start = clock.start;
     let v = model.voltage[i];

@@ -1,4 +1,4 @@
-//! The Karnopp limit of LuGre friction (MODEL.md section 8): as sigma0
+//! The Karnopp limit of LuGre friction (docs/model.md section 8): as sigma0
 //! grows (sigma1 = sqrt(sigma0 m_s)) and v_S shrinks, LuGre tends to the
 //! Coulomb friction with stiction of section 3. `pidm accuracy` runs a
 //! LuGre scene's instances at a ladder of sigma0 with v_S = 1e-5 m/s and
@@ -14,13 +14,13 @@ use plotters::prelude::*;
 
 use super::{LogLog, log_log_png};
 use crate::backend::{Backend, CpuBackend};
-use crate::cpu::integrate::Settings;
+use crate::laws::karnopp::integrate::Settings;
 use crate::model::{AXES, Friction, Instance, Lugre};
 
-/// The ladder of bristle stiffness [N/m]: MODEL.md's table and the issue's
+/// The ladder of bristle stiffness [N/m]: docs/model.md's table and the issue's
 /// limit, 1e7 to 1e10.
 pub const LIMIT_STIFFNESS: [f64; 4] = [1e7, 1e8, 1e9, 1e10];
-/// The Stribeck velocity of the limit [m/s]: MODEL.md's table.
+/// The Stribeck velocity of the limit [m/s]: docs/model.md's table.
 pub const LIMIT_STRIBECK: f64 = 1e-5;
 
 /// One rung of the ladder.
@@ -100,7 +100,7 @@ pub fn limit_markdown(name: &str, karnopp: &[[f64; AXES]], rows: &[LimitRow]) ->
         "## Scene `{name}`: the Karnopp limit\n\n![LuGre against Karnopp](accuracy_{name}_limit.png)\
          \n\nEach instance of the scene with its friction replaced: LuGre with bristle_stiffness \
          sigma0, bristle_damping sqrt(sigma0 m_s), viscous_friction 0, stribeck_velocity \
-         {LIMIT_STRIBECK:e} m/s, against Karnopp's friction (MODEL.md section 3, the default \
+         {LIMIT_STRIBECK:e} m/s, against Karnopp's friction (docs/model.md section 3, the default \
          band), both at the scene's tolerance. Difference: the largest |LuGre - Karnopp| over \
          instances and axes [um per own cycle].\n\n\
          | sigma0 [N/m] | instance 0 step_x [um] | Karnopp's [um] | largest difference [um] | \

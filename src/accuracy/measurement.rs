@@ -1,4 +1,4 @@
-//! The measurement's part of the study (MODEL.md section 4): how far a
+//! The measurement's part of the study (docs/model.md section 4): how far a
 //! fixed window of periods (the running mean) and a steady measurement at
 //! a ladder of step tolerances (the phase-resolved estimate, issue 31, or
 //! batch means where it does not decide) are from the long-run mean step,
@@ -18,7 +18,7 @@
 
 use super::Method;
 use crate::backend::{Backend, CpuBackend};
-use crate::cpu::integrate::Settings;
+use crate::laws::karnopp::integrate::Settings;
 use crate::model::{Instance, Measure};
 
 /// The reference's step tolerance [m per own drive cycle]: 0.001 um, five
@@ -75,13 +75,13 @@ pub fn measurement_reference(instances: &[Instance]) -> Vec<Instance> {
 /// continued-fraction denominator of rho, the faster drive's advance per
 /// scene period.
 pub fn lattice_length(inst: &Instance, longest: u32) -> Option<u32> {
-    use crate::cpu::integrate::measure::{SHORT_COMMON_PERIOD, common_period};
+    use crate::laws::karnopp::integrate::measure::{SHORT_COMMON_PERIOD, common_period};
     let [x, y] = &inst.axes;
     if !(x.is_driven() && y.is_driven()) || x.frequency == y.frequency {
         return None;
     }
     let period = inst.period();
-    let frequency = crate::cpu::integrate::Vec2::new(x.frequency, y.frequency);
+    let frequency = crate::laws::karnopp::integrate::Vec2::new(x.frequency, y.frequency);
     let cycles = frequency * period;
     let q = common_period(frequency, cycles, [true, true]);
     if q > 0 && q <= SHORT_COMMON_PERIOD {

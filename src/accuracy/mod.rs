@@ -12,8 +12,8 @@ use anyhow::{Context, Result};
 use plotters::prelude::*;
 
 use crate::backend::{Backend, CpuBackend};
-use crate::cpu::integrate::{STATUS_OK, Settings};
-use crate::cpu::karnopp;
+use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
+use crate::laws::karnopp::paper_rk4;
 use crate::measurement::keeps_values;
 use crate::model::{AXES, Instance};
 use crate::sweep::Outcome;
@@ -137,7 +137,7 @@ pub fn karnopp_method<'a>(steps: Vec<f64>) -> Method<'a> {
             Ok(instances
                 .iter()
                 .map(|inst| {
-                    let (displacement, steps) = karnopp::run_fixed_step(inst, step);
+                    let (displacement, steps) = paper_rk4::run_fixed_step(inst, step);
                     Outcome {
                         displacement,
                         span: (inst.cycles - inst.settle) as f64,

@@ -72,7 +72,7 @@ impl Report {
         let title = format!("Scene `{name}`: the measurement ({integrations} integrations)");
         let picture = format!("accuracy_{name}_measure.png");
         let intro = format!(
-            "Errors here are against the long-run mean step (MODEL.md section 4), measured \
+            "Errors here are against the long-run mean step (docs/model.md section 4), measured \
              without the estimator under study: where two drive frequencies have no common \
              period up to 1,000 periods, the running mean over a lattice window of at most \
              {} periods (a whole number of common periods, or the largest continued-fraction \

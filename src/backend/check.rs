@@ -29,7 +29,7 @@
 
 use std::sync::OnceLock;
 
-use crate::cpu::integrate::{STATUS_OK, Settings};
+use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
 use crate::model::{Instance, Measure};
 
 /// Share of an f32 batch's window runs (those f32 finished itself, status

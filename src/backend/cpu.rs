@@ -1,15 +1,15 @@
 //! The rayon CPU path: every instance through [`run_one`], one per task,
 //! in f64 (the reference) or in f32 (the f32 shader's mirror,
-//! `pidm::cpu::single`).
+//! `pidm::laws::karnopp::single`).
 
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision, f32_needs_f64};
-use crate::cpu::integrate::constants::STATUS_GRAZE;
-use crate::cpu::integrate::{Replica, Settings};
-use crate::cpu::{integrate, single};
 use crate::interrupt::interrupt_requested;
+use crate::laws::karnopp::integrate::constants::STATUS_GRAZE;
+use crate::laws::karnopp::integrate::{Replica, Settings};
+use crate::laws::karnopp::{integrate, single};
 use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
 use crate::replicas;
@@ -178,7 +178,7 @@ pub fn run_one_in(inst: &Instance, settings: &Settings, precision: Precision) ->
     if inst.mechanism.lugre().is_some() {
         // LuGre has no f32 formulation: f64 whatever was asked (the
         // backend selection refuses f32 for LuGre scenes).
-        let Some(run) = crate::cpu::run_until(inst, settings, interrupt_requested) else {
+        let Some(run) = crate::laws::run_until(inst, settings, interrupt_requested) else {
             return Outcome::default();
         };
         return Outcome::of(&reduce(inst, &run), run.state.steps, false);

@@ -3,15 +3,15 @@
 use anyhow::{Result, bail};
 
 use super::{Backend, Hardware, Precision, Staged};
-use crate::cpu::integrate::Settings;
-use crate::cpu::integrate::constants::STATUS_GRAZE;
 use crate::gpu::lugre::LugreGpu;
 use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, Parts, run_batch_packed};
+use crate::laws::karnopp::integrate::Settings;
+use crate::laws::karnopp::integrate::constants::STATUS_GRAZE;
 use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
 
 /// Why a LuGre instance does not run in f32: its shader is f64's only.
-pub const LUGRE_F64_ONLY: &str = "LuGre friction (mechanism.friction = \"lugre\", MODEL.md \
+pub const LUGRE_F64_ONLY: &str = "LuGre friction (mechanism.friction = \"lugre\", docs/model.md \
      section 8) runs in f64 only, on the CPU or on a GPU with f64; leave --precision out or give f64";
 
 /// The WGSL shader on one adapter at one precision.

@@ -9,7 +9,7 @@ use std::fmt;
 
 use anyhow::Result;
 
-use crate::cpu::integrate::Settings;
+use crate::laws::karnopp::integrate::Settings;
 use crate::measurement::Outcome;
 use crate::model::Instance;
 
@@ -54,7 +54,7 @@ impl fmt::Display for Precision {
 /// next to the stage speeds ends in step underflow: 279 of `stress.toml`'s
 /// 432 instances with a 1e-9 m/s band).
 pub fn is_integrator_failure(status: u32) -> bool {
-    use crate::cpu::integrate::{
+    use crate::laws::karnopp::integrate::{
         STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
     };
     matches!(
@@ -72,7 +72,8 @@ pub fn is_integrator_failure(status: u32) -> bool {
 /// the f64 reference's value, or its status where that fails too, and is
 /// counted as run on the CPU.
 pub fn f32_needs_f64(status: u32) -> bool {
-    is_integrator_failure(status) || status == crate::cpu::integrate::constants::STATUS_GRAZE
+    is_integrator_failure(status)
+        || status == crate::laws::karnopp::integrate::constants::STATUS_GRAZE
 }
 
 /// What a backend computes on.

@@ -55,7 +55,7 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
                 },
             })
             .collect();
-        let reference = crate::cpu::integrate::Settings {
+        let reference = crate::laws::karnopp::integrate::Settings {
             tolerance: 1e-9,
             ..scene.settings
         };
@@ -182,7 +182,7 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
 fn study_and_print(
     instances: &[Instance],
     reference_instances: &[Instance],
-    reference: crate::cpu::integrate::Settings,
+    reference: crate::laws::karnopp::integrate::Settings,
     methods: &[crate::accuracy::Method],
 ) -> Result<(Vec<crate::accuracy::Point>, crate::accuracy::References)> {
     use crate::accuracy::{self, Point, reference_note};
@@ -223,7 +223,7 @@ fn study_and_print(
 fn karnopp_limit(
     name: &str,
     instances: &[Instance],
-    settings: crate::cpu::integrate::Settings,
+    settings: crate::laws::karnopp::integrate::Settings,
     out_dir: &Path,
     report: &mut crate::accuracy::Report,
 ) -> Result<()> {

@@ -143,7 +143,7 @@ fn probe_emulated() -> Result<()> {
         crate::gpu::run_batch(
             &ctx,
             &instances,
-            &crate::cpu::integrate::Settings::default(),
+            &crate::laws::karnopp::integrate::Settings::default(),
             Precision::F64,
             &mut |_, _| {},
         )?;

@@ -4,8 +4,8 @@
 //! a small scene's instances.
 
 use super::format::{instance_name, plural, um};
-use crate::cpu::integrate::STATUS_OK;
-use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::karnopp::integrate::STATUS_OK;
+use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use crate::model::{AXIS_NAMES, Measure};
 use crate::motion::Motion;
 use crate::run::RunResult;
@@ -40,7 +40,7 @@ fn print_refine(report: &crate::refine::Report) {
     }
 }
 
-/// The stall search's lines of the run summary (MODEL.md section 7): the
+/// The stall search's lines of the run summary (docs/model.md section 7): the
 /// waves and probes it took, the stall loads found and the best, and the
 /// instances with no stall load or a failed probe.
 fn print_stall(scene: &Scene, report: &crate::stall::Report) {
@@ -117,7 +117,7 @@ pub(super) fn print_summary(scene: &Scene, result: &RunResult) {
              (in |v_rel|^2), where the direction tolerance decides whether the slip ends \
              (docs/gpu.md, \"Precision\")",
             s.grazes,
-            crate::cpu::integrate::constants::GRAZE_MARGIN
+            crate::laws::karnopp::integrate::constants::GRAZE_MARGIN
         );
     }
     if s.checked > 0 {

@@ -384,7 +384,7 @@ impl GpuContext {
         self.self_test(&pipeline, variant, skew)
     }
 
-    /// Runs the self-test batch (MODEL.md's Fig. 8 case, two periods, and
+    /// Runs the self-test batch (docs/model.md's Fig. 8 case, two periods, and
     /// its 1-DOF x baseline; with steady measurements a steady one; with a
     /// load the Fig. 8 case under one) on a fresh pipeline of `variant` and
     /// compares with the CPU. `skew` [m] is added to the CPU reference's

@@ -22,8 +22,8 @@ use std::marker::PhantomData;
 use super::runner::Runner;
 use super::slices::Between;
 use super::*;
-use crate::cpu::integrate::measure::VERDICT_RUNNING;
-use crate::cpu::integrate::{Replica, Replicas, STATUS_OK};
+use crate::laws::karnopp::integrate::measure::VERDICT_RUNNING;
+use crate::laws::karnopp::integrate::{Replica, Replicas, STATUS_OK};
 use crate::motion::Motion;
 use crate::replicas::{Group, Member, Step};
 

@@ -190,3 +190,44 @@ impl std::fmt::Display for F32Check {
         })
     }
 }
+
+/// The CPU tail of this process's batches ([`BatchOptions::cpu_tail`]):
+/// the default rule, or `PIDM_GPU_TAIL` = `auto` or a count of instances
+/// (`0`: none, so that a map is the device's alone and bit for bit the same
+/// from run to run; tests/golden/house.sh).
+///
+/// [`BatchOptions::cpu_tail`]: super::BatchOptions::cpu_tail
+pub fn cpu_tail() -> Tail {
+    static TAIL: OnceLock<Tail> = OnceLock::new();
+    *TAIL.get_or_init(|| {
+        knob(
+            "PIDM_GPU_TAIL",
+            Tail(None),
+            |_| true,
+            "auto or a count of instances",
+        )
+    })
+}
+
+/// A CPU tail's size: `None` for the default rule.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tail(pub Option<usize>);
+
+impl FromStr for Tail {
+    type Err = ();
+    fn from_str(text: &str) -> Result<Tail, ()> {
+        match text {
+            "auto" => Ok(Tail(None)),
+            n => n.parse().map(|n| Tail(Some(n))).map_err(|_| ()),
+        }
+    }
+}
+
+impl std::fmt::Display for Tail {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            None => f.write_str("auto"),
+            Some(n) => write!(f, "{n}"),
+        }
+    }
+}

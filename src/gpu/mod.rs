@@ -1,5 +1,5 @@
-//! The GPU backend: the WGSL shader in `shaders/integrate/`, a
-//! file-by-file mirror of [`crate::cpu::integrate`], run through wgpu with
+//! The GPU backend: the WGSL shader in `shaders/karnopp/`, a
+//! file-by-file mirror of [`crate::laws::karnopp::integrate`], run through wgpu with
 //! one invocation per instance.
 //!
 //! * [`GpuContext::new`] picks an adapter and opens a device; the work
@@ -55,16 +55,14 @@
 mod adapters;
 pub mod cache;
 mod context;
-pub mod footprint;
 mod groups;
+pub mod karnopp;
 mod knobs;
-pub mod layout;
 pub mod lugre;
 mod options;
 mod precision;
 pub mod readback;
 mod runner;
-pub mod shader;
 mod slices;
 mod staging;
 mod tail;
@@ -86,10 +84,11 @@ use options::*;
 use precision::*;
 use tail::*;
 
+pub use karnopp::{footprint, layout, shader};
 pub use knobs::{
     CHUNK_ROUNDS, LANES, PROBE_ITERATIONS, SLICE_ITERATIONS, SOFTWARE_CHUNK_ROUNDS,
-    SOFTWARE_LANES_PER_THREAD, WORKGROUP_SIZE, compact, f32_check, lanes, lanes_for, order,
-    slice_iterations, workgroup_size,
+    SOFTWARE_LANES_PER_THREAD, Tail, WORKGROUP_SIZE, compact, cpu_tail, f32_check, lanes,
+    lanes_for, order, slice_iterations, workgroup_size,
 };
 pub use shader::{Parts, Variant};
 pub use warps::Order;
@@ -104,7 +103,7 @@ use thiserror::Error;
 use wgpu::util::DeviceExt;
 
 use crate::backend::check;
-use crate::cpu::integrate::{Run, Settings, initial_measure, run_instance};
+use crate::laws::karnopp::integrate::{Run, Settings, initial_measure, run_instance};
 use crate::measurement::{Measured, reduce};
 use crate::model::{Instance, Measure};
 use layout::HostLayout;
@@ -199,7 +198,7 @@ pub struct GpuOutcome {
     pub se: [f64; 2],
     pub periods: u32,
     pub lag: u32,
-    /// One of the `STATUS_*` constants of [`crate::cpu::integrate`].
+    /// One of the `STATUS_*` constants of [`crate::laws::karnopp::integrate`].
     pub status: u32,
     /// The kind of motion the measurement found.
     pub motion: crate::motion::Motion,

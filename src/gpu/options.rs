@@ -135,7 +135,7 @@ impl Default for BatchOptions {
             probe_iterations: PROBE_ITERATIONS,
             order: order(),
             compact: compact(),
-            cpu_tail: None,
+            cpu_tail: cpu_tail().0,
             check: f32_check(),
         }
     }

@@ -2,7 +2,7 @@
 //! storage structs, their packing and reduction) for the runner.
 
 use super::*;
-use crate::cpu::integrate::Replica;
+use crate::laws::karnopp::integrate::Replica;
 
 /// The host side of one precision: its storage structs and their packing.
 pub(super) trait Layout {
@@ -55,8 +55,8 @@ pub(super) trait Layout {
 /// the CPU's, in SI units.
 pub(super) fn reduce_shader(
     inst: &Instance,
-    state: crate::cpu::integrate::State,
-    measure: crate::cpu::integrate::Measure,
+    state: crate::laws::karnopp::integrate::State,
+    measure: crate::laws::karnopp::integrate::Measure,
 ) -> GpuOutcome {
     let steps = state.steps;
     GpuOutcome::of(&reduce(inst, &Run { state, measure }), steps)
@@ -89,7 +89,7 @@ impl Layout for Single {
     fn from_head(h: &Self::Head) -> Self::Measure {
         h.measure()
     }
-    type Mirror = crate::cpu::single::integrate::State;
+    type Mirror = crate::laws::karnopp::single::integrate::State;
     fn mirror(st: &Self::State) -> Self::Mirror {
         layout::single::to_cpu(st)
     }
@@ -146,7 +146,7 @@ impl Layout for Double {
     fn from_head(h: &Self::Head) -> Self::Measure {
         h.measure()
     }
-    type Mirror = crate::cpu::integrate::State;
+    type Mirror = crate::laws::karnopp::integrate::State;
     fn mirror(st: &Self::State) -> Self::Mirror {
         layout::double::to_cpu(st)
     }
@@ -173,7 +173,11 @@ impl Layout for Double {
         layout::double::finished(inst, st)
     }
     fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run> {
-        let c = crate::cpu::integrate::Coefficients::new(inst, &Settings::default(), f64::EPSILON);
+        let c = crate::laws::karnopp::integrate::Coefficients::new(
+            inst,
+            &Settings::default(),
+            f64::EPSILON,
+        );
         Some(Run {
             state: layout::double::to_cpu(st),
             measure: match m {

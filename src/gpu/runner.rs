@@ -130,13 +130,13 @@ fn first_dispatch<L: Layout>(
 }
 
 /// [`states_after`] in f32: the states of the f32 shader as its CPU mirror
-/// (`pidm::cpu::single`) holds them.
+/// (`pidm::laws::karnopp::single`) holds them.
 pub fn f32_states_after(
     ctx: &GpuContext,
     instances: &[Instance],
     settings: &Settings,
     iterations: u32,
-) -> Result<Vec<crate::cpu::single::integrate::State>, GpuError> {
+) -> Result<Vec<crate::laws::karnopp::single::integrate::State>, GpuError> {
     states_after::<Single>(ctx, instances, settings, iterations)
 }
 
@@ -147,7 +147,7 @@ pub fn f64_states_after(
     instances: &[Instance],
     settings: &Settings,
     iterations: u32,
-) -> Result<Vec<crate::cpu::integrate::State>, GpuError> {
+) -> Result<Vec<crate::laws::karnopp::integrate::State>, GpuError> {
     states_after::<Double>(ctx, instances, settings, iterations)
 }
 

@@ -181,7 +181,7 @@ fn whole_workgroups(n: usize) -> usize {
 /// which a periodic motion undercuts and an irregular one may outrun, but
 /// at most its `max_cycles`.
 pub(super) fn expected_periods(inst: &Instance) -> f64 {
-    use crate::cpu::integrate::{Vec2, measure};
+    use crate::laws::karnopp::integrate::{Vec2, measure};
     match inst.measure {
         Measure::Window => inst.cycles as f64,
         Measure::Steady { .. } => {

@@ -30,8 +30,10 @@ pub(super) fn heaviest_candidates(instances: &[Instance], out: &[GpuOutcome]) ->
 /// run the f64 shader left unfinished.
 pub(super) fn on_cpu(inst: &Instance, settings: &Settings, from: Option<Run>) -> GpuOutcome {
     let run = match from {
-        Some(run) => crate::cpu::integrate::continue_instance_until(inst, settings, run, || false)
-            .expect("never asked to stop"),
+        Some(run) => {
+            crate::laws::karnopp::integrate::continue_instance_until(inst, settings, run, || false)
+                .expect("never asked to stop")
+        }
         None => run_instance(inst, settings),
     };
     GpuOutcome::of(&reduce(inst, &run), run.state.steps)

@@ -27,8 +27,8 @@ use std::fmt::Write;
 use std::sync::Mutex;
 
 use super::layout::control::Tally;
-pub use crate::cpu::integrate::constants::KIND_NAMES;
-use crate::cpu::integrate::constants::{
+pub use crate::laws::karnopp::integrate::constants::KIND_NAMES;
+use crate::laws::karnopp::integrate::constants::{
     ITERATION_KINDS, ITERATION_REJECTED, ITERATION_SLIP, rejected_share,
 };
 
@@ -330,7 +330,7 @@ impl LaneBytes {
         let per_lane = (self.coefficients + 2 * self.state) as u64 + 8 + tally;
         let per_take = (self.coefficients + 2 * self.state) as u64;
         let period_ends =
-            warps.passes[crate::cpu::integrate::constants::ITERATION_PERIOD_END as usize];
+            warps.passes[crate::laws::karnopp::integrate::constants::ITERATION_PERIOD_END as usize];
         warps.lane_slots * per_lane + warps.taken * per_take + period_ends * 2 * self.measure as u64
     }
 

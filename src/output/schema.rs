@@ -248,7 +248,7 @@ pub const BACKEND: &str = "backend";
 pub const PRECISION: &str = "precision";
 pub const VARIANT: &str = "variant";
 pub const TOLERANCE: &str = "tolerance";
-/// Root attributes: the friction law ("karnopp" or "lugre", MODEL.md
+/// Root attributes: the friction law ("karnopp" or "lugre", docs/model.md
 /// sections 3 and 8) and, under LuGre, its parameters with units as
 /// instance 0 has them.
 pub const FRICTION: &str = "friction";

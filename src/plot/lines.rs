@@ -339,7 +339,7 @@ pub(super) fn family_lines(
             })
             .collect();
         // A LuGre map: each line's instance under Karnopp's friction, as
-        // the reference the bristles approach (MODEL.md section 8).
+        // the reference the bristles approach (docs/model.md section 8).
         if let Some(twins) = karnopp_twins(data, (long, short), &flat) {
             for (s, twin) in twins.iter().enumerate() {
                 series.push(Series {

@@ -12,7 +12,7 @@ use super::heatmap::{MapLegend, heatmap};
 use super::read::{AxisData, Data};
 use super::regime::{Regime, ZERO_STEP_M};
 use super::text::{short, with_unit};
-use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use crate::model::AXIS_NAMES;
 
 /// How a grid's maps are sliced: the dimensions across and up, and for

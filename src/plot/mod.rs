@@ -22,7 +22,7 @@
 //!   steps against the long axis, one line per value of the short one; for
 //!   a LuGre map whose long axis is a bristle key, each line's instance
 //!   under Karnopp's friction as a dashed reference line (integrated on
-//!   the CPU when the picture is drawn: MODEL.md section 8's limit);
+//!   the CPU when the picture is drawn: docs/model.md section 8's limit);
 //! - a scene with `[stall]`: the stall-load map (`stall`), a heatmap per
 //!   slice, a line for a 1-D grid or a dot per point;
 //! - every stored trajectory: stage and slider displacement against time

@@ -1,5 +1,5 @@
 //! The stall-load pictures of a scene with `[stall]` (`crate::stall`,
-//! MODEL.md section 7): a heatmap per slice of a grid of two or more axes,
+//! docs/model.md section 7): a heatmap per slice of a grid of two or more axes,
 //! a line against the axis of a 1-D grid, a dot per point of a points
 //! scene. A stall load is drawn only where the search found one; where the
 //! step keeps its direction under every load probed, or a run failed, the
@@ -30,7 +30,7 @@ fn title(data: &Data, stall: &StallData, cells: &[usize]) -> Vec<String> {
     let a = AXIS_NAMES[stall.axis];
     let mut lines = vec![
         format!(
-            "{}: stall load along {a} [N]: the load at which the {a} step stops (MODEL.md \
+            "{}: stall load along {a} [N]: the load at which the {a} step stops (docs/model.md \
              section 7)",
             data.name
         ),

@@ -7,7 +7,7 @@
 use rayon::prelude::*;
 
 use super::{Group, Member, Step};
-use crate::cpu::integrate::{
+use crate::laws::karnopp::integrate::{
     Coefficients, Replica, Run, STATUS_OK, Settings, continue_until, initial_measure,
     initial_state, run_instance_until,
 };
@@ -136,7 +136,7 @@ pub fn continue_replicas(
 
 /// Lets a replica that waits for its group's merge go on.
 pub fn release(run: &mut Run) {
-    use crate::cpu::integrate::measure::{VERDICT_RUNNING, VERDICT_WAITING};
+    use crate::laws::karnopp::integrate::measure::{VERDICT_RUNNING, VERDICT_WAITING};
     if run.measure.verdict == VERDICT_WAITING {
         run.measure.verdict = VERDICT_RUNNING;
         run.state.measured = 0;

@@ -20,14 +20,16 @@
 //! [`DISAGREEMENT_FLOOR`] on either axis sits on another attractor: the
 //! group is not merged.
 
-use crate::cpu::integrate::measure::{
+use crate::laws::karnopp::integrate::measure::{
     Snapshot, VERDICT_PERIODIC, VERDICT_PHASE, VERDICT_RUNNING, repeats,
 };
-use crate::cpu::integrate::phase::{
+use crate::laws::karnopp::integrate::phase::{
     Gaps, LevelSums, PhaseEstimate, evaluate_sums, ladder_length, window_weight,
 };
-use crate::cpu::integrate::{Coefficients, Measure, Replica, Run, STATUS_OK, Settings, Vec2};
-use crate::cpu::integrate::{initial_measure, initial_state};
+use crate::laws::karnopp::integrate::{
+    Coefficients, Measure, Replica, Run, STATUS_OK, Settings, Vec2,
+};
+use crate::laws::karnopp::integrate::{initial_measure, initial_state};
 use crate::measurement::{Measured, reduce};
 use crate::model::Instance;
 
@@ -413,7 +415,7 @@ pub fn replica_weight(g: &Gaps, start: u32, length: u32, index: u32, count: u32)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cpu::integrate::phase::gaps;
+    use crate::laws::karnopp::integrate::phase::gaps;
 
     /// The replicas' shares of a window's weights add up to the whole
     /// circle, and each is about its fraction of it, wherever the window

@@ -44,10 +44,10 @@ pub mod group;
 
 pub use group::{Group, Member, Step};
 
-use crate::cpu::integrate::{Coefficients, Replica, Settings, phase};
+use crate::laws::karnopp::integrate::{Coefficients, Replica, Settings, phase};
 use crate::model::{Instance, Measure};
 
-pub use crate::cpu::settings::Replicas;
+pub use crate::laws::settings::Replicas;
 
 /// The most replicas `simulation.replicas = "auto"` makes of one instance:
 /// 8 cuts a chain to about an eighth plus its settling, where the lanes or

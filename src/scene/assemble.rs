@@ -5,7 +5,7 @@
 
 use toml::de::DeTable;
 
-use crate::cpu::settings::Replicas;
+use crate::laws::settings::Replicas;
 
 use super::error::{SceneError, point_name};
 use super::format::fmt_short;
@@ -21,7 +21,7 @@ use super::plan::{Culprits, Plan, Src, check_instance};
 use super::trajectories::DEFAULT_SAMPLES_PER_CYCLE;
 use super::values::Entry;
 use super::{GridAxis, Layout, Scene};
-use crate::cpu::integrate::Settings;
+use crate::laws::karnopp::integrate::Settings;
 use crate::model::AXES;
 
 /// Parses and validates a scene; see [`Scene::from_toml`].

@@ -100,11 +100,11 @@ impl Scene {
                 out,
                 "replicas: {} (split steady measurements whose phase ladder is on)",
                 match self.settings.replicas {
-                    crate::cpu::settings::Replicas::Auto => {
+                    crate::laws::settings::Replicas::Auto => {
                         "auto, as many as idle threads or lanes allow".to_string()
                     }
-                    crate::cpu::settings::Replicas::Count(1) => "1, none".to_string(),
-                    crate::cpu::settings::Replicas::Count(n) => format!("{n} per instance"),
+                    crate::laws::settings::Replicas::Count(1) => "1, none".to_string(),
+                    crate::laws::settings::Replicas::Count(n) => format!("{n} per instance"),
                 }
             );
         }
@@ -130,7 +130,7 @@ impl Scene {
                     fmt_short(m.load[1])
                 )
             };
-            // Karnopp's band, or LuGre's parameters (MODEL.md section 8).
+            // Karnopp's band, or LuGre's parameters (docs/model.md section 8).
             let law = match m.lugre() {
                 None => format!("velocity_band {} m/s", fmt_short(m.velocity_band)),
                 Some(l) => format!("friction lugre: {}", lugre_parameters(l, m.slider_mass)),

@@ -125,7 +125,7 @@ impl Field {
     }
 }
 
-/// `simulation.measure`: how a scene measures its steps (MODEL.md section
+/// `simulation.measure`: how a scene measures its steps (docs/model.md section
 /// 4), one mode for the whole scene.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) enum Mode {
@@ -170,7 +170,7 @@ impl Mode {
 }
 
 /// `mechanism.friction`: the friction law, one for the whole scene
-/// (MODEL.md sections 3 and 8).
+/// (docs/model.md sections 3 and 8).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub(super) enum FrictionLaw {
     /// Coulomb friction with stiction in Karnopp's form (the default).

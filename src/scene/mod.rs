@@ -40,7 +40,7 @@
 //! [`trajectories`] for the entries) with
 //! `trajectory_samples_per_cycle` samples per scene period.
 //!
-//! `[simulation] measure` says how the steps are measured (MODEL.md section
+//! `[simulation] measure` says how the steps are measured (docs/model.md section
 //! 4), one string for the whole scene: `"steady"` (the default) runs each
 //! instance until its steady step is known, with `settle` (the least
 //! periods discarded, default [`Measure::DEFAULT_SETTLE`]), `step_tolerance`
@@ -89,7 +89,7 @@
 
 use std::path::Path;
 
-use crate::cpu::integrate::Settings;
+use crate::laws::karnopp::integrate::Settings;
 use crate::model::{AXES, Instance};
 
 mod assemble;
@@ -237,7 +237,7 @@ impl Scene {
         if self.is_lugre() {
             format!(
                 "tolerance {tolerance:e} (LuGre: {:e} m local error per step)",
-                tolerance * crate::cpu::lugre::LENGTH_PER_TOLERANCE
+                tolerance * crate::laws::lugre::LENGTH_PER_TOLERANCE
             )
         } else {
             format!("tolerance {tolerance:e} rad")

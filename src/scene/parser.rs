@@ -6,7 +6,7 @@ use std::ops::Range;
 
 use toml::Spanned;
 
-use crate::cpu::settings::Replicas;
+use crate::laws::settings::Replicas;
 use toml::de::{DeTable, DeValue};
 
 use super::error::{Location, SceneError};
@@ -387,7 +387,7 @@ impl Parser<'_> {
         };
         let (why, todo) = match scene_law {
             FrictionLaw::Karnopp => (
-                "the bristle keys belong to the LuGre model (MODEL.md section 8)",
+                "the bristle keys belong to the LuGre model (docs/model.md section 8)",
                 if law.is_none() {
                     "This scene uses Karnopp friction (the default, as no mechanism.friction is \
                      given): set mechanism.friction = \"lugre\", or remove the key"
@@ -398,7 +398,7 @@ impl Parser<'_> {
             ),
             FrictionLaw::Lugre => (
                 "the velocity band is Karnopp's stick detection, and LuGre has no modes \
-                 (MODEL.md section 8)",
+                 (docs/model.md section 8)",
                 "This scene sets friction = \"lugre\": remove the key, or set friction = \
                  \"karnopp\"",
             ),
@@ -452,8 +452,8 @@ impl Parser<'_> {
                      (set it in the base [mechanism])",
                 ));
             }
-            let expected = "expected \"karnopp\" (the default, MODEL.md section 3) or \"lugre\" \
-                            (MODEL.md section 8)";
+            let expected = "expected \"karnopp\" (the default, docs/model.md section 3) or \"lugre\" \
+                            (docs/model.md section 8)";
             let DeValue::String(name) = value.get_ref() else {
                 return Err(self.wrong_type("mechanism.friction", expected, value));
             };

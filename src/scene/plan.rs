@@ -461,7 +461,7 @@ pub(super) fn check_instance(instance: &Instance, plan: &Plan) -> Result<(), (St
     Ok(())
 }
 
-/// Why an instance's load is refused (MODEL.md section 7): a non-zero load
+/// Why an instance's load is refused (docs/model.md section 7): a non-zero load
 /// whose magnitude |L| is at least the kinetic friction f_c, along which a
 /// slipping slider is not stopped by friction and may run away. The
 /// message names each non-zero load key and its value, |L| where both are
@@ -497,7 +497,7 @@ fn load_refusal(instance: &Instance, plan: &Plan) -> Option<(String, Culprits)> 
         format!(
             "{}{magnitude}: expected a load of magnitude |L| < {friction}: a slider slipping \
              along a load of the kinetic friction or more is not stopped by it and may run away \
-             (MODEL.md section 7)",
+             (docs/model.md section 7)",
             keys.join(" and ")
         ),
         culprits,

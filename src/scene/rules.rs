@@ -121,7 +121,7 @@ const COULOMB_FRICTION: Bounds = Bounds { min: 0.0, max: 1e9 };
 
 /// A load on the slider, -1 GN to 1 GN per axis [N], like the friction it
 /// must stay below: the refusal that matters is the load's magnitude
-/// against the kinetic friction (MODEL.md section 7,
+/// against the kinetic friction (docs/model.md section 7,
 /// `plan::check_instance`), which these bounds only keep finite.
 const LOAD: Bounds = Bounds {
     min: -1e9,
@@ -241,7 +241,7 @@ const TOLERANCE: Bounds = Bounds {
 
 /// Standard error allowed on a steady step, none to 1 mm per own drive
 /// cycle [m]. The upper end is far beyond any stick-slip drive's step (Table
-/// 1's converged steps are at most a few micrometres, MODEL.md section 6);
+/// 1's converged steps are at most a few micrometres, docs/model.md section 6);
 /// a tolerance above every step would accept any estimate as soon as
 /// `settle` periods are past, a short window in disguise. There is no lower
 /// end beyond > 0: a tolerance no estimate can meet only means the run

@@ -1,4 +1,4 @@
-//! `[stall]`: a stall-load map (MODEL.md section 7; the search and its
+//! `[stall]`: a stall-load map (docs/model.md section 7; the search and its
 //! waves live in `crate::stall`). This module reads the table: `axis`
 //! ("x" or "y", required), the axis whose stall load each instance gets,
 //! and `tolerance` [N], how close to a zero crossing of its step the load

@@ -1,4 +1,4 @@
-//! Stall-load maps (`[stall]`, MODEL.md section 7): for every instance of
+//! Stall-load maps (`[stall]`, docs/model.md section 7): for every instance of
 //! a scene, the load along one axis, against its unloaded step's
 //! direction, at which that axis' steady step is zero: the largest load
 //! the actuator moves at that drive.

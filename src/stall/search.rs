@@ -1,4 +1,4 @@
-//! The stall search of one instance (MODEL.md section 7): the load along
+//! The stall search of one instance (docs/model.md section 7): the load along
 //! the stalled axis, against its unloaded step's direction, at which that
 //! axis' steady step is zero. Plain values, no integration: [`Search`]
 //! says which load to probe next and takes each probe's step, so the
@@ -18,7 +18,7 @@
 //! two crossings lie closer together than the probes (a step that turns
 //! back to forward between two probes is not seen).
 
-use crate::cpu::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use crate::measurement::keeps_values;
 use crate::status::STATUS_NO_STALL;
 
@@ -50,7 +50,7 @@ pub const BRACKET: [f64; 10] = [
 pub const STEP_ZERO_M: f64 = 1e-10;
 
 /// `[stall] tolerance` when not given [N]: 1e-4 N, 0.01 % of Table 1's
-/// kinetic friction, where its stall slopes (12-16 um/N, MODEL.md section
+/// kinetic friction, where its stall slopes (12-16 um/N, docs/model.md section
 /// 7) make the step at the bracket ends 0.002 um from zero: below the
 /// steady measurement's own 0.01 um.
 pub const DEFAULT_TOLERANCE_N: f64 = 1e-4;

@@ -14,13 +14,13 @@ use super::{
     BaselineMemo, Outcome, Record, STATUS_UNCONVERGED, Summary, interrupt_requested, record,
 };
 use crate::backend::{Backend, Staged};
-use crate::cpu::integrate::{STATUS_OK, Settings};
+use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
 use crate::model::{AXES, Instance};
 use crate::profile::{self, Phase};
 
 /// How far a step may move under a 100 times tighter tolerance before
 /// `--verify` calls the instance unconverged [m per drive cycle]: the
-/// project's accuracy bar of 0.001 um (MODEL.md).
+/// project's accuracy bar of 0.001 um (docs/model.md).
 pub const VERIFY_ALLOWANCE_M: f64 = 1e-9;
 
 /// How much tighter than the scene's the tolerance of a `--verify` rerun

@@ -6,15 +6,15 @@ the engine (`pidm run`), and integrated again here, independently, with
 `scipy.integrate.solve_ivp` (DOP853, tight tolerances) as a hybrid system:
 every mode change is an event function, every drive corner and period end a
 breakpoint where the integration restarts. The semantics are those of
-MODEL.md section 3 with the engine's documented choices
-(src/cpu/integrate/step.rs):
+docs/model.md section 3 with the engine's documented choices
+(src/laws/karnopp/integrate/step.rs):
 
 * STICK: per axis one body, (m_p,i + m_s) a_i = P_i, P_i = F_i - c_i v_i -
   k_i x_p,i; f_need,i = m_s P_i / (m_p,i + m_s). Breaks when |f_need| > f_s
   (event f_s^2 - |f_need|^2, also checked at every breakpoint: duty 1
   jumps).
 * Breakaway -> BAND: relative velocity exactly 0, friction on the slider
-  held along the direction u in which slip grows (MODEL.md section 3):
+  held along the direction u in which slip grows (docs/model.md section 3):
   A_i = P_i / m_p,i, B_i = f_c (1/m_p,i + 1/m_s), u_i = A_i / (lambda + B_i)
   with lambda > 0 and |u| = 1. Here lambda is the root of
   sum_i A_i^2 / (lambda + B_i)^2 = 1, bracketed on [0, |A|] and found with
@@ -48,7 +48,7 @@ The instances come in three seeded sets, each from its own random stream
   1e-7 to 1e-5 m/s, the first four with duty 1 or an undriven axis; the
   even-numbered ones have the same stage on both axes, the odd-numbered
   ones a stage (mass, stiffness, damping, gain) drawn per axis.
-* n: `--narrow` (8) instances with bands 1e-9 to 1e-7 m/s (MODEL.md's
+* n: `--narrow` (8) instances with bands 1e-9 to 1e-7 m/s (docs/model.md's
   a -> 0 limit; the engine claims bands down to 1e-9 m/s), unequal stages,
   3 cycles.
 * l: `--long` (4) instances with 6 to 10 cycles of which 2 settle, bands
@@ -456,7 +456,7 @@ class Reference:
         In slip the relative acceleration is A_i - B_i u_i with
         A_i = P_i / m_p,i and B_i = f_c (1/m_p,i + 1/m_s); the relative
         velocity grows along u itself only where A - B u = lambda u with
-        lambda > 0 (MODEL.md section 3). g(lambda) = sum A_i^2 /
+        lambda > 0 (docs/model.md section 3). g(lambda) = sum A_i^2 /
         (lambda + B_i)^2 - 1 falls strictly from g(0) = |f_need|^2 / f_c^2 - 1
         (> 0 because |f_need| > f_s >= f_c here) to below 0 at
         lambda = |A|, so brentq finds the one root on [0, |A|].

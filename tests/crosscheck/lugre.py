@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Independent SciPy integration of the 2-D LuGre friction model (MODEL.md section 8).
+"""Independent SciPy integration of the 2-D LuGre friction model (docs/model.md section 8).
 
 The model, integrated here with `scipy.integrate.solve_ivp` (Radau, an
 implicit, L-stable Runge-Kutta method of order 5, with the analytic
@@ -13,9 +13,9 @@ v_rel = v_p - v_s and s = |v_rel| (isotropic):
     f           = sigma0 z + sigma1 dz/dt + sigma2 v_rel    friction on the slider
     m_p,i a_p,i = F_i(t) - c_i v_p,i - k_i x_p,i - f_i     the stage feels -f
     m_s a_s,i   = f_i + L_i                                 L: load on the slider
-    F_i(t)      = gain_i V_i w(f_i t + phase_i; d_i)        MODEL.md section 2
+    F_i(t)      = gain_i V_i w(f_i t + phase_i; d_i)        docs/model.md section 2
 
-w is the sawtooth of MODEL.md section 2: frac(u) / d while frac(u) < d (the
+w is the sawtooth of docs/model.md section 2: frac(u) / d while frac(u) < d (the
 slow rise), (1 - frac(u)) / (1 - d) after it; d = 1 is a ramp with an
 instantaneous drop. An axis with V_i = 0 is undriven (no corners). At t = 0
 everything is at rest at zero displacement, z = 0, and the load comes on.
@@ -24,7 +24,7 @@ sigma1 defaults to sqrt(sigma0 m_s) (the instance's own sigma0 and m_s).
 The right-hand side is continuous (Lipschitz) but not smooth: the drive
 has corners (and a jump at d = 1) and |v_rel| a kink at 0. The integration
 restarts at every drive corner and every scene period end k T (T = 1 / the
-lowest driven frequency, MODEL.md section 4), inside which the drive is
+lowest driven frequency, docs/model.md section 4), inside which the drive is
 affine in time; nothing else is located (there are no modes). The absolute
 tolerances are scaled per component: rtol times X for positions
 (X = max_i (|gain_i V_i| + f_s + |L|) / k_i, the stage's static excursion),
@@ -33,14 +33,14 @@ f_s / sigma0 for z (the presliding deflection at breakaway). The analytic
 Jacobian takes d|v_rel|/dv_rel = 0 at v_rel = 0 (a subgradient; it only
 feeds Newton's iteration).
 
-Measured quantity: the fixed window of MODEL.md section 4,
+Measured quantity: the fixed window of docs/model.md section 4,
 step_i = (x_s,i(cycles T) - x_s,i(settle T)) / ((cycles - settle) T f_i)
 per the axis' own configured drive cycle (f_i even when the axis is
 undriven).
 
 Sub-commands:
 
-* `reference`: MODEL.md section 8's seven converged reference cases (Table 1
+* `reference`: docs/model.md section 8's seven converged reference cases (Table 1
   as printed, duty 0.98, phases 0, window 10 / 2, LuGre defaults sigma0 1e7,
   sigma1 = sqrt(sigma0 m_s), sigma2 0, v_S 1e-3) at rtol 1e-9 (`--rtol`,
   tighter allowed), each step within REF_BOUND_UM (2e-6 um) of the table, and
@@ -147,7 +147,7 @@ INSTANCES = 10
 ENGINE_ABS_M = 1e-9
 ENGINE_REL = 1e-3
 ENGINE_RTOL = 1e-10
-# The reference check against MODEL.md section 8's tables (um per own cycle).
+# The reference check against docs/model.md section 8's tables (um per own cycle).
 REF_RTOL = 1e-9
 REF_BOUND_UM = 2e-6
 EXTRA_BOUND_UM = 5.1e-5  # tables printed to 4 decimals
@@ -164,7 +164,7 @@ STIFF = 1e8
 WINDOW = (10, 2)
 STIFF_WINDOW = (4, 1)
 
-# Table 1 as printed (MODEL.md section 5).
+# Table 1 as printed (docs/model.md section 5).
 MP, MS, K, C, GAIN, FS, FC = 2.5e-3, 5.0e-3, 1.0e6, 3.2, -0.6, 1.2, 1.0
 
 
@@ -186,7 +186,7 @@ class Instance:
     stiffness: list[float] = field(default_factory=lambda: [K, K])
     damping: list[float] = field(default_factory=lambda: [C, C])
     gain: list[float] = field(default_factory=lambda: [GAIN, GAIN])
-    # LuGre (MODEL.md section 8); bristle_damping None: sqrt(sigma0 m_s).
+    # LuGre (docs/model.md section 8); bristle_damping None: sqrt(sigma0 m_s).
     bristle_stiffness: float = 1.0e7
     bristle_damping: float | None = None
     viscous_friction: float = 0.0
@@ -422,7 +422,7 @@ def table1(label: str, volts, freqs=(10.0, 10.0), **lugre) -> Instance:
     return Instance(label, list(volts), list(freqs), [0.98, 0.98], **lugre)
 
 
-# MODEL.md section 8: (instance, step_x, step_y) in um per own cycle; step_y
+# docs/model.md section 8: (instance, step_x, step_y) in um per own cycle; step_y
 # None: a 1-DOF case, whose y step must be exactly 0.
 REFERENCE = [
     (table1("1dof-100V-10Hz", (100.0, 0.0)), 1.285861, None),
@@ -441,7 +441,7 @@ REFERENCE = [
 
 
 def extra_cases() -> list[tuple[Instance, float, None]]:
-    """MODEL.md section 8's Karnopp-limit table (window 5 / 2) and soft bristles."""
+    """docs/model.md section 8's Karnopp-limit table (window 5 / 2) and soft bristles."""
     out = []
     table = {
         (1e7, 1e-3): 1.2859,
@@ -476,7 +476,7 @@ def cmd_reference(args) -> int:
         cases += [(inst, x, y, EXTRA_BOUND_UM) for inst, x, y in extra_cases()]
     results = run_pool([(inst, args.rtol, args.method) for inst, *_ in cases], args.jobs)
     print(
-        f"MODEL.md section 8 references: SciPy {args.method} rtol {args.rtol:g}, "
+        f"docs/model.md section 8 references: SciPy {args.method} rtol {args.rtol:g}, "
         "analytic Jacobian, "
         "atol scaled per component, restarted at every drive corner and period end"
     )
@@ -872,7 +872,7 @@ def cmd_radau_time(args) -> int:
     print(
         "Radau (analytic Jacobian, atol = rtol x component scale), single-threaded, "
         f"window {WINDOW[0]} / {WINDOW[1]}; pass: every axis within {TIME_BOUND_UM:g} um "
-        "per own cycle of MODEL.md section 8's converged value"
+        "per own cycle of docs/model.md section 8's converged value"
     )
     print(
         f"{'case':<16} {'rtol':>7} {'step_x':>11} {'step_y':>11} {'max err':>9} "
@@ -928,7 +928,7 @@ def main() -> int:
     sub = ap.add_subparsers(dest="command", required=True)
     jobs = os.cpu_count() or 1
 
-    p = sub.add_parser("reference", help="MODEL.md section 8's converged reference values")
+    p = sub.add_parser("reference", help="docs/model.md section 8's converged reference values")
     p.add_argument("--rtol", type=float, default=REF_RTOL, help="Radau rtol (at most 1e-9)")
     p.add_argument("--jobs", type=int, default=jobs, help="integrations in parallel")
     p.add_argument("--method", choices=METHODS, default="Radau", help="solve_ivp method")

@@ -37,7 +37,7 @@ fn the_paper_scene_reproduces_model_md_through_hdf5() {
     let (bx, by) = (read("baseline/step_x"), read("baseline/step_y"));
     let status: Vec<u32> = file.dataset("maps/status").unwrap().read_raw().unwrap();
     assert_eq!(status, vec![0; 5]);
-    // MODEL.md section 6, points Fig. 5a, 5b, 6, 7, 8 in file order.
+    // docs/model.md section 6, points Fig. 5a, 5b, 6, 7, 8 in file order.
     let want_2dof = [
         (0.6159, 0.0),
         (0.4355, 0.4355),

@@ -68,7 +68,7 @@ pub fn s(path: &Path) -> &str {
     path.to_str().expect("temporary paths are UTF-8")
 }
 
-/// One case of MODEL.md section 6: both stages `axis`, the given voltages
+/// One case of docs/model.md section 6: both stages `axis`, the given voltages
 /// [V] and frequencies [Hz], Table 1's interface, duty 0.98, phases 0, 10
 /// periods of which 2 settle.
 pub fn case(vx: f64, vy: f64, fx: f64, fy: f64, axis: Axis) -> Instance {
@@ -98,7 +98,7 @@ pub fn light_instances(n: usize, volts: f64) -> Vec<Instance> {
         .collect()
 }
 
-/// MODEL.md section 6: (name, instance, step_x, step_y) in um, given to 4
+/// docs/model.md section 6: (name, instance, step_x, step_y) in um, given to 4
 /// decimals there.
 pub fn reference_cases() -> Vec<(&'static str, Instance, [f64; 2])> {
     let t = Axis::TABLE1;
@@ -168,7 +168,7 @@ pub fn reference_cases() -> Vec<(&'static str, Instance, [f64; 2])> {
     ]
 }
 
-/// Steady measurements (MODEL.md section 4) of Table 1 at several drive
+/// Steady measurements (docs/model.md section 4) of Table 1 at several drive
 /// frequency pairs: six periodic ones (equal frequencies, a phase offset,
 /// ratios 1.5, 1.4 and 2, one axis undriven), then a quasi-periodic one
 /// converged statistically and the same one cut at 12 periods.
@@ -198,7 +198,7 @@ pub fn steady_instances() -> [Instance; 8] {
     ]
 }
 
-/// `instances` under a seeded random load on the slider (MODEL.md section
+/// `instances` under a seeded random load on the slider (docs/model.md section
 /// 7): a direction uniform in the plane and a magnitude uniform up to 0.9
 /// of each instance's kinetic friction (a load of f_c or more is refused).
 pub fn loaded(instances: &[Instance], seed: u64) -> Vec<Instance> {
@@ -215,7 +215,7 @@ pub fn loaded(instances: &[Instance], seed: u64) -> Vec<Instance> {
         .collect()
 }
 
-/// The step-against-load points (MODEL.md section 7): Table 1 at 10
+/// The step-against-load points (docs/model.md section 7): Table 1 at 10
 /// Hz, duty 0.98, 100 V on x and 0 or 100 V on y, window 10 / 2, with the
 /// load on x at the sweep's ends, the stall loads and between.
 pub fn load_sweep_instances() -> Vec<Instance> {

@@ -1,7 +1,7 @@
 //! The engine against an independent SciPy integration of the same model:
 //! runs `tests/crosscheck/crosscheck.py` on this build's `pidm` binary,
 //! once on the CPU path and once on the f64 shader, and
-//! `tests/crosscheck/lugre.py` (LuGre friction, MODEL.md section 8) on the
+//! `tests/crosscheck/lugre.py` (LuGre friction, docs/model.md section 8) on the
 //! CPU path and on the f64 LuGre shader.
 //!
 //! The script integrates seeded random 2-DOF instances (equal and unequal
@@ -88,7 +88,7 @@ fn run_script(script: &str, args: &[&str], verdict: &str) {
     );
 }
 
-/// LuGre friction (MODEL.md section 8) on the CPU path against SciPy's
+/// LuGre friction (docs/model.md section 8) on the CPU path against SciPy's
 /// Radau at rtol 1e-10 (`tests/crosscheck/lugre.py engine`): ten seeded
 /// instances with bristle stiffness 1e5 to 1e10 N/m, given and derived
 /// damping, viscous friction, Stribeck velocities, f_s = f_c, equal and

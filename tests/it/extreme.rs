@@ -3,7 +3,7 @@
 //! with a bounded step count, no value is NaN or infinite, and each class
 //! shows the physics it is there for. The GPU side is in `tests/it/gpu.rs`.
 
-use pidm::cpu::integrate::{STATUS_OK, Settings, State, run_instance};
+use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, State, run_instance};
 use pidm::measurement::window_displacement as displacement;
 use pidm::model::Instance;
 use pidm::scene::{Layout, Scene};
@@ -176,7 +176,7 @@ fn every_extreme_point_converges_within_its_step_bound_and_shows_its_physics() {
 #[test]
 fn kinetic_friction_above_static_holds_like_static_friction_of_that_size() {
     // With f_c > f_s the slider is held until |f_need| exceeds f_c (the
-    // limit of MODEL.md's chatter as the band shrinks): exactly the motion
+    // limit of docs/model.md's chatter as the band shrinks): exactly the motion
     // of an interface whose static friction equals f_c.
     let all = points();
     let point = all

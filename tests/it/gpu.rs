@@ -8,12 +8,12 @@
 use std::sync::OnceLock;
 use std::time::Instant;
 
-use pidm::cpu::integrate::constants::{STATUS_GRAZE, STATUS_NOT_STEADY};
-use pidm::cpu::integrate::measure::VERDICT_PERIODIC;
-use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::gpu::{
     BatchOptions, F32Check, GpuContext, GpuOutcome, Precision, Route, run_batch, run_batch_with,
 };
+use pidm::laws::karnopp::integrate::constants::{STATUS_GRAZE, STATUS_NOT_STEADY};
+use pidm::laws::karnopp::integrate::measure::VERDICT_PERIODIC;
+use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::measurement::window_displacement as displacement;
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{Axis, Instance, Measure};
@@ -97,7 +97,10 @@ fn shader_only(options: &BatchOptions) -> BatchOptions {
 }
 
 /// The CPU reference of every instance.
-fn cpu_reference(instances: &[Instance], settings: &Settings) -> Vec<pidm::cpu::integrate::State> {
+fn cpu_reference(
+    instances: &[Instance],
+    settings: &Settings,
+) -> Vec<pidm::laws::karnopp::integrate::State> {
     instances
         .iter()
         .map(|inst| run_instance(inst, settings).state)
@@ -124,7 +127,7 @@ struct Agreement {
 fn compare(
     label: &str,
     instances: &[Instance],
-    cpu: &[pidm::cpu::integrate::State],
+    cpu: &[pidm::laws::karnopp::integrate::State],
     gpu: &[GpuOutcome],
     allowance: &dyn Fn(f64) -> f64,
 ) -> Agreement {
@@ -164,7 +167,7 @@ fn compare(
     a
 }
 
-/// MODEL.md section 6: every reference case.
+/// docs/model.md section 6: every reference case.
 fn paper_cases() -> Vec<Instance> {
     crate::common::reference_cases()
         .into_iter()
@@ -172,7 +175,7 @@ fn paper_cases() -> Vec<Instance> {
         .collect()
 }
 
-/// The seven cases of MODEL.md section 6 with Table 1's mechanism (the
+/// The seven cases of docs/model.md section 6 with Table 1's mechanism (the
 /// text's follow them): a small batch for the tests of batching, lanes and
 /// slices.
 fn table1_cases() -> Vec<Instance> {
@@ -236,7 +239,11 @@ fn random_scene(
     seed: u64,
     n: usize,
     settings: &Settings,
-) -> (Vec<Instance>, Vec<pidm::cpu::integrate::State>, usize) {
+) -> (
+    Vec<Instance>,
+    Vec<pidm::laws::karnopp::integrate::State>,
+    usize,
+) {
     let mut rng = SplitMix(seed);
     let mut instances = Vec::new();
     let mut states = Vec::new();
@@ -260,7 +267,7 @@ fn agree(
     label: &str,
     precision: Precision,
     instances: &[Instance],
-    cpu: &[pidm::cpu::integrate::State],
+    cpu: &[pidm::laws::karnopp::integrate::State],
     gpu: &[GpuOutcome],
 ) -> Agreement {
     let label = format!("{label} {precision:?}");
@@ -281,7 +288,7 @@ fn check_grazing(
     label: &str,
     precision: Precision,
     instances: &[Instance],
-    cpu: &[pidm::cpu::integrate::State],
+    cpu: &[pidm::laws::karnopp::integrate::State],
     gpu: &[GpuOutcome],
     max_grazes: usize,
 ) -> Agreement {
@@ -323,7 +330,7 @@ fn check(
     label: &str,
     precision: Precision,
     instances: &[Instance],
-    cpu: &[pidm::cpu::integrate::State],
+    cpu: &[pidm::laws::karnopp::integrate::State],
     gpu: &[GpuOutcome],
 ) -> Agreement {
     check_grazing(label, precision, instances, cpu, gpu, 0)
@@ -331,7 +338,7 @@ fn check(
 
 /// Fails unless every instance took as many steps on the GPU as on the CPU:
 /// the f64 shader took the CPU's decisions, not just close values.
-fn same_steps(label: &str, cpu: &[pidm::cpu::integrate::State], gpu: &[GpuOutcome]) {
+fn same_steps(label: &str, cpu: &[pidm::laws::karnopp::integrate::State], gpu: &[GpuOutcome]) {
     let cpu_steps: Vec<u32> = cpu.iter().map(|s| s.steps).collect();
     let gpu_steps: Vec<u32> = gpu.iter().map(|g| g.steps).collect();
     assert_eq!(gpu_steps, cpu_steps, "{label}: GPU steps against CPU steps");
@@ -378,7 +385,7 @@ fn paper_cases_match_the_cpu() {
     }
 }
 
-/// A load on the slider (MODEL.md section 7) on the GPU: the issue's
+/// A load on the slider (docs/model.md section 7) on the GPU: the issue's
 /// step-against-load points (steps up to 120 um) and the paper's cases
 /// under seeded random loads, with the CPU's steps in f64 and within the
 /// allowance in f32.
@@ -753,7 +760,7 @@ fn one_dof_instances_match_the_cpu_and_keep_y_at_rest() {
     for precision in precisions(ctx) {
         let gpu = gpu_batch(ctx, &one, &settings, precision, &BatchOptions::default());
         check("1-DOF", precision, &one, &cpu, &gpu);
-        // The y axis is exactly at rest, as MODEL.md requires.
+        // The y axis is exactly at rest, as docs/model.md requires.
         assert!(gpu.iter().all(|o| o.displacement[1] == 0.0));
     }
 }
@@ -893,7 +900,7 @@ fn extreme_points_are_finite_and_match_the_cpu_or_say_why_not() {
     }
 }
 
-/// Steady measurements on the GPU measure as the CPU does (MODEL.md
+/// Steady measurements on the GPU measure as the CPU does (docs/model.md
 /// section 4): in f64 the same lags and steps within [`F64_ALLOWANCE`] on
 /// periodic instances and the same statuses; every other value within
 /// three combined standard errors + 0.002 um of the CPU's (f32: plus its
@@ -911,7 +918,7 @@ fn steady_measurements_match_the_cpu() {
 }
 
 /// The same steady instances under seeded random loads on the slider
-/// (MODEL.md section 7), up to 0.9 f_c.
+/// (docs/model.md section 7), up to 0.9 f_c.
 #[test]
 fn loaded_steady_measurements_match_the_cpu() {
     let Some(ctx) = context() else {
@@ -1499,8 +1506,8 @@ fn the_self_test_refuses_a_pipeline_that_disagrees_with_the_cpu() {
 /// relative velocity integrated from the changes of two large ones, is
 /// known only to the rounding of the largest.
 fn state_distance(
-    g: &pidm::cpu::single::integrate::State,
-    m: &pidm::cpu::single::integrate::State,
+    g: &pidm::laws::karnopp::single::integrate::State,
+    m: &pidm::laws::karnopp::single::integrate::State,
 ) -> Option<(f64, &'static str)> {
     let discrete = (
         g.mode,
@@ -1522,7 +1529,7 @@ fn state_distance(
     if !discrete {
         return None;
     }
-    use pidm::cpu::single::integrate::{State, Vec2};
+    use pidm::laws::karnopp::single::integrate::{State, Vec2};
     let both = |f: &dyn Fn(&State) -> Vec2| {
         let (a, b) = (f(g), f(m));
         vec![(a.x as f64, b.x as f64), (a.y as f64, b.y as f64)]
@@ -1574,7 +1581,7 @@ fn state_distance(
 }
 
 /// Issue 19: the f32 shader takes the steps of its CPU mirror
-/// (`pidm::cpu::single`, the same source in f32). From the shader's own
+/// (`pidm::laws::karnopp::single`, the same source in f32). From the shader's own
 /// state after each of the first 30 iterations of 300 random instances,
 /// the mirror's next iteration lands where the shader's does: the same
 /// mode, period, step count, drive halves and next slip step, and every
@@ -1594,7 +1601,7 @@ fn the_f32_shader_takes_the_steps_of_its_mirror() {
     shader_follows_its_mirror(ctx, &pidm::random::random_instances(1, 300, 4, 1));
 }
 
-/// The same under seeded random loads on the slider (MODEL.md section 7):
+/// The same under seeded random loads on the slider (docs/model.md section 7):
 /// the load's terms are the same operations in both.
 #[test]
 fn the_f32_shader_takes_the_steps_of_its_mirror_under_loads() {
@@ -1609,7 +1616,7 @@ fn the_f32_shader_takes_the_steps_of_its_mirror_under_loads() {
 /// shader and in its CPU mirror from the shader's state: mostly equal bit
 /// for bit, the rest a few roundings apart or, rarely, another choice.
 fn shader_follows_its_mirror(ctx: &GpuContext, instances: &[Instance]) {
-    use pidm::cpu::single::integrate as mirror;
+    use pidm::laws::karnopp::single::integrate as mirror;
     let settings = Settings::default();
     let coefficients: Vec<_> = instances
         .iter()
@@ -1692,7 +1699,7 @@ fn f32_failures_are_integrated_again_on_the_cpu() {
     let Some(ctx) = context() else {
         return;
     };
-    use pidm::cpu::single::integrate as mirror;
+    use pidm::laws::karnopp::single::integrate as mirror;
     let settings = Settings::default();
     let mut instances = Vec::new();
     for (duty, fy, phase, vy, fc) in [

@@ -1,7 +1,7 @@
 //! The LuGre shader (`shaders/lugre/`, `pidm::gpu::lugre`) against the
 //! CPU's LuGre run in f64: its shader-only functions against their CPU
 //! mirrors, its functions against the CPU's from the same inputs along real
-//! runs, and whole runs: MODEL.md section 8's seven cases, a stiff
+//! runs, and whole runs: docs/model.md section 8's seven cases, a stiff
 //! instance, a loaded 2-DOF instance with unequal stages at duty 1.0 and a
 //! steady measurement, with the CPU's status, periods and lag. On a
 //! software adapter (lavapipe), whose f64 division and square root are
@@ -21,16 +21,16 @@
 
 use std::time::Instant;
 
-use pidm::cpu::integrate::Settings;
-use pidm::cpu::lugre::run_instance_until;
 use pidm::gpu::lugre::{LugreGpu, exp_nonpositive, fourth_root, hypot};
+use pidm::laws::karnopp::integrate::Settings;
+use pidm::laws::lugre::run_instance_until;
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{AXES, Axis, Friction, Instance, Lugre, Measure};
 
 use crate::common::case;
 use crate::gpu::context;
 
-/// MODEL.md section 6's case (Table 1, duty 0.98, window 10 / 2) with
+/// docs/model.md section 6's case (Table 1, duty 0.98, window 10 / 2) with
 /// LuGre's parameters `lugre`.
 fn lugre_case(v: [f64; 2], f: [f64; 2], lugre: Lugre) -> Instance {
     let mut inst = case(v[0], v[1], f[0], f[1], Axis::TABLE1);
@@ -38,7 +38,7 @@ fn lugre_case(v: [f64; 2], f: [f64; 2], lugre: Lugre) -> Instance {
     inst
 }
 
-/// MODEL.md section 8's seven cases at LuGre's defaults.
+/// docs/model.md section 8's seven cases at LuGre's defaults.
 fn seven_cases() -> Vec<Instance> {
     [
         ([100.0, 0.0], [10.0, 10.0]),
@@ -248,7 +248,7 @@ fn the_shader_mirrors_the_cpu_function_by_function() {
     }
 }
 
-/// MODEL.md section 8's seven cases, then the stiff, loaded and steady
+/// docs/model.md section 8's seven cases, then the stiff, loaded and steady
 /// instances: on a software adapter the GPU's records and step counts are
 /// the CPU's bit for bit; on hardware within 1e-6 um per cycle at a
 /// tolerance of 1e-6 and 2e-5 um at the default 1e-4 (where the CPU's own

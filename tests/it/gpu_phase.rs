@@ -1,5 +1,5 @@
 //! Two drive frequencies on the GPU (issue 31): the shader's phase ladder
-//! (`shaders/integrate/phase.wgsl`) and long common periods measure as the
+//! (`shaders/karnopp/phase.wgsl`) and long common periods measure as the
 //! CPU does. In f64 the same verdicts, periods and kinds of motion, and on
 //! periodic instances the same steps within `F64_ALLOWANCE`; every other
 //! value within the CPU's reported standard error (f32: plus its
@@ -7,9 +7,9 @@
 //! back. Measured on lavapipe: f64 agrees to the printed 1e-6 um, f32
 //! within 5e-4 um.
 
-use pidm::cpu::integrate::constants::STATUS_NOT_STEADY;
-use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::gpu::{BatchOptions, Precision};
+use pidm::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{Instance, Measure};
 use pidm::motion::Motion;

@@ -9,11 +9,11 @@
 
 use std::process::{Command, Stdio};
 
-use pidm::cpu::integrate::constants::ITERATION_KINDS;
-use pidm::cpu::integrate::{
+use pidm::gpu::{BatchOptions, GpuContext, GpuOutcome, Order, Precision, run_batch_with};
+use pidm::laws::karnopp::integrate::constants::ITERATION_KINDS;
+use pidm::laws::karnopp::integrate::{
     Coefficients, NoObserver, Settings, initial_state, is_finished, iterate,
 };
-use pidm::gpu::{BatchOptions, GpuContext, GpuOutcome, Order, Precision, run_batch_with};
 use pidm::model::Instance;
 
 use crate::common::s;

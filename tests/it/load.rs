@@ -1,11 +1,11 @@
-//! A constant load on the slider (MODEL.md section 7) in the f64 CPU
+//! A constant load on the slider (docs/model.md section 7) in the f64 CPU
 //! integrator: the reference values from an independent
 //! implementation, the physics a load must show (an undriven axis that
 //! rings and holds, a load on one axis moving the other, a breakaway at
 //! t = 0), its symmetries, and every shipped scene unloaded bit for bit
 //! what the binary before the load computed.
 
-use pidm::cpu::integrate::{
+use pidm::laws::karnopp::integrate::{
     Coefficients, MODE_STICK, STATUS_OK, Settings, StepMotion, StepObserver, advance_observed,
     initial_measure, initial_state, is_finished,
 };
@@ -106,7 +106,7 @@ struct SlipWatch {
 }
 
 impl StepObserver for SlipWatch {
-    fn step(&mut self, st: &pidm::cpu::integrate::State, _motion: &StepMotion) {
+    fn step(&mut self, st: &pidm::laws::karnopp::integrate::State, _motion: &StepMotion) {
         self.slipped |= st.mode != MODE_STICK;
     }
 }
@@ -126,7 +126,7 @@ fn watch(inst: &Instance) -> (bool, [f64; 2]) {
     (watch.slipped, st.x_s.to_array())
 }
 
-/// MODEL.md section 7: the load comes on at t = 0, and the stuck stage and
+/// docs/model.md section 7: the load comes on at t = 0, and the stuck stage and
 /// slider ring. Undriven, Table 1 holds only below 0.7364 N (the first
 /// swing of the ring, damped by the stuck body's Q of 27, asks for
 /// (1 + 2/3 x 0.944) L of friction), far below the static limit f_s (m_p +
@@ -163,7 +163,7 @@ fn a_load_on_one_axis_moves_that_axis_under_the_other_drive() {
             got[0]
         );
     }
-    // Unloaded, x stays exactly at rest (MODEL.md section 6).
+    // Unloaded, x stays exactly at rest (docs/model.md section 6).
     let mut inst = Instance::TABLE1;
     inst.axes[0].voltage = 0.0;
     assert_eq!(steps_um(&inst)[0], 0.0);
@@ -189,14 +189,14 @@ fn a_drive_past_breakaway_at_t_0_slips_at_once() {
             &mut st,
             &mut m,
             1,
-            &mut pidm::cpu::integrate::NoObserver,
+            &mut pidm::laws::karnopp::integrate::NoObserver,
         );
         assert_ne!(st.mode, MODE_STICK, "L_y {load} N");
         assert_eq!(st.time, 0.0, "L_y {load} N");
     }
 }
 
-/// MODEL.md section 6's invariants with a load: negating one axis' voltage
+/// docs/model.md section 6's invariants with a load: negating one axis' voltage
 /// and its load negates that axis' step and leaves the other's; swapping
 /// the axes, loads included, swaps the steps.
 #[test]
@@ -220,7 +220,7 @@ fn negating_and_swapping_carry_the_load_along() {
 }
 
 /// The 1-DOF baseline of axis i carries the load (L_i, 0) on its own axis
-/// (MODEL.md section 7).
+/// (docs/model.md section 7).
 #[test]
 fn each_baseline_carries_its_own_axis_load() {
     let mut inst = Instance::TABLE1;

@@ -1,17 +1,17 @@
-//! LuGre friction (MODEL.md section 8, issue 40) on the CPU: MODEL.md's
+//! LuGre friction (docs/model.md section 8, issue 40) on the CPU: docs/model.md's
 //! converged reference values, section 6's exact invariants, the Karnopp
 //! limit, a stiff instance, steady measurement, loads, baselines, and the
 //! scene's refusals.
 
 use pidm::backend::cpu::run_one;
-use pidm::cpu::integrate::Settings;
+use pidm::laws::karnopp::integrate::Settings;
 use pidm::measurement::Outcome;
 use pidm::model::{AXES, Axis, Friction, Instance, Lugre, Measure};
 use pidm::scene::Scene;
 
 use crate::common::{case, pidm, s};
 
-/// MODEL.md section 6's case with LuGre's parameters `lugre`.
+/// docs/model.md section 6's case with LuGre's parameters `lugre`.
 fn lugre_case(v: [f64; 2], f: [f64; 2], lugre: Lugre) -> Instance {
     let mut inst = case(v[0], v[1], f[0], f[1], Axis::TABLE1);
     inst.mechanism.friction = Friction::Lugre(lugre);
@@ -31,7 +31,7 @@ fn steps_of(inst: &Instance, tolerance: f64) -> ([f64; AXES], Outcome) {
     (um, out)
 }
 
-/// MODEL.md section 8's converged reference values at LuGre's defaults:
+/// docs/model.md section 8's converged reference values at LuGre's defaults:
 /// (voltages [V], frequencies [Hz], steps [um]).
 const REFERENCE: [([f64; 2], [f64; 2], [f64; 2]); 7] = [
     ([100.0, 0.0], [10.0, 10.0], [1.285861, 0.0]),
@@ -45,7 +45,7 @@ const REFERENCE: [([f64; 2], [f64; 2], [f64; 2]); 7] = [
 
 /// The paper's seven cases within 1e-4 um at the default tolerance
 /// (measured: 4.8e-5 um at most) and 1e-6 um at 1e-6 (measured: 4.6e-7
-/// um, about MODEL.md's rounding).
+/// um, about docs/model.md's rounding).
 #[test]
 fn the_seven_cases_meet_model_md_section_8() {
     for (tolerance, bound) in [(1e-4, 1e-4), (1e-6, 1e-6)] {
@@ -58,7 +58,7 @@ fn the_seven_cases_meet_model_md_section_8() {
             for i in 0..AXES {
                 assert!(
                     (got[i] - want[i]).abs() <= bound,
-                    "{volts:?} V {freq:?} Hz at {tolerance:e}: {got:?}, MODEL.md {want:?}"
+                    "{volts:?} V {freq:?} Hz at {tolerance:e}: {got:?}, docs/model.md {want:?}"
                 );
             }
         }
@@ -70,7 +70,7 @@ fn the_seven_cases_meet_model_md_section_8() {
 /// diagonal with each step the 1-DOF step at sqrt(2) V over sqrt(2);
 /// swapping the axes swaps the results; negating one axis' voltage negates
 /// its step only; and 100 / 50 V stays on the line (2, 1). "Exactly" is to
-/// 1e-9 um (MODEL.md section 8's own bound for the line): the implicit
+/// 1e-9 um (docs/model.md section 8's own bound for the line): the implicit
 /// stages' LU pivots in the axes' storage order, so the two axes round
 /// differently (measured: 5e-14 um apart on the diagonal); swapped axes
 /// agree within the integration's error.
@@ -106,9 +106,9 @@ fn section_6_invariants_hold_under_lugre() {
     assert!((line[1] - line[0] / 2.0).abs() <= 1e-9, "{line:?}");
 }
 
-/// The Karnopp limit (MODEL.md section 8): sigma0 = 1e10 N/m, sigma1
+/// The Karnopp limit (docs/model.md section 8): sigma0 = 1e10 N/m, sigma1
 /// derived, v_S = 1e-5 m/s, within 0.01 um of Karnopp's +0.615911 um and
-/// of MODEL.md's +0.612083 um, without a non-finite value: a stiff
+/// of docs/model.md's +0.612083 um, without a non-finite value: a stiff
 /// instance that finishes within its step budget.
 #[test]
 fn the_karnopp_limit_holds_at_1e10() {
@@ -146,7 +146,7 @@ fn a_steady_lugre_run_finds_its_cycle() {
     assert!((got[0] - long[0]).abs() <= 1e-4, "{got:?} against {long:?}");
 }
 
-/// A load on the slider (MODEL.md section 7) pulls the LuGre step its way,
+/// A load on the slider (docs/model.md section 7) pulls the LuGre step its way,
 /// and a 1-DOF baseline of a LuGre scene is the LuGre 1-DOF run.
 #[test]
 fn loads_and_baselines_run_lugre() {

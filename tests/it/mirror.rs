@@ -1,13 +1,13 @@
-//! The f32 CPU mirror (`pidm::cpu::single`): the integrator's source
+//! The f32 CPU mirror (`pidm::laws::karnopp::single`): the integrator's source
 //! compiled in f32 with the f32 shader's formulation, against the f64
 //! reference. Its agreement with the shader itself is pinned in `gpu.rs`
 //! (`the_f32_shader_takes_the_steps_of_its_mirror`).
 
 use pidm::backend::Precision;
 use pidm::backend::cpu::{run_one, run_one_in};
-use pidm::cpu::integrate::constants::STATUS_GRAZE;
-use pidm::cpu::integrate::{self as reference, STATUS_OK, Settings};
-use pidm::cpu::single::{integrate as mirror, si};
+use pidm::laws::karnopp::integrate::constants::STATUS_GRAZE;
+use pidm::laws::karnopp::integrate::{self as reference, STATUS_OK, Settings};
+use pidm::laws::karnopp::single::{integrate as mirror, si};
 use pidm::measurement::window_displacement;
 use pidm::model::{Instance, Measure};
 
@@ -42,7 +42,7 @@ fn f32_mirror_holds_the_step_tolerance_on_random_scenes() {
     mirror_holds_the_step_tolerance("random scenes", &scenes);
 }
 
-/// The same bar under a load on the slider (MODEL.md section 7): the random
+/// The same bar under a load on the slider (docs/model.md section 7): the random
 /// scenes under random loads up to 0.9 f_c, and the issue's
 /// step-against-load points, whose steps reach 120 um.
 #[test]
@@ -203,7 +203,7 @@ fn f32_mirror_runs_in_slices_and_repeats_bit_for_bit() {
     }
 }
 
-/// The mirror's steady measurement (MODEL.md section 4) measures as the
+/// The mirror's steady measurement (docs/model.md section 4) measures as the
 /// reference does: the same status on the periodic, the quasi-periodic
 /// and the cut-short instances of `gpu.rs`'s steady test, and every step
 /// within three combined standard errors + 0.002 um plus the f32

@@ -1,10 +1,10 @@
 //! Two drive frequencies (issue 31): common periods from the frequencies as
-//! written, the phase-resolved estimate (`pidm::cpu::integrate::phase`)
+//! written, the phase-resolved estimate (`pidm::laws::karnopp::integrate::phase`)
 //! against long references, near resonances, and the kind of motion each
 //! run records (`/maps/motion`).
 
-use pidm::cpu::integrate::STATUS_OK;
-use pidm::cpu::integrate::constants::STATUS_NOT_STEADY;
+use pidm::laws::karnopp::integrate::STATUS_OK;
+use pidm::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use pidm::measurement::Measured;
 use pidm::model::Instance;
 use pidm::motion::Motion;

@@ -1,9 +1,9 @@
-//! The CPU integrator against MODEL.md: the converged reference values of
+//! The CPU integrator against docs/model.md: the converged reference values of
 //! section 6, the exact invariants, convergence under tightening the
 //! accuracy knob, and determinism across thread counts.
 
 use pidm::backend::{Backend, CpuBackend};
-use pidm::cpu::integrate::{
+use pidm::laws::karnopp::integrate::{
     Coefficients, MODE_STICK, STATUS_OK, Settings, State, StepMotion, StepObserver, Vec2,
     advance_observed, initial_measure, initial_state, is_finished, run_instance,
 };
@@ -43,7 +43,7 @@ fn default_settings_match_the_converged_reference_values() {
 
 #[test]
 fn a_tight_knob_reproduces_every_printed_digit() {
-    // MODEL.md prints 4 decimals of values converged to about 1e-4 um; at a
+    // docs/model.md prints 4 decimals of values converged to about 1e-4 um; at a
     // tight tolerance every result rounds to the printed value (half a unit
     // in the last place, plus 1e-6 um for the printed value's own error).
     let settings = Settings {
@@ -226,7 +226,7 @@ fn results_are_identical_for_any_thread_count_and_chunk_size() {
     let _ = CpuBackend::new(Some(1)).unwrap().describe();
 }
 
-/// The error claimed for the default knob over any instance: MODEL.md's
+/// The error claimed for the default knob over any instance: docs/model.md's
 /// bar. `pidm accuracy` and a broad stress sweep measured at most 4e-4 um.
 const CLAIMED_ANY_INSTANCE_ERROR_UM: f64 = 1e-3;
 
@@ -263,7 +263,7 @@ impl StepObserver for Modes {
     }
 }
 
-/// MODEL.md section 6: with the text's parameter set (`sweeps/paper_text.toml`)
+/// docs/model.md section 6: with the text's parameter set (`sweeps/paper_text.toml`)
 /// the 10 Hz 1-DOF cases, 100 V and 50 V, do not slip at all. Pinned here
 /// by what the run does, not only by its step: every step starts in stick
 /// and the run ends in stick with no relative velocity.
@@ -294,7 +294,7 @@ fn the_texts_10_hz_one_dof_cases_never_slip() {
         // start-up transient, which has not quite died out when the
         // measured cycles begin (measured -9.0e-6 um at 100 V and -4.5e-6
         // um at 50 V). The bound, 2e-5 um, leaves a factor of 2 and is below
-        // MODEL.md's printed resolution of 1e-4 um; the modes above, not
+        // docs/model.md's printed resolution of 1e-4 um; the modes above, not
         // the step, are what shows that nothing slipped.
         assert!(step_um.abs() <= 2e-5, "{voltage} V: step {step_um:e} um");
         steps.push(step_um);

@@ -9,8 +9,8 @@
 
 use std::process::{Command, Stdio};
 
-use pidm::cpu::integrate::{Replica, Replicas, STATUS_OK, Settings};
 use pidm::gpu::{BatchOptions, Precision};
+use pidm::laws::karnopp::integrate::{Replica, Replicas, STATUS_OK, Settings};
 use pidm::measurement::Measured;
 use pidm::model::Instance;
 use pidm::motion::Motion;

@@ -912,8 +912,8 @@ fn an_empty_scene_is_table_1_with_y_undriven() {
     assert_eq!(scene.instance(0), steady(Instance::TABLE1.baseline(0)));
     assert!(!scene.baselines);
     // A scene splits what it can; the library's default runs one chain.
-    let settings = pidm::cpu::integrate::Settings {
-        replicas: pidm::cpu::integrate::Replicas::Auto,
+    let settings = pidm::laws::karnopp::integrate::Settings {
+        replicas: pidm::laws::karnopp::integrate::Replicas::Auto,
         ..Default::default()
     };
     assert_eq!(scene.settings, settings);
@@ -1721,13 +1721,13 @@ fn a_refined_scene_is_its_finest_grid_with_the_coarse_one_inside() {
     assert!(uniform.refine.is_none());
 }
 
-/// MODEL.md section 7: a load whose magnitude |L| is the kinetic friction
+/// docs/model.md section 7: a load whose magnitude |L| is the kinetic friction
 /// or more is refused, naming the keys, their values and the reason; on a
 /// grid the grid value that reaches it, before any work.
 #[test]
 fn loads_of_the_kinetic_friction_or_more_are_refused() {
     let reason = "a slider slipping along a load of the kinetic friction or more is not \
-                  stopped by it and may run away (MODEL.md section 7)";
+                  stopped by it and may run away (docs/model.md section 7)";
     let cases: &[(&str, &str)] = &[
         (
             "[mechanism]\nload_x = 1.0",

@@ -1,4 +1,4 @@
-//! Stall-load maps (`[stall]`, MODEL.md section 7) end to end: the issue's
+//! Stall-load maps (`[stall]`, docs/model.md section 7) end to end: the issue's
 //! stall loads through `pidm run`, the maps with their units, long names
 //! and dimensions, an actuator that never stalls, the GPU's waves, and
 //! shards, merge and resume giving the single run's file.
@@ -92,7 +92,7 @@ fn the_stall_map_finds_the_reference_stall_loads() {
     );
 }
 
-/// MODEL.md section 7: where the step keeps its direction at every load
+/// docs/model.md section 7: where the step keeps its direction at every load
 /// probed, the stall status is 8 and the map 0 (never a made-up number);
 /// the near step is the step at the largest load probed, still backward.
 /// Table 1 with f_c = 0.2 N at 100 V backs off at -6.9 um and pushes
@@ -343,7 +343,7 @@ fn pidm_plot_draws_the_stall_load_map_and_steps_against_a_load() {
     }
 }
 
-/// The shipped scenes of the load (MODEL.md section 7): `sweeps/stall.toml`
+/// The shipped scenes of the load (docs/model.md section 7): `sweeps/stall.toml`
 /// maps the stall load of x over V_x and duty (steady), holding the
 /// issue's -0.0379 N at 100 V and duty 0.98; `sweeps/load.toml` is the
 /// step against a load on x at two y voltages, holding the reference's

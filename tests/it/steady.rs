@@ -1,10 +1,10 @@
-//! The steady measurement (MODEL.md section 4) on the CPU: periodic
+//! The steady measurement (docs/model.md section 4) on the CPU: periodic
 //! motion found with the right lag, the 10 / 14 Hz step whatever the
 //! settle and tolerance, standard errors that cover the error against a
 //! much longer run, and "not steady" where max_cycles is too short.
 
-use pidm::cpu::integrate::constants::STATUS_NOT_STEADY;
-use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
+use pidm::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{Axis, Instance, Measure};
 
@@ -101,7 +101,7 @@ fn commensurate_drives_are_found_periodic_with_their_lag() {
 
 #[test]
 fn ten_and_fourteen_hertz_give_minus_075_um_whatever_settle_and_tolerance() {
-    // MODEL.md section 4: -0.75 um on y (+0.60 on x) over any multiple of
+    // docs/model.md section 4: -0.75 um on y (+0.60 on x) over any multiple of
     // the 5-period common period, +3.09 um over the paper's 8 periods.
     let paper = measure(&window(&steady(10.0, 14.0, 2, 1e-8, 10), 10));
     let w = window(&steady(10.0, 14.0, 2, 1e-8, 10), 10);

@@ -2,7 +2,7 @@
 //! the map results, and samples inside long closed-form steps are the true
 //! motion (checked against an independent integration).
 
-use pidm::cpu::integrate::{STATUS_OK, Settings, run_instance};
+use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::measurement::window_displacement as displacement;
 use pidm::model::{Axis, Instance, sawtooth};
 use pidm::scene::Scene;

@@ -5,10 +5,10 @@
 //! runs on a variant without a part it needs; and a scene's run prepares
 //! the variant of what it uses up front.
 
-use pidm::cpu::integrate::Settings;
 use pidm::gpu::{
     BatchOptions, GpuContext, GpuOutcome, Parts, Precision, create_pipeline, execute_gpu_inner,
 };
+use pidm::laws::karnopp::integrate::Settings;
 use pidm::model::Instance;
 use pidm::scene::Scene;
 

@@ -344,7 +344,7 @@ def test_a_steady_map_has_its_kinds_of_motion_with_their_flags(tmp_path: Path) -
 
 
 def test_a_stall_map_reads_with_its_units_and_the_grid(tmp_path: Path) -> None:
-    # MODEL.md section 7: Table 1 at 10 Hz, 100 V on x, stalls at -0.0379 N
+    # docs/model.md section 7: Table 1 at 10 Hz, 100 V on x, stalls at -0.0379 N
     # with y at 0 V and at +0.0792 N with y at 100 V (an independent
     # reference); f_c = 0.2 N never stalls (stall status 8, map 0).
     scene = {
@@ -373,7 +373,7 @@ def test_a_stall_map_reads_with_its_units_and_the_grid(tmp_path: Path) -> None:
 
 
 def test_a_lugre_map_says_which_friction_ran(tmp_path: Path) -> None:
-    # MODEL.md section 8: LuGre at its defaults, 1-DOF 100 V at 10 Hz over
+    # docs/model.md section 8: LuGre at its defaults, 1-DOF 100 V at 10 Hz over
     # the paper's window, +1.285861 um; a map over the bristle stiffness
     # whose attributes name the law and instance 0's values.
     scene = {

@@ -5,7 +5,7 @@
 use super::{LANE_RUNNING, LANE_STOPPED};
 use bytemuck::{Pod, Zeroable};
 
-use crate::cpu::lugre::run::{Linear, N, Periods, State, T, first_step};
+use crate::laws::lugre::run::{Linear, N, Periods, State, T, first_step};
 use crate::model::AXES;
 
 /// One instance's parameters (`model.wgsl`'s `Model`): the model, the

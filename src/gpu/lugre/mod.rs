@@ -1,6 +1,6 @@
-//! The LuGre integrator on the GPU (MODEL.md section 8) in f64: the WGSL
+//! The LuGre integrator on the GPU (docs/model.md section 8) in f64: the WGSL
 //! in `shaders/lugre/`, a function-for-function mirror of
-//! [`crate::cpu::lugre`] (`model.wgsl` of `model.rs`, `rodas.wgsl` of
+//! [`crate::laws::lugre`] (`model.wgsl` of `model.rs`, `rodas.wgsl` of
 //! `rodas.rs`: Rodas4 on the reduced 6 x 6 system), and its host, which
 //! runs a batch period by period.
 //!
@@ -37,7 +37,7 @@
 //!   the two-part sums.
 //! * WGSL's f64 has no exp or pow: the CPU's LuGre integrator computes
 //!   exp, hypot and the step control's fourth root with algorithms the
-//!   shader can run ([`crate::cpu::lugre::libm`]: [`exp_nonpositive`],
+//!   shader can run ([`crate::laws::lugre::libm`]: [`exp_nonpositive`],
 //!   [`hypot`], [`fourth_root`]), and the shader runs them. So on llvmpipe
 //!   the shader's right-hand side, Jacobian and Rodas4 step are the CPU's
 //!   to the last bit ([`LugreGpu::mirror_check`]), and whole runs are too
@@ -61,7 +61,7 @@ mod probes;
 mod runner;
 mod source;
 
-pub use crate::cpu::lugre::libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};
+pub use crate::laws::lugre::libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};
 pub use buffers::{Lane, MirrorCheck, Params, Probe, Probed};
 pub use runner::{BatchReport, LugreGpu};
 pub use source::{Arithmetic, parse_and_validate, prelude, source};

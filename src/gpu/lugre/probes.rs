@@ -11,10 +11,10 @@ use super::{
 use bytemuck::Zeroable;
 use wgpu::util::DeviceExt;
 
-use crate::cpu::integrate::Settings;
-use crate::cpu::lugre::run::{Clock, Periods, T, rodas4, segment};
 use crate::gpu::GpuError;
 use crate::gpu::readback::{mappable, read_buffer};
+use crate::laws::karnopp::integrate::Settings;
+use crate::laws::lugre::run::{Clock, Periods, T, rodas4, segment};
 use crate::model::{AXES, Instance};
 
 impl LugreGpu<'_> {

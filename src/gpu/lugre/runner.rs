@@ -10,10 +10,10 @@ use std::time::Instant;
 
 use wgpu::util::DeviceExt;
 
-use crate::cpu::integrate::{Run, Settings};
-use crate::cpu::lugre::run::Periods;
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::gpu::{GpuContext, GpuError, Precision};
+use crate::laws::karnopp::integrate::{Run, Settings};
+use crate::laws::lugre::run::Periods;
 use crate::model::Instance;
 
 /// What a batch cost.

@@ -5,11 +5,11 @@
 use super::{
     CORNER_RETRIES, FILES, LANE_PERIOD_END, LANE_RUNNING, LANE_STOPPED, SEGMENT_DONE, SEGMENT_GOING,
 };
-use crate::cpu::lugre::libm::*;
+use crate::laws::lugre::libm::*;
 
-use crate::cpu::lugre::run::{A, C, GAMMA, N, R, REDUCED, SMALLEST_STEP, T, VP, VS, XP, XS, Z};
 use crate::gpu::shader::{self, Parts, Variant};
 use crate::gpu::{GpuContext, GpuError, Precision};
+use crate::laws::lugre::run::{A, C, GAMMA, N, R, REDUCED, SMALLEST_STEP, T, VP, VS, XP, XS, Z};
 
 /// `{:e}` of an f64: the shortest text that reads back as the same value.
 fn lit(x: f64) -> String {
@@ -224,8 +224,8 @@ mod tests {
     #[test]
     fn the_shader_files_mirror_their_rust_files() {
         let rust = [
-            ("model.wgsl", include_str!("../../cpu/lugre/model.rs")),
-            ("rodas.wgsl", include_str!("../../cpu/lugre/rodas.rs")),
+            ("model.wgsl", include_str!("../../laws/lugre/model.rs")),
+            ("rodas.wgsl", include_str!("../../laws/lugre/rodas.rs")),
         ];
         // Shader only: WGSL has no exp, hypot, powf or is_finite (their
         // CPU mirrors are in this file), and no methods: `solve_lu` is

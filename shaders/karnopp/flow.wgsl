@@ -1,0 +1,341 @@
+// Mirror of src/cpu/integrate/flow.rs: the closed-form motion over one
+// step and its evaluation at any time inside the step.
+
+// exp(A tau) = (1 + a0m1) I + a1 A per axis.
+struct Propagator {
+    a0m1: V2,
+    a1: V2,
+}
+
+// The propagators at a quarter, half, three quarters and all of a step.
+struct SamplePropagators {
+    quarter: Propagator,
+    half: Propagator,
+    three_quarters: Propagator,
+    full: Propagator,
+}
+
+// The state at one instant of a step, with the derivatives event functions
+// need.
+struct Sample {
+    x_p: V2,
+    v_p: V2,
+    a_p: V2,
+    j_p: V2,
+    x_s: V2,
+    v_s: V2,
+    a_s: V2,
+    v_rel: V2,
+}
+
+// The motion of both axes over one step.
+struct Flow {
+    stuck: bool,
+    osc: Oscillator,
+    damping: V2,
+    stiffness: V2,
+    h: Real,
+    inv_h: Real,
+    part1: V2,
+    part2: V2,
+    y0: V2,
+    w0: V2,
+    x_p: V2,
+    v_p: V2,
+    x_s: V2,
+    v_s: V2,
+    v_rel: V2,
+    b0: V2,
+    slider0: V2,
+    slider1: V2,
+    slider2: V2,
+    g0: V2,
+    g1: V2,
+    g2: V2,
+    // DEFLECTION (f32): g0 - drive force, g1 - drive slope, and the drive's
+    // static velocity slope / k; x_p and v_p are then the stage's
+    // deflection from the drive's static position F / k and its velocity
+    // relative to slope / k (see `make_flow`).
+    g0_rel: V2,
+    g1_rel: V2,
+    ramp: V2,
+    taylor: vec2<bool>,
+}
+
+// The friction direction model u(theta) = b0 + b1 theta + b2 theta^2.
+struct DirectionModel {
+    b0: V2,
+    b1: V2,
+    b2: V2,
+}
+
+fn identity_propagator() -> Propagator {
+    return Propagator(V2(0.0), V2(0.0));
+}
+
+fn propagator(osc: Oscillator, tau: Real) -> Propagator {
+    var scale = osc.rate * tau;
+    var t = V2(tau);
+    var squarings = vec2<u32>(0u);
+    for (var k = 0u; k < MAX_SQUARINGS; k++) {
+        let more = scale > V2(0.5);
+        if !any(more) {
+            break;
+        }
+        scale = select(scale, scale * Real(0.5), more);
+        t = select(t, t * Real(0.5), more);
+        squarings += select(vec2<u32>(0u), vec2<u32>(1u), more);
+    }
+    var prop = taylor_propagator(osc, t);
+    let most = max(squarings.x, squarings.y);
+    for (var k = 0u; k < most; k++) {
+        let squared = compose(osc, prop, prop);
+        let more = vec2<u32>(k) < squarings;
+        prop = Propagator(select(prop.a0m1, squared.a0m1, more), select(prop.a1, squared.a1, more));
+    }
+    return prop;
+}
+
+// One term of the propagator's Taylor series: (p, q) <- (-w2 q f, (p - 2
+// sigma q) f), accumulated.
+struct Series {
+    p: V2,
+    q: V2,
+    a0m1: V2,
+    a1: V2,
+}
+
+fn series_term(s: ptr<function, Series>, osc: Oscillator, f: V2) {
+    let next_p = -osc.w2 * (*s).q * f;
+    let next_q = ((*s).p - Real(2.0) * osc.sigma * (*s).q) * f;
+    (*s).p = next_p;
+    (*s).q = next_q;
+    (*s).a0m1 = (*s).a0m1 + next_p;
+    (*s).a1 = (*s).a1 + next_q;
+}
+
+// The TAYLOR_TERMS terms, unrolled with constant factors 1 / n, the
+// prelude's INVERSE_n literals (a call of `inverse_integer` would be
+// inlined, switch and all, before its argument is folded; the host checks
+// that the count matches).
+fn taylor_propagator(osc: Oscillator, t: V2) -> Propagator {
+    var s = Series(V2(1.0), V2(0.0), V2(0.0), V2(0.0));
+    series_term(&s, osc, t * INVERSE_1);
+    series_term(&s, osc, t * INVERSE_2);
+    series_term(&s, osc, t * INVERSE_3);
+    series_term(&s, osc, t * INVERSE_4);
+    series_term(&s, osc, t * INVERSE_5);
+    series_term(&s, osc, t * INVERSE_6);
+    series_term(&s, osc, t * INVERSE_7);
+    series_term(&s, osc, t * INVERSE_8);
+    series_term(&s, osc, t * INVERSE_9);
+    series_term(&s, osc, t * INVERSE_10);
+    series_term(&s, osc, t * INVERSE_11);
+    series_term(&s, osc, t * INVERSE_12);
+    series_term(&s, osc, t * INVERSE_13);
+    series_term(&s, osc, t * INVERSE_14);
+    return Propagator(s.a0m1, s.a1);
+}
+
+fn compose(osc: Oscillator, a: Propagator, b: Propagator) -> Propagator {
+    let ab = a.a1 * b.a1;
+    return Propagator(
+        a.a0m1 + b.a0m1 + a.a0m1 * b.a0m1 - osc.w2 * ab,
+        a.a1 + b.a1 + a.a0m1 * b.a1 + a.a1 * b.a0m1 - Real(2.0) * osc.sigma * ab,
+    );
+}
+
+fn sample_propagators(flow: Flow, h: Real) -> SamplePropagators {
+    let osc = flow.osc;
+    let quarter = propagator(osc, Real(0.25) * h);
+    let half = compose(osc, quarter, quarter);
+    return SamplePropagators(quarter, half, compose(osc, half, quarter), compose(osc, half, half));
+}
+
+fn make_flow(
+    stuck: bool,
+    x_p: V2,
+    v_p: V2,
+    x_s: V2,
+    v_s: V2,
+    v_rel: V2,
+    force: V2,
+    slope: V2,
+    dir: DirectionModel,
+    h: Real,
+    inv_h: Real,
+) -> Flow {
+    let c = &coefficients[held];
+    var osc = c.slip;
+    var g0_rel = -c.coulomb * dir.b0;
+    var g1_rel = -c.coulomb * dir.b1 * inv_h;
+    var g0 = force + g0_rel;
+    var g1 = slope + g1_rel;
+    var g2 = -c.coulomb * dir.b2 * (inv_h * inv_h);
+    if stuck {
+        // The load acts on stage and slider as one body (docs/model.md section
+        // 7): only the particular solution moves.
+        osc = c.stick;
+        g0 = force - neg_load();
+        g1 = slope;
+        g2 = V2(0.0);
+        g0_rel = V2(0.0) - neg_load();
+        g1_rel = V2(0.0);
+    }
+    let x2 = g2 * c.inv_stiffness;
+    let x1 = (g1 - Real(2.0) * c.damping * x2) * c.inv_stiffness;
+    let x0 = (g0 - c.damping * x1 - Real(2.0) * osc.mass * x2) * c.inv_stiffness;
+    let turning = dir.b1 != V2(0.0) | dir.b2 != V2(0.0);
+    let short = osc.rate * h <= V2(1.0);
+    var f: Flow;
+    f.stuck = stuck;
+    f.osc = osc;
+    f.damping = c.damping;
+    f.stiffness = c.stiffness;
+    f.h = h;
+    f.inv_h = inv_h;
+    f.part1 = x1;
+    f.part2 = x2;
+    f.y0 = x_p - x0;
+    f.w0 = v_p - x1;
+    f.g0_rel = g0_rel;
+    f.g1_rel = g1_rel;
+    f.ramp = slope * c.inv_stiffness;
+    if DEFLECTION {
+        // x_p and v_p are deflections (x_p - F / k, v_p - slope / k): the
+        // homogeneous part's start is their sum with the small offsets of
+        // the particular solution from the drive's static motion, with no
+        // difference of two large positions (f32 would know it only to
+        // 6e-8 of the stage's position).
+        f.part1 = (g1_rel - Real(2.0) * c.damping * x2) * c.inv_stiffness;
+        f.y0 = x_p + (c.damping * x1 + Real(2.0) * osc.mass * x2 - g0_rel) * c.inv_stiffness;
+        f.w0 = v_p + (Real(2.0) * c.damping * x2 - g1_rel) * c.inv_stiffness;
+    }
+    f.x_p = x_p;
+    f.v_p = v_p;
+    f.x_s = x_s;
+    f.v_s = v_s;
+    f.v_rel = v_rel;
+    f.b0 = dir.b0;
+    f.slider0 = c.fc_over_ms * dir.b0 - neg_load_accel();
+    f.slider1 = c.fc_over_ms * dir.b1;
+    f.slider2 = c.fc_over_ms * dir.b2;
+    f.g0 = g0;
+    f.g1 = g1;
+    f.g2 = g2;
+    f.taylor = vec2<bool>(!stuck) & turning & short;
+    return f;
+}
+
+// Stage (x, change of v since the start, a, jerk) per axis.
+struct Stage {
+    x: V2,
+    dv: V2,
+    a: V2,
+    j: V2,
+}
+
+fn eval_stage(f: Flow, prop: Propagator, tau: Real) -> Stage {
+    let o = f.osc;
+    let dy = prop.a0m1 * f.y0 + prop.a1 * f.w0;
+    let dw = prop.a0m1 * f.w0 + prop.a1 * (-o.w2 * f.y0 - Real(2.0) * o.sigma * f.w0);
+    let y = f.y0 + dy;
+    let w = f.w0 + dw;
+    let a_h = -o.w2 * y - Real(2.0) * o.sigma * w;
+    let j_h = -o.w2 * w - Real(2.0) * o.sigma * a_h;
+    let x = f.x_p + (f.part1 + f.part2 * tau) * tau + dy;
+    let dv = Real(2.0) * f.part2 * tau + dw;
+    let a = Real(2.0) * f.part2 + a_h;
+    return Stage(x, dv, a, j_h);
+}
+
+fn eval_stage_taylor(f: Flow, tau: Real) -> Stage {
+    let o = f.osc;
+    var d0 = f.x_p;
+    var d1 = f.v_p;
+    var d2 = (f.g0 - f.damping * d1 - f.stiffness * d0) * o.inv_mass;
+    var d3 = (f.g1 - f.damping * d2 - f.stiffness * d1) * o.inv_mass;
+    if DEFLECTION {
+        // The same derivatives from the deflections (F - k x_p = -k d).
+        d2 = (f.g0_rel - f.damping * (d1 + f.ramp) - f.stiffness * d0) * o.inv_mass;
+        d3 = (f.g1_rel - f.damping * d2 - f.stiffness * d1) * o.inv_mass;
+    }
+    var t = Real(1.0);
+    let rate_tau = o.rate * tau;
+    var bound = V2(1.0);
+    var out = Stage(V2(0.0), V2(0.0), V2(0.0), V2(0.0));
+    for (var n = 0u; n < TAYLOR_STAGE_TERMS; n++) {
+        let live = vec2<bool>(n < 3u) | bound >= V2(TAYLOR_STAGE_CONVERGED);
+        if !any(live) {
+            break;
+        }
+        let inv_n1 = inverse_integer(n + 1u);
+        bound = select(bound, bound * rate_tau * inv_n1, live);
+        out.x = select(out.x, out.x + d0 * t, live);
+        if n > 0u {
+            out.dv = select(out.dv, out.dv + d1 * t, live);
+        }
+        out.a = select(out.a, out.a + d2 * t, live);
+        out.j = select(out.j, out.j + d3 * t, live);
+        var g = V2(0.0);
+        if n == 0u {
+            g = Real(2.0) * f.g2;
+        }
+        let d4 = (g - f.damping * d3 - f.stiffness * d2) * o.inv_mass;
+        d0 = d1;
+        d1 = d2;
+        d2 = d3;
+        d3 = d4;
+        t *= tau * inv_n1;
+    }
+    return out;
+}
+
+fn eval_flow(flow: Flow, prop: Propagator, tau: Real) -> Sample {
+    // Each form only where an axis needs it (see flow.rs).
+    var st = Stage(V2(0.0), V2(0.0), V2(0.0), V2(0.0));
+    if !all(flow.taylor) {
+        st = eval_stage(flow, prop, tau);
+    }
+    if any(flow.taylor) {
+        let ts = eval_stage_taylor(flow, tau);
+        st.x = select(st.x, ts.x, flow.taylor);
+        st.dv = select(st.dv, ts.dv, flow.taylor);
+        st.a = select(st.a, ts.a, flow.taylor);
+        st.j = select(st.j, ts.j, flow.taylor);
+    }
+    let v = flow.v_p + st.dv;
+    var s: Sample;
+    s.x_p = st.x;
+    s.v_p = v;
+    s.a_p = st.a;
+    s.j_p = st.j;
+    if flow.stuck {
+        s.x_s = flow.x_s + (st.x - flow.x_p);
+        s.v_s = v;
+        if DEFLECTION {
+            s.x_s = flow.x_s + ((st.x - flow.x_p) + flow.ramp * tau);
+            s.v_s = v + flow.ramp;
+        }
+        s.a_s = st.a;
+        s.v_rel = V2(0.0);
+    } else {
+        let th = tau * flow.inv_h;
+        let h = flow.h;
+        let c0 = flow.slider0;
+        let c1 = flow.slider1;
+        let c2 = flow.slider2;
+        s.x_s = flow.x_s
+            + flow.v_s * tau
+            + (h * h * th * th) * (c0 * Real(0.5) + (c1 * ONE_SIXTH + c2 * (ONE_TWELFTH * th)) * th);
+        let dv_s = (h * th) * (c0 + (c1 * Real(0.5) + c2 * (ONE_THIRD * th)) * th);
+        s.v_s = flow.v_s + dv_s;
+        s.a_s = c0 + (c1 + c2 * th) * th;
+        s.v_rel = flow.v_rel + (st.dv - dv_s);
+    }
+    return s;
+}
+
+fn eval_at(flow: Flow, tau: Real) -> Sample {
+    return eval_flow(flow, propagator(flow.osc, tau), tau);
+}

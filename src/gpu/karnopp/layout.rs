@@ -1,0 +1,676 @@
+//! Host mirrors of the shader's storage structs, one set per precision, and
+//! the packing of instances into them.
+//!
+//! Every struct here has a WGSL twin of the same name in
+//! `shaders/karnopp/`. Padding is explicit, so the structs are `Pod` and
+//! their bytes are exactly what the shader reads; the test
+//! `shader_layout_matches_host_structs` checks every size and member offset
+//! against naga's layouter, so the two cannot drift apart.
+//!
+//! The f32 shader runs in micrometres and milliseconds (see [`Units`]), which
+//! keeps every intermediate of the integrator, notably the derivatives of the
+//! stage Taylor series (rate^n), inside the f32 range. The f64 shader runs in
+//! SI units, exactly like the CPU. Either way the per-instance constants are
+//! [`crate::laws::karnopp::integrate::Coefficients`], computed in f64 and rounded once.
+
+use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
+use crate::model::{AXES, Instance};
+
+pub use crate::laws::karnopp::units::Units;
+
+/// A struct shared with the shader: its WGSL name and the byte offset of
+/// every member, in declaration order, which a unit test holds against
+/// naga's layout of the shader.
+pub trait HostLayout: bytemuck::Pod {
+    /// The name of the WGSL struct it mirrors.
+    const NAME: &'static str;
+    /// (member name, byte offset) in declaration order.
+    fn members() -> Vec<(&'static str, usize)>;
+}
+
+/// Declares a `#[repr(C)]` `Pod` struct and its [`HostLayout`].
+macro_rules! host_struct {
+    (
+        $(#[$meta:meta])*
+        pub struct $name:ident {
+            $( $(#[$field_meta:meta])* pub $field:ident : $ty:ty ),* $(,)?
+        }
+    ) => {
+        $(#[$meta])*
+        #[repr(C)]
+        #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+        pub struct $name {
+            $( $(#[$field_meta])* pub $field: $ty ),*
+        }
+
+        impl $crate::gpu::layout::HostLayout for $name {
+            const NAME: &'static str = stringify!($name);
+            fn members() -> Vec<(&'static str, usize)> {
+                vec![$( (stringify!($field), std::mem::offset_of!($name, $field)) ),*]
+            }
+        }
+    };
+}
+
+/// Passes of the shader's loop-limiter probe (`loop_limiter_intact`): more
+/// than the two a truncated loop can still make when the compiler has
+/// peeled its first pass.
+pub const PROBE_PASSES: u32 = 4;
+
+/// WGSL's `vec2<u32>` (8-byte aligned).
+#[repr(C, align(8))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct U32x2 {
+    pub x: u32,
+    pub y: u32,
+}
+
+/// WGSL's `vec2<f32>` (8-byte aligned).
+#[repr(C, align(8))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct F32x2 {
+    pub x: f32,
+    pub y: f32,
+}
+
+/// WGSL's `vec2<f64>` (16-byte aligned).
+#[repr(C, align(16))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct F64x2 {
+    pub x: f64,
+    pub y: f64,
+}
+
+/// The per-dispatch controls (precision independent).
+pub mod control {
+    host_struct! {
+        /// The controls of one dispatch (a read-only storage buffer).
+        pub struct Control {
+            /// Iterations of `iterate` in the dispatch.
+            pub max_iterations: u32,
+            /// 1 when the shader must first set every state to its initial
+            /// value.
+            pub initialize: u32,
+            /// Always 1.0: a factor the shader compiler cannot fold, which
+            /// keeps the compensated time sum exact.
+            pub one: f32,
+            /// Passes of the shader's loop-limiter probe, hidden from the
+            /// shader compiler ([`super::PROBE_PASSES`] but in tests).
+            pub probe: u32,
+            /// Passes the probe must complete for the iteration to stand;
+            /// equal to `probe`.
+            pub probe_min: u32,
+            /// Always 0: hidden from the shader compiler like `probe`.
+            pub zero: u32,
+            /// Entries of the queue (`order`) lanes may take: 0 in a
+            /// batch's first dispatch, where every lane starts its own.
+            pub queued: u32,
+            /// Lanes that take from the queue when they hold no instance
+            /// at the dispatch's start (replica members queued again,
+            /// `gpu::groups`); 0 in the first dispatch.
+            pub lanes: u32,
+        }
+    }
+
+    host_struct! {
+        /// What one lane did in one dispatch (`pidm::gpu::warps`).
+        pub struct Tally {
+            /// Iterations by kind (`constants::ITERATION_*` 0-3): boundary,
+            /// stick, slip, rejected trial.
+            pub kinds: [u32; 4],
+            /// Event locations, period ends, instances taken from the
+            /// queue, and the instance held at the end (`u32::MAX`: none).
+            pub more: [u32; 4],
+            /// Scene periods the held instance has run, at the end.
+            pub progress: f32,
+            /// The f64 helpers' emulated divisions and roots (`recip`,
+            /// `root`, `recip_root` calls; 0 in f32) in the dispatch.
+            pub emulated: u32,
+            pub _pad_v: super::U32x2,
+        }
+    }
+}
+
+/// Declares the storage structs of one precision in a module, with the
+/// packing of instances and the unpacking of results.
+macro_rules! precision_structs {
+    ($module:ident, $real:ty, $v2:ident, $mirror:ident) => {
+        /// Storage structs of one precision.
+        pub mod $module {
+            use super::*;
+            use crate::laws::karnopp::integrate::Vec2;
+            use crate::laws::karnopp::integrate::measure;
+            use crate::laws::karnopp::integrate::phase;
+            use crate::laws::karnopp::$mirror::integrate as mirror;
+            use mirror::coefficients::Oscillator as MirrorOscillator;
+
+            /// The scalar type of this precision.
+            pub type Real = $real;
+            /// WGSL's `vec2<Real>`.
+            pub type V2 = $v2;
+
+            /// The unit system this precision computes in (the CPU
+            /// mirror's).
+            pub const UNITS: Units = crate::laws::karnopp::$mirror::precision::UNITS;
+
+            fn u32x2(v: [u32; 2]) -> U32x2 {
+                U32x2 { x: v[0], y: v[1] }
+            }
+
+            fn v2(v: mirror::Vec2) -> V2 {
+                V2 { x: v.x, y: v.y }
+            }
+
+            fn vec2(v: V2) -> mirror::Vec2 {
+                mirror::Vec2::new(v.x, v.y)
+            }
+
+            host_struct! {
+                /// `pidm::laws::karnopp::integrate::coefficients::Oscillator`.
+                pub struct Oscillator {
+                    pub mass: V2,
+                    pub sigma: V2,
+                    pub w2: V2,
+                    pub rate: V2,
+                    pub inv_mass: V2,
+                    pub inv_w2: V2,
+                }
+            }
+
+            host_struct! {
+                /// `pidm::laws::karnopp::integrate::phase::Gaps`: the three-gap
+                /// table of one window length.
+                pub struct Gaps {
+                    pub a: u32,
+                    pub b: u32,
+                    pub alpha: Real,
+                    pub beta: Real,
+                }
+            }
+
+            host_struct! {
+                /// `pidm::laws::karnopp::integrate::Coefficients` in shader units.
+                pub struct Coefficients {
+                    pub stiffness: V2,
+                    pub damping: V2,
+                    pub inv_stiffness: V2,
+                    pub stick: Oscillator,
+                    pub slip: Oscillator,
+                    pub amplitude: V2,
+                    pub frequency: V2,
+                    pub duty: V2,
+                    pub inv_duty: V2,
+                    pub inv_fall: V2,
+                    pub rise_slope: V2,
+                    pub fall_slope: V2,
+                    pub phase: V2,
+                    pub cycles_per_period: V2,
+                    pub rise_time: V2,
+                    pub rise_time_lo: V2,
+                    pub fall_time: V2,
+                    pub fall_time_lo: V2,
+                    pub first_corner: V2,
+                    pub first_corner_lo: V2,
+                    pub stage_share: V2,
+                    pub slider_share: V2,
+                    pub slip_scale: V2,
+                    pub slip_b: V2,
+                    pub load_need: V2,
+                    pub load_accel: V2,
+                    pub neg_load: V2,
+                    pub neg_load_accel: V2,
+                    pub slip_b_max: Real,
+                    pub hold2: Real,
+                    pub safe_hold2: Real,
+                    pub ms2: Real,
+                    pub two_ms2: Real,
+                    pub coulomb: Real,
+                    pub fc_over_ms: Real,
+                    pub band: Real,
+                    pub band2: Real,
+                    pub period: Real,
+                    pub period_lo: Real,
+                    pub event_step_stuck: Real,
+                    pub event_step_slip: Real,
+                    pub min_step: Real,
+                    pub tolerance: Real,
+                    pub collocation_tolerance: Real,
+                    pub cycles: u32,
+                    pub settle: u32,
+                    pub budget: u32,
+                    pub frictionless: u32,
+                    pub driven: U32x2,
+                    pub phase_fixed: U32x2,
+                    pub cycles_fixed: U32x2,
+                    pub cycles_fixed_lo: U32x2,
+                    pub _pad: U32x2,
+                    pub _pad2: U32x2,
+                    pub se_limit2: V2,
+                    pub repeat_x: Real,
+                    pub repeat_v: Real,
+                    pub steady: u32,
+                    pub common_period: u32,
+                    pub batch_length: u32,
+                    pub min_batch: u32,
+                    pub phase_levels: u32,
+                    pub phase_lattice: u32,
+                    pub replica: u32,
+                    pub replicas: u32,
+                    pub gaps: [Gaps; phase::LEVELS],
+                }
+            }
+
+            host_struct! {
+                /// `pidm::laws::karnopp::integrate::State` in shader units, plus the
+                /// low part of the two-part time.
+                pub struct State {
+                    pub x_p: V2,
+                    pub v_p: V2,
+                    pub x_s: V2,
+                    pub v_s: V2,
+                    pub v_rel: V2,
+                    pub held: V2,
+                    pub settle_x_s: V2,
+                    pub cycle_phase: V2,
+                    pub next_corner: V2,
+                    pub corner_at: V2,
+                    pub corner_at_lo: V2,
+                    pub time: Real,
+                    pub time_lo: Real,
+                    pub h_slip: Real,
+                    pub h_accepted: Real,
+                    pub err_accepted: Real,
+                    pub _pad: Real,
+                    pub rising: U32x2,
+                    pub mode: u32,
+                    pub period: u32,
+                    pub status: u32,
+                    pub steps: u32,
+                    pub stalled: u32,
+                    pub rejections: u32,
+                    pub measured: u32,
+                    /// GPU only: dispatches in a row in which the loop limiter
+                    /// cut the instance's first iteration short (`entry.wgsl`).
+                    pub limited: u32,
+                    pub _pad_v: U32x2,
+                }
+            }
+
+            host_struct! {
+                /// `pidm::laws::karnopp::integrate::measure::Snapshot` in shader units.
+                pub struct Snapshot {
+                    pub x_p: V2,
+                    pub v_p: V2,
+                    pub v_s: V2,
+                    pub x_s: V2,
+                    pub mode: u32,
+                    pub _pad_u: u32,
+                    pub _pad_v: U32x2,
+                }
+            }
+
+            host_struct! {
+                /// `pidm::laws::karnopp::integrate::phase::LevelSums` in shader units
+                /// (its quarters as four members: the shader indexes no
+                /// private array at run time).
+                pub struct LevelSums {
+                    pub whole: V2,
+                    pub half: V2,
+                    pub second: V2,
+                    pub q0: V2,
+                    pub q1: V2,
+                    pub q2: V2,
+                    pub q3: V2,
+                }
+            }
+
+            host_struct! {
+                /// `pidm::laws::karnopp::integrate::phase::Phase` in shader units.
+                pub struct Phase {
+                    pub whole: [V2; phase::LEVELS],
+                    pub second: [V2; phase::LEVELS],
+                    pub quarters: [V2; 4],
+                    pub pending: LevelSums,
+                }
+            }
+
+            host_struct! {
+                /// `pidm::laws::karnopp::integrate::Measure` in shader units.
+                pub struct Measure {
+                    pub last_x_s: V2,
+                    pub batch_start: V2,
+                    pub d_min: V2,
+                    pub d_max: V2,
+                    pub travel: V2,
+                    pub sums: [V2; measure::BATCHES],
+                    pub snaps: [Snapshot; measure::SNAPSHOTS],
+                    pub next_end: u32,
+                    pub measured: u32,
+                    pub filled: u32,
+                    pub batch_length: u32,
+                    pub in_batch: u32,
+                    pub snapshots: u32,
+                    pub lag: u32,
+                    pub verdict: u32,
+                    pub span: u32,
+                    pub pending_level: u32,
+                    pub _pad_v: U32x2,
+                    pub se2: V2,
+                    pub phase: Phase,
+                }
+            }
+
+            host_struct! {
+                /// What the host reads of every finished steady
+                /// measurement (WGSL's `Head`, entry.wgsl): all that the
+                /// reduction of a periodic or phase-resolved verdict reads
+                /// ([`crate::measurement::reduce`]).
+                pub struct Head {
+                    pub travel: V2,
+                    pub se2: V2,
+                    pub next_end: u32,
+                    pub lag: u32,
+                    pub verdict: u32,
+                    pub span: u32,
+                }
+            }
+
+            impl Head {
+                /// Whether the measurement ended with a verdict whose
+                /// reduction reads only the head: periodic or
+                /// phase-resolved.
+                pub fn suffices(&self) -> bool {
+                    self.verdict == measure::VERDICT_PERIODIC
+                        || self.verdict == measure::VERDICT_PHASE
+                }
+
+                /// Accumulators with the head's members and zero elsewhere:
+                /// all that the reduction of those verdicts reads.
+                pub fn measure(&self) -> Measure {
+                    Measure {
+                        travel: self.travel,
+                        se2: self.se2,
+                        next_end: self.next_end,
+                        lag: self.lag,
+                        verdict: self.verdict,
+                        span: self.span,
+                        ..Measure::default()
+                    }
+                }
+            }
+
+            /// The CPU's accumulators in SI units for a shader's
+            /// (positions over metres, velocities over metres per second).
+            pub fn measure_to_cpu(m: &Measure) -> measure::Measure {
+                let length = |v: V2| Vec2::new(v.x as f64, v.y as f64) * (1.0 / UNITS.metre);
+                let speed = UNITS.second / UNITS.metre;
+                let velocity = |v: V2| Vec2::new(v.x as f64, v.y as f64) * speed;
+                let extreme = |v: V2| {
+                    length(v).map(|x| {
+                        if x.abs() >= Real::MAX as f64 / UNITS.metre {
+                            x.signum() * f64::INFINITY
+                        } else {
+                            x
+                        }
+                    })
+                };
+                measure::Measure {
+                    last_x_s: length(m.last_x_s),
+                    batch_start: length(m.batch_start),
+                    d_min: extreme(m.d_min),
+                    d_max: extreme(m.d_max),
+                    travel: length(m.travel),
+                    sums: m.sums.map(length),
+                    snaps: m.snaps.map(|s| measure::Snapshot {
+                        x_p: length(s.x_p),
+                        v_p: velocity(s.v_p),
+                        v_s: velocity(s.v_s),
+                        x_s: length(s.x_s),
+                        mode: s.mode,
+                    }),
+                    next_end: m.next_end,
+                    measured: m.measured,
+                    filled: m.filled,
+                    batch_length: m.batch_length,
+                    in_batch: m.in_batch,
+                    snapshots: m.snapshots,
+                    lag: m.lag,
+                    verdict: m.verdict,
+                    span: m.span,
+                    pending_level: m.pending_level,
+                    se2: Vec2::new(m.se2.x as f64, m.se2.y as f64)
+                        * (1.0 / (UNITS.metre * UNITS.metre)),
+                    phase: crate::laws::karnopp::integrate::phase::Phase {
+                        whole: m.phase.whole.map(length),
+                        second: m.phase.second.map(length),
+                        quarters: m.phase.quarters.map(length),
+                        pending: crate::laws::karnopp::integrate::phase::LevelSums {
+                            whole: length(m.phase.pending.whole),
+                            half: length(m.phase.pending.half),
+                            second: length(m.phase.pending.second),
+                            quarters: [
+                                m.phase.pending.q0,
+                                m.phase.pending.q1,
+                                m.phase.pending.q2,
+                                m.phase.pending.q3,
+                            ]
+                            .map(length),
+                        },
+                    },
+                }
+            }
+
+            /// The CPU state, in SI units, that a reduction reads of a
+            /// finished shader state: status, period and slider positions.
+            pub fn reduced_state(st: &State) -> crate::laws::karnopp::integrate::State {
+                let length = |v: V2| Vec2::new(v.x as f64, v.y as f64) * (1.0 / UNITS.metre);
+                let mut out = crate::laws::karnopp::integrate::initial_state(
+                    &crate::laws::karnopp::integrate::Coefficients::default(),
+                );
+                out.x_s = length(st.x_s);
+                out.settle_x_s = length(st.settle_x_s);
+                out.status = st.status;
+                out.period = st.period;
+                out.measured = st.measured;
+                out.steps = st.steps;
+                out
+            }
+
+            fn oscillator(o: &MirrorOscillator) -> Oscillator {
+                Oscillator {
+                    mass: v2(o.mass),
+                    sigma: v2(o.sigma),
+                    w2: v2(o.w2),
+                    rate: v2(o.rate),
+                    inv_mass: v2(o.inv_mass),
+                    inv_w2: v2(o.inv_w2),
+                }
+            }
+
+            /// Packs one instance and the batch settings in shader units:
+            /// the CPU mirror's coefficients (`Coefficients::of`: computed
+            /// in f64 from the instance in these units and rounded once).
+            pub fn pack(inst: &Instance, settings: &Settings) -> Coefficients {
+                pack_replica(
+                    inst,
+                    settings,
+                    crate::laws::karnopp::integrate::Replica::NONE,
+                )
+            }
+
+            /// [`pack`] for replica `r` of a split run (`inst` the
+            /// replica's instance; `Coefficients::of_replica`).
+            pub fn pack_replica(
+                inst: &Instance,
+                settings: &Settings,
+                r: crate::laws::karnopp::integrate::Replica,
+            ) -> Coefficients {
+                let c = mirror::Coefficients::of_replica(inst, settings, r);
+                Coefficients {
+                    stiffness: v2(c.stiffness),
+                    damping: v2(c.damping),
+                    inv_stiffness: v2(c.inv_stiffness),
+                    stick: oscillator(&c.stick),
+                    slip: oscillator(&c.slip),
+                    amplitude: v2(c.amplitude),
+                    frequency: v2(c.frequency),
+                    duty: v2(c.duty),
+                    inv_duty: v2(c.inv_duty),
+                    inv_fall: v2(c.inv_fall),
+                    rise_slope: v2(c.rise_slope),
+                    fall_slope: v2(c.fall_slope),
+                    phase: v2(c.phase),
+                    cycles_per_period: v2(c.cycles_per_period),
+                    rise_time: v2(c.rise_time),
+                    rise_time_lo: v2(c.rise_time_lo),
+                    fall_time: v2(c.fall_time),
+                    fall_time_lo: v2(c.fall_time_lo),
+                    first_corner: v2(c.first_corner),
+                    first_corner_lo: v2(c.first_corner_lo),
+                    stage_share: v2(c.stage_share),
+                    slider_share: v2(c.slider_share),
+                    slip_scale: v2(c.slip_scale),
+                    slip_b: v2(c.slip_b),
+                    load_need: v2(c.load_need),
+                    load_accel: v2(c.load_accel),
+                    neg_load: v2(c.neg_load),
+                    neg_load_accel: v2(c.neg_load_accel),
+                    slip_b_max: c.slip_b_max,
+                    hold2: c.hold2,
+                    safe_hold2: c.safe_hold2,
+                    ms2: c.ms2,
+                    two_ms2: c.two_ms2,
+                    coulomb: c.coulomb,
+                    fc_over_ms: c.fc_over_ms,
+                    band: c.band,
+                    band2: c.band2,
+                    period: c.period,
+                    period_lo: c.period_lo,
+                    event_step_stuck: c.event_step_stuck,
+                    event_step_slip: c.event_step_slip,
+                    min_step: c.min_step,
+                    tolerance: c.tolerance,
+                    collocation_tolerance: c.collocation_tolerance,
+                    cycles: c.cycles,
+                    settle: c.settle,
+                    budget: c.budget,
+                    frictionless: c.frictionless as u32,
+                    driven: U32x2 {
+                        x: c.driven[0] as u32,
+                        y: c.driven[1] as u32,
+                    },
+                    phase_fixed: u32x2(c.phase_fixed),
+                    cycles_fixed: u32x2(c.cycles_fixed),
+                    cycles_fixed_lo: u32x2(c.cycles_fixed_lo),
+                    _pad: U32x2::default(),
+                    _pad2: U32x2::default(),
+                    se_limit2: v2(c.se_limit2),
+                    repeat_x: c.repeat_x,
+                    repeat_v: c.repeat_v,
+                    steady: c.steady as u32,
+                    common_period: c.common_period,
+                    batch_length: c.batch_length,
+                    min_batch: c.min_batch,
+                    phase_levels: c.phase_levels,
+                    phase_lattice: c.phase_lattice,
+                    replica: c.replica,
+                    replicas: c.replicas,
+                    gaps: c.gaps.map(|g| Gaps {
+                        a: g.a,
+                        b: g.b,
+                        alpha: g.alpha,
+                        beta: g.beta,
+                    }),
+                }
+            }
+
+            /// The CPU mirror's state this shader state stands for: the
+            /// same quantities in the same units, so the mirror can
+            /// continue an instance where the GPU stopped.
+            pub fn to_cpu(st: &State) -> mirror::State {
+                mirror::State {
+                    x_p: vec2(st.x_p),
+                    v_p: vec2(st.v_p),
+                    x_s: vec2(st.x_s),
+                    v_s: vec2(st.v_s),
+                    v_rel: vec2(st.v_rel),
+                    held: vec2(st.held),
+                    settle_x_s: vec2(st.settle_x_s),
+                    cycle_phase: vec2(st.cycle_phase),
+                    next_corner: vec2(st.next_corner),
+                    corner_at: vec2(st.corner_at),
+                    corner_at_lo: vec2(st.corner_at_lo),
+                    time: st.time,
+                    time_lo: st.time_lo,
+                    h_slip: st.h_slip,
+                    h_accepted: st.h_accepted,
+                    err_accepted: st.err_accepted,
+                    rising: [st.rising.x, st.rising.y],
+                    mode: st.mode,
+                    period: st.period,
+                    status: st.status,
+                    steps: st.steps,
+                    stalled: st.stalled,
+                    rejections: st.rejections,
+                    measured: st.measured,
+                }
+            }
+
+            impl Coefficients {
+                /// The shader's parts these coefficients use: a steady
+                /// measurement, the phase ladder, a non-zero load term
+                /// (`Parts::of_coefficients`, in this precision).
+                pub fn parts(&self) -> crate::gpu::shader::Parts {
+                    let nonzero = |v: V2| v.x != 0.0 || v.y != 0.0;
+                    crate::gpu::shader::Parts {
+                        steady: self.steady == 1,
+                        phase: self.steady == 1 && self.phase_levels != 0,
+                        load: nonzero(self.load_need)
+                            || nonzero(self.load_accel)
+                            || nonzero(self.neg_load)
+                            || nonzero(self.neg_load_accel),
+                    }
+                }
+            }
+
+            /// True once the instance ended, normally or with a status.
+            pub fn finished(inst: &Instance, st: &State) -> bool {
+                st.status != STATUS_OK || st.period >= inst.cycles || st.measured != 0
+            }
+
+            /// The outcome of a finished state, back in SI units: the slider
+            /// displacement over the measured periods, or zero where the
+            /// instance did not finish normally (as the CPU reports it).
+            pub fn unpack(inst: &Instance, st: &State) -> crate::gpu::GpuOutcome {
+                let mut displacement = [0.0; AXES];
+                if st.status == STATUS_OK && st.period >= inst.cycles {
+                    displacement = [
+                        (st.x_s.x as f64 - st.settle_x_s.x as f64) / UNITS.metre,
+                        (st.x_s.y as f64 - st.settle_x_s.y as f64) / UNITS.metre,
+                    ];
+                }
+                crate::gpu::GpuOutcome {
+                    displacement,
+                    span: (inst.cycles - inst.settle) as f64,
+                    se: [0.0; AXES],
+                    periods: inst.cycles,
+                    lag: 0,
+                    status: st.status,
+                    motion: crate::motion::Motion::Undetermined,
+                    steps: st.steps,
+                    cpu_fallback: false,
+                    shader_status: 0,
+                    finished_on_cpu: false,
+                    checked: false,
+                    replicas: 1,
+                }
+            }
+        }
+    };
+}
+
+precision_structs!(single, f32, F32x2, single);
+precision_structs!(double, f64, F64x2, double);
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,772 @@
+//! The WGSL source of the integrator and its per-variant prelude.
+//!
+//! `shaders/karnopp/*.wgsl` is written against a `Real` type, a `V2`
+//! vector of two `Real`s, the integrator's constants and a few arithmetic
+//! helpers; the prelude defines them for one [`Variant`]. The constants come
+//! from [`crate::laws::karnopp::integrate::constants`], the one place they are
+//! written. Every shader file but `entry.wgsl` mirrors the Rust file of the
+//! same name in `src/laws/karnopp/integrate/` (`advance.wgsl` mirrors `mod.rs`).
+
+use crate::gpu::{GpuError, Precision, STATUS_LOOP_LIMIT, workgroup_size};
+use crate::laws::karnopp::integrate::constants::{self, TAYLOR_STAGE_TERMS, TAYLOR_TERMS};
+use crate::laws::karnopp::integrate::{Coefficients, Settings, Vec2, measure, phase};
+use crate::model::Instance;
+
+/// The shader files, in the order they are concatenated (WGSL declarations
+/// may come in any order; this one reads top-down), with their text and
+/// the part of the shader each belongs to ([`File::part`]).
+pub const FILES: [(&str, &str); 11] = [
+    (
+        "arith.wgsl",
+        include_str!("../../../shaders/karnopp/arith.wgsl"),
+    ),
+    (
+        "coefficients.wgsl",
+        include_str!("../../../shaders/karnopp/coefficients.wgsl"),
+    ),
+    (
+        "flow.wgsl",
+        include_str!("../../../shaders/karnopp/flow.wgsl"),
+    ),
+    (
+        "drive.wgsl",
+        include_str!("../../../shaders/karnopp/drive.wgsl"),
+    ),
+    (
+        "events.wgsl",
+        include_str!("../../../shaders/karnopp/events.wgsl"),
+    ),
+    (
+        "step.wgsl",
+        include_str!("../../../shaders/karnopp/step.wgsl"),
+    ),
+    (
+        "advance.wgsl",
+        include_str!("../../../shaders/karnopp/advance.wgsl"),
+    ),
+    (
+        "measure.wgsl",
+        include_str!("../../../shaders/karnopp/measure.wgsl"),
+    ),
+    (
+        "phase.wgsl",
+        include_str!("../../../shaders/karnopp/phase.wgsl"),
+    ),
+    (
+        "steady.wgsl",
+        include_str!("../../../shaders/karnopp/steady.wgsl"),
+    ),
+    (
+        "entry.wgsl",
+        include_str!("../../../shaders/karnopp/entry.wgsl"),
+    ),
+];
+
+/// The name of the compute entry point.
+pub const ENTRY_POINT: &str = "advance_slice";
+
+/// The optional parts of the shader: a pipeline carries a part only where
+/// a batch's instances use it, so the driver compiles, and the device
+/// reserves registers for, only what the scene needs (issue 38). Whatever a
+/// variant leaves out, the instances it runs give the results of the whole
+/// shader, bit for bit (`tests/it/variants.rs`). Trajectories are never the
+/// shader's: the f64 CPU integrator records them (`crate::trajectory`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct Parts {
+    /// Steady measurements (`measure.wgsl`, `steady.wgsl`: the per-period
+    /// bookkeeping, the accumulators and heads buffers).
+    pub steady: bool,
+    /// The phase ladder of two-frequency steady measurements
+    /// (`phase.wgsl`); only with `steady`.
+    pub phase: bool,
+    /// A load on the slider (docs/model.md section 7): without it the load terms
+    /// are the +0 they are at zero load, folded by the compiler.
+    pub load: bool,
+}
+
+impl Parts {
+    /// Every part: the whole shader.
+    pub const ALL: Parts = Parts {
+        steady: true,
+        phase: true,
+        load: true,
+    };
+
+    /// Every combination a variant may have (`phase` only with `steady`).
+    pub fn every() -> Vec<Parts> {
+        let mut out = Vec::new();
+        for steady in [false, true] {
+            for phase in [false, true] {
+                for load in [false, true] {
+                    if phase && !steady {
+                        continue;
+                    }
+                    out.push(Parts {
+                        steady,
+                        phase,
+                        load,
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    /// The parts both need.
+    pub fn union(self, other: Parts) -> Parts {
+        Parts {
+            steady: self.steady || other.steady,
+            phase: self.phase || other.phase,
+            load: self.load || other.load,
+        }
+    }
+
+    /// Whether a variant with these parts runs everything `needs` asks for.
+    pub fn covers(self, needs: Parts) -> bool {
+        self.union(needs) == self
+    }
+
+    /// The parts an instance's f64 coefficients use (what the shader would
+    /// read of them): a steady measurement, the phase ladder (levels that
+    /// may stop the run), a non-zero load term.
+    pub fn of_coefficients(c: &Coefficients) -> Parts {
+        let nonzero = |v: Vec2| v.x != 0.0 || v.y != 0.0;
+        Parts {
+            steady: c.steady,
+            phase: c.steady && c.phase_levels != 0,
+            load: nonzero(c.load_need)
+                || nonzero(c.load_accel)
+                || nonzero(c.neg_load)
+                || nonzero(c.neg_load_accel),
+        }
+    }
+
+    /// The parts `instances` use under `settings`: of every one, or of
+    /// [`SAMPLED_PARTS`] evenly spread over a longer list (what a run
+    /// prepares up front; each batch takes the pipeline its own
+    /// instances need).
+    pub fn of(instances: &[Instance], settings: &Settings) -> Parts {
+        let n = instances.len();
+        let picked = n.min(SAMPLED_PARTS);
+        (0..picked)
+            .map(|k| &instances[k * n / picked])
+            .fold(Parts::default(), |parts, inst| {
+                parts.union(Parts::of_coefficients(&Coefficients::of(inst, settings)))
+            })
+    }
+
+    /// "steady+phase+load", "window": the parts in words.
+    pub fn name(self) -> String {
+        let mut words = vec![if self.steady { "steady" } else { "window" }];
+        if self.phase {
+            words.push("phase");
+        }
+        if self.load {
+            words.push("load");
+        }
+        words.join("+")
+    }
+
+    /// Whether `file` belongs to a variant with these parts.
+    fn include(self, file: &str) -> bool {
+        match file {
+            "measure.wgsl" | "steady.wgsl" => self.steady,
+            "phase.wgsl" => self.steady && self.phase,
+            _ => true,
+        }
+    }
+}
+
+/// The most instances [`Parts::of`] looks at.
+pub const SAMPLED_PARTS: usize = 2048;
+
+/// What one compiled pipeline is specialised to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Variant {
+    pub precision: Precision,
+    /// The adapter ends every shader loop after 65,535 iterations
+    /// (llvmpipe): the shader then checks every iteration and undoes those
+    /// the limiter cut short. Hardware adapters leave the check out.
+    pub loop_limiter: bool,
+    /// The optional parts it carries.
+    pub parts: Parts,
+}
+
+impl Variant {
+    /// Every variant: both precisions, both kinds of adapter, every
+    /// combination of parts.
+    pub fn every() -> Vec<Variant> {
+        let mut out = Vec::new();
+        for precision in [Precision::F64, Precision::F32] {
+            for loop_limiter in [false, true] {
+                for parts in Parts::every() {
+                    out.push(Variant {
+                        precision,
+                        loop_limiter,
+                        parts,
+                    });
+                }
+            }
+        }
+        out
+    }
+}
+
+/// A variant without steady measurements: the steady half of the entry
+/// point (`steady.wgsl`) as functions that do nothing. Its pipelines bind
+/// neither the accumulators nor the heads.
+const WINDOW_ONLY: &str = "\
+fn start_measure(index: u32) {}
+
+fn finish_measure(index: u32) {}
+
+fn at_measured_end(st: State, index: u32) -> bool {
+    return false;
+}
+
+fn measure_period_end(st: ptr<function, State>, index: u32, lane: u32, fresh: bool) -> bool {
+    return true;
+}
+";
+
+/// A steady variant without the phase ladder: `phase_period_end` judges
+/// nothing (and is never called: `PHASE` is false).
+const NO_LADDER: &str = "\
+fn phase_period_end(slot: u32, k: u32, x: V2) -> PhaseEstimate {
+    return PhaseEstimate(V2(0.0), V2(0.0), 0u, 0u);
+}
+";
+
+/// The load terms a variant reads (docs/model.md section 7): the coefficients'
+/// with a load, else the +0 every one of them is at zero load.
+fn load_terms(load: bool) -> String {
+    ["load_need", "load_accel", "neg_load", "neg_load_accel"]
+        .iter()
+        .map(|name| {
+            let value = if load {
+                format!("coefficients[held].{name}")
+            } else {
+                "V2(0.0)".to_string()
+            };
+            format!("fn {name}() -> V2 {{\n    return {value};\n}}\n")
+        })
+        .collect()
+}
+
+/// The f64 arithmetic helpers. NVIDIA's Vulkan compiler (driver 580) fails
+/// ("NVVM compilation failed: 3") on the integrator when it contains f64
+/// division or square root, so f64 builds both from `inverseSqrt` (which it
+/// compiles) and fused multiply-adds: Newton's iteration to full precision,
+/// then one correction, which gives the correctly rounded result in all but
+/// rare halfway cases (so the shader computes what the CPU computes). The
+/// guess squares its argument, so the helpers hold for 1e-154 < |b| <
+/// 1e154; the integrator's non-zero divisors, in SI units, are expected
+/// to stay inside it.
+/// Outside it they differ from the CPU: `recip(0)` is the largest finite
+/// value, not infinity.
+const F64_HELPERS: &str = "\
+// 1 / b: a first guess from inverseSqrt(b^2), three Newton steps (each
+// doubles the correct digits of the driver's guess), then a correction.
+fn recip(b: Real) -> Real {
+    emulated += 1u;
+    if b == Real(0.0) {
+        return INFINITY;
+    }
+    var y = inverseSqrt(b * b);
+    y = select(y, -y, b < Real(0.0));
+    y = fma(y, fma(-b, y, Real(1.0)), y);
+    y = fma(y, fma(-b, y, Real(1.0)), y);
+    y = fma(y, fma(-b, y, Real(1.0)), y);
+    return fma(y, fma(-b, y, Real(1.0)), y);
+}
+
+// a / b, rounded as the CPU rounds it (but for rare halfway cases).
+fn div(a: Real, b: Real) -> Real {
+    if b == Real(0.0) {
+        return a * recip(b);
+    }
+    let y = recip(b);
+    let q = a * y;
+    return fma(fma(-b, q, a), y, q);
+}
+
+// sqrt(x) for 0 < x < INFINITY, rounded as the CPU rounds it, and the
+// inverse square root it came from: inverseSqrt, three Newton steps, one
+// correction.
+struct RootParts {
+    s: Real,
+    y: Real,
+}
+
+fn root_parts(x: Real) -> RootParts {
+    var y = inverseSqrt(x);
+    let half = Real(0.5) * x;
+    y = y * fma(-half * y, y, Real(1.5));
+    y = y * fma(-half * y, y, Real(1.5));
+    y = y * fma(-half * y, y, Real(1.5));
+    let s = x * y;
+    return RootParts(fma(fma(-s, s, x), Real(0.5) * y, s), y);
+}
+
+// sqrt(x) for x >= 0 (and x itself for 0 and NaN).
+fn root(x: Real) -> Real {
+    emulated += 1u;
+    if !(x > Real(0.0)) || x > INFINITY {
+        return x;
+    }
+    return root_parts(x).s;
+}
+
+// 1 / sqrt(x) rounded as the CPU's 1.0 / x.sqrt() (the reciprocal of the
+// rounded root): the root, then its reciprocal from the root's own
+// inverse square root, already within an ulp of it, in one Newton step
+// and recip's correction (not recip's whole sequence). x as root takes it.
+fn recip_root(x: Real) -> Real {
+    if !(x > Real(0.0)) || x > INFINITY {
+        return recip(root(x));
+    }
+    emulated += 1u;
+    let r = root_parts(x);
+    let y = fma(r.y, fma(-r.s, r.y, Real(1.0)), r.y);
+    return fma(y, fma(-r.s, y, Real(1.0)), y);
+}
+";
+
+/// The f32 helpers: the hardware's own division and square root.
+const F32_HELPERS: &str = "\
+fn recip(b: Real) -> Real {
+    return Real(1.0) / b;
+}
+
+fn div(a: Real, b: Real) -> Real {
+    return a / b;
+}
+
+fn root(x: Real) -> Real {
+    return sqrt(x);
+}
+
+fn recip_root(x: Real) -> Real {
+    return Real(1.0) / sqrt(x);
+}
+";
+
+/// Helpers common to both precisions, and the count of emulated f64
+/// operations (`recip`, `root` and `recip_root` calls, a division counted
+/// as its `recip`) the lane's tally reports: f32 counts none.
+const COMMON_HELPERS: &str = "\
+var<private> emulated: u32;
+
+fn div2(a: V2, b: V2) -> V2 {
+    return V2(div(a.x, b.x), div(a.y, b.y));
+}
+";
+
+/// `fn inverse_integer(n: u32) -> Real`: 1 / n as a literal for every n
+/// the Taylor series use, so no series divides (the CPU multiplies by the
+/// same constants), and the same literals as constants `INVERSE_n` for the
+/// propagator's unrolled terms.
+fn inverse_integer_fn() -> String {
+    let most = TAYLOR_TERMS.max(TAYLOR_STAGE_TERMS + 1);
+    let mut constants = String::new();
+    for n in 1..=most {
+        constants += &format!("const INVERSE_{n}: Real = Real({:e});\n", 1.0 / n as f64);
+    }
+    let mut cases = String::new();
+    for n in 1..=most {
+        cases += &format!("        case {n}u: {{ return INVERSE_{n}; }}\n");
+    }
+    constants
+        + &format!(
+            "fn inverse_integer(n: u32) -> Real {{\n    switch n {{\n{cases}        \
+         default: {{ return Real(0.0); }}\n    }}\n}}\n"
+        )
+}
+
+/// The prelude that defines `Real`, `V2`, the constants and the helpers of
+/// one variant.
+pub fn prelude(variant: Variant) -> String {
+    // Per precision: the scalar type, its epsilon and largest value, the
+    // helpers, and the rest from the CPU mirror's precision module (the
+    // time scale's epsilon, the smallest divisor kept away from zero and
+    // the f32 formulation's switches), so shader and mirror cannot differ.
+    macro_rules! from {
+        ($p:path, $real:literal, $eps:expr, $max:expr, $helpers:expr) => {{
+            use $p as p;
+            (
+                $real,
+                $eps,
+                p::TIME_EPSILON,
+                $max,
+                format!("{:e}", p::TINY),
+                [
+                    p::COMPENSATED_TIME,
+                    p::FIXED_PHASE,
+                    p::CORNER_CLOCK,
+                    p::DEFLECTION,
+                    p::APPROACH_NOISE,
+                    p::GRAZE_GUARD,
+                ],
+                $helpers,
+            )
+        }};
+    }
+    let (real, eps, time_eps, max, tiny, switches, helpers) = match variant.precision {
+        Precision::F32 => from!(
+            crate::laws::karnopp::single::precision,
+            "f32",
+            f32::EPSILON as f64,
+            f32::MAX as f64,
+            F32_HELPERS
+        ),
+        Precision::F64 => from!(
+            crate::laws::karnopp::double::precision,
+            "f64",
+            f64::EPSILON,
+            f64::MAX,
+            F64_HELPERS
+        ),
+    };
+    let [
+        compensated,
+        fixed_phase,
+        corner_clock,
+        deflection,
+        approach_noise,
+        graze_guard,
+    ] = switches;
+    let body = format!(
+        "alias Real = {real};\n\
+         const EPSILON: Real = {eps:e};\n\
+         const TIME_EPSILON: Real = {time_eps:e};\n\
+         const INFINITY: Real = {max:e};\n\
+         const TINY: Real = {tiny};\n\
+         const COMPENSATED_TIME: bool = {compensated};\n\
+         const FIXED_PHASE: bool = {fixed_phase};\n\
+         const CORNER_CLOCK: bool = {corner_clock};\n\
+         const DEFLECTION: bool = {deflection};\n\
+         const APPROACH_NOISE: bool = {approach_noise};\n\
+         const GRAZE_GUARD: bool = {graze_guard};\n"
+    );
+    format!(
+        "// Prelude for {variant:?}, generated by pidm::gpu::shader.\n\
+         {body}alias V2 = vec2<Real>;\n\
+         const WORKGROUP_SIZE: u32 = {workgroup}u;\n\
+         const LOOP_LIMITER: bool = {limiter};\n\
+         const STEADY: bool = {steady};\n\
+         const PHASE: bool = {phase};\n\
+         const LOAD: bool = {load};\n\
+         const STATUS_LOOP_LIMIT: u32 = {STATUS_LOOP_LIMIT}u;\n\
+         {constants}\n{helpers}\n{COMMON_HELPERS}\n{inverse}\n",
+        limiter = variant.loop_limiter,
+        steady = variant.parts.steady,
+        phase = variant.parts.steady && variant.parts.phase,
+        load = variant.parts.load,
+        workgroup = workgroup_size(),
+        constants =
+            constants::wgsl_constants() + &measure::wgsl_constants() + &phase::wgsl_constants(),
+        inverse = inverse_integer_fn(),
+    )
+}
+
+/// The complete shader source of one variant: the prelude, the parts'
+/// stand-ins, and the files of its parts.
+pub fn source(variant: Variant) -> String {
+    let parts = variant.parts;
+    let mut src = prelude(variant);
+    src += &load_terms(parts.load);
+    if !parts.steady {
+        src += WINDOW_ONLY;
+    } else if !parts.phase {
+        src += NO_LADDER;
+    }
+    for (name, text) in FILES {
+        if parts.include(name) {
+            src += &format!("\n// ---- shaders/karnopp/{name}\n");
+            src += text;
+        }
+    }
+    src
+}
+
+/// The naga capabilities the shader needs in one precision.
+pub fn capabilities(precision: Precision) -> naga::valid::Capabilities {
+    match precision {
+        Precision::F32 => naga::valid::Capabilities::empty(),
+        Precision::F64 => naga::valid::Capabilities::FLOAT64,
+    }
+}
+
+/// Parses and validates one variant with naga, as wgpu will, and returns
+/// the module (with its type arena, for layout checks).
+pub fn parse_and_validate(
+    variant: Variant,
+) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
+    let precision = variant.precision;
+    let src = source(variant);
+    let module = naga::front::wgsl::parse_str(&src).map_err(|e| GpuError::ShaderCompile {
+        precision,
+        message: e.emit_to_string(&src),
+    })?;
+    let info =
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), capabilities(precision))
+            .validate(&module)
+            .map_err(|e| GpuError::ShaderCompile {
+                precision,
+                message: e.emit_to_string(&src),
+            })?;
+    Ok((module, info))
+}
+
+/// Function names defined in a source text (`fn name(` at any
+/// indentation), leaving out a Rust file's test module.
+#[cfg(test)]
+pub(crate) fn defined_functions(text: &str) -> Vec<String> {
+    let text = text.split("#[cfg(test)]").next().unwrap_or(text);
+    let mut names = Vec::new();
+    for line in text.lines() {
+        let line = line.trim_start();
+        let rest = ["pub(crate) fn ", "pub(super) fn ", "pub fn ", "fn "]
+            .iter()
+            .find_map(|prefix| line.strip_prefix(prefix));
+        if let Some(rest) = rest {
+            let name: String = rest
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            names.push(name);
+        }
+    }
+    names
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prelude_literals_round_trip() {
+        let max = format!("{:e}", f32::MAX as f64);
+        assert_eq!(max.parse::<f64>().unwrap() as f32, f32::MAX);
+        assert_eq!(format!("{:e}", f64::MAX).parse::<f64>().unwrap(), f64::MAX);
+        for n in 1..=22u32 {
+            let text = format!("{:e}", 1.0 / n as f64);
+            assert_eq!(text.parse::<f64>().unwrap(), 1.0 / n as f64);
+        }
+    }
+
+    #[test]
+    fn every_variant_parses_and_validates() {
+        for variant in Variant::every() {
+            if let Err(e) = parse_and_validate(variant) {
+                panic!("{variant:?}: {e}");
+            }
+        }
+    }
+
+    /// wgpu hands Vulkan drivers naga's SPIR-V: every variant must get
+    /// there (naga's writer rejects, for one, a pointer to a member of a
+    /// struct behind a pointer parameter, which its validator accepts).
+    #[test]
+    fn every_variant_writes_spir_v() {
+        for variant in Variant::every() {
+            let (module, info) = parse_and_validate(variant).unwrap();
+            let options = naga::back::spv::Options::default();
+            let words = naga::back::spv::write_vec(&module, &info, &options, None)
+                .unwrap_or_else(|e| panic!("{variant:?}: {e}"));
+            assert!(words.len() > 1000, "{variant:?}: {} words", words.len());
+        }
+    }
+
+    /// Every shader file (but the entry point) defines the functions of its
+    /// Rust mirror and only those, apart from the listed helpers that one
+    /// side needs and the other does not (with the reason).
+    #[test]
+    fn every_shader_file_mirrors_its_rust_file() {
+        let rust = [
+            (
+                "arith.wgsl",
+                include_str!("../../laws/karnopp/integrate/arith.rs"),
+            ),
+            (
+                "coefficients.wgsl",
+                include_str!("../../laws/karnopp/integrate/coefficients.rs"),
+            ),
+            (
+                "flow.wgsl",
+                include_str!("../../laws/karnopp/integrate/flow.rs"),
+            ),
+            (
+                "drive.wgsl",
+                include_str!("../../laws/karnopp/integrate/drive.rs"),
+            ),
+            (
+                "events.wgsl",
+                include_str!("../../laws/karnopp/integrate/events.rs"),
+            ),
+            (
+                "step.wgsl",
+                include_str!("../../laws/karnopp/integrate/step.rs"),
+            ),
+            (
+                "advance.wgsl",
+                include_str!("../../laws/karnopp/integrate/mod.rs"),
+            ),
+            (
+                "measure.wgsl",
+                include_str!("../../laws/karnopp/integrate/measure.rs"),
+            ),
+            (
+                "phase.wgsl",
+                include_str!("../../laws/karnopp/integrate/phase.rs"),
+            ),
+        ];
+        // Shader only: WGSL has no Option, closures, methods or
+        // is_finite, and splits some expressions into functions.
+        let shader_only = [
+            "identity_propagator",
+            "series_term",
+            "theta",
+            // No arrays indexed at run time: the event samples by selection.
+            "event_sample",
+            "hermite_good",
+            "any_primary_event",
+            "sample_direction_error",
+            "is_finite",
+            "is_finite2",
+            // No generics: the V2 form of `two_sum`.
+            "two_sum2",
+            // No closures: `window_coefficient`'s cut test.
+            "is_cut",
+        ];
+        // CPU only: constructors, the observer of trajectories (its `step`
+        // method and `StepMotion`), the whole run (stoppable, also from a
+        // state the f64 shader left) and its result, Rust's rounding and
+        // the sample array.
+        let cpu_only = [
+            "new",
+            "default",
+            // The coefficients in a precision (computed on the host), also
+            // of a replica, and 1 / n, which the prelude generates for the
+            // shader.
+            "of",
+            "of_replica",
+            "new_replica",
+            "rounded",
+            "inverse_integer",
+            "run_instance",
+            "run_instance_until",
+            "continue_until",
+            "continue_instance_until",
+            "displacement",
+            "advance_observed",
+            "step",
+            "length",
+            "end",
+            "positions_at",
+            "round_half_even",
+            "sample_flow",
+            // The host's part of the measurement: the common period, the
+            // first batch, the tolerances (folded into Coefficients).
+            "common_period",
+            "short_common_period",
+            "decimal_common_period",
+            "as_decimal",
+            "gcd",
+            "is_whole",
+            // The host's phase ladder: each window length's three-gap
+            // table and the levels that may stop a run.
+            "gaps",
+            "largest_gap",
+            "spread",
+            "ladder_on",
+            "ladder",
+            "first_batch_length",
+            "beat_batch_length",
+            "repeat_tolerances",
+            // The host's join of a cycle split (the shader inlines it).
+            "repeats",
+            "wgsl_constants",
+            // The host's fixed-point phase coefficients.
+            "fixed_fraction_32",
+            "fixed_fraction_64",
+        ];
+        for (wgsl_name, rust_text) in rust {
+            let (_, wgsl_text) = FILES.iter().find(|(n, _)| *n == wgsl_name).unwrap();
+            let wgsl = defined_functions(wgsl_text);
+            let cpu = defined_functions(rust_text);
+            // The GPU's `advance` (with the loop limiter) lives beside its
+            // entry point.
+            let mut found = wgsl.clone();
+            if wgsl_name == "advance.wgsl" {
+                let (_, entry) = FILES.iter().find(|(n, _)| *n == "entry.wgsl").unwrap();
+                found.extend(defined_functions(entry));
+            }
+            for f in &wgsl {
+                assert!(
+                    cpu.contains(f) || shader_only.contains(&f.as_str()),
+                    "{wgsl_name} defines {f}, its Rust mirror does not"
+                );
+            }
+            for f in &cpu {
+                assert!(
+                    found.contains(f) || cpu_only.contains(&f.as_str()),
+                    "the Rust mirror of {wgsl_name} defines {f}, the shader does not"
+                );
+            }
+        }
+    }
+
+    /// The propagator's Taylor series is unrolled in the shader: one term
+    /// per constant the Rust loop runs over.
+    #[test]
+    fn the_shader_unrolls_every_propagator_term() {
+        let (_, flow) = FILES.iter().find(|(n, _)| *n == "flow.wgsl").unwrap();
+        let terms = flow.matches("series_term(&s, osc, t * INVERSE_").count();
+        assert_eq!(terms as u32, TAYLOR_TERMS);
+    }
+
+    /// NVIDIA's compiler rejects f64 division and square root in this
+    /// shader, so the f64 variant has none outside the f32-free helpers
+    /// (which build them from inverseSqrt and fma).
+    #[test]
+    fn the_f64_shader_neither_divides_nor_takes_square_roots() {
+        let variant = Variant {
+            precision: Precision::F64,
+            loop_limiter: false,
+            parts: Parts::ALL,
+        };
+        let (module, info) = parse_and_validate(variant).unwrap();
+        let is_f64 = |ty: &naga::TypeInner| {
+            ty.scalar()
+                .is_some_and(|s| s.kind == naga::ScalarKind::Float && s.width == 8)
+        };
+        let mut checked = 0;
+        let functions = module.functions.iter().map(|(h, f)| (f, &info[h])).chain(
+            module
+                .entry_points
+                .iter()
+                .enumerate()
+                .map(|(i, e)| (&e.function, info.get_entry_point(i))),
+        );
+        for (f, fi) in functions {
+            let name = f.name.as_deref().unwrap_or("?");
+            for (handle, expr) in f.expressions.iter() {
+                let float = is_f64(fi[handle].ty.inner_with(&module.types));
+                match expr {
+                    naga::Expression::Binary {
+                        op: naga::BinaryOperator::Divide,
+                        ..
+                    } if float => panic!("{name} divides in f64"),
+                    naga::Expression::Math {
+                        fun: naga::MathFunction::Sqrt,
+                        ..
+                    } if float => panic!("{name} takes an f64 square root"),
+                    _ => {}
+                }
+                checked += 1;
+            }
+        }
+        assert!(checked > 1000, "only {checked} expressions seen");
+    }
+}

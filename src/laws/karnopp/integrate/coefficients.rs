@@ -1,0 +1,506 @@
+//! Everything the integrator derives from an instance and the settings,
+//! computed once per instance in Real ([`Coefficients::new`], which exists
+//! in Real only) and rounded once to the precision in its units
+//! ([`Coefficients::of`]). The Real integrator reads them in SI units; the
+//! GPU packs the same numbers (`pidm::gpu::layout`), so the shader divides
+//! by no parameter and takes no square root of one.
+
+use super::phase::{Gaps, LEVELS, Replica};
+use super::precision::{TIME_EPSILON, UNITS, only_f64};
+use super::vec2::Vec2;
+use super::{Real, Settings};
+use crate::model::Instance;
+
+/// One mode's oscillator per axis: m x'' + c x' + k x = g, with the stage
+/// alone (slip) or stage and slider together (stick).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Oscillator {
+    /// Moving mass m [kg].
+    pub mass: Vec2,
+    /// sigma = c / 2m [1/s].
+    pub sigma: Vec2,
+    /// w^2 = k / m [1/s^2].
+    pub w2: Vec2,
+    /// sqrt(w^2) + 2 sigma [1/s]: bounds how fast the motion can change,
+    /// for the propagator's scaling and the step lengths.
+    pub rate: Vec2,
+    /// 1 / m [1/kg].
+    pub inv_mass: Vec2,
+    /// 1 / w^2 [s^2].
+    pub inv_w2: Vec2,
+}
+
+/// The per-instance constants of the integrator, in one unit system
+/// (whatever the instance is given in).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Coefficients {
+    /// Stiffness k and damping c per axis (the stage mass enters through
+    /// the oscillators and the shares below).
+    pub stiffness: Vec2,
+    pub damping: Vec2,
+    /// 1 / k, for the polynomial particular solutions.
+    pub inv_stiffness: Vec2,
+    /// Stage and slider as one body (STICK).
+    pub stick: Oscillator,
+    /// The stage alone (SLIP and BAND).
+    pub slip: Oscillator,
+    /// Drive force amplitude delta V [N]: zero on an undriven axis.
+    pub amplitude: Vec2,
+    /// Drive frequency f [1/s].
+    pub frequency: Vec2,
+    /// Rise fraction d, 1 / d, and 1 / (1 - d) (0 where d = 1: no fall).
+    pub duty: Vec2,
+    pub inv_duty: Vec2,
+    pub inv_fall: Vec2,
+    /// Force slopes on the rise and on the fall [N/s].
+    pub rise_slope: Vec2,
+    pub fall_slope: Vec2,
+    /// Drive phase [cycles] and drive cycles per scene period.
+    pub phase: Vec2,
+    pub cycles_per_period: Vec2,
+    /// The same in fixed point, for the f32 shader's period start phases
+    /// (`drive::fixed_start_phase`): the phase's fraction in units of
+    /// 2^-32 cycles, and the fraction of the cycles per period in units of
+    /// 2^-64 cycles as a high and a low word. Period starts are then exact
+    /// integer sums, where `phase + period * cycles_per_period` in f32
+    /// loses about 1e-6 cycles by the fifth period.
+    pub phase_fixed: [u32; 2],
+    pub cycles_fixed: [u32; 2],
+    pub cycles_fixed_lo: [u32; 2],
+    /// m_p / (m_p + m_s) and m_s / (m_p + m_s): the momentum-conserving
+    /// common velocity is the sum of the two velocities weighted by them.
+    pub stage_share: Vec2,
+    pub slider_share: Vec2,
+    /// (m_p + m_s) / (m_p m_s): turns f_need into the relative acceleration
+    /// A of `slip_direction`, and f_c into its B.
+    pub slip_scale: Vec2,
+    pub slip_b: Vec2,
+    /// The load on the slider (docs/model.md section 7), in the forms the
+    /// integrator uses it in: each enters only by a subtraction of a value
+    /// that is +0 at L = 0, so an unloaded run is bit for bit what it was
+    /// before the load existed (x - (+0) = x for every x, -0 included,
+    /// where x + 0 turns -0 into +0). `load_need` = m_p L / (m_p + m_s)
+    /// [N]: f_need = m_s P / (m_p + m_s) - load_need. `load_accel` = L /
+    /// m_s [m/s^2]: f_need = m_s (a_p - load_accel) in stick.
+    /// `neg_load` = -L [N], subtracted from the stuck body's force (stage
+    /// and slider together feel the load), and `neg_load_accel` = -L / m_s
+    /// [m/s^2], subtracted from the slipping slider's acceleration. Only
+    /// constant forces: the closed-form flows keep their form, with a
+    /// shifted particular solution.
+    pub load_need: Vec2,
+    pub load_accel: Vec2,
+    pub neg_load: Vec2,
+    pub neg_load_accel: Vec2,
+    /// The larger component of `slip_b`.
+    pub slip_b_max: Real,
+    /// max(f_s, f_c)^2 [N^2]: the interface holds while |f_need|^2 <= hold2.
+    pub hold2: Real,
+    /// (max(f_s, f_c) - |L|)^2 [N^2]: a stick segment whose homogeneous
+    /// acceleration a has m_s^2 |a|^2 below this for good cannot break,
+    /// since |f_need| = |m_s a - L| <= m_s |a| + |L| (the energy bound of
+    /// `step::step`); hold2 itself at L = 0. A scene's load is below f_c
+    /// <= max(f_s, f_c), so the difference is positive.
+    pub safe_hold2: Real,
+    /// m_s^2 and 2 m_s^2 [kg^2].
+    pub ms2: Real,
+    pub two_ms2: Real,
+    /// Kinetic friction f_c [N] and f_c / m_s [m/s^2].
+    pub coulomb: Real,
+    pub fc_over_ms: Real,
+    /// Detection band a [m/s] and a^2 [m^2/s^2].
+    pub band: Real,
+    pub band2: Real,
+    /// Scene period T [s], and the rest of it below the precision (zero
+    /// in f64).
+    pub period: Real,
+    pub period_lo: Real,
+    /// The corner clock (`drive::CornerClock`, f32's `CORNER_CLOCK`): the
+    /// durations of a rise (a cycle at duty 1) and of a fall, and the local
+    /// time of the first corner, each as hi + lo [s]; zero on undriven
+    /// axes.
+    pub rise_time: Vec2,
+    pub rise_time_lo: Vec2,
+    pub fall_time: Vec2,
+    pub fall_time_lo: Vec2,
+    pub first_corner: Vec2,
+    pub first_corner_lo: Vec2,
+    /// Step lengths that sample the fastest oscillation of stick and of
+    /// slip densely enough for event detection [s].
+    pub event_step_stuck: Real,
+    pub event_step_slip: Real,
+    /// The smallest slip step before the instance gives up [s].
+    pub min_step: Real,
+    /// Simulated and discarded scene periods.
+    pub cycles: u32,
+    pub settle: u32,
+    /// The accuracy knob [rad] ([`Settings::tolerance`]).
+    pub tolerance: Real,
+    /// The change of the direction model below which its fixed-point
+    /// iteration stops [rad].
+    pub collocation_tolerance: Real,
+    /// Steps allowed in the whole run, saturated at `u32::MAX`.
+    pub budget: u32,
+    /// Whether each axis is driven (a non-zero voltage).
+    pub driven: [bool; 2],
+    /// A steady measurement (`measure::period_end` runs at period ends).
+    pub steady: bool,
+    /// The drives' common period [scene periods], 0 when there is none up
+    /// to `measure::MAX_COMMON_PERIOD` (`measure::common_period`).
+    pub common_period: u32,
+    /// The phase ladder's three-gap table per window length
+    /// (`phase::gaps`; zero where the ladder is off).
+    pub gaps: [Gaps; LEVELS],
+    /// The ladder levels whose end may stop the run, a bit per level
+    /// (`phase::ladder`); 0 where the ladder is off, which then keeps no
+    /// windows at all.
+    pub phase_levels: u32,
+    /// The levels whose window is a near-complete lattice of the common
+    /// period, judged without their quarters (`phase::Ladder::lattice`).
+    pub phase_lattice: u32,
+    /// Which replica of a split run this is, and of how many
+    /// (`phase::Replica`; 0 of 1 for a run of its own): the ladder's tables
+    /// and levels are then the virtual run's.
+    pub replica: u32,
+    pub replicas: u32,
+    /// The first batch length [scene periods].
+    pub batch_length: u32,
+    /// The batch length a statistical stop needs [scene periods]: the
+    /// common period or the slowest beat (`measure::beat_batch_length`).
+    pub min_batch: u32,
+    /// Squared standard error allowed on each axis' travel per scene
+    /// period [m^2]: (step_tolerance f_i T)^2.
+    pub se_limit2: Vec2,
+    /// The recurrence test's tolerances on positions [m] and velocities
+    /// [m/s].
+    pub repeat_x: Real,
+    pub repeat_v: Real,
+    /// f_c = 0: slip does not depend on the friction direction.
+    pub frictionless: bool,
+}
+
+impl Coefficients {
+    /// The coefficients of an instance in this precision's units: computed
+    /// in f64 from the instance in those units and rounded once, exactly
+    /// as the GPU packs them (`pidm::gpu::layout`), the corner clock's
+    /// values split into a rounded part and the rounded rest. In f64 they
+    /// are those of [`Coefficients::new`] in SI units.
+    pub fn of(inst: &Instance, settings: &Settings) -> Coefficients {
+        Coefficients::of_replica(inst, settings, Replica::NONE)
+    }
+
+    /// [`Coefficients::of`] for replica `r` of a split run: `inst` is the
+    /// replica's instance (its faster drive's phase advanced,
+    /// `pidm::replicas::replica_instance`).
+    pub fn of_replica(inst: &Instance, settings: &Settings, r: Replica) -> Coefficients {
+        let exact = crate::laws::karnopp::double::integrate::Coefficients::new_replica(
+            &UNITS.scale(inst),
+            settings,
+            TIME_EPSILON,
+            r,
+        );
+        Coefficients::rounded(&exact)
+    }
+
+    /// `exact` (f64) rounded once to this precision, with the corner clock
+    /// in two parts (zero low parts in f64).
+    #[allow(clippy::unnecessary_cast)]
+    pub fn rounded(exact: &crate::laws::karnopp::double::integrate::Coefficients) -> Coefficients {
+        use crate::laws::karnopp::double::integrate as exact_integrate;
+        let v = |x: exact_integrate::Vec2| Vec2::new(x.x as Real, x.y as Real);
+        let r = |x: f64| x as Real;
+        let osc = |o: &exact_integrate::coefficients::Oscillator| Oscillator {
+            mass: v(o.mass),
+            sigma: v(o.sigma),
+            w2: v(o.w2),
+            rate: v(o.rate),
+            inv_mass: v(o.inv_mass),
+            inv_w2: v(o.inv_w2),
+        };
+        let clock = exact_integrate::drive::CornerClock::new(exact, |x| x as Real as f64);
+        let e = exact;
+        Coefficients {
+            stiffness: v(e.stiffness),
+            damping: v(e.damping),
+            inv_stiffness: v(e.inv_stiffness),
+            stick: osc(&e.stick),
+            slip: osc(&e.slip),
+            amplitude: v(e.amplitude),
+            frequency: v(e.frequency),
+            duty: v(e.duty),
+            inv_duty: v(e.inv_duty),
+            inv_fall: v(e.inv_fall),
+            rise_slope: v(e.rise_slope),
+            fall_slope: v(e.fall_slope),
+            phase: v(e.phase),
+            cycles_per_period: v(e.cycles_per_period),
+            phase_fixed: e.phase_fixed,
+            cycles_fixed: e.cycles_fixed,
+            cycles_fixed_lo: e.cycles_fixed_lo,
+            stage_share: v(e.stage_share),
+            slider_share: v(e.slider_share),
+            slip_scale: v(e.slip_scale),
+            slip_b: v(e.slip_b),
+            load_need: v(e.load_need),
+            load_accel: v(e.load_accel),
+            neg_load: v(e.neg_load),
+            neg_load_accel: v(e.neg_load_accel),
+            slip_b_max: r(e.slip_b_max),
+            hold2: r(e.hold2),
+            safe_hold2: r(e.safe_hold2),
+            ms2: r(e.ms2),
+            two_ms2: r(e.two_ms2),
+            coulomb: r(e.coulomb),
+            fc_over_ms: r(e.fc_over_ms),
+            band: r(e.band),
+            band2: r(e.band2),
+            period: r(clock.period.0),
+            period_lo: r(clock.period.1),
+            rise_time: v(clock.rise.0),
+            rise_time_lo: v(clock.rise.1),
+            fall_time: v(clock.fall.0),
+            fall_time_lo: v(clock.fall.1),
+            first_corner: v(clock.first.0),
+            first_corner_lo: v(clock.first.1),
+            event_step_stuck: r(e.event_step_stuck),
+            event_step_slip: r(e.event_step_slip),
+            min_step: r(e.min_step),
+            cycles: e.cycles,
+            settle: e.settle,
+            tolerance: r(e.tolerance),
+            collocation_tolerance: r(e.collocation_tolerance),
+            budget: e.budget,
+            driven: e.driven,
+            steady: e.steady,
+            common_period: e.common_period,
+            gaps: e.gaps.map(|g| Gaps {
+                a: g.a,
+                b: g.b,
+                alpha: r(g.alpha),
+                beta: r(g.beta),
+            }),
+            phase_levels: e.phase_levels,
+            phase_lattice: e.phase_lattice,
+            replica: e.replica,
+            replicas: e.replicas,
+            batch_length: e.batch_length,
+            min_batch: e.min_batch,
+            se_limit2: v(e.se_limit2),
+            repeat_x: r(e.repeat_x),
+            repeat_v: r(e.repeat_v),
+            frictionless: e.frictionless,
+        }
+    }
+}
+
+only_f64! {
+use super::constants::{COLLOCATION_CONVERGED, EVENT_STEP_PERIODS, MIN_STEP_EPSILONS};
+
+impl Oscillator {
+    fn new(mass: Vec2, damping: Vec2, stiffness: Vec2) -> Oscillator {
+        let sigma = damping.zip(mass, |c, m| c / (2.0 * m));
+        let w2 = stiffness / mass;
+        Oscillator {
+            mass,
+            sigma,
+            w2,
+            rate: w2.zip(sigma, |w2, s| w2.sqrt() + 2.0 * s),
+            inv_mass: mass.map(|m| 1.0 / m),
+            inv_w2: w2.map(|w2| 1.0 / w2),
+        }
+    }
+}
+
+impl Coefficients {
+    /// The coefficients of an instance given in any consistent unit system.
+    /// `time_epsilon` is the relative resolution of the time within a
+    /// period (f64's epsilon on the CPU; the f32 shader's two-part time
+    /// resolves far finer than its own epsilon).
+    #[allow(clippy::unnecessary_cast)]
+    pub fn new(inst: &Instance, settings: &Settings, time_epsilon: f64) -> Coefficients {
+        Coefficients::new_replica(inst, settings, time_epsilon, Replica::NONE)
+    }
+
+    /// [`Coefficients::new`] for replica `r` of a split run
+    /// ([`Coefficients::of_replica`]).
+    pub fn new_replica(
+        inst: &Instance,
+        settings: &Settings,
+        time_epsilon: f64,
+        r: Replica,
+    ) -> Coefficients {
+        let [ax, ay] = &inst.axes;
+        let per_axis = |f: &dyn Fn(&crate::model::Axis) -> f64| Vec2::new(f(ax), f(ay));
+        let m = &inst.mechanism;
+        let ms = m.slider_mass;
+        let fc = m.coulomb_friction;
+        let stage_mass = per_axis(&|a| a.stage_mass);
+        let stiffness = per_axis(&|a| a.stiffness);
+        let damping = per_axis(&|a| a.damping);
+        let stick = Oscillator::new(stage_mass + ms, damping, stiffness);
+        let slip = Oscillator::new(stage_mass, damping, stiffness);
+        let driven = [ax.is_driven(), ay.is_driven()];
+        let amplitude = per_axis(&|a| {
+            if a.is_driven() {
+                a.gain * a.voltage
+            } else {
+                0.0
+            }
+        });
+        let has_fall = |a: &crate::model::Axis| a.duty < 1.0;
+        let period = inst.period();
+        let slip_scale = stage_mass.map(|mp| (mp + ms) / (mp * ms));
+        let slip_b = slip_scale * fc;
+        let event_step = |osc: &Oscillator| {
+            EVENT_STEP_PERIODS * 2.0 * std::f64::consts::PI / osc.rate.max_element()
+        };
+        let budget =
+            (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
+        let cycles_per_period = per_axis(&|a| a.frequency * period);
+        let step_tolerance = inst.measure.step_tolerance();
+        let se_limit = cycles_per_period * step_tolerance;
+        let deflection = (amplitude.abs() * stiffness.map(|k| 1.0 / k)).max_element();
+        let (repeat_x, repeat_v) =
+            super::measure::repeat_tolerances(settings.tolerance, deflection, slip.rate.max_element());
+        let frequency = per_axis(&|a| a.frequency);
+        // A cycle split's piece (`Replica::cycle`) has no stop rule of its
+        // own: its recurrence test keeps the states where its piece starts
+        // and ends (a "common period" of the piece's length), its ladder
+        // and batch means are off, and it runs to its `cycles`.
+        let piece = (r.cycle > 0).then(|| r.cycle_segment().1);
+        let common_period = piece.unwrap_or_else(|| {
+            super::measure::common_period(frequency, cycles_per_period, driven)
+        });
+        let steady = matches!(inst.measure, crate::model::Measure::Steady { .. });
+        // The faster drive's advance per scene period [cycles].
+        let rho = cycles_per_period.max_element().fract();
+        let ladder_on =
+            steady && piece.is_none() && super::phase::ladder_on(driven, rho, common_period);
+        // A replica's ladder is its group's virtual run's.
+        // The periods the run (a group's virtual run: its replicas'
+        // together) may measure.
+        let horizon = inst.cycles.saturating_sub(inst.settle).saturating_mul(r.count);
+        let ladder = super::phase::ladder(
+            r.virtual_step(rho),
+            ladder_on,
+            common_period.saturating_mul(r.count),
+            horizon,
+        );
+        // The load per axis, each form +0 at L = 0 whatever the sign of
+        // the zero given (`0.0 - x` and `x + 0.0` are +0 for x = -0).
+        let load = Vec2::new(m.load[0], m.load[1]);
+        let plus_zero = |x: Vec2| x.map(|x| x + 0.0);
+        let hold = m.holding_friction();
+        let loose = hold - m.load_magnitude();
+        let mut c = Coefficients {
+            stiffness,
+            damping,
+            inv_stiffness: stiffness.map(|k| 1.0 / k),
+            stick,
+            slip,
+            amplitude,
+            frequency,
+            duty: per_axis(&|a| a.duty),
+            inv_duty: per_axis(&|a| 1.0 / a.duty),
+            inv_fall: per_axis(&|a| {
+                if has_fall(a) {
+                    1.0 / (1.0 - a.duty)
+                } else {
+                    0.0
+                }
+            }),
+            rise_slope: per_axis(&|a| {
+                if a.is_driven() {
+                    a.gain * a.voltage * a.frequency / a.duty
+                } else {
+                    0.0
+                }
+            }),
+            fall_slope: per_axis(&|a| {
+                if a.is_driven() && has_fall(a) {
+                    -(a.gain * a.voltage) * a.frequency / (1.0 - a.duty)
+                } else {
+                    0.0
+                }
+            }),
+            phase: per_axis(&|a| a.phase),
+            cycles_per_period,
+            phase_fixed: [ax.phase, ay.phase].map(fixed_fraction_32),
+            cycles_fixed: cycles_per_period
+                .to_array()
+                .map(|n| (fixed_fraction_64(n) >> 32) as u32),
+            cycles_fixed_lo: cycles_per_period
+                .to_array()
+                .map(|n| fixed_fraction_64(n) as u32),
+            stage_share: stage_mass.map(|mp| mp / (mp + ms)),
+            slider_share: stage_mass.map(|mp| ms / (mp + ms)),
+            slip_scale,
+            slip_b,
+            load_need: plus_zero(stage_mass.map(|mp| mp / (mp + ms)) * load),
+            load_accel: plus_zero(load.map(|l| l / ms)),
+            neg_load: load.map(|l| 0.0 - l),
+            neg_load_accel: load.map(|l| 0.0 - l / ms),
+            slip_b_max: slip_b.max_element().max(0.0),
+            hold2: hold * hold,
+            safe_hold2: loose.max(0.0) * loose.max(0.0),
+            ms2: ms * ms,
+            two_ms2: 2.0 * (ms * ms),
+            coulomb: fc,
+            fc_over_ms: fc / ms,
+            band: m.velocity_band,
+            band2: m.velocity_band * m.velocity_band,
+            period,
+            // The corner clock, exact in f64 (below).
+            period_lo: 0.0,
+            rise_time: Vec2::ZERO,
+            rise_time_lo: Vec2::ZERO,
+            fall_time: Vec2::ZERO,
+            fall_time_lo: Vec2::ZERO,
+            first_corner: Vec2::ZERO,
+            first_corner_lo: Vec2::ZERO,
+            event_step_stuck: event_step(&stick),
+            event_step_slip: event_step(&slip),
+            min_step: MIN_STEP_EPSILONS * time_epsilon * period,
+            cycles: inst.cycles,
+            settle: inst.settle,
+            tolerance: settings.tolerance,
+            collocation_tolerance: COLLOCATION_CONVERGED * settings.tolerance,
+            budget,
+            driven,
+            steady,
+            common_period,
+            gaps: ladder.gaps,
+            phase_levels: ladder.levels,
+            phase_lattice: ladder.lattice,
+            replica: if piece.is_some() { 0 } else { r.index },
+            replicas: if piece.is_some() { 1 } else { r.count },
+            batch_length: super::measure::first_batch_length(cycles_per_period, driven, inst.cycles),
+            min_batch: match piece {
+                Some(_) => u32::MAX,
+                None => super::measure::beat_batch_length(cycles_per_period, driven),
+            },
+            se_limit2: se_limit * se_limit,
+            repeat_x,
+            repeat_v,
+            frictionless: fc == 0.0,
+        };
+        let clock = super::drive::CornerClock::new(&c, |x| x);
+        (c.rise_time, c.rise_time_lo) = clock.rise;
+        (c.fall_time, c.fall_time_lo) = clock.fall;
+        (c.first_corner, c.first_corner_lo) = clock.first;
+        c
+    }
+}
+
+/// The fraction of `u` in units of 2^-32 cycles, rounded (wrapping to 0 at
+/// a whole cycle).
+pub fn fixed_fraction_32(u: f64) -> u32 {
+    ((u - u.floor()) * 4_294_967_296.0).round() as u64 as u32
+}
+
+/// The fraction of `u` in units of 2^-64 cycles, truncated.
+pub fn fixed_fraction_64(u: f64) -> u64 {
+    // Exact scaling by 2^64; the cast saturates below 2^64 for fractions
+    // that round up to a whole cycle, an error of 2^-64 cycles.
+    ((u - u.floor()) * 18_446_744_073_709_551_616.0) as u64
+}
+}

@@ -1,0 +1,277 @@
+//! A LuGre run: period by period, each one Rodas4 segments between the
+//! drive's corners, with the measurement of every backend on top (the
+//! window's travel, or `measure::period_end`'s batches, phase ladder and
+//! stop rule). Its result is an `integrate::Run`, which
+//! `measurement::reduce` turns into a record as it does Karnopp's.
+
+// The model and Rodas4's coefficients, also for the GPU's mirror of both
+// (`crate::gpu::lugre` and `shaders/lugre/`).
+pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
+pub(crate) use super::rodas::{A, C, GAMMA, R, REDUCED, SMALLEST_STEP, rodas4, segment};
+use crate::laws::karnopp::integrate::measure::{
+    SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, period_end,
+};
+use crate::laws::karnopp::integrate::{
+    Coefficients, Run, STATUS_OK, Settings, Vec2, initial_measure, initial_state, is_finished,
+};
+use crate::model::{AXES, Instance, Lugre};
+
+/// What `simulation.tolerance` (a number, 1e-4 by default) means under
+/// LuGre: each Rodas4 step's local error is at most `tolerance` times
+/// this length [m] in the positions (1e-11 m at the default), `tolerance`
+/// times this length times the stage's angular resonance in the
+/// velocities, and the same force (times the stage's stiffness over
+/// sigma0) in the bristles' deflection. 0.1 um is about the presliding
+/// deflection f_s / sigma0 at the defaults. Measured on docs/model.md section 8's
+/// cases (`pidm accuracy sweeps/lugre_paper.toml sweeps/lugre_stiff.toml`):
+/// the largest error is about tolerance / 2 um per cycle at the defaults
+/// and up to 1.7 tolerance at sigma0 = 1e9 (4.9e-5 and 1.7e-4 um at the
+/// default tolerance).
+pub const LENGTH_PER_TOLERANCE: f64 = 1e-7;
+
+/// The weights of the error control: each state's largest local error.
+pub(crate) fn error_scale(model: &Model, lugre: &Lugre, tolerance: f64) -> State {
+    let inst = &model.inst;
+    let length = tolerance * LENGTH_PER_TOLERANCE;
+    let omega = inst
+        .axes
+        .iter()
+        .map(|a| (a.stiffness / a.stage_mass).sqrt())
+        .fold(0.0, f64::max);
+    let stiffness = inst
+        .axes
+        .iter()
+        .map(|a| a.stiffness)
+        .fold(f64::INFINITY, f64::min);
+    let mut scale = [length; N];
+    for i in 0..AXES {
+        scale[VP + i] = length * omega;
+        scale[VS + i] = length * omega;
+        scale[Z + i] = length * (stiffness / lugre.bristle_stiffness).min(1.0);
+    }
+    scale[T] = f64::INFINITY;
+    scale
+}
+
+/// The first trial step [s]: a thousandth of the fastest stage's period;
+/// the control adapts it within a few steps.
+pub(crate) fn first_step(inst: &Instance) -> f64 {
+    let omega = inst
+        .axes
+        .iter()
+        .map(|a| (a.stiffness / a.stage_mass).sqrt())
+        .fold(0.0, f64::max);
+    1e-3 * std::f64::consts::TAU / omega
+}
+
+/// Integrates the LuGre instance `inst` to the end of its measurement, or
+/// until `stop` returns true (asked once per scene period), in which case
+/// there is no result. The run starts at rest, z = 0 (docs/model.md section 8).
+///
+/// # Panics
+/// If `inst`'s friction is not LuGre's.
+pub fn run_instance_until(
+    inst: &Instance,
+    settings: &Settings,
+    stop: impl Fn() -> bool,
+) -> Option<Run> {
+    let mut book = Periods::new(inst, settings);
+    let period = inst.period();
+    let mut y = [0.0; N];
+    let mut h = first_step(inst);
+    let mut budget = book.budget;
+    while !book.is_finished() {
+        if stop() {
+            return None;
+        }
+        let clock = book.clock();
+        y[T] = 0.0;
+        while y[T] < period {
+            let end = (0..AXES)
+                .map(|i| clock.next_corner(inst, i, y[T]))
+                .fold(period, f64::min);
+            let mid = 0.5 * (y[T] + end);
+            let drive = [0, 1].map(|i| clock.drive_on(inst, i, mid));
+            match segment(
+                &book.model,
+                &drive,
+                &book.scale,
+                &mut y,
+                end,
+                (&mut h, &mut budget),
+            ) {
+                Ok(steps) => book.add_steps(steps),
+                Err(status) => {
+                    book.run.state.status = status;
+                    return Some(book.run);
+                }
+            }
+        }
+        book.period_end(&y);
+    }
+    debug_assert_eq!(book.run.state.status, STATUS_OK);
+    Some(book.run)
+}
+
+/// A LuGre run's bookkeeping outside the integrator, period by period: the
+/// model, the error control's weights, the step budget, the run's
+/// `integrate::Run` and the measurement on top of it (`measure::period_end`
+/// and the recurrence test with z). The CPU's run ([`run_instance_until`])
+/// and the GPU's host (`crate::gpu::lugre`) share it, so both measure alike.
+pub(crate) struct Periods {
+    pub(crate) inst: Instance,
+    pub(crate) model: Model,
+    /// The error control's weights ([`error_scale`]).
+    pub(crate) scale: State,
+    /// Steps (accepted and rejected) the whole run may take.
+    pub(crate) budget: u32,
+    /// The run so far: its `state.steps` and `state.status` are the
+    /// integrator's to set ([`Periods::add_steps`]).
+    pub(crate) run: Run,
+    c: Coefficients,
+    /// The common period of the recurrence test (0: none).
+    common: u32,
+    recurrence: Recurrence,
+}
+
+impl Periods {
+    /// A run of `inst` at rest at the start of period 0.
+    ///
+    /// # Panics
+    /// If `inst`'s friction is not LuGre's.
+    pub(crate) fn new(inst: &Instance, settings: &Settings) -> Periods {
+        let lugre = *inst.mechanism.lugre().expect("a LuGre instance");
+        let model = Model::new(inst, &lugre);
+        let mut c = Coefficients::of(inst, settings);
+        // The recurrence test compares z too: done here, not by `period_end`.
+        let common = std::mem::replace(&mut c.common_period, 0);
+        let recurrence = Recurrence::new(&c, inst, &lugre);
+        let scale = error_scale(&model, &lugre, settings.tolerance);
+        let mut run = Run {
+            state: initial_state(&c),
+            measure: initial_measure(&c),
+        };
+        if c.settle == 0 {
+            run.state.settle_x_s = run.state.x_s;
+        }
+        let budget =
+            (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
+        Periods {
+            inst: *inst,
+            model,
+            scale,
+            budget,
+            run,
+            c,
+            common,
+            recurrence,
+        }
+    }
+
+    /// Whether the run has ended: measured, failed or out of periods.
+    pub(crate) fn is_finished(&self) -> bool {
+        is_finished(&self.c, &self.run.state)
+    }
+
+    /// The drive's clock of the current scene period.
+    pub(crate) fn clock(&self) -> Clock {
+        Clock::of(&self.inst, self.run.state.period)
+    }
+
+    /// Counts the steps of one segment.
+    pub(crate) fn add_steps(&mut self, steps: u32) {
+        let st = &mut self.run.state;
+        st.steps = st.steps.saturating_add(steps);
+    }
+
+    /// The end of the current scene period with the integrator's state `y`:
+    /// the state's positions and velocities, the steady measurement
+    /// (`measure::period_end` and the recurrence test), the next period.
+    pub(crate) fn period_end(&mut self, y: &State) {
+        let (c, common) = (&self.c, self.common);
+        let (st, m) = (&mut self.run.state, &mut self.run.measure);
+        st.x_p = Vec2::new(y[XP], y[XP + 1]);
+        st.v_p = Vec2::new(y[VP], y[VP + 1]);
+        st.x_s = Vec2::new(y[XS], y[XS + 1]);
+        st.v_s = Vec2::new(y[VS], y[VS + 1]);
+        st.v_rel = st.v_p - st.v_s;
+        st.time = self.inst.period();
+        if c.steady {
+            period_end(c, st, m);
+            let ended = st.period + 1;
+            if common > 0
+                && ended >= c.settle
+                && (ended - c.settle).is_multiple_of(common)
+                && m.verdict == VERDICT_RUNNING
+                && self.recurrence.repeats(y, common, m)
+            {
+                st.measured = 1;
+            }
+        }
+        st.period += 1;
+        st.time = 0.0;
+        if st.period == c.settle {
+            st.settle_x_s = st.x_s;
+        }
+    }
+}
+
+/// docs/model.md section 4's recurrence test under LuGre: the state at a common
+/// period's end against the last [`SNAPSHOTS`] ones, z included (section
+/// 8), with the tolerances of Karnopp's test (`Coefficients::repeat_x`,
+/// `repeat_v`) and z's force-equivalent one.
+struct Recurrence {
+    repeat: State,
+    snaps: [State; SNAPSHOTS],
+    taken: u32,
+}
+
+impl Recurrence {
+    fn new(c: &Coefficients, inst: &Instance, lugre: &Lugre) -> Recurrence {
+        let stiffness = inst
+            .axes
+            .iter()
+            .map(|a| a.stiffness)
+            .fold(f64::INFINITY, f64::min);
+        let mut repeat = [c.repeat_x; N];
+        for i in 0..AXES {
+            repeat[VP + i] = c.repeat_v;
+            repeat[VS + i] = c.repeat_v;
+            repeat[Z + i] = c.repeat_x * (stiffness / lugre.bristle_stiffness).min(1.0);
+        }
+        // The slider's position is the travel, and the time the period's
+        // end: neither is compared.
+        for i in 0..AXES {
+            repeat[XS + i] = f64::INFINITY;
+        }
+        repeat[T] = f64::INFINITY;
+        Recurrence {
+            repeat,
+            snaps: [[0.0; N]; SNAPSHOTS],
+            taken: 0,
+        }
+    }
+
+    /// Whether `y` repeats a kept snapshot; if it does, records the lag
+    /// and the travel over it in `m` (a periodic verdict), else keeps `y`.
+    fn repeats(
+        &mut self,
+        y: &State,
+        common: u32,
+        m: &mut crate::laws::karnopp::integrate::Measure,
+    ) -> bool {
+        let kept = self.taken.min(SNAPSHOTS as u32);
+        for back in 1..=kept {
+            let s = &self.snaps[((self.taken - back) % SNAPSHOTS as u32) as usize];
+            if (0..N).all(|n| (y[n] - s[n]).abs() <= self.repeat[n]) {
+                m.lag = back * common;
+                m.travel = Vec2::new(y[XS] - s[XS], y[XS + 1] - s[XS + 1]);
+                m.verdict = VERDICT_PERIODIC;
+                return true;
+            }
+        }
+        self.snaps[(self.taken % SNAPSHOTS as u32) as usize] = *y;
+        self.taken += 1;
+        false
+    }
+}
