@@ -194,7 +194,7 @@ pub struct Outcome {
     /// (`cpu::integrate::constants::STATUS_GRAZE`).
     pub graze: bool,
     /// An f32 window run among the heaviest of its batch, checked
-    /// (`backend::check`): by a twin that agreed (f32's value kept), or
+    /// (`laws::karnopp::check`): by a twin that agreed (f32's value kept), or
     /// integrated again in f64 (`on_cpu` set too).
     pub checked: bool,
     /// The replicas whose merged estimate it is (`crate::replicas`; 1: one

@@ -138,7 +138,7 @@ impl Progress {
     /// `n` more instances finished. Ignored once a stop was asked for: a
     /// backend then reports the instances it abandoned as finished too.
     pub fn inc(&self, n: u64) {
-        if crate::sweep::interrupt_requested() {
+        if crate::interrupt::interrupt_requested() {
             return;
         }
         match &self.kind {

@@ -9,7 +9,7 @@
 //! keeps the best estimate and its standard error. Code 7 (an f32 band
 //! graze, `cpu::integrate::constants::STATUS_GRAZE`) never reaches a file:
 //! every f32 path integrates such an instance again in f64
-//! (`backend::f32_needs_f64`), so it is no status here. Code 8 is the stall
+//! (`laws::karnopp::f32_needs_f64`), so it is no status here. Code 8 is the stall
 //! search's own (`crate::stall`, `/maps/stall_status`): the step does not
 //! change sign on the loaded side.
 

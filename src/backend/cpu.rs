@@ -5,10 +5,11 @@
 use anyhow::{Result, bail};
 use rayon::prelude::*;
 
-use super::{Backend, Hardware, Precision, f32_needs_f64};
+use super::{Backend, Hardware, Precision};
 use crate::interrupt::interrupt_requested;
 use crate::laws::karnopp::integrate::constants::STATUS_GRAZE;
 use crate::laws::karnopp::integrate::{Replica, Settings};
+use crate::laws::karnopp::{check, f32_needs_f64};
 use crate::laws::karnopp::{integrate, single};
 use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
@@ -120,7 +121,7 @@ impl Backend for CpuBackend {
 
 /// The f32 mirror's check of its heaviest window runs
 /// ([`super::check`]): on the CPU a twin would cost about what the f64
-/// reference costs, so the mirror always takes [`super::check::Route::Reference`]:
+/// reference costs, so the mirror always takes [`check::Route::Reference`]:
 /// the checked runs carry the reference's value, as they do on a software
 /// adapter.
 fn check_heaviest(instances: &[Instance], settings: &Settings, out: &mut [Outcome]) {
@@ -128,10 +129,10 @@ fn check_heaviest(instances: &[Instance], settings: &Settings, out: &mut [Outcom
         .iter()
         .zip(instances)
         .enumerate()
-        .filter(|(_, (o, inst))| super::check::is_candidate(inst, o.status, o.on_cpu))
+        .filter(|(_, (o, inst))| check::is_candidate(inst, o.status, o.on_cpu))
         .map(|(k, (o, _))| (k, o.steps))
         .collect();
-    let picked = super::check::heaviest(&candidates);
+    let picked = check::heaviest(&candidates);
     let reference: Vec<Outcome> = picked
         .par_iter()
         .with_max_len(1)

@@ -5,76 +5,22 @@
 //! `auto` by [`cost`]'s estimates and the GPU costs [`cost_book`] keeps;
 //! [`check`] is the rule by which both f32 paths check their heaviest runs.
 
-use std::fmt;
-
 use anyhow::Result;
 
 use crate::laws::karnopp::integrate::Settings;
 use crate::measurement::Outcome;
 use crate::model::Instance;
 
-pub mod check;
 pub mod cost;
 pub mod cost_book;
 pub mod cpu;
 pub mod gpu;
 pub mod select;
 
+pub use crate::laws::Precision;
 pub use cpu::CpuBackend;
 pub use gpu::GpuBackend;
 pub use select::{BackendChoice, Selected, Workload, select_backend};
-
-/// Floating-point precision of an integration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
-pub enum Precision {
-    F32,
-    F64,
-}
-
-impl Precision {
-    /// "f32" or "f64", as result files and messages write it.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Precision::F32 => "f32",
-            Precision::F64 => "f64",
-        }
-    }
-}
-
-impl fmt::Display for Precision {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.as_str())
-    }
-}
-
-/// Whether `status` says the integration failed (step budget, non-finite
-/// state, step underflow, event storm), as opposed to finishing or to a
-/// steady measurement's verdict. In f32 such a failure is f32's own far
-/// more often than the instance's (a velocity band below what f32 resolves
-/// next to the stage speeds ends in step underflow: 279 of `stress.toml`'s
-/// 432 instances with a 1e-9 m/s band).
-pub fn is_integrator_failure(status: u32) -> bool {
-    use crate::laws::karnopp::integrate::{
-        STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
-    };
-    matches!(
-        status,
-        STATUS_STEP_BUDGET | STATUS_NON_FINITE | STATUS_STEP_UNDERFLOW | STATUS_EVENT_STORM
-    )
-}
-
-/// Whether an f32 integration that ended with `status` is integrated again
-/// on the CPU in f64, by every f32 path (the shader's batches and the CPU
-/// mirror's backend alike): a failure ([`is_integrator_failure`]), or a
-/// band graze, where f32 stopped because the step depends on a decision
-/// that the direction tolerance, not f32, leaves open
-/// (`cpu::integrate::constants::GRAZE_MARGIN`). The instance then carries
-/// the f64 reference's value, or its status where that fails too, and is
-/// counted as run on the CPU.
-pub fn f32_needs_f64(status: u32) -> bool {
-    is_integrator_failure(status)
-        || status == crate::laws::karnopp::integrate::constants::STATUS_GRAZE
-}
 
 /// What a backend computes on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -127,9 +127,9 @@ pub(super) fn print_summary(scene: &Scene, result: &RunResult) {
              value (their twin, nudged and at {}x the tolerance, disagreed, or the check integrated them in \
              f64 directly), {} keep f32's (their twin agreed within half of 0.005 um + 1 %)",
             s.checked,
-            (crate::backend::check::share() * 1000.0).round() / 10.0,
+            (crate::laws::karnopp::check::share() * 1000.0).round() / 10.0,
             s.checked_on_cpu,
-            crate::backend::check::TWIN_LOOSENING,
+            crate::laws::karnopp::check::TWIN_LOOSENING,
             s.checked - s.checked_on_cpu
         );
     }

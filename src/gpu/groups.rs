@@ -352,7 +352,7 @@ impl Runner<'_> {
                             .expect("an f64 state continues on the CPU")
                     })
                     .collect();
-                let stop = crate::sweep::interrupt_requested;
+                let stop = crate::interrupt::interrupt_requested;
                 crate::replicas::cpu::continue_replicas(
                     &g.inst,
                     self.settings,

@@ -34,7 +34,7 @@
 //!   or stops at a band graze is integrated again on the CPU in f64
 //!   ([`f32_needs_f64`]; [`GpuOutcome::shader_status`] says which). The
 //!   heaviest fifth of an f32 call's window runs is checked
-//!   ([`crate::backend::check`], [`BatchOptions::check`]): by twins at a
+//!   ([`crate::laws::karnopp::check`], [`BatchOptions::check`]): by twins at a
 //!   looser tolerance on a hardware adapter (while the CPU integrates the
 //!   failures and grazes), by the f64 reference on the CPU on a software
 //!   one ([`GpuOutcome::checked`]).
@@ -102,7 +102,7 @@ use rayon::prelude::*;
 use thiserror::Error;
 use wgpu::util::DeviceExt;
 
-use crate::backend::check;
+use crate::laws::karnopp::check;
 use crate::laws::karnopp::integrate::{Run, Settings, initial_measure, run_instance};
 use crate::measurement::{Measured, reduce};
 use crate::model::{Instance, Measure};
@@ -116,10 +116,10 @@ use layout::control::Control;
 /// them ([`GpuOutcome::cpu_fallback`]), so callers never see this status.
 pub const STATUS_LOOP_LIMIT: u32 = 100;
 
-pub use crate::backend::Precision;
+pub use crate::laws::Precision;
 
-pub use crate::backend::check::Route;
-pub use crate::backend::{f32_needs_f64, is_integrator_failure};
+pub use crate::laws::karnopp::check::Route;
+pub use crate::laws::karnopp::{f32_needs_f64, is_integrator_failure};
 
 /// What went wrong on the GPU path.
 #[derive(Debug, Error)]
@@ -218,7 +218,7 @@ pub struct GpuOutcome {
     /// see [`BatchOptions::cpu_tail`].
     pub finished_on_cpu: bool,
     /// True for an f32 window run among the heaviest of its batch, which
-    /// was checked ([`crate::backend::check`]): it keeps f32's value where
+    /// was checked ([`crate::laws::karnopp::check`]): it keeps f32's value where
     /// its twin agreed, and carries the f64 reference's (with
     /// [`GpuOutcome::cpu_fallback`] set) where the twin disagreed or the
     /// check ran the reference directly.

@@ -457,7 +457,7 @@ impl Runner<'_> {
             if slice_limit.is_some_and(|limit| slice >= limit) {
                 return Ok(());
             }
-            if crate::sweep::interrupt_requested() {
+            if crate::interrupt::interrupt_requested() {
                 return Err(GpuError::Interrupted);
             }
             if slice >= max_slices {

@@ -18,6 +18,7 @@ pub mod settings;
 
 use crate::model::Instance;
 use karnopp::{integrate, single};
+use std::fmt;
 
 /// Integrates one instance in f64 with its friction law's integrator
 /// ([`karnopp`] or [`lugre`]) to the end, or until
@@ -63,4 +64,27 @@ pub fn iteration_lines() -> String {
         by_kind.join(", "),
         100.0 * rejected_share(&kinds)
     )
+}
+
+/// Floating-point precision of an integration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum)]
+pub enum Precision {
+    F32,
+    F64,
+}
+
+impl Precision {
+    /// "f32" or "f64", as result files and messages write it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        }
+    }
+}
+
+impl fmt::Display for Precision {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
 }

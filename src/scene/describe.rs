@@ -68,7 +68,7 @@ impl Scene {
                  probes it needs: 8.1 on average on sweeps/stall.toml, 14.3 where the step is \
                  not 0; the cost below is the unloaded run's alone)",
                 fmt_short(stall.tolerance),
-                crate::stall::BRACKET.len()
+                super::stall::BRACKET.len()
             );
         }
         let _ = writeln!(

@@ -118,7 +118,7 @@ pub use file::MAX_SCENE_BYTES;
 pub use memory::MAP_MEMORY_BUDGET_BYTES;
 pub use name::MAX_NAME_BYTES;
 pub use refine::{DEFAULT_REFINE_TOLERANCE_M, MAX_REFINE_LEVELS, Refine};
-pub use stall::Stall;
+pub use stall::{BRACKET, DEFAULT_TOLERANCE_N, Stall};
 pub use trajectories::{DEFAULT_SAMPLES_PER_CYCLE, TrajectoryPoint};
 pub use values::MAX_RANGE_STEPS;
 

@@ -12,7 +12,30 @@ use super::keys::{LOAD_SLOTS, STALL_KEYS, slot_path};
 use super::layer::Layer;
 use super::parser::{Parser, Value};
 use crate::model::AXIS_NAMES;
-use crate::stall::DEFAULT_TOLERANCE_N;
+
+/// The loads the bracketing probes, as fractions of the room along the
+/// axis: doubling from 1/64 to 1/2, where a drive stalls under a small
+/// load (Table 1 at 10 Hz stalls at 4 to 8 % of f_c), then closing in on
+/// f_c, where the last probe is 63/64 of the room: a load that close to
+/// f_c is one the interface barely holds at rest.
+pub const BRACKET: [f64; 10] = [
+    1.0 / 64.0,
+    1.0 / 32.0,
+    1.0 / 16.0,
+    1.0 / 8.0,
+    1.0 / 4.0,
+    1.0 / 2.0,
+    3.0 / 4.0,
+    7.0 / 8.0,
+    15.0 / 16.0,
+    63.0 / 64.0,
+];
+
+/// `[stall] tolerance` when not given [N]: 1e-4 N, 0.01 % of Table 1's
+/// kinetic friction, where its stall slopes (12-16 um/N, docs/model.md section
+/// 7) make the step at the bracket ends 0.002 um from zero: below the
+/// steady measurement's own 0.01 um.
+pub const DEFAULT_TOLERANCE_N: f64 = 1e-4;
 
 /// The largest `[stall] tolerance` [N], like the bounds of the friction it
 /// is a fraction of (a tolerance at or above a scene's f_c only makes the

@@ -21,8 +21,9 @@ pub mod search;
 
 use anyhow::Result;
 
+pub use crate::scene::{BRACKET, DEFAULT_TOLERANCE_N};
 pub use run::{Outcome, Report};
-pub use search::{BRACKET, DEFAULT_TOLERANCE_N, Search, StallRecord};
+pub use search::{Search, StallRecord};
 
 /// The integration of one wave: its number (from 1) and its probes as
 /// (index into the searches, signed load [N]), to each probe's (step [m

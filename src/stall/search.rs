@@ -20,25 +20,8 @@
 
 use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use crate::measurement::keeps_values;
+use crate::scene::BRACKET;
 use crate::status::STATUS_NO_STALL;
-
-/// The loads the bracketing probes, as fractions of the room along the
-/// axis: doubling from 1/64 to 1/2, where a drive stalls under a small
-/// load (Table 1 at 10 Hz stalls at 4 to 8 % of f_c), then closing in on
-/// f_c, where the last probe is 63/64 of the room: a load that close to
-/// f_c is one the interface barely holds at rest.
-pub const BRACKET: [f64; 10] = [
-    1.0 / 64.0,
-    1.0 / 32.0,
-    1.0 / 16.0,
-    1.0 / 8.0,
-    1.0 / 4.0,
-    1.0 / 2.0,
-    3.0 / 4.0,
-    7.0 / 8.0,
-    15.0 / 16.0,
-    63.0 / 64.0,
-];
 
 /// A step of at most this magnitude is no motion [m per own drive cycle]:
 /// 1e-10 m (1e-4 um), the accuracy the integrator claims at its default
@@ -48,12 +31,6 @@ pub const BRACKET: [f64; 10] = [
 /// the stall slopes of 12-16 um/N it moves a stall load by 1e-5
 /// N, a tenth of the default tolerance.
 pub const STEP_ZERO_M: f64 = 1e-10;
-
-/// `[stall] tolerance` when not given [N]: 1e-4 N, 0.01 % of Table 1's
-/// kinetic friction, where its stall slopes (12-16 um/N, docs/model.md section
-/// 7) make the step at the bracket ends 0.002 um from zero: below the
-/// steady measurement's own 0.01 um.
-pub const DEFAULT_TOLERANCE_N: f64 = 1e-4;
 
 /// What the stall search found for one instance, in SI units: the one
 /// home of the stall maps' values (`crate::output::schema::STALL_DATASETS`).

@@ -232,7 +232,7 @@ fn f32_mirror_measures_steady_steps_as_the_reference() {
 }
 
 /// Issue 19: the mirror's backend checks its heaviest runs as the shader's
-/// batches do on a software adapter (`pidm::backend::check`, the reference
+/// batches do on a software adapter (`pidm::laws::karnopp::check`, the reference
 /// route). Six instances the guarded mirror got wrong on the fresh seeds
 /// 61-80 (results/gpu.md, "The heaviest tenth"), among 24 light ones: the
 /// heaviest fifth of the runs that neither failed nor grazed (by the
@@ -241,8 +241,8 @@ fn f32_mirror_measures_steady_steps_as_the_reference() {
 /// of them reach it at a band graze since issue 47's step rule).
 #[test]
 fn the_f32_mirror_checks_its_heaviest_runs_against_the_reference() {
-    use pidm::backend::check::{heaviest, is_candidate};
     use pidm::backend::{Backend, CpuBackend};
+    use pidm::laws::karnopp::check::{heaviest, is_candidate};
     let settings = Settings::default();
     let mut instances = Vec::new();
     for (seed, k) in [

@@ -418,8 +418,8 @@ impl Module {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::backend::Precision;
     use crate::gpu::shader::Parts;
+    use crate::laws::Precision;
 
     /// The hardware pipelines' budgets of private arrays indexed at run
     /// time (issue 47): none in the f64 window pipeline and none in f64

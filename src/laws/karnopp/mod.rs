@@ -6,9 +6,39 @@
 //! shader's mirror). [`integrate`] is the f64 one. [`paper_rk4`] is the
 //! paper's fixed-step RK4 of the same law, a baseline, not the reference.
 
+pub mod check;
 pub mod double;
 pub mod paper_rk4;
 pub mod single;
 pub mod units;
 
 pub use double::integrate;
+
+/// Whether `status` says the integration failed (step budget, non-finite
+/// state, step underflow, event storm), as opposed to finishing or to a
+/// steady measurement's verdict. In f32 such a failure is f32's own far
+/// more often than the instance's (a velocity band below what f32 resolves
+/// next to the stage speeds ends in step underflow: 279 of `stress.toml`'s
+/// 432 instances with a 1e-9 m/s band).
+pub fn is_integrator_failure(status: u32) -> bool {
+    use crate::laws::karnopp::integrate::{
+        STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
+    };
+    matches!(
+        status,
+        STATUS_STEP_BUDGET | STATUS_NON_FINITE | STATUS_STEP_UNDERFLOW | STATUS_EVENT_STORM
+    )
+}
+
+/// Whether an f32 integration that ended with `status` is integrated again
+/// on the CPU in f64, by every f32 path (the shader's batches and the CPU
+/// mirror's backend alike): a failure ([`is_integrator_failure`]), or a
+/// band graze, where f32 stopped because the step depends on a decision
+/// that the direction tolerance, not f32, leaves open
+/// (`cpu::integrate::constants::GRAZE_MARGIN`). The instance then carries
+/// the f64 reference's value, or its status where that fails too, and is
+/// counted as run on the CPU.
+pub fn f32_needs_f64(status: u32) -> bool {
+    is_integrator_failure(status)
+        || status == crate::laws::karnopp::integrate::constants::STATUS_GRAZE
+}

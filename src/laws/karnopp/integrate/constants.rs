@@ -23,7 +23,7 @@ pub const STATUS_EVENT_STORM: u32 = 4;
 /// An f32 run met a band graze it cannot decide like the f64 reference
 /// ([`GRAZE_MARGIN`]) and stopped there. Set only where the precision's
 /// `GRAZE_GUARD` is on (f32); the host integrates such an instance again
-/// in f64 on the CPU (`pidm::backend::f32_needs_f64`), so the code never
+/// in f64 on the CPU (`pidm::laws::karnopp::f32_needs_f64`), so the code never
 /// reaches a result file.
 pub const STATUS_GRAZE: u32 = 7;
 /// A steady measurement reached `max_cycles` without its motion repeating
