@@ -370,7 +370,7 @@ pub fn missing(all: &[Range<u64>], done: &[Range<u64>]) -> Vec<Range<u64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::motion::Motion;
+    use crate::model::motion::Motion;
 
     /// A record a run could have written: a failed instance (every third)
     /// has zeros in its map entries and no kind of motion; the others

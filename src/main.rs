@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-use pidm::shard::ShardSpec;
+use pidm::run::shard::ShardSpec;
 use pidm::{backend, commands};
 
 /// The exit statuses, shown by `--help`.

@@ -4,11 +4,11 @@
 //! and opens the device, [`super::cost_book`] keeps the GPU costs measured
 //! on this machine.
 //!
-//! - **CPU**: the probe `pidm check` runs ([`crate::probe`]) measures
+//! - **CPU**: the probe `pidm check` runs ([`crate::backend::probe`]) measures
 //!   the core-seconds of an integration; times the run's distinct
 //!   integrations, over the CPU threads (the cores the probe's threads
 //!   had), that is the run's integration time on the CPU path
-//!   ([`crate::probe::cpu_sweep_s`]).
+//!   ([`crate::backend::probe::cpu_sweep_s`]).
 //! - **GPU**: fixed costs (opening the device, the pipeline from the
 //!   cache, the self-test) plus the same core-seconds over the GPU's
 //!   throughput in CPU-core equivalents. Both default to what
@@ -19,7 +19,7 @@
 //! writing the file) is left out: it does not change which is faster.
 
 use super::Precision;
-use crate::probe::{PROBE_MAX, Probe};
+use crate::backend::probe::{PROBE_MAX, Probe};
 
 /// Fewest distinct integrations per CPU thread for which `--backend auto`
 /// probes the run's cost and may open a GPU; below, the CPU path runs
@@ -190,7 +190,7 @@ impl CpuEstimate {
     ) -> CpuEstimate {
         let shared = (cores.max(1) as f64 / threads.max(1) as f64).min(1.0);
         CpuEstimate {
-            seconds: crate::probe::cpu_sweep_s(integrations, probe),
+            seconds: crate::backend::probe::cpu_sweep_s(integrations, probe),
             core_s: probe.mean_core_s * integrations as f64 * shared,
             threads,
         }

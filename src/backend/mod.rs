@@ -15,6 +15,7 @@ pub mod cost;
 pub mod cost_book;
 pub mod cpu;
 pub mod gpu;
+pub mod probe;
 pub mod select;
 
 pub use crate::laws::Precision;

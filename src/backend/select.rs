@@ -67,7 +67,7 @@ pub struct Workload {
     /// The distinct integrations the run computes (an upper bound will do).
     pub integrations: u64,
     /// The integrations auto's probe picks from: the run's distinct
-    /// integrations, or a sample of them (`crate::estimate::integrations`).
+    /// integrations, or a sample of them (`crate::run::estimate::integrations`).
     pub candidates: Vec<Instance>,
     pub settings: Settings,
     /// Whether the run searches stall loads (its probes carry a load).
@@ -242,7 +242,9 @@ fn auto(
             book = Some(loaded);
             known
         },
-        |k| crate::probe::probe_instances(&work.candidates, &work.settings, cpu_threads, k),
+        |k| {
+            crate::backend::probe::probe_instances(&work.candidates, &work.settings, cpu_threads, k)
+        },
     );
     let estimate = match plan {
         Plan::TooFew {

@@ -1,5 +1,5 @@
 //! `pidm check`: a scene validated and described without running it, with
-//! its cost estimated by a probe ([`crate::estimate`]), as text or as JSON.
+//! its cost estimated by a probe ([`crate::run::estimate`]), as text or as JSON.
 
 use std::path::Path;
 
@@ -7,8 +7,8 @@ use anyhow::Result;
 
 use super::format::{human_duration, plural};
 use crate::backend::cost::Plan;
-use crate::estimate::NOMINAL_SIMULATED_PER_CORE;
 use crate::model::{AXES, Measure};
+use crate::run::estimate::NOMINAL_SIMULATED_PER_CORE;
 use crate::scene::{Layout, MAP_MEMORY_BUDGET_BYTES, Scene};
 
 /// What `pidm check` finds out about a scene: its size and a cost estimate.
@@ -28,7 +28,7 @@ pub struct CheckReport {
     pub cores: usize,
     /// The estimated wall time of the run on the CPU path on `cores`
     /// threads [s]: its integrations (`sweep_s`), its trajectories
-    /// (`trajectories_s`) and [`crate::estimate::RUN_OVERHEAD_S`].
+    /// (`trajectories_s`) and [`crate::run::estimate::RUN_OVERHEAD_S`].
     pub estimate_s: f64,
     /// Of `estimate_s`, the integrations of the maps [s].
     pub sweep_s: f64,
@@ -38,7 +38,7 @@ pub struct CheckReport {
     /// the probe's limit and was charged up to its `max_cycles`.
     pub upper_bound: bool,
     /// What the probe measured.
-    pub probe: crate::estimate::Probe,
+    pub probe: crate::run::estimate::Probe,
     /// What `--backend auto` would do on `cores` threads, from the same
     /// probe ([`crate::backend::cost::plan`]): the CPU path unweighed (too
     /// few integrations), the CPU path, or a hardware GPU where one opens.
@@ -46,7 +46,7 @@ pub struct CheckReport {
 }
 
 /// Sizes up a scene and estimates its cost with a short probe (see
-/// [`crate::estimate`]).
+/// [`crate::run::estimate`]).
 pub fn check_report(scene: &Scene) -> CheckReport {
     let count = scene.instance_count();
     // Exact total simulated time for up to a million instances, else a
@@ -76,10 +76,10 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     }
     simulated = simulated * count as f64 / sample as f64 + baseline_time;
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let (integrations, probe) = crate::estimate::probe(scene, cores);
+    let (integrations, probe) = crate::run::estimate::probe(scene, cores);
     let core_seconds = probe.mean_core_s * integrations as f64;
-    let sweep_s = crate::estimate::cpu_sweep_s(integrations, &probe);
-    let trajectories_s = crate::estimate::trajectories_s(scene, &probe);
+    let sweep_s = crate::run::estimate::cpu_sweep_s(integrations, &probe);
+    let trajectories_s = crate::run::estimate::trajectories_s(scene, &probe);
     // auto's plan from this probe (it probes fewer integrations itself).
     let auto = crate::backend::cost::plan(
         integrations,
@@ -89,7 +89,7 @@ pub fn check_report(scene: &Scene) -> CheckReport {
         || crate::backend::cost_book::load().known(None),
         |_| probe.clone(),
     );
-    let estimate_s = sweep_s + trajectories_s + crate::estimate::RUN_OVERHEAD_S;
+    let estimate_s = sweep_s + trajectories_s + crate::run::estimate::RUN_OVERHEAD_S;
     CheckReport {
         instances: count,
         integrations,
@@ -160,7 +160,7 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
     println!(
         "  {} integrating{trajectories}, {} starting and writing",
         human_duration(sweep_s),
-        human_duration(crate::estimate::RUN_OVERHEAD_S)
+        human_duration(crate::run::estimate::RUN_OVERHEAD_S)
     );
     println!("  {}", probe_note(probe));
     if scene.is_lugre() {
@@ -219,7 +219,7 @@ fn auto_json(plan: &Plan) -> serde_json::Value {
 }
 
 /// How the estimate was made, in one sentence.
-fn probe_note(probe: &crate::estimate::Probe) -> String {
+fn probe_note(probe: &crate::run::estimate::Probe) -> String {
     let mut note = format!(
         "from a probe of {} {} ({:.2} s, {:.1} cores busy): {:.3} ms and {:.1} periods each \
          on average",
@@ -234,7 +234,7 @@ fn probe_note(probe: &crate::estimate::Probe) -> String {
         note.push_str(&format!(
             "; {} ran past {} periods and {} charged up to {} max_cycles",
             probe.scaled,
-            crate::estimate::PROBE_PERIODS,
+            crate::run::estimate::PROBE_PERIODS,
             if probe.scaled == 1 { "is" } else { "are" },
             if probe.scaled == 1 { "its" } else { "their" }
         ));
@@ -243,7 +243,7 @@ fn probe_note(probe: &crate::estimate::Probe) -> String {
         note.push_str(&format!(
             "; {} took over {} s and {} charged at {} simulated s per core-second",
             probe.cut,
-            crate::estimate::PROBE_CUTOFF_S,
+            crate::run::estimate::PROBE_CUTOFF_S,
             if probe.cut == 1 { "is" } else { "are" },
             NOMINAL_SIMULATED_PER_CORE
         ));

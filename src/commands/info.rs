@@ -136,7 +136,7 @@ fn probe_emulated() -> Result<()> {
             return Ok(());
         }
     };
-    let instances = crate::random::random_instances(11, PROBE_INSTANCES, 2, 1);
+    let instances = crate::model::random::random_instances(11, PROBE_INSTANCES, 2, 1);
     crate::profile::enable();
     {
         let _integrating = crate::profile::span(crate::profile::Phase::Integrate);

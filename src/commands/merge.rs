@@ -1,5 +1,5 @@
 //! `pidm merge`: shard files joined into one map file
-//! ([`crate::shard::merge`]).
+//! ([`crate::run::shard::merge`]).
 
 use std::path::{Path, PathBuf};
 
@@ -7,7 +7,7 @@ use anyhow::Result;
 
 /// `pidm merge`: joins shard files into one map file.
 pub fn merge(out: &Path, shards: &[PathBuf]) -> Result<()> {
-    let merged = crate::shard::merge(out, shards)?;
+    let merged = crate::run::shard::merge(out, shards)?;
     println!(
         "wrote {} ({} instances from {} shards)",
         merged.path.display(),

@@ -22,7 +22,7 @@ mod run;
 mod scenes;
 mod summary;
 
-pub use crate::estimate::NOMINAL_SIMULATED_PER_CORE;
+pub use crate::run::estimate::NOMINAL_SIMULATED_PER_CORE;
 pub use accuracy::accuracy;
 pub use bench::bench;
 pub use check::{CheckReport, check, check_json, check_report};

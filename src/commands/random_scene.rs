@@ -26,7 +26,7 @@ pub fn random_scene(seed: u64, count: usize, cycles: u32, settle: u32) -> Result
          # `pidm random-scene --seed {seed} --count {count} --cycles {cycles} --settle {settle}`.\n\
          name = \"random\"\n\n[simulation]\nmeasure = \"window\"\ncycles = {cycles}\nsettle = {settle}\n"
     );
-    for (k, inst) in crate::random::random_instances(seed, count, cycles, settle)
+    for (k, inst) in crate::model::random::random_instances(seed, count, cycles, settle)
         .iter()
         .enumerate()
     {

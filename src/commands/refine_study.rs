@@ -25,7 +25,7 @@ pub fn refine_study(
         bail!("{}: the scene has no [refine]", scene_path.display());
     };
     crate::run::install_interrupt_handler();
-    let selected = select_backend(choice, None, None, &crate::estimate::workload(&scene))?;
+    let selected = select_backend(choice, None, None, &crate::run::estimate::workload(&scene))?;
     let backend = selected.backend();
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;

@@ -18,7 +18,7 @@ pub fn report(paths: &[PathBuf], out: &Path) -> Result<()> {
         paths
     };
     let scenes = load_scenes(paths)?;
-    let md = crate::report::report(&scenes)?;
+    let md = crate::run::report::report(&scenes)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;
     }

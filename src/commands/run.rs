@@ -123,7 +123,7 @@ fn workload(scene: &Scene, scope: RunScope) -> Workload {
         None => scene.instance_count(),
     };
     if scope.shard.is_some() || count > COUNTED_RUN {
-        let (_, candidates) = crate::estimate::integrations(scene);
+        let (_, candidates) = crate::run::estimate::integrations(scene);
         return Workload {
             integrations: count,
             stall: scene.stall.is_some(),

@@ -6,8 +6,8 @@
 use super::format::{instance_name, plural, um};
 use crate::laws::karnopp::integrate::STATUS_OK;
 use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use crate::model::motion::Motion;
 use crate::model::{AXIS_NAMES, Measure};
-use crate::motion::Motion;
 use crate::run::RunResult;
 use crate::scene::{Layout, Scene};
 
@@ -67,7 +67,7 @@ fn print_stall(scene: &Scene, report: &crate::stall::Report) {
     );
     for (code, &n) in report.status_counts.iter().enumerate() {
         if n > 0 && code != 0 {
-            let meaning = crate::status::Status::describe(code as u32);
+            let meaning = crate::measurement::status::Status::describe(code as u32);
             println!("    stall status {code} ({meaning}): {n}");
         }
     }
@@ -135,7 +135,7 @@ pub(super) fn print_summary(scene: &Scene, result: &RunResult) {
     }
     for (code, &n) in s.status_counts.iter().enumerate() {
         if n > 0 {
-            let meaning = crate::status::Status::describe(code as u32);
+            let meaning = crate::measurement::status::Status::describe(code as u32);
             println!("  status {code} ({meaning}): {n}");
         }
     }

@@ -24,7 +24,7 @@ use super::slices::Between;
 use super::*;
 use crate::laws::karnopp::integrate::measure::VERDICT_RUNNING;
 use crate::laws::karnopp::integrate::{Replica, Replicas, STATUS_OK};
-use crate::motion::Motion;
+use crate::model::motion::Motion;
 use crate::replicas::{Group, Member, Step};
 
 /// A batch's jobs: its instances that run alone, in order, then every

@@ -201,7 +201,7 @@ pub struct GpuOutcome {
     /// One of the `STATUS_*` constants of [`crate::laws::karnopp::integrate`].
     pub status: u32,
     /// The kind of motion the measurement found.
-    pub motion: crate::motion::Motion,
+    pub motion: crate::model::motion::Motion,
     /// Steps taken (accepted, rejected and events).
     pub steps: u32,
     /// True when the CPU integrated this instance instead (in f64): the

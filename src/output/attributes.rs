@@ -43,9 +43,9 @@ pub(crate) fn read_str_attr(loc: &hdf5::Location, name: &str) -> Result<String> 
 
 /// The CF attributes of `/maps/motion`: `flag_values`, every code as u8
 /// (the map's type, as CF asks), and `flag_meanings`, their names in code
-/// order, both from [`crate::motion::Motion`].
+/// order, both from [`crate::model::motion::Motion`].
 pub(super) fn write_motion_flags(ds: &Dataset) -> Result<()> {
-    let values = crate::motion::Motion::flag_values();
+    let values = crate::model::motion::Motion::flag_values();
     ds.new_attr::<u8>()
         .shape(values.len())
         .create(schema::FLAG_VALUES)?
@@ -53,6 +53,6 @@ pub(super) fn write_motion_flags(ds: &Dataset) -> Result<()> {
     write_str_attr(
         ds,
         schema::FLAG_MEANINGS,
-        &crate::motion::Motion::flag_meanings(),
+        &crate::model::motion::Motion::flag_meanings(),
     )
 }

@@ -10,7 +10,7 @@
 //!   `/maps/velocity_x`, `/maps/velocity_y` [m/s], `/maps/status`,
 //!   `/maps/steps`, `/maps/step_x_se`, `/maps/step_y_se` [m per own drive
 //!   cycle], `/maps/periods`, `/maps/period_lag`, and `/maps/motion` (u8,
-//!   the codes of `crate::motion::Motion`, with CF `flag_values` and
+//!   the codes of `crate::model::motion::Motion`, with CF `flag_values` and
 //!   `flag_meanings`), each shaped like the grid;
 //! - `/baseline/step_x`, `/baseline/step_y`, `/baseline/status` when
 //!   baselines are asked for;

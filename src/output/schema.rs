@@ -28,7 +28,7 @@ pub enum MapType {
     F64,
     /// Codes and counts (status, steps, periods).
     U32,
-    /// Small codes (the kind of motion, [`crate::motion::Motion`]).
+    /// Small codes (the kind of motion, [`crate::model::motion::Motion`]).
     U8,
 }
 
@@ -275,7 +275,7 @@ pub const STATUS: &str = "maps/status";
 pub const STEP_SE: [&str; 2] = ["maps/step_x_se", "maps/step_y_se"];
 
 /// The kind of motion per instance (u8, the codes of
-/// [`crate::motion::Motion`]), shaped like the grid, with the CF attributes
+/// [`crate::model::motion::Motion`]), shaped like the grid, with the CF attributes
 /// [`FLAG_VALUES`] and [`FLAG_MEANINGS`]. Absent from files written before
 /// it existed; `pidm plot` draws such a file without it.
 pub const MOTION_NAME: &str = "motion";
@@ -409,12 +409,12 @@ mod tests {
     }
 
     /// docs/output.md's table of the kinds of motion, the codes `/maps/motion`
-    /// holds, lists every kind of `crate::motion::Motion` with its name
+    /// holds, lists every kind of `crate::model::motion::Motion` with its name
     /// and meaning, in code order (here beside the map's schema, as
     /// `status.rs` holds the status table).
     #[test]
     fn the_output_docs_table_lists_every_kind_of_motion_with_its_meaning() {
-        use crate::motion::Motion;
+        use crate::model::motion::Motion;
         let readme = include_str!("../../docs/output.md");
         let section = readme
             .split("\n## Kinds of motion\n")

@@ -1,5 +1,5 @@
 //! `ShardSpec`: the deterministic K/N split of a scene's instances that
-//! `--shard K/N` names (the merge is `crate::shard`). It lives with the
+//! `--shard K/N` names (the merge is `crate::run::shard`). It lives with the
 //! output because every file a shard writes records it.
 
 use std::fmt;

@@ -18,7 +18,7 @@ use super::placement::{Placement, label_values};
 use super::read::{AxisData, Data};
 use super::text::{axis_title, short};
 use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
-use crate::motion::Motion;
+use crate::model::motion::Motion;
 
 /// What one cell of a motion picture shows: the kind of motion the steady
 /// measurement found, or why the instance has none.

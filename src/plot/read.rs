@@ -18,7 +18,7 @@ use super::checked::{Array, Checked, ResultFile, is_plausible, join};
 use super::error::{Problem, ResultFileError};
 use super::read_trajectories::{TrajectoryData, read_trajectories};
 use crate::model::Measure;
-use crate::motion::Motion;
+use crate::model::motion::Motion;
 use crate::output::schema;
 use crate::scene::{Layout, Scene};
 
@@ -234,7 +234,7 @@ fn read_stall(file: &ResultFile, shape: &[usize]) -> Checked<Option<StallData>> 
     if let Some(v) = status
         .values
         .iter()
-        .find(|&&v| crate::status::Status::from_code(v).is_none())
+        .find(|&&v| crate::measurement::status::Status::from_code(v).is_none())
     {
         return Err(file.dataset_error(
             &status_path,

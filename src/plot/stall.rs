@@ -17,8 +17,8 @@ use super::maps::{Plane, plane_slices};
 use super::read::{AxisData, Data, Kind, StallData};
 use super::text::short;
 use crate::measurement::keeps_values;
+use crate::measurement::status::STATUS_NO_STALL;
 use crate::model::AXIS_NAMES;
-use crate::status::STATUS_NO_STALL;
 
 /// How one instance's stall search is drawn.
 fn found(stall: &StallData, k: usize) -> bool {

@@ -75,7 +75,7 @@ pub fn raster(r: &Refinement, records: &[Option<Record>]) -> (Vec<Record>, Vec<u
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::motion::Motion;
+    use crate::model::motion::Motion;
 
     #[test]
     fn an_inferred_point_has_no_kind_of_motion_and_no_counts() {

@@ -33,7 +33,7 @@ use anyhow::Result;
 
 use super::grid::{Cell, FineGrid, Point};
 use super::rule::{self, Sample};
-use crate::random::Rng;
+use crate::model::random::Rng;
 
 /// The choices of the rule; [`Options::standard`] is what `pidm run` uses.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -13,7 +13,7 @@ use crate::laws::karnopp::integrate::{
 };
 use crate::measurement::{Measured, reduce};
 use crate::model::Instance;
-use crate::motion::Motion;
+use crate::model::motion::Motion;
 
 /// What a group's run gave: the instance's values and the replicas that
 /// made them (1 where it ran alone), the steps every replica took, and the

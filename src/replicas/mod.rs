@@ -79,7 +79,7 @@ pub fn splittable(inst: &Instance, settings: &Settings) -> bool {
 
 /// Whether `inst` may split at all, by a phase split ([`splittable`]) or a
 /// cycle split ([`cycle_split`]) into up to [`MAX_AUTO`] pieces: what a
-/// cost estimate asks (`crate::probe`).
+/// cost estimate asks (`crate::backend::probe`).
 pub fn may_split(inst: &Instance, settings: &Settings) -> bool {
     splittable(inst, settings) || cycle_split(inst, settings, MAX_AUTO).is_some()
 }

@@ -318,7 +318,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
 }
 
 /// A `[random]` scene's instances as points: `count` random instances from
-/// `seed` (`crate::random`, as `pidm random-scene` writes them), measured
+/// `seed` (`crate::model::random`, as `pidm random-scene` writes them), measured
 /// over the window of the scene's `[simulation]`; labelled "random K" as
 /// that command labels them. Refuses what does not apply beside
 /// `[random]`: points, refinement, stall searches, a steady measurement
@@ -361,7 +361,8 @@ fn random_points(
         location: None,
     })?;
     let count = spec.count as usize;
-    scene.points = crate::random::random_instances(spec.seed, count, base.cycles, base.settle);
+    scene.points =
+        crate::model::random::random_instances(spec.seed, count, base.cycles, base.settle);
     scene.point_keys = (0..count)
         .map(|k| format!("random instance {k} of seed {}", spec.seed))
         .collect();

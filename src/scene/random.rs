@@ -1,6 +1,6 @@
 //! `[random]`: a list of seeded random instances, `count` of them from
 //! `seed`, the instances `pidm random-scene --seed SEED --count COUNT`
-//! writes out as `[[points]]` (`crate::random`), in a few lines instead of
+//! writes out as `[[points]]` (`crate::model::random`), in a few lines instead of
 //! 680 bytes a point (100,000 random instances are 68 MB of points, which
 //! take seconds and gigabytes to read). The instances are those of the
 //! written scene bit for bit; their window is the scene's `[simulation]`

@@ -102,7 +102,10 @@ mod tests {
         for (k, want) in [-0.02, -0.3, -0.9].iter().enumerate() {
             assert!((results[k].load - want).abs() <= 1e-4, "{:?}", results[k]);
         }
-        assert_eq!(results[3].status, crate::status::STATUS_NO_STALL);
+        assert_eq!(
+            results[3].status,
+            crate::measurement::status::STATUS_NO_STALL
+        );
         assert_eq!(waves, results.iter().map(|r| r.waves).max().unwrap() - 1);
         // Every wave is one batch of the searches still open, fewer and
         // fewer.

@@ -20,12 +20,12 @@ use anyhow::{Result, bail};
 use super::search::{Search, StallRecord};
 use crate::backend::Backend;
 use crate::checkpoint::{self, Checkpoint};
+use crate::measurement::status::STATUS_NO_STALL;
 use crate::model::Instance;
 use crate::output::{FileInfo, MapWriter, OutputClaim};
 use crate::progress::{Progress, ProgressMode};
 use crate::scene::{Scene, Stall};
 use crate::scope::RunScope;
-use crate::status::STATUS_NO_STALL;
 use crate::sweep::{self, BaselineMemo, Plan, Record, Summary};
 
 /// The most waves a search may take after wave 0, which bounds the

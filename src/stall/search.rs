@@ -20,8 +20,8 @@
 
 use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use crate::measurement::keeps_values;
+use crate::measurement::status::STATUS_NO_STALL;
 use crate::scene::BRACKET;
-use crate::status::STATUS_NO_STALL;
 
 /// A step of at most this magnitude is no motion [m per own drive cycle]:
 /// 1e-10 m (1e-4 um), the accuracy the integrator claims at its default
@@ -75,7 +75,7 @@ impl StallRecord {
     /// a known status, finite values, zeros where the status keeps none, a
     /// zero far step and load with no stall load, and at least one wave.
     pub fn implausibility(&self) -> Option<String> {
-        use crate::status::Status;
+        use crate::measurement::status::Status;
         if Status::from_code(self.status).is_none() {
             return Some(format!(
                 "its stall status is {}, which is no status code",

@@ -5,9 +5,9 @@
 use super::Outcome;
 use crate::laws::karnopp::integrate::STATUS_OK;
 use crate::measurement::keeps_values;
+use crate::measurement::status::Status;
+use crate::model::motion::Motion;
 use crate::model::{AXES, Instance};
-use crate::motion::Motion;
-use crate::status::Status;
 
 /// One instance's entry in the maps, in SI units.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -55,7 +55,7 @@ impl Record {
                 return Some(format!("its {what} is {code}, which is no status code"));
             }
         }
-        if self.status == crate::status::STATUS_NO_STALL {
+        if self.status == crate::measurement::status::STATUS_NO_STALL {
             return Some(format!(
                 "its status is {} ({}), which only a stall map holds",
                 self.status,
@@ -143,7 +143,7 @@ mod tests {
     #[test]
     fn a_stall_status_is_no_map_status() {
         let rec = Record {
-            status: crate::status::STATUS_NO_STALL,
+            status: crate::measurement::status::STATUS_NO_STALL,
             ..Record::default()
         };
         let why = rec.implausibility().expect("refused");

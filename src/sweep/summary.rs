@@ -4,7 +4,7 @@ use super::Record;
 use crate::laws::karnopp::integrate::STATUS_OK;
 use crate::measurement::keeps_values;
 use crate::model::AXES;
-use crate::motion::Motion;
+use crate::model::motion::Motion;
 
 /// Totals over a sweep.
 #[derive(Clone, Debug, PartialEq)]

@@ -202,7 +202,7 @@ pub fn steady_instances() -> [Instance; 8] {
 /// 7): a direction uniform in the plane and a magnitude uniform up to 0.9
 /// of each instance's kinetic friction (a load of f_c or more is refused).
 pub fn loaded(instances: &[Instance], seed: u64) -> Vec<Instance> {
-    let mut rng = pidm::random::Rng::new(seed);
+    let mut rng = pidm::model::random::Rng::new(seed);
     instances
         .iter()
         .map(|inst| {

@@ -738,7 +738,7 @@ fn a_merge_of_damaged_shards_gives_an_error_or_a_plausible_file() {
             }
             let out = d.join("merged.h5");
             let _ = std::fs::remove_file(&out);
-            let merged = pidm::shard::merge(&out, &[copy, d.join("shard-2.h5")]);
+            let merged = pidm::run::shard::merge(&out, &[copy, d.join("shard-2.h5")]);
             if merged.is_ok() {
                 merged_files.set(merged_files.get() + 1);
                 let file = hdf5::File::open(&out).unwrap();
@@ -746,9 +746,11 @@ fn a_merge_of_damaged_shards_gives_an_error_or_a_plausible_file() {
                 let step: Vec<f64> = file.dataset("maps/step_x").unwrap().read_raw().unwrap();
                 let motion: Vec<u8> = file.dataset("maps/motion").unwrap().read_raw().unwrap();
                 for ((s, x), m) in status.iter().zip(&step).zip(&motion) {
-                    proptest::prop_assert!(pidm::status::Status::from_code(*s).is_some());
+                    proptest::prop_assert!(
+                        pidm::measurement::status::Status::from_code(*s).is_some()
+                    );
                     proptest::prop_assert!(x.is_finite());
-                    proptest::prop_assert!(pidm::motion::Motion::from_code(*m).is_some());
+                    proptest::prop_assert!(pidm::model::motion::Motion::from_code(*m).is_some());
                     proptest::prop_assert!(*s == 0 || *m == 0);
                 }
             } else {

@@ -985,7 +985,7 @@ fn steady_match(ctx: &GpuContext, instances: &[Instance]) -> Vec<Measured> {
 }
 
 /// Issue 19: `pidm random-scene` instances (the generator of
-/// `pidm::random`, fixed windows of 4 periods) through the f32 shader
+/// `pidm::model::random`, fixed windows of 4 periods) through the f32 shader
 /// against the CPU in f64, every instance at 0.005 um + 1 %, the worst case
 /// printed, with no CPU tail: seeds 1-3 with 300 instances and seed 4 with
 /// 3,000 (4 of them outside before the corner clock and the deflection
@@ -1007,7 +1007,7 @@ fn f32_random_scenes_hold_the_step_tolerance() {
     let mut worst = (0.0, String::new());
     let (mut handed_over, mut total) = (0, 0);
     for (seed, count) in [(1u64, 300), (2, 300), (3, 300), (4, 3000)] {
-        let instances = pidm::random::random_instances(seed, count, 4, 1);
+        let instances = pidm::model::random::random_instances(seed, count, 4, 1);
         let cpu = cpu_reference(&instances, &settings);
         let options = BatchOptions {
             cpu_tail: Some(0),
@@ -1235,7 +1235,7 @@ fn f32_band_approaches_next_to_fast_stages_match_the_cpu() {
 fn random_picks(picks: &[(u64, &[usize])]) -> Vec<Instance> {
     let mut out = Vec::new();
     for &(seed, indices) in picks {
-        let scene = pidm::random::random_instances(seed, 3000, 4, 1);
+        let scene = pidm::model::random::random_instances(seed, 3000, 4, 1);
         out.extend(indices.iter().map(|&k| scene[k]));
     }
     out
@@ -1322,7 +1322,7 @@ fn check_f32_in_scenes(ctx: &GpuContext, name: &str, picks: &[(u64, &[usize])]) 
     let settings = Settings::default();
     let mut failures = 0;
     for &(seed, indices) in picks {
-        let scene = pidm::random::random_instances(seed, 3000, 4, 1);
+        let scene = pidm::model::random::random_instances(seed, 3000, 4, 1);
         let options = BatchOptions {
             check: F32Check::Auto,
             ..BatchOptions::default()
@@ -1413,7 +1413,7 @@ fn steady_outcomes_are_the_same_from_heads_as_from_whole_accumulators() {
         (0..count as u64).map(|k| scene.instance(k * 58)).collect()
     };
     let unsteady = |count: usize| -> Vec<Instance> {
-        pidm::random::random_instances(9, count, 4, 1)
+        pidm::model::random::random_instances(9, count, 4, 1)
             .into_iter()
             .map(|mut inst| {
                 inst.measure = scene.instance(0).measure;
@@ -1598,7 +1598,7 @@ fn the_f32_shader_takes_the_steps_of_its_mirror() {
     let Some(ctx) = context() else {
         return;
     };
-    shader_follows_its_mirror(ctx, &pidm::random::random_instances(1, 300, 4, 1));
+    shader_follows_its_mirror(ctx, &pidm::model::random::random_instances(1, 300, 4, 1));
 }
 
 /// The same under seeded random loads on the slider (docs/model.md section 7):
@@ -1608,7 +1608,7 @@ fn the_f32_shader_takes_the_steps_of_its_mirror_under_loads() {
     let Some(ctx) = context() else {
         return;
     };
-    let instances = pidm::random::random_instances(1, 300, 4, 1);
+    let instances = pidm::model::random::random_instances(1, 300, 4, 1);
     shader_follows_its_mirror(ctx, &crate::common::loaded(&instances, 5));
 }
 

@@ -11,8 +11,8 @@ use pidm::gpu::{BatchOptions, Precision};
 use pidm::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, run_instance};
 use pidm::measurement::{Measured, reduce};
+use pidm::model::motion::Motion;
 use pidm::model::{Instance, Measure};
-use pidm::motion::Motion;
 
 use crate::gpu::{F64_ALLOWANCE, context, f32_allowance, gpu_batch, precisions};
 

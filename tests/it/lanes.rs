@@ -30,7 +30,7 @@ fn mixed() -> Vec<Instance> {
         .collect();
     let steady = crate::common::steady_instances();
     out.extend([steady[2], steady[3], steady[4], steady[7]]);
-    out.extend(pidm::random::random_instances(5, 6, 3, 1));
+    out.extend(pidm::model::random::random_instances(5, 6, 3, 1));
     out
 }
 
@@ -152,7 +152,7 @@ fn the_lanes_tallies_count_the_mirrors_iterations() {
         .map(|(_, inst, _)| inst)
         .take(7)
         .collect();
-    instances.extend(pidm::random::random_instances(9, 8, 2, 1));
+    instances.extend(pidm::model::random::random_instances(9, 8, 2, 1));
     let settings = Settings::default();
     let iterations = 300;
     let limiter = ctx

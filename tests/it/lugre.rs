@@ -136,7 +136,7 @@ fn a_steady_lugre_run_finds_its_cycle() {
     steady.cycles = Measure::DEFAULT_MAX_CYCLES;
     steady.settle = Measure::DEFAULT_SETTLE;
     let (got, out) = steps_of(&steady, 1e-4);
-    assert_eq!(out.motion, pidm::motion::Motion::Periodic, "{out:?}");
+    assert_eq!(out.motion, pidm::model::motion::Motion::Periodic, "{out:?}");
     assert!(out.lag >= 1 && out.periods < 100, "{out:?}");
     let mut window = steady;
     window.measure = Measure::Window;

@@ -23,7 +23,7 @@ fn f32_allowance(step_um: f64) -> f64 {
 fn f64_coefficients_of_an_instance_are_the_reference_ones() {
     let settings = Settings::default();
     let mut instances = vec![Instance::TABLE1];
-    instances.extend(pidm::random::random_instances(5, 50, 4, 1));
+    instances.extend(pidm::model::random::random_instances(5, 50, 4, 1));
     for inst in &instances {
         assert_eq!(
             reference::Coefficients::of(inst, &settings),
@@ -38,7 +38,8 @@ fn f64_coefficients_of_an_instance_are_the_reference_ones() {
 /// backend those carry the reference's own value.
 #[test]
 fn f32_mirror_holds_the_step_tolerance_on_random_scenes() {
-    let scenes = [1u64, 2, 3].map(|seed| (seed, pidm::random::random_instances(seed, 300, 4, 1)));
+    let scenes =
+        [1u64, 2, 3].map(|seed| (seed, pidm::model::random::random_instances(seed, 300, 4, 1)));
     mirror_holds_the_step_tolerance("random scenes", &scenes);
 }
 
@@ -50,11 +51,11 @@ fn f32_mirror_holds_the_step_tolerance_under_loads() {
     let scenes = [
         (
             1u64,
-            crate::common::loaded(&pidm::random::random_instances(1, 300, 4, 1), 11),
+            crate::common::loaded(&pidm::model::random::random_instances(1, 300, 4, 1), 11),
         ),
         (
             2,
-            crate::common::loaded(&pidm::random::random_instances(2, 300, 4, 1), 12),
+            crate::common::loaded(&pidm::model::random::random_instances(2, 300, 4, 1), 12),
         ),
         (0, crate::common::load_sweep_instances()),
     ];
@@ -129,7 +130,7 @@ fn mirror_holds_the_step_tolerance(name: &str, scenes: &[(u64, Vec<Instance>)]) 
 /// 3000`, and f32's error without the guard in allowances.
 fn check_graze(seed: u64, k: usize, unguarded_error: f64) {
     let settings = Settings::default();
-    let inst = pidm::random::random_instances(seed, k + 1, 4, 1)[k];
+    let inst = pidm::model::random::random_instances(seed, k + 1, 4, 1)[k];
     let what = format!("seed {seed} #{k} (unguarded f32 {unguarded_error} allowances off)");
     let raw = mirror::run_instance(&inst, &settings).state;
     assert_eq!(raw.status, STATUS_GRAZE, "{what}: the mirror's status");
@@ -171,7 +172,7 @@ fn f32_hands_band_grazes_to_the_reference() {
 #[test]
 fn f32_steady_measurements_run_through_grazes() {
     let settings = Settings::default();
-    let mut inst = pidm::random::random_instances(21, 84, 4, 1)[83];
+    let mut inst = pidm::model::random::random_instances(21, 84, 4, 1)[83];
     assert_eq!(
         mirror::run_instance(&inst, &settings).state.status,
         STATUS_GRAZE
@@ -190,7 +191,7 @@ fn f32_steady_measurements_run_through_grazes() {
 #[test]
 fn f32_mirror_runs_in_slices_and_repeats_bit_for_bit() {
     let settings = Settings::default();
-    for inst in pidm::random::random_instances(7, 20, 3, 1) {
+    for inst in pidm::model::random::random_instances(7, 20, 3, 1) {
         let whole = mirror::run_instance(&inst, &settings);
         assert_eq!(whole, mirror::run_instance(&inst, &settings));
         let c = mirror::Coefficients::of(&inst, &settings);
@@ -253,7 +254,7 @@ fn the_f32_mirror_checks_its_heaviest_runs_against_the_reference() {
         (79, 457),
         (79, 2094),
     ] {
-        instances.push(pidm::random::random_instances(seed, 3000, 4, 1)[k]);
+        instances.push(pidm::model::random::random_instances(seed, 3000, 4, 1)[k]);
     }
     instances.extend(crate::common::light_instances(24, 2.0));
     let backend = CpuBackend::with_precision(Some(2), Precision::F32).expect("a pool");

@@ -2,7 +2,7 @@
 //! is complete or absent.
 
 use hdf5::types::VarLenUnicode;
-use pidm::motion::Motion;
+use pidm::model::motion::Motion;
 use pidm::output::{AxisInfo, FileInfo, MapWriter, OutputClaim, schema};
 use pidm::sweep::Record;
 

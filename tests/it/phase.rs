@@ -7,7 +7,7 @@ use pidm::laws::karnopp::integrate::STATUS_OK;
 use pidm::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use pidm::measurement::Measured;
 use pidm::model::Instance;
-use pidm::motion::Motion;
+use pidm::model::motion::Motion;
 
 use crate::common::{pidm, s};
 use crate::steady::{measure, steady, step_um, window};

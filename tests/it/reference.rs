@@ -237,7 +237,7 @@ fn random_instances_finish_and_converge_within_the_claimed_error() {
         tolerance: default.tolerance * 1e-3,
         ..default
     };
-    let instances = pidm::random::random_instances(20_261_122, 24, 3, 1);
+    let instances = pidm::model::random::random_instances(20_261_122, 24, 3, 1);
     let mut worst: f64 = 0.0;
     for (k, inst) in instances.iter().enumerate() {
         let (a, sa) = steps_um(inst, &default);

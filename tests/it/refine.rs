@@ -509,7 +509,7 @@ fn a_refined_steady_map_has_kinds_only_where_it_integrated() {
         integrated < motion.len(),
         "nothing inferred: the test needs plains"
     );
-    let periodic = pidm::motion::Motion::Periodic.code();
+    let periodic = pidm::model::motion::Motion::Periodic.code();
     for (k, (&m, &i)) in motion.iter().zip(&inferred).enumerate() {
         let want = if i == 1 { 0 } else { periodic };
         assert_eq!(m, want, "point {k} (inferred {i})");

@@ -13,7 +13,7 @@ use pidm::gpu::{BatchOptions, Precision};
 use pidm::laws::karnopp::integrate::{Replica, Replicas, STATUS_OK, Settings};
 use pidm::measurement::Measured;
 use pidm::model::Instance;
-use pidm::motion::Motion;
+use pidm::model::motion::Motion;
 use pidm::replicas::{self, Group, cpu::run_group, cpu::run_replicas};
 
 use crate::common::{manifest, pidm, s};

@@ -1547,7 +1547,7 @@ fn random_scene_reads_back_bit_for_bit() {
     let text = pidm::commands::random_scene(seed, count, cycles, settle).unwrap();
     assert!(text.contains("measure = \"window\""), "{text}");
     let scene = parse(&text);
-    let drawn = pidm::random::random_instances(seed, count, cycles, settle);
+    let drawn = pidm::model::random::random_instances(seed, count, cycles, settle);
     assert_eq!(scene.instance_count(), count as u64);
     for (k, inst) in drawn.iter().enumerate() {
         assert_eq!(scene.instance(k as u64).key(), inst.key(), "instance {k}");

@@ -130,7 +130,7 @@ fn a_quasi_periodic_standard_error_covers_the_error_against_a_long_run() {
         let got = measure(&inst);
         assert_eq!(got.lag, 0, "{fy} Hz: {got:?}");
         assert_eq!(got.status, STATUS_OK, "{got:?}");
-        assert_eq!(got.motion, pidm::motion::Motion::QuasiPeriodic);
+        assert_eq!(got.motion, pidm::model::motion::Motion::QuasiPeriodic);
         assert!(got.periods <= 1000, "{fy} Hz: {got:?}");
         let reference = if fy == 10.0 * 2f64.sqrt() {
             quasi_periodic_reference()
@@ -334,8 +334,8 @@ fn steady_shards_merge_into_the_single_run_bit_for_bit() {
     // ladder decided (10 Hz against 10 sqrt 3 Hz); the merged file holds
     // the same (compare_contents above, attributes included), read here
     // too.
-    let periodic = pidm::motion::Motion::Periodic.code();
-    let quasi = pidm::motion::Motion::QuasiPeriodic.code();
+    let periodic = pidm::model::motion::Motion::Periodic.code();
+    let quasi = pidm::model::motion::Motion::QuasiPeriodic.code();
     for path in [&single, &merged] {
         let file = hdf5::File::open(path).unwrap();
         let motion: Vec<u8> = file.dataset("maps/motion").unwrap().read_raw().unwrap();

@@ -22,7 +22,7 @@ fn instances() -> Vec<Instance> {
         .map(|(_, inst, _)| inst)
         .take(5)
         .collect();
-    windows.extend(pidm::random::random_instances(21, 4, 2, 1));
+    windows.extend(pidm::model::random::random_instances(21, 4, 2, 1));
     let steady = crate::common::steady_instances();
     // 10 Hz against 10 sqrt(3) Hz: quasi-periodic, the ladder on.
     let mut ladder = steady[6];
@@ -138,7 +138,7 @@ fn a_batch_never_runs_on_a_variant_without_a_part_it_needs() {
 fn each_scene_prepares_the_parts_it_uses() {
     let check = |path: &str, expected: Parts| {
         let scene = Scene::load(std::path::Path::new(&crate::common::manifest(path))).unwrap();
-        let work = pidm::estimate::workload(&scene);
+        let work = pidm::run::estimate::workload(&scene);
         assert_eq!(work.parts(), expected, "{path}");
     };
     let steady = Parts {

@@ -656,7 +656,7 @@ macro_rules! precision_structs {
                     periods: inst.cycles,
                     lag: 0,
                     status: st.status,
-                    motion: crate::motion::Motion::Undetermined,
+                    motion: crate::model::motion::Motion::Undetermined,
                     steps: st.steps,
                     cpu_fallback: false,
                     shader_status: 0,

@@ -129,7 +129,7 @@ mod tests {
 
     #[test]
     fn the_output_docs_table_lists_every_status_with_its_meaning() {
-        let readme = include_str!("../docs/output.md");
+        let readme = include_str!("../../docs/output.md");
         let section = readme
             .split("\n## Status codes\n")
             .nth(1)

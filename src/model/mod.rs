@@ -5,6 +5,9 @@
 //! functions, shared by the CPU integrator, the GPU packer and the scene
 //! expander.
 
+pub mod motion;
+pub mod random;
+
 /// Number of actuated axes of the mechanism (x and y).
 pub const AXES: usize = 2;
 

@@ -1,7 +1,7 @@
 //! The probe: a few of a run's integrations on the CPU path, each to its
 //! end or to [`PROBE_PERIODS`] periods, timed, and what their cost says
 //! of the whole run's ([`cpu_sweep_s`]). `pidm check`'s estimate
-//! ([`crate::estimate`]) and `--backend auto`'s choice
+//! ([`crate::run::estimate`]) and `--backend auto`'s choice
 //! ([`crate::backend::cost`]) both stand on it; it knows instances, not
 //! scenes or sweeps.
 
@@ -166,7 +166,7 @@ fn probe_one(
 }
 
 /// Probes the cost of at most `max` of `candidates` (a run's distinct
-/// integrations, or a sample of them: [`crate::estimate::integrations`]) on the CPU path
+/// integrations, or a sample of them: [`crate::run::estimate::integrations`]) on the CPU path
 /// with a pool of `threads` threads, within [`PROBE_BUDGET_S`]. `pidm
 /// check` probes [`PROBE_MAX`]; `--backend auto` fewer for a small run, so
 /// that the probe stays a small part of it.

@@ -22,7 +22,7 @@ use crate::model::{AXES, Instance, Measure};
 use crate::scene::Scene;
 use crate::sweep::distinct_integrations;
 
-pub use crate::probe::{
+pub use crate::backend::probe::{
     NOMINAL_SIMULATED_PER_CORE, PROBE_BUDGET_S, PROBE_CUTOFF_S, PROBE_MAX, PROBE_PERIODS, Probe,
     cpu_sweep_s, probe_instances,
 };

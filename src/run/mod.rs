@@ -3,6 +3,10 @@
 //! file finished and renamed into place. `pidm run` (in `commands/run.rs`) and
 //! every caller that wants a result file go through [`run_scene`].
 
+pub mod estimate;
+pub mod report;
+pub mod shard;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicI32, Ordering};

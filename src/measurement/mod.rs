@@ -8,13 +8,15 @@
 //! `cpu::integrate::measure` (mirrored by the shader); this module only
 //! reads what they left.
 
+pub mod status;
+
 use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use crate::laws::karnopp::integrate::measure::{
     VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, estimate,
 };
 use crate::laws::karnopp::integrate::{Run, STATUS_OK, State};
+use crate::model::motion::Motion;
 use crate::model::{AXES, Instance, Measure};
-use crate::motion::Motion;
 
 /// What one run measured. Lengths in metres.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -183,7 +185,7 @@ pub struct Outcome {
     /// Scene periods of the detected cycle, 0 when none.
     pub lag: u32,
     pub status: u32,
-    /// The kind of motion (`crate::motion`).
+    /// The kind of motion (`crate::model::motion`).
     pub motion: Motion,
     pub steps: u32,
     /// A GPU or f32 backend integrated this one on the CPU in f64 instead
