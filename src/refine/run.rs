@@ -77,47 +77,20 @@ pub fn run(
     if scene.instance_count() != count as u64 {
         bail!("internal: the refined scene's grid is not its finest grid");
     }
-    let mut records: Vec<Option<Record>> = vec![None; count];
-    let mut summary = Summary::default();
-    let mut from_checkpoint = 0;
     let checkpoint_path = claim.checkpoint_path();
-    let (mut checkpoint, mut writer) = if scope.resume {
-        if !checkpoint_path.exists() {
-            bail!(
-                "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
-                checkpoint_path.display()
-            );
-        }
-        let writer = MapWriter::create(claim, info)?;
-        let (checkpoint, _) = Checkpoint::resume(&checkpoint_path, identity, &mut |start, got| {
-            let end = start.checked_add(got.len() as u64);
-            if end.is_none_or(|e| e > count as u64) {
-                bail!(
-                    "the checkpoint {} holds instances {start}.. that this run does not \
-                     compute; delete it to start over",
-                    checkpoint_path.display()
-                );
-            }
-            for (k, r) in got.iter().enumerate() {
-                let index = start + k as u64;
-                if records[index as usize].replace(*r).is_none() {
-                    from_checkpoint += 1;
-                    summary.add(r, index);
-                }
-            }
-            Ok(())
-        })?;
-        eprintln!(
-            "pidm: resuming from {}: {from_checkpoint} of the finest grid's {count} points \
-             integrated; the waves are recomputed and go on from there",
-            checkpoint_path.display()
-        );
-        (checkpoint, writer)
+    let (mut checkpoint, mut writer, journal) = if scope.resume {
+        resume(claim, info, identity, count)?
     } else {
-        crate::profile::time(crate::profile::Phase::Open, || {
+        let (checkpoint, writer) = crate::profile::time(crate::profile::Phase::Open, || {
             crate::checkpoint::start(&checkpoint_path, identity, claim, info)
-        })?
+        })?;
+        (checkpoint, writer, Journal::new(count))
     };
+    let Journal {
+        mut records,
+        mut summary,
+        from_checkpoint,
+    } = journal;
 
     let baselines = scene.baselines;
     let known: Vec<Option<Sample>> = records
@@ -143,15 +116,8 @@ pub fn run(
         // One sweep per chunk, so that the chunk's scattered ranges (one
         // journal entry each) are written to the checkpoint together.
         for part in indices.chunks(chunk.max(1)) {
-            let mut work: Vec<std::ops::Range<u64>> = Vec::new();
-            for &i in part {
-                match work.last_mut() {
-                    Some(r) if r.end == i => r.end += 1,
-                    _ => work.push(i..i + 1),
-                }
-            }
             let plan = Plan {
-                work,
+                work: runs(part),
                 instance: &instance,
                 settings: scene.settings,
                 baselines,
@@ -170,32 +136,10 @@ pub fn run(
                 },
                 &mut memo,
             );
-            unsynced += part.len();
-            let result = match result {
-                Ok(s) if unsynced < chunk => Ok(s),
-                Ok(s) => {
-                    unsynced = 0;
-                    checkpoint.sync().map(|()| s)
-                }
-                // What finished before the interrupt or error is kept.
-                Err(e) => {
-                    let _ = checkpoint.sync();
-                    Err(e)
-                }
-            };
+            let result = synced_every(&mut checkpoint, &mut unsynced, part.len(), chunk, result);
             summary.merge(&result?);
         }
-        Ok(indices
-            .iter()
-            .map(|&i| {
-                Sample::of_record(
-                    records[i as usize]
-                        .as_ref()
-                        .expect("a swept point has its record"),
-                    baselines,
-                )
-            })
-            .collect())
+        Ok(samples(&records, indices, baselines))
     };
     let refinement = progress.conclude(
         waves::refine(grid, &opts, known, &mut integrate),
@@ -203,26 +147,15 @@ pub fn run(
     )?;
     let (mut raster, inferred) = interpolate::raster(&refinement, &records);
     let integrated = inferred.iter().filter(|&&m| m == 0).count() as u64;
-    // The inferred points' 1-DOF baselines, integrated where they are few
-    // (at most a tenth of the points integrated: a V_x by V_y map has one
-    // per grid line and axis), so that their coupling regimes compare the
-    // interpolated 2-DOF step with the exact 1-DOF one; interpolated
-    // otherwise (a baseline that depends on both axes).
-    let exact_baselines = baselines && {
-        let points: Vec<usize> = (0..count).filter(|&k| inferred[k] == 1).collect();
-        let instances: Vec<Instance> = points.iter().map(|&k| scene.instance(k as u64)).collect();
-        let most = (integrated / 10) as usize;
-        match sweep::baselines_of(&instances, backend, &scene.settings, &mut memo, most)? {
-            Some(found) => {
-                for (&k, axes) in points.iter().zip(found) {
-                    raster[k].baseline_step = axes.map(|(step, _)| step);
-                    raster[k].baseline_status = axes[0].1.max(axes[1].1);
-                }
-                true
-            }
-            None => false,
-        }
-    };
+    let exact_baselines = baselines
+        && inferred_baselines(
+            scene,
+            backend,
+            &mut memo,
+            &mut raster,
+            &inferred,
+            integrated,
+        )?;
     let _finishing = crate::profile::span(crate::profile::Phase::Finish);
     writer.write(0, &raster)?;
     writer.write_inferred(&inferred)?;
@@ -247,4 +180,149 @@ pub fn run(
             levels: refinement.stats,
         },
     })
+}
+
+/// The records of a refined run's finest grid so far (`None`: not
+/// integrated yet), with the summary of those taken from a checkpoint.
+struct Journal {
+    records: Vec<Option<Record>>,
+    summary: Summary,
+    from_checkpoint: u64,
+}
+
+impl Journal {
+    /// Nothing integrated yet on a finest grid of `count` points.
+    fn new(count: usize) -> Journal {
+        Journal {
+            records: vec![None; count],
+            summary: Summary::default(),
+            from_checkpoint: 0,
+        }
+    }
+}
+
+/// Opens the output again and replays the checkpoint of an interrupted
+/// refined run (`--resume`) on a finest grid of `count` points.
+fn resume(
+    claim: &OutputClaim,
+    info: &FileInfo,
+    identity: &str,
+    count: usize,
+) -> Result<(Checkpoint, MapWriter, Journal)> {
+    let checkpoint_path = claim.checkpoint_path();
+    if !checkpoint_path.exists() {
+        bail!(
+            "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
+            checkpoint_path.display()
+        );
+    }
+    let writer = MapWriter::create(claim, info)?;
+    let mut journal = Journal::new(count);
+    let (checkpoint, _) = Checkpoint::resume(&checkpoint_path, identity, &mut |start, got| {
+        let end = start.checked_add(got.len() as u64);
+        if end.is_none_or(|e| e > count as u64) {
+            bail!(
+                "the checkpoint {} holds instances {start}.. that this run does not \
+                 compute; delete it to start over",
+                checkpoint_path.display()
+            );
+        }
+        for (k, r) in got.iter().enumerate() {
+            let index = start + k as u64;
+            if journal.records[index as usize].replace(*r).is_none() {
+                journal.from_checkpoint += 1;
+                journal.summary.add(r, index);
+            }
+        }
+        Ok(())
+    })?;
+    eprintln!(
+        "pidm: resuming from {}: {} of the finest grid's {count} points \
+         integrated; the waves are recomputed and go on from there",
+        checkpoint_path.display(),
+        journal.from_checkpoint
+    );
+    Ok((checkpoint, writer, journal))
+}
+
+/// Ascending indices as ranges of consecutive ones.
+fn runs(indices: &[u64]) -> Vec<std::ops::Range<u64>> {
+    let mut work: Vec<std::ops::Range<u64>> = Vec::new();
+    for &i in indices {
+        match work.last_mut() {
+            Some(r) if r.end == i => r.end += 1,
+            _ => work.push(i..i + 1),
+        }
+    }
+    work
+}
+
+/// The inferred points' 1-DOF baselines, integrated where they are few (at
+/// most a tenth of the `integrated` points: a V_x by V_y map has one per
+/// grid line and axis), so that their coupling regimes compare the
+/// interpolated 2-DOF step with the exact 1-DOF one; interpolated
+/// otherwise (a baseline that depends on both axes). True where they were
+/// integrated into `raster`.
+fn inferred_baselines(
+    scene: &Scene,
+    backend: &dyn Backend,
+    memo: &mut BaselineMemo,
+    raster: &mut [Record],
+    inferred: &[u8],
+    integrated: u64,
+) -> Result<bool> {
+    let points: Vec<usize> = (0..raster.len()).filter(|&k| inferred[k] == 1).collect();
+    let instances: Vec<Instance> = points.iter().map(|&k| scene.instance(k as u64)).collect();
+    let most = (integrated / 10) as usize;
+    Ok(
+        match sweep::baselines_of(&instances, backend, &scene.settings, memo, most)? {
+            Some(found) => {
+                for (&k, axes) in points.iter().zip(found) {
+                    raster[k].baseline_step = axes.map(|(step, _)| step);
+                    raster[k].baseline_status = axes[0].1.max(axes[1].1);
+                }
+                true
+            }
+            None => false,
+        },
+    )
+}
+
+/// The journal synced once `unsynced` (grown by `n`) reaches `chunk`
+/// records, and after an interrupt or error (what finished before it is
+/// kept); `result` passed on.
+fn synced_every(
+    checkpoint: &mut Checkpoint,
+    unsynced: &mut usize,
+    n: usize,
+    chunk: usize,
+    result: Result<Summary>,
+) -> Result<Summary> {
+    *unsynced += n;
+    match result {
+        Ok(s) if *unsynced < chunk => Ok(s),
+        Ok(s) => {
+            *unsynced = 0;
+            checkpoint.sync().map(|()| s)
+        }
+        Err(e) => {
+            let _ = checkpoint.sync();
+            Err(e)
+        }
+    }
+}
+
+/// The samples the waves judge, of the swept points `indices`.
+fn samples(records: &[Option<Record>], indices: &[u64], baselines: bool) -> Vec<Sample> {
+    indices
+        .iter()
+        .map(|&i| {
+            Sample::of_record(
+                records[i as usize]
+                    .as_ref()
+                    .expect("a swept point has its record"),
+                baselines,
+            )
+        })
+        .collect()
 }

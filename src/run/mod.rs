@@ -8,6 +8,7 @@ pub mod report;
 pub mod shard;
 
 use std::collections::BTreeMap;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicI32, Ordering};
 use std::time::Instant;
@@ -16,7 +17,7 @@ use anyhow::{Result, bail};
 
 use crate::backend::{Backend, Hardware};
 use crate::checkpoint::{self, Checkpoint};
-use crate::output::{MapWriter, OutputClaim, ShardInfo};
+use crate::output::{FileInfo, MapWriter, OutputClaim, ShardInfo};
 use crate::progress::{Progress, ProgressMode};
 use crate::scene::{MAP_MEMORY_BUDGET_BYTES, Scene};
 use crate::sweep::{self, Plan, Record, Summary};
@@ -119,6 +120,11 @@ fn run_identity(scene: &Scene, backend: &dyn Backend, scope: RunScope) -> String
 /// Runs a scene on a backend into an HDF5 file, checkpointing each
 /// finished chunk beside it. On an error or an interrupt the output file
 /// is not written and the checkpoint stays for `--resume`.
+///
+/// The way of a scene's values: the scene's [`Plan`] of instances goes to
+/// the mode (plain here, `refine::run` or `stall::run`), which hands it to
+/// `sweep::run`, which hands chunks to the backend and its records to the
+/// writer (`output::MapWriter`).
 pub fn run_scene(
     scene: &Scene,
     backend: &dyn Backend,
@@ -134,121 +140,226 @@ pub fn run_scene(
              [refine] to shard the uniform grid"
         );
     }
-    let total = scene.instance_count();
+    let info = file_info(scene, backend, scope);
+    // The claim comes before anything else touches the output, its
+    // temporary file or its checkpoint: a second run of the same output is
+    // refused here, without side effects.
+    let claim = OutputClaim::acquire(out)?;
+    let run = Opened {
+        scene,
+        backend,
+        identity: run_identity(scene, backend, scope),
+        claim,
+        info,
+        scope,
+        keep,
+    };
+    install_interrupt_handler();
+    if let Some(refine) = &scene.refine {
+        run_refined(&run, refine)
+    } else if let Some(stall) = scene.stall {
+        run_stall(&run, stall)
+    } else {
+        run_plain(&run)
+    }
+}
+
+/// A run whose output is claimed: what every mode starts from.
+struct Opened<'a> {
+    scene: &'a Scene,
+    backend: &'a dyn Backend,
+    /// What a checkpoint must match to be resumed ([`run_identity`]).
+    identity: String,
+    claim: OutputClaim,
+    info: FileInfo,
+    scope: RunScope,
+    /// Records are kept in the result up to this many instances.
+    keep: u64,
+}
+
+impl Opened<'_> {
+    /// The instance ranges this run computes: its shard's, or all.
+    fn ranges(&self) -> Vec<Range<u64>> {
+        match &self.info.shard {
+            Some(shard) => shard.ranges.clone(),
+            None => Plan::everything(self.scene.instance_count()),
+        }
+    }
+}
+
+/// The result file's description of the run: the scene's, with the
+/// backend, the precision, the shard and the verification tolerance.
+fn file_info(scene: &Scene, backend: &dyn Backend, scope: RunScope) -> FileInfo {
     let mut info = scene.file_info(
         backend.describe(),
         backend.precision().to_string(),
         variant(scene),
     );
-    info.shard = scope.shard.map(|spec| ShardInfo::new(spec, total));
+    info.shard = scope
+        .shard
+        .map(|spec| ShardInfo::new(spec, scene.instance_count()));
     if scope.verify {
         info.verify_tolerance = Some(scene.settings.tolerance / sweep::VERIFY_TIGHTENING);
     }
-    let all = match &info.shard {
-        Some(shard) => shard.ranges.clone(),
-        None => Plan::everything(total),
-    };
-    let count: u64 = all.iter().map(|r| r.end - r.start).sum();
-    let keep_records = count <= keep;
-    let mut kept: BTreeMap<u64, Record> = BTreeMap::new();
-    let mut summary = Summary::default();
-    let mut from_checkpoint = 0;
+    info
+}
 
-    // The claim comes before anything else touches the output, its
-    // temporary file or its checkpoint: a second run of the same output is
-    // refused here, without side effects.
-    let claim = OutputClaim::acquire(out)?;
-    let checkpoint_path = claim.checkpoint_path();
-    let identity = run_identity(scene, backend, scope);
-    if let Some(refine) = &scene.refine {
-        install_interrupt_handler();
-        let scope = crate::refine::Scope {
-            resume: scope.resume,
-            chunk_size: scope.chunk_size,
-            verify: scope.verify,
-            progress: scope
-                .progress
-                .unwrap_or_else(ProgressMode::default_for_stderr),
-            keep,
-        };
-        let refined =
-            crate::refine::run::run(scene, refine, backend, &claim, &info, scope, &identity)?;
-        return Ok(RunResult {
-            path: refined.path,
-            summary: refined.summary,
-            wall_time_s: refined.wall_time_s,
-            total_wall_time_s: refined.total_wall_time_s,
-            backend: backend.describe(),
-            records: refined.records,
-            from_checkpoint: refined.from_checkpoint,
-            refine: Some(refined.report),
-            stall: None,
-            stall_records: Vec::new(),
+/// A scene with `[refine]`: `refine::run`, level by level.
+fn run_refined(run: &Opened, refine: &crate::scene::Refine) -> Result<RunResult> {
+    let scope = crate::refine::Scope {
+        resume: run.scope.resume,
+        chunk_size: run.scope.chunk_size,
+        verify: run.scope.verify,
+        progress: run
+            .scope
+            .progress
+            .unwrap_or_else(ProgressMode::default_for_stderr),
+        keep: run.keep,
+    };
+    let refined = crate::refine::run::run(
+        run.scene,
+        refine,
+        run.backend,
+        &run.claim,
+        &run.info,
+        scope,
+        &run.identity,
+    )?;
+    Ok(RunResult {
+        path: refined.path,
+        summary: refined.summary,
+        wall_time_s: refined.wall_time_s,
+        total_wall_time_s: refined.total_wall_time_s,
+        backend: run.backend.describe(),
+        records: refined.records,
+        from_checkpoint: refined.from_checkpoint,
+        refine: Some(refined.report),
+        stall: None,
+        stall_records: Vec::new(),
+    })
+}
+
+/// A scene with `[stall]`: `stall::run`, one search per instance.
+fn run_stall(run: &Opened, stall: crate::scene::Stall) -> Result<RunResult> {
+    let stalled = crate::stall::run::run(
+        run.scene,
+        stall,
+        run.backend,
+        &run.claim,
+        &run.info,
+        run.scope,
+        &run.identity,
+        &run.ranges(),
+        run.keep,
+    )?;
+    Ok(RunResult {
+        path: stalled.path,
+        summary: stalled.summary,
+        wall_time_s: stalled.wall_time_s,
+        total_wall_time_s: stalled.total_wall_time_s,
+        backend: run.backend.describe(),
+        records: stalled.records,
+        from_checkpoint: stalled.from_checkpoint,
+        refine: None,
+        stall: Some(stalled.report),
+        stall_records: stalled.stall,
+    })
+}
+
+/// What a plain run holds before its sweep: the records of the chunks a
+/// checkpoint held (`--resume`) and the instances still to compute.
+struct Started {
+    checkpoint: Checkpoint,
+    writer: MapWriter,
+    work: Vec<Range<u64>>,
+    summary: Summary,
+    kept: BTreeMap<u64, Record>,
+    from_checkpoint: u64,
+}
+
+/// Opens a plain run's output and checkpoint: a fresh one, or (`--resume`)
+/// the journal of an interrupted run, whose chunks go to the writer again.
+fn start_plain(run: &Opened, all: Vec<Range<u64>>, keep_records: bool) -> Result<Started> {
+    let checkpoint_path = run.claim.checkpoint_path();
+    if !run.scope.resume {
+        let (checkpoint, writer) =
+            checkpoint::start(&checkpoint_path, &run.identity, &run.claim, &run.info)?;
+        return Ok(Started {
+            checkpoint,
+            writer,
+            work: all,
+            summary: Summary::default(),
+            kept: BTreeMap::new(),
+            from_checkpoint: 0,
         });
     }
-    if let Some(stall) = scene.stall {
-        install_interrupt_handler();
-        let stalled = crate::stall::run::run(
-            scene, stall, backend, &claim, &info, scope, &identity, &all, keep,
-        )?;
-        return Ok(RunResult {
-            path: stalled.path,
-            summary: stalled.summary,
-            wall_time_s: stalled.wall_time_s,
-            total_wall_time_s: stalled.total_wall_time_s,
-            backend: backend.describe(),
-            records: stalled.records,
-            from_checkpoint: stalled.from_checkpoint,
-            refine: None,
-            stall: Some(stalled.report),
-            stall_records: stalled.stall,
-        });
-    }
-    let opening = crate::profile::span(crate::profile::Phase::Open);
-    let (mut checkpoint, work, mut writer) = if scope.resume {
-        if !checkpoint_path.exists() {
-            bail!(
-                "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
-                checkpoint_path.display()
-            );
-        }
-        let mut writer = MapWriter::create(&claim, &info)?;
-        let (checkpoint, done) =
-            Checkpoint::resume(&checkpoint_path, &identity, &mut |start, records| {
-                let end = start.checked_add(records.len() as u64);
-                if !all
-                    .iter()
-                    .any(|r| r.start <= start && end.is_some_and(|e| e <= r.end))
-                {
-                    bail!(
-                        "the checkpoint {} holds instances {start}.. that this run does not \
-                         compute; delete it to start over",
-                        checkpoint_path.display()
-                    );
-                }
-                writer.write(start, records)?;
-                from_checkpoint += records.len() as u64;
-                for (k, r) in records.iter().enumerate() {
-                    summary.add(r, start + k as u64);
-                    if keep_records {
-                        kept.insert(start + k as u64, *r);
-                    }
-                }
-                Ok(())
-            })?;
-        let work = checkpoint::missing(&all, &done);
-        let left: u64 = work.iter().map(|r| r.end - r.start).sum();
-        eprintln!(
-            "pidm: resuming from {}: {} of {count} instances done, {left} to compute",
-            checkpoint_path.display(),
-            count - left
+    if !checkpoint_path.exists() {
+        bail!(
+            "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
+            checkpoint_path.display()
         );
-        (checkpoint, work, writer)
-    } else {
-        let (checkpoint, writer) = checkpoint::start(&checkpoint_path, &identity, &claim, &info)?;
-        (checkpoint, all, writer)
-    };
+    }
+    let mut writer = MapWriter::create(&run.claim, &run.info)?;
+    let mut summary = Summary::default();
+    let mut kept = BTreeMap::new();
+    let mut from_checkpoint = 0;
+    let (checkpoint, done) =
+        Checkpoint::resume(&checkpoint_path, &run.identity, &mut |start, records| {
+            let end = start.checked_add(records.len() as u64);
+            if !all
+                .iter()
+                .any(|r| r.start <= start && end.is_some_and(|e| e <= r.end))
+            {
+                bail!(
+                    "the checkpoint {} holds instances {start}.. that this run does not \
+                     compute; delete it to start over",
+                    checkpoint_path.display()
+                );
+            }
+            writer.write(start, records)?;
+            from_checkpoint += records.len() as u64;
+            for (k, r) in records.iter().enumerate() {
+                summary.add(r, start + k as u64);
+                if keep_records {
+                    kept.insert(start + k as u64, *r);
+                }
+            }
+            Ok(())
+        })?;
+    let work = checkpoint::missing(&all, &done);
+    let count: u64 = all.iter().map(|r| r.end - r.start).sum();
+    let left: u64 = work.iter().map(|r| r.end - r.start).sum();
+    eprintln!(
+        "pidm: resuming from {}: {} of {count} instances done, {left} to compute",
+        checkpoint_path.display(),
+        count - left
+    );
+    Ok(Started {
+        checkpoint,
+        writer,
+        work,
+        summary,
+        kept,
+        from_checkpoint,
+    })
+}
 
+/// A plain scene: every instance of the run's ranges swept once, chunk by
+/// chunk, into the writer and the checkpoint.
+fn run_plain(run: &Opened) -> Result<RunResult> {
+    let (scene, backend, scope) = (run.scene, run.backend, run.scope);
+    let all = run.ranges();
+    let count: u64 = all.iter().map(|r| r.end - r.start).sum();
+    let keep_records = count <= run.keep;
+    let opening = crate::profile::span(crate::profile::Phase::Open);
+    let Started {
+        mut checkpoint,
+        mut writer,
+        work,
+        mut summary,
+        mut kept,
+        from_checkpoint,
+    } = start_plain(run, all, keep_records)?;
     drop(opening);
     let instance = |i: u64| scene.instance(i);
     let plan = Plan {
@@ -258,7 +369,6 @@ pub fn run_scene(
         baselines: scene.baselines,
         verify: scope.verify,
     };
-    install_interrupt_handler();
     let progress = Progress::new(
         scope
             .progress
@@ -293,7 +403,7 @@ pub fn run_scene(
             Ok(())
         },
     );
-    let new = progress.conclude(result, &checkpoint_path)?;
+    let new = progress.conclude(result, &run.claim.checkpoint_path())?;
     let _finishing = crate::profile::span(crate::profile::Phase::Finish);
     summary.merge(&new);
     let wall_time_s = started.elapsed().as_secs_f64();

@@ -111,194 +111,41 @@ pub fn run(
     all: &[Range<u64>],
     keep: u64,
 ) -> Result<Outcome> {
-    let total = scene.instance_count();
     let count: u64 = all.iter().map(|r| r.end - r.start).sum();
-    let ours = |i: u64| all.iter().any(|r| r.contains(&i));
-    let mut main: HashMap<u64, Record> = HashMap::new();
-    let mut probes: HashMap<u64, Record> = HashMap::new();
-    let mut summary = Summary::default();
-    let mut from_checkpoint = 0;
     let checkpoint_path = claim.checkpoint_path();
-    let (mut checkpoint, mut writer) = if scope.resume {
-        if !checkpoint_path.exists() {
-            bail!(
-                "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
-                checkpoint_path.display()
-            );
-        }
-        let mut writer = MapWriter::create(claim, info)?;
-        let (checkpoint, _) = Checkpoint::resume(&checkpoint_path, identity, &mut |start, got| {
-            let n = got.len() as u64;
-            let (wave, first) = (start / total.max(1), start % total.max(1));
-            let fits = wave <= MAX_WAVES && first + n <= total && (first..first + n).all(&ours);
-            if !fits {
-                bail!(
-                    "the checkpoint {} holds instances {start}.. that this run does not \
-                     compute; delete it to start over",
-                    checkpoint_path.display()
-                );
-            }
-            if wave == 0 {
-                writer.write(start, got)?;
-            }
-            for (k, r) in got.iter().enumerate() {
-                let index = start + k as u64;
-                if wave == 0 {
-                    if main.insert(index, *r).is_none() {
-                        from_checkpoint += 1;
-                        summary.add(r, index);
-                    }
-                } else {
-                    probes.insert(index, *r);
-                }
-            }
-            Ok(())
-        })?;
-        eprintln!(
-            "pidm: resuming from {}: {from_checkpoint} of {count} unloaded instances and {} stall \
-             probes done; the stall searches are recomputed and go on from there",
-            checkpoint_path.display(),
-            probes.len()
-        );
-        (checkpoint, writer)
+    let (mut checkpoint, mut writer, mut journal) = if scope.resume {
+        resume(scene, claim, info, identity, all)?
     } else {
-        crate::profile::time(crate::profile::Phase::Open, || {
+        let (checkpoint, writer) = crate::profile::time(crate::profile::Phase::Open, || {
             crate::checkpoint::start(&checkpoint_path, identity, claim, info)
-        })?
+        })?;
+        (checkpoint, writer, Journal::default())
     };
-
     // An instance counts twice: its unloaded run, and its stall search.
     let progress = Progress::new(
         scope
             .progress
             .unwrap_or_else(ProgressMode::default_for_stderr),
-        from_checkpoint,
+        journal.from_checkpoint,
         2 * count,
     );
     let started = Instant::now();
-    let chunk = scope.chunk_size.unwrap_or_else(|| backend.chunk_size());
+    let ctx = Searches {
+        scene,
+        stall,
+        backend,
+        scope,
+        all,
+        chunk: scope.chunk_size.unwrap_or_else(|| backend.chunk_size()),
+        progress: &progress,
+    };
     let mut report = Report {
         axis: stall.axis,
         ..Report::default()
     };
     let result = (|| -> Result<Vec<StallRecord>> {
-        // Wave 0: the scene's own run of what the journal lacks.
-        let done: Vec<Range<u64>> = {
-            let mut indices: Vec<u64> = main.keys().copied().collect();
-            indices.sort_unstable();
-            ranges(&indices)
-        };
-        let work = checkpoint::missing(all, &done);
-        let instance = |i: u64| scene.instance(i);
-        let plan = Plan {
-            work,
-            instance: &instance,
-            settings: scene.settings,
-            baselines: scene.baselines,
-            verify: scope.verify,
-        };
-        let mut memo = BaselineMemo::default();
-        let new = sweep::run_with_memo(
-            &plan,
-            backend,
-            chunk,
-            &|n| progress.inc(n),
-            &mut |start, got| {
-                writer.write(start, got)?;
-                for (k, r) in got.iter().enumerate() {
-                    main.insert(start + k as u64, *r);
-                }
-                // Unlike a plain run's last chunk, every chunk of wave 0
-                // is journalled: the waves come after it.
-                checkpoint.append(start, got)
-            },
-            &mut memo,
-        )?;
-        summary.merge(&new);
-
-        // The searches, one per instance of ours, in flat-index order.
-        let indices: Vec<u64> = all.iter().flat_map(|r| r.clone()).collect();
-        let mut searches: Vec<Search> = indices
-            .iter()
-            .map(|&i| {
-                let rec = main.get(&i).expect("wave 0 ran every instance");
-                let inst = scene.instance(i);
-                Search::new(
-                    rec.step[stall.axis],
-                    rec.status,
-                    super::room(&inst, stall.axis),
-                    stall.tolerance,
-                )
-            })
-            .collect();
-        let resolved =
-            |searches: &[Search]| searches.iter().filter(|s| s.result().is_some()).count();
-        let before = resolved(&searches) as u64;
-        progress.inc(before);
-        let (mut probes_asked, mut integration_s) = (0, 0.0);
-        let waves = super::waves(&mut searches, &mut |wave, asked| {
-            let base = wave as u64 * total;
-            let mut loads: HashMap<u64, f64> = HashMap::new();
-            for &(k, load) in asked {
-                loads.insert(base + indices[k], load);
-            }
-            let mut missing: Vec<u64> = loads
-                .keys()
-                .copied()
-                .filter(|j| !probes.contains_key(j))
-                .collect();
-            missing.sort_unstable();
-            probes_asked += asked.len() as u64;
-            if !missing.is_empty() {
-                let probe = |j: u64| -> Instance {
-                    let mut inst = scene.instance(j - base);
-                    inst.mechanism.load[stall.axis] = loads[&j];
-                    inst
-                };
-                let plan = Plan {
-                    work: ranges(&missing),
-                    instance: &probe,
-                    settings: scene.settings,
-                    baselines: false,
-                    verify: scope.verify,
-                };
-                let wave_started = Instant::now();
-                // One batch: the whole wave is one chunk.
-                let result = sweep::run_with_memo(
-                    &plan,
-                    backend,
-                    missing.len(),
-                    &|_| {},
-                    &mut |start, got| {
-                        for (k, r) in got.iter().enumerate() {
-                            probes.insert(start + k as u64, *r);
-                        }
-                        checkpoint.append_unsynced(start, got)
-                    },
-                    &mut BaselineMemo::default(),
-                );
-                // What finished before an interrupt or error is kept.
-                let synced = checkpoint.sync();
-                result?;
-                synced?;
-                integration_s += wave_started.elapsed().as_secs_f64();
-            }
-            Ok(asked
-                .iter()
-                .map(|&(k, _)| {
-                    let r = &probes[&(base + indices[k])];
-                    (r.step[stall.axis], r.status)
-                })
-                .collect())
-        })?;
-        progress.inc(resolved(&searches) as u64 - before);
-        report.waves = waves;
-        report.probes = probes_asked;
-        report.integration_s = integration_s;
-        Ok(searches
-            .iter()
-            .map(|s| s.result().expect("the waves end every search"))
-            .collect())
+        ctx.unloaded(&mut journal, &mut checkpoint, &mut writer)?;
+        ctx.search(&mut journal, &mut checkpoint, &mut report)
     })();
     let _finishing = crate::profile::span(crate::profile::Phase::Finish);
     let stalls = progress.conclude(result, &checkpoint_path)?;
@@ -323,18 +170,255 @@ pub fn run(
     let small = count <= keep;
     Ok(Outcome {
         path,
-        summary,
+        summary: journal.summary,
         wall_time_s,
         total_wall_time_s: parts.iter().sum(),
         records: if small {
-            indices.iter().map(|i| main[i]).collect()
+            indices.iter().map(|i| journal.main[i]).collect()
         } else {
             Vec::new()
         },
         stall: if small { stalls } else { Vec::new() },
-        from_checkpoint,
+        from_checkpoint: journal.from_checkpoint,
         report,
     })
+}
+
+/// The records a stall run holds: wave 0's at their flat indices, the
+/// probes' at `wave * instances + index`.
+#[derive(Default)]
+struct Journal {
+    main: HashMap<u64, Record>,
+    probes: HashMap<u64, Record>,
+    /// Over the main (unloaded) instances.
+    summary: Summary,
+    /// Main records taken from the checkpoint of an interrupted run.
+    from_checkpoint: u64,
+}
+
+/// Opens the output again and replays the checkpoint of an interrupted
+/// stall run (`--resume`): its wave-0 records go to the writer again, its
+/// probes wait for the searches that ask for them.
+fn resume(
+    scene: &Scene,
+    claim: &OutputClaim,
+    info: &FileInfo,
+    identity: &str,
+    all: &[Range<u64>],
+) -> Result<(Checkpoint, MapWriter, Journal)> {
+    let total = scene.instance_count();
+    let count: u64 = all.iter().map(|r| r.end - r.start).sum();
+    let ours = |i: u64| all.iter().any(|r| r.contains(&i));
+    let checkpoint_path = claim.checkpoint_path();
+    if !checkpoint_path.exists() {
+        bail!(
+            "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
+            checkpoint_path.display()
+        );
+    }
+    let mut writer = MapWriter::create(claim, info)?;
+    let mut journal = Journal::default();
+    let (checkpoint, _) = Checkpoint::resume(&checkpoint_path, identity, &mut |start, got| {
+        let n = got.len() as u64;
+        let (wave, first) = (start / total.max(1), start % total.max(1));
+        let fits = wave <= MAX_WAVES && first + n <= total && (first..first + n).all(&ours);
+        if !fits {
+            bail!(
+                "the checkpoint {} holds instances {start}.. that this run does not \
+                 compute; delete it to start over",
+                checkpoint_path.display()
+            );
+        }
+        if wave == 0 {
+            writer.write(start, got)?;
+        }
+        for (k, r) in got.iter().enumerate() {
+            let index = start + k as u64;
+            if wave == 0 {
+                if journal.main.insert(index, *r).is_none() {
+                    journal.from_checkpoint += 1;
+                    journal.summary.add(r, index);
+                }
+            } else {
+                journal.probes.insert(index, *r);
+            }
+        }
+        Ok(())
+    })?;
+    eprintln!(
+        "pidm: resuming from {}: {} of {count} unloaded instances and {} stall \
+         probes done; the stall searches are recomputed and go on from there",
+        checkpoint_path.display(),
+        journal.from_checkpoint,
+        journal.probes.len()
+    );
+    Ok((checkpoint, writer, journal))
+}
+
+/// What the waves of a stall run share.
+struct Searches<'a> {
+    scene: &'a Scene,
+    stall: Stall,
+    backend: &'a dyn Backend,
+    scope: RunScope,
+    /// The instance ranges of this run (the scene's or a shard's).
+    all: &'a [Range<u64>],
+    /// Instances per chunk of wave 0.
+    chunk: usize,
+    progress: &'a Progress,
+}
+
+impl Searches<'_> {
+    /// Wave 0: the scene's own run of what the journal lacks, written as
+    /// any run's maps and journalled chunk by chunk.
+    fn unloaded(
+        &self,
+        journal: &mut Journal,
+        checkpoint: &mut Checkpoint,
+        writer: &mut MapWriter,
+    ) -> Result<()> {
+        let scene = self.scene;
+        let done: Vec<Range<u64>> = {
+            let mut indices: Vec<u64> = journal.main.keys().copied().collect();
+            indices.sort_unstable();
+            ranges(&indices)
+        };
+        let work = checkpoint::missing(self.all, &done);
+        let instance = |i: u64| scene.instance(i);
+        let plan = Plan {
+            work,
+            instance: &instance,
+            settings: scene.settings,
+            baselines: scene.baselines,
+            verify: self.scope.verify,
+        };
+        let mut memo = BaselineMemo::default();
+        let main = &mut journal.main;
+        let new = sweep::run_with_memo(
+            &plan,
+            self.backend,
+            self.chunk,
+            &|n| self.progress.inc(n),
+            &mut |start, got| {
+                writer.write(start, got)?;
+                for (k, r) in got.iter().enumerate() {
+                    main.insert(start + k as u64, *r);
+                }
+                // Unlike a plain run's last chunk, every chunk of wave 0
+                // is journalled: the waves come after it.
+                checkpoint.append(start, got)
+            },
+            &mut memo,
+        )?;
+        journal.summary.merge(&new);
+        Ok(())
+    }
+
+    /// The searches, one per instance of ours in flat-index order, wave by
+    /// wave until every one has ended.
+    fn search(
+        &self,
+        journal: &mut Journal,
+        checkpoint: &mut Checkpoint,
+        report: &mut Report,
+    ) -> Result<Vec<StallRecord>> {
+        let indices: Vec<u64> = self.all.iter().flat_map(|r| r.clone()).collect();
+        let mut searches: Vec<Search> = indices
+            .iter()
+            .map(|&i| {
+                let rec = journal.main.get(&i).expect("wave 0 ran every instance");
+                let inst = self.scene.instance(i);
+                Search::new(
+                    rec.step[self.stall.axis],
+                    rec.status,
+                    super::room(&inst, self.stall.axis),
+                    self.stall.tolerance,
+                )
+            })
+            .collect();
+        let resolved =
+            |searches: &[Search]| searches.iter().filter(|s| s.result().is_some()).count();
+        let before = resolved(&searches) as u64;
+        self.progress.inc(before);
+        let (mut probes_asked, mut integration_s) = (0, 0.0);
+        let waves = super::waves(&mut searches, &mut |wave, asked| {
+            probes_asked += asked.len() as u64;
+            let base = wave as u64 * self.scene.instance_count();
+            let loads: HashMap<u64, f64> = asked
+                .iter()
+                .map(|&(k, load)| (base + indices[k], load))
+                .collect();
+            integration_s += self.probe_wave(base, &loads, &mut journal.probes, checkpoint)?;
+            Ok(asked
+                .iter()
+                .map(|&(k, _)| {
+                    let r = &journal.probes[&(base + indices[k])];
+                    (r.step[self.stall.axis], r.status)
+                })
+                .collect())
+        })?;
+        self.progress.inc(resolved(&searches) as u64 - before);
+        report.waves = waves;
+        report.probes = probes_asked;
+        report.integration_s = integration_s;
+        Ok(searches
+            .iter()
+            .map(|s| s.result().expect("the waves end every search"))
+            .collect())
+    }
+
+    /// Integrates one wave's probes that the journal lacks (journal index
+    /// `j` = `base + instance`, at load `loads[j]` [N]) as one batch, each
+    /// journalled; the wall time of the integration [s].
+    fn probe_wave(
+        &self,
+        base: u64,
+        loads: &HashMap<u64, f64>,
+        probes: &mut HashMap<u64, Record>,
+        checkpoint: &mut Checkpoint,
+    ) -> Result<f64> {
+        let mut missing: Vec<u64> = loads
+            .keys()
+            .copied()
+            .filter(|j| !probes.contains_key(j))
+            .collect();
+        missing.sort_unstable();
+        if missing.is_empty() {
+            return Ok(0.0);
+        }
+        let probe = |j: u64| -> Instance {
+            let mut inst = self.scene.instance(j - base);
+            inst.mechanism.load[self.stall.axis] = loads[&j];
+            inst
+        };
+        let plan = Plan {
+            work: ranges(&missing),
+            instance: &probe,
+            settings: self.scene.settings,
+            baselines: false,
+            verify: self.scope.verify,
+        };
+        let wave_started = Instant::now();
+        // One batch: the whole wave is one chunk.
+        let result = sweep::run_with_memo(
+            &plan,
+            self.backend,
+            missing.len(),
+            &|_| {},
+            &mut |start, got| {
+                for (k, r) in got.iter().enumerate() {
+                    probes.insert(start + k as u64, *r);
+                }
+                checkpoint.append_unsynced(start, got)
+            },
+            &mut BaselineMemo::default(),
+        );
+        // What finished before an interrupt or error is kept.
+        let synced = checkpoint.sync();
+        result?;
+        synced?;
+        Ok(wave_started.elapsed().as_secs_f64())
+    }
 }
 
 /// Ascending indices as ranges of consecutive ones.
