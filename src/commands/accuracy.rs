@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use super::scenes::{DEFAULT_SCENE, load_scenes, scene_integrations};
 use crate::backend::{GpuBackend, Precision};
 use crate::model::{Instance, Measure};
+use crate::scene::Scene;
 
 /// The steady measurement's `max_cycles` in the measurement study: twice
 /// the default, so that the error of a run stopped by its tolerance shows
@@ -27,98 +28,13 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
     };
     std::fs::create_dir_all(out_dir)
         .with_context(|| format!("cannot create {}", out_dir.display()))?;
-    // The command that regenerates this report, every option spelled out.
-    let mut command: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
-    let steps: Vec<String> = karnopp_steps.iter().map(|h| format!("{h:e}")).collect();
-    command.push(format!("--karnopp-steps {}", steps.join(",")));
-    if gpu {
-        command.push("--gpu".into());
-    }
-    command.push(format!("--out-dir {}", out_dir.display()));
-    let mut report = Report::new(&command.join(" "));
+    let mut report = Report::new(&regenerating_command(paths, out_dir, karnopp_steps, gpu));
     let mut limit_done = false;
     for scene in load_scenes(paths)? {
-        let measured = scene_integrations(&scene);
-        // The integrator is studied over the paper's fixed window (10
-        // periods, 2 discarded), whatever the scene measures: the
-        // fixed-step Karnopp baseline has no steady stop, and a window
-        // isolates the integration error from the measurement's.
-        let instances: Vec<Instance> = measured
-            .iter()
-            .map(|inst| match inst.measure {
-                Measure::Window => *inst,
-                Measure::Steady { .. } => Instance {
-                    cycles: Instance::TABLE1.cycles,
-                    settle: Instance::TABLE1.settle,
-                    measure: Measure::Window,
-                    ..*inst
-                },
-            })
-            .collect();
-        let reference = crate::laws::karnopp::integrate::Settings {
-            tolerance: 1e-9,
-            ..scene.settings
-        };
-        let lugre = scene.is_lugre();
-        let mut methods = vec![accuracy::cpu_method(scene.settings, lugre)];
-        if gpu && lugre {
-            // The LuGre shader is f64's only.
-            match crate::gpu::GpuContext::new(true) {
-                Ok(ctx) if ctx.supports_f64() => methods.push(accuracy::backend_method(
-                    Box::new(GpuBackend::new(ctx, Precision::F64)?),
-                    scene.settings,
-                    true,
-                )),
-                Ok(ctx) => println!("  gpu: not studied ({} offers no f64)", ctx.describe()),
-                Err(err) => println!("  gpu: not studied ({err})"),
-            }
-        } else if gpu {
-            // Every precision the adapter offers, software adapters included.
-            match crate::gpu::GpuContext::new(true) {
-                Ok(ctx) => {
-                    let f64_ok = ctx.supports_f64();
-                    methods.push(accuracy::backend_method(
-                        Box::new(GpuBackend::new(ctx, Precision::F32)?),
-                        scene.settings,
-                        false,
-                    ));
-                    if f64_ok {
-                        let ctx = crate::gpu::GpuContext::new(true)?;
-                        methods.push(accuracy::backend_method(
-                            Box::new(GpuBackend::new(ctx, Precision::F64)?),
-                            scene.settings,
-                            false,
-                        ));
-                    }
-                }
-                Err(err) => println!("  gpu: not studied ({err})"),
-            }
-        }
-        if !lugre {
-            methods.push(accuracy::karnopp_method(karnopp_steps.to_vec()));
-        }
-        println!(
-            "accuracy: scene {:?}, {} integrations, reference tolerance 1e-9 {}",
-            scene.name,
-            instances.len(),
-            if lugre {
-                "(LuGre: 1e-16 m local error per step)"
-            } else {
-                "rad"
-            }
-        );
-        let (points, references) = study_and_print(&instances, &instances, reference, &methods)?;
-        let h5 = out_dir.join(format!("accuracy_{}.h5", scene.name));
-        let png = out_dir.join(format!("accuracy_{}.png", scene.name));
-        accuracy::write_hdf5(&h5, &scene.name, &points)?;
-        accuracy::plot(
-            &png,
-            &format!("scene {}: error against run time", scene.name),
-            &points,
-        )?;
-        println!("  wrote {} and {}", h5.display(), png.display());
-        report.add_scene(&scene.name, instances.len(), references, &methods, &points);
-        if lugre {
+        let instances = window_instances(&scene_integrations(&scene));
+        let methods = integrator_methods(&scene, karnopp_steps, gpu)?;
+        study_integrator(&scene, &instances, &methods, out_dir, &mut report)?;
+        if scene.is_lugre() {
             // The limit replaces the bristles' parameters: one study of it,
             // on the first LuGre scene, is all there is to see.
             if !limit_done {
@@ -138,43 +54,194 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
         }
         // The measurement, where two drive frequencies make it matter.
         if accuracy::has_two_frequencies(&instances) {
-            let methods = [
-                accuracy::window_method(
-                    scene.settings,
-                    vec![10.0, 100.0, 300.0, 1000.0, 3000.0, 10_000.0],
-                ),
-                accuracy::steady_method(
-                    scene.settings,
-                    vec![1e-7, 3e-8, 1e-8, 3e-9],
-                    ACCURACY_MAX_CYCLES,
-                ),
-            ];
-            println!(
-                "accuracy: scene {:?}, the measurement: against lattice windows of at most {} \
-                 periods, or steady runs to {:e} m (at most {} periods) where the motion \
-                 repeats",
-                scene.name,
-                accuracy::REFERENCE_WINDOW,
-                accuracy::MEASUREMENT_REFERENCE_TOLERANCE,
-                accuracy::MEASUREMENT_REFERENCE_MAX_CYCLES
-            );
-            let long = accuracy::measurement_reference(&instances);
-            let (points, references) =
-                study_and_print(&instances, &long, scene.settings, &methods)?;
-            let h5 = out_dir.join(format!("accuracy_{}_measure.h5", scene.name));
-            let png = out_dir.join(format!("accuracy_{}_measure.png", scene.name));
-            accuracy::write_hdf5(&h5, &scene.name, &points)?;
-            accuracy::plot(
-                &png,
-                &format!("scene {}: measurement error against run time", scene.name),
-                &points,
-            )?;
-            println!("  wrote {} and {}", h5.display(), png.display());
-            report.add_measurement(&scene.name, instances.len(), references, &methods, &points);
+            study_measurement(&scene, &instances, out_dir, &mut report)?;
         }
     }
     let out = report.write(out_dir)?;
     println!("wrote {}", out.display());
+    Ok(())
+}
+
+/// The command that regenerates the report, every option spelled out.
+fn regenerating_command(
+    paths: &[PathBuf],
+    out_dir: &Path,
+    karnopp_steps: &[f64],
+    gpu: bool,
+) -> String {
+    let mut command: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    let steps: Vec<String> = karnopp_steps.iter().map(|h| format!("{h:e}")).collect();
+    command.push(format!("--karnopp-steps {}", steps.join(",")));
+    if gpu {
+        command.push("--gpu".into());
+    }
+    command.push(format!("--out-dir {}", out_dir.display()));
+    command.join(" ")
+}
+
+/// The instances as the integrator is studied: over the paper's fixed
+/// window (10 periods, 2 discarded), whatever the scene measures. The
+/// fixed-step Karnopp baseline has no steady stop, and a window isolates
+/// the integration error from the measurement's.
+fn window_instances(measured: &[Instance]) -> Vec<Instance> {
+    measured
+        .iter()
+        .map(|inst| match inst.measure {
+            Measure::Window => *inst,
+            Measure::Steady { .. } => Instance {
+                cycles: Instance::TABLE1.cycles,
+                settle: Instance::TABLE1.settle,
+                measure: Measure::Window,
+                ..*inst
+            },
+        })
+        .collect()
+}
+
+/// The integration methods studied on a scene: the CPU's, the GPU's with
+/// `--gpu` (LuGre's in f64 only, Karnopp's in every precision the adapter
+/// offers; a line says why where none is studied), and Karnopp's
+/// fixed-step baseline on Karnopp scenes.
+fn integrator_methods<'a>(
+    scene: &Scene,
+    karnopp_steps: &[f64],
+    gpu: bool,
+) -> Result<Vec<crate::accuracy::Method<'a>>> {
+    use crate::accuracy;
+    let lugre = scene.is_lugre();
+    let mut methods = vec![accuracy::cpu_method(scene.settings, lugre)];
+    if gpu && lugre {
+        // The LuGre shader is f64's only.
+        match crate::gpu::GpuContext::new(true) {
+            Ok(ctx) if ctx.supports_f64() => methods.push(accuracy::backend_method(
+                Box::new(GpuBackend::new(ctx, Precision::F64)?),
+                scene.settings,
+                true,
+            )),
+            Ok(ctx) => println!("  gpu: not studied ({} offers no f64)", ctx.describe()),
+            Err(err) => println!("  gpu: not studied ({err})"),
+        }
+    } else if gpu {
+        // Every precision the adapter offers, software adapters included.
+        match crate::gpu::GpuContext::new(true) {
+            Ok(ctx) => {
+                let f64_ok = ctx.supports_f64();
+                methods.push(accuracy::backend_method(
+                    Box::new(GpuBackend::new(ctx, Precision::F32)?),
+                    scene.settings,
+                    false,
+                ));
+                if f64_ok {
+                    let ctx = crate::gpu::GpuContext::new(true)?;
+                    methods.push(accuracy::backend_method(
+                        Box::new(GpuBackend::new(ctx, Precision::F64)?),
+                        scene.settings,
+                        false,
+                    ));
+                }
+            }
+            Err(err) => println!("  gpu: not studied ({err})"),
+        }
+    }
+    if !lugre {
+        methods.push(accuracy::karnopp_method(karnopp_steps.to_vec()));
+    }
+    Ok(methods)
+}
+
+/// The integrator's study of a scene: each method's error against a
+/// reference at tolerance 1e-9, printed, written, drawn and added to the
+/// report.
+fn study_integrator(
+    scene: &Scene,
+    instances: &[Instance],
+    methods: &[crate::accuracy::Method],
+    out_dir: &Path,
+    report: &mut crate::accuracy::Report,
+) -> Result<()> {
+    let reference = crate::laws::karnopp::integrate::Settings {
+        tolerance: 1e-9,
+        ..scene.settings
+    };
+    println!(
+        "accuracy: scene {:?}, {} integrations, reference tolerance 1e-9 {}",
+        scene.name,
+        instances.len(),
+        if scene.is_lugre() {
+            "(LuGre: 1e-16 m local error per step)"
+        } else {
+            "rad"
+        }
+    );
+    let (points, references) = study_and_print(instances, instances, reference, methods)?;
+    write_study(
+        out_dir,
+        &format!("accuracy_{}", scene.name),
+        &scene.name,
+        &format!("scene {}: error against run time", scene.name),
+        &points,
+    )?;
+    report.add_scene(&scene.name, instances.len(), references, methods, &points);
+    Ok(())
+}
+
+/// The measurement's study of a scene with two drive frequencies: fixed
+/// windows and steady runs against long windows or tight steady runs,
+/// printed, written, drawn and added to the report.
+fn study_measurement(
+    scene: &Scene,
+    instances: &[Instance],
+    out_dir: &Path,
+    report: &mut crate::accuracy::Report,
+) -> Result<()> {
+    use crate::accuracy;
+    let methods = [
+        accuracy::window_method(
+            scene.settings,
+            vec![10.0, 100.0, 300.0, 1000.0, 3000.0, 10_000.0],
+        ),
+        accuracy::steady_method(
+            scene.settings,
+            vec![1e-7, 3e-8, 1e-8, 3e-9],
+            ACCURACY_MAX_CYCLES,
+        ),
+    ];
+    println!(
+        "accuracy: scene {:?}, the measurement: against lattice windows of at most {} \
+         periods, or steady runs to {:e} m (at most {} periods) where the motion \
+         repeats",
+        scene.name,
+        accuracy::REFERENCE_WINDOW,
+        accuracy::MEASUREMENT_REFERENCE_TOLERANCE,
+        accuracy::MEASUREMENT_REFERENCE_MAX_CYCLES
+    );
+    let long = accuracy::measurement_reference(instances);
+    let (points, references) = study_and_print(instances, &long, scene.settings, &methods)?;
+    write_study(
+        out_dir,
+        &format!("accuracy_{}_measure", scene.name),
+        &scene.name,
+        &format!("scene {}: measurement error against run time", scene.name),
+        &points,
+    )?;
+    report.add_measurement(&scene.name, instances.len(), references, &methods, &points);
+    Ok(())
+}
+
+/// Writes a study's points to `<stem>.h5` and draws them to `<stem>.png`
+/// in `out_dir`, and says so.
+fn write_study(
+    out_dir: &Path,
+    stem: &str,
+    scene_name: &str,
+    title: &str,
+    points: &[crate::accuracy::Point],
+) -> Result<()> {
+    let h5 = out_dir.join(format!("{stem}.h5"));
+    let png = out_dir.join(format!("{stem}.png"));
+    crate::accuracy::write_hdf5(&h5, scene_name, points)?;
+    crate::accuracy::plot(&png, title, points)?;
+    println!("  wrote {} and {}", h5.display(), png.display());
     Ok(())
 }
 

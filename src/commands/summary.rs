@@ -10,6 +10,7 @@ use crate::model::motion::Motion;
 use crate::model::{AXIS_NAMES, Measure};
 use crate::run::RunResult;
 use crate::scene::{Layout, Scene};
+use crate::sweep::Summary;
 
 /// The refinement's lines of the run summary: integrated and inferred
 /// points, and per level what was integrated, refined and missed.
@@ -73,7 +74,43 @@ fn print_stall(scene: &Scene, report: &crate::stall::Report) {
     }
 }
 
+/// The summary `pidm run` prints after a run (see the module's doc).
 pub(super) fn print_summary(scene: &Scene, result: &RunResult) {
+    let s = &result.summary;
+    print_written(result);
+    if let Some(report) = &result.refine {
+        print_refine(report);
+    }
+    if let Some(report) = &result.stall {
+        print_stall(scene, report);
+    }
+    print_precision(s);
+    for (code, &n) in s.status_counts.iter().enumerate() {
+        if n > 0 {
+            let meaning = crate::measurement::status::Status::describe(code as u32);
+            println!("  status {code} ({meaning}): {n}");
+        }
+    }
+    let steady = matches!(scene.instance(0).measure, Measure::Steady { .. });
+    if steady && s.instances > 0 {
+        print_steady(s);
+    }
+    if s.extreme_step[0].is_finite() {
+        println!(
+            "  step range: {} .. {} um per own drive cycle",
+            um(s.extreme_step[0]),
+            um(s.extreme_step[1])
+        );
+    }
+    print_best(scene, s);
+    if !result.records.is_empty() {
+        print_table(scene, result, steady);
+    }
+}
+
+/// The summary's first line: the file written, its instances and
+/// integrations, and the run's times.
+fn print_written(result: &RunResult) {
     let s = &result.summary;
     // After --resume the integrations and times are this run's own; the
     // instances and statuses count the whole file.
@@ -96,12 +133,12 @@ pub(super) fn print_summary(scene: &Scene, result: &RunResult) {
         s.integration_s,
         s.simulated_s / result.wall_time_s.max(1e-9)
     );
-    if let Some(report) = &result.refine {
-        print_refine(report);
-    }
-    if let Some(report) = &result.stall {
-        print_stall(scene, report);
-    }
+}
+
+/// The summary's lines on precision, where they apply: the integrations
+/// run on the CPU in f64, the f32 runs that grazed the velocity band, and
+/// those f32's check looked at.
+fn print_precision(s: &Summary) {
     if s.on_cpu > 0 {
         println!(
             "  {} of the integrations ran on the CPU in f64 (the slow tail of a GPU batch, \
@@ -133,43 +170,36 @@ pub(super) fn print_summary(scene: &Scene, result: &RunResult) {
             s.checked - s.checked_on_cpu
         );
     }
-    for (code, &n) in s.status_counts.iter().enumerate() {
-        if n > 0 {
-            let meaning = crate::measurement::status::Status::describe(code as u32);
-            println!("  status {code} ({meaning}): {n}");
-        }
-    }
-    let steady = matches!(scene.instance(0).measure, Measure::Steady { .. });
-    if steady && s.instances > 0 {
-        let not_steady = s.status_counts[STATUS_NOT_STEADY as usize];
-        let converged = s.status_counts[STATUS_OK as usize].saturating_sub(s.periodic);
+}
+
+/// The steady measurement's lines: how the instances stopped, their
+/// motions, and the replicas merged.
+fn print_steady(s: &Summary) {
+    let not_steady = s.status_counts[STATUS_NOT_STEADY as usize];
+    let converged = s.status_counts[STATUS_OK as usize].saturating_sub(s.periodic);
+    println!(
+        "  steady measurement: {} periodic (exact), {converged} converged within the step \
+         tolerance, {not_steady} not steady (ran to max_cycles; estimates kept with their \
+         standard errors); largest standard error {:.4} um; periods per instance: mean \
+         {:.0}, most {}",
+        s.periodic,
+        s.largest_se * 1e6,
+        s.periods as f64 / s.instances as f64,
+        s.max_periods
+    );
+    println!("  motion: {}", motion_counts(&s.motion));
+    let multistable = s.motion[Motion::Multistable.code() as usize];
+    if s.merged > 0 || multistable > 0 {
         println!(
-            "  steady measurement: {} periodic (exact), {converged} converged within the step \
-             tolerance, {not_steady} not steady (ran to max_cycles; estimates kept with their \
-             standard errors); largest standard error {:.4} um; periods per instance: mean \
-             {:.0}, most {}",
-            s.periodic,
-            s.largest_se * 1e6,
-            s.periods as f64 / s.instances as f64,
-            s.max_periods
-        );
-        println!("  motion: {}", motion_counts(&s.motion));
-        let multistable = s.motion[Motion::Multistable.code() as usize];
-        if s.merged > 0 || multistable > 0 {
-            println!(
-                "  replicas: {} instances merged from {} replicas; {multistable} whose replicas \
-                 disagreed (multistable: their own runs kept)",
-                s.merged, s.replicas
-            );
-        }
-    }
-    if s.extreme_step[0].is_finite() {
-        println!(
-            "  step range: {} .. {} um per own drive cycle",
-            um(s.extreme_step[0]),
-            um(s.extreme_step[1])
+            "  replicas: {} instances merged from {} replicas; {multistable} whose replicas \
+             disagreed (multistable: their own runs kept)",
+            s.merged, s.replicas
         );
     }
+}
+
+/// The best forward and backward steps on each axis the scene ever drives.
+fn print_best(scene: &Scene, s: &Summary) {
     for (axis, name) in AXIS_NAMES.iter().enumerate() {
         let [backward, forward] = s.best[axis];
         let say = |(step, index): (f64, u64), sign: f64| {
@@ -187,47 +217,50 @@ pub(super) fn print_summary(scene: &Scene, result: &RunResult) {
             );
         }
     }
-    if !result.records.is_empty() {
-        let labels: Vec<String> = match &scene.layout {
-            Layout::Points { labels } => labels.clone(),
-            Layout::Grid { .. } => (0..result.records.len()).map(|i| format!("#{i}")).collect(),
-        };
-        let width = labels.iter().map(String::len).max().unwrap_or(0).max(5);
-        print!("  {:width$}  step_x [um]  step_y [um]", "point");
+}
+
+/// The table of a small scene's instances: steps, baselines, status,
+/// motion (steady scenes) and stall loads, one row per instance.
+fn print_table(scene: &Scene, result: &RunResult, steady: bool) {
+    let labels: Vec<String> = match &scene.layout {
+        Layout::Points { labels } => labels.clone(),
+        Layout::Grid { .. } => (0..result.records.len()).map(|i| format!("#{i}")).collect(),
+    };
+    let width = labels.iter().map(String::len).max().unwrap_or(0).max(5);
+    print!("  {:width$}  step_x [um]  step_y [um]", "point");
+    if scene.baselines {
+        print!("  1-DOF x [um]  1-DOF y [um]");
+    }
+    print!("  status");
+    if steady {
+        print!("  motion");
+    }
+    let stalls = &result.stall_records;
+    if let Some(report) = &result.stall {
+        print!("  stall load {} [N]  stall status", AXIS_NAMES[report.axis]);
+    }
+    println!();
+    for (k, (label, r)) in labels.iter().zip(&result.records).enumerate() {
+        print!(
+            "  {label:width$}  {:>11}  {:>11}",
+            um(r.step[0]),
+            um(r.step[1])
+        );
         if scene.baselines {
-            print!("  1-DOF x [um]  1-DOF y [um]");
+            print!(
+                "  {:>12}  {:>12}",
+                um(r.baseline_step[0]),
+                um(r.baseline_step[1])
+            );
         }
-        print!("  status");
+        print!("  {:>6}", r.status.max(r.baseline_status));
         if steady {
-            print!("  motion");
+            print!("  {}", r.motion.name());
         }
-        let stalls = &result.stall_records;
-        if let Some(report) = &result.stall {
-            print!("  stall load {} [N]  stall status", AXIS_NAMES[report.axis]);
+        if let Some(stall) = stalls.get(k) {
+            print!("  {:>+18.5}  {:>12}", stall.load, stall.status);
         }
         println!();
-        for (k, (label, r)) in labels.iter().zip(&result.records).enumerate() {
-            print!(
-                "  {label:width$}  {:>11}  {:>11}",
-                um(r.step[0]),
-                um(r.step[1])
-            );
-            if scene.baselines {
-                print!(
-                    "  {:>12}  {:>12}",
-                    um(r.baseline_step[0]),
-                    um(r.baseline_step[1])
-                );
-            }
-            print!("  {:>6}", r.status.max(r.baseline_status));
-            if steady {
-                print!("  {}", r.motion.name());
-            }
-            if let Some(stall) = stalls.get(k) {
-                print!("  {:>+18.5}  {:>12}", stall.load, stall.status);
-            }
-            println!();
-        }
     }
 }
 

@@ -3,26 +3,29 @@
 //! scene (derived stage quantities, settle < cycles or max_cycles, the
 //! memory budget) and the trajectories.
 
+use std::ops::Range;
+
 use toml::de::DeTable;
 
 use crate::laws::settings::Replicas;
 
-use super::error::{SceneError, point_name};
+use super::error::{Location, SceneError, point_name};
 use super::format::fmt_short;
 use super::keys::{
-    AXIS_FIELDS, FREQUENCY, FREQUENCY_RATIO, Field, MAX_STEPS_SLOT, SLOTS, TOLERANCE_SLOT,
-    axis_slot, slot_field, slot_path,
+    AXIS_FIELDS, FREQUENCY, FREQUENCY_RATIO, Field, FrictionLaw, MAX_STEPS_SLOT, Mode, SLOTS,
+    TOLERANCE_SLOT, axis_slot, slot_field, slot_path,
 };
-use super::layer::{Layer, kept_from_lower};
+use super::layer::{Layer, PointSpec, kept_from_lower};
 use super::memory::{MAP_MEMORY_BUDGET_BYTES, check_memory};
 use super::name::check_name;
 use super::parser::Parser;
 use super::plan::{Culprits, Plan, Src, check_instance};
-use super::trajectories::DEFAULT_SAMPLES_PER_CYCLE;
+use super::refine::RefineSpec;
+use super::trajectories::{DEFAULT_SAMPLES_PER_CYCLE, SpecAt};
 use super::values::Entry;
 use super::{GridAxis, Layout, Scene};
 use crate::laws::karnopp::integrate::Settings;
-use crate::model::AXES;
+use crate::model::{AXES, Instance};
 
 /// Parses and validates a scene; see [`Scene::from_toml`].
 pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, SceneError> {
@@ -30,75 +33,12 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     let parser = Parser { text };
     let parsed = parser.root(document.get_ref())?;
 
-    // A given name was checked by the parser; the default one is checked
-    // here by the same rule.
-    let name = match parsed.name {
-        Some(name) => name,
-        None => {
-            let name = default_name.ok_or_else(|| SceneError::Invalid {
-                message: "name: missing; a scene read from text needs `name = \"...\"`".to_owned(),
-                location: None,
-            })?;
-            check_name(name).map_err(|expected| SceneError::Invalid {
-                message: format!(
-                    "name = {expected} (this is the default name, the scene file's stem; \
-                     set `name = \"...\"` in the scene)"
-                ),
-                location: None,
-            })?;
-            name.to_owned()
-        }
-    };
-
+    let name = scene_name(parsed.name, default_name)?;
     let base = &parsed.base;
-    let mut settings = Settings::default();
-    if let Some(entry) = &base.entries[TOLERANCE_SLOT] {
-        settings.tolerance = entry.values.value(0);
-    }
-    if let Some(entry) = &base.entries[MAX_STEPS_SLOT] {
-        settings.max_steps_per_period = entry.values.value(0) as u32;
-    }
-    // A scene splits what it can unless it says otherwise.
-    settings.replicas = parsed
-        .replicas
-        .map_or(Replicas::Auto, |(replicas, _)| replicas);
-
-    let mut raw = [0.0; SLOTS];
-    let mut given = [false; SLOTS];
-    for (slot, entry) in base.entries.iter().enumerate() {
-        if let Some(entry) = entry {
-            given[slot] = true;
-            raw[slot] = entry.values.value(0);
-        }
-    }
-    let mut grid: Vec<(usize, Entry)> = base
-        .entries
-        .iter()
-        .enumerate()
-        .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e.clone())))
-        .filter(|(_, entry)| entry.values.len() > 1)
-        .collect();
-    grid.sort_by_key(|(_, entry)| entry.span.start);
-
-    let mode = parsed.measure.unwrap_or_default();
-    let friction = parsed
-        .friction
-        .as_ref()
-        .map_or_else(Default::default, |(law, _)| *law);
-    let ties: [Option<usize>; SLOTS] =
-        std::array::from_fn(|slot| base.ties[slot].as_ref().map(|tie| tie.target));
-    let plan = Plan::build(&given, &ties, mode, friction);
-    // Locates an error by the first culprit found, layer by layer (the
-    // point first).
-    let locate_slot = |culprits: Culprits, layers: &[&Layer]| {
-        layers.iter().find_map(|layer| {
-            culprits
-                .iter()
-                .flatten()
-                .find_map(|&slot| layer.entries[slot].as_ref())
-                .map(|entry| parser.locate(entry.span.start))
-        })
-    };
+    let settings = base_settings(base, parsed.replicas.as_ref());
+    let keys = BaseKeys::new(base, parsed.measure, parsed.friction.as_ref());
+    let grid = grid_entries(base);
+    let plan = Plan::build(&keys.given, &keys.ties, keys.mode, keys.friction);
 
     let mut scene = Scene {
         name,
@@ -112,7 +52,7 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
             .unwrap_or(DEFAULT_SAMPLES_PER_CYCLE),
         description: parsed.description,
         plan,
-        raw,
+        raw: keys.raw,
         refine: None,
         stall: parsed.stall,
         grid_slots: Vec::new(),
@@ -137,106 +77,267 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
             beside,
             parsed.measure,
             base,
-            (&plan, &raw),
+            (&plan, &keys.raw),
             &mut scene,
         )?;
-        scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
-        scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
-        for (a, driven) in scene.driven.iter_mut().enumerate() {
-            *driven = scene.points.iter().any(|p| p.axes[a].is_driven());
-        }
-        return Ok(scene);
+        return finish_points(&parser, &parsed.trajectories, scene);
     }
 
-    if let Some(points) = parsed.points {
-        if let Some(spec) = &parsed.refine {
-            return Err(parser.invalid(
-                spec.span.clone(),
-                "refine: a scene with [[points]] cannot be refined; expected a grid of two \
-                 range axes",
-            ));
-        }
-        if let Some((slot, entry)) = grid.first() {
-            return Err(parser.invalid(
-                entry.span.clone(),
-                format!(
-                    "{} has {} values, but a scene with [[points]] cannot have grid axes: \
-                     give each point its own value, or drop [[points]]",
-                    slot_path(*slot),
-                    entry.values.len()
-                ),
-            ));
-        }
-        let mut labels = Vec::with_capacity(points.len());
-        for (index, point) in points.iter().enumerate() {
-            let mut point_given = given;
-            let mut point_raw = raw;
-            for (slot, entry) in point.layer.entries.iter().enumerate() {
-                if let Some(entry) = entry {
-                    point_given[slot] = true;
-                    point_raw[slot] = entry.values.value(0);
-                }
-            }
-            for axis in 0..AXES {
-                let upper = point.layer.axis_given(axis);
-                let lower = base.axis_given(axis);
-                let kept = kept_from_lower(&upper, &lower, true);
-                for j in 0..AXIS_FIELDS.len() {
-                    point_given[axis_slot(axis, j)] = upper[j] || kept[j];
-                }
-            }
-            // A point that gives a tied key (or, for axis.y's frequency, its
-            // ratio) replaces the tie.
-            let mut point_ties = ties;
-            for (slot, tie) in point_ties.iter_mut().enumerate() {
-                let replaced = point.layer.entries[slot].is_some()
-                    || (slot == axis_slot(1, FREQUENCY)
-                        && point.layer.entries[axis_slot(1, FREQUENCY_RATIO)].is_some());
-                if replaced {
-                    *tie = None;
-                }
-            }
-            let point_plan = Plan::build(&point_given, &point_ties, mode, friction);
-            let instance = point_plan.resolve(&point_raw);
-            check_instance(&instance, &point_plan).map_err(|(message, slot)| {
-                SceneError::Invalid {
-                    message: format!("{}: {message}", point_name(index, &point.label)),
-                    location: locate_slot(slot, &[&point.layer, base]),
-                }
-            })?;
-            scene.points.push(instance);
-            labels.push(point.label.clone());
-            let mut keys: Vec<(usize, String)> = point
-                .layer
-                .entries
-                .iter()
-                .enumerate()
-                .filter_map(|(slot, entry)| {
-                    entry.as_ref().map(|entry| {
-                        let value = fmt_short(entry.values.value(0));
-                        (entry.span.start, format!("{} = {value}", slot_path(slot)))
-                    })
-                })
-                .collect();
-            keys.sort();
-            let keys: Vec<String> = keys.into_iter().map(|(_, key)| key).collect();
-            scene.point_keys.push(if keys.is_empty() {
-                "the base".to_owned()
-            } else {
-                keys.join(", ")
-            });
-        }
-        scene.layout = Layout::Points { labels };
-        scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
-        scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
-        for (a, driven) in scene.driven.iter_mut().enumerate() {
-            *driven = scene.points.iter().any(|p| p.axes[a].is_driven());
-        }
-        return Ok(scene);
+    if let Some(points) = &parsed.points {
+        points_layout(
+            &parser,
+            &keys,
+            points,
+            (&grid, parsed.refine.as_ref()),
+            &mut scene,
+        )?;
+        return finish_points(&parser, &parsed.trajectories, scene);
     }
 
+    grid_layout(&parser, &keys, parsed.refine.as_ref(), grid, &mut scene)?;
+    scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
+    Ok(scene)
+}
+
+/// The scene's name: the given one, checked by the parser, or else the
+/// default one (the file's stem), checked here by the same rule.
+fn scene_name(given: Option<String>, default_name: Option<&str>) -> Result<String, SceneError> {
+    if let Some(name) = given {
+        return Ok(name);
+    }
+    let name = default_name.ok_or_else(|| SceneError::Invalid {
+        message: "name: missing; a scene read from text needs `name = \"...\"`".to_owned(),
+        location: None,
+    })?;
+    check_name(name).map_err(|expected| SceneError::Invalid {
+        message: format!(
+            "name = {expected} (this is the default name, the scene file's stem; \
+             set `name = \"...\"` in the scene)"
+        ),
+        location: None,
+    })?;
+    Ok(name.to_owned())
+}
+
+/// The integrator's settings of the base layer: its tolerance and step cap
+/// where given, and its replicas (`Replicas::Auto` unless it says otherwise).
+fn base_settings(base: &Layer, replicas: Option<&(Replicas, Range<usize>)>) -> Settings {
+    let mut settings = Settings::default();
+    if let Some(entry) = &base.entries[TOLERANCE_SLOT] {
+        settings.tolerance = entry.values.value(0);
+    }
+    if let Some(entry) = &base.entries[MAX_STEPS_SLOT] {
+        settings.max_steps_per_period = entry.values.value(0) as u32;
+    }
+    // A scene splits what it can unless it says otherwise.
+    settings.replicas = replicas.map_or(Replicas::Auto, |(replicas, _)| *replicas);
+    settings
+}
+
+/// The base layer's keys, from which the scene's plan and each point's
+/// own plan are built.
+struct BaseKeys<'a> {
+    /// The base layer itself, for locating errors.
+    layer: &'a Layer,
+    /// Each slot's first value (0 where not given).
+    raw: [f64; SLOTS],
+    /// Which slots the base gives.
+    given: [bool; SLOTS],
+    /// For each tied slot, the slot it is tied to.
+    ties: [Option<usize>; SLOTS],
+    /// The measurement mode (steady unless given).
+    mode: Mode,
+    /// The friction law (Karnopp's unless given).
+    friction: FrictionLaw,
+}
+
+impl<'a> BaseKeys<'a> {
+    /// Reads the base layer's first values, given keys and ties.
+    fn new(
+        layer: &'a Layer,
+        measure: Option<Mode>,
+        friction: Option<&(FrictionLaw, Range<usize>)>,
+    ) -> Self {
+        let mut raw = [0.0; SLOTS];
+        let mut given = [false; SLOTS];
+        for (slot, entry) in layer.entries.iter().enumerate() {
+            if let Some(entry) = entry {
+                given[slot] = true;
+                raw[slot] = entry.values.value(0);
+            }
+        }
+        BaseKeys {
+            layer,
+            raw,
+            given,
+            ties: std::array::from_fn(|slot| layer.ties[slot].as_ref().map(|tie| tie.target)),
+            mode: measure.unwrap_or_default(),
+            friction: friction.map_or_else(Default::default, |(law, _)| *law),
+        }
+    }
+}
+
+/// The base layer's keys with more than one value, the grid axes, in the
+/// order of the text.
+fn grid_entries(base: &Layer) -> Vec<(usize, Entry)> {
+    let mut grid: Vec<(usize, Entry)> = base
+        .entries
+        .iter()
+        .enumerate()
+        .filter_map(|(slot, entry)| entry.as_ref().map(|e| (slot, e.clone())))
+        .filter(|(_, entry)| entry.values.len() > 1)
+        .collect();
+    grid.sort_by_key(|(_, entry)| entry.span.start);
+    grid
+}
+
+/// Locates an error by the first culprit found, layer by layer (the point
+/// first).
+fn locate_slot(parser: &Parser, culprits: Culprits, layers: &[&Layer]) -> Option<Location> {
+    layers.iter().find_map(|layer| {
+        culprits
+            .iter()
+            .flatten()
+            .find_map(|&slot| layer.entries[slot].as_ref())
+            .map(|entry| parser.locate(entry.span.start))
+    })
+}
+
+/// The last steps of a points scene (`[[points]]` or `[random]`): its
+/// trajectories resolved, its memory checked and its driven axes marked.
+fn finish_points(
+    parser: &Parser,
+    trajectories: &[SpecAt],
+    mut scene: Scene,
+) -> Result<Scene, SceneError> {
+    scene.trajectories = parser.resolve_trajectories(trajectories, &scene)?;
+    scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
+    for (a, driven) in scene.driven.iter_mut().enumerate() {
+        *driven = scene.points.iter().any(|p| p.axes[a].is_driven());
+    }
+    Ok(scene)
+}
+
+/// A `[[points]]` scene's instances, labels and key summaries. Refuses
+/// `[refine]` and grid axes (the base's keys with several values) beside
+/// `[[points]]`, then checks each point in turn.
+fn points_layout(
+    parser: &Parser,
+    keys: &BaseKeys,
+    points: &[PointSpec],
+    (grid, refine): (&[(usize, Entry)], Option<&RefineSpec>),
+    scene: &mut Scene,
+) -> Result<(), SceneError> {
+    if let Some(spec) = refine {
+        return Err(parser.invalid(
+            spec.span.clone(),
+            "refine: a scene with [[points]] cannot be refined; expected a grid of two \
+             range axes",
+        ));
+    }
+    if let Some((slot, entry)) = grid.first() {
+        return Err(parser.invalid(
+            entry.span.clone(),
+            format!(
+                "{} has {} values, but a scene with [[points]] cannot have grid axes: \
+                 give each point its own value, or drop [[points]]",
+                slot_path(*slot),
+                entry.values.len()
+            ),
+        ));
+    }
+    let mut labels = Vec::with_capacity(points.len());
+    for (index, point) in points.iter().enumerate() {
+        let instance = point_instance(parser, keys, index, point)?;
+        scene.points.push(instance);
+        labels.push(point.label.clone());
+        scene.point_keys.push(point_keys(point));
+    }
+    scene.layout = Layout::Points { labels };
+    Ok(())
+}
+
+/// Point `index`'s instance: its keys laid over the base's (a kept base
+/// key where it does not over-determine the stage, a tie replaced by a
+/// given key), resolved and checked.
+fn point_instance(
+    parser: &Parser,
+    base: &BaseKeys,
+    index: usize,
+    point: &PointSpec,
+) -> Result<Instance, SceneError> {
+    let mut point_given = base.given;
+    let mut point_raw = base.raw;
+    for (slot, entry) in point.layer.entries.iter().enumerate() {
+        if let Some(entry) = entry {
+            point_given[slot] = true;
+            point_raw[slot] = entry.values.value(0);
+        }
+    }
+    for axis in 0..AXES {
+        let upper = point.layer.axis_given(axis);
+        let lower = base.layer.axis_given(axis);
+        let kept = kept_from_lower(&upper, &lower, true);
+        for j in 0..AXIS_FIELDS.len() {
+            point_given[axis_slot(axis, j)] = upper[j] || kept[j];
+        }
+    }
+    // A point that gives a tied key (or, for axis.y's frequency, its
+    // ratio) replaces the tie.
+    let mut point_ties = base.ties;
+    for (slot, tie) in point_ties.iter_mut().enumerate() {
+        let replaced = point.layer.entries[slot].is_some()
+            || (slot == axis_slot(1, FREQUENCY)
+                && point.layer.entries[axis_slot(1, FREQUENCY_RATIO)].is_some());
+        if replaced {
+            *tie = None;
+        }
+    }
+    let point_plan = Plan::build(&point_given, &point_ties, base.mode, base.friction);
+    let instance = point_plan.resolve(&point_raw);
+    check_instance(&instance, &point_plan).map_err(|(message, slot)| SceneError::Invalid {
+        message: format!("{}: {message}", point_name(index, &point.label)),
+        location: locate_slot(parser, slot, &[&point.layer, base.layer]),
+    })?;
+    Ok(instance)
+}
+
+/// The keys a point sets, in the order of the text ("axis.x.voltage =
+/// 100, ..."), or "the base" when it sets none.
+fn point_keys(point: &PointSpec) -> String {
+    let mut keys: Vec<(usize, String)> = point
+        .layer
+        .entries
+        .iter()
+        .enumerate()
+        .filter_map(|(slot, entry)| {
+            entry.as_ref().map(|entry| {
+                let value = fmt_short(entry.values.value(0));
+                (entry.span.start, format!("{} = {value}", slot_path(slot)))
+            })
+        })
+        .collect();
+    keys.sort();
+    let keys: Vec<String> = keys.into_iter().map(|(_, key)| key).collect();
+    if keys.is_empty() {
+        "the base".to_owned()
+    } else {
+        keys.join(", ")
+    }
+}
+
+/// A grid scene's layout: refined to its finest grid where `[refine]`
+/// says so, its size checked before any range is expanded, the grid's
+/// corners checked, then the axes expanded and the driven axes marked.
+fn grid_layout(
+    parser: &Parser,
+    keys: &BaseKeys,
+    refine: Option<&RefineSpec>,
+    mut grid: Vec<(usize, Entry)>,
+    scene: &mut Scene,
+) -> Result<(), SceneError> {
     // A refined scene is its finest grid from here on.
-    if let Some(spec) = &parsed.refine {
+    if let Some(spec) = refine {
         scene.refine = Some(parser.refine_grid(spec, &mut grid)?);
     }
 
@@ -250,11 +351,35 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
         MAP_MEMORY_BUDGET_BYTES,
     )?;
 
-    // Per-key checks covered every value; derived quantities and
-    // settle < cycles (or max_cycles) are monotone in each key, and the
-    // load's magnitude |L| is convex in the loads, its limit f_c monotone,
-    // so the corners of the grid over the keys involved cover every
-    // instance (a refused corner is a grid point, named by its values).
+    check_grid_corners(parser, keys, &scene.plan, &grid)?;
+
+    let axes: Vec<GridAxis> = grid
+        .iter()
+        .map(|(slot, entry)| GridAxis {
+            key: slot_path(*slot),
+            values: entry.values.expand(),
+            units: slot_field(*slot).units(),
+        })
+        .collect();
+    scene.grid_slots = grid.iter().map(|(slot, _)| *slot).collect();
+    scene.driven = grid_driven(&scene.plan, &scene.grid_slots, &axes, &keys.raw);
+    scene.layout = Layout::Grid { axes };
+    Ok(())
+}
+
+/// Checks the corners of the grid over the keys whose checks are monotone.
+///
+/// Per-key checks covered every value; derived quantities and settle <
+/// cycles (or max_cycles) are monotone in each key, and the load's
+/// magnitude |L| is convex in the loads, its limit f_c monotone, so the
+/// corners of the grid over the keys involved cover every instance (a
+/// refused corner is a grid point, named by its values).
+fn check_grid_corners(
+    parser: &Parser,
+    keys: &BaseKeys,
+    plan: &Plan,
+    grid: &[(usize, Entry)],
+) -> Result<(), SceneError> {
     let involved: Vec<(usize, f64, f64)> = grid
         .iter()
         .filter(|(slot, _)| {
@@ -281,40 +406,37 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
         })
         .collect();
     for corner in 0..1u64 << involved.len() {
-        let mut corner_raw = raw;
+        let mut corner_raw = keys.raw;
         for (bit, &(slot, lo, hi)) in involved.iter().enumerate() {
             corner_raw[slot] = if (corner >> bit) & 1 == 1 { hi } else { lo };
         }
         let instance = plan.resolve(&corner_raw);
-        check_instance(&instance, &plan).map_err(|(message, slot)| SceneError::Invalid {
+        check_instance(&instance, plan).map_err(|(message, slot)| SceneError::Invalid {
             message,
-            location: locate_slot(slot, &[base]),
+            location: locate_slot(parser, slot, &[keys.layer]),
         })?;
     }
+    Ok(())
+}
 
-    let axes: Vec<GridAxis> = grid
-        .iter()
-        .map(|(slot, entry)| GridAxis {
-            key: slot_path(*slot),
-            values: entry.values.expand(),
-            units: slot_field(*slot).units(),
-        })
-        .collect();
-    scene.grid_slots = grid.iter().map(|(slot, _)| *slot).collect();
-    for a in 0..AXES {
-        scene.driven[a] = match plan.axes[a].voltage {
-            Src::Const(v) => v != 0.0,
-            // Only a frequency is a ratio.
-            Src::Ratio { .. } => true,
-            Src::Slot(slot) => match scene.grid_slots.iter().position(|&s| s == slot) {
-                Some(g) => axes[g].values.iter().any(|&v| v != 0.0),
-                None => raw[slot] != 0.0,
-            },
-        };
-    }
-    scene.layout = Layout::Grid { axes };
-    scene.trajectories = parser.resolve_trajectories(&parsed.trajectories, &scene)?;
-    Ok(scene)
+/// Whether each axis of a grid scene is ever driven: a constant voltage
+/// other than 0, a ratio (only a frequency is one), or a voltage key with
+/// some value other than 0 on its grid axis or in the base.
+fn grid_driven(
+    plan: &Plan,
+    grid_slots: &[usize],
+    axes: &[GridAxis],
+    raw: &[f64; SLOTS],
+) -> [bool; AXES] {
+    std::array::from_fn(|a| match plan.axes[a].voltage {
+        Src::Const(v) => v != 0.0,
+        // Only a frequency is a ratio.
+        Src::Ratio { .. } => true,
+        Src::Slot(slot) => match grid_slots.iter().position(|&s| s == slot) {
+            Some(g) => axes[g].values.iter().any(|&v| v != 0.0),
+            None => raw[slot] != 0.0,
+        },
+    })
 }
 
 /// A `[random]` scene's instances as points: `count` random instances from

@@ -11,11 +11,23 @@ impl Scene {
     /// count, baselines, settings and the first instance's parameters.
     pub fn describe(&self) -> String {
         let mut out = String::new();
-        let count = self.instance_count();
         let _ = writeln!(out, "scene {:?}", self.name);
         if let Some(description) = &self.description {
             let _ = writeln!(out, "  {}", description.trim());
         }
+        self.write_layout(&mut out);
+        self.write_searches(&mut out);
+        self.write_settings(&mut out);
+        if self.instance_count() > 0 {
+            write_first_instance(&mut out, &self.instance(0));
+        }
+        out
+    }
+
+    /// The summary's layout: "single instance", the grid's axes and their
+    /// values, or the points with their labels and keys.
+    fn write_layout(&self, out: &mut String) {
+        let count = self.instance_count();
         match &self.layout {
             Layout::Grid { axes } if axes.is_empty() => {
                 let _ = writeln!(out, "single instance");
@@ -49,6 +61,11 @@ impl Scene {
                 }
             }
         }
+    }
+
+    /// The summary's lines on the adaptive refinement and the stall search,
+    /// where the scene has them.
+    fn write_searches(&self, out: &mut String) {
         if let Some(refine) = &self.refine {
             let _ = writeln!(
                 out,
@@ -71,6 +88,11 @@ impl Scene {
                 super::stall::BRACKET.len()
             );
         }
+    }
+
+    /// The summary's scene-wide settings: baselines, trajectories, the
+    /// integrator, replicas (steady scenes) and the size of the output maps.
+    fn write_settings(&self, out: &mut String) {
         let _ = writeln!(
             out,
             "baselines: {}",
@@ -108,62 +130,63 @@ impl Scene {
                 }
             );
         }
-        let bytes = count as u128 * self.bytes_per_instance() as u128;
+        let bytes = self.instance_count() as u128 * self.bytes_per_instance() as u128;
         let human = human_bytes(bytes as f64);
         if bytes < 1024 {
             let _ = writeln!(out, "output maps: {human}");
         } else {
             let _ = writeln!(out, "output maps: {human} ({bytes} bytes)");
         }
-        if count > 0 {
-            let first = self.instance(0);
-            let m = first.mechanism;
-            let _ = writeln!(out, "instance 0:");
-            // The load only where there is one: unloaded scenes read as
-            // they did before it existed.
-            let load = if m.load == [0.0; 2] {
-                String::new()
-            } else {
-                format!(
-                    ", load_x {} N, load_y {} N",
-                    fmt_short(m.load[0]),
-                    fmt_short(m.load[1])
-                )
-            };
-            // Karnopp's band, or LuGre's parameters (docs/model.md section 8).
-            let law = match m.lugre() {
-                None => format!("velocity_band {} m/s", fmt_short(m.velocity_band)),
-                Some(l) => format!("friction lugre: {}", lugre_parameters(l, m.slider_mass)),
-            };
-            let _ = writeln!(
-                out,
-                "  mechanism: slider_mass {} kg, static_friction {} N, coulomb_friction {} N, {law}{load}",
-                fmt_short(m.slider_mass),
-                fmt_short(m.static_friction),
-                fmt_short(m.coulomb_friction),
-            );
-            for (axis, name) in first.axes.iter().zip(AXIS_NAMES) {
-                let _ = writeln!(
-                    out,
-                    "  axis.{name}: stage_mass {} kg, stiffness {} N/m, damping {} N s/m \
-                     (resonance {:.4} Hz, Q {:.4}), gain {} N/V, voltage {} V, frequency {} Hz, \
-                     duty {}, phase {} cycles",
-                    fmt_short(axis.stage_mass),
-                    fmt_short(axis.stiffness),
-                    fmt_short(axis.damping),
-                    axis.resonance_hz(),
-                    axis.quality_factor(),
-                    fmt_short(axis.gain),
-                    fmt_short(axis.voltage),
-                    fmt_short(axis.frequency),
-                    fmt_short(axis.duty),
-                    fmt_short(axis.phase)
-                );
-            }
-            let _ = writeln!(out, "  simulation: {}", describe_measure(&first));
-        }
-        out
     }
+}
+
+/// The summary's "instance 0:" block: the mechanism (its load only where
+/// there is one), each axis and the measurement.
+fn write_first_instance(out: &mut String, first: &Instance) {
+    let m = first.mechanism;
+    let _ = writeln!(out, "instance 0:");
+    // The load only where there is one: unloaded scenes read as
+    // they did before it existed.
+    let load = if m.load == [0.0; 2] {
+        String::new()
+    } else {
+        format!(
+            ", load_x {} N, load_y {} N",
+            fmt_short(m.load[0]),
+            fmt_short(m.load[1])
+        )
+    };
+    // Karnopp's band, or LuGre's parameters (docs/model.md section 8).
+    let law = match m.lugre() {
+        None => format!("velocity_band {} m/s", fmt_short(m.velocity_band)),
+        Some(l) => format!("friction lugre: {}", lugre_parameters(l, m.slider_mass)),
+    };
+    let _ = writeln!(
+        out,
+        "  mechanism: slider_mass {} kg, static_friction {} N, coulomb_friction {} N, {law}{load}",
+        fmt_short(m.slider_mass),
+        fmt_short(m.static_friction),
+        fmt_short(m.coulomb_friction),
+    );
+    for (axis, name) in first.axes.iter().zip(AXIS_NAMES) {
+        let _ = writeln!(
+            out,
+            "  axis.{name}: stage_mass {} kg, stiffness {} N/m, damping {} N s/m \
+             (resonance {:.4} Hz, Q {:.4}), gain {} N/V, voltage {} V, frequency {} Hz, \
+             duty {}, phase {} cycles",
+            fmt_short(axis.stage_mass),
+            fmt_short(axis.stiffness),
+            fmt_short(axis.damping),
+            axis.resonance_hz(),
+            axis.quality_factor(),
+            fmt_short(axis.gain),
+            fmt_short(axis.voltage),
+            fmt_short(axis.frequency),
+            fmt_short(axis.duty),
+            fmt_short(axis.phase)
+        );
+    }
+    let _ = writeln!(out, "  simulation: {}", describe_measure(first));
 }
 
 /// How an instance is measured, for the summary: "window, cycles 10,

@@ -22,7 +22,7 @@ use toml::de::{DeTable, DeValue};
 use super::describe::describe_values;
 use super::format::{fmt_num, fmt_short};
 use super::parser::{Parser, Value, join};
-use super::{Layout, Scene, SceneError};
+use super::{GridAxis, Layout, Scene, SceneError};
 use crate::model::Measure;
 
 /// Default samples per scene period of a recorded trajectory. At Table 1's
@@ -178,37 +178,7 @@ impl Parser<'_> {
                 |message: String| self.invalid(at.span.clone(), format!("{path}: {message}"));
             let index = match (&at.spec, &scene.layout) {
                 (Spec::Label(label), Layout::Points { labels }) => {
-                    let hits: Vec<usize> = labels
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, l)| *l == label)
-                        .map(|(i, _)| i)
-                        .collect();
-                    match hits.as_slice() {
-                        [i] => *i as u64,
-                        [] => {
-                            let known: Vec<String> = labels
-                                .iter()
-                                .filter(|l| !l.is_empty())
-                                .map(|l| format!("{l:?}"))
-                                .collect();
-                            return Err(fail(if known.is_empty() {
-                                "expected the label of a point, but no point has a label; \
-                                 give the point's index instead"
-                                    .to_owned()
-                            } else {
-                                format!("expected the label of a point: {}", known.join(", "))
-                            }));
-                        }
-                        many => {
-                            return Err(fail(format!(
-                                "the label names {} points (indices {:?}); expected exactly one: \
-                                 give the index instead",
-                                many.len(),
-                                many
-                            )));
-                        }
-                    }
+                    label_index(label, labels).map_err(&fail)?
                 }
                 (Spec::Label(_), Layout::Grid { .. }) => {
                     return Err(fail(
@@ -234,46 +204,7 @@ impl Parser<'_> {
                     ));
                 }
                 (Spec::Coordinates(coordinates), Layout::Grid { axes }) => {
-                    let mut index = 0u64;
-                    for axis in axes {
-                        let Some(&(_, value)) =
-                            coordinates.iter().find(|(key, _)| *key == axis.key)
-                        else {
-                            return Err(fail(format!(
-                                "expected a value for every grid axis, but `{}` is missing",
-                                axis.key
-                            )));
-                        };
-                        let scale = axis.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-                        let Some(i) = axis
-                            .values
-                            .iter()
-                            .position(|v| (v - value).abs() <= 1e-9 * scale)
-                        else {
-                            return Err(fail(format!(
-                                "{} = {}: expected one of the axis' values, {}",
-                                axis.key,
-                                fmt_num(value),
-                                describe_values(&axis.values, axis.units)
-                            )));
-                        };
-                        index = index * axis.values.len() as u64 + i as u64;
-                    }
-                    if let Some((key, _)) = coordinates
-                        .iter()
-                        .find(|(key, _)| !axes.iter().any(|a| a.key == *key))
-                    {
-                        let keys: Vec<&str> = axes.iter().map(|a| a.key.as_str()).collect();
-                        return Err(fail(format!(
-                            "`{key}` is not a grid axis; expected the keys {}",
-                            if keys.is_empty() {
-                                "of no axis (a single-instance scene: use index 0)".to_owned()
-                            } else {
-                                keys.join(", ")
-                            }
-                        )));
-                    }
-                    index
+                    coordinates_index(coordinates, axes).map_err(&fail)?
                 }
             };
             if let Some(previous) = out.iter().position(|t| t.index == index) {
@@ -282,29 +213,113 @@ impl Parser<'_> {
                      instance once"
                 )));
             }
-            // A steady run may last its max_cycles: the bound holds for that.
-            let instance = scene.instance(index);
-            let cycles = instance.cycles as u64;
-            let samples = cycles * scene.trajectory_samples_per_cycle as u64;
-            if samples > MAX_TRAJECTORY_SAMPLES {
-                let (why, key) = match instance.measure {
-                    Measure::Window => ("", "simulation.cycles"),
-                    Measure::Steady { .. } => (
-                        " (a steady run may last its simulation.max_cycles periods)",
-                        "simulation.max_cycles",
-                    ),
-                };
-                return Err(fail(format!(
-                    "{} samples per cycle x {cycles} cycles = {samples} samples{why}: expected \
-                     at most {MAX_TRAJECTORY_SAMPLES} per trajectory; lower \
-                     output.trajectory_samples_per_cycle or {key}",
-                    scene.trajectory_samples_per_cycle
-                )));
-            }
+            check_samples(scene, index).map_err(&fail)?;
             out.push(trajectory_point(scene, index));
         }
         Ok(out)
     }
+}
+
+/// The index of the one point labelled `label`, or why there is none:
+/// no point has that label, or several have it.
+fn label_index(label: &str, labels: &[String]) -> Result<u64, String> {
+    let hits: Vec<usize> = labels
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| *l == label)
+        .map(|(i, _)| i)
+        .collect();
+    match hits.as_slice() {
+        [i] => Ok(*i as u64),
+        [] => {
+            let known: Vec<String> = labels
+                .iter()
+                .filter(|l| !l.is_empty())
+                .map(|l| format!("{l:?}"))
+                .collect();
+            Err(if known.is_empty() {
+                "expected the label of a point, but no point has a label; \
+                 give the point's index instead"
+                    .to_owned()
+            } else {
+                format!("expected the label of a point: {}", known.join(", "))
+            })
+        }
+        many => Err(format!(
+            "the label names {} points (indices {:?}); expected exactly one: \
+             give the index instead",
+            many.len(),
+            many
+        )),
+    }
+}
+
+/// The flat row-major index of the grid point at `coordinates`, or why
+/// there is none: an axis without a value, a value not on its axis, or a
+/// key that is no grid axis.
+fn coordinates_index(coordinates: &[(String, f64)], axes: &[GridAxis]) -> Result<u64, String> {
+    let mut index = 0u64;
+    for axis in axes {
+        let Some(&(_, value)) = coordinates.iter().find(|(key, _)| *key == axis.key) else {
+            return Err(format!(
+                "expected a value for every grid axis, but `{}` is missing",
+                axis.key
+            ));
+        };
+        let scale = axis.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let Some(i) = axis
+            .values
+            .iter()
+            .position(|v| (v - value).abs() <= 1e-9 * scale)
+        else {
+            return Err(format!(
+                "{} = {}: expected one of the axis' values, {}",
+                axis.key,
+                fmt_num(value),
+                describe_values(&axis.values, axis.units)
+            ));
+        };
+        index = index * axis.values.len() as u64 + i as u64;
+    }
+    if let Some((key, _)) = coordinates
+        .iter()
+        .find(|(key, _)| !axes.iter().any(|a| a.key == *key))
+    {
+        let keys: Vec<&str> = axes.iter().map(|a| a.key.as_str()).collect();
+        return Err(format!(
+            "`{key}` is not a grid axis; expected the keys {}",
+            if keys.is_empty() {
+                "of no axis (a single-instance scene: use index 0)".to_owned()
+            } else {
+                keys.join(", ")
+            }
+        ));
+    }
+    Ok(index)
+}
+
+/// Checks that instance `index`'s trajectory fits [`MAX_TRAJECTORY_SAMPLES`];
+/// a steady run may last its max_cycles, and the bound holds for that.
+fn check_samples(scene: &Scene, index: u64) -> Result<(), String> {
+    let instance = scene.instance(index);
+    let cycles = instance.cycles as u64;
+    let samples = cycles * scene.trajectory_samples_per_cycle as u64;
+    if samples > MAX_TRAJECTORY_SAMPLES {
+        let (why, key) = match instance.measure {
+            Measure::Window => ("", "simulation.cycles"),
+            Measure::Steady { .. } => (
+                " (a steady run may last its simulation.max_cycles periods)",
+                "simulation.max_cycles",
+            ),
+        };
+        return Err(format!(
+            "{} samples per cycle x {cycles} cycles = {samples} samples{why}: expected \
+             at most {MAX_TRAJECTORY_SAMPLES} per trajectory; lower \
+             output.trajectory_samples_per_cycle or {key}",
+            scene.trajectory_samples_per_cycle
+        ));
+    }
+    Ok(())
 }
 
 /// Names instance `index` of a scene.
