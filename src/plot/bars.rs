@@ -5,13 +5,33 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::canvas::{LEGEND_WIDTH, font, save, swatch, title_block};
+use super::canvas::{Area, LEGEND_WIDTH, font, save, swatch, title_block};
 use super::colour::{FAILED, X_COLOUR, Y_COLOUR, axis_colour, light};
 use super::read::Data;
 use super::text::short;
+use crate::model::motion::Motion;
+
+/// One bar of the chart.
+struct Bar {
+    /// The point's index.
+    point: usize,
+    /// The axis the step is along (0 = x).
+    axis: usize,
+    /// Whether the step is the 1-DOF baseline's.
+    baseline: bool,
+    /// The step [µm per own drive cycle].
+    value: f64,
+    /// Whether its run ended with status 0.
+    ok: bool,
+}
+
+/// The chart of the bars: points across, steps [µm per own drive cycle] up.
+type BarChart<'a, 'b> =
+    ChartContext<'a, BitMapBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// Writes the bar chart of a points scene (or of a single instance).
 pub(super) fn point_bars(
@@ -22,42 +42,15 @@ pub(super) fn point_bars(
 ) -> Result<()> {
     let n = labels.len();
     let base = data.baseline.as_ref();
-    // Bars per point: 2-DOF x, 1-DOF x, 2-DOF y, 1-DOF y (the 1-DOF ones
-    // only with baselines).
-    let mut bars: Vec<(usize, usize, bool, f64, bool)> = Vec::new();
-    for k in 0..n {
-        for a in 0..2 {
-            bars.push((k, a, false, data.step[a][k] * 1e6, data.status[k] == 0));
-            if let Some((b, bs)) = base {
-                bars.push((k, a, true, b[a][k] * 1e6, bs[k] == 0));
-            }
-        }
-    }
+    let bars = bars_of(data, n);
     let per = if base.is_some() { 4 } else { 2 };
-    let values: Vec<f64> = bars.iter().filter(|b| b.4).map(|b| b.3).collect();
+    let values: Vec<f64> = bars.iter().filter(|b| b.ok).map(|b| b.value).collect();
     let hi = values.iter().copied().fold(0.0f64, f64::max);
     let lo = values.iter().copied().fold(0.0f64, f64::min);
     let pad = 0.15 * (hi - lo).max(1e-6);
     let failed = (0..n).filter(|&k| data.status[k] != 0).count();
-    let mut title = vec![
-        format!(
-            "{}: slider step per own drive cycle at each point",
-            data.name
-        ),
-        "above zero: moves towards +x (+y); below zero: towards -x (-y)".to_owned(),
-    ];
-    if failed > 0 {
-        title.push(format!(
-            "{failed} points ended with a non-zero status: drawn as grey stubs, no value"
-        ));
-    }
     let motion = data.motion_shown();
-    if motion.is_some() {
-        title.push(
-            "under each label: the kind of motion the steady measurement found (/maps/motion)"
-                .to_owned(),
-        );
-    }
+    let title = bars_title(data, failed, motion.is_some());
     let width = (1100u32).max(220 * n as u32 + LEGEND_WIDTH + 120).min(4000);
     let path = dir.join("steps.png");
     save(&path, (width, 760), |root| {
@@ -82,86 +75,168 @@ pub(super) fn point_bars(
             BLACK.stroke_width(1),
         ))?;
         let slot = 0.8 / per as f64;
-        for (m, &(k, a, is_base, value, ok)) in bars.iter().enumerate() {
-            let j = m % per;
-            let x0 = k as f64 + 0.1 + slot * j as f64;
-            let x1 = x0 + slot * 0.9;
-            let colour = if !ok {
-                FAILED
-            } else if is_base {
-                light(axis_colour(a), 0.35)
-            } else {
-                axis_colour(a)
-            };
-            let v = if ok {
-                value
-            } else {
-                0.04 * (hi - lo).max(1e-6)
-            };
-            chart.draw_series(std::iter::once(Rectangle::new(
-                [(x0, 0.0), (x1, v)],
-                colour.filled(),
-            )))?;
-            if is_base {
-                chart.draw_series(std::iter::once(Rectangle::new(
-                    [(x0, 0.0), (x1, v)],
-                    axis_colour(a).stroke_width(1),
-                )))?;
-            }
-            if ok {
-                let (px, py) = chart.backend_coord(&(0.5 * (x0 + x1), value));
-                let (anchor, dy) = if value >= 0.0 {
-                    (VPos::Bottom, -3)
-                } else {
-                    (VPos::Top, 3)
-                };
-                root.draw_text(
-                    &format!("{value:.3}"),
-                    &font(12).pos(Pos::new(HPos::Center, anchor)),
-                    (px, py + dy),
-                )?;
-            }
+        let stub = 0.04 * (hi - lo).max(1e-6);
+        for (m, bar) in bars.iter().enumerate() {
+            draw_bar(root, &mut chart, bar, slot * (m % per) as f64, slot, stub)?;
         }
-        for (k, label) in labels.iter().enumerate() {
-            let (px, py) = chart.backend_coord(&(k as f64 + 0.5, lo - pad));
-            root.draw_text(
-                label,
-                &font(16).pos(Pos::new(HPos::Center, VPos::Top)),
-                (px, py + 8),
-            )?;
-            if let Some(motion) = motion {
-                root.draw_text(
-                    motion[k].name(),
-                    &font(14).pos(Pos::new(HPos::Center, VPos::Top)),
-                    (px, py + 28),
-                )?;
-            }
-        }
-        let mut items = vec![
-            (X_COLOUR, "2-DOF step along x".to_owned()),
-            (Y_COLOUR, "2-DOF step along y".to_owned()),
-        ];
-        if base.is_some() {
-            items.insert(
-                1,
-                (
-                    light(X_COLOUR, 0.35),
-                    "1-DOF along x (x driven alone)".to_owned(),
-                ),
-            );
-            items.push((
-                light(Y_COLOUR, 0.35),
-                "1-DOF along y (y driven alone)".to_owned(),
-            ));
-        }
-        if failed > 0 {
-            items.push((FAILED, "not computed (status ≠ 0)".to_owned()));
-        }
-        for (k, (c, text)) in items.iter().enumerate() {
-            swatch(&right, 0, 30 + 30 * k as i32, *c, text)?;
-        }
-        Ok(())
+        point_labels(root, &chart, labels, motion, lo - pad)?;
+        bars_legend(&right, base.is_some(), failed)
     })?;
     files.push(path);
+    Ok(())
+}
+
+/// The bars of the first `n` points, per point: 2-DOF x, 1-DOF x, 2-DOF
+/// y, 1-DOF y (the 1-DOF ones only with baselines).
+fn bars_of(data: &Data, n: usize) -> Vec<Bar> {
+    let mut bars = Vec::new();
+    for k in 0..n {
+        for a in 0..2 {
+            bars.push(Bar {
+                point: k,
+                axis: a,
+                baseline: false,
+                value: data.step[a][k] * 1e6,
+                ok: data.status[k] == 0,
+            });
+            if let Some((b, bs)) = &data.baseline {
+                bars.push(Bar {
+                    point: k,
+                    axis: a,
+                    baseline: true,
+                    value: b[a][k] * 1e6,
+                    ok: bs[k] == 0,
+                });
+            }
+        }
+    }
+    bars
+}
+
+/// The title lines of the bar chart, `failed` the number of points with
+/// a non-zero status, `motion` whether the kinds of motion are shown.
+fn bars_title(data: &Data, failed: usize, motion: bool) -> Vec<String> {
+    let mut title = vec![
+        format!(
+            "{}: slider step per own drive cycle at each point",
+            data.name
+        ),
+        "above zero: moves towards +x (+y); below zero: towards -x (-y)".to_owned(),
+    ];
+    if failed > 0 {
+        title.push(format!(
+            "{failed} points ended with a non-zero status: drawn as grey stubs, no value"
+        ));
+    }
+    if motion {
+        title.push(
+            "under each label: the kind of motion the steady measurement found (/maps/motion)"
+                .to_owned(),
+        );
+    }
+    title
+}
+
+/// Draws `bar` in `chart`, `offset` right of its point's slot start and
+/// `slot` wide (both in points), with its value written over (or under)
+/// it on `root`; a failed run's bar is a grey stub `stub` high [µm].
+fn draw_bar(
+    root: &Area<'_>,
+    chart: &mut BarChart<'_, '_>,
+    bar: &Bar,
+    offset: f64,
+    slot: f64,
+    stub: f64,
+) -> Result<()> {
+    let (a, value, ok) = (bar.axis, bar.value, bar.ok);
+    let x0 = bar.point as f64 + 0.1 + offset;
+    let x1 = x0 + slot * 0.9;
+    let colour = if !ok {
+        FAILED
+    } else if bar.baseline {
+        light(axis_colour(a), 0.35)
+    } else {
+        axis_colour(a)
+    };
+    let v = if ok { value } else { stub };
+    chart.draw_series(std::iter::once(Rectangle::new(
+        [(x0, 0.0), (x1, v)],
+        colour.filled(),
+    )))?;
+    if bar.baseline {
+        chart.draw_series(std::iter::once(Rectangle::new(
+            [(x0, 0.0), (x1, v)],
+            axis_colour(a).stroke_width(1),
+        )))?;
+    }
+    if ok {
+        let (px, py) = chart.backend_coord(&(0.5 * (x0 + x1), value));
+        let (anchor, dy) = if value >= 0.0 {
+            (VPos::Bottom, -3)
+        } else {
+            (VPos::Top, 3)
+        };
+        root.draw_text(
+            &format!("{value:.3}"),
+            &font(12).pos(Pos::new(HPos::Center, anchor)),
+            (px, py + dy),
+        )?;
+    }
+    Ok(())
+}
+
+/// Writes each point's label on `root` under the chart's bottom `bottom`
+/// [µm], and under it the point's kind of motion when `motion` is given.
+fn point_labels(
+    root: &Area<'_>,
+    chart: &BarChart<'_, '_>,
+    labels: &[String],
+    motion: Option<&[Motion]>,
+    bottom: f64,
+) -> Result<()> {
+    for (k, label) in labels.iter().enumerate() {
+        let (px, py) = chart.backend_coord(&(k as f64 + 0.5, bottom));
+        root.draw_text(
+            label,
+            &font(16).pos(Pos::new(HPos::Center, VPos::Top)),
+            (px, py + 8),
+        )?;
+        if let Some(motion) = motion {
+            root.draw_text(
+                motion[k].name(),
+                &font(14).pos(Pos::new(HPos::Center, VPos::Top)),
+                (px, py + 28),
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// Draws the legend swatches on `right`: the 2-DOF bars, the 1-DOF ones
+/// with `baselines`, and the failed stubs when `failed` is above 0.
+fn bars_legend(right: &Area<'_>, baselines: bool, failed: usize) -> Result<()> {
+    let mut items = vec![
+        (X_COLOUR, "2-DOF step along x".to_owned()),
+        (Y_COLOUR, "2-DOF step along y".to_owned()),
+    ];
+    if baselines {
+        items.insert(
+            1,
+            (
+                light(X_COLOUR, 0.35),
+                "1-DOF along x (x driven alone)".to_owned(),
+            ),
+        );
+        items.push((
+            light(Y_COLOUR, 0.35),
+            "1-DOF along y (y driven alone)".to_owned(),
+        ));
+    }
+    if failed > 0 {
+        items.push((FAILED, "not computed (status ≠ 0)".to_owned()));
+    }
+    for (k, (c, text)) in items.iter().enumerate() {
+        swatch(right, 0, 30 + 30 * k as i32, *c, text)?;
+    }
     Ok(())
 }

@@ -149,6 +149,29 @@ pub(super) fn grid_lines(
     dir: &Path,
     files: &mut Vec<PathBuf>,
 ) -> Result<()> {
+    let path = dir.join("steps.png");
+    step_lines(data, axis).draw(&path)?;
+    files.push(path);
+
+    if let Some(motion) = data.motion_shown() {
+        let path = dir.join("motion.png");
+        super::motion::motion_strip(&path, data, motion, axis)?;
+        files.push(path);
+    }
+
+    let Some((base, bstatus)) = &data.baseline else {
+        return Ok(());
+    };
+    let path = dir.join("ratio.png");
+    ratio_lines(data, axis, base, bstatus).draw(&path)?;
+    files.push(path);
+    Ok(())
+}
+
+/// The chart of the 2-DOF steps [µm per own drive cycle] against the grid
+/// `axis` (and the 1-DOF ones, dashed, when stored), failed instances
+/// marked on the zero line.
+fn step_lines<'a>(data: &Data, axis: &'a AxisData) -> LineChart<'a> {
     let n = axis.values.len();
     let failed: Vec<usize> = (0..n).filter(|&k| data.status[k] != 0).collect();
     let mut series = Vec::new();
@@ -174,7 +197,6 @@ pub(super) fn grid_lines(
             });
         }
     }
-    let path = dir.join("steps.png");
     LineChart {
         title: vec![
             format!(
@@ -200,18 +222,18 @@ pub(super) fn grid_lines(
             )]
         },
     }
-    .draw(&path)?;
-    files.push(path);
+}
 
-    if let Some(motion) = data.motion_shown() {
-        let path = dir.join("motion.png");
-        super::motion::motion_strip(&path, data, motion, axis)?;
-        files.push(path);
-    }
-
-    let Some((base, bstatus)) = &data.baseline else {
-        return Ok(());
-    };
+/// The chart of the 2-DOF step over the 1-DOF step (`base`, its status
+/// `bstatus`) against the grid `axis`, each value dotted in its regime's
+/// colour; values whose 1-DOF step is below [`ZERO_STEP_M`] are left out.
+fn ratio_lines<'a>(
+    data: &Data,
+    axis: &'a AxisData,
+    base: &[Vec<f64>; 2],
+    bstatus: &[u32],
+) -> LineChart<'a> {
+    let n = axis.values.len();
     let ok = |k: usize| data.status[k] == 0 && bstatus[k] == 0;
     let mut series = Vec::new();
     let mut markers = Vec::new();
@@ -241,7 +263,6 @@ pub(super) fn grid_lines(
                 .collect(),
         });
     }
-    let path = dir.join("ratio.png");
     LineChart {
         title: vec![
             format!(
@@ -264,9 +285,6 @@ pub(super) fn grid_lines(
             .map(|r| (r.colour(), r.describe().to_owned()))
             .collect(),
     }
-    .draw(&path)?;
-    files.push(path);
-    Ok(())
 }
 
 /// The most values of the short axis of a two-axis grid drawn as a family

@@ -14,6 +14,7 @@ use super::regime::{Regime, ZERO_STEP_M};
 use super::text::{short, with_unit};
 use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use crate::model::AXIS_NAMES;
+use crate::model::motion::Motion;
 
 /// How a grid's maps are sliced: the dimensions across and up, and for
 /// every other dimension the indices drawn (all, or the one `--at` holds).
@@ -274,66 +275,83 @@ pub(super) fn grid_maps(
     files: &mut Vec<PathBuf>,
     notes: &mut Vec<String>,
 ) -> Result<()> {
-    let shape = &data.shape;
-    let (p, q) = (plane.across, plane.up);
-    let rest: Vec<usize> = plane.rest.iter().map(|(d, _)| *d).collect();
-    let rest_shape: Vec<usize> = plane.rest.iter().map(|(_, ix)| ix.len()).collect();
-    let mut strides = vec![1; shape.len()];
-    for d in (0..shape.len().saturating_sub(1)).rev() {
-        strides[d] = strides[d + 1] * shape[d + 1];
-    }
-    let (combos, total) = slices(&rest_shape);
-    if combos.len() < total {
+    let drawn = plane_slices(data, axes, plane);
+    let total: usize = plane.rest.iter().map(|(_, ix)| ix.len()).product();
+    if drawn.len() < total {
         notes.push(format!(
             "{total} slices over {} per map; drew {} evenly spaced ones",
-            rest.iter()
-                .map(|&d| axes[d].key.as_str())
+            plane
+                .rest
+                .iter()
+                .map(|&(d, _)| axes[d].key.as_str())
                 .collect::<Vec<_>>()
                 .join(" x "),
-            combos.len()
+            drawn.len()
         ));
     }
-    // Indices into each dimension's drawn values, to indices of its values.
-    let combos: Vec<Vec<usize>> = combos
-        .into_iter()
-        .map(|combo| {
-            combo
-                .iter()
-                .zip(&plane.rest)
-                .map(|(&k, (_, ix))| ix[k])
-                .collect()
-        })
-        .collect();
-    let (n0, n1) = (shape[p], shape[q]);
-    let (across, up) = (&axes[p], &axes[q]);
-    for combo in &combos {
-        let offset: usize = combo.iter().zip(&rest).map(|(&i, &d)| i * strides[d]).sum();
-        let flat = |i: usize, j: usize| i * strides[p] + j * strides[q] + offset;
-        let at: Vec<String> = combo
-            .iter()
-            .zip(&rest)
-            .map(|(&i, &d)| {
-                format!(
-                    "{} = {}",
-                    axes[d].key,
-                    with_unit(axes[d].values[i], &axes[d].units)
-                )
-            })
-            .collect();
-        let suffix: String = combo
-            .iter()
-            .zip(&rest)
-            .map(|(&i, &d)| format!("__{}={}", axes[d].key, short(axes[d].values[i])))
-            .collect();
-        let slice_line = if at.is_empty() {
-            None
-        } else {
-            Some(format!("slice at {}", at.join(", ")))
-        };
-        let cells: Vec<usize> = (0..n0)
-            .flat_map(|i| (0..n1).map(move |j| (i, j)))
-            .map(|(i, j)| flat(i, j))
-            .collect();
+    let (across, up) = (&axes[plane.across], &axes[plane.up]);
+    for slice in &drawn {
+        let maps = SliceMaps::new(data, across, up, dir, slice);
+        for axis in 0..2 {
+            files.push(maps.step_map(axis)?);
+            files.extend(maps.step_error_map(axis)?);
+            let Some((base, base_status)) = &data.baseline else {
+                continue;
+            };
+            let one_dof = OneDof {
+                step: &base[axis],
+                status: base_status,
+            };
+            files.push(maps.ratio_map(axis, one_dof)?);
+            files.push(maps.regime_map(axis, one_dof)?);
+        }
+        if let Some(motion) = data.motion_shown() {
+            files.push(maps.motion_map(motion)?);
+        }
+    }
+    Ok(())
+}
+
+/// The 1-DOF baseline of one axis: its steps [m per own drive cycle] and
+/// its status, row-major like the maps.
+#[derive(Clone, Copy)]
+struct OneDof<'a> {
+    step: &'a [f64],
+    status: &'a [u32],
+}
+
+/// The maps of one 2-D slice of a grid, with what every title says about
+/// the slice's instances that have no value to draw.
+struct SliceMaps<'a> {
+    data: &'a Data,
+    across: &'a AxisData,
+    up: &'a AxisData,
+    /// The folder the pictures are written to.
+    dir: &'a Path,
+    slice: &'a Slice,
+    /// The slice's instances: every value up for the first value across,
+    /// then for the next.
+    cells: Vec<usize>,
+    /// How many of `cells` ended with a non-zero status other than 6.
+    failed: usize,
+    /// How many of `cells` ended with status 6 (not steady).
+    unsteady: usize,
+    failed_line: Option<String>,
+    unsteady_line: Option<String>,
+    inferred_line: Option<String>,
+}
+
+impl<'a> SliceMaps<'a> {
+    /// The maps of `slice`, `across` and `up` the axes spanning it, to be
+    /// written into `dir`.
+    fn new(
+        data: &'a Data,
+        across: &'a AxisData,
+        up: &'a AxisData,
+        dir: &'a Path,
+        slice: &'a Slice,
+    ) -> Self {
+        let cells: Vec<usize> = slice.flat.iter().flatten().copied().collect();
         let unsteady = cells
             .iter()
             .filter(|&&k| data.status[k] == STATUS_NOT_STEADY)
@@ -362,250 +380,327 @@ pub(super) fn grid_maps(
                 cells.len()
             )
         });
-        for axis in 0..2 {
-            let steps_um: Vec<f64> = cells
-                .iter()
-                .filter(|&&k| data.status[k] == 0)
-                .map(|&k| data.step[axis][k] * 1e6)
-                .collect();
-            let scale = Diverging::covering(steps_um, 0.0, ZERO_STEP_M * 1e6, f64::INFINITY);
-            let mut title = vec![
-                format!(
-                    "{}: slider step along {} (2-DOF) [{}]",
-                    data.name,
+        SliceMaps {
+            data,
+            across,
+            up,
+            dir,
+            slice,
+            cells,
+            failed,
+            unsteady,
+            failed_line,
+            unsteady_line,
+            inferred_line,
+        }
+    }
+
+    /// The instance at value `i` across and value `j` up.
+    fn flat(&self, i: usize, j: usize) -> usize {
+        self.slice.flat[i][j]
+    }
+
+    /// Whether instance `k`'s value was inferred by a refinement.
+    fn inferred(&self, k: usize) -> bool {
+        self.data.inferred.as_ref().is_some_and(|m| m[k] == 1)
+    }
+
+    /// The path of the picture `name` (without the slice's suffix).
+    fn path(&self, name: &str) -> PathBuf {
+        self.dir.join(format!("{name}{}.png", self.slice.suffix))
+    }
+
+    /// Draws the step map along `axis` (0 = x) [µm per own drive cycle],
+    /// with its zero-step contour; returns its path.
+    fn step_map(&self, axis: usize) -> Result<PathBuf> {
+        let data = self.data;
+        let steps_um: Vec<f64> = self
+            .cells
+            .iter()
+            .filter(|&&k| data.status[k] == 0)
+            .map(|&k| data.step[axis][k] * 1e6)
+            .collect();
+        let scale = Diverging::covering(steps_um, 0.0, ZERO_STEP_M * 1e6, f64::INFINITY);
+        let mut title = vec![
+            format!(
+                "{}: slider step along {} (2-DOF) [{}]",
+                data.name,
+                AXIS_NAMES[axis],
+                per_cycle(axis)
+            ),
+            format!(
+                "red: moves towards +{a}, blue: towards -{a}, white: no motion; symmetric \
+                 colour limits ±{} µm",
+                short(scale.half_width),
+                a = AXIS_NAMES[axis]
+            ),
+            "black lines: the zero-step contour, where the step changes sign or stops \
+             (below 0.001 µm)"
+                .to_owned(),
+        ];
+        title.extend(self.slice.line.clone());
+        title.extend(data.fixed.clone());
+        title.extend(self.failed_line.clone());
+        title.extend(self.unsteady_line.clone());
+        title.extend(self.inferred_line.clone());
+        let path = self.path(&format!("step_{}", AXIS_NAMES[axis]));
+        let mut swatches = Vec::new();
+        if self.failed > 0 {
+            swatches.push((FAILED, "not computed (status ≠ 0, 6)".to_owned()));
+        }
+        if self.unsteady > 0 {
+            swatches.push((NOT_STEADY, "not steady (status 6)".to_owned()));
+        }
+        super::heatmap::heatmap_contoured(
+            &path,
+            &title,
+            self.across,
+            self.up,
+            &|i, j| {
+                let k = self.flat(i, j);
+                match data.status[k] {
+                    0 if self.inferred(k) => paler(scale.colour(data.step[axis][k] * 1e6)),
+                    0 => scale.colour(data.step[axis][k] * 1e6),
+                    STATUS_NOT_STEADY => NOT_STEADY,
+                    _ => FAILED,
+                }
+            },
+            &MapLegend::Bar {
+                scale,
+                title: format!("step along {} [{}]", AXIS_NAMES[axis], per_cycle(axis)),
+                swatches,
+            },
+            Some(&|i, j| {
+                let k = self.flat(i, j);
+                (data.status[k] == 0).then(|| {
+                    let step = data.step[axis][k];
+                    if step.abs() < ZERO_STEP_M {
+                        0
+                    } else {
+                        step.signum() as i8
+                    }
+                })
+            }),
+        )?;
+        Ok(path)
+    }
+
+    /// Draws the map of the step's standard error along `axis` [µm per own
+    /// drive cycle] when the file has the errors and one is above 0;
+    /// returns its path, `None` when nothing was drawn.
+    fn step_error_map(&self, axis: usize) -> Result<Option<PathBuf>> {
+        let data = self.data;
+        let Some(se) = &data.step_se else {
+            return Ok(None);
+        };
+        // Status 6 ("not steady") keeps its estimate's error too.
+        let shown = |k: usize| data.status[k] == 0 || data.status[k] == STATUS_NOT_STEADY;
+        let errors_um: Vec<f64> = self
+            .cells
+            .iter()
+            .filter(|&&k| shown(k))
+            .map(|&k| se[axis][k] * 1e6)
+            .collect();
+        if !errors_um.iter().any(|&e| e > 0.0) {
+            return Ok(None);
+        }
+        let escale = Diverging::covering(errors_um, 0.0, 1e-3, f64::INFINITY);
+        let hidden = self.cells.iter().filter(|&&k| !shown(k)).count();
+        let mut title = vec![
+            format!(
+                "{}: standard error of the step along {} [{}]",
+                data.name,
+                AXIS_NAMES[axis],
+                per_cycle(axis)
+            ),
+            format!(
+                "white: exact (the motion repeats); red: the statistical error of a \
+                 motion that does not; colour limit {} µm",
+                short(escale.half_width)
+            ),
+        ];
+        title.extend(self.slice.line.clone());
+        if hidden > 0 {
+            title.push(format!(
+                "grey: {hidden} of {} instances failed (see /maps/status)",
+                self.cells.len()
+            ));
+        }
+        let path = self.path(&format!("step_{}_se", AXIS_NAMES[axis]));
+        let mut swatches = Vec::new();
+        if hidden > 0 {
+            swatches.push((FAILED, "failed (status ≠ 0, 6)".to_owned()));
+        }
+        heatmap(
+            &path,
+            &title,
+            self.across,
+            self.up,
+            &|i, j| {
+                let k = self.flat(i, j);
+                if shown(k) {
+                    escale.colour(se[axis][k] * 1e6)
+                } else {
+                    FAILED
+                }
+            },
+            &MapLegend::Bar {
+                scale: escale,
+                title: format!(
+                    "standard error along {} [{}]",
                     AXIS_NAMES[axis],
                     per_cycle(axis)
                 ),
-                format!(
-                    "red: moves towards +{a}, blue: towards -{a}, white: no motion; symmetric \
-                     colour limits ±{} µm",
-                    short(scale.half_width),
-                    a = AXIS_NAMES[axis]
-                ),
-                "black lines: the zero-step contour, where the step changes sign or stops \
-                 (below 0.001 µm)"
-                    .to_owned(),
-            ];
-            title.extend(slice_line.clone());
-            title.extend(data.fixed.clone());
-            title.extend(failed_line.clone());
-            title.extend(unsteady_line.clone());
-            title.extend(inferred_line.clone());
-            let path = dir.join(format!("step_{}{suffix}.png", AXIS_NAMES[axis]));
-            let mut swatches = Vec::new();
-            if failed > 0 {
-                swatches.push((FAILED, "not computed (status ≠ 0, 6)".to_owned()));
-            }
-            if unsteady > 0 {
-                swatches.push((NOT_STEADY, "not steady (status 6)".to_owned()));
-            }
-            super::heatmap::heatmap_contoured(
-                &path,
-                &title,
-                across,
-                up,
-                &|i, j| {
-                    let k = flat(i, j);
-                    match data.status[k] {
-                        0 if inferred(k) => paler(scale.colour(data.step[axis][k] * 1e6)),
-                        0 => scale.colour(data.step[axis][k] * 1e6),
-                        STATUS_NOT_STEADY => NOT_STEADY,
-                        _ => FAILED,
-                    }
-                },
-                &MapLegend::Bar {
-                    scale,
-                    title: format!("step along {} [{}]", AXIS_NAMES[axis], per_cycle(axis)),
-                    swatches,
-                },
-                Some(&|i, j| {
-                    let k = flat(i, j);
-                    (data.status[k] == 0).then(|| {
-                        let step = data.step[axis][k];
-                        if step.abs() < ZERO_STEP_M {
-                            0
-                        } else {
-                            step.signum() as i8
-                        }
-                    })
-                }),
-            )?;
-            files.push(path);
+                swatches,
+            },
+        )?;
+        Ok(Some(path))
+    }
 
-            if let Some(se) = &data.step_se {
-                // Status 6 ("not steady") keeps its estimate's error too.
-                let shown = |k: usize| data.status[k] == 0 || data.status[k] == STATUS_NOT_STEADY;
-                let errors_um: Vec<f64> = cells
-                    .iter()
-                    .filter(|&&k| shown(k))
-                    .map(|&k| se[axis][k] * 1e6)
-                    .collect();
-                if errors_um.iter().any(|&e| e > 0.0) {
-                    let escale = Diverging::covering(errors_um, 0.0, 1e-3, f64::INFINITY);
-                    let hidden = cells.iter().filter(|&&k| !shown(k)).count();
-                    let mut title = vec![
-                        format!(
-                            "{}: standard error of the step along {} [{}]",
-                            data.name,
-                            AXIS_NAMES[axis],
-                            per_cycle(axis)
-                        ),
-                        format!(
-                            "white: exact (the motion repeats); red: the statistical error of a \
-                             motion that does not; colour limit {} µm",
-                            short(escale.half_width)
-                        ),
-                    ];
-                    title.extend(slice_line.clone());
-                    if hidden > 0 {
-                        title.push(format!(
-                            "grey: {hidden} of {} instances failed (see /maps/status)",
-                            cells.len()
-                        ));
-                    }
-                    let path = dir.join(format!("step_{}_se{suffix}.png", AXIS_NAMES[axis]));
-                    let mut swatches = Vec::new();
-                    if hidden > 0 {
-                        swatches.push((FAILED, "failed (status ≠ 0, 6)".to_owned()));
-                    }
-                    heatmap(
-                        &path,
-                        &title,
-                        across,
-                        up,
-                        &|i, j| {
-                            let k = flat(i, j);
-                            if shown(k) {
-                                escale.colour(se[axis][k] * 1e6)
-                            } else {
-                                FAILED
-                            }
-                        },
-                        &MapLegend::Bar {
-                            scale: escale,
-                            title: format!(
-                                "standard error along {} [{}]",
-                                AXIS_NAMES[axis],
-                                per_cycle(axis)
-                            ),
-                            swatches,
-                        },
-                    )?;
-                    files.push(path);
-                }
-            }
+    /// Whether instance `k` and its 1-DOF baseline both ended with status 0.
+    fn both_ok(&self, one_dof: OneDof, k: usize) -> bool {
+        self.data.status[k] == 0 && one_dof.status[k] == 0
+    }
 
-            let Some((base, base_status)) = &data.baseline else {
-                continue;
-            };
-            let ok = |k: usize| data.status[k] == 0 && base_status[k] == 0;
-            let ratio = |k: usize| {
-                let one = base[axis][k];
-                if ok(k) && one.abs() >= ZERO_STEP_M {
-                    Some(data.step[axis][k] / one)
-                } else {
-                    None
-                }
-            };
-            let ratios: Vec<f64> = cells.iter().filter_map(|&k| ratio(k)).collect();
-            let rscale = Diverging::covering(ratios.iter().copied(), 1.0, 0.25, RATIO_HALF_WIDTH);
-            let other = AXIS_NAMES[1 - axis];
-            let a = AXIS_NAMES[axis];
-            let mut title = vec![
-                format!(
-                    "{}: 2-DOF step / 1-DOF step along {a} (the effect of driving {other} too)",
-                    data.name
-                ),
-                format!(
-                    "1-DOF: {a} driven alone at the same settings. White = 1 (unchanged), red > 1 \
-                     amplified, blue < 1 reduced, below 0 reversed"
-                ),
-                format!(
-                    "colour limits {} to {}{}",
-                    short(rscale.limits().0),
-                    short(rscale.limits().1),
-                    if ratios.iter().any(|r| (r - 1.0).abs() > rscale.half_width) {
-                        " (values beyond are drawn at the ends)"
-                    } else {
-                        ""
-                    }
-                ),
-            ];
-            title.extend(slice_line.clone());
-            title.extend(data.fixed.clone());
-            let path = dir.join(format!("ratio_{a}{suffix}.png"));
-            let mut swatches = vec![(UNDEFINED, "1-DOF step < 0.001 µm: no ratio".to_owned())];
-            if cells.iter().any(|&k| !ok(k)) {
-                swatches.push((FAILED, "not computed (status ≠ 0)".to_owned()));
-            }
-            heatmap(
-                &path,
-                &title,
-                across,
-                up,
-                &|i, j| {
-                    let k = flat(i, j);
-                    match ratio(k) {
-                        Some(r) => rscale.colour(r),
-                        None if ok(k) => UNDEFINED,
-                        None => FAILED,
-                    }
-                },
-                &MapLegend::Bar {
-                    scale: rscale,
-                    title: format!("2-DOF step / 1-DOF step along {a}"),
-                    swatches,
-                },
-            )?;
-            files.push(path);
-
-            let regime = |k: usize| Regime::classify(data.step[axis][k], base[axis][k], ok(k));
-            let mut counts = [0usize; Regime::ALL.len()];
-            for &k in &cells {
-                if let Some(r) = Regime::ALL.iter().position(|&r| r == regime(k)) {
-                    counts[r] += 1;
-                }
-            }
-            let items: Vec<(RGBColor, String)> = Regime::ALL
-                .iter()
-                .zip(counts)
-                .filter(|(_, n)| *n > 0)
-                .map(|(r, n)| (r.colour(), format!("{} ({n})", r.describe())))
-                .collect();
-            let mut title = vec![
-                format!(
-                    "{}: how driving {other} changes the motion along {a}",
-                    data.name
-                ),
-                format!(
-                    "each cell compares the 2-DOF step along {a} with the 1-DOF step ({a} driven \
-                     alone);"
-                ),
-                "a step below 0.001 µm counts as no motion. Counts of instances in brackets."
-                    .to_owned(),
-            ];
-            title.extend(slice_line.clone());
-            title.extend(data.fixed.clone());
-            let path = dir.join(format!("regime_{a}{suffix}.png"));
-            heatmap(
-                &path,
-                &title,
-                across,
-                up,
-                &|i, j| regime(flat(i, j)).colour(),
-                &MapLegend::Categories(items),
-            )?;
-            files.push(path);
-        }
-        if let Some(motion) = data.motion_shown() {
-            let mut extra: Vec<String> = slice_line.iter().cloned().collect();
-            extra.extend(data.fixed.clone());
-            let path = dir.join(format!("motion{suffix}.png"));
-            super::motion::motion_map(&path, data, motion, across, up, &flat, &cells, &extra)?;
-            files.push(path);
+    /// The 2-DOF step along `axis` over the 1-DOF step of instance `k`,
+    /// `None` where either failed or the 1-DOF step is below
+    /// [`ZERO_STEP_M`].
+    fn ratio(&self, axis: usize, one_dof: OneDof, k: usize) -> Option<f64> {
+        let one = one_dof.step[k];
+        if self.both_ok(one_dof, k) && one.abs() >= ZERO_STEP_M {
+            Some(self.data.step[axis][k] / one)
+        } else {
+            None
         }
     }
-    Ok(())
+
+    /// Draws the map of the 2-DOF step over the 1-DOF step along `axis`;
+    /// returns its path.
+    fn ratio_map(&self, axis: usize, one_dof: OneDof) -> Result<PathBuf> {
+        let data = self.data;
+        let ratio = |k: usize| self.ratio(axis, one_dof, k);
+        let ratios: Vec<f64> = self.cells.iter().filter_map(|&k| ratio(k)).collect();
+        let rscale = Diverging::covering(ratios.iter().copied(), 1.0, 0.25, RATIO_HALF_WIDTH);
+        let other = AXIS_NAMES[1 - axis];
+        let a = AXIS_NAMES[axis];
+        let mut title = vec![
+            format!(
+                "{}: 2-DOF step / 1-DOF step along {a} (the effect of driving {other} too)",
+                data.name
+            ),
+            format!(
+                "1-DOF: {a} driven alone at the same settings. White = 1 (unchanged), red > 1 \
+                 amplified, blue < 1 reduced, below 0 reversed"
+            ),
+            format!(
+                "colour limits {} to {}{}",
+                short(rscale.limits().0),
+                short(rscale.limits().1),
+                if ratios.iter().any(|r| (r - 1.0).abs() > rscale.half_width) {
+                    " (values beyond are drawn at the ends)"
+                } else {
+                    ""
+                }
+            ),
+        ];
+        title.extend(self.slice.line.clone());
+        title.extend(data.fixed.clone());
+        let path = self.path(&format!("ratio_{a}"));
+        let mut swatches = vec![(UNDEFINED, "1-DOF step < 0.001 µm: no ratio".to_owned())];
+        if self.cells.iter().any(|&k| !self.both_ok(one_dof, k)) {
+            swatches.push((FAILED, "not computed (status ≠ 0)".to_owned()));
+        }
+        heatmap(
+            &path,
+            &title,
+            self.across,
+            self.up,
+            &|i, j| {
+                let k = self.flat(i, j);
+                match ratio(k) {
+                    Some(r) => rscale.colour(r),
+                    None if self.both_ok(one_dof, k) => UNDEFINED,
+                    None => FAILED,
+                }
+            },
+            &MapLegend::Bar {
+                scale: rscale,
+                title: format!("2-DOF step / 1-DOF step along {a}"),
+                swatches,
+            },
+        )?;
+        Ok(path)
+    }
+
+    /// Draws the map of how driving the other axis changes the motion
+    /// along `axis` ([`Regime`]); returns its path.
+    fn regime_map(&self, axis: usize, one_dof: OneDof) -> Result<PathBuf> {
+        let data = self.data;
+        let regime = |k: usize| {
+            Regime::classify(
+                data.step[axis][k],
+                one_dof.step[k],
+                self.both_ok(one_dof, k),
+            )
+        };
+        let mut counts = [0usize; Regime::ALL.len()];
+        for &k in &self.cells {
+            if let Some(r) = Regime::ALL.iter().position(|&r| r == regime(k)) {
+                counts[r] += 1;
+            }
+        }
+        let items: Vec<(RGBColor, String)> = Regime::ALL
+            .iter()
+            .zip(counts)
+            .filter(|(_, n)| *n > 0)
+            .map(|(r, n)| (r.colour(), format!("{} ({n})", r.describe())))
+            .collect();
+        let other = AXIS_NAMES[1 - axis];
+        let a = AXIS_NAMES[axis];
+        let mut title = vec![
+            format!(
+                "{}: how driving {other} changes the motion along {a}",
+                data.name
+            ),
+            format!(
+                "each cell compares the 2-DOF step along {a} with the 1-DOF step ({a} driven \
+                 alone);"
+            ),
+            "a step below 0.001 µm counts as no motion. Counts of instances in brackets."
+                .to_owned(),
+        ];
+        title.extend(self.slice.line.clone());
+        title.extend(data.fixed.clone());
+        let path = self.path(&format!("regime_{a}"));
+        heatmap(
+            &path,
+            &title,
+            self.across,
+            self.up,
+            &|i, j| regime(self.flat(i, j)).colour(),
+            &MapLegend::Categories(items),
+        )?;
+        Ok(path)
+    }
+
+    /// Draws the map of the kinds of motion `motion` (one per instance);
+    /// returns its path.
+    fn motion_map(&self, motion: &[Motion]) -> Result<PathBuf> {
+        let mut extra: Vec<String> = self.slice.line.iter().cloned().collect();
+        extra.extend(self.data.fixed.clone());
+        let path = self.path("motion");
+        super::motion::motion_map(
+            &path,
+            self.data,
+            motion,
+            self.across,
+            self.up,
+            &|i, j| self.flat(i, j),
+            &self.cells,
+            &extra,
+        )?;
+        Ok(path)
+    }
 }
 
 /// Ratio colour scales reach at most this far from 1.

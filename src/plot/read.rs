@@ -115,85 +115,12 @@ impl Data {
         file.group(schema::MAPS)?;
         let (step, status) = read_maps(&file, schema::STEP, schema::STATUS, None, &mut notes)?;
         let shape = step[0].shape.clone();
-        let baseline = if file.exists(schema::BASELINE) {
-            file.group(schema::BASELINE)?;
-            let (b, s) = read_maps(
-                &file,
-                schema::BASELINE_STEP,
-                schema::BASELINE_STATUS,
-                Some(&shape),
-                &mut notes,
-            )?;
-            Some((b.map(|a| a.values), s))
-        } else {
-            None
-        };
-        let step_se = if schema::STEP_SE.iter().all(|path| file.exists(path)) {
-            let mut read = Vec::new();
-            for path in schema::STEP_SE {
-                let se = file.floats(path)?;
-                file.expect_shape(&se, &shape, format!("the shape of /{}", schema::STEP[0]))?;
-                if let Some(v) = se.values.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
-                    return Err(file.dataset_error(
-                        path,
-                        Problem::Invalid(format!("holds {v}: a standard error is finite and >= 0")),
-                    ));
-                }
-                read.push(se.values);
-            }
-            let y = read.pop().expect("two axes");
-            let x = read.pop().expect("two axes");
-            Some([x, y])
-        } else {
-            None
-        };
-        let inferred = if file.exists(schema::INFERRED) {
-            let mask = file.integers(schema::INFERRED)?;
-            file.expect_shape(&mask, &shape, format!("the shape of /{}", schema::STEP[0]))?;
-            if let Some(v) = mask.values.iter().find(|v| **v > 1) {
-                return Err(file.dataset_error(
-                    schema::INFERRED,
-                    Problem::Invalid(format!("holds {v}: expected 0 or 1")),
-                ));
-            }
-            Some(mask.values)
-        } else {
-            None
-        };
+        let baseline = read_baseline(&file, &shape, &mut notes)?;
+        let step_se = read_step_se(&file, &shape)?;
+        let inferred = read_inferred(&file, &shape)?;
         let motion = read_motion(&file, &shape)?;
-        if motion
-            .as_ref()
-            .is_some_and(|m| m.iter().all(|&k| k == Motion::Undetermined))
-            && scene
-                .as_ref()
-                .is_some_and(|s| matches!(s.instance(0).measure, Measure::Steady { .. }))
-        {
-            notes.push(format!(
-                "every instance's /{} is {}: the steady measurement reached no verdict \
-                 (see /{}); no picture of the kinds of motion is drawn",
-                schema::MOTION,
-                Motion::Undetermined.name(),
-                schema::STATUS
-            ));
-        }
-        let points = matches!(
-            scene,
-            Some(Scene {
-                layout: Layout::Points { .. },
-                ..
-            })
-        );
-        let kind = if points || file.exists(schema::LABELS) {
-            let labels = file.texts(schema::LABELS)?;
-            file.expect_shape(
-                &labels,
-                &shape,
-                format!("one label per instance: the shape of /{}", schema::STEP[0]),
-            )?;
-            Kind::Points(labels.values)
-        } else {
-            Kind::Grid(read_axes(&file, &shape, scene.as_ref(), &mut notes)?)
-        };
+        note_no_verdict(motion.as_deref(), scene.as_ref(), &mut notes);
+        let kind = read_kind(&file, &shape, scene.as_ref(), &mut notes)?;
         let trajectories = read_trajectories(&file)?;
         let fixed = scene.as_ref().and_then(super::maps::fixed_drive);
         let stall = read_stall(&file, &shape)?;
@@ -213,6 +140,115 @@ impl Data {
             stall,
             scene,
         })
+    }
+}
+
+/// The 1-DOF steps per axis [m per own drive cycle] and their status.
+type BaselineMaps = ([Vec<f64>; 2], Vec<u32>);
+
+/// Reads the 1-DOF baselines' steps and status when the file has them,
+/// shaped `shape` like the 2-DOF maps.
+fn read_baseline(
+    file: &ResultFile,
+    shape: &[usize],
+    notes: &mut Vec<String>,
+) -> Checked<Option<BaselineMaps>> {
+    if !file.exists(schema::BASELINE) {
+        return Ok(None);
+    }
+    file.group(schema::BASELINE)?;
+    let (b, s) = read_maps(
+        file,
+        schema::BASELINE_STEP,
+        schema::BASELINE_STATUS,
+        Some(shape),
+        notes,
+    )?;
+    Ok(Some((b.map(|a| a.values), s)))
+}
+
+/// Reads the standard errors of the steps per axis [m per own drive
+/// cycle] when the file has both, shaped `shape`, each finite and >= 0.
+fn read_step_se(file: &ResultFile, shape: &[usize]) -> Checked<Option<[Vec<f64>; 2]>> {
+    if !schema::STEP_SE.iter().all(|path| file.exists(path)) {
+        return Ok(None);
+    }
+    let mut read = Vec::new();
+    for path in schema::STEP_SE {
+        let se = file.floats(path)?;
+        file.expect_shape(&se, shape, format!("the shape of /{}", schema::STEP[0]))?;
+        if let Some(v) = se.values.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+            return Err(file.dataset_error(
+                path,
+                Problem::Invalid(format!("holds {v}: a standard error is finite and >= 0")),
+            ));
+        }
+        read.push(se.values);
+    }
+    let y = read.pop().expect("two axes");
+    let x = read.pop().expect("two axes");
+    Ok(Some([x, y]))
+}
+
+/// Reads `/maps/inferred` when the file has it: 0 or 1 per instance,
+/// shaped `shape`.
+fn read_inferred(file: &ResultFile, shape: &[usize]) -> Checked<Option<Vec<u32>>> {
+    if !file.exists(schema::INFERRED) {
+        return Ok(None);
+    }
+    let mask = file.integers(schema::INFERRED)?;
+    file.expect_shape(&mask, shape, format!("the shape of /{}", schema::STEP[0]))?;
+    if let Some(v) = mask.values.iter().find(|v| **v > 1) {
+        return Err(file.dataset_error(
+            schema::INFERRED,
+            Problem::Invalid(format!("holds {v}: expected 0 or 1")),
+        ));
+    }
+    Ok(Some(mask.values))
+}
+
+/// Adds a note when a steady measurement's `motion` is undetermined for
+/// every instance: no picture of the kinds of motion is drawn then.
+fn note_no_verdict(motion: Option<&[Motion]>, scene: Option<&Scene>, notes: &mut Vec<String>) {
+    if motion.is_some_and(|m| m.iter().all(|&k| k == Motion::Undetermined))
+        && scene.is_some_and(|s| matches!(s.instance(0).measure, Measure::Steady { .. }))
+    {
+        notes.push(format!(
+            "every instance's /{} is {}: the steady measurement reached no verdict \
+             (see /{}); no picture of the kinds of motion is drawn",
+            schema::MOTION,
+            Motion::Undetermined.name(),
+            schema::STATUS
+        ));
+    }
+}
+
+/// What kind of instances the file holds: a points scene's labels (one
+/// per instance, shaped `shape`) when the scene is one or the file has
+/// labels, else the grid axes in grid order.
+fn read_kind(
+    file: &ResultFile,
+    shape: &[usize],
+    scene: Option<&Scene>,
+    notes: &mut Vec<String>,
+) -> Checked<Kind> {
+    let points = matches!(
+        scene,
+        Some(Scene {
+            layout: Layout::Points { .. },
+            ..
+        })
+    );
+    if points || file.exists(schema::LABELS) {
+        let labels = file.texts(schema::LABELS)?;
+        file.expect_shape(
+            &labels,
+            shape,
+            format!("one label per instance: the shape of /{}", schema::STEP[0]),
+        )?;
+        Ok(Kind::Points(labels.values))
+    } else {
+        Ok(Kind::Grid(read_axes(file, shape, scene, notes)?))
     }
 }
 
