@@ -85,19 +85,31 @@ pub fn shader_info(dir: &Path) -> Result<()> {
         "variant", "indexed [B]", "variables [B]", "instructions", "inlined"
     );
     let mut measured = true;
-    for v in &variants {
-        let f = footprint::measure(*v)?;
+    let mut row = |name: &str, f: footprint::Footprint| {
         let show = |x: Option<usize>| x.map_or("-".to_string(), |n| n.to_string());
         measured &= f.indexed.is_some();
         println!(
             "{:<38} {:>12} {:>14} {:>13} {:>9}",
-            footprint::variant_name(*v),
+            name,
             show(f.indexed_bytes()),
             f.declared_bytes,
             show(f.instructions),
             f.inlined
         );
+    };
+    for v in &variants {
+        row(&footprint::variant_name(*v), footprint::measure(*v)?);
     }
+    // LuGre's one pipeline, as a hardware adapter and llvmpipe compile it.
+    use crate::gpu::lugre::{Arithmetic, HARDWARE_WORKGROUP_SIZE, SOFTWARE_WORKGROUP_SIZE};
+    row(
+        "lugre f64 (hardware)",
+        crate::gpu::lugre::footprint(HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused)?,
+    );
+    row(
+        "lugre f64 (llvmpipe)",
+        crate::gpu::lugre::footprint(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native)?,
+    );
     println!(
         "indexed: private arrays an access chain indexes at run time after `spirv-opt {}` \
          (local memory on NVIDIA, at every access); variables: function variables of naga's \

@@ -22,6 +22,15 @@ use std::process::Command;
 /// use (`context::compile_trusted`: no bounds checks, no loop counters).
 pub fn spirv(variant: Variant) -> Result<Vec<u32>, GpuError> {
     let (module, info) = parse_and_validate(variant)?;
+    module_spirv(&module, &info, variant.precision)
+}
+
+/// The SPIR-V naga writes for a validated module, as [`spirv`] does.
+pub fn module_spirv(
+    module: &naga::Module,
+    info: &naga::valid::ModuleInfo,
+    precision: crate::laws::Precision,
+) -> Result<Vec<u32>, GpuError> {
     let options = naga::back::spv::Options {
         bounds_check_policies: naga::proc::BoundsCheckPolicies {
             index: naga::proc::BoundsCheckPolicy::Unchecked,
@@ -32,11 +41,9 @@ pub fn spirv(variant: Variant) -> Result<Vec<u32>, GpuError> {
         force_loop_bounding: false,
         ..Default::default()
     };
-    naga::back::spv::write_vec(&module, &info, &options, None).map_err(|e| {
-        GpuError::ShaderCompile {
-            precision: variant.precision,
-            message: e.to_string(),
-        }
+    naga::back::spv::write_vec(module, info, &options, None).map_err(|e| GpuError::ShaderCompile {
+        precision,
+        message: e.to_string(),
     })
 }
 
@@ -80,19 +87,24 @@ impl Footprint {
 /// The footprint of a variant (`spirv-opt` run as a child, in a temporary
 /// folder).
 pub fn measure(variant: Variant) -> Result<Footprint, GpuError> {
-    let words = spirv(variant)?;
-    let naga_module = Module::parse(&words);
+    Ok(measure_spirv(&spirv(variant)?))
+}
+
+/// The footprint of any module's SPIR-V, as [`measure`] reads a variant's
+/// (the LuGre shader's: `gpu::lugre::footprint`).
+pub fn measure_spirv(words: &[u32]) -> Footprint {
+    let naga_module = Module::parse(words);
     let declared_bytes = naga_module.function_variable_bytes();
     let inlined = naga_module.inlined_size();
-    let opt = optimized(&words);
+    let opt = optimized(words);
     let indexed = opt.as_ref().map(|opt| Module::parse(opt).indexed_arrays());
     let instructions = opt.as_ref().map(|opt| instruction_count(opt));
-    Ok(Footprint {
+    Footprint {
         declared_bytes,
         indexed,
         instructions,
         inlined,
-    })
+    }
 }
 
 /// The optimiser's arguments: `-O` with scalar replacement of aggregates of

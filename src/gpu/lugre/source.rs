@@ -184,8 +184,20 @@ pub fn parse_and_validate(
     Ok((module, info))
 }
 
+/// What a lane of the LuGre shader carries (as `gpu::footprint` reads a
+/// Karnopp variant's).
+pub fn footprint(
+    workgroup_size: u32,
+    arithmetic: Arithmetic,
+) -> Result<crate::gpu::footprint::Footprint, GpuError> {
+    let (module, info) = parse_and_validate(workgroup_size, arithmetic)?;
+    let words = crate::gpu::footprint::module_spirv(&module, &info, Precision::F64)?;
+    Ok(crate::gpu::footprint::measure_spirv(&words))
+}
+
 #[cfg(test)]
 mod tests {
+
     use super::*;
     use crate::gpu::lugre::{HARDWARE_WORKGROUP_SIZE, SOFTWARE_WORKGROUP_SIZE};
     use crate::gpu::shader::defined_functions;
