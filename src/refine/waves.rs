@@ -295,117 +295,7 @@ pub fn refine(
     w.ask(coarse, 0, &mut stats[0])?;
     let mut leaves = Vec::new();
     for level in 1..=grid.levels {
-        let st = &mut stats[level as usize];
-        let lv = level as u8;
-        st.candidates = candidates.len() as u64;
-        // 1. Labels.
-        let mut flagged: Vec<bool> = candidates
-            .iter()
-            .map(|c| {
-                let corners = w.corners(c);
-                if opts.corner_labels && level + opts.probe_labels_last <= grid.levels {
-                    !rule::corners_agree(&corners, opts.tolerance, opts.coupling())
-                } else {
-                    corners.iter().any(|s| !s.ok)
-                }
-            })
-            .collect();
-        st.by_label = flagged.iter().filter(|f| **f).count() as u64;
-        // 2. Probes and audit points, one batch.
-        let audits: Vec<Option<Point>> = candidates
-            .iter()
-            .zip(&flagged)
-            .map(|(c, &f)| if f { None } else { audit_point(c, level, opts) })
-            .collect();
-        st.audited = audits.iter().flatten().count() as u64;
-        let mut batch: Vec<Point> = Vec::new();
-        for (c, a) in candidates.iter().zip(&audits) {
-            batch.push(c.centre());
-            if opts.edge_probes {
-                batch.extend(c.edge_midpoints());
-            }
-            batch.extend(*a);
-        }
-        w.ask(batch, lv, st)?;
-        // 3. Judge the probes, then the audit points.
-        let mut big_miss: HashSet<Cell> = HashSet::new();
-        for (k, c) in candidates.iter().enumerate() {
-            let mut probes = vec![c.centre()];
-            probes.extend(c.edge_midpoints());
-            let (miss, off) = w.judge(c, &probes);
-            st.largest_miss = st.largest_miss.max(miss);
-            if opts.miss_buffer.is_some_and(|f| miss > f * opts.tolerance) {
-                big_miss.insert(*c);
-            }
-            if !flagged[k] && off {
-                flagged[k] = true;
-                st.by_probe += 1;
-            }
-            if let Some(a) = audits[k] {
-                let (miss, off) = w.judge(c, &[a]);
-                st.largest_miss = st.largest_miss.max(miss);
-                if off && !flagged[k] {
-                    flagged[k] = true;
-                    st.audit_finds += 1;
-                }
-            }
-        }
-        if opts.buffer || !big_miss.is_empty() {
-            let set: HashSet<Cell> = if opts.buffer {
-                candidates
-                    .iter()
-                    .zip(&flagged)
-                    .filter(|(_, f)| **f)
-                    .map(|(c, _)| *c)
-                    .collect()
-            } else {
-                big_miss
-            };
-            for (k, c) in candidates.iter().enumerate() {
-                if !flagged[k] && c.neighbours().iter().any(|n| set.contains(n)) {
-                    flagged[k] = true;
-                }
-            }
-        }
-        // 4. The new points of the flagged cells, then the neighbours'
-        // checks, until nothing more is flagged.
-        let mut newly: Vec<usize> = (0..candidates.len()).filter(|&k| flagged[k]).collect();
-        while !newly.is_empty() {
-            let points: Vec<Point> = newly
-                .iter()
-                .flat_map(|&k| {
-                    let c = candidates[k];
-                    std::iter::once(c.centre()).chain(c.edge_midpoints())
-                })
-                .collect();
-            w.ask(points, lv, st)?;
-            newly.clear();
-            if opts.neighbour_checks {
-                for (k, c) in candidates.iter().enumerate() {
-                    if !flagged[k] {
-                        let (miss, off) = w.judge(c, &c.edge_midpoints());
-                        st.largest_miss = st.largest_miss.max(miss);
-                        if off {
-                            flagged[k] = true;
-                            st.by_neighbours += 1;
-                            newly.push(k);
-                        }
-                    }
-                }
-            }
-        }
-        st.flagged = flagged.iter().filter(|f| **f).count() as u64;
-        let mut next = Vec::new();
-        for (c, f) in candidates.iter().zip(&flagged) {
-            if *f {
-                if c.size > 2 {
-                    next.extend(c.children());
-                }
-            } else {
-                leaves.push(*c);
-            }
-        }
-        candidates = next;
+        candidates = w.level(&candidates, level, &mut stats[level as usize], &mut leaves)?;
     }
     let samples = w
         .samples
@@ -420,4 +310,200 @@ pub fn refine(
         leaves,
         stats,
     })
+}
+
+impl Waves<'_, '_> {
+    /// Runs one level `1..=levels` over its candidates (steps 1-5 of the
+    /// module's rule), adding its unflagged candidates to `leaves`;
+    /// returns the next level's candidates.
+    fn level(
+        &mut self,
+        candidates: &[Cell],
+        level: u32,
+        st: &mut LevelStats,
+        leaves: &mut Vec<Cell>,
+    ) -> Result<Vec<Cell>> {
+        let lv = level as u8;
+        st.candidates = candidates.len() as u64;
+        // 1. Labels.
+        let mut flagged = self.label_flags(candidates, level);
+        st.by_label = flagged.iter().filter(|f| **f).count() as u64;
+        // 2. Probes and audit points, one batch.
+        let audits = self.ask_probes(candidates, &flagged, level, st)?;
+        // 3. Judge the probes, then the audit points.
+        let big_miss = self.judge_probes(candidates, &audits, &mut flagged, st);
+        self.flag_buffer(candidates, &mut flagged, big_miss);
+        // 4. The new points of the flagged cells, then the neighbours'
+        // checks, until nothing more is flagged.
+        self.refine_flagged(candidates, &mut flagged, lv, st)?;
+        st.flagged = flagged.iter().filter(|f| **f).count() as u64;
+        Ok(next_candidates(candidates, &flagged, leaves))
+    }
+
+    /// Step 1: whether each candidate is flagged by its corners' labels (or,
+    /// where labels do not apply at this level, by a corner that did not
+    /// finish normally).
+    fn label_flags(&self, candidates: &[Cell], level: u32) -> Vec<bool> {
+        let opts = &self.opts;
+        candidates
+            .iter()
+            .map(|c| {
+                let corners = self.corners(c);
+                if opts.corner_labels && level + opts.probe_labels_last <= self.grid.levels {
+                    !rule::corners_agree(&corners, opts.tolerance, opts.coupling())
+                } else {
+                    corners.iter().any(|s| !s.ok)
+                }
+            })
+            .collect()
+    }
+
+    /// Step 2: chooses the audit points of the unflagged candidates and
+    /// integrates every candidate's probes and audit point as one batch;
+    /// returns the audit point of each candidate.
+    fn ask_probes(
+        &mut self,
+        candidates: &[Cell],
+        flagged: &[bool],
+        level: u32,
+        st: &mut LevelStats,
+    ) -> Result<Vec<Option<Point>>> {
+        let opts = self.opts;
+        let audits: Vec<Option<Point>> = candidates
+            .iter()
+            .zip(flagged)
+            .map(|(c, &f)| {
+                if f {
+                    None
+                } else {
+                    audit_point(c, level, &opts)
+                }
+            })
+            .collect();
+        st.audited = audits.iter().flatten().count() as u64;
+        let mut batch: Vec<Point> = Vec::new();
+        for (c, a) in candidates.iter().zip(&audits) {
+            batch.push(c.centre());
+            if opts.edge_probes {
+                batch.extend(c.edge_midpoints());
+            }
+            batch.extend(*a);
+        }
+        self.ask(batch, level as u8, st)?;
+        Ok(audits)
+    }
+
+    /// Step 3: judges each candidate's probes, then its audit point,
+    /// flagging the cells they miss; returns the cells whose probes missed
+    /// by more than [`Options::miss_buffer`] tolerances.
+    fn judge_probes(
+        &self,
+        candidates: &[Cell],
+        audits: &[Option<Point>],
+        flagged: &mut [bool],
+        st: &mut LevelStats,
+    ) -> HashSet<Cell> {
+        let opts = &self.opts;
+        let mut big_miss: HashSet<Cell> = HashSet::new();
+        for (k, c) in candidates.iter().enumerate() {
+            let mut probes = vec![c.centre()];
+            probes.extend(c.edge_midpoints());
+            let (miss, off) = self.judge(c, &probes);
+            st.largest_miss = st.largest_miss.max(miss);
+            if opts.miss_buffer.is_some_and(|f| miss > f * opts.tolerance) {
+                big_miss.insert(*c);
+            }
+            if !flagged[k] && off {
+                flagged[k] = true;
+                st.by_probe += 1;
+            }
+            if let Some(a) = audits[k] {
+                let (miss, off) = self.judge(c, &[a]);
+                st.largest_miss = st.largest_miss.max(miss);
+                if off && !flagged[k] {
+                    flagged[k] = true;
+                    st.audit_finds += 1;
+                }
+            }
+        }
+        big_miss
+    }
+
+    /// Flags the candidates beside a flagged cell ([`Options::buffer`]) or,
+    /// without the buffer, beside a cell of `big_miss`.
+    fn flag_buffer(&self, candidates: &[Cell], flagged: &mut [bool], big_miss: HashSet<Cell>) {
+        if self.opts.buffer || !big_miss.is_empty() {
+            let set: HashSet<Cell> = if self.opts.buffer {
+                candidates
+                    .iter()
+                    .zip(flagged.iter())
+                    .filter(|(_, f)| **f)
+                    .map(|(c, _)| *c)
+                    .collect()
+            } else {
+                big_miss
+            };
+            for (k, c) in candidates.iter().enumerate() {
+                if !flagged[k] && c.neighbours().iter().any(|n| set.contains(n)) {
+                    flagged[k] = true;
+                }
+            }
+        }
+    }
+
+    /// Step 4: integrates the new points of the flagged cells, one batch
+    /// per round; with [`Options::neighbour_checks`] judges the unflagged
+    /// candidates on their edge midpoints after each round, and flags a
+    /// miss for the next, until no cell is newly flagged.
+    fn refine_flagged(
+        &mut self,
+        candidates: &[Cell],
+        flagged: &mut [bool],
+        lv: u8,
+        st: &mut LevelStats,
+    ) -> Result<()> {
+        let mut newly: Vec<usize> = (0..candidates.len()).filter(|&k| flagged[k]).collect();
+        while !newly.is_empty() {
+            let points: Vec<Point> = newly
+                .iter()
+                .flat_map(|&k| {
+                    let c = candidates[k];
+                    std::iter::once(c.centre()).chain(c.edge_midpoints())
+                })
+                .collect();
+            self.ask(points, lv, st)?;
+            newly.clear();
+            if self.opts.neighbour_checks {
+                for (k, c) in candidates.iter().enumerate() {
+                    if !flagged[k] {
+                        let (miss, off) = self.judge(c, &c.edge_midpoints());
+                        st.largest_miss = st.largest_miss.max(miss);
+                        if off {
+                            flagged[k] = true;
+                            st.by_neighbours += 1;
+                            newly.push(k);
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Step 5: the children of the flagged candidates (cells larger than 2
+/// finest steps), the next level's candidates; the unflagged ones are
+/// added to `leaves`.
+fn next_candidates(candidates: &[Cell], flagged: &[bool], leaves: &mut Vec<Cell>) -> Vec<Cell> {
+    let mut next = Vec::new();
+    for (c, f) in candidates.iter().zip(flagged) {
+        if *f {
+            if c.size > 2 {
+                next.extend(c.children());
+            }
+        } else {
+            leaves.push(*c);
+        }
+    }
+    next
 }

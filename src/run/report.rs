@@ -76,6 +76,14 @@ fn relative(a: f64, b: f64) -> f64 {
     }
 }
 
+/// One point of the table, kept for the invariant checks: its label, its
+/// instance and its 2-DOF steps [um].
+struct PointResult {
+    label: String,
+    inst: Instance,
+    two: [f64; 2],
+}
+
 /// Builds the Markdown section of one points scene.
 pub fn scene_section(scene: &Scene) -> Result<String> {
     let Layout::Points { labels } = &scene.layout else {
@@ -85,12 +93,31 @@ pub fn scene_section(scene: &Scene) -> Result<String> {
         );
     };
     let settings = scene.settings;
-    let tight = Settings {
-        tolerance: settings.tolerance * 1e-3,
-        ..settings
-    };
     let mut md = String::new();
     let started = Instant::now();
+    write_scene_header(&mut md, scene)?;
+    let results = write_point_rows(&mut md, scene, labels)?;
+    writeln!(md, "\nSteps in um per own drive cycle.\n")?;
+    writeln!(md, "### Invariants (docs/model.md section 6)\n")?;
+    let mut checks = Vec::new();
+    for point in &results {
+        invariant_checks(point, &settings, &mut checks);
+    }
+    for c in checks {
+        writeln!(md, "{c}")?;
+    }
+    writeln!(
+        md,
+        "\nComputed by `pidm report` in {:.2} s on the f64 CPU path.\n",
+        started.elapsed().as_secs_f64()
+    )?;
+    Ok(md)
+}
+
+/// Writes the section's heading and the paragraph on the scene's
+/// parameters (those of its first instance) and what the columns mean.
+fn write_scene_header(md: &mut String, scene: &Scene) -> Result<()> {
+    let settings = scene.settings;
     let first = scene.instance(0);
     let axis = first.axes[0];
     writeln!(
@@ -119,6 +146,18 @@ pub fn scene_section(scene: &Scene) -> Result<String> {
         first.measure.name(),
         settings.tolerance,
     )?;
+    Ok(())
+}
+
+/// Writes the table of the points `labels`: each point's 2-DOF, steady and
+/// 1-DOF steps beside the paper's, and the change when the tolerance is
+/// tightened 1000 times; returns the points for the invariant checks.
+fn write_point_rows(md: &mut String, scene: &Scene, labels: &[String]) -> Result<Vec<PointResult>> {
+    let settings = scene.settings;
+    let tight = Settings {
+        tolerance: settings.tolerance * 1e-3,
+        ..settings
+    };
     writeln!(
         md,
         "| point | V_x, V_y [V] | f_x, f_y [Hz] | 2-DOF x | 2-DOF y | steady 2-DOF x, y | \
@@ -145,14 +184,7 @@ pub fn scene_section(scene: &Scene) -> Result<String> {
         ]
         .iter()
         .fold(0.0f64, |m, d| m.max(d.abs()));
-        let paper = paper_values(label);
-        let (p2, p1) = match paper {
-            Some(p) => (
-                format!("{}, {}", cell(p[0]), cell(p[1])),
-                format!("{}, {}", cell(p[2]), cell(p[3])),
-            ),
-            None => ("-".into(), "-".into()),
-        };
+        let (p2, p1) = paper_cells(label);
         writeln!(
             md,
             "| {label} | {:.2}, {:.2} | {}, {} | {:.4} | {:.4} | {} | {p2} | {:.4} | {:.4} | {p1} | \
@@ -167,72 +199,82 @@ pub fn scene_section(scene: &Scene) -> Result<String> {
             bx[0],
             by[1],
         )?;
-        results.push((label.clone(), inst, two, [bx[0], by[1]]));
+        results.push(PointResult {
+            label: label.clone(),
+            inst,
+            two,
+        });
     }
-    writeln!(md, "\nSteps in um per own drive cycle.\n")?;
-    writeln!(md, "### Invariants (docs/model.md section 6)\n")?;
-    let mut checks = Vec::new();
-    for (label, inst, two, _) in &results {
-        let same_axes = inst.axes[0].stage_mass == inst.axes[1].stage_mass
-            && inst.axes[0].stiffness == inst.axes[1].stiffness
-            && inst.axes[0].damping == inst.axes[1].damping
-            && inst.axes[0].gain == inst.axes[1].gain
-            && inst.axes[0].frequency == inst.axes[1].frequency
-            && inst.axes[0].duty == inst.axes[1].duty
-            && inst.axes[0].phase == inst.axes[1].phase;
-        if same_axes && inst.axes[1].voltage == 0.0 {
-            let one = steps(&inst.baseline(0), &settings).0;
-            checks.push(format!(
-                "- {label}: V_y = 0 gives y step {:e} um (exactly 0: {}) and the x step equals \
-                 the 1-DOF run (difference {:e} um).",
-                two[1],
-                two[1] == 0.0,
-                (two[0] - one[0]).abs()
-            ));
-        }
-        if same_axes && inst.axes[0].voltage == inst.axes[1].voltage && inst.axes[0].voltage != 0.0
-        {
-            let mut one = inst.baseline(0);
-            one.axes[0].voltage = inst.axes[0].voltage * 2f64.sqrt();
-            let s1 = steps(&one, &settings).0[0];
-            checks.push(format!(
-                "- {label}: x = y (relative difference {:.1e}); 1-DOF at sqrt(2) V = {:.2} V \
-                 gives {:.6} um, over sqrt(2) {:.6} um against the 2-DOF {:.6} um \
-                 (relative difference {:.1e}).",
-                relative(two[0], two[1]),
-                one.axes[0].voltage,
-                s1,
-                s1 / 2f64.sqrt(),
-                two[0],
-                relative(two[0], s1 / 2f64.sqrt())
-            ));
-        }
-        if inst.axes[0].voltage != 0.0 && inst.axes[1].voltage != 0.0 {
-            let mut swapped = *inst;
-            swapped.axes = [inst.axes[1], inst.axes[0]];
-            let w = steps(&swapped, &settings).0;
-            let mut flipped = *inst;
-            flipped.axes[1].voltage = -inst.axes[1].voltage;
-            let f = steps(&flipped, &settings).0;
-            checks.push(format!(
-                "- {label}: swapping the axes swaps the steps (relative differences {:.1e}, {:.1e}); \
-                 negating V_y negates y and keeps x (relative differences {:.1e}, {:.1e}).",
-                relative(two[0], w[1]),
-                relative(two[1], w[0]),
-                relative(two[1], -f[1]),
-                relative(two[0], f[0])
-            ));
-        }
+    Ok(results)
+}
+
+/// The paper's 2-DOF and 1-DOF cells of a point: "x, y" each, or "-"
+/// where the paper gives no numbers.
+fn paper_cells(label: &str) -> (String, String) {
+    match paper_values(label) {
+        Some(p) => (
+            format!("{}, {}", cell(p[0]), cell(p[1])),
+            format!("{}, {}", cell(p[2]), cell(p[3])),
+        ),
+        None => ("-".into(), "-".into()),
     }
-    for c in checks {
-        writeln!(md, "{c}")?;
+}
+
+/// Checks the exact invariants that apply to a point (docs/model.md
+/// section 6), adding one Markdown list item per check to `checks`: a zero
+/// V_y against the 1-DOF run, equal axes against the 1-DOF run at sqrt(2)
+/// V, and the symmetries of swapping the axes and negating V_y.
+fn invariant_checks(point: &PointResult, settings: &Settings, checks: &mut Vec<String>) {
+    let PointResult { label, inst, two } = point;
+    let same_axes = inst.axes[0].stage_mass == inst.axes[1].stage_mass
+        && inst.axes[0].stiffness == inst.axes[1].stiffness
+        && inst.axes[0].damping == inst.axes[1].damping
+        && inst.axes[0].gain == inst.axes[1].gain
+        && inst.axes[0].frequency == inst.axes[1].frequency
+        && inst.axes[0].duty == inst.axes[1].duty
+        && inst.axes[0].phase == inst.axes[1].phase;
+    if same_axes && inst.axes[1].voltage == 0.0 {
+        let one = steps(&inst.baseline(0), settings).0;
+        checks.push(format!(
+            "- {label}: V_y = 0 gives y step {:e} um (exactly 0: {}) and the x step equals \
+             the 1-DOF run (difference {:e} um).",
+            two[1],
+            two[1] == 0.0,
+            (two[0] - one[0]).abs()
+        ));
     }
-    writeln!(
-        md,
-        "\nComputed by `pidm report` in {:.2} s on the f64 CPU path.\n",
-        started.elapsed().as_secs_f64()
-    )?;
-    Ok(md)
+    if same_axes && inst.axes[0].voltage == inst.axes[1].voltage && inst.axes[0].voltage != 0.0 {
+        let mut one = inst.baseline(0);
+        one.axes[0].voltage = inst.axes[0].voltage * 2f64.sqrt();
+        let s1 = steps(&one, settings).0[0];
+        checks.push(format!(
+            "- {label}: x = y (relative difference {:.1e}); 1-DOF at sqrt(2) V = {:.2} V \
+             gives {:.6} um, over sqrt(2) {:.6} um against the 2-DOF {:.6} um \
+             (relative difference {:.1e}).",
+            relative(two[0], two[1]),
+            one.axes[0].voltage,
+            s1,
+            s1 / 2f64.sqrt(),
+            two[0],
+            relative(two[0], s1 / 2f64.sqrt())
+        ));
+    }
+    if inst.axes[0].voltage != 0.0 && inst.axes[1].voltage != 0.0 {
+        let mut swapped = *inst;
+        swapped.axes = [inst.axes[1], inst.axes[0]];
+        let w = steps(&swapped, settings).0;
+        let mut flipped = *inst;
+        flipped.axes[1].voltage = -inst.axes[1].voltage;
+        let f = steps(&flipped, settings).0;
+        checks.push(format!(
+            "- {label}: swapping the axes swaps the steps (relative differences {:.1e}, {:.1e}); \
+             negating V_y negates y and keeps x (relative differences {:.1e}, {:.1e}).",
+            relative(two[0], w[1]),
+            relative(two[1], w[0]),
+            relative(two[1], -f[1]),
+            relative(two[0], f[0])
+        ));
+    }
 }
 
 /// The whole report over several scenes.

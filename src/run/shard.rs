@@ -257,49 +257,77 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
         .collect::<Result<_>>()?;
     let first = &shards[0];
     for other in &shards[1..] {
-        let differs = |what: &str, a: &str, b: &str| -> Result<()> {
-            if a != b {
-                bail!(
-                    "{} and {} come from different {what} ({a:?} against {b:?}); \
-                     shards of one run must match",
-                    first.path.display(),
-                    other.path.display()
-                );
-            }
-            Ok(())
-        };
-        if other.scene != first.scene {
+        check_same_run(first, other)?;
+    }
+    let count = first.spec.count;
+    let by_index = index_shards(&shards, count)?;
+
+    let scene = Scene::from_toml(&first.scene, Some(&first.name))
+        .with_context(|| format!("the scene stored in {}", first.path.display()))?;
+    let total = scene.instance_count();
+    for shard in &shards {
+        check_instances(shard, &scene, total)?;
+    }
+
+    let path = write_merged(&claim, &scene, &shards, &by_index, total)?;
+    Ok(MergeSummary {
+        path,
+        shards: count,
+        instances: total,
+    })
+}
+
+/// Checks that `other` comes from the same run as `first`: the same scene,
+/// pidm version, precision, integrator variant, verification and shard
+/// count.
+fn check_same_run(first: &ShardFile, other: &ShardFile) -> Result<()> {
+    let differs = |what: &str, a: &str, b: &str| -> Result<()> {
+        if a != b {
             bail!(
-                "{} and {} come from different scenes (their `scene` attributes differ)",
+                "{} and {} come from different {what} ({a:?} against {b:?}); \
+                 shards of one run must match",
                 first.path.display(),
                 other.path.display()
             );
         }
-        differs("pidm versions", &first.version, &other.version)?;
-        differs("precisions", &first.precision, &other.precision)?;
-        differs("integrator variants", &first.variant, &other.variant)?;
-        let verification = |tolerance: Option<f64>| {
-            tolerance.map_or("none".to_string(), |t| format!("tolerance {t:e}"))
-        };
-        differs(
-            "verifications (--verify)",
-            &verification(first.verify_tolerance),
-            &verification(other.verify_tolerance),
-        )?;
-        if other.spec.count != first.spec.count {
-            bail!(
-                "{} is shard {} but {} is shard {}: the shards overlap (a run is split \
-                 one way only)",
-                first.path.display(),
-                first.spec,
-                other.path.display(),
-                other.spec
-            );
-        }
+        Ok(())
+    };
+    if other.scene != first.scene {
+        bail!(
+            "{} and {} come from different scenes (their `scene` attributes differ)",
+            first.path.display(),
+            other.path.display()
+        );
     }
-    let count = first.spec.count;
+    differs("pidm versions", &first.version, &other.version)?;
+    differs("precisions", &first.precision, &other.precision)?;
+    differs("integrator variants", &first.variant, &other.variant)?;
+    let verification = |tolerance: Option<f64>| {
+        tolerance.map_or("none".to_string(), |t| format!("tolerance {t:e}"))
+    };
+    differs(
+        "verifications (--verify)",
+        &verification(first.verify_tolerance),
+        &verification(other.verify_tolerance),
+    )?;
+    if other.spec.count != first.spec.count {
+        bail!(
+            "{} is shard {} but {} is shard {}: the shards overlap (a run is split \
+             one way only)",
+            first.path.display(),
+            first.spec,
+            other.path.display(),
+            other.spec
+        );
+    }
+    Ok(())
+}
+
+/// The shards by shard number, refusing a number given twice and a
+/// missing one of `1..=count`.
+fn index_shards(shards: &[ShardFile], count: u32) -> Result<BTreeMap<u32, &ShardFile>> {
     let mut by_index: BTreeMap<u32, &ShardFile> = BTreeMap::new();
-    for shard in &shards {
+    for shard in shards {
         if let Some(earlier) = by_index.insert(shard.spec.index, shard) {
             bail!(
                 "{} and {} are both shard {}: they overlap",
@@ -320,35 +348,49 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
             missing.join(", ")
         );
     }
+    Ok(by_index)
+}
 
-    let scene = Scene::from_toml(&first.scene, Some(&first.name))
-        .with_context(|| format!("the scene stored in {}", first.path.display()))?;
-    let total = scene.instance_count();
-    for shard in &shards {
-        if shard.total != total {
-            bail!(
-                "{} says the scene has {} instances, but its scene has {total}",
-                shard.path.display(),
-                shard.total
-            );
-        }
-        let expected: Vec<u64> = shard.spec.ranges(total).into_iter().flatten().collect();
-        let stall = scene.stall.map(|stall| stall.axis);
-        shard.check_layout(expected.len() as u64, scene.baselines, stall)?;
-        let stored: Vec<u64> = shard
-            .file
-            .dataset(schema::SHARD_INSTANCE)
-            .and_then(|ds| ds.read_raw())
-            .with_context(|| format!("{}: cannot read `shard/instance`", shard.path.display()))?;
-        if stored != expected {
-            bail!(
-                "{}: its instance list is not that of shard {} of this scene",
-                shard.path.display(),
-                shard.spec
-            );
-        }
+/// Checks that a shard holds the instances its shard number implies in a
+/// scene of `total` instances: its instance count, the layout of its maps
+/// and its stored instance list.
+fn check_instances(shard: &ShardFile, scene: &Scene, total: u64) -> Result<()> {
+    if shard.total != total {
+        bail!(
+            "{} says the scene has {} instances, but its scene has {total}",
+            shard.path.display(),
+            shard.total
+        );
     }
+    let expected: Vec<u64> = shard.spec.ranges(total).into_iter().flatten().collect();
+    let stall = scene.stall.map(|stall| stall.axis);
+    shard.check_layout(expected.len() as u64, scene.baselines, stall)?;
+    let stored: Vec<u64> = shard
+        .file
+        .dataset(schema::SHARD_INSTANCE)
+        .and_then(|ds| ds.read_raw())
+        .with_context(|| format!("{}: cannot read `shard/instance`", shard.path.display()))?;
+    if stored != expected {
+        bail!(
+            "{}: its instance list is not that of shard {} of this scene",
+            shard.path.display(),
+            shard.spec
+        );
+    }
+    Ok(())
+}
 
+/// Writes the merged map file: the records (and stall records) of every
+/// shard in shard order, the trajectories and the shards' wall times;
+/// returns its path.
+fn write_merged(
+    claim: &OutputClaim,
+    scene: &Scene,
+    shards: &[ShardFile],
+    by_index: &BTreeMap<u32, &ShardFile>,
+    total: u64,
+) -> Result<PathBuf> {
+    let first = &shards[0];
     let mut backends: Vec<&str> = shards.iter().map(|s| s.backend.as_str()).collect();
     backends.sort_unstable();
     backends.dedup();
@@ -359,7 +401,7 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
     );
     info.tolerance = first.tolerance;
     info.verify_tolerance = first.verify_tolerance;
-    let mut writer = MapWriter::create(&claim, &info)?;
+    let mut writer = MapWriter::create(claim, &info)?;
     for shard in by_index.values() {
         let mut at = 0;
         for range in ShardInfo::new(shard.spec, total).ranges {
@@ -373,14 +415,9 @@ pub fn merge(out: &Path, paths: &[PathBuf]) -> Result<MergeSummary> {
             at += n;
         }
     }
-    crate::trajectory::record_and_write(writer.file(), &scene)?;
+    crate::trajectory::record_and_write(writer.file(), scene)?;
     let parts: Vec<f64> = shards.iter().map(|s| s.wall_time_s).collect();
-    let path = writer.finish(&parts)?;
-    Ok(MergeSummary {
-        path,
-        shards: count,
-        instances: total,
-    })
+    writer.finish(&parts)
 }
 
 #[cfg(test)]
