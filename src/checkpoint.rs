@@ -129,6 +129,149 @@ pub fn start(
     Ok((checkpoint, MapWriter::create(claim, info)?))
 }
 
+/// Opens an existing journal for reading and appending, never through a
+/// link.
+fn open_journal(path: &Path) -> Result<File> {
+    OpenOptions::new()
+        .read(true)
+        .write(true)
+        .custom_flags(libc::O_NOFOLLOW)
+        .open(path)
+        .with_context(|| format!("cannot open the checkpoint {}", path.display()))
+}
+
+/// Reads the journal's magic and the length of the identity that follows
+/// it, refusing a journal of another format by name and anything else
+/// that is no journal of this format.
+fn read_magic(reader: &mut impl Read, path: &Path) -> Result<u64> {
+    let mut magic = [0u8; MAGIC.len()];
+    let mut len = [0u8; 8];
+    let read_magic = reader.read_exact(&mut magic).is_ok();
+    if read_magic && &magic != MAGIC && magic.starts_with(MAGIC_FAMILY) {
+        let format = String::from_utf8_lossy(&magic[MAGIC_FAMILY.len()..]);
+        bail!(
+            "the checkpoint {} is of another pidm (journal format {}; this pidm reads \
+             format {} only); finish the run with the pidm that began it, or delete the \
+             checkpoint to start over",
+            path.display(),
+            format.trim_end(),
+            String::from_utf8_lossy(&MAGIC[MAGIC_FAMILY.len()..]).trim_end()
+        );
+    }
+    if !read_magic || &magic != MAGIC || reader.read_exact(&mut len).is_err() {
+        bail!("{} is not a pidm checkpoint", path.display());
+    }
+    Ok(u64::from_le_bytes(len))
+}
+
+/// Reads the stored identity (`stored_len` bytes) and refuses a journal
+/// of a run other than `identity`.
+fn check_identity(
+    reader: &mut impl Read,
+    stored_len: u64,
+    identity: &str,
+    path: &Path,
+) -> Result<()> {
+    // Nothing is allocated on the word of the file alone: a length that
+    // is not the identity's cannot be this run's.
+    let mut stored = vec![0u8; identity.len()];
+    if stored_len != identity.len() as u64 || reader.read_exact(&mut stored).is_err() {
+        stored.clear();
+    }
+    if stored != identity.as_bytes() {
+        bail!(
+            "the checkpoint {} is of a different run (another scene, version, backend \
+             or shard); delete it to start over",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// One intact journal entry: its head's words and its records' bytes.
+struct JournalEntry {
+    start: u64,
+    n: u64,
+    part: u64,
+    wall: f64,
+    records: Vec<u8>,
+}
+
+impl JournalEntry {
+    /// Bytes the entry takes in the journal: head, records and checksum.
+    fn bytes(&self) -> u64 {
+        HEAD_BYTES as u64 + (self.records.len() + 8) as u64
+    }
+}
+
+/// Reads the next entry, which starts `valid_len` bytes into a journal of
+/// `file_len` bytes; `None` at the end or at a torn or garbled entry.
+fn read_entry(reader: &mut impl Read, file_len: u64, valid_len: u64) -> Option<JournalEntry> {
+    let mut head = [0u8; HEAD_BYTES];
+    reader.read_exact(&mut head).ok()?;
+    let word = |k: usize| u64::from_le_bytes(head[8 * k..8 * k + 8].try_into().unwrap());
+    let (start, n, part, wall) = (word(0), word(1), word(2), f64::from_bits(word(3)));
+    let body_len = (n as usize).checked_mul(RECORD_BYTES)?;
+    // An entry longer than what is left of the file is torn.
+    if body_len as u64 + 8 > file_len.saturating_sub(valid_len + HEAD_BYTES as u64) {
+        return None;
+    }
+    let mut body = vec![0u8; body_len + 8];
+    reader.read_exact(&mut body).ok()?;
+    let (records_bytes, sum) = body.split_at(body_len);
+    let mut summed = head.to_vec();
+    summed.extend_from_slice(records_bytes);
+    if checksum(&summed) != u64::from_le_bytes(sum.try_into().unwrap()) {
+        return None;
+    }
+    body.truncate(body_len);
+    Some(JournalEntry {
+        start,
+        n,
+        part,
+        wall,
+        records: body,
+    })
+}
+
+/// Decodes an intact entry's records (the first is instance `start`),
+/// refusing the journal if one cannot be right.
+fn plausible_records(path: &Path, start: u64, records_bytes: &[u8]) -> Result<Vec<Record>> {
+    let decoded: Vec<Result<Record, String>> =
+        records_bytes.chunks(RECORD_BYTES).map(decode).collect();
+    let why_not = |r: &Result<Record, String>| match r {
+        Ok(r) => r.implausibility(),
+        Err(why) => Some(why.clone()),
+    };
+    if let Some((k, why)) = decoded
+        .iter()
+        .enumerate()
+        .find_map(|(k, r)| Some((k, why_not(r)?)))
+    {
+        bail!(
+            "the checkpoint {} holds a record that cannot be right (instance {}: \
+             {why}); delete it to start over",
+            path.display(),
+            start.saturating_add(k as u64)
+        );
+    }
+    Ok(decoded.into_iter().flatten().collect())
+}
+
+/// Records an entry's part and wall time so far in `earlier`, the wall
+/// time of each earlier part.
+fn note_wall_time(earlier: &mut Vec<f64>, part: u64, wall: f64) {
+    // Parts follow one another; a part number far beyond the
+    // entries there are cannot be right and counts as the next.
+    let part = (part as usize).min(earlier.len());
+    if part == earlier.len() {
+        earlier.push(0.0);
+    }
+    if wall.is_finite() && wall >= 0.0 {
+        earlier[part] = earlier[part].max(wall);
+    }
+}
+
 impl Checkpoint {
     /// Starts a new journal for a run identified by `identity` (the scene
     /// text, version, backend and everything else that must match on
@@ -167,106 +310,23 @@ impl Checkpoint {
         identity: &str,
         replay: &mut dyn FnMut(u64, &[Record]) -> Result<()>,
     ) -> Result<(Checkpoint, Vec<Range<u64>>)> {
-        let file = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .custom_flags(libc::O_NOFOLLOW)
-            .open(path)
-            .with_context(|| format!("cannot open the checkpoint {}", path.display()))?;
+        let file = open_journal(path)?;
         let mut reader = BufReader::new(&file);
-        let mut magic = [0u8; MAGIC.len()];
-        let mut len = [0u8; 8];
-        let read_magic = reader.read_exact(&mut magic).is_ok();
-        if read_magic && &magic != MAGIC && magic.starts_with(MAGIC_FAMILY) {
-            let format = String::from_utf8_lossy(&magic[MAGIC_FAMILY.len()..]);
-            bail!(
-                "the checkpoint {} is of another pidm (journal format {}; this pidm reads \
-                 format {} only); finish the run with the pidm that began it, or delete the \
-                 checkpoint to start over",
-                path.display(),
-                format.trim_end(),
-                String::from_utf8_lossy(&MAGIC[MAGIC_FAMILY.len()..]).trim_end()
-            );
-        }
-        if !read_magic || &magic != MAGIC || reader.read_exact(&mut len).is_err() {
-            bail!("{} is not a pidm checkpoint", path.display());
-        }
+        let stored_len = read_magic(&mut reader, path)?;
         let file_len = file
             .metadata()
             .with_context(|| format!("cannot inspect {}", path.display()))?
             .len();
-        // Nothing is allocated on the word of the file alone: a length that
-        // is not the identity's cannot be this run's.
-        let stored_len = u64::from_le_bytes(len);
-        let mut stored = vec![0u8; identity.len()];
-        if stored_len != identity.len() as u64 || reader.read_exact(&mut stored).is_err() {
-            stored.clear();
-        }
-        if stored != identity.as_bytes() {
-            bail!(
-                "the checkpoint {} is of a different run (another scene, version, backend \
-                 or shard); delete it to start over",
-                path.display()
-            );
-        }
-        let mut valid_len = (MAGIC.len() + 8 + stored.len()) as u64;
+        check_identity(&mut reader, stored_len, identity, path)?;
+        let mut valid_len = (MAGIC.len() + 8 + identity.len()) as u64;
         let mut done: Vec<Range<u64>> = Vec::new();
         let mut earlier: Vec<f64> = Vec::new();
-        loop {
-            let mut head = [0u8; HEAD_BYTES];
-            if reader.read_exact(&mut head).is_err() {
-                break;
-            }
-            let word = |k: usize| u64::from_le_bytes(head[8 * k..8 * k + 8].try_into().unwrap());
-            let (start, n, part, wall) = (word(0), word(1), word(2), f64::from_bits(word(3)));
-            let Some(body_len) = (n as usize).checked_mul(RECORD_BYTES) else {
-                break;
-            };
-            // An entry longer than what is left of the file is torn.
-            if body_len as u64 + 8 > file_len.saturating_sub(valid_len + HEAD_BYTES as u64) {
-                break;
-            }
-            let mut body = vec![0u8; body_len + 8];
-            if reader.read_exact(&mut body).is_err() {
-                break;
-            }
-            let (records_bytes, sum) = body.split_at(body_len);
-            let mut summed = head.to_vec();
-            summed.extend_from_slice(records_bytes);
-            if checksum(&summed) != u64::from_le_bytes(sum.try_into().unwrap()) {
-                break;
-            }
-            let decoded: Vec<Result<Record, String>> =
-                records_bytes.chunks(RECORD_BYTES).map(decode).collect();
-            let why_not = |r: &Result<Record, String>| match r {
-                Ok(r) => r.implausibility(),
-                Err(why) => Some(why.clone()),
-            };
-            if let Some((k, why)) = decoded
-                .iter()
-                .enumerate()
-                .find_map(|(k, r)| Some((k, why_not(r)?)))
-            {
-                bail!(
-                    "the checkpoint {} holds a record that cannot be right (instance {}: \
-                     {why}); delete it to start over",
-                    path.display(),
-                    start.saturating_add(k as u64)
-                );
-            }
-            let records: Vec<Record> = decoded.into_iter().flatten().collect();
-            replay(start, &records)?;
-            done.push(start..start + n);
-            valid_len += HEAD_BYTES as u64 + body.len() as u64;
-            // Parts follow one another; a part number far beyond the
-            // entries there are cannot be right and counts as the next.
-            let part = (part as usize).min(earlier.len());
-            if part == earlier.len() {
-                earlier.push(0.0);
-            }
-            if wall.is_finite() && wall >= 0.0 {
-                earlier[part] = earlier[part].max(wall);
-            }
+        while let Some(entry) = read_entry(&mut reader, file_len, valid_len) {
+            let records = plausible_records(path, entry.start, &entry.records)?;
+            replay(entry.start, &records)?;
+            done.push(entry.start..entry.start + entry.n);
+            valid_len += entry.bytes();
+            note_wall_time(&mut earlier, entry.part, entry.wall);
         }
         drop(reader);
         // Drop a torn tail so new entries follow the last intact one.

@@ -3,7 +3,7 @@
 //! root hard links) and renamed into place when finished.
 
 use std::ops::Range;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use hdf5::types::VarLenUnicode;
@@ -11,7 +11,7 @@ use hdf5::{Dataset, File};
 
 use super::attributes::{write_f64_attr, write_motion_flags, write_str_attr, write_u64_attr};
 use super::blocks::write_flat;
-use super::{FileInfo, OutputClaim, claim, dimension_scales, schema};
+use super::{FileInfo, OutputClaim, ShardInfo, claim, dimension_scales, schema};
 use crate::sweep::Record;
 
 /// Writes one result file. Dropping it before [`MapWriter::finish`] removes
@@ -59,156 +59,236 @@ fn chunk_shape(shape: &[usize]) -> Option<Vec<usize>> {
     Some(chunk)
 }
 
+/// Creates the temporary file at `temp_path`, first removing a stale one
+/// left by a killed run.
+fn create_temp_file(temp_path: &Path) -> Result<File> {
+    // Removing first replaces a stale file without following it, should
+    // it have become a link since the claim checked it.
+    match std::fs::remove_file(temp_path) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => {
+            return Err(e).with_context(|| format!("cannot remove {}", temp_path.display()));
+        }
+    }
+    File::create_excl(temp_path).with_context(|| format!("cannot create {}", temp_path.display()))
+}
+
+/// The shape of every map in the file: the grid's, or for a shard 1-D
+/// over its own instances.
+fn map_shape(info: &FileInfo) -> Vec<usize> {
+    match &info.shard {
+        Some(shard) => vec![shard.len() as usize],
+        None => info.shape.clone(),
+    }
+}
+
+/// For a shard: each range of flat indices it holds with the position of
+/// its first instance in the file (empty for a whole scene).
+fn shard_ranges(info: &FileInfo) -> Vec<(Range<u64>, u64)> {
+    let mut ranges = Vec::new();
+    if let Some(shard) = &info.shard {
+        let mut position = 0;
+        for range in &shard.ranges {
+            ranges.push((range.clone(), position));
+            position += range.end - range.start;
+        }
+    }
+    ranges
+}
+
+/// Writes the root attributes that describe the run: scene, name, version,
+/// backend, precision, variant, tolerances and friction law.
+fn write_file_attributes(file: &File, info: &FileInfo) -> Result<()> {
+    write_str_attr(file, schema::SCENE, &info.scene_text)?;
+    write_str_attr(file, schema::NAME, &info.name)?;
+    write_str_attr(file, schema::PIDM_VERSION, env!("CARGO_PKG_VERSION"))?;
+    write_str_attr(file, schema::BACKEND, &info.backend)?;
+    write_str_attr(file, schema::PRECISION, &info.precision)?;
+    write_str_attr(file, schema::VARIANT, &info.variant)?;
+    write_f64_attr(file, schema::TOLERANCE, info.tolerance)?;
+    write_str_attr(file, schema::FRICTION, &info.friction)?;
+    if let Some(parameters) = &info.friction_parameters {
+        write_str_attr(file, schema::FRICTION_PARAMETERS, parameters)?;
+    }
+    if let Some(tolerance) = info.verify_tolerance {
+        write_f64_attr(file, schema::VERIFY_TOLERANCE, tolerance)?;
+    }
+    Ok(())
+}
+
+/// The dimension scales, keyed and in grid order (then `point` for a
+/// points scene).
+type Scales = Vec<(String, Dataset)>;
+
+/// Writes the dimension scales under `/axes`, in grid order, and for a
+/// points scene the `point` index and the labels dataset; returns the
+/// scales and the labels (the maps' coordinates).
+fn write_scales(file: &File, info: &FileInfo) -> Result<(Scales, Option<Dataset>)> {
+    let axes = file.create_group(schema::AXES)?;
+    let mut scales = Vec::new();
+    for axis in &info.axes {
+        let ds = axes
+            .new_dataset_builder()
+            .with_data(&axis.values)
+            .create(axis.key.as_str())?;
+        write_str_attr(&ds, schema::UNITS, &axis.units)?;
+        write_str_attr(&ds, schema::LONG_NAME, &axis.key)?;
+        scales.push((axis.key.clone(), ds));
+    }
+    let mut coordinates = None;
+    if let Some(labels) = &info.labels {
+        let index: Vec<u64> = (0..labels.len() as u64).collect();
+        let ds = axes
+            .new_dataset_builder()
+            .with_data(&index)
+            .create("point")?;
+        write_str_attr(&ds, "units", "1")?;
+        write_str_attr(&ds, "long_name", "point of the scene, in file order")?;
+        let text: Vec<VarLenUnicode> = labels
+            .iter()
+            .map(|l| l.parse().context("point label is not valid text"))
+            .collect::<Result<_>>()?;
+        let label_ds = file
+            .new_dataset_builder()
+            .with_data(&text)
+            .create(schema::LABELS)?;
+        write_str_attr(&label_ds, "long_name", "point label")?;
+        scales.push(("point".to_string(), ds));
+        coordinates = Some(label_ds);
+    }
+    Ok((scales, coordinates))
+}
+
+/// Makes the scales NetCDF dimensions: marks each a dimension scale, links
+/// it from the root, and attaches the labels (if any) to the first.
+fn link_scales(file: &File, scales: &Scales, coordinates: Option<&Dataset>) -> Result<()> {
+    for (key, ds) in scales {
+        dimension_scales::set_scale(ds, key)?;
+        file.link_hard(&format!("axes/{key}"), key)?;
+    }
+    if let Some(labels) = coordinates {
+        dimension_scales::attach(labels, &scales[0].1, 0)?;
+    }
+    Ok(())
+}
+
+/// Writes a shard file's attributes and its `/shard/instance` dataset:
+/// the scene's flat index of each instance it holds.
+fn write_shard_index(file: &File, shard: &ShardInfo, map_shape: &[usize]) -> Result<()> {
+    write_u64_attr(file, schema::SHARD_INDEX, shard.spec.index as u64)?;
+    write_u64_attr(file, schema::SHARD_COUNT, shard.spec.count as u64)?;
+    write_u64_attr(file, schema::INSTANCE_COUNT, shard.total)?;
+    let group = file.create_group(schema::SHARD)?;
+    let ds = group
+        .new_dataset::<u64>()
+        .shape(map_shape.to_vec())
+        .create("instance")?;
+    let index: Vec<u64> = shard.ranges.iter().flat_map(|r| r.clone()).collect();
+    ds.write(&index)?;
+    write_str_attr(
+        &ds,
+        "long_name",
+        "flat row-major index of each instance in the scene",
+    )?;
+    Ok(())
+}
+
+/// What every empty map of a file is made with: its shape (and so chunks)
+/// and, for a NetCDF file, the scales to attach and root links to make.
+struct MapMaker<'a> {
+    file: &'a File,
+    shape: &'a [usize],
+    scales: &'a Scales,
+    /// Whether the file has point labels (the maps' coordinates).
+    labelled: bool,
+    /// Whether the file is NetCDF (not a shard).
+    netcdf: bool,
+}
+
+impl MapMaker<'_> {
+    /// Creates the empty map `d` in `group` (named `prefix`) and describes
+    /// it.
+    fn create(&self, group: &hdf5::Group, prefix: &str, d: schema::MapDataset) -> Result<Dataset> {
+        let ds = self.make(group, d.name, d.ty)?;
+        self.describe(&ds, prefix, d)?;
+        Ok(ds)
+    }
+
+    /// Creates an empty map of type `ty`, chunked by [`chunk_shape`].
+    fn make(&self, group: &hdf5::Group, name: &str, ty: schema::MapType) -> Result<Dataset> {
+        let builder = match ty {
+            schema::MapType::F64 => group.new_dataset::<f64>(),
+            schema::MapType::U32 => group.new_dataset::<u32>(),
+            schema::MapType::U8 => group.new_dataset::<u8>(),
+        };
+        let builder = builder.shape(self.shape.to_vec());
+        let ds = match chunk_shape(self.shape) {
+            Some(chunk) => builder.chunk(chunk).create(name)?,
+            None => builder.create(name)?,
+        };
+        Ok(ds)
+    }
+
+    /// Writes the units and long name of map `d` and, for a NetCDF file,
+    /// attaches the scales, names the coordinates and links the map from
+    /// the root.
+    fn describe(&self, ds: &Dataset, prefix: &str, d: schema::MapDataset) -> Result<()> {
+        write_str_attr(ds, schema::UNITS, d.units)?;
+        write_str_attr(ds, schema::LONG_NAME, d.long_name)?;
+        if self.netcdf {
+            for (dim, (_, scale)) in self.scales.iter().enumerate() {
+                dimension_scales::attach(ds, scale, dim as u32)?;
+            }
+            if self.labelled {
+                write_str_attr(ds, "coordinates", schema::LABELS)?;
+            }
+            let name = d.name;
+            self.file
+                .link_hard(&format!("{prefix}/{name}"), &root_name(prefix, name))?;
+        }
+        Ok(())
+    }
+}
+
 impl MapWriter {
     /// Creates the temporary file of the claimed output with axes and
     /// empty maps. A temporary file left by a killed run is replaced: the
     /// claim proves that no other run is writing it.
     pub fn create(claim: &OutputClaim, info: &FileInfo) -> Result<MapWriter> {
-        let path = claim.path();
         let temp_path = claim.partial_path();
-        // Removing first replaces a stale file without following it, should
-        // it have become a link since the claim checked it.
-        match std::fs::remove_file(&temp_path) {
-            Ok(()) => {}
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => {
-                return Err(e).with_context(|| format!("cannot remove {}", temp_path.display()));
-            }
-        }
-        let file = File::create_excl(&temp_path)
-            .with_context(|| format!("cannot create {}", temp_path.display()))?;
-        // A shard's maps are 1-D over its own instances.
-        let map_shape = match &info.shard {
-            Some(shard) => vec![shard.len() as usize],
-            None => info.shape.clone(),
-        };
-        let mut shard_ranges = Vec::new();
-        if let Some(shard) = &info.shard {
-            let mut position = 0;
-            for range in &shard.ranges {
-                shard_ranges.push((range.clone(), position));
-                position += range.end - range.start;
-            }
-        }
+        let file = create_temp_file(&temp_path)?;
+        let map_shape = map_shape(info);
         let mut writer = MapWriter {
             file: None,
             temp_path,
-            final_path: path.to_path_buf(),
+            final_path: claim.path().to_path_buf(),
             shape: map_shape.clone(),
-            shard_ranges,
+            shard_ranges: shard_ranges(info),
             maps: Vec::new(),
             baselines: Vec::new(),
             stall: Vec::new(),
             scale_names: info.axes.iter().map(|a| a.key.clone()).collect(),
         };
-        write_str_attr(&file, schema::SCENE, &info.scene_text)?;
-        write_str_attr(&file, schema::NAME, &info.name)?;
-        write_str_attr(&file, schema::PIDM_VERSION, env!("CARGO_PKG_VERSION"))?;
-        write_str_attr(&file, schema::BACKEND, &info.backend)?;
-        write_str_attr(&file, schema::PRECISION, &info.precision)?;
-        write_str_attr(&file, schema::VARIANT, &info.variant)?;
-        write_f64_attr(&file, schema::TOLERANCE, info.tolerance)?;
-        write_str_attr(&file, schema::FRICTION, &info.friction)?;
-        if let Some(parameters) = &info.friction_parameters {
-            write_str_attr(&file, schema::FRICTION_PARAMETERS, parameters)?;
-        }
-        if let Some(tolerance) = info.verify_tolerance {
-            write_f64_attr(&file, schema::VERIFY_TOLERANCE, tolerance)?;
-        }
-
-        // The dimension scales, in grid order.
-        let axes = file.create_group(schema::AXES)?;
-        let mut scales = Vec::new();
-        for axis in &info.axes {
-            let ds = axes
-                .new_dataset_builder()
-                .with_data(&axis.values)
-                .create(axis.key.as_str())?;
-            write_str_attr(&ds, schema::UNITS, &axis.units)?;
-            write_str_attr(&ds, schema::LONG_NAME, &axis.key)?;
-            scales.push((axis.key.clone(), ds));
-        }
-        let mut coordinates = None;
-        if let Some(labels) = &info.labels {
-            let index: Vec<u64> = (0..labels.len() as u64).collect();
-            let ds = axes
-                .new_dataset_builder()
-                .with_data(&index)
-                .create("point")?;
-            write_str_attr(&ds, "units", "1")?;
-            write_str_attr(&ds, "long_name", "point of the scene, in file order")?;
-            let text: Vec<VarLenUnicode> = labels
-                .iter()
-                .map(|l| l.parse().context("point label is not valid text"))
-                .collect::<Result<_>>()?;
-            let label_ds = file
-                .new_dataset_builder()
-                .with_data(&text)
-                .create(schema::LABELS)?;
-            write_str_attr(&label_ds, "long_name", "point label")?;
-            scales.push(("point".to_string(), ds));
-            coordinates = Some(label_ds);
-        }
+        write_file_attributes(&file, info)?;
+        let (scales, coordinates) = write_scales(&file, info)?;
         let netcdf = info.shard.is_none();
         if netcdf {
-            for (key, ds) in &scales {
-                dimension_scales::set_scale(ds, key)?;
-                file.link_hard(&format!("axes/{key}"), key)?;
-            }
-            if let Some(labels) = &coordinates {
-                dimension_scales::attach(labels, &scales[0].1, 0)?;
-            }
+            link_scales(&file, &scales, coordinates.as_ref())?;
         }
         if let Some(shard) = &info.shard {
-            write_u64_attr(&file, schema::SHARD_INDEX, shard.spec.index as u64)?;
-            write_u64_attr(&file, schema::SHARD_COUNT, shard.spec.count as u64)?;
-            write_u64_attr(&file, schema::INSTANCE_COUNT, shard.total)?;
-            let group = file.create_group(schema::SHARD)?;
-            let ds = group
-                .new_dataset::<u64>()
-                .shape(map_shape.clone())
-                .create("instance")?;
-            let index: Vec<u64> = shard.ranges.iter().flat_map(|r| r.clone()).collect();
-            ds.write(&index)?;
-            write_str_attr(
-                &ds,
-                "long_name",
-                "flat row-major index of each instance in the scene",
-            )?;
+            write_shard_index(&file, shard, &map_shape)?;
         }
-
-        let make = |group: &hdf5::Group, name: &str, ty: schema::MapType| -> Result<Dataset> {
-            let builder = match ty {
-                schema::MapType::F64 => group.new_dataset::<f64>(),
-                schema::MapType::U32 => group.new_dataset::<u32>(),
-                schema::MapType::U8 => group.new_dataset::<u8>(),
-            };
-            let builder = builder.shape(map_shape.clone());
-            let ds = match chunk_shape(&map_shape) {
-                Some(chunk) => builder.chunk(chunk).create(name)?,
-                None => builder.create(name)?,
-            };
-            Ok(ds)
+        let maker = MapMaker {
+            file: &file,
+            shape: &map_shape,
+            scales: &scales,
+            labelled: coordinates.is_some(),
+            netcdf,
         };
-        let describe =
-            |ds: &Dataset, prefix: &str, name: &str, units: &str, long_name: &str| -> Result<()> {
-                write_str_attr(ds, schema::UNITS, units)?;
-                write_str_attr(ds, schema::LONG_NAME, long_name)?;
-                if netcdf {
-                    for (dim, (_, scale)) in scales.iter().enumerate() {
-                        dimension_scales::attach(ds, scale, dim as u32)?;
-                    }
-                    if coordinates.is_some() {
-                        write_str_attr(ds, "coordinates", schema::LABELS)?;
-                    }
-                    file.link_hard(&format!("{prefix}/{name}"), &root_name(prefix, name))?;
-                }
-                Ok(())
-            };
         let maps = file.create_group(schema::MAPS)?;
         for d in schema::MAP_DATASETS {
-            let ds = make(&maps, d.name, d.ty)?;
-            describe(&ds, schema::MAPS, d.name, d.units, d.long_name)?;
+            let ds = maker.create(&maps, schema::MAPS, d)?;
             if d.name == schema::MOTION_NAME {
                 write_motion_flags(&ds)?;
             }
@@ -216,17 +296,15 @@ impl MapWriter {
         }
         if let Some(axis) = info.stall {
             for d in schema::STALL_DATASETS[axis] {
-                let ds = make(&maps, d.name, d.ty)?;
-                describe(&ds, schema::MAPS, d.name, d.units, d.long_name)?;
-                writer.stall.push(ds);
+                writer.stall.push(maker.create(&maps, schema::MAPS, d)?);
             }
         }
         if info.baselines {
             let group = file.create_group(schema::BASELINE)?;
             for d in schema::BASELINE_DATASETS {
-                let ds = make(&group, d.name, d.ty)?;
-                describe(&ds, schema::BASELINE, d.name, d.units, d.long_name)?;
-                writer.baselines.push(ds);
+                writer
+                    .baselines
+                    .push(maker.create(&group, schema::BASELINE, d)?);
             }
         }
         writer.file = Some(file);

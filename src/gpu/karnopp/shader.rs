@@ -583,7 +583,17 @@ mod tests {
     /// side needs and the other does not (with the reason).
     #[test]
     fn every_shader_file_mirrors_its_rust_file() {
-        let rust = [
+        let shader_only = shader_only_functions();
+        let cpu_only = cpu_only_functions();
+        for (wgsl_name, rust_text) in rust_mirrors() {
+            check_mirror(wgsl_name, rust_text, &shader_only, &cpu_only);
+        }
+    }
+
+    /// Each shader file (but the entry point) with the text of its Rust
+    /// mirror.
+    fn rust_mirrors() -> [(&'static str, &'static str); 9] {
+        [
             (
                 "arith.wgsl",
                 include_str!("../../laws/karnopp/integrate/arith.rs"),
@@ -620,10 +630,14 @@ mod tests {
                 "phase.wgsl",
                 include_str!("../../laws/karnopp/integrate/phase.rs"),
             ),
-        ];
+        ]
+    }
+
+    /// The functions only the shader defines.
+    fn shader_only_functions() -> [&'static str; 11] {
         // Shader only: WGSL has no Option, closures, methods or
         // is_finite, and splits some expressions into functions.
-        let shader_only = [
+        [
             "identity_propagator",
             "series_term",
             "theta",
@@ -638,12 +652,16 @@ mod tests {
             "two_sum2",
             // No closures: `window_coefficient`'s cut test.
             "is_cut",
-        ];
+        ]
+    }
+
+    /// The functions only the Rust mirrors define.
+    fn cpu_only_functions() -> [&'static str; 37] {
         // CPU only: constructors, the observer of trajectories (its `step`
         // method and `StepMotion`), the whole run (stoppable, also from a
         // state the f64 shader left) and its result, Rust's rounding and
         // the sample array.
-        let cpu_only = [
+        [
             "new",
             "default",
             // The coefficients in a precision (computed on the host), also
@@ -690,30 +708,38 @@ mod tests {
             // The host's fixed-point phase coefficients.
             "fixed_fraction_32",
             "fixed_fraction_64",
-        ];
-        for (wgsl_name, rust_text) in rust {
-            let (_, wgsl_text) = FILES.iter().find(|(n, _)| *n == wgsl_name).unwrap();
-            let wgsl = defined_functions(wgsl_text);
-            let cpu = defined_functions(rust_text);
-            // The GPU's `advance` (with the loop limiter) lives beside its
-            // entry point.
-            let mut found = wgsl.clone();
-            if wgsl_name == "advance.wgsl" {
-                let (_, entry) = FILES.iter().find(|(n, _)| *n == "entry.wgsl").unwrap();
-                found.extend(defined_functions(entry));
-            }
-            for f in &wgsl {
-                assert!(
-                    cpu.contains(f) || shader_only.contains(&f.as_str()),
-                    "{wgsl_name} defines {f}, its Rust mirror does not"
-                );
-            }
-            for f in &cpu {
-                assert!(
-                    found.contains(f) || cpu_only.contains(&f.as_str()),
-                    "the Rust mirror of {wgsl_name} defines {f}, the shader does not"
-                );
-            }
+        ]
+    }
+
+    /// The text of the shader file `name`.
+    fn shader_text(name: &str) -> &'static str {
+        let (_, text) = FILES.iter().find(|(n, _)| *n == name).unwrap();
+        text
+    }
+
+    /// Asserts that shader file `wgsl_name` and its Rust mirror define the
+    /// same functions, apart from `shader_only` and `cpu_only`.
+    fn check_mirror(wgsl_name: &str, rust_text: &str, shader_only: &[&str], cpu_only: &[&str]) {
+        let wgsl_text = shader_text(wgsl_name);
+        let wgsl = defined_functions(wgsl_text);
+        let cpu = defined_functions(rust_text);
+        // The GPU's `advance` (with the loop limiter) lives beside its
+        // entry point.
+        let mut found = wgsl.clone();
+        if wgsl_name == "advance.wgsl" {
+            found.extend(defined_functions(shader_text("entry.wgsl")));
+        }
+        for f in &wgsl {
+            assert!(
+                cpu.contains(f) || shader_only.contains(&f.as_str()),
+                "{wgsl_name} defines {f}, its Rust mirror does not"
+            );
+        }
+        for f in &cpu {
+            assert!(
+                found.contains(f) || cpu_only.contains(&f.as_str()),
+                "the Rust mirror of {wgsl_name} defines {f}, the shader does not"
+            );
         }
     }
 
