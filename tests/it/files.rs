@@ -726,9 +726,14 @@ fn a_merge_of_damaged_shards_gives_an_error_or_a_plausible_file() {
         ..Config::default()
     });
     let merged_files = std::cell::Cell::new(0);
+    // A fresh name per case: a child that another test spawns while a case
+    // holds a file open inherits its descriptor, and with it the file's
+    // HDF5 lock, for as long as the child runs; a new file is not locked.
+    let case = std::cell::Cell::new(0);
     runner
         .run(&shard_damage(), |damages| {
-            let copy = d.join("damaged.h5");
+            case.set(case.get() + 1);
+            let copy = d.join(format!("damaged-{}.h5", case.get()));
             std::fs::copy(d.join("shard-1.h5"), &copy).unwrap();
             {
                 let file = hdf5::File::open_rw(&copy).unwrap();
@@ -736,8 +741,7 @@ fn a_merge_of_damaged_shards_gives_an_error_or_a_plausible_file() {
                     apply(&file, damage);
                 }
             }
-            let out = d.join("merged.h5");
-            let _ = std::fs::remove_file(&out);
+            let out = d.join(format!("merged-{}.h5", case.get()));
             let merged = pidm::run::shard::merge(&out, &[copy, d.join("shard-2.h5")]);
             if merged.is_ok() {
                 merged_files.set(merged_files.get() + 1);

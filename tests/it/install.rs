@@ -6,9 +6,10 @@
 //! package shipped, whose `--version` is the package's.
 //!
 //! The build fetches maturin, and the environment numpy, xarray, h5py and
-//! h5netcdf, from PyPI, and the binary builds in `target/wheel` (not
-//! `target/release`, whose `pidm` the other tests run meanwhile): minutes
-//! the first time. So it runs under CI (`CI` set) or with
+//! h5netcdf, from PyPI; the binary's release build shares the tests' target
+//! folder, so under `cargo test --release` it is the tests' own binary,
+//! already built (cargo finds it fresh and leaves it alone while the other
+//! tests run it). It runs under CI (`CI` set) or with
 //! `PIDM_TEST_INSTALL=1`, and elsewhere prints a notice and passes.
 
 use std::path::Path;
@@ -36,6 +37,19 @@ fn only_file(dir: &Path, suffix: &str) -> std::path::PathBuf {
         .collect();
     assert_eq!(found.len(), 1, "{found:?}");
     found[0].clone()
+}
+
+/// The target folder of the tests' own build (`CARGO_BIN_EXE_pidm` is
+/// TARGET/PROFILE/pidm): the wheel's release build shares it, so under
+/// `cargo test --release` maturin's cargo finds the binary built and only
+/// packs it (a build of its own took minutes in CI).
+fn shared_target() -> std::path::PathBuf {
+    let binary = Path::new(env!("CARGO_BIN_EXE_pidm"));
+    binary
+        .parent()
+        .and_then(Path::parent)
+        .expect("the binary is TARGET/PROFILE/pidm")
+        .to_path_buf()
 }
 
 const PROBE: &str = r#"
@@ -75,7 +89,7 @@ fn the_wheel_installs_into_a_fresh_environment_and_runs_its_own_binary() {
             .args(["-m", "pip", "wheel", "--quiet", "--no-deps", "--wheel-dir"])
             .arg(&wheels)
             .arg(root.join("python"))
-            .env("CARGO_TARGET_DIR", root.join("target/wheel"))
+            .env("CARGO_TARGET_DIR", shared_target())
             .current_dir(dir.path()),
         "pip wheel ./python",
     );
