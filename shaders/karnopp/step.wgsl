@@ -81,41 +81,100 @@ fn direction(s: Sample) -> Direction {
     return out;
 }
 
+// What the phases of one step share (see step.rs).
+struct Trial {
+    h: Real,
+    inv_h: Real,
+    dir: DirectionModel,
+    flow: Flow,
+    safe: bool,
+    err: Real,
+    slip_event: u32,
+}
+
+// The event a step meets first: `kind` is EVENT_NONE where it meets none.
+struct StepEvent {
+    kind: u32,
+    tau: Real,
+    grazed: bool,
+}
+
 fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32 {
     let c = &coefficients[held];
     let drive = drive_force(*st);
-    let stuck = (*st).mode == MODE_STICK;
     let slipping = (*st).mode == MODE_SLIP;
+    var samples: Samples;
+    var t = trial(*st, drive, h_max, &samples);
+    let props = sample_propagators(t.flow, t.h);
+    collocate(*st, drive, props, &t, &samples);
+    if slipping && c.frictionless == 0u {
+        if t.err == Real(0.0) {
+            t.err = direction_error(t.dir, samples, 4u);
+        }
+        if t.err >= INFINITY {
+            approach_trial(*st, drive, props, &t, &samples);
+        }
+        if t.err > c.tolerance {
+            reject(st, t.h, t.err);
+            return STEP_REJECTED;
+        }
+    }
+    var found = find_event(*st, t, samples);
+    if found.kind == EVENT_NONE {
+        move_to(st, samples.s4, t.h, h_max, stop, stop_lo);
+        if slipping {
+            if t.h < h_max {
+                (*st).h_slip = next_slip_step(st, t.h, t.err);
+            } else {
+                (*st).h_slip = max((*st).h_slip, t.h);
+            }
+        }
+    } else if !take_event(st, t, &found, h_max, stop, stop_lo) {
+        return STEP_REJECTED;
+    }
+    if GRAZE_GUARD && c.steady == 0u && found.grazed {
+        (*st).status = STATUS_GRAZE;
+    }
+    (*st).rejections = 0u;
+    return select(STEP_LOCATED, STEP_MOVED, found.kind == EVENT_NONE);
+}
+
+// The trial of a step: its length, the direction model's constant term and
+// the flow; every sample starts as the flow's start.
+fn trial(st: State, drive: Drive, h_max: Real, samples: ptr<function, Samples>) -> Trial {
+    let c = &coefficients[held];
+    let stuck = st.mode == MODE_STICK;
+    let slipping = st.mode == MODE_SLIP;
     var dir = DirectionModel(V2(0.0), V2(0.0), V2(0.0));
     var h = h_max;
     if slipping {
-        h = min(min((*st).h_slip, c.event_step_slip), h_max);
+        h = min(min(st.h_slip, c.event_step_slip), h_max);
         if h <= Real(0.0) {
             h = min(c.event_step_slip, h_max);
         }
-        let v = (*st).v_rel;
+        let v = st.v_rel;
         dir.b0 = v * recip_root(dot(v, v));
-    } else if (*st).mode == MODE_BAND {
+    } else if st.mode == MODE_BAND {
         h = min(h_max, c.event_step_slip);
-        dir.b0 = (*st).held;
+        dir.b0 = st.held;
     }
     // A slip trial's limit from the start of a flow of unit length, and one
     // reciprocal of the step length for every flow of the step (see step.rs).
-    let band = (*st).mode == MODE_BAND;
+    let band = st.mode == MODE_BAND;
     var inv_h = Real(1.0);
     var flow_h = Real(1.0);
     if band {
         inv_h = recip(h);
         flow_h = h;
     }
-    var flow = mode_flow(*st, drive, dir, flow_h, inv_h);
+    var flow = mode_flow(st, drive, dir, flow_h, inv_h);
     let first = eval_flow(flow, identity_propagator(), Real(0.0));
     if slipping {
         if c.frictionless == 0u {
-            h = approach_limit((*st).v_rel, relative_acceleration(first), h);
+            h = approach_limit(st.v_rel, relative_acceleration(first), h);
         }
         inv_h = recip(h);
-        flow = mode_flow(*st, drive, dir, h, inv_h);
+        flow = mode_flow(st, drive, dir, h, inv_h);
     }
     var safe = false;
     if stuck {
@@ -125,92 +184,92 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
             h = min(h_max, c.event_step_stuck);
         }
     }
-    let props = sample_propagators(flow, h);
-    // SLIP: the collocation of the direction model, by the CPU's iteration
-    // with the samples evaluated at the top of each pass, so that the code
-    // evaluates a flow in one place (every copy of a flow's evaluation is
-    // code the driver compiles and the lanes fetch). Other modes evaluate
-    // once and leave.
-    let collocating = slipping && c.frictionless == 0u;
-    var samples = Samples(first, first, first, first, first);
-    var err = Real(0.0);
-    var failed = false;
+    *samples = Samples(first, first, first, first, first);
+    return Trial(h, inv_h, dir, flow, safe, Real(0.0), EVENT_ENTER_BAND);
+}
+
+// The samples of the trial. SLIP: first the collocation of the direction
+// model, by the CPU's iteration with the samples evaluated at the top of
+// each pass, so that the code evaluates a flow in one place (every copy of
+// a flow's evaluation is code the driver compiles and the lanes fetch).
+// Other modes evaluate once and leave.
+fn collocate(st: State, drive: Drive, props: SamplePropagators, t: ptr<function, Trial>, samples: ptr<function, Samples>) {
+    let c = &coefficients[held];
+    let collocating = st.mode == MODE_SLIP && c.frictionless == 0u;
+    let h = (*t).h;
     var done = !collocating;
-    let u0 = dir.b0;
+    let u0 = (*t).dir.b0;
     var k = 0u;
     loop {
-        samples.s2 = eval_flow(flow, props.half, Real(0.5) * h);
-        samples.s4 = eval_flow(flow, props.full, h);
+        (*samples).s2 = eval_flow((*t).flow, props.half, Real(0.5) * h);
+        (*samples).s4 = eval_flow((*t).flow, props.full, h);
         if done || k == COLLOCATION_ITERATIONS {
             break;
         }
-        let um = direction(samples.s2);
-        let ue = direction(samples.s4);
+        let um = direction((*samples).s2);
+        let ue = direction((*samples).s4);
         if !um.ok || !ue.ok {
-            failed = true;
+            (*t).err = INFINITY;
             break;
         }
         let b1 = Real(4.0) * um.u - Real(3.0) * u0 - ue.u;
         let b2 = Real(2.0) * (ue.u - Real(2.0) * um.u + u0);
-        let db1 = abs(b1 - dir.b1);
-        let db2 = abs(b2 - dir.b2);
+        let db1 = abs(b1 - (*t).dir.b1);
+        let db2 = abs(b2 - (*t).dir.b2);
         let change = max(max(db1.x, db1.y), max(db2.x, db2.y));
-        dir.b1 = b1;
-        dir.b2 = b2;
+        (*t).dir.b1 = b1;
+        (*t).dir.b2 = b2;
         if change == Real(0.0) {
             break;
         }
-        flow = mode_flow(*st, drive, dir, h, inv_h);
+        (*t).flow = mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
         done = change <= c.collocation_tolerance;
         k++;
     }
     // The start again where collocation changed the flow, and the
     // quarters.
-    sample_flow(flow, props, h, &samples, select(SAMPLES_QUARTERS, SAMPLES_QUARTERS | 1u, collocating));
-    var slip_event = EVENT_ENTER_BAND;
-    if collocating {
-        if failed {
-            err = INFINITY;
-        } else {
-            err = direction_error(dir, samples, 4u);
-        }
-        if err >= INFINITY {
-            // The relative velocity reversed within the trial: the
-            // constant direction of the start up to where it slows into
-            // the band (see step.rs).
-            dir = DirectionModel(dir.b0, V2(0.0), V2(0.0));
-            flow = mode_flow(*st, drive, dir, h, inv_h);
-            sample_flow(flow, props, h, &samples, SAMPLES_ALL);
-            let ev = EventSamples(
-                approach_event(flow, samples.s0),
-                approach_event(flow, samples.s1),
-                approach_event(flow, samples.s2),
-                approach_event(flow, samples.s3),
-                approach_event(flow, samples.s4),
-            );
-            let scale = approach_scale(flow, samples.s0);
-            let entry = find_crossing(*st, EVENT_APPROACH, Real(1.0), ev, scale, flow, h);
-            if entry.found {
-                var before = 0u;
-                for (var j = 1u; j < 5u; j++) {
-                    if theta(j) * h <= entry.lo {
-                        before = j;
-                    }
-                }
-                err = direction_error(dir, samples, before);
-                slip_event = EVENT_APPROACH;
+    sample_flow((*t).flow, props, h, samples, select(SAMPLES_QUARTERS, SAMPLES_QUARTERS | 1u, collocating));
+}
+
+// The relative velocity reversed within the trial: the constant direction
+// of the start up to where it slows into the band (see step.rs).
+fn approach_trial(st: State, drive: Drive, props: SamplePropagators, t: ptr<function, Trial>, samples: ptr<function, Samples>) {
+    let h = (*t).h;
+    (*t).dir = DirectionModel((*t).dir.b0, V2(0.0), V2(0.0));
+    let flow = mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
+    (*t).flow = flow;
+    sample_flow(flow, props, h, samples, SAMPLES_ALL);
+    let ev = EventSamples(
+        approach_event(flow, (*samples).s0),
+        approach_event(flow, (*samples).s1),
+        approach_event(flow, (*samples).s2),
+        approach_event(flow, (*samples).s3),
+        approach_event(flow, (*samples).s4),
+    );
+    let scale = approach_scale(flow, (*samples).s0);
+    let entry = find_crossing(st, EVENT_APPROACH, Real(1.0), ev, scale, flow, h);
+    if entry.found {
+        var before = 0u;
+        for (var j = 1u; j < 5u; j++) {
+            if theta(j) * h <= entry.lo {
+                before = j;
             }
         }
-        if err > c.tolerance {
-            reject(st, h, err);
-            return STEP_REJECTED;
-        }
+        (*t).err = direction_error((*t).dir, *samples, before);
+        (*t).slip_event = EVENT_APPROACH;
     }
+}
+
+// The first event the accepted trial meets (see step.rs).
+fn find_event(st: State, t: Trial, samples: Samples) -> StepEvent {
+    let c = &coefficients[held];
+    let flow = t.flow;
+    let h = t.h;
     var primary = EVENT_LEAVE_BAND;
-    if stuck {
-        primary = select(EVENT_BREAKAWAY, EVENT_NONE, safe);
-    } else if slipping {
-        primary = slip_event;
+    if st.mode == MODE_STICK {
+        primary = select(EVENT_BREAKAWAY, EVENT_NONE, t.safe);
+    } else if st.mode == MODE_SLIP {
+        primary = t.slip_event;
     }
     let start = samples.s0;
     let end = samples.s4;
@@ -222,11 +281,11 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
         any_primary_event(primary, flow, end),
     );
     let ev_reversal = EventSamples(
-        reversal_event(*st, start),
-        reversal_event(*st, samples.s1),
-        reversal_event(*st, samples.s2),
-        reversal_event(*st, samples.s3),
-        reversal_event(*st, end),
+        reversal_event(st, start),
+        reversal_event(st, samples.s1),
+        reversal_event(st, samples.s2),
+        reversal_event(st, samples.s3),
+        reversal_event(st, end),
     );
     var sign = Real(0.0);
     for (var j = 0u; j < 5u; j++) {
@@ -235,12 +294,8 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
             sign = select(Real(-1.0), Real(1.0), d > Real(0.0));
         }
     }
-    let watch_reversal = (*st).mode == MODE_BAND && sign != Real(0.0);
-    var event = EVENT_NONE;
-    var event_tau = Real(0.0);
-    // A slip that passes the band closer than the graze margin, or enters
-    // it only skimming (see step.rs).
-    var grazed = false;
+    let watch_reversal = st.mode == MODE_BAND && sign != Real(0.0);
+    var found = StepEvent(EVENT_NONE, Real(0.0), false);
     for (var k = 0u; k < 2u; k++) {
         var kind = primary;
         var kind_sign = Real(1.0);
@@ -254,7 +309,7 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
         } else {
             kind = select(EVENT_NONE, EVENT_REVERSAL, watch_reversal);
             kind_sign = sign;
-            scale = reversal_scale(*st, start);
+            scale = reversal_scale(st, start);
         }
         if kind == EVENT_NONE {
             continue;
@@ -264,79 +319,75 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
         if k == 1u {
             ev = ev_reversal;
         }
-        let crossing = find_crossing(*st, kind, kind_sign, ev, scale, flow, h);
+        let crossing = find_crossing(st, kind, kind_sign, ev, scale, flow, h);
         if kind == EVENT_ENTER_BAND && !crossing.found {
-            grazed = crossing.closest < GRAZE_MARGIN * c.band2;
+            found.grazed = crossing.closest < GRAZE_MARGIN * c.band2;
         }
         if crossing.found {
-            let tau = locate(*st, kind, kind_sign, flow, crossing.lo, crossing.hi);
-            if event == EVENT_NONE || tau < event_tau {
-                event = kind;
-                event_tau = tau;
+            let tau = locate(st, kind, kind_sign, flow, crossing.lo, crossing.hi);
+            if found.kind == EVENT_NONE || tau < found.tau {
+                found.kind = kind;
+                found.tau = tau;
             }
         }
     }
-    if event == EVENT_NONE {
-        move_to(st, end, h, h_max, stop, stop_lo);
-        if slipping {
-            if h < h_max {
-                (*st).h_slip = next_slip_step(st, h, err);
-            } else {
-                (*st).h_slip = max((*st).h_slip, h);
-            }
-        }
+    return found;
+}
+
+// Moves the state to the event and changes its mode there; false where an
+// approach turned too far on the way (see step.rs).
+fn take_event(st: ptr<function, State>, t: Trial, found: ptr<function, StepEvent>, h_max: Real, stop: Real, stop_lo: Real) -> bool {
+    let event = (*found).kind;
+    (*st).h_accepted = Real(0.0);
+    let s = eval_at(t.flow, (*found).tau);
+    if event == EVENT_APPROACH && approach_turned(s, t.flow) {
+        reject(st, t.h, INFINITY);
+        return false;
+    }
+    move_to(st, s, (*found).tau, h_max, stop, stop_lo);
+    (*found).grazed = event == EVENT_ENTER_BAND && skims_band(s);
+    // One call of `start_slip` for both ways slip starts (see step.rs).
+    var slip = SlipStart(false, V2(0.0));
+    if event == EVENT_BREAKAWAY {
+        slip = SlipStart(true, stick_force(*st));
+    } else if event == EVENT_LEAVE_BAND {
+        (*st).mode = MODE_SLIP;
+        (*st).h_slip = initial_slip_step(*st, h_max);
     } else {
-        (*st).h_accepted = Real(0.0);
-        let s = eval_at(flow, event_tau);
-        // The approach is the band entry only while v_rel still points
-        // along the step's direction (see step.rs).
-        if event == EVENT_APPROACH {
-            let u = direction(s);
-            var turned = INFINITY;
-            if u.ok {
-                let d = u.u - flow.b0;
-                turned = root(dot(d, d));
-            }
-            var allowed = c.tolerance;
-            if APPROACH_NOISE {
-                // f32 knows v_rel here only to the rounding of the stage's
-                // and the slider's velocity changes it is the difference
-                // of (their deflection form makes that all): a turn below
-                // it is not one f32 can see, and shorter steps, which shrink
-                // the changes, only cost steps (results/gpu.md).
-                let dv = abs(s.v_p - flow.v_p) + abs(s.v_s - flow.v_s);
-                let v = s.v_rel;
-                allowed += div(Real(4.0) * EPSILON * (dv.x + dv.y), root(max(dot(v, v), TINY)));
-            }
-            if turned > allowed {
-                reject(st, h, INFINITY);
-                return STEP_REJECTED;
-            }
+        if event == EVENT_ENTER_BAND || event == EVENT_APPROACH {
+            (*st).h_slip = t.h;
         }
-        move_to(st, s, event_tau, h_max, stop, stop_lo);
-        grazed = event == EVENT_ENTER_BAND && skims_band(s);
-        // One call of `start_slip` for both ways slip starts (see step.rs).
-        var slip = SlipStart(false, V2(0.0));
-        if event == EVENT_BREAKAWAY {
-            slip = SlipStart(true, stick_force(*st));
-        } else if event == EVENT_LEAVE_BAND {
-            (*st).mode = MODE_SLIP;
-            (*st).h_slip = initial_slip_step(*st, h_max);
-        } else {
-            if event == EVENT_ENTER_BAND || event == EVENT_APPROACH {
-                (*st).h_slip = h;
-            }
-            slip = try_stick(st);
-        }
-        if slip.starts {
-            start_slip(st, slip.need);
-        }
+        slip = try_stick(st);
     }
-    if GRAZE_GUARD && c.steady == 0u && grazed {
-        (*st).status = STATUS_GRAZE;
+    if slip.starts {
+        start_slip(st, slip.need);
     }
-    (*st).rejections = 0u;
-    return select(STEP_LOCATED, STEP_MOVED, event == EVENT_NONE);
+    return true;
+}
+
+// Whether v_rel turned on its way to the approach event at `s`: the
+// approach is the band entry only while v_rel still points along the
+// step's direction (see step.rs).
+fn approach_turned(s: Sample, flow: Flow) -> bool {
+    let c = &coefficients[held];
+    let u = direction(s);
+    var turned = INFINITY;
+    if u.ok {
+        let d = u.u - flow.b0;
+        turned = root(dot(d, d));
+    }
+    var allowed = c.tolerance;
+    if APPROACH_NOISE {
+        // f32 knows v_rel here only to the rounding of the stage's and the
+        // slider's velocity changes it is the difference of (their
+        // deflection form makes that all): a turn below it is not one f32
+        // can see, and shorter steps, which shrink the changes, only cost
+        // steps (results/gpu.md).
+        let dv = abs(s.v_p - flow.v_p) + abs(s.v_s - flow.v_s);
+        let v = s.v_rel;
+        allowed += div(Real(4.0) * EPSILON * (dv.x + dv.y), root(max(dot(v, v), TINY)));
+    }
+    return turned > allowed;
 }
 
 // Whether a band entry only skims the band (see step.rs).

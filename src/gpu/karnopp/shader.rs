@@ -670,6 +670,12 @@ mod tests {
             "of",
             "of_replica",
             "new_replica",
+            // Its parts: the mechanism, the drives, the steps and the
+            // measurement.
+            "set_mechanism",
+            "set_drive",
+            "set_steps",
+            "set_measurement",
             "rounded",
             "inverse_integer",
             "run_instance",

@@ -98,7 +98,7 @@ pub struct Coefficients {
     /// (max(f_s, f_c) - |L|)^2 [N^2]: a stick segment whose homogeneous
     /// acceleration a has m_s^2 |a|^2 below this for good cannot break,
     /// since |f_need| = |m_s a - L| <= m_s |a| + |L| (the energy bound of
-    /// `step::step`); hold2 itself at L = 0. A scene's load is below f_c
+    /// `step::trial`); hold2 itself at L = 0. A scene's load is below f_c
     /// <= max(f_s, f_c), so the difference is positive.
     pub safe_hold2: Real,
     /// m_s^2 and 2 m_s^2 [kg^2].
@@ -328,6 +328,21 @@ impl Coefficients {
         time_epsilon: f64,
         r: Replica,
     ) -> Coefficients {
+        let mut c = Coefficients::default();
+        c.set_mechanism(inst);
+        c.set_drive(inst);
+        c.set_steps(inst, settings, time_epsilon);
+        c.set_measurement(inst, settings, r);
+        let clock = super::drive::CornerClock::new(&c, |x| x);
+        (c.rise_time, c.rise_time_lo) = clock.rise;
+        (c.fall_time, c.fall_time_lo) = clock.fall;
+        (c.first_corner, c.first_corner_lo) = clock.first;
+        c
+    }
+
+    /// The stage, the slider and the friction between them: the
+    /// oscillators, the mass shares, the load and the holding force.
+    fn set_mechanism(&mut self, inst: &Instance) {
         let [ax, ay] = &inst.axes;
         let per_axis = |f: &dyn Fn(&crate::model::Axis) -> f64| Vec2::new(f(ax), f(ay));
         let m = &inst.mechanism;
@@ -336,69 +351,59 @@ impl Coefficients {
         let stage_mass = per_axis(&|a| a.stage_mass);
         let stiffness = per_axis(&|a| a.stiffness);
         let damping = per_axis(&|a| a.damping);
-        let stick = Oscillator::new(stage_mass + ms, damping, stiffness);
-        let slip = Oscillator::new(stage_mass, damping, stiffness);
-        let driven = [ax.is_driven(), ay.is_driven()];
-        let amplitude = per_axis(&|a| {
-            if a.is_driven() {
-                a.gain * a.voltage
-            } else {
-                0.0
-            }
-        });
-        let has_fall = |a: &crate::model::Axis| a.duty < 1.0;
-        let period = inst.period();
         let slip_scale = stage_mass.map(|mp| (mp + ms) / (mp * ms));
         let slip_b = slip_scale * fc;
-        let event_step = |osc: &Oscillator| {
-            EVENT_STEP_PERIODS * 2.0 * std::f64::consts::PI / osc.rate.max_element()
-        };
-        let budget =
-            (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
-        let cycles_per_period = per_axis(&|a| a.frequency * period);
-        let step_tolerance = inst.measure.step_tolerance();
-        let se_limit = cycles_per_period * step_tolerance;
-        let deflection = (amplitude.abs() * stiffness.map(|k| 1.0 / k)).max_element();
-        let (repeat_x, repeat_v) =
-            super::measure::repeat_tolerances(settings.tolerance, deflection, slip.rate.max_element());
-        let frequency = per_axis(&|a| a.frequency);
-        // A cycle split's piece (`Replica::cycle`) has no stop rule of its
-        // own: its recurrence test keeps the states where its piece starts
-        // and ends (a "common period" of the piece's length), its ladder
-        // and batch means are off, and it runs to its `cycles`.
-        let piece = (r.cycle > 0).then(|| r.cycle_segment().1);
-        let common_period = piece.unwrap_or_else(|| {
-            super::measure::common_period(frequency, cycles_per_period, driven)
-        });
-        let steady = matches!(inst.measure, crate::model::Measure::Steady { .. });
-        // The faster drive's advance per scene period [cycles].
-        let rho = cycles_per_period.max_element().fract();
-        let ladder_on =
-            steady && piece.is_none() && super::phase::ladder_on(driven, rho, common_period);
-        // A replica's ladder is its group's virtual run's.
-        // The periods the run (a group's virtual run: its replicas'
-        // together) may measure.
-        let horizon = inst.cycles.saturating_sub(inst.settle).saturating_mul(r.count);
-        let ladder = super::phase::ladder(
-            r.virtual_step(rho),
-            ladder_on,
-            common_period.saturating_mul(r.count),
-            horizon,
-        );
         // The load per axis, each form +0 at L = 0 whatever the sign of
         // the zero given (`0.0 - x` and `x + 0.0` are +0 for x = -0).
         let load = Vec2::new(m.load[0], m.load[1]);
         let plus_zero = |x: Vec2| x.map(|x| x + 0.0);
         let hold = m.holding_friction();
         let loose = hold - m.load_magnitude();
-        let mut c = Coefficients {
+        *self = Coefficients {
             stiffness,
             damping,
             inv_stiffness: stiffness.map(|k| 1.0 / k),
-            stick,
-            slip,
-            amplitude,
-            frequency,
+            stick: Oscillator::new(stage_mass + ms, damping, stiffness),
+            slip: Oscillator::new(stage_mass, damping, stiffness),
+            stage_share: stage_mass.map(|mp| mp / (mp + ms)),
+            slider_share: stage_mass.map(|mp| ms / (mp + ms)),
+            slip_scale,
+            slip_b,
+            load_need: plus_zero(stage_mass.map(|mp| mp / (mp + ms)) * load),
+            load_accel: plus_zero(load.map(|l| l / ms)),
+            neg_load: load.map(|l| 0.0 - l),
+            neg_load_accel: load.map(|l| 0.0 - l / ms),
+            slip_b_max: slip_b.max_element().max(0.0),
+            hold2: hold * hold,
+            safe_hold2: loose.max(0.0) * loose.max(0.0),
+            ms2: ms * ms,
+            two_ms2: 2.0 * (ms * ms),
+            coulomb: fc,
+            fc_over_ms: fc / ms,
+            band: m.velocity_band,
+            band2: m.velocity_band * m.velocity_band,
+            frictionless: fc == 0.0,
+            ..*self
+        };
+    }
+
+    /// The sawtooth drives and the scene period (the corner clock is set
+    /// from these by [`Coefficients::new_replica`]).
+    fn set_drive(&mut self, inst: &Instance) {
+        let [ax, ay] = &inst.axes;
+        let per_axis = |f: &dyn Fn(&crate::model::Axis) -> f64| Vec2::new(f(ax), f(ay));
+        let has_fall = |a: &crate::model::Axis| a.duty < 1.0;
+        let period = inst.period();
+        let cycles_per_period = per_axis(&|a| a.frequency * period);
+        *self = Coefficients {
+            amplitude: per_axis(&|a| {
+                if a.is_driven() {
+                    a.gain * a.voltage
+                } else {
+                    0.0
+                }
+            }),
+            frequency: per_axis(&|a| a.frequency),
             duty: per_axis(&|a| a.duty),
             inv_duty: per_axis(&|a| 1.0 / a.duty),
             inv_fall: per_axis(&|a| {
@@ -431,41 +436,73 @@ impl Coefficients {
             cycles_fixed_lo: cycles_per_period
                 .to_array()
                 .map(|n| fixed_fraction_64(n) as u32),
-            stage_share: stage_mass.map(|mp| mp / (mp + ms)),
-            slider_share: stage_mass.map(|mp| ms / (mp + ms)),
-            slip_scale,
-            slip_b,
-            load_need: plus_zero(stage_mass.map(|mp| mp / (mp + ms)) * load),
-            load_accel: plus_zero(load.map(|l| l / ms)),
-            neg_load: load.map(|l| 0.0 - l),
-            neg_load_accel: load.map(|l| 0.0 - l / ms),
-            slip_b_max: slip_b.max_element().max(0.0),
-            hold2: hold * hold,
-            safe_hold2: loose.max(0.0) * loose.max(0.0),
-            ms2: ms * ms,
-            two_ms2: 2.0 * (ms * ms),
-            coulomb: fc,
-            fc_over_ms: fc / ms,
-            band: m.velocity_band,
-            band2: m.velocity_band * m.velocity_band,
+            driven: [ax.is_driven(), ay.is_driven()],
             period,
-            // The corner clock, exact in f64 (below).
+            // The corner clock, exact in f64.
             period_lo: 0.0,
-            rise_time: Vec2::ZERO,
-            rise_time_lo: Vec2::ZERO,
-            fall_time: Vec2::ZERO,
-            fall_time_lo: Vec2::ZERO,
-            first_corner: Vec2::ZERO,
-            first_corner_lo: Vec2::ZERO,
-            event_step_stuck: event_step(&stick),
-            event_step_slip: event_step(&slip),
-            min_step: MIN_STEP_EPSILONS * time_epsilon * period,
+            ..*self
+        };
+    }
+
+    /// The step lengths, the run's length and its budget of steps, and the
+    /// tolerance (after [`Coefficients::set_mechanism`] and
+    /// [`Coefficients::set_drive`]).
+    fn set_steps(&mut self, inst: &Instance, settings: &Settings, time_epsilon: f64) {
+        let event_step = |osc: &Oscillator| {
+            EVENT_STEP_PERIODS * 2.0 * std::f64::consts::PI / osc.rate.max_element()
+        };
+        let budget =
+            (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
+        *self = Coefficients {
+            event_step_stuck: event_step(&self.stick),
+            event_step_slip: event_step(&self.slip),
+            min_step: MIN_STEP_EPSILONS * time_epsilon * self.period,
             cycles: inst.cycles,
             settle: inst.settle,
             tolerance: settings.tolerance,
             collocation_tolerance: COLLOCATION_CONVERGED * settings.tolerance,
             budget,
-            driven,
+            ..*self
+        };
+    }
+
+    /// The measurement of replica `r`: the common period, the phase
+    /// ladder, the batches and the stop rules' tolerances (after
+    /// [`Coefficients::set_mechanism`] and [`Coefficients::set_drive`]).
+    fn set_measurement(&mut self, inst: &Instance, settings: &Settings, r: Replica) {
+        let (cycles_per_period, driven) = (self.cycles_per_period, self.driven);
+        let step_tolerance = inst.measure.step_tolerance();
+        let se_limit = cycles_per_period * step_tolerance;
+        let deflection = (self.amplitude.abs() * self.stiffness.map(|k| 1.0 / k)).max_element();
+        let (repeat_x, repeat_v) = super::measure::repeat_tolerances(
+            settings.tolerance,
+            deflection,
+            self.slip.rate.max_element(),
+        );
+        // A cycle split's piece (`Replica::cycle`) has no stop rule of its
+        // own: its recurrence test keeps the states where its piece starts
+        // and ends (a "common period" of the piece's length), its ladder
+        // and batch means are off, and it runs to its `cycles`.
+        let piece = (r.cycle > 0).then(|| r.cycle_segment().1);
+        let common_period = piece.unwrap_or_else(|| {
+            super::measure::common_period(self.frequency, cycles_per_period, driven)
+        });
+        let steady = matches!(inst.measure, crate::model::Measure::Steady { .. });
+        // The faster drive's advance per scene period [cycles].
+        let rho = cycles_per_period.max_element().fract();
+        let ladder_on =
+            steady && piece.is_none() && super::phase::ladder_on(driven, rho, common_period);
+        // A replica's ladder is its group's virtual run's.
+        // The periods the run (a group's virtual run: its replicas'
+        // together) may measure.
+        let horizon = inst.cycles.saturating_sub(inst.settle).saturating_mul(r.count);
+        let ladder = super::phase::ladder(
+            r.virtual_step(rho),
+            ladder_on,
+            common_period.saturating_mul(r.count),
+            horizon,
+        );
+        *self = Coefficients {
             steady,
             common_period,
             gaps: ladder.gaps,
@@ -481,13 +518,8 @@ impl Coefficients {
             se_limit2: se_limit * se_limit,
             repeat_x,
             repeat_v,
-            frictionless: fc == 0.0,
+            ..*self
         };
-        let clock = super::drive::CornerClock::new(&c, |x| x);
-        (c.rise_time, c.rise_time_lo) = clock.rise;
-        (c.fall_time, c.fall_time_lo) = clock.fall;
-        (c.first_corner, c.first_corner_lo) = clock.first;
-        c
     }
 }
 

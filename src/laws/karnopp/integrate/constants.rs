@@ -50,7 +50,7 @@ pub const EVENT_LEAVE_BAND: u32 = 3;
 pub const EVENT_REVERSAL: u32 = 4;
 /// Slip along a fixed direction u slows into the band: v_rel . u - a. The
 /// band entry of a slip trial whose relative velocity reverses (see
-/// `step::step`), linear in the velocity where |v_rel|^2 - a^2 is
+/// `step::approach_trial`), linear in the velocity where |v_rel|^2 - a^2 is
 /// quadratic, so f32 resolves it too.
 pub const EVENT_APPROACH: u32 = 5;
 

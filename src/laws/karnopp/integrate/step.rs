@@ -87,6 +87,33 @@ fn direction(s: &Sample) -> Option<Vec2> {
     }
 }
 
+/// What the phases of one step share: the trial's length and its
+/// reciprocal, the direction model and the flow, and what the step learnt
+/// of them.
+struct Trial {
+    h: Real,
+    inv_h: Real,
+    dir: DirectionModel,
+    flow: Flow,
+    /// STICK: the energy bound shows that the stiction holds to the stop.
+    safe: bool,
+    /// SLIP: the direction error (infinite where the relative velocity
+    /// reversed or vanished), and the event the step ends at: the band
+    /// entry, or its approach along a fixed direction.
+    err: Real,
+    slip_event: u32,
+}
+
+/// The event a step meets first, if any.
+struct StepEvent {
+    /// `EVENT_NONE` where the step meets none.
+    kind: u32,
+    tau: Real,
+    /// A slip that passes the band closer than the graze margin, or enters
+    /// it only skimming (see `GRAZE_MARGIN`).
+    grazed: bool,
+}
+
 /// One step of at most `h_max`, ending no later than the local time `stop`
 /// (hi, lo: the low part is zero but in f32).
 pub fn step<O: StepObserver>(
@@ -97,6 +124,50 @@ pub fn step<O: StepObserver>(
     observer: &mut O,
 ) -> StepOutcome {
     let (force, slope) = drive_force(c, st);
+    let slipping = st.mode == MODE_SLIP;
+    let (mut t, start) = trial(c, st, force, slope, h_max);
+    let props = sample_propagators(&t.flow, t.h);
+    let mut samples = collocate(c, st, force, slope, &props, &mut t, start);
+    if slipping && !c.frictionless {
+        if t.err == 0.0 {
+            t.err = direction_error(&t.dir, &samples, 4);
+        }
+        if t.err == Real::INFINITY {
+            samples = approach_trial(c, st, force, slope, &props, &mut t);
+        }
+        if t.err > c.tolerance {
+            reject(c, st, t.h, t.err);
+            return StepOutcome::Rejected;
+        }
+    }
+    let mut found = find_event(c, st, &t, &samples);
+    if found.kind == EVENT_NONE {
+        move_to(st, &samples[4], t.h, h_max, stop, &t.flow, observer);
+        if slipping {
+            // A step cut short by the stop says nothing about the next one.
+            if t.h < h_max {
+                st.h_slip = next_slip_step(c, st, t.h, t.err);
+            } else {
+                st.h_slip = st.h_slip.max(t.h);
+            }
+        }
+    } else if !take_event(c, st, &t, &mut found, h_max, stop, observer) {
+        return StepOutcome::Rejected;
+    }
+    if GRAZE_GUARD && !c.steady && found.grazed {
+        st.status = STATUS_GRAZE;
+    }
+    st.rejections = 0;
+    if found.kind == EVENT_NONE {
+        StepOutcome::Moved
+    } else {
+        StepOutcome::Located
+    }
+}
+
+/// The trial of a step: its length, the direction model's constant term
+/// and the flow, with the flow's start.
+fn trial(c: &Coefficients, st: &State, force: Vec2, slope: Vec2, h_max: Real) -> (Trial, Sample) {
     let stuck = st.mode == MODE_STICK;
     let slipping = st.mode == MODE_SLIP;
     // The step length and the direction model's constant term.
@@ -121,7 +192,7 @@ pub fn step<O: StepObserver>(
     let band = st.mode == MODE_BAND;
     let mut inv_h = if band { 1.0 / h } else { 1.0 };
     let mut flow = mode_flow(c, st, force, slope, &dir, if band { h } else { 1.0 }, inv_h);
-    let mut start = eval_flow(&flow, IDENTITY, 0.0);
+    let start = eval_flow(&flow, IDENTITY, 0.0);
     if slipping {
         if !c.frictionless {
             h = approach_limit(c, st.v_rel, relative_acceleration(&start), h);
@@ -141,87 +212,112 @@ pub fn step<O: StepObserver>(
             h = h_max.min(c.event_step_stuck);
         }
     }
-    let props = sample_propagators(&flow, h);
-    let mut mid = eval_flow(&flow, props.half, 0.5 * h);
-    let mut end = eval_flow(&flow, props.full, h);
-    // SLIP: the direction model through the true direction at the start,
-    // middle and end of the step, by fixed-point iteration. Without kinetic
-    // friction the motion does not depend on the direction: no turn to
-    // resolve, and no step limit.
-    let mut err = 0.0;
-    if slipping && !c.frictionless {
-        let u0 = dir.b0;
+    let trial = Trial {
+        h,
+        inv_h,
+        dir,
+        flow,
+        safe,
+        err: 0.0,
+        slip_event: EVENT_ENTER_BAND,
+    };
+    (trial, start)
+}
+
+/// The samples of the trial from its flow's `start`. SLIP: first the
+/// direction model through the true direction at the start, middle and end
+/// of the step, by fixed-point iteration (an infinite error where the
+/// relative velocity vanishes). Without kinetic friction the motion does
+/// not depend on the direction: no turn to resolve, and no step limit.
+fn collocate(
+    c: &Coefficients,
+    st: &State,
+    force: Vec2,
+    slope: Vec2,
+    props: &SamplePropagators,
+    t: &mut Trial,
+    start: Sample,
+) -> [Sample; 5] {
+    let h = t.h;
+    let mut start = start;
+    let mut mid = eval_flow(&t.flow, props.half, 0.5 * h);
+    let mut end = eval_flow(&t.flow, props.full, h);
+    if st.mode == MODE_SLIP && !c.frictionless {
+        let u0 = t.dir.b0;
         for _ in 0..COLLOCATION_ITERATIONS {
             let (Some(um), Some(ue)) = (direction(&mid), direction(&end)) else {
-                err = Real::INFINITY;
+                t.err = Real::INFINITY;
                 break;
             };
             let b1 = 4.0 * um - 3.0 * u0 - ue;
             let b2 = 2.0 * (ue - 2.0 * um + u0);
-            let change = (b1 - dir.b1)
+            let change = (b1 - t.dir.b1)
                 .abs()
                 .max_element()
-                .max((b2 - dir.b2).abs().max_element());
-            dir.b1 = b1;
-            dir.b2 = b2;
+                .max((b2 - t.dir.b2).abs().max_element());
+            t.dir.b1 = b1;
+            t.dir.b2 = b2;
             if change == 0.0 {
                 break;
             }
-            flow = mode_flow(c, st, force, slope, &dir, h, inv_h);
-            mid = eval_flow(&flow, props.half, 0.5 * h);
-            end = eval_flow(&flow, props.full, h);
+            t.flow = mode_flow(c, st, force, slope, &t.dir, h, t.inv_h);
+            mid = eval_flow(&t.flow, props.half, 0.5 * h);
+            end = eval_flow(&t.flow, props.full, h);
             if change <= c.collocation_tolerance {
                 break;
             }
         }
-        start = eval_flow(&flow, IDENTITY, 0.0);
+        start = eval_flow(&t.flow, IDENTITY, 0.0);
     }
-    let quarter = eval_flow(&flow, props.quarter, 0.25 * h);
-    let three_quarters = eval_flow(&flow, props.three_quarters, 0.75 * h);
-    let mut samples = [start, quarter, mid, three_quarters, end];
-    // The event a slip step ends at: the band entry, or its approach along
-    // a fixed direction.
-    let mut slip_event = EVENT_ENTER_BAND;
-    if slipping && !c.frictionless {
-        if err == 0.0 {
-            err = direction_error(&dir, &samples, 4);
-        }
-        if err == Real::INFINITY {
-            // The relative velocity reversed (or vanished) within the trial,
-            // so no quadratic follows its direction; but the band is
-            // entered before any reversal. Take the constant direction u of
-            // the start (exact for motion along a fixed direction), find
-            // where v_rel . u slows to the band, and check the direction
-            // only before that. Without this, a slip that slows down toward
-            // the band is found by halving and quadrupling the step about
-            // twenty times, until a step happens to end inside the band.
-            dir = DirectionModel {
-                b0: dir.b0,
-                ..DirectionModel::default()
-            };
-            flow = mode_flow(c, st, force, slope, &dir, h, inv_h);
-            samples = sample_flow(&flow, &props, h);
-            let ev = samples.map(|s| approach_event(c, &flow, &s));
-            let scale = approach_scale(c, &flow, &samples[0]);
-            let entry = find_crossing(c, st, EVENT_APPROACH, 1.0, &ev, scale, &flow, h);
-            if entry.found {
-                let before = THETA.iter().filter(|&&th| th * h <= entry.lo).count() - 1;
-                err = direction_error(&dir, &samples, before);
-                slip_event = EVENT_APPROACH;
-            }
-        }
-        if err > c.tolerance {
-            reject(c, st, h, err);
-            return StepOutcome::Rejected;
-        }
+    let quarter = eval_flow(&t.flow, props.quarter, 0.25 * h);
+    let three_quarters = eval_flow(&t.flow, props.three_quarters, 0.75 * h);
+    [start, quarter, mid, three_quarters, end]
+}
+
+/// A slip trial whose relative velocity reversed (or vanished) within it,
+/// so that no quadratic follows its direction; but the band is entered
+/// before any reversal. Takes the constant direction u of the start (exact
+/// for motion along a fixed direction), finds where v_rel . u slows to the
+/// band, and checks the direction only before that; returns the samples of
+/// that flow. Without this, a slip that slows down toward the band is found
+/// by halving and quadrupling the step about twenty times, until a step
+/// happens to end inside the band.
+fn approach_trial(
+    c: &Coefficients,
+    st: &State,
+    force: Vec2,
+    slope: Vec2,
+    props: &SamplePropagators,
+    t: &mut Trial,
+) -> [Sample; 5] {
+    let h = t.h;
+    t.dir = DirectionModel {
+        b0: t.dir.b0,
+        ..DirectionModel::default()
+    };
+    t.flow = mode_flow(c, st, force, slope, &t.dir, h, t.inv_h);
+    let samples = sample_flow(&t.flow, props, h);
+    let ev = samples.map(|s| approach_event(c, &t.flow, &s));
+    let scale = approach_scale(c, &t.flow, &samples[0]);
+    let entry = find_crossing(c, st, EVENT_APPROACH, 1.0, &ev, scale, &t.flow, h);
+    if entry.found {
+        let before = THETA.iter().filter(|&&th| th * h <= entry.lo).count() - 1;
+        t.err = direction_error(&t.dir, &samples, before);
+        t.slip_event = EVENT_APPROACH;
     }
-    let (start, end) = (samples[0], samples[4]);
-    // The events this step watches, their values at the samples, and in
-    // band slip the sign the reversal product first takes.
-    let primary = if stuck {
-        if safe { EVENT_NONE } else { EVENT_BREAKAWAY }
-    } else if slipping {
-        slip_event
+    samples
+}
+
+/// The first event the accepted trial meets: the events it watches, their
+/// values at the samples, and in band slip the sign the reversal product
+/// first takes.
+fn find_event(c: &Coefficients, st: &State, t: &Trial, samples: &[Sample; 5]) -> StepEvent {
+    let (flow, h) = (&t.flow, t.h);
+    let start = samples[0];
+    let primary = if st.mode == MODE_STICK {
+        if t.safe { EVENT_NONE } else { EVENT_BREAKAWAY }
+    } else if st.mode == MODE_SLIP {
+        t.slip_event
     } else {
         EVENT_LEAVE_BAND
     };
@@ -230,7 +326,7 @@ pub fn step<O: StepObserver>(
     let mut sign = 0.0;
     for (j, s) in samples.iter().enumerate() {
         ev_primary[j] = if primary == EVENT_APPROACH {
-            approach_event(c, &flow, s)
+            approach_event(c, flow, s)
         } else {
             primary_event(c, primary, s)
         };
@@ -240,15 +336,15 @@ pub fn step<O: StepObserver>(
         }
     }
     let watch_reversal = st.mode == MODE_BAND && sign != 0.0;
-    let mut event = EVENT_NONE;
-    let mut event_tau = 0.0;
-    // A slip that passes the band closer than the graze margin, or enters
-    // it only skimming (see `GRAZE_MARGIN`).
-    let mut grazed = false;
+    let mut found = StepEvent {
+        kind: EVENT_NONE,
+        tau: 0.0,
+        grazed: false,
+    };
     for k in 0..2 {
         let (kind, kind_sign, ev, scale) = if k == 0 {
             let scale = if primary == EVENT_APPROACH {
-                approach_scale(c, &flow, &start)
+                approach_scale(c, flow, &start)
             } else {
                 primary_scale(c, primary, &start)
             };
@@ -268,84 +364,84 @@ pub fn step<O: StepObserver>(
         if kind == EVENT_NONE {
             continue;
         }
-        let crossing = find_crossing(c, st, kind, kind_sign, ev, scale, &flow, h);
+        let crossing = find_crossing(c, st, kind, kind_sign, ev, scale, flow, h);
         if kind == EVENT_ENTER_BAND && !crossing.found {
-            grazed = crossing.closest < GRAZE_MARGIN as Real * c.band2;
+            found.grazed = crossing.closest < GRAZE_MARGIN as Real * c.band2;
         }
         if crossing.found {
-            let tau = locate(c, st, kind, kind_sign, &flow, crossing.lo, crossing.hi);
-            if event == EVENT_NONE || tau < event_tau {
-                event = kind;
-                event_tau = tau;
+            let tau = locate(c, st, kind, kind_sign, flow, crossing.lo, crossing.hi);
+            if found.kind == EVENT_NONE || tau < found.tau {
+                found.kind = kind;
+                found.tau = tau;
             }
         }
     }
-    if event == EVENT_NONE {
-        move_to(st, &end, h, h_max, stop, &flow, observer);
-        if slipping {
-            // A step cut short by the stop says nothing about the next one.
-            if h < h_max {
-                st.h_slip = next_slip_step(c, st, h, err);
-            } else {
-                st.h_slip = st.h_slip.max(h);
-            }
-        }
+    found
+}
+
+/// Moves the state to the event `found` and changes its mode there; false
+/// where the event is an approach whose direction turned too far on the
+/// way (the trial is rejected instead).
+fn take_event<O: StepObserver>(
+    c: &Coefficients,
+    st: &mut State,
+    t: &Trial,
+    found: &mut StepEvent,
+    h_max: Real,
+    stop: (Real, Real),
+    observer: &mut O,
+) -> bool {
+    let event = found.kind;
+    st.h_accepted = 0.0;
+    let s = eval_at(&t.flow, found.tau);
+    if event == EVENT_APPROACH && approach_turned(c, &s, &t.flow) {
+        reject(c, st, t.h, Real::INFINITY);
+        return false;
+    }
+    move_to(st, &s, found.tau, h_max, stop, &t.flow, observer);
+    found.grazed = event == EVENT_ENTER_BAND && skims_band(c, &s);
+    // The force slip starts along, where it starts (one call of
+    // `start_slip` for both: the shader's code holds one copy).
+    let mut slip_need = None;
+    if event == EVENT_BREAKAWAY {
+        slip_need = Some(stick_force(c, st));
+    } else if event == EVENT_LEAVE_BAND {
+        st.mode = MODE_SLIP;
+        st.h_slip = initial_slip_step(c, st, h_max);
     } else {
-        st.h_accepted = 0.0;
-        let s = eval_at(&flow, event_tau);
-        // v_rel . u = a is the band entry only while v_rel still points
-        // along u: a relative velocity that turned on its way to zero (a
-        // pass of the band in 2-D) needs shorter steps instead.
-        if event == EVENT_APPROACH {
-            let turned = match direction(&s) {
-                Some(u) => norm2(u - flow.b0).sqrt(),
-                None => Real::INFINITY,
-            };
-            let mut allowed = c.tolerance;
-            if APPROACH_NOISE {
-                // f32 knows v_rel here only to the rounding of the stage's
-                // and the slider's velocity changes it is the difference
-                // of (their deflection form makes that all): a turn below
-                // it is not one f32 can see, and shorter steps, which
-                // shrink the changes, only cost steps (results/gpu.md).
-                let dv = (s.v_p - flow.v_p).abs() + (s.v_s - flow.v_s).abs();
-                let v = s.v_rel;
-                allowed += (4.0 * Real::EPSILON * (dv.x + dv.y)) / norm2(v).max(TINY).sqrt();
-            }
-            if turned > allowed {
-                reject(c, st, h, Real::INFINITY);
-                return StepOutcome::Rejected;
-            }
+        if event == EVENT_ENTER_BAND || event == EVENT_APPROACH {
+            st.h_slip = t.h;
         }
-        move_to(st, &s, event_tau, h_max, stop, &flow, observer);
-        grazed = event == EVENT_ENTER_BAND && skims_band(c, &s);
-        // The force slip starts along, where it starts (one call of
-        // `start_slip` for both: the shader's code holds one copy).
-        let mut slip_need = None;
-        if event == EVENT_BREAKAWAY {
-            slip_need = Some(stick_force(c, st));
-        } else if event == EVENT_LEAVE_BAND {
-            st.mode = MODE_SLIP;
-            st.h_slip = initial_slip_step(c, st, h_max);
-        } else {
-            if event == EVENT_ENTER_BAND || event == EVENT_APPROACH {
-                st.h_slip = h;
-            }
-            slip_need = try_stick(c, st);
-        }
-        if let Some(need) = slip_need {
-            start_slip(c, st, need);
-        }
+        slip_need = try_stick(c, st);
     }
-    if GRAZE_GUARD && !c.steady && grazed {
-        st.status = STATUS_GRAZE;
+    if let Some(need) = slip_need {
+        start_slip(c, st, need);
     }
-    st.rejections = 0;
-    if event == EVENT_NONE {
-        StepOutcome::Moved
-    } else {
-        StepOutcome::Located
+    true
+}
+
+/// Whether the relative velocity turned on its way from the start of flow
+/// `flow` to the approach event at sample `s`: v_rel . u = a is the band
+/// entry only while v_rel still points along u, and a relative velocity
+/// that turned on its way to zero (a pass of the band in 2-D) needs shorter
+/// steps instead.
+fn approach_turned(c: &Coefficients, s: &Sample, flow: &Flow) -> bool {
+    let turned = match direction(s) {
+        Some(u) => norm2(u - flow.b0).sqrt(),
+        None => Real::INFINITY,
+    };
+    let mut allowed = c.tolerance;
+    if APPROACH_NOISE {
+        // f32 knows v_rel here only to the rounding of the stage's and the
+        // slider's velocity changes it is the difference of (their
+        // deflection form makes that all): a turn below it is not one f32
+        // can see, and shorter steps, which shrink the changes, only cost
+        // steps (results/gpu.md).
+        let dv = (s.v_p - flow.v_p).abs() + (s.v_s - flow.v_s).abs();
+        let v = s.v_rel;
+        allowed += (4.0 * Real::EPSILON * (dv.x + dv.y)) / norm2(v).max(TINY).sqrt();
     }
+    turned > allowed
 }
 
 /// Whether a band entry at sample `s` only skims the band: where the
