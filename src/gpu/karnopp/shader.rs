@@ -656,7 +656,7 @@ mod tests {
     }
 
     /// The functions only the Rust mirrors define.
-    fn cpu_only_functions() -> [&'static str; 37] {
+    fn cpu_only_functions() -> [&'static str; 41] {
         // CPU only: constructors, the observer of trajectories (its `step`
         // method and `StepMotion`), the whole run (stoppable, also from a
         // state the f64 shader left) and its result, Rust's rounding and

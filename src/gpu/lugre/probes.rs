@@ -14,7 +14,7 @@ use wgpu::util::DeviceExt;
 use crate::gpu::GpuError;
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::laws::karnopp::integrate::Settings;
-use crate::laws::lugre::run::{Clock, Periods, T, rodas4, segment};
+use crate::laws::lugre::run::{Clock, Linear, Periods, T, rodas4, segment};
 use crate::model::{AXES, Instance};
 
 impl LugreGpu<'_> {
@@ -110,49 +110,7 @@ impl LugreGpu<'_> {
             }
         }
         let probed = self.mirror_on_gpu(&params, &probes)?;
-        let relative = |a: &[f64], b: &[f64]| {
-            a.iter().zip(b).fold(0.0_f64, |m, (x, y)| {
-                if x == y {
-                    m
-                } else {
-                    m.max((x - y).abs() / x.abs().max(y.abs()))
-                }
-            })
-        };
-        // The largest difference in units of `per` component.
-        let scaled = |a: &[f64], b: &[f64], per: &dyn Fn(usize) -> f64| {
-            a.iter()
-                .zip(b)
-                .enumerate()
-                .fold(0.0_f64, |m, (i, (x, y))| m.max((x - y).abs() / per(i)))
-        };
-        for ((probe, drive), gpu) in probes.iter().zip(&drives).zip(&probed) {
-            let rhs = book.model.rhs(&probe.y, drive);
-            let jacobian = book.model.jacobian(&probe.y, drive);
-            let (next, error) = rodas4(&book.model, drive, &probe.y, probe.h);
-            check.probes += 1;
-            if rhs != gpu.rhs {
-                check.rhs_mismatches += 1;
-                check.rhs_worst = check.rhs_worst.max(relative(&rhs, &gpu.rhs));
-                let per_step = |i: usize| book.scale[i] / probe.h;
-                let worst = scaled(&rhs, &gpu.rhs, &per_step);
-                check.rhs_scaled_worst = check.rhs_scaled_worst.max(worst);
-            }
-            if jacobian != gpu.jacobian {
-                check.jacobian_mismatches += 1;
-                check.jacobian_worst = check.jacobian_worst.max(relative(
-                    jacobian.as_flattened(),
-                    gpu.jacobian.as_flattened(),
-                ));
-            }
-            if next != gpu.next || error != gpu.error {
-                check.rodas4_mismatches += 1;
-                check.next_worst = check.next_worst.max(relative(&next, &gpu.next));
-                let per = |i: usize| book.scale[i];
-                let worst = scaled(&next, &gpu.next, &per).max(scaled(&error, &gpu.error, &per));
-                check.next_scaled_worst = check.next_scaled_worst.max(worst);
-            }
-        }
+        compare_probes(&book, &probes, &drives, &probed, &mut check);
         Ok(check)
     }
 
@@ -295,5 +253,63 @@ impl LugreGpu<'_> {
             .map(bytemuck::pod_read_unaligned)
             .collect();
         Ok(out.chunks_exact(5).map(|v| [v[2], v[3], v[4]]).collect())
+    }
+}
+
+/// The largest relative difference of two arrays' components (0 where
+/// they are equal).
+fn relative(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).fold(0.0_f64, |m, (x, y)| {
+        if x == y {
+            m
+        } else {
+            m.max((x - y).abs() / x.abs().max(y.abs()))
+        }
+    })
+}
+
+/// The largest difference in units of `per` component.
+fn scaled(a: &[f64], b: &[f64], per: &dyn Fn(usize) -> f64) -> f64 {
+    a.iter()
+        .zip(b)
+        .enumerate()
+        .fold(0.0_f64, |m, (i, (x, y))| m.max((x - y).abs() / per(i)))
+}
+
+/// Counts in `check` where the shader's `rhs`, `jacobian` and `rodas4`
+/// (`probed`) differ from the CPU's at each of `probes` with its `drives`.
+fn compare_probes(
+    book: &Periods,
+    probes: &[Probe],
+    drives: &[[Linear; AXES]],
+    probed: &[Probed],
+    check: &mut MirrorCheck,
+) {
+    for ((probe, drive), gpu) in probes.iter().zip(drives).zip(probed) {
+        let rhs = book.model.rhs(&probe.y, drive);
+        let jacobian = book.model.jacobian(&probe.y, drive);
+        let (next, error) = rodas4(&book.model, drive, &probe.y, probe.h);
+        check.probes += 1;
+        if rhs != gpu.rhs {
+            check.rhs_mismatches += 1;
+            check.rhs_worst = check.rhs_worst.max(relative(&rhs, &gpu.rhs));
+            let per_step = |i: usize| book.scale[i] / probe.h;
+            let worst = scaled(&rhs, &gpu.rhs, &per_step);
+            check.rhs_scaled_worst = check.rhs_scaled_worst.max(worst);
+        }
+        if jacobian != gpu.jacobian {
+            check.jacobian_mismatches += 1;
+            check.jacobian_worst = check.jacobian_worst.max(relative(
+                jacobian.as_flattened(),
+                gpu.jacobian.as_flattened(),
+            ));
+        }
+        if next != gpu.next || error != gpu.error {
+            check.rodas4_mismatches += 1;
+            check.next_worst = check.next_worst.max(relative(&next, &gpu.next));
+            let per = |i: usize| book.scale[i];
+            let worst = scaled(&next, &gpu.next, &per).max(scaled(&error, &gpu.error, &per));
+            check.next_scaled_worst = check.next_scaled_worst.max(worst);
+        }
     }
 }
