@@ -54,6 +54,9 @@ pub struct GpuContext {
     /// Compiled and self-tested pipelines by variant, built on first use,
     /// with what building them cost.
     pipelines: Mutex<HashMap<Variant, (wgpu::ComputePipeline, Preparation)>>,
+    /// Other laws' pipelines by name (LuGre's), compiled on first use, so a
+    /// run's batches share one compile.
+    law_pipelines: Mutex<HashMap<&'static str, wgpu::ComputePipeline>>,
     /// Time to find the adapter and open the device [s].
     opened_in: f64,
     /// The part of `opened_in` before the device was requested [s].
@@ -183,6 +186,7 @@ impl GpuContext {
             health,
             cache,
             pipelines: Mutex::new(HashMap::new()),
+            law_pipelines: Mutex::new(HashMap::new()),
             opened_in: started.elapsed().as_secs_f64(),
             adapters_in: 0.0,
             busy: Mutex::new(()),
@@ -283,6 +287,27 @@ impl GpuContext {
     /// whose parts cover them (the fewest parts first), else a new one
     /// with exactly `needs`, compiled and self-tested
     /// ([`GpuContext::prepare_timed`]). Returns it with its variant.
+    /// The pipeline a law other than Karnopp's keeps under `name`, built by
+    /// `compile` (given the driver's pipeline cache, where there is one) on
+    /// first use and kept for the context's life; the cache is saved after
+    /// a compile.
+    pub fn law_pipeline(
+        &self,
+        name: &'static str,
+        compile: impl FnOnce(Option<&wgpu::PipelineCache>) -> Result<wgpu::ComputePipeline, GpuError>,
+    ) -> Result<wgpu::ComputePipeline, GpuError> {
+        let mut pipelines = self.law_pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(pipeline) = pipelines.get(name) {
+            return Ok(pipeline.clone());
+        }
+        let pipeline = compile(self.cache.as_ref().map(|c| c.cache()))?;
+        if let Some(cache) = &self.cache {
+            cache.save();
+        }
+        pipelines.insert(name, pipeline.clone());
+        Ok(pipeline)
+    }
+
     pub fn pipeline_for(
         &self,
         precision: Precision,

@@ -75,9 +75,9 @@ pub use context::{GpuContext, Preparation, create_pipeline};
 pub use options::{BatchOptions, CPU_TAIL_MIN_BATCH, CPU_TAIL_PER_THREAD, F32Check};
 pub use runner::{
     dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, f64_tallies_after,
-    run_batch, run_batch_packed, run_batch_with,
+    run_batch, run_batch_packed, run_batch_with, workgroups,
 };
-pub use staging::{Packed, chunk_instances, max_batch_instances, pack};
+pub use staging::{Packed, batch_limit, chunk_instances, max_batch_instances, pack};
 // The module's other items, for its files (`use super::*`).
 use adapters::*;
 use options::*;

@@ -182,7 +182,14 @@ pub fn execute_gpu_inner(
 /// limit. The shader numbers invocations `x + y * groups_x * WORKGROUP_SIZE`
 /// (the prelude's, [`workgroup_size`]).
 pub fn dispatch_size(n: usize, max_per_dimension: u32) -> (u32, u32) {
-    let groups = (n as u64).div_ceil(workgroup_size() as u64).max(1);
+    workgroups(n, workgroup_size(), max_per_dimension)
+}
+
+/// Workgroup counts (x, y) of `size` invocations each covering `n`
+/// invocations within the per-dimension limit: every law's dispatch
+/// (Karnopp's through [`dispatch_size`], LuGre's in `gpu::lugre`).
+pub fn workgroups(n: usize, size: u32, max_per_dimension: u32) -> (u32, u32) {
+    let groups = (n as u64).div_ceil(size as u64).max(1);
     let x = groups.min(max_per_dimension as u64);
     let y = groups.div_ceil(x);
     (x as u32, y as u32)

@@ -11,17 +11,25 @@ pub fn max_batch_instances(
     state_size: usize,
     options: &BatchOptions,
 ) -> usize {
-    let binding = limits.max_storage_buffer_binding_size;
-    let buffer = limits.max_buffer_size;
-    let largest = coefficients_size.max(state_size) as u64;
-    let by_memory = binding.min(buffer) / largest;
-    let dim = limits.max_compute_workgroups_per_dimension as u64;
-    let by_dispatch = dim * dim * workgroup_size() as u64;
-    let mut n = by_memory.min(by_dispatch).min(usize::MAX as u64) as usize;
+    let largest = coefficients_size.max(state_size);
+    let mut n = batch_limit(limits, largest, workgroup_size());
     if let Some(m) = options.max_batch {
         n = n.min(m);
     }
     n.max(1)
+}
+
+/// The most instances one batch of any law may hold: what a storage
+/// binding and a buffer hold of its largest per-instance entry (`largest`
+/// bytes) and what one dispatch of `workgroup_size` invocations reaches
+/// (Karnopp's through [`max_batch_instances`], LuGre's in `gpu::lugre`).
+pub fn batch_limit(limits: &wgpu::Limits, largest: usize, workgroup_size: u32) -> usize {
+    let binding = limits.max_storage_buffer_binding_size;
+    let buffer = limits.max_buffer_size;
+    let by_memory = binding.min(buffer) / largest as u64;
+    let dim = limits.max_compute_workgroups_per_dimension as u64;
+    let by_dispatch = dim * dim * workgroup_size as u64;
+    by_memory.min(by_dispatch).min(usize::MAX as u64).max(1) as usize
 }
 
 /// Accumulator entries per steady instance: two where the shader updates

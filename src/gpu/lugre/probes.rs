@@ -131,6 +131,7 @@ impl LugreGpu<'_> {
             self.workgroup_size,
             self.arithmetic,
             MIRROR_ENTRY_POINT,
+            None,
         )?;
         let storage = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -204,6 +205,7 @@ impl LugreGpu<'_> {
             self.workgroup_size,
             self.arithmetic,
             FUNCTIONS_ENTRY_POINT,
+            None,
         )?;
         let values: Vec<f64> = args
             .iter()

@@ -46,6 +46,7 @@ pub(super) fn compile(
     workgroup_size: u32,
     arithmetic: Arithmetic,
     entry: &str,
+    cache: Option<&wgpu::PipelineCache>,
 ) -> Result<wgpu::ComputePipeline, GpuError> {
     parse_and_validate(workgroup_size, arithmetic)?;
     let src = source(workgroup_size, arithmetic);
@@ -59,17 +60,9 @@ pub(super) fn compile(
             src,
             ("shaders/lugre", entry),
             Precision::F64,
-            None,
+            cache,
         )
     }
-}
-
-/// Workgroups for `n` invocations of `size`, in two dimensions where one
-/// is not enough.
-fn groups(n: usize, size: u32, max_per_dimension: u32) -> (u32, u32) {
-    let groups = (n as u64).div_ceil(size as u64).max(1);
-    let x = groups.min(max_per_dimension as u64);
-    (x as u32, groups.div_ceil(x) as u32)
 }
 
 /// A batch's buffers on the device.
@@ -129,7 +122,7 @@ impl<'g> Batch<'g> {
                 },
             ],
         });
-        let groups = groups(
+        let groups = crate::gpu::workgroups(
             lanes.len(),
             gpu.workgroup_size,
             gpu.ctx.limits().max_compute_workgroups_per_dimension,
@@ -184,7 +177,11 @@ impl<'a> LugreGpu<'a> {
             (SOFTWARE_WORKGROUP_SIZE, SOFTWARE_ATTEMPTS)
         };
         let arithmetic = Arithmetic::of(ctx);
-        let pipeline = compile(ctx.device(), workgroup_size, arithmetic, ENTRY_POINT)?;
+        // One compile per context: every batch of a run takes the same
+        // pipeline (the driver's cache on disk spares later runs it too).
+        let pipeline = ctx.law_pipeline("lugre", |cache| {
+            compile(ctx.device(), workgroup_size, arithmetic, ENTRY_POINT, cache)
+        })?;
         Ok(LugreGpu {
             ctx,
             pipeline,
@@ -230,14 +227,8 @@ impl<'a> LugreGpu<'a> {
     /// The most instances one batch takes: what the device's storage
     /// bindings, buffers and dispatches hold.
     pub(super) fn max_batch(&self) -> usize {
-        let limits = self.ctx.limits();
-        let bytes = limits
-            .max_storage_buffer_binding_size
-            .min(limits.max_buffer_size);
-        let buffers = bytes / size_of::<Params>().max(size_of::<Lane>()) as u64;
-        let groups = limits.max_compute_workgroups_per_dimension as u64;
-        let dispatch = groups * groups * self.workgroup_size as u64;
-        buffers.min(dispatch).max(1) as usize
+        let largest = size_of::<Params>().max(size_of::<Lane>());
+        crate::gpu::batch_limit(self.ctx.limits(), largest, self.workgroup_size)
     }
 
     /// One batch of [`LugreGpu::run_until`], counted in `report`.
