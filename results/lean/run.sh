@@ -8,8 +8,9 @@
 #      `--profile` of random 2,000 (seed 11, 4 cycles) on the CPU (one
 #      thread) and on lavapipe in f64, both builds (OLD's CPU does not
 #      count its iterations);
-#   3. whole processes paired by farm-bench: the CPU on one thread and
-#      lavapipe f64 on random 2,000 (RUNS pairs each, default 5);
+#   3. whole processes paired (this build and OLD in turn, wall seconds
+#      by /usr/bin/time): the CPU on one thread and lavapipe f64 on
+#      random 2,000 (RUNS pairs each, default 5), each pair's ratio;
 #   4. accuracy: both builds' CPU maps of random 2,000 against the map at
 #      tolerance 1e-8 (results/lean/compare.py).
 # From the repository root after `cargo build --release`:
@@ -36,15 +37,20 @@ for b in new old; do
     "$bin" run r2000.toml --backend gpu --precision f64 --profile --out "gpu_$b.h5" 2>&1 |
         grep -E "^wrote|GPU ready|slots by kind|rejected trials|emulated|phase   dispatches" || true
 done
-echo "== 3. whole processes, paired (A = this build, B = OLD)"
+echo "== 3. whole processes, paired (this build / OLD, wall seconds)"
+# Wall seconds of one whole process.
+wall() { /usr/bin/time -f %e "$@" 2>&1 > /dev/null | tail -1; }
+pairs() {
+    for _ in $(seq "$runs"); do
+        a=$(wall "$new" "$@" --out n.h5)
+        b=$(wall "$old" "$@" --out o.h5)
+        echo "$a $b" | awk '{ printf "%7.2f s / %7.2f s = %.3f\n", $1, $2, $1 / $2 }'
+    done
+}
 echo "-- CPU, one thread"
-farm-bench -n "$runs" --timeout 600 \
-    --vs "$old run r2000.toml --backend cpu --threads 1 --out o.h5" \
-    -- "$new" run r2000.toml --backend cpu --threads 1 --out n.h5 2>&1 | grep -E "wall|A/B"
+pairs run r2000.toml --backend cpu --threads 1 --progress none
 echo "-- lavapipe f64"
-farm-bench -n "$runs" --timeout 900 \
-    --vs "$old run r2000.toml --backend gpu --precision f64 --out o.h5" \
-    -- "$new" run r2000.toml --backend gpu --precision f64 --out n.h5 2>&1 | grep -E "wall|A/B"
+pairs run r2000.toml --backend gpu --precision f64 --progress none
 echo "== 4. accuracy against tolerance 1e-8 (this build's reference), and lavapipe against the CPU"
 "$new" run r2000_ref.toml --backend cpu --progress none --out ref.h5 > /dev/null
 python3 "$OLDPWD/results/lean/compare.py" ref.h5 cpu_new.h5 cpu_old.h5

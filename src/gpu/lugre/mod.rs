@@ -50,11 +50,14 @@
 //! `crate::backend::gpu` hands a batch of LuGre instances to
 //! [`LugreGpu::run_until`].
 //!
-//! The files: `libm.rs` (the shader's exp, hypot and fourth root, mirrored
-//! in Rust), `source.rs` (the prelude generated from the Rust constants,
-//! and the source), `buffers.rs` (the structs shared with WGSL),
-//! `runner.rs` (a batch, dispatch by dispatch) and `probes.rs` (the
-//! function-by-function comparisons the tests run on a device).
+//! The files: `source.rs` (the prelude generated from the Rust constants,
+//! the source, and what a lane carries: [`footprint`]), `buffers.rs` (the
+//! structs shared with WGSL), `runner.rs` (a batch, dispatch by dispatch,
+//! on the pipeline the context compiles once: `GpuContext::law_pipeline`,
+//! sized by the engine's `workgroups` and `batch_limit`) and `probes.rs`
+//! (the function-by-function comparisons the tests run on a device). The
+//! shader's exp, hypot and fourth root are mirrored in
+//! [`crate::laws::lugre::libm`].
 
 mod buffers;
 mod probes;
