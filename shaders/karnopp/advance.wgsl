@@ -1,4 +1,4 @@
-// Mirror of src/cpu/integrate/mod.rs: the state, and one iteration of the
+// Mirror of `laws::karnopp::integrate`: the state, and one iteration of the
 // integrator.
 
 // The integrator state, as `pidm::cpu::integrate::State`, plus `time_lo`,

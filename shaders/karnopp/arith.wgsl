@@ -1,4 +1,4 @@
-// Mirror of src/cpu/integrate/arith.rs: arithmetic WGSL's standard library
+// Mirror of `laws::karnopp::integrate::arith`: arithmetic WGSL's standard library
 // lacks, written out so the CPU computes exactly what the shader computes.
 
 // The step-size factor 0.9 cbrt(allowed / err) rounded down to a multiple

@@ -1,4 +1,4 @@
-// Mirror of src/cpu/integrate/coefficients.rs: the per-instance constants,
+// Mirror of `laws::karnopp::integrate::coefficients`: the per-instance constants,
 // computed once in f64 by the host and packed in the shader's units
 // (src/gpu/layout.rs), so the shader divides by no parameter and takes no
 // square root of one. Booleans are u32 (0 or 1): storage buffers hold no
@@ -84,7 +84,7 @@ struct Coefficients {
     cycles_fixed_lo: vec2<u32>,
     _pad: vec2<u32>,
     _pad2: vec2<u32>,
-    // The steady measurement (src/cpu/integrate/measure.rs).
+    // The steady measurement (`laws::karnopp::integrate::measure`).
     se_limit2: V2,
     repeat_x: Real,
     repeat_v: Real,
@@ -92,7 +92,7 @@ struct Coefficients {
     common_period: u32,
     batch_length: u32,
     min_batch: u32,
-    // The phase ladder (src/cpu/integrate/phase.rs): the levels that may
+    // The phase ladder (`laws::karnopp::integrate::phase`): the levels that may
     // stop the run and those judged without their quarters, a bit each,
     // and each window length's three-gap table.
     phase_levels: u32,

@@ -1,4 +1,4 @@
-// Mirror of src/cpu/integrate/drive.rs: the sawtooth drives.
+// Mirror of `laws::karnopp::integrate::drive`: the sawtooth drives.
 
 // Local time of each axis' next drive corner, or INFINITY where undriven.
 fn corner_time(st: State) -> V2 {
@@ -144,7 +144,7 @@ fn fixed_start_phase(period: u32) -> V2 {
 // floating-point algebra (Mesa turns a - (sum - (sum - a)) into 0);
 // multiplying by a 1 they cannot see through (it comes from the control
 // buffer) keeps the sums exact. Mirrored by `two_sum` and `add_parts` in
-// src/cpu/integrate/drive.rs.
+// `laws::karnopp::integrate::drive`.
 struct Parts {
     hi: Real,
     lo: Real,

@@ -1,4 +1,4 @@
-// Mirror of src/cpu/integrate/events.rs: event functions, the search for
+// Mirror of `laws::karnopp::integrate::events`: event functions, the search for
 // the first crossing among a step's samples, and its location.
 
 // The first bracket of a crossing in step time.

@@ -1,4 +1,4 @@
-// Mirror of src/cpu/integrate/flow.rs: the closed-form motion over one
+// Mirror of `laws::karnopp::integrate::flow`: the closed-form motion over one
 // step and its evaluation at any time inside the step.
 
 // exp(A tau) = (1 + a0m1) I + a1 A per axis.

@@ -1,4 +1,4 @@
-// Mirror of src/cpu/integrate/measure.rs: the per-period bookkeeping of a
+// Mirror of `laws::karnopp::integrate::measure`: the per-period bookkeeping of a
 // steady measurement and the rule that stops its run. The host computes
 // the common period, the first batch length and the tolerances
 // (Coefficients) and reduces what is left here to the map's values

@@ -1,4 +1,4 @@
-// Mirror of src/cpu/integrate/phase.rs: the phase-resolved estimate of the
+// Mirror of `laws::karnopp::integrate::phase`: the phase-resolved estimate of the
 // steady step for two drive frequencies. A ladder of windows from the start
 // of the measurement, each the trapezoid rule over the faster drive's phase
 // as a combination of the slider positions at six periods; the host

@@ -1,4 +1,4 @@
-// Mirror of src/cpu/integrate/step.rs: one step, the same code for every
+// Mirror of `laws::karnopp::integrate::step`: one step, the same code for every
 // friction mode (the mode only picks the step length, the flow and the
 // events watched), so the lanes of a warp in different modes run the same
 // sampling, event and move instructions together.

@@ -1,4 +1,4 @@
-// Mirror of src/cpu/lugre/model.rs: the LuGre right-hand side (docs/model.md
+// Mirror of `laws::lugre::model`: the LuGre right-hand side (docs/model.md
 // section 8), its exact Jacobian, and the drive over one segment between
 // corners, linear in time. f64 only. The prelude (`pidm::gpu::lugre`)
 // defines Real, the state's layout (N, XP, VP, XS, VS, Z, T), the

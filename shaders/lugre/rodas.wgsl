@@ -1,4 +1,4 @@
-// Mirror of src/cpu/lugre/rodas.rs: Rodas4 (Hairer and Wanner), linearly
+// Mirror of `laws::lugre::rodas`: Rodas4 (Hairer and Wanner), linearly
 // implicit, L-stable and stiffly accurate, of order 4 with an embedded
 // order-3 solution that controls the steps, on the exact Jacobian
 // (`jacobian`); the step attempts of one segment (between drive corners

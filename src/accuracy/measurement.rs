@@ -14,7 +14,7 @@
 //! lie within 1 / q_{n+1} of an even lattice, so that its error is at most
 //! the variation of the increments over the phase divided by q_n
 //! (Denjoy-Koksma; measured 0.0002-0.003 um at q_n of 1,000-3,000 on the
-//! instances of `cpu::integrate::phase`).
+//! instances of `laws::karnopp::integrate::phase`).
 
 use super::Method;
 use crate::backend::{Backend, CpuBackend};

@@ -78,7 +78,7 @@ fn steps_um(instances: &[Instance], outcomes: &[Outcome]) -> Vec<[f64; AXES]> {
 
 /// The CPU integrator at a ladder of tolerances: the event-locating one,
 /// or for a LuGre scene (`lugre`) Rodas4, whose tolerance scales its local
-/// error per step (`cpu::lugre::LENGTH_PER_TOLERANCE`).
+/// error per step (`laws::lugre::LENGTH_PER_TOLERANCE`).
 pub fn cpu_method<'a>(base: Settings, lugre: bool) -> Method<'a> {
     let backend = CpuBackend::new(Some(1)).expect("a one-thread pool");
     let (name, setting_name) = if lugre {

@@ -5,7 +5,7 @@
 //! GPU's once their states and accumulators are read back in f64.
 //!
 //! The per-period bookkeeping and the stop rule are
-//! `cpu::integrate::measure` (mirrored by the shader); this module only
+//! `laws::karnopp::integrate::measure` (mirrored by the shader); this module only
 //! reads what they left.
 
 pub mod status;
@@ -86,7 +86,7 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                     motion: Motion::Periodic,
                 };
             }
-            // The phase ladder's judged window (module `cpu::integrate::
+            // The phase ladder's judged window (module `laws::karnopp::integrate::
             // phase`): the verdict's, or the latest, which a run that ends
             // not steady reports where its standard error is smaller than
             // the batch means'.
@@ -193,7 +193,7 @@ pub struct Outcome {
     /// cut, or an f32 run that failed or met a band graze).
     pub on_cpu: bool,
     /// Of those, an f32 run that stopped at a band graze
-    /// (`cpu::integrate::constants::STATUS_GRAZE`).
+    /// (`laws::karnopp::integrate::constants::STATUS_GRAZE`).
     pub graze: bool,
     /// An f32 window run among the heaviest of its batch, checked
     /// (`laws::karnopp::check`): by a twin that agreed (f32's value kept), or

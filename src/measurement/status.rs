@@ -2,12 +2,12 @@
 //! result files hold in `/maps/status` and `/baseline/status`.
 //!
 //! The integrators set codes 0 to 4 (their values live in
-//! `cpu::integrate::constants`, from which the shader's prelude is also
+//! `laws::karnopp::integrate::constants`, from which the shader's prelude is also
 //! generated); the sweep sets 5 after `--verify`; the measurement's
 //! reduction (`crate::measurement`) sets 6. Every non-zero status but 6
 //! leaves 0 in the instance's map entries, never NaN; 6 ("not steady")
 //! keeps the best estimate and its standard error. Code 7 (an f32 band
-//! graze, `cpu::integrate::constants::STATUS_GRAZE`) never reaches a file:
+//! graze, `laws::karnopp::integrate::constants::STATUS_GRAZE`) never reaches a file:
 //! every f32 path integrates such an instance again in f64
 //! (`laws::karnopp::f32_needs_f64`), so it is no status here. Code 8 is the stall
 //! search's own (`crate::stall`, `/maps/stall_status`): the step does not

@@ -4,7 +4,7 @@
 //! its slowest.
 //!
 //! A quasi-periodic motion's step is the mean over its attractor, and the
-//! phase ladder (`cpu::integrate::phase`) estimates it by a trapezoid rule
+//! phase ladder (`laws::karnopp::integrate::phase`) estimates it by a trapezoid rule
 //! over the faster drive's phase, whatever order the phases came in. So an
 //! instance whose ladder is on ([`splittable`]) runs as R replicas: replica
 //! r is the instance with its faster drive's phase advanced by r rho / R

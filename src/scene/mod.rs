@@ -231,7 +231,7 @@ impl Scene {
 
     /// `simulation.tolerance` and what it means for the scene's friction
     /// law: Karnopp's direction error [rad], or LuGre's local error per
-    /// step (`cpu::lugre::LENGTH_PER_TOLERANCE`).
+    /// step (`laws::lugre::LENGTH_PER_TOLERANCE`).
     pub fn tolerance_text(&self) -> String {
         let tolerance = self.settings.tolerance;
         if self.is_lugre() {

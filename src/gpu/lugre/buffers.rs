@@ -176,7 +176,7 @@ pub struct MirrorCheck {
     pub jacobian_worst: f64,
     pub next_worst: f64,
     /// The largest differences in units of the run's error control
-    /// (`cpu::lugre::run::error_scale`, each state's largest local error):
+    /// (`laws::lugre::run::error_scale`, each state's largest local error):
     /// the right-hand side's times the attempt's step, and the Rodas4
     /// step's next state and error estimate. A component that cancels
     /// (the bristle equation near its steady deflection, a force balance)

@@ -13,7 +13,7 @@
 //!   bits; the per-instance parameters are packed once ([`Params`]).
 //! * At a period's end the host reads the lane back and measures the
 //!   period with the CPU run's own bookkeeping
-//!   (`cpu::lugre::run::Periods::period_end`: `measure::period_end` and
+//!   (`laws::lugre::run::Periods::period_end`: `measure::period_end` and
 //!   the recurrence test that compares z), then starts the next period.
 //!   The result is an `integrate::Run` per instance, which
 //!   `measurement::reduce` turns into the record the CPU gives.

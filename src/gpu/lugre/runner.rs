@@ -192,7 +192,7 @@ impl<'a> LugreGpu<'a> {
     }
 
     /// Integrates LuGre `instances` to the ends of their measurements: an
-    /// `integrate::Run` each, as `cpu::lugre::run_instance_until` gives.
+    /// `integrate::Run` each, as `laws::lugre::run_instance_until` gives.
     ///
     /// # Panics
     /// If an instance's friction is not LuGre's.

@@ -35,7 +35,7 @@ pub fn is_integrator_failure(status: u32) -> bool {
 /// mirror's backend alike): a failure ([`is_integrator_failure`]), or a
 /// band graze, where f32 stopped because the step depends on a decision
 /// that the direction tolerance, not f32, leaves open
-/// (`cpu::integrate::constants::GRAZE_MARGIN`). The instance then carries
+/// (`laws::karnopp::integrate::constants::GRAZE_MARGIN`). The instance then carries
 /// the f64 reference's value, or its status where that fails too, and is
 /// counted as run on the CPU.
 pub fn f32_needs_f64(status: u32) -> bool {
