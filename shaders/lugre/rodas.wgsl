@@ -238,29 +238,9 @@ fn factor(matrix: ReducedMatrix) -> Lu {
     return lu;
 }
 
-// Lu::solve: A x = b. The factorisation swapped whole rows, multipliers
-// included (as LAPACK's getrf), so every swap applies to `b` before the
-// forward substitution. It reads W's factors in place: a copy of the
-// 312-byte Lu at each of the six stages cost llvmpipe 13 % of a LuGre map.
-fn solve_lu(w: ptr<function, W>, rhs_b: Reduced) -> Reduced {
-    var b = rhs_b;
-    for (var k = 0u; k < R; k++) {
-        let p = (*w).lu.pivot[k];
-        let t = b[k];
-        b[k] = b[p];
-        b[p] = t;
-    }
-    for (var k = 0u; k < R; k++) {
-        for (var i = k + 1u; i < R; i++) {
-            b[i] -= (*w).lu.a[i][k] * b[k];
-        }
-    }
-    for (var kk = 0u; kk < R; kk++) {
-        let k = R - 1u - kk;
-        for (var j = k + 1u; j < R; j++) {
-            b[k] -= (*w).lu.a[k][j] * b[j];
-        }
-        b[k] = quotient(b[k], (*w).lu.a[k][k]);
-    }
-    return b;
-}
+// Lu::solve: A x = b (`solve_lu`) is written out by the host
+// (`pidm::gpu::lugre`'s `solve_lu_source`): the factorisation swapped
+// whole rows, multipliers included (as LAPACK's getrf), so every swap
+// applies to `b` before the forward substitution; selects make the swaps
+// and constant indices the substitutions, so no lane indexes `b` at run
+// time.

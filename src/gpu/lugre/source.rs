@@ -153,6 +153,53 @@ pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic) -> String {
     out
 }
 
+/// `Lu::solve` written out for the R x R reduced system (`rodas.wgsl`'s
+/// `W` holds the factors): the pivots' swaps as selects over the rows a
+/// pivot may name (p >= k), the substitutions with constant indices, so a
+/// lane indexes no array here at run time (a loop indexes `b` by its
+/// counter, a swap by the pivot). The operations and their order are
+/// `Lu::solve`'s, so the results are its bits.
+fn solve_lu_source() -> String {
+    let mut s = String::from(
+        "// Lu::solve, written out by pidm::gpu::lugre (`solve_lu_source`).\n\
+         fn solve_lu(w: ptr<function, W>, rhs_b: Reduced) -> Reduced {\n",
+    );
+    for r in 0..R {
+        s += &format!("    var b{r} = rhs_b[{r}];\n");
+    }
+    for k in 0..R {
+        // b[k] <-> b[p]: b[k] takes b[p], b[p] takes the old b[k].
+        s += &format!("    let p{k} = (*w).lu.pivot[{k}];\n    let t{k} = b{k};\n");
+        let mut taken = format!("b{k}");
+        for j in k + 1..R {
+            taken = format!("select({taken}, b{j}, p{k} == {j}u)");
+        }
+        s += &format!("    b{k} = {taken};\n");
+        for j in k + 1..R {
+            s += &format!("    b{j} = select(b{j}, t{k}, p{k} == {j}u);\n");
+        }
+    }
+    for k in 0..R {
+        for i in k + 1..R {
+            s += &format!("    b{i} -= (*w).lu.a[{i}][{k}] * b{k};\n");
+        }
+    }
+    for k in (0..R).rev() {
+        for j in k + 1..R {
+            s += &format!("    b{k} -= (*w).lu.a[{k}][{j}] * b{j};\n");
+        }
+        s += &format!("    b{k} = quotient(b{k}, (*w).lu.a[{k}][{k}]);\n");
+    }
+    // One constructor of its own would be a second array type in naga's
+    // SPIR-V, which spirv-opt's validator rejects as the return value.
+    s += "    var x: Reduced;\n";
+    for r in 0..R {
+        s += &format!("    x[{r}] = b{r};\n");
+    }
+    s += "    return x;\n}\n";
+    s
+}
+
 /// The complete shader source for `workgroup_size` invocations per group
 /// in `arithmetic`.
 pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
@@ -161,6 +208,8 @@ pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
         src += &format!("\n// ---- shaders/lugre/{name}\n");
         src += text;
     }
+    src += "\n";
+    src += &solve_lu_source();
     src
 }
 

@@ -1,0 +1,264 @@
+//! The Karnopp shader source's tests: the prelude's literals, every
+//! variant parsed, validated and written as SPIR-V, every WGSL file
+//! mirroring its Rust file, the propagator unrolled, and no f64 division
+//! or square root outside the prelude's helpers.
+
+use super::*;
+
+#[test]
+fn prelude_literals_round_trip() {
+    let max = format!("{:e}", f32::MAX as f64);
+    assert_eq!(max.parse::<f64>().unwrap() as f32, f32::MAX);
+    assert_eq!(format!("{:e}", f64::MAX).parse::<f64>().unwrap(), f64::MAX);
+    for n in 1..=22u32 {
+        let text = format!("{:e}", 1.0 / n as f64);
+        assert_eq!(text.parse::<f64>().unwrap(), 1.0 / n as f64);
+    }
+}
+
+#[test]
+fn every_variant_parses_and_validates() {
+    for variant in Variant::every() {
+        if let Err(e) = parse_and_validate(variant) {
+            panic!("{variant:?}: {e}");
+        }
+    }
+}
+
+/// wgpu hands Vulkan drivers naga's SPIR-V: every variant must get
+/// there (naga's writer rejects, for one, a pointer to a member of a
+/// struct behind a pointer parameter, which its validator accepts).
+#[test]
+fn every_variant_writes_spir_v() {
+    for variant in Variant::every() {
+        let (module, info) = parse_and_validate(variant).unwrap();
+        let options = naga::back::spv::Options::default();
+        let words = naga::back::spv::write_vec(&module, &info, &options, None)
+            .unwrap_or_else(|e| panic!("{variant:?}: {e}"));
+        assert!(words.len() > 1000, "{variant:?}: {} words", words.len());
+    }
+}
+
+/// Every shader file (but the entry point) defines the functions of its
+/// Rust mirror and only those, apart from the listed helpers that one
+/// side needs and the other does not (with the reason).
+#[test]
+fn every_shader_file_mirrors_its_rust_file() {
+    let shader_only = shader_only_functions();
+    let cpu_only = cpu_only_functions();
+    for (wgsl_name, rust_text) in rust_mirrors() {
+        check_mirror(wgsl_name, rust_text, &shader_only, &cpu_only);
+    }
+}
+
+/// Each shader file (but the entry point) with the text of its Rust
+/// mirror.
+fn rust_mirrors() -> [(&'static str, &'static str); 9] {
+    [
+        (
+            "arith.wgsl",
+            include_str!("../../../laws/karnopp/integrate/arith.rs"),
+        ),
+        (
+            "coefficients.wgsl",
+            include_str!("../../../laws/karnopp/integrate/coefficients.rs"),
+        ),
+        (
+            "flow.wgsl",
+            include_str!("../../../laws/karnopp/integrate/flow.rs"),
+        ),
+        (
+            "drive.wgsl",
+            include_str!("../../../laws/karnopp/integrate/drive.rs"),
+        ),
+        (
+            "events.wgsl",
+            include_str!("../../../laws/karnopp/integrate/events.rs"),
+        ),
+        (
+            "step.wgsl",
+            include_str!("../../../laws/karnopp/integrate/step.rs"),
+        ),
+        (
+            "advance.wgsl",
+            include_str!("../../../laws/karnopp/integrate/mod.rs"),
+        ),
+        (
+            "measure.wgsl",
+            include_str!("../../../laws/karnopp/integrate/measure.rs"),
+        ),
+        (
+            "phase.wgsl",
+            include_str!("../../../laws/karnopp/integrate/phase.rs"),
+        ),
+    ]
+}
+
+/// The functions only the shader defines.
+fn shader_only_functions() -> [&'static str; 11] {
+    // Shader only: WGSL has no Option, closures, methods or
+    // is_finite, and splits some expressions into functions.
+    [
+        "identity_propagator",
+        "series_term",
+        "theta",
+        // No arrays indexed at run time: the event samples by selection.
+        "event_sample",
+        "hermite_good",
+        "any_primary_event",
+        "sample_direction_error",
+        "is_finite",
+        "is_finite2",
+        // No generics: the V2 form of `two_sum`.
+        "two_sum2",
+        // No closures: `window_coefficient`'s cut test.
+        "is_cut",
+    ]
+}
+
+/// The functions only the Rust mirrors define.
+fn cpu_only_functions() -> [&'static str; 41] {
+    // CPU only: constructors, the observer of trajectories (its `step`
+    // method and `StepMotion`), the whole run (stoppable, also from a
+    // state the f64 shader left) and its result, Rust's rounding and
+    // the sample array.
+    [
+        "new",
+        "default",
+        // The coefficients in a precision (computed on the host), also
+        // of a replica, and 1 / n, which the prelude generates for the
+        // shader.
+        "of",
+        "of_replica",
+        "new_replica",
+        // Its parts: the mechanism, the drives, the steps and the
+        // measurement.
+        "set_mechanism",
+        "set_drive",
+        "set_steps",
+        "set_measurement",
+        "rounded",
+        "inverse_integer",
+        "run_instance",
+        "run_instance_until",
+        "continue_until",
+        "continue_instance_until",
+        "displacement",
+        "advance_observed",
+        "step",
+        "length",
+        "end",
+        "positions_at",
+        "round_half_even",
+        "sample_flow",
+        // The host's part of the measurement: the common period, the
+        // first batch, the tolerances (folded into Coefficients).
+        "common_period",
+        "short_common_period",
+        "decimal_common_period",
+        "as_decimal",
+        "gcd",
+        "is_whole",
+        // The host's phase ladder: each window length's three-gap
+        // table and the levels that may stop a run.
+        "gaps",
+        "largest_gap",
+        "spread",
+        "ladder_on",
+        "ladder",
+        "first_batch_length",
+        "beat_batch_length",
+        "repeat_tolerances",
+        // The host's join of a cycle split (the shader inlines it).
+        "repeats",
+        "wgsl_constants",
+        // The host's fixed-point phase coefficients.
+        "fixed_fraction_32",
+        "fixed_fraction_64",
+    ]
+}
+
+/// The text of the shader file `name`.
+fn shader_text(name: &str) -> &'static str {
+    let (_, text) = FILES.iter().find(|(n, _)| *n == name).unwrap();
+    text
+}
+
+/// Asserts that shader file `wgsl_name` and its Rust mirror define the
+/// same functions, apart from `shader_only` and `cpu_only`.
+fn check_mirror(wgsl_name: &str, rust_text: &str, shader_only: &[&str], cpu_only: &[&str]) {
+    let wgsl_text = shader_text(wgsl_name);
+    let wgsl = defined_functions(wgsl_text);
+    let cpu = defined_functions(rust_text);
+    // The GPU's `advance` (with the loop limiter) lives beside its
+    // entry point.
+    let mut found = wgsl.clone();
+    if wgsl_name == "advance.wgsl" {
+        found.extend(defined_functions(shader_text("entry.wgsl")));
+    }
+    for f in &wgsl {
+        assert!(
+            cpu.contains(f) || shader_only.contains(&f.as_str()),
+            "{wgsl_name} defines {f}, its Rust mirror does not"
+        );
+    }
+    for f in &cpu {
+        assert!(
+            found.contains(f) || cpu_only.contains(&f.as_str()),
+            "the Rust mirror of {wgsl_name} defines {f}, the shader does not"
+        );
+    }
+}
+
+/// The propagator's Taylor series is unrolled in the shader: one term
+/// per constant the Rust loop runs over.
+#[test]
+fn the_shader_unrolls_every_propagator_term() {
+    let (_, flow) = FILES.iter().find(|(n, _)| *n == "flow.wgsl").unwrap();
+    let terms = flow.matches("series_term(&s, osc, t * INVERSE_").count();
+    assert_eq!(terms as u32, TAYLOR_TERMS);
+}
+
+/// NVIDIA's compiler rejects f64 division and square root in this
+/// shader, so the f64 variant has none outside the f32-free helpers
+/// (which build them from inverseSqrt and fma).
+#[test]
+fn the_f64_shader_neither_divides_nor_takes_square_roots() {
+    let variant = Variant {
+        precision: Precision::F64,
+        loop_limiter: false,
+        parts: Parts::ALL,
+    };
+    let (module, info) = parse_and_validate(variant).unwrap();
+    let is_f64 = |ty: &naga::TypeInner| {
+        ty.scalar()
+            .is_some_and(|s| s.kind == naga::ScalarKind::Float && s.width == 8)
+    };
+    let mut checked = 0;
+    let functions = module.functions.iter().map(|(h, f)| (f, &info[h])).chain(
+        module
+            .entry_points
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (&e.function, info.get_entry_point(i))),
+    );
+    for (f, fi) in functions {
+        let name = f.name.as_deref().unwrap_or("?");
+        for (handle, expr) in f.expressions.iter() {
+            let float = is_f64(fi[handle].ty.inner_with(&module.types));
+            match expr {
+                naga::Expression::Binary {
+                    op: naga::BinaryOperator::Divide,
+                    ..
+                } if float => panic!("{name} divides in f64"),
+                naga::Expression::Math {
+                    fun: naga::MathFunction::Sqrt,
+                    ..
+                } if float => panic!("{name} takes an f64 square root"),
+                _ => {}
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 1000, "only {checked} expressions seen");
+}
