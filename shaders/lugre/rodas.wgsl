@@ -208,35 +208,10 @@ fn solve(w: ptr<function, W>, b: State) -> State {
     return x;
 }
 
-// Lu::factor: partial pivoting on the largest magnitude (the last of equal
-// ones, as Rust's max_by), whole rows swapped.
-fn factor(matrix: ReducedMatrix) -> Lu {
-    var lu: Lu;
-    lu.a = matrix;
-    for (var k = 0u; k < R; k++) {
-        var p = k;
-        var best = abs(lu.a[k][k]);
-        for (var i = k + 1u; i < R; i++) {
-            let v = abs(lu.a[i][k]);
-            if v >= best {
-                best = v;
-                p = i;
-            }
-        }
-        let row = lu.a[k];
-        lu.a[k] = lu.a[p];
-        lu.a[p] = row;
-        lu.pivot[k] = p;
-        for (var i = k + 1u; i < R; i++) {
-            let l = quotient(lu.a[i][k], lu.a[k][k]);
-            lu.a[i][k] = l;
-            for (var c = k + 1u; c < R; c++) {
-                lu.a[i][c] -= l * lu.a[k][c];
-            }
-        }
-    }
-    return lu;
-}
+// Lu::factor (`factor`) is written out by the host too
+// (`pidm::gpu::lugre`'s `factor_source`): partial pivoting on the largest
+// magnitude (the last of equal ones, as Rust's max_by), whole rows swapped
+// by selects, every entry a value of its own.
 
 // Lu::solve: A x = b (`solve_lu`) is written out by the host
 // (`pidm::gpu::lugre`'s `solve_lu_source`): the factorisation swapped

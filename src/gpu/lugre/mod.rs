@@ -23,11 +23,12 @@
 //!   attempt per pass (no loop of attempts inside a loop of segments,
 //!   which would count the lanes' attempts one after the other), one
 //!   attempt has at most [`LOOP_PASSES_PER_ATTEMPT`] loop passes in the
-//!   source (llvmpipe 15 unrolls some: about 485 measured), and a software
-//!   adapter gets [`SOFTWARE_ATTEMPTS`] attempts per dispatch: about a
-//!   sixth of the limit. `tests/it/gpu_lugre.rs` checks that a batch gives
+//!   source (llvmpipe 15 unrolls some), and a software adapter gets
+//!   [`SOFTWARE_ATTEMPTS`] attempts per dispatch: the source's count within
+//!   a third of the limit. `tests/it/gpu_lugre.rs` checks that a batch gives
 //!   the same bits at 3 attempts per dispatch (an attempt cut short changes
-//!   the numbers: llvmpipe cuts from about 135 attempts).
+//!   the numbers: llvmpipe cut from about 135 attempts when an attempt had
+//!   959 passes in the source, before the LU was written out).
 //! * Arithmetic ([`Arithmetic`]): on llvmpipe WGSL's own f64 division and
 //!   square root, which are IEEE's, as the CPU's; on hardware the Karnopp
 //!   prelude's `div` and `root` ([`crate::gpu::shader::prelude`]), as
@@ -51,6 +52,7 @@
 //! [`LugreGpu::run_until`].
 //!
 //! The files: `source.rs` (the prelude generated from the Rust constants,
+//! the LU factorisation and solve written out,
 //! the source, and what a lane carries: [`footprint`]), `buffers.rs` (the
 //! structs shared with WGSL), `runner.rs` (a batch, dispatch by dispatch,
 //! on the pipeline the context compiles once: `GpuContext::law_pipeline`,
@@ -101,12 +103,14 @@ pub const MIRROR_ENTRY_POINT: &str = "lugre_mirror";
 pub const LOOP_LIMIT: u32 = 65_535;
 
 /// The loop passes of one step attempt, counted in the shader's source:
-/// the Jacobian 14, the reduced W 54 and its LU factorisation 91, six
-/// solves of 62, the stages' sums 394 and right-hand sides 12, the error's
-/// 11, the entry's pass 1, and a segment's start at most 10 (exp, hypot
-/// and the fourth root have no loops). llvmpipe 15 unrolls some of these
-/// loops: about 485 passes measured.
-pub const LOOP_PASSES_PER_ATTEMPT: u32 = 14 + 54 + 91 + 6 * 62 + 394 + 12 + 11 + 1 + 10;
+/// the Jacobian 14, the reduced W 54 (its LU factorisation is written out:
+/// none), six solves of 14 (the LU solve is written out), the stages' sums
+/// 394 and right-hand sides 12, the error's 11, the entry's pass 1, and a
+/// segment's start at most 10 (exp, hypot and the fourth root have no
+/// loops). llvmpipe 15 unrolls some of these loops (about 485 passes were
+/// measured of the 959 counted before `factor` and `solve_lu` were
+/// written out).
+pub const LOOP_PASSES_PER_ATTEMPT: u32 = 14 + 54 + 6 * 14 + 394 + 12 + 11 + 1 + 10;
 
 /// Step attempts per dispatch on a software adapter: the loop passes stay
 /// within a third of [`LOOP_LIMIT`] as counted in the source (a sixth as

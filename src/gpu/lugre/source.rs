@@ -200,6 +200,63 @@ fn solve_lu_source() -> String {
     s
 }
 
+/// `Lu::factor` written out for the R x R reduced matrix as
+/// `rodas.wgsl`'s loops computed it: partial pivoting on the largest
+/// magnitude (the last of equal ones), whole rows swapped by selects over
+/// the rows a pivot may name (p >= k), the elimination with constant
+/// indices, every entry a value of its own: a lane indexes no array here
+/// at run time. The operations and their order are `Lu::factor`'s.
+fn factor_source() -> String {
+    let mut s = String::from(
+        "// Lu::factor, written out by pidm::gpu::lugre (`factor_source`).\n\
+         fn factor(matrix: ReducedMatrix) -> Lu {\n",
+    );
+    for r in 0..R {
+        for c in 0..R {
+            s += &format!("    var a{r}{c} = matrix[{r}][{c}];\n");
+        }
+    }
+    s += "    var lu: Lu;\n";
+    for k in 0..R {
+        s += &format!("    var p{k} = {k}u;\n    var best{k} = abs(a{k}{k});\n");
+        for i in k + 1..R {
+            s += &format!(
+                "    let v{k}{i} = abs(a{i}{k});\n    \
+                 p{k} = select(p{k}, {i}u, v{k}{i} >= best{k});\n    \
+                 best{k} = max_or_keep(best{k}, v{k}{i});\n"
+            );
+        }
+        for c in 0..R {
+            s += &format!("    let t{k}{c} = a{k}{c};\n");
+            let mut taken = format!("a{k}{c}");
+            for j in k + 1..R {
+                taken = format!("select({taken}, a{j}{c}, p{k} == {j}u)");
+            }
+            s += &format!("    a{k}{c} = {taken};\n");
+            for j in k + 1..R {
+                s += &format!("    a{j}{c} = select(a{j}{c}, t{k}{c}, p{k} == {j}u);\n");
+            }
+        }
+        s += &format!("    lu.pivot[{k}] = p{k};\n");
+        for i in k + 1..R {
+            s +=
+                &format!("    let l{i}{k} = quotient(a{i}{k}, a{k}{k});\n    a{i}{k} = l{i}{k};\n");
+            for c in k + 1..R {
+                s += &format!("    a{i}{c} -= l{i}{k} * a{k}{c};\n");
+            }
+        }
+    }
+    for r in 0..R {
+        for c in 0..R {
+            s += &format!("    lu.a[{r}][{c}] = a{r}{c};\n");
+        }
+    }
+    s += "    return lu;\n}\n\n\
+          // The pivot search's `if v >= best { best = v; }`.\n\
+          fn max_or_keep(best: Real, v: Real) -> Real {\n    return select(best, v, v >= best);\n}\n";
+    s
+}
+
 /// The complete shader source for `workgroup_size` invocations per group
 /// in `arithmetic`.
 pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
@@ -208,6 +265,8 @@ pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
         src += &format!("\n// ---- shaders/lugre/{name}\n");
         src += text;
     }
+    src += "\n";
+    src += &factor_source();
     src += "\n";
     src += &solve_lu_source();
     src
@@ -305,7 +364,8 @@ mod tests {
         ];
         // CPU only: `Model::new` and `Clock::of`, which the host computes
         // (`Params::of`, `Lane::next_period`).
-        let cpu_only = ["new", "of"];
+        // Written out by the host (`factor_source`), not in rodas.wgsl.
+        let cpu_only = ["new", "of", "factor"];
         for (wgsl_name, rust_text) in rust {
             let (_, wgsl_text) = FILES.iter().find(|(n, _)| *n == wgsl_name).unwrap();
             let wgsl = defined_functions(wgsl_text);
