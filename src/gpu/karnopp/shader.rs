@@ -540,5 +540,31 @@ pub(crate) fn defined_functions(text: &str) -> Vec<String> {
     names
 }
 
+/// A WGSL file's functions (`wgsl`) each in its Rust mirror (`cpu`) or
+/// listed as shader-only, and each Rust function among `found` (the
+/// file's, with those the shader defines elsewhere for it) or listed as
+/// CPU-only: both laws' mirror tests.
+#[cfg(test)]
+pub(crate) fn assert_mirrors(
+    wgsl_name: &str,
+    wgsl: &[String],
+    found: &[String],
+    cpu: &[String],
+    (shader_only, cpu_only): (&[&str], &[&str]),
+) {
+    for f in wgsl {
+        assert!(
+            cpu.contains(f) || shader_only.contains(&f.as_str()),
+            "{wgsl_name} defines {f}, its Rust mirror does not"
+        );
+    }
+    for f in cpu {
+        assert!(
+            found.contains(f) || cpu_only.contains(&f.as_str()),
+            "the Rust mirror of {wgsl_name} defines {f}, the shader does not"
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests;

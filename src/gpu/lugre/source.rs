@@ -370,18 +370,8 @@ mod tests {
             let (_, wgsl_text) = FILES.iter().find(|(n, _)| *n == wgsl_name).unwrap();
             let wgsl = defined_functions(wgsl_text);
             let cpu = defined_functions(rust_text);
-            for f in &wgsl {
-                assert!(
-                    cpu.contains(f) || shader_only.contains(&f.as_str()),
-                    "{wgsl_name} defines {f}, its Rust mirror does not"
-                );
-            }
-            for f in &cpu {
-                assert!(
-                    wgsl.contains(f) || cpu_only.contains(&f.as_str()),
-                    "the Rust mirror of {wgsl_name} defines {f}, the shader does not"
-                );
-            }
+            let lists = (&shader_only[..], &cpu_only[..]);
+            crate::gpu::shader::assert_mirrors(wgsl_name, &wgsl, &wgsl, &cpu, lists);
         }
     }
 

@@ -196,18 +196,7 @@ fn check_mirror(wgsl_name: &str, rust_text: &str, shader_only: &[&str], cpu_only
     if wgsl_name == "advance.wgsl" {
         found.extend(defined_functions(shader_text("entry.wgsl")));
     }
-    for f in &wgsl {
-        assert!(
-            cpu.contains(f) || shader_only.contains(&f.as_str()),
-            "{wgsl_name} defines {f}, its Rust mirror does not"
-        );
-    }
-    for f in &cpu {
-        assert!(
-            found.contains(f) || cpu_only.contains(&f.as_str()),
-            "the Rust mirror of {wgsl_name} defines {f}, the shader does not"
-        );
-    }
+    assert_mirrors(wgsl_name, &wgsl, &found, &cpu, (shader_only, cpu_only));
 }
 
 /// The propagator's Taylor series is unrolled in the shader: one term
