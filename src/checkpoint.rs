@@ -405,6 +405,31 @@ impl Checkpoint {
     }
 }
 
+/// Ascending indices as ranges of consecutive ones (a sweep's work, a
+/// journal's entries).
+pub fn ranges_of(indices: &[u64]) -> Vec<Range<u64>> {
+    let mut out: Vec<Range<u64>> = Vec::new();
+    for &i in indices {
+        match out.last_mut() {
+            Some(r) if r.end == i => r.end += 1,
+            _ => out.push(i..i + 1),
+        }
+    }
+    out
+}
+
+/// `--resume`'s first check, for every mode: the checkpoint of an
+/// interrupted run exists at `path`.
+pub fn require(path: &Path) -> Result<()> {
+    if !path.exists() {
+        bail!(
+            "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 /// The ranges of `all` not covered by `done` (both ascending; `done` may
 /// hold overlapping or adjacent ranges).
 pub fn missing(all: &[Range<u64>], done: &[Range<u64>]) -> Vec<Range<u64>> {

@@ -117,7 +117,7 @@ pub fn run(
         // journal entry each) are written to the checkpoint together.
         for part in indices.chunks(chunk.max(1)) {
             let plan = Plan {
-                work: runs(part),
+                work: crate::checkpoint::ranges_of(part),
                 instance: &instance,
                 settings: scene.settings,
                 baselines,
@@ -210,12 +210,7 @@ fn resume(
     count: usize,
 ) -> Result<(Checkpoint, MapWriter, Journal)> {
     let checkpoint_path = claim.checkpoint_path();
-    if !checkpoint_path.exists() {
-        bail!(
-            "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
-            checkpoint_path.display()
-        );
-    }
+    crate::checkpoint::require(&checkpoint_path)?;
     let writer = MapWriter::create(claim, info)?;
     let mut journal = Journal::new(count);
     let (checkpoint, _) = Checkpoint::resume(&checkpoint_path, identity, &mut |start, got| {
@@ -243,18 +238,6 @@ fn resume(
         journal.from_checkpoint
     );
     Ok((checkpoint, writer, journal))
-}
-
-/// Ascending indices as ranges of consecutive ones.
-fn runs(indices: &[u64]) -> Vec<std::ops::Range<u64>> {
-    let mut work: Vec<std::ops::Range<u64>> = Vec::new();
-    for &i in indices {
-        match work.last_mut() {
-            Some(r) if r.end == i => r.end += 1,
-            _ => work.push(i..i + 1),
-        }
-    }
-    work
 }
 
 /// The inferred points' 1-DOF baselines, integrated where they are few (at

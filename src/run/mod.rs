@@ -293,12 +293,7 @@ fn start_plain(run: &Opened, all: Vec<Range<u64>>, keep_records: bool) -> Result
             from_checkpoint: 0,
         });
     }
-    if !checkpoint_path.exists() {
-        bail!(
-            "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
-            checkpoint_path.display()
-        );
-    }
+    checkpoint::require(&checkpoint_path)?;
     let mut writer = MapWriter::create(&run.claim, &run.info)?;
     let mut summary = Summary::default();
     let mut kept = BTreeMap::new();

@@ -210,12 +210,7 @@ fn resume(
     let count: u64 = all.iter().map(|r| r.end - r.start).sum();
     let ours = |i: u64| all.iter().any(|r| r.contains(&i));
     let checkpoint_path = claim.checkpoint_path();
-    if !checkpoint_path.exists() {
-        bail!(
-            "--resume: there is no checkpoint {} of an interrupted run; run without --resume",
-            checkpoint_path.display()
-        );
-    }
+    checkpoint::require(&checkpoint_path)?;
     let mut writer = MapWriter::create(claim, info)?;
     let mut journal = Journal::default();
     let (checkpoint, _) = Checkpoint::resume(&checkpoint_path, identity, &mut |start, got| {
@@ -281,7 +276,7 @@ impl Searches<'_> {
         let done: Vec<Range<u64>> = {
             let mut indices: Vec<u64> = journal.main.keys().copied().collect();
             indices.sort_unstable();
-            ranges(&indices)
+            checkpoint::ranges_of(&indices)
         };
         let work = checkpoint::missing(self.all, &done);
         let instance = |i: u64| scene.instance(i);
@@ -392,7 +387,7 @@ impl Searches<'_> {
             inst
         };
         let plan = Plan {
-            work: ranges(&missing),
+            work: checkpoint::ranges_of(&missing),
             instance: &probe,
             settings: self.scene.settings,
             baselines: false,
@@ -419,16 +414,4 @@ impl Searches<'_> {
         synced?;
         Ok(wave_started.elapsed().as_secs_f64())
     }
-}
-
-/// Ascending indices as ranges of consecutive ones.
-fn ranges(indices: &[u64]) -> Vec<Range<u64>> {
-    let mut out: Vec<Range<u64>> = Vec::new();
-    for &i in indices {
-        match out.last_mut() {
-            Some(r) if r.end == i => r.end += 1,
-            _ => out.push(i..i + 1),
-        }
-    }
-    out
 }
