@@ -89,6 +89,32 @@ enum Command {
         #[arg(long, value_enum)]
         progress: Option<pidm::progress::ProgressMode>,
     },
+    /// Calibrates a fit scene's free keys ([fit]) to its measured steps:
+    /// writes FIT.json (values, standard errors, correlations, warnings),
+    /// FIT.toml (the scene with the fitted values) and FIT.png beside it
+    /// (docs/fit.md).
+    Fit {
+        /// The fit scene (TOML with a [fit] table).
+        scene: PathBuf,
+        /// FIT.json; FIT.toml and FIT.png are written beside it [default:
+        /// results/<scene stem>.fit.json].
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Worker threads of the CPU path [default: every core].
+        #[arg(long, value_parser = thread_count)]
+        threads: Option<usize>,
+        /// auto, gpu or cpu, as for `pidm run`; a fit runs in f64 only.
+        #[arg(long, value_enum, default_value_t = backend::BackendChoice::Auto)]
+        backend: backend::BackendChoice,
+        /// Seed of the global search: the same seed gives the same fit.
+        #[arg(long, default_value_t = pidm::fit::DEFAULT_SEED)]
+        seed: u64,
+        /// How progress is shown on stderr: bar (the stage and best chi2),
+        /// jsonl (one JSON object per batch: stage, batch, evaluations,
+        /// best_chi2) or none [default: bar on a terminal, else none].
+        #[arg(long, value_enum)]
+        progress: Option<pidm::progress::ProgressMode>,
+    },
     /// Joins the shard files of one scene (`pidm run --shard K/N`) into one
     /// map file, the same as a single run's.
     Merge {
@@ -269,9 +295,9 @@ impl Command {
     /// Whether the command may look for GPU adapters.
     fn looks_for_gpu(&self) -> bool {
         match self {
-            Command::Run { backend, .. } | Command::RefineStudy { backend, .. } => {
-                *backend != backend::BackendChoice::Cpu
-            }
+            Command::Run { backend, .. }
+            | Command::Fit { backend, .. }
+            | Command::RefineStudy { backend, .. } => *backend != backend::BackendChoice::Cpu,
             Command::Info { .. } | Command::Bench { .. } => true,
             Command::Accuracy { gpu, .. } => *gpu,
             _ => false,
@@ -335,6 +361,27 @@ fn run(cli: Cli) -> Result<ExitCode> {
                      and /maps/status says why"
                 );
                 return Ok(ExitCode::from(3));
+            }
+        }
+        Command::Fit {
+            scene,
+            out,
+            threads,
+            backend,
+            seed,
+            progress,
+        } => {
+            let interrupted = commands::fit(&commands::FitCommand {
+                scene,
+                out,
+                threads,
+                backend,
+                seed,
+                progress,
+            })?;
+            if interrupted {
+                eprintln!("pidm: stopped by SIGINT: the best point so far is written");
+                return Ok(ExitCode::from(130));
             }
         }
         Command::Merge { out, shards } => commands::merge(&out, &shards)?,

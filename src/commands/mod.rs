@@ -3,7 +3,7 @@
 //! tests can call it.
 //!
 //! One file per subcommand, as cargo's `commands/`: `run.rs`, `merge.rs`,
-//! `check.rs`, `info.rs`, `report.rs`, `accuracy.rs`, `random_scene.rs`,
+//! `check.rs`, `fit.rs`, `info.rs`, `report.rs`, `accuracy.rs`, `random_scene.rs`,
 //! `bench.rs` and `refine_study.rs`. `summary.rs` is the one home of the
 //! run summary `pidm run` prints, `format.rs` of the numbers and words the
 //! commands write for people, and `scenes.rs` of how the commands load
@@ -12,6 +12,7 @@
 mod accuracy;
 mod bench;
 mod check;
+mod fit;
 mod format;
 mod info;
 mod merge;
@@ -26,6 +27,7 @@ pub use crate::run::estimate::NOMINAL_SIMULATED_PER_CORE;
 pub use accuracy::accuracy;
 pub use bench::bench;
 pub use check::{CheckReport, check, check_json, check_report};
+pub use fit::{FitCommand, fit};
 pub use format::{human_duration, instance_name, plural, um};
 pub use info::{info, shader_info};
 pub use merge::merge;

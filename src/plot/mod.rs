@@ -55,6 +55,7 @@ mod canvas;
 mod checked;
 mod colour;
 mod error;
+mod fit;
 mod heatmap;
 mod lines;
 mod maps;
@@ -91,6 +92,8 @@ pub struct Plotted {
     /// values or trajectories left out).
     pub notes: Vec<String>,
 }
+
+pub use fit::{FitPanel, FitSeries, fit_figure};
 
 /// Default output folder: `results/plots/<file stem>/`.
 pub fn default_out_dir(file: &Path) -> PathBuf {

@@ -21,7 +21,7 @@ pub const MAX_SCENE_BYTES: u64 = 16 << 20;
 
 /// Reads the scene file at `path` as text, refusing one larger than
 /// [`MAX_SCENE_BYTES`] or that is not UTF-8 text without NUL bytes.
-pub(super) fn read(path: &Path) -> Result<String, SceneError> {
+pub fn read(path: &Path) -> Result<String, SceneError> {
     let io = |error: std::io::Error| SceneError::Io {
         path: path.to_owned(),
         error,

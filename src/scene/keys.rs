@@ -394,6 +394,32 @@ pub(super) const OUTPUT_KEYS: [&str; 3] =
 pub(super) const NUMERIC_EXPECTED: &str =
     "expected a number, a list of numbers or a range { from, to, steps }";
 
+/// What a dotted scene key is, for a fit's free keys and data columns
+/// (`crate::fit`): its units when it is a real-valued key an instance may
+/// set (a point could), else why not. The scene's own rules still judge
+/// its values.
+pub fn instance_key(path: &str) -> Result<&'static str, &'static str> {
+    let field = match path.split('.').collect::<Vec<_>>()[..] {
+        ["mechanism", name] => MECHANISM_FIELDS.iter().find(|f| f.name() == name),
+        ["axis", "x" | "y", name] => AXIS_FIELDS.iter().find(|f| f.name() == name),
+        ["simulation", name] => SIMULATION_FIELDS.iter().find(|f| f.name() == name),
+        _ => None,
+    };
+    let Some(&field) = field else {
+        return Err("no numeric scene key of that name");
+    };
+    if path == "axis.x.frequency_ratio" {
+        return Err("only axis.y takes frequency_ratio");
+    }
+    if field.scene_wide() {
+        return Err("it applies to the whole scene, not to one instance");
+    }
+    if field.rule().integer() {
+        return Err("it holds an integer (a count of periods)");
+    }
+    Ok(field.units())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -114,7 +114,8 @@ pub mod trajectories;
 mod values;
 
 pub use error::{Location, SceneError};
-pub use file::MAX_SCENE_BYTES;
+pub use file::{MAX_SCENE_BYTES, read as read_text};
+pub use keys::instance_key;
 pub use memory::MAP_MEMORY_BUDGET_BYTES;
 pub use name::MAX_NAME_BYTES;
 pub use refine::{DEFAULT_REFINE_TOLERANCE_M, MAX_REFINE_LEVELS, Refine};

@@ -237,6 +237,15 @@ impl Parser<'_> {
                 "refine" => parsed.refine = Some(self.refine(value)?),
                 "stall" => parsed.stall = Some(self.stall(value)?),
                 "random" => parsed.random = Some(self.random(value)?),
+                "fit" => {
+                    return Err(self.invalid(
+                        key.span(),
+                        "[fit] makes this a fit scene, which calibrates the model to \
+                         measured steps: run it with `pidm fit SCENE --out FIT.json` \
+                         (`pidm run` maps a scene without [fit])"
+                            .to_owned(),
+                    ));
+                }
                 _ => return Err(self.unknown_key(key, "", &ROOT_KEYS)),
             }
         }

@@ -1,0 +1,441 @@
+//! Differential evolution: the global stage of a weighted least-squares fit.
+//!
+//! Points live in the search space (`u` coordinates) inside box bounds. The cost of a
+//! residual vector `r` is `Σ r_i²`. Candidates are evaluated in batches through a
+//! callback so that an expensive simulation can run a whole generation together: the
+//! initial population is one batch and every later generation is exactly one batch.
+//! Everything random comes from a seeded SplitMix64, so a seed reproduces a run bit for bit.
+
+use anyhow::{Result, bail, ensure};
+
+/// Residuals of a batch of candidates, each a point in the search space (u coordinates);
+/// None for a candidate that is infeasible or whose evaluation failed.
+pub type Batch<'a> = dyn FnMut(&[Vec<f64>]) -> anyhow::Result<Vec<Option<Vec<f64>>>> + 'a;
+
+/// Settings of [`differential_evolution`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeOptions {
+    /// Candidates per generation, i.e. the size of each batch (at least 4).
+    pub population: usize,
+    /// Generations after the initial population (each one batch).
+    pub max_generations: usize,
+    /// Seed of the SplitMix64 generator; the same seed gives the same run.
+    pub seed: u64,
+    /// Stop when the relative cost spread `(worst - best) / (best + tiny)` of the
+    /// population falls below this (dimensionless), or when the best cost is below 1e-300.
+    pub tolerance: f64,
+    /// Mutation scale F (dimensionless); each trial dithers it uniformly in `[F/2, 3F/2)`.
+    pub f: f64,
+    /// Crossover probability CR in `[0, 1]`: chance that a coordinate comes from the mutant.
+    pub cr: f64,
+}
+
+impl DeOptions {
+    /// Defaults for `p` parameters: population `clamp(8 p, 12, 40)`, 40 generations,
+    /// tolerance 1e-3, F 0.7, CR 0.9. Sized for a few hundred to ~1600 evaluations,
+    /// enough to find the basin that Levenberg-Marquardt then polishes.
+    pub fn for_dimension(p: usize, seed: u64) -> DeOptions {
+        DeOptions {
+            population: (8 * p).clamp(12, 40),
+            max_generations: 40,
+            seed,
+            tolerance: 1e-3,
+            f: 0.7,
+            cr: 0.9,
+        }
+    }
+}
+
+/// Outcome of [`differential_evolution`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeResult {
+    /// Best candidate found (u coordinates, inside the bounds).
+    pub best: Vec<f64>,
+    /// Cost of `best`: sum of squared residuals.
+    pub best_cost: f64,
+    /// Generations run after the initial population.
+    pub generations: usize,
+    /// Candidates evaluated in all batches, the initial population included.
+    pub evaluations: usize,
+    /// Candidates that came back None or with non-finite residuals (treated as infinite cost).
+    pub failed: usize,
+}
+
+/// Answer of the per-generation callback: `Stop` ends the search early (e.g. on Ctrl-C)
+/// and returns the best candidate found so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Progress {
+    /// Keep searching.
+    Continue,
+    /// Stop now and return the best so far.
+    Stop,
+}
+
+/// SplitMix64 pseudo-random generator (small, fast, and identical on every platform).
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in `[0, 1)` with 53 random bits.
+    fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// Uniform integer in `0..n` (`n > 0`).
+    fn below(&mut self, n: usize) -> usize {
+        ((self.unit() * n as f64) as usize).min(n - 1)
+    }
+}
+
+/// Counts of evaluated and failed candidates.
+#[derive(Default)]
+struct Tally {
+    evaluations: usize,
+    failed: usize,
+}
+
+/// Global minimisation of the batched least-squares cost inside `[lo, hi]` (u coordinates).
+///
+/// Strategy: "current-to-best/1/bin" with per-trial dither of F. With a budget of only
+/// tens of generations, pulling every member toward the best converges several times
+/// faster than "rand/1/bin"; the premature-convergence risk this brings is reduced by the
+/// dither and the difference vector, and is acceptable because a local Levenberg-Marquardt
+/// stage polishes the result. Mutants leaving the box bounce back to a random point between
+/// the parent and the bound. Selection is greedy (a trial replaces its parent when its cost
+/// is not larger); None counts as infinite cost. `on_generation(g, best_cost, best_u)` is
+/// called after the initial population (g = 0) and after each generation.
+pub fn differential_evolution(
+    eval: &mut Batch<'_>,
+    lo: &[f64],
+    hi: &[f64],
+    opts: &DeOptions,
+    on_generation: &mut dyn FnMut(usize, f64, &[f64]) -> Progress,
+) -> Result<DeResult> {
+    check_inputs(lo, hi, opts)?;
+    let mut rng = SplitMix64(opts.seed);
+    let mut tally = Tally::default();
+    let mut pop = latin_hypercube(lo, hi, opts.population, &mut rng);
+    let mut costs = evaluate(eval, &pop, &mut tally)?;
+    if costs.iter().all(|c| c.is_infinite()) {
+        bail!(
+            "no candidate in the bounds could be evaluated: all {} initial candidates failed",
+            pop.len()
+        );
+    }
+    let mut best = argmin(&costs);
+    let mut generations = 0;
+    let mut stop = on_generation(0, costs[best], &pop[best]) == Progress::Stop
+        || converged(&costs, best, opts.tolerance);
+    while !stop && generations < opts.max_generations {
+        let trials: Vec<Vec<f64>> = (0..pop.len())
+            .map(|i| trial(&pop, i, best, lo, hi, opts, &mut rng))
+            .collect();
+        let trial_costs = evaluate(eval, &trials, &mut tally)?;
+        for (i, (t, c)) in trials.into_iter().zip(trial_costs).enumerate() {
+            if c <= costs[i] {
+                pop[i] = t;
+                costs[i] = c;
+            }
+        }
+        best = argmin(&costs);
+        generations += 1;
+        stop = on_generation(generations, costs[best], &pop[best]) == Progress::Stop
+            || converged(&costs, best, opts.tolerance);
+    }
+    Ok(DeResult {
+        best: pop.swap_remove(best),
+        best_cost: costs[best],
+        generations,
+        evaluations: tally.evaluations,
+        failed: tally.failed,
+    })
+}
+
+/// Rejects empty or inverted bounds and unusable settings.
+fn check_inputs(lo: &[f64], hi: &[f64], opts: &DeOptions) -> Result<()> {
+    ensure!(!lo.is_empty(), "no parameters to search");
+    ensure!(
+        lo.len() == hi.len(),
+        "{} lower bounds but {} upper bounds",
+        lo.len(),
+        hi.len()
+    );
+    for (j, (l, h)) in lo.iter().zip(hi).enumerate() {
+        ensure!(
+            l.is_finite() && h.is_finite() && l < h,
+            "bounds of parameter {j} are not finite with lo < hi: [{l}, {h}]"
+        );
+    }
+    ensure!(opts.population >= 4, "population must be at least 4");
+    ensure!(opts.f > 0.0 && opts.f.is_finite(), "F must be positive");
+    ensure!((0.0..=1.0).contains(&opts.cr), "CR must lie in [0, 1]");
+    Ok(())
+}
+
+/// Latin hypercube sample of `n` points: each coordinate visits each of `n` equal strata once.
+fn latin_hypercube(lo: &[f64], hi: &[f64], n: usize, rng: &mut SplitMix64) -> Vec<Vec<f64>> {
+    let mut points = vec![vec![0.0; lo.len()]; n];
+    for (j, (&l, &h)) in lo.iter().zip(hi).enumerate() {
+        let mut strata: Vec<usize> = (0..n).collect();
+        for k in (1..n).rev() {
+            strata.swap(k, rng.below(k + 1));
+        }
+        for (point, &s) in points.iter_mut().zip(&strata) {
+            point[j] = (l + (h - l) * (s as f64 + rng.unit()) / n as f64).min(h);
+        }
+    }
+    points
+}
+
+/// Evaluates one batch and returns the costs; None or non-finite residuals give infinity.
+fn evaluate(eval: &mut Batch<'_>, points: &[Vec<f64>], tally: &mut Tally) -> Result<Vec<f64>> {
+    let results = eval(points)?;
+    ensure!(
+        results.len() == points.len(),
+        "the batch evaluator returned {} results for {} candidates",
+        results.len(),
+        points.len()
+    );
+    tally.evaluations += points.len();
+    let costs = results.into_iter().map(|r| {
+        let cost = r.map_or(f64::INFINITY, |r| r.iter().map(|x| x * x).sum());
+        if cost.is_finite() {
+            cost
+        } else {
+            f64::INFINITY
+        }
+    });
+    let costs: Vec<f64> = costs.collect();
+    tally.failed += costs.iter().filter(|c| c.is_infinite()).count();
+    Ok(costs)
+}
+
+/// Index of the smallest cost (the first one on ties).
+fn argmin(costs: &[f64]) -> usize {
+    let mut best = 0;
+    for (i, &c) in costs.iter().enumerate() {
+        if c < costs[best] {
+            best = i;
+        }
+    }
+    best
+}
+
+/// True when the population's relative cost spread is below `tolerance` or the best is ~0.
+fn converged(costs: &[f64], best: usize, tolerance: f64) -> bool {
+    let worst = costs.iter().copied().fold(0.0, f64::max);
+    costs[best] < 1e-300 || (worst - costs[best]) / (costs[best] + 1e-300) < tolerance
+}
+
+/// Trial vector for member `i`: current-to-best/1 mutation, binomial crossover, bounce-back.
+fn trial(
+    pop: &[Vec<f64>],
+    i: usize,
+    best: usize,
+    lo: &[f64],
+    hi: &[f64],
+    opts: &DeOptions,
+    rng: &mut SplitMix64,
+) -> Vec<f64> {
+    let (r1, r2) = two_others(pop.len(), i, rng);
+    let f = opts.f * (0.5 + rng.unit());
+    let forced = rng.below(lo.len());
+    let mut out = pop[i].clone();
+    for (j, x) in out.iter_mut().enumerate() {
+        if j != forced && rng.unit() >= opts.cr {
+            continue;
+        }
+        let v = *x + f * (pop[best][j] - *x) + f * (pop[r1][j] - pop[r2][j]);
+        *x = if v < lo[j] {
+            lo[j] + rng.unit() * (*x - lo[j])
+        } else if v > hi[j] {
+            hi[j] - rng.unit() * (hi[j] - *x)
+        } else {
+            v
+        };
+    }
+    out
+}
+
+/// Two distinct indices in `0..n`, both different from `i` (`n >= 3`).
+fn two_others(n: usize, i: usize, rng: &mut SplitMix64) -> (usize, usize) {
+    let mut r1 = rng.below(n);
+    while r1 == i {
+        r1 = rng.below(n);
+    }
+    let mut r2 = rng.below(n);
+    while r2 == i || r2 == r1 {
+        r2 = rng.below(n);
+    }
+    (r1, r2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::cell::RefCell;
+
+    type Out = anyhow::Result<Vec<Option<Vec<f64>>>>;
+
+    /// Batch evaluator from a pointwise model, counting calls.
+    fn batched<'a>(
+        model: impl Fn(&[f64]) -> Option<Vec<f64>> + 'a,
+        calls: &'a RefCell<Vec<usize>>,
+    ) -> impl FnMut(&[Vec<f64>]) -> Out + 'a {
+        move |pts: &[Vec<f64>]| {
+            calls.borrow_mut().push(pts.len());
+            Ok(pts.iter().map(|u| model(u)).collect())
+        }
+    }
+
+    fn rosenbrock(u: &[f64]) -> Option<Vec<f64>> {
+        Some(vec![10.0 * (u[1] - u[0] * u[0]), 1.0 - u[0]])
+    }
+
+    fn run(
+        model: impl Fn(&[f64]) -> Option<Vec<f64>>,
+        lo: &[f64],
+        hi: &[f64],
+        opts: &DeOptions,
+    ) -> (Result<DeResult>, Vec<usize>) {
+        let calls = RefCell::new(Vec::new());
+        let mut eval = batched(model, &calls);
+        let out =
+            differential_evolution(&mut eval, lo, hi, opts, &mut |_, _, _| Progress::Continue);
+        drop(eval);
+        (out, calls.into_inner())
+    }
+
+    #[test]
+    fn rosenbrock_finds_the_valley_minimum() {
+        let mut opts = DeOptions::for_dimension(2, 42);
+        opts.max_generations = 300;
+        let (res, _) = run(rosenbrock, &[-2.0, -2.0], &[2.0, 2.0], &opts);
+        let res = res.unwrap();
+        assert!((res.best[0] - 1.0).abs() < 1e-2, "{res:?}");
+        assert!((res.best[1] - 1.0).abs() < 1e-2, "{res:?}");
+    }
+
+    /// y = 1 + 2x - 0.5x² plus fixed pseudo-noise, 21 points.
+    fn regression(u: &[f64]) -> Option<Vec<f64>> {
+        let r = (0..21).map(|i| {
+            let x = i as f64 * 0.5;
+            let noise = 0.1 * ((i * 7919 % 13) as f64 / 6.0 - 1.0);
+            let y = 1.0 + 2.0 * x - 0.5 * x * x + noise;
+            u[0] + u[1] * x + u[2] * x * x - y
+        });
+        Some(r.collect())
+    }
+
+    #[test]
+    fn linear_regression_three_parameters() {
+        let opts = DeOptions::for_dimension(3, 1);
+        let (res, _) = run(regression, &[-5.0; 3], &[5.0; 3], &opts);
+        let res = res.unwrap();
+        let truth = [1.0, 2.0, -0.5];
+        for (b, t) in res.best.iter().zip(truth) {
+            assert!((b - t).abs() < 0.3, "{res:?}");
+        }
+        let reference: f64 = regression(&truth).unwrap().iter().map(|x| x * x).sum();
+        assert!(res.best_cost < 1.5 * reference, "{res:?} vs {reference}");
+    }
+
+    #[test]
+    fn same_seed_is_bit_identical_and_seeds_differ() {
+        let opts = DeOptions::for_dimension(2, 99);
+        let (a, _) = run(rosenbrock, &[-2.0, -2.0], &[2.0, 2.0], &opts);
+        let (b, _) = run(rosenbrock, &[-2.0, -2.0], &[2.0, 2.0], &opts);
+        let (a, b) = (a.unwrap(), b.unwrap());
+        assert_eq!(a.best_cost.to_bits(), b.best_cost.to_bits());
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&a.best), bits(&b.best));
+        assert_eq!(
+            (a.generations, a.evaluations),
+            (b.generations, b.evaluations)
+        );
+        let other = DeOptions { seed: 100, ..opts };
+        let (c, _) = run(rosenbrock, &[-2.0, -2.0], &[2.0, 2.0], &other);
+        assert_ne!(bits(&a.best), bits(&c.unwrap().best));
+    }
+
+    #[test]
+    fn infeasible_candidates_are_never_selected() {
+        // Optimum of the unconstrained problem (1, 1) lies in the infeasible region x > 0.5.
+        let model = |u: &[f64]| if u[0] > 0.5 { None } else { rosenbrock(u) };
+        let mut opts = DeOptions::for_dimension(2, 3);
+        opts.max_generations = 200;
+        let (res, _) = run(model, &[-2.0, -2.0], &[2.0, 2.0], &opts);
+        let res = res.unwrap();
+        assert!(res.failed > 0 && res.best_cost.is_finite());
+        assert!(res.best[0] <= 0.5 && res.best[0] > 0.45, "{res:?}");
+    }
+
+    #[test]
+    fn all_infeasible_is_an_error() {
+        let opts = DeOptions::for_dimension(2, 3);
+        let (res, calls) = run(|_| None, &[0.0, 0.0], &[1.0, 1.0], &opts);
+        let msg = res.unwrap_err().to_string();
+        assert!(
+            msg.contains("no candidate in the bounds could be evaluated"),
+            "{msg}"
+        );
+        assert_eq!(calls.len(), 1);
+    }
+
+    #[test]
+    fn one_batch_per_generation() {
+        let opts = DeOptions {
+            tolerance: 0.0,
+            ..DeOptions::for_dimension(2, 5)
+        };
+        let (res, calls) = run(rosenbrock, &[-2.0, -2.0], &[2.0, 2.0], &opts);
+        let res = res.unwrap();
+        assert_eq!(res.generations, 40);
+        assert_eq!(calls.len(), res.generations + 1);
+        assert!(calls.iter().all(|&n| n == opts.population));
+        assert_eq!(res.evaluations, 41 * opts.population);
+    }
+
+    #[test]
+    fn stop_from_the_callback_returns_best_so_far() {
+        let calls = RefCell::new(Vec::new());
+        let mut eval = batched(rosenbrock, &calls);
+        let opts = DeOptions::for_dimension(2, 8);
+        let mut seen = Vec::new();
+        let res =
+            differential_evolution(&mut eval, &[-2.0; 2], &[2.0; 2], &opts, &mut |g, c, _| {
+                seen.push((g, c));
+                if g == 3 {
+                    Progress::Stop
+                } else {
+                    Progress::Continue
+                }
+            });
+        let res = res.unwrap();
+        assert_eq!(res.generations, 3);
+        assert_eq!(seen.len(), 4);
+        assert!(seen.windows(2).all(|w| w[1].1 <= w[0].1));
+        assert_eq!(res.best_cost, seen[3].1);
+    }
+
+    #[test]
+    fn latin_hypercube_fills_each_stratum_once() {
+        let mut rng = SplitMix64(11);
+        let pts = latin_hypercube(&[0.0, -1.0], &[1.0, 1.0], 10, &mut rng);
+        for (j, (l, w)) in [(0.0, 1.0), (-1.0, 2.0)].into_iter().enumerate() {
+            let mut cells: Vec<usize> = pts
+                .iter()
+                .map(|p| ((p[j] - l) / w * 10.0) as usize)
+                .collect();
+            cells.sort_unstable();
+            assert_eq!(cells, (0..10).collect::<Vec<_>>());
+        }
+    }
+}

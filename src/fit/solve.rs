@@ -1,0 +1,250 @@
+//! The search of a fit (docs/fit.md): a global stage over the bounds
+//! (differential evolution, one batch per generation), a local stage
+//! (Levenberg-Marquardt, its Jacobian by finite differences one batch at a
+//! time), the per-axis scales re-estimated where the data give no standard
+//! errors, and the covariance from a central-difference Jacobian.
+//!
+//! The measurement's `step_tolerance` is tightened to a tenth of the data's
+//! smallest standard error, so that the model's own noise stays well under
+//! the data's; it adds to each weight in quadrature either way.
+
+use anyhow::Result;
+
+use super::lsq::{self, LmOptions};
+use super::problem::{Problem, RowModel};
+use super::search::{self, DeOptions};
+use super::ticker::Ticker;
+use super::weights::Weights;
+
+/// The tightest step tolerance a fit asks for [m per own drive cycle]:
+/// the integrator's own error, 1e-4 um (docs/model.md section 4), below
+/// which a tighter measurement buys nothing.
+pub const TIGHTEST_STEP_TOLERANCE: f64 = 1e-10;
+
+/// The model's noise allowed against the data's: its step tolerance is
+/// this fraction of the data's smallest standard error.
+pub const NOISE_FRACTION: f64 = 0.1;
+
+/// How a fit ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ending {
+    /// The local stage converged.
+    Converged,
+    /// The local stage ran out of iterations.
+    NotConverged,
+    /// Ctrl-C: the best point so far, without standard errors.
+    Interrupted,
+}
+
+/// The best point a fit has seen.
+#[derive(Clone, Debug)]
+pub struct Best {
+    /// Search coordinates.
+    pub u: Vec<f64>,
+    pub chi2: f64,
+    pub models: Vec<RowModel>,
+}
+
+/// What a search found, before it is judged (`super::judge`).
+pub struct Found {
+    pub best: Best,
+    pub weights: Weights,
+    pub ending: Ending,
+    /// The central-difference Jacobian at the best point (weighted
+    /// residuals by search coordinates); `None` when interrupted.
+    pub jacobian: Option<Vec<Vec<f64>>>,
+    pub generations: usize,
+    pub iterations: usize,
+}
+
+/// A fit in progress: the problem, the weights and the best point.
+pub struct Search<'p, 'a> {
+    pub problem: &'p mut Problem<'a>,
+    pub weights: Weights,
+    pub best: Option<Best>,
+    ticker: Ticker,
+    widths: Vec<f64>,
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+}
+
+impl<'p, 'a> Search<'p, 'a> {
+    pub fn new(problem: &'p mut Problem<'a>, ticker: Ticker) -> Search<'p, 'a> {
+        let weights = Weights::initial(&problem.data);
+        let lo: Vec<f64> = problem
+            .free
+            .iter()
+            .map(|f| f.coordinate_bounds()[0])
+            .collect();
+        let hi: Vec<f64> = problem
+            .free
+            .iter()
+            .map(|f| f.coordinate_bounds()[1])
+            .collect();
+        let widths = lo.iter().zip(&hi).map(|(l, h)| h - l).collect();
+        Search {
+            problem,
+            weights,
+            best: None,
+            ticker,
+            widths,
+            lo,
+            hi,
+        }
+    }
+
+    /// The free keys' values at search coordinates `u`.
+    pub fn values(&self, u: &[f64]) -> Vec<f64> {
+        self.problem
+            .free
+            .iter()
+            .zip(u)
+            .map(|(f, &u)| f.value(u))
+            .collect()
+    }
+
+    /// Runs the whole search with `seed`; on Ctrl-C, the best point so far.
+    pub fn run(mut self, seed: u64) -> Result<Found> {
+        let result = self.stages(seed);
+        self.ticker.finish();
+        match result {
+            Ok(found) => Ok(found),
+            Err(_) if crate::interrupt::interrupt_requested() && self.best.is_some() => Ok(Found {
+                best: self.best.clone().expect("checked"),
+                weights: self.weights,
+                ending: Ending::Interrupted,
+                jacobian: None,
+                generations: 0,
+                iterations: 0,
+            }),
+            Err(e) => Err(e),
+        }
+    }
+
+    fn stages(&mut self, seed: u64) -> Result<Found> {
+        self.size_tolerance();
+        let de = self.global(seed)?;
+        let mut steps: Vec<f64> = self.widths.iter().map(|w| 1e-3 * w).collect();
+        let mut lm = self.local(&de.best, &steps)?;
+        if self.weights.estimated() {
+            // The scales the residuals show, then the fit again with them
+            // (and with the measurement sized against them).
+            let models = self.best_models();
+            self.weights = self
+                .weights
+                .reestimated(&self.problem.data, &models, steps.len());
+            self.size_tolerance();
+            self.best = None;
+            steps = self.error_steps(&lm.u, &steps)?;
+            let u = lm.u.clone();
+            lm = self.local(&u, &steps)?;
+        }
+        self.ticker.stage("errors");
+        let steps = self.error_steps(&lm.u, &steps)?;
+        let jacobian = self.jacobian(&lm.u, &lm.residuals, &steps)?;
+        Ok(Found {
+            best: self
+                .best
+                .clone()
+                .expect("the local stage evaluated its point"),
+            weights: self.weights,
+            ending: if lm.converged {
+                Ending::Converged
+            } else {
+                Ending::NotConverged
+            },
+            jacobian: Some(jacobian),
+            generations: de.generations,
+            iterations: lm.iterations,
+        })
+    }
+
+    fn best_models(&self) -> Vec<RowModel> {
+        self.best
+            .as_ref()
+            .map(|b| b.models.clone())
+            .unwrap_or_default()
+    }
+
+    /// Tightens the steady measurement's tolerance to [`NOISE_FRACTION`] of
+    /// the data's smallest standard error (at most the scene's, at least
+    /// [`TIGHTEST_STEP_TOLERANCE`]).
+    fn size_tolerance(&mut self) {
+        let Some(scene) = self.problem.scene_step_tolerance else {
+            return;
+        };
+        let wanted = NOISE_FRACTION * self.weights.smallest_se(&self.problem.data);
+        self.problem.step_tolerance = Some(scene.min(wanted).max(TIGHTEST_STEP_TOLERANCE));
+    }
+
+    /// The global stage.
+    fn global(&mut self, seed: u64) -> Result<search::DeResult> {
+        self.ticker.stage("global");
+        let opts = DeOptions::for_dimension(self.lo.len(), seed);
+        let (lo, hi) = (self.lo.clone(), self.hi.clone());
+        let mut eval = |us: &[Vec<f64>]| self.residuals(us);
+        search::differential_evolution(&mut eval, &lo, &hi, &opts, &mut |_, _, _| {
+            search::Progress::Continue
+        })
+    }
+
+    /// The local stage from `u0`.
+    fn local(&mut self, u0: &[f64], steps: &[f64]) -> Result<lsq::LmResult> {
+        self.ticker.stage("local");
+        let opts = LmOptions::new(steps.to_vec());
+        let (lo, hi) = (self.lo.clone(), self.hi.clone());
+        let mut eval = |us: &[Vec<f64>]| self.residuals(us);
+        lsq::levenberg_marquardt(&mut eval, &lo, &hi, u0, &opts, &mut |_, _, _| true)
+    }
+
+    /// Difference steps sized by the standard errors at `u`: a third of each
+    /// (a step that moves the misfit by about 0.1), within 1e-6 and 1e-2 of
+    /// the bounds' width.
+    fn error_steps(&mut self, u: &[f64], steps: &[f64]) -> Result<Vec<f64>> {
+        let r0 = self.residuals(&[u.to_vec()])?.pop().flatten();
+        let Some(r0) = r0 else {
+            anyhow::bail!("the model failed at the best point");
+        };
+        let j = self.jacobian(u, &r0, steps)?;
+        let cov = lsq::covariance(&j, 1.0);
+        Ok(cov
+            .standard_errors
+            .iter()
+            .zip(&self.widths)
+            .map(|(se, w)| (se / 3.0).clamp(1e-6 * w, 1e-2 * w))
+            .collect())
+    }
+
+    fn jacobian(&mut self, u: &[f64], r0: &[f64], steps: &[f64]) -> Result<Vec<Vec<f64>>> {
+        let (lo, hi) = (self.lo.clone(), self.hi.clone());
+        let mut eval = |us: &[Vec<f64>]| self.residuals(us);
+        lsq::jacobian_central(&mut eval, &lo, &hi, u, r0, steps)
+    }
+
+    /// The weighted residuals of candidates (search coordinates), one batch;
+    /// keeps the best point and ticks the progress.
+    fn residuals(&mut self, us: &[Vec<f64>]) -> Result<Vec<Option<Vec<f64>>>> {
+        let values: Vec<Vec<f64>> = us.iter().map(|u| self.values(u)).collect();
+        let evaluations = self.problem.evaluate(&values)?;
+        let mut out = Vec::with_capacity(us.len());
+        for (u, evaluation) in us.iter().zip(evaluations) {
+            let Ok(models) = evaluation else {
+                out.push(None);
+                continue;
+            };
+            let r = self.weights.residuals(&self.problem.data, &models);
+            let chi2: f64 = r.iter().map(|x| x * x).sum();
+            if self.best.as_ref().is_none_or(|b| chi2 < b.chi2) {
+                self.best = Some(Best {
+                    u: u.clone(),
+                    chi2,
+                    models,
+                });
+            }
+            out.push(Some(r));
+        }
+        let best = self.best.as_ref().map_or(f64::INFINITY, |b| b.chi2);
+        self.ticker.tick(self.problem.evaluations, best);
+        Ok(out)
+    }
+}

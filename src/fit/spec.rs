@@ -1,0 +1,258 @@
+//! The `[fit]` table of a fit scene (docs/fit.md): the data file and the
+//! free keys with their bounds, read from the scene's text, and the scene
+//! without it, which every candidate of the fit starts from.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+
+/// Bounds whose ratio reaches this (both positive) are searched on a log
+/// scale: a stiffness known to a factor of 100 is as likely 1e4 as 1e5.
+pub const LOG_RATIO: f64 = 100.0;
+
+/// One free key of a fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Free {
+    /// The dotted scene key, e.g. "mechanism.static_friction".
+    pub key: String,
+    /// Its bounds, in the key's own units, `lo < hi`.
+    pub bounds: [f64; 2],
+    /// Searched on a log scale (see [`LOG_RATIO`]).
+    pub log: bool,
+    /// The key's units ("N", "N/V", ...).
+    pub units: &'static str,
+}
+
+impl Free {
+    /// The key's value at search coordinate `u` (its logarithm on a log
+    /// scale).
+    pub fn value(&self, u: f64) -> f64 {
+        if self.log { u.exp() } else { u }
+    }
+
+    /// The search coordinate of `value`.
+    pub fn coordinate(&self, value: f64) -> f64 {
+        if self.log { value.ln() } else { value }
+    }
+
+    /// The bounds in search coordinates.
+    pub fn coordinate_bounds(&self) -> [f64; 2] {
+        self.bounds.map(|b| self.coordinate(b))
+    }
+}
+
+/// A fit scene split in two: its `[fit]` table and the scene without it.
+#[derive(Clone, Debug)]
+pub struct FitScene {
+    /// The scene's text with the `[fit]` table blanked (lines kept, so a
+    /// scene error still names the line of the file).
+    pub base_text: String,
+    /// The data file, resolved against the scene file's folder.
+    pub data: PathBuf,
+    /// The free keys, in file order.
+    pub free: Vec<Free>,
+}
+
+/// Whether a scene's text holds a `[fit]` table (the way `pidm check`
+/// tells a fit scene).
+pub fn is_fit_scene(text: &str) -> bool {
+    toml::from_str::<toml::Table>(text).is_ok_and(|t| t.contains_key("fit"))
+}
+
+/// Reads the `[fit]` table of `text`, the scene at `path`.
+pub fn read(text: &str, path: &Path) -> Result<FitScene> {
+    let table: toml::Table = toml::from_str(text)
+        .with_context(|| format!("{}: not a valid TOML scene", path.display()))?;
+    let Some(fit) = table.get("fit") else {
+        bail!(
+            "{}: no [fit] table: a fit scene names its data and free keys there (docs/fit.md)",
+            path.display()
+        );
+    };
+    let fit = fit.as_table().context("`fit` must be a table ([fit])")?;
+    for key in fit.keys() {
+        if key != "data" && key != "free" {
+            bail!("unknown key `fit.{key}`: [fit] takes `data` and `free` (docs/fit.md)");
+        }
+    }
+    let data = fit
+        .get("data")
+        .context("[fit] has no `data`: the CSV file of measured steps, relative to the scene")?
+        .as_str()
+        .context("`fit.data` must be a string: the CSV file's path, relative to the scene")?;
+    let folder = path.parent().unwrap_or(Path::new("."));
+    let free = free_keys(fit.get("free"))?;
+    let base_text = blank_fit(text);
+    let rest: toml::Table = toml::from_str(&base_text).context("the scene without [fit]")?;
+    if rest.contains_key("fit") {
+        bail!("write the fit as one [fit] table (with `free` inside it), not as dotted keys");
+    }
+    Ok(FitScene {
+        base_text,
+        data: folder.join(data),
+        free,
+    })
+}
+
+/// `fit.free`: each key with its bounds.
+fn free_keys(value: Option<&toml::Value>) -> Result<Vec<Free>> {
+    let table = value
+        .context("[fit] has no `free`: the keys to fit with their bounds, e.g. free = { \"mechanism.static_friction\" = [0.5, 3.0] }")?
+        .as_table()
+        .context("`fit.free` must be a table of keys and bounds")?;
+    if table.is_empty() {
+        bail!("`fit.free` is empty: name at least one key to fit");
+    }
+    let mut free = Vec::new();
+    for (key, bounds) in flatten(table, "") {
+        free.push(free_key(&key, bounds)?);
+    }
+    Ok(free)
+}
+
+/// The keys of a table as dotted paths: `free` may be written with quoted
+/// dotted keys or as nested tables.
+fn flatten<'a>(table: &'a toml::Table, prefix: &str) -> Vec<(String, &'a toml::Value)> {
+    let mut out = Vec::new();
+    for (key, value) in table {
+        let path = if prefix.is_empty() {
+            key.clone()
+        } else {
+            format!("{prefix}.{key}")
+        };
+        match value.as_table() {
+            Some(inner) => out.extend(flatten(inner, &path)),
+            None => out.push((path, value)),
+        }
+    }
+    out
+}
+
+/// One free key, checked: a real-valued instance key with ordered bounds.
+fn free_key(key: &str, bounds: &toml::Value) -> Result<Free> {
+    let units = crate::scene::instance_key(key)
+        .map_err(|why| anyhow::anyhow!("fit.free: `{key}` cannot be fitted: {why}"))?;
+    if key.starts_with("simulation.") {
+        bail!("fit.free: `{key}` is a setting of the measurement, not a parameter of the model");
+    }
+    let pair: Option<Vec<f64>> = bounds.as_array().and_then(|a| {
+        a.iter()
+            .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+            .collect()
+    });
+    let [lo, hi] = pair.as_deref().unwrap_or(&[]) else {
+        bail!("fit.free.\"{key}\" = {bounds}: expected two bounds [lower, upper] in {units}");
+    };
+    let (lo, hi) = (*lo, *hi);
+    if !(lo.is_finite() && hi.is_finite()) || lo >= hi {
+        bail!(
+            "fit.free.\"{key}\" = [{lo}, {hi}]: expected finite bounds with lower < upper \
+             (in {units})"
+        );
+    }
+    Ok(Free {
+        key: key.to_owned(),
+        bounds: [lo, hi],
+        log: lo > 0.0 && hi / lo >= LOG_RATIO,
+        units,
+    })
+}
+
+/// `text` with every line of its `[fit]` table (and any `[fit.*]` table)
+/// turned blank, so that line numbers stay those of the file.
+fn blank_fit(text: &str) -> String {
+    let mut inside = false;
+    let mut out = String::with_capacity(text.len());
+    for line in text.split_inclusive('\n') {
+        let trimmed = line.trim_start();
+        if trimmed.starts_with('[') {
+            let header = trimmed.trim_start_matches('[').trim_start();
+            inside = !trimmed.starts_with("[[")
+                && (header.starts_with("fit]")
+                    || header.starts_with("fit.")
+                    || header.starts_with("fit ]"));
+        }
+        if inside {
+            out.push_str(if line.ends_with('\n') { "\n" } else { "" });
+        } else {
+            out.push_str(line);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    type Expected<'a> = Result<Vec<(&'a str, [f64; 2], bool)>, &'a str>;
+
+    fn check(text: &str, expected: Expected) {
+        let got = read(text, Path::new("/s/scene.toml"));
+        match (got, expected) {
+            (Ok(fit), Ok(free)) => {
+                let got: Vec<_> = fit
+                    .free
+                    .iter()
+                    .map(|f| (f.key.as_str(), f.bounds, f.log))
+                    .collect();
+                assert_eq!(got, free);
+                assert_eq!(fit.data, Path::new("/s/steps.csv"));
+                assert!(!fit.base_text.contains("fit"), "{}", fit.base_text);
+                assert_eq!(fit.base_text.lines().count(), text.lines().count());
+            }
+            (Err(e), Err(part)) => assert!(format!("{e:#}").contains(part), "{e:#}"),
+            (got, expected) => panic!("got {got:?}, expected {expected:?}"),
+        }
+    }
+
+    #[test]
+    fn reads_free_keys_and_refuses_bad_ones() {
+        let fit = |free: &str| {
+            format!(
+                "[mechanism]\nslider_mass = 5e-3\n[fit]\ndata = \"steps.csv\"\nfree = {{ {free} }}\n[axis.x]\ngain = -0.6\n"
+            )
+        };
+        check(
+            &fit("\"mechanism.static_friction\" = [0.5, 3.0], \"axis.x.gain\" = [-1.0, -0.2]"),
+            Ok(vec![
+                ("mechanism.static_friction", [0.5, 3.0], false),
+                ("axis.x.gain", [-1.0, -0.2], false),
+            ]),
+        );
+        check(
+            &fit("\"mechanism.bristle_stiffness\" = [1e4, 1e7]"),
+            Ok(vec![("mechanism.bristle_stiffness", [1e4, 1e7], true)]),
+        );
+        check(
+            &fit("mechanism = { coulomb_friction = [1, 2] }"),
+            Ok(vec![("mechanism.coulomb_friction", [1.0, 2.0], false)]),
+        );
+        check(
+            &fit("\"mechanism.static_friction\" = [3.0, 0.5]"),
+            Err("lower < upper"),
+        );
+        check(
+            &fit("\"mechanism.static_frictoin\" = [0.5, 3.0]"),
+            Err("`mechanism.static_frictoin` cannot be fitted"),
+        );
+        check(&fit("\"simulation.cycles\" = [1, 3]"), Err("integer"));
+        check(
+            &fit("\"simulation.tolerance\" = [1e-9, 1e-6]"),
+            Err("whole scene"),
+        );
+        check(
+            &fit("\"mechanism.friction\" = [1, 3]"),
+            Err("no numeric scene key"),
+        );
+        check(&fit("\"axis.x.gain\" = -0.5"), Err("two bounds"));
+        check(
+            "[fit]\nfree = { \"axis.x.gain\" = [-1, 0] }\n",
+            Err("no `data`"),
+        );
+        check(
+            "[fit]\ndata = \"steps.csv\"\nseed = 3\n",
+            Err("unknown key `fit.seed`"),
+        );
+    }
+}
