@@ -100,6 +100,9 @@ enum Command {
         /// results/<scene stem>.fit.json].
         #[arg(long)]
         out: Option<PathBuf>,
+        /// The CSV of measured steps instead of the scene's [fit] data.
+        #[arg(long)]
+        data: Option<PathBuf>,
         /// Worker threads of the CPU path [default: every core].
         #[arg(long, value_parser = thread_count)]
         threads: Option<usize>,
@@ -366,6 +369,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         Command::Fit {
             scene,
             out,
+            data,
             threads,
             backend,
             seed,
@@ -374,6 +378,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             let interrupted = commands::fit(&commands::FitCommand {
                 scene,
                 out,
+                data,
                 threads,
                 backend,
                 seed,

@@ -15,6 +15,8 @@ pub struct FitCommand {
     pub scene: PathBuf,
     /// FIT.json [default: results/<scene stem>.fit.json].
     pub out: Option<PathBuf>,
+    /// The data file instead of the scene's `[fit] data`.
+    pub data: Option<PathBuf>,
     pub threads: Option<usize>,
     pub backend: BackendChoice,
     pub seed: u64,
@@ -33,7 +35,8 @@ pub fn fit(cmd: &FitCommand) -> Result<bool> {
         PathBuf::from("results").join(format!("{stem}.fit.json"))
     });
     let outputs = Outputs::beside(&out)?;
-    let (spec, data) = crate::fit::load(&cmd.scene)?;
+    let (spec, data) = crate::fit::load(&cmd.scene, cmd.data.as_deref())?;
+    let data_count = data.measurements();
     let problem =
         Problem::new(&spec, data).with_context(|| format!("scene {}", cmd.scene.display()))?;
     let selected = select_backend(
@@ -48,7 +51,7 @@ pub fn fit(cmd: &FitCommand) -> Result<bool> {
         "pidm: fitting {} free {} to {} measured values of {} on {}, f64 (seed {})",
         spec.free.len(),
         if spec.free.len() == 1 { "key" } else { "keys" },
-        crate::fit::data::Data::read(&spec.data)?.measurements(),
+        data_count,
         spec.data.display(),
         backend.describe(),
         cmd.seed
@@ -60,6 +63,7 @@ pub fn fit(cmd: &FitCommand) -> Result<bool> {
     let opts = FitOptions {
         scene: cmd.scene.clone(),
         out: outputs.json.clone(),
+        data: cmd.data.clone(),
         seed: cmd.seed,
         progress: cmd
             .progress

@@ -47,6 +47,11 @@ pub struct Data {
 impl Data {
     /// Reads and checks a data file.
     pub fn read(path: &Path) -> Result<Data> {
+        if path.as_os_str().is_empty() {
+            bail!(
+                "no data file: [fit] has no `data` (the CSV of measured steps, relative to the scene) and no --data was given"
+            );
+        }
         let size = std::fs::metadata(path)
             .with_context(|| format!("data file {}: cannot be read", path.display()))?
             .len();

@@ -39,6 +39,8 @@ pub struct FitOptions {
     pub scene: PathBuf,
     /// `FIT.json`; `FIT.toml` and `FIT.png` are written beside it.
     pub out: PathBuf,
+    /// The data file instead of `[fit] data` (`--data`).
+    pub data: Option<PathBuf>,
     pub seed: u64,
     pub progress: ProgressMode,
 }
@@ -67,10 +69,14 @@ impl Outputs {
     }
 }
 
-/// A fit scene read and checked: its `[fit]` and its data.
-pub fn load(scene: &Path) -> Result<(spec::FitScene, data::Data)> {
+/// A fit scene read and checked: its `[fit]` and its data (from `data`
+/// when given, instead of `[fit] data`).
+pub fn load(scene: &Path, data: Option<&Path>) -> Result<(spec::FitScene, data::Data)> {
     let text = crate::scene::read_text(scene)?;
-    let fit = spec::read(&text, scene).with_context(|| format!("scene {}", scene.display()))?;
+    let mut fit = spec::read(&text, scene).with_context(|| format!("scene {}", scene.display()))?;
+    if let Some(data) = data {
+        fit.data = data.to_owned();
+    }
     let data = data::Data::read(&fit.data)?;
     Ok((fit, data))
 }
@@ -87,7 +93,7 @@ pub fn fit(opts: &FitOptions, backend: &dyn Backend) -> Result<(judge::Answer, S
             );
         }
     }
-    let (fit, data) = load(&opts.scene)?;
+    let (fit, data) = load(&opts.scene, opts.data.as_deref())?;
     let mut problem = problem::Problem::new(&fit, data)
         .with_context(|| format!("scene {}", opts.scene.display()))?;
     problem.on(backend);

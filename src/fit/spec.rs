@@ -47,7 +47,8 @@ pub struct FitScene {
     /// The scene's text with the `[fit]` table blanked (lines kept, so a
     /// scene error still names the line of the file).
     pub base_text: String,
-    /// The data file, resolved against the scene file's folder.
+    /// The data file, resolved against the scene file's folder (empty when
+    /// `[fit]` names none: `pidm fit --data` must).
     pub data: PathBuf,
     /// The free keys, in file order.
     pub free: Vec<Free>,
@@ -75,11 +76,12 @@ pub fn read(text: &str, path: &Path) -> Result<FitScene> {
             bail!("unknown key `fit.{key}`: [fit] takes `data` and `free` (docs/fit.md)");
         }
     }
-    let data = fit
-        .get("data")
-        .context("[fit] has no `data`: the CSV file of measured steps, relative to the scene")?
-        .as_str()
-        .context("`fit.data` must be a string: the CSV file's path, relative to the scene")?;
+    let data = match fit.get("data") {
+        Some(data) => data
+            .as_str()
+            .context("`fit.data` must be a string: the CSV file's path, relative to the scene")?,
+        None => "",
+    };
     let folder = path.parent().unwrap_or(Path::new("."));
     let free = free_keys(fit.get("free"))?;
     let base_text = blank_fit(text);
@@ -89,7 +91,11 @@ pub fn read(text: &str, path: &Path) -> Result<FitScene> {
     }
     Ok(FitScene {
         base_text,
-        data: folder.join(data),
+        data: if data.is_empty() {
+            PathBuf::new()
+        } else {
+            folder.join(data)
+        },
         free,
     })
 }
