@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 
 use super::format::{human_duration, plural};
 use crate::backend::cost::Plan;
@@ -108,6 +108,9 @@ pub fn check_report(scene: &Scene) -> CheckReport {
 /// `pidm check`: validates and describes a scene without running it, as
 /// text or (`json`) as one JSON object on stdout (see [`check_json`]).
 pub fn check(path: &Path, json: bool) -> Result<()> {
+    if crate::fit::spec::is_fit_scene(&crate::scene::read_text(path)?) {
+        return check_fit(path, json);
+    }
     let scene = Scene::load(path)?;
     scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
     let report = check_report(&scene);
@@ -326,4 +329,97 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
             auto_json(&report.auto)
         },
     })
+}
+
+/// Candidates a fit evaluates, about: the global stage's population over
+/// its generations, then the local stage's batches (`crate::fit::search`,
+/// `crate::fit::lsq`).
+fn fit_candidates(free: usize) -> u64 {
+    let population = (8 * free).clamp(12, 40) as u64;
+    population * 41 + 30 * (free as u64 + 4)
+}
+
+/// `pidm check` of a fit scene: the fit described, its scene and data
+/// checked, its cost estimated from the scene at the middle of the bounds.
+fn check_fit(path: &Path, json: bool) -> Result<()> {
+    use crate::fit::problem::Problem;
+    let (spec, data) = crate::fit::load(path, None)?;
+    let problem = Problem::new(&spec, data).with_context(|| format!("scene {}", path.display()))?;
+    let points: Vec<_> = problem
+        .data
+        .rows
+        .iter()
+        .map(|r| problem.row_keys(r))
+        .collect();
+    let middle = problem.scene(&problem.middle(), &points)?;
+    let report = check_report(&middle);
+    let candidates = fit_candidates(spec.free.len());
+    let estimate_s = report.sweep_s * candidates as f64;
+    if json {
+        let free: Vec<_> = spec
+            .free
+            .iter()
+            .map(|f| serde_json::json!({"key": f.key, "bounds": f.bounds, "units": f.units, "scale": if f.log { "log" } else { "linear" }}))
+            .collect();
+        let value = serde_json::json!({
+            "fit": true,
+            "free": free,
+            "data": problem.data.path.display().to_string(),
+            "rows": problem.data.rows.len(),
+            "measurements": problem.data.measurements(),
+            "notes": problem.inherited_notes(),
+            "candidates": candidates,
+            "estimate_s": estimate_s,
+        });
+        println!("{value:#}");
+        return Ok(());
+    }
+    let data = &problem.data;
+    println!(
+        "fit scene: {} free {} against {} measured {} ({} of step x, {} of step y) in {} rows of {}",
+        spec.free.len(),
+        plural(spec.free.len() as u64, "key", "keys"),
+        data.measurements(),
+        plural(data.measurements() as u64, "value", "values"),
+        data.measured_on(0),
+        data.measured_on(1),
+        data.rows.len(),
+        data.path.display()
+    );
+    for f in &spec.free {
+        let scale = if f.log { "log scale" } else { "linear" };
+        println!(
+            "  {} in [{}, {}] {} ({scale})",
+            f.key, f.bounds[0], f.bounds[1], f.units
+        );
+    }
+    if !data.keys.is_empty() {
+        println!("the rows set: {}", data.keys.join(", "));
+    }
+    for (axis, name) in crate::model::AXIS_NAMES.iter().enumerate() {
+        if data.measured_on(axis) > 0 {
+            let weights = if data.has_se[axis] {
+                "the data's standard errors"
+            } else {
+                "one scale estimated from the residuals"
+            };
+            println!("step_{name} weighed by {weights}");
+        }
+    }
+    for note in problem.inherited_notes() {
+        println!("note: {note}");
+    }
+    println!(
+        "each candidate: {} {}; about {candidates} candidates, estimated at {} on {} CPU {}",
+        middle.instance_count(),
+        plural(middle.instance_count(), "instance", "instances"),
+        human_duration(estimate_s),
+        report.cores,
+        plural(report.cores as u64, "core", "cores")
+    );
+    println!(
+        "the scene at the middle of the bounds:\n{}",
+        middle.describe()
+    );
+    Ok(())
 }
