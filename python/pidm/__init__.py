@@ -15,6 +15,9 @@ without one (:func:`find_binary`). The binary must be of the package's version::
 - :func:`open`: reads a result file; :func:`open_trajectory` one of its
   trajectories; :func:`trajectory_names` lists them;
 - :func:`check`: validates a scene and estimates its cost without running it;
+- :func:`fit`: calibrates a fit scene's free keys (its ``[fit]`` table) to measured
+  steps and returns a :class:`FitResult` (values, standard errors, correlations,
+  the fitted scene);
 - :class:`SceneError` (a ValueError) for a scene pidm refuses, :class:`PidmError`
   for any other failure, both with pidm's message.
 
@@ -24,6 +27,7 @@ m/s, voltages in V, frequencies in Hz, times in s, phases in cycles.
 
 from ._binary import BINARY_VARIABLE, find_binary
 from ._errors import PidmError, SceneError
+from ._fit import FitResult, fit
 from ._read import open, open_trajectory, trajectory_names
 from ._run import RunWarning, check, run
 from ._toml import dumps as scene_toml
@@ -31,11 +35,13 @@ from ._version import package_version
 
 __all__ = [
     "BINARY_VARIABLE",
+    "FitResult",
     "PidmError",
     "RunWarning",
     "SceneError",
     "check",
     "find_binary",
+    "fit",
     "open",
     "open_trajectory",
     "run",

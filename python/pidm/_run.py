@@ -190,14 +190,10 @@ def run(
         ``out`` (a given ``out`` keeps pidm's checkpoint beside it, so
         ``resume=True`` continues), and the interrupt is raised again.
     """
-    if backend not in ("auto", "cpu", "gpu"):
-        raise ValueError(f"backend={backend!r}: expected 'auto', 'cpu' or 'gpu'")
+    _check_backend(backend)
     if precision not in (None, "f32", "f64"):
         raise ValueError(f"precision={precision!r}: expected None, 'f32' or 'f64'")
-    if threads is not None and (
-        isinstance(threads, bool) or int(threads) != threads or threads < 1
-    ):
-        raise ValueError(f"threads={threads!r}: expected a whole number of at least 1")
+    _check_threads(threads)
     binary = find_binary()
     workdir = Path(tempfile.mkdtemp(prefix="pidm-"))
     try:
@@ -246,6 +242,18 @@ def run(
         shutil.rmtree(workdir, ignore_errors=True)
 
 
+def _check_backend(backend: str) -> None:
+    if backend not in ("auto", "cpu", "gpu"):
+        raise ValueError(f"backend={backend!r}: expected 'auto', 'cpu' or 'gpu'")
+
+
+def _check_threads(threads: int | None) -> None:
+    if threads is not None and (
+        isinstance(threads, bool) or int(threads) != threads or threads < 1
+    ):
+        raise ValueError(f"threads={threads!r}: expected a whole number of at least 1")
+
+
 def _after_interrupt(result: Path, existed: bool, interrupt: BaseException) -> None:
     """A run interrupted from Python leaves nothing at ``out``: a file that a run
     finished in the same moment is removed (when there was none before)."""
@@ -260,8 +268,20 @@ def _after_interrupt(result: Path, existed: bool, interrupt: BaseException) -> N
         )
 
 
-def _watch(command: list[str], progress: ProgressArg) -> tuple[int, str]:
-    """Runs pidm, shows its JSON progress lines, and returns its exit status and
+def _is_run_record(record: Any) -> bool:
+    """Whether a JSON line of stderr is a progress record of ``pidm run``."""
+    return isinstance(record, dict) and "done" in record and "total" in record
+
+
+def _watch(
+    command: list[str],
+    progress: ProgressArg,
+    *,
+    is_record: Callable[[Any], bool] = _is_run_record,
+    shower: type[_Shower] | None = None,
+) -> tuple[int, str]:
+    """Runs pidm, shows its JSON progress lines (those ``is_record`` takes, with a
+    ``shower``, by default ``pidm run``'s bar), and returns its exit status and
     the rest of its stderr. On Ctrl-C (or any exception) stops it (SIGINT, then
     SIGKILL) and raises KeyboardInterrupt (the exception)."""
     # Set by Ctrl-C: a plain flag, which a signal handler may set safely.
@@ -290,7 +310,7 @@ def _watch(command: list[str], progress: ProgressArg) -> tuple[int, str]:
                             record = json.loads(line)
                         except ValueError:
                             record = None
-                        if isinstance(record, dict) and "done" in record and "total" in record:
+                        if is_record(record):
                             records.put(record)
                             continue
                     text.append(line)
@@ -306,7 +326,7 @@ def _watch(command: list[str], progress: ProgressArg) -> tuple[int, str]:
             threading.Thread(target=read_stderr, daemon=True),
             threading.Thread(target=read_stdout, daemon=True),
         ]
-        show = _Shower(progress)
+        show = (shower or _Shower)(progress)
         try:
             for reader in readers:
                 reader.start()
@@ -381,7 +401,9 @@ def _stop(child: subprocess.Popen) -> None:
 
 
 class _Shower:
-    """Shows progress records: a tqdm bar, a function, or nothing."""
+    """Shows progress records: a tqdm bar, a function, or nothing. ``bar``
+    draws ``pidm run``'s bar (instances done of the total); a subclass draws
+    another command's."""
 
     def __init__(self, progress: ProgressArg) -> None:
         self.callback: Callable[[dict[str, Any]], None] | None = None
@@ -405,14 +427,18 @@ class _Shower:
             if self.callback is not None:
                 self.callback(record)
             elif self.tqdm is not None:
-                if self.bar is None:
-                    self.bar = self.tqdm(
-                        total=int(record["total"]),
-                        initial=int(record["done"]),
-                        unit="instance",
-                        desc="pidm",
-                    )
-                self.bar.update(int(record["done"]) - self.bar.n)
+                self.show(record)
+
+    def show(self, record: dict[str, Any]) -> None:
+        """Moves the tqdm bar (made at the first record) to ``record``."""
+        if self.bar is None:
+            self.bar = self.tqdm(
+                total=int(record["total"]),
+                initial=int(record["done"]),
+                unit="instance",
+                desc="pidm",
+            )
+        self.bar.update(int(record["done"]) - self.bar.n)
 
     def close(self) -> None:
         if self.bar is not None:

@@ -12,6 +12,7 @@ mod crosscheck;
 mod docs;
 mod extreme;
 mod files;
+mod fit;
 mod gpu;
 mod gpu_lugre;
 mod gpu_phase;
