@@ -52,8 +52,11 @@ def main() -> int:
         with open(scene, "w") as f:
             f.write(point_scene(truth, rows))
         out = os.path.join(tmp, "truth.h5")
-        subprocess.run([args.pidm, "run", scene, "--backend", "cpu", "--out", out],
-                       check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [args.pidm, "run", scene, "--backend", "cpu", "--out", out],
+            check=True,
+            stdout=subprocess.DEVNULL,
+        )
         with h5py.File(out, "r") as h5:
             steps = {a: h5[f"maps/step_{a}"][:] for a in "xy"}
             status = h5["maps/status"][:]

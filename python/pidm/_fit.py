@@ -47,7 +47,7 @@ _STEP_COLUMNS = tuple(
 )
 
 
-@dataclass(frozen=True, repr=False)
+@dataclass(frozen=True, repr=False, eq=False)
 class FitResult:
     """The outcome of :func:`fit`: a scene's free keys calibrated to measured steps.
 
@@ -251,13 +251,15 @@ def _require_absolute_data(text: str) -> None:
     except ValueError:
         return
     section = table.get("fit")
-    named = section.get("data") if isinstance(section, dict) else None
+    if not isinstance(section, dict):
+        return  # not a fit scene: pidm says so
+    named = section.get("data")
     if not isinstance(named, str) or not named:
         raise ValueError(
             "the scene, given as TOML text or a dict, has no [fit] data: pass data= "
             "(a CSV path or a pandas DataFrame of the measured steps)"
         )
-    if not Path(named).expanduser().is_absolute():
+    if not Path(named).is_absolute():
         raise ValueError(
             f"the scene, given as TOML text or a dict, names [fit] data = {named!r}, a "
             "relative path with no scene file to be relative to: pass data= (a CSV path "
@@ -294,8 +296,8 @@ def _note(error: BaseException, note: str) -> None:
 
 def _failure(command: list[str], returncode: int, stderr: str) -> PidmError:
     """The error for a failed ``pidm fit``: SceneError when pidm refused the
-    scene or the data before fitting (``pidm check`` takes no fit scene, so the
-    message tells), PidmError otherwise."""
+    scene or the data before fitting, PidmError otherwise. The message tells
+    which (``pidm check``, which ``pidm.run`` asks, takes no ``--data``)."""
     message = error_text(stderr)
     started = any(line.startswith(_STARTED) for line in stderr.splitlines())
     if returncode == 1 and not started and message.startswith(_REFUSALS):

@@ -34,7 +34,7 @@ pub fn fit(cmd: &FitCommand) -> Result<bool> {
             .map_or("fit".into(), |s| s.to_string_lossy().into_owned());
         PathBuf::from("results").join(format!("{stem}.fit.json"))
     });
-    let outputs = Outputs::beside(&out)?;
+    let outputs = Outputs::beside(&out, &cmd.scene)?;
     let (spec, data) = crate::fit::load(&cmd.scene, cmd.data.as_deref())?;
     let data_count = data.measurements();
     let problem =

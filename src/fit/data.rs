@@ -101,6 +101,16 @@ impl Data {
             .sum()
     }
 
+    /// The (row, axis) of each measured value, in the order of a fit's
+    /// residuals (row by row, axis by axis).
+    pub fn measured_rows(&self) -> Vec<(usize, usize)> {
+        let mut out = Vec::new();
+        for (i, row) in self.rows.iter().enumerate() {
+            out.extend((0..AXES).filter(|&a| row.step[a].is_some()).map(|a| (i, a)));
+        }
+        out
+    }
+
     /// Measured values on axis `axis`.
     pub fn measured_on(&self, axis: usize) -> usize {
         self.rows.iter().filter(|r| r.step[axis].is_some()).count()

@@ -80,8 +80,10 @@ pub fn judge(problem: &Problem, found: Found) -> Answer {
             problem.data.measurements()
         ));
     }
-    if let Some(j) = &found.jacobian {
-        uncertainty(problem, &found.best.u, j, &mut answer);
+    if let Some(sided) = &found.jacobian {
+        uncertainty(problem, &found.best.u, &sided.j, &mut answer);
+        kinks(problem, &sided.kinks, &mut answer);
+        second_minimum(problem, &found, &mut answer);
     }
     bounds(problem, &found.best.u, &mut answer);
     if found.ending == Ending::Interrupted {
@@ -147,6 +149,81 @@ fn uncertainty(problem: &Problem, u: &[f64], j: &[Vec<f64>], answer: &mut Answer
                     answer.keys[a], answer.keys[b]
                 ));
             }
+        }
+    }
+}
+
+/// The chi-square distribution's 95 % quantile for 1 to 12 degrees of
+/// freedom: a candidate whose misfit is within this of the best one's is
+/// inside the joint 95 % confidence region of the free keys.
+const CHI2_95: [f64; 12] = [
+    3.841, 5.991, 7.815, 9.488, 11.070, 12.592, 14.067, 15.507, 16.919, 18.307, 19.675, 21.026,
+];
+
+/// How much farther than the standard errors allow a candidate inside the
+/// confidence region may lie before the region is not the ellipse they
+/// describe: on a quadratic misfit a candidate `d` above the best lies at
+/// most `sqrt(d)` standard errors from it in any key.
+const SECOND_MINIMUM_RATIO: f64 = 2.0;
+
+/// A warning when a candidate the search evaluated fits the data about as
+/// well as the best point (its misfit within [`CHI2_95`]) yet lies more
+/// than [`SECOND_MINIMUM_RATIO`] times farther from it, in some key, than
+/// the standard errors allow for its misfit: a second minimum or a curved
+/// valley, which the standard errors do not describe.
+fn second_minimum(problem: &Problem, found: &Found, answer: &mut Answer) {
+    let p = problem.free.len();
+    let best = found.best.chi2;
+    let limit = best + CHI2_95[p.clamp(1, CHI2_95.len()) - 1];
+    let se_u: Vec<f64> = problem
+        .free
+        .iter()
+        .zip(&answer.se)
+        .zip(&answer.values)
+        .map(|((f, se), v)| if f.log { se / v } else { *se })
+        .collect();
+    let mut farthest: Option<(f64, f64, usize, &[f64], f64)> = None;
+    for (u, models) in &found.history {
+        let r = answer.weights.residuals(&problem.data, models);
+        let chi2: f64 = r.iter().map(|x| x * x).sum();
+        if chi2 > limit {
+            continue;
+        }
+        let allowed = (chi2 - best).max(1.0).sqrt();
+        for j in 0..p {
+            let distance = (u[j] - found.best.u[j]).abs() / se_u[j];
+            let ratio = distance / allowed;
+            if ratio.is_finite() && farthest.is_none_or(|f| ratio > f.0) {
+                farthest = Some((ratio, distance, j, u, chi2));
+            }
+        }
+    }
+    if let Some((ratio, distance, j, u, chi2)) = farthest
+        && ratio > SECOND_MINIMUM_RATIO
+    {
+        let free = &problem.free[j];
+        answer.warn(format!(
+            "the data fit almost as well (chi2 {chi2:.4e} against {best:.4e}) with `{}` = \
+             {:.6e} {}, {distance:.1} standard errors from the best value: a second minimum or \
+             a curved valley, which the standard errors do not describe",
+            free.key,
+            free.value(u[j]),
+            free.units
+        ));
+    }
+}
+
+/// A warning for each key whose misfit has a kink at the best point
+/// (`super::jacobian`), naming the data line where the sides differ most.
+fn kinks(problem: &Problem, kinks: &[Option<usize>], answer: &mut Answer) {
+    let measured = problem.data.measured_rows();
+    for (free, kink) in problem.free.iter().zip(kinks) {
+        if let Some(&(row, axis)) = kink.and_then(|i| measured.get(i)) {
+            answer.warnings.push(format!(
+                "the misfit has a kink at the best `{}`: step_{} of line {} changes abruptly \
+                 there (a change of motion); its standard error is the gentler side's",
+                free.key, AXIS_NAMES[axis], problem.data.rows[row].line
+            ));
         }
     }
 }

@@ -13,6 +13,7 @@
 
 pub mod curves;
 pub mod data;
+pub mod jacobian;
 pub mod judge;
 pub mod lsq;
 pub mod problem;
@@ -53,19 +54,30 @@ pub struct Outputs {
 }
 
 impl Outputs {
-    /// `out` and its `.toml` and `.png` siblings; `out` must end in `.json`.
-    pub fn beside(out: &Path) -> Result<Outputs> {
+    /// `out` and its `.toml` and `.png` siblings; `out` must end in `.json`,
+    /// and none of them may be the scene file itself.
+    pub fn beside(out: &Path, scene: &Path) -> Result<Outputs> {
         if out.extension().and_then(|e| e.to_str()) != Some("json") {
             bail!(
                 "--out {}: expected a .json file (FIT.toml and FIT.png are written beside it)",
                 out.display()
             );
         }
-        Ok(Outputs {
+        let outputs = Outputs {
             json: out.to_owned(),
             toml: out.with_extension("toml"),
             png: out.with_extension("png"),
-        })
+        };
+        for path in [&outputs.json, &outputs.toml, &outputs.png] {
+            if crate::output::claim::is_same_file(path, scene) {
+                bail!(
+                    "--out {}: {} would overwrite the scene file; give another --out",
+                    out.display(),
+                    path.display()
+                );
+            }
+        }
+        Ok(outputs)
     }
 }
 
@@ -84,7 +96,7 @@ pub fn load(scene: &Path, data: Option<&Path>) -> Result<(spec::FitScene, data::
 /// Runs a fit on `backend` and writes its files; the answer, for the
 /// caller to print.
 pub fn fit(opts: &FitOptions, backend: &dyn Backend) -> Result<(judge::Answer, String)> {
-    let outputs = Outputs::beside(&opts.out)?;
+    let outputs = Outputs::beside(&opts.out, &opts.scene)?;
     for path in [&outputs.json, &outputs.toml, &outputs.png] {
         if crate::output::claim::is_same_file(path, &opts.scene) {
             bail!(

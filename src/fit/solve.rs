@@ -10,6 +10,7 @@
 
 use anyhow::Result;
 
+use super::jacobian;
 use super::lsq::{self, LmOptions};
 use super::problem::{Problem, RowModel};
 use super::search::{self, DeOptions};
@@ -50,18 +51,36 @@ pub struct Found {
     pub best: Best,
     pub weights: Weights,
     pub ending: Ending,
-    /// The central-difference Jacobian at the best point (weighted
-    /// residuals by search coordinates); `None` when interrupted.
-    pub jacobian: Option<Vec<Vec<f64>>>,
+    /// The Jacobian at the best point (weighted residuals by search
+    /// coordinates, `super::jacobian`); `None` when interrupted.
+    pub jacobian: Option<jacobian::Sided>,
     pub generations: usize,
     pub iterations: usize,
+    /// Every candidate evaluated (search coordinates) with its rows' model,
+    /// for the search for a second minimum (`super::judge`).
+    pub history: Vec<(Vec<f64>, Vec<RowModel>)>,
 }
+
+/// Starts of the local stage (`Search::local_from_starts`).
+const STARTS: usize = 4;
+
+/// How far apart the local stage's starts lie, at least, in some key
+/// [fraction of the bounds' width].
+const START_SPACING: f64 = 0.1;
+
+/// Rounds of sizing the difference steps by the standard errors they give
+/// before the final Jacobian.
+const ERROR_STEP_ROUNDS: usize = 2;
+
+/// The most candidates [`Found::history`] keeps (about 30 MB at 30 rows).
+const HISTORY: usize = 50_000;
 
 /// A fit in progress: the problem, the weights and the best point.
 pub struct Search<'p, 'a> {
     pub problem: &'p mut Problem<'a>,
     pub weights: Weights,
     pub best: Option<Best>,
+    history: Vec<(Vec<f64>, Vec<RowModel>)>,
     ticker: Ticker,
     widths: Vec<f64>,
     lo: Vec<f64>,
@@ -86,6 +105,7 @@ impl<'p, 'a> Search<'p, 'a> {
             problem,
             weights,
             best: None,
+            history: Vec::new(),
             ticker,
             widths,
             lo,
@@ -116,6 +136,7 @@ impl<'p, 'a> Search<'p, 'a> {
                 jacobian: None,
                 generations: 0,
                 iterations: 0,
+                history: Vec::new(),
             }),
             Err(e) => Err(e),
         }
@@ -125,7 +146,7 @@ impl<'p, 'a> Search<'p, 'a> {
         self.size_tolerance();
         let de = self.global(seed)?;
         let mut steps: Vec<f64> = self.widths.iter().map(|w| 1e-3 * w).collect();
-        let mut lm = self.local(&de.best, &steps)?;
+        let mut lm = self.local_from_starts(&de.best, &steps)?;
         if self.weights.estimated() {
             // The scales the residuals show, then the fit again with them
             // (and with the measurement sized against them).
@@ -140,7 +161,9 @@ impl<'p, 'a> Search<'p, 'a> {
             lm = self.local(&u, &steps)?;
         }
         self.ticker.stage("errors");
-        let steps = self.error_steps(&lm.u, &steps)?;
+        for _ in 0..ERROR_STEP_ROUNDS {
+            steps = self.error_steps(&lm.u, &steps)?;
+        }
         let jacobian = self.jacobian(&lm.u, &lm.residuals, &steps)?;
         Ok(Found {
             best: self
@@ -156,6 +179,7 @@ impl<'p, 'a> Search<'p, 'a> {
             jacobian: Some(jacobian),
             generations: de.generations,
             iterations: lm.iterations,
+            history: std::mem::take(&mut self.history),
         })
     }
 
@@ -188,6 +212,42 @@ impl<'p, 'a> Search<'p, 'a> {
         })
     }
 
+    /// The local stage from the global stage's best point and from up to
+    /// [`STARTS`]` - 1` more: the candidates of lowest misfit that lie at
+    /// least [`START_SPACING`] of the bounds' width from every start chosen
+    /// (a narrow valley the population did not settle in); the best end.
+    fn local_from_starts(&mut self, best: &[f64], steps: &[f64]) -> Result<lsq::LmResult> {
+        let mut ranked: Vec<(f64, Vec<f64>)> = self
+            .history
+            .iter()
+            .map(|(u, models)| {
+                let r = self.weights.residuals(&self.problem.data, models);
+                (r.iter().map(|x| x * x).sum(), u.clone())
+            })
+            .collect();
+        ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut starts = vec![best.to_vec()];
+        for (_, u) in ranked {
+            if starts.len() == STARTS {
+                break;
+            }
+            let far = |s: &Vec<f64>| {
+                (0..u.len()).any(|j| (u[j] - s[j]).abs() >= START_SPACING * self.widths[j])
+            };
+            if starts.iter().all(far) {
+                starts.push(u);
+            }
+        }
+        let mut found: Option<lsq::LmResult> = None;
+        for start in starts {
+            let lm = self.local(&start, steps)?;
+            if found.as_ref().is_none_or(|f| lm.cost < f.cost) {
+                found = Some(lm);
+            }
+        }
+        Ok(found.expect("at least one start"))
+    }
+
     /// The local stage from `u0`.
     fn local(&mut self, u0: &[f64], steps: &[f64]) -> Result<lsq::LmResult> {
         self.ticker.stage("local");
@@ -197,28 +257,30 @@ impl<'p, 'a> Search<'p, 'a> {
         lsq::levenberg_marquardt(&mut eval, &lo, &hi, u0, &opts, &mut |_, _, _| true)
     }
 
-    /// Difference steps sized by the standard errors at `u`: a third of each
-    /// (a step that moves the misfit by about 0.1), within 1e-6 and 1e-2 of
-    /// the bounds' width.
+    /// Difference steps sized by the standard errors at `u`: one each (a
+    /// step that moves the misfit by about 1, a secant across the
+    /// confidence region, which a kink in the steps, such as the onset of
+    /// motion at some row, cannot shrink to a tangent), within 1e-6 and
+    /// 5e-2 of the bounds' width.
     fn error_steps(&mut self, u: &[f64], steps: &[f64]) -> Result<Vec<f64>> {
         let r0 = self.residuals(&[u.to_vec()])?.pop().flatten();
         let Some(r0) = r0 else {
             anyhow::bail!("the model failed at the best point");
         };
         let j = self.jacobian(u, &r0, steps)?;
-        let cov = lsq::covariance(&j, 1.0);
+        let cov = lsq::covariance(&j.j, 1.0);
         Ok(cov
             .standard_errors
             .iter()
             .zip(&self.widths)
-            .map(|(se, w)| (se / 3.0).clamp(1e-6 * w, 1e-2 * w))
+            .map(|(se, w)| se.clamp(1e-6 * w, 5e-2 * w))
             .collect())
     }
 
-    fn jacobian(&mut self, u: &[f64], r0: &[f64], steps: &[f64]) -> Result<Vec<Vec<f64>>> {
+    fn jacobian(&mut self, u: &[f64], r0: &[f64], steps: &[f64]) -> Result<jacobian::Sided> {
         let (lo, hi) = (self.lo.clone(), self.hi.clone());
         let mut eval = |us: &[Vec<f64>]| self.residuals(us);
-        lsq::jacobian_central(&mut eval, &lo, &hi, u, r0, steps)
+        jacobian::sided(&mut eval, (&lo, &hi), u, r0, steps)
     }
 
     /// The weighted residuals of candidates (search coordinates), one batch;
@@ -234,6 +296,9 @@ impl<'p, 'a> Search<'p, 'a> {
             };
             let r = self.weights.residuals(&self.problem.data, &models);
             let chi2: f64 = r.iter().map(|x| x * x).sum();
+            if self.history.len() < HISTORY {
+                self.history.push((u.clone(), models.clone()));
+            }
             if self.best.as_ref().is_none_or(|b| chi2 < b.chi2) {
                 self.best = Some(Best {
                     u: u.clone(),
