@@ -331,14 +331,6 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
     })
 }
 
-/// Candidates a fit evaluates, about: the global stage's population over
-/// its generations, then the local stage's batches (`crate::fit::search`,
-/// `crate::fit::lsq`).
-fn fit_candidates(free: usize) -> u64 {
-    let population = (8 * free).clamp(12, 40) as u64;
-    population * 41 + 30 * (free as u64 + 4)
-}
-
 /// `pidm check` of a fit scene: the fit described, its scene and data
 /// checked, its cost estimated from the scene at the middle of the bounds.
 fn check_fit(path: &Path, json: bool) -> Result<()> {
@@ -353,7 +345,7 @@ fn check_fit(path: &Path, json: bool) -> Result<()> {
         .collect();
     let middle = problem.scene(&problem.middle(), &points)?;
     let report = check_report(&middle);
-    let candidates = fit_candidates(spec.free.len());
+    let candidates = crate::fit::solve::expected_candidates(spec.free.len());
     let estimate_s = report.sweep_s * candidates as f64;
     if json {
         let free: Vec<_> = spec

@@ -61,8 +61,29 @@ pub struct Found {
     pub history: Vec<(Vec<f64>, Vec<RowModel>)>,
 }
 
+/// The global stage's population per free key (from 20 to 60 in all) and
+/// its generations: the misfit of impact-drive steps has narrow valleys
+/// along kinks (a row whose motion changes), which a smaller population
+/// misses in about one fit in twenty (results/fit.md).
+const GLOBAL_POPULATION_PER_KEY: usize = 12;
+const GLOBAL_GENERATIONS: usize = 60;
+
+/// The global stage's population for `p` free keys.
+fn global_population(p: usize) -> usize {
+    (GLOBAL_POPULATION_PER_KEY * p).clamp(20, 60)
+}
+
+/// About how many candidates a fit of `p` free keys evaluates, for
+/// `pidm check`'s estimate: the global stage whole, and each local start
+/// about six iterations of `p + 4` candidates.
+pub fn expected_candidates(p: usize) -> u64 {
+    let global = global_population(p) * (GLOBAL_GENERATIONS + 1);
+    let local = STARTS * 6 * (p + 4);
+    (global + local) as u64
+}
+
 /// Starts of the local stage (`Search::local_from_starts`).
-const STARTS: usize = 4;
+const STARTS: usize = 6;
 
 /// How far apart the local stage's starts lie, at least, in some key
 /// [fraction of the bounds' width].
@@ -72,8 +93,9 @@ const START_SPACING: f64 = 0.1;
 /// before the final Jacobian.
 const ERROR_STEP_ROUNDS: usize = 2;
 
-/// The most candidates [`Found::history`] keeps (about 30 MB at 30 rows).
-const HISTORY: usize = 50_000;
+/// The most memory [`Found::history`] takes [bytes]: about 2,000
+/// candidates of 1,000 rows, or all of a fit of 30.
+const HISTORY_BYTES: usize = 64 << 20;
 
 /// A fit in progress: the problem, the weights and the best point.
 pub struct Search<'p, 'a> {
@@ -204,7 +226,12 @@ impl<'p, 'a> Search<'p, 'a> {
     /// The global stage.
     fn global(&mut self, seed: u64) -> Result<search::DeResult> {
         self.ticker.stage("global");
-        let opts = DeOptions::for_dimension(self.lo.len(), seed);
+        let p = self.lo.len();
+        let opts = DeOptions {
+            population: global_population(p),
+            max_generations: GLOBAL_GENERATIONS,
+            ..DeOptions::for_dimension(p, seed)
+        };
         let (lo, hi) = (self.lo.clone(), self.hi.clone());
         let mut eval = |us: &[Vec<f64>]| self.residuals(us);
         search::differential_evolution(&mut eval, &lo, &hi, &opts, &mut |_, _, _| {
@@ -296,7 +323,8 @@ impl<'p, 'a> Search<'p, 'a> {
             };
             let r = self.weights.residuals(&self.problem.data, &models);
             let chi2: f64 = r.iter().map(|x| x * x).sum();
-            if self.history.len() < HISTORY {
+            let entry = std::mem::size_of_val(&models[..]) + std::mem::size_of_val(&u[..]);
+            if (self.history.len() + 1) * entry <= HISTORY_BYTES {
                 self.history.push((u.clone(), models.clone()));
             }
             if self.best.as_ref().is_none_or(|b| chi2 < b.chi2) {
