@@ -86,6 +86,7 @@ pub fn judge(problem: &Problem, found: Found) -> Answer {
         second_minimum(problem, &found, &mut answer);
     }
     bounds(problem, &found.best.u, &mut answer);
+    model_noise(problem, &found, &mut answer);
     if found.ending == Ending::Interrupted {
         answer
             .warnings
@@ -274,6 +275,25 @@ fn notes(problem: &Problem, found: &Found) -> Vec<String> {
     }
     notes.extend(problem.inherited_notes());
     notes
+}
+
+/// Beyond this ratio of the model's standard error to the data's, the
+/// model's own noise (a steady measurement that stopped at `max_cycles`,
+/// say) weighs in the fit: a warning says so.
+pub const MAX_MODEL_NOISE: f64 = 0.3;
+
+/// A warning when the model's own standard error is not well under the
+/// data's at some row (it counts in the weights either way).
+fn model_noise(problem: &Problem, found: &Found, answer: &mut Answer) {
+    let worst = worst_model_noise(problem, found);
+    if worst > MAX_MODEL_NOISE {
+        answer.warnings.push(format!(
+            "the model's own standard error reaches {:.0} % of the data's at some row (the \
+             steady measurement did not converge that far within max_cycles): raise \
+             [simulation] max_cycles for a sharper fit",
+            100.0 * worst
+        ));
+    }
 }
 
 /// The largest ratio of the model's standard error to the data's.

@@ -187,6 +187,7 @@ impl<'a> Problem<'a> {
         if let Some(tol) = self.step_tolerance {
             set(&mut table, "simulation.step_tolerance", tol);
         }
+        fixed_replicas(&mut table);
         let points = points
             .iter()
             .map(|keys| {
@@ -339,6 +340,21 @@ fn message(e: &SceneError) -> String {
     match e {
         SceneError::Invalid { message, .. } => message.clone(),
         other => other.to_string(),
+    }
+}
+
+/// `simulation.replicas = 1` unless the scene sets it: how many replicas
+/// `auto` runs depends on the idle workers, hence on the batch's size, and
+/// a fit evaluates one candidate in batches of many sizes; its differences
+/// must see the candidate, not the batch (ARCHITECTURE.md's determinism).
+fn fixed_replicas(table: &mut toml::Table) {
+    let simulation = table
+        .entry("simulation")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    if let Some(simulation) = simulation.as_table_mut() {
+        simulation
+            .entry("replicas")
+            .or_insert(toml::Value::Integer(1));
     }
 }
 

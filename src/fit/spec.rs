@@ -253,10 +253,6 @@ mod tests {
         );
         check(&fit("\"axis.x.gain\" = -0.5"), Err("two bounds"));
         check(
-            "[fit]\nfree = { \"axis.x.gain\" = [-1, 0] }\n",
-            Err("no `data`"),
-        );
-        check(
             "[fit]\ndata = \"steps.csv\"\nseed = 3\n",
             Err("unknown key `fit.seed`"),
         );
