@@ -41,7 +41,7 @@ enum Command {
         out: Option<PathBuf>,
         /// Worker threads of the CPU path, from 1 to 4 per core (or 64)
         /// [default: every core].
-        #[arg(long, value_parser = thread_count)]
+        #[arg(long, value_parser = pidm::backend::select::thread_count)]
         threads: Option<usize>,
         /// auto: a hardware GPU with f64 when there is one and the run is
         /// estimated to end sooner there (a short probe of its cost against
@@ -93,31 +93,7 @@ enum Command {
     /// writes FIT.json (values, standard errors, correlations, warnings),
     /// FIT.toml (the scene with the fitted values) and FIT.png beside it
     /// (docs/fit.md).
-    Fit {
-        /// The fit scene (TOML with a [fit] table).
-        scene: PathBuf,
-        /// FIT.json; FIT.toml and FIT.png are written beside it [default:
-        /// results/<scene stem>.fit.json].
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// The CSV of measured steps instead of the scene's [fit] data.
-        #[arg(long)]
-        data: Option<PathBuf>,
-        /// Worker threads of the CPU path [default: every core].
-        #[arg(long, value_parser = thread_count)]
-        threads: Option<usize>,
-        /// auto, gpu or cpu, as for `pidm run`; a fit runs in f64 only.
-        #[arg(long, value_enum, default_value_t = backend::BackendChoice::Auto)]
-        backend: backend::BackendChoice,
-        /// Seed of the global search: the same seed gives the same fit.
-        #[arg(long, default_value_t = pidm::fit::DEFAULT_SEED)]
-        seed: u64,
-        /// How progress is shown on stderr: bar (the stage and best chi2),
-        /// jsonl (one JSON object per batch: stage, batch, evaluations,
-        /// best_chi2) or none [default: bar on a terminal, else none].
-        #[arg(long, value_enum)]
-        progress: Option<pidm::progress::ProgressMode>,
-    },
+    Fit(commands::FitCommand),
     /// Joins the shard files of one scene (`pidm run --shard K/N`) into one
     /// map file, the same as a single run's.
     Merge {
@@ -254,33 +230,6 @@ enum Command {
     },
 }
 
-/// Most `--threads` per core: the integration is bound by the CPU, so more
-/// threads than cores only add overhead, and thousands of them take
-/// seconds to start.
-const MAX_THREADS_PER_CORE: usize = 4;
-
-/// `--threads` may always be this many, on any machine: enough to run as
-/// a 16-core machine would (tests and timings do), and quick to start.
-const MIN_THREAD_LIMIT: usize = 64;
-
-/// A `--threads` value: from 1 to [`MAX_THREADS_PER_CORE`] per core, or
-/// [`MIN_THREAD_LIMIT`] where that is more.
-fn thread_count(text: &str) -> Result<usize, String> {
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let limit = (MAX_THREADS_PER_CORE * cores).max(MIN_THREAD_LIMIT);
-    match text.parse::<usize>() {
-        Ok(0) => Err("expected at least 1 thread".into()),
-        Ok(n) if n > limit => Err(format!(
-            "{n} threads is too many: expected at most {limit} (the larger of \
-             {MAX_THREADS_PER_CORE} per core on this machine's {cores} {} and \
-             {MIN_THREAD_LIMIT}); the CPU path gains nothing from more threads than cores",
-            if cores == 1 { "core" } else { "cores" }
-        )),
-        Ok(n) => Ok(n),
-        Err(e) => Err(format!("{text:?} is not a whole number ({e})")),
-    }
-}
-
 /// A `KEY=VALUE` flag value with a finite number.
 fn key_value(text: &str) -> Result<(String, f64), String> {
     let Some((key, value)) = text.split_once('=') else {
@@ -298,9 +247,10 @@ impl Command {
     /// Whether the command may look for GPU adapters.
     fn looks_for_gpu(&self) -> bool {
         match self {
-            Command::Run { backend, .. }
-            | Command::Fit { backend, .. }
-            | Command::RefineStudy { backend, .. } => *backend != backend::BackendChoice::Cpu,
+            Command::Run { backend, .. } | Command::RefineStudy { backend, .. } => {
+                *backend != backend::BackendChoice::Cpu
+            }
+            Command::Fit(fit) => fit.backend != backend::BackendChoice::Cpu,
             Command::Info { .. } | Command::Bench { .. } => true,
             Command::Accuracy { gpu, .. } => *gpu,
             _ => false,
@@ -366,25 +316,8 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 return Ok(ExitCode::from(3));
             }
         }
-        Command::Fit {
-            scene,
-            out,
-            data,
-            threads,
-            backend,
-            seed,
-            progress,
-        } => {
-            let interrupted = commands::fit(&commands::FitCommand {
-                scene,
-                out,
-                data,
-                threads,
-                backend,
-                seed,
-                progress,
-            })?;
-            if interrupted {
+        Command::Fit(fit) => {
+            if commands::fit(&fit)? {
                 eprintln!("pidm: stopped by SIGINT: the best point so far is written");
                 return Ok(ExitCode::from(130));
             }

@@ -35,16 +35,15 @@ SETS = {
 }
 
 
-def fit_draw(name: str, seed: int, pidm: str, tmp: str) -> tuple[dict, float]:
-    """One noise draw of set `name`, fitted: FIT.json and the fit's wall time."""
-    data = os.path.join(tmp, f"{name}_{seed}.csv")
+def make_data(pidm: str, truth: str, rows: str, out: str, seed: int = 1) -> None:
+    """A synthetic data set: make_data.py on `truth` at `rows`, into `out`."""
     subprocess.run(
         [
             sys.executable,
             "examples/fit/make_data.py",
-            f"examples/fit/{name}_truth.toml",
-            f"examples/fit/{name}_rows.csv",
-            data,
+            truth,
+            rows,
+            out,
             "--seed",
             str(seed),
             "--pidm",
@@ -54,13 +53,16 @@ def fit_draw(name: str, seed: int, pidm: str, tmp: str) -> tuple[dict, float]:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )
-    out = os.path.join(tmp, f"{name}_{seed}.json")
+
+
+def run_fit(pidm: str, scene: str, data: str, out: str) -> tuple[dict, float]:
+    """`pidm fit` of `scene` to `data` on the CPU: FIT.json and the wall time."""
     started = time.perf_counter()
     subprocess.run(
         [
             pidm,
             "fit",
-            f"examples/fit/{name}.toml",
+            scene,
             "--data",
             data,
             "--out",
@@ -77,6 +79,15 @@ def fit_draw(name: str, seed: int, pidm: str, tmp: str) -> tuple[dict, float]:
     elapsed = time.perf_counter() - started
     with open(out) as f:
         return json.load(f), elapsed
+
+
+def fit_draw(name: str, seed: int, pidm: str, tmp: str) -> tuple[dict, float]:
+    """One noise draw of set `name`, fitted: FIT.json and the fit's wall time."""
+    data = os.path.join(tmp, f"{name}_{seed}.csv")
+    rows = f"examples/fit/{name}_rows.csv"
+    make_data(pidm, f"examples/fit/{name}_truth.toml", rows, data, seed)
+    out = os.path.join(tmp, f"{name}_{seed}.json")
+    return run_fit(pidm, f"examples/fit/{name}.toml", data, out)
 
 
 def main() -> int:

@@ -10,11 +10,11 @@ the fit's warnings in short.
 
 import argparse
 import csv
-import json
 import os
-import subprocess
 import sys
 import tempfile
+
+from draws import make_data, run_fit
 
 FREE = (
     'free = { "mechanism.static_friction" = [0.5, 3.0], '
@@ -39,43 +39,18 @@ SETS = {
 }
 
 
-def fit(name: str, header: list, rows: list, pidm: str, tmp: str) -> dict:
+def fit(header: list, rows: list, pidm: str, tmp: str) -> dict:
     """The fit of one data set: its FIT.json."""
     rows_csv, data, truth = (os.path.join(tmp, f) for f in ("rows.csv", "data.csv", "truth.toml"))
     with open(rows_csv, "w", newline="") as f:
         csv.writer(f).writerows([header] + rows)
     with open(truth, "w") as f:
         f.write(TRUTH)
-    subprocess.run(
-        [sys.executable, "examples/fit/make_data.py", truth, rows_csv, data, "--pidm", pidm],
-        check=True,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
+    make_data(pidm, truth, rows_csv, data)
     scene = os.path.join(tmp, "fit_scene.toml")
     with open(scene, "w") as f:
         f.write("[fit]\n" + FREE)
-    out = os.path.join(tmp, "fit.json")
-    subprocess.run(
-        [
-            pidm,
-            "fit",
-            scene,
-            "--data",
-            data,
-            "--out",
-            out,
-            "--backend",
-            "cpu",
-            "--progress",
-            "none",
-        ],
-        check=True,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    with open(out) as f:
-        return json.load(f)
+    return run_fit(pidm, scene, data, os.path.join(tmp, "fit.json"))[0]
 
 
 def short(warning: str) -> str:
@@ -93,7 +68,7 @@ def main() -> int:
     print("|---|---|---|---|---|---|")
     for name, (header, rows) in SETS.items():
         with tempfile.TemporaryDirectory() as tmp:
-            j = fit(name, header, rows, args.pidm, tmp)
+            j = fit(header, rows, args.pidm, tmp)
         cells = []
         for key in j["order"]:
             p = j["parameters"][key]

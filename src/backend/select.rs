@@ -348,6 +348,33 @@ fn finish(backend: Box<dyn Backend>, measure: Option<Measure>) -> Result<Selecte
     Ok(Selected { backend, measure })
 }
 
+/// Most `--threads` per core: the integration is bound by the CPU, so more
+/// threads than cores only add overhead, and thousands of them take
+/// seconds to start.
+const MAX_THREADS_PER_CORE: usize = 4;
+
+/// `--threads` may always be this many, on any machine: enough to run as
+/// a 16-core machine would (tests and timings do), and quick to start.
+const MIN_THREAD_LIMIT: usize = 64;
+
+/// A `--threads` value: from 1 to [`MAX_THREADS_PER_CORE`] per core, or
+/// [`MIN_THREAD_LIMIT`] where that is more.
+pub fn thread_count(text: &str) -> Result<usize, String> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let limit = (MAX_THREADS_PER_CORE * cores).max(MIN_THREAD_LIMIT);
+    match text.parse::<usize>() {
+        Ok(0) => Err("expected at least 1 thread".into()),
+        Ok(n) if n > limit => Err(format!(
+            "{n} threads is too many: expected at most {limit} (the larger of \
+             {MAX_THREADS_PER_CORE} per core on this machine's {cores} {} and \
+             {MIN_THREAD_LIMIT}); the CPU path gains nothing from more threads than cores",
+            if cores == 1 { "core" } else { "cores" }
+        )),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("{text:?} is not a whole number ({e})")),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,17 +9,32 @@ use crate::backend::{BackendChoice, Precision, select_backend};
 use crate::fit::{FitOptions, Outputs, problem::Problem, solve::Ending};
 use crate::progress::ProgressMode;
 
-/// Options of `pidm fit`.
-#[derive(Clone, Debug)]
+/// `pidm fit`'s command line.
+#[derive(Clone, Debug, clap::Args)]
 pub struct FitCommand {
+    /// The fit scene (TOML with a [fit] table).
     pub scene: PathBuf,
-    /// FIT.json [default: results/<scene stem>.fit.json].
+    /// FIT.json; FIT.toml and FIT.png are written beside it [default:
+    /// results/<scene stem>.fit.json].
+    #[arg(long)]
     pub out: Option<PathBuf>,
-    /// The data file instead of the scene's `[fit] data`.
+    /// The CSV of measured steps instead of the scene's [fit] data.
+    #[arg(long)]
     pub data: Option<PathBuf>,
+    /// Worker threads of the CPU path, from 1 to 4 per core (or 64)
+    /// [default: every core].
+    #[arg(long, value_parser = crate::backend::select::thread_count)]
     pub threads: Option<usize>,
+    /// auto, gpu or cpu, as for `pidm run`; a fit runs in f64 only.
+    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
     pub backend: BackendChoice,
+    /// Seed of the global search: the same seed gives the same fit.
+    #[arg(long, default_value_t = crate::fit::DEFAULT_SEED)]
     pub seed: u64,
+    /// How progress is shown on stderr: bar (the stage and best chi2),
+    /// jsonl (one JSON object per batch: stage, batch, evaluations,
+    /// best_chi2) or none [default: bar on a terminal, else none].
+    #[arg(long, value_enum)]
     pub progress: Option<ProgressMode>,
 }
 
