@@ -198,6 +198,11 @@ impl FrictionLaw {
     }
 }
 
+/// Why `pidm run` refuses a scene with `[fit]` (`crate::fit`).
+pub(super) const FIT_SCENE: &str = "[fit] makes this a fit scene, which calibrates the model to \
+     measured steps: run it with `pidm fit SCENE --out FIT.json` (`pidm run` maps a scene \
+     without [fit])";
+
 /// `[mechanism]`'s string key: the friction law, scene-wide.
 pub(super) const FRICTION_KEY: &str = "friction";
 

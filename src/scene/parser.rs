@@ -12,7 +12,7 @@ use toml::de::{DeTable, DeValue};
 use super::error::{Location, SceneError};
 use super::format::{fmt_num, fmt_short};
 use super::keys::{
-    AXIS_FIELDS, DAMPING, FRICTION_KEY, Field, FrictionLaw, MAX_REPLICAS, MEASURE_KEY,
+    AXIS_FIELDS, DAMPING, FIT_SCENE, FRICTION_KEY, Field, FrictionLaw, MAX_REPLICAS, MEASURE_KEY,
     MECHANISM_FIELDS, Mode, OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, REPLICAS_KEY,
     RESONANCE, ROOT_KEYS, SAME_AS_KEY, SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS,
     STAGE_MASS, STIFFNESS, axis_slot, slot_field, slot_path,
@@ -237,15 +237,7 @@ impl Parser<'_> {
                 "refine" => parsed.refine = Some(self.refine(value)?),
                 "stall" => parsed.stall = Some(self.stall(value)?),
                 "random" => parsed.random = Some(self.random(value)?),
-                "fit" => {
-                    return Err(self.invalid(
-                        key.span(),
-                        "[fit] makes this a fit scene, which calibrates the model to \
-                         measured steps: run it with `pidm fit SCENE --out FIT.json` \
-                         (`pidm run` maps a scene without [fit])"
-                            .to_owned(),
-                    ));
-                }
+                "fit" => return Err(self.invalid(key.span(), FIT_SCENE)),
                 _ => return Err(self.unknown_key(key, "", &ROOT_KEYS)),
             }
         }
