@@ -186,8 +186,8 @@ impl<'a> Problem<'a> {
         }
         if let Some(tol) = self.step_tolerance {
             set(&mut table, "simulation.step_tolerance", tol);
+            fixed_replicas(&mut table);
         }
-        fixed_replicas(&mut table);
         let points = points
             .iter()
             .map(|keys| {
@@ -343,7 +343,8 @@ fn message(e: &SceneError) -> String {
     }
 }
 
-/// `simulation.replicas = 1` unless the scene sets it: how many replicas
+/// `simulation.replicas = 1` in a steady scene unless the scene sets it
+/// (a window has no replicas): how many replicas
 /// `auto` runs depends on the idle workers, hence on the batch's size, and
 /// a fit evaluates one candidate in batches of many sizes; its differences
 /// must see the candidate, not the batch (ARCHITECTURE.md's determinism).

@@ -276,3 +276,25 @@ fn ctrl_c_leaves_the_best_point_written() {
     assert!((1e5..=1e8).contains(&value), "{value}");
     assert!(dir.path().join("fit.toml").is_file());
 }
+
+#[test]
+fn a_window_scene_fits_with_no_tolerance_to_tighten() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("window.toml");
+    let text = std::fs::read_to_string(manifest("examples/fit/coupling.toml")).unwrap();
+    let data = manifest("examples/fit/coupling_steps.csv");
+    let text = text.replace(
+        "[fit]",
+        "[simulation]\nmeasure = \"window\"\ncycles = 10\nsettle = 2\n\n[fit]",
+    );
+    std::fs::write(
+        &scene,
+        text.replace("\"coupling_steps.csv\"", &format!("{data:?}")),
+    )
+    .unwrap();
+    let json = fit(s(&scene), dir.path(), "cpu", &[]);
+    assert!(json["step_tolerance"].is_null(), "{json:#}");
+    let p = &json["parameters"]["mechanism.coulomb_friction"];
+    let (value, se) = (p["value"].as_f64().unwrap(), p["se"].as_f64().unwrap());
+    assert!((value - 1.0).abs() <= 3.0 * se, "{value} +- {se}");
+}
