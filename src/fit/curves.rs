@@ -151,7 +151,11 @@ fn panel(
     });
     FitPanel {
         title: format!("step {} (data ± se, fitted model)", AXIS_NAMES[axis]),
-        x_label: x_key.map_or("row".into(), |x| data.keys[x].clone()),
+        x_label: x_key.map_or("row".into(), |x| {
+            let key = &data.keys[x];
+            let units = crate::scene::instance_key(key).unwrap_or("");
+            format!("{key} [{units}]")
+        }),
         y_label: format!("step {} [um per cycle]", AXIS_NAMES[axis]),
         series: series.collect(),
     }
