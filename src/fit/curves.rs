@@ -28,17 +28,16 @@ pub fn draw(problem: &Problem, answer: &Answer, path: &Path) -> Result<()> {
     for axis in (0..AXES).filter(|&a| data.measured_on(a) > 0) {
         panels.push(panel(problem, answer, axis, x_key, &groups, &curves));
     }
-    let title = vec![
-        format!("pidm fit: {}", data.path.display()),
+    // One line per key, so that a one-panel figure shows them all.
+    let mut title = vec![format!("pidm fit: {}", data.path.display())];
+    title.extend(
         answer
             .keys
             .iter()
             .zip(&answer.values)
             .zip(&answer.se)
-            .map(|((k, v), se)| format!("{k} = {v:.4e} ± {se:.2e}"))
-            .collect::<Vec<_>>()
-            .join(",  "),
-    ];
+            .map(|((k, v), se)| format!("{k} = {v:.5e} ± {se:.2e}")),
+    );
     crate::plot::fit_figure(path, &title, &panels)
 }
 

@@ -417,7 +417,10 @@ fn a_refined_run_resumes_in_the_middle_of_a_level_to_the_uninterrupted_file() {
         let mut header = None;
         loop {
             assert!(Instant::now() < deadline, "no checkpoint progress");
-            if let Ok(meta) = std::fs::metadata(&checkpoint) {
+            // Created empty, then its header written in one write.
+            if let Ok(meta) = std::fs::metadata(&checkpoint)
+                && meta.len() > 0
+            {
                 let header = *header.get_or_insert(meta.len());
                 if meta.len() >= header + (25 + 8) * entry {
                     break;
