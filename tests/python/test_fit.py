@@ -1,5 +1,8 @@
-"""pidm.fit against the shipped example fit (examples/fit/karnopp.toml: synthetic
-steps from static 1.2 N, Coulomb 1.0 N, gain -0.6 N/V with 2 % noise)."""
+"""pidm.fit against the shipped example fits: examples/fit/coupling.toml (both
+axes driven, 12 rows: static 1.2 N, Coulomb 1.0 N, y gain -0.45 N/V) for the
+recoveries, which the integration tests also run at full size for the Karnopp
+set, and examples/fit/karnopp.toml (static 1.2 N, Coulomb 1.0 N, gain -0.6 N/V)
+for the rest; synthetic steps with 2 % noise."""
 
 from __future__ import annotations
 
@@ -31,13 +34,22 @@ FREE = {
 }
 #: The example scene as text, its [fit] without `data`.
 TEXT = SCENE.read_text().replace('data = "karnopp_steps.csv"\n', "")
+#: The coupling example: a fit of both axes' steps.
+COUPLING = ROOT / "examples" / "fit" / "coupling.toml"
+COUPLING_STEPS = ROOT / "examples" / "fit" / "coupling_steps.csv"
+COUPLING_TRUTH = {
+    "mechanism.static_friction": 1.2,
+    "mechanism.coulomb_friction": 1.0,
+    "axis.y.gain": -0.45,
+}
+COUPLING_TEXT = COUPLING.read_text().replace('data = "coupling_steps.csv"\n', "")
 
 
-def assert_recovers_the_truth(fit: pidm.FitResult) -> None:
-    assert fit.keys == list(TRUTH)
+def assert_recovers_the_truth(fit: pidm.FitResult, truths: dict[str, float]) -> None:
+    assert fit.keys == list(truths)
     assert fit.status == "converged"
     assert fit.identifiable
-    for key, truth in TRUTH.items():
+    for key, truth in truths.items():
         assert abs(fit.values[key] - truth) < 3.0 * fit.se[key], (key, fit.values[key], fit.se[key])
         assert 0.0 < fit.se[key] < 0.1 * abs(fit.values[key]), key
     corr = fit.correlation
@@ -56,41 +68,48 @@ def test_a_fit_of_the_example_file_recovers_the_truth(
     temp = tmp_path / "tmp"
     temp.mkdir()
     monkeypatch.setattr("tempfile.tempdir", str(temp))
-    fit = pidm.fit(SCENE, backend="cpu", progress=False)
-    assert_recovers_the_truth(fit)
+    fit = pidm.fit(COUPLING, backend="cpu", progress=False)
+    assert_recovers_the_truth(fit, COUPLING_TRUTH)
     assert fit.values.name == "value" and fit.se.name == "se"
-    assert fit.bounds == {k: tuple(b) for k, b in FREE.items()}
+    assert fit.bounds == {
+        "mechanism.static_friction": (0.5, 3.0),
+        "mechanism.coulomb_friction": (0.3, 2.0),
+        "axis.y.gain": (-1.0, -0.2),
+    }
     assert fit.units == {
         "mechanism.static_friction": "N",
         "mechanism.coulomb_friction": "N",
-        "axis.x.gain": "N/V",
+        "axis.y.gain": "N/V",
     }
-    assert fit.dof == 30 - 3
+    assert fit.dof == 24 - 3
     assert fit.chi2 == pytest.approx(fit.reduced_chi2 * fit.dof)
     assert fit.evaluations > 0
     assert fit.json["order"] == fit.keys
     # Every data row, with the model's step beside the measured one.
-    assert len(fit.rows) == 30
-    assert fit.rows["line"].tolist() == list(range(2, 32))
-    measured = pd.read_csv(STEPS)
-    assert np.array_equal(fit.rows["step_x"].values, measured["step_x"].values)
-    assert fit.rows["model_step_x"].notna().all()
+    assert len(fit.rows) == 12
+    assert fit.rows["line"].tolist() == list(range(2, 14))
+    measured = pd.read_csv(COUPLING_STEPS)
+    for axis in "xy":
+        assert np.array_equal(fit.rows[f"step_{axis}"].values, measured[f"step_{axis}"].values)
+        assert fit.rows[f"model_step_{axis}"].notna().all()
     # The table names every key with its value; nothing is left behind.
     text = str(fit)
     assert text.splitlines()[0].split() == ["key", "value", "se", "se", "%", "units"]
-    assert all(key in text for key in TRUTH)
+    assert all(key in text for key in COUPLING_TRUTH)
     assert fit.path is None
     assert list(temp.iterdir()) == []
 
 
 def test_a_text_scene_with_a_dataframe_and_progress_records() -> None:
-    steps = pd.read_csv(STEPS).iloc[::2]  # 15 rows over every voltage and frequency
-    assert steps["step_y"].isna().all()  # not measured: written as empty cells
+    steps = pd.read_csv(COUPLING_STEPS)
+    # Three rows without step y: NaN in the frame, written as empty cells.
+    steps.loc[steps.index[::4], ["step_y", "step_y_se"]] = np.nan
     records: list[dict] = []
-    fit = pidm.fit(TEXT, steps, backend="cpu", progress=records.append)
-    assert_recovers_the_truth(fit)
-    assert len(fit.rows) == 15
-    assert fit.dof == 15 - 3
+    fit = pidm.fit(COUPLING_TEXT, steps, backend="cpu", progress=records.append)
+    assert_recovers_the_truth(fit, COUPLING_TRUTH)
+    assert len(fit.rows) == 12
+    assert fit.rows["step_y"].isna().sum() == 3
+    assert fit.dof == 24 - 3 - 3
     assert records, "no progress records"
     assert {r["stage"] for r in records} <= {"global", "local", "errors"}
     assert records[0]["stage"] == "global"
