@@ -101,3 +101,55 @@ impl Weights {
         smallest
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// Weights of `csv` against a model that is the data plus `offset`.
+    fn check(csv: &str, offset: f64, expect_residuals: &[f64], expect_scale: [f64; 2]) {
+        let data = Data::parse(csv, Path::new("d.csv")).unwrap();
+        let models: Vec<RowModel> = data
+            .rows
+            .iter()
+            .map(|r| RowModel {
+                step: r.step.map(|s| s.unwrap_or(0.0) + offset),
+                se: [0.0; 2],
+            })
+            .collect();
+        let weights = Weights::initial(&data).reestimated(&data, &models, 1);
+        let r = weights.residuals(&data, &models);
+        assert_eq!(r.len(), expect_residuals.len());
+        for (got, want) in r.iter().zip(expect_residuals) {
+            assert!((got - want).abs() < 1e-9, "{r:?}");
+        }
+        for (got, want) in weights.scale.iter().zip(expect_scale) {
+            assert!(
+                (got - want).abs() < 1e-15 + 1e-9 * want,
+                "{:?}",
+                weights.scale
+            );
+        }
+    }
+
+    #[test]
+    fn known_errors_weigh_each_value_and_unknown_ones_one_scale_per_axis() {
+        // Known SEs: residual = offset / se.
+        check(
+            "step_x,step_x_se\n1e-6,1e-8\n2e-6,2e-8\n",
+            1e-8,
+            &[1.0, 0.5],
+            [1.5811388300841898e-6, 1e-9],
+        );
+        // Unknown: two values, one free key, so one degree of freedom; the
+        // scale is sqrt(2 * offset^2 / 1) and each residual 1 / sqrt(2).
+        let s = 2f64.sqrt();
+        check(
+            "step_x\n1e-6\n2e-6\n",
+            1e-8,
+            &[1.0 / s, 1.0 / s],
+            [s * 1e-8, 1e-9],
+        );
+    }
+}

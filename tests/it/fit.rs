@@ -298,3 +298,42 @@ fn a_window_scene_fits_with_no_tolerance_to_tighten() {
     let (value, se) = (p["value"].as_f64().unwrap(), p["se"].as_f64().unwrap());
     assert!((value - 1.0).abs() <= 3.0 * se, "{value} +- {se}");
 }
+
+#[test]
+fn check_json_describes_a_fit_and_out_never_overwrites_the_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = manifest("examples/fit/lugre.toml");
+    let check = pidm(&["check", &scene, "--json"], dir.path());
+    assert!(
+        check.status.success(),
+        "{}",
+        String::from_utf8_lossy(&check.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&check.stdout).unwrap();
+    assert_eq!(json["fit"], true);
+    assert_eq!(json["rows"], 12);
+    assert_eq!(json["free"][0]["key"], "mechanism.bristle_stiffness");
+    assert_eq!(json["free"][0]["scale"], "log");
+    // FIT.toml beside --out x.json would be the scene x.toml itself.
+    let copy = dir.path().join("x.toml");
+    std::fs::copy(&scene, &copy).unwrap();
+    std::fs::copy(
+        manifest("examples/fit/lugre_steps.csv"),
+        dir.path().join("lugre_steps.csv"),
+    )
+    .unwrap();
+    let out = pidm(
+        &["fit", "x.toml", "--out", "x.json", "--backend", "cpu"],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("would overwrite the scene file"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(&copy).unwrap(),
+        std::fs::read_to_string(&scene).unwrap()
+    );
+}
