@@ -337,13 +337,7 @@ fn check_fit(path: &Path, json: bool) -> Result<()> {
     use crate::fit::problem::Problem;
     let (spec, data) = crate::fit::load(path, None)?;
     let problem = Problem::new(&spec, data).with_context(|| format!("scene {}", path.display()))?;
-    let points: Vec<_> = problem
-        .data
-        .rows
-        .iter()
-        .map(|r| problem.row_keys(r))
-        .collect();
-    let middle = problem.scene(&problem.middle(), &points)?;
+    let middle = problem.scene(&problem.middle(), problem.points())?;
     let report = check_report(&middle);
     let candidates = crate::fit::solve::expected_candidates(spec.free.len());
     let estimate_s = report.sweep_s * candidates as f64;

@@ -60,7 +60,6 @@ pub fn fit(cmd: &FitCommand) -> Result<bool> {
         cmd.threads,
         &problem.workload()?,
     )?;
-    drop(problem);
     let backend = selected.backend();
     eprintln!(
         "pidm: fitting {} free {} to {} measured values of {} on {}, f64 (seed {})",
@@ -78,13 +77,12 @@ pub fn fit(cmd: &FitCommand) -> Result<bool> {
     let opts = FitOptions {
         scene: cmd.scene.clone(),
         out: outputs.json.clone(),
-        data: cmd.data.clone(),
         seed: cmd.seed,
         progress: cmd
             .progress
             .unwrap_or_else(ProgressMode::default_for_stderr),
     };
-    let (answer, table) = crate::fit::fit(&opts, backend)?;
+    let (answer, table) = crate::fit::fit(&opts, problem, backend)?;
     print!("{table}");
     let written = if answer.ending == Ending::Interrupted {
         format!("{} and {}", outputs.json.display(), outputs.toml.display())

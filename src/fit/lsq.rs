@@ -311,25 +311,6 @@ pub fn levenberg_marquardt(
     })
 }
 
-/// Jacobian (m rows × p columns) at `u` (inside `[lo, hi]`, residuals `r0`) by central
-/// differences with steps `steps` (u units): the 2p points `u ± h_j e_j`, clamped into the
-/// box, in ONE batch. A point clamped onto `u` (at a bound) or failing is left out and the
-/// difference becomes one-sided against `r0`; an error when no point is usable for a parameter.
-pub fn jacobian_central(
-    eval: &mut Batch<'_>,
-    lo: &[f64],
-    hi: &[f64],
-    u: &[f64],
-    r0: &[f64],
-    steps: &[f64],
-) -> Result<Vec<Vec<f64>>> {
-    check_problem(lo, hi, u, steps)?;
-    let mut fit = Fit::new(eval, lo, hi);
-    fit.m = Some(r0.len());
-    let deltas: Vec<Vec<f64>> = steps.iter().map(|&h| vec![h, -h]).collect();
-    assemble(&fit.probe(u, &deltas)?, r0)
-}
-
 /// Covariance `scale · (JᵀJ)⁻¹` of parameters with Jacobian `j` (m rows × p columns); `scale`
 /// is usually the residual variance `cost / (m - p)`, or 1 for residuals already in units of
 /// their known standard errors. Uses a symmetric eigen decomposition of JᵀJ and a
@@ -581,13 +562,15 @@ mod tests {
         (res, calls.take())
     }
 
-    /// Central-difference Jacobian in [lo, hi]^p with step h, checking it is one batch.
+    /// The fit's Jacobian (`super::super::jacobian::sided`: central where both sides fit
+    /// in [lo, hi]^p, one-sided at a bound) with step h, checking it is one batch.
     fn central(model: Model, lo: f64, hi: f64, u: &[f64], h: f64) -> Matrix {
         let (r0, calls, p) = (model(u).unwrap(), RefCell::default(), u.len());
         let mut eval = batched(model, &calls);
-        let jac = jacobian_central(&mut eval, &vec![lo; p], &vec![hi; p], u, &r0, &vec![h; p]);
+        let bounds = (&vec![lo; p][..], &vec![hi; p][..]);
+        let jac = super::super::jacobian::sided(&mut eval, bounds, u, &r0, &vec![h; p]);
         assert_eq!(calls.take().len(), 1);
-        jac.unwrap()
+        jac.unwrap().j
     }
 
     fn close(a: &[f64], b: &[f64], tol: f64) -> bool {

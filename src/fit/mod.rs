@@ -40,8 +40,6 @@ pub struct FitOptions {
     pub scene: PathBuf,
     /// `FIT.json`; `FIT.toml` and `FIT.png` are written beside it.
     pub out: PathBuf,
-    /// The data file instead of `[fit] data` (`--data`).
-    pub data: Option<PathBuf>,
     pub seed: u64,
     pub progress: ProgressMode,
 }
@@ -93,21 +91,14 @@ pub fn load(scene: &Path, data: Option<&Path>) -> Result<(spec::FitScene, data::
     Ok((fit, data))
 }
 
-/// Runs a fit on `backend` and writes its files; the answer, for the
-/// caller to print.
-pub fn fit(opts: &FitOptions, backend: &dyn Backend) -> Result<(judge::Answer, String)> {
+/// Runs a fit of `problem` (its scene and data read by [`load`]) on
+/// `backend` and writes its files; the answer, for the caller to print.
+pub fn fit<'a>(
+    opts: &FitOptions,
+    mut problem: problem::Problem<'a>,
+    backend: &'a dyn Backend,
+) -> Result<(judge::Answer, String)> {
     let outputs = Outputs::beside(&opts.out, &opts.scene)?;
-    for path in [&outputs.json, &outputs.toml, &outputs.png] {
-        if crate::output::claim::is_same_file(path, &opts.scene) {
-            bail!(
-                "{} is the scene file itself; give another --out",
-                path.display()
-            );
-        }
-    }
-    let (fit, data) = load(&opts.scene, opts.data.as_deref())?;
-    let mut problem = problem::Problem::new(&fit, data)
-        .with_context(|| format!("scene {}", opts.scene.display()))?;
     problem.on(backend);
     let found =
         solve::Search::new(&mut problem, ticker::Ticker::new(opts.progress)).run(opts.seed)?;

@@ -46,6 +46,9 @@ pub struct Problem<'a> {
     pub free: Vec<Free>,
     pub data: Data,
     backend: Option<&'a dyn Backend>,
+    /// The keys each data row sets ([`Problem::row_keys`]), the points of
+    /// every candidate's scene.
+    points: Vec<Vec<(String, f64)>>,
     /// The steady measurement's `step_tolerance` every candidate runs with
     /// [m per own drive cycle]; `None` for a fixed window.
     pub step_tolerance: Option<f64>,
@@ -97,11 +100,12 @@ impl<'a> Problem<'a> {
             .and_then(|m| m.as_str())
             == Some("window");
         let scene_tol = (!window).then(|| scene.instance(0).measure.step_tolerance());
-        let problem = Problem {
+        let mut problem = Problem {
             base,
             free: fit.free.clone(),
             data,
             backend: None,
+            points: Vec::new(),
             step_tolerance: scene_tol,
             scene_step_tolerance: scene_tol,
             evaluations: 0,
@@ -109,6 +113,12 @@ impl<'a> Problem<'a> {
             failed: 0,
             reasons: Vec::new(),
         };
+        problem.points = problem
+            .data
+            .rows
+            .iter()
+            .map(|r| problem.row_keys(r))
+            .collect();
         problem.check_rows()?;
         Ok(problem)
     }
@@ -122,8 +132,7 @@ impl<'a> Problem<'a> {
     /// the bounds, as many times as a fit of its size evaluates candidates
     /// (about a thousand).
     pub fn workload(&self) -> Result<crate::backend::Workload> {
-        let points: Vec<_> = self.data.rows.iter().map(|r| self.row_keys(r)).collect();
-        let scene = self.scene(&self.middle(), &points)?;
+        let scene = self.scene(&self.middle(), &self.points)?;
         let candidates: Vec<Instance> = (0..scene.instance_count())
             .map(|i| scene.instance(i))
             .collect();
@@ -134,6 +143,11 @@ impl<'a> Problem<'a> {
             candidates,
             settings: scene.settings,
         })
+    }
+
+    /// The data rows as points: the keys each sets.
+    pub fn points(&self) -> &[Vec<(String, f64)>] {
+        &self.points
     }
 
     /// The middle of the bounds (geometric on a log scale).
@@ -216,9 +230,7 @@ impl<'a> Problem<'a> {
     /// Evaluates candidates (each the free keys' values) at the data's rows,
     /// all in one batch on the backend.
     pub fn evaluate(&mut self, candidates: &[Vec<f64>]) -> Result<Vec<Evaluation>> {
-        let points: Vec<Vec<(String, f64)>> =
-            self.data.rows.iter().map(|r| self.row_keys(r)).collect();
-        let evaluations = self.evaluate_at(candidates, &points)?;
+        let evaluations = self.evaluate_at(candidates, &self.points)?;
         for e in &evaluations {
             self.evaluations += 1;
             if let Err(why) = e {
