@@ -7,13 +7,17 @@
 #   WGPU_BACKEND=vulkan bash results/gpu/bench.sh smoke    # here, on lavapipe
 #
 # 1. The host's cores (--backend cpu) against the GPU in f64 and in f32, each
-#    a whole `pidm run` process, on three scenes (smoke: 30 x 30, 400, 8 x 8
-#    of at most 20 periods):
+#    a whole `pidm run` process, on four scenes (smoke: 30 x 30, 400, 8 x 8
+#    of at most 20 periods, 6 x 6):
 #      coupling1000  sweeps/coupling.toml at steps = 1000 (steady, baselines)
 #      random100k    pidm random-scene --seed 7 --count 100000 --cycles 4 --compact
 #      twofreq128    128 x 128 over both drive frequencies, 10.03-12.57 Hz by
 #                    14.11-17.93 Hz at 100 V, steady; the CPU runs the same
 #                    ranges at 32 x 32 and its time x16 is its column, "(x16)"
+#      lugre200      the coupling map at steps = 200 with LuGre friction
+#                    (smoke: 6 x 6), f64 only (LuGre has no f32 shader): its
+#                    phase lines say how its lanes spent their dispatches
+#                    ("LuGre on the GPU": period ends waited for on the host)
 #    table.md: whole-process seconds and speed-ups; integrating.md: each
 #    run's "of which X s integrating"; phases.txt: every GPU run's phase
 #    lines (PIDM_GPU_PHASES=1).
@@ -30,7 +34,7 @@
 # Knobs: PIDM (the binary, default `pidm`), OUT (default /tmp/pidm-gpu-bench),
 # PIDM_BENCH_BUDGET (seconds from the start by which every run has ended,
 # default 270), PIDM_BENCH_TIMEOUT (seconds one run may take, default 90),
-# PIDM_BENCH_SCENES (default all three), PIDM_BENCH_PASSES (seconds kept at
+# PIDM_BENCH_SCENES (default all four), PIDM_BENCH_PASSES (seconds kept at
 # the end for the lockstep passes, default 40), PIDM_CACHE_DIR (the pipeline
 # cache, default a fresh one per call: the warm-up runs compile). No run
 # starts with under 5 s left; such a run shows "skipped", one past its time
@@ -53,7 +57,7 @@ out=${OUT:-/tmp/pidm-gpu-bench}
 budget=${PIDM_BENCH_BUDGET:-270}
 passes_kept=${PIDM_BENCH_PASSES:-40}
 limit=${PIDM_BENCH_TIMEOUT:-90}
-scenes=${PIDM_BENCH_SCENES:-coupling1000 random100k twofreq128}
+scenes=${PIDM_BENCH_SCENES:-coupling1000 random100k twofreq128 lugre200}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 export PIDM_CACHE_DIR=${PIDM_CACHE_DIR:-$work/cache}
@@ -66,10 +70,10 @@ mkdir -p "$logs" "$sc"
 started=$(date +%s.%N)
 
 if [ "$mode" = full ]; then
-    big=1000 count=100000 side=128 sample=32
+    big=1000 count=100000 side=128 sample=32 lugre=200
     alike="32 1024 32768 262144"
 else
-    big=30 count=400 side=8 sample=4
+    big=30 count=400 side=8 sample=4 lugre=6
     alike="32 256 1024"
 fi
 # The smoke mode's two-frequency runs stop at 20 periods (status 6).
@@ -81,10 +85,14 @@ declare -A shown=(
     [coupling1000]="coupling $big x $big"
     [random100k]="random $count"
     [twofreq128]="two-frequency $side x $side"
+    [lugre200]="LuGre coupling $lugre x $lugre"
 )
 root=$(cd "$(dirname "$0")/../.." && pwd)
 sed -e "s/steps = 61/steps = $big/g" -e "s/^name = \"coupling\"/name = \"coupling$big\"/" \
     "$root/sweeps/coupling.toml" > "$sc/coupling1000.toml"
+sed -e "s/steps = 61/steps = $lugre/g" -e "s/^name = \"coupling\"/name = \"lugre$lugre\"/" \
+    -e 's/^\[output\]/[mechanism]\nfriction = "lugre"\n\n[output]/' \
+    "$root/sweeps/coupling.toml" > "$sc/lugre200.toml"
 case " $scenes " in *" random100k "*)
     "$pidm" random-scene --seed 7 --count "$count" --cycles 4 --compact > "$sc/random100k.toml" ;;
 esac
@@ -234,7 +242,11 @@ for scene in $scenes; do
         cpu=$(timed "$scene-cpu" "$toml" --backend cpu --out "$work/$scene-cpu.h5")
     fi
     f64=$(PIDM_GPU_PHASES=1 timed "$scene-f64" "$toml" --backend gpu --precision f64 --out "$work/$scene-f64.h5")
-    f32=$(PIDM_GPU_PHASES=1 timed "$scene-f32" "$toml" --backend gpu --precision f32 --out "$work/$scene-f32.h5")
+    if [ "$scene" = lugre200 ]; then
+        f32="- (f64 only)"
+    else
+        f32=$(PIDM_GPU_PHASES=1 timed "$scene-f32" "$toml" --backend gpu --precision f32 --out "$work/$scene-f32.h5")
+    fi
     n=$(grep -ho '^wrote [^ ]* ([0-9]* instance' "$logs/$scene-f64.log" "$logs/$scene-f32.log" "$logs/$scene-cpu.log" 2> /dev/null |
         head -1 | grep -o '([0-9]*' | tr -d '(')
     case $scene in

@@ -91,10 +91,11 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
     });
     if crate::profile::enabled() {
         eprint!(
-            "{}{}{}",
+            "{}{}{}{}",
             crate::profile::table(),
             crate::laws::iteration_lines(),
-            crate::gpu::warps::table_lines()
+            crate::gpu::warps::table_lines(),
+            crate::gpu::lugre::table_lines()
         );
     }
     // Closing a GPU device costs NVIDIA's driver 0.03-0.05 s, as long as

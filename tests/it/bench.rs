@@ -49,7 +49,14 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
     assert!(run.status.success(), "{stdout}\n{stderr}");
     let read = |name: &str| std::fs::read_to_string(out.path().join(name)).unwrap();
     let runs = read("runs.log");
-    let scenes = ["coupling 30 x 30", "random 400", "two-frequency 8 x 8"];
+    let scenes = [
+        "coupling 30 x 30",
+        "random 400",
+        "two-frequency 8 x 8",
+        "LuGre coupling 6 x 6",
+    ];
+    // LuGre runs in f64 only: its f32 cells say so.
+    let f32_cell = |row: &[&str], k: usize| row[0].starts_with("LuGre") && (k == 4 || k == 6);
 
     // Whole processes: instances, then the CPU, GPU f64 and GPU f32
     // seconds and both speed-ups, every one a number. The two-frequency
@@ -62,7 +69,11 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
         "{table}"
     );
     for row in &whole {
-        for cell in &row[1..7] {
+        for (k, cell) in row.iter().enumerate().take(7).skip(1) {
+            if f32_cell(row, k) {
+                assert!(cell.starts_with('-'), "{cell:?} in {row:?}");
+                continue;
+            }
             assert!(
                 number(cell.trim_end_matches(" (x4)")),
                 "{cell:?} in {row:?}\n{runs}"
@@ -83,7 +94,8 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
         "{table}"
     );
     for row in &inner {
-        assert!(row[1..4].iter().all(|c| number(c)), "{row:?}\n{runs}");
+        let gpu = if row[0].starts_with("LuGre") { 3 } else { 4 };
+        assert!(row[1..gpu].iter().all(|c| number(c)), "{row:?}\n{runs}");
     }
 
     // The lockstep passes: a row per count, each instance on a lane of its
@@ -103,12 +115,13 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
         );
     }
 
-    // Every GPU run's phase table and lanes' figures: 3 scenes x 2
-    // precisions, and the 3 lockstep runs.
+    // Every GPU run's phase table: 3 Karnopp scenes x 2 precisions, the
+    // LuGre map in f64 and the 3 lockstep runs; the Karnopp runs' lanes'
+    // figures.
     let phases = read("phases.txt");
     assert!(phases.contains("pidm: GPU ready in "), "{phases}");
     assert!(
-        phases.matches("pidm: phase table (driver").count() >= 9,
+        phases.matches("pidm: phase table (driver").count() >= 10,
         "{phases}"
     );
     assert!(
@@ -120,6 +133,12 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
     );
     assert!(
         phases.matches("critical path of batch 0").count() >= 9,
+        "{phases}"
+    );
+    // The LuGre run's line (36 instances and 12 baselines): its
+    // dispatches, host period ends and slots.
+    assert!(
+        phases.contains("pidm: phase LuGre on the GPU: 48 instances, "),
         "{phases}"
     );
     assert!(phases.contains("== lockstep: time per pass"), "{phases}");

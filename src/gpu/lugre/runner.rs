@@ -6,6 +6,7 @@ use super::{
     LANE_RUNNING, LANE_STOPPED, Lane, Params, SOFTWARE_ATTEMPTS, SOFTWARE_WORKGROUP_SIZE,
     parse_and_validate, source,
 };
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use wgpu::util::DeviceExt;
@@ -15,6 +16,7 @@ use crate::gpu::{GpuContext, GpuError, Precision};
 use crate::laws::karnopp::integrate::{Run, Settings};
 use crate::laws::lugre::run::Periods;
 use crate::model::Instance;
+use crate::profile::{self, Phase};
 
 /// What a batch cost.
 #[derive(Clone, Copy, Debug, Default)]
@@ -248,17 +250,29 @@ impl<'a> LugreGpu<'a> {
         }
         let params: Vec<Params> = books.iter().map(Params::of).collect();
         let mut lanes: Vec<Lane> = books.iter().map(Lane::start).collect();
-        let mut batch = Batch::new(self, &params, &lanes, self.attempts);
+        let mut batch = profile::time(Phase::Upload, || {
+            Batch::new(self, &params, &lanes, self.attempts)
+        });
         let stopped = |lanes: &[Lane]| lanes.iter().filter(|l| l.flag == LANE_STOPPED).count();
         let mut finished = stopped(&lanes);
-        while lanes.iter().any(|l| l.flag == LANE_RUNNING) {
+        let mut counted = Counted::default();
+        let dispatches_before = report.dispatches;
+        loop {
+            let running = lanes.iter().filter(|l| l.flag == LANE_RUNNING).count();
+            if running == 0 {
+                break;
+            }
             if stop() {
                 return Err(GpuError::Interrupted);
             }
             let t = Instant::now();
-            let after = batch.dispatch(&lanes)?;
+            let after = profile::time(Phase::Dispatch, || batch.dispatch(&lanes))?;
+            let took = t.elapsed();
             report.dispatches += 1;
-            report.gpu_seconds += t.elapsed().as_secs_f64();
+            report.gpu_seconds += took.as_secs_f64();
+            profile::add_lanes(lanes.len() as u64, running as u64, took);
+            profile::add_bytes_read((lanes.len() * size_of::<Lane>()) as u64);
+            counted.slots += running as u64 * self.attempts as u64;
             let moved = lanes
                 .iter()
                 .zip(&after)
@@ -271,12 +285,14 @@ impl<'a> LugreGpu<'a> {
                 });
             }
             lanes = after;
+            let _host = profile::span(Phase::HostPeriods);
             for (lane, book) in lanes.iter_mut().zip(books.iter_mut()) {
                 match lane.flag {
                     LANE_PERIOD_END => {
                         book.run.state.steps = lane.steps;
                         book.period_end(&lane.y);
                         report.periods += 1;
+                        count_periods(1);
                         lane.next_period(book);
                         batch.dirty = true;
                     }
@@ -295,6 +311,66 @@ impl<'a> LugreGpu<'a> {
                 finished = now;
             }
         }
+        counted.instances = books.len() as u64;
+        counted.dispatches = report.dispatches - dispatches_before;
+        counted.attempts = lanes.iter().map(|l| l.steps as u64).sum();
+        counted.record();
         Ok(books.into_iter().map(|b| b.run).collect())
     }
+}
+
+/// A batch's figures for the phase table ([`table_lines`]).
+#[derive(Default)]
+struct Counted {
+    instances: u64,
+    dispatches: u64,
+    /// Step attempts the lanes running at each dispatch's start could
+    /// have made in it, and those they made (a lane's `steps`).
+    slots: u64,
+    attempts: u64,
+}
+
+/// The run's LuGre batches so far: instances, dispatches, attempt slots
+/// and attempts, period ends measured on the host.
+static TOTALS: [AtomicU64; 5] = [const { AtomicU64::new(0) }; 5];
+
+impl Counted {
+    /// Adds the batch to the run's figures (inside the integrator's work
+    /// only, not a self-test's).
+    fn record(&self) {
+        if !profile::integrating() {
+            return;
+        }
+        let figures = [self.instances, self.dispatches, self.slots, self.attempts];
+        for (total, n) in TOTALS.iter().zip(figures) {
+            total.fetch_add(n, Ordering::Relaxed);
+        }
+    }
+}
+
+/// Counts period ends measured on the host.
+fn count_periods(n: u64) {
+    if profile::integrating() {
+        TOTALS[4].fetch_add(n, Ordering::Relaxed);
+    }
+}
+
+/// The phase table's line of the run's LuGre batches: how many dispatches
+/// (each a round trip, every lane read back), how many period ends the
+/// host measured, and what share of the running lanes' attempt slots held
+/// a Rodas4 step attempt (the rest: lanes waiting at a period end for the
+/// host, or done with their runs within the dispatch); empty where no
+/// LuGre batch ran on a GPU.
+pub fn table_lines() -> String {
+    let [instances, dispatches, slots, attempts, periods] =
+        TOTALS.each_ref().map(|t| t.load(Ordering::Relaxed));
+    if instances == 0 {
+        return String::new();
+    }
+    format!(
+        "pidm: phase LuGre on the GPU: {instances} instances, {dispatches} dispatches \
+         (each a round trip, every lane read back), {periods} period ends measured on the \
+         host; {attempts} Rodas4 step attempts filled {:.1} % of the running lanes' slots\n",
+        100.0 * attempts as f64 / slots.max(1) as f64
+    )
 }
