@@ -177,17 +177,21 @@ impl GpuBackend {
         if self.precision != Precision::F64 {
             bail!("--precision f32: {LUGRE_F64_ONLY}");
         }
-        let gpu = LugreGpu::new(&self.ctx)?;
-        let (runs, _) = gpu.run_until(
+        let mut gpu = LugreGpu::new(&self.ctx)?;
+        gpu.cpu_tail = self.options.cpu_tail;
+        let (runs, report) = gpu.run_until(
             instances,
             settings,
             crate::interrupt::interrupt_requested,
             done,
         )?;
+        let mut on_cpu = vec![false; runs.len()];
+        report.on_cpu.iter().for_each(|&k| on_cpu[k] = true);
         Ok(instances
             .iter()
             .zip(runs)
-            .map(|(inst, run)| Outcome::of(&reduce(inst, &run), run.state.steps, false))
+            .zip(on_cpu)
+            .map(|((inst, run), cpu)| Outcome::of(&reduce(inst, &run), run.state.steps, cpu))
             .collect())
     }
 }

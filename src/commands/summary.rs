@@ -142,7 +142,8 @@ fn print_precision(s: &Summary) {
     if s.on_cpu > 0 {
         println!(
             "  {} of the integrations ran on the CPU in f64 (the slow tail of a GPU batch, \
-             continued from the GPU's state in f64 and started over in f32; instances that \
+             continued from the GPU's state in f64 (under LuGre from the start of its period) \
+             and started over in f32; instances that \
              failed or met a band graze in f32, or that f32's check of its heaviest runs sent \
              there; or iterations the driver's loop limiter cut)",
             s.on_cpu

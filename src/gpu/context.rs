@@ -457,8 +457,11 @@ impl GpuContext {
             &instances,
             &settings,
             precision,
+            // No CPU tail, whatever PIDM_GPU_TAIL asks of the run's
+            // batches: the shader must finish every instance itself.
             &BatchOptions {
                 check: F32Check::Off,
+                cpu_tail: Some(0),
                 ..BatchOptions::default()
             },
             &mut |_, _| {},

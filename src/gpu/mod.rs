@@ -72,7 +72,7 @@ pub use adapters::{
     AdapterSummary, PrecisionCheck, check_adapters, list_adapters, private_runtime_dir,
 };
 pub use context::{GpuContext, Preparation, create_pipeline};
-pub use options::{BatchOptions, CPU_TAIL_MIN_BATCH, CPU_TAIL_PER_THREAD, F32Check};
+pub use options::{BatchOptions, CPU_TAIL_MIN_BATCH, CPU_TAIL_PER_THREAD, F32Check, tail_size};
 pub use runner::{
     dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, f64_tallies_after,
     run_batch, run_batch_packed, run_batch_with, workgroups,

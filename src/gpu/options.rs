@@ -114,13 +114,17 @@ impl BatchOptions {
     /// the batch or [`CPU_TAIL_PER_THREAD`] per thread, whichever is more,
     /// but never more than a quarter of the batch.
     pub fn tail_size(&self, _precision: Precision, n: usize, threads: usize) -> usize {
-        match self.cpu_tail {
-            Some(k) => k,
-            None if n >= CPU_TAIL_MIN_BATCH => {
-                (n / 100).max(CPU_TAIL_PER_THREAD * threads).min(n / 4)
-            }
-            None => 0,
-        }
+        tail_size(self.cpu_tail, n, threads)
+    }
+}
+
+/// [`BatchOptions::tail_size`] for a batch of either law: `forced` where
+/// given ([`BatchOptions::cpu_tail`]), else the default rule.
+pub fn tail_size(forced: Option<usize>, n: usize, threads: usize) -> usize {
+    match forced {
+        Some(k) => k,
+        None if n >= CPU_TAIL_MIN_BATCH => (n / 100).max(CPU_TAIL_PER_THREAD * threads).min(n / 4),
+        None => 0,
     }
 }
 

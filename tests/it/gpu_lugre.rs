@@ -21,7 +21,7 @@
 
 use std::time::Instant;
 
-use pidm::gpu::lugre::{LugreGpu, exp_nonpositive, fourth_root, hypot};
+use pidm::gpu::lugre::{BatchReport, LugreGpu, exp_nonpositive, fourth_root, hypot};
 use pidm::laws::karnopp::integrate::Settings;
 use pidm::laws::lugre::run_instance_until;
 use pidm::measurement::{Measured, reduce};
@@ -92,8 +92,14 @@ fn um(inst: &Instance, m: &Measured) -> [f64; AXES] {
 
 /// Runs `instances` at `tolerance` on the CPU and on the GPU and compares
 /// the records: the same status, periods and lag, steps within `bound`
-/// [um per own cycle]. Returns the largest difference.
-fn compare(gpu: &LugreGpu, label: &str, instances: &[Instance], tolerance: f64, bound: f64) -> f64 {
+/// [um per own cycle]. Returns the GPU batch's report.
+fn compare(
+    gpu: &LugreGpu,
+    label: &str,
+    instances: &[Instance],
+    tolerance: f64,
+    bound: f64,
+) -> BatchReport {
     let settings = Settings {
         tolerance,
         ..Settings::default()
@@ -137,7 +143,7 @@ fn compare(gpu: &LugreGpu, label: &str, instances: &[Instance], tolerance: f64, 
         gpu.attempts,
         report.periods,
     );
-    worst
+    report
 }
 
 /// The shader's exp, hypot and fourth root against their CPU mirrors: to
@@ -275,6 +281,44 @@ fn lugre_on_the_gpu_is_the_cpu_s() {
         1e-4,
         bound(2e-5),
     );
+}
+
+/// A batch's slow tail on the CPU: with a tail of 3, the runs still going
+/// once no more than 3 are left are continued on the CPU from the starts
+/// of their current periods, which the host keeps, and the records are
+/// the CPU's: bit for bit on lavapipe, within the hardware bound
+/// elsewhere. Windows of 2 to 8 periods, so the runs end one by one.
+#[test]
+fn the_cpu_tail_continues_runs_from_their_period_starts() {
+    let Some((mut gpu, software)) = lugre_gpu() else {
+        return;
+    };
+    let mut instances = seven_cases();
+    for (k, inst) in instances.iter_mut().enumerate() {
+        inst.cycles = 2 + k as u32;
+        inst.settle = 1;
+    }
+    gpu.cpu_tail = Some(3);
+    let bound = if software { 0.0 } else { 2e-5 };
+    let report = compare(&gpu, "a tail of 3", &instances, 1e-4, bound);
+    let mut tail = report.on_cpu.clone();
+    tail.sort_unstable();
+    tail.dedup();
+    assert_eq!(tail.len(), report.on_cpu.len(), "{:?}", report.on_cpu);
+    assert!((1..=3).contains(&tail.len()), "{tail:?}");
+    assert!(tail.iter().all(|&k| k < instances.len()), "{tail:?}");
+    // Every instance told once, the tail's too.
+    let told = std::sync::atomic::AtomicU64::new(0);
+    let settings = Settings::default();
+    gpu.run_until(&instances, &settings, || false, &|n| {
+        told.fetch_add(n, std::sync::atomic::Ordering::Relaxed);
+    })
+    .expect("the GPU batch");
+    assert_eq!(told.into_inner(), instances.len() as u64);
+    // No tail: the device runs every instance to its end.
+    gpu.cpu_tail = Some(0);
+    let report = compare(&gpu, "no tail", &instances, 1e-4, bound);
+    assert!(report.on_cpu.is_empty(), "{:?}", report.on_cpu);
 }
 
 /// The LuGre pipeline and whether the adapter is a software one (whose

@@ -237,7 +237,8 @@ fn lugre_scenes_read_and_refuse() {
 
 /// f32 refuses a LuGre scene with the reason (LuGre runs in f64 only);
 /// the CPU and the f64 shader write files that say which friction ran,
-/// the shader's (on lavapipe) with the CPU's steps bit for bit.
+/// the shader's (on lavapipe) with the CPU's steps bit for bit, with or
+/// without a CPU tail.
 #[test]
 fn backends_say_what_runs_lugre() {
     let dir = tempfile::tempdir().unwrap();
@@ -332,11 +333,35 @@ fn backends_say_what_runs_lugre() {
     let (friction, _, backend, gpu_steps) = read(&out("gpu.h5"));
     assert_eq!(friction, "lugre");
     assert!(backend.starts_with("gpu"), "{backend}");
+    let bound = if software { 0.0 } else { 2e-11 };
     for (g, c) in gpu_steps.iter().zip(&cpu_steps) {
-        let bound = if software { 0.0 } else { 2e-11 };
         assert!(
             (g - c).abs() <= bound,
             "GPU {gpu_steps:?} against CPU {cpu_steps:?} m"
+        );
+    }
+    // A CPU tail of 2: after the first dispatch both runs go to the CPU,
+    // from the starts of their periods, and the summary says so.
+    let tail = std::process::Command::new(env!("CARGO_BIN_EXE_pidm"))
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .env("PIDM_GPU_TAIL", "2")
+        .args(["run", s(&scene), "--out", s(&out("tail.h5"))])
+        .args(["--backend", "gpu"])
+        .current_dir(dir.path())
+        .output()
+        .expect("pidm runs");
+    let said = String::from_utf8_lossy(&tail.stdout);
+    let stderr = String::from_utf8_lossy(&tail.stderr);
+    assert!(tail.status.success(), "{stderr}");
+    assert!(
+        said.contains("2 of the integrations ran on the CPU"),
+        "{said}\n{stderr}"
+    );
+    let (_, _, _, tail_steps) = read(&out("tail.h5"));
+    for (t, c) in tail_steps.iter().zip(&cpu_steps) {
+        assert!(
+            (t - c).abs() <= bound,
+            "tail {tail_steps:?} against CPU {cpu_steps:?} m"
         );
     }
 }

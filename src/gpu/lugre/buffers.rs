@@ -5,7 +5,7 @@
 use super::{LANE_RUNNING, LANE_STOPPED};
 use bytemuck::{Pod, Zeroable};
 
-use crate::laws::lugre::run::{Linear, N, Periods, State, T, first_step};
+use crate::laws::lugre::run::{Linear, N, PeriodStart, Periods, State, T, first_step};
 use crate::model::AXES;
 
 /// One instance's parameters (`model.wgsl`'s `Model`): the model, the
@@ -104,6 +104,16 @@ impl Lane {
         };
         lane.next_period(book);
         lane
+    }
+
+    /// Where the lane's current period starts, once [`Lane::next_period`]
+    /// set it going.
+    pub(super) fn period_start(&self) -> PeriodStart {
+        PeriodStart {
+            y: self.y,
+            h: self.h,
+            budget: self.budget,
+        }
     }
 
     /// Sets the lane going at the start of its run's current period, or

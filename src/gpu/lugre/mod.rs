@@ -17,6 +17,11 @@
 //!   the recurrence test that compares z), then starts the next period.
 //!   The result is an `integrate::Run` per instance, which
 //!   `measurement::reduce` turns into the record the CPU gives.
+//! * The batch's slow tail goes to the CPU by the Karnopp batches' rule
+//!   ([`crate::gpu::tail_size`], [`LugreGpu::cpu_tail`]): once no more
+//!   runs than that are going, the CPU continues each from the start of
+//!   its current period (`laws::lugre::run::continue_until`), whose state,
+//!   step and budget the host keeps per lane (`PeriodStart`).
 //! * llvmpipe (lavapipe) ends every loop of an invocation once all its
 //!   loops together have run 65,535 passes, silently, counting the passes
 //!   of a SIMD group's lanes together. The entry's loop makes at most one

@@ -1,5 +1,6 @@
 //! A batch of LuGre instances on the device, dispatch by dispatch, with
-//! the CPU run's period-end bookkeeping between dispatches.
+//! the CPU run's period-end bookkeeping between dispatches, and the
+//! batch's slow tail on the CPU.
 
 use super::{
     Arithmetic, ENTRY_POINT, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_PERIOD_END,
@@ -9,18 +10,22 @@ use super::{
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
+use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::gpu::{GpuContext, GpuError, Precision};
 use crate::laws::karnopp::integrate::{Run, Settings};
-use crate::laws::lugre::run::Periods;
+use crate::laws::lugre::run::{PeriodStart, Periods, continue_until};
 use crate::model::Instance;
 use crate::profile::{self, Phase};
 
 /// What a batch cost.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct BatchReport {
+    /// The instances (indices into the call's) the CPU finished: the
+    /// slow tail of their batch ([`LugreGpu::cpu_tail`]).
+    pub on_cpu: Vec<usize>,
     /// Dispatches (each followed by a readback).
     pub dispatches: u64,
     /// Scene periods measured on the host.
@@ -39,6 +44,14 @@ pub struct LugreGpu<'a> {
     pub(super) arithmetic: Arithmetic,
     /// Step attempts per lane and dispatch.
     pub attempts: u32,
+    /// The running instances a batch hands over to the CPU once no more
+    /// are left (`crate::gpu::tail_size`, the Karnopp batches' rule: by
+    /// default 1 % of a batch of at least 1,000, or 16 per thread,
+    /// whichever is more, at most a quarter; `Some(0)`: none). The CPU
+    /// continues each from the start of its current scene period, which
+    /// the host keeps, so on llvmpipe, whose arithmetic the CPU's mirrors,
+    /// the results are the same bits.
+    pub cpu_tail: Option<usize>,
 }
 
 /// Compiles one entry point of the shader on `device` (runtime checks off:
@@ -190,6 +203,7 @@ impl<'a> LugreGpu<'a> {
             workgroup_size,
             arithmetic,
             attempts,
+            cpu_tail: crate::gpu::cpu_tail().0,
         })
     }
 
@@ -206,21 +220,24 @@ impl<'a> LugreGpu<'a> {
         self.run_until(instances, settings, || false, &|_| {})
     }
 
-    /// [`LugreGpu::run`], asking `stop` between dispatches
-    /// ([`GpuError::Interrupted`] when it says yes) and telling `done` how
-    /// many instances each dispatch finished (for a progress bar).
+    /// [`LugreGpu::run`], asking `stop` between dispatches and between
+    /// the CPU tail's periods ([`GpuError::Interrupted`] when it says yes)
+    /// and telling `done` how many instances finished (for a progress
+    /// bar).
     pub fn run_until(
         &self,
         instances: &[Instance],
         settings: &Settings,
-        stop: impl Fn() -> bool,
+        stop: impl Fn() -> bool + Sync,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<(Vec<Run>, BatchReport), GpuError> {
         let started = Instant::now();
         let mut report = BatchReport::default();
         let mut runs = Vec::with_capacity(instances.len());
         for chunk in instances.chunks(self.max_batch()) {
+            let (offset, tail) = (runs.len(), report.on_cpu.len());
             runs.extend(self.run_batch(chunk, settings, (&stop, done), &mut report)?);
+            report.on_cpu[tail..].iter_mut().for_each(|k| *k += offset);
         }
         report.seconds = started.elapsed().as_secs_f64();
         Ok((runs, report))
@@ -238,7 +255,7 @@ impl<'a> LugreGpu<'a> {
         &self,
         instances: &[Instance],
         settings: &Settings,
-        (stop, done): (&impl Fn() -> bool, &(dyn Fn(u64) + Sync)),
+        (stop, done): (&(impl Fn() -> bool + Sync), &(dyn Fn(u64) + Sync)),
         report: &mut BatchReport,
     ) -> Result<Vec<Run>, GpuError> {
         let mut books: Vec<Periods> = instances
@@ -250,6 +267,10 @@ impl<'a> LugreGpu<'a> {
         }
         let params: Vec<Params> = books.iter().map(Params::of).collect();
         let mut lanes: Vec<Lane> = books.iter().map(Lane::start).collect();
+        // Where each lane's current period started: the CPU tail takes
+        // its run over there.
+        let mut starts: Vec<PeriodStart> = books.iter().map(PeriodStart::first).collect();
+        let tail = crate::gpu::tail_size(self.cpu_tail, books.len(), rayon::current_num_threads());
         let mut batch = profile::time(Phase::Upload, || {
             Batch::new(self, &params, &lanes, self.attempts)
         });
@@ -286,7 +307,8 @@ impl<'a> LugreGpu<'a> {
             }
             lanes = after;
             let _host = profile::span(Phase::HostPeriods);
-            for (lane, book) in lanes.iter_mut().zip(books.iter_mut()) {
+            let going = lanes.iter_mut().zip(books.iter_mut()).zip(&mut starts);
+            for ((lane, book), start) in going {
                 match lane.flag {
                     LANE_PERIOD_END => {
                         book.run.state.steps = lane.steps;
@@ -294,6 +316,7 @@ impl<'a> LugreGpu<'a> {
                         report.periods += 1;
                         count_periods(1);
                         lane.next_period(book);
+                        *start = lane.period_start();
                         batch.dirty = true;
                     }
                     LANE_STOPPED if lane.status != book.run.state.status => {
@@ -305,10 +328,20 @@ impl<'a> LugreGpu<'a> {
                     _ => {}
                 }
             }
+            drop(_host);
             let now = stopped(&lanes);
             if now > finished {
                 done((now - finished) as u64);
                 finished = now;
+            }
+            // Every running lane started its run (there is no queue): once
+            // no more than the tail's size are left, the CPU takes them.
+            let running = lanes.len() - now;
+            if running > 0 && running <= tail {
+                report
+                    .on_cpu
+                    .extend(cpu_tail(&mut books, &lanes, &starts, (stop, done))?);
+                break;
             }
         }
         counted.instances = books.len() as u64;
@@ -316,6 +349,38 @@ impl<'a> LugreGpu<'a> {
         counted.attempts = lanes.iter().map(|l| l.steps as u64).sum();
         counted.record();
         Ok(books.into_iter().map(|b| b.run).collect())
+    }
+}
+
+/// A batch's slow tail on the CPU: every run its lane still has going,
+/// continued from the start of its current period (`starts`), in
+/// parallel. Returns their indices in the batch.
+fn cpu_tail(
+    books: &mut [Periods],
+    lanes: &[Lane],
+    starts: &[PeriodStart],
+    (stop, done): (&(impl Fn() -> bool + Sync), &(dyn Fn(u64) + Sync)),
+) -> Result<Vec<usize>, GpuError> {
+    let _cpu = profile::span(Phase::CpuPart);
+    let going: Vec<usize> = (0..lanes.len())
+        .filter(|&k| lanes[k].flag == LANE_RUNNING)
+        .collect();
+    let ended = books
+        .par_iter_mut()
+        .zip(starts)
+        .zip(lanes)
+        .filter(|(_, lane)| lane.flag == LANE_RUNNING)
+        .map(|((book, start), _)| {
+            let ended = continue_until(book, *start, stop);
+            if ended {
+                done(1);
+            }
+            ended
+        })
+        .collect::<Vec<bool>>();
+    match ended.iter().all(|&e| e) {
+        true => Ok(going),
+        false => Err(GpuError::Interrupted),
     }
 }
 

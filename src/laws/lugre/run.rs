@@ -76,22 +76,61 @@ pub fn run_instance_until(
     stop: impl Fn() -> bool,
 ) -> Option<Run> {
     let mut book = Periods::new(inst, settings);
+    let start = PeriodStart::first(&book);
+    continue_until(&mut book, start, stop).then_some(book.run)
+}
+
+/// Where a scene period of a LuGre run starts: the integrator's state
+/// (its time 0 within the period), its next trial step and the steps the
+/// run may still take. The GPU's host keeps one per lane, so that the CPU
+/// can take a run over at its current period's start (the batch's CPU
+/// tail, `crate::gpu::lugre`).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PeriodStart {
+    pub(crate) y: State,
+    pub(crate) h: f64,
+    pub(crate) budget: u32,
+}
+
+impl PeriodStart {
+    /// The start of a run: at rest, z = 0, with [`first_step`].
+    pub(crate) fn first(book: &Periods) -> PeriodStart {
+        PeriodStart {
+            y: [0.0; N],
+            h: first_step(&book.inst),
+            budget: book.budget,
+        }
+    }
+}
+
+/// Integrates `book`'s run from `start`, the start of its current period,
+/// to the end of its measurement (true), or until `stop` returns true
+/// (asked once per scene period; false). A failed segment ends the run
+/// with its status.
+pub(crate) fn continue_until(
+    book: &mut Periods,
+    start: PeriodStart,
+    stop: impl Fn() -> bool,
+) -> bool {
+    let inst = book.inst;
     let period = inst.period();
-    let mut y = [0.0; N];
-    let mut h = first_step(inst);
-    let mut budget = book.budget;
+    let PeriodStart {
+        mut y,
+        mut h,
+        mut budget,
+    } = start;
     while !book.is_finished() {
         if stop() {
-            return None;
+            return false;
         }
         let clock = book.clock();
         y[T] = 0.0;
         while y[T] < period {
             let end = (0..AXES)
-                .map(|i| clock.next_corner(inst, i, y[T]))
+                .map(|i| clock.next_corner(&inst, i, y[T]))
                 .fold(period, f64::min);
             let mid = 0.5 * (y[T] + end);
-            let drive = [0, 1].map(|i| clock.drive_on(inst, i, mid));
+            let drive = [0, 1].map(|i| clock.drive_on(&inst, i, mid));
             match segment(
                 &book.model,
                 &drive,
@@ -103,14 +142,14 @@ pub fn run_instance_until(
                 Ok(steps) => book.add_steps(steps),
                 Err(status) => {
                     book.run.state.status = status;
-                    return Some(book.run);
+                    return true;
                 }
             }
         }
         book.period_end(&y);
     }
     debug_assert_eq!(book.run.state.status, STATUS_OK);
-    Some(book.run)
+    true
 }
 
 /// A LuGre run's bookkeeping outside the integrator, period by period: the
