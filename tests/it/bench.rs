@@ -50,10 +50,10 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
     let read = |name: &str| std::fs::read_to_string(out.path().join(name)).unwrap();
     let runs = read("runs.log");
     let scenes = [
+        "LuGre coupling 6 x 6",
         "coupling 30 x 30",
         "random 400",
         "two-frequency 8 x 8",
-        "LuGre coupling 6 x 6",
     ];
     // LuGre runs in f64 only: its f32 cells say so.
     let f32_cell = |row: &[&str], k: usize| row[0].starts_with("LuGre") && (k == 4 || k == 6);
