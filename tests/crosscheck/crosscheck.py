@@ -91,6 +91,7 @@ Environment: PIDM_BIN = path of the pidm binary (else `cargo run --release`).
 from __future__ import annotations
 
 import argparse
+import itertools
 import math
 import os
 import subprocess
@@ -405,8 +406,8 @@ class Reference:
             if not self.inst.driven(i):
                 continue
             f, p, d = self.inst.frequency[i], self.inst.phase[i], self.inst.duty[i]
-            n_max = int(math.ceil(f * t_end + p)) + 1
-            for n in range(0, n_max + 1):
+            n_max = math.ceil(f * t_end + p) + 1
+            for n in range(n_max + 1):
                 for corner in (n, n + d) if d < 1.0 else (n,):
                     t = (corner - p) / f
                     if 0.0 < t < t_end:
@@ -592,7 +593,7 @@ class Reference:
             dg.terminal = False
             dg.direction = 1.0  # the slope rises through 0: a minimum of g
             events += [g, dg]
-        kw = dict(method="DOP853", rtol=RTOL, atol=ATOL, max_step=self.max_step[mode])
+        kw = {"method": "DOP853", "rtol": RTOL, "atol": ATOL, "max_step": self.max_step[mode]}
         sol = solve_ivp(rhs, (t0, t1), y0, events=events, **kw)
         if sol.status < 0:
             raise RuntimeError(f"solve_ivp failed: {sol.message}")
@@ -649,7 +650,7 @@ class Reference:
         mode, held = STICK, None
         fresh = False  # the mode began at an event, at this piece's start
         settle_xs = None
-        for t0, t1 in zip(pts[:-1], pts[1:]):
+        for t0, t1 in itertools.pairwise(pts):
             if t0 == settle * T:
                 settle_xs = y[4:6].copy()
             force = self.segment_force(t0, t1)
