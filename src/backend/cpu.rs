@@ -163,7 +163,7 @@ fn run_split(inst: &Instance, settings: &Settings, split: Replica) -> Outcome {
 
 /// Integrates one instance on the CPU in f64 (the reference).
 ///
-/// A stop request ([`request_interrupt`]) ends the integration within about
+/// A stop request (`request_interrupt`) ends the integration within about
 /// a millisecond; the outcome is then a default one that the sweep discards
 /// with the rest of its chunk.
 pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {

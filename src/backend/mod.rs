@@ -3,7 +3,7 @@
 //! reference; the GPU path ([`GpuBackend`]) runs the WGSL shader through
 //! wgpu in f32 or f64. [`select`] turns the command line's choice into one,
 //! `auto` by [`cost`]'s estimates and the GPU costs [`cost_book`] keeps;
-//! [`check`] is the rule by which both f32 paths check their heaviest runs.
+//! `check` is the rule by which both f32 paths check their heaviest runs.
 
 use anyhow::Result;
 

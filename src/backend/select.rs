@@ -357,8 +357,8 @@ const MAX_THREADS_PER_CORE: usize = 4;
 /// a 16-core machine would (tests and timings do), and quick to start.
 const MIN_THREAD_LIMIT: usize = 64;
 
-/// A `--threads` value: from 1 to [`MAX_THREADS_PER_CORE`] per core, or
-/// [`MIN_THREAD_LIMIT`] where that is more.
+/// A `--threads` value: from 1 to `MAX_THREADS_PER_CORE` per core, or
+/// `MIN_THREAD_LIMIT` where that is more.
 pub fn thread_count(text: &str) -> Result<usize, String> {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let limit = (MAX_THREADS_PER_CORE * cores).max(MIN_THREAD_LIMIT);

@@ -129,7 +129,7 @@ fn first_dispatch<L: Layout>(
     Ok(out)
 }
 
-/// [`states_after`] in f32: the states of the f32 shader as its CPU mirror
+/// `states_after` in f32: the states of the f32 shader as its CPU mirror
 /// (`pidm::laws::karnopp::single`) holds them.
 pub fn f32_states_after(
     ctx: &GpuContext,
@@ -140,7 +140,7 @@ pub fn f32_states_after(
     states_after::<Single>(ctx, instances, settings, iterations)
 }
 
-/// [`states_after`] in f64: the states of the f64 shader as the CPU
+/// `states_after` in f64: the states of the f64 shader as the CPU
 /// reference holds them.
 pub fn f64_states_after(
     ctx: &GpuContext,

@@ -209,7 +209,7 @@ pub const SPREAD_FLOOR: f64 = 2.2;
 
 /// How `inst` is split into `count` replicas (>= 2), and the spread of
 /// that virtual run (`Replica::turns`): among the virtual runs even enough
-/// ([`spread_limit`]), the one whose ladder may stop soonest (its first
+/// (`spread_limit`), the one whose ladder may stop soonest (its first
 /// level that may stop a run: a level's quarters must resolve enough
 /// phases, which a virtual step may deny the first levels; measured on
 /// the 36 instances of `examples/replicas_validate.rs`, the first level

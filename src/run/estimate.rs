@@ -63,7 +63,7 @@ pub fn trajectories_s(scene: &Scene, probe: &Probe) -> f64 {
 /// integration.
 const COUNTED: u64 = 1 << 16;
 
-/// The integrations a run computes (exact up to [`COUNTED`] instances,
+/// The integrations a run computes (exact up to `COUNTED` instances,
 /// else the instances and the distinct baselines of a sample), and the
 /// candidates the probe picks from (every distinct integration, or those
 /// of the sample).

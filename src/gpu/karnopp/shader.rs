@@ -14,7 +14,7 @@ use crate::model::Instance;
 
 /// The shader files, in the order they are concatenated (WGSL declarations
 /// may come in any order; this one reads top-down), with their text and
-/// the part of the shader each belongs to ([`File::part`]).
+/// the part of the shader each belongs to (`File::part`).
 pub const FILES: [(&str, &str); 11] = [
     (
         "arith.wgsl",

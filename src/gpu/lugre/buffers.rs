@@ -88,7 +88,7 @@ pub struct Lane {
     pub in_segment: u32,
     /// `STATUS_OK`, or why the run failed.
     pub status: u32,
-    /// [`LANE_RUNNING`], [`LANE_PERIOD_END`] or [`LANE_STOPPED`].
+    /// `LANE_RUNNING`, `LANE_PERIOD_END` or `LANE_STOPPED`.
     pub flag: u32,
     pub _pad: u32,
 }
@@ -160,7 +160,7 @@ pub(super) fn drive_of(drive: &[f64; 2 * AXES]) -> [Linear; AXES] {
     })
 }
 
-/// What [`LugreGpu::mirror_check`] found: counts of results that differ
+/// What `LugreGpu::mirror_check` found: counts of results that differ
 /// from the CPU's in any bit, and the largest relative difference of a
 /// component where they differ.
 #[derive(Clone, Copy, Debug, Default)]

@@ -193,8 +193,8 @@ impl LugreGpu<'_> {
 
     /// The shader's `exp_nonpositive(x)`, `hypot(x, y)` and
     /// `fourth_root(|y|)` of each (x, y) of `args`, computed on the device
-    /// (the tests compare them with [`exp_nonpositive`], [`hypot`] and
-    /// [`fourth_root`]).
+    /// (the tests compare them with `exp_nonpositive`, `hypot` and
+    /// `fourth_root`).
     pub fn functions_on_gpu(&self, args: &[(f64, f64)]) -> Result<Vec<[f64; 3]>, GpuError> {
         if args.is_empty() {
             return Ok(Vec::new());

@@ -2,13 +2,13 @@
 //! "lugre"`) on the CPU in f64: the reference for LuGre scenes, which the
 //! f64 shader of `crate::gpu::lugre` mirrors function for function.
 //!
-//! **The model** ([`model`]). The interface state z = (z_x, z_y) [m] is the
+//! **The model** (`model`). The interface state z = (z_x, z_y) [m] is the
 //! bristles' mean deflection; the right-hand side is continuous (no modes)
 //! but stiff: the bristles relax at sigma0 s / g(s) (3e5 /s at the
 //! defaults, 3e7 /s at sigma0 = 1e9) and sigma1 damps v_rel at
 //! sigma1 (1/m_p + 1/m_s).
 //!
-//! **The integrator** ([`rodas`]). Rodas4 (Hairer and Wanner) is linearly
+//! **The integrator** (`rodas`). Rodas4 (Hairer and Wanner) is linearly
 //! implicit, L-stable and stiffly accurate, of order 4 with an embedded
 //! order-3 solution that controls the steps; it takes the exact Jacobian.
 //! An explicit method's step would be bounded by the stiff rates, not by

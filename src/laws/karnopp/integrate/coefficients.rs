@@ -1,5 +1,5 @@
 //! Everything the integrator derives from an instance and the settings,
-//! computed once per instance in Real ([`Coefficients::new`], which exists
+//! computed once per instance in Real (`Coefficients::new`, which exists
 //! in Real only) and rounded once to the precision in its units
 //! ([`Coefficients::of`]). The Real integrator reads them in SI units; the
 //! GPU packs the same numbers (`pidm::gpu::layout`), so the shader divides
@@ -183,7 +183,7 @@ impl Coefficients {
     /// in f64 from the instance in those units and rounded once, exactly
     /// as the GPU packs them (`pidm::gpu::layout`), the corner clock's
     /// values split into a rounded part and the rounded rest. In f64 they
-    /// are those of [`Coefficients::new`] in SI units.
+    /// are those of `Coefficients::new` in SI units.
     pub fn of(inst: &Instance, settings: &Settings) -> Coefficients {
         Coefficients::of_replica(inst, settings, Replica::NONE)
     }

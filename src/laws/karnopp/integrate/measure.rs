@@ -11,7 +11,7 @@
 //!
 //! * *periodic*: the state (stage positions and velocities, slider
 //!   velocity, mode; not the slider position, which translates) repeats
-//!   after L common periods within [`repeat_tolerances`]: the travel over
+//!   after L common periods within `repeat_tolerances`: the travel over
 //!   those L common periods is the steady step exactly;
 //! * *phase-resolved*: with two drive frequencies, a window of the phase
 //!   ladder (`super::phase`: trapezoid sums over the faster drive's phase)
@@ -62,14 +62,14 @@ pub const BATCHES: usize = 32;
 /// at most half of them, at least 8 remain for batch means.
 pub const MIN_BATCHES: u32 = 16;
 /// The longest common period looked for [scene periods]: from the
-/// frequencies as decimals ([`decimal_common_period`]), so that a map's
+/// frequencies as decimals (`decimal_common_period`), so that a map's
 /// two-decimal frequencies (21.34 and 23.66 Hz: 1067 periods) repeat
 /// exactly.
 pub const MAX_COMMON_PERIOD: u32 = 100_000;
 /// The longest common period the search over the frequency ratio looks for
-/// ([`short_common_period`]), which also sets the batch length.
+/// (`short_common_period`), which also sets the batch length.
 pub const SHORT_COMMON_PERIOD: u32 = 1000;
-/// Decimal places a frequency is read with ([`decimal_common_period`]).
+/// Decimal places a frequency is read with (`decimal_common_period`).
 pub const DECIMALS: u32 = 6;
 /// How close f 10^k must be to an integer, relative, for the frequency to
 /// count as k decimals: 64 roundings of f64 (grid values computed as
@@ -301,7 +301,7 @@ fn recurrence(c: &Coefficients, st: &State, m: &mut Measure) {
     m.snapshots += 1;
 }
 
-/// Whether state `a` repeats state `b` within [`repeat_tolerances`]: the
+/// Whether state `a` repeats state `b` within `repeat_tolerances`: the
 /// same mode, and stage positions, stage velocities and slider velocities
 /// each within their tolerance (the slider position translates and is not
 /// compared). The recurrence test's rule, and the one a cycle split's

@@ -213,7 +213,7 @@ pub fn run_instance(inst: &Instance, settings: &Settings) -> Run {
 const ITERATIONS_BETWEEN_STOP_CHECKS: u32 = 1 << 14;
 
 /// Integrates one instance to the end, or until `stop` returns true (it is
-/// asked every [`ITERATIONS_BETWEEN_STOP_CHECKS`] iterations), in which
+/// asked every `ITERATIONS_BETWEEN_STOP_CHECKS` iterations), in which
 /// case there is no result. Integrating in slices gives the same state bit
 /// for bit as integrating in one go: `advance` resumes where it stopped.
 pub fn run_instance_until(
