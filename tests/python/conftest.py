@@ -10,8 +10,11 @@ from __future__ import annotations
 
 import importlib
 import os
+import select
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -67,6 +70,25 @@ def child_env(**extra: str) -> dict[str, str]:
     if os.environ.get("PYTHONPATH"):
         paths.append(os.environ["PYTHONPATH"])
     return dict(os.environ, PYTHONPATH=os.pathsep.join(paths), **extra)
+
+
+def interrupt_when_running(child: subprocess.Popen, pause: float = 0.0) -> tuple[str, str, float]:
+    """Sends Ctrl-C (SIGINT) to `child` `pause` seconds after it prints "running",
+    and returns its stdout, its stderr and the seconds it took to end after the
+    signal. A child still there afterwards is killed."""
+    try:
+        ready, _, _ = select.select([child.stdout], [], [], 60.0)
+        assert ready, "no progress within 60 s"
+        assert child.stdout.readline().strip() == "running"
+        time.sleep(pause)
+        asked = time.monotonic()
+        child.send_signal(signal.SIGINT)
+        stdout, stderr = child.communicate(timeout=30)
+        return stdout, stderr, time.monotonic() - asked
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
 
 
 @pytest.fixture(scope="session")

@@ -7,8 +7,6 @@ for the rest; synthetic steps with 2 % noise."""
 from __future__ import annotations
 
 import json
-import select
-import signal
 import subprocess
 import sys
 import time
@@ -18,7 +16,7 @@ import numpy as np
 import pandas as pd
 import pidm
 import pytest
-from conftest import ROOT, child_env, require
+from conftest import ROOT, child_env, interrupt_when_running, require
 
 SCENE = ROOT / "examples" / "fit" / "karnopp.toml"
 STEPS = ROOT / "examples" / "fit" / "karnopp_steps.csv"
@@ -195,16 +193,7 @@ def test_ctrl_c_stops_the_fit_and_keeps_the_best_point(tmp_path: Path) -> None:
         env=child_env(),
         text=True,
     )
-    try:
-        ready, _, _ = select.select([child.stdout], [], [], 60.0)
-        assert ready, "no progress within 60 s"
-        assert child.stdout.readline().strip() == "running"
-        child.send_signal(signal.SIGINT)
-        stdout, stderr = child.communicate(timeout=30)
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
+    stdout, stderr, _ = interrupt_when_running(child)
     assert "KeyboardInterrupt" in stdout, stdout + stderr
     assert child.returncode == 0, stdout + stderr
     if out.exists():

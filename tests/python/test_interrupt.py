@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import select
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
-from conftest import child_env
+from conftest import child_env, interrupt_when_running
 
 # Runs one instance of ten million cycles (minutes of work) and says when the
 # run has started. Python ignores SIGINT in a process started with it ignored
@@ -62,20 +59,8 @@ def test_ctrl_c_raises_keyboard_interrupt_and_leaves_nothing(tmp_path: Path, kee
         env=env,
         text=True,
     )
-    try:
-        # The first progress record: pidm is running its sweep.
-        ready, _, _ = select.select([child.stdout], [], [], 60.0)
-        assert ready, "no progress within 60 s"
-        assert child.stdout.readline().strip() == "running"
-        time.sleep(0.3)
-        asked = time.monotonic()
-        child.send_signal(signal.SIGINT)
-        stdout, stderr = child.communicate(timeout=30)
-        waited = time.monotonic() - asked
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
+    # Interrupted 0.3 s after the first progress record: pidm is running its sweep.
+    stdout, stderr, waited = interrupt_when_running(child, pause=0.3)
     assert "KeyboardInterrupt" in stdout, stdout + stderr
     assert child.returncode == 0, stdout + stderr
     assert waited < 5.0, f"took {waited:.2f} s"

@@ -276,8 +276,8 @@ impl<'a> LugreGpu<'a> {
         });
         let stopped = |lanes: &[Lane]| lanes.iter().filter(|l| l.flag == LANE_STOPPED).count();
         let mut finished = stopped(&lanes);
-        let mut counted = Counted::default();
-        let dispatches_before = report.dispatches;
+        let (dispatches_before, periods_before) = (report.dispatches, report.periods);
+        let mut slots = 0;
         loop {
             let running = lanes.iter().filter(|l| l.flag == LANE_RUNNING).count();
             if running == 0 {
@@ -293,7 +293,7 @@ impl<'a> LugreGpu<'a> {
             report.gpu_seconds += took.as_secs_f64();
             profile::add_lanes(lanes.len() as u64, running as u64, took);
             profile::add_bytes_read((lanes.len() * size_of::<Lane>()) as u64);
-            counted.slots += running as u64 * self.attempts as u64;
+            slots += running as u64 * self.attempts as u64;
             let moved = lanes
                 .iter()
                 .zip(&after)
@@ -306,7 +306,7 @@ impl<'a> LugreGpu<'a> {
                 });
             }
             lanes = after;
-            let _host = profile::span(Phase::HostPeriods);
+            let host = profile::span(Phase::HostPeriods);
             let going = lanes.iter_mut().zip(books.iter_mut()).zip(&mut starts);
             for ((lane, book), start) in going {
                 match lane.flag {
@@ -314,7 +314,6 @@ impl<'a> LugreGpu<'a> {
                         book.run.state.steps = lane.steps;
                         book.period_end(&lane.y);
                         report.periods += 1;
-                        count_periods(1);
                         lane.next_period(book);
                         *start = lane.period_start();
                         batch.dirty = true;
@@ -328,7 +327,7 @@ impl<'a> LugreGpu<'a> {
                     _ => {}
                 }
             }
-            drop(_host);
+            drop(host);
             let now = stopped(&lanes);
             if now > finished {
                 done((now - finished) as u64);
@@ -344,10 +343,13 @@ impl<'a> LugreGpu<'a> {
                 break;
             }
         }
-        counted.instances = books.len() as u64;
-        counted.dispatches = report.dispatches - dispatches_before;
-        counted.attempts = lanes.iter().map(|l| l.steps as u64).sum();
-        counted.record();
+        record([
+            books.len() as u64,
+            report.dispatches - dispatches_before,
+            slots,
+            lanes.iter().map(|l| l.steps as u64).sum(),
+            report.periods - periods_before,
+        ]);
         Ok(books.into_iter().map(|b| b.run).collect())
     }
 }
@@ -384,39 +386,19 @@ fn cpu_tail(
     }
 }
 
-/// A batch's figures for the phase table ([`table_lines`]).
-#[derive(Default)]
-struct Counted {
-    instances: u64,
-    dispatches: u64,
-    /// Step attempts the lanes running at each dispatch's start could
-    /// have made in it, and those they made (a lane's `steps`).
-    slots: u64,
-    attempts: u64,
-}
-
-/// The run's LuGre batches so far: instances, dispatches, attempt slots
-/// and attempts, period ends measured on the host.
+/// The run's LuGre batches so far, for the phase table ([`table_lines`]):
+/// instances, dispatches, the attempt slots of the lanes running at each
+/// dispatch's start and the attempts they made (their `steps`), and the
+/// period ends measured on the host.
 static TOTALS: [AtomicU64; 5] = [const { AtomicU64::new(0) }; 5];
 
-impl Counted {
-    /// Adds the batch to the run's figures (inside the integrator's work
-    /// only, not a self-test's).
-    fn record(&self) {
-        if !profile::integrating() {
-            return;
-        }
-        let figures = [self.instances, self.dispatches, self.slots, self.attempts];
+/// Adds a batch's figures (in [`TOTALS`]' order) to the run's, inside
+/// the integrator's work only (not a self-test's).
+fn record(figures: [u64; 5]) {
+    if profile::integrating() {
         for (total, n) in TOTALS.iter().zip(figures) {
             total.fetch_add(n, Ordering::Relaxed);
         }
-    }
-}
-
-/// Counts period ends measured on the host.
-fn count_periods(n: u64) {
-    if profile::integrating() {
-        TOTALS[4].fetch_add(n, Ordering::Relaxed);
     }
 }
 
