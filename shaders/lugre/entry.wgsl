@@ -1,31 +1,40 @@
 // The compute entry point of the LuGre integrator (GPU only; the CPU's
-// counterpart is the period loop of `pidm::cpu::lugre::run`). One
-// invocation per instance: each dispatch advances every running instance
-// by at most `control.attempts` Rodas4 step attempts, and no further than
-// the end of its current scene period, where it waits for the host
-// (`pidm::gpu::lugre`), which measures the period as the CPU's run does
-// (`run::Periods::period_end`) and starts the next one.
+// counterpart is the period loop of `pidm::laws::lugre::run::continue_until`).
+// One invocation per instance: each dispatch advances every running
+// instance by at most `control.attempts` Rodas4 step attempts, measuring
+// its period ends on the way (measure.wgsl) and starting the next period,
+// until its run ends. The host (`pidm::gpu::lugre`) reads the lanes'
+// flags between dispatches and the finished runs' accumulators at the end.
 
-// A lane's flag (the prelude's, from `pidm::gpu::lugre`): LANE_RUNNING
-// (the host set it going at a period's start), LANE_PERIOD_END (it waits at
-// the end of its scene period for the host) or LANE_STOPPED (failed, its
-// status says why, or finished).
+// A lane's flag (the prelude's, from `pidm::gpu::lugre`): LANE_FRESH (the
+// host set it up at its run's start: the device starts the measurement and
+// the first period), LANE_RUNNING or LANE_STOPPED (failed, its status says
+// why, or finished).
 
-// One instance's integrator state between dispatches
-// (`pidm::gpu::lugre::Lane`).
+// One instance's run between dispatches (`pidm::gpu::lugre::Lane`).
 struct Lane {
-    y: State,
-    // The next trial step [s].
+    y: Vector,
+    // The state at the last period end (zero before the first): where the
+    // current period started (the CPU tail continues from there), and the
+    // motion the run's result reports.
+    last: Vector,
+    // The next trial step [s], and the one at the current period's start.
     h: Real,
+    start_h: Real,
     // The current segment's end [s] and drive.
     end: Real,
     drive: Drive,
     // The drive's clock of the current scene period.
     clock: Clock,
-    // Steps the run may still take.
+    // The slider's position at the settling periods' end [m].
+    settle_x_s: array<Real, 2>,
+    // Steps the run may still take, now and at the current period's start.
     budget: u32,
-    // Steps of the segments completed, saturating.
+    start_budget: u32,
+    // Steps of the segments completed (saturating), now and before the
+    // current period.
     steps: u32,
+    start_steps: u32,
     // Attempts in the current segment.
     segment_steps: u32,
     // 1 when the last attempt of the current segment was rejected.
@@ -34,7 +43,11 @@ struct Lane {
     in_segment: u32,
     // STATUS_OK, or why the run failed.
     status: u32,
-    // LANE_RUNNING, LANE_PERIOD_END or LANE_STOPPED.
+    // Scene periods completed, and the measurement's verdict on them
+    // (Karnopp's `State.measured`: 0 while running).
+    period: u32,
+    measured: u32,
+    // LANE_FRESH, LANE_RUNNING or LANE_STOPPED.
     flag: u32,
     _pad: u32,
 }
@@ -50,18 +63,67 @@ struct Control {
 // values of uniforms that steer its loops.
 @group(0) @binding(2) var<storage, read> control: Control;
 
+// What the host reads after each dispatch (`pidm::gpu::lugre::Counters`):
+// the lanes stopped so far, and the lane dispatches that advanced a run
+// (a dispatch that advances none has stalled).
+struct Counters {
+    stopped: atomic<u32>,
+    advanced: atomic<u32>,
+}
+
+@group(0) @binding(9) var<storage, read_write> counters: Counters;
+
+// Whether the lane's run has ended: failed, measured or out of periods
+// (`Periods::is_finished`).
+fn run_finished(lane: Lane) -> bool {
+    let c = &coefficients[held];
+    return lane.status != STATUS_OK || lane.period >= c.cycles || lane.measured != 0u;
+}
+
+// Starts the lane's current period (`continue_until`'s period start): the
+// time within the period back to 0, the drive's clock of the period
+// (`Clock::of`), and the period start the CPU tail would continue from.
+fn begin_period(lane: ptr<function, Lane>) {
+    (*lane).y[T] = Real(0.0);
+    let p = Real((*lane).period);
+    (*lane).clock.start = array<Real, 2>(
+        model.cycles[0] * p + model.phase[0],
+        model.cycles[1] * p + model.phase[1],
+    );
+    (*lane).in_segment = 0u;
+    (*lane).start_h = (*lane).h;
+    (*lane).start_budget = (*lane).budget;
+    (*lane).start_steps = (*lane).steps;
+}
+
+// A fresh lane: its measurement starts, then its first period, unless the
+// run has no periods.
+fn start_run(lane: ptr<function, Lane>) {
+    start_measure();
+    (*lane).flag = LANE_RUNNING;
+    if run_finished(*lane) {
+        (*lane).flag = LANE_STOPPED;
+    } else {
+        begin_period(lane);
+    }
+}
+
 // Advances one lane by at most `attempts` step attempts: the CPU's loop
-// over the segments of a period (`run_instance_until`) fused with the
+// over the periods and their segments (`continue_until`) fused with the
 // `while` of its `segment`, at most one attempt per pass (llvmpipe counts
 // the loop passes of a SIMD group's lanes together, so that a nested loop
 // of attempts inside a loop of segments would count the lanes' attempts
-// one after the other).
+// one after the other). On a loop-limited adapter a period end is
+// measured only in a dispatch's first pass, where a SIMD group's lanes
+// measure theirs together (`PERIOD_ENDS_ANYWHERE` false): a lane that
+// reaches one later waits there for the next dispatch.
 fn advance(lane: Lane, attempts: u32) -> Lane {
     var out = lane;
     var y = lane.y;
     var h = lane.h;
     var end = lane.end;
     var drive = lane.drive;
+    var clock = lane.clock;
     var budget = lane.budget;
     var segment_steps = lane.segment_steps;
     var rejected = lane.rejected != 0u;
@@ -71,17 +133,30 @@ fn advance(lane: Lane, attempts: u32) -> Lane {
         close_segment(y, end, &in_segment, &steps, segment_steps);
         if !in_segment {
             if !(y[T] < model.period) {
-                out.flag = LANE_PERIOD_END;
-                break;
+                if !PERIOD_ENDS_ANYWHERE && round > 0u {
+                    break;
+                }
+                out.y = y;
+                out.h = h;
+                out.budget = budget;
+                out.steps = steps;
+                lugre_period_end(&out, y);
+                if run_finished(out) {
+                    out.flag = LANE_STOPPED;
+                    break;
+                }
+                begin_period(&out);
+                y = out.y;
+                clock = out.clock;
             }
             // The next segment: to the first corner or the period's end.
             var stop = model.period;
             for (var i = 0u; i < 2u; i++) {
-                stop = min(stop, next_corner(lane.clock, i, y[T]));
+                stop = min(stop, next_corner(clock, i, y[T]));
             }
             end = stop;
             let mid = Real(0.5) * (y[T] + end);
-            drive = Drive(drive_on(lane.clock, 0u, mid), drive_on(lane.clock, 1u, mid));
+            drive = Drive(drive_on(clock, 0u, mid), drive_on(clock, 1u, mid));
             segment_steps = 0u;
             rejected = false;
             in_segment = true;
@@ -93,17 +168,11 @@ fn advance(lane: Lane, attempts: u32) -> Lane {
             break;
         }
     }
-    // Out of attempts at a period's end: say so now, not a dispatch later.
-    if out.flag == LANE_RUNNING {
-        close_segment(y, end, &in_segment, &steps, segment_steps);
-        if !in_segment && !(y[T] < model.period) {
-            out.flag = LANE_PERIOD_END;
-        }
-    }
     out.y = y;
     out.h = h;
     out.end = end;
     out.drive = drive;
+    out.clock = clock;
     out.budget = budget;
     out.steps = steps;
     out.segment_steps = segment_steps;
@@ -116,7 +185,7 @@ fn advance(lane: Lane, attempts: u32) -> Lane {
 // condition): its attempts count in `steps`, saturating (the CPU's
 // `Periods::add_steps`).
 fn close_segment(
-    y: State,
+    y: Vector,
     end: Real,
     in_segment: ptr<function, bool>,
     steps: ptr<function, u32>,
@@ -135,15 +204,29 @@ fn lugre_advance(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let index = gid.x + gid.y * groups.x * LUGRE_WORKGROUP_SIZE;
-    if index >= arrayLength(&lanes) || index >= arrayLength(&models) {
+    if index >= arrayLength(&lanes) || index >= arrayLength(&models)
+        || index >= arrayLength(&coefficients) || index >= arrayLength(&measures)
+        || index >= arrayLength(&recurrences) {
         return;
     }
-    if lanes[index].flag != LANE_RUNNING {
+    held = index;
+    var lane = lanes[index];
+    if lane.flag == LANE_STOPPED {
         return;
     }
     model = models[index];
     opaque_one = model.one;
-    lanes[index] = advance(lanes[index], control.attempts);
+    if lane.flag == LANE_FRESH {
+        start_run(&lane);
+    }
+    if lane.flag != LANE_STOPPED {
+        lane = advance(lane, control.attempts);
+    }
+    lanes[index] = lane;
+    atomicAdd(&counters.advanced, 1u);
+    if lane.flag == LANE_STOPPED {
+        atomicAdd(&counters.stopped, 1u);
+    }
 }
 
 // The shader-only functions of each (x, y) in `function_values` (five
@@ -170,16 +253,16 @@ fn lugre_functions(@builtin(global_invocation_id) gid: vec3<u32>) {
 // `models[0]` at each probe's state, drive and step, for the tests to
 // compare with the CPU's functions.
 struct Probe {
-    y: State,
+    y: Vector,
     drive: Drive,
     h: Real,
 }
 
 struct Probed {
-    rhs: State,
+    rhs: Vector,
     jacobian: Matrix,
-    next: State,
-    error: State,
+    next: Vector,
+    error: Vector,
 }
 
 @group(0) @binding(4) var<storage, read> probes: array<Probe>;

@@ -15,8 +15,9 @@
 
 // The state: stage positions [m] and velocities [m/s], slider positions
 // and velocities, bristle deflections [m], and the time within the scene
-// period [s].
-alias State = array<Real, N>;
+// period [s] (Rust's `State`; WGSL's `State` is the measurement's,
+// measure.wgsl).
+alias Vector = array<Real, N>;
 alias Matrix = array<array<Real, N>, N>;
 
 // What the right-hand side reads of one instance (Rust's `Model`, with the
@@ -45,6 +46,15 @@ struct Model {
     scale: array<Real, N>,
     // 1 (`keep`).
     one: Real,
+    // Each axis' drive cycles per scene period and phase [cycles]: the
+    // clock of period p is cycles p + phase (`Clock::of`).
+    cycles: array<Real, 2>,
+    phase: array<Real, 2>,
+    // The recurrence test's tolerances (infinite: not compared) and its
+    // common period (0: no test), read where used (measure.wgsl).
+    repeat: array<Real, N>,
+    common_period: u32,
+    _pad: u32,
 }
 
 // The instance the invocation integrates (Rust's `self`).
@@ -192,7 +202,7 @@ fn at(l: Linear, t: Real) -> Real {
 }
 
 // dy/dt, with each axis' drive voltage linear in time.
-fn rhs(y: State, drive: Drive) -> State {
+fn rhs(y: Vector, drive: Drive) -> Vector {
     var yy = y;
     var dr = drive;
     var vr = array<Real, 2>(yy[VP] - yy[VS], yy[VP + 1u] - yy[VS + 1u]);
@@ -200,7 +210,7 @@ fn rhs(y: State, drive: Drive) -> State {
     let q = quotient(s, model.v_s);
     let g = model.coulomb_friction
         + (model.static_friction - model.coulomb_friction) * exp_nonpositive(-(q * q));
-    var d: State;
+    var d: Vector;
     for (var i = 0u; i < 2u; i++) {
         let dz = vr[i] - quotient(model.sigma0 * s * yy[Z + i], g);
         let f = model.sigma0 * yy[Z + i] + model.sigma1 * dz + model.sigma2 * vr[i];
@@ -221,7 +231,7 @@ fn rhs(y: State, drive: Drive) -> State {
 // The Jacobian of `rhs` (row: derivative, column: state). At v_rel = 0,
 // where |v_rel| has no derivative, the bristle term's direction is
 // dropped (its factor z h'(s) v_rel / s is bounded).
-fn jacobian(y: State, drive: Drive) -> Matrix {
+fn jacobian(y: Vector, drive: Drive) -> Matrix {
     var yy = y;
     var dr = drive;
     var vr = array<Real, 2>(yy[VP] - yy[VS], yy[VP + 1u] - yy[VS + 1u]);

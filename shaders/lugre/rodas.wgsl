@@ -9,8 +9,8 @@
 
 // One Rodas4 step: the new state and the local error estimate (k6).
 struct Step {
-    next: State,
-    error: State,
+    next: Vector,
+    error: Vector,
 }
 
 alias Reduced = array<Real, R>;
@@ -35,9 +35,9 @@ struct W {
 
 // One Rodas4 step of size `h` from `y`. The stages solve (I / (gamma h) -
 // J) k = rhs, that is gamma h (I - gamma h J)^-1 rhs.
-fn rodas4(drive: Drive, y: State, h: Real) -> Step {
+fn rodas4(drive: Drive, y: Vector, h: Real) -> Step {
     var w = w_matrix(drive, y, GAMMA * h);
-    var k: array<State, 6>;
+    var k: array<Vector, 6>;
     var start = y;
     for (var i = 0u; i < 6u; i++) {
         if i >= 1u && i < 5u {
@@ -99,7 +99,7 @@ fn fourth_root(x: Real) -> Real {
 // (llvmpipe counts the loop passes of a SIMD group's lanes together).
 fn segment(
     drive: Drive,
-    y: ptr<function, State>,
+    y: ptr<function, Vector>,
     end: Real,
     h: ptr<function, Real>,
     budget: ptr<function, u32>,
@@ -163,7 +163,7 @@ fn segment(
 // position), so W x = b is solved on the six velocities and deflections
 // alone, with x_XP = b_XP + g x_VP, x_XS = b_XS + g x_VS and x_T = b_T
 // substituted (g = gamma h).
-fn w_matrix(drive: Drive, y: State, g: Real) -> W {
+fn w_matrix(drive: Drive, y: Vector, g: Real) -> W {
     var j = jacobian(y, drive);
     var w: W;
     var a: ReducedMatrix;
@@ -186,7 +186,7 @@ fn w_matrix(drive: Drive, y: State, g: Real) -> W {
 }
 
 // W::solve: W x = b.
-fn solve(w: ptr<function, W>, b: State) -> State {
+fn solve(w: ptr<function, W>, b: Vector) -> Vector {
     var bb = b;
     let g = (*w).g;
     var reduced: Reduced;
@@ -196,7 +196,7 @@ fn solve(w: ptr<function, W>, b: State) -> State {
         reduced[r] = bb[REDUCED[r]] + g * from_xp + g * (*w).j_t[r] * bb[T];
     }
     let v = solve_lu(w, reduced);
-    var x: State;
+    var x: Vector;
     for (var r = 0u; r < R; r++) {
         x[REDUCED[r]] = v[r];
     }

@@ -505,7 +505,12 @@ macro_rules! precision_structs {
                 settings: &Settings,
                 r: crate::laws::karnopp::integrate::Replica,
             ) -> Coefficients {
-                let c = mirror::Coefficients::of_replica(inst, settings, r);
+                packed(&mirror::Coefficients::of_replica(inst, settings, r))
+            }
+
+            /// The CPU mirror's coefficients `c` in this layout (LuGre's
+            /// runs pack their own: `crate::gpu::lugre`).
+            pub fn packed(c: &mirror::Coefficients) -> Coefficients {
                 Coefficients {
                     stiffness: v2(c.stiffness),
                     damping: v2(c.damping),

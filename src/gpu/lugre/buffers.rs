@@ -2,10 +2,12 @@
 //! one instance's parameters, a lane's state, and the probes of the
 //! function-by-function comparisons.
 
-use super::{LANE_RUNNING, LANE_STOPPED};
+use super::{LANE_FRESH, LANE_STOPPED};
 use bytemuck::{Pod, Zeroable};
 
-use crate::laws::lugre::run::{Linear, N, PeriodStart, Periods, State, T, first_step};
+use crate::gpu::layout::double::{Measure as GpuMeasure, measure_to_cpu};
+use crate::laws::karnopp::integrate::measure::SNAPSHOTS;
+use crate::laws::lugre::run::{Clock, Kept, Linear, N, PeriodStart, Periods, State, first_step};
 use crate::model::AXES;
 
 /// One instance's parameters (`model.wgsl`'s `Model`): the model, the
@@ -32,6 +34,15 @@ pub struct Params {
     pub scale: State,
     /// 1: the shader's `keep` multiplies by it.
     pub one: f64,
+    /// Each axis' drive cycles per scene period and phase [cycles]
+    /// (`Clock::of`).
+    pub cycles: [f64; AXES],
+    pub phase: [f64; AXES],
+    /// The recurrence test's tolerances and common period
+    /// (`Periods::recurrence_test`).
+    pub repeat: State,
+    pub common_period: u32,
+    pub _pad: u32,
 }
 
 impl Params {
@@ -59,27 +70,41 @@ impl Params {
             period: inst.period(),
             scale: book.scale,
             one: 1.0,
+            cycles: Clock::cycles_per_period(inst),
+            phase: axis(|a| a.phase),
+            repeat: book.recurrence_test().0,
+            common_period: book.recurrence_test().1,
+            _pad: 0,
         }
     }
 }
 
-/// One instance's integrator state between dispatches (`entry.wgsl`'s
-/// `Lane`).
+/// One instance's run between dispatches (`entry.wgsl`'s `Lane`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct Lane {
     pub y: State,
-    /// The next trial step [s].
+    /// The state at the last period end (zero before the first): where
+    /// the current period started, and the motion the result reports.
+    pub last: State,
+    /// The next trial step [s], and the one at the current period's start.
     pub h: f64,
+    pub start_h: f64,
     /// The current segment's end [s] and drive (a, b per axis).
     pub end: f64,
     pub drive: [f64; 2 * AXES],
     /// The drive's clock of the current scene period [cycles].
     pub clock: [f64; AXES],
-    /// Steps the run may still take.
+    /// The slider's position at the settling periods' end [m].
+    pub settle_x_s: [f64; AXES],
+    /// Steps the run may still take, now and at the current period's
+    /// start.
     pub budget: u32,
-    /// Steps of the completed segments (saturating).
+    pub start_budget: u32,
+    /// Steps of the completed segments (saturating), now and before the
+    /// current period.
     pub steps: u32,
+    pub start_steps: u32,
     /// Attempts in the current segment.
     pub segment_steps: u32,
     /// 1 after a rejected attempt in the current segment.
@@ -88,46 +113,66 @@ pub struct Lane {
     pub in_segment: u32,
     /// `STATUS_OK`, or why the run failed.
     pub status: u32,
-    /// `LANE_RUNNING`, `LANE_PERIOD_END` or `LANE_STOPPED`.
+    /// Scene periods completed, and the measurement's verdict
+    /// (`State::measured`: 0 while running).
+    pub period: u32,
+    pub measured: u32,
+    /// `LANE_FRESH`, `LANE_RUNNING` or `LANE_STOPPED`.
     pub flag: u32,
     pub _pad: u32,
 }
 
 impl Lane {
-    /// A run at rest at the start of its first period (as the CPU's).
+    /// A run at rest before its first period, as the CPU's starts: the
+    /// device starts its measurement and first period (`LANE_FRESH`).
     pub(super) fn start(book: &Periods) -> Lane {
-        let mut lane = Lane {
+        Lane {
             h: first_step(&book.inst),
             budget: book.budget,
-            steps: book.run.state.steps,
+            flag: LANE_FRESH,
             ..Lane::zeroed()
-        };
-        lane.next_period(book);
-        lane
+        }
     }
 
-    /// Where the lane's current period starts, once [`Lane::next_period`]
-    /// set it going.
+    /// Where the lane's current period starts (the CPU tail continues
+    /// from there).
     pub(super) fn period_start(&self) -> PeriodStart {
         PeriodStart {
-            y: self.y,
-            h: self.h,
-            budget: self.budget,
+            y: self.last,
+            h: self.start_h,
+            budget: self.start_budget,
         }
     }
 
-    /// Sets the lane going at the start of its run's current period, or
-    /// stops it where the run has ended.
-    pub(super) fn next_period(&mut self, book: &Periods) {
-        if book.is_finished() {
-            self.flag = LANE_STOPPED;
-            return;
+    /// The run as the device kept it, with its measurement's accumulators
+    /// and recurrence snapshots: where the CPU continues a running lane
+    /// (its steps before the current period), or a stopped lane's result.
+    pub(super) fn kept(&self, measure: &GpuMeasure, recurrence: &Recurrence) -> Kept {
+        Kept {
+            y: self.last,
+            period: self.period,
+            measured: self.measured,
+            steps: if self.flag == LANE_STOPPED {
+                self.steps
+            } else {
+                self.start_steps
+            },
+            status: self.status,
+            settle_x_s: self.settle_x_s,
+            measure: measure_to_cpu(measure),
+            snaps: recurrence.snaps,
+            taken: recurrence.taken,
         }
-        self.y[T] = 0.0;
-        self.clock = book.clock().start;
-        self.in_segment = 0;
-        self.flag = LANE_RUNNING;
     }
+}
+
+/// One instance's recurrence snapshots (`measure.wgsl`'s `Recurrence`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Recurrence {
+    pub snaps: [State; SNAPSHOTS],
+    pub taken: u32,
+    pub _pad: u32,
 }
 
 /// A state, drive and step at which `mirror_on_gpu` evaluates the

@@ -77,7 +77,7 @@ pub use runner::{BatchReport, LugreGpu, table_lines};
 pub use source::{Arithmetic, footprint, parse_and_validate, prelude, source};
 
 /// The shader files, in the order they are concatenated after the prelude.
-pub const FILES: [(&str, &str); 3] = [
+pub const FILES: [(&str, &str); 4] = [
     (
         "model.wgsl",
         include_str!("../../../shaders/lugre/model.wgsl"),
@@ -87,8 +87,29 @@ pub const FILES: [(&str, &str); 3] = [
         include_str!("../../../shaders/lugre/rodas.wgsl"),
     ),
     (
+        "measure.wgsl",
+        include_str!("../../../shaders/lugre/measure.wgsl"),
+    ),
+    (
         "entry.wgsl",
         include_str!("../../../shaders/lugre/entry.wgsl"),
+    ),
+];
+
+/// Karnopp's measurement files, which every LuGre shader includes as they
+/// are after [`FILES`] (`measure.wgsl` says how they fit).
+pub const MEASUREMENT_FILES: [(&str, &str); 3] = [
+    (
+        "coefficients.wgsl",
+        include_str!("../../../shaders/karnopp/coefficients.wgsl"),
+    ),
+    (
+        "measure.wgsl",
+        include_str!("../../../shaders/karnopp/measure.wgsl"),
+    ),
+    (
+        "phase.wgsl",
+        include_str!("../../../shaders/karnopp/phase.wgsl"),
     ),
 ];
 
@@ -117,10 +138,19 @@ pub const LOOP_LIMIT: u32 = 65_535;
 /// written out).
 pub const LOOP_PASSES_PER_ATTEMPT: u32 = 14 + 54 + 6 * 14 + 394 + 12 + 11 + 1 + 10;
 
-/// Step attempts per dispatch on a software adapter: the loop passes stay
-/// within a third of [`LOOP_LIMIT`] as counted in the source (a sixth as
-/// measured).
-pub const SOFTWARE_ATTEMPTS: u32 = LOOP_LIMIT / 3 / LOOP_PASSES_PER_ATTEMPT;
+/// The loop passes of one period end, counted in the source: the phase
+/// ladder's 18 levels, a batch's halving 16, the batch estimate's MSER cut
+/// (17 cuts of up to two passes over 32 batches: 833) and statistics
+/// (128), and the recurrence test's 8 snapshots of 11 numbers (96). On a
+/// software adapter a lane measures a period end only in a dispatch's
+/// first pass (`entry.wgsl`), so a SIMD group's lanes measure theirs
+/// together and these passes count once per dispatch.
+pub const PERIOD_END_PASSES: u32 = 18 + 16 + 833 + 128 + 8 + 88;
+
+/// Step attempts per dispatch on a software adapter: with a period end,
+/// the loop passes stay within a third of [`LOOP_LIMIT`] as counted in the
+/// source (about a sixth as measured).
+pub const SOFTWARE_ATTEMPTS: u32 = (LOOP_LIMIT / 3 - PERIOD_END_PASSES) / LOOP_PASSES_PER_ATTEMPT;
 
 /// Step attempts per dispatch on a hardware adapter (no loop limit; a few
 /// milliseconds of work per lane, not measured yet).
@@ -141,7 +171,8 @@ pub const CORNER_RETRIES: u32 = 4;
 pub const SEGMENT_GOING: u32 = u32::MAX;
 pub const SEGMENT_DONE: u32 = u32::MAX - 1;
 
-/// The flags of a [`Lane`] (`entry.wgsl`'s LANE_*).
-pub const LANE_RUNNING: u32 = 0;
-pub const LANE_PERIOD_END: u32 = 1;
+/// The flags of a [`Lane`] (`entry.wgsl`'s LANE_*): set up by the host at
+/// its run's start, running, or stopped (failed or finished).
+pub const LANE_FRESH: u32 = 0;
+pub const LANE_RUNNING: u32 = 1;
 pub const LANE_STOPPED: u32 = 2;

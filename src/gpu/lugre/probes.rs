@@ -4,7 +4,7 @@
 use super::buffers::drive_of;
 use super::runner::{Batch, compile};
 use super::{
-    FUNCTIONS_ENTRY_POINT, LANE_PERIOD_END, LANE_RUNNING, Lane, LugreGpu, MIRROR_ENTRY_POINT,
+    FUNCTIONS_ENTRY_POINT, LANE_FRESH, LANE_STOPPED, Lane, LugreGpu, MIRROR_ENTRY_POINT,
     MirrorCheck, Params, Probe, Probed,
 };
 
@@ -13,7 +13,7 @@ use wgpu::util::DeviceExt;
 
 use crate::gpu::GpuError;
 use crate::gpu::readback::{mappable, read_buffer};
-use crate::laws::karnopp::integrate::Settings;
+use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
 use crate::laws::lugre::run::{Clock, Linear, Periods, T, rodas4, segment};
 use crate::model::{AXES, Instance};
 
@@ -30,32 +30,39 @@ impl LugreGpu<'_> {
         settings: &Settings,
         attempts: usize,
     ) -> Result<MirrorCheck, GpuError> {
-        let mut book = Periods::new(inst, settings);
+        let book = Periods::new(inst, settings);
         let params = Params::of(&book);
         let mut lane = Lane::start(&book);
-        let mut batch = Batch::new(self, &[params], &[lane], 1);
+        let mut batch = Batch::new(self, std::slice::from_ref(&book), 1);
         let mut check = MirrorCheck::default();
         let mut probes = Vec::new();
         let mut drives = Vec::new();
         let period = inst.period();
-        while check.attempts < attempts && lane.flag == LANE_RUNNING {
-            let before = lane;
-            batch.dirty = true;
-            let after = batch.dispatch(&[before])?[0];
+        while check.attempts < attempts && lane.flag != LANE_STOPPED {
+            let mut before = lane;
+            batch.dispatch()?;
+            let after = batch.lanes()?[0];
             lane = after;
+            if after.clock != Clock::of(inst, after.period).start {
+                check.segment_mismatches += 1;
+            }
+            let in_segment = before.in_segment == 1 && before.y[T] < before.end;
+            let at_end = !in_segment && before.y[T] >= period;
+            if before.flag == LANE_FRESH || at_end {
+                if after.flag == LANE_STOPPED && after.status == STATUS_OK {
+                    // The run ended there, without an attempt.
+                    continue;
+                }
+                // The device started a period (measuring the one that
+                // ended): compare the attempt from that start.
+                before.y[T] = 0.0;
+                before.clock = after.clock;
+                before.in_segment = 0;
+            }
             let clock = Clock {
                 start: before.clock,
             };
             let within = before.in_segment == 1 && before.y[T] < before.end;
-            if !within && before.y[T] >= period {
-                // A period's end, without an attempt.
-                if after.flag == LANE_PERIOD_END {
-                    book.run.state.steps = after.steps;
-                    book.period_end(&after.y);
-                    lane.next_period(&book);
-                }
-                continue;
-            }
             let (end, drive) = if within {
                 (before.end, drive_of(&before.drive))
             } else {
@@ -103,11 +110,6 @@ impl LugreGpu<'_> {
                 h: step,
             });
             drives.push(drive);
-            if after.flag == LANE_PERIOD_END {
-                book.run.state.steps = after.steps;
-                book.period_end(&after.y);
-                lane.next_period(&book);
-            }
         }
         let probed = self.mirror_on_gpu(&params, &probes)?;
         compare_probes(&book, &probes, &drives, &probed, &mut check);

@@ -2,21 +2,23 @@
 //! the CPU run's period-end bookkeeping between dispatches, and the
 //! batch's slow tail on the CPU.
 
+use super::buffers::Recurrence;
 use super::{
-    Arithmetic, ENTRY_POINT, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_PERIOD_END,
-    LANE_RUNNING, LANE_STOPPED, Lane, Params, SOFTWARE_ATTEMPTS, SOFTWARE_WORKGROUP_SIZE,
-    parse_and_validate, source,
+    Arithmetic, ENTRY_POINT, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_STOPPED, Lane,
+    Params, SOFTWARE_ATTEMPTS, SOFTWARE_WORKGROUP_SIZE, parse_and_validate, source,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
+use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::gpu::{GpuContext, GpuError, Precision};
 use crate::laws::karnopp::integrate::{Run, Settings};
-use crate::laws::lugre::run::{PeriodStart, Periods, continue_until};
+use crate::gpu::layout::double::{Coefficients, Measure as GpuMeasure, packed};
+use crate::laws::lugre::run::{Kept, Periods, continue_until};
 use crate::model::Instance;
 use crate::profile::{self, Phase};
 
@@ -84,83 +86,104 @@ pub(super) fn compile(
 pub(super) struct Batch<'g> {
     pub(super) gpu: &'g LugreGpu<'g>,
     pub(super) lanes: wgpu::Buffer,
-    pub(super) read: wgpu::Buffer,
+    measures: wgpu::Buffer,
+    recurrences: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    counters_read: wgpu::Buffer,
     pub(super) group: wgpu::BindGroup,
     pub(super) groups: (u32, u32),
-    /// The host changed the lanes since they were last on the device.
-    pub(super) dirty: bool,
     // Kept alive with the bind group.
-    pub(super) _buffers: [wgpu::Buffer; 2],
+    _buffers: [wgpu::Buffer; 3],
+}
+
+/// What the device counts over a batch (`entry.wgsl`'s `Counters`): the
+/// lanes stopped, and the lane dispatches that advanced a run.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub(super) struct Counters {
+    pub(super) stopped: u32,
+    pub(super) advanced: u32,
 }
 
 impl<'g> Batch<'g> {
+    /// The buffers of `books`' runs: their parameters, coefficients and
+    /// lanes, and room for their accumulators and recurrence snapshots.
     pub(super) fn new(
         gpu: &'g LugreGpu<'g>,
-        params: &[Params],
-        lanes: &[Lane],
+        books: &[Periods],
         attempts: u32,
     ) -> Batch<'g> {
         let device = gpu.ctx.device();
-        let models = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("lugre models"),
-            contents: bytemuck::cast_slice(params),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let lane_buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("lugre lanes"),
-            contents: bytemuck::cast_slice(lanes),
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-        });
-        let control = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("lugre control"),
-            contents: bytemuck::cast_slice(&[attempts, 0, 0, 0]),
-            usage: wgpu::BufferUsages::STORAGE,
-        });
-        let read = mappable(device, "lugre lanes read", lane_buffer.size());
+        let n = books.len() as u64;
+        let params: Vec<Params> = books.iter().map(Params::of).collect();
+        let lanes: Vec<Lane> = books.iter().map(Lane::start).collect();
+        let coefficients: Vec<Coefficients> =
+            books.iter().map(|b| packed(b.coefficients())).collect();
+        let init = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | usage,
+            })
+        };
+        let copied = wgpu::BufferUsages::COPY_SRC;
+        let models = init("lugre models", bytemuck::cast_slice(&params), copied);
+        let lane_buffer = init("lugre lanes", bytemuck::cast_slice(&lanes), copied);
+        let coefficients = init("lugre coefficients", bytemuck::cast_slice(&coefficients), copied);
+        let control = init("lugre control", bytemuck::cast_slice(&[attempts, 0, 0, 0]), copied);
+        let counters = init("lugre counters", &[0; size_of::<Counters>()], copied);
+        let zeroed = |label: &str, size: usize| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: n * size as u64,
+                usage: wgpu::BufferUsages::STORAGE | copied,
+                mapped_at_creation: false,
+            })
+        };
+        let measures = zeroed("lugre measures", size_of::<GpuMeasure>());
+        let recurrences = zeroed("lugre recurrences", size_of::<Recurrence>());
+        let bound = [
+            (0, &models),
+            (1, &lane_buffer),
+            (2, &control),
+            (6, &coefficients),
+            (7, &measures),
+            (8, &recurrences),
+            (9, &counters),
+        ];
+        let entries: Vec<wgpu::BindGroupEntry> = bound
+            .iter()
+            .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                binding: *binding,
+                resource: buffer.as_entire_binding(),
+            })
+            .collect();
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("lugre"),
             layout: &gpu.pipeline.get_bind_group_layout(0),
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: models.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: lane_buffer.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: control.as_entire_binding(),
-                },
-            ],
+            entries: &entries,
         });
         let groups = crate::gpu::workgroups(
-            lanes.len(),
+            books.len(),
             gpu.workgroup_size,
             gpu.ctx.limits().max_compute_workgroups_per_dimension,
         );
         Batch {
             gpu,
             lanes: lane_buffer,
-            read,
+            measures,
+            recurrences,
+            counters_read: mappable(device, "lugre counters read", counters.size()),
+            counters,
             group,
             groups,
-            dirty: false,
-            _buffers: [models, control],
+            _buffers: [models, coefficients, control],
         }
     }
 
-    /// One dispatch: uploads `lanes` where the host changed them, advances
-    /// them, and reads them back.
-    pub(super) fn dispatch(&mut self, lanes: &[Lane]) -> Result<Vec<Lane>, GpuError> {
+    /// One dispatch, and the counters after it.
+    pub(super) fn dispatch(&mut self) -> Result<Counters, GpuError> {
         let (device, queue) = (self.gpu.ctx.device(), self.gpu.ctx.queue());
-        if self.dirty {
-            queue.write_buffer(&self.lanes, 0, bytemuck::cast_slice(lanes));
-            self.dirty = false;
-        }
         let mut encoder = device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
@@ -168,11 +191,41 @@ impl<'g> Batch<'g> {
             pass.set_bind_group(0, &self.group, &[]);
             pass.dispatch_workgroups(self.groups.0, self.groups.1, 1);
         }
-        encoder.copy_buffer_to_buffer(&self.lanes, 0, &self.read, 0, self.lanes.size());
+        let size = self.counters.size();
+        encoder.copy_buffer_to_buffer(&self.counters, 0, &self.counters_read, 0, size);
         queue.submit([encoder.finish()]);
-        let bytes = read_buffer(device, &self.read)?;
+        let bytes = read_buffer(device, &self.counters_read)?;
+        Ok(bytemuck::pod_read_unaligned(&bytes))
+    }
+
+    /// The lanes as they are on the device.
+    pub(super) fn lanes(&self) -> Result<Vec<Lane>, GpuError> {
+        self.read_all(&self.lanes)
+    }
+
+    /// Every lane's run as the device keeps it (`Lane::kept`).
+    pub(super) fn kept(&self) -> Result<Vec<(Lane, Kept)>, GpuError> {
+        let lanes = self.lanes()?;
+        let measures: Vec<GpuMeasure> = self.read_all(&self.measures)?;
+        let recurrences: Vec<Recurrence> = self.read_all(&self.recurrences)?;
+        Ok(lanes
+            .into_iter()
+            .zip(measures.iter().zip(&recurrences))
+            .map(|(lane, (m, r))| (lane, lane.kept(m, r)))
+            .collect())
+    }
+
+    /// A storage buffer's structs, copied back.
+    fn read_all<T: Pod>(&self, buffer: &wgpu::Buffer) -> Result<Vec<T>, GpuError> {
+        let device = self.gpu.ctx.device();
+        let read = mappable(device, "lugre read", buffer.size());
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(buffer, 0, &read, 0, buffer.size());
+        self.gpu.ctx.queue().submit([encoder.finish()]);
+        let bytes = read_buffer(device, &read)?;
+        profile::add_bytes_read(bytes.len() as u64);
         Ok(bytes
-            .chunks_exact(size_of::<Lane>())
+            .chunks_exact(size_of::<T>())
             .map(bytemuck::pod_read_unaligned)
             .collect())
     }
@@ -265,115 +318,83 @@ impl<'a> LugreGpu<'a> {
         if books.is_empty() {
             return Ok(Vec::new());
         }
-        let params: Vec<Params> = books.iter().map(Params::of).collect();
-        let mut lanes: Vec<Lane> = books.iter().map(Lane::start).collect();
-        // Where each lane's current period started: the CPU tail takes
-        // its run over there.
-        let mut starts: Vec<PeriodStart> = books.iter().map(PeriodStart::first).collect();
-        let tail = crate::gpu::tail_size(self.cpu_tail, books.len(), rayon::current_num_threads());
+        let n = books.len();
+        let tail = crate::gpu::tail_size(self.cpu_tail, n, rayon::current_num_threads());
         let mut batch = profile::time(Phase::Upload, || {
-            Batch::new(self, &params, &lanes, self.attempts)
+            Batch::new(self, &books, self.attempts)
         });
-        let stopped = |lanes: &[Lane]| lanes.iter().filter(|l| l.flag == LANE_STOPPED).count();
-        let mut finished = stopped(&lanes);
-        let (dispatches_before, periods_before) = (report.dispatches, report.periods);
-        let mut slots = 0;
-        loop {
-            let running = lanes.iter().filter(|l| l.flag == LANE_RUNNING).count();
-            if running == 0 {
-                break;
-            }
+        let dispatches_before = report.dispatches;
+        let (mut finished, mut advanced, mut slots) = (0, 0, 0);
+        // Every lane starts its run at once (there is no queue): once no
+        // more than the tail's size are going, the CPU takes them.
+        while finished < n && (report.dispatches == dispatches_before || n - finished > tail) {
             if stop() {
                 return Err(GpuError::Interrupted);
             }
             let t = Instant::now();
-            let after = profile::time(Phase::Dispatch, || batch.dispatch(&lanes))?;
+            let counters = profile::time(Phase::Dispatch, || batch.dispatch())?;
             let took = t.elapsed();
+            let running = n - finished;
             report.dispatches += 1;
             report.gpu_seconds += took.as_secs_f64();
-            profile::add_lanes(lanes.len() as u64, running as u64, took);
-            profile::add_bytes_read((lanes.len() * size_of::<Lane>()) as u64);
+            profile::add_lanes(n as u64, running as u64, took);
+            profile::add_bytes_read(size_of::<Counters>() as u64);
             slots += running as u64 * self.attempts as u64;
-            let moved = lanes
-                .iter()
-                .zip(&after)
-                .any(|(before, now)| before.flag == LANE_RUNNING && before != now);
-            if !moved {
-                let unfinished = lanes.iter().filter(|l| l.flag == LANE_RUNNING).count();
+            if counters.advanced == advanced {
                 return Err(GpuError::Stalled {
-                    unfinished: unfinished as u32,
+                    unfinished: running as u32,
                     slices: report.dispatches,
                 });
             }
-            lanes = after;
-            let host = profile::span(Phase::HostPeriods);
-            let going = lanes.iter_mut().zip(books.iter_mut()).zip(&mut starts);
-            for ((lane, book), start) in going {
-                match lane.flag {
-                    LANE_PERIOD_END => {
-                        book.run.state.steps = lane.steps;
-                        book.period_end(&lane.y);
-                        report.periods += 1;
-                        lane.next_period(book);
-                        *start = lane.period_start();
-                        batch.dirty = true;
-                    }
-                    LANE_STOPPED if lane.status != book.run.state.status => {
-                        // Failed: the CPU's run keeps the steps of the
-                        // completed segments and the status.
-                        book.run.state.steps = lane.steps;
-                        book.run.state.status = lane.status;
-                    }
-                    _ => {}
-                }
-            }
-            drop(host);
-            let now = stopped(&lanes);
+            advanced = counters.advanced;
+            let now = counters.stopped as usize;
             if now > finished {
                 done((now - finished) as u64);
                 finished = now;
             }
-            // Every running lane started its run (there is no queue): once
-            // no more than the tail's size are left, the CPU takes them.
-            let running = lanes.len() - now;
-            if running > 0 && running <= tail {
-                report
-                    .on_cpu
-                    .extend(cpu_tail(&mut books, &lanes, &starts, (stop, done))?);
-                break;
-            }
         }
+        let kept = profile::time(Phase::Readback, || batch.kept())?;
+        for (book, (_, kept)) in books.iter_mut().zip(&kept) {
+            book.resume(kept);
+        }
+        let lanes: Vec<Lane> = kept.into_iter().map(|(lane, _)| lane).collect();
+        if finished < n {
+            report
+                .on_cpu
+                .extend(cpu_tail(&mut books, &lanes, (stop, done))?);
+        }
+        let periods: u64 = lanes.iter().map(|l| l.period as u64).sum();
+        report.periods += periods;
         record([
-            books.len() as u64,
+            n as u64,
             report.dispatches - dispatches_before,
             slots,
             lanes.iter().map(|l| l.steps as u64).sum(),
-            report.periods - periods_before,
+            periods,
         ]);
         Ok(books.into_iter().map(|b| b.run).collect())
     }
 }
 
 /// A batch's slow tail on the CPU: every run its lane still has going,
-/// continued from the start of its current period (`starts`), in
-/// parallel. Returns their indices in the batch.
+/// continued from the start of its current period (each `book` resumed
+/// where the device kept it), in parallel. Returns their indices in the
+/// batch.
 fn cpu_tail(
     books: &mut [Periods],
     lanes: &[Lane],
-    starts: &[PeriodStart],
     (stop, done): (&(impl Fn() -> bool + Sync), &(dyn Fn(u64) + Sync)),
 ) -> Result<Vec<usize>, GpuError> {
     let _cpu = profile::span(Phase::CpuPart);
     let going: Vec<usize> = (0..lanes.len())
-        .filter(|&k| lanes[k].flag == LANE_RUNNING)
+        .filter(|&k| lanes[k].flag != LANE_STOPPED)
         .collect();
     let ended = books
         .par_iter_mut()
-        .zip(starts)
         .zip(lanes)
-        .filter(|(_, lane)| lane.flag == LANE_RUNNING)
-        .map(|((book, start), _)| {
-            let ended = continue_until(book, *start, stop);
+        .filter(|(_, lane)| lane.flag != LANE_STOPPED)
+        .map(|(book, lane)| {
+            let ended = continue_until(book, lane.period_start(), stop);
             if ended {
                 done(1);
             }

@@ -3,7 +3,8 @@
 //! polynomial), the arithmetic of the adapter, and the three files.
 
 use super::{
-    CORNER_RETRIES, FILES, LANE_PERIOD_END, LANE_RUNNING, LANE_STOPPED, SEGMENT_DONE, SEGMENT_GOING,
+    CORNER_RETRIES, FILES, LANE_FRESH, LANE_RUNNING, LANE_STOPPED, MEASUREMENT_FILES, SEGMENT_DONE,
+    SEGMENT_GOING,
 };
 use crate::laws::lugre::libm::*;
 
@@ -55,10 +56,16 @@ impl Arithmetic {
 /// `exp_tail` / `exp_halvings` written out straight from [`EXP_TAYLOR`]
 /// and [`EXP_HALVINGS`] (loops would count against llvmpipe's limit).
 pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic) -> String {
+    // Steady measurements with the phase ladder: Karnopp's measurement
+    // files are part of every LuGre shader.
     let base = shader::prelude(Variant {
         precision: Precision::F64,
         loop_limiter: false,
-        parts: Parts::default(),
+        parts: Parts {
+            steady: true,
+            phase: true,
+            load: false,
+        },
     });
     let u = |name: &str, v: usize| format!("const {name}: u32 = {v}u;\n");
     let r = |name: &str, v: f64| format!("const {name}: Real = {};\n", lit(v));
@@ -86,11 +93,17 @@ pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic) -> String {
         out += &u(name, v);
     }
     out += &u("LUGRE_WORKGROUP_SIZE", workgroup_size as usize);
+    // Hardware (the fused arithmetic's adapters) has no loop limit: a lane
+    // measures a period end wherever it reaches one (entry.wgsl).
+    out += &format!(
+        "const PERIOD_ENDS_ANYWHERE: bool = {};\n",
+        arithmetic == Arithmetic::Fused
+    );
     out += &u("CORNER_RETRIES", CORNER_RETRIES as usize);
     out += &u("SEGMENT_GOING", SEGMENT_GOING as usize);
     out += &u("SEGMENT_DONE", SEGMENT_DONE as usize);
+    out += &u("LANE_FRESH", LANE_FRESH as usize);
     out += &u("LANE_RUNNING", LANE_RUNNING as usize);
-    out += &u("LANE_PERIOD_END", LANE_PERIOD_END as usize);
     out += &u("LANE_STOPPED", LANE_STOPPED as usize);
     out += &r("GAMMA", GAMMA);
     out += &r("SMALLEST_STEP", SMALLEST_STEP);
@@ -265,6 +278,10 @@ pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
         src += &format!("\n// ---- shaders/lugre/{name}\n");
         src += text;
     }
+    for (name, text) in MEASUREMENT_FILES {
+        src += &format!("\n// ---- shaders/karnopp/{name}\n");
+        src += text;
+    }
     src += "\n";
     src += &factor_source();
     src += "\n";
@@ -362,10 +379,11 @@ mod tests {
             "fourth_root",
             "solve_lu",
         ];
-        // CPU only: `Model::new` and `Clock::of`, which the host computes
-        // (`Params::of`, `Lane::next_period`).
+        // CPU only: `Model::new`, `Clock::of` and `cycles_per_period`,
+        // which the host computes (`Params::of`; a lane's `begin_period`
+        // takes the clock from the cycles per period).
         // Written out by the host (`factor_source`), not in rodas.wgsl.
-        let cpu_only = ["new", "of", "factor"];
+        let cpu_only = ["new", "of", "cycles_per_period", "factor"];
         for (wgsl_name, rust_text) in rust {
             let (_, wgsl_text) = FILES.iter().find(|(n, _)| *n == wgsl_name).unwrap();
             let wgsl = defined_functions(wgsl_text);

@@ -140,23 +140,28 @@ pub(crate) struct Clock {
 }
 
 impl Clock {
-    /// The clock of scene period `period` (counted from 0).
+    /// The clock of scene period `period` (counted from 0): the cycles
+    /// per period times `period`, plus the phase (the GPU's lanes compute
+    /// it so at their period starts, `shaders/lugre/measure.wgsl`).
     pub(crate) fn of(inst: &Instance, period: u32) -> Clock {
-        let t = inst.period();
+        let per = Clock::cycles_per_period(inst);
         Clock {
-            start: std::array::from_fn(|i| {
-                let a = &inst.axes[i];
-                // Cycles per scene period, whole where it is within
-                // rounding of a whole number (the slowest axis: 1).
-                let per = a.frequency * t;
-                let per = if (per - per.round()).abs() <= 1e-12 * per {
-                    per.round()
-                } else {
-                    per
-                };
-                per * period as f64 + a.phase
-            }),
+            start: std::array::from_fn(|i| per[i] * period as f64 + inst.axes[i].phase),
         }
+    }
+
+    /// Each axis' drive cycles per scene period, whole where it is within
+    /// rounding of a whole number (the slowest axis: 1).
+    pub(crate) fn cycles_per_period(inst: &Instance) -> [f64; AXES] {
+        let t = inst.period();
+        std::array::from_fn(|i| {
+            let per = inst.axes[i].frequency * t;
+            if (per - per.round()).abs() <= 1e-12 * per {
+                per.round()
+            } else {
+                per
+            }
+        })
     }
 
     /// Axis `i`'s drive over a segment that contains `t_mid` [s] and no

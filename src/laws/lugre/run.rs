@@ -9,7 +9,7 @@
 pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
 pub(crate) use super::rodas::{A, C, GAMMA, R, REDUCED, SMALLEST_STEP, rodas4, segment};
 use crate::laws::karnopp::integrate::measure::{
-    SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, period_end,
+    Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, period_end,
 };
 use crate::laws::karnopp::integrate::{
     Coefficients, Run, STATUS_OK, Settings, Vec2, initial_measure, initial_state, is_finished,
@@ -229,11 +229,7 @@ impl Periods {
     pub(crate) fn period_end(&mut self, y: &State) {
         let (c, common) = (&self.c, self.common);
         let (st, m) = (&mut self.run.state, &mut self.run.measure);
-        st.x_p = Vec2::new(y[XP], y[XP + 1]);
-        st.v_p = Vec2::new(y[VP], y[VP + 1]);
-        st.x_s = Vec2::new(y[XS], y[XS + 1]);
-        st.v_s = Vec2::new(y[VS], y[VS + 1]);
-        st.v_rel = st.v_p - st.v_s;
+        set_motion(st, y);
         st.time = self.inst.period();
         if c.steady {
             period_end(c, st, m);
@@ -252,6 +248,63 @@ impl Periods {
         if st.period == c.settle {
             st.settle_x_s = st.x_s;
         }
+    }
+}
+
+/// The positions and velocities of the state `y` in `st`.
+fn set_motion(st: &mut crate::laws::karnopp::integrate::State, y: &State) {
+    st.x_p = Vec2::new(y[XP], y[XP + 1]);
+    st.v_p = Vec2::new(y[VP], y[VP + 1]);
+    st.x_s = Vec2::new(y[XS], y[XS + 1]);
+    st.v_s = Vec2::new(y[VS], y[VS + 1]);
+    st.v_rel = st.v_p - st.v_s;
+}
+
+/// A run as the GPU kept it (`crate::gpu::lugre`, which measures its
+/// period ends on the device): the integrator's state at the last period
+/// end (zero before the first), the run's counts and status, and the
+/// measurement's accumulators and the recurrence test's snapshots.
+pub(crate) struct Kept {
+    pub(crate) y: State,
+    pub(crate) period: u32,
+    pub(crate) measured: u32,
+    /// Steps of the segments completed before the current period.
+    pub(crate) steps: u32,
+    pub(crate) status: u32,
+    pub(crate) settle_x_s: [f64; AXES],
+    pub(crate) measure: Measure,
+    pub(crate) snaps: [State; SNAPSHOTS],
+    pub(crate) taken: u32,
+}
+
+impl Periods {
+    /// The bookkeeping `kept` describes, as [`Periods::period_end`] leaves
+    /// it: the result of a run the device finished, or where the CPU
+    /// continues one ([`continue_until`]).
+    pub(crate) fn resume(&mut self, kept: &Kept) {
+        let st = &mut self.run.state;
+        set_motion(st, &kept.y);
+        st.time = 0.0;
+        st.period = kept.period;
+        st.measured = kept.measured;
+        st.steps = kept.steps;
+        st.status = kept.status;
+        st.settle_x_s = Vec2::new(kept.settle_x_s[0], kept.settle_x_s[1]);
+        self.run.measure = kept.measure;
+        self.recurrence.snaps = kept.snaps;
+        self.recurrence.taken = kept.taken;
+    }
+
+    /// The steady measurement's coefficients (Karnopp's, with no common
+    /// period: the recurrence test is this run's, [`Periods::period_end`]).
+    pub(crate) fn coefficients(&self) -> &Coefficients {
+        &self.c
+    }
+
+    /// The recurrence test's tolerances per component (infinite: not
+    /// compared) and its common period (0: no test), for the GPU.
+    pub(crate) fn recurrence_test(&self) -> (State, u32) {
+        (self.recurrence.repeat, self.common)
     }
 }
 
@@ -297,7 +350,7 @@ impl Recurrence {
         &mut self,
         y: &State,
         common: u32,
-        m: &mut crate::laws::karnopp::integrate::Measure,
+        m: &mut Measure,
     ) -> bool {
         let kept = self.taken.min(SNAPSHOTS as u32);
         for back in 1..=kept {
