@@ -59,10 +59,6 @@ pub enum Phase {
     /// GPU: the CPU's part, the slow tail of a batch continued, loop-limited
     /// and f32 fallbacks integrated, f32's check (twins or reference).
     CpuPart,
-    /// GPU, LuGre: the period ends its lanes reached, measured on the host
-    /// between dispatches (`crate::gpu::lugre`), and the lanes set going
-    /// into their next periods.
-    HostPeriods,
     /// The writer thread: records into the HDF5 file and the checkpoint.
     Write,
 }
@@ -81,17 +77,16 @@ impl Phase {
     ];
 
     /// The integrator's parts of [`Phase::Integrate`].
-    pub const INTEGRATOR: [Phase; 7] = [
+    pub const INTEGRATOR: [Phase; 6] = [
         Phase::Pack,
         Phase::Upload,
         Phase::Dispatch,
         Phase::Readback,
         Phase::Reduce,
         Phase::CpuPart,
-        Phase::HostPeriods,
     ];
 
-    const COUNT: usize = 17;
+    const COUNT: usize = 16;
 
     fn index(self) -> usize {
         self as usize
@@ -116,7 +111,6 @@ impl Phase {
             Phase::Readback => "readback",
             Phase::Reduce => "reduction to outcomes",
             Phase::CpuPart => "CPU tail, fallbacks and check",
-            Phase::HostPeriods => "LuGre period ends measured on the host",
         }
     }
 }

@@ -13,7 +13,7 @@
 #      lugre200      the coupling map at steps = 200 with LuGre friction
 #                    (smoke: 6 x 6), f64 only (LuGre has no f32 shader): its
 #                    phase lines say how its lanes spent their dispatches
-#                    ("LuGre on the GPU": period ends waited for on the host)
+#                    ("LuGre on the GPU": dispatches, period ends, slots filled)
 #      coupling1000  sweeps/coupling.toml at steps = 1000 (steady, baselines)
 #      random100k    pidm random-scene --seed 7 --count 100000 --cycles 4 --compact
 #      twofreq128    128 x 128 over both drive frequencies, 10.03-12.57 Hz by

@@ -108,55 +108,39 @@ fn start_run(lane: ptr<function, Lane>) {
     }
 }
 
-// Advances one lane by at most `attempts` step attempts: the CPU's loop
-// over the periods and their segments (`continue_until`) fused with the
+// Advances one lane by at most `*attempts` step attempts (counting them
+// down), no further than the end of its current scene period: the CPU's
+// loop over the segments of a period (`continue_until`) fused with the
 // `while` of its `segment`, at most one attempt per pass (llvmpipe counts
 // the loop passes of a SIMD group's lanes together, so that a nested loop
 // of attempts inside a loop of segments would count the lanes' attempts
-// one after the other). On a loop-limited adapter a period end is
-// measured only in a dispatch's first pass, where a SIMD group's lanes
-// measure theirs together (`PERIOD_ENDS_ANYWHERE` false): a lane that
-// reaches one later waits there for the next dispatch.
-fn advance(lane: Lane, attempts: u32) -> Lane {
+// one after the other).
+fn advance(lane: Lane, attempts: ptr<function, u32>) -> Lane {
     var out = lane;
     var y = lane.y;
     var h = lane.h;
     var end = lane.end;
     var drive = lane.drive;
-    var clock = lane.clock;
     var budget = lane.budget;
     var segment_steps = lane.segment_steps;
     var rejected = lane.rejected != 0u;
     var in_segment = lane.in_segment != 0u;
     var steps = lane.steps;
-    for (var round = 0u; round < attempts; round++) {
+    var left = *attempts;
+    for (; left > 0u; left--) {
         close_segment(y, end, &in_segment, &steps, segment_steps);
         if !in_segment {
             if !(y[T] < model.period) {
-                if !PERIOD_ENDS_ANYWHERE && round > 0u {
-                    break;
-                }
-                out.y = y;
-                out.h = h;
-                out.budget = budget;
-                out.steps = steps;
-                lugre_period_end(&out, y);
-                if run_finished(out) {
-                    out.flag = LANE_STOPPED;
-                    break;
-                }
-                begin_period(&out);
-                y = out.y;
-                clock = out.clock;
+                break;
             }
             // The next segment: to the first corner or the period's end.
             var stop = model.period;
             for (var i = 0u; i < 2u; i++) {
-                stop = min(stop, next_corner(clock, i, y[T]));
+                stop = min(stop, next_corner(lane.clock, i, y[T]));
             }
             end = stop;
             let mid = Real(0.5) * (y[T] + end);
-            drive = Drive(drive_on(clock, 0u, mid), drive_on(clock, 1u, mid));
+            drive = Drive(drive_on(lane.clock, 0u, mid), drive_on(lane.clock, 1u, mid));
             segment_steps = 0u;
             rejected = false;
             in_segment = true;
@@ -165,20 +149,29 @@ fn advance(lane: Lane, attempts: u32) -> Lane {
         if r != SEGMENT_GOING && r != SEGMENT_DONE {
             out.status = r;
             out.flag = LANE_STOPPED;
+            left--;
             break;
         }
     }
+    // A segment complete at the last attempt ends now, so that a lane at
+    // its period's end shows it (`lane_at_period_end`).
+    close_segment(y, end, &in_segment, &steps, segment_steps);
+    *attempts = left;
     out.y = y;
     out.h = h;
     out.end = end;
     out.drive = drive;
-    out.clock = clock;
     out.budget = budget;
     out.steps = steps;
     out.segment_steps = segment_steps;
     out.rejected = u32(rejected);
     out.in_segment = u32(in_segment);
     return out;
+}
+
+// Whether the lane sits at the end of its current scene period.
+fn lane_at_period_end(lane: Lane) -> bool {
+    return lane.in_segment == 0u && !(lane.y[T] < model.period);
 }
 
 // Ends the current segment once `y` is at its end (the CPU's `while`
@@ -219,8 +212,28 @@ fn lugre_advance(
     if lane.flag == LANE_FRESH {
         start_run(&lane);
     }
-    if lane.flag != LANE_STOPPED {
-        lane = advance(lane, control.attempts);
+    // Period by period: measure the one that ended, start the next, and
+    // advance to its end. On a loop-limited adapter a lane measures a
+    // period end only at a dispatch's start, where a SIMD group's lanes
+    // measure theirs together (`PERIOD_ENDS_ANYWHERE` false: one pass);
+    // a lane that reaches one later waits there for the next dispatch.
+    var attempts = control.attempts;
+    loop {
+        if lane.flag == LANE_STOPPED {
+            break;
+        }
+        if lane_at_period_end(lane) {
+            lugre_period_end(&lane, lane.y);
+            if run_finished(lane) {
+                lane.flag = LANE_STOPPED;
+                break;
+            }
+            begin_period(&lane);
+        }
+        lane = advance(lane, &attempts);
+        if !PERIOD_ENDS_ANYWHERE || attempts == 0u {
+            break;
+        }
     }
     lanes[index] = lane;
     atomicAdd(&counters.advanced, 1u);

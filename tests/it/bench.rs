@@ -136,9 +136,10 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
         "{phases}"
     );
     // The LuGre run's line (36 instances and 12 baselines): its
-    // dispatches, host period ends and slots.
+    // dispatches, period ends measured on the device and slots.
     assert!(
-        phases.contains("pidm: phase LuGre on the GPU: 48 instances, "),
+        phases.contains("pidm: phase LuGre on the GPU: 48 instances, ")
+            && phases.contains("period ends measured on the device"),
         "{phases}"
     );
     assert!(phases.contains("== lockstep: time per pass"), "{phases}");

@@ -135,7 +135,7 @@ fn compare(
     }
     eprintln!(
         "{label} at {tolerance:e}: {} instances, CPU {cpu_s:.2} s (one core), GPU {:.2} s \
-         ({} dispatches of {} attempts, {} periods measured on the host); at most {worst:.1e} \
+         ({} dispatches of {} attempts, {} periods measured on the device); at most {worst:.1e} \
          um apart",
         instances.len(),
         report.seconds,
@@ -426,4 +426,59 @@ fn the_batch_reports_each_finished_instance_once() {
     assert_eq!(calls.iter().sum::<u64>(), 3, "{calls:?}");
     assert!(calls.len() >= 2, "{calls:?}");
     assert!(runs.iter().all(|r| r.state.status == 0));
+}
+
+/// The lanes measure their period ends as the CPU's run does: on a
+/// software adapter every run (the state the reduction reads and all the
+/// measurement's accumulators: batches, snapshots, the phase ladder's
+/// windows) is the CPU's bit for bit, and elsewhere ends alike. The cases
+/// end by each verdict path: the steady 1-DOF case by the recurrence test
+/// with z, a two-frequency case at an irrational ratio (no common period)
+/// through the phase ladder's windows, and a window.
+#[test]
+fn the_lanes_measure_as_the_cpu_s_run_does() {
+    let Some((gpu, software)) = lugre_gpu() else {
+        return;
+    };
+    let steady = other_cases()[2];
+    let mut ladder = lugre_case([100.0, 100.0], [10.0, 10.0 * 2f64.sqrt()], Lugre::DEFAULT);
+    ladder.measure = steady.measure;
+    ladder.cycles = 250;
+    ladder.settle = 2;
+    let window = seven_cases()[3];
+    let instances = [steady, ladder, window];
+    let settings = Settings::default();
+    let cpu: Vec<_> = instances
+        .iter()
+        .map(|inst| run_instance_until(inst, &settings, || false).expect("not stopped"))
+        .collect();
+    let (runs, report) = gpu.run(&instances, &settings).expect("the GPU batch");
+    // The paths are taken: a periodic verdict, ladder windows filled.
+    assert!(
+        cpu[0].state.measured == 1 && cpu[0].measure.lag > 0,
+        "{:?}",
+        cpu[0].state
+    );
+    assert!(
+        cpu[1].measure.phase.whole[4].x != 0.0,
+        "{:?}",
+        cpu[1].measure.phase
+    );
+    assert_eq!(
+        report.periods,
+        cpu.iter().map(|r| r.state.period as u64).sum::<u64>()
+    );
+    for (k, (got, want)) in runs.iter().zip(&cpu).enumerate() {
+        if software {
+            assert_eq!(got, want, "{k}");
+        } else {
+            let (g, w) = (&got.state, &want.state);
+            assert_eq!(
+                (g.status, g.period, g.measured),
+                (w.status, w.period, w.measured),
+                "{k}"
+            );
+            assert_eq!(got.measure.verdict, want.measure.verdict, "{k}");
+        }
+    }
 }

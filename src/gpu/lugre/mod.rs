@@ -5,32 +5,37 @@
 //! runs a batch period by period.
 //!
 //! * One invocation per instance. Each dispatch advances every running
-//!   instance by at most [`LugreGpu::attempts`] Rodas4 step attempts, and
-//!   no further than the end of its current scene period. The integrator's
-//!   state (the 11 numbers, the step size, the budget, the segment in hand
-//!   and its `rejected` flag) stays in a storage buffer between dispatches
-//!   ([`Lane`]), so that a run cut into dispatches anywhere gives the same
-//!   bits; the per-instance parameters are packed once ([`Params`]).
-//! * At a period's end the host reads the lane back and measures the
-//!   period with the CPU run's own bookkeeping
-//!   (`laws::lugre::run::Periods::period_end`: `measure::period_end` and
-//!   the recurrence test that compares z), then starts the next period.
-//!   The result is an `integrate::Run` per instance, which
+//!   instance by at most [`LugreGpu::attempts`] Rodas4 step attempts. The
+//!   run (the 11 numbers, the step size, the budget, the segment in hand
+//!   and its `rejected` flag, the period count and the period's start)
+//!   stays in a storage buffer between dispatches ([`Lane`]), so that a
+//!   run cut into dispatches anywhere gives the same bits; the
+//!   per-instance parameters are packed once ([`Params`]).
+//! * A lane measures its period ends itself (`shaders/lugre/measure.wgsl`):
+//!   Karnopp's measurement files (`measure.wgsl`, `phase.wgsl`,
+//!   [`MEASUREMENT_FILES`]) on its own accumulators, then the recurrence
+//!   test that compares z, as the CPU run's `Periods::period_end` does,
+//!   and starts its next period. The host reads two counters after each
+//!   dispatch (lanes stopped, lanes advanced) and the lanes and their
+//!   accumulators once, at the batch's end. The result is an
+//!   `integrate::Run` per instance (`Periods::resume`), which
 //!   `measurement::reduce` turns into the record the CPU gives.
 //! * The batch's slow tail goes to the CPU by the Karnopp batches' rule
 //!   ([`crate::gpu::tail_size`], [`LugreGpu::cpu_tail`]): once no more
 //!   runs than that are going, the CPU continues each from the start of
 //!   its current period (`laws::lugre::run::continue_until`), whose state,
-//!   step and budget the host keeps per lane (`PeriodStart`).
+//!   step, budget and measurement its lane keeps.
 //! * llvmpipe (lavapipe) ends every loop of an invocation once all its
 //!   loops together have run 65,535 passes, silently, counting the passes
 //!   of a SIMD group's lanes together. The entry's loop makes at most one
 //!   attempt per pass (no loop of attempts inside a loop of segments,
 //!   which would count the lanes' attempts one after the other), one
 //!   attempt has at most [`LOOP_PASSES_PER_ATTEMPT`] loop passes in the
-//!   source (llvmpipe 15 unrolls some), and a software adapter gets
-//!   [`SOFTWARE_ATTEMPTS`] attempts per dispatch: the source's count within
-//!   a third of the limit. `tests/it/gpu_lugre.rs` checks that a batch gives
+//!   source (llvmpipe 15 unrolls some), a period end at most
+//!   [`PERIOD_END_PASSES`], measured only in a dispatch's first pass (so
+//!   a SIMD group's lanes measure theirs together), and a software adapter
+//!   gets [`SOFTWARE_ATTEMPTS`] attempts per dispatch: the source's count
+//!   within a third of the limit. `tests/it/gpu_lugre.rs` checks that a batch gives
 //!   the same bits at 3 attempts per dispatch (an attempt cut short changes
 //!   the numbers: llvmpipe cut from about 135 attempts when an attempt had
 //!   959 passes in the source, before the LU was written out).
@@ -57,9 +62,9 @@
 //! [`LugreGpu::run_until`].
 //!
 //! The files: `source.rs` (the prelude generated from the Rust constants,
-//! the LU factorisation and solve written out,
-//! the source, and what a lane carries: [`footprint`]), `buffers.rs` (the
-//! structs shared with WGSL), `runner.rs` (a batch, dispatch by dispatch,
+//! the LU factorisation and solve written out, the source with Karnopp's
+//! measurement files, and what a lane carries: [`footprint`]), `buffers.rs`
+//! (the structs shared with WGSL), `runner.rs` (a batch, dispatch by dispatch,
 //! on the pipeline the context compiles once: `GpuContext::law_pipeline`,
 //! sized by the engine's `workgroups` and `batch_limit`) and `probes.rs`
 //! (the function-by-function comparisons the tests run on a device). The

@@ -1,6 +1,6 @@
-//! A batch of LuGre instances on the device, dispatch by dispatch, with
-//! the CPU run's period-end bookkeeping between dispatches, and the
-//! batch's slow tail on the CPU.
+//! A batch of LuGre instances on the device, dispatch by dispatch (the
+//! lanes measure their period ends themselves; the host reads two
+//! counters after each), and the batch's slow tail on the CPU.
 
 use super::buffers::Recurrence;
 use super::{
@@ -14,10 +14,10 @@ use bytemuck::{Pod, Zeroable};
 use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 
+use crate::gpu::layout::double::{Coefficients, Measure as GpuMeasure, packed};
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::gpu::{GpuContext, GpuError, Precision};
 use crate::laws::karnopp::integrate::{Run, Settings};
-use crate::gpu::layout::double::{Coefficients, Measure as GpuMeasure, packed};
 use crate::laws::lugre::run::{Kept, Periods, continue_until};
 use crate::model::Instance;
 use crate::profile::{self, Phase};
@@ -28,9 +28,9 @@ pub struct BatchReport {
     /// The instances (indices into the call's) the CPU finished: the
     /// slow tail of their batch ([`LugreGpu::cpu_tail`]).
     pub on_cpu: Vec<usize>,
-    /// Dispatches (each followed by a readback).
+    /// Dispatches (each followed by a readback of the counters).
     pub dispatches: u64,
-    /// Scene periods measured on the host.
+    /// Scene periods the lanes measured on the device.
     pub periods: u64,
     /// Seconds of the whole batch, and of the dispatches with their
     /// readbacks.
@@ -51,8 +51,8 @@ pub struct LugreGpu<'a> {
     /// default 1 % of a batch of at least 1,000, or 16 per thread,
     /// whichever is more, at most a quarter; `Some(0)`: none). The CPU
     /// continues each from the start of its current scene period, which
-    /// the host keeps, so on llvmpipe, whose arithmetic the CPU's mirrors,
-    /// the results are the same bits.
+    /// its lane keeps with its measurement, so on llvmpipe, whose
+    /// arithmetic the CPU's mirrors, the results are the same bits.
     pub cpu_tail: Option<usize>,
 }
 
@@ -108,11 +108,7 @@ pub(super) struct Counters {
 impl<'g> Batch<'g> {
     /// The buffers of `books`' runs: their parameters, coefficients and
     /// lanes, and room for their accumulators and recurrence snapshots.
-    pub(super) fn new(
-        gpu: &'g LugreGpu<'g>,
-        books: &[Periods],
-        attempts: u32,
-    ) -> Batch<'g> {
+    pub(super) fn new(gpu: &'g LugreGpu<'g>, books: &[Periods], attempts: u32) -> Batch<'g> {
         let device = gpu.ctx.device();
         let n = books.len() as u64;
         let params: Vec<Params> = books.iter().map(Params::of).collect();
@@ -129,8 +125,16 @@ impl<'g> Batch<'g> {
         let copied = wgpu::BufferUsages::COPY_SRC;
         let models = init("lugre models", bytemuck::cast_slice(&params), copied);
         let lane_buffer = init("lugre lanes", bytemuck::cast_slice(&lanes), copied);
-        let coefficients = init("lugre coefficients", bytemuck::cast_slice(&coefficients), copied);
-        let control = init("lugre control", bytemuck::cast_slice(&[attempts, 0, 0, 0]), copied);
+        let coefficients = init(
+            "lugre coefficients",
+            bytemuck::cast_slice(&coefficients),
+            copied,
+        );
+        let control = init(
+            "lugre control",
+            bytemuck::cast_slice(&[attempts, 0, 0, 0]),
+            copied,
+        );
         let counters = init("lugre counters", &[0; size_of::<Counters>()], copied);
         let zeroed = |label: &str, size: usize| {
             device.create_buffer(&wgpu::BufferDescriptor {
@@ -299,7 +303,16 @@ impl<'a> LugreGpu<'a> {
     /// The most instances one batch takes: what the device's storage
     /// bindings, buffers and dispatches hold.
     pub(super) fn max_batch(&self) -> usize {
-        let largest = size_of::<Params>().max(size_of::<Lane>());
+        let largest = [
+            size_of::<Params>(),
+            size_of::<Lane>(),
+            size_of::<Coefficients>(),
+            size_of::<GpuMeasure>(),
+            size_of::<Recurrence>(),
+        ]
+        .into_iter()
+        .max()
+        .unwrap_or(0);
         crate::gpu::batch_limit(self.ctx.limits(), largest, self.workgroup_size)
     }
 
@@ -320,9 +333,7 @@ impl<'a> LugreGpu<'a> {
         }
         let n = books.len();
         let tail = crate::gpu::tail_size(self.cpu_tail, n, rayon::current_num_threads());
-        let mut batch = profile::time(Phase::Upload, || {
-            Batch::new(self, &books, self.attempts)
-        });
+        let mut batch = profile::time(Phase::Upload, || Batch::new(self, &books, self.attempts));
         let dispatches_before = report.dispatches;
         let (mut finished, mut advanced, mut slots) = (0, 0, 0);
         // Every lane starts its run at once (there is no queue): once no
@@ -410,7 +421,7 @@ fn cpu_tail(
 /// The run's LuGre batches so far, for the phase table ([`table_lines`]):
 /// instances, dispatches, the attempt slots of the lanes running at each
 /// dispatch's start and the attempts they made (their `steps`), and the
-/// period ends measured on the host.
+/// period ends the lanes measured.
 static TOTALS: [AtomicU64; 5] = [const { AtomicU64::new(0) }; 5];
 
 /// Adds a batch's figures (in [`TOTALS`]' order) to the run's, inside
@@ -424,11 +435,12 @@ fn record(figures: [u64; 5]) {
 }
 
 /// The phase table's line of the run's LuGre batches: how many dispatches
-/// (each a round trip, every lane read back), how many period ends the
-/// host measured, and what share of the running lanes' attempt slots held
-/// a Rodas4 step attempt (the rest: lanes waiting at a period end for the
-/// host, or done with their runs within the dispatch); empty where no
-/// LuGre batch ran on a GPU.
+/// (each a round trip for two counters), how many period ends the lanes
+/// measured on the device, and what share of the running lanes' attempt
+/// slots held a Rodas4 step attempt (the rest: lanes done with their runs
+/// within the dispatch, or, on a software adapter, waiting at a period end
+/// for the next dispatch's first pass); empty where no LuGre batch ran on
+/// a GPU.
 pub fn table_lines() -> String {
     let [instances, dispatches, slots, attempts, periods] =
         TOTALS.each_ref().map(|t| t.load(Ordering::Relaxed));
@@ -437,8 +449,8 @@ pub fn table_lines() -> String {
     }
     format!(
         "pidm: phase LuGre on the GPU: {instances} instances, {dispatches} dispatches \
-         (each a round trip, every lane read back), {periods} period ends measured on the \
-         host; {attempts} Rodas4 step attempts filled {:.1} % of the running lanes' slots\n",
+         (each a round trip for two counters), {periods} period ends measured on the \
+         device; {attempts} Rodas4 step attempts filled {:.1} % of the running lanes' slots\n",
         100.0 * attempts as f64 / slots.max(1) as f64
     )
 }

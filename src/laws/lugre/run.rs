@@ -82,9 +82,9 @@ pub fn run_instance_until(
 
 /// Where a scene period of a LuGre run starts: the integrator's state
 /// (its time 0 within the period), its next trial step and the steps the
-/// run may still take. The GPU's host keeps one per lane, so that the CPU
-/// can take a run over at its current period's start (the batch's CPU
-/// tail, `crate::gpu::lugre`).
+/// run may still take. Each GPU lane keeps its own, so that the CPU can
+/// take a run over at its current period's start (the batch's CPU tail,
+/// `crate::gpu::lugre`).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PeriodStart {
     pub(crate) y: State,
@@ -156,7 +156,9 @@ pub(crate) fn continue_until(
 /// model, the error control's weights, the step budget, the run's
 /// `integrate::Run` and the measurement on top of it (`measure::period_end`
 /// and the recurrence test with z). The CPU's run ([`run_instance_until`])
-/// and the GPU's host (`crate::gpu::lugre`) share it, so both measure alike.
+/// uses it; the GPU's lanes measure with its WGSL mirror
+/// (`shaders/lugre/measure.wgsl`), and their host turns what they kept into
+/// one ([`Periods::resume`]): the result, or where the CPU tail continues.
 pub(crate) struct Periods {
     pub(crate) inst: Instance,
     pub(crate) model: Model,
@@ -346,12 +348,7 @@ impl Recurrence {
 
     /// Whether `y` repeats a kept snapshot; if it does, records the lag
     /// and the travel over it in `m` (a periodic verdict), else keeps `y`.
-    fn repeats(
-        &mut self,
-        y: &State,
-        common: u32,
-        m: &mut Measure,
-    ) -> bool {
+    fn repeats(&mut self, y: &State, common: u32, m: &mut Measure) -> bool {
         let kept = self.taken.min(SNAPSHOTS as u32);
         for back in 1..=kept {
             let s = &self.snaps[((self.taken - back) % SNAPSHOTS as u32) as usize];
