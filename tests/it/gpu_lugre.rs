@@ -482,3 +482,34 @@ fn the_lanes_measure_as_the_cpu_s_run_does() {
         }
     }
 }
+
+/// The hardware's shader (fused arithmetic, period ends measured wherever
+/// a lane reaches them) on whatever adapter runs the tests, lavapipe in CI:
+/// the records within the hardware bound of the CPU's, with the CPU's
+/// status, periods and lag. An undriven instance takes a few attempts per
+/// period, so its lane measures many period ends in one dispatch (more
+/// periods than dispatches), the path no software variant takes.
+#[test]
+fn the_hardware_variant_measures_period_ends_anywhere() {
+    let Some((_, _)) = lugre_gpu() else {
+        return;
+    };
+    let gpu = LugreGpu::hardware_variant(context().expect("a context")).expect("the pipeline");
+    let mut instances = seven_cases();
+    let mut undriven = instances[0];
+    undriven.axes[0].voltage = 0.0;
+    undriven.cycles = 40;
+    for (k, inst) in instances.iter_mut().enumerate() {
+        inst.cycles = 2 + k as u32;
+        inst.settle = 1;
+    }
+    instances.push(undriven);
+    compare(&gpu, "hardware variant", &instances, 1e-4, 2e-5);
+    let report = compare(&gpu, "hardware variant, undriven", &[undriven], 1e-4, 2e-5);
+    assert!(
+        report.periods >= 40 && report.periods > 4 * report.dispatches,
+        "{} periods in {} dispatches",
+        report.periods,
+        report.dispatches
+    );
+}

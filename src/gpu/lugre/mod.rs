@@ -45,7 +45,8 @@
 //!   NVIDIA's compiler requires. llvmpipe's f64 `fma` is not fused (a
 //!   rounded product and a sum), and its compiler rewrites a + b - a to b
 //!   where it may reassociate: the shader uses no fma, and `keep` guards
-//!   the two-part sums.
+//!   the two-part sums. [`LugreGpu::hardware_variant`] gives the hardware's
+//!   shader on any adapter, so the tests run it on lavapipe too.
 //! * WGSL's f64 has no exp or pow: the CPU's LuGre integrator computes
 //!   exp, hypot and the step control's fourth root with algorithms the
 //!   shader can run ([`crate::laws::lugre::libm`]: [`exp_nonpositive`],

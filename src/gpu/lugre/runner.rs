@@ -236,22 +236,53 @@ impl<'g> Batch<'g> {
 }
 
 impl<'a> LugreGpu<'a> {
-    /// Compiles the integrator on `ctx`, which must offer f64.
+    /// Compiles the integrator on `ctx`, which must offer f64: the
+    /// variant of its kind of adapter.
     pub fn new(ctx: &'a GpuContext) -> Result<LugreGpu<'a>, GpuError> {
+        LugreGpu::variant(ctx, ctx.is_hardware())
+    }
+
+    /// The variant a hardware adapter gets (its workgroup size, the fused
+    /// arithmetic and period ends measured wherever a lane reaches them),
+    /// on any f64 adapter: on a software one (llvmpipe) with its software
+    /// attempts per dispatch, so that the tests run the hardware's shader
+    /// there too.
+    pub fn hardware_variant(ctx: &'a GpuContext) -> Result<LugreGpu<'a>, GpuError> {
+        let mut gpu = LugreGpu::variant(ctx, true)?;
+        if !ctx.is_hardware() {
+            gpu.attempts = SOFTWARE_ATTEMPTS;
+        }
+        Ok(gpu)
+    }
+
+    /// The variant for a hardware adapter (`hardware`) or a software one.
+    fn variant(ctx: &'a GpuContext, hardware: bool) -> Result<LugreGpu<'a>, GpuError> {
         if !ctx.supports_f64() {
             return Err(GpuError::F64Unsupported {
                 adapter: ctx.describe(),
             });
         }
-        let (workgroup_size, attempts) = if ctx.is_hardware() {
-            (HARDWARE_WORKGROUP_SIZE, HARDWARE_ATTEMPTS)
+        let (workgroup_size, attempts, arithmetic, name) = if hardware {
+            let name = "lugre (hardware)";
+            (
+                HARDWARE_WORKGROUP_SIZE,
+                HARDWARE_ATTEMPTS,
+                Arithmetic::Fused,
+                name,
+            )
         } else {
-            (SOFTWARE_WORKGROUP_SIZE, SOFTWARE_ATTEMPTS)
+            let name = "lugre (software)";
+            (
+                SOFTWARE_WORKGROUP_SIZE,
+                SOFTWARE_ATTEMPTS,
+                Arithmetic::Native,
+                name,
+            )
         };
-        let arithmetic = Arithmetic::of(ctx);
-        // One compile per context: every batch of a run takes the same
-        // pipeline (the driver's cache on disk spares later runs it too).
-        let pipeline = ctx.law_pipeline("lugre", |cache| {
+        // One compile per context and variant: every batch of a run takes
+        // the same pipeline (the driver's cache on disk spares later runs
+        // it too).
+        let pipeline = ctx.law_pipeline(name, |cache| {
             compile(ctx.device(), workgroup_size, arithmetic, ENTRY_POINT, cache)
         })?;
         Ok(LugreGpu {

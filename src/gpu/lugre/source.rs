@@ -9,7 +9,7 @@ use super::{
 use crate::laws::lugre::libm::*;
 
 use crate::gpu::shader::{self, Parts, Variant};
-use crate::gpu::{GpuContext, GpuError, Precision};
+use crate::gpu::{GpuError, Precision};
 use crate::laws::lugre::run::{A, C, GAMMA, N, R, REDUCED, SMALLEST_STEP, T, VP, VS, XP, XS, Z};
 
 /// `{:e}` of an f64: the shortest text that reads back as the same value.
@@ -36,17 +36,6 @@ pub enum Arithmetic {
     /// fused multiply-adds: NVIDIA's compiler fails on f64 division and
     /// square roots (`crate::gpu::shader`).
     Fused,
-}
-
-impl Arithmetic {
-    /// Native on software adapters (llvmpipe), fused on hardware.
-    pub fn of(ctx: &GpuContext) -> Arithmetic {
-        if ctx.is_hardware() {
-            Arithmetic::Fused
-        } else {
-            Arithmetic::Native
-        }
-    }
 }
 
 /// The LuGre prelude: the Karnopp prelude's f64 definitions (Real, the
