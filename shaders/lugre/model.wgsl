@@ -201,40 +201,62 @@ fn at(l: Linear, t: Real) -> Real {
     return l.a + l.b * t;
 }
 
-// dy/dt, with each axis' drive voltage linear in time.
+// dy/dt, with each axis' drive voltage linear in time. The CPU's loop
+// over the axes is a call per axis with a literal index (`rhs_axis`), so
+// that once the driver inlines it no array is indexed at run time (a
+// private array indexed so lives in local memory on NVIDIA).
 fn rhs(y: Vector, drive: Drive) -> Vector {
-    var yy = y;
-    var dr = drive;
-    var vr = array<Real, 2>(yy[VP] - yy[VS], yy[VP + 1u] - yy[VS + 1u]);
+    let vr = array<Real, 2>(y[VP] - y[VS], y[VP + 1u] - y[VS + 1u]);
     let s = hypot(vr[0], vr[1]);
     let q = quotient(s, model.v_s);
     let g = model.coulomb_friction
         + (model.static_friction - model.coulomb_friction) * exp_nonpositive(-(q * q));
     var d: Vector;
-    for (var i = 0u; i < 2u; i++) {
-        let dz = vr[i] - quotient(model.sigma0 * s * yy[Z + i], g);
-        let f = model.sigma0 * yy[Z + i] + model.sigma1 * dz + model.sigma2 * vr[i];
-        let force = model.gain[i] * at(dr[i], yy[T]);
-        d[XP + i] = yy[VP + i];
-        d[VP + i] = quotient(
-            force - model.damping[i] * yy[VP + i] - model.stiffness[i] * yy[XP + i] - f,
-            model.stage_mass[i],
-        );
-        d[XS + i] = yy[VS + i];
-        d[VS + i] = quotient(f + model.load[i], model.slider_mass);
-        d[Z + i] = dz;
-    }
+    rhs_axis(&d, y, drive, vr, s, g, 0u);
+    rhs_axis(&d, y, drive, vr, s, g, 1u);
     d[T] = Real(1.0);
     return d;
 }
 
+// Axis `i`'s rows of `rhs` (the body of the CPU's loop).
+fn rhs_axis(
+    d: ptr<function, Vector>,
+    y: Vector,
+    drive: Drive,
+    vr: array<Real, 2>,
+    s: Real,
+    g: Real,
+    i: u32,
+) {
+    let dz = vr[i] - quotient(model.sigma0 * s * y[Z + i], g);
+    let f = model.sigma0 * y[Z + i] + model.sigma1 * dz + model.sigma2 * vr[i];
+    let force = model.gain[i] * at(drive[i], y[T]);
+    (*d)[XP + i] = y[VP + i];
+    (*d)[VP + i] = quotient(
+        force - model.damping[i] * y[VP + i] - model.stiffness[i] * y[XP + i] - f,
+        model.stage_mass[i],
+    );
+    (*d)[XS + i] = y[VS + i];
+    (*d)[VS + i] = quotient(f + model.load[i], model.slider_mass);
+    (*d)[Z + i] = dz;
+}
+
+// What every entry of the Jacobian reads of the friction's state: the
+// relative velocities, their norm s, and h = s / g(s) with its derivative.
+struct Friction {
+    vr: array<Real, 2>,
+    s: Real,
+    h: Real,
+    dh: Real,
+}
+
 // The Jacobian of `rhs` (row: derivative, column: state). At v_rel = 0,
 // where |v_rel| has no derivative, the bristle term's direction is
-// dropped (its factor z h'(s) v_rel / s is bounded).
+// dropped (its factor z h'(s) v_rel / s is bounded). The CPU's loops over
+// the axes are calls with literal indices (`jacobian_axis`,
+// `jacobian_pair`), as `rhs`'s.
 fn jacobian(y: Vector, drive: Drive) -> Matrix {
-    var yy = y;
-    var dr = drive;
-    var vr = array<Real, 2>(yy[VP] - yy[VS], yy[VP + 1u] - yy[VS + 1u]);
+    let vr = array<Real, 2>(y[VP] - y[VS], y[VP + 1u] - y[VS + 1u]);
     let s = hypot(vr[0], vr[1]);
     let q = quotient(s, model.v_s);
     let e = exp_nonpositive(-(q * q));
@@ -243,40 +265,49 @@ fn jacobian(y: Vector, drive: Drive) -> Matrix {
     let dg = fs_fc * e * quotient(Real(-2.0) * s, model.v_s * model.v_s);
     let h = quotient(s, g);
     let dh = quotient(g - s * dg, g * g);
+    let friction = Friction(vr, s, h, dh);
     var jac: Matrix;
-    for (var i = 0u; i < 2u; i++) {
-        // d(dz_i)/d(v_rel_j) and d(dz_i)/d(z_i); f_i's likewise.
-        var ddz_dvr: array<Real, 2>;
-        var df_dvr: array<Real, 2>;
-        for (var j = 0u; j < 2u; j++) {
-            let own = select(Real(0.0), Real(1.0), i == j);
-            let turn = select(Real(0.0), quotient(vr[j], s), s > Real(0.0));
-            ddz_dvr[j] = own - model.sigma0 * yy[Z + i] * dh * turn;
-        }
-        let ddz_dz = -model.sigma0 * h;
-        for (var j = 0u; j < 2u; j++) {
-            df_dvr[j] = model.sigma1 * ddz_dvr[j] + select(Real(0.0), model.sigma2, i == j);
-        }
-        let df_dz = model.sigma0 + model.sigma1 * ddz_dz;
-        let mass = model.stage_mass[i];
-        jac[XP + i][VP + i] = Real(1.0);
-        jac[XS + i][VS + i] = Real(1.0);
-        jac[VP + i][XP + i] = quotient(-model.stiffness[i], mass);
-        jac[VP + i][VP + i] = quotient(-model.damping[i], mass);
-        jac[VP + i][Z + i] = quotient(-df_dz, mass);
-        jac[VP + i][T] = quotient(model.gain[i] * dr[i].b, mass);
-        jac[VS + i][Z + i] = quotient(df_dz, model.slider_mass);
-        jac[Z + i][Z + i] = ddz_dz;
-        for (var j = 0u; j < 2u; j++) {
-            jac[VP + i][VP + j] -= quotient(df_dvr[j], mass);
-            jac[VP + i][VS + j] += quotient(df_dvr[j], mass);
-            jac[VS + i][VP + j] += quotient(df_dvr[j], model.slider_mass);
-            jac[VS + i][VS + j] -= quotient(df_dvr[j], model.slider_mass);
-            jac[Z + i][VP + j] += ddz_dvr[j];
-            jac[Z + i][VS + j] -= ddz_dvr[j];
-        }
-    }
+    jacobian_axis(&jac, y, drive, friction, 0u);
+    jacobian_axis(&jac, y, drive, friction, 1u);
     return jac;
+}
+
+// d(dz_i)/d(v_rel_j).
+fn ddz_dvr(y: Vector, fr: Friction, i: u32, j: u32) -> Real {
+    let own = select(Real(0.0), Real(1.0), i == j);
+    let turn = select(Real(0.0), quotient(fr.vr[j], fr.s), fr.s > Real(0.0));
+    return own - model.sigma0 * y[Z + i] * fr.dh * turn;
+}
+
+// Axis `i`'s rows of the Jacobian (the body of the CPU's loop over `i`).
+fn jacobian_axis(jac: ptr<function, Matrix>, y: Vector, drive: Drive, fr: Friction, i: u32) {
+    let ddz_dz = -model.sigma0 * fr.h;
+    let df_dz = model.sigma0 + model.sigma1 * ddz_dz;
+    let mass = model.stage_mass[i];
+    (*jac)[XP + i][VP + i] = Real(1.0);
+    (*jac)[XS + i][VS + i] = Real(1.0);
+    (*jac)[VP + i][XP + i] = quotient(-model.stiffness[i], mass);
+    (*jac)[VP + i][VP + i] = quotient(-model.damping[i], mass);
+    (*jac)[VP + i][Z + i] = quotient(-df_dz, mass);
+    (*jac)[VP + i][T] = quotient(model.gain[i] * drive[i].b, mass);
+    (*jac)[VS + i][Z + i] = quotient(df_dz, model.slider_mass);
+    (*jac)[Z + i][Z + i] = ddz_dz;
+    jacobian_pair(jac, y, fr, i, 0u);
+    jacobian_pair(jac, y, fr, i, 1u);
+}
+
+// The entries of row axis `i` and column axis `j` that the velocities
+// couple (the body of the CPU's inner loop over `j`).
+fn jacobian_pair(jac: ptr<function, Matrix>, y: Vector, fr: Friction, i: u32, j: u32) {
+    let ddz = ddz_dvr(y, fr, i, j);
+    let df_dvr = model.sigma1 * ddz + select(Real(0.0), model.sigma2, i == j);
+    let mass = model.stage_mass[i];
+    (*jac)[VP + i][VP + j] -= quotient(df_dvr, mass);
+    (*jac)[VP + i][VS + j] += quotient(df_dvr, mass);
+    (*jac)[VS + i][VP + j] += quotient(df_dvr, model.slider_mass);
+    (*jac)[VS + i][VS + j] -= quotient(df_dvr, model.slider_mass);
+    (*jac)[Z + i][VP + j] += ddz;
+    (*jac)[Z + i][VS + j] -= ddz;
 }
 
 // Axis `i`'s drive over a segment that contains `t_mid` [s] and no corner

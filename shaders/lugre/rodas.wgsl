@@ -167,45 +167,71 @@ fn w_matrix(drive: Drive, y: Vector, g: Real) -> W {
     var j = jacobian(y, drive);
     var w: W;
     var a: ReducedMatrix;
-    for (var r = 0u; r < R; r++) {
-        let n = REDUCED[r];
-        for (var c = 0u; c < R; c++) {
-            a[r][c] = -g * j[n][REDUCED[c]];
-        }
-        a[r][r] += Real(1.0);
-        for (var i = 0u; i < 2u; i++) {
-            // x_XP,i = b_XP,i + g x_VP,i: its column folds into VP,i's.
-            a[r][i] -= g * g * j[n][XP + i];
-            w.j_xp[r][i] = j[n][XP + i];
-        }
-        w.j_t[r] = j[n][T];
-    }
+    // The CPU's loop over the reduced rows, a call per row with literal
+    // indices (no array indexed at run time once inlined).
+    const_assert R == 6u;
+    w_row(&w, &a, &j, g, 0u);
+    w_row(&w, &a, &j, g, 1u);
+    w_row(&w, &a, &j, g, 2u);
+    w_row(&w, &a, &j, g, 3u);
+    w_row(&w, &a, &j, g, 4u);
+    w_row(&w, &a, &j, g, 5u);
     w.lu = factor(a);
     w.g = g;
     return w;
 }
 
-// W::solve: W x = b.
+// Reduced row `r` of W (the body of the CPU's loop over the rows).
+fn w_row(w: ptr<function, W>, a: ptr<function, ReducedMatrix>, j: ptr<function, Matrix>, g: Real, r: u32) {
+    let n = REDUCED[r];
+    (*a)[r][0] = -g * (*j)[n][REDUCED[0]];
+    (*a)[r][1] = -g * (*j)[n][REDUCED[1]];
+    (*a)[r][2] = -g * (*j)[n][REDUCED[2]];
+    (*a)[r][3] = -g * (*j)[n][REDUCED[3]];
+    (*a)[r][4] = -g * (*j)[n][REDUCED[4]];
+    (*a)[r][5] = -g * (*j)[n][REDUCED[5]];
+    (*a)[r][r] += Real(1.0);
+    // x_XP,i = b_XP,i + g x_VP,i: its column folds into VP,i's.
+    (*a)[r][0] -= g * g * (*j)[n][XP];
+    (*w).j_xp[r][0] = (*j)[n][XP];
+    (*a)[r][1] -= g * g * (*j)[n][XP + 1u];
+    (*w).j_xp[r][1] = (*j)[n][XP + 1u];
+    (*w).j_t[r] = (*j)[n][T];
+}
+
+// W::solve: W x = b. The CPU's loops over the reduced rows and the axes
+// are written out, with literal indices.
 fn solve(w: ptr<function, W>, b: Vector) -> Vector {
-    var bb = b;
     let g = (*w).g;
     var reduced: Reduced;
-    for (var r = 0u; r < R; r++) {
-        // Rust's sum over the axes (from -0.0, which adds nothing).
-        let from_xp = (*w).j_xp[r][0] * bb[XP] + (*w).j_xp[r][1] * bb[XP + 1u];
-        reduced[r] = bb[REDUCED[r]] + g * from_xp + g * (*w).j_t[r] * bb[T];
-    }
+    reduced[0] = reduced_entry(w, b, 0u);
+    reduced[1] = reduced_entry(w, b, 1u);
+    reduced[2] = reduced_entry(w, b, 2u);
+    reduced[3] = reduced_entry(w, b, 3u);
+    reduced[4] = reduced_entry(w, b, 4u);
+    reduced[5] = reduced_entry(w, b, 5u);
     let v = solve_lu(w, reduced);
     var x: Vector;
-    for (var r = 0u; r < R; r++) {
-        x[REDUCED[r]] = v[r];
-    }
-    for (var i = 0u; i < 2u; i++) {
-        x[XP + i] = bb[XP + i] + g * x[VP + i];
-        x[XS + i] = bb[XS + i] + g * x[VS + i];
-    }
-    x[T] = bb[T];
+    x[REDUCED[0]] = v[0];
+    x[REDUCED[1]] = v[1];
+    x[REDUCED[2]] = v[2];
+    x[REDUCED[3]] = v[3];
+    x[REDUCED[4]] = v[4];
+    x[REDUCED[5]] = v[5];
+    x[XP] = b[XP] + g * x[VP];
+    x[XS] = b[XS] + g * x[VS];
+    x[XP + 1u] = b[XP + 1u] + g * x[VP + 1u];
+    x[XS + 1u] = b[XS + 1u] + g * x[VS + 1u];
+    x[T] = b[T];
     return x;
+}
+
+// Reduced row `r` of the right-hand side `b` (Rust's sum over the axes,
+// from -0.0, which adds nothing).
+fn reduced_entry(w: ptr<function, W>, b: Vector, r: u32) -> Real {
+    let g = (*w).g;
+    let from_xp = (*w).j_xp[r][0] * b[XP] + (*w).j_xp[r][1] * b[XP + 1u];
+    return b[REDUCED[r]] + g * from_xp + g * (*w).j_t[r] * b[T];
 }
 
 // Lu::factor (`factor`) is written out by the host too

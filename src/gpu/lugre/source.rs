@@ -379,6 +379,15 @@ mod tests {
             "is_finite",
             "fourth_root",
             "solve_lu",
+            // The bodies of the CPU's loops over the axes and the reduced
+            // rows, called with literal indices (no array indexed at run
+            // time once inlined).
+            "rhs_axis",
+            "jacobian_axis",
+            "jacobian_pair",
+            "ddz_dvr",
+            "w_row",
+            "reduced_entry",
         ];
         // CPU only: `Model::new`, `Clock::of` and `cycles_per_period`,
         // which the host computes (`Params::of`; a lane's `begin_period`
