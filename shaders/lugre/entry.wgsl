@@ -133,12 +133,10 @@ fn advance(lane: Lane, attempts: ptr<function, u32>) -> Lane {
             if !(y[T] < model.period) {
                 break;
             }
-            // The next segment: to the first corner or the period's end.
-            var stop = model.period;
-            for (var i = 0u; i < 2u; i++) {
-                stop = min(stop, next_corner(lane.clock, i, y[T]));
-            }
-            end = stop;
+            // The next segment: to the first corner or the period's end
+            // (the CPU's fold over the axes, by literal indices).
+            let stop = min(model.period, next_corner(lane.clock, 0u, y[T]));
+            end = min(stop, next_corner(lane.clock, 1u, y[T]));
             let mid = Real(0.5) * (y[T] + end);
             drive = Drive(drive_on(lane.clock, 0u, mid), drive_on(lane.clock, 1u, mid));
             segment_steps = 0u;

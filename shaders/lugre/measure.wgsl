@@ -87,12 +87,7 @@ fn repeats(y: Vector, lag_unit: u32) -> bool {
     let kept = min(taken, SNAPSHOTS);
     for (var back = 1u; back <= kept; back++) {
         let s = (taken - back) % SNAPSHOTS;
-        var same = true;
-        for (var n = 0u; n < N; n++) {
-            let d = abs(y[n] - recurrences[held].snaps[s][n]);
-            same = same && d <= models[held].repeat[n];
-        }
-        if same {
+        if repeats_snapshot(y, s) {
             measures[held].lag = back * lag_unit;
             measures[held].travel = V2(
                 y[XS] - recurrences[held].snaps[s][XS],

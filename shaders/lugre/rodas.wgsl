@@ -34,44 +34,101 @@ struct W {
 }
 
 // One Rodas4 step of size `h` from `y`. The stages solve (I / (gamma h) -
-// J) k = rhs, that is gamma h (I - gamma h J)^-1 rhs.
+// J) k = rhs, that is gamma h (I - gamma h J)^-1 rhs. The CPU's loops stay
+// loops (one rhs, one solve and one sum of each kind in the code), but the
+// stages are six vectors of their own, picked by switches (`stage`,
+// `pick4`, `pick5`), and the sums over a vector's components are written
+// out (`axpy`, `add_quotients`, from the host): nothing here is indexed at
+// run time.
 fn rodas4(drive: Drive, y: Vector, h: Real) -> Step {
     var w = w_matrix(drive, y, GAMMA * h);
-    var k: array<Vector, 6>;
+    var k0: Vector;
+    var k1: Vector;
+    var k2: Vector;
+    var k3: Vector;
+    var k4: Vector;
+    var k5: Vector;
     var start = y;
     for (var i = 0u; i < 6u; i++) {
         if i >= 1u && i < 5u {
+            let a = stage_a(i);
             start = y;
             for (var j = 0u; j < i; j++) {
-                let a = RODAS_A[i - 1u][j];
-                for (var n = 0u; n < N; n++) {
-                    start[n] += a * k[j][n];
-                }
+                start = axpy(start, pick4(a, j), stage(j, k0, k1, k2, k3, k4));
             }
         } else if i == 5u {
-            for (var n = 0u; n < N; n++) {
-                start[n] += k[4][n];
-            }
+            start = add(start, k4);
         }
         var f = rhs(start, drive);
         if i > 0u {
+            let c = stage_c(i);
             for (var j = 0u; j < i; j++) {
-                let c = RODAS_C[i - 1u][j];
-                for (var n = 0u; n < N; n++) {
-                    f[n] += quotient(c * k[j][n], h);
-                }
+                f = add_quotients(f, pick5(c, j), stage(j, k0, k1, k2, k3, k4), h);
             }
         }
-        let solved = solve(&w, f);
-        for (var n = 0u; n < N; n++) {
-            k[i][n] = GAMMA * h * solved[n];
+        let k = scaled(GAMMA * h, solve(&w, f));
+        switch i {
+            case 0u: { k0 = k; }
+            case 1u: { k1 = k; }
+            case 2u: { k2 = k; }
+            case 3u: { k3 = k; }
+            case 4u: { k4 = k; }
+            default: { k5 = k; }
         }
     }
-    var next = start;
-    for (var n = 0u; n < N; n++) {
-        next[n] += k[5][n];
+    return Step(add(start, k5), k5);
+}
+
+// Stage j's vector (j < 5), by a switch: no array of stages to index.
+fn stage(j: u32, k0: Vector, k1: Vector, k2: Vector, k3: Vector, k4: Vector) -> Vector {
+    switch j {
+        case 0u: { return k0; }
+        case 1u: { return k1; }
+        case 2u: { return k2; }
+        case 3u: { return k3; }
+        default: { return k4; }
     }
-    return Step(next, k[5]);
+}
+
+// Entry j of a coefficient row, by literal indices.
+fn pick4(row: array<Real, 4>, j: u32) -> Real {
+    switch j {
+        case 0u: { return row[0]; }
+        case 1u: { return row[1]; }
+        case 2u: { return row[2]; }
+        default: { return row[3]; }
+    }
+}
+
+fn pick5(row: array<Real, 5>, j: u32) -> Real {
+    switch j {
+        case 0u: { return row[0]; }
+        case 1u: { return row[1]; }
+        case 2u: { return row[2]; }
+        case 3u: { return row[3]; }
+        default: { return row[4]; }
+    }
+}
+
+// Stage i's row of RODAS_A (1 <= i < 5) and of RODAS_C (1 <= i < 6), by
+// literal indices.
+fn stage_a(i: u32) -> array<Real, 4> {
+    switch i {
+        case 1u: { return RODAS_A[0]; }
+        case 2u: { return RODAS_A[1]; }
+        case 3u: { return RODAS_A[2]; }
+        default: { return RODAS_A[3]; }
+    }
+}
+
+fn stage_c(i: u32) -> array<Real, 5> {
+    switch i {
+        case 1u: { return RODAS_C[0]; }
+        case 2u: { return RODAS_C[1]; }
+        case 3u: { return RODAS_C[2]; }
+        case 4u: { return RODAS_C[3]; }
+        default: { return RODAS_C[4]; }
+    }
 }
 
 // x^(1/4) for x >= 0 (Rust's powf(0.25)): sqrt(sqrt(x)) with one Newton
@@ -119,18 +176,8 @@ fn segment(
     let attempt = rodas4(drive, *y, step);
     // The largest weighted error, NaN ignored (as Rust's f64::max); the
     // time's weight is infinite, so it is left out.
-    var err = Real(0.0);
-    var finite = true;
-    for (var n = 0u; n < N; n++) {
-        if n != T {
-            let e = abs(quotient(attempt.error[n], model.scale[n]));
-            if e > err {
-                err = e;
-            }
-        }
-        finite = finite && is_finite(attempt.next[n]);
-    }
-    if !is_finite(err) || !finite {
+    let err = largest_error(attempt.error);
+    if !is_finite(err) || !all_finite(attempt.next) {
         if step <= SMALLEST_STEP * max(abs(end), MIN_POSITIVE) {
             return STATUS_NON_FINITE;
         }

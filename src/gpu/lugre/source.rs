@@ -202,6 +202,55 @@ fn solve_lu_source() -> String {
     s
 }
 
+/// The state-wide operations of Rodas4's stages and its error control,
+/// written out over the N components (a loop over them would index the
+/// vectors at run time), each component's operations as the CPU's loops
+/// do them: `axpy` (y + a x), `add` (y + x), `add_quotients` (f + c x / h),
+/// `scaled` (g x), `largest_error` (the largest weighted error, the time's
+/// left out, NaN ignored as by Rust's f64::max), `repeats_snapshot` (the
+/// recurrence test's comparison with snapshot `s`, `measure.wgsl`) and `all_finite`.
+fn vector_source() -> String {
+    let mut s =
+        String::from("// Vector operations, written out by pidm::gpu::lugre (`vector_source`).\n");
+    let each = |name: &str, params: &str, term: &dyn Fn(usize) -> String| -> String {
+        let mut f = format!("fn {name}({params}) -> Vector {{\n    var out: Vector;\n");
+        for n in 0..N {
+            f += &format!("    out[{n}] = {};\n", term(n));
+        }
+        f + "    return out;\n}\n\n"
+    };
+    s += &each("axpy", "y: Vector, a: Real, x: Vector", &|n| {
+        format!("y[{n}] + a * x[{n}]")
+    });
+    s += &each("add", "y: Vector, x: Vector", &|n| {
+        format!("y[{n}] + x[{n}]")
+    });
+    s += &each(
+        "add_quotients",
+        "f: Vector, c: Real, x: Vector, h: Real",
+        &|n| format!("f[{n}] + quotient(c * x[{n}], h)"),
+    );
+    s += &each("scaled", "g: Real, x: Vector", &|n| format!("g * x[{n}]"));
+    s += "fn largest_error(error: Vector) -> Real {\n    var err = Real(0.0);\n";
+    for n in (0..N).filter(|&n| n != T) {
+        s += &format!(
+            "    let e{n} = abs(quotient(error[{n}], model.scale[{n}]));\n    \
+             if e{n} > err {{\n        err = e{n};\n    }}\n"
+        );
+    }
+    s += "    return err;\n}\n\nfn repeats_snapshot(y: Vector, s: u32) -> bool {\n    return true";
+    for n in 0..N {
+        s += &format!(
+            "\n        && abs(y[{n}] - recurrences[held].snaps[s][{n}]) <= models[held].repeat[{n}]"
+        );
+    }
+    s += ";\n}\n\nfn all_finite(x: Vector) -> bool {\n    return true";
+    for n in 0..N {
+        s += &format!(" && is_finite(x[{n}])");
+    }
+    s + ";\n}\n"
+}
+
 /// `Lu::factor` written out for the R x R reduced matrix as
 /// `rodas.wgsl`'s loops computed it: partial pivoting on the largest
 /// magnitude (the last of equal ones), whole rows swapped by selects over
@@ -275,6 +324,8 @@ pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
     src += &factor_source();
     src += "\n";
     src += &solve_lu_source();
+    src += "\n";
+    src += &vector_source();
     src
 }
 
@@ -388,6 +439,12 @@ mod tests {
             "ddz_dvr",
             "w_row",
             "reduced_entry",
+            // Rodas4's stages and coefficients by switches.
+            "stage_a",
+            "stage_c",
+            "stage",
+            "pick4",
+            "pick5",
         ];
         // CPU only: `Model::new`, `Clock::of` and `cycles_per_period`,
         // which the host computes (`Params::of`; a lane's `begin_period`
