@@ -211,16 +211,21 @@ fn lugre_advance(
         start_run(&lane);
     }
     // Period by period: measure the one that ended, start the next, and
-    // advance to its end. On a loop-limited adapter a lane measures a
-    // period end only at a dispatch's start, where a SIMD group's lanes
-    // measure theirs together (`PERIOD_ENDS_ANYWHERE` false: one pass);
-    // a lane that reaches one later waits there for the next dispatch.
+    // advance to its end, measuring at most PERIOD_ENDS_PER_DISPATCH
+    // period ends (1 on a loop-limited adapter, whose loop budget they
+    // share with the attempts; a lane at a second one waits there for the
+    // next dispatch).
     var attempts = control.attempts;
+    var ends = 0u;
     loop {
         if lane.flag == LANE_STOPPED {
             break;
         }
         if lane_at_period_end(lane) {
+            if ends == PERIOD_ENDS_PER_DISPATCH {
+                break;
+            }
+            ends++;
             lugre_period_end(&lane, lane.y);
             if run_finished(lane) {
                 lane.flag = LANE_STOPPED;
@@ -228,10 +233,10 @@ fn lugre_advance(
             }
             begin_period(&lane);
         }
-        lane = advance(lane, &attempts);
-        if !PERIOD_ENDS_ANYWHERE || attempts == 0u {
+        if attempts == 0u {
             break;
         }
+        lane = advance(lane, &attempts);
     }
     lanes[index] = lane;
     atomicAdd(&counters.advanced, 1u);

@@ -27,18 +27,16 @@
 //!   step, budget and measurement its lane keeps.
 //! * llvmpipe (lavapipe) ends every loop of an invocation once all its
 //!   loops together have run 65,535 passes, silently, counting the passes
-//!   of a SIMD group's lanes together. The entry's loop makes at most one
+//!   of a SIMD group's lanes together. The attempts' loop makes at most one
 //!   attempt per pass (no loop of attempts inside a loop of segments,
 //!   which would count the lanes' attempts one after the other), one
 //!   attempt has at most [`LOOP_PASSES_PER_ATTEMPT`] loop passes in the
-//!   source (llvmpipe 15 unrolls some), a period end at most
-//!   [`PERIOD_END_PASSES`], measured only in a dispatch's first pass (so
-//!   a SIMD group's lanes measure theirs together), and a software adapter
-//!   gets [`SOFTWARE_ATTEMPTS`] attempts per dispatch: the source's count
-//!   within a third of the limit. `tests/it/gpu_lugre.rs` checks that a batch gives
-//!   the same bits at 3 attempts per dispatch (an attempt cut short changes
-//!   the numbers: llvmpipe cut from about 135 attempts when an attempt had
-//!   959 passes in the source, before the LU was written out).
+//!   source and a period end at most [`PERIOD_END_PASSES`]; a lane
+//!   measures at most [`SOFTWARE_PERIOD_ENDS`] per dispatch there, and a
+//!   software adapter gets [`SOFTWARE_ATTEMPTS`] attempts per dispatch:
+//!   the source's count within a third of the limit. `tests/it/gpu_lugre.rs`
+//!   checks that a batch gives the same bits at 3 attempts per dispatch (an
+//!   attempt cut short changes the numbers).
 //! * Arithmetic ([`Arithmetic`]): on llvmpipe WGSL's own f64 division and
 //!   square root, which are IEEE's, as the CPU's; on hardware the Karnopp
 //!   prelude's `div` and `root` ([`crate::gpu::shader::prelude`]), as
@@ -135,28 +133,33 @@ pub const MIRROR_ENTRY_POINT: &str = "lugre_mirror";
 pub const LOOP_LIMIT: u32 = 65_535;
 
 /// The loop passes of one step attempt, counted in the shader's source:
-/// the Jacobian 14, the reduced W 54 (its LU factorisation is written out:
-/// none), six solves of 14 (the LU solve is written out), the stages' sums
-/// 394 and right-hand sides 12, the error's 11, the entry's pass 1, and a
-/// segment's start at most 10 (exp, hypot and the fourth root have no
-/// loops). llvmpipe 15 unrolls some of these loops (about 485 passes were
-/// measured of the 959 counted before `factor` and `solve_lu` were
-/// written out).
-pub const LOOP_PASSES_PER_ATTEMPT: u32 = 14 + 54 + 6 * 14 + 394 + 12 + 11 + 1 + 10;
+/// the entry's pass 1, a segment's start at most 8 (two corners' searches
+/// of [`CORNER_RETRIES`]), Rodas4's stage loop 6 and its sums over the
+/// earlier stages 10 and 15. The Jacobian, W, its factorisation and solve,
+/// the right-hand side, the vector sums and the error norm have no loops:
+/// they are written out (with 959 counted before `factor` and `solve_lu`
+/// were, llvmpipe 15 was measured to cut at about 135 attempts, about 485
+/// passes each: it unrolls some).
+pub const LOOP_PASSES_PER_ATTEMPT: u32 = 1 + 2 * CORNER_RETRIES + 6 + 10 + 15;
 
 /// The loop passes of one period end, counted in the source: the phase
 /// ladder's 18 levels, a batch's halving 16, the batch estimate's MSER cut
 /// (17 cuts of up to two passes over 32 batches: 833) and statistics
-/// (128), and the recurrence test's 8 snapshots of 11 numbers (96). On a
-/// software adapter a lane measures a period end only in a dispatch's
-/// first pass (`entry.wgsl`), so a SIMD group's lanes measure theirs
-/// together and these passes count once per dispatch.
-pub const PERIOD_END_PASSES: u32 = 18 + 16 + 833 + 128 + 8 + 88;
+/// (128), and the recurrence test's 8 snapshots.
+pub const PERIOD_END_PASSES: u32 = 18 + 16 + 833 + 128 + 8;
 
-/// Step attempts per dispatch on a software adapter: with a period end,
-/// the loop passes stay within a third of [`LOOP_LIMIT`] as counted in the
-/// source (about a sixth as measured).
-pub const SOFTWARE_ATTEMPTS: u32 = (LOOP_LIMIT / 3 - PERIOD_END_PASSES) / LOOP_PASSES_PER_ATTEMPT;
+/// The period ends a lane measures in one dispatch on a software adapter.
+/// With one, a SIMD group's lanes make their attempts in at most two runs
+/// of the attempts' loop (before and after its period end, which lanes
+/// that reach theirs in different passes take one after the other) and
+/// measure period ends in at most two passes of the entry's loop.
+pub const SOFTWARE_PERIOD_ENDS: u32 = 1;
+
+/// Step attempts per dispatch on a software adapter: two runs of the
+/// attempts' loop and two period ends stay within a third of
+/// [`LOOP_LIMIT`] as counted in the source.
+pub const SOFTWARE_ATTEMPTS: u32 =
+    (LOOP_LIMIT / 3 - 2 * PERIOD_END_PASSES) / (2 * LOOP_PASSES_PER_ATTEMPT);
 
 /// Step attempts per dispatch on a hardware adapter (no loop limit; a few
 /// milliseconds of work per lane, not measured yet).

@@ -4,7 +4,7 @@
 
 use super::{
     CORNER_RETRIES, FILES, LANE_FRESH, LANE_RUNNING, LANE_STOPPED, MEASUREMENT_FILES, SEGMENT_DONE,
-    SEGMENT_GOING,
+    SEGMENT_GOING, SOFTWARE_PERIOD_ENDS,
 };
 use crate::laws::lugre::libm::*;
 
@@ -83,11 +83,12 @@ pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic) -> String {
     }
     out += &u("LUGRE_WORKGROUP_SIZE", workgroup_size as usize);
     // Hardware (the fused arithmetic's adapters) has no loop limit: a lane
-    // measures a period end wherever it reaches one (entry.wgsl).
-    out += &format!(
-        "const PERIOD_ENDS_ANYWHERE: bool = {};\n",
-        arithmetic == Arithmetic::Fused
-    );
+    // measures every period end it reaches in a dispatch (entry.wgsl).
+    let ends = match arithmetic {
+        Arithmetic::Fused => u32::MAX,
+        Arithmetic::Native => SOFTWARE_PERIOD_ENDS,
+    };
+    out += &u("PERIOD_ENDS_PER_DISPATCH", ends as usize);
     out += &u("CORNER_RETRIES", CORNER_RETRIES as usize);
     out += &u("SEGMENT_GOING", SEGMENT_GOING as usize);
     out += &u("SEGMENT_DONE", SEGMENT_DONE as usize);
