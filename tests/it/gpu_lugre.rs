@@ -21,7 +21,9 @@
 
 use std::time::Instant;
 
-use pidm::gpu::lugre::{BatchReport, LugreGpu, exp_nonpositive, fourth_root, hypot};
+use pidm::gpu::lugre::{
+    BatchReport, LOOP_LIMIT, LOOP_PASSES_PER_ATTEMPT, LugreGpu, exp_nonpositive, fourth_root, hypot,
+};
 use pidm::laws::karnopp::integrate::Settings;
 use pidm::laws::lugre::run_instance_until;
 use pidm::measurement::{Measured, reduce};
@@ -349,9 +351,10 @@ fn lugre_gpu() -> Option<(LugreGpu<'static>, bool)> {
 
 /// Pausing is exact and llvmpipe's loop limit never cuts an attempt: a
 /// batch gives the same bits at the default attempts per dispatch as at 3
-/// (about 1,500 loop passes a dispatch, far from the limit). An attempt
-/// cut short by the limit changes the numbers (on llvmpipe, a dispatch of
-/// about 140 attempts of this 1 Hz instance does), so this is where it
+/// (about 120 loop passes a dispatch as counted in the source, far from
+/// the limit). An attempt cut short by the limit changes the numbers (on
+/// llvmpipe, a dispatch of about 140 attempts of this 1 Hz instance did
+/// when an attempt had 959 loop passes in the source), so this is where it
 /// would show.
 #[test]
 fn dispatches_cut_nothing_short() {
@@ -383,12 +386,14 @@ fn dispatches_cut_nothing_short() {
         assert_eq!(a.status, b.status, "{k}");
     }
     if exact {
-        // Far more attempts than the limit allows: on llvmpipe the numbers
-        // change (reported, not required of the driver).
-        few.attempts = 400;
+        // Far more attempts than the limit allows as counted in the
+        // source: on llvmpipe the numbers may change (reported, not
+        // required of the driver).
+        few.attempts = 3 * LOOP_LIMIT / LOOP_PASSES_PER_ATTEMPT;
         let (cut, _) = few.run(&instances[7..], &settings).expect("the GPU batch");
         eprintln!(
-            "400 attempts per dispatch: {} steps against {} ({})",
+            "{} attempts per dispatch: {} steps against {} ({})",
+            few.attempts,
             cut[0].state.steps,
             runs[7].state.steps,
             if cut[0].state.steps == runs[7].state.steps {

@@ -132,21 +132,24 @@ pub const MIRROR_ENTRY_POINT: &str = "lugre_mirror";
 /// together, a SIMD group's lanes counted together).
 pub const LOOP_LIMIT: u32 = 65_535;
 
-/// The loop passes of one step attempt, counted in the shader's source:
-/// the entry's pass 1, a segment's start at most 8 (two corners' searches
-/// of [`CORNER_RETRIES`]), Rodas4's stage loop 6 and its sums over the
-/// earlier stages 10 and 15. The Jacobian, W, its factorisation and solve,
+/// The loop passes of one step attempt, counted in the shader's source as
+/// llvmpipe counts them (a loop's iterations and one more per entry): the
+/// attempts' loop 1, a segment's start at most 10 (two corners' searches
+/// of [`CORNER_RETRIES`]), Rodas4's stage loop 7 and its sums over the
+/// earlier stages 14 and 20. The Jacobian, W, its factorisation and solve,
 /// the right-hand side, the vector sums and the error norm have no loops:
-/// they are written out (with 959 counted before `factor` and `solve_lu`
-/// were, llvmpipe 15 was measured to cut at about 135 attempts, about 485
-/// passes each: it unrolls some).
-pub const LOOP_PASSES_PER_ATTEMPT: u32 = 1 + 2 * CORNER_RETRIES + 6 + 10 + 15;
+/// they are written out. Measured on llvmpipe 15: a lone lane of a 1 Hz
+/// instance is cut between 1,200 and 1,400 attempts in one dispatch, 47 to
+/// 55 passes each (`tests/it/gpu_lugre.rs`, `dispatches_cut_nothing_short`).
+pub const LOOP_PASSES_PER_ATTEMPT: u32 =
+    1 + 2 * (CORNER_RETRIES + 1) + (6 + 1) + (10 + 4) + (15 + 5);
 
-/// The loop passes of one period end, counted in the source: the phase
-/// ladder's 18 levels, a batch's halving 16, the batch estimate's MSER cut
-/// (17 cuts of up to two passes over 32 batches: 833) and statistics
-/// (128), and the recurrence test's 8 snapshots.
-pub const PERIOD_END_PASSES: u32 = 18 + 16 + 833 + 128 + 8;
+/// The loop passes of one period end, counted as [`LOOP_PASSES_PER_ATTEMPT`]
+/// (iterations and entries): the phase ladder's 18 levels 19, a batch's
+/// halving 17, the batch estimate's MSER cut 885 (17 cuts of two passes
+/// over up to 32 batches each) and statistics 134, and the recurrence
+/// test's 8 snapshots 9.
+pub const PERIOD_END_PASSES: u32 = 19 + 17 + 885 + 134 + 9;
 
 /// The period ends a lane measures in one dispatch on a software adapter.
 /// With one, a SIMD group's lanes make their attempts in at most two runs
