@@ -243,10 +243,12 @@ impl<'a> LugreGpu<'a> {
     }
 
     /// The variant a hardware adapter gets (its workgroup size, the fused
-    /// arithmetic and period ends measured wherever a lane reaches them),
-    /// on any f64 adapter: on a software one (llvmpipe) with its software
-    /// attempts per dispatch, so that the tests run the hardware's shader
-    /// there too.
+    /// arithmetic and every period end a lane reaches measured in the same
+    /// dispatch), on any f64 adapter: on a software one (llvmpipe) with its
+    /// software attempts per dispatch, so that the tests run the hardware's
+    /// shader there too. Its period ends are not counted against llvmpipe's
+    /// loop limit: a window's have no loops, but many steady ones in one
+    /// dispatch could reach it, so on a software adapter it is for tests.
     pub fn hardware_variant(ctx: &'a GpuContext) -> Result<LugreGpu<'a>, GpuError> {
         let mut gpu = LugreGpu::variant(ctx, true)?;
         if !ctx.is_hardware() {
@@ -469,9 +471,9 @@ fn record(figures: [u64; 5]) {
 /// (each a round trip for two counters), how many period ends the lanes
 /// measured on the device, and what share of the running lanes' attempt
 /// slots held a Rodas4 step attempt (the rest: lanes done with their runs
-/// within the dispatch, or, on a software adapter, waiting at a period end
-/// for the next dispatch's first pass); empty where no LuGre batch ran on
-/// a GPU.
+/// within the dispatch, or, on a software adapter, waiting at a second
+/// period end for the next dispatch); empty where no LuGre batch ran on a
+/// GPU.
 pub fn table_lines() -> String {
     let [instances, dispatches, slots, attempts, periods] =
         TOTALS.each_ref().map(|t| t.load(Ordering::Relaxed));

@@ -495,4 +495,30 @@ mod tests {
         assert_eq!(count(Arithmetic::Fused), 0);
         assert!(count(Arithmetic::Native) >= 2);
     }
+
+    /// Both LuGre variants' lanes index no private array at run time (local
+    /// memory on NVIDIA), as the Karnopp variants' (`gpu::footprint`):
+    /// 4,976 B before the loops' bodies were called with literal indices
+    /// and the vector sums written out. Needs `spirv-opt`: under `CI` its
+    /// absence fails the test, elsewhere it is said and skipped.
+    #[test]
+    fn the_lane_indexes_no_private_array_at_run_time() {
+        if !crate::gpu::footprint::spirv_opt_available() {
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "spirv-opt is missing (Debian's spirv-tools)"
+            );
+            eprintln!("notice: spirv-opt not found; the LuGre footprint is not checked");
+            return;
+        }
+        for (size, arithmetic) in [
+            (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native),
+            (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused),
+        ] {
+            let f = footprint(size, arithmetic).unwrap();
+            let indexed = f.indexed.clone().expect("spirv-opt ran");
+            assert!(indexed.is_empty(), "{arithmetic:?}: {indexed:?}");
+            assert!(f.instructions.unwrap() > 1000, "{f:?}");
+        }
+    }
 }
