@@ -3,8 +3,8 @@
 // One invocation per instance: each dispatch advances every running
 // instance by at most `control.attempts` Rodas4 step attempts, measuring
 // its period ends on the way (measure.wgsl) and starting the next period,
-// until its run ends. The host (`pidm::gpu::lugre`) reads the lanes'
-// flags between dispatches and the finished runs' accumulators at the end.
+// until its run ends. The host (`pidm::gpu::lugre`) reads two counters
+// between dispatches, and the lanes and their accumulators at the end.
 
 // A lane's flag (the prelude's, from `pidm::gpu::lugre`): LANE_FRESH (the
 // host set it up at its run's start: the device starts the measurement and
