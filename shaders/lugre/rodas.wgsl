@@ -37,7 +37,7 @@ struct W {
 // J) k = rhs, that is gamma h (I - gamma h J)^-1 rhs. The CPU's loops stay
 // loops (one rhs, one solve and one sum of each kind in the code), but the
 // stages are six vectors of their own, picked by switches (`stage`,
-// `pick4`, `pick5`), and the sums over a vector's components are written
+// `pick`), and the sums over a vector's components are written
 // out (`axpy`, `add_quotients`, from the host): nothing here is indexed at
 // run time.
 fn rodas4(drive: Drive, y: Vector, h: Real) -> Step {
@@ -54,7 +54,7 @@ fn rodas4(drive: Drive, y: Vector, h: Real) -> Step {
             let a = stage_a(i);
             start = y;
             for (var j = 0u; j < i; j++) {
-                start = axpy(start, pick4(a, j), stage(j, k0, k1, k2, k3, k4));
+                start = axpy(start, pick(a, j), stage(j, k0, k1, k2, k3, k4));
             }
         } else if i == 5u {
             start = add(start, k4);
@@ -63,7 +63,7 @@ fn rodas4(drive: Drive, y: Vector, h: Real) -> Step {
         if i > 0u {
             let c = stage_c(i);
             for (var j = 0u; j < i; j++) {
-                f = add_quotients(f, pick5(c, j), stage(j, k0, k1, k2, k3, k4), h);
+                f = add_quotients(f, pick(c, j), stage(j, k0, k1, k2, k3, k4), h);
             }
         }
         let k = scaled(GAMMA * h, solve(&w, f));
@@ -91,16 +91,7 @@ fn stage(j: u32, k0: Vector, k1: Vector, k2: Vector, k3: Vector, k4: Vector) -> 
 }
 
 // Entry j of a coefficient row, by literal indices.
-fn pick4(row: array<Real, 4>, j: u32) -> Real {
-    switch j {
-        case 0u: { return row[0]; }
-        case 1u: { return row[1]; }
-        case 2u: { return row[2]; }
-        default: { return row[3]; }
-    }
-}
-
-fn pick5(row: array<Real, 5>, j: u32) -> Real {
+fn pick(row: array<Real, 5>, j: u32) -> Real {
     switch j {
         case 0u: { return row[0]; }
         case 1u: { return row[1]; }
@@ -110,9 +101,9 @@ fn pick5(row: array<Real, 5>, j: u32) -> Real {
     }
 }
 
-// Stage i's row of RODAS_A (1 <= i < 5) and of RODAS_C (1 <= i < 6), by
-// literal indices.
-fn stage_a(i: u32) -> array<Real, 4> {
+// Stage i's row of RODAS_A (1 <= i < 5; padded with zeros to RODAS_C's
+// width by the prelude) and of RODAS_C (1 <= i < 6), by literal indices.
+fn stage_a(i: u32) -> array<Real, 5> {
     switch i {
         case 1u: { return RODAS_A[0]; }
         case 2u: { return RODAS_A[1]; }

@@ -51,6 +51,7 @@ impl Params {
         let inst = &book.inst;
         let m = &book.model;
         let axis = |f: fn(&crate::model::Axis) -> f64| [f(&inst.axes[0]), f(&inst.axes[1])];
+        let (repeat, common_period) = book.recurrence_test();
         Params {
             gain: axis(|a| a.gain),
             damping: axis(|a| a.damping),
@@ -72,8 +73,8 @@ impl Params {
             one: 1.0,
             cycles: Clock::cycles_per_period(inst),
             phase: axis(|a| a.phase),
-            repeat: book.recurrence_test().0,
-            common_period: book.recurrence_test().1,
+            repeat,
+            common_period,
             _pad: 0,
         }
     }

@@ -84,14 +84,14 @@ pub(super) fn compile(
 
 /// A batch's buffers on the device.
 pub(super) struct Batch<'g> {
-    pub(super) gpu: &'g LugreGpu<'g>,
-    pub(super) lanes: wgpu::Buffer,
+    gpu: &'g LugreGpu<'g>,
+    lanes: wgpu::Buffer,
     measures: wgpu::Buffer,
     recurrences: wgpu::Buffer,
     counters: wgpu::Buffer,
     counters_read: wgpu::Buffer,
-    pub(super) group: wgpu::BindGroup,
-    pub(super) groups: (u32, u32),
+    group: wgpu::BindGroup,
+    groups: (u32, u32),
     // Kept alive with the bind group.
     _buffers: [wgpu::Buffer; 3],
 }

@@ -107,7 +107,18 @@ pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic) -> String {
             rows.join(",\n    ")
         )
     };
-    let a: Vec<&[f64]> = A.iter().map(|row| &row[..]).collect();
+    // RODAS_A's rows padded with zeros to RODAS_C's width (never read:
+    // a stage sums over the earlier ones only), so that one `pick` reads
+    // both tables' rows.
+    let padded: Vec<Vec<f64>> = A
+        .iter()
+        .map(|row| {
+            (0..C[0].len())
+                .map(|j| row.get(j).copied().unwrap_or(0.0))
+                .collect()
+        })
+        .collect();
+    let a: Vec<&[f64]> = padded.iter().map(|row| &row[..]).collect();
     let c: Vec<&[f64]> = C.iter().map(|row| &row[..]).collect();
     out += &format!("const RODAS_A = {};\n", rows(&a));
     out += &format!("const RODAS_C = {};\n", rows(&c));
@@ -336,18 +347,27 @@ pub fn parse_and_validate(
     arithmetic: Arithmetic,
 ) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
     let src = source(workgroup_size, arithmetic);
-    let compile = |message: String| GpuError::ShaderCompile {
-        precision: Precision::F64,
-        message,
-    };
-    let module = naga::front::wgsl::parse_str(&src).map_err(|e| compile(e.emit_to_string(&src)))?;
-    let info = naga::valid::Validator::new(
+    let module =
+        naga::front::wgsl::parse_str(&src).map_err(|e| compile_error(e.emit_to_string(&src)))?;
+    let info = validate(&module, &src)?;
+    Ok((module, info))
+}
+
+/// Validates a module of the shader `src` as wgpu will.
+fn validate(module: &naga::Module, src: &str) -> Result<naga::valid::ModuleInfo, GpuError> {
+    naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         shader::capabilities(Precision::F64),
     )
-    .validate(&module)
-    .map_err(|e| compile(e.emit_to_string(&src)))?;
-    Ok((module, info))
+    .validate(module)
+    .map_err(|e| compile_error(e.emit_to_string(src)))
+}
+
+fn compile_error(message: String) -> GpuError {
+    GpuError::ShaderCompile {
+        precision: Precision::F64,
+        message,
+    }
 }
 
 /// What a lane of the LuGre integrator carries (as `gpu::footprint` reads
@@ -360,15 +380,7 @@ pub fn footprint(
     // The integrator's lane only: the tests' entry points (the functions,
     // the mirror's probes) carry arrays of their own no run touches.
     module.entry_points.retain(|e| e.name == super::ENTRY_POINT);
-    let info = naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        shader::capabilities(Precision::F64),
-    )
-    .validate(&module)
-    .map_err(|e| GpuError::ShaderCompile {
-        precision: Precision::F64,
-        message: e.to_string(),
-    })?;
+    let info = validate(&module, &source(workgroup_size, arithmetic))?;
     let words = crate::gpu::footprint::module_spirv(&module, &info, Precision::F64)?;
     Ok(crate::gpu::footprint::measure_spirv(&words))
 }
@@ -444,8 +456,7 @@ mod tests {
             "stage_a",
             "stage_c",
             "stage",
-            "pick4",
-            "pick5",
+            "pick",
         ];
         // CPU only: `Model::new`, `Clock::of` and `cycles_per_period`,
         // which the host computes (`Params::of`; a lane's `begin_period`
