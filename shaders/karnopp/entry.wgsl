@@ -1,22 +1,12 @@
 // The compute entry point (GPU only; the CPU's counterpart is the loop of
-// `pidm::cpu::integrate::advance`). Each invocation is a lane that works
-// through instances for at most `control.max_iterations` iterations per
-// dispatch, keeping the state of the instance in hand in registers and in
-// the `states` buffer between dispatches. The first dispatch of a batch
-// starts every instance on a lane of its own (`control.initialize`), a
-// short probe of each one's cost; the host then queues the unfinished ones
-// in `order`, most expensive first, and a lane whose instance finishes
-// takes the next queued one from an atomic counter and continues it from
-// its state, so no lane of a warp idles while instances are left
-// (`pidm::gpu::runner`; the host packs the lanes still busy into fewer
-// workgroups once the queue is empty). Every lane reports what it did in
-// each dispatch in `tallies` (`pidm::gpu::warps`).
+// `pidm::laws::karnopp::integrate::advance`). Each invocation is a lane
+// that works through instances for at most `control.max_iterations`
+// iterations per dispatch, keeping the state of the instance in hand in
+// registers and in the `states` buffer between dispatches, by the
+// engine's queue (`shaders/engine/queue.wgsl`). The first dispatch of a
+// batch starts every instance on a lane of its own
+// (`control.initialize`), a short probe of each one's cost.
 
-// The lane holds no instance.
-const NO_INSTANCE: u32 = 0xffffffffu;
-// The tally's count of instances taken from the queue (after the kinds of
-// iteration, ITERATION_*).
-const TAKEN: u32 = 6u;
 // Dispatches in a row in which the loop limiter must cut an instance's
 // first iteration (or period end) short before the instance is handed to
 // the CPU (STATUS_LOOP_LIMIT): lavapipe's limiter counts the loops of a
@@ -34,86 +24,8 @@ fn limited_at_start(st: ptr<function, State>) {
     }
 }
 
-// The work counters of a batch.
-struct Counters {
-    // The next position of `order` no lane has taken yet.
-    next: atomic<u32>,
-    // Instances finished (normally or not).
-    finished: atomic<u32>,
-}
-
-// The per-dispatch controls, read from a small storage buffer.
-struct Control {
-    // Iterations of `iterate` in this dispatch.
-    max_iterations: u32,
-    // 1 when each lane's instance must first be set to `initial_state`.
-    initialize: u32,
-    // Always 1.0; see `move_to`.
-    one: f32,
-    // Passes of the loop-limiter probe, and the passes it must see; see
-    // `loop_limiter_intact`.
-    probe: u32,
-    probe_min: u32,
-    // Always 0; see `loop_limiter_intact`.
-    zero: u32,
-    // Entries of `order` a lane may take (0 in the first dispatch).
-    queued: u32,
-    // Lanes below this one that hold no instance at the start take one
-    // from `order` (replicas queued again between dispatches).
-    lanes: u32,
-}
-
-// What a lane did in one dispatch (`pidm::gpu::layout::Tally`).
-struct Tally {
-    // Iterations by kind: boundary, stick, slip, rejected trial.
-    kinds: vec4<u32>,
-    // Event locations, period ends, instances taken from the queue, and the
-    // instance held at the end (NO_INSTANCE when none).
-    more: vec4<u32>,
-    // Scene periods the held instance has run, at the end.
-    progress: f32,
-    // Emulated f64 divisions and roots in the dispatch (the prelude's
-    // `emulated`).
-    emulated: u32,
-    _pad_v: vec2<u32>,
-}
-
 @group(0) @binding(0) var<storage, read> coefficients: array<Coefficients>;
 @group(0) @binding(1) var<storage, read_write> states: array<State>;
-// The controls live in a storage buffer, not a uniform: drivers may
-// specialise a shader on the values of uniforms that steer its loops, which
-// would unroll the loop-limiter probe and fold the opaque 1.0 away.
-@group(0) @binding(2) var<storage, read> control: Control;
-@group(0) @binding(3) var<storage, read_write> counters: Counters;
-// The instance each lane holds.
-@group(0) @binding(4) var<storage, read_write> lanes: array<u32>;
-// The queue: the instances lanes take after the first dispatch, in order.
-@group(0) @binding(7) var<storage, read> order: array<u32>;
-// One per lane: what it did in the last dispatch.
-@group(0) @binding(8) var<storage, read_write> tallies: array<Tally>;
-
-// Counts one iteration of `kind` (ITERATION_*, or TAKEN), without
-// indexing (a local array indexed at run time would live in memory).
-fn count_kind(tally: ptr<function, Tally>, kind: u32) {
-    let k = vec4<u32>(kind);
-    (*tally).kinds += select(vec4<u32>(0u), vec4<u32>(1u), k == vec4<u32>(0u, 1u, 2u, 3u));
-    (*tally).more += select(vec4<u32>(0u), vec4<u32>(1u), k == vec4<u32>(4u, 5u, 6u, 7u));
-}
-
-// The queue's next instance for a lane that holds none, or NO_INSTANCE.
-// A lane idles only once the queue ran dry, so this takes only what the
-// host queued again since (`pidm::gpu::groups`); the load first keeps the
-// counter from running far past the queue's end on every dispatch.
-fn take_idle(lane: u32) -> u32 {
-    if lane >= control.lanes || atomicLoad(&counters.next) >= control.queued {
-        return NO_INSTANCE;
-    }
-    let slot = atomicAdd(&counters.next, 1u);
-    if slot >= control.queued {
-        return NO_INSTANCE;
-    }
-    return order[slot];
-}
 
 // Starts (`initialize`) or loads instance `index`.
 fn take(index: u32, initialize: bool) -> State {

@@ -1,10 +1,11 @@
 // The compute entry point of the LuGre integrator (GPU only; the CPU's
 // counterpart is the period loop of `pidm::laws::lugre::run::continue_until`).
-// One invocation per instance: each dispatch advances every running
-// instance by at most `control.attempts` Rodas4 step attempts, measuring
-// its period ends on the way (measure.wgsl) and starting the next period,
-// until its run ends. The host (`pidm::gpu::lugre`) reads two counters
-// between dispatches, and the lanes and their accumulators at the end.
+// Each invocation is a lane of the engine's queue
+// (`shaders/engine/queue.wgsl`, host `pidm::gpu::slices`): each dispatch
+// it makes at most `control.max_iterations` Rodas4 step attempts on the
+// instances it holds, one after another, measuring their period ends on
+// the way (measure.wgsl) and starting their next periods, until their
+// runs end. An instance's run stays in `states` between dispatches.
 
 // A lane's flag (the prelude's, from `pidm::gpu::lugre`): LANE_FRESH (the
 // host set it up at its run's start: the device starts the measurement and
@@ -52,26 +53,10 @@ struct Lane {
     _pad: u32,
 }
 
-struct Control {
-    // Step attempts per lane in this dispatch.
-    attempts: u32,
-}
-
-@group(0) @binding(0) var<storage, read> models: array<Model>;
-@group(0) @binding(1) var<storage, read_write> lanes: array<Lane>;
-// A storage buffer, not a uniform: drivers may specialise a shader on the
-// values of uniforms that steer its loops.
-@group(0) @binding(2) var<storage, read> control: Control;
-
-// What the host reads after each dispatch (`pidm::gpu::lugre::Counters`):
-// the lanes stopped so far, and the lane dispatches that advanced a run
-// (a dispatch that advances none has stalled).
-struct Counters {
-    stopped: atomic<u32>,
-    advanced: atomic<u32>,
-}
-
-@group(0) @binding(9) var<storage, read_write> counters: Counters;
+// Every instance's run, set up by the host (LANE_FRESH).
+@group(0) @binding(1) var<storage, read_write> states: array<Lane>;
+// Every instance's parameters (`pidm::gpu::lugre::Params`).
+@group(0) @binding(9) var<storage, read> models: array<Model>;
 
 // Whether the lane's run has ended: failed, measured or out of periods
 // (`Periods::is_finished`).
@@ -115,7 +100,7 @@ fn start_run(lane: ptr<function, Lane>) {
 // the loop passes of a SIMD group's lanes together, so that a nested loop
 // of attempts inside a loop of segments would count the lanes' attempts
 // one after the other).
-fn advance(lane: Lane, attempts: ptr<function, u32>) -> Lane {
+fn advance(lane: Lane, attempts: ptr<function, u32>, tally: ptr<function, Tally>) -> Lane {
     var out = lane;
     var y = lane.y;
     var h = lane.h;
@@ -144,6 +129,7 @@ fn advance(lane: Lane, attempts: ptr<function, u32>) -> Lane {
             in_segment = true;
         }
         let r = segment(drive, &y, end, &h, &budget, &segment_steps, &rejected);
+        count_kind(tally, select(ITERATION_SLIP, ITERATION_REJECTED, rejected));
         if r != SEGMENT_GOING && r != SEGMENT_DONE {
             out.status = r;
             out.flag = LANE_STOPPED;
@@ -189,67 +175,105 @@ fn close_segment(
     }
 }
 
+// Loads instance `index` onto the lane: its parameters, and its run,
+// started if the host has just set it up.
+fn take_run(index: u32) -> Lane {
+    held = index;
+    model = models[index];
+    opaque_one = model.one;
+    var lane = states[index];
+    if lane.flag == LANE_FRESH {
+        start_run(&lane);
+    }
+    return lane;
+}
+
+// Scene periods the lane's run has completed, with the current one's
+// share (the tally's `progress`, which ranks the queue).
+fn progress_of(lane: Lane) -> f32 {
+    return f32(lane.period) + f32(lane.y[T] / model.period);
+}
+
 @compute @workgroup_size(LUGRE_WORKGROUP_SIZE)
 fn lugre_advance(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let index = gid.x + gid.y * groups.x * LUGRE_WORKGROUP_SIZE;
-    if index >= arrayLength(&lanes) || index >= arrayLength(&models)
-        || index >= arrayLength(&coefficients) || index >= arrayLength(&measures)
-        || index >= arrayLength(&recurrences) {
+    let slot_of_lane = gid.x + gid.y * groups.x * LUGRE_WORKGROUP_SIZE;
+    if slot_of_lane >= arrayLength(&lanes) {
         return;
     }
-    held = index;
-    var lane = lanes[index];
-    if lane.flag == LANE_STOPPED {
-        return;
+    var tally: Tally;
+    let count = min(
+        min(arrayLength(&states), arrayLength(&models)),
+        min(arrayLength(&coefficients), arrayLength(&recurrences)),
+    );
+    var index = lanes[slot_of_lane];
+    if index >= count {
+        index = take_idle(slot_of_lane);
+        if index >= count {
+            tally.more.w = NO_INSTANCE;
+            tallies[slot_of_lane] = tally;
+            return;
+        }
+        count_kind(&tally, TAKEN);
     }
-    model = models[index];
-    opaque_one = model.one;
-    if lane.flag == LANE_FRESH {
-        start_run(&lane);
-    }
+    var lane = take_run(index);
     // Period by period: measure the one that ended, start the next, and
     // advance to its end, measuring at most PERIOD_ENDS_PER_DISPATCH
     // period ends (1 on a loop-limited adapter, whose loop budget they
     // share with the attempts; a lane at a second one waits there for the
-    // next dispatch).
-    var attempts = control.attempts;
+    // next dispatch). A run that ends leaves its head and the lane takes
+    // the queue's next instance.
+    var attempts = control.max_iterations;
     var ends = 0u;
     loop {
         if lane.flag == LANE_STOPPED {
-            break;
+            states[index] = lane;
+            finish_measure();
+            atomicAdd(&counters.finished, 1u);
+            let slot = atomicAdd(&counters.next, 1u);
+            if slot >= control.queued || order[slot] >= count {
+                index = NO_INSTANCE;
+                break;
+            }
+            index = order[slot];
+            lane = take_run(index);
+            count_kind(&tally, TAKEN);
+            continue;
         }
         if lane_at_period_end(lane) {
             if ends == PERIOD_ENDS_PER_DISPATCH {
                 break;
             }
             ends++;
+            count_kind(&tally, ITERATION_PERIOD_END);
             lugre_period_end(&lane, lane.y);
             if run_finished(lane) {
                 lane.flag = LANE_STOPPED;
-                break;
+                continue;
             }
             begin_period(&lane);
         }
         if attempts == 0u {
             break;
         }
-        lane = advance(lane, &attempts);
+        lane = advance(lane, &attempts, &tally);
     }
-    lanes[index] = lane;
-    atomicAdd(&counters.advanced, 1u);
-    if lane.flag == LANE_STOPPED {
-        atomicAdd(&counters.stopped, 1u);
+    if index != NO_INSTANCE {
+        states[index] = lane;
+        tally.progress = progress_of(lane);
     }
+    lanes[slot_of_lane] = index;
+    tally.more.w = index;
+    tallies[slot_of_lane] = tally;
 }
 
 // The shader-only functions of each (x, y) in `function_values` (five
 // numbers each: x, y, then exp_nonpositive(x), hypot(x, y) and
 // fourth_root(|y|); `models[0]` gives `keep` its 1), for the tests (`pidm::gpu::lugre::LugreGpu::
 // functions_on_gpu`).
-@group(0) @binding(3) var<storage, read_write> function_values: array<Real>;
+@group(0) @binding(11) var<storage, read_write> function_values: array<Real>;
 
 @compute @workgroup_size(LUGRE_WORKGROUP_SIZE)
 fn lugre_functions(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -281,8 +305,8 @@ struct Probed {
     error: Vector,
 }
 
-@group(0) @binding(4) var<storage, read> probes: array<Probe>;
-@group(0) @binding(5) var<storage, read_write> probed: array<Probed>;
+@group(0) @binding(12) var<storage, read> probes: array<Probe>;
+@group(0) @binding(13) var<storage, read_write> probed: array<Probed>;
 
 @compute @workgroup_size(LUGRE_WORKGROUP_SIZE)
 fn lugre_mirror(@builtin(global_invocation_id) gid: vec3<u32>) {

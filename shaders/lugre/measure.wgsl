@@ -40,14 +40,42 @@ struct Recurrence {
 // and `measures` (its `coefficients[held]`): here the lane's own.
 var<private> held: u32;
 
-@group(0) @binding(6) var<storage, read> coefficients: array<Coefficients>;
-@group(0) @binding(7) var<storage, read_write> measures: array<Measure>;
-@group(0) @binding(8) var<storage, read_write> recurrences: array<Recurrence>;
+@group(0) @binding(0) var<storage, read> coefficients: array<Coefficients>;
+// One per instance where any instance of the batch is steady, else one
+// unused entry (a window never touches them).
+@group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
+@group(0) @binding(10) var<storage, read_write> recurrences: array<Recurrence>;
+
+// What the host reads of every finished steady measurement: Karnopp's
+// `Head` (`shaders/karnopp/steady.wgsl`, `pidm::gpu::layout::double::Head`),
+// all that the reduction of a periodic or phase-resolved verdict reads.
+struct Head {
+    travel: V2,
+    se2: V2,
+    next_end: u32,
+    lag: u32,
+    verdict: u32,
+    span: u32,
+}
+
+@group(0) @binding(6) var<storage, read_write> heads: array<Head>;
 
 // A run's start: the accumulators and snapshots of a fresh measurement.
 fn start_measure() {
-    measures[held] = initial_measure();
+    let c = &coefficients[held];
+    if c.steady == 1u {
+        measures[held] = initial_measure();
+    }
     recurrences[held].taken = 0u;
+}
+
+// A finished steady run leaves its head for the host.
+fn finish_measure() {
+    let c = &coefficients[held];
+    if c.steady == 1u {
+        let m = &measures[held];
+        heads[held] = Head((*m).travel, (*m).se2, (*m).next_end, (*m).lag, (*m).verdict, (*m).span);
+    }
 }
 
 // The end of the lane's current scene period, with the integrator's state

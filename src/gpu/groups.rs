@@ -20,7 +20,7 @@
 use std::marker::PhantomData;
 
 use super::runner::Runner;
-use super::slices::Between;
+use super::slices::{Between, Kernel, Sliced, Work};
 use super::*;
 use crate::laws::karnopp::integrate::measure::VERDICT_RUNNING;
 use crate::laws::karnopp::integrate::{Replica, Replicas, STATUS_OK};
@@ -294,10 +294,16 @@ impl Runner<'_> {
         let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
         let total = job_instances.len() as u64;
         let mut job_progress = |done: u64| progress(done * n as u64 / total);
-        let ((states, measure_list), _) = runner.slices::<L>(
-            &job_instances,
-            &coefficients,
-            (&pipeline, variant),
+        let Sliced {
+            readback: (states, measure_list),
+            ..
+        } = runner.slices::<L>(
+            Work {
+                instances: &job_instances,
+                coefficients: &coefficients,
+                states: None,
+            },
+            Kernel::karnopp(&pipeline, variant),
             &mut job_progress,
             None,
             Some(&mut groups),

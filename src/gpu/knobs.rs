@@ -66,7 +66,7 @@ pub fn workgroup_size() -> u32 {
 }
 
 /// The lanes `PIDM_GPU_LANES` asks for (at least 1), if set.
-fn lanes_knob() -> Option<usize> {
+pub(super) fn lanes_knob() -> Option<usize> {
     static LANE_COUNT: OnceLock<Option<usize>> = OnceLock::new();
     *LANE_COUNT.get_or_init(|| {
         let text = std::env::var("PIDM_GPU_LANES").ok();

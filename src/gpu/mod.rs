@@ -58,6 +58,7 @@ mod context;
 mod groups;
 pub mod karnopp;
 mod knobs;
+mod lanes;
 pub mod lugre;
 mod options;
 mod precision;
@@ -77,9 +78,11 @@ pub use runner::{
     dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, f64_tallies_after,
     run_batch, run_batch_packed, run_batch_with, workgroups,
 };
+pub use slices::engine_queue;
 pub use staging::{Packed, batch_limit, chunk_instances, max_batch_instances, pack};
 // The module's other items, for its files (`use super::*`).
 use adapters::*;
+use lanes::*;
 use options::*;
 use precision::*;
 use tail::*;

@@ -4,33 +4,20 @@
 use super::*;
 use crate::laws::karnopp::integrate::Replica;
 
-/// The host side of one precision: its storage structs and their packing.
-pub(super) trait Layout {
-    const PRECISION: Precision;
-    type Coefficients: HostLayout + Send + Sync;
-    type State: HostLayout + Send + Sync;
-    type Measure: HostLayout + Send + Sync;
-    /// What the host reads of every finished steady measurement.
-    type Head: HostLayout + Send + Sync;
-    /// Whether a measurement with this head ended with a verdict whose
-    /// reduction reads only the head (periodic or phase-resolved).
-    fn head_suffices(h: &Self::Head) -> bool;
-    /// The accumulators that the reduction of such a head reads.
-    fn from_head(h: &Self::Head) -> Self::Measure;
+/// The host side of one precision of Karnopp's lanes: packing, outcomes,
+/// replicas and continuation (the engine's part is [`Lanes`]).
+pub(super) trait Layout: Lanes {
     /// The CPU mirror's state of this precision.
     type Mirror;
     fn mirror(st: &Self::State) -> Self::Mirror;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
     /// The shader's parts that packed coefficients use.
     fn parts(c: &Self::Coefficients) -> Parts;
-    /// The steps a state has taken.
-    fn steps(st: &Self::State) -> u32;
     /// The outcome of a finished fixed window.
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome;
     /// The outcome of a finished steady measurement, through the one
     /// reduction every backend's results pass through.
     fn reduce(inst: &Instance, st: &Self::State, m: &Self::Measure) -> GpuOutcome;
-    fn finished(inst: &Instance, st: &Self::State) -> bool;
     /// The CPU integrator's run for an unfinished shader state (and the
     /// accumulators of a steady measurement), where the CPU can continue
     /// from it (f64), or `None` where the CPU must start the instance over
@@ -70,14 +57,10 @@ pub(super) fn any_steady(instances: &[Instance]) -> bool {
         .any(|inst| matches!(inst.measure, Measure::Steady { .. }))
 }
 
-/// Every state of a batch and, for a batch with a steady instance, every
-/// measurement, as read back from the device.
-pub(super) type Readback<L> = (Vec<<L as Layout>::State>, Vec<<L as Layout>::Measure>);
-
 pub(super) struct Single;
 pub(super) struct Double;
 
-impl Layout for Single {
+impl Lanes for Single {
     const PRECISION: Precision = Precision::F32;
     type Coefficients = layout::single::Coefficients;
     type State = layout::single::State;
@@ -89,6 +72,18 @@ impl Layout for Single {
     fn from_head(h: &Self::Head) -> Self::Measure {
         h.measure()
     }
+    fn steps(st: &Self::State) -> u32 {
+        st.steps
+    }
+    fn finished(inst: &Instance, st: &Self::State) -> bool {
+        layout::single::finished(inst, st)
+    }
+    fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
+        super::runner::slice_bound(instances, settings)
+    }
+}
+
+impl Layout for Single {
     type Mirror = crate::laws::karnopp::single::integrate::State;
     fn mirror(st: &Self::State) -> Self::Mirror {
         layout::single::to_cpu(st)
@@ -99,9 +94,6 @@ impl Layout for Single {
     fn parts(c: &Self::Coefficients) -> Parts {
         c.parts()
     }
-    fn steps(st: &Self::State) -> u32 {
-        st.steps
-    }
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
         layout::single::unpack(inst, st)
     }
@@ -111,9 +103,6 @@ impl Layout for Single {
             layout::single::reduced_state(st),
             layout::single::measure_to_cpu(m),
         )
-    }
-    fn finished(inst: &Instance, st: &Self::State) -> bool {
-        layout::single::finished(inst, st)
     }
     fn continuable(_: &Instance, _: &Self::State, _: Option<&Self::Measure>) -> Option<Run> {
         None
@@ -134,7 +123,7 @@ impl Layout for Single {
     const VERDICT_OFFSET: usize = std::mem::offset_of!(layout::single::Measure, verdict);
 }
 
-impl Layout for Double {
+impl Lanes for Double {
     const PRECISION: Precision = Precision::F64;
     type Coefficients = layout::double::Coefficients;
     type State = layout::double::State;
@@ -146,6 +135,18 @@ impl Layout for Double {
     fn from_head(h: &Self::Head) -> Self::Measure {
         h.measure()
     }
+    fn steps(st: &Self::State) -> u32 {
+        st.steps
+    }
+    fn finished(inst: &Instance, st: &Self::State) -> bool {
+        layout::double::finished(inst, st)
+    }
+    fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
+        super::runner::slice_bound(instances, settings)
+    }
+}
+
+impl Layout for Double {
     type Mirror = crate::laws::karnopp::integrate::State;
     fn mirror(st: &Self::State) -> Self::Mirror {
         layout::double::to_cpu(st)
@@ -156,9 +157,6 @@ impl Layout for Double {
     fn parts(c: &Self::Coefficients) -> Parts {
         c.parts()
     }
-    fn steps(st: &Self::State) -> u32 {
-        st.steps
-    }
     fn unpack(inst: &Instance, st: &Self::State) -> GpuOutcome {
         layout::double::unpack(inst, st)
     }
@@ -168,9 +166,6 @@ impl Layout for Double {
             layout::double::to_cpu(st),
             layout::double::measure_to_cpu(m),
         )
-    }
-    fn finished(inst: &Instance, st: &Self::State) -> bool {
-        layout::double::finished(inst, st)
     }
     fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run> {
         let c = crate::laws::karnopp::integrate::Coefficients::new(

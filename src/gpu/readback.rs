@@ -12,7 +12,7 @@
 //! otherwise, and those the CPU continues. Also the mapping of any
 //! readback buffer.
 
-use super::{GpuError, Layout};
+use super::{GpuError, Lanes};
 use crate::model::{Instance, Measure};
 
 /// How a steady batch's accumulators are read back.
@@ -66,7 +66,7 @@ pub fn runs(sorted: &[usize]) -> Vec<(usize, usize)> {
 /// `measures` of those that need them: the steady instances that did
 /// not finish with a periodic or phase-resolved verdict, whose reduction reads more than
 /// the head, or did not finish at all (the CPU may continue them).
-pub(super) fn accumulators<L: Layout>(
+pub(super) fn accumulators<L: Lanes>(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     whole: bool,

@@ -3,6 +3,7 @@
 //! left, the readback of states and accumulators, and the CPU's part (the
 //! tail, loop-limited iterations, f32 fallbacks and the check).
 
+use super::slices::{Kernel, Sliced, Work};
 use super::*;
 use crate::profile::{self, Phase};
 
@@ -117,16 +118,19 @@ fn first_dispatch<L: Layout>(
         let coefficients = runner.coefficients::<L>(instances, None);
         let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
         runner.slices::<L>(
-            instances,
-            &coefficients,
-            (&pipeline, variant),
+            Work {
+                instances,
+                coefficients: &coefficients,
+                states: None,
+            },
+            Kernel::karnopp(&pipeline, variant),
             &mut |_| {},
             Some(1),
             None,
         )?
     };
     ctx.check_health()?;
-    Ok(out)
+    Ok((out.readback, out.probe_tallies))
 }
 
 /// `states_after` in f32: the states of the f32 shader as its CPU mirror
@@ -216,7 +220,11 @@ pub(super) struct Runner<'a> {
 
 impl<'a> Runner<'a> {
     /// A runner on `ctx`'s device and pipelines.
-    fn on(ctx: &'a GpuContext, settings: &'a Settings, options: &'a BatchOptions) -> Runner<'a> {
+    pub(super) fn on(
+        ctx: &'a GpuContext,
+        settings: &'a Settings,
+        options: &'a BatchOptions,
+    ) -> Runner<'a> {
         Runner {
             device: &ctx.device,
             queue: &ctx.queue,
@@ -572,10 +580,16 @@ impl<'a> Runner<'a> {
         let n = instances.len();
         let coefficients = self.coefficients::<L>(instances, packed);
         let (pipeline, variant) = self.pipeline::<L>(L::PRECISION, &coefficients)?;
-        let ((states, measure_list), _) = self.slices::<L>(
-            instances,
-            &coefficients,
-            (&pipeline, variant),
+        let Sliced {
+            readback: (states, measure_list),
+            ..
+        } = self.slices::<L>(
+            Work {
+                instances,
+                coefficients: &coefficients,
+                states: None,
+            },
+            Kernel::karnopp(&pipeline, variant),
             progress,
             None,
             None,

@@ -10,14 +10,80 @@
 //! ([`BatchOptions::cpu_tail`]). Which lane runs an instance, and when,
 //! changes nothing of its result: its state lives in the `states` buffer.
 
-use super::runner::{Runner, slice_bound, storage};
+use super::runner::{Runner, storage};
 use super::*;
 use crate::profile::{self, Phase};
 use layout::control::Tally;
 use warps::{CriticalPath, LaneBytes, NO_INSTANCE, Probed, Warps, queue_order};
 
-/// A compiled pipeline and the variant it was compiled from.
-pub(super) type Compiled<'p> = (&'p wgpu::ComputePipeline, Variant);
+/// The engine's queue in WGSL (`shaders/engine/queue.wgsl`: the controls,
+/// counters, lanes, order and tallies, and taking an instance), which
+/// every law's source includes before its entry point.
+pub fn engine_queue() -> String {
+    format!(
+        "\n// ---- shaders/engine/queue.wgsl\n{}",
+        include_str!("../../shaders/engine/queue.wgsl")
+    )
+}
+
+/// A law's compiled pipeline, and what the engine binds and sizes for it.
+#[derive(Clone, Copy)]
+pub(super) struct Kernel<'p> {
+    pub(super) pipeline: &'p wgpu::ComputePipeline,
+    /// It measures steady runs: it binds the accumulators and heads (5
+    /// and 6).
+    pub(super) steady: bool,
+    /// Its adapter's loop limiter cuts iterations short (Karnopp on
+    /// llvmpipe): the accumulators end with a scratch entry per lane.
+    pub(super) loop_limiter: bool,
+    /// Invocations per workgroup, as its source declares them.
+    pub(super) workgroup_size: u32,
+    /// The law's own buffers and their bindings, after the engine's 0 to
+    /// 8 (LuGre's parameters and recurrence snapshots).
+    pub(super) extra: &'p [(u32, &'p wgpu::Buffer)],
+}
+
+impl<'p> Kernel<'p> {
+    /// Karnopp's pipeline of `variant`.
+    pub(super) fn karnopp(pipeline: &'p wgpu::ComputePipeline, variant: Variant) -> Kernel<'p> {
+        Kernel {
+            pipeline,
+            steady: variant.parts.steady,
+            loop_limiter: variant.loop_limiter,
+            workgroup_size: workgroup_size(),
+            extra: &[],
+        }
+    }
+
+    /// `n` lanes rounded up to whole workgroups.
+    fn whole_workgroups(&self, n: usize) -> usize {
+        n.div_ceil(self.workgroup_size as usize) * self.workgroup_size as usize
+    }
+}
+
+/// A batch's instances, their coefficients and, where the law's host sets
+/// them up, the states its lanes start from (else zeroed: the first
+/// dispatch starts every instance, `control.initialize`).
+pub(super) struct Work<'w, L: Lanes> {
+    pub(super) instances: &'w [Instance],
+    pub(super) coefficients: &'w [L::Coefficients],
+    pub(super) states: Option<&'w [L::State]>,
+}
+
+/// What [`Runner::slices`] leaves of a batch.
+pub(super) struct Sliced<L: Lanes> {
+    /// Every state and, for a batch with a steady instance, every
+    /// measurement.
+    pub(super) readback: Readback<L>,
+    /// The tallies of the first dispatch (instance k's on lane k).
+    pub(super) probe_tallies: Vec<Tally>,
+    /// Dispatches, each followed by a readback of the counters.
+    pub(super) dispatches: u64,
+    /// Iterations the dispatches offered the lanes that held an
+    /// unfinished instance at their start (per dispatch, those lanes times
+    /// its iterations): the slots the lanes' work filled.
+    pub(super) offered: u64,
+}
 
 /// What a batch does between its dispatches besides refilling lanes: a
 /// replica batch's groups (`super::groups`) merge, and may send the jobs
@@ -57,13 +123,13 @@ struct Buffers {
 }
 
 impl Buffers {
-    fn new<L: Layout>(
+    fn new<L: Lanes>(
         device: &wgpu::Device,
-        coefficients: &[L::Coefficients],
+        work: &Work<L>,
         steady: bool,
         loop_limiter: bool,
     ) -> Buffers {
-        let n = coefficients.len();
+        let n = work.coefficients.len();
         let init = |label: &str, contents: &[u8], copy: bool| {
             let mut usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
             if copy {
@@ -83,8 +149,15 @@ impl Buffers {
         let measures = per_steady * super::staging::measure_entries(steady && loop_limiter);
         let identity: Vec<u32> = (0..n as u32).collect();
         Buffers {
-            coefficients: init("coefficients", bytemuck::cast_slice(coefficients), false),
-            states: storage(device, "states", (n * size_of::<L::State>()) as u64),
+            coefficients: init(
+                "coefficients",
+                bytemuck::cast_slice(work.coefficients),
+                false,
+            ),
+            states: match work.states {
+                Some(states) => init("states", bytemuck::cast_slice(states), true),
+                None => storage(device, "states", (n * size_of::<L::State>()) as u64),
+            },
             measures: storage(
                 device,
                 "measures",
@@ -105,13 +178,13 @@ impl Buffers {
         }
     }
 
-    /// The bind group of a dispatch with `control`: the bindings of the
-    /// variant's parts (a variant without steady measurements binds
-    /// neither accumulators nor heads).
+    /// The bind group of a dispatch with `control`: the bindings the
+    /// kernel uses (one without steady measurements binds neither
+    /// accumulators nor heads) and the law's own.
     fn bind_group(
         &self,
         device: &wgpu::Device,
-        (pipeline, variant): Compiled,
+        kernel: Kernel,
         control: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
         let mut buffers = vec![
@@ -123,9 +196,10 @@ impl Buffers {
             (7, &self.order),
             (8, &self.tallies),
         ];
-        if variant.parts.steady {
+        if kernel.steady {
             buffers.extend([(5, &self.measures), (6, &self.heads)]);
         }
+        buffers.extend(kernel.extra.iter().copied());
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .into_iter()
             .map(|(binding, buffer)| wgpu::BindGroupEntry {
@@ -135,7 +209,7 @@ impl Buffers {
             .collect();
         device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("integrate"),
-            layout: &pipeline.get_bind_group_layout(0),
+            layout: &kernel.pipeline.get_bind_group_layout(0),
             entries: &entries,
         })
     }
@@ -159,6 +233,12 @@ impl Counted {
     }
 }
 
+/// What a batch's dispatches spent ([`Sliced`]).
+struct Spent {
+    dispatches: u64,
+    offered: u64,
+}
+
 /// A batch's queue after its first dispatch, and when to stop.
 struct Queue {
     /// The jobs still to start, dearest first.
@@ -168,11 +248,6 @@ struct Queue {
     /// Unfinished jobs the CPU may take once the queue is empty.
     tail_size: u64,
     slice_limit: Option<u64>,
-}
-
-/// `n` lanes rounded up to whole workgroups.
-fn whole_workgroups(n: usize) -> usize {
-    n.div_ceil(workgroup_size() as usize) * workgroup_size() as usize
 }
 
 /// The periods an instance is expected to run, for ranking the queue: a
@@ -201,15 +276,19 @@ impl Runner<'_> {
     fn dispatch(
         &self,
         b: &Buffers,
-        pipeline: &wgpu::ComputePipeline,
+        kernel: Kernel,
         group: &wgpu::BindGroup,
         lanes: usize,
     ) -> Result<(u64, u64), GpuError> {
-        let (gx, gy) = dispatch_size(lanes, self.limits.max_compute_workgroups_per_dimension);
+        let (gx, gy) = workgroups(
+            lanes,
+            kernel.workgroup_size,
+            self.limits.max_compute_workgroups_per_dimension,
+        );
         let mut encoder = self.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(pipeline);
+            pass.set_pipeline(kernel.pipeline);
             pass.set_bind_group(0, group, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         }
@@ -284,26 +363,24 @@ impl Runner<'_> {
     }
 
     /// Dispatches slices until the batch is done, or only its slow tail is
-    /// left, or `slice_limit` slices have run; returns every state and,
-    /// for a batch with a steady instance, every measurement, and the
-    /// tallies of the first dispatch (instance k's on lane k). `between`
+    /// left, or `slice_limit` slices have run ([`Sliced`]). `between`
     /// runs after every dispatch (a replica batch's groups).
-    pub(super) fn slices<L: Layout>(
+    pub(super) fn slices<L: Lanes>(
         &self,
-        instances: &[Instance],
-        coefficients: &[L::Coefficients],
-        compiled: Compiled,
+        work: Work<L>,
+        kernel: Kernel,
         progress: &mut dyn FnMut(u64),
         slice_limit: Option<u64>,
         mut between: Option<&mut dyn Between>,
-    ) -> Result<(Readback<L>, Vec<Tally>), GpuError> {
+    ) -> Result<Sliced<L>, GpuError> {
+        let instances = work.instances;
         let n = instances.len();
-        let (pipeline, variant) = compiled;
-        let steady = variant.parts.steady && any_steady(instances);
+        let steady = kernel.steady && any_steady(instances);
         let uploading = profile::span(Phase::Upload);
-        let b = Buffers::new::<L>(self.device, coefficients, steady, variant.loop_limiter);
-        let probe_control = self.control(self.options.probe_iterations.max(1), 1, 0, 0);
-        let probe_group = b.bind_group(self.device, compiled, &probe_control);
+        let b = Buffers::new::<L>(self.device, &work, steady, kernel.loop_limiter);
+        let probe_iterations = self.options.probe_iterations.max(1);
+        let probe_control = self.control(probe_iterations, 1, 0, 0);
+        let probe_group = b.bind_group(self.device, kernel, &probe_control);
         drop(uploading);
         let dispatching = profile::span(Phase::Dispatch);
         let profiling = profile::enabled();
@@ -318,9 +395,17 @@ impl Runner<'_> {
         };
         // The first dispatch: every instance on a lane of its own.
         let started = std::time::Instant::now();
-        let (_, mut finished) = self.dispatch(&b, pipeline, &probe_group, n)?;
+        let (_, mut finished) = self.dispatch(&b, kernel, &probe_group, n)?;
         let tallies = self.tallies(&b, n)?;
-        profile::add_lanes(whole_workgroups(n) as u64, n as u64, started.elapsed());
+        profile::add_lanes(
+            kernel.whole_workgroups(n) as u64,
+            n as u64,
+            started.elapsed(),
+        );
+        let mut spent = Spent {
+            dispatches: 1,
+            offered: n as u64 * probe_iterations as u64,
+        };
         count_in.dispatch(&tallies, n);
         let mut again = match between.as_deref_mut() {
             Some(between) => between.after(self, &b.states, &b.measures, finished)?,
@@ -355,13 +440,11 @@ impl Runner<'_> {
                 slice_limit,
             };
             self.work_through::<L>(
-                instances,
-                &b,
-                compiled,
+                (instances, &b, kernel),
                 queue,
                 progress,
                 between,
-                &mut count_in,
+                (&mut count_in, &mut spent),
             )?;
         }
         drop(dispatching);
@@ -369,23 +452,25 @@ impl Runner<'_> {
         if profiling {
             self.record_profile::<L>(instances, &out, &probed, steady, count_in);
         }
-        Ok((out, tallies))
+        Ok(Sliced {
+            readback: out,
+            probe_tallies: tallies,
+            dispatches: spent.dispatches,
+            offered: spent.offered,
+        })
     }
 
     /// The dispatches after the first: `queue`'s first entries on the
     /// lanes, each lane taking the next entry when its own instance
     /// finishes, the busy lanes packed into fewer workgroups once the
     /// queue is empty, and what `between` queues again added to its end.
-    #[allow(clippy::too_many_arguments)]
-    fn work_through<L: Layout>(
+    fn work_through<L: Lanes>(
         &self,
-        instances: &[Instance],
-        b: &Buffers,
-        compiled: Compiled,
+        (instances, b, kernel): (&[Instance], &Buffers, Kernel),
         queue: Queue,
         progress: &mut dyn FnMut(u64),
         mut between: Option<&mut dyn Between>,
-        count_in: &mut Counted,
+        (count_in, spent): (&mut Counted, &mut Spent),
     ) -> Result<(), GpuError> {
         let n = instances.len();
         let Queue {
@@ -394,30 +479,28 @@ impl Runner<'_> {
             tail_size,
             slice_limit,
         } = queue;
-        let (pipeline, _) = compiled;
         // The queue, and its first entries on the lanes.
         let lanes = self.options.lanes.unwrap_or(LANES).clamp(1, order.len());
         let mut first = order[..lanes].to_vec();
-        first.resize(whole_workgroups(lanes).min(n), NO_INSTANCE);
+        first.resize(kernel.whole_workgroups(lanes).min(n), NO_INSTANCE);
         self.queue
             .write_buffer(&b.lanes, 0, bytemuck::cast_slice(&first));
-        let mut group = self.requeue(b, compiled, &order, lanes, lanes as u32, finished);
+        let mut group = self.requeue(b, kernel, &order, lanes, lanes as u32, finished);
         count_in.path.lanes = lanes;
         let mut active = lanes;
         let rounds = n.div_ceil(lanes) as u64;
-        let max_slices = slice_bound(instances, self.settings).saturating_mul(rounds) + 1;
+        let max_slices = L::slice_bound(instances, self.settings).saturating_mul(rounds) + 1;
         let mut unfinished_before = n as u64 - finished;
         let mut slice: u64 = 1;
         loop {
             let started = std::time::Instant::now();
-            let (mut next, done) = self.dispatch(b, pipeline, &group, active)?;
+            let (mut next, done) = self.dispatch(b, kernel, &group, active)?;
             finished = done;
-            let dispatched = whole_workgroups(active);
-            profile::add_lanes(
-                dispatched as u64,
-                unfinished_before.min(active as u64),
-                started.elapsed(),
-            );
+            let dispatched = kernel.whole_workgroups(active);
+            let busy = unfinished_before.min(active as u64);
+            profile::add_lanes(dispatched as u64, busy, started.elapsed());
+            spent.dispatches += 1;
+            spent.offered += busy * self.options.slice_iterations as u64;
             if count_in.profiling {
                 let tallies = self.tallies(b, dispatched.min(n))?;
                 count_in.dispatch(&tallies, lanes);
@@ -437,7 +520,7 @@ impl Runner<'_> {
                         false => active,
                     };
                     active = (busy + order.len()).clamp(1, lanes);
-                    group = self.requeue(b, compiled, &order, 0, active as u32, finished);
+                    group = self.requeue(b, kernel, &order, 0, active as u32, finished);
                     next = 0;
                 }
             }
@@ -480,7 +563,7 @@ impl Runner<'_> {
     fn requeue(
         &self,
         b: &Buffers,
-        compiled: Compiled,
+        kernel: Kernel,
         order: &[u32],
         taken: usize,
         lanes: u32,
@@ -494,12 +577,35 @@ impl Runner<'_> {
             bytemuck::cast_slice(&[taken as u32, finished as u32]),
         );
         let control = self.control(self.options.slice_iterations, 0, order.len() as u32, lanes);
-        b.bind_group(self.device, compiled, &control)
+        b.bind_group(self.device, kernel, &control)
+    }
+
+    /// A batch's lanes, each on its own instance, dispatched one slice of
+    /// `iterations` at a time with no queue, for tests that follow a run
+    /// step by step through the engine's protocol ([`Stepper`]).
+    pub(super) fn stepper<'s, L: Lanes>(
+        &'s self,
+        work: Work<L>,
+        kernel: Kernel<'s>,
+        iterations: u32,
+    ) -> Stepper<'s> {
+        let n = work.instances.len();
+        let steady = kernel.steady && any_steady(work.instances);
+        let b = Buffers::new::<L>(self.device, &work, steady, kernel.loop_limiter);
+        let control = self.control(iterations, 0, 0, n as u32);
+        let group = b.bind_group(self.device, kernel, &control);
+        Stepper {
+            runner: self,
+            b,
+            group,
+            kernel,
+            n,
+        }
     }
 
     /// Records the batch's lanes, warps and critical path (`pidm
     /// --profile`).
-    fn record_profile<L: Layout>(
+    fn record_profile<L: Lanes>(
         &self,
         instances: &[Instance],
         out: &Readback<L>,
@@ -535,7 +641,7 @@ impl Runner<'_> {
 
     /// Every state and, for a steady batch, every measurement
     /// ([`readback::accumulators`]).
-    fn read_back<L: Layout>(
+    fn read_back<L: Lanes>(
         &self,
         instances: &[Instance],
         b: &Buffers,
@@ -583,5 +689,34 @@ impl Runner<'_> {
                 + (read.count * size_of::<L::Measure>()) as u64,
         );
         Ok((states, measure_list))
+    }
+}
+
+/// What [`Runner::stepper`] gives: one dispatch at a time, the states read
+/// back after each.
+pub(super) struct Stepper<'s> {
+    runner: &'s Runner<'s>,
+    b: Buffers,
+    group: wgpu::BindGroup,
+    kernel: Kernel<'s>,
+    n: usize,
+}
+
+impl Stepper<'_> {
+    /// One dispatch; every instance's state after it.
+    pub(super) fn step<L: Lanes>(&self) -> Result<Vec<L::State>, GpuError> {
+        let r = self.runner;
+        r.dispatch(&self.b, self.kernel, &self.group, self.n)?;
+        let bytes = (self.n * size_of::<L::State>()) as u64;
+        let read = readback::mappable(r.device, "stepper states", bytes);
+        let mut encoder = r.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&self.b.states, 0, &read, 0, bytes);
+        r.queue.submit([encoder.finish()]);
+        readback::with_mapped(r.device, &read, |bytes| {
+            bytes
+                .chunks_exact(size_of::<L::State>())
+                .map(bytemuck::pod_read_unaligned)
+                .collect()
+        })
     }
 }

@@ -81,8 +81,8 @@ pub struct Packed {
 
 /// Each precision's coefficients, as the device takes them.
 enum PackedCoefficients {
-    F32(Vec<<Single as Layout>::Coefficients>),
-    F64(Vec<<Double as Layout>::Coefficients>),
+    F32(Vec<<Single as Lanes>::Coefficients>),
+    F64(Vec<<Double as Lanes>::Coefficients>),
 }
 
 impl Packed {

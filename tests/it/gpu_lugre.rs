@@ -323,6 +323,36 @@ fn the_cpu_tail_continues_runs_from_their_period_starts() {
     assert!(report.on_cpu.is_empty(), "{:?}", report.on_cpu);
 }
 
+/// The engine's queue: with 2 lanes after the first dispatch, each lane
+/// takes run after run (in the queue's order, then packed once it is
+/// empty), and the records are the CPU's: bit for bit on lavapipe (which
+/// lane runs a run, and when, changes nothing of it), within the hardware
+/// bound elsewhere. The steady run's record is read from its head.
+#[test]
+fn lanes_take_runs_from_the_engine_s_queue() {
+    let Some((mut gpu, software)) = lugre_gpu() else {
+        return;
+    };
+    let mut instances = seven_cases();
+    for (k, inst) in instances.iter_mut().enumerate() {
+        inst.cycles = 2 + k as u32;
+        inst.settle = 1;
+    }
+    instances.push(other_cases()[2]);
+    gpu.cpu_tail = Some(0);
+    let bound = if software { 0.0 } else { 2e-5 };
+    gpu.lanes = Some(2);
+    let queued = compare(&gpu, "2 lanes", &instances, 1e-4, bound);
+    gpu.lanes = Some(instances.len());
+    let alone = compare(&gpu, "a lane each", &instances, 1e-4, bound);
+    assert!(
+        queued.dispatches > alone.dispatches,
+        "{} dispatches on 2 lanes, {} on a lane each",
+        queued.dispatches,
+        alone.dispatches
+    );
+}
+
 /// The LuGre pipeline and whether the adapter is a software one (whose
 /// arithmetic the CPU mirrors to the last bit), or None (with a notice)
 /// where no adapter or no f64 is at hand; under CI both must be.
@@ -442,9 +472,11 @@ fn the_batch_reports_each_finished_instance_once() {
 /// through the phase ladder's windows, and a window.
 #[test]
 fn the_lanes_measure_as_the_cpu_s_run_does() {
-    let Some((gpu, software)) = lugre_gpu() else {
+    let Some((mut gpu, software)) = lugre_gpu() else {
         return;
     };
+    // Every accumulator back, not only what the reductions read.
+    gpu.whole_accumulators = true;
     let steady = other_cases()[2];
     let mut ladder = lugre_case([100.0, 100.0], [10.0, 10.0 * 2f64.sqrt()], Lugre::DEFAULT);
     ladder.measure = steady.measure;

@@ -480,6 +480,7 @@ pub fn source(variant: Variant) -> String {
     } else if !parts.phase {
         src += NO_LADDER;
     }
+    src += &crate::gpu::engine_queue();
     for (name, text) in FILES {
         if parts.include(name) {
             src += &format!("\n// ---- shaders/karnopp/{name}\n");

@@ -123,6 +123,34 @@ pub struct Lane {
     pub _pad: u32,
 }
 
+impl crate::gpu::layout::HostLayout for Lane {
+    const NAME: &'static str = "Lane";
+    fn members() -> Vec<(&'static str, usize)> {
+        use std::mem::offset_of;
+        vec![
+            ("y", offset_of!(Lane, y)),
+            ("last", offset_of!(Lane, last)),
+            ("h", offset_of!(Lane, h)),
+            ("start_h", offset_of!(Lane, start_h)),
+            ("end", offset_of!(Lane, end)),
+            ("drive", offset_of!(Lane, drive)),
+            ("clock", offset_of!(Lane, clock)),
+            ("settle_x_s", offset_of!(Lane, settle_x_s)),
+            ("budget", offset_of!(Lane, budget)),
+            ("start_budget", offset_of!(Lane, start_budget)),
+            ("steps", offset_of!(Lane, steps)),
+            ("start_steps", offset_of!(Lane, start_steps)),
+            ("segment_steps", offset_of!(Lane, segment_steps)),
+            ("rejected", offset_of!(Lane, rejected)),
+            ("in_segment", offset_of!(Lane, in_segment)),
+            ("status", offset_of!(Lane, status)),
+            ("period", offset_of!(Lane, period)),
+            ("measured", offset_of!(Lane, measured)),
+            ("flag", offset_of!(Lane, flag)),
+        ]
+    }
+}
+
 impl Lane {
     /// A run at rest before its first period, as the CPU's starts: the
     /// device starts its measurement and first period (`LANE_FRESH`).

@@ -164,6 +164,16 @@ pub const SOFTWARE_PERIOD_ENDS: u32 = 1;
 pub const SOFTWARE_ATTEMPTS: u32 =
     (LOOP_LIMIT / 3 - 2 * PERIOD_END_PASSES) / (2 * LOOP_PASSES_PER_ATTEMPT);
 
+/// The lanes a LuGre batch keeps busy after its first dispatch on a
+/// software adapter (the engine's queue; Karnopp's take
+/// [`crate::gpu::SOFTWARE_LANES_PER_THREAD`] per core). A LuGre dispatch
+/// is [`SOFTWARE_ATTEMPTS`] attempts long, and llvmpipe's cost per
+/// dispatch outweighs fewer lanes' shorter tails: on this project's
+/// 2-core machine the 61 x 61 LuGre coupling map took 9.2 s with 256 lanes,
+/// 8.2 s with 1,024 and 7.4 s with 4,096 (medians of three, whole
+/// processes in turn; results/house.md).
+pub const SOFTWARE_LANES: usize = 4096;
+
 /// Step attempts per dispatch on a hardware adapter (no loop limit; a few
 /// milliseconds of work per lane, not measured yet).
 pub const HARDWARE_ATTEMPTS: u32 = 1024;

@@ -2,11 +2,13 @@
 //! steps against the CPU's, from the same inputs.
 
 use super::buffers::drive_of;
-use super::runner::{Batch, compile};
+use super::runner::{Lugre, compile};
 use super::{
     FUNCTIONS_ENTRY_POINT, LANE_FRESH, LANE_STOPPED, Lane, LugreGpu, MIRROR_ENTRY_POINT,
     MirrorCheck, Params, Probe, Probed,
 };
+use crate::gpu::runner::Runner;
+use crate::gpu::slices::Work;
 
 use bytemuck::Zeroable;
 use wgpu::util::DeviceExt;
@@ -33,15 +35,24 @@ impl LugreGpu<'_> {
         let book = Periods::new(inst, settings);
         let params = Params::of(&book);
         let mut lane = Lane::start(&book);
-        let mut batch = Batch::new(self, std::slice::from_ref(&book), 1);
+        // The lane through the engine's protocol, one attempt a dispatch.
+        let options = self.options();
+        let (coefficients, states, extra) = self.upload(std::slice::from_ref(&book));
+        let bound = [(9, &extra[0]), (10, &extra[1])];
+        let runner = Runner::on(self.ctx, settings, &options);
+        let work = Work {
+            instances: std::slice::from_ref(inst),
+            coefficients: &coefficients,
+            states: Some(&states),
+        };
+        let stepper = runner.stepper::<Lugre>(work, self.kernel(&bound), 1);
         let mut check = MirrorCheck::default();
         let mut probes = Vec::new();
         let mut drives = Vec::new();
         let period = inst.period();
         while check.attempts < attempts && lane.flag != LANE_STOPPED {
             let mut before = lane;
-            batch.dispatch()?;
-            let after = batch.lanes()?[0];
+            let after = stepper.step::<Lugre>()?[0];
             lane = after;
             if after.clock != Clock::of(inst, after.period).start {
                 check.segment_mismatches += 1;
@@ -164,15 +175,15 @@ impl LugreGpu<'_> {
             layout: &pipeline.get_bind_group_layout(0),
             entries: &[
                 wgpu::BindGroupEntry {
-                    binding: 0,
+                    binding: 9,
                     resource: models.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
-                    binding: 4,
+                    binding: 12,
                     resource: input.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
-                    binding: 5,
+                    binding: 13,
                     resource: output.as_entire_binding(),
                 },
             ],
@@ -234,11 +245,11 @@ impl LugreGpu<'_> {
             layout: &pipeline.get_bind_group_layout(0),
             entries: &[
                 wgpu::BindGroupEntry {
-                    binding: 0,
+                    binding: 9,
                     resource: models.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
-                    binding: 3,
+                    binding: 11,
                     resource: buffer.as_entire_binding(),
                 },
             ],

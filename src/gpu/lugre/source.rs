@@ -324,6 +324,7 @@ fn factor_source() -> String {
 /// in `arithmetic`.
 pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
     let mut src = prelude(workgroup_size, arithmetic);
+    src += &crate::gpu::engine_queue();
     for (name, text) in FILES {
         src += &format!("\n// ---- shaders/lugre/{name}\n");
         src += text;
