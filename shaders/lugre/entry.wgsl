@@ -189,9 +189,10 @@ fn take_run(index: u32) -> Lane {
 }
 
 // Scene periods the lane's run has completed, with the current one's
-// share (the tally's `progress`, which ranks the queue).
+// share (the tally's `progress`, which ranks the queue), in f32: the fused
+// shader divides no f64.
 fn progress_of(lane: Lane) -> f32 {
-    return f32(lane.period) + f32(lane.y[T] / model.period);
+    return f32(lane.period) + f32(lane.y[T]) / f32(model.period);
 }
 
 @compute @workgroup_size(LUGRE_WORKGROUP_SIZE)

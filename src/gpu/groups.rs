@@ -20,7 +20,7 @@
 use std::marker::PhantomData;
 
 use super::runner::Runner;
-use super::slices::{Between, Kernel, Sliced, Work};
+use super::slices::Between;
 use super::*;
 use crate::laws::karnopp::integrate::measure::VERDICT_RUNNING;
 use crate::laws::karnopp::integrate::{Replica, Replicas, STATUS_OK};

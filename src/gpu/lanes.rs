@@ -1,6 +1,8 @@
 //! What the engine needs of a law's lanes (`Lanes`): the structs a batch
 //! keeps on the device per instance, how many steps a state has taken and
-//! whether it is done, and a bound on the slices one instance can need.
+//! whether it is done, and a bound on the slices one instance can need;
+//! what a law hands the engine with a batch (`Kernel`, `Work`) and gets
+//! back (`Sliced`).
 //! The queue, packing, time slices, readback and the CPU tail's size
 //! (`slices.rs`, `readback.rs`, `warps.rs`) see a law only through it.
 //! Karnopp's lanes are `precision::Single` and `precision::Double`
@@ -8,6 +10,7 @@
 //! LuGre's are `lugre::Lugre`.
 
 use super::*;
+use layout::control::Tally;
 
 /// One law's lanes, in one precision, as the engine sees them.
 pub(super) trait Lanes {
@@ -41,3 +44,62 @@ pub(super) trait Lanes {
 /// Every state of a batch and, for a batch with a steady instance, every
 /// measurement, as read back from the device.
 pub(super) type Readback<L> = (Vec<<L as Lanes>::State>, Vec<<L as Lanes>::Measure>);
+
+/// A law's compiled pipeline, and what the engine binds and sizes for it.
+#[derive(Clone, Copy)]
+pub(super) struct Kernel<'p> {
+    pub(super) pipeline: &'p wgpu::ComputePipeline,
+    /// It measures steady runs: it binds the accumulators and heads (5
+    /// and 6).
+    pub(super) steady: bool,
+    /// Its adapter's loop limiter cuts iterations short (Karnopp on
+    /// llvmpipe): the accumulators end with a scratch entry per lane.
+    pub(super) loop_limiter: bool,
+    /// Invocations per workgroup, as its source declares them.
+    pub(super) workgroup_size: u32,
+    /// The law's own buffers and their bindings, after the engine's 0 to
+    /// 8 (LuGre's parameters and recurrence snapshots).
+    pub(super) extra: &'p [(u32, &'p wgpu::Buffer)],
+}
+
+impl<'p> Kernel<'p> {
+    /// Karnopp's pipeline of `variant`.
+    pub(super) fn karnopp(pipeline: &'p wgpu::ComputePipeline, variant: Variant) -> Kernel<'p> {
+        Kernel {
+            pipeline,
+            steady: variant.parts.steady,
+            loop_limiter: variant.loop_limiter,
+            workgroup_size: workgroup_size(),
+            extra: &[],
+        }
+    }
+
+    /// `n` lanes rounded up to whole workgroups.
+    pub(super) fn whole_workgroups(&self, n: usize) -> usize {
+        n.div_ceil(self.workgroup_size as usize) * self.workgroup_size as usize
+    }
+}
+
+/// A batch's instances, their coefficients and, where the law's host sets
+/// them up, the states its lanes start from (else zeroed: the first
+/// dispatch starts every instance, `control.initialize`).
+pub(super) struct Work<'w, L: Lanes> {
+    pub(super) instances: &'w [Instance],
+    pub(super) coefficients: &'w [L::Coefficients],
+    pub(super) states: Option<&'w [L::State]>,
+}
+
+/// What [`Runner::slices`] leaves of a batch.
+pub(super) struct Sliced<L: Lanes> {
+    /// Every state and, for a batch with a steady instance, every
+    /// measurement.
+    pub(super) readback: Readback<L>,
+    /// The tallies of the first dispatch (instance k's on lane k).
+    pub(super) probe_tallies: Vec<Tally>,
+    /// Dispatches, each followed by a readback of the counters.
+    pub(super) dispatches: u64,
+    /// Iterations the dispatches offered the lanes that held an
+    /// unfinished instance at their start (per dispatch, those lanes times
+    /// its iterations): the slots the lanes' work filled.
+    pub(super) offered: u64,
+}

@@ -3,7 +3,6 @@
 //! left, the readback of states and accumulators, and the CPU's part (the
 //! tail, loop-limited iterations, f32 fallbacks and the check).
 
-use super::slices::{Kernel, Sliced, Work};
 use super::*;
 use crate::profile::{self, Phase};
 

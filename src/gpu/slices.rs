@@ -26,65 +26,6 @@ pub fn engine_queue() -> String {
     )
 }
 
-/// A law's compiled pipeline, and what the engine binds and sizes for it.
-#[derive(Clone, Copy)]
-pub(super) struct Kernel<'p> {
-    pub(super) pipeline: &'p wgpu::ComputePipeline,
-    /// It measures steady runs: it binds the accumulators and heads (5
-    /// and 6).
-    pub(super) steady: bool,
-    /// Its adapter's loop limiter cuts iterations short (Karnopp on
-    /// llvmpipe): the accumulators end with a scratch entry per lane.
-    pub(super) loop_limiter: bool,
-    /// Invocations per workgroup, as its source declares them.
-    pub(super) workgroup_size: u32,
-    /// The law's own buffers and their bindings, after the engine's 0 to
-    /// 8 (LuGre's parameters and recurrence snapshots).
-    pub(super) extra: &'p [(u32, &'p wgpu::Buffer)],
-}
-
-impl<'p> Kernel<'p> {
-    /// Karnopp's pipeline of `variant`.
-    pub(super) fn karnopp(pipeline: &'p wgpu::ComputePipeline, variant: Variant) -> Kernel<'p> {
-        Kernel {
-            pipeline,
-            steady: variant.parts.steady,
-            loop_limiter: variant.loop_limiter,
-            workgroup_size: workgroup_size(),
-            extra: &[],
-        }
-    }
-
-    /// `n` lanes rounded up to whole workgroups.
-    fn whole_workgroups(&self, n: usize) -> usize {
-        n.div_ceil(self.workgroup_size as usize) * self.workgroup_size as usize
-    }
-}
-
-/// A batch's instances, their coefficients and, where the law's host sets
-/// them up, the states its lanes start from (else zeroed: the first
-/// dispatch starts every instance, `control.initialize`).
-pub(super) struct Work<'w, L: Lanes> {
-    pub(super) instances: &'w [Instance],
-    pub(super) coefficients: &'w [L::Coefficients],
-    pub(super) states: Option<&'w [L::State]>,
-}
-
-/// What [`Runner::slices`] leaves of a batch.
-pub(super) struct Sliced<L: Lanes> {
-    /// Every state and, for a batch with a steady instance, every
-    /// measurement.
-    pub(super) readback: Readback<L>,
-    /// The tallies of the first dispatch (instance k's on lane k).
-    pub(super) probe_tallies: Vec<Tally>,
-    /// Dispatches, each followed by a readback of the counters.
-    pub(super) dispatches: u64,
-    /// Iterations the dispatches offered the lanes that held an
-    /// unfinished instance at their start (per dispatch, those lanes times
-    /// its iterations): the slots the lanes' work filled.
-    pub(super) offered: u64,
-}
-
 /// What a batch does between its dispatches besides refilling lanes: a
 /// replica batch's groups (`super::groups`) merge, and may send the jobs
 /// that waited for the merge back to the queue.

@@ -318,14 +318,9 @@ mod tests {
         }
         let (span, members) = offsets("Lane");
         assert_eq!(span as usize, size_of::<Lane>());
-        let rust = [
-            ("h", std::mem::offset_of!(Lane, h)),
-            ("drive", std::mem::offset_of!(Lane, drive)),
-            ("clock", std::mem::offset_of!(Lane, clock)),
-            ("budget", std::mem::offset_of!(Lane, budget)),
-            ("status", std::mem::offset_of!(Lane, status)),
-            ("flag", std::mem::offset_of!(Lane, flag)),
-        ];
+        // Every member the engine's `HostLayout` names, at WGSL's offset.
+        let rust = <Lane as crate::gpu::layout::HostLayout>::members();
+        assert_eq!(rust.len(), members.len() - 1, "Lane's members but `_pad`");
         for (name, offset) in rust {
             let (_, o) = members.iter().find(|(n, _)| n == name).unwrap();
             assert_eq!(*o as usize, offset, "Lane.{name}");

@@ -2,22 +2,28 @@
 //! in `shaders/lugre/`, a function-for-function mirror of
 //! [`crate::laws::lugre`] (`model.wgsl` of `model.rs`, `rodas.wgsl` of
 //! `rodas.rs`: Rodas4 on the reduced 6 x 6 system), and its host, which
-//! runs a batch period by period.
+//! runs a batch on the engine's queue (`gpu::slices`, with LuGre's lanes
+//! as `runner::Lugre`).
 //!
-//! * One invocation per instance. Each dispatch advances every running
-//!   instance by at most [`LugreGpu::attempts`] Rodas4 step attempts. The
-//!   run (the 11 numbers, the step size, the budget, the segment in hand
-//!   and its `rejected` flag, the period count and the period's start)
-//!   stays in a storage buffer between dispatches ([`Lane`]), so that a
-//!   run cut into dispatches anywhere gives the same bits; the
-//!   per-instance parameters are packed once ([`Params`]).
+//! * Lanes as Karnopp's: the first dispatch runs every instance on a lane
+//!   of its own, then a few lanes ([`LugreGpu::lanes`]) take the queued
+//!   ones in turn, and the busy ones are packed once the queue is empty.
+//!   Each dispatch a lane makes at most [`LugreGpu::attempts`] Rodas4 step
+//!   attempts on the instances it holds. A run (the 11 numbers, the step
+//!   size, the budget, the segment in hand and its `rejected` flag, the
+//!   period count and the period's start) stays in the engine's `states`
+//!   buffer between dispatches ([`Lane`]), so that a run cut into
+//!   dispatches anywhere, on any lane, gives the same bits; the
+//!   per-instance parameters are packed once ([`Params`], binding 9).
 //! * A lane measures its period ends itself (`shaders/lugre/measure.wgsl`):
 //!   Karnopp's measurement files (`measure.wgsl`, `phase.wgsl`,
 //!   [`MEASUREMENT_FILES`]) on its own accumulators, then the recurrence
 //!   test that compares z, as the CPU run's `Periods::period_end` does,
-//!   and starts its next period. The host reads two counters after each
-//!   dispatch (lanes stopped, lanes advanced) and the lanes and their
-//!   accumulators once, at the batch's end. The result is an
+//!   and starts its next period; a finished run leaves the engine's head.
+//!   The host reads the engine's two counters after each dispatch, and
+//!   the runs, their heads (and the accumulators the reductions need), and
+//!   the recurrence snapshots of runs still going once, at the batch's
+//!   end. The result is an
 //!   `integrate::Run` per instance (`Periods::resume`), which
 //!   `measurement::reduce` turns into the record the CPU gives.
 //! * The batch's slow tail goes to the CPU by the Karnopp batches' rule
@@ -63,9 +69,9 @@
 //! The files: `source.rs` (the prelude generated from the Rust constants,
 //! the LU factorisation and solve written out, the source with Karnopp's
 //! measurement files, and what a lane carries: [`footprint`]), `buffers.rs`
-//! (the structs shared with WGSL), `runner.rs` (a batch, dispatch by dispatch,
-//! on the pipeline the context compiles once: `GpuContext::law_pipeline`,
-//! sized by the engine's `workgroups` and `batch_limit`) and `probes.rs`
+//! (the structs shared with WGSL), `runner.rs` (LuGre's lanes for the
+//! engine, and a batch on the pipeline the context compiles once:
+//! `GpuContext::law_pipeline`, sized by the engine's `batch_limit`) and `probes.rs`
 //! (the function-by-function comparisons the tests run on a device). The
 //! shader's exp, hypot and fourth root are mirrored in
 //! [`crate::laws::lugre::libm`].

@@ -7,8 +7,8 @@ use super::{
     FUNCTIONS_ENTRY_POINT, LANE_FRESH, LANE_STOPPED, Lane, LugreGpu, MIRROR_ENTRY_POINT,
     MirrorCheck, Params, Probe, Probed,
 };
+use crate::gpu::lanes::Work;
 use crate::gpu::runner::Runner;
-use crate::gpu::slices::Work;
 
 use bytemuck::Zeroable;
 use wgpu::util::DeviceExt;

@@ -1,6 +1,8 @@
-//! A batch of LuGre instances on the device, dispatch by dispatch (the
-//! lanes measure their period ends themselves; the host reads two
-//! counters after each), and the batch's slow tail on the CPU.
+//! LuGre's lanes for the engine ([`Lugre`]), and a batch of LuGre
+//! instances through it: the host sets up each run, the engine's queue
+//! runs them (the lanes measure their period ends themselves), the host
+//! resumes each run from what its lane kept, and the CPU continues the
+//! batch's slow tail from the runs' period starts.
 
 use super::buffers::Recurrence;
 use super::{
@@ -14,11 +16,11 @@ use bytemuck::Zeroable;
 use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 
-use crate::gpu::lanes::Lanes;
+use crate::gpu::lanes::{Kernel, Lanes, Work};
 use crate::gpu::layout::double::{Coefficients, Head, Measure as GpuMeasure, packed};
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::gpu::runner::{Runner, storage};
-use crate::gpu::slices::{Kernel, Work};
+
 use crate::gpu::{BatchOptions, GpuContext, GpuError, Precision};
 use crate::laws::karnopp::integrate::{Run, Settings};
 use crate::laws::lugre::run::{Periods, continue_until};
@@ -202,10 +204,11 @@ impl<'a> LugreGpu<'a> {
         self.run_until(instances, settings, || false, &|_| {})
     }
 
-    /// [`LugreGpu::run`], asking `stop` between dispatches and between
-    /// the CPU tail's periods ([`GpuError::Interrupted`] when it says yes)
-    /// and telling `done` how many instances finished (for a progress
-    /// bar).
+    /// [`LugreGpu::run`], asking `stop` before each batch and between the
+    /// CPU tail's periods ([`GpuError::Interrupted`] when it says yes;
+    /// between dispatches the engine asks the process's stop request,
+    /// `crate::interrupt`, as for Karnopp's batches) and telling `done` how
+    /// many instances finished (for a progress bar).
     pub fn run_until(
         &self,
         instances: &[Instance],
@@ -233,7 +236,9 @@ impl<'a> LugreGpu<'a> {
             size_of::<Lane>(),
             size_of::<Coefficients>(),
             size_of::<GpuMeasure>(),
+            size_of::<Head>(),
             size_of::<Recurrence>(),
+            size_of::<crate::gpu::layout::control::Tally>(),
         ]
         .into_iter()
         .max()
@@ -296,6 +301,9 @@ impl<'a> LugreGpu<'a> {
             .collect();
         if books.is_empty() {
             return Ok(Vec::new());
+        }
+        if stop() {
+            return Err(GpuError::Interrupted);
         }
         let n = books.len();
         let (coefficients, states, extra) = profile::time(Phase::Upload, || self.upload(&books));
