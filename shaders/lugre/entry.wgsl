@@ -219,7 +219,10 @@ fn lugre_advance(
         }
         count_kind(&tally, TAKEN);
     }
-    var lane = take_run(index);
+    // The run in hand, loaded at the loop's top (one call of `take_run`,
+    // so that drivers inline it once).
+    var lane: Lane;
+    var taken = true;
     // Period by period: measure the one that ended, start the next, and
     // advance to its end, measuring at most PERIOD_ENDS_PER_DISPATCH
     // period ends (1 on a loop-limited adapter, whose loop budget they
@@ -229,6 +232,10 @@ fn lugre_advance(
     var attempts = control.max_iterations;
     var ends = 0u;
     loop {
+        if taken {
+            lane = take_run(index);
+            taken = false;
+        }
         if lane.flag == LANE_STOPPED {
             states[index] = lane;
             finish_measure();
@@ -239,7 +246,7 @@ fn lugre_advance(
                 break;
             }
             index = order[slot];
-            lane = take_run(index);
+            taken = true;
             count_kind(&tally, TAKEN);
             continue;
         }
