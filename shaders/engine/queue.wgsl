@@ -5,10 +5,10 @@
 // the next one from the atomic `counters.next`, so no lane of a warp idles
 // while instances are left; once the queue is empty the host packs the
 // busy lanes into fewer workgroups. Every lane reports what it did in each
-// dispatch in `tallies` (`pidm::gpu::warps`). The law declares its
-// coefficients (binding 0) and its per-instance states (binding 1), and
-// the steady measurement's accumulators (5) and heads (6); its own
-// buffers come after binding 8.
+// dispatch in `tallies` (`pidm::gpu::warps`), and every finished steady
+// run leaves its head in `heads`. The law declares its coefficients
+// (binding 0), its per-instance states (binding 1) and the steady
+// measurement's accumulators (5); its own buffers come after binding 8.
 
 // The lane holds no instance.
 const NO_INSTANCE: u32 = 0xffffffffu;
@@ -95,3 +95,19 @@ fn take_idle(lane: u32) -> u32 {
     }
     return order[slot];
 }
+
+// What the host reads of every finished steady measurement: all that the
+// reduction of a periodic or phase-resolved verdict reads
+// (`pidm::gpu::layout::*::Head`). The host copies the whole accumulators
+// of the others only (`pidm::gpu::readback`).
+struct Head {
+    travel: V2,
+    se2: V2,
+    next_end: u32,
+    lag: u32,
+    verdict: u32,
+    span: u32,
+}
+// One per instance where any instance is steady, written when a steady
+// instance finishes (bound only where a batch measures steady runs).
+@group(0) @binding(6) var<storage, read_write> heads: array<Head>;

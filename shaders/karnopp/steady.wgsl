@@ -10,21 +10,8 @@
 // buffer ends with one scratch entry per lane (`measure_period_end`).
 @group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
 
-// What the host reads of every finished steady measurement: all that the
-// reduction of a periodic or phase-resolved verdict reads
-// (`pidm::gpu::layout::*::Head`). The host copies the whole accumulators
-// of the others only.
-struct Head {
-    travel: V2,
-    se2: V2,
-    next_end: u32,
-    lag: u32,
-    verdict: u32,
-    span: u32,
-}
-// One per instance where any instance is steady, written when a steady
-// instance finishes.
-@group(0) @binding(6) var<storage, read_write> heads: array<Head>;
+// What the host reads of every finished steady measurement: the engine's
+// `heads` (`shaders/engine/queue.wgsl`).
 
 // A steady instance's accumulators start with its run.
 fn start_measure(index: u32) {

@@ -46,20 +46,6 @@ var<private> held: u32;
 @group(0) @binding(5) var<storage, read_write> measures: array<Measure>;
 @group(0) @binding(10) var<storage, read_write> recurrences: array<Recurrence>;
 
-// What the host reads of every finished steady measurement: Karnopp's
-// `Head` (`shaders/karnopp/steady.wgsl`, `pidm::gpu::layout::double::Head`),
-// all that the reduction of a periodic or phase-resolved verdict reads.
-struct Head {
-    travel: V2,
-    se2: V2,
-    next_end: u32,
-    lag: u32,
-    verdict: u32,
-    span: u32,
-}
-
-@group(0) @binding(6) var<storage, read_write> heads: array<Head>;
-
 // A run's start: the accumulators and snapshots of a fresh measurement.
 fn start_measure() {
     let c = &coefficients[held];
@@ -69,7 +55,8 @@ fn start_measure() {
     recurrences[held].taken = 0u;
 }
 
-// A finished steady run leaves its head for the host.
+// A finished steady run leaves its head for the host (the engine's
+// `heads`, `shaders/engine/queue.wgsl`).
 fn finish_measure() {
     let c = &coefficients[held];
     if c.steady == 1u {

@@ -285,6 +285,23 @@ fn lugre_on_the_gpu_is_the_cpu_s() {
     );
 }
 
+/// docs/model.md section 8's seven cases as windows of 2 to 8 periods
+/// (settling 1), so that their runs end one by one.
+fn staggered_windows() -> Vec<Instance> {
+    let mut instances = seven_cases();
+    for (k, inst) in instances.iter_mut().enumerate() {
+        inst.cycles = 2 + k as u32;
+        inst.settle = 1;
+    }
+    instances
+}
+
+/// The records' bound at the default tolerance [um per own cycle]: 0 on
+/// a software adapter (the CPU's bits), 2e-5 on hardware.
+fn hardware_bound(software: bool) -> f64 {
+    if software { 0.0 } else { 2e-5 }
+}
+
 /// A batch's slow tail on the CPU: with a tail of 3, the runs still going
 /// once no more than 3 are left are continued on the CPU from the starts
 /// of their current periods, which the host keeps, and the records are
@@ -295,13 +312,9 @@ fn the_cpu_tail_continues_runs_from_their_period_starts() {
     let Some((mut gpu, software)) = lugre_gpu() else {
         return;
     };
-    let mut instances = seven_cases();
-    for (k, inst) in instances.iter_mut().enumerate() {
-        inst.cycles = 2 + k as u32;
-        inst.settle = 1;
-    }
+    let instances = staggered_windows();
     gpu.cpu_tail = Some(3);
-    let bound = if software { 0.0 } else { 2e-5 };
+    let bound = hardware_bound(software);
     let report = compare(&gpu, "a tail of 3", &instances, 1e-4, bound);
     let mut tail = report.on_cpu.clone();
     tail.sort_unstable();
@@ -333,14 +346,10 @@ fn lanes_take_runs_from_the_engine_s_queue() {
     let Some((mut gpu, software)) = lugre_gpu() else {
         return;
     };
-    let mut instances = seven_cases();
-    for (k, inst) in instances.iter_mut().enumerate() {
-        inst.cycles = 2 + k as u32;
-        inst.settle = 1;
-    }
+    let mut instances = staggered_windows();
     instances.push(other_cases()[2]);
     gpu.cpu_tail = Some(0);
-    let bound = if software { 0.0 } else { 2e-5 };
+    let bound = hardware_bound(software);
     gpu.lanes = Some(2);
     let queued = compare(&gpu, "2 lanes", &instances, 1e-4, bound);
     gpu.lanes = Some(instances.len());

@@ -362,7 +362,7 @@ macro_rules! precision_structs {
 
             host_struct! {
                 /// What the host reads of every finished steady
-                /// measurement (WGSL's `Head`, entry.wgsl): all that the
+                /// measurement (WGSL's `Head`, `shaders/engine/queue.wgsl`): all that the
                 /// reduction of a periodic or phase-resolved verdict reads
                 /// ([`crate::measurement::reduce`]).
                 pub struct Head {
