@@ -20,7 +20,6 @@ use crate::gpu::lanes::{Kernel, Lanes, Work};
 use crate::gpu::layout::double::{Coefficients, Head, Measure as GpuMeasure, packed};
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::gpu::runner::{Runner, storage};
-
 use crate::gpu::{BatchOptions, GpuContext, GpuError, Precision};
 use crate::laws::karnopp::integrate::{Run, Settings};
 use crate::laws::lugre::run::{Periods, continue_until};
