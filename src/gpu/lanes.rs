@@ -89,7 +89,7 @@ pub(super) struct Work<'w, L: Lanes> {
     pub(super) states: Option<&'w [L::State]>,
 }
 
-/// What [`Runner::slices`] leaves of a batch.
+/// What `Runner::slices` leaves of a batch.
 pub(super) struct Sliced<L: Lanes> {
     /// Every state and, for a batch with a steady instance, every
     /// measurement.
