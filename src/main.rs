@@ -134,10 +134,17 @@ enum Command {
         /// from Debian's spirv-tools) and of function variables, its
         /// instructions, and the emulated f64 divisions and roots per slip
         /// trial on a probe of random instances (on any adapter, the
-        /// software one included), instead of listing adapters.
+        /// software one included), and, where Mesa 25's RADV is unpacked
+        /// (`.ci/radv.sh`), ACO's registers and spills of every hardware
+        /// pipeline on navi31 and navi21, instead of listing adapters.
         #[arg(long, value_name = "DIR")]
         shader: Option<PathBuf>,
     },
+    /// The RADV probe's child (`pidm info --shader`): compiles the
+    /// pipelines JOBS lists on the Vulkan device its environment picks and
+    /// prints the driver's statistics as JSON.
+    #[command(hide = true, name = "isa-probe")]
+    IsaProbe { jobs: PathBuf },
     /// Validates a scene and prints its grid, instance count and cost
     /// estimate without running it.
     Check {
@@ -339,6 +346,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
         } => commands::refine_study(&scene, &out_dir, backend, uniform.as_deref())?,
         Command::Info { shader: None } => commands::info()?,
         Command::Info { shader: Some(dir) } => commands::shader_info(&dir)?,
+        Command::IsaProbe { jobs } => pidm::gpu::isa::probe::run(&jobs)?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Accuracy {
             scenes,

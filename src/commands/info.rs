@@ -73,8 +73,12 @@ const PROBE_INSTANCES: usize = 64;
 pub fn shader_info(dir: &Path) -> Result<()> {
     use crate::gpu::footprint::{self, write_sources};
     let variants = crate::gpu::shader::Variant::every();
-    let names = write_sources(dir, &variants)
+    let mut names = write_sources(dir, &variants)
         .with_context(|| format!("writing the shader variants into {}", dir.display()))?;
+    names.extend(
+        write_lugre_sources(dir)
+            .with_context(|| format!("writing LuGre's shader into {}", dir.display()))?,
+    );
     println!(
         "{} shader variants written into {} (hardware: no loop limiter; limiter: llvmpipe's)",
         names.len(),
@@ -125,7 +129,81 @@ pub fn shader_info(dir: &Path) -> Result<()> {
              instructions)"
         );
     }
+    registers()?;
     probe_emulated()
+}
+
+/// LuGre's pipeline as a hardware adapter and llvmpipe compile it, beside
+/// Karnopp's variants.
+fn write_lugre_sources(dir: &Path) -> std::io::Result<Vec<String>> {
+    use crate::gpu::lugre::{Arithmetic, HARDWARE_WORKGROUP_SIZE, SOFTWARE_WORKGROUP_SIZE, source};
+    let mut names = Vec::new();
+    for (name, size, arithmetic) in [
+        (
+            "lugre-f64-hardware.wgsl",
+            HARDWARE_WORKGROUP_SIZE,
+            Arithmetic::Fused,
+        ),
+        (
+            "lugre-f64-limiter.wgsl",
+            SOFTWARE_WORKGROUP_SIZE,
+            Arithmetic::Native,
+        ),
+    ] {
+        std::fs::write(dir.join(name), source(size, arithmetic))?;
+        names.push(name.to_string());
+    }
+    Ok(names)
+}
+
+/// ACO's registers of every pipeline a hardware batch creates, on RADV's
+/// null navi31 and navi21 (`gpu::isa`), against issue 57's budgets; a line
+/// saying why not where the newer RADV is not unpacked.
+fn registers() -> Result<()> {
+    use crate::gpu::isa;
+    if !isa::radv_available() {
+        println!(
+            "registers: no Mesa 25 RADV in {} (`bash .ci/radv.sh` as root unpacks it)",
+            isa::radv_dir().display()
+        );
+        return Ok(());
+    }
+    let pipelines = isa::batch_pipelines()?;
+    let exe = std::env::current_exe().context("finding pidm's own binary for the RADV probe")?;
+    let mut stats = Vec::new();
+    for family in isa::Family::ALL {
+        stats.extend(isa::measure(&exe, family, &pipelines)?);
+    }
+    println!("\nregisters: ACO (Mesa's RADV on a null device) per hardware pipeline");
+    print!("{}", isa::table(&stats));
+    println!(
+        "VGPRs: allocated per thread (asked: before spilling); spilled: VGPRs (sgpr sp: SGPRs) \
+         spilled to scratch; scratch: bytes per wave; subgroups: waves per SIMD"
+    );
+    for b in isa::BUDGETS {
+        let verdicts: Vec<_> = isa::verdicts(&stats)
+            .into_iter()
+            .filter(|(v, _, _)| v.prefix == b.prefix && v.limit == b.limit)
+            .collect();
+        let broken: Vec<_> = verdicts.iter().filter(|(_, _, kept)| !kept).collect();
+        match broken
+            .iter()
+            .max_by_key(|(_, s, _)| (s.spilled_vgprs, s.vgprs))
+        {
+            None => println!("budget {}: kept by all {}", b.describe(), verdicts.len()),
+            Some((_, worst, _)) => println!(
+                "budget {}: broken by {} of {} (worst {} on {}: {} VGPRs, {} spilled)",
+                b.describe(),
+                broken.len(),
+                verdicts.len(),
+                worst.pipeline,
+                worst.family.as_str(),
+                worst.vgprs,
+                worst.spilled_vgprs
+            ),
+        }
+    }
+    Ok(())
 }
 
 /// The f64 pipeline's emulated divisions and roots per slip trial on

@@ -56,6 +56,7 @@ mod adapters;
 pub mod cache;
 mod context;
 mod groups;
+pub mod isa;
 pub mod karnopp;
 mod knobs;
 mod lanes;

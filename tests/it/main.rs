@@ -30,6 +30,7 @@ mod progress;
 mod python;
 mod reference;
 mod refine;
+mod registers;
 mod replicas;
 mod scene;
 mod scene_fuzz;

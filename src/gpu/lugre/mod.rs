@@ -84,7 +84,7 @@ mod source;
 pub use crate::laws::lugre::libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};
 pub use buffers::{Lane, MirrorCheck, Params, Probe, Probed};
 pub use runner::{BatchReport, LugreGpu, table_lines};
-pub use source::{Arithmetic, footprint, parse_and_validate, prelude, source};
+pub use source::{Arithmetic, footprint, lane_spirv, parse_and_validate, prelude, source};
 
 /// The shader files, in the order they are concatenated after the prelude.
 pub const FILES: [(&str, &str); 4] = [

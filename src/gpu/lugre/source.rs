@@ -410,13 +410,23 @@ pub fn footprint(
     workgroup_size: u32,
     arithmetic: Arithmetic,
 ) -> Result<crate::gpu::footprint::Footprint, GpuError> {
+    let (_, words) = lane_spirv(workgroup_size, arithmetic)?;
+    Ok(crate::gpu::footprint::measure_spirv(&words))
+}
+
+/// The module of the integrator's entry point alone and the SPIR-V naga
+/// writes for it with the options pidm's pipelines use: what a driver
+/// compiles for a LuGre batch (the tests' entry points, the functions and
+/// the mirror's probes, carry arrays of their own no run touches).
+pub fn lane_spirv(
+    workgroup_size: u32,
+    arithmetic: Arithmetic,
+) -> Result<(naga::Module, Vec<u32>), GpuError> {
     let (mut module, _) = parse_and_validate(workgroup_size, arithmetic)?;
-    // The integrator's lane only: the tests' entry points (the functions,
-    // the mirror's probes) carry arrays of their own no run touches.
     module.entry_points.retain(|e| e.name == super::ENTRY_POINT);
     let info = validate(&module, &source(workgroup_size, arithmetic))?;
     let words = crate::gpu::footprint::module_spirv(&module, &info, Precision::F64)?;
-    Ok(crate::gpu::footprint::measure_spirv(&words))
+    Ok((module, words))
 }
 
 #[cfg(test)]
