@@ -139,6 +139,13 @@ enum Command {
         /// pipeline on navi31 and navi21, instead of listing adapters.
         #[arg(long, value_name = "DIR")]
         shader: Option<PathBuf>,
+        /// Print only the registers of every hardware batch pipeline: every
+        /// statistic the system's Vulkan device lists (NVIDIA's register
+        /// count), and ACO's on RADV's null navi31 and navi21 where Mesa
+        /// 25's RADV is unpacked (`.ci/radv.sh`), against issue 57's
+        /// budgets.
+        #[arg(long, conflicts_with = "shader")]
+        registers: bool,
     },
     /// The RADV probe's child (`pidm info --shader`): compiles the
     /// pipelines JOBS lists on the Vulkan device its environment picks and
@@ -344,8 +351,13 @@ fn run(cli: Cli) -> Result<ExitCode> {
             backend,
             uniform,
         } => commands::refine_study(&scene, &out_dir, backend, uniform.as_deref())?,
-        Command::Info { shader: None } => commands::info()?,
-        Command::Info { shader: Some(dir) } => commands::shader_info(&dir)?,
+        Command::Info {
+            registers: true, ..
+        } => commands::registers()?,
+        Command::Info { shader: None, .. } => commands::info()?,
+        Command::Info {
+            shader: Some(dir), ..
+        } => commands::shader_info(&dir)?,
         Command::IsaProbe { jobs } => pidm::gpu::isa::probe::run(&jobs)?,
         Command::Report { scenes, out } => commands::report(&scenes, &out)?,
         Command::Accuracy {

@@ -28,7 +28,9 @@
 #    (all within the first dispatch: a lane each). Alike lanes do the same
 #    work, so dispatch seconds / passes of the critical path is the time of
 #    one pass; flat across the counts means latency-bound.
-# 3. Every file written under $OUT goes into $OUT/bench.tgz (the per-run logs
+# 3. The driver's statistics of every hardware pipeline (registers.txt:
+#    `pidm info --registers`, NVIDIA's register count at least).
+# 4. Every file written under $OUT goes into $OUT/bench.tgz (the per-run logs
 #    and scenes only there); table.md, phases.txt, adapter.txt, runs.log,
 #    integrating.md and lockstep.md stay beside it.
 #
@@ -318,6 +320,13 @@ done
     echo "== whole processes [s], mode $mode, $(elapsed) s in all; speed-up = CPU / GPU"
     cat "$table"
 } | tee "$out/phases.txt"
+
+# The driver's own statistics of every hardware pipeline (issue 57: NVIDIA's
+# register count and local memory), compiled apart from the runs above, in
+# at most PIDM_BENCH_STATS_TIMEOUT seconds (default 90).
+timeout "${PIDM_BENCH_STATS_TIMEOUT:-90}" "$pidm" info --registers > "$out/registers.txt" 2>&1 ||
+    echo "(pidm info --registers: exit $?)" >> "$out/registers.txt"
+head -40 "$out/registers.txt"
 
 # One archive of everything written under $OUT (the device returns at most 8
 # files); the logs and scenes live only there.

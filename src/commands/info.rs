@@ -156,11 +156,42 @@ fn write_lugre_sources(dir: &Path) -> std::io::Result<Vec<String>> {
     Ok(names)
 }
 
+/// Every statistic the system's own Vulkan device lists for each hardware
+/// pipeline (NVIDIA's register count on a lent device), or a line saying
+/// why not (lavapipe lists none).
+fn native_statistics(exe: &Path, pipelines: &[crate::gpu::isa::Pipeline]) {
+    match crate::gpu::isa::measure_native(exe, pipelines) {
+        Err(err) => println!(
+            "driver statistics: none from the system's Vulkan device ({})",
+            format!("{err:#}").replace('\n', " ")
+        ),
+        Ok(report) => {
+            println!(
+                "driver statistics on {} per hardware pipeline",
+                report.device
+            );
+            for p in &report.pipelines {
+                for e in &p.executables {
+                    let stats: Vec<String> = e
+                        .statistics
+                        .iter()
+                        .map(|(k, v)| format!("{k} {v}"))
+                        .collect();
+                    println!("  {} [{}]: {}", p.name, e.name, stats.join(", "));
+                }
+            }
+        }
+    }
+}
+
 /// ACO's registers of every pipeline a hardware batch creates, on RADV's
 /// null navi31 and navi21 (`gpu::isa`), against issue 57's budgets; a line
 /// saying why not where the newer RADV is not unpacked.
-fn registers() -> Result<()> {
+pub fn registers() -> Result<()> {
     use crate::gpu::isa;
+    let pipelines = isa::batch_pipelines()?;
+    let exe = std::env::current_exe().context("finding pidm's own binary for the probe")?;
+    native_statistics(&exe, &pipelines);
     if !isa::radv_available() {
         println!(
             "registers: no Mesa 25 RADV in {} (`bash .ci/radv.sh` as root unpacks it)",
@@ -168,8 +199,6 @@ fn registers() -> Result<()> {
         );
         return Ok(());
     }
-    let pipelines = isa::batch_pipelines()?;
-    let exe = std::env::current_exe().context("finding pidm's own binary for the RADV probe")?;
     let mut stats = Vec::new();
     for family in isa::Family::ALL {
         stats.extend(isa::measure(&exe, family, &pipelines)?);

@@ -29,7 +29,7 @@ pub use bench::bench;
 pub use check::{CheckReport, check, check_json, check_report};
 pub use fit::{FitCommand, fit};
 pub use format::{human_duration, instance_name, plural, um};
-pub use info::{info, shader_info};
+pub use info::{info, registers, shader_info};
 pub use merge::merge;
 pub use random_scene::{random_scene, random_scene_compact};
 pub use refine_study::refine_study;

@@ -200,61 +200,7 @@ pub fn measure(
             dir.display()
         );
     }
-    let work = tempfile_dir()?;
-    let result = measure_in(&work, &dir, probe_exe, family, pipelines);
-    let _ = std::fs::remove_dir_all(&work);
-    result
-}
-
-fn measure_in(
-    work: &Path,
-    radv: &Path,
-    probe_exe: &Path,
-    family: Family,
-    pipelines: &[Pipeline],
-) -> Result<Vec<Statistics>> {
-    let mut jobs = Vec::new();
-    for (k, p) in pipelines.iter().enumerate() {
-        let file = work.join(format!("{k}.spv"));
-        let bytes: Vec<u8> = p.words.iter().flat_map(|w| w.to_le_bytes()).collect();
-        std::fs::write(&file, bytes)?;
-        jobs.push(probe::Job {
-            name: p.name.clone(),
-            spirv: file,
-            entry: p.entry.clone(),
-            bindings: p.bindings.clone(),
-        });
-    }
-    let jobs_file = work.join("jobs.json");
-    std::fs::write(&jobs_file, serde_json::to_vec(&jobs)?)?;
-    let out = Command::new(probe_exe)
-        .arg(probe::SUBCOMMAND)
-        .arg(&jobs_file)
-        .env("LD_LIBRARY_PATH", driver_lib_dir(radv))
-        .env("VK_ICD_FILENAMES", radv.join("radeon.json"))
-        .env("VK_DRIVER_FILES", radv.join("radeon.json"))
-        .env("RADV_FORCE_FAMILY", family.as_str())
-        .env(
-            "XDG_RUNTIME_DIR",
-            std::env::var_os("XDG_RUNTIME_DIR").unwrap_or_else(|| std::env::temp_dir().into()),
-        )
-        .output()
-        .with_context(|| format!("starting {} {}", probe_exe.display(), probe::SUBCOMMAND))?;
-    if !out.status.success() {
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        let said: Vec<&str> = stderr
-            .lines()
-            .filter(|l| !l.contains("pci bus info"))
-            .collect();
-        bail!(
-            "the RADV probe on {} failed ({}): {}",
-            family.as_str(),
-            out.status,
-            said.join("\n")
-        );
-    }
-    let report: probe::Report =
-        serde_json::from_slice(&out.stdout).context("reading the RADV probe's report")?;
+    let report = probe(probe_exe, Some((&dir, family)), pipelines)?;
     if !report.device.contains(&family.as_str().to_uppercase()) {
         bail!(
             "the RADV probe opened \"{}\", not a {} null device",
@@ -274,6 +220,79 @@ fn measure_in(
             Statistics::from_driver(&p.name, family, exe.statistics)
         })
         .collect()
+}
+
+/// Every statistic the system's own first Vulkan device lists for each
+/// pipeline (NVIDIA's "Register Count" and local memory on a lent
+/// device), compiled by `probe_exe isa-probe` in a child with the
+/// environment as it is: the device's name and the report.
+pub fn measure_native(probe_exe: &Path, pipelines: &[Pipeline]) -> Result<probe::Report> {
+    probe(probe_exe, None, pipelines)
+}
+
+/// Runs the probe child on `pipelines`, on RADV's null `family` from the
+/// folder given, else on the system's first device.
+fn probe(
+    probe_exe: &Path,
+    radv: Option<(&Path, Family)>,
+    pipelines: &[Pipeline],
+) -> Result<probe::Report> {
+    let work = tempfile_dir()?;
+    let result = probe_in(&work, radv, probe_exe, pipelines);
+    let _ = std::fs::remove_dir_all(&work);
+    result
+}
+
+fn probe_in(
+    work: &Path,
+    radv: Option<(&Path, Family)>,
+    probe_exe: &Path,
+    pipelines: &[Pipeline],
+) -> Result<probe::Report> {
+    let mut jobs = Vec::new();
+    for (k, p) in pipelines.iter().enumerate() {
+        let file = work.join(format!("{k}.spv"));
+        let bytes: Vec<u8> = p.words.iter().flat_map(|w| w.to_le_bytes()).collect();
+        std::fs::write(&file, bytes)?;
+        jobs.push(probe::Job {
+            name: p.name.clone(),
+            spirv: file,
+            entry: p.entry.clone(),
+            bindings: p.bindings.clone(),
+        });
+    }
+    let jobs_file = work.join("jobs.json");
+    std::fs::write(&jobs_file, serde_json::to_vec(&jobs)?)?;
+    let mut child = Command::new(probe_exe);
+    child.arg(probe::SUBCOMMAND).arg(&jobs_file);
+    if let Some((radv, family)) = radv {
+        child
+            .env("LD_LIBRARY_PATH", driver_lib_dir(radv))
+            .env("VK_ICD_FILENAMES", radv.join("radeon.json"))
+            .env("VK_DRIVER_FILES", radv.join("radeon.json"))
+            .env("RADV_FORCE_FAMILY", family.as_str())
+            .env(
+                "XDG_RUNTIME_DIR",
+                std::env::var_os("XDG_RUNTIME_DIR").unwrap_or_else(|| std::env::temp_dir().into()),
+            );
+    }
+    let device = radv.map_or("the system's Vulkan device", |(_, f)| f.as_str());
+    let out = child
+        .output()
+        .with_context(|| format!("starting {} {}", probe_exe.display(), probe::SUBCOMMAND))?;
+    if !out.status.success() {
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        let said: Vec<&str> = stderr
+            .lines()
+            .filter(|l| !l.contains("pci bus info"))
+            .collect();
+        bail!(
+            "the pipeline statistics probe on {device} failed ({}): {}",
+            out.status,
+            said.join("\n")
+        );
+    }
+    serde_json::from_slice(&out.stdout).context("reading the statistics probe's report")
 }
 
 /// A fresh folder under the system's temporary directory.
