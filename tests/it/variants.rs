@@ -176,3 +176,72 @@ fn each_scene_prepares_the_parts_it_uses() {
     .unwrap();
     assert!(!paper.trajectories.is_empty());
 }
+
+/// The hardware variants (no loop-limiter checks, what a device runs) on
+/// this adapter too, in slices short enough that lavapipe's loop limit
+/// never cuts a lane (issue 57): in f64 each gives the outcomes of this
+/// adapter's own variant of the same parts bit for bit, so the kernels a
+/// device compiles run in CI.
+#[test]
+fn hardware_variants_give_this_adapters_outcomes() {
+    let Some(ctx) = context() else {
+        return;
+    };
+    if !precisions(ctx).contains(&Precision::F64) {
+        return;
+    }
+    let settings = Settings::default();
+    // Short runs: windows of 2 cycles, steady measurements cut at 6 (they
+    // end "not steady", as deterministic as a steady end). With slices of
+    // 200,000 iterations the limiter cuts the hardware variants' lanes and
+    // their outcomes differ: the comparison can fail.
+    let mut all = instances();
+    for inst in &mut all {
+        inst.cycles = inst.cycles.min(6);
+    }
+    let windows: Vec<Instance> = all
+        .iter()
+        .take(3)
+        .map(|i| Instance { cycles: 2, ..*i })
+        .collect();
+    all.splice(0..3, windows);
+    let needs: Vec<Parts> = all.iter().map(|i| Parts::of(&[*i], &settings)).collect();
+    let options = BatchOptions {
+        slice_iterations: 16,
+        probe_iterations: 16,
+        check: pidm::gpu::F32Check::Off,
+        ..BatchOptions::default()
+    };
+    for parts in Parts::every() {
+        let covered: Vec<Instance> = (0..all.len())
+            .filter(|&k| parts.covers(needs[k]) && needs[k] == parts)
+            .map(|k| all[k])
+            .collect();
+        assert!(
+            !covered.is_empty(),
+            "no instance needs exactly {}",
+            parts.name()
+        );
+        let run = |variant: pidm::gpu::Variant| {
+            let pipeline = create_pipeline(ctx.device(), variant, None).unwrap();
+            execute_gpu_inner(
+                ctx.device(),
+                ctx.queue(),
+                (&pipeline, variant),
+                ctx.limits(),
+                &covered,
+                &settings,
+                Precision::F64,
+                &options,
+                &mut |_, _| {},
+            )
+            .unwrap()
+        };
+        let own = ctx.variant(Precision::F64, parts);
+        let hardware = pidm::gpu::Variant {
+            loop_limiter: false,
+            ..own
+        };
+        assert_eq!(run(hardware), run(own), "{}", parts.name());
+    }
+}

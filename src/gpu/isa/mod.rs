@@ -237,7 +237,8 @@ fn probe(
     radv: Option<(&Path, Family)>,
     pipelines: &[Pipeline],
 ) -> Result<probe::Report> {
-    let work = tempfile_dir()?;
+    let work = crate::gpu::footprint::tempfile_dir()
+        .context("creating a temporary folder for the probe's jobs")?;
     let result = probe_in(&work, radv, probe_exe, pipelines);
     let _ = std::fs::remove_dir_all(&work);
     result
@@ -293,19 +294,6 @@ fn probe_in(
         );
     }
     serde_json::from_slice(&out.stdout).context("reading the statistics probe's report")
-}
-
-/// A fresh folder under the system's temporary directory.
-fn tempfile_dir() -> Result<PathBuf> {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static NEXT: AtomicU64 = AtomicU64::new(0);
-    let dir = std::env::temp_dir().join(format!(
-        "pidm-isa-{}-{}",
-        std::process::id(),
-        NEXT.fetch_add(1, Ordering::Relaxed)
-    ));
-    std::fs::create_dir_all(&dir)?;
-    Ok(dir)
 }
 
 /// The statistics as a table: one row per pipeline and family.

@@ -139,8 +139,9 @@ fn optimized(words: &[u32]) -> Option<Vec<u32>> {
     out
 }
 
-/// A fresh folder under the system's temporary directory.
-fn tempfile_dir() -> Option<std::path::PathBuf> {
+/// A fresh folder under the system's temporary directory (also the RADV
+/// probe's, `gpu::isa`).
+pub(crate) fn tempfile_dir() -> Option<std::path::PathBuf> {
     use std::sync::atomic::{AtomicU64, Ordering};
     static NEXT: AtomicU64 = AtomicU64::new(0);
     let dir = std::env::temp_dir().join(format!(
