@@ -162,6 +162,7 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
         "./lockstep.md",
         "./phases.txt",
         "./runs.log",
+        "./registers.txt",
         "./logs/random100k-f32.log",
         "./logs/alike1024.log",
         "./scenes/twofreq128.toml",
@@ -181,8 +182,13 @@ fn the_device_script_runs_end_to_end_in_its_smoke_mode() {
             "integrating.md",
             "lockstep.md",
             "phases.txt",
+            "registers.txt",
             "runs.log",
             "table.md"
         ]
     );
+    // The driver's statistics: on lavapipe, a line saying it lists none,
+    // beside ACO's table where RADV is unpacked.
+    let registers = std::fs::read_to_string(out.path().join("registers.txt")).unwrap();
+    assert!(registers.contains("driver statistics"), "{registers}");
 }
