@@ -213,7 +213,7 @@ unsafe fn compile(
 }
 
 fn text(chars: &[std::ffi::c_char]) -> String {
-    // SAFETY: the driver writes NUL-terminated strings within the array;
+    // The driver writes NUL-terminated strings within the array;
     // a missing NUL gives an empty name instead of reading past it.
     let bytes: Vec<u8> = chars.iter().map(|c| *c as u8).collect();
     CStr::from_bytes_until_nul(&bytes)
