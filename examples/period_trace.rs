@@ -9,8 +9,9 @@
 //! cargo run --release --example period_trace -- 14.666 19.142 20002 > trace.txt
 //! ```
 
+use pidm::laws::Settings;
 use pidm::laws::karnopp::integrate::{
-    Coefficients, Settings, advance, initial_measure, initial_state, is_finished,
+    Coefficients, advance, initial_measure, initial_state, is_finished,
 };
 use pidm::model::{Instance, Measure};
 

@@ -15,7 +15,8 @@
 //! ```
 //! (R = 8 replicas, n = 6; about 5 minutes on 2 cores.)
 
-use pidm::laws::karnopp::integrate::{Replicas, Settings, run_instance};
+use pidm::laws::karnopp::integrate::run_instance;
+use pidm::laws::{Replicas, Settings};
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{Instance, Measure};
 use pidm::replicas::{self, cpu::run_group};

@@ -34,9 +34,10 @@
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 
+use crate::laws::Settings;
 use crate::laws::karnopp::integrate::{
-    self, Coefficients, Settings, State, StepMotion, StepObserver, advance_observed,
-    initial_measure, initial_state, is_finished,
+    self, Coefficients, State, StepMotion, StepObserver, advance_observed, initial_measure,
+    initial_state, is_finished,
 };
 use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
 use crate::output::schema;

@@ -14,7 +14,7 @@ use plotters::prelude::*;
 
 use super::{LogLog, log_log_png};
 use crate::backend::{Backend, CpuBackend};
-use crate::laws::karnopp::integrate::Settings;
+use crate::laws::Settings;
 use crate::model::{AXES, Friction, Instance, Lugre};
 
 /// The ladder of bristle stiffness [N/m]: docs/model.md's table and the issue's

@@ -18,7 +18,7 @@
 
 use super::Method;
 use crate::backend::{Backend, CpuBackend};
-use crate::laws::karnopp::integrate::Settings;
+use crate::laws::Settings;
 use crate::model::{Instance, Measure};
 
 /// The reference's step tolerance [m per own drive cycle]: 0.001 um, five

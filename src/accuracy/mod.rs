@@ -12,8 +12,9 @@ use anyhow::{Context, Result};
 use plotters::prelude::*;
 
 use crate::backend::{Backend, CpuBackend};
-use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
+use crate::laws::Settings;
 use crate::laws::karnopp::paper_rk4;
+use crate::laws::status::STATUS_OK;
 use crate::measurement::keeps_values;
 use crate::model::{AXES, Instance};
 use crate::sweep::Outcome;

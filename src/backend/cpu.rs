@@ -7,10 +7,10 @@ use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision};
 use crate::interrupt::interrupt_requested;
-use crate::laws::karnopp::integrate::constants::STATUS_GRAZE;
-use crate::laws::karnopp::integrate::{Replica, Settings};
 use crate::laws::karnopp::{check, f32_needs_f64};
 use crate::laws::karnopp::{integrate, single};
+use crate::laws::status::STATUS_GRAZE;
+use crate::laws::{Replica, Settings};
 use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
 use crate::replicas;

@@ -5,8 +5,8 @@ use anyhow::{Result, bail};
 use super::{Backend, Hardware, Precision, Staged};
 use crate::gpu::lugre::LugreGpu;
 use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, Parts, run_batch_packed};
-use crate::laws::karnopp::integrate::Settings;
-use crate::laws::karnopp::integrate::constants::STATUS_GRAZE;
+use crate::laws::Settings;
+use crate::laws::status::STATUS_GRAZE;
 use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
 

@@ -7,7 +7,7 @@
 
 use anyhow::Result;
 
-use crate::laws::karnopp::integrate::Settings;
+use crate::laws::Settings;
 use crate::measurement::Outcome;
 use crate::model::Instance;
 

@@ -11,9 +11,9 @@ use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
-use crate::laws::karnopp::integrate::Settings;
-use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::Settings;
 use crate::laws::run_until;
+use crate::laws::status::STATUS_NOT_STEADY;
 use crate::model::{Instance, Measure};
 
 /// At most this many integrations are probed.
@@ -97,7 +97,7 @@ pub struct Probe {
     /// The probe's threads, the scene's replicas setting, and whether a
     /// probed integration splits into replicas (`crate::replicas`).
     pub threads: usize,
-    pub replicas: crate::laws::karnopp::integrate::Replicas,
+    pub replicas: crate::laws::Replicas,
     pub splittable: bool,
 }
 

@@ -7,7 +7,7 @@ use super::cost::{self, Estimate, Plan};
 use super::gpu::LUGRE_F64_ONLY;
 use super::{Backend, CpuBackend, GpuBackend, Precision, cost_book};
 use crate::gpu::{GpuContext, Parts};
-use crate::laws::karnopp::integrate::Settings;
+use crate::laws::Settings;
 use crate::model::Instance;
 
 /// Which integrator runs a scene.

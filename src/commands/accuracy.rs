@@ -159,7 +159,7 @@ fn study_integrator(
     out_dir: &Path,
     report: &mut crate::accuracy::Report,
 ) -> Result<()> {
-    let reference = crate::laws::karnopp::integrate::Settings {
+    let reference = crate::laws::Settings {
         tolerance: 1e-9,
         ..scene.settings
     };
@@ -249,7 +249,7 @@ fn write_study(
 fn study_and_print(
     instances: &[Instance],
     reference_instances: &[Instance],
-    reference: crate::laws::karnopp::integrate::Settings,
+    reference: crate::laws::Settings,
     methods: &[crate::accuracy::Method],
 ) -> Result<(Vec<crate::accuracy::Point>, crate::accuracy::References)> {
     use crate::accuracy::{self, Point, reference_note};
@@ -290,7 +290,7 @@ fn study_and_print(
 fn karnopp_limit(
     name: &str,
     instances: &[Instance],
-    settings: crate::laws::karnopp::integrate::Settings,
+    settings: crate::laws::Settings,
     out_dir: &Path,
     report: &mut crate::accuracy::Report,
 ) -> Result<()> {

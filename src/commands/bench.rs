@@ -8,7 +8,7 @@ use anyhow::{Result, bail};
 
 use super::scenes::{DEFAULT_SCENE, load_scene, scene_integrations};
 use crate::backend::{Backend, CpuBackend, GpuBackend, Hardware, Precision};
-use crate::laws::karnopp::integrate::STATUS_OK;
+use crate::laws::status::STATUS_OK;
 use crate::model::Instance;
 
 /// `pidm bench`: simulated seconds per wall second per core on one thread

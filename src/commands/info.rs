@@ -262,7 +262,7 @@ fn probe_emulated() -> Result<()> {
         crate::gpu::run_batch(
             &ctx,
             &instances,
-            &crate::laws::karnopp::integrate::Settings::default(),
+            &crate::laws::Settings::default(),
             Precision::F64,
             &mut |_, _| {},
         )?;

@@ -9,8 +9,8 @@ use anyhow::{Result, bail};
 use super::format::plural;
 use super::summary::print_summary;
 use crate::backend::{BackendChoice, Hardware, Precision, Workload, select_backend};
-use crate::laws::karnopp::integrate::STATUS_OK;
-use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::status::STATUS_NOT_STEADY;
+use crate::laws::status::STATUS_OK;
 use crate::model::Instance;
 use crate::output::ShardInfo;
 use crate::run::{RunScope, default_output, run_scene};
@@ -93,7 +93,7 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
         eprint!(
             "{}{}{}{}",
             crate::profile::table(),
-            crate::laws::iteration_lines(),
+            crate::laws::Law::iteration_lines(),
             crate::gpu::warps::table_lines(),
             crate::gpu::lugre::table_lines()
         );

@@ -4,8 +4,8 @@
 //! a small scene's instances.
 
 use super::format::{instance_name, plural, um};
-use crate::laws::karnopp::integrate::STATUS_OK;
-use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::status::STATUS_NOT_STEADY;
+use crate::laws::status::STATUS_OK;
 use crate::model::motion::Motion;
 use crate::model::{AXIS_NAMES, Measure};
 use crate::run::RunResult;

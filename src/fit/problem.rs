@@ -11,7 +11,7 @@ use anyhow::{Result, bail};
 use super::data::{Data, Row};
 use super::spec::{FitScene, Free};
 use crate::backend::Backend;
-use crate::laws::karnopp::integrate::STATUS_OK;
+use crate::laws::status::STATUS_OK;
 use crate::measurement::status;
 use crate::model::motion::Motion;
 use crate::model::{AXES, Instance};

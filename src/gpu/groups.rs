@@ -23,7 +23,8 @@ use super::runner::Runner;
 use super::slices::Between;
 use super::*;
 use crate::laws::karnopp::integrate::measure::VERDICT_RUNNING;
-use crate::laws::karnopp::integrate::{Replica, Replicas, STATUS_OK};
+use crate::laws::status::STATUS_OK;
+use crate::laws::{Replica, Replicas};
 use crate::model::motion::Motion;
 use crate::replicas::{Group, Member, Step};
 

@@ -1,5 +1,5 @@
 //! The GPU backend: the WGSL shader in `shaders/karnopp/`, a
-//! file-by-file mirror of [`crate::laws::karnopp::integrate`], run through wgpu with
+//! file-by-file mirror of [`crate::laws::status`], run through wgpu with
 //! one invocation per instance.
 //!
 //! * [`GpuContext::new`] picks an adapter and opens a device; the work
@@ -106,8 +106,9 @@ use rayon::prelude::*;
 use thiserror::Error;
 use wgpu::util::DeviceExt;
 
+use crate::laws::Settings;
 use crate::laws::karnopp::check;
-use crate::laws::karnopp::integrate::{Run, Settings, initial_measure, run_instance};
+use crate::laws::karnopp::integrate::{Run, initial_measure, run_instance};
 use crate::measurement::{Measured, reduce};
 use crate::model::{Instance, Measure};
 use layout::HostLayout;
@@ -202,7 +203,7 @@ pub struct GpuOutcome {
     pub se: [f64; 2],
     pub periods: u32,
     pub lag: u32,
-    /// One of the `STATUS_*` constants of [`crate::laws::karnopp::integrate`].
+    /// One of the `STATUS_*` constants of [`crate::laws::status`].
     pub status: u32,
     /// The kind of motion the measurement found.
     pub motion: crate::model::motion::Motion,

@@ -2,7 +2,7 @@
 //! storage structs, their packing and reduction) for the runner.
 
 use super::*;
-use crate::laws::karnopp::integrate::Replica;
+use crate::laws::Replica;
 
 /// The host side of one precision of Karnopp's lanes: packing, outcomes,
 /// replicas and continuation (the engine's part is [`Lanes`]).

@@ -13,7 +13,7 @@ pub struct Settings {
     pub tolerance: f64,
     /// Steps (accepted, rejected and events) allowed per scene period before
     /// the instance stops with
-    /// [`STATUS_STEP_BUDGET`](crate::laws::karnopp::integrate::STATUS_STEP_BUDGET).
+    /// [`STATUS_STEP_BUDGET`](crate::laws::status::STATUS_STEP_BUDGET).
     pub max_steps_per_period: u32,
     /// How many replicas a steady measurement that can be split runs as
     /// (`simulation.replicas`, whose default is `Auto`; `pidm::replicas`).

@@ -10,11 +10,12 @@
 
 pub mod status;
 
-use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
 use crate::laws::karnopp::integrate::measure::{
     VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, estimate,
 };
-use crate::laws::karnopp::integrate::{Run, STATUS_OK, State};
+use crate::laws::karnopp::integrate::{Run, State};
+use crate::laws::status::STATUS_NOT_STEADY;
+use crate::laws::status::STATUS_OK;
 use crate::model::motion::Motion;
 use crate::model::{AXES, Instance, Measure};
 
@@ -193,7 +194,7 @@ pub struct Outcome {
     /// cut, or an f32 run that failed or met a band graze).
     pub on_cpu: bool,
     /// Of those, an f32 run that stopped at a band graze
-    /// (`laws::karnopp::integrate::constants::STATUS_GRAZE`).
+    /// (`laws::status::STATUS_GRAZE`).
     pub graze: bool,
     /// An f32 window run among the heaviest of its batch, checked
     /// (`laws::karnopp::check`): by a twin that agreed (f32's value kept), or

@@ -7,16 +7,16 @@
 //! reduction (`crate::measurement`) sets 6. Every non-zero status but 6
 //! leaves 0 in the instance's map entries, never NaN; 6 ("not steady")
 //! keeps the best estimate and its standard error. Code 7 (an f32 band
-//! graze, `laws::karnopp::integrate::constants::STATUS_GRAZE`) never reaches a file:
+//! graze, `laws::status::STATUS_GRAZE`) never reaches a file:
 //! every f32 path integrates such an instance again in f64
 //! (`laws::karnopp::f32_needs_f64`), so it is no status here. Code 8 is the stall
 //! search's own (`crate::stall`, `/maps/stall_status`): the step does not
 //! change sign on the loaded side.
 
-use crate::laws::karnopp::integrate::constants::{STATUS_NOT_STEADY, STATUS_UNCONVERGED};
-use crate::laws::karnopp::integrate::{
+use crate::laws::status::{
     STATUS_EVENT_STORM, STATUS_NON_FINITE, STATUS_OK, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
 };
+use crate::laws::status::{STATUS_NOT_STEADY, STATUS_UNCONVERGED};
 
 /// What became of one instance.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -112,7 +112,7 @@ mod tests {
 
     #[test]
     fn codes_are_dense_but_for_the_graze_and_round_trip() {
-        use crate::laws::karnopp::integrate::constants::STATUS_GRAZE;
+        use crate::laws::status::STATUS_GRAZE;
         let codes: Vec<u32> = Status::ALL.iter().map(|s| s.code()).collect();
         let dense: Vec<u32> = (0..=Status::ALL.len() as u32)
             .filter(|&c| c != STATUS_GRAZE)

@@ -12,7 +12,7 @@ use super::heatmap::{MapLegend, heatmap};
 use super::read::{AxisData, Data};
 use super::regime::{Regime, ZERO_STEP_M};
 use super::text::{short, with_unit};
-use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::status::STATUS_NOT_STEADY;
 use crate::model::AXIS_NAMES;
 use crate::model::motion::Motion;
 

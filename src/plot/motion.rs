@@ -17,7 +17,7 @@ use super::heatmap::{MapLegend, heatmap};
 use super::placement::{Placement, label_values};
 use super::read::{AxisData, Data};
 use super::text::{axis_title, short};
-use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::status::STATUS_NOT_STEADY;
 use crate::model::motion::Motion;
 
 /// What one cell of a motion picture shows: the kind of motion the steady

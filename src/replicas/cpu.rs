@@ -8,9 +8,10 @@ use rayon::prelude::*;
 
 use super::{Group, Member, Step};
 use crate::laws::karnopp::integrate::{
-    Coefficients, Replica, Run, STATUS_OK, Settings, continue_until, initial_measure,
-    initial_state, run_instance_until,
+    Coefficients, Run, continue_until, initial_measure, initial_state, run_instance_until,
 };
+use crate::laws::status::STATUS_OK;
+use crate::laws::{Replica, Settings};
 use crate::measurement::{Measured, reduce};
 use crate::model::Instance;
 use crate::model::motion::Motion;

@@ -26,10 +26,10 @@ use crate::laws::karnopp::integrate::measure::{
 use crate::laws::karnopp::integrate::phase::{
     Gaps, LevelSums, PhaseEstimate, evaluate_sums, ladder_length, window_weight,
 };
-use crate::laws::karnopp::integrate::{
-    Coefficients, Measure, Replica, Run, STATUS_OK, Settings, Vec2,
-};
+use crate::laws::karnopp::integrate::{Coefficients, Measure, Run, Vec2};
 use crate::laws::karnopp::integrate::{initial_measure, initial_state};
+use crate::laws::status::STATUS_OK;
+use crate::laws::{Replica, Settings};
 use crate::measurement::{Measured, reduce};
 use crate::model::Instance;
 

@@ -44,7 +44,8 @@ pub mod group;
 
 pub use group::{Group, Member, Step};
 
-use crate::laws::karnopp::integrate::{Coefficients, Replica, Settings, phase};
+use crate::laws::karnopp::integrate::{Coefficients, phase};
+use crate::laws::{Replica, Settings};
 use crate::model::{Instance, Measure};
 
 pub use crate::laws::settings::Replicas;

@@ -7,7 +7,8 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 
-use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
+use crate::laws::Settings;
+use crate::laws::status::STATUS_OK;
 use crate::model::{Instance, Measure};
 use crate::scene::{Layout, Scene};
 use crate::sweep::{self, run_one};

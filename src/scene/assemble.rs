@@ -24,7 +24,7 @@ use super::refine::RefineSpec;
 use super::trajectories::{DEFAULT_SAMPLES_PER_CYCLE, SpecAt};
 use super::values::Entry;
 use super::{GridAxis, Layout, Scene};
-use crate::laws::karnopp::integrate::Settings;
+use crate::laws::Settings;
 use crate::model::{AXES, Instance};
 
 /// Parses and validates a scene; see [`Scene::from_toml`].

@@ -89,7 +89,7 @@
 
 use std::path::Path;
 
-use crate::laws::karnopp::integrate::Settings;
+use crate::laws::Settings;
 use crate::model::{AXES, Instance};
 
 mod assemble;

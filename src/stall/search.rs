@@ -18,7 +18,7 @@
 //! two crossings lie closer together than the probes (a step that turns
 //! back to forward between two probes is not seen).
 
-use crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use crate::laws::status::STATUS_NOT_STEADY;
 use crate::measurement::keeps_values;
 use crate::measurement::status::STATUS_NO_STALL;
 use crate::scene::BRACKET;

@@ -10,7 +10,7 @@ use rayon::prelude::*;
 use super::dedup::{DigestMap, KeyHasher, digest};
 use super::{Outcome, record};
 use crate::backend::Backend;
-use crate::laws::karnopp::integrate::Settings;
+use crate::laws::Settings;
 use crate::model::{AXES, Instance, InstanceKey};
 
 /// Baseline outcomes of earlier chunks, by digest (with the instance key, to

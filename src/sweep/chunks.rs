@@ -14,7 +14,8 @@ use super::{
     BaselineMemo, Outcome, Record, STATUS_UNCONVERGED, Summary, interrupt_requested, record,
 };
 use crate::backend::{Backend, Staged};
-use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
+use crate::laws::Settings;
+use crate::laws::status::STATUS_OK;
 use crate::model::{AXES, Instance};
 use crate::profile::{self, Phase};
 

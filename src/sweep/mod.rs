@@ -21,7 +21,7 @@ mod summary;
 
 pub use crate::backend::cpu::run_one;
 pub use crate::interrupt::{interrupt_requested, request_interrupt};
-pub use crate::laws::karnopp::integrate::constants::STATUS_UNCONVERGED;
+pub use crate::laws::status::STATUS_UNCONVERGED;
 pub use crate::measurement::Outcome;
 pub use baselines::{BaselineMemo, BaselinePair, baselines_of};
 pub use chunks::{

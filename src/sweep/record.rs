@@ -3,7 +3,7 @@
 //! ([`Record::implausibility`], [`stored_motion`]).
 
 use super::Outcome;
-use crate::laws::karnopp::integrate::STATUS_OK;
+use crate::laws::status::STATUS_OK;
 use crate::measurement::keeps_values;
 use crate::measurement::status::Status;
 use crate::model::motion::Motion;
@@ -162,7 +162,7 @@ mod tests {
         assert_eq!(Record::default().implausibility(), None);
         // "Not steady" keeps its estimate but has no kind of motion.
         let not_steady = Record {
-            status: crate::laws::karnopp::integrate::constants::STATUS_NOT_STEADY,
+            status: crate::laws::status::STATUS_NOT_STEADY,
             ..ok
         };
         let why = not_steady.implausibility().expect("refused");

@@ -1,7 +1,7 @@
 //! [`Summary`], the totals over a sweep and over the parts of one run.
 
 use super::Record;
-use crate::laws::karnopp::integrate::STATUS_OK;
+use crate::laws::status::STATUS_OK;
 use crate::measurement::keeps_values;
 use crate::model::AXES;
 use crate::model::motion::Motion;

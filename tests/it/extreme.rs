@@ -3,7 +3,9 @@
 //! with a bounded step count, no value is NaN or infinite, and each class
 //! shows the physics it is there for. The GPU side is in `tests/it/gpu.rs`.
 
-use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, State, run_instance};
+use pidm::laws::Settings;
+use pidm::laws::karnopp::integrate::{State, run_instance};
+use pidm::laws::status::STATUS_OK;
 use pidm::measurement::window_displacement as displacement;
 use pidm::model::Instance;
 use pidm::scene::{Layout, Scene};

@@ -11,9 +11,11 @@ use std::time::Instant;
 use pidm::gpu::{
     BatchOptions, F32Check, GpuContext, GpuOutcome, Precision, Route, run_batch, run_batch_with,
 };
-use pidm::laws::karnopp::integrate::constants::{STATUS_GRAZE, STATUS_NOT_STEADY};
+use pidm::laws::Settings;
 use pidm::laws::karnopp::integrate::measure::VERDICT_PERIODIC;
-use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, run_instance};
+use pidm::laws::karnopp::integrate::run_instance;
+use pidm::laws::status::STATUS_OK;
+use pidm::laws::status::{STATUS_GRAZE, STATUS_NOT_STEADY};
 use pidm::measurement::window_displacement as displacement;
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{Axis, Instance, Measure};

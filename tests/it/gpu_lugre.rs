@@ -24,7 +24,7 @@ use std::time::Instant;
 use pidm::gpu::lugre::{
     BatchReport, LOOP_LIMIT, LOOP_PASSES_PER_ATTEMPT, LugreGpu, exp_nonpositive, fourth_root, hypot,
 };
-use pidm::laws::karnopp::integrate::Settings;
+use pidm::laws::Settings;
 use pidm::laws::lugre::run_instance_until;
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{AXES, Axis, Friction, Instance, Lugre, Measure};

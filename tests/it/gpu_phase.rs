@@ -8,8 +8,10 @@
 //! within 5e-4 um.
 
 use pidm::gpu::{BatchOptions, Precision};
-use pidm::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
-use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, run_instance};
+use pidm::laws::Settings;
+use pidm::laws::karnopp::integrate::run_instance;
+use pidm::laws::status::STATUS_NOT_STEADY;
+use pidm::laws::status::STATUS_OK;
 use pidm::measurement::{Measured, reduce};
 use pidm::model::motion::Motion;
 use pidm::model::{Instance, Measure};

@@ -10,9 +10,10 @@
 use std::process::{Command, Stdio};
 
 use pidm::gpu::{BatchOptions, GpuContext, GpuOutcome, Order, Precision, run_batch_with};
+use pidm::laws::Settings;
 use pidm::laws::karnopp::integrate::constants::ITERATION_KINDS;
 use pidm::laws::karnopp::integrate::{
-    Coefficients, NoObserver, Settings, initial_state, is_finished, iterate,
+    Coefficients, NoObserver, initial_state, is_finished, iterate,
 };
 use pidm::model::Instance;
 

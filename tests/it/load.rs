@@ -5,10 +5,12 @@
 //! t = 0), its symmetries, and every shipped scene unloaded bit for bit
 //! what the binary before the load computed.
 
+use pidm::laws::Settings;
 use pidm::laws::karnopp::integrate::{
-    Coefficients, MODE_STICK, STATUS_OK, Settings, StepMotion, StepObserver, advance_observed,
-    initial_measure, initial_state, is_finished,
+    Coefficients, MODE_STICK, StepMotion, StepObserver, advance_observed, initial_measure,
+    initial_state, is_finished,
 };
+use pidm::laws::status::STATUS_OK;
 use pidm::model::{Instance, Measure};
 use pidm::sweep::{self, run_one};
 

@@ -4,7 +4,7 @@
 //! scene's refusals.
 
 use pidm::backend::cpu::run_one;
-use pidm::laws::karnopp::integrate::Settings;
+use pidm::laws::Settings;
 use pidm::measurement::Outcome;
 use pidm::model::{AXES, Axis, Friction, Instance, Lugre, Measure};
 use pidm::scene::Scene;

@@ -5,9 +5,11 @@
 
 use pidm::backend::Precision;
 use pidm::backend::cpu::{run_one, run_one_in};
-use pidm::laws::karnopp::integrate::constants::STATUS_GRAZE;
-use pidm::laws::karnopp::integrate::{self as reference, STATUS_OK, Settings};
+use pidm::laws::Settings;
+use pidm::laws::karnopp::integrate as reference;
 use pidm::laws::karnopp::single::{integrate as mirror, si};
+use pidm::laws::status::STATUS_GRAZE;
+use pidm::laws::status::STATUS_OK;
 use pidm::measurement::window_displacement;
 use pidm::model::{Instance, Measure};
 

@@ -3,8 +3,8 @@
 //! against long references, near resonances, and the kind of motion each
 //! run records (`/maps/motion`).
 
-use pidm::laws::karnopp::integrate::STATUS_OK;
-use pidm::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
+use pidm::laws::status::STATUS_NOT_STEADY;
+use pidm::laws::status::STATUS_OK;
 use pidm::measurement::Measured;
 use pidm::model::Instance;
 use pidm::model::motion::Motion;

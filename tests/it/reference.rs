@@ -3,10 +3,12 @@
 //! accuracy knob, and determinism across thread counts.
 
 use pidm::backend::{Backend, CpuBackend};
+use pidm::laws::Settings;
 use pidm::laws::karnopp::integrate::{
-    Coefficients, MODE_STICK, STATUS_OK, Settings, State, StepMotion, StepObserver, Vec2,
-    advance_observed, initial_measure, initial_state, is_finished, run_instance,
+    Coefficients, MODE_STICK, State, StepMotion, StepObserver, Vec2, advance_observed,
+    initial_measure, initial_state, is_finished, run_instance,
 };
+use pidm::laws::status::STATUS_OK;
 use pidm::measurement::window_displacement as displacement;
 use pidm::model::{Axis, Instance};
 

@@ -10,7 +10,8 @@
 use std::process::{Command, Stdio};
 
 use pidm::gpu::{BatchOptions, Precision};
-use pidm::laws::karnopp::integrate::{Replica, Replicas, STATUS_OK, Settings};
+use pidm::laws::status::STATUS_OK;
+use pidm::laws::{Replica, Replicas, Settings};
 use pidm::measurement::Measured;
 use pidm::model::Instance;
 use pidm::model::motion::Motion;

@@ -912,8 +912,8 @@ fn an_empty_scene_is_table_1_with_y_undriven() {
     assert_eq!(scene.instance(0), steady(Instance::TABLE1.baseline(0)));
     assert!(!scene.baselines);
     // A scene splits what it can; the library's default runs one chain.
-    let settings = pidm::laws::karnopp::integrate::Settings {
-        replicas: pidm::laws::karnopp::integrate::Replicas::Auto,
+    let settings = pidm::laws::Settings {
+        replicas: pidm::laws::Replicas::Auto,
         ..Default::default()
     };
     assert_eq!(scene.settings, settings);

@@ -3,8 +3,10 @@
 //! settle and tolerance, standard errors that cover the error against a
 //! much longer run, and "not steady" where max_cycles is too short.
 
-use pidm::laws::karnopp::integrate::constants::STATUS_NOT_STEADY;
-use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, run_instance};
+use pidm::laws::Settings;
+use pidm::laws::karnopp::integrate::run_instance;
+use pidm::laws::status::STATUS_NOT_STEADY;
+use pidm::laws::status::STATUS_OK;
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{Axis, Instance, Measure};
 

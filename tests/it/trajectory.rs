@@ -2,7 +2,9 @@
 //! the map results, and samples inside long closed-form steps are the true
 //! motion (checked against an independent integration).
 
-use pidm::laws::karnopp::integrate::{STATUS_OK, Settings, run_instance};
+use pidm::laws::Settings;
+use pidm::laws::karnopp::integrate::run_instance;
+use pidm::laws::status::STATUS_OK;
 use pidm::measurement::window_displacement as displacement;
 use pidm::model::{Axis, Instance, sawtooth};
 use pidm::scene::Scene;

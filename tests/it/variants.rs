@@ -9,7 +9,7 @@ use pidm::gpu::{
     BatchOptions, GpuContext, GpuOutcome, Parts, Precision, Variant, create_pipeline,
     execute_gpu_inner,
 };
-use pidm::laws::karnopp::integrate::Settings;
+use pidm::laws::Settings;
 use pidm::model::Instance;
 use pidm::scene::Scene;
 

@@ -13,7 +13,8 @@
 //! SI units, exactly like the CPU. Either way the per-instance constants are
 //! [`crate::laws::karnopp::integrate::Coefficients`], computed in f64 and rounded once.
 
-use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
+use crate::laws::Settings;
+use crate::laws::status::STATUS_OK;
 use crate::model::{AXES, Instance};
 
 pub use crate::laws::karnopp::units::Units;
@@ -491,11 +492,7 @@ macro_rules! precision_structs {
             /// the CPU mirror's coefficients (`Coefficients::of`: computed
             /// in f64 from the instance in these units and rounded once).
             pub fn pack(inst: &Instance, settings: &Settings) -> Coefficients {
-                pack_replica(
-                    inst,
-                    settings,
-                    crate::laws::karnopp::integrate::Replica::NONE,
-                )
+                pack_replica(inst, settings, crate::laws::Replica::NONE)
             }
 
             /// [`pack`] for replica `r` of a split run (`inst` the
@@ -503,7 +500,7 @@ macro_rules! precision_structs {
             pub fn pack_replica(
                 inst: &Instance,
                 settings: &Settings,
-                r: crate::laws::karnopp::integrate::Replica,
+                r: crate::laws::Replica,
             ) -> Coefficients {
                 packed(&mirror::Coefficients::of_replica(inst, settings, r))
             }

@@ -8,8 +8,9 @@
 //! same name in `src/laws/karnopp/integrate/` (`advance.wgsl` mirrors `mod.rs`).
 
 use crate::gpu::{GpuError, Precision, STATUS_LOOP_LIMIT, workgroup_size};
+use crate::laws::Settings;
 use crate::laws::karnopp::integrate::constants::{self, TAYLOR_STAGE_TERMS, TAYLOR_TERMS};
-use crate::laws::karnopp::integrate::{Coefficients, Settings, Vec2, measure, phase};
+use crate::laws::karnopp::integrate::{Coefficients, Vec2, measure, phase};
 use crate::model::Instance;
 
 /// The shader files, in the order they are concatenated (WGSL declarations

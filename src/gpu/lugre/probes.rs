@@ -15,8 +15,9 @@ use wgpu::util::DeviceExt;
 
 use crate::gpu::GpuError;
 use crate::gpu::readback::{mappable, read_buffer};
-use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
+use crate::laws::Settings;
 use crate::laws::lugre::run::{Clock, Linear, Periods, T, rodas4, segment};
+use crate::laws::status::STATUS_OK;
 use crate::model::{AXES, Instance};
 
 impl LugreGpu<'_> {

@@ -21,7 +21,8 @@ use crate::gpu::layout::double::{Coefficients, Head, Measure as GpuMeasure, pack
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::gpu::runner::{Runner, storage};
 use crate::gpu::{BatchOptions, GpuContext, GpuError, Precision};
-use crate::laws::karnopp::integrate::{Run, Settings};
+use crate::laws::Settings;
+use crate::laws::karnopp::integrate::Run;
 use crate::laws::lugre::run::{Periods, continue_until};
 use crate::model::{Instance, Measure};
 use crate::profile::{self, Phase};

@@ -42,3 +42,33 @@ pub fn f32_needs_f64(status: u32) -> bool {
     is_integrator_failure(status)
         || status == crate::laws::karnopp::integrate::constants::STATUS_GRAZE
 }
+
+/// The profile table's lines of the CPU integrator's iterations by kind
+/// (both precisions' mirrors together), with the share of slip trials
+/// rejected; empty where the CPU integrated nothing (LuGre's integrator
+/// is not counted).
+pub fn iteration_lines() -> String {
+    use integrate::constants::{ITERATION_KINDS, KIND_NAMES, rejected_share};
+    use std::sync::atomic::Ordering;
+    let mut kinds = [0u64; ITERATION_KINDS];
+    for (k, total) in kinds.iter_mut().enumerate() {
+        *total = integrate::ITERATIONS[k].load(Ordering::Relaxed)
+            + single::integrate::ITERATIONS[k].load(Ordering::Relaxed);
+    }
+    let all: u64 = kinds.iter().sum();
+    if all == 0 {
+        return String::new();
+    }
+    let by_kind: Vec<String> = KIND_NAMES
+        .iter()
+        .zip(kinds)
+        .filter(|(_, n)| *n > 0)
+        .map(|(name, n)| format!("{name} {:.1} %", 100.0 * n as f64 / all as f64))
+        .collect();
+    format!(
+        "pidm: phase CPU integrator: {all} iterations; by kind: {}\n\
+         pidm: phase   rejected trials: {:.1} % of slip trials (slip steps and rejected trials)\n",
+        by_kind.join(", "),
+        100.0 * rejected_share(&kinds)
+    )
+}

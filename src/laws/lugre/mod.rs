@@ -31,7 +31,7 @@ pub use run::{LENGTH_PER_TOLERANCE, run_instance_until};
 mod tests {
     use super::model::{Clock, Model, N, State};
     use super::*;
-    use crate::laws::karnopp::integrate::Settings;
+    use crate::laws::Settings;
     use crate::measurement::reduce;
     use crate::model::{AXES, Axis, Friction, Instance, Lugre, Measure};
 

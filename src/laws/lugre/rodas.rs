@@ -6,9 +6,7 @@
 
 use super::libm::fourth_root;
 use super::model::{Linear, Model, N, State, T, VP, VS, XP, XS, Z};
-use crate::laws::karnopp::integrate::{
-    STATUS_NON_FINITE, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW,
-};
+use crate::laws::status::{STATUS_NON_FINITE, STATUS_STEP_BUDGET, STATUS_STEP_UNDERFLOW};
 use crate::model::AXES;
 
 /// Rodas4's coefficients (Hairer and Wanner, "Solving Ordinary Differential

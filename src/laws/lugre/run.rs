@@ -8,12 +8,14 @@
 // (`crate::gpu::lugre` and `shaders/lugre/`).
 pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
 pub(crate) use super::rodas::{A, C, GAMMA, R, REDUCED, SMALLEST_STEP, rodas4, segment};
+use crate::laws::Settings;
 use crate::laws::karnopp::integrate::measure::{
     Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, period_end,
 };
 use crate::laws::karnopp::integrate::{
-    Coefficients, Run, STATUS_OK, Settings, Vec2, initial_measure, initial_state, is_finished,
+    Coefficients, Run, Vec2, initial_measure, initial_state, is_finished,
 };
+use crate::laws::status::STATUS_OK;
 use crate::model::{AXES, Instance, Lugre};
 
 /// What `simulation.tolerance` (a number, 1e-4 by default) means under

@@ -1,0 +1,275 @@
+//! [`Law`]: the one place outside a law's own folders that names the
+//! friction laws. Scene parsing, planning, backends, replicas, fit,
+//! commands and plots ask a `Law` what differs between laws (its keys, its
+//! tolerance's meaning, its precisions, what `--backend auto` knows of it)
+//! instead of branching on one; the device side's twin is
+//! `crate::gpu::law`. ARCHITECTURE.md's checklist says what a third law
+//! touches.
+
+use super::Settings;
+use super::karnopp::integrate::{self, Run};
+use super::{karnopp, lugre};
+use crate::model::{Friction, Instance, Lugre, Mechanism};
+
+/// A friction law at the slider's interface (`mechanism.friction`, one for
+/// a whole scene; docs/model.md sections 3 and 8).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Law {
+    /// Coulomb friction with stiction in Karnopp's form (the default):
+    /// two modes, integrated in closed form with events located exactly.
+    #[default]
+    Karnopp,
+    /// The 2-D LuGre bristle model: no modes, a stiff right-hand side,
+    /// Rodas4 in f64.
+    Lugre,
+}
+
+/// One of a law's own parameters, as `pidm check` and the result file
+/// describe it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Parameter {
+    /// The scene key, in `[mechanism]`.
+    pub key: &'static str,
+    /// Its value in SI units.
+    pub value: f64,
+    /// The unit of `value`.
+    pub unit: &'static str,
+    /// How the value was derived, where the scene did not give it.
+    pub derived: Option<&'static str>,
+}
+
+impl Law {
+    /// Every law, in the order messages list them.
+    pub const ALL: [Law; 2] = [Law::Karnopp, Law::Lugre];
+
+    /// The law's value of `mechanism.friction`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Law::Karnopp => "karnopp",
+            Law::Lugre => "lugre",
+        }
+    }
+
+    /// The law a value of `mechanism.friction` names.
+    pub fn from_name(name: &str) -> Option<Law> {
+        Law::ALL.into_iter().find(|law| law.name() == name)
+    }
+
+    /// The section of docs/model.md that defines the law.
+    pub fn section(self) -> u32 {
+        match self {
+            Law::Karnopp => 3,
+            Law::Lugre => 8,
+        }
+    }
+
+    /// The law of an interface.
+    pub fn of(friction: &Friction) -> Law {
+        match friction {
+            Friction::Karnopp => Law::Karnopp,
+            Friction::Lugre(_) => Law::Lugre,
+        }
+    }
+
+    /// The law of an instance's interface.
+    pub fn of_instance(inst: &Instance) -> Law {
+        Law::of(&inst.mechanism.friction)
+    }
+
+    /// The `[mechanism]` keys that apply to this law only: a scene with
+    /// another law refuses them.
+    pub fn keys(self) -> &'static [&'static str] {
+        match self {
+            Law::Karnopp => &["velocity_band"],
+            Law::Lugre => &[
+                "bristle_stiffness",
+                "bristle_damping",
+                "viscous_friction",
+                "stribeck_velocity",
+            ],
+        }
+    }
+
+    /// Why [`Law::keys`] belong to this law, for the refusal of one of them
+    /// in a scene of another law.
+    pub fn keys_why(self) -> &'static str {
+        match self {
+            Law::Karnopp => {
+                "the velocity band is Karnopp's stick detection, and LuGre has no modes \
+                 (docs/model.md section 8)"
+            }
+            Law::Lugre => "the bristle keys belong to the LuGre model (docs/model.md section 8)",
+        }
+    }
+
+    /// The interface of this law from the values of its own keys
+    /// ([`Law::keys`] of LuGre, in that order; a NaN `bristle_damping` is
+    /// derived). Karnopp's velocity band is the mechanism's own.
+    pub fn friction(self, lugre: [f64; 4]) -> Friction {
+        match self {
+            Law::Karnopp => Friction::Karnopp,
+            Law::Lugre => {
+                let [
+                    bristle_stiffness,
+                    bristle_damping,
+                    viscous_friction,
+                    stribeck_velocity,
+                ] = lugre;
+                Friction::Lugre(Lugre {
+                    bristle_stiffness,
+                    bristle_damping: (!bristle_damping.is_nan()).then_some(bristle_damping),
+                    viscous_friction,
+                    stribeck_velocity,
+                })
+            }
+        }
+    }
+
+    /// The law's own parameters of mechanism `m` (whose law this is).
+    pub fn parameters(self, m: &Mechanism) -> Vec<Parameter> {
+        let p = |key, value, unit| Parameter {
+            key,
+            value,
+            unit,
+            derived: None,
+        };
+        match &m.friction {
+            Friction::Karnopp => vec![p("velocity_band", m.velocity_band, "m/s")],
+            Friction::Lugre(l) => vec![
+                p("bristle_stiffness", l.bristle_stiffness, "N/m"),
+                Parameter {
+                    derived: l
+                        .bristle_damping
+                        .is_none()
+                        .then_some("derived: sqrt(bristle_stiffness slider_mass)"),
+                    ..p("bristle_damping", l.damping(m.slider_mass), "N s/m")
+                },
+                p("viscous_friction", l.viscous_friction, "N s/m"),
+                p("stribeck_velocity", l.stribeck_velocity, "m/s"),
+            ],
+        }
+    }
+
+    /// What `simulation.tolerance` = `tolerance` bounds under this law,
+    /// after the number: Karnopp's direction error, or LuGre's local error
+    /// per step (`laws::lugre::LENGTH_PER_TOLERANCE`).
+    pub fn tolerance_unit(self, tolerance: f64) -> String {
+        match self {
+            Law::Karnopp => "rad".into(),
+            Law::Lugre => format!(
+                "(LuGre: {:e} m local error per step)",
+                tolerance * lugre::LENGTH_PER_TOLERANCE
+            ),
+        }
+    }
+
+    /// The tolerance as `pidm accuracy` names its ladder.
+    pub fn tolerance_setting(self) -> &'static str {
+        match self {
+            Law::Karnopp => "tolerance [rad]",
+            Law::Lugre => "tolerance [x 0.1 um local error per step]",
+        }
+    }
+
+    /// The law's integrator, as `pidm accuracy` names it.
+    pub fn integrator(self) -> &'static str {
+        match self {
+            Law::Karnopp => "event-locating",
+            Law::Lugre => "LuGre Rodas4",
+        }
+    }
+
+    /// Whether the law has an f32 formulation (`--precision f32`); else
+    /// every backend integrates it in f64 and refuses f32.
+    pub fn has_f32(self) -> bool {
+        self == Law::Karnopp
+    }
+
+    /// Why `--backend auto` keeps the law's scenes on the CPU, where its
+    /// cost model does not weigh them; `None` where it does.
+    pub fn auto_on_cpu(self) -> Option<&'static str> {
+        match self {
+            Law::Karnopp => None,
+            Law::Lugre => Some(
+                "LuGre scenes stay on the CPU: the cost model is Karnopp's; --backend gpu \
+                 runs the f64 LuGre shader",
+            ),
+        }
+    }
+
+    /// Whether a steady measurement under this law may be split into
+    /// replicas (`simulation.replicas`, `crate::replicas`).
+    pub fn splits(self) -> bool {
+        self == Law::Karnopp
+    }
+
+    /// Why the law records no trajectories, where it records none.
+    pub fn no_trajectories(self) -> Option<&'static str> {
+        match self {
+            Law::Karnopp => None,
+            Law::Lugre => Some(
+                "a LuGre scene (mechanism.friction = \"lugre\") records no trajectories yet: \
+                 the sampler follows Karnopp's closed-form steps",
+            ),
+        }
+    }
+
+    /// The instance whose law this law tends to in a limit of its
+    /// parameters (LuGre to Karnopp as the bristles stiffen, docs/model.md
+    /// section 8), for plots that draw the limit beside a map; `None` for
+    /// a law that is no other's limit form.
+    pub fn limit_of(inst: &Instance) -> Option<Instance> {
+        match Law::of_instance(inst) {
+            Law::Karnopp => None,
+            Law::Lugre => {
+                let mut twin = *inst;
+                twin.mechanism.friction = Friction::Karnopp;
+                Some(twin)
+            }
+        }
+    }
+
+    /// Integrates `inst` (of any law) in f64 to the end, or until `stop`
+    /// says so (then `None`).
+    pub fn run_until(inst: &Instance, settings: &Settings, stop: impl Fn() -> bool) -> Option<Run> {
+        match Law::of_instance(inst) {
+            Law::Karnopp => integrate::run_instance_until(inst, settings, stop),
+            Law::Lugre => lugre::run_instance_until(inst, settings, stop),
+        }
+    }
+
+    /// The profile table's lines of the CPU integrators' iterations by kind
+    /// (Karnopp's, both precisions together); empty where none were
+    /// counted (LuGre's integrator is not counted).
+    pub fn iteration_lines() -> String {
+        karnopp::iteration_lines()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each law's name reads back as the law, and each key belongs to one
+    /// law only.
+    #[test]
+    fn names_and_keys_are_one_law_each() {
+        for law in Law::ALL {
+            assert_eq!(Law::from_name(law.name()), Some(law));
+            for key in law.keys() {
+                let owners = Law::ALL.iter().filter(|l| l.keys().contains(key)).count();
+                assert_eq!(owners, 1, "{key}");
+            }
+        }
+        assert_eq!(Law::from_name("coulomb"), None);
+        assert_eq!(Law::default().name(), "karnopp");
+    }
+
+    /// An interface built from a law's key values is of that law.
+    #[test]
+    fn friction_is_of_its_law() {
+        for law in Law::ALL {
+            assert_eq!(Law::of(&law.friction([1e7, f64::NAN, 0.0, 1e-3])), law);
+        }
+    }
+}
