@@ -12,9 +12,9 @@ use anyhow::{Context, Result};
 use plotters::prelude::*;
 
 use crate::backend::{Backend, CpuBackend};
-use crate::laws::Settings;
 use crate::laws::karnopp::paper_rk4;
 use crate::laws::status::STATUS_OK;
+use crate::laws::{Law, Settings};
 use crate::measurement::keeps_values;
 use crate::model::{AXES, Instance};
 use crate::sweep::Outcome;
@@ -77,22 +77,13 @@ fn steps_um(instances: &[Instance], outcomes: &[Outcome]) -> Vec<[f64; AXES]> {
         .collect()
 }
 
-/// The CPU integrator at a ladder of tolerances: the event-locating one,
-/// or for a LuGre scene (`lugre`) Rodas4, whose tolerance scales its local
-/// error per step (`laws::lugre::LENGTH_PER_TOLERANCE`).
-pub fn cpu_method<'a>(base: Settings, lugre: bool) -> Method<'a> {
+/// The CPU integrator of `law` at a ladder of tolerances (each law's
+/// tolerance means what [`Law::tolerance_setting`] says).
+pub fn cpu_method<'a>(base: Settings, law: Law) -> Method<'a> {
     let backend = CpuBackend::new(Some(1)).expect("a one-thread pool");
-    let (name, setting_name) = if lugre {
-        (
-            "LuGre Rodas4 f64 (cpu)",
-            "tolerance [x 0.1 um local error per step]",
-        )
-    } else {
-        ("event-locating f64 (cpu)", "tolerance [rad]")
-    };
     Method {
-        name: name.into(),
-        setting_name,
+        name: format!("{} f64 (cpu)", law.integrator()),
+        setting_name: law.tolerance_setting(),
         settings: vec![1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
         run: Box::new(move |instances, tolerance| {
             let settings = Settings { tolerance, ..base };
@@ -102,24 +93,16 @@ pub fn cpu_method<'a>(base: Settings, lugre: bool) -> Method<'a> {
 }
 
 /// A backend (the GPU path) at the same ladder of tolerances as the CPU,
-/// named for the integrator a LuGre scene (`lugre`) runs on it.
-pub fn backend_method<'a>(
-    backend: Box<dyn Backend + 'a>,
-    base: Settings,
-    lugre: bool,
-) -> Method<'a> {
-    let (integrator, setting_name) = if lugre {
-        ("LuGre Rodas4", "tolerance [x 0.1 um local error per step]")
-    } else {
-        ("event-locating", "tolerance [rad]")
-    };
+/// named for the integrator of `law` that runs on it.
+pub fn backend_method<'a>(backend: Box<dyn Backend + 'a>, base: Settings, law: Law) -> Method<'a> {
     Method {
         name: format!(
-            "{integrator} {} ({})",
+            "{} {} ({})",
+            law.integrator(),
             backend.precision(),
             backend.describe()
         ),
-        setting_name,
+        setting_name: law.tolerance_setting(),
         settings: vec![1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7],
         run: Box::new(move |instances, tolerance| {
             let settings = Settings { tolerance, ..base };

@@ -7,8 +7,8 @@ use rayon::prelude::*;
 
 use super::{Backend, Hardware, Precision};
 use crate::interrupt::interrupt_requested;
-use crate::laws::karnopp::{check, f32_needs_f64};
-use crate::laws::karnopp::{integrate, single};
+use crate::laws::Law;
+use crate::laws::karnopp::check;
 use crate::laws::status::STATUS_GRAZE;
 use crate::laws::{Replica, Settings};
 use crate::measurement::{Outcome, reduce};
@@ -173,34 +173,12 @@ pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
 /// Integrates one instance on the CPU in `precision` (f32 results are
 /// reduced in f64 and SI units, as the GPU's are); stops as [`run_one`].
 /// An f32 run that fails or meets a band graze is integrated again in f64,
-/// as the f32 shader's are ([`f32_needs_f64`]), and marked `on_cpu`: the
+/// as the f32 shader's are (`laws::karnopp::f32_needs_f64`), and marked `on_cpu`: the
 /// mirror's backend gives what the f32 GPU path gives.
 pub fn run_one_in(inst: &Instance, settings: &Settings, precision: Precision) -> Outcome {
-    if inst.mechanism.lugre().is_some() {
-        // LuGre has no f32 formulation: f64 whatever was asked (the
-        // backend selection refuses f32 for LuGre scenes).
-        let Some(run) = crate::laws::run_until(inst, settings, interrupt_requested) else {
-            return Outcome::default();
-        };
-        return Outcome::of(&reduce(inst, &run), run.state.steps, false);
-    }
     // The f32 status that sent the instance to f64, if one did.
-    let (run, sent) = match precision {
-        Precision::F64 => (
-            integrate::run_instance_until(inst, settings, interrupt_requested),
-            None,
-        ),
-        Precision::F32 => {
-            match single::integrate::run_instance_until(inst, settings, interrupt_requested) {
-                Some(r) if f32_needs_f64(r.state.status) => (
-                    integrate::run_instance_until(inst, settings, interrupt_requested),
-                    Some(r.state.status),
-                ),
-                r => (r.map(|r| single::si::run(&r)), None),
-            }
-        }
-    };
-    let Some(run) = run else {
+    let Some((run, sent)) = Law::run_in_until(inst, settings, precision, interrupt_requested)
+    else {
         return Outcome::default();
     };
     Outcome {

@@ -5,14 +5,10 @@ use anyhow::{Result, bail};
 use super::{Backend, Hardware, Precision, Staged};
 use crate::gpu::lugre::LugreGpu;
 use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, Parts, run_batch_packed};
-use crate::laws::Settings;
 use crate::laws::status::STATUS_GRAZE;
+use crate::laws::{Law, Settings};
 use crate::measurement::{Outcome, reduce};
 use crate::model::Instance;
-
-/// Why a LuGre instance does not run in f32: its shader is f64's only.
-pub const LUGRE_F64_ONLY: &str = "LuGre friction (mechanism.friction = \"lugre\", docs/model.md \
-     section 8) runs in f64 only, on the CPU or on a GPU with f64; leave --precision out or give f64";
 
 /// The WGSL shader on one adapter at one precision.
 pub struct GpuBackend {
@@ -140,7 +136,17 @@ impl Backend for GpuBackend {
         staged: Staged,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
-        if instances.iter().any(|i| i.mechanism.lugre().is_some()) {
+        // A scene has one law, and so does each of its batches.
+        let law = instances.first().map_or(Law::default(), Law::of_instance);
+        if instances.iter().any(|i| Law::of_instance(i) != law) {
+            bail!("a batch mixes friction laws; a scene has one law");
+        }
+        if let Some(why) = law.no_f32()
+            && self.precision != Precision::F64
+        {
+            bail!("--precision f32: {why}");
+        }
+        if law == Law::Lugre {
             return self.run_lugre(instances, settings, done);
         }
         let mut reported = 0;
@@ -171,12 +177,6 @@ impl GpuBackend {
         settings: &Settings,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
-        if instances.iter().any(|i| i.mechanism.lugre().is_none()) {
-            bail!("a batch mixes LuGre and Karnopp friction; a scene has one law");
-        }
-        if self.precision != Precision::F64 {
-            bail!("--precision f32: {LUGRE_F64_ONLY}");
-        }
         let mut gpu = LugreGpu::new(&self.ctx)?;
         gpu.cpu_tail = self.options.cpu_tail;
         let (runs, report) = gpu.run_until(

@@ -4,10 +4,9 @@
 use anyhow::{Context, Result, bail};
 
 use super::cost::{self, Estimate, Plan};
-use super::gpu::LUGRE_F64_ONLY;
 use super::{Backend, CpuBackend, GpuBackend, Precision, cost_book};
 use crate::gpu::{GpuContext, Parts};
-use crate::laws::Settings;
+use crate::laws::{Law, Settings};
 use crate::model::Instance;
 
 /// Which integrator runs a scene.
@@ -72,9 +71,9 @@ pub struct Workload {
     pub settings: Settings,
     /// Whether the run searches stall loads (its probes carry a load).
     pub stall: bool,
-    /// Whether the scene's friction is LuGre's, which only the CPU runs,
-    /// in f64.
-    pub lugre: bool,
+    /// The scene's friction law: whether f32 and `--backend auto`'s cost
+    /// model apply to it.
+    pub law: Law,
 }
 
 impl Workload {
@@ -166,20 +165,17 @@ pub fn select_backend(
     let cpu = |threads: Option<usize>| -> Result<Selected> {
         finish(Box::new(CpuBackend::new(threads)?), None)
     };
-    if work.lugre {
-        if precision == Some(Precision::F32) {
-            bail!("--precision f32: {LUGRE_F64_ONLY}");
-        }
-        if choice == BackendChoice::Auto {
-            // The cost model and its book are Karnopp's; the LuGre shader
-            // is unmeasured on hardware and slower than the CPU on
-            // lavapipe: auto stays on the CPU, --backend gpu asks for it.
-            eprintln!(
-                "pidm: LuGre friction runs on the CPU path in f64 (--backend gpu runs its f64 \
-                 shader)"
-            );
-            return cpu(threads);
-        }
+    if let Some(why) = work.law.no_f32()
+        && precision == Some(Precision::F32)
+    {
+        bail!("--precision f32: {why}");
+    }
+    if let Some(why) = work.law.auto_on_cpu()
+        && choice == BackendChoice::Auto
+    {
+        // The cost model and its book do not weigh this law's scenes.
+        eprintln!("pidm: --backend auto: the CPU path in f64 ({why})");
+        return cpu(threads);
     }
     match choice {
         BackendChoice::Cpu => finish(

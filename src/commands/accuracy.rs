@@ -7,6 +7,7 @@ use anyhow::{Context, Result};
 
 use super::scenes::{DEFAULT_SCENE, load_scenes, scene_integrations};
 use crate::backend::{GpuBackend, Precision};
+use crate::laws::Law;
 use crate::model::{Instance, Measure};
 use crate::scene::Scene;
 
@@ -34,10 +35,11 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
         let instances = window_instances(&scene_integrations(&scene));
         let methods = integrator_methods(&scene, karnopp_steps, gpu)?;
         study_integrator(&scene, &instances, &methods, out_dir, &mut report)?;
-        if scene.is_lugre() {
-            // The limit replaces the bristles' parameters: one study of it,
-            // on the first LuGre scene, is all there is to see.
-            if !limit_done {
+        if scene.law() != Law::default() {
+            // The limit replaces the law's own parameters: one study of it,
+            // on the first scene of a law with a limit, is all there is to
+            // see.
+            if !limit_done && scene.law().limit().is_some() {
                 karnopp_limit(
                     &scene.name,
                     &instances,
@@ -48,8 +50,8 @@ pub fn accuracy(paths: &[PathBuf], out_dir: &Path, karnopp_steps: &[f64], gpu: b
                 limit_done = true;
             }
             // The measurement's study needs windows of up to 40,000
-            // periods, minutes per instance under LuGre: Karnopp's scenes
-            // study the estimator, which is the same for both laws.
+            // periods, minutes per instance under LuGre: the default law's
+            // scenes study the estimator, which is the same for every law.
             continue;
         }
         // The measurement, where two drive frequencies make it matter.
@@ -108,15 +110,15 @@ fn integrator_methods<'a>(
     gpu: bool,
 ) -> Result<Vec<crate::accuracy::Method<'a>>> {
     use crate::accuracy;
-    let lugre = scene.is_lugre();
-    let mut methods = vec![accuracy::cpu_method(scene.settings, lugre)];
-    if gpu && lugre {
-        // The LuGre shader is f64's only.
+    let law = scene.law();
+    let mut methods = vec![accuracy::cpu_method(scene.settings, law)];
+    if gpu && law.no_f32().is_some() {
+        // A law without f32 has an f64 shader only.
         match crate::gpu::GpuContext::new(true) {
             Ok(ctx) if ctx.supports_f64() => methods.push(accuracy::backend_method(
                 Box::new(GpuBackend::new(ctx, Precision::F64)?),
                 scene.settings,
-                true,
+                law,
             )),
             Ok(ctx) => println!("  gpu: not studied ({} offers no f64)", ctx.describe()),
             Err(err) => println!("  gpu: not studied ({err})"),
@@ -129,21 +131,21 @@ fn integrator_methods<'a>(
                 methods.push(accuracy::backend_method(
                     Box::new(GpuBackend::new(ctx, Precision::F32)?),
                     scene.settings,
-                    false,
+                    law,
                 ));
                 if f64_ok {
                     let ctx = crate::gpu::GpuContext::new(true)?;
                     methods.push(accuracy::backend_method(
                         Box::new(GpuBackend::new(ctx, Precision::F64)?),
                         scene.settings,
-                        false,
+                        law,
                     ));
                 }
             }
             Err(err) => println!("  gpu: not studied ({err})"),
         }
     }
-    if !lugre {
+    if law.has_fixed_step_baseline() {
         methods.push(accuracy::karnopp_method(karnopp_steps.to_vec()));
     }
     Ok(methods)
@@ -167,11 +169,7 @@ fn study_integrator(
         "accuracy: scene {:?}, {} integrations, reference tolerance 1e-9 {}",
         scene.name,
         instances.len(),
-        if scene.is_lugre() {
-            "(LuGre: 1e-16 m local error per step)"
-        } else {
-            "rad"
-        }
+        scene.law().tolerance_unit(reference.tolerance)
     );
     let (points, references) = study_and_print(instances, instances, reference, methods)?;
     write_study(

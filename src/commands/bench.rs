@@ -35,11 +35,11 @@ pub fn bench(path: Option<&Path>, min_seconds: f64) -> Result<()> {
         Box::new(CpuBackend::new(None)?),
     ];
     match crate::gpu::GpuContext::new(true) {
-        // The LuGre shader is f64's only.
-        Ok(ctx) if scene.is_lugre() && ctx.supports_f64() => {
+        // A law without f32 has an f64 shader only.
+        Ok(ctx) if scene.law().no_f32().is_some() && ctx.supports_f64() => {
             backends.push(Box::new(GpuBackend::new(ctx, Precision::F64)?));
         }
-        Ok(ctx) if scene.is_lugre() => {
+        Ok(ctx) if scene.law().no_f32().is_some() => {
             println!("  gpu: not measured (no f64 on {})", ctx.describe())
         }
         Ok(ctx) => {

@@ -166,18 +166,12 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
         human_duration(crate::run::estimate::RUN_OVERHEAD_S)
     );
     println!("  {}", probe_note(probe));
-    if scene.is_lugre() {
-        println!("--backend auto: the CPU path ({LUGRE_AUTO})");
-    } else {
-        println!("--backend auto: {}", auto_note(auto));
+    match scene.law().auto_on_cpu() {
+        Some(why) => println!("--backend auto: the CPU path ({why})"),
+        None => println!("--backend auto: {}", auto_note(auto)),
     }
     Ok(())
 }
-
-/// Why `--backend auto` runs a LuGre scene on the CPU
-/// (`backend::select`).
-const LUGRE_AUTO: &str = "LuGre scenes stay on the CPU: the cost model is Karnopp's; \
-                          --backend gpu runs the f64 LuGre shader";
 
 /// What `--backend auto` would do, in one sentence.
 fn auto_note(plan: &Plan) -> String {
@@ -323,10 +317,9 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
             "parallelism": probe.parallelism,
         },
         "nominal_simulated_per_core_s": NOMINAL_SIMULATED_PER_CORE,
-        "auto": if scene.is_lugre() {
-            serde_json::json!({ "backend": "cpu", "weighed": false, "why": LUGRE_AUTO })
-        } else {
-            auto_json(&report.auto)
+        "auto": match scene.law().auto_on_cpu() {
+            Some(why) => serde_json::json!({ "backend": "cpu", "weighed": false, "why": why }),
+            None => auto_json(&report.auto),
         },
     })
 }

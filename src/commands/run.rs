@@ -128,7 +128,7 @@ fn workload(scene: &Scene, scope: RunScope) -> Workload {
         return Workload {
             integrations: count,
             stall: scene.stall.is_some(),
-            lugre: scene.is_lugre(),
+            law: scene.law(),
             candidates,
             settings: scene.settings,
         };
@@ -138,7 +138,7 @@ fn workload(scene: &Scene, scope: RunScope) -> Workload {
     Workload {
         integrations: candidates.len() as u64,
         stall: scene.stall.is_some(),
-        lugre: scene.is_lugre(),
+        law: scene.law(),
         candidates,
         settings: scene.settings,
     }

@@ -139,7 +139,7 @@ impl<'a> Problem<'a> {
         Ok(crate::backend::Workload {
             integrations: candidates.len() as u64 * 1000,
             stall: false,
-            lugre: scene.is_lugre(),
+            law: scene.law(),
             candidates,
             settings: scene.settings,
         })

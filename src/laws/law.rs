@@ -6,8 +6,8 @@
 //! `crate::gpu::law`. ARCHITECTURE.md's checklist says what a third law
 //! touches.
 
-use super::Settings;
 use super::karnopp::integrate::{self, Run};
+use super::{Precision, Settings};
 use super::{karnopp, lugre};
 use crate::model::{Friction, Instance, Lugre, Mechanism};
 
@@ -179,10 +179,23 @@ impl Law {
         }
     }
 
-    /// Whether the law has an f32 formulation (`--precision f32`); else
-    /// every backend integrates it in f64 and refuses f32.
-    pub fn has_f32(self) -> bool {
+    /// Whether the paper's fixed-step RK4 of this law exists
+    /// (`laws::karnopp::paper_rk4`), a baseline for `pidm accuracy`.
+    pub fn has_fixed_step_baseline(self) -> bool {
         self == Law::Karnopp
+    }
+
+    /// Why the law has no f32 formulation, where it has none: every
+    /// backend then integrates it in f64 and `--precision f32` is refused
+    /// with this reason.
+    pub fn no_f32(self) -> Option<&'static str> {
+        match self {
+            Law::Karnopp => None,
+            Law::Lugre => Some(
+                "LuGre friction (mechanism.friction = \"lugre\", docs/model.md section 8) runs \
+                 in f64 only, on the CPU or on a GPU with f64; leave --precision out or give f64",
+            ),
+        }
     }
 
     /// Why `--backend auto` keeps the law's scenes on the CPU, where its
@@ -214,19 +227,24 @@ impl Law {
         }
     }
 
+    /// The law this law tends to in a limit of its own parameters (LuGre
+    /// to Karnopp as the bristles stiffen, docs/model.md section 8).
+    pub fn limit(self) -> Option<Law> {
+        match self {
+            Law::Karnopp => None,
+            Law::Lugre => Some(Law::Karnopp),
+        }
+    }
+
     /// The instance whose law this law tends to in a limit of its
     /// parameters (LuGre to Karnopp as the bristles stiffen, docs/model.md
     /// section 8), for plots that draw the limit beside a map; `None` for
     /// a law that is no other's limit form.
     pub fn limit_of(inst: &Instance) -> Option<Instance> {
-        match Law::of_instance(inst) {
-            Law::Karnopp => None,
-            Law::Lugre => {
-                let mut twin = *inst;
-                twin.mechanism.friction = Friction::Karnopp;
-                Some(twin)
-            }
-        }
+        let limit = Law::of_instance(inst).limit()?;
+        let mut twin = *inst;
+        twin.mechanism.friction = limit.friction([f64::NAN; 4]);
+        Some(twin)
     }
 
     /// Integrates `inst` (of any law) in f64 to the end, or until `stop`
@@ -235,6 +253,23 @@ impl Law {
         match Law::of_instance(inst) {
             Law::Karnopp => integrate::run_instance_until(inst, settings, stop),
             Law::Lugre => lugre::run_instance_until(inst, settings, stop),
+        }
+    }
+
+    /// Integrates `inst` (of any law) on the CPU in `precision` to the end,
+    /// or until `stop` says so (then `None`), with the f32 status that sent
+    /// an f32 run to the f64 reference, if one did. A law without f32
+    /// ([`Law::no_f32`]) integrates in f64 whatever was asked (the backend
+    /// selection refuses f32 for its scenes).
+    pub fn run_in_until(
+        inst: &Instance,
+        settings: &Settings,
+        precision: Precision,
+        stop: impl Fn() -> bool + Copy,
+    ) -> Option<(Run, Option<u32>)> {
+        match Law::of_instance(inst) {
+            Law::Karnopp => karnopp::run_in_until(inst, settings, precision, stop),
+            Law::Lugre => lugre::run_instance_until(inst, settings, stop).map(|run| (run, None)),
         }
     }
 

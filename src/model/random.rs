@@ -66,7 +66,7 @@ pub fn random_instance(rng: &mut Rng, cycles: u32, settle: u32) -> Instance {
             static_friction,
             coulomb_friction: static_friction * rng.uniform(0.3, 1.0),
             velocity_band: rng.log_uniform(1e-7, 1e-5),
-            friction: crate::model::Friction::Karnopp,
+            friction: crate::model::Friction::default(),
             // Unloaded: the random instances of the studies and tests
             // predate the load, and stay what they were.
             load: [0.0; 2],

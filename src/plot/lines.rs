@@ -14,6 +14,7 @@ use super::placement::{Placement, label_values};
 use super::read::{AxisData, Data, Kind};
 use super::regime::{Regime, ZERO_STEP_M};
 use super::text::{axis_title, short};
+use crate::laws::Law;
 use crate::model::AXIS_NAMES;
 
 /// One line of a line chart.
@@ -358,7 +359,7 @@ pub(super) fn family_lines(
             .collect();
         // A LuGre map: each line's instance under Karnopp's friction, as
         // the reference the bristles approach (docs/model.md section 8).
-        if let Some(twins) = karnopp_twins(data, (long, short), &flat) {
+        if let Some(twins) = limit_twins(data, (long, short), &flat) {
             for (s, twin) in twins.iter().enumerate() {
                 series.push(Series {
                     name: format!("Karnopp, {}", series[s].name),
@@ -404,41 +405,38 @@ pub(super) fn family_lines(
     Ok(())
 }
 
-/// For a LuGre file whose long axis is one of the bristle keys: the step
-/// [m per own cycle] of each line's instance (at the long axis' first
-/// value) integrated again under Karnopp's friction on the CPU, at the
-/// scene's settings; `None` for any other file.
-fn karnopp_twins(
+/// For a file of a law with a limit form (LuGre's, `Law::limit`) whose
+/// long axis is one of the law's own keys: the step [m per own cycle] of
+/// each line's instance (at the long axis' first value) integrated again
+/// under the limit's law on the CPU, at the scene's settings; `None` for
+/// any other file.
+fn limit_twins(
     data: &Data,
     (long, short): (usize, usize),
     flat: &dyn Fn(usize, usize) -> usize,
 ) -> Option<Vec<[f64; 2]>> {
-    let scene = data.scene.as_ref().filter(|s| s.is_lugre())?;
+    let scene = data.scene.as_ref()?;
     let Kind::Grid(axes) = &data.kind else {
         return None;
     };
-    let bristle = [
-        "mechanism.bristle_stiffness",
-        "mechanism.bristle_damping",
-        "mechanism.viscous_friction",
-        "mechanism.stribeck_velocity",
-    ];
-    if !bristle.contains(&axes[long].key.as_str()) {
+    let own = scene.law().keys();
+    if !own
+        .iter()
+        .any(|key| axes[long].key == format!("mechanism.{key}"))
+    {
         return None;
     }
-    let twins = (0..axes[short].values.len())
+    (0..axes[short].values.len())
         .map(|s| {
-            let mut inst = scene.instance(flat(0, s) as u64);
-            inst.mechanism.friction = crate::model::Friction::Karnopp;
+            let inst = Law::limit_of(&scene.instance(flat(0, s) as u64))?;
             let out = crate::backend::cpu::run_one(&inst, &scene.settings);
-            std::array::from_fn(|i| {
+            Some(std::array::from_fn(|i| {
                 if out.status == 0 {
                     out.step(&inst, i)
                 } else {
                     f64::NAN
                 }
-            })
+            }))
         })
-        .collect();
-    Some(twins)
+        .collect()
 }

@@ -45,7 +45,7 @@ pub mod group;
 pub use group::{Group, Member, Step};
 
 use crate::laws::karnopp::integrate::{Coefficients, phase};
-use crate::laws::{Replica, Settings};
+use crate::laws::{Law, Replica, Settings};
 use crate::model::{Instance, Measure};
 
 pub use crate::laws::settings::Replicas;
@@ -68,7 +68,7 @@ pub const MAX_AUTO: u32 = 8;
 /// measured to disagree as if attractors coexisted (7.13 / 23.858 Hz); a
 /// cycle split takes those that repeat.
 pub fn splittable(inst: &Instance, settings: &Settings) -> bool {
-    if !matches!(inst.measure, Measure::Steady { .. }) || inst.mechanism.lugre().is_some() {
+    if !matches!(inst.measure, Measure::Steady { .. }) || !Law::of_instance(inst).splits() {
         return false;
     }
     let c = Coefficients::of(inst, settings);
@@ -171,7 +171,7 @@ pub const MIN_PIECE: u32 = 32;
 /// then costs its pieces no more than the run alone spends before it
 /// could stop.
 pub fn cycle_split(inst: &Instance, settings: &Settings, count: u32) -> Option<Replica> {
-    if !matches!(inst.measure, Measure::Steady { .. }) || inst.mechanism.lugre().is_some() {
+    if !matches!(inst.measure, Measure::Steady { .. }) || !Law::of_instance(inst).splits() {
         return None;
     }
     let c = Coefficients::of(inst, settings);

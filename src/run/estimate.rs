@@ -108,7 +108,7 @@ pub fn workload(scene: &Scene) -> Workload {
     Workload {
         integrations,
         stall: scene.stall.is_some(),
-        lugre: scene.is_lugre(),
+        law: scene.law(),
         candidates,
         settings: scene.settings,
     }

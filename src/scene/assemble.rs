@@ -12,7 +12,7 @@ use crate::laws::settings::Replicas;
 use super::error::{Location, SceneError, point_name};
 use super::format::fmt_short;
 use super::keys::{
-    AXIS_FIELDS, FREQUENCY, FREQUENCY_RATIO, Field, FrictionLaw, MAX_STEPS_SLOT, Mode, SLOTS,
+    AXIS_FIELDS, FREQUENCY, FREQUENCY_RATIO, Field, Law, MAX_STEPS_SLOT, Mode, SLOTS,
     TOLERANCE_SLOT, axis_slot, slot_field, slot_path,
 };
 use super::layer::{Layer, PointSpec, kept_from_lower};
@@ -148,7 +148,7 @@ struct BaseKeys<'a> {
     /// The measurement mode (steady unless given).
     mode: Mode,
     /// The friction law (Karnopp's unless given).
-    friction: FrictionLaw,
+    friction: Law,
 }
 
 impl<'a> BaseKeys<'a> {
@@ -156,7 +156,7 @@ impl<'a> BaseKeys<'a> {
     fn new(
         layer: &'a Layer,
         measure: Option<Mode>,
-        friction: Option<&(FrictionLaw, Range<usize>)>,
+        friction: Option<&(Law, Range<usize>)>,
     ) -> Self {
         let mut raw = [0.0; SLOTS];
         let mut given = [false; SLOTS];

@@ -4,6 +4,7 @@ use std::fmt::Write as _;
 
 use super::format::{fmt_short, human_bytes};
 use super::{Layout, Scene};
+use crate::laws::Law;
 use crate::model::{AXIS_NAMES, Instance, Measure};
 
 impl Scene {
@@ -157,9 +158,9 @@ fn write_first_instance(out: &mut String, first: &Instance) {
         )
     };
     // Karnopp's band, or LuGre's parameters (docs/model.md section 8).
-    let law = match m.lugre() {
-        None => format!("velocity_band {} m/s", fmt_short(m.velocity_band)),
-        Some(l) => format!("friction lugre: {}", lugre_parameters(l, m.slider_mass)),
+    let law = match Law::of(&m.friction) {
+        law if law == Law::default() => law_parameters(&m),
+        law => format!("friction {}: {}", law.name(), law_parameters(&m)),
     };
     let _ = writeln!(
         out,
@@ -249,20 +250,16 @@ pub(super) fn describe_values(values: &[f64], units: &str) -> String {
     )
 }
 
-/// LuGre's parameters with units, for a slider of `slider_mass` [kg]: the
-/// damping's value, and whether it was derived.
-pub(crate) fn lugre_parameters(l: &crate::model::Lugre, slider_mass: f64) -> String {
-    format!(
-        "bristle_stiffness {} N/m, bristle_damping {} N s/m{}, viscous_friction {} N s/m, \
-         stribeck_velocity {} m/s",
-        fmt_short(l.bristle_stiffness),
-        fmt_short(l.damping(slider_mass)),
-        if l.bristle_damping.is_none() {
-            " (derived: sqrt(bristle_stiffness slider_mass))"
-        } else {
-            ""
-        },
-        fmt_short(l.viscous_friction),
-        fmt_short(l.stribeck_velocity)
-    )
+/// The friction law's own parameters of mechanism `m` ([`Law::parameters`]),
+/// as `pidm check` and the result file's `friction_parameters` write them.
+pub(crate) fn law_parameters(m: &crate::model::Mechanism) -> String {
+    let parts: Vec<String> = Law::of(&m.friction)
+        .parameters(m)
+        .iter()
+        .map(|p| {
+            let derived = p.derived.map(|d| format!(" ({d})")).unwrap_or_default();
+            format!("{} {} {}{derived}", p.key, fmt_short(p.value), p.unit)
+        })
+        .collect();
+    parts.join(", ")
 }

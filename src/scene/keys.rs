@@ -5,6 +5,7 @@
 //! Raw slots number every numeric key of the scene once: the mechanism
 //! first, then each axis, then the simulation.
 
+pub(super) use crate::laws::Law;
 use crate::model::{AXES, AXIS_NAMES};
 
 /// A numeric key of a scene.
@@ -94,18 +95,13 @@ impl Field {
         }
     }
 
-    /// The one friction law the key applies to, if it applies to one only:
-    /// `velocity_band` to Karnopp's, the bristle keys to LuGre's. A scene
-    /// with the other law refuses the key.
-    pub(super) fn friction(self) -> Option<FrictionLaw> {
-        match self {
-            Field::VelocityBand => Some(FrictionLaw::Karnopp),
-            Field::BristleStiffness
-            | Field::BristleDamping
-            | Field::ViscousFriction
-            | Field::StribeckVelocity => Some(FrictionLaw::Lugre),
-            _ => None,
-        }
+    /// The one friction law the key applies to, if it applies to one only
+    /// (the law declares it: [`Law::keys`]). A scene with another law
+    /// refuses the key.
+    pub(super) fn friction(self) -> Option<Law> {
+        Law::ALL
+            .into_iter()
+            .find(|law| law.keys().contains(&self.name()))
     }
 
     /// Whether the key applies to the whole scene (one value, no points).
@@ -166,35 +162,6 @@ impl Mode {
                  step_tolerance or max_cycles"
             }
         }
-    }
-}
-
-/// `mechanism.friction`: the friction law, one for the whole scene
-/// (docs/model.md sections 3 and 8).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(super) enum FrictionLaw {
-    /// Coulomb friction with stiction in Karnopp's form (the default).
-    #[default]
-    Karnopp,
-    /// The 2-D LuGre model.
-    Lugre,
-}
-
-impl FrictionLaw {
-    /// Every law, in the order messages list them.
-    pub(super) const ALL: [FrictionLaw; 2] = [FrictionLaw::Karnopp, FrictionLaw::Lugre];
-
-    /// The law's value of `mechanism.friction`.
-    pub(super) fn name(self) -> &'static str {
-        match self {
-            FrictionLaw::Karnopp => "karnopp",
-            FrictionLaw::Lugre => "lugre",
-        }
-    }
-
-    /// The law a value of `mechanism.friction` names.
-    pub(super) fn from_name(name: &str) -> Option<FrictionLaw> {
-        FrictionLaw::ALL.into_iter().find(|law| law.name() == name)
     }
 }
 
@@ -423,6 +390,27 @@ pub fn instance_key(path: &str) -> Result<&'static str, &'static str> {
         return Err("it holds an integer (a count of periods)");
     }
     Ok(field.units())
+}
+
+/// What `mechanism.friction` takes: every law's name, the default first,
+/// each with the section of docs/model.md that defines it.
+pub(super) fn expected_law() -> String {
+    let names: Vec<String> = Law::ALL
+        .iter()
+        .map(|law| {
+            let default = if *law == Law::default() {
+                "the default, "
+            } else {
+                ""
+            };
+            format!(
+                "{:?} ({default}docs/model.md section {})",
+                law.name(),
+                law.section()
+            )
+        })
+        .collect();
+    format!("expected {}", names.join(" or "))
 }
 
 #[cfg(test)]

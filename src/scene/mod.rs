@@ -89,7 +89,7 @@
 
 use std::path::Path;
 
-use crate::laws::Settings;
+use crate::laws::{Law, Settings};
 use crate::model::{AXES, Instance};
 
 mod assemble;
@@ -235,20 +235,19 @@ impl Scene {
     /// step (`laws::lugre::LENGTH_PER_TOLERANCE`).
     pub fn tolerance_text(&self) -> String {
         let tolerance = self.settings.tolerance;
-        if self.is_lugre() {
-            format!(
-                "tolerance {tolerance:e} (LuGre: {:e} m local error per step)",
-                tolerance * crate::laws::lugre::LENGTH_PER_TOLERANCE
-            )
-        } else {
-            format!("tolerance {tolerance:e} rad")
-        }
+        format!(
+            "tolerance {tolerance:e} {}",
+            self.law().tolerance_unit(tolerance)
+        )
     }
 
-    /// Whether the scene's friction is LuGre's (`mechanism.friction`,
-    /// scene-wide, so instance 0 says it).
-    pub fn is_lugre(&self) -> bool {
-        self.instance_count() > 0 && self.instance(0).mechanism.lugre().is_some()
+    /// The scene's friction law (`mechanism.friction`, scene-wide, so
+    /// instance 0 says it; the default for a scene of no instances).
+    pub fn law(&self) -> Law {
+        match self.instance_count() {
+            0 => Law::default(),
+            _ => Law::of_instance(&self.instance(0)),
+        }
     }
 
     /// Instance `index`, row-major over the grid axes (the last fastest), or
@@ -321,13 +320,10 @@ impl Scene {
             precision,
             variant,
             tolerance: self.settings.tolerance,
-            friction: if self.is_lugre() { "lugre" } else { "karnopp" }.to_owned(),
-            friction_parameters: (self.instance_count() > 0)
-                .then(|| self.instance(0).mechanism)
-                .and_then(|m| {
-                    m.lugre()
-                        .map(|l| describe::lugre_parameters(l, m.slider_mass))
-                }),
+            friction: self.law().name().to_owned(),
+            // The default law's own parameters are the mechanism's keys.
+            friction_parameters: (self.law() != Law::default())
+                .then(|| describe::law_parameters(&self.instance(0).mechanism)),
             verify_tolerance: None,
             shard: None,
             stall: self.stall.map(|stall| stall.axis),

@@ -12,10 +12,10 @@ use toml::de::{DeTable, DeValue};
 use super::error::{Location, SceneError};
 use super::format::{fmt_num, fmt_short};
 use super::keys::{
-    AXIS_FIELDS, DAMPING, FIT_SCENE, FRICTION_KEY, Field, FrictionLaw, MAX_REPLICAS, MEASURE_KEY,
+    AXIS_FIELDS, DAMPING, FIT_SCENE, FRICTION_KEY, Field, Law, MAX_REPLICAS, MEASURE_KEY,
     MECHANISM_FIELDS, Mode, OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, REPLICAS_KEY,
     RESONANCE, ROOT_KEYS, SAME_AS_KEY, SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS,
-    STAGE_MASS, STIFFNESS, axis_slot, slot_field, slot_path,
+    STAGE_MASS, STIFFNESS, axis_slot, expected_law, slot_field, slot_path,
 };
 use super::layer::{Layer, PointSpec, Tie};
 use super::name::check_name;
@@ -51,7 +51,7 @@ pub(super) struct Parsed {
     pub(super) measure: Option<Mode>,
     /// `mechanism.friction`, when given (the default is Karnopp's), and
     /// where.
-    pub(super) friction: Option<(FrictionLaw, Range<usize>)>,
+    pub(super) friction: Option<(Law, Range<usize>)>,
     /// `simulation.replicas`, when given (the default is
     /// `Replicas::Auto`), and where.
     pub(super) replicas: Option<(Replicas, Range<usize>)>,
@@ -378,7 +378,7 @@ impl Parser<'_> {
     pub(super) fn check_friction_keys(
         &self,
         layer: &Layer,
-        law: Option<FrictionLaw>,
+        law: Option<Law>,
     ) -> Result<(), SceneError> {
         let scene_law = law.unwrap_or_default();
         let Some((slot, entry)) = first_given(layer, |field| {
@@ -386,33 +386,28 @@ impl Parser<'_> {
         }) else {
             return Ok(());
         };
-        let (why, todo) = match scene_law {
-            FrictionLaw::Karnopp => (
-                "the bristle keys belong to the LuGre model (docs/model.md section 8)",
-                if law.is_none() {
-                    "This scene uses Karnopp friction (the default, as no mechanism.friction is \
-                     given): set mechanism.friction = \"lugre\", or remove the key"
-                } else {
-                    "This scene sets friction = \"karnopp\": set it to \"lugre\", or remove \
-                     the key"
-                },
-            ),
-            FrictionLaw::Lugre => (
-                "the velocity band is Karnopp's stick detection, and LuGre has no modes \
-                 (docs/model.md section 8)",
-                "This scene sets friction = \"lugre\": remove the key, or set friction = \
-                 \"karnopp\"",
-            ),
+        let key_law = slot_field(slot).friction().expect("filtered on a law");
+        let todo = if law.is_none() {
+            format!(
+                "This scene uses {} friction (the default, as no mechanism.friction is given): \
+                 set mechanism.friction = {:?}, or remove the key",
+                scene_law.name(),
+                key_law.name()
+            )
+        } else {
+            format!(
+                "This scene sets friction = {:?}: set it to {:?}, or remove the key",
+                scene_law.name(),
+                key_law.name()
+            )
         };
         Err(self.invalid(
             entry.span.clone(),
             format!(
-                "{} applies to mechanism.friction = {:?} only; {why}. {todo}",
+                "{} applies to mechanism.friction = {:?} only; {}. {todo}",
                 slot_path(slot),
-                slot_field(slot)
-                    .friction()
-                    .expect("filtered on a law")
-                    .name(),
+                key_law.name(),
+                key_law.keys_why(),
             ),
         ))
     }
@@ -424,7 +419,7 @@ impl Parser<'_> {
         value: &Value<'_>,
         layer: &mut Layer,
         context: Context,
-        friction: &mut Option<(FrictionLaw, Range<usize>)>,
+        friction: &mut Option<(Law, Range<usize>)>,
     ) -> Result<(), SceneError> {
         let table = self.table("mechanism", "expected a table", value)?;
         let names: Vec<&str> = MECHANISM_FIELDS
@@ -453,12 +448,11 @@ impl Parser<'_> {
                      (set it in the base [mechanism])",
                 ));
             }
-            let expected = "expected \"karnopp\" (the default, docs/model.md section 3) or \"lugre\" \
-                            (docs/model.md section 8)";
+            let expected = expected_law();
             let DeValue::String(name) = value.get_ref() else {
-                return Err(self.wrong_type("mechanism.friction", expected, value));
+                return Err(self.wrong_type("mechanism.friction", &expected, value));
             };
-            let Some(law) = FrictionLaw::from_name(name) else {
+            let Some(law) = Law::from_name(name) else {
                 return Err(self.invalid(
                     value.span(),
                     format!("mechanism.friction = {:?}: {expected}", name.as_ref()),

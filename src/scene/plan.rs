@@ -5,13 +5,13 @@
 
 use super::format::{fmt_num, fmt_short};
 use super::keys::{
-    AXIS_FIELDS, COULOMB_SLOT, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, Field,
-    FrictionLaw, GAIN, LOAD_SLOTS, MAX_CYCLES_SLOT, MECHANISM_FIELDS, Mode, PHASE, QUALITY,
-    RESONANCE, SETTLE_SLOT, SLOTS, STAGE_MASS, STEP_TOLERANCE_SLOT, STIFFNESS, TIEABLE, VOLTAGE,
-    axis_slot, slot_path,
+    AXIS_FIELDS, COULOMB_SLOT, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, Field, GAIN,
+    LOAD_SLOTS, Law, MAX_CYCLES_SLOT, MECHANISM_FIELDS, Mode, PHASE, QUALITY, RESONANCE,
+    SETTLE_SLOT, SLOTS, STAGE_MASS, STEP_TOLERANCE_SLOT, STIFFNESS, TIEABLE, VOLTAGE, axis_slot,
+    slot_path,
 };
 use super::layer::kept_from_lower;
-use crate::model::{AXES, AXIS_NAMES, Axis, Friction, Instance, Lugre, Measure, Mechanism};
+use crate::model::{AXES, AXIS_NAMES, Axis, Instance, Lugre, Measure, Mechanism};
 
 /// Where a parameter's value comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -125,7 +125,7 @@ pub(super) struct Plan {
     /// The `[mechanism]` keys, in slot order.
     pub(super) mechanism: [Src; MECHANISM_FIELDS.len()],
     /// The friction law (`mechanism.friction`, scene-wide).
-    pub(super) friction: FrictionLaw,
+    pub(super) friction: Law,
     /// Each axis.
     pub(super) axes: [AxisPlan; AXES],
     /// How the steps are measured (`simulation.measure`, scene-wide).
@@ -152,7 +152,7 @@ impl Plan {
         given: &[bool; SLOTS],
         ties: &[Option<usize>; SLOTS],
         mode: Mode,
-        friction: FrictionLaw,
+        friction: Law,
     ) -> Plan {
         let own = |axis: usize| -> [bool; AXIS_FIELDS.len()] {
             std::array::from_fn(|j| given[axis_slot(axis, j)])
@@ -238,15 +238,12 @@ impl Plan {
             viscous_friction,
             stribeck_velocity,
         ] = self.mechanism.map(|src| src.get(raw));
-        let friction = match self.friction {
-            FrictionLaw::Karnopp => Friction::Karnopp,
-            FrictionLaw::Lugre => Friction::Lugre(Lugre {
-                bristle_stiffness,
-                bristle_damping: (!bristle_damping.is_nan()).then_some(bristle_damping),
-                viscous_friction,
-                stribeck_velocity,
-            }),
-        };
+        let friction = self.friction.friction([
+            bristle_stiffness,
+            bristle_damping,
+            viscous_friction,
+            stribeck_velocity,
+        ]);
         Instance {
             mechanism: Mechanism {
                 slider_mass,

@@ -161,13 +161,15 @@ impl Parser<'_> {
         scene: &Scene,
     ) -> Result<Vec<TrajectoryPoint>, SceneError> {
         if let Some(first) = specs.first()
-            && scene.is_lugre()
+            && let Some(why) = scene.law().no_trajectories()
         {
             return Err(self.invalid(
                 first.span.clone(),
-                "output.trajectories: a LuGre scene (mechanism.friction = \"lugre\") records no \
-                 trajectories yet: the sampler follows Karnopp's closed-form steps; remove \
-                 output.trajectories, or run the instance with Karnopp friction",
+                format!(
+                    "output.trajectories: {why}; remove output.trajectories, or run the \
+                     instance with {} friction",
+                    crate::laws::Law::default().name()
+                ),
             ));
         }
         let count = scene.instance_count();

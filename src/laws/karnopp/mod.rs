@@ -72,3 +72,27 @@ pub fn iteration_lines() -> String {
         100.0 * rejected_share(&kinds)
     )
 }
+
+/// Integrates `inst` on the CPU in `precision` to the end, or until `stop`
+/// says so (then `None`): in f64 the reference, in f32 the f32 shader's
+/// mirror with its results in SI. An f32 run that fails or meets a band
+/// graze is integrated again in f64, as the f32 shader's are
+/// ([`f32_needs_f64`]), and its f32 status comes back beside the run.
+pub fn run_in_until(
+    inst: &crate::model::Instance,
+    settings: &crate::laws::Settings,
+    precision: crate::laws::Precision,
+    stop: impl Fn() -> bool + Copy,
+) -> Option<(integrate::Run, Option<u32>)> {
+    use crate::laws::Precision;
+    match precision {
+        Precision::F64 => integrate::run_instance_until(inst, settings, stop).map(|r| (r, None)),
+        Precision::F32 => match single::integrate::run_instance_until(inst, settings, stop)? {
+            r if f32_needs_f64(r.state.status) => {
+                integrate::run_instance_until(inst, settings, stop)
+                    .map(|f| (f, Some(r.state.status)))
+            }
+            r => Some((single::si::run(&r), None)),
+        },
+    }
+}
