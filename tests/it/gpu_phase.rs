@@ -1,5 +1,5 @@
 //! Two drive frequencies on the GPU (issue 31): the shader's phase ladder
-//! (`shaders/karnopp/phase.wgsl`) and long common periods measure as the
+//! (`shaders/shared/phase.wgsl`) and long common periods measure as the
 //! CPU does. In f64 the same verdicts, periods and kinds of motion, and on
 //! periodic instances the same steps within `F64_ALLOWANCE`; every other
 //! value within the CPU's reported standard error (f32: plus its

@@ -18,47 +18,47 @@ use crate::model::Instance;
 /// the part of the shader each belongs to (`File::part`).
 pub const FILES: [(&str, &str); 11] = [
     (
-        "arith.wgsl",
+        "karnopp/arith.wgsl",
         include_str!("../../../shaders/karnopp/arith.wgsl"),
     ),
     (
-        "coefficients.wgsl",
+        "karnopp/coefficients.wgsl",
         include_str!("../../../shaders/karnopp/coefficients.wgsl"),
     ),
     (
-        "flow.wgsl",
+        "karnopp/flow.wgsl",
         include_str!("../../../shaders/karnopp/flow.wgsl"),
     ),
     (
-        "drive.wgsl",
+        "karnopp/drive.wgsl",
         include_str!("../../../shaders/karnopp/drive.wgsl"),
     ),
     (
-        "events.wgsl",
+        "karnopp/events.wgsl",
         include_str!("../../../shaders/karnopp/events.wgsl"),
     ),
     (
-        "step.wgsl",
+        "karnopp/step.wgsl",
         include_str!("../../../shaders/karnopp/step.wgsl"),
     ),
     (
-        "advance.wgsl",
+        "karnopp/advance.wgsl",
         include_str!("../../../shaders/karnopp/advance.wgsl"),
     ),
     (
-        "measure.wgsl",
-        include_str!("../../../shaders/karnopp/measure.wgsl"),
+        "shared/measure.wgsl",
+        include_str!("../../../shaders/shared/measure.wgsl"),
     ),
     (
-        "phase.wgsl",
-        include_str!("../../../shaders/karnopp/phase.wgsl"),
+        "shared/phase.wgsl",
+        include_str!("../../../shaders/shared/phase.wgsl"),
     ),
     (
-        "steady.wgsl",
+        "karnopp/steady.wgsl",
         include_str!("../../../shaders/karnopp/steady.wgsl"),
     ),
     (
-        "entry.wgsl",
+        "karnopp/entry.wgsl",
         include_str!("../../../shaders/karnopp/entry.wgsl"),
     ),
 ];
@@ -171,8 +171,8 @@ impl Parts {
     /// Whether `file` belongs to a variant with these parts.
     fn include(self, file: &str) -> bool {
         match file {
-            "measure.wgsl" | "steady.wgsl" => self.steady,
-            "phase.wgsl" => self.steady && self.phase,
+            "shared/measure.wgsl" | "karnopp/steady.wgsl" => self.steady,
+            "shared/phase.wgsl" => self.steady && self.phase,
             _ => true,
         }
     }
@@ -484,7 +484,7 @@ pub fn source(variant: Variant) -> String {
     src += &crate::gpu::engine_queue();
     for (name, text) in FILES {
         if parts.include(name) {
-            src += &format!("\n// ---- shaders/karnopp/{name}\n");
+            src += &format!("\n// ---- shaders/{name}\n");
             src += text;
         }
     }

@@ -89,19 +89,19 @@ pub use source::{Arithmetic, footprint, lane_spirv, parse_and_validate, prelude,
 /// The shader files, in the order they are concatenated after the prelude.
 pub const FILES: [(&str, &str); 4] = [
     (
-        "model.wgsl",
+        "lugre/model.wgsl",
         include_str!("../../../shaders/lugre/model.wgsl"),
     ),
     (
-        "rodas.wgsl",
+        "lugre/rodas.wgsl",
         include_str!("../../../shaders/lugre/rodas.wgsl"),
     ),
     (
-        "measure.wgsl",
+        "lugre/measure.wgsl",
         include_str!("../../../shaders/lugre/measure.wgsl"),
     ),
     (
-        "entry.wgsl",
+        "lugre/entry.wgsl",
         include_str!("../../../shaders/lugre/entry.wgsl"),
     ),
 ];
@@ -110,16 +110,16 @@ pub const FILES: [(&str, &str); 4] = [
 /// are after [`FILES`] (`measure.wgsl` says how they fit).
 pub const MEASUREMENT_FILES: [(&str, &str); 3] = [
     (
-        "coefficients.wgsl",
+        "karnopp/coefficients.wgsl",
         include_str!("../../../shaders/karnopp/coefficients.wgsl"),
     ),
     (
-        "measure.wgsl",
-        include_str!("../../../shaders/karnopp/measure.wgsl"),
+        "shared/measure.wgsl",
+        include_str!("../../../shaders/shared/measure.wgsl"),
     ),
     (
-        "phase.wgsl",
-        include_str!("../../../shaders/karnopp/phase.wgsl"),
+        "shared/phase.wgsl",
+        include_str!("../../../shaders/shared/phase.wgsl"),
     ),
 ];
 

@@ -359,11 +359,11 @@ pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
     let mut src = prelude(workgroup_size, arithmetic);
     src += &crate::gpu::engine_queue();
     for (name, text) in FILES {
-        src += &format!("\n// ---- shaders/lugre/{name}\n");
+        src += &format!("\n// ---- shaders/{name}\n");
         src += text;
     }
     for (name, text) in MEASUREMENT_FILES {
-        src += &format!("\n// ---- shaders/karnopp/{name}\n");
+        src += &format!("\n// ---- shaders/{name}\n");
         src += text;
     }
     src += "\n";
@@ -470,8 +470,14 @@ mod tests {
     #[test]
     fn the_shader_files_mirror_their_rust_files() {
         let rust = [
-            ("model.wgsl", include_str!("../../laws/lugre/model.rs")),
-            ("rodas.wgsl", include_str!("../../laws/lugre/rodas.rs")),
+            (
+                "lugre/model.wgsl",
+                include_str!("../../laws/lugre/model.rs"),
+            ),
+            (
+                "lugre/rodas.wgsl",
+                include_str!("../../laws/lugre/rodas.rs"),
+            ),
         ];
         // Shader only: WGSL has no exp, hypot, powf or is_finite (their
         // CPU mirrors are in this file), and no methods: `solve_lu` is

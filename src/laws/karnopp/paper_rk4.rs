@@ -119,7 +119,11 @@ mod tests {
         inst.axes[1].voltage = 0.0;
         inst.cycles = 4;
         inst.settle = 2;
-        let reference = crate::sweep::run_one(&inst, &Default::default()).displacement[0];
+        // The window's travel (`measurement::window_displacement`) of the
+        // event-locating reference.
+        let run = crate::laws::karnopp::integrate::run_instance(&inst, &Default::default());
+        assert_eq!(run.state.status, 0);
+        let reference = (run.state.x_s - run.state.settle_x_s).to_array()[0];
         let (fixed, _) = run_fixed_step(&inst, h);
         let step = |d: f64| inst.measure(0, d).1 * 1e6;
         (step(fixed[0]) - step(reference)).abs()

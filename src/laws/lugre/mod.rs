@@ -30,14 +30,12 @@ pub use run::{LENGTH_PER_TOLERANCE, run_instance_until};
 #[cfg(test)]
 mod tests {
     use super::model::{Clock, Model, N, State};
-    use super::*;
-    use crate::laws::Settings;
-    use crate::measurement::reduce;
     use crate::model::{AXES, Axis, Friction, Instance, Lugre, Measure};
 
     /// docs/model.md section 6's cases (Table 1, duty 0.98, phases 0, window 10
     /// / 2) with voltages `v` [V] and frequencies `f` [Hz], under LuGre's
-    /// defaults.
+    /// defaults. (Their converged steps are held by tests/it/lugre.rs,
+    /// through `measurement::reduce`, a layer above this one.)
     fn case(v: [f64; 2], f: [f64; 2]) -> Instance {
         let mut inst = Instance::TABLE1;
         for i in 0..AXES {
@@ -52,43 +50,6 @@ mod tests {
         inst.measure = Measure::Window;
         inst.mechanism.friction = Friction::Lugre(Lugre::DEFAULT);
         inst
-    }
-
-    /// The window step [um per own cycle] of `inst` at `tolerance`.
-    fn steps(inst: &Instance, tolerance: f64) -> [f64; AXES] {
-        let settings = Settings {
-            tolerance,
-            ..Settings::default()
-        };
-        let run = run_instance_until(inst, &settings, || false).expect("not stopped");
-        let measured = reduce(inst, &run);
-        assert_eq!(measured.status, 0);
-        std::array::from_fn(|i| inst.measure(i, measured.travel[i]).1 * 1e6)
-    }
-
-    /// Two of docs/model.md section 8's converged window steps at LuGre's
-    /// defaults (SciPy Radau at rtol 1e-9, checked by LSODA): the 1-DOF
-    /// case (100 V, 10 Hz) and 100 / 50 V, whose motion stays on the line
-    /// (2, 1); within 2e-5 um at a tolerance of 1e-5 (1e-12 m per step).
-    #[test]
-    fn the_defaults_give_model_md_reference_steps() {
-        let cases = [
-            ([100.0, 0.0], [1.285861, 0.0]),
-            ([100.0, 50.0], [0.765918, 0.382959]),
-        ];
-        for (volts, want) in cases {
-            let got = steps(&case(volts, [10.0, 10.0]), 1e-5);
-            for i in 0..AXES {
-                assert!(
-                    (got[i] - want[i]).abs() <= 2e-5,
-                    "{volts:?} axis {i}: {got:?}"
-                );
-            }
-            assert!(
-                (got[1] - volts[1] / 100.0 * got[0]).abs() <= 1e-6,
-                "{got:?}"
-            );
-        }
     }
 
     /// The Jacobian against central differences of the right-hand side, in

@@ -56,39 +56,39 @@ fn every_shader_file_mirrors_its_rust_file() {
 fn rust_mirrors() -> [(&'static str, &'static str); 9] {
     [
         (
-            "arith.wgsl",
+            "karnopp/arith.wgsl",
             include_str!("../../../laws/karnopp/integrate/arith.rs"),
         ),
         (
-            "coefficients.wgsl",
+            "karnopp/coefficients.wgsl",
             include_str!("../../../laws/karnopp/integrate/coefficients.rs"),
         ),
         (
-            "flow.wgsl",
+            "karnopp/flow.wgsl",
             include_str!("../../../laws/karnopp/integrate/flow.rs"),
         ),
         (
-            "drive.wgsl",
+            "karnopp/drive.wgsl",
             include_str!("../../../laws/karnopp/integrate/drive.rs"),
         ),
         (
-            "events.wgsl",
+            "karnopp/events.wgsl",
             include_str!("../../../laws/karnopp/integrate/events.rs"),
         ),
         (
-            "step.wgsl",
+            "karnopp/step.wgsl",
             include_str!("../../../laws/karnopp/integrate/step.rs"),
         ),
         (
-            "advance.wgsl",
+            "karnopp/advance.wgsl",
             include_str!("../../../laws/karnopp/integrate/mod.rs"),
         ),
         (
-            "measure.wgsl",
+            "shared/measure.wgsl",
             include_str!("../../../laws/karnopp/integrate/measure.rs"),
         ),
         (
-            "phase.wgsl",
+            "shared/phase.wgsl",
             include_str!("../../../laws/karnopp/integrate/phase.rs"),
         ),
     ]
@@ -193,8 +193,8 @@ fn check_mirror(wgsl_name: &str, rust_text: &str, shader_only: &[&str], cpu_only
     // The GPU's `advance` (with the loop limiter) lives beside its
     // entry point.
     let mut found = wgsl.clone();
-    if wgsl_name == "advance.wgsl" {
-        found.extend(defined_functions(shader_text("entry.wgsl")));
+    if wgsl_name == "karnopp/advance.wgsl" {
+        found.extend(defined_functions(shader_text("karnopp/entry.wgsl")));
     }
     assert_mirrors(wgsl_name, &wgsl, &found, &cpu, (shader_only, cpu_only));
 }
@@ -203,7 +203,10 @@ fn check_mirror(wgsl_name: &str, rust_text: &str, shader_only: &[&str], cpu_only
 /// per constant the Rust loop runs over.
 #[test]
 fn the_shader_unrolls_every_propagator_term() {
-    let (_, flow) = FILES.iter().find(|(n, _)| *n == "flow.wgsl").unwrap();
+    let (_, flow) = FILES
+        .iter()
+        .find(|(n, _)| *n == "karnopp/flow.wgsl")
+        .unwrap();
     let terms = flow.matches("series_term(&s, osc, t * INVERSE_").count();
     assert_eq!(terms as u32, TAYLOR_TERMS);
 }

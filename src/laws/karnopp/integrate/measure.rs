@@ -1,6 +1,6 @@
 //! The steady measurement (docs/model.md section 4): the per-period bookkeeping
 //! of one instance and the rule that stops its run. The CPU mirror of
-//! `shaders/karnopp/measure.wgsl` (same functions, same order of
+//! `shaders/shared/measure.wgsl` (same functions, same order of
 //! operations); its constants reach the shader through the prelude.
 //!
 //! At the end of every scene period from `settle` on, [`period_end`]

@@ -1,6 +1,6 @@
 //! The phase-resolved estimate of the steady step for two drive
 //! frequencies (docs/model.md section 4): the CPU mirror of
-//! `shaders/karnopp/phase.wgsl` (same functions, same order of
+//! `shaders/shared/phase.wgsl` (same functions, same order of
 //! operations); its constants reach the shader through the prelude and its
 //! per-instance tables through `Coefficients`.
 //!

@@ -1,3 +1,7 @@
+// On the laws' floor: every law's shader includes this file as it is
+// (a law's lanes keep the State members it reads; shaders/lugre/measure.wgsl
+// says how LuGre's do). Its CPU mirror is compiled in both of Karnopp's
+// precisions, which is why it lives beside Karnopp's integrator.
 // Mirror of `laws::karnopp::integrate::measure`: the per-period bookkeeping of a
 // steady measurement and the rule that stops its run. The host computes
 // the common period, the first batch length and the tolerances

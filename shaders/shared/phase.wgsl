@@ -1,3 +1,7 @@
+// On the laws' floor: every law's shader includes this file as it is
+// (a law's lanes keep the State members it reads; shaders/lugre/measure.wgsl
+// says how LuGre's do). Its CPU mirror is compiled in both of Karnopp's
+// precisions, which is why it lives beside Karnopp's integrator.
 // Mirror of `laws::karnopp::integrate::phase`: the phase-resolved estimate of the
 // steady step for two drive frequencies. A ladder of windows from the start
 // of the measurement, each the trapezoid rule over the faster drive's phase
