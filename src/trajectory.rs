@@ -34,11 +34,9 @@
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 
-use crate::laws::Settings;
-use crate::laws::karnopp::integrate::{
-    self, Coefficients, State, StepMotion, StepObserver, advance_observed, initial_measure,
-    initial_state, is_finished,
-};
+use crate::laws::karnopp::integrate::State;
+use crate::laws::observe::{Observer, Positions};
+use crate::laws::{Law, Settings};
 use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
 use crate::output::schema;
 use crate::output::{dimension_scales, write_f64_attr, write_str_attr, write_u64_attr};
@@ -70,7 +68,15 @@ struct Sampler<'a> {
     next: u64,
     /// Samples in a complete run.
     total: u64,
-    out: Trajectory,
+    out: Series,
+}
+
+/// A trajectory's series, as the sampler fills them.
+struct Series {
+    time: Vec<f64>,
+    stage: [Vec<f64>; AXES],
+    slider: [Vec<f64>; AXES],
+    voltage: [Vec<f64>; AXES],
 }
 
 impl Sampler<'_> {
@@ -92,24 +98,30 @@ impl Sampler<'_> {
     }
 }
 
-impl StepObserver for Sampler<'_> {
-    fn step(&mut self, st: &State, motion: &StepMotion) {
-        let first = st.period as u64 * self.per;
+impl Observer for Sampler<'_> {
+    fn step(
+        &mut self,
+        period: u32,
+        _start: f64,
+        end: f64,
+        positions_at: &dyn Fn(f64) -> Positions,
+    ) {
+        let first = period as u64 * self.per;
         while self.next < self.total {
             // Local time of the next sample within this period; the sample
             // at the period's end (j = per) lands exactly on the step end.
             let j = self.next.saturating_sub(first);
             let local = j as f64 / self.per as f64 * self.period;
-            if local > motion.end() {
+            if local > end {
                 break;
             }
-            let (x_p, x_s) = motion.positions_at(local - st.time);
+            let (x_p, x_s) = positions_at(local);
             self.push(x_p, x_s);
         }
     }
 }
 
-/// Integrates `inst` with the f64 CPU integrator and samples its motion
+/// Integrates `inst` with its law's f64 CPU integrator and samples its motion
 /// `samples_per_cycle` times per scene period, from t = 0 to the end of the
 /// run (or to where it stopped, when it ended with a non-zero status).
 pub fn record(inst: &Instance, settings: &Settings, samples_per_cycle: u32) -> Trajectory {
@@ -117,30 +129,36 @@ pub fn record(inst: &Instance, settings: &Settings, samples_per_cycle: u32) -> T
     let total = inst.cycles as u64 * per + 1;
     let capacity = total.min(1 << 24) as usize;
     let series = || std::array::from_fn(|_| Vec::with_capacity(capacity));
-    let c = Coefficients::new(inst, settings, f64::EPSILON);
-    let mut st = initial_state(&c);
-    let mut measure = initial_measure(&c);
     let mut sampler = Sampler {
         inst,
         period: inst.period(),
         per,
         next: 0,
         total,
-        out: Trajectory {
+        out: Series {
             time: Vec::with_capacity(capacity),
             stage: series(),
             slider: series(),
             voltage: series(),
-            state: st,
-            samples_per_cycle: per as u32,
         },
     };
-    sampler.push(st.x_p.to_array(), st.x_s.to_array());
-    while !is_finished(&c, &st) {
-        advance_observed(&c, &mut st, &mut measure, u32::MAX, &mut sampler);
+    // Every law's run starts at rest at the origin (docs/model.md).
+    sampler.push([0.0; AXES], [0.0; AXES]);
+    let state = Law::run_observed(inst, settings, &mut sampler);
+    let Series {
+        time,
+        stage,
+        slider,
+        voltage,
+    } = sampler.out;
+    Trajectory {
+        time,
+        stage,
+        slider,
+        voltage,
+        state,
+        samples_per_cycle: per as u32,
     }
-    sampler.out.state = st;
-    sampler.out
 }
 
 /// A 1-DOF run beside a recorded point: one axis driven alone.
@@ -380,7 +398,7 @@ pub fn measured_displacement(t: &Trajectory, settle: u32, cycles: u32) -> Option
     let per = t.samples_per_cycle as usize;
     let end = cycles as usize * per;
     let start = settle as usize * per;
-    if t.state.status != integrate::STATUS_OK || t.time.len() <= end {
+    if t.state.status != crate::laws::status::STATUS_OK || t.time.len() <= end {
         return None;
     }
     Some(std::array::from_fn(|i| {

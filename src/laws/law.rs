@@ -6,7 +6,8 @@
 //! `crate::gpu::law`. ARCHITECTURE.md's checklist says what a third law
 //! touches.
 
-use super::karnopp::integrate::{self, Run};
+use super::karnopp::integrate::{self, Run, State};
+use super::observe::Observer;
 use super::{Precision, Settings};
 use super::{karnopp, lugre};
 use crate::model::{Friction, Instance, Lugre, Mechanism};
@@ -216,17 +217,6 @@ impl Law {
         self == Law::Karnopp
     }
 
-    /// Why the law records no trajectories, where it records none.
-    pub fn no_trajectories(self) -> Option<&'static str> {
-        match self {
-            Law::Karnopp => None,
-            Law::Lugre => Some(
-                "a LuGre scene (mechanism.friction = \"lugre\") records no trajectories yet: \
-                 the sampler follows Karnopp's closed-form steps",
-            ),
-        }
-    }
-
     /// The law this law tends to in a limit of its own parameters (LuGre
     /// to Karnopp as the bristles stiffen, docs/model.md section 8).
     pub fn limit(self) -> Option<Law> {
@@ -270,6 +260,20 @@ impl Law {
         match Law::of_instance(inst) {
             Law::Karnopp => karnopp::run_in_until(inst, settings, precision, stop),
             Law::Lugre => lugre::run_instance_until(inst, settings, stop).map(|run| (run, None)),
+        }
+    }
+
+    /// Integrates `inst` (of any law) in f64 to its end, showing `observer`
+    /// every step's motion (`crate::trajectory`), and returns the state it
+    /// ends in: the map run's, bit for bit.
+    pub fn run_observed(
+        inst: &Instance,
+        settings: &Settings,
+        observer: &mut dyn Observer,
+    ) -> State {
+        match Law::of_instance(inst) {
+            Law::Karnopp => karnopp::run_observed(inst, settings, observer),
+            Law::Lugre => lugre::run::run_observed(inst, settings, observer),
         }
     }
 

@@ -15,6 +15,7 @@
 pub mod karnopp;
 pub mod law;
 pub mod lugre;
+pub mod observe;
 pub mod settings;
 pub mod status;
 

@@ -160,18 +160,6 @@ impl Parser<'_> {
         specs: &[SpecAt],
         scene: &Scene,
     ) -> Result<Vec<TrajectoryPoint>, SceneError> {
-        if let Some(first) = specs.first()
-            && let Some(why) = scene.law().no_trajectories()
-        {
-            return Err(self.invalid(
-                first.span.clone(),
-                format!(
-                    "output.trajectories: {why}; remove output.trajectories, or run the \
-                     instance with {} friction",
-                    crate::laws::Law::default().name()
-                ),
-            ));
-        }
         let count = scene.instance_count();
         let mut out: Vec<TrajectoryPoint> = Vec::with_capacity(specs.len());
         for (k, at) in specs.iter().enumerate() {

@@ -216,10 +216,6 @@ fn lugre_scenes_read_and_refuse() {
             "bristle_stiffness",
         ),
         (
-            "[mechanism]\nfriction = \"lugre\"\n[output]\ntrajectories = [0]\n",
-            "a LuGre scene (mechanism.friction = \"lugre\") records no trajectories yet",
-        ),
-        (
             "name = \"r\"\n[mechanism]\nfriction = \"lugre\"\n[random]\nseed = 1\ncount = 2\n\
              [simulation]\nmeasure = \"window\"\n",
             "cannot have mechanism.friction",

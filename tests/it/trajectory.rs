@@ -232,3 +232,78 @@ fn a_faster_baseline_is_extended_over_the_whole_run_unchanged() {
     let (base, measured) = pidm::trajectory::baseline_instance(&inst, 0);
     assert_eq!(base.cycles, measured);
 }
+
+/// LuGre runs record too (issue 58), by their own f64 CPU integrator: the
+/// recorded run ends in the map run's state bit for bit, the samples at
+/// period ends are step ends (Rodas4's segments end there), so they give
+/// the window's travel exactly, and between step ends the Hermite
+/// interpolant stays within the stroke of the stage.
+#[test]
+fn lugre_runs_record_their_trajectories() {
+    use pidm::model::{Friction, Lugre};
+    let settings = Settings::default();
+    let mut inst = instances()[0].1;
+    inst.axes[1].voltage = 60.0;
+    inst.cycles = 4;
+    inst.settle = 1;
+    inst.mechanism.friction = Friction::Lugre(Lugre::DEFAULT);
+    let plain = pidm::laws::run_until(&inst, &settings, || false)
+        .expect("not stopped")
+        .state;
+    let t = record(&inst, &settings, 200);
+    assert_eq!(t.state, plain);
+    assert_eq!(t.time.len(), 4 * 200 + 1);
+    let got = measured_displacement(&t, inst.settle, inst.cycles).expect("a complete trajectory");
+    assert_eq!(got, displacement(&inst, &plain));
+    assert_ne!(got, [0.0, 0.0]);
+    // The stage's static stroke: gain V / stiffness, per axis.
+    for i in 0..2 {
+        let a = &inst.axes[i];
+        let stroke = (a.gain * a.voltage / a.stiffness).abs();
+        assert!(
+            t.stage[i].iter().all(|x| x.abs() <= 1.5 * stroke),
+            "axis {i}: stage beyond 1.5 x its stroke {stroke} m"
+        );
+    }
+}
+
+/// A LuGre scene with `[output] trajectories` writes them on either
+/// backend (the trajectories are the CPU's), with its baselines.
+#[test]
+fn a_lugre_scene_writes_its_trajectories_on_either_backend() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("t.toml");
+    std::fs::write(
+        &scene,
+        "name = \"t\"\n[mechanism]\nfriction = \"lugre\"\n\
+         [axis.x]\nvoltage = 100.0\n[axis.y]\nvoltage = 50.0\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 3\nsettle = 1\n\
+         [output]\nbaselines = true\ntrajectories = [0]\ntrajectory_samples_per_cycle = 20\n",
+    )
+    .unwrap();
+    for backend in ["cpu", "gpu"] {
+        if backend == "gpu" && crate::gpu::context().is_none_or(|ctx| !ctx.supports_f64()) {
+            continue;
+        }
+        let out = dir.path().join(format!("{backend}.h5"));
+        let run = crate::common::pidm(
+            &[
+                "run",
+                "t.toml",
+                "--backend",
+                backend,
+                "--progress",
+                "none",
+                "--out",
+                crate::common::s(&out),
+            ],
+            dir.path(),
+        );
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "{backend}: {stderr}");
+        let file = hdf5::File::open(&out).unwrap();
+        let slider = file.dataset("trajectories/0/slider_x").unwrap();
+        assert_eq!(slider.shape(), [61], "{backend}");
+        assert!(file.group("trajectories/0/baseline_y").is_ok(), "{backend}");
+    }
+}

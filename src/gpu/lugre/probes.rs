@@ -105,6 +105,7 @@ impl LugreGpu<'_> {
                 &mut y,
                 end,
                 (&mut h, &mut budget),
+                &mut |_, _| {},
             );
             check.attempts += 1;
             if y != after.y {

@@ -96,3 +96,33 @@ pub fn run_in_until(
         },
     }
 }
+
+/// Integrates `inst` with the f64 integrator to its end, showing
+/// `observer` the closed-form motion of every step (the integrator's own
+/// dense output), and returns its final state: that of the map's run of
+/// the same instance, bit for bit.
+pub fn run_observed(
+    inst: &crate::model::Instance,
+    settings: &crate::laws::Settings,
+    observer: &mut dyn crate::laws::observe::Observer,
+) -> integrate::State {
+    use integrate::{Coefficients, State, StepMotion, StepObserver};
+    /// Karnopp's steps as the law-neutral observer sees them.
+    struct Steps<'a>(&'a mut dyn crate::laws::observe::Observer);
+    impl StepObserver for Steps<'_> {
+        fn step(&mut self, st: &State, motion: &StepMotion) {
+            let start = st.time;
+            self.0.step(st.period, start, motion.end(), &|t| {
+                motion.positions_at(t - start)
+            });
+        }
+    }
+    let c = Coefficients::new(inst, settings, f64::EPSILON);
+    let mut st = integrate::initial_state(&c);
+    let mut measure = integrate::initial_measure(&c);
+    let mut steps = Steps(observer);
+    while !integrate::is_finished(&c, &st) {
+        integrate::advance_observed(&c, &mut st, &mut measure, u32::MAX, &mut steps);
+    }
+    st
+}

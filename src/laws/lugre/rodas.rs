@@ -112,6 +112,7 @@ pub(crate) fn segment(
     y: &mut State,
     end: f64,
     (h, budget): (&mut f64, &mut u32),
+    observe: &mut impl FnMut(&State, &State),
 ) -> Result<u32, u32> {
     let mut steps = 0;
     let mut rejected = false;
@@ -134,10 +135,12 @@ pub(crate) fn segment(
             continue;
         }
         if err <= 1.0 {
+            let before = *y;
             *y = next;
             if last {
                 y[T] = end;
             }
+            observe(&before, y);
         } else if step <= SMALLEST_STEP * end.abs() {
             return Err(STATUS_STEP_UNDERFLOW);
         }

@@ -15,8 +15,12 @@ use crate::laws::karnopp::integrate::measure::{
 use crate::laws::karnopp::integrate::{
     Coefficients, Run, Vec2, initial_measure, initial_state, is_finished,
 };
+use crate::laws::observe::{Observer, Positions};
 use crate::laws::status::STATUS_OK;
 use crate::model::{AXES, Instance, Lugre};
+
+/// The state a run ends in (`integrate::Run::state`).
+type State0 = crate::laws::karnopp::integrate::State;
 
 /// What `simulation.tolerance` (a number, 1e-4 by default) means under
 /// LuGre: each Rodas4 step's local error is at most `tolerance` times
@@ -82,6 +86,44 @@ pub fn run_instance_until(
     continue_until(&mut book, start, stop).then_some(book.run)
 }
 
+/// Integrates the LuGre instance `inst` to its end, showing `observer`
+/// every accepted step, and returns its final state (that of
+/// [`run_instance_until`], bit for bit). Between step ends the positions
+/// are the cubic Hermite interpolant of the ends' positions and
+/// velocities (third order in the step; Rodas4's own dense output is not
+/// kept); at step ends they are the integrator's.
+pub fn run_observed(inst: &Instance, settings: &Settings, observer: &mut dyn Observer) -> State0 {
+    let mut book = Periods::new(inst, settings);
+    let start = PeriodStart::first(&book);
+    let mut seen = |period: u32, a: &State, b: &State| {
+        observer.step(period, a[T], b[T], &|t| hermite(a, b, t));
+    };
+    let _ = observe_until(&mut book, start, || false, &mut seen);
+    book.run.state
+}
+
+/// The positions at local time `t` between step ends `a` and `b`: cubic
+/// Hermite in the positions and velocities of both ends.
+fn hermite(a: &State, b: &State, t: f64) -> Positions {
+    let h = b[T] - a[T];
+    if h <= 0.0 || t >= b[T] {
+        return ([b[XP], b[XP + 1]], [b[XS], b[XS + 1]]);
+    }
+    let s = ((t - a[T]) / h).clamp(0.0, 1.0);
+    let (s2, s3) = (s * s, s * s * s);
+    let w = [
+        2.0 * s3 - 3.0 * s2 + 1.0,
+        s3 - 2.0 * s2 + s,
+        3.0 * s2 - 2.0 * s3,
+        s3 - s2,
+    ];
+    let at = |x: usize, v: usize| w[0] * a[x] + w[1] * h * a[v] + w[2] * b[x] + w[3] * h * b[v];
+    (
+        [at(XP, VP), at(XP + 1, VP + 1)],
+        [at(XS, VS), at(XS + 1, VS + 1)],
+    )
+}
+
 /// Where a scene period of a LuGre run starts: the integrator's state
 /// (its time 0 within the period), its next trial step and the steps the
 /// run may still take. Each GPU lane keeps its own, so that the CPU can
@@ -114,6 +156,17 @@ pub(crate) fn continue_until(
     start: PeriodStart,
     stop: impl Fn() -> bool,
 ) -> bool {
+    observe_until(book, start, stop, &mut |_, _, _| {})
+}
+
+/// [`continue_until`], showing `observe` every accepted step with the
+/// scene period it is in.
+fn observe_until(
+    book: &mut Periods,
+    start: PeriodStart,
+    stop: impl Fn() -> bool,
+    observe: &mut impl FnMut(u32, &State, &State),
+) -> bool {
     let inst = book.inst;
     let period = inst.period();
     let PeriodStart {
@@ -126,6 +179,7 @@ pub(crate) fn continue_until(
             return false;
         }
         let clock = book.clock();
+        let period_index = book.run.state.period;
         y[T] = 0.0;
         while y[T] < period {
             let end = (0..AXES)
@@ -140,6 +194,7 @@ pub(crate) fn continue_until(
                 &mut y,
                 end,
                 (&mut h, &mut budget),
+                &mut |a: &State, b: &State| observe(period_index, a, b),
             ) {
                 Ok(steps) => book.add_steps(steps),
                 Err(status) => {
