@@ -5,7 +5,7 @@
 //! back (`Sliced`).
 //! The queue, packing, time slices, readback and the CPU tail's size
 //! (`slices.rs`, `readback.rs`, `warps.rs`) see a law only through it.
-//! Karnopp's lanes are `precision::Single` and `precision::Double`
+//! Karnopp's lanes are `karnopp::runner`'s `Single` and `Double`
 //! (whose `Layout` adds packing, outcomes, replicas and continuation),
 //! LuGre's are `lugre::Lugre`.
 

@@ -47,10 +47,9 @@
 //! pipelines and their self-test), `options.rs` (a batch's knobs),
 //! `runner.rs` (a batch in time slices: buffers, dispatches, readback),
 //! `staging.rs` (a sweep chunk's size, coefficients packed ahead),
-//! `precision.rs` (each precision's side of a batch), `tail.rs` (what the
-//! CPU takes over), `readback.rs` (which accumulators come back),
-//! `layout.rs` (the structs shared with WGSL), `shader.rs` (the WGSL
-//! source and its prelude), `knobs.rs` and `cache.rs`.
+//! `tail.rs` (what the CPU takes over), `readback.rs` (which accumulators
+//! come back), `knobs.rs` and `cache.rs`; each law's device side is its
+//! folder (`karnopp/`, `lugre/`: the same file names in the same roles).
 
 mod adapters;
 pub mod cache;
@@ -62,7 +61,6 @@ mod knobs;
 mod lanes;
 pub mod lugre;
 mod options;
-mod precision;
 pub mod readback;
 mod runner;
 mod slices;
@@ -76,16 +74,15 @@ pub use adapters::{
 pub use context::{GpuContext, Preparation, create_pipeline};
 pub use options::{BatchOptions, CPU_TAIL_MIN_BATCH, CPU_TAIL_PER_THREAD, F32Check, tail_size};
 pub use runner::{
-    dispatch_size, execute_gpu_inner, f32_states_after, f64_states_after, f64_tallies_after,
-    run_batch, run_batch_packed, run_batch_with, workgroups,
+    dispatch_size, execute_gpu_inner, run_batch, run_batch_packed, run_batch_with, workgroups,
 };
 pub use slices::engine_queue;
 pub use staging::{Packed, batch_limit, chunk_instances, max_batch_instances, pack};
 // The module's other items, for its files (`use super::*`).
 use adapters::*;
+use karnopp::runner::*;
 use lanes::*;
 use options::*;
-use precision::*;
 use tail::*;
 
 pub use karnopp::{footprint, layout, shader};

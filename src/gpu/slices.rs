@@ -661,3 +661,11 @@ impl Stepper<'_> {
         })
     }
 }
+
+/// Whether any instance of a batch measures the steady step (its batch
+/// then needs one set of accumulators per instance).
+pub(super) fn any_steady(instances: &[Instance]) -> bool {
+    instances
+        .iter()
+        .any(|inst| matches!(inst.measure, Measure::Steady { .. }))
+}

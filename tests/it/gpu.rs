@@ -1629,7 +1629,8 @@ fn shader_follows_its_mirror(ctx: &GpuContext, instances: &[Instance]) {
     let mut worst = (0.0, String::new());
     for iteration in 1..=30u32 {
         let gpu =
-            pidm::gpu::f32_states_after(ctx, instances, &settings, iteration).expect("slice runs");
+            pidm::gpu::karnopp::probes::f32_states_after(ctx, instances, &settings, iteration)
+                .expect("slice runs");
         for (k, c) in coefficients.iter().enumerate() {
             let mut st = before[k];
             let mut m = mirror::initial_measure(c);

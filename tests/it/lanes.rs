@@ -159,7 +159,9 @@ fn the_lanes_tallies_count_the_mirrors_iterations() {
     let limiter = ctx
         .variant(Precision::F64, pidm::gpu::Parts::default())
         .loop_limiter;
-    let tallies = pidm::gpu::f64_tallies_after(ctx, &instances, &settings, iterations).unwrap();
+    let tallies =
+        pidm::gpu::karnopp::probes::f64_tallies_after(ctx, &instances, &settings, iterations)
+            .unwrap();
     let mut kinds_seen = [0u64; ITERATION_KINDS];
     for (k, (inst, tally)) in instances.iter().zip(&tallies).enumerate() {
         let done = tally.passes();

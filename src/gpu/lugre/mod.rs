@@ -66,25 +66,28 @@
 //! `crate::backend::gpu` hands a batch of LuGre instances to
 //! [`LugreGpu::run_until`].
 //!
-//! The files: `source.rs` (the prelude generated from the Rust constants,
-//! the LU factorisation and solve written out, the source with Karnopp's
-//! measurement files, and what a lane carries: [`footprint`]), `buffers.rs`
-//! (the structs shared with WGSL), `runner.rs` (LuGre's lanes for the
+//! The files, named as `gpu::karnopp`'s: `shader.rs` (the prelude
+//! generated from the Rust constants, the LU factorisation and solve
+//! written out, the source with the shared measurement files),
+//! `footprint.rs` (what a lane carries), `layout.rs` (the structs shared
+//! with WGSL), `runner.rs` (LuGre's lanes for the
 //! engine, and a batch on the pipeline the context compiles once:
 //! `GpuContext::law_pipeline`, sized by the engine's `batch_limit`) and `probes.rs`
 //! (the function-by-function comparisons the tests run on a device). The
 //! shader's exp, hypot and fourth root are mirrored in
 //! [`crate::laws::lugre::libm`].
 
-mod buffers;
+mod footprint;
+mod layout;
 mod probes;
 mod runner;
-mod source;
+mod shader;
 
 pub use crate::laws::lugre::libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};
-pub use buffers::{Lane, MirrorCheck, Params, Probe, Probed};
+pub use footprint::{footprint, lane_spirv};
+pub use layout::{Lane, MirrorCheck, Params, Probe, Probed};
 pub use runner::{BatchReport, LugreGpu, table_lines};
-pub use source::{Arithmetic, footprint, lane_spirv, parse_and_validate, prelude, source};
+pub use shader::{Arithmetic, parse_and_validate, prelude, source};
 
 /// The shader files, in the order they are concatenated after the prelude.
 pub const FILES: [(&str, &str); 4] = [

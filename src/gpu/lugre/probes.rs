@@ -1,7 +1,7 @@
 //! The comparisons the tests run on a device: the shader's functions and
 //! steps against the CPU's, from the same inputs.
 
-use super::buffers::drive_of;
+use super::layout::drive_of;
 use super::runner::{Lugre, compile};
 use super::{
     FUNCTIONS_ENTRY_POINT, LANE_FRESH, LANE_STOPPED, Lane, LugreGpu, MIRROR_ENTRY_POINT,

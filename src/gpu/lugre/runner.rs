@@ -4,7 +4,7 @@
 //! resumes each run from what its lane kept, and the CPU continues the
 //! batch's slow tail from the runs' period starts.
 
-use super::buffers::Recurrence;
+use super::layout::Recurrence;
 use super::{
     Arithmetic, ENTRY_POINT, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_STOPPED, Lane,
     Params, SOFTWARE_ATTEMPTS, SOFTWARE_LANES, SOFTWARE_WORKGROUP_SIZE, parse_and_validate, source,

@@ -388,7 +388,10 @@ pub fn parse_and_validate(
 }
 
 /// Validates a module of the shader `src` as wgpu will.
-fn validate(module: &naga::Module, src: &str) -> Result<naga::valid::ModuleInfo, GpuError> {
+pub(super) fn validate(
+    module: &naga::Module,
+    src: &str,
+) -> Result<naga::valid::ModuleInfo, GpuError> {
     naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         shader::capabilities(Precision::F64),
@@ -402,31 +405,6 @@ fn compile_error(message: String) -> GpuError {
         precision: Precision::F64,
         message,
     }
-}
-
-/// What a lane of the LuGre integrator carries (as `gpu::footprint` reads
-/// a Karnopp variant's): its entry point's, not the tests'.
-pub fn footprint(
-    workgroup_size: u32,
-    arithmetic: Arithmetic,
-) -> Result<crate::gpu::footprint::Footprint, GpuError> {
-    let (_, words) = lane_spirv(workgroup_size, arithmetic)?;
-    Ok(crate::gpu::footprint::measure_spirv(&words))
-}
-
-/// The module of the integrator's entry point alone and the SPIR-V naga
-/// writes for it with the options pidm's pipelines use: what a driver
-/// compiles for a LuGre batch (the tests' entry points, the functions and
-/// the mirror's probes, carry arrays of their own no run touches).
-pub fn lane_spirv(
-    workgroup_size: u32,
-    arithmetic: Arithmetic,
-) -> Result<(naga::Module, Vec<u32>), GpuError> {
-    let (mut module, _) = parse_and_validate(workgroup_size, arithmetic)?;
-    module.entry_points.retain(|e| e.name == super::ENTRY_POINT);
-    let info = validate(&module, &source(workgroup_size, arithmetic))?;
-    let words = crate::gpu::footprint::module_spirv(&module, &info, Precision::F64)?;
-    Ok((module, words))
 }
 
 #[cfg(test)]
@@ -555,31 +533,5 @@ mod tests {
         };
         assert_eq!(count(Arithmetic::Fused), 0);
         assert!(count(Arithmetic::Native) >= 2);
-    }
-
-    /// Both LuGre variants' lanes index no private array at run time (local
-    /// memory on NVIDIA), as the Karnopp variants' (`gpu::footprint`):
-    /// 4,976 B before the loops' bodies were called with literal indices
-    /// and the vector sums written out. Needs `spirv-opt`: under `CI` its
-    /// absence fails the test, elsewhere it is said and skipped.
-    #[test]
-    fn the_lane_indexes_no_private_array_at_run_time() {
-        if !crate::gpu::footprint::spirv_opt_available() {
-            assert!(
-                std::env::var_os("CI").is_none(),
-                "spirv-opt is missing (Debian's spirv-tools)"
-            );
-            eprintln!("notice: spirv-opt not found; the LuGre footprint is not checked");
-            return;
-        }
-        for (size, arithmetic) in [
-            (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native),
-            (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused),
-        ] {
-            let f = footprint(size, arithmetic).unwrap();
-            let indexed = f.indexed.clone().expect("spirv-opt ran");
-            assert!(indexed.is_empty(), "{arithmetic:?}: {indexed:?}");
-            assert!(f.instructions.unwrap() > 1000, "{f:?}");
-        }
     }
 }

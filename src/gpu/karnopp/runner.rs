@@ -1,12 +1,13 @@
-//! One precision's side of a batch (`Layout`: the f32 and f64 shaders'
-//! storage structs, their packing and reduction) for the runner.
+//! Karnopp's lanes for the engine, one per precision (`Single`, `Double`:
+//! `Lanes`), and the host side of each (`Layout`: the f32 and f64
+//! shaders' storage structs, their packing and reduction) for the runner.
 
-use super::*;
+use crate::gpu::*;
 use crate::laws::Replica;
 
 /// The host side of one precision of Karnopp's lanes: packing, outcomes,
 /// replicas and continuation (the engine's part is [`Lanes`]).
-pub(super) trait Layout: Lanes {
+pub(in crate::gpu) trait Layout: Lanes {
     /// The CPU mirror's state of this precision.
     type Mirror;
     fn mirror(st: &Self::State) -> Self::Mirror;
@@ -40,7 +41,7 @@ pub(super) trait Layout: Lanes {
 
 /// A steady outcome from the shader's state and accumulators converted to
 /// the CPU's, in SI units.
-pub(super) fn reduce_shader(
+pub(in crate::gpu) fn reduce_shader(
     inst: &Instance,
     state: crate::laws::karnopp::integrate::State,
     measure: crate::laws::karnopp::integrate::Measure,
@@ -49,16 +50,8 @@ pub(super) fn reduce_shader(
     GpuOutcome::of(&reduce(inst, &Run { state, measure }), steps)
 }
 
-/// Whether any instance of a batch measures the steady step (its batch
-/// then needs one set of accumulators per instance).
-pub(super) fn any_steady(instances: &[Instance]) -> bool {
-    instances
-        .iter()
-        .any(|inst| matches!(inst.measure, Measure::Steady { .. }))
-}
-
-pub(super) struct Single;
-pub(super) struct Double;
+pub(in crate::gpu) struct Single;
+pub(in crate::gpu) struct Double;
 
 impl Lanes for Single {
     const PRECISION: Precision = Precision::F32;
@@ -79,7 +72,7 @@ impl Lanes for Single {
         layout::single::finished(inst, st)
     }
     fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
-        super::runner::slice_bound(instances, settings)
+        crate::gpu::runner::slice_bound(instances, settings)
     }
 }
 
@@ -142,7 +135,7 @@ impl Lanes for Double {
         layout::double::finished(inst, st)
     }
     fn slice_bound(instances: &[Instance], settings: &Settings) -> u64 {
-        super::runner::slice_bound(instances, settings)
+        crate::gpu::runner::slice_bound(instances, settings)
     }
 }
 
