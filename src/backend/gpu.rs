@@ -7,7 +7,7 @@ use crate::gpu::lugre::LugreGpu;
 use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, Parts, run_batch_packed};
 use crate::laws::status::STATUS_GRAZE;
 use crate::laws::{Law, Settings};
-use crate::measurement::{Outcome, reduce};
+use crate::measurement::Outcome;
 use crate::model::Instance;
 
 /// The WGSL shader on one adapter at one precision.
@@ -126,7 +126,14 @@ impl Backend for GpuBackend {
     }
 
     fn stage(&self, instances: &[Instance], settings: &Settings) -> Staged {
-        Staged(Some(crate::gpu::pack(instances, settings, self.precision)))
+        // Only Karnopp's lanes take coefficients packed ahead; LuGre's host
+        // sets up each batch itself.
+        match instances.first().map(Law::of_instance) {
+            Some(Law::Karnopp) => {
+                Staged(Some(crate::gpu::pack(instances, settings, self.precision)))
+            }
+            _ => Staged::default(),
+        }
     }
 
     fn run_staged(
@@ -179,20 +186,13 @@ impl GpuBackend {
     ) -> Result<Vec<Outcome>> {
         let mut gpu = LugreGpu::new(&self.ctx)?;
         gpu.cpu_tail = self.options.cpu_tail;
-        let (runs, report) = gpu.run_until(
+        let outcomes = gpu.outcomes_until(
             instances,
             settings,
             crate::interrupt::interrupt_requested,
             done,
         )?;
-        let mut on_cpu = vec![false; runs.len()];
-        report.on_cpu.iter().for_each(|&k| on_cpu[k] = true);
-        Ok(instances
-            .iter()
-            .zip(runs)
-            .zip(on_cpu)
-            .map(|((inst, run), cpu)| Outcome::of(&reduce(inst, &run), run.state.steps, cpu))
-            .collect())
+        Ok(outcomes.into_iter().map(GpuOutcome::into_outcome).collect())
     }
 }
 

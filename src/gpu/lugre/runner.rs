@@ -228,6 +228,31 @@ impl<'a> LugreGpu<'a> {
         Ok((runs, report))
     }
 
+    /// [`LugreGpu::run_until`]'s runs as the engine's outcomes, reduced as
+    /// Karnopp's lanes' are (`GpuOutcome::of` of `measurement::reduce`),
+    /// those of the CPU tail marked `finished_on_cpu`.
+    pub fn outcomes_until(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        stop: impl Fn() -> bool + Sync,
+        done: &(dyn Fn(u64) + Sync),
+    ) -> Result<Vec<crate::gpu::GpuOutcome>, GpuError> {
+        let (runs, report) = self.run_until(instances, settings, stop, done)?;
+        let mut out: Vec<crate::gpu::GpuOutcome> = instances
+            .iter()
+            .zip(&runs)
+            .map(|(inst, run)| {
+                crate::gpu::GpuOutcome::of(&crate::measurement::reduce(inst, run), run.state.steps)
+            })
+            .collect();
+        report
+            .on_cpu
+            .iter()
+            .for_each(|&k| out[k].finished_on_cpu = true);
+        Ok(out)
+    }
+
     /// The most instances one batch takes: what the device's storage
     /// bindings, buffers and dispatches hold.
     pub(super) fn max_batch(&self) -> usize {
