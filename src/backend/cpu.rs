@@ -151,7 +151,7 @@ fn check_heaviest(instances: &[Instance], settings: &Settings, out: &mut [Outcom
 
 /// Integrates one instance as a group of replicas on the CPU in f64
 /// (`replicas::cpu`); stops as [`run_one`].
-fn run_split(inst: &Instance, settings: &Settings, split: Replica) -> Outcome {
+pub(super) fn run_split(inst: &Instance, settings: &Settings, split: Replica) -> Outcome {
     match replicas::cpu::run_group(inst, settings, split, &interrupt_requested) {
         Some(group) => Outcome {
             replicas: group.replicas,

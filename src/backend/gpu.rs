@@ -6,9 +6,10 @@ use super::{Backend, Hardware, Precision, Staged};
 use crate::gpu::lugre::LugreGpu;
 use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, Parts, run_batch_packed};
 use crate::laws::status::STATUS_GRAZE;
-use crate::laws::{Law, Settings};
+use crate::laws::{Law, Replica, Settings};
 use crate::measurement::Outcome;
 use crate::model::Instance;
+use rayon::prelude::*;
 
 /// The WGSL shader on one adapter at one precision.
 pub struct GpuBackend {
@@ -184,15 +185,50 @@ impl GpuBackend {
         settings: &Settings,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<Outcome>> {
+        // Replicas: LuGre's lanes run no group merges, so the instances
+        // that split run their groups on the CPU's threads in f64, the
+        // reference (marked on_cpu), and the rest on the device.
+        let count =
+            crate::replicas::count_queued(settings.replicas, self.ctx.lanes(), instances.len());
+        let splits: Vec<Option<Replica>> = instances
+            .iter()
+            .map(|inst| crate::replicas::split_of(inst, settings, count))
+            .collect();
+        let alone: Vec<Instance> = instances
+            .iter()
+            .zip(&splits)
+            .filter(|(_, split)| split.is_none())
+            .map(|(inst, _)| *inst)
+            .collect();
         let mut gpu = LugreGpu::new(&self.ctx)?;
         gpu.cpu_tail = self.options.cpu_tail;
-        let outcomes = gpu.outcomes_until(
-            instances,
-            settings,
-            crate::interrupt::interrupt_requested,
-            done,
-        )?;
-        Ok(outcomes.into_iter().map(GpuOutcome::into_outcome).collect())
+        let mut on_device = gpu
+            .outcomes_until(
+                &alone,
+                settings,
+                crate::interrupt::interrupt_requested,
+                done,
+            )?
+            .into_iter()
+            .map(GpuOutcome::into_outcome);
+        let grouped: Vec<Option<Outcome>> = instances
+            .par_iter()
+            .zip(&splits)
+            .map(|(inst, split)| {
+                split.map(|split| {
+                    let out = super::cpu::run_split(inst, settings, split);
+                    done(1);
+                    Outcome {
+                        on_cpu: true,
+                        ..out
+                    }
+                })
+            })
+            .collect();
+        Ok(grouped
+            .into_iter()
+            .map(|group| group.unwrap_or_else(|| on_device.next().expect("one per instance alone")))
+            .collect())
     }
 }
 

@@ -8,7 +8,7 @@
 
 use super::karnopp::integrate::{self, Run, State};
 use super::observe::Observer;
-use super::{Precision, Settings};
+use super::{Precision, Replica, Settings};
 use super::{karnopp, lugre};
 use crate::model::{Friction, Instance, Lugre, Mechanism};
 
@@ -212,8 +212,18 @@ impl Law {
     }
 
     /// Whether a steady measurement under this law may be split into
-    /// replicas (`simulation.replicas`, `crate::replicas`).
-    pub fn splits(self) -> bool {
+    /// replicas at other phases of the faster drive (`simulation.replicas`,
+    /// `crate::replicas`): every law's, as the phase ladder reads positions
+    /// only.
+    pub fn splits_by_phase(self) -> bool {
+        true
+    }
+
+    /// Whether it may be split into pieces of its drives' common period,
+    /// joined end to start: Karnopp's only, whose state at a period end is
+    /// its positions and velocities; LuGre's bristles (z) would have to
+    /// join too, and the join rules were measured on Karnopp's runs.
+    pub fn splits_by_cycle(self) -> bool {
         self == Law::Karnopp
     }
 
@@ -282,6 +292,74 @@ impl Law {
     /// counted (LuGre's integrator is not counted).
     pub fn iteration_lines() -> String {
         karnopp::iteration_lines()
+    }
+}
+
+/// A run of either law that stops where a replica waits for its group's
+/// merge (`measure::VERDICT_WAITING`) and goes on once released: the
+/// replicas of a split steady measurement (`crate::replicas`).
+pub enum Resumable {
+    Karnopp(Box<(integrate::Coefficients, Run)>),
+    Lugre(Box<lugre::run::Resumable>),
+}
+
+impl Resumable {
+    /// Replica `r` of a split run at rest (`inst` the replica's instance).
+    pub fn start(inst: &Instance, settings: &Settings, r: Replica) -> Resumable {
+        match Law::of_instance(inst) {
+            Law::Karnopp => {
+                let c = integrate::Coefficients::of_replica(inst, settings, r);
+                let run = Run {
+                    state: integrate::initial_state(&c),
+                    measure: integrate::initial_measure(&c),
+                };
+                Resumable::Karnopp(Box::new((c, run)))
+            }
+            Law::Lugre => Resumable::Lugre(Box::new(lugre::run::Resumable::new(inst, settings, r))),
+        }
+    }
+
+    /// Replica `r` where `run` stands: a Karnopp run a GPU batch handed
+    /// over (`gpu::groups`; LuGre's lanes run no groups).
+    pub fn of_run(inst: &Instance, settings: &Settings, r: Replica, run: Run) -> Resumable {
+        assert_eq!(
+            Law::of_instance(inst),
+            Law::Karnopp,
+            "only Karnopp's lanes hand groups over"
+        );
+        let c = integrate::Coefficients::of_replica(inst, settings, r);
+        Resumable::Karnopp(Box::new((c, run)))
+    }
+
+    /// Integrates to the run's end or its next wait (true), or until
+    /// `stop` returns true (false).
+    pub fn advance(&mut self, stop: impl Fn() -> bool) -> bool {
+        match self {
+            Resumable::Karnopp(k) => match integrate::continue_until(&k.0, k.1, stop) {
+                Some(run) => {
+                    k.1 = run;
+                    true
+                }
+                None => false,
+            },
+            Resumable::Lugre(l) => l.advance(stop),
+        }
+    }
+
+    /// The run so far.
+    pub fn run(&self) -> &Run {
+        match self {
+            Resumable::Karnopp(k) => &k.1,
+            Resumable::Lugre(l) => l.run(),
+        }
+    }
+
+    /// The run so far, for its group to release it.
+    pub fn run_mut(&mut self) -> &mut Run {
+        match self {
+            Resumable::Karnopp(k) => &mut k.1,
+            Resumable::Lugre(l) => l.run_mut(),
+        }
     }
 }
 

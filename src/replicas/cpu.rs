@@ -7,9 +7,8 @@
 use rayon::prelude::*;
 
 use super::{Group, Member, Step};
-use crate::laws::karnopp::integrate::{
-    Coefficients, Run, continue_until, initial_measure, initial_state, run_instance_until,
-};
+use crate::laws::karnopp::integrate::Run;
+use crate::laws::law::Resumable;
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Replica, Settings};
 use crate::measurement::{Measured, reduce};
@@ -49,17 +48,11 @@ pub fn run_replicas(
     replicas: &[(Instance, Replica)],
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<GroupRun> {
-    let started: Vec<Run> = replicas
+    let started: Vec<Resumable> = replicas
         .iter()
-        .map(|&(replica, r)| {
-            let c = Coefficients::of_replica(&replica, settings, r);
-            Run {
-                state: initial_state(&c),
-                measure: initial_measure(&c),
-            }
-        })
+        .map(|&(replica, r)| Resumable::start(&replica, settings, r))
         .collect();
-    continue_replicas(inst, settings, group, replicas, started, stop)
+    drive_group(inst, settings, group, replicas, started, stop)
 }
 
 /// [`run_replicas`] from where the replicas stand (`runs`, in replica
@@ -75,29 +68,43 @@ pub fn continue_replicas(
     runs: Vec<Run>,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<GroupRun> {
-    let count = group.count();
-    let instances: Vec<Instance> = replicas.iter().map(|(replica, _)| *replica).collect();
-    let mut replicas: Vec<(Coefficients, Run)> = replicas
+    let runs: Vec<Resumable> = replicas
         .iter()
         .zip(runs)
-        .map(|(&(replica, r), run)| (Coefficients::of_replica(&replica, settings, r), run))
+        .map(|(&(replica, r), run)| Resumable::of_run(&replica, settings, r, run))
         .collect();
+    drive_group(inst, settings, group, replicas, runs, stop)
+}
+
+/// Runs the replicas to their waits on the threads, merges, and goes on
+/// until the group merges or gives up the split (then the instance runs
+/// alone, with its own law's integrator).
+fn drive_group(
+    inst: &Instance,
+    settings: &Settings,
+    group: &Group,
+    replicas: &[(Instance, Replica)],
+    mut runs: Vec<Resumable>,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Option<GroupRun> {
+    let count = group.count();
+    let instances: Vec<Instance> = replicas.iter().map(|(replica, _)| *replica).collect();
     let mut disagreement: f64 = 0.0;
     loop {
-        let advanced: Option<Vec<Run>> = replicas
-            .par_iter()
+        let advanced = runs
+            .par_iter_mut()
             .with_max_len(1)
-            .map(|(c, run)| continue_until(c, *run, stop))
-            .collect();
-        for ((_, run), done) in replicas.iter_mut().zip(advanced?) {
-            *run = done;
+            .map(|run| run.advance(stop))
+            .all(|going| going);
+        if !advanced {
+            return None;
         }
-        let members: Vec<Member> = replicas
+        let members: Vec<Member> = runs
             .iter()
             .zip(&instances)
-            .map(|((_, run), replica)| Member::of(replica, run))
+            .map(|(run, replica)| Member::of(replica, run.run()))
             .collect();
-        let steps = replicas.iter().map(|(_, run)| run.state.steps).sum::<u32>();
+        let steps = runs.iter().map(|run| run.run().state.steps).sum::<u32>();
         if let Some(d) = group.disagreement(&members) {
             disagreement = disagreement.max(d);
         }
@@ -111,14 +118,14 @@ pub fn continue_replicas(
                 });
             }
             Step::Continue => {
-                for (_, run) in &mut replicas {
-                    release(run);
+                for run in &mut runs {
+                    release(run.run_mut());
                 }
             }
             // Every replica ran to its wait or end: a wait is for all.
             Step::Wait => unreachable!("every replica on the CPU runs to its wait"),
             Step::Alone { multistable } => {
-                let alone = run_instance_until(inst, settings, stop)?;
+                let alone = crate::laws::run_until(inst, settings, stop)?;
                 let mut measured = reduce(inst, &alone);
                 // Only a finished run has a kind of motion (docs/output.md).
                 if multistable && measured.status == STATUS_OK {

@@ -68,7 +68,8 @@ pub const MAX_AUTO: u32 = 8;
 /// measured to disagree as if attractors coexisted (7.13 / 23.858 Hz); a
 /// cycle split takes those that repeat.
 pub fn splittable(inst: &Instance, settings: &Settings) -> bool {
-    if !matches!(inst.measure, Measure::Steady { .. }) || !Law::of_instance(inst).splits() {
+    if !matches!(inst.measure, Measure::Steady { .. }) || !Law::of_instance(inst).splits_by_phase()
+    {
         return false;
     }
     let c = Coefficients::of(inst, settings);
@@ -171,7 +172,8 @@ pub const MIN_PIECE: u32 = 32;
 /// then costs its pieces no more than the run alone spends before it
 /// could stop.
 pub fn cycle_split(inst: &Instance, settings: &Settings, count: u32) -> Option<Replica> {
-    if !matches!(inst.measure, Measure::Steady { .. }) || !Law::of_instance(inst).splits() {
+    if !matches!(inst.measure, Measure::Steady { .. }) || !Law::of_instance(inst).splits_by_cycle()
+    {
         return None;
     }
     let c = Coefficients::of(inst, settings);

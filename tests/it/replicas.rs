@@ -404,3 +404,66 @@ fn only_steady_instances_with_free_workers_split() {
     let window = crate::steady::window(&inst, 100);
     assert_eq!(replicas::split_of(&window, &auto, 8), None);
 }
+
+/// Issue 58: a steady LuGre map of both drive frequencies (x at 7.13 and
+/// 13.1 Hz, y at 9.71 and 17.3 Hz, 100 V each) makes replicas, phase
+/// splits only (`Law::splits_by_cycle`), and holds its values within 3 of
+/// their standard errors + 0.002 um of the map with `replicas = 1`: on
+/// the CPU, and under the GPU backend in f64, whose LuGre lanes run no
+/// group merges, so its split instances run their groups on the CPU's
+/// threads (marked on the CPU) and the rest on the device.
+#[test]
+fn lugre_maps_make_replicas_that_hold_their_values() {
+    use pidm::backend::{Backend, CpuBackend, GpuBackend};
+    use pidm::measurement::Outcome;
+    let scene = |replicas: u32| {
+        pidm::scene::Scene::from_toml(
+            &format!(
+                "name = \"lugre_replicas\"\n[mechanism]\nfriction = \"lugre\"\n\
+                 [axis.x]\nvoltage = 100.0\nfrequency = [7.13, 13.1]\n\
+                 [axis.y]\nvoltage = 100.0\nfrequency = [9.71, 17.3]\n\
+                 [simulation]\nreplicas = {replicas}\n"
+            ),
+            None,
+        )
+        .unwrap()
+    };
+    let (one, four) = (scene(1), scene(4));
+    let instances: Vec<Instance> = (0..4).map(|k| one.instance(k)).collect();
+    let cpu = CpuBackend::new(None).unwrap();
+    let alone = cpu.run(&instances, &one.settings, &|_| {}).unwrap();
+    let holds = |name: &str, got: &[Outcome]| {
+        for (k, inst) in instances.iter().enumerate() {
+            let (a, b) = (&got[k], &alone[k]);
+            assert_eq!((a.status, b.status), (STATUS_OK, STATUS_OK), "{name} #{k}");
+            for axis in 0..2 {
+                let (x, y) = (a.step(inst, axis) * 1e6, b.step(inst, axis) * 1e6);
+                let se = a.se[axis].max(b.se[axis]) * 1e6;
+                assert!(
+                    (x - y).abs() <= 3.0 * se + 0.002,
+                    "{name} #{k} axis {axis}: {x} against {y} +- {se} um"
+                );
+            }
+        }
+        let split = got.iter().filter(|o| o.replicas > 1).count();
+        assert!(split >= 1, "{name}: no instance made replicas");
+        split
+    };
+    let split = cpu.run(&instances, &four.settings, &|_| {}).unwrap();
+    holds("cpu", &split);
+    let Some(ctx) = context() else {
+        return;
+    };
+    if !ctx.supports_f64() {
+        return;
+    }
+    let gpu = GpuBackend::new(pidm::gpu::GpuContext::new(true).unwrap(), Precision::F64).unwrap();
+    let on_gpu = gpu.run(&instances, &four.settings, &|_| {}).unwrap();
+    holds("gpu", &on_gpu);
+    for (k, (g, c)) in on_gpu.iter().zip(&split).enumerate() {
+        if g.replicas > 1 {
+            assert!(g.on_cpu, "#{k}: a LuGre group runs on the CPU's threads");
+            assert_eq!(g.displacement, c.displacement, "#{k}: the CPU's group");
+        }
+    }
+}

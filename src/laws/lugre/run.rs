@@ -8,7 +8,6 @@
 // (`crate::gpu::lugre` and `shaders/lugre/`).
 pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
 pub(crate) use super::rodas::{A, C, GAMMA, R, REDUCED, SMALLEST_STEP, rodas4, segment};
-use crate::laws::Settings;
 use crate::laws::karnopp::integrate::measure::{
     Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, period_end,
 };
@@ -17,6 +16,7 @@ use crate::laws::karnopp::integrate::{
 };
 use crate::laws::observe::{Observer, Positions};
 use crate::laws::status::STATUS_OK;
+use crate::laws::{Replica, Settings};
 use crate::model::{AXES, Instance, Lugre};
 
 /// The state a run ends in (`integrate::Run::state`).
@@ -84,6 +84,40 @@ pub fn run_instance_until(
     let mut book = Periods::new(inst, settings);
     let start = PeriodStart::first(&book);
     continue_until(&mut book, start, stop).then_some(book.run)
+}
+
+/// A LuGre run that stops where a replica waits for its group's merge
+/// (`measure::VERDICT_WAITING`) and goes on from there once released: the
+/// replicas of a split steady measurement (`crate::replicas`).
+pub struct Resumable {
+    book: Periods,
+    start: PeriodStart,
+}
+
+impl Resumable {
+    /// Replica `r` of a split run at rest (`inst` the replica's instance,
+    /// `Coefficients::of_replica`).
+    pub fn new(inst: &Instance, settings: &Settings, r: Replica) -> Resumable {
+        let book = Periods::new_replica(inst, settings, r);
+        let start = PeriodStart::first(&book);
+        Resumable { book, start }
+    }
+
+    /// Integrates to the run's end or its next wait (true), or until
+    /// `stop` returns true (false).
+    pub fn advance(&mut self, stop: impl Fn() -> bool) -> bool {
+        observe_from(&mut self.book, &mut self.start, stop, &mut |_, _, _| {})
+    }
+
+    /// The run so far.
+    pub fn run(&self) -> &Run {
+        &self.book.run
+    }
+
+    /// The run so far, for its group to release it.
+    pub fn run_mut(&mut self) -> &mut Run {
+        &mut self.book.run
+    }
 }
 
 /// Integrates the LuGre instance `inst` to its end, showing `observer`
@@ -163,7 +197,18 @@ pub(crate) fn continue_until(
 /// scene period it is in.
 fn observe_until(
     book: &mut Periods,
-    start: PeriodStart,
+    mut start: PeriodStart,
+    stop: impl Fn() -> bool,
+    observe: &mut impl FnMut(u32, &State, &State),
+) -> bool {
+    observe_from(book, &mut start, stop, observe)
+}
+
+/// [`observe_until`] from `start`, left at the start of the period where
+/// the run ended or waits.
+fn observe_from(
+    book: &mut Periods,
+    start: &mut PeriodStart,
     stop: impl Fn() -> bool,
     observe: &mut impl FnMut(u32, &State, &State),
 ) -> bool {
@@ -173,7 +218,7 @@ fn observe_until(
         mut y,
         mut h,
         mut budget,
-    } = start;
+    } = *start;
     while !book.is_finished() {
         if stop() {
             return false;
@@ -204,6 +249,7 @@ fn observe_until(
             }
         }
         book.period_end(&y);
+        *start = PeriodStart { y, h, budget };
     }
     debug_assert_eq!(book.run.state.status, STATUS_OK);
     true
@@ -238,9 +284,15 @@ impl Periods {
     /// # Panics
     /// If `inst`'s friction is not LuGre's.
     pub(crate) fn new(inst: &Instance, settings: &Settings) -> Periods {
+        Periods::new_replica(inst, settings, Replica::NONE)
+    }
+
+    /// [`Periods::new`] for replica `r` of a split run (`inst` the
+    /// replica's instance).
+    pub(crate) fn new_replica(inst: &Instance, settings: &Settings, r: Replica) -> Periods {
         let lugre = *inst.mechanism.lugre().expect("a LuGre instance");
         let model = Model::new(inst, &lugre);
-        let mut c = Coefficients::of(inst, settings);
+        let mut c = Coefficients::of_replica(inst, settings, r);
         // The recurrence test compares z too: done here, not by `period_end`.
         let common = std::mem::replace(&mut c.common_period, 0);
         let recurrence = Recurrence::new(&c, inst, &lugre);
