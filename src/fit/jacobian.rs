@@ -7,6 +7,11 @@
 //! motion at a low voltage), and the column is the gentler side's, so that
 //! the standard error says how far the data allow the key to move on the
 //! side where it can, not the width of the cliff on the other.
+//!
+//! A probe that fails or that a scene rule refuses (a free
+//! `coulomb_friction` probed below the scene's load, say) leaves its
+//! column to the other side. A key neither side can probe has no column:
+//! its standard error is unknown, and the fit says so.
 
 use anyhow::{Result, bail};
 
@@ -14,11 +19,15 @@ use anyhow::{Result, bail};
 /// larger make a kink.
 pub const KINK: f64 = 0.5;
 
-/// A Jacobian (rows: residuals, columns: free keys) and, per column, the
-/// residual where its sides disagree most if they make a kink.
+/// A Jacobian (rows: residuals, columns: the free keys some side could
+/// probe, `probed`) and, per free key, the residual where its sides
+/// disagree most if they make a kink.
 pub struct Sided {
     pub j: Vec<Vec<f64>>,
     pub kinks: Vec<Option<usize>>,
+    /// The free keys that have a column, in order; the others could be
+    /// probed on neither side.
+    pub probed: Vec<usize>,
 }
 
 /// The candidates' residuals, a batch at a time (`None`: it failed).
@@ -49,11 +58,9 @@ pub fn sided(
     let results = eval(&points)?;
     let mut sides: Vec<[Option<Vec<f64>>; 2]> = vec![[None, None]; u.len()];
     for ((j, sign), r) in slots.into_iter().zip(results) {
+        // A failed or refused probe leaves the column to the other side.
         let Some(r) = r else {
-            bail!(
-                "the model failed next to the best point (free key {})",
-                j + 1
-            );
+            continue;
         };
         let slope = r
             .iter()
@@ -64,19 +71,27 @@ pub fn sided(
     }
     let mut columns = Vec::with_capacity(u.len());
     let mut kinks = Vec::with_capacity(u.len());
+    let mut probed = Vec::with_capacity(u.len());
     for (j, [forward, backward]) in sides.into_iter().enumerate() {
         let (column, kink) = match (forward, backward) {
             (Some(f), Some(b)) => combine(f, b),
             (Some(one), None) | (None, Some(one)) => (one, None),
-            (None, None) => bail!("free key {}: no difference step fits in its bounds", j + 1),
+            (None, None) => {
+                kinks.push(None);
+                continue;
+            }
         };
         columns.push(column);
         kinks.push(kink);
+        probed.push(j);
+    }
+    if probed.is_empty() {
+        bail!("no free key could be probed next to the best point");
     }
     let j = (0..r0.len())
         .map(|i| columns.iter().map(|c| c[i]).collect())
         .collect();
-    Ok(Sided { j, kinks })
+    Ok(Sided { j, kinks, probed })
 }
 
 fn norm(v: &[f64]) -> f64 {
@@ -121,5 +136,23 @@ mod tests {
     fn a_kink_takes_the_gentler_side() {
         check(0.0, false, 2.0);
         check(100.0, true, 2.0);
+    }
+
+    /// A refused probe leaves the column to the other side; a key that
+    /// neither side can probe has no column.
+    #[test]
+    fn a_failed_probe_falls_back_to_the_other_side() {
+        // Key 0 refuses every point above u = 1, key 1 every point off 0.
+        let mut eval = |us: &[Vec<f64>]| -> Result<Vec<Option<Vec<f64>>>> {
+            Ok(us
+                .iter()
+                .map(|u| (u[0] <= 1.0 && u[1] == 0.0).then(|| vec![3.0 * (u[0] - 1.0)]))
+                .collect())
+        };
+        let bounds: (&[f64], &[f64]) = (&[0.0, -1.0], &[3.0, 1.0]);
+        let s = sided(&mut eval, bounds, &[1.0, 0.0], &[0.0], &[0.1, 0.1]).unwrap();
+        assert_eq!(s.probed, vec![0]);
+        assert!((s.j[0][0] - 3.0).abs() < 1e-12, "{:?}", s.j);
+        assert_eq!(s.kinks, vec![None, None]);
     }
 }

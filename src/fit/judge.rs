@@ -26,8 +26,21 @@ pub struct Answer {
     /// The free keys, in `[fit]`'s order.
     pub keys: Vec<String>,
     pub values: Vec<f64>,
-    /// Standard errors in the keys' units (NaN when unknown: interrupted).
+    /// Standard errors in the keys' units, as reported (`fit.errors`:
+    /// the data's as given, or scaled), NaN where unknown (interrupted, or
+    /// a key no side could probe).
     pub se: Vec<f64>,
+    /// The standard errors scaled by sqrt(reduced chi2), where the p-value
+    /// warns or `fit.errors = "scaled"` asks for them.
+    pub se_scaled: Option<Vec<f64>>,
+    /// The covariance of the free keys in their units (the delta method
+    /// for a key searched on a log scale), from the same Jacobian as `se`
+    /// and scaled as it is.
+    pub covariance: Vec<Vec<f64>>,
+    /// The chance of a chi2 this large on `dof` degrees of freedom, where
+    /// every measured axis has the data's standard errors (`None` where a
+    /// scale came from the residuals, or `dof` <= 0).
+    pub p_value: Option<f64>,
     /// Correlation matrix in `keys`' order (of the search coordinates: the
     /// logarithm of a key searched on a log scale).
     pub correlation: Vec<Vec<f64>>,
@@ -60,6 +73,9 @@ pub fn judge(problem: &Problem, found: Found) -> Answer {
     let mut answer = Answer {
         keys: problem.free.iter().map(|f| f.key.clone()).collect(),
         se: vec![f64::NAN; p],
+        se_scaled: None,
+        covariance: vec![vec![f64::NAN; p]; p],
+        p_value: None,
         correlation: identity(p),
         chi2: found.best.chi2,
         dof,
@@ -80,10 +96,20 @@ pub fn judge(problem: &Problem, found: Found) -> Answer {
             problem.data.measurements()
         ));
     }
+    if dof <= 0 && found.weights.estimated() {
+        answer.warn(format!(
+            "{} measured values for {p} free keys and no standard errors in the data: no \
+             degree of freedom is left to estimate the data's scale from, so the standard \
+             errors say nothing",
+            problem.data.measurements()
+        ));
+    }
     if let Some(sided) = &found.jacobian {
-        uncertainty(problem, &found.best.u, &sided.j, &mut answer);
+        uncertainty(problem, &found.best.u, sided, &mut answer);
+        goodness(problem, &found, &mut answer);
         kinks(problem, &sided.kinks, &mut answer);
         second_minimum(problem, &found, &mut answer);
+        wider_than_bounds(problem, &mut answer);
     }
     bounds(problem, &found.best.u, &mut answer);
     model_noise(problem, &found, &mut answer);
@@ -108,23 +134,45 @@ fn identity(p: usize) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Standard errors, correlations and the Jacobian's condition.
-fn uncertainty(problem: &Problem, u: &[f64], j: &[Vec<f64>], answer: &mut Answer) {
+/// Standard errors, correlations and the Jacobian's condition, of the
+/// keys some side could probe (`sided.probed`); the others' stay unknown
+/// (NaN, null in FIT.json), with a warning.
+fn uncertainty(problem: &Problem, u: &[f64], sided: &super::jacobian::Sided, answer: &mut Answer) {
+    let (j, probed) = (&sided.j, &sided.probed);
     let cov = super::lsq::covariance(j, 1.0);
-    for (i, free) in problem.free.iter().enumerate() {
-        let se_u = cov.standard_errors[i];
+    for (c, &i) in probed.iter().enumerate() {
+        let (free, se_u) = (&problem.free[i], cov.standard_errors[c]);
         answer.se[i] = if free.log {
             free.value(u[i]) * se_u
         } else {
             se_u
         };
     }
-    answer.correlation = cov.correlation.clone();
-    let widths: Vec<f64> = problem
-        .free
+    let p = problem.free.len();
+    answer.correlation = vec![vec![f64::NAN; p]; p];
+    // d value / d coordinate: the value itself on a log scale.
+    let slope = |i: usize| match problem.free[i].log {
+        true => problem.free[i].value(u[i]),
+        false => 1.0,
+    };
+    for (a, &i) in probed.iter().enumerate() {
+        for (b, &k) in probed.iter().enumerate() {
+            answer.correlation[i][k] = cov.correlation[a][b];
+            answer.covariance[i][k] = cov.covariance[a][b] * slope(i) * slope(k);
+        }
+    }
+    for (i, free) in problem.free.iter().enumerate() {
+        if !probed.contains(&i) {
+            answer.warn(format!(
+                "`{}` could be probed on neither side of its best value (the model failed or a                  scene rule refused both): its standard error is unknown",
+                free.key
+            ));
+        }
+    }
+    let widths: Vec<f64> = probed
         .iter()
-        .map(|f| {
-            let [lo, hi] = f.coordinate_bounds();
+        .map(|&i| {
+            let [lo, hi] = problem.free[i].coordinate_bounds();
             hi - lo
         })
         .collect();
@@ -214,6 +262,69 @@ fn second_minimum(problem: &Problem, found: &Found, answer: &mut Answer) {
     }
 }
 
+/// The p-value of the misfit where the data give every standard error,
+/// its warning below [`super::goodness::P_WARN`] with the scaled standard
+/// errors beside, and the scaled ones reported where `fit.errors` asks.
+fn goodness(problem: &Problem, found: &Found, answer: &mut Answer) {
+    use super::goodness::{P_WARN, p_value};
+    use super::spec::Errors;
+    if !found.weights.estimated() {
+        answer.p_value = p_value(answer.chi2, answer.dof);
+    }
+    let reduced = (answer.dof > 0).then(|| answer.chi2 / answer.dof as f64);
+    let scaled = |factor: f64| -> Vec<f64> { answer.se.iter().map(|se| se * factor).collect() };
+    let warned = answer.p_value.is_some_and(|p| p < P_WARN);
+    match (problem.errors, reduced) {
+        (Errors::Scaled, Some(r)) => {
+            let factor = r.sqrt();
+            answer.se_scaled = Some(scaled(factor));
+            answer.se = scaled(factor);
+            for row in answer.covariance.iter_mut() {
+                row.iter_mut().for_each(|c| *c *= r);
+            }
+            answer.notes.push(format!(
+                "fit.errors = \"scaled\": the standard errors are scaled by sqrt(reduced chi2) \
+                 = {factor:.4} (lmfit's scale_covar)"
+            ));
+        }
+        (Errors::Scaled, None) => answer.warn(
+            "fit.errors = \"scaled\" needs at least one degree of freedom: the standard errors \
+             are the data's as given"
+                .into(),
+        ),
+        (Errors::Given, Some(r)) if warned => {
+            answer.se_scaled = Some(scaled(r.sqrt()));
+            answer.warnings.push(format!(
+                "chi2 {:.4e} on {} degrees of freedom has p = {:.2e}: the data's standard \
+                 errors are too small for the misfit (or the model misses the data); the \
+                 standard errors scaled by sqrt(reduced chi2) = {:.3} are given beside \
+                 (fit.errors = \"scaled\" reports them)",
+                answer.chi2,
+                answer.dof,
+                answer.p_value.unwrap_or(f64::NAN),
+                r.sqrt()
+            ));
+        }
+        _ => {}
+    }
+}
+
+/// Not identifiable where a key's standard error is wider than its bounds:
+/// the data barely constrain it inside them.
+fn wider_than_bounds(problem: &Problem, answer: &mut Answer) {
+    for (i, free) in problem.free.iter().enumerate() {
+        let [lo, hi] = free.bounds;
+        let se = answer.se[i];
+        if se.is_finite() && se > hi - lo {
+            answer.warn(format!(
+                "`{}`: its standard error ({se:.3e} {}) is wider than its bounds ({lo} to {hi}): \
+                 the data barely constrain it",
+                free.key, free.units
+            ));
+        }
+    }
+}
+
 /// A warning for each key whose misfit has a kink at the best point
 /// (`super::jacobian`), naming the data line where the sides differ most.
 fn kinks(problem: &Problem, kinks: &[Option<usize>], answer: &mut Answer) {
@@ -273,6 +384,19 @@ fn notes(problem: &Problem, found: &Found) -> Vec<String> {
             100.0 * worst
         ));
     }
+    if found.restarts > 0 {
+        notes.push(format!(
+            "the local stage started again {} time(s) from a probe that fit better than its \
+             end: the values, chi2, rows and standard errors are all at the final point",
+            found.restarts
+        ));
+    }
+    if let Some(chi2) = found.beaten {
+        notes.push(format!(
+            "an evaluation next to the final point fit slightly better (chi2 {chi2:.6e}) after \
+             the last restart; the values reported are the local stage's end"
+        ));
+    }
     notes.extend(problem.inherited_notes());
     notes
 }
@@ -283,7 +407,8 @@ fn notes(problem: &Problem, found: &Found) -> Vec<String> {
 pub const MAX_MODEL_NOISE: f64 = 0.3;
 
 /// A warning when the model's own standard error is not well under the
-/// data's at some row (it counts in the weights either way).
+/// data's at some row (it never enters the weights, so a noisy model only
+/// shows as scatter in the misfit).
 fn model_noise(problem: &Problem, found: &Found, answer: &mut Answer) {
     let worst = worst_model_noise(problem, found);
     if worst > MAX_MODEL_NOISE {

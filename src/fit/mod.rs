@@ -13,6 +13,7 @@
 
 pub mod curves;
 pub mod data;
+pub mod goodness;
 pub mod jacobian;
 pub mod judge;
 pub mod lsq;

@@ -54,6 +54,8 @@ pub struct Problem<'a> {
     pub step_tolerance: Option<f64>,
     /// The scene's own `step_tolerance` (or the default).
     pub scene_step_tolerance: Option<f64>,
+    /// Which standard errors the fit reports (`fit.errors`).
+    pub errors: super::spec::Errors,
     /// Candidates evaluated, and of those infeasible or failed.
     pub evaluations: usize,
     pub infeasible: usize,
@@ -108,6 +110,7 @@ impl<'a> Problem<'a> {
             points: Vec::new(),
             step_tolerance: scene_tol,
             scene_step_tolerance: scene_tol,
+            errors: fit.errors,
             evaluations: 0,
             infeasible: 0,
             failed: 0,

@@ -40,6 +40,7 @@ pub fn json(problem: &Problem, answer: &Answer, origin: &Origin) -> Value {
             json!({
                 "value": answer.values[i],
                 "se": answer.se[i],
+                "se_scaled": answer.se_scaled.as_ref().map(|s| s[i]),
                 "bounds": free.bounds,
                 "units": free.units,
                 "scale": if free.log { "log" } else { "linear" },
@@ -56,9 +57,12 @@ pub fn json(problem: &Problem, answer: &Answer, origin: &Origin) -> Value {
         "order": answer.keys,
         "parameters": parameters,
         "correlation": answer.correlation,
+        "covariance": answer.covariance,
+        "errors": problem.errors.name(),
         "chi2": answer.chi2,
         "dof": answer.dof,
         "reduced_chi2": (answer.dof > 0).then(|| answer.chi2 / answer.dof as f64),
+        "p_value": answer.p_value,
         "evaluations": problem.evaluations,
         "infeasible": problem.infeasible,
         "failed": problem.failed,
@@ -107,10 +111,13 @@ fn rows(problem: &Problem, answer: &Answer) -> Value {
             }
             for (a, name) in AXIS_NAMES.iter().enumerate() {
                 if let Some(step) = row.step[a] {
+                    let se = answer.weights.data_se(row.se[a], a);
                     out.insert(format!("step_{name}"), json!(step));
+                    out.insert(format!("step_{name}_se"), json!(se));
+                    // The normalized residual: (model - data) / the data's SE.
                     out.insert(
-                        format!("step_{name}_se"),
-                        json!(answer.weights.data_se(row.se[a], a)),
+                        format!("residual_{name}"),
+                        json!((model.step[a] - step) / se),
                     );
                 }
                 out.insert(format!("model_step_{name}"), json!(model.step[a]));
@@ -162,8 +169,25 @@ pub fn table(problem: &Problem, answer: &Answer) -> String {
             free.units
         );
     }
+    if let Some(scaled) = answer
+        .se_scaled
+        .as_ref()
+        .filter(|_| problem.errors == super::spec::Errors::Given)
+    {
+        let shown: Vec<String> = answer
+            .keys
+            .iter()
+            .zip(scaled)
+            .map(|(k, se)| format!("{k} {se:.4e}"))
+            .collect();
+        out += &format!("scaled se: {}\n", shown.join(", "));
+    }
+    let p = match answer.p_value {
+        Some(p) => format!(" (p = {p:.3e})"),
+        None => String::new(),
+    };
     out += &format!(
-        "chi2 {:.4e} on {} degrees of freedom; {} candidates evaluated ({} infeasible, {} failed); {}\n",
+        "chi2 {:.4e} on {} degrees of freedom{p}; {} candidates evaluated ({} infeasible, {} failed); {}\n",
         answer.chi2,
         answer.dof,
         problem.evaluations,

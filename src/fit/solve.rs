@@ -6,7 +6,7 @@
 //!
 //! The measurement's `step_tolerance` is tightened to a tenth of the data's
 //! smallest standard error, so that the model's own noise stays well under
-//! the data's; it adds to each weight in quadrature either way.
+//! the data's; it never enters the weights (`super::weights`).
 
 use anyhow::Result;
 
@@ -59,6 +59,12 @@ pub struct Found {
     /// Every candidate evaluated (search coordinates) with its rows' model,
     /// for the search for a second minimum (`super::judge`).
     pub history: Vec<(Vec<f64>, Vec<RowModel>)>,
+    /// Times the local stage started again from a probe that fit better
+    /// than its end.
+    pub restarts: usize,
+    /// The chi2 of an evaluation that still fit better than the reported
+    /// point after the last restart, if one did.
+    pub beaten: Option<f64>,
 }
 
 /// The global stage's population per free key (from 20 to 60 in all) and
@@ -92,6 +98,9 @@ const START_SPACING: f64 = 0.1;
 /// Rounds of sizing the difference steps by the standard errors they give
 /// before the final Jacobian.
 const ERROR_STEP_ROUNDS: usize = 2;
+
+/// Restarts of the local stage from a probe that fit better than its end.
+const MAX_RESTARTS: usize = 3;
 
 /// The most memory [`Found::history`] takes [bytes]: about 2,000
 /// candidates of 1,000 rows, or all of a fit of 30.
@@ -159,6 +168,8 @@ impl<'p, 'a> Search<'p, 'a> {
                 generations: 0,
                 iterations: 0,
                 history: Vec::new(),
+                restarts: 0,
+                beaten: None,
             }),
             Err(e) => Err(e),
         }
@@ -182,16 +193,33 @@ impl<'p, 'a> Search<'p, 'a> {
             let u = lm.u.clone();
             lm = self.local(&u, &steps)?;
         }
-        self.ticker.stage("errors");
-        for _ in 0..ERROR_STEP_ROUNDS {
-            steps = self.error_steps(&lm.u, &steps)?;
-        }
-        let jacobian = self.jacobian(&lm.u, &lm.residuals, &steps)?;
+        // One point: values, chi2, rows and standard errors all at the
+        // local stage's end; where an evaluation since (a probe) fit
+        // better, the local stage starts again from there.
+        let mut restarts = 0;
+        let (jacobian, point) = loop {
+            self.ticker.stage("errors");
+            for _ in 0..ERROR_STEP_ROUNDS {
+                steps = self.error_steps(&lm.u, &steps)?;
+            }
+            let point = self.point(&lm.u)?;
+            let jacobian = self.jacobian(&lm.u, &lm.residuals, &steps)?;
+            let best = self.best.clone().expect("the point was evaluated");
+            if best.chi2 < point.chi2 * (1.0 - 1e-9) && restarts < MAX_RESTARTS {
+                restarts += 1;
+                lm = self.local(&best.u, &steps)?;
+                continue;
+            }
+            break (jacobian, point);
+        };
         Ok(Found {
-            best: self
+            restarts,
+            beaten: self
                 .best
-                .clone()
-                .expect("the local stage evaluated its point"),
+                .as_ref()
+                .filter(|b| b.chi2 < point.chi2 * (1.0 - 1e-9))
+                .map(|b| b.chi2),
+            best: point,
             weights: self.weights,
             ending: if lm.converged {
                 Ending::Converged
@@ -296,18 +324,32 @@ impl<'p, 'a> Search<'p, 'a> {
         };
         let j = self.jacobian(u, &r0, steps)?;
         let cov = lsq::covariance(&j.j, 1.0);
-        Ok(cov
-            .standard_errors
-            .iter()
-            .zip(&self.widths)
-            .map(|(se, w)| se.clamp(1e-6 * w, 5e-2 * w))
-            .collect())
+        // A key no side could probe keeps its step.
+        let mut out = steps.to_vec();
+        for (&k, se) in j.probed.iter().zip(&cov.standard_errors) {
+            out[k] = se.clamp(1e-6 * self.widths[k], 5e-2 * self.widths[k]);
+        }
+        Ok(out)
     }
 
     fn jacobian(&mut self, u: &[f64], r0: &[f64], steps: &[f64]) -> Result<jacobian::Sided> {
         let (lo, hi) = (self.lo.clone(), self.hi.clone());
         let mut eval = |us: &[Vec<f64>]| self.residuals(us);
         jacobian::sided(&mut eval, (&lo, &hi), u, r0, steps)
+    }
+
+    /// The point `u` evaluated: its chi2 and its rows' model.
+    fn point(&mut self, u: &[f64]) -> Result<Best> {
+        let values = self.values(u);
+        let Some(Ok(models)) = self.problem.evaluate(&[values])?.pop() else {
+            anyhow::bail!("the model failed at the fit's final point");
+        };
+        let r = self.weights.residuals(&self.problem.data, &models);
+        Ok(Best {
+            u: u.to_vec(),
+            chi2: r.iter().map(|x| x * x).sum(),
+            models,
+        })
     }
 
     /// The weighted residuals of candidates (search coordinates), one batch;

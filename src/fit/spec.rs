@@ -41,6 +41,28 @@ impl Free {
     }
 }
 
+/// Which standard errors a fit reports (`fit.errors`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Errors {
+    /// The data's standard errors are taken as given (SciPy's
+    /// `absolute_sigma=True`): the default.
+    #[default]
+    Given,
+    /// Scaled by sqrt(reduced chi2) (lmfit's `scale_covar`): for data whose
+    /// standard errors are known only up to a common factor.
+    Scaled,
+}
+
+impl Errors {
+    /// The value of `fit.errors`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Errors::Given => "given",
+            Errors::Scaled => "scaled",
+        }
+    }
+}
+
 /// A fit scene split in two: its `[fit]` table and the scene without it.
 #[derive(Clone, Debug)]
 pub struct FitScene {
@@ -52,6 +74,8 @@ pub struct FitScene {
     pub data: PathBuf,
     /// The free keys, in file order.
     pub free: Vec<Free>,
+    /// Which standard errors are reported.
+    pub errors: Errors,
 }
 
 /// Whether a scene's text holds a `[fit]` table (the way `pidm check`
@@ -72,8 +96,8 @@ pub fn read(text: &str, path: &Path) -> Result<FitScene> {
     };
     let fit = fit.as_table().context("`fit` must be a table ([fit])")?;
     for key in fit.keys() {
-        if key != "data" && key != "free" {
-            bail!("unknown key `fit.{key}`: [fit] takes `data` and `free` (docs/fit.md)");
+        if !["data", "free", "errors"].contains(&key.as_str()) {
+            bail!("unknown key `fit.{key}`: [fit] takes `data`, `free` and `errors` (docs/fit.md)");
         }
     }
     let data = match fit.get("data") {
@@ -97,7 +121,22 @@ pub fn read(text: &str, path: &Path) -> Result<FitScene> {
             folder.join(data)
         },
         free,
+        errors: errors(fit.get("errors"))?,
     })
+}
+
+/// `fit.errors`: "given" (the default) or "scaled".
+fn errors(value: Option<&toml::Value>) -> Result<Errors> {
+    let Some(value) = value else {
+        return Ok(Errors::Given);
+    };
+    let expected = "expected \"given\" (the data's standard errors as they are, the default) or \
+                    \"scaled\" (scaled by sqrt(reduced chi2))";
+    match value.as_str() {
+        Some("given") => Ok(Errors::Given),
+        Some("scaled") => Ok(Errors::Scaled),
+        _ => bail!("fit.errors = {value}: {expected}"),
+    }
 }
 
 /// `fit.free`: each key with its bounds.

@@ -1,6 +1,8 @@
 //! How a fit weighs its measurements: by the data's standard errors where
 //! the file gives them, else by one scale per axis estimated from the
-//! residuals; the model's own standard error adds to either in quadrature.
+//! residuals. No weight depends on the candidate: the model's own standard
+//! error stays out of the weights (the measurement's tolerance holds it
+//! under a tenth of the data's, `super::solve`, and the fit reports it).
 
 use super::data::Data;
 use super::problem::RowModel;
@@ -51,8 +53,7 @@ impl Weights {
         for (row, model) in data.rows.iter().zip(models) {
             for axis in 0..AXES {
                 if let Some(step) = row.step[axis] {
-                    let data_se = self.data_se(row.se[axis], axis);
-                    let sigma = data_se.hypot(model.se[axis]);
+                    let sigma = self.data_se(row.se[axis], axis);
                     out.push((model.step[axis] - step) / sigma);
                 }
             }
