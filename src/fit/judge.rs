@@ -96,7 +96,7 @@ pub fn judge(problem: &Problem, found: Found) -> Answer {
             problem.data.measurements()
         ));
     }
-    if dof <= 0 && found.weights.estimated() {
+    if dof <= 0 && !found.weights.all_given(&problem.data) {
         answer.warn(format!(
             "{} measured values for {p} free keys and no standard errors in the data: no \
              degree of freedom is left to estimate the data's scale from, so the standard \
@@ -268,7 +268,7 @@ fn second_minimum(problem: &Problem, found: &Found, answer: &mut Answer) {
 fn goodness(problem: &Problem, found: &Found, answer: &mut Answer) {
     use super::goodness::{P_WARN, p_value};
     use super::spec::Errors;
-    if !found.weights.estimated() {
+    if found.weights.all_given(&problem.data) {
         answer.p_value = p_value(answer.chi2, answer.dof);
     }
     let reduced = (answer.dof > 0).then(|| answer.chi2 / answer.dof as f64);

@@ -38,6 +38,11 @@ impl Weights {
         self.known.iter().any(|k| !k)
     }
 
+    /// Whether every axis `data` measures has the data's standard errors.
+    pub fn all_given(&self, data: &Data) -> bool {
+        (0..AXES).all(|a| self.known[a] || data.measured_on(a) == 0)
+    }
+
     /// The data's standard error of a row's step on `axis` [m], without the
     /// model's.
     pub fn data_se(&self, row_se: Option<f64>, axis: usize) -> f64 {
