@@ -27,7 +27,7 @@ m/s, voltages in V, frequencies in Hz, times in s, phases in cycles.
 
 from ._binary import BINARY_VARIABLE, find_binary
 from ._errors import PidmError, SceneError
-from ._fit import FitResult, fit
+from ._fit import FitResult, FitWarning, fit
 from ._read import open, open_trajectory, trajectory_names
 from ._run import RunWarning, check, run
 from ._toml import dumps as scene_toml
@@ -36,6 +36,7 @@ from ._version import package_version
 __all__ = [
     "BINARY_VARIABLE",
     "FitResult",
+    "FitWarning",
     "PidmError",
     "RunWarning",
     "SceneError",

@@ -7,6 +7,7 @@ import math
 import os
 import shutil
 import tempfile
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,7 +45,17 @@ _STARTED = "pidm: fitting "
 #: The measured and model columns of ``rows``, in this order after the keys.
 _STEP_COLUMNS = tuple(
     f"{kind}step_{axis}{se}" for axis in ("x", "y") for kind in ("", "model_") for se in ("", "_se")
-)
+) + ("residual_x", "residual_y")
+
+#: Below this p-value pidm warns that the data's standard errors are too small for
+#: the misfit (docs/fit.md), and so does :func:`fit`.
+P_WARN = 1e-3
+
+
+class FitWarning(UserWarning):
+    """A fit finished, but its answer is limited: the data do not determine every
+    free key (``identifiable`` is False), or its p-value is below 0.001 (the data's
+    standard errors are too small for the misfit). The message is pidm's warnings."""
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -76,6 +87,19 @@ class FitResult:
     dof: int
     #: ``chi2 / dof``.
     reduced_chi2: float
+    #: The chance of a chi2 this large on ``dof`` degrees of freedom where every
+    #: measured axis has the data's standard errors; None where a scale came from
+    #: the residuals, or ``dof`` <= 0.
+    p_value: float | None
+    #: ``"given"`` (the data's standard errors as they are) or ``"scaled"`` (by
+    #: sqrt(reduced chi2)): which ones ``se`` holds (``[fit] errors``).
+    errors: str
+    #: The standard errors scaled by sqrt(reduced chi2) where the p-value warns or
+    #: ``errors`` is ``"scaled"``; else None.
+    se_scaled: pd.Series | None
+    #: The covariance of the fitted values in their units, over ``("key",
+    #: "other_key")``, scaled as ``se`` is.
+    covariance: xr.DataArray
     #: Whether the data pin down every free key (else see ``warnings``).
     identifiable: bool
     warnings: list[str]
@@ -93,6 +117,13 @@ class FitResult:
     def keys(self) -> list[str]:
         """The free keys, in FIT.json's ``order``."""
         return list(self.values.index)
+
+    @property
+    def residuals(self) -> pd.DataFrame:
+        """Each data row's normalized residual per axis, ``(model - data) / se``
+        (NaN where the row measures no step on that axis), indexed by ``line``."""
+        columns = [c for c in ("residual_x", "residual_y") if c in self.rows.columns]
+        return self.rows.set_index("line")[columns]
 
     def table(self) -> str:
         """Key, value, standard error, the error in % of the value, and units."""
@@ -115,7 +146,9 @@ class FitResult:
     def __str__(self) -> str:
         text = self.table()
         text += (
-            f"\nchi2 {self.chi2:.5g} on {self.dof} degrees of freedom; "
+            f"\nchi2 {self.chi2:.5g} on {self.dof} degrees of freedom"
+            + ("" if self.p_value is None else f" (p = {self.p_value:.3g})")
+            + "; "
             f"{self.evaluations} candidates evaluated; {self.status}"
         )
         if not self.identifiable:
@@ -230,7 +263,9 @@ def fit(
                 raise
             if returncode != 0:
                 raise _failure(command, returncode, stderr)
-            return _read(result, keep=out is not None)
+            found = _read(result, keep=out is not None)
+            _warn(found)
+            return found
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
 
@@ -316,8 +351,25 @@ def _read(path: Path, *, keep: bool) -> FitResult:
     index = pd.Index(order, name="key")
     values = pd.Series([_number(parameters[k]["value"]) for k in order], index, name="value")
     se = pd.Series([_number(parameters[k]["se"]) for k in order], index, name="se")
+    covariance = xr.DataArray(
+        np.array(
+            [[_number(c) for c in row] for row in raw.get("covariance", [])], dtype=float
+        ).reshape(len(order), len(order)),
+        dims=("key", "other_key"),
+        coords={"key": order, "other_key": order},
+        name="covariance",
+        attrs={"long_name": "covariance of the fitted values", "units": "keys' units squared"},
+    )
+    scaled = [parameters[k].get("se_scaled") for k in order]
+    se_scaled = (
+        None
+        if all(v is None for v in scaled)
+        else pd.Series([_number(v) for v in scaled], index, name="se_scaled")
+    )
     correlation = xr.DataArray(
-        np.array(raw["correlation"], dtype=float).reshape(len(order), len(order)),
+        np.array([[_number(c) for c in row] for row in raw["correlation"]], dtype=float).reshape(
+            len(order), len(order)
+        ),
         dims=("key", "other_key"),
         coords={"key": order, "other_key": order},
         name="correlation",
@@ -332,6 +384,10 @@ def _read(path: Path, *, keep: bool) -> FitResult:
         chi2=_number(raw["chi2"]),
         dof=int(raw["dof"]),
         reduced_chi2=_number(raw.get("reduced_chi2")),
+        p_value=None if raw.get("p_value") is None else float(raw["p_value"]),
+        errors=str(raw.get("errors", "given")),
+        se_scaled=se_scaled,
+        covariance=covariance,
         identifiable=bool(raw["identifiable"]),
         warnings=list(raw.get("warnings", [])),
         notes=list(raw.get("notes", [])),
@@ -342,6 +398,16 @@ def _read(path: Path, *, keep: bool) -> FitResult:
         json=raw,
         path=path if keep else None,
     )
+
+
+def _warn(found: FitResult) -> None:
+    """A :class:`FitWarning` where the fit is not identifiable or its p-value warns."""
+    limited = not found.identifiable or (
+        found.p_value is not None and found.p_value < P_WARN and found.errors == "given"
+    )
+    if limited:
+        text = "; ".join(found.warnings) or "the data do not determine every free key"
+        warnings.warn(f"pidm fit: {text}", FitWarning, stacklevel=3)
 
 
 def _number(value: Any) -> float:

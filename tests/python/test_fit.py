@@ -209,3 +209,33 @@ def test_ctrl_c_stops_the_fit_and_keeps_the_best_point(tmp_path: Path) -> None:
             except OSError:
                 continue
             assert str(out) not in command or "pytest" in command, command
+
+
+def test_the_goodness_of_fit_the_covariance_and_the_residuals() -> None:
+    fit = pidm.fit(SCENE, backend="cpu", progress=False)
+    # The example's 2 % errors are given: a p-value, nothing scaled.
+    assert fit.errors == "given"
+    assert fit.p_value is not None and 0.001 < fit.p_value <= 1.0
+    assert fit.se_scaled is None
+    cov = fit.covariance
+    assert cov.dims == ("key", "other_key")
+    assert cov["key"].values.tolist() == fit.keys
+    assert np.allclose(np.sqrt(np.diag(cov.values)), fit.se.values, rtol=1e-9)
+    assert np.allclose(cov.values, cov.values.T)
+    residuals = fit.residuals
+    assert residuals.index.name == "line"
+    assert len(residuals) == len(fit.rows)
+    rows = fit.rows.set_index("line")
+    expect = (rows["model_step_x"] - rows["step_x"]) / rows["step_x_se"]
+    assert np.allclose(residuals["residual_x"].values, expect.values)
+    assert np.isclose((residuals["residual_x"] ** 2).sum(), fit.chi2, rtol=1e-9)
+
+
+def test_understated_errors_raise_a_fit_warning() -> None:
+    steps = pd.read_csv(STEPS)
+    steps["step_x_se"] /= 3.0
+    with pytest.warns(pidm.FitWarning, match="too small for the misfit"):
+        fit = pidm.fit(TEXT, steps, backend="cpu", progress=False)
+    assert fit.p_value is not None and fit.p_value < 1e-3
+    assert fit.se_scaled is not None
+    assert (fit.se_scaled > fit.se).all()
