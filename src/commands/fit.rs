@@ -36,6 +36,10 @@ pub struct FitCommand {
     /// best_chi2) or none [default: bar on a terminal, else none].
     #[arg(long, value_enum)]
     pub progress: Option<ProgressMode>,
+    /// Skip the profile-likelihood intervals (68 % and 95 % per free key;
+    /// about as many candidates again as the fit, docs/fit.md).
+    #[arg(long)]
+    pub no_intervals: bool,
 }
 
 /// Runs `pidm fit`; returns whether it was interrupted (the best point so
@@ -81,6 +85,7 @@ pub fn fit(cmd: &FitCommand) -> Result<bool> {
         progress: cmd
             .progress
             .unwrap_or_else(ProgressMode::default_for_stderr),
+        intervals: !cmd.no_intervals,
     };
     let (answer, table) = crate::fit::fit(&opts, problem, backend)?;
     print!("{table}");

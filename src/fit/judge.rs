@@ -41,6 +41,11 @@ pub struct Answer {
     /// every measured axis has the data's standard errors (`None` where a
     /// scale came from the residuals, or `dof` <= 0).
     pub p_value: Option<f64>,
+    /// The profile-likelihood intervals per key (`None`: skipped with
+    /// `--no-intervals`, or interrupted).
+    pub intervals: Option<Vec<super::profile::Interval>>,
+    /// The profiles walked, per key (search coordinate, rise of chi2).
+    pub profiles: Vec<Vec<(f64, f64)>>,
     /// Correlation matrix in `keys`' order (of the search coordinates: the
     /// logarithm of a key searched on a log scale).
     pub correlation: Vec<Vec<f64>>,
@@ -76,6 +81,12 @@ pub fn judge(problem: &Problem, found: Found) -> Answer {
         se_scaled: None,
         covariance: vec![vec![f64::NAN; p]; p],
         p_value: None,
+        intervals: found.profiles.as_ref().map(|p| p.intervals.clone()),
+        profiles: found
+            .profiles
+            .as_ref()
+            .map(|p| p.curves.clone())
+            .unwrap_or_default(),
         correlation: identity(p),
         chi2: found.best.chi2,
         dof,
@@ -111,6 +122,7 @@ pub fn judge(problem: &Problem, found: Found) -> Answer {
         second_minimum(problem, &found, &mut answer);
         wider_than_bounds(problem, &mut answer);
     }
+    open_intervals(problem, &mut answer);
     bounds(problem, &found.best.u, &mut answer);
     model_noise(problem, &found, &mut answer);
     if found.ending == Ending::Interrupted {
@@ -309,6 +321,30 @@ fn goodness(problem: &Problem, found: &Found, answer: &mut Answer) {
     }
 }
 
+/// Not identifiable where a key's 68 % profile interval is open: the
+/// misfit never rises by [`super::profile::DELTA_68`] inside its bounds
+/// on some side.
+fn open_intervals(problem: &Problem, answer: &mut Answer) {
+    let Some(intervals) = answer.intervals.clone() else {
+        return;
+    };
+    for (free, interval) in problem.free.iter().zip(intervals) {
+        let sides: Vec<&str> = [("lower", interval.lo68), ("upper", interval.hi68)]
+            .into_iter()
+            .filter(|(_, v)| v.is_none())
+            .map(|(side, _)| side)
+            .collect();
+        if !sides.is_empty() {
+            answer.warn(format!(
+                "`{}`: its 68 % interval is open on the {} side: the misfit never rises by 1 \
+                 there inside the bounds, so the data do not bound it",
+                free.key,
+                sides.join(" and ")
+            ));
+        }
+    }
+}
+
 /// Not identifiable where a key's standard error is wider than its bounds:
 /// the data barely constrain it inside them.
 fn wider_than_bounds(problem: &Problem, answer: &mut Answer) {
@@ -382,6 +418,13 @@ fn notes(problem: &Problem, found: &Found) -> Vec<String> {
              against the data; the model's own standard error is at most {:.1} % of the data's",
             fit / scene,
             100.0 * worst
+        ));
+    }
+    if let Some(profiles) = &found.profiles {
+        notes.push(format!(
+            "the profile-likelihood intervals cost {} candidates ({} for the whole fit; \
+             --no-intervals skips them)",
+            profiles.evaluations, problem.evaluations
         ));
     }
     if found.restarts > 0 {

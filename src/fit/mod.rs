@@ -18,6 +18,7 @@ pub mod jacobian;
 pub mod judge;
 pub mod lsq;
 pub mod problem;
+pub mod profile;
 pub mod report;
 pub mod search;
 pub mod solve;
@@ -43,6 +44,8 @@ pub struct FitOptions {
     pub out: PathBuf,
     pub seed: u64,
     pub progress: ProgressMode,
+    /// Whether the profile-likelihood intervals are walked.
+    pub intervals: bool,
 }
 
 /// The three files a fit writes.
@@ -101,8 +104,9 @@ pub fn fit<'a>(
 ) -> Result<(judge::Answer, String)> {
     let outputs = Outputs::beside(&opts.out, &opts.scene)?;
     problem.on(backend);
-    let found =
-        solve::Search::new(&mut problem, ticker::Ticker::new(opts.progress)).run(opts.seed)?;
+    let mut search = solve::Search::new(&mut problem, ticker::Ticker::new(opts.progress));
+    search.intervals = opts.intervals;
+    let found = search.run(opts.seed)?;
     let answer = judge::judge(&problem, found);
     let origin = report::Origin {
         scene: &opts.scene,

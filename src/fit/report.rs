@@ -41,6 +41,8 @@ pub fn json(problem: &Problem, answer: &Answer, origin: &Origin) -> Value {
                 "value": answer.values[i],
                 "se": answer.se[i],
                 "se_scaled": answer.se_scaled.as_ref().map(|s| s[i]),
+                "interval68": answer.intervals.as_ref().map(|v| [v[i].lo68, v[i].hi68]),
+                "interval95": answer.intervals.as_ref().map(|v| [v[i].lo95, v[i].hi95]),
                 "bounds": free.bounds,
                 "units": free.units,
                 "scale": if free.log { "log" } else { "linear" },
@@ -157,13 +159,18 @@ pub fn table(problem: &Problem, answer: &Answer) -> String {
         .unwrap_or(3)
         .max(3);
     let mut out = format!(
-        "{:<width$}  {:>14}  {:>12}  {:>8}  units\n",
-        "key", "value", "se", "se %"
+        "{:<width$}  {:>14}  {:>12}  {:>8}  {:>27}  units\n",
+        "key", "value", "se", "se %", "68 % interval"
     );
+    let side = |v: Option<f64>| v.map_or("open".to_owned(), |v| format!("{v:.5e}"));
     for (i, free) in problem.free.iter().enumerate() {
         let (v, se) = (answer.values[i], answer.se[i]);
+        let interval = match &answer.intervals {
+            Some(all) => format!("{} .. {}", side(all[i].lo68), side(all[i].hi68)),
+            None => "-".into(),
+        };
         out += &format!(
-            "{:<width$}  {v:>14.6e}  {se:>12.4e}  {:>8.2}  {}\n",
+            "{:<width$}  {v:>14.6e}  {se:>12.4e}  {:>8.2}  {interval:>27}  {}\n",
             free.key,
             100.0 * se / v.abs(),
             free.units

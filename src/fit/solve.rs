@@ -59,6 +59,9 @@ pub struct Found {
     /// Every candidate evaluated (search coordinates) with its rows' model,
     /// for the search for a second minimum (`super::judge`).
     pub history: Vec<(Vec<f64>, Vec<RowModel>)>,
+    /// The profile-likelihood intervals (`super::profile`), unless skipped
+    /// or interrupted.
+    pub profiles: Option<super::profile::Profiles>,
     /// Times the local stage started again from a probe that fit better
     /// than its end.
     pub restarts: usize,
@@ -112,10 +115,13 @@ pub struct Search<'p, 'a> {
     pub weights: Weights,
     pub best: Option<Best>,
     history: Vec<(Vec<f64>, Vec<RowModel>)>,
-    ticker: Ticker,
-    widths: Vec<f64>,
-    lo: Vec<f64>,
-    hi: Vec<f64>,
+    pub(super) ticker: Ticker,
+    pub(super) widths: Vec<f64>,
+    pub(super) lo: Vec<f64>,
+    pub(super) hi: Vec<f64>,
+    /// Whether the profile-likelihood intervals are walked (`--no-intervals`
+    /// skips them).
+    pub intervals: bool,
 }
 
 impl<'p, 'a> Search<'p, 'a> {
@@ -141,6 +147,7 @@ impl<'p, 'a> Search<'p, 'a> {
             widths,
             lo,
             hi,
+            intervals: true,
         }
     }
 
@@ -168,6 +175,7 @@ impl<'p, 'a> Search<'p, 'a> {
                 generations: 0,
                 iterations: 0,
                 history: Vec::new(),
+                profiles: None,
                 restarts: 0,
                 beaten: None,
             }),
@@ -197,22 +205,27 @@ impl<'p, 'a> Search<'p, 'a> {
         // local stage's end; where an evaluation since (a probe) fit
         // better, the local stage starts again from there.
         let mut restarts = 0;
-        let (jacobian, point) = loop {
+        let (jacobian, point, profiles) = loop {
             self.ticker.stage("errors");
             for _ in 0..ERROR_STEP_ROUNDS {
                 steps = self.error_steps(&lm.u, &steps)?;
             }
             let point = self.point(&lm.u)?;
             let jacobian = self.jacobian(&lm.u, &lm.residuals, &steps)?;
+            let profiles = match self.intervals {
+                true => Some(self.profiles_at(&lm.u, &point, &jacobian)?),
+                false => None,
+            };
             let best = self.best.clone().expect("the point was evaluated");
             if best.chi2 < point.chi2 * (1.0 - 1e-9) && restarts < MAX_RESTARTS {
                 restarts += 1;
                 lm = self.local(&best.u, &steps)?;
                 continue;
             }
-            break (jacobian, point);
+            break (jacobian, point, profiles);
         };
         Ok(Found {
+            profiles,
             restarts,
             beaten: self
                 .best
@@ -338,6 +351,28 @@ impl<'p, 'a> Search<'p, 'a> {
         jacobian::sided(&mut eval, (&lo, &hi), u, r0, steps)
     }
 
+    /// The profiles through the final point `u`, walked in steps of the
+    /// standard errors its Jacobian gives, their thresholds scaled by the
+    /// reduced chi2 where `fit.errors = "scaled"`.
+    fn profiles_at(
+        &mut self,
+        u: &[f64],
+        point: &Best,
+        jacobian: &jacobian::Sided,
+    ) -> Result<super::profile::Profiles> {
+        let cov = lsq::covariance(&jacobian.j, 1.0);
+        let mut se = vec![f64::NAN; u.len()];
+        for (&k, s) in jacobian.probed.iter().zip(&cov.standard_errors) {
+            se[k] = *s;
+        }
+        let dof = self.problem.data.measurements() as f64 - u.len() as f64;
+        let scale = match (self.problem.errors, dof > 0.0) {
+            (super::spec::Errors::Scaled, true) => point.chi2 / dof,
+            _ => 1.0,
+        };
+        self.profiles(u, point.chi2, &se, scale)
+    }
+
     /// The point `u` evaluated: its chi2 and its rows' model.
     fn point(&mut self, u: &[f64]) -> Result<Best> {
         let values = self.values(u);
@@ -354,7 +389,7 @@ impl<'p, 'a> Search<'p, 'a> {
 
     /// The weighted residuals of candidates (search coordinates), one batch;
     /// keeps the best point and ticks the progress.
-    fn residuals(&mut self, us: &[Vec<f64>]) -> Result<Vec<Option<Vec<f64>>>> {
+    pub(super) fn residuals(&mut self, us: &[Vec<f64>]) -> Result<Vec<Option<Vec<f64>>>> {
         let values: Vec<Vec<f64>> = us.iter().map(|u| self.values(u)).collect();
         let evaluations = self.problem.evaluate(&values)?;
         let mut out = Vec::with_capacity(us.len());

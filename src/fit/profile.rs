@@ -1,0 +1,320 @@
+//! Profile-likelihood intervals (docs/fit.md): for each free key, the
+//! values where the misfit, with the other keys refitted, rises by 1
+//! (68.3 %) or 3.84 (95 %) above the best (times the reduced chi2 where
+//! `fit.errors = "scaled"`). Unlike value ± se they follow a kink or a
+//! curved valley, and a log-scale key's are not symmetric.
+//!
+//! Each side of each key is walked outward from the best value in steps
+//! of its standard error (0.5, 1, 1.5, ... up to 40, then the bound),
+//! the other keys refitted at every point by Levenberg-Marquardt from the
+//! previous point's values, in batches on the backend as the search runs.
+//! The walk stops once the misfit stays above the 95 % threshold for two
+//! points, or at the bound. The crossing of each threshold is the
+//! outermost one the walk saw, refined by three bisections and a linear
+//! interpolation; a side that never rises above it inside the bounds is
+//! open (`None`). A candidate that fails or that a scene rule refuses
+//! counts as above every threshold.
+
+use anyhow::Result;
+
+use super::lsq::{self, LmOptions};
+use super::solve::Search;
+
+/// The rise of the misfit that bounds a 68.3 % interval of one key.
+pub const DELTA_68: f64 = 1.0;
+
+/// The rise of the misfit that bounds a 95 % interval of one key: the
+/// chi-square distribution's 95 % quantile on one degree of freedom.
+pub const DELTA_95: f64 = 3.841_458_820_694_124;
+
+/// The steps of a walk, in standard errors from the best value.
+const WALK: [f64; 13] = [
+    0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 7.0, 10.0, 15.0, 25.0, 40.0,
+];
+
+/// Bisections of each crossing.
+const BISECTIONS: usize = 3;
+
+/// One key's intervals in its own units; `None` where a side is open.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Interval {
+    pub lo68: Option<f64>,
+    pub hi68: Option<f64>,
+    pub lo95: Option<f64>,
+    pub hi95: Option<f64>,
+}
+
+impl Interval {
+    /// Whether either side of the 68 % interval is open.
+    pub fn open68(&self) -> bool {
+        self.lo68.is_none() || self.hi68.is_none()
+    }
+}
+
+/// Every key's intervals, the profiles walked (per key: search coordinate
+/// and rise of the misfit, for FIT.png) and the candidates they cost.
+#[derive(Clone, Debug, Default)]
+pub struct Profiles {
+    pub intervals: Vec<Interval>,
+    pub curves: Vec<Vec<(f64, f64)>>,
+    pub evaluations: usize,
+}
+
+/// A point of a walk: its offset from the best value (search
+/// coordinates), the misfit's rise there, and the other keys' values.
+#[derive(Clone, Debug)]
+struct Point {
+    offset: f64,
+    rise: f64,
+    others: Vec<f64>,
+}
+
+impl Search<'_, '_> {
+    /// The profiles through `best` (search coordinates, misfit `chi2`),
+    /// walked in steps of `se` (search coordinates; a tenth of a hundredth
+    /// of the bounds where unknown), with thresholds times `scale`.
+    pub fn profiles(
+        &mut self,
+        best: &[f64],
+        chi2: f64,
+        se: &[f64],
+        scale: f64,
+    ) -> Result<Profiles> {
+        self.ticker.stage("intervals");
+        let before = self.problem.evaluations;
+        let mut out = Profiles::default();
+        for k in 0..best.len() {
+            let [lo, hi] = self.problem.free[k].coordinate_bounds();
+            let unit = match se[k].is_finite() && se[k] > 0.0 {
+                true => se[k].min(hi - lo),
+                false => 0.01 * (hi - lo),
+            };
+            let mut curve = Vec::new();
+            let mut sides = [[None; 2]; 2];
+            for (side, sign) in [-1.0f64, 1.0].into_iter().enumerate() {
+                let room = if sign < 0.0 {
+                    best[k] - lo
+                } else {
+                    hi - best[k]
+                };
+                let walk = self.walk(best, k, (sign, unit, room), chi2, scale)?;
+                curve.extend(
+                    walk.points
+                        .iter()
+                        .map(|p| (best[k] + sign * p.offset, p.rise)),
+                );
+                for (t, threshold) in [DELTA_68, DELTA_95].into_iter().enumerate() {
+                    sides[t][side] = match walk.crossing(threshold * scale) {
+                        Some((a, b)) => {
+                            let at =
+                                self.bisect(best, k, sign, (a, b), (chi2, threshold * scale))?;
+                            Some(self.problem.free[k].value(best[k] + sign * at))
+                        }
+                        None => None,
+                    };
+                }
+            }
+            curve.sort_by(|a, b| a.0.total_cmp(&b.0));
+            out.curves.push(curve);
+            out.intervals.push(Interval {
+                lo68: sides[0][0],
+                hi68: sides[0][1],
+                lo95: sides[1][0],
+                hi95: sides[1][1],
+            });
+        }
+        out.evaluations = self.problem.evaluations - before;
+        Ok(out)
+    }
+
+    /// One side of key `k`'s profile: points outward until the misfit stays
+    /// above the 95 % threshold for two points or the side's `room` ends.
+    fn walk(
+        &mut self,
+        best: &[f64],
+        k: usize,
+        (sign, unit, room): (f64, f64, f64),
+        chi2: f64,
+        scale: f64,
+    ) -> Result<Walk> {
+        let mut walk = Walk {
+            points: vec![Point {
+                offset: 0.0,
+                rise: 0.0,
+                others: others(best, k),
+            }],
+            reached_bound: false,
+        };
+        let mut above = 0;
+        for g in WALK.iter().map(|g| g * unit).chain([room]) {
+            let offset = g.min(room);
+            if offset <= walk.points.last().map_or(0.0, |p| p.offset) {
+                continue;
+            }
+            let start = walk
+                .points
+                .last()
+                .map(|p| p.others.clone())
+                .unwrap_or_default();
+            let (cost, others) = self.refit(best, k, best[k] + sign * offset, &start)?;
+            let rise = cost - chi2;
+            walk.points.push(Point {
+                offset,
+                rise,
+                others,
+            });
+            above = if rise > DELTA_95 * scale {
+                above + 1
+            } else {
+                0
+            };
+            if offset >= room {
+                walk.reached_bound = true;
+                break;
+            }
+            if above >= 2 {
+                break;
+            }
+        }
+        Ok(walk)
+    }
+
+    /// The crossing of `threshold` inside `(a, b)` (offsets from the best
+    /// value, the misfit below it at `a` and above at `b`): bisected, then
+    /// interpolated linearly in the rise.
+    fn bisect(
+        &mut self,
+        best: &[f64],
+        k: usize,
+        sign: f64,
+        (mut a, mut b): (Point, Point),
+        (chi2, threshold): (f64, f64),
+    ) -> Result<f64> {
+        for _ in 0..BISECTIONS {
+            let offset = 0.5 * (a.offset + b.offset);
+            let (cost, others) = self.refit(best, k, best[k] + sign * offset, &a.others)?;
+            let mid = Point {
+                offset,
+                rise: cost - chi2,
+                others,
+            };
+            if mid.rise > threshold {
+                b = mid;
+            } else {
+                a = mid;
+            }
+        }
+        if !b.rise.is_finite() {
+            return Ok(0.5 * (a.offset + b.offset));
+        }
+        let t = ((threshold - a.rise) / (b.rise - a.rise)).clamp(0.0, 1.0);
+        Ok(a.offset + t * (b.offset - a.offset))
+    }
+
+    /// The misfit with key `k` held at `u_k` and the others refitted from
+    /// `start` (their values in order, `k` left out); infinite where the
+    /// candidate fails.
+    fn refit(
+        &mut self,
+        best: &[f64],
+        k: usize,
+        u_k: f64,
+        start: &[f64],
+    ) -> Result<(f64, Vec<f64>)> {
+        let full = |others: &[f64]| -> Vec<f64> {
+            let mut u = others.to_vec();
+            u.insert(k, u_k);
+            u
+        };
+        if best.len() == 1 {
+            let r = self.residuals(&[full(&[])])?.pop().flatten();
+            let cost = r.map_or(f64::INFINITY, |r| r.iter().map(|x| x * x).sum());
+            return Ok((cost, Vec::new()));
+        }
+        let (lo, hi) = (others(&self.lo, k), others(&self.hi, k));
+        let steps: Vec<f64> = others(&self.widths, k).iter().map(|w| 1e-3 * w).collect();
+        let opts = LmOptions {
+            max_iterations: 20,
+            ..LmOptions::new(steps)
+        };
+        let mut eval = |us: &[Vec<f64>]| {
+            let full: Vec<Vec<f64>> = us.iter().map(|u| full(u)).collect();
+            self.residuals(&full)
+        };
+        match lsq::levenberg_marquardt(&mut eval, &lo, &hi, start, &opts, &mut |_, _, _| true) {
+            Ok(lm) => Ok((lm.cost, lm.u)),
+            Err(_) if !crate::interrupt::interrupt_requested() => {
+                Ok((f64::INFINITY, start.to_vec()))
+            }
+            Err(e) => Err(e),
+        }
+    }
+}
+
+/// A side's walk: its points, the best value first.
+struct Walk {
+    points: Vec<Point>,
+    reached_bound: bool,
+}
+
+impl Walk {
+    /// The outermost step across `threshold`: the last point at or below
+    /// it and the next, above; `None` where the walk ends below it (at the
+    /// bound: the side is open).
+    fn crossing(&self, threshold: f64) -> Option<(Point, Point)> {
+        if self.points.last()?.rise <= threshold {
+            return None;
+        }
+        let below = self.points.iter().rposition(|p| p.rise <= threshold)?;
+        Some((self.points[below].clone(), self.points[below + 1].clone()))
+    }
+}
+
+/// `values` without entry `k`.
+fn others(values: &[f64], k: usize) -> Vec<f64> {
+    values
+        .iter()
+        .enumerate()
+        .filter(|&(j, _)| j != k)
+        .map(|(_, v)| *v)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn walk(rises: &[f64], reached_bound: bool) -> Walk {
+        Walk {
+            points: rises
+                .iter()
+                .enumerate()
+                .map(|(i, &rise)| Point {
+                    offset: i as f64,
+                    rise,
+                    others: Vec::new(),
+                })
+                .collect(),
+            reached_bound,
+        }
+    }
+
+    /// The outermost crossing; none where the walk ends below the
+    /// threshold at the bound.
+    #[test]
+    fn the_crossing_is_the_outermost_one() {
+        let check = |rises: &[f64], bound: bool, want: Option<(f64, f64)>| {
+            let got = walk(rises, bound)
+                .crossing(1.0)
+                .map(|(a, b)| (a.offset, b.offset));
+            assert_eq!(got, want, "{rises:?}");
+        };
+        check(&[0.0, 0.5, 2.0, 5.0, 6.0], false, Some((1.0, 2.0)));
+        // Up, down again, up for good: the outer crossing.
+        check(&[0.0, 2.0, 0.5, 3.0, 9.0, 9.0], false, Some((2.0, 3.0)));
+        // Never above at the bound: open.
+        check(&[0.0, 0.2, 0.4], true, None);
+        // A refused candidate counts as above.
+        check(&[0.0, 0.3, f64::INFINITY], false, Some((1.0, 2.0)));
+    }
+}
