@@ -149,10 +149,17 @@ def fit(
         so their ``[fit] data`` must be an absolute path, or ``data`` given.
     data
         None: the scene's ``[fit] data`` (relative to the scene file). A path to
-        a CSV, or a pandas DataFrame with the same columns: scene keys
-        (``axis.x.voltage``, ...) and ``step_x``, ``step_y`` [m per own drive
-        cycle], ``step_x_se``, ``step_y_se`` [m]; NaN is "not measured". A
-        DataFrame's named index levels are written as columns too.
+        a CSV (``,``, ``;`` or tab separated; ``#`` comments skipped), or a
+        pandas DataFrame with the same columns: scene keys (``axis.x.voltage``,
+        ...) and per axis one measured column naming its unit, ``step_x_um``,
+        ``step_x_nm``, ``step_x`` [m per own drive cycle], or a velocity
+        ``velocity_x_um_s``, ``velocity_x_m_s``, with its optional error
+        ``step_x_se_um``, ``velocity_x_se_um_s``, ... (docs/fit.md). NaN in a
+        measured column is "not measured"; NaN in a key column is refused
+        (SceneError naming its line, the frame's row number + 2). Rows with
+        equal keys are repeats: without error columns, each setting is fitted
+        as its mean with errors from the pooled spread. A DataFrame's named
+        index levels are written as columns too.
     out
         FIT.json; FIT.toml and FIT.png are written beside it and kept. None fits
         into a temporary folder that is removed once the result is read.
@@ -350,11 +357,12 @@ def _number(value: Any) -> float:
 
 
 def _rows(rows: list[Mapping[str, Any]]) -> pd.DataFrame:
-    """The data rows: ``line``, the keys, then measured and model steps per axis
-    (NaN where a row measures no step)."""
+    """The data rows: ``line`` (and ``lines``, a pooled setting's lines, when
+    repeats were pooled), the keys, then measured and model steps per axis (NaN
+    where a row measures no step)."""
     frame = pd.DataFrame(rows)
     steps = [c for c in _STEP_COLUMNS if c in frame.columns]
-    first = ["line"] if "line" in frame.columns else []
+    first = [c for c in ("line", "lines") if c in frame.columns]
     keys = [c for c in frame.columns if c not in steps and c not in first]
     return frame[first + keys + steps]
 

@@ -132,6 +132,12 @@ def test_a_bad_dataframe_raises_a_scene_error_naming_the_column() -> None:
     bad = TEXT.replace("mechanism.static_friction", "mechanism.static_frictio")
     with pytest.raises(pidm.SceneError, match="mechanism.static_frictio"):
         pidm.fit(bad, STEPS, backend="cpu", progress=False)
+    # NaN in a key column (an empty cell in the CSV written) is refused, not
+    # the scene's value: pidm's message names the line and the column.
+    steps = pd.read_csv(STEPS)
+    steps.loc[steps.index[3], "axis.x.voltage"] = np.nan
+    with pytest.raises(pidm.SceneError, match=r"line 5, column axis\.x\.voltage: empty"):
+        pidm.fit(TEXT, steps, backend="cpu", progress=False)
     with pytest.raises(FileNotFoundError):
         pidm.fit(SCENE, STEPS.with_name("missing.csv"), progress=False)
     with pytest.raises(ValueError, match=".json"):
