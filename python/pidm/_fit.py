@@ -100,6 +100,10 @@ class FitResult:
     #: The covariance of the fitted values in their units, over ``("key",
     #: "other_key")``, scaled as ``se`` is.
     covariance: xr.DataArray
+    #: The profile-likelihood intervals by key: ``lo68``, ``hi68``, ``lo95``,
+    #: ``hi95`` in the key's units (NaN where a side is open: the misfit never
+    #: rises enough inside the bounds); None with ``intervals=False``.
+    intervals: pd.DataFrame | None
     #: Whether the data pin down every free key (else see ``warnings``).
     identifiable: bool
     warnings: list[str]
@@ -169,6 +173,7 @@ def fit(
     seed: int = 1,
     threads: int | None = None,
     progress: ProgressArg | None = None,
+    intervals: bool = True,
 ) -> FitResult:
     """Calibrates a fit scene's free keys to measured steps (``pidm fit``).
 
@@ -182,10 +187,17 @@ def fit(
         so their ``[fit] data`` must be an absolute path, or ``data`` given.
     data
         None: the scene's ``[fit] data`` (relative to the scene file). A path to
-        a CSV, or a pandas DataFrame with the same columns: scene keys
-        (``axis.x.voltage``, ...) and ``step_x``, ``step_y`` [m per own drive
-        cycle], ``step_x_se``, ``step_y_se`` [m]; NaN is "not measured". A
-        DataFrame's named index levels are written as columns too.
+        a CSV (``,``, ``;`` or tab separated; ``#`` comments skipped), or a
+        pandas DataFrame with the same columns: scene keys (``axis.x.voltage``,
+        ...) and per axis one measured column naming its unit, ``step_x_um``,
+        ``step_x_nm``, ``step_x`` [m per own drive cycle], or a velocity
+        ``velocity_x_um_s``, ``velocity_x_m_s``, with its optional error
+        ``step_x_se_um``, ``velocity_x_se_um_s``, ... (docs/fit.md). NaN in a
+        measured column is "not measured"; NaN in a key column is refused
+        (SceneError naming its line, the frame's row number + 2). Rows with
+        equal keys are repeats: without error columns, each setting is fitted
+        as its mean with errors from the pooled spread. A DataFrame's named
+        index levels are written as columns too.
     out
         FIT.json; FIT.toml and FIT.png are written beside it and kept. None fits
         into a temporary folder that is removed once the result is read.
@@ -200,8 +212,11 @@ def fit(
         None or True shows a tqdm bar (candidates evaluated, the stage and the
         best chi2) when tqdm is installed; False shows nothing; a function is
         called with every progress record: a dict with ``stage`` (``"global"``,
-        ``"local"`` or ``"errors"``), ``batch``, ``evaluations`` and
+        ``"local"``, ``"errors"`` or ``"intervals"``), ``batch``, ``evaluations`` and
         ``best_chi2`` (None before a finite one).
+    intervals
+        Walk the profile-likelihood intervals (68 % and 95 % per free key, about
+        as many candidates again as the fit); False skips them (``--no-intervals``).
 
     Returns
     -------
@@ -247,6 +262,8 @@ def fit(
             command += ["--backend", backend, "--seed", str(int(seed))]
             if threads is not None:
                 command += ["--threads", str(int(threads))]
+            if not intervals:
+                command += ["--no-intervals"]
             if data is not None:
                 command += ["--data", _data_file(data, workdir)]
             command += ["--progress", "none" if progress is False else "jsonl"]
@@ -388,6 +405,7 @@ def _read(path: Path, *, keep: bool) -> FitResult:
         errors=str(raw.get("errors", "given")),
         se_scaled=se_scaled,
         covariance=covariance,
+        intervals=_intervals(order, parameters),
         identifiable=bool(raw["identifiable"]),
         warnings=list(raw.get("warnings", [])),
         notes=list(raw.get("notes", [])),
@@ -398,6 +416,19 @@ def _read(path: Path, *, keep: bool) -> FitResult:
         json=raw,
         path=path if keep else None,
     )
+
+
+def _intervals(order: list[str], parameters: Mapping[str, Any]) -> pd.DataFrame | None:
+    """The profile intervals of FIT.json's parameters, or None where skipped."""
+    if all(parameters[k].get("interval68") is None for k in order):
+        return None
+    columns: dict[str, list[float]] = {"lo68": [], "hi68": [], "lo95": [], "hi95": []}
+    for key in order:
+        for level in ("68", "95"):
+            lo, hi = parameters[key].get(f"interval{level}") or (None, None)
+            columns[f"lo{level}"].append(_number(lo))
+            columns[f"hi{level}"].append(_number(hi))
+    return pd.DataFrame(columns, index=pd.Index(order, name="key"))
 
 
 def _warn(found: FitResult) -> None:
@@ -416,11 +447,12 @@ def _number(value: Any) -> float:
 
 
 def _rows(rows: list[Mapping[str, Any]]) -> pd.DataFrame:
-    """The data rows: ``line``, the keys, then measured and model steps per axis
-    (NaN where a row measures no step)."""
+    """The data rows: ``line`` (and ``lines``, a pooled setting's lines, when
+    repeats were pooled), the keys, then measured and model steps per axis (NaN
+    where a row measures no step)."""
     frame = pd.DataFrame(rows)
     steps = [c for c in _STEP_COLUMNS if c in frame.columns]
-    first = ["line"] if "line" in frame.columns else []
+    first = [c for c in ("line", "lines") if c in frame.columns]
     keys = [c for c in frame.columns if c not in steps and c not in first]
     return frame[first + keys + steps]
 

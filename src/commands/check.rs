@@ -346,6 +346,8 @@ fn check_fit(path: &Path, json: bool) -> Result<()> {
             "data": problem.data.path.display().to_string(),
             "rows": problem.data.rows.len(),
             "measurements": problem.data.measurements(),
+            "data_description": crate::fit::describe::json(&problem.data),
+            "se_source": crate::fit::describe::se_source(&problem.data),
             "notes": problem.inherited_notes(),
             "candidates": candidates,
             "estimate_s": estimate_s,
@@ -375,15 +377,8 @@ fn check_fit(path: &Path, json: bool) -> Result<()> {
     if !data.keys.is_empty() {
         println!("the rows set: {}", data.keys.join(", "));
     }
-    for (axis, name) in crate::model::AXIS_NAMES.iter().enumerate() {
-        if data.measured_on(axis) > 0 {
-            let weights = if data.has_se[axis] {
-                "the data's standard errors"
-            } else {
-                "one scale estimated from the residuals"
-            };
-            println!("step_{name} weighed by {weights}");
-        }
+    for line in crate::fit::describe::lines(data) {
+        println!("data: {line}");
     }
     for note in problem.inherited_notes() {
         println!("note: {note}");

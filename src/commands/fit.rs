@@ -55,9 +55,9 @@ pub fn fit(cmd: &FitCommand) -> Result<bool> {
     });
     let outputs = Outputs::beside(&out, &cmd.scene)?;
     let (spec, data) = crate::fit::load(&cmd.scene, cmd.data.as_deref())?;
-    let data_count = data.measurements();
     let problem =
         Problem::new(&spec, data).with_context(|| format!("scene {}", cmd.scene.display()))?;
+    let data_count = problem.data.measurements();
     let selected = select_backend(
         cmd.backend,
         Some(Precision::F64),

@@ -43,7 +43,7 @@ pub fn draw(problem: &Problem, answer: &Answer, path: &Path) -> Result<()> {
 
 /// The distinct values of key column `k`.
 fn distinct(problem: &Problem, k: usize) -> Vec<f64> {
-    let mut values: Vec<f64> = problem.data.rows.iter().filter_map(|r| r.keys[k]).collect();
+    let mut values: Vec<f64> = problem.data.rows.iter().map(|r| r.keys[k]).collect();
     values.sort_by(f64::total_cmp);
     values.dedup();
     values
@@ -102,7 +102,7 @@ fn panel(
     let data = &problem.data;
     let per_curve = if x_key.is_some() { CURVE_POINTS } else { 1 };
     let x_of = |row: usize| match x_key {
-        Some(x) => data.rows[row].keys[x].unwrap_or(f64::NAN),
+        Some(x) => data.rows[row].keys[x],
         None => row as f64 + 1.0,
     };
     let series = groups.iter().enumerate().map(|(g, (keys, rows))| {

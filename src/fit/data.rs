@@ -1,46 +1,101 @@
 //! The measured steps a fit is calibrated to: a CSV file with a header,
-//! one measured instance per row (docs/fit.md). Columns named by scene keys
-//! set the row's instance as a point would; `step_x` and `step_y` hold the
-//! measured steady steps [m per own drive cycle], `step_x_se` and
-//! `step_y_se` their standard errors [m]. An empty cell means "not
-//! measured" (a step) or "the scene's value" (a key); NaN or text is
-//! refused.
+//! one measured instance per row (docs/fit.md).
+//!
+//! The file may start with a UTF-8 byte-order mark, separate its cells
+//! with `,`, `;` or a tab (the header line says which), quote its cells,
+//! and hold `#` comment lines and blank lines. Columns named by scene keys
+//! set the row's instance as a point would, and every row gives each of
+//! them a number. The measured columns ([`super::columns`]) name their
+//! unit: `step_x_um`, `velocity_x_um_s`, ...; a bare `step_x` is in metres.
+//! Values are kept in SI here: steps in metres, velocities in m/s until
+//! [`Data::to_steps`] turns them into steps with each row's own drive
+//! frequency (`super::velocity`). An empty step cell means "not measured".
+//! Repeated settings are pooled by `super::repeats`.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
+use super::columns::{Column, Layout, MAX_BARE_STEP_M, Measure, Quantity};
 use crate::model::{AXES, AXIS_NAMES};
-
-/// The largest step a row may hold [m per own drive cycle]: 1 mm per cycle
-/// is far beyond any impact drive, so a larger value is almost surely in
-/// micrometres.
-pub const MAX_STEP_M: f64 = 1e-3;
 
 /// The largest data file read [bytes].
 const MAX_BYTES: u64 = 64 << 20;
 
-/// One measured row.
+/// The delimiters a file may use, with their names for messages.
+const DELIMITERS: [(u8, &str); 3] = [(b',', "`,`"), (b';', "`;`"), (b'\t', "a tab")];
+
+/// One measured row, or after pooling one setting (the mean of its rows).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Row {
-    /// Its line in the file (the header is line 1).
+    /// Its line in the file (the first line of a pooled setting).
     pub line: usize,
-    /// The value of each key column ([`Data::keys`]), `None` where empty.
-    pub keys: Vec<Option<f64>>,
-    /// The measured step of each axis [m per own drive cycle].
+    /// Every line it stands for (its setting's repeats, in file order).
+    pub lines: Vec<usize>,
+    /// The value of each key column ([`Data::keys`]).
+    pub keys: Vec<f64>,
+    /// The measured step of each axis [m per own drive cycle] (a velocity
+    /// [m/s] until [`Data::to_steps`]).
     pub step: [Option<f64>; AXES],
-    /// Its standard error [m], where the file gives one.
+    /// Its standard error, in the step's units, where known.
     pub se: [Option<f64>; AXES],
+}
+
+/// Where each axis' standard errors come from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SeSource {
+    /// The file's error column.
+    File,
+    /// The spread of repeated rows at one setting (`super::repeats`).
+    Repeats,
+    /// None known: one scale per axis, estimated from the residuals.
+    Residuals,
+}
+
+impl SeSource {
+    /// Its name in FIT.json's `se_source`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SeSource::File => "file",
+            SeSource::Repeats => "repeats",
+            SeSource::Residuals => "residuals",
+        }
+    }
+}
+
+/// The pooled spread of an axis' repeats (`super::repeats`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Pooled {
+    /// The pooled standard deviation of one row [m per own drive cycle].
+    pub sd: f64,
+    /// Its degrees of freedom: the sum over settings of (rows - 1).
+    pub dof: usize,
+    /// Settings with more than one measured row on the axis.
+    pub settings: usize,
 }
 
 /// A data file, read and checked.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Data {
     pub path: PathBuf,
+    /// The delimiter the header line uses.
+    pub delimiter: u8,
     /// The key columns, dotted scene keys, in file order.
     pub keys: Vec<String>,
-    /// Whether the file gives standard errors for each axis.
+    /// Each axis' measured column and its error column, where given.
+    pub value: [Option<Measure>; AXES],
+    pub error: [Option<Measure>; AXES],
+    /// Whether every measured row has a standard error on each axis (from
+    /// the file, or from the repeats once pooled).
     pub has_se: [bool; AXES],
+    /// Where each axis' standard errors come from.
+    pub se_source: [SeSource; AXES],
+    /// Each axis' pooled repeats, once pooled.
+    pub pooled: [Option<Pooled>; AXES],
+    /// Data lines read (before repeats were pooled).
+    pub lines: usize,
+    /// Whether velocities have been turned into steps ([`Data::to_steps`]).
+    pub in_steps: bool,
     pub rows: Vec<Row>,
 }
 
@@ -61,34 +116,52 @@ impl Data {
                 path.display()
             );
         }
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("data file {}: cannot be read as text", path.display()))?;
+        let text = std::fs::read_to_string(path).with_context(|| {
+            format!("data file {}: cannot be read as UTF-8 text", path.display())
+        })?;
         Data::parse(&text, path).with_context(|| format!("data file {}", path.display()))
     }
 
     /// Parses the text of a data file (`path` names it in messages).
     pub fn parse(text: &str, path: &Path) -> Result<Data> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
         let mut lines = text
             .lines()
             .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty());
-        let (_, header) = lines.next().context("empty: expected a header line")?;
-        let columns: Vec<Column> = cells(header)
-            .iter()
-            .map(|name| Column::of(name))
-            .collect::<Result<_>>()?;
-        let layout = Layout::of(&columns)?;
+            .map(|(i, l)| (i + 1, l))
+            .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+        let Some((_, header)) = lines.next() else {
+            bail!("empty: expected a header line");
+        };
+        let delimiter = delimiter(header)?;
+        let layout = Layout::of(&cells(header, delimiter)?)?;
         let mut rows = Vec::new();
-        for (index, line) in lines {
-            rows.push(layout.row(&cells(line), index + 1)?);
+        for (line, text) in lines {
+            let cells = cells(text, delimiter).with_context(|| format!("line {line}"))?;
+            let cells: Vec<&str> = cells.iter().map(String::as_str).collect();
+            rows.push(row(&layout, &cells, line, delimiter)?);
         }
         if rows.is_empty() {
             bail!("no rows after the header: nothing measured");
         }
+        let has_se = layout.se.clone().map(|se| se.is_some());
         Ok(Data {
             path: path.to_owned(),
+            delimiter,
             keys: layout.keys,
-            has_se: layout.has_se,
+            value: layout.value,
+            error: layout.se,
+            has_se,
+            se_source: has_se.map(|k| {
+                if k {
+                    SeSource::File
+                } else {
+                    SeSource::Residuals
+                }
+            }),
+            pooled: [None; AXES],
+            lines: rows.len(),
+            in_steps: false,
             rows,
         })
     }
@@ -115,217 +188,237 @@ impl Data {
     pub fn measured_on(&self, axis: usize) -> usize {
         self.rows.iter().filter(|r| r.step[axis].is_some()).count()
     }
-}
 
-/// The comma-separated cells of a line, trimmed, quotes around a cell
-/// removed.
-fn cells(line: &str) -> Vec<String> {
-    line.split(',')
-        .map(|c| c.trim().trim_matches('"').trim().to_owned())
-        .collect()
-}
+    /// The axes measured as velocities.
+    pub fn velocity_axes(&self) -> Vec<usize> {
+        (0..AXES)
+            .filter(|&a| {
+                self.value[a]
+                    .as_ref()
+                    .is_some_and(|m| m.quantity == Quantity::Velocity)
+            })
+            .collect()
+    }
 
-/// What a column holds.
-#[derive(Clone, Debug, PartialEq)]
-enum Column {
-    Key(String),
-    Step(usize),
-    Se(usize),
-}
-
-impl Column {
-    fn of(name: &str) -> Result<Column> {
-        for (axis, axis_name) in AXIS_NAMES.iter().enumerate() {
-            if name == format!("step_{axis_name}") {
-                return Ok(Column::Step(axis));
-            }
-            if name == format!("step_{axis_name}_se") {
-                return Ok(Column::Se(axis));
+    /// Turns each velocity axis' values and errors into steps per own drive
+    /// cycle: divided by the row's own drive frequency on that axis
+    /// (`frequencies[row][axis]`, Hz). Once: a second call does nothing.
+    pub fn to_steps(&mut self, frequencies: &[[f64; AXES]]) {
+        if self.in_steps {
+            return;
+        }
+        for axis in self.velocity_axes() {
+            for (row, f) in self.rows.iter_mut().zip(frequencies) {
+                row.step[axis] = row.step[axis].map(|v| v / f[axis]);
+                row.se[axis] = row.se[axis].map(|v| v / f[axis]);
             }
         }
-        crate::scene::instance_key(name).map_err(|why| {
-            anyhow::anyhow!(
-                "column `{name}`: not a scene key a row can set ({why}); the columns are scene \
-                 keys such as axis.x.voltage, and step_x, step_y, step_x_se, step_y_se"
-            )
-        })?;
-        Ok(Column::Key(name.to_owned()))
+        self.in_steps = true;
     }
 }
 
-/// Which column holds what.
-struct Layout {
-    columns: Vec<Column>,
-    keys: Vec<String>,
-    has_se: [bool; AXES],
-}
-
-impl Layout {
-    fn of(columns: &[Column]) -> Result<Layout> {
-        let mut keys = Vec::new();
-        let mut has = [[false; 2]; AXES];
-        for column in columns {
-            let (seen, name) = match column {
-                Column::Key(key) => (keys.contains(key), key.clone()),
-                Column::Step(a) => (
-                    std::mem::replace(&mut has[*a][0], true),
-                    format!("step_{}", AXIS_NAMES[*a]),
-                ),
-                Column::Se(a) => (
-                    std::mem::replace(&mut has[*a][1], true),
-                    format!("step_{}_se", AXIS_NAMES[*a]),
-                ),
-            };
-            if seen {
-                bail!("column `{name}` appears twice");
-            }
-            if let Column::Key(key) = column {
-                keys.push(key.clone());
-            }
+/// The delimiter of a file's header line: the one of `,`, `;` and tab it
+/// holds outside quotes; `,` when it holds none (one column).
+fn delimiter(header: &str) -> Result<u8> {
+    let mut quoted = false;
+    let mut seen = [0usize; DELIMITERS.len()];
+    for b in header.bytes() {
+        if b == b'"' {
+            quoted = !quoted;
+        } else if !quoted && let Some(i) = DELIMITERS.iter().position(|(d, _)| *d == b) {
+            seen[i] += 1;
         }
-        if !has.iter().any(|h| h[0]) {
-            bail!("no step_x or step_y column: nothing measured to fit");
-        }
-        for (axis, [step, se]) in has.iter().enumerate() {
-            if *se && !step {
-                let a = AXIS_NAMES[axis];
-                bail!("column step_{a}_se without step_{a}");
-            }
-        }
-        Ok(Layout {
-            columns: columns.to_vec(),
-            keys,
-            has_se: has.map(|h| h[1]),
-        })
     }
-
-    /// One data line (`line`: its number in the file).
-    fn row(&self, cells: &[String], line: usize) -> Result<Row> {
-        if cells.len() != self.columns.len() {
-            bail!(
-                "line {line}: {} cells where the header has {} columns",
-                cells.len(),
-                self.columns.len()
-            );
-        }
-        let mut row = Row {
-            line,
-            keys: Vec::new(),
-            step: [None; AXES],
-            se: [None; AXES],
-        };
-        for (column, cell) in self.columns.iter().zip(cells) {
-            let value = number(cell, column, line)?;
-            match column {
-                Column::Key(_) => row.keys.push(value),
-                Column::Step(a) => row.step[*a] = value,
-                Column::Se(a) => row.se[*a] = value,
-            }
-        }
-        self.check_row(&row)?;
-        Ok(row)
-    }
-
-    fn check_row(&self, row: &Row) -> Result<()> {
-        let line = row.line;
-        if row.step.iter().all(Option::is_none) {
-            bail!("line {line}: no step measured (step_x and step_y both empty)");
-        }
-        for (axis, a) in AXIS_NAMES.iter().enumerate() {
-            if let Some(step) = row.step[axis]
-                && step.abs() > MAX_STEP_M
-            {
-                bail!(
-                    "line {line}: step_{a} = {step}: beyond {MAX_STEP_M} m per cycle; steps are \
-                     in metres per own drive cycle (micrometres? divide by 1e6)"
-                );
-            }
-            match (row.step[axis], row.se[axis], self.has_se[axis]) {
-                (Some(_), None, true) => {
-                    bail!("line {line}: step_{a} without step_{a}_se, which other rows give")
-                }
-                (None, Some(_), _) => bail!("line {line}: step_{a}_se without step_{a}"),
-                (_, Some(se), _) if se <= 0.0 || se > MAX_STEP_M => bail!(
-                    "line {line}: step_{a}_se = {se}: expected a standard error in metres, \
-                     above 0 and at most {MAX_STEP_M}"
-                ),
-                _ => {}
-            }
-        }
-        Ok(())
-    }
-}
-
-/// A cell's number; `None` when empty. NaN, infinities and text are refused.
-fn number(cell: &str, column: &Column, line: usize) -> Result<Option<f64>> {
-    if cell.is_empty() {
-        return Ok(None);
-    }
-    let name = match column {
-        Column::Key(k) => k.clone(),
-        Column::Step(a) => format!("step_{}", AXIS_NAMES[*a]),
-        Column::Se(a) => format!("step_{}_se", AXIS_NAMES[*a]),
-    };
-    match cell.parse::<f64>() {
-        Ok(v) if v.is_finite() => Ok(Some(v)),
+    let used: Vec<usize> = (0..DELIMITERS.len()).filter(|&i| seen[i] > 0).collect();
+    match used[..] {
+        [] => Ok(b','),
+        [i] => Ok(DELIMITERS[i].0),
         _ => bail!(
-            "line {line}, column {name}: {cell:?} is not a finite number (leave the cell empty \
-             for \"not measured\")"
+            "the header line mixes {}: separate the columns with one of `,`, `;` or a tab",
+            used.iter()
+                .map(|&i| DELIMITERS[i].1)
+                .collect::<Vec<_>>()
+                .join(" and ")
         ),
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// The cells of one line, read by the CSV reader: quotes taken off, spaces
+/// around a cell trimmed. (Lines are split first, so that comments, blank
+/// lines and every row's line number are the file's own; a cell never
+/// spans lines.)
+fn cells(line: &str, delimiter: u8) -> Result<Vec<String>> {
+    let mut reader = csv::ReaderBuilder::new()
+        .delimiter(delimiter)
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(line.as_bytes());
+    match reader.records().next() {
+        Some(record) => Ok(record?.iter().map(str::to_owned).collect()),
+        None => Ok(Vec::new()),
+    }
+}
 
-    fn check(text: &str, expected: Result<(usize, usize), &str>) {
-        match (Data::parse(text, Path::new("d.csv")), expected) {
-            (Ok(data), Ok((rows, measured))) => {
-                assert_eq!((data.rows.len(), data.measurements()), (rows, measured));
+/// One data line (`line`: its number in the file), in SI units.
+fn row(layout: &Layout, cells: &[&str], line: usize, delimiter: u8) -> Result<Row> {
+    if cells.len() != layout.columns.len() {
+        let hint = decimal_comma_split(layout, cells, delimiter).unwrap_or_default();
+        bail!(
+            "line {line}: {} cells where the header has {} columns{hint}",
+            cells.len(),
+            layout.columns.len()
+        );
+    }
+    let mut row = Row {
+        line,
+        lines: vec![line],
+        keys: Vec::new(),
+        step: [None; AXES],
+        se: [None; AXES],
+    };
+    for (column, cell) in layout.columns.iter().zip(cells) {
+        match column {
+            Column::Key(key) => row.keys.push(key_value(cell, key, line)?),
+            Column::Value(m) => row.step[m.axis] = measured(cell, m, line)?,
+            Column::Se(m) => {
+                row.se[m.axis] = measured(cell, m, line)?;
+                if let Some(se) = row.se[m.axis]
+                    && se <= 0.0
+                {
+                    bail!(
+                        "line {line}, column {}: {cell}: expected a standard error above 0",
+                        m.name
+                    );
+                }
             }
-            (Err(e), Err(part)) => assert!(format!("{e:#}").contains(part), "{e:#}"),
-            (got, expected) => panic!("got {got:?}, expected {expected:?}"),
         }
     }
+    check_row(layout, &row)?;
+    Ok(row)
+}
 
-    #[test]
-    fn reads_rows_and_refuses_bad_ones() {
-        let h = "axis.x.voltage,axis.x.frequency,step_x,step_x_se\n";
-        check(
-            &format!("{h}100,10,-2e-6,1e-8\n120,10,-3e-6,1e-8\n"),
-            Ok((2, 2)),
+/// Every measured row gives an error where the file has an error column,
+/// and no error stands without its value.
+fn check_row(layout: &Layout, row: &Row) -> Result<()> {
+    let line = row.line;
+    if row.step.iter().all(Option::is_none) {
+        let names: Vec<&str> = layout.value.iter().flatten().map(|m| &*m.name).collect();
+        bail!(
+            "line {line}: nothing measured ({} empty): a row needs at least one value",
+            names.join(" and ")
         );
-        check(
-            "axis.x.voltage,step_x,step_y\n100,-2e-6,\n100,,1e-7\n",
-            Ok((2, 2)),
-        );
-        check(
-            &format!("{h}100,10,NaN,1e-8\n"),
-            Err("line 2, column step_x: \"NaN\""),
-        );
-        check(
-            &format!("{h}100,ten,-2e-6,1e-8\n"),
-            Err("column axis.x.frequency"),
-        );
-        check(&format!("{h}100,10,-2.5,0.01\n"), Err("micrometres"));
-        check(&format!("{h}100,10,-2e-6,\n"), Err("without step_x_se"));
-        check(&format!("{h}100,10,-2e-6,-1e-8\n"), Err("above 0"));
-        check(&format!("{h}100,10,,\n"), Err("no step measured"));
-        check(
-            &format!("{h}100,10,-2e-6\n"),
-            Err("3 cells where the header has 4"),
-        );
-        check(
-            "axis.x.volts,step_x\n1,1e-6\n",
-            Err("column `axis.x.volts`: not a scene key"),
-        );
-        check("axis.x.voltage\n100\n", Err("no step_x or step_y column"));
-        check(
-            "step_x_se,step_y\n1e-8,1e-6\n",
-            Err("step_x_se without step_x"),
-        );
-        check(h, Err("no rows"));
-        check("", Err("empty"));
     }
+    for axis in 0..AXES {
+        let (Some(value), Some(error)) = (&layout.value[axis], &layout.se[axis]) else {
+            continue;
+        };
+        match (row.step[axis], row.se[axis]) {
+            (Some(_), None) => bail!(
+                "line {line}, column {}: empty, but the row gives {}: a file with an error \
+                 column needs an error on every row that measures the axis",
+                error.name,
+                value.name
+            ),
+            (None, Some(_)) => bail!(
+                "line {line}, column {}: an error without a value ({} is empty)",
+                error.name,
+                value.name
+            ),
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// A key column's cell: a finite number; an empty cell or NaN is refused
+/// (a row sets every key column: the scene's value is never taken).
+fn key_value(cell: &str, key: &str, line: usize) -> Result<f64> {
+    if cell.is_empty() {
+        bail!(
+            "line {line}, column {key}: empty: expected a number (every row gives every key \
+             column a value; drop the column to keep the scene's)"
+        );
+    }
+    match number(cell, key, line)? {
+        Some(v) => Ok(v),
+        None => bail!(
+            "line {line}, column {key}: {cell:?}: expected a finite number (a key column \
+             needs a value on every row)"
+        ),
+    }
+}
+
+/// A measured cell in SI units; `None` when empty ("not measured"). A bare
+/// step or error beyond 100 um per cycle is refused.
+fn measured(cell: &str, m: &Measure, line: usize) -> Result<Option<f64>> {
+    if cell.is_empty() {
+        return Ok(None);
+    }
+    let Some(value) = number(cell, &m.name, line)? else {
+        bail!(
+            "line {line}, column {}: {cell:?}: expected a finite number (leave the cell empty \
+             for \"not measured\")",
+            m.name
+        );
+    };
+    if m.bare && value.abs() > MAX_BARE_STEP_M {
+        let a = AXIS_NAMES[m.axis];
+        bail!(
+            "line {line}, column {}: {cell}: over 100 um per cycle in metres, the unit of a \
+             bare {}; name the unit in the header: step_{a}_um for micrometres, step_{a}_nm \
+             for nanometres (step_{a}_se_um for the errors)",
+            m.name,
+            m.name
+        );
+    }
+    Ok(Some(value * m.factor))
+}
+
+/// A cell's number: `Some` when finite, `None` for NaN, an infinity or a
+/// word; a decimal comma is refused with a hint.
+fn number(cell: &str, column: &str, line: usize) -> Result<Option<f64>> {
+    if let Ok(v) = cell.parse::<f64>() {
+        return Ok(v.is_finite().then_some(v));
+    }
+    if cell.contains(',') && cell.replace(',', ".").parse::<f64>().is_ok() {
+        bail!(
+            "line {line}, column {column}: {cell:?}: a decimal comma; pidm reads numbers with \
+             a decimal point ({}): save the file with decimal points",
+            cell.replace(',', ".")
+        );
+    }
+    Ok(None)
+}
+
+/// A hint for a `,`-separated row with too many cells: a number split at
+/// a decimal comma (`0,25` read as `0` and `25`), naming its column.
+fn decimal_comma_split(layout: &Layout, cells: &[&str], delimiter: u8) -> Option<String> {
+    if delimiter != b',' || cells.len() <= layout.columns.len() {
+        return None;
+    }
+    let integer = |c: &str| {
+        let digits = c.strip_prefix('-').unwrap_or(c);
+        !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
+    };
+    let fraction =
+        |c: &str| c.starts_with(|ch: char| ch.is_ascii_digit()) && c.parse::<f64>().is_ok();
+    let mut pairs = (0..cells.len() - 1).filter(|&i| integer(cells[i]) && fraction(cells[i + 1]));
+    // One cell too many: the split is ambiguous (`100,0,25`); the last pair
+    // is likelier, keys being whole numbers more often than steps. More:
+    // the first split is where the cells stop lining up.
+    let i = if cells.len() == layout.columns.len() + 1 {
+        pairs.next_back()
+    } else {
+        pairs.next()
+    }?;
+    let column = layout.columns.get(i).map_or("?", Column::name);
+    Some(format!(
+        " (column {column}: {},{} looks like a number with a decimal comma; pidm reads a \
+         decimal point, {}.{})",
+        cells[i],
+        cells[i + 1],
+        cells[i],
+        cells[i + 1]
+    ))
 }

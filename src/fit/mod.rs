@@ -1,7 +1,9 @@
 //! `pidm fit`: the model calibrated to measured steps (docs/fit.md).
 //!
 //! A fit scene is a scene with a `[fit]` table ([`spec`]) naming a CSV of
-//! measured steady steps ([`data`]) and the free keys with their bounds.
+//! measured steady steps ([`data`], its header's units in [`columns`];
+//! velocities become steps in [`velocity`], repeated settings are pooled
+//! in [`repeats`]) and the free keys with their bounds.
 //! Each candidate set of values becomes a scene with one point per data
 //! row ([`problem`]), so every scene rule applies to it; a batch of
 //! candidates is integrated at once on one backend. The search
@@ -11,19 +13,23 @@
 //! at the best point into standard errors, correlations and warnings;
 //! [`report`] writes FIT.json and FIT.toml, [`curves`] FIT.png.
 
+pub mod columns;
 pub mod curves;
 pub mod data;
+pub mod describe;
 pub mod goodness;
 pub mod jacobian;
 pub mod judge;
 pub mod lsq;
 pub mod problem;
 pub mod profile;
+pub mod repeats;
 pub mod report;
 pub mod search;
 pub mod solve;
 pub mod spec;
 pub mod ticker;
+pub mod velocity;
 pub mod weights;
 
 use std::path::{Path, PathBuf};

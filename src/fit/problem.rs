@@ -116,13 +116,16 @@ impl<'a> Problem<'a> {
             failed: 0,
             reasons: Vec::new(),
         };
-        problem.points = problem
-            .data
-            .rows
-            .iter()
-            .map(|r| problem.row_keys(r))
-            .collect();
+        problem.points = problem.rows_as_points();
         problem.check_rows()?;
+        // Velocities become steps at each line's own frequency, then the
+        // lines of one setting are pooled (docs/fit.md, "The data").
+        if !problem.data.velocity_axes().is_empty() {
+            let frequencies = super::velocity::frequencies(&problem)?;
+            problem.data.to_steps(&frequencies);
+        }
+        problem.data.pool_repeats();
+        problem.points = problem.rows_as_points();
         Ok(problem)
     }
 
@@ -164,7 +167,8 @@ impl<'a> Problem<'a> {
             .collect()
     }
 
-    /// Every row, alone, makes a valid instance at the middle of the bounds.
+    /// Every row, alone, makes a valid instance at the middle of the bounds
+    /// (before repeats are pooled: an error names the row's own line).
     fn check_rows(&self) -> Result<()> {
         let middle = self.middle();
         for row in &self.data.rows {
@@ -180,13 +184,18 @@ impl<'a> Problem<'a> {
         Ok(())
     }
 
+    /// Every data row's keys, in order.
+    fn rows_as_points(&self) -> Vec<Vec<(String, f64)>> {
+        self.data.rows.iter().map(|r| self.row_keys(r)).collect()
+    }
+
     /// The keys a row sets.
     pub fn row_keys(&self, row: &Row) -> Vec<(String, f64)> {
         self.data
             .keys
             .iter()
             .zip(&row.keys)
-            .filter_map(|(k, v)| v.map(|v| (k.clone(), v)))
+            .map(|(k, &v)| (k.clone(), v))
             .collect()
     }
 
@@ -351,7 +360,7 @@ fn row_model(
 
 /// A scene error's message without its location (a candidate's scene text
 /// is generated, so its lines mean nothing to the user).
-fn message(e: &SceneError) -> String {
+pub(super) fn message(e: &SceneError) -> String {
     match e {
         SceneError::Invalid { message, .. } => message.clone(),
         other => other.to_string(),

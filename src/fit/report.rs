@@ -53,6 +53,8 @@ pub fn json(problem: &Problem, answer: &Answer, origin: &Origin) -> Value {
         "pidm_version": env!("CARGO_PKG_VERSION"),
         "scene": origin.scene.display().to_string(),
         "data": problem.data.path.display().to_string(),
+        "data_description": super::describe::json(&problem.data),
+        "se_source": super::describe::se_source(&problem.data),
         "backend": origin.backend,
         "seed": origin.seed,
         "status": answer.ending.name(),
@@ -108,6 +110,9 @@ fn rows(problem: &Problem, answer: &Answer) -> Value {
         .map(|(row, model)| {
             let mut out = serde_json::Map::new();
             out.insert("line".into(), json!(row.line));
+            if row.lines.len() > 1 {
+                out.insert("lines".into(), json!(row.lines));
+            }
             for (key, value) in problem.row_keys(row) {
                 out.insert(key, json!(value));
             }
@@ -202,6 +207,9 @@ pub fn table(problem: &Problem, answer: &Answer) -> String {
         problem.failed,
         answer.ending.name()
     );
+    for line in super::describe::lines(&problem.data) {
+        out += &format!("data: {line}\n");
+    }
     for warning in &answer.warnings {
         out += &format!("warning: {warning}\n");
     }

@@ -146,7 +146,37 @@ fn bad_scenes_and_data_are_refused_naming_the_file_row_or_key() {
     );
     check_refused(
         &[("scene.toml", FIT), ("d.csv", &data("100,-2.5,0.05\n"))],
-        &["line 2: step_x = -2.5", "micrometres"],
+        &[
+            "data file d.csv",
+            "line 2, column step_x: -2.5",
+            "over 100 um",
+            "step_x_um",
+        ],
+    );
+    check_refused(
+        &[("scene.toml", FIT), ("d.csv", &data(",-1e-6,1e-8\n"))],
+        &["data file d.csv", "line 2, column axis.x.voltage: empty"],
+    );
+    check_refused(
+        &[
+            ("scene.toml", FIT),
+            ("d.csv", "axis.x.voltage;step_x_um\n100;-1,5\n"),
+        ],
+        &[
+            "data file d.csv",
+            "line 2, column step_x_um: \"-1,5\": a decimal comma",
+        ],
+    );
+    let free_frequency = FIT.replace(
+        "mechanism.static_friction\" = [0.5, 3.0]",
+        "axis.x.frequency\" = [5.0, 50.0]",
+    );
+    check_refused(
+        &[
+            ("scene.toml", &free_frequency),
+            ("d.csv", "axis.x.voltage,velocity_x_um_s\n100,-20\n"),
+        ],
+        &["`axis.x.frequency` is free in [fit] and moves axis x's drive frequency"],
     );
     let reversed = FIT.replace("[0.5, 3.0]", "[3.0, 0.5]");
     check_refused(

@@ -49,9 +49,10 @@ fn a_fit_next_to_a_refused_region_writes_its_values() {
         (24.0, 10.0, 5.387794e-05),
         (24.0, 12.0, 8.282749e-05),
     ];
-    let mut csv = String::from("axis.x.voltage,axis.x.frequency,step_x,step_x_se\n");
+    // In micrometres: the errors (3 times the step) pass 100 um.
+    let mut csv = String::from("axis.x.voltage,axis.x.frequency,step_x_um,step_x_se_um\n");
     for (v, f, step) in steps {
-        csv += &format!("{v},{f},{step:e},{:e}\n", 3.0 * step);
+        csv += &format!("{v},{f},{:e},{:e}\n", step * 1e6, 3.0 * step * 1e6);
     }
     let scene = "[mechanism]\nload_x = 0.985\n[axis.y]\nvoltage = 0.0\n[fit]\ndata = \"d.csv\"\n\
                  free = { \"mechanism.coulomb_friction\" = [0.5, 2.0] }\n";

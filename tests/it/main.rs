@@ -13,6 +13,7 @@ mod docs;
 mod extreme;
 mod files;
 mod fit;
+mod fit_data;
 mod fit_errors;
 mod gpu;
 mod gpu_lugre;

@@ -109,7 +109,7 @@ def test_a_text_scene_with_a_dataframe_and_progress_records() -> None:
     assert fit.rows["step_y"].isna().sum() == 3
     assert fit.dof == 24 - 3 - 3
     assert records, "no progress records"
-    assert {r["stage"] for r in records} <= {"global", "local", "errors"}
+    assert {r["stage"] for r in records} <= {"global", "local", "errors", "intervals"}
     assert records[0]["stage"] == "global"
     evaluations = [r["evaluations"] for r in records]
     assert evaluations == sorted(evaluations)
@@ -132,6 +132,12 @@ def test_a_bad_dataframe_raises_a_scene_error_naming_the_column() -> None:
     bad = TEXT.replace("mechanism.static_friction", "mechanism.static_frictio")
     with pytest.raises(pidm.SceneError, match="mechanism.static_frictio"):
         pidm.fit(bad, STEPS, backend="cpu", progress=False)
+    # NaN in a key column (an empty cell in the CSV written) is refused, not
+    # the scene's value: pidm's message names the line and the column.
+    steps = pd.read_csv(STEPS)
+    steps.loc[steps.index[3], "axis.x.voltage"] = np.nan
+    with pytest.raises(pidm.SceneError, match=r"line 5, column axis\.x\.voltage: empty"):
+        pidm.fit(TEXT, steps, backend="cpu", progress=False)
     with pytest.raises(FileNotFoundError):
         pidm.fit(SCENE, STEPS.with_name("missing.csv"), progress=False)
     with pytest.raises(ValueError, match=".json"):
@@ -229,13 +235,22 @@ def test_the_goodness_of_fit_the_covariance_and_the_residuals() -> None:
     expect = (rows["model_step_x"] - rows["step_x"]) / rows["step_x_se"]
     assert np.allclose(residuals["residual_x"].values, expect.values)
     assert np.isclose((residuals["residual_x"] ** 2).sum(), fit.chi2, rtol=1e-9)
+    # The profile intervals bracket each value, the 95 % outside the 68 %.
+    intervals = fit.intervals
+    assert intervals is not None
+    assert intervals.index.tolist() == fit.keys
+    assert list(intervals.columns) == ["lo68", "hi68", "lo95", "hi95"]
+    for key in fit.keys:
+        lo68, hi68, lo95, hi95 = intervals.loc[key]
+        assert lo95 < lo68 < fit.values[key] < hi68 < hi95, (key, intervals.loc[key])
 
 
 def test_understated_errors_raise_a_fit_warning() -> None:
     steps = pd.read_csv(STEPS)
     steps["step_x_se"] /= 3.0
     with pytest.warns(pidm.FitWarning, match="too small for the misfit"):
-        fit = pidm.fit(TEXT, steps, backend="cpu", progress=False)
+        fit = pidm.fit(TEXT, steps, backend="cpu", progress=False, intervals=False)
+    assert fit.intervals is None
     assert fit.p_value is not None and fit.p_value < 1e-3
     assert fit.se_scaled is not None
     assert (fit.se_scaled > fit.se).all()
