@@ -28,6 +28,8 @@ pub fn draw(problem: &Problem, answer: &Answer, path: &Path) -> Result<()> {
     for axis in (0..AXES).filter(|&a| data.measured_on(a) > 0) {
         panels.push(panel(problem, answer, axis, x_key, &groups, &curves));
     }
+    panels.push(residuals(problem, answer));
+    let below = profiles(problem, answer);
     // One line per key, so that a one-panel figure shows them all.
     let mut title = vec![format!("pidm fit: {}", data.path.display())];
     title.extend(
@@ -38,7 +40,85 @@ pub fn draw(problem: &Problem, answer: &Answer, path: &Path) -> Result<()> {
             .zip(&answer.se)
             .map(|((k, v), se)| format!("{k} = {v:.5e} ± {se:.2e}")),
     );
-    crate::plot::fit_figure(path, &title, &panels)
+    crate::plot::fit_figure(path, &title, &panels, &below)
+}
+
+/// The normalized residuals, (model - data) / se, by data line and axis.
+fn residuals(problem: &Problem, answer: &Answer) -> FitPanel {
+    let data = &problem.data;
+    let lines = data.rows.iter().map(|r| r.line as f64);
+    let (first, last) = lines.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), l| {
+        (a.min(l), b.max(l))
+    });
+    let series = (0..AXES)
+        .filter(|&a| data.measured_on(a) > 0)
+        .map(|axis| FitSeries {
+            label: format!("step {}", AXIS_NAMES[axis]),
+            points: data
+                .rows
+                .iter()
+                .zip(&answer.models)
+                .filter_map(|(row, model)| {
+                    let step = row.step[axis]?;
+                    let se = answer.weights.data_se(row.se[axis], axis);
+                    Some((row.line as f64, (model.step[axis] - step) / se, 0.0))
+                })
+                .collect(),
+            curve: vec![(first, 0.0), (last, 0.0)],
+        })
+        .collect();
+    FitPanel {
+        title: "normalized residuals, (model - data) / se".into(),
+        x_label: "data line".into(),
+        y_label: "residual [standard errors]".into(),
+        series,
+    }
+}
+
+/// The rise of chi2 shown in a profile panel, at most (the walk goes on
+/// to where it stays above the 95 % threshold).
+const PROFILE_TOP: f64 = 10.0;
+
+/// Each free key's profile: the rise of chi2 with the other keys refitted,
+/// against the key, with the 68 % and 95 % thresholds.
+fn profiles(problem: &Problem, answer: &Answer) -> Vec<FitPanel> {
+    use super::profile::{DELTA_68, DELTA_95};
+    problem
+        .free
+        .iter()
+        .zip(&answer.profiles)
+        .map(|(free, walked)| {
+            let curve: Vec<(f64, f64)> = walked
+                .iter()
+                .filter(|(_, rise)| rise.is_finite())
+                .map(|&(u, rise)| (free.value(u), rise.min(PROFILE_TOP)))
+                .collect();
+            let (lo, hi) = curve
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                    (a.min(p.0), b.max(p.0))
+                });
+            let level = |label: &str, rise: f64| FitSeries {
+                label: label.into(),
+                points: Vec::new(),
+                curve: vec![(lo, rise), (hi, rise)],
+            };
+            FitPanel {
+                title: format!("profile of {}", free.key),
+                x_label: format!("{} [{}]", free.key, free.units),
+                y_label: "rise of chi2, others refitted".into(),
+                series: vec![
+                    FitSeries {
+                        label: "profile".into(),
+                        points: curve.iter().map(|&(x, y)| (x, y, 0.0)).collect(),
+                        curve,
+                    },
+                    level("68 %: rise 1", DELTA_68),
+                    level("95 %: rise 3.84", DELTA_95),
+                ],
+            }
+        })
+        .collect()
 }
 
 /// The distinct values of key column `k`.

@@ -1,6 +1,7 @@
 //! `FIT.png` of `pidm fit`: the measured steps with their error bars
-//! against the fitted model's curves, one panel per measured axis. The
-//! fit hands over plain numbers ([`FitPanel`]); this module only draws.
+//! against the fitted model's curves, one panel per measured axis, and the
+//! normalized residuals; below them, the profile of each free key. The fit
+//! hands over plain numbers ([`FitPanel`]); this module only draws.
 
 use std::path::Path;
 
@@ -37,14 +38,28 @@ const COLOURS: [RGBColor; 6] = [
     RGBColor(1, 133, 113),
 ];
 
-/// Draws `FIT.png` at `path`: a title block, then the panels side by side.
-pub fn fit_figure(path: &Path, title: &[String], panels: &[FitPanel]) -> Result<()> {
-    let width = 900 * panels.len().max(1) as u32;
-    save(path, (width, 760), |root| {
+/// Draws `FIT.png` at `path`: a title block, then the panels side by side,
+/// and `below` (the profiles, when there are any) in a second row.
+pub fn fit_figure(
+    path: &Path,
+    title: &[String],
+    panels: &[FitPanel],
+    below: &[FitPanel],
+) -> Result<()> {
+    let columns = panels.len().max(below.len()).max(1);
+    let height = if below.is_empty() { 760 } else { 1360 };
+    save(path, (900 * columns as u32, height), |root| {
         let body = title_block(root, title)?;
-        let areas = body.split_evenly((1, panels.len().max(1)));
-        for (area, panel) in areas.iter().zip(panels) {
-            draw_panel(area, panel)?;
+        let rows: Vec<&[FitPanel]> = [panels, below]
+            .into_iter()
+            .filter(|r| !r.is_empty())
+            .collect();
+        let bands = body.split_evenly((rows.len().max(1), 1));
+        for (band, row) in bands.iter().zip(rows) {
+            let areas = band.split_evenly((1, columns));
+            for (area, panel) in areas.iter().zip(row) {
+                draw_panel(area, panel)?;
+            }
         }
         Ok(())
     })
