@@ -201,3 +201,112 @@ fn the_coverage_study_passes_one_draw_per_set() {
     );
     assert!(stdout.contains("| p < 0.001 warned | 1 of 1 |"), "{stdout}");
 }
+
+/// One free key (LuGre's bristle stiffness, `examples/fit/lugre.toml`):
+/// its 68 % interval is where a dense scan of chi2 along the key rises by
+/// 1 above the scan's least, within 5 % of the interval's width. The scan
+/// is `pidm run` of every data row at 81 stiffnesses spaced evenly in the
+/// logarithm across the 95 % interval, at the fit's `step_tolerance`, with
+/// chi2 computed here from the data's standard errors.
+#[test]
+fn one_keys_interval_is_the_scans_rise_of_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("fit.json");
+    let run = pidm(
+        &[
+            "fit",
+            &manifest("examples/fit/lugre.toml"),
+            "--out",
+            s(&out),
+            "--backend",
+            "cpu",
+        ],
+        dir.path(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let p = &json["parameters"]["mechanism.bristle_stiffness"];
+    let number = |v: &serde_json::Value| v.as_f64().expect("a closed side");
+    let (lo68, hi68) = (number(&p["interval68"][0]), number(&p["interval68"][1]));
+    let (lo95, hi95) = (number(&p["interval95"][0]), number(&p["interval95"][1]));
+    let tolerance = json["step_tolerance"]["fit"].as_f64().unwrap();
+    let rows = json["rows"].as_array().unwrap();
+    let grid: Vec<f64> = (0..81)
+        .map(|i| (lo95.ln() + (hi95 / lo95).ln() * i as f64 / 80.0).exp())
+        .collect();
+    let mut scene = format!(
+        "name = \"scan\"\n[mechanism]\nfriction = \"lugre\"\nstribeck_velocity = 1e-5\n\
+         [axis.y]\nvoltage = 0\n[simulation]\nstep_tolerance = {tolerance:e}\n"
+    );
+    for &k in &grid {
+        for row in rows {
+            scene += &format!(
+                "[[points]]\nmechanism.bristle_stiffness = {k:e}\naxis.x.voltage = {}\n\
+                 mechanism.load_x = {}\n",
+                row["axis.x.voltage"], row["mechanism.load_x"]
+            );
+        }
+    }
+    std::fs::write(dir.path().join("scan.toml"), scene).unwrap();
+    let map = dir.path().join("scan.h5");
+    let run = pidm(
+        &[
+            "run",
+            "scan.toml",
+            "--backend",
+            "cpu",
+            "--progress",
+            "none",
+            "--out",
+            s(&map),
+        ],
+        dir.path(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let steps = hdf5::File::open(&map)
+        .unwrap()
+        .dataset("maps/step_x")
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap();
+    let chi2: Vec<f64> = steps
+        .chunks(rows.len())
+        .map(|model| {
+            model
+                .iter()
+                .zip(rows)
+                .map(|(m, row)| ((m - number(&row["step_x"])) / number(&row["step_x_se"])).powi(2))
+                .sum()
+        })
+        .collect();
+    let least = chi2.iter().copied().fold(f64::INFINITY, f64::min);
+    // The outermost crossings of a rise of 1, interpolated in the logarithm.
+    let crossing = |a: usize, b: usize| {
+        let (ra, rb) = (chi2[a] - least - 1.0, chi2[b] - least - 1.0);
+        let t = ra / (ra - rb);
+        (grid[a].ln() + t * (grid[b].ln() - grid[a].ln())).exp()
+    };
+    let inside: Vec<usize> = (0..grid.len())
+        .filter(|&i| chi2[i] - least <= 1.0)
+        .collect();
+    let (first, last) = (inside[0], inside[inside.len() - 1]);
+    assert!(
+        first > 0 && last + 1 < grid.len(),
+        "the scan's rise of 1 lies inside the 95 % interval"
+    );
+    let (scan_lo, scan_hi) = (crossing(first - 1, first), crossing(last, last + 1));
+    let width = hi68 - lo68;
+    assert!(
+        (scan_lo - lo68).abs() <= 0.05 * width && (scan_hi - hi68).abs() <= 0.05 * width,
+        "68 % interval {lo68:e} .. {hi68:e}, the scan's {scan_lo:e} .. {scan_hi:e}"
+    );
+}
