@@ -5,9 +5,13 @@
 //! curved valley, and a log-scale key's are not symmetric.
 //!
 //! Each side of each key is walked outward from the best value in steps
-//! of its standard error (0.5, 1, 1.5, ... up to 40, then the bound),
-//! the other keys refitted at every point by Levenberg-Marquardt from the
-//! previous point's values, in batches on the backend as the search runs.
+//! of its standard error (1, 2, 3, 4, 6, ... up to 40, then the bound),
+//! the other keys refitted at every point by Levenberg-Marquardt, in
+//! batches on the backend as the search runs, from two starts: the
+//! previous point's values, and where the covariance puts the other keys'
+//! best values given this one (their regression on it). The lower end
+//! wins: at a kink in the steps one start alone can stop in a valley the
+//! other leaves, and a profile too high makes an interval too narrow.
 //! The walk stops once the misfit stays above the 95 % threshold for two
 //! points, or at the bound. The crossing of each threshold is the
 //! outermost one the walk saw, refined by three bisections and a linear
@@ -28,9 +32,13 @@ pub const DELTA_68: f64 = 1.0;
 pub const DELTA_95: f64 = 3.841_458_820_694_124;
 
 /// The steps of a walk, in standard errors from the best value.
-const WALK: [f64; 13] = [
-    0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 7.0, 10.0, 15.0, 25.0, 40.0,
-];
+const WALK: [f64; 8] = [1.0, 2.0, 3.0, 4.0, 6.0, 10.0, 20.0, 40.0];
+
+/// A refit stops once a step lowers chi2 by less than this fraction of
+/// it (about 0.003 at chi2 30, against thresholds of 1 and 3.84), or
+/// after [`REFIT_ITERATIONS`].
+const REFIT_FTOL: f64 = 1e-4;
+const REFIT_ITERATIONS: usize = 10;
 
 /// Bisections of each crossing.
 const BISECTIONS: usize = 3;
@@ -60,6 +68,25 @@ pub struct Profiles {
     pub evaluations: usize,
 }
 
+/// What a key's refits are guided by: the key, the others' regression on
+/// it (d u_j / d u_k), the best misfit and the key's variance (search
+/// coordinates), which predict the profile where the misfit is quadratic.
+struct Guide {
+    k: usize,
+    slope: Vec<f64>,
+    chi2: f64,
+    variance: f64,
+}
+
+impl Guide {
+    /// The misfit the quadratic model predicts with key k at `u_k`: a
+    /// refit that ends at or under it is taken as it is.
+    fn expected(&self, u_k: f64, best_k: f64) -> f64 {
+        let rise = (u_k - best_k).powi(2) / self.variance;
+        self.chi2 + if rise.is_finite() { rise } else { 0.0 }
+    }
+}
+
 /// A point of a walk: its offset from the best value (search
 /// coordinates), the misfit's rise there, and the other keys' values.
 #[derive(Clone, Debug)]
@@ -77,9 +104,10 @@ impl Search<'_, '_> {
         &mut self,
         best: &[f64],
         chi2: f64,
-        se: &[f64],
+        cov: &[Vec<f64>],
         scale: f64,
     ) -> Result<Profiles> {
+        let se: Vec<f64> = (0..best.len()).map(|k| cov[k][k].max(0.0).sqrt()).collect();
         self.ticker.stage("intervals");
         let before = self.problem.evaluations;
         let mut out = Profiles::default();
@@ -89,6 +117,19 @@ impl Search<'_, '_> {
                 true => se[k].min(hi - lo),
                 false => 0.01 * (hi - lo),
             };
+            // The others' regression on key k: d u_j / d u_k given the rest.
+            let guide = Guide {
+                k,
+                slope: others(&cov[k], k)
+                    .iter()
+                    .map(|c| match c / cov[k][k] {
+                        s if s.is_finite() => s,
+                        _ => 0.0,
+                    })
+                    .collect(),
+                chi2,
+                variance: cov[k][k],
+            };
             let mut curve = Vec::new();
             let mut sides = [[None; 2]; 2];
             for (side, sign) in [-1.0f64, 1.0].into_iter().enumerate() {
@@ -97,7 +138,7 @@ impl Search<'_, '_> {
                 } else {
                     hi - best[k]
                 };
-                let walk = self.walk(best, k, (sign, unit, room), chi2, scale)?;
+                let walk = self.walk(best, &guide, (sign, unit, room), scale)?;
                 curve.extend(
                     walk.points
                         .iter()
@@ -106,8 +147,7 @@ impl Search<'_, '_> {
                 for (t, threshold) in [DELTA_68, DELTA_95].into_iter().enumerate() {
                     sides[t][side] = match walk.crossing(threshold * scale) {
                         Some((a, b)) => {
-                            let at =
-                                self.bisect(best, k, sign, (a, b), (chi2, threshold * scale))?;
+                            let at = self.bisect(best, &guide, sign, (a, b), threshold * scale)?;
                             Some(self.problem.free[k].value(best[k] + sign * at))
                         }
                         None => None,
@@ -132,11 +172,11 @@ impl Search<'_, '_> {
     fn walk(
         &mut self,
         best: &[f64],
-        k: usize,
+        guide: &Guide,
         (sign, unit, room): (f64, f64, f64),
-        chi2: f64,
         scale: f64,
     ) -> Result<Walk> {
+        let (k, chi2) = (guide.k, guide.chi2);
         let mut walk = Walk {
             points: vec![Point {
                 offset: 0.0,
@@ -156,7 +196,7 @@ impl Search<'_, '_> {
                 .last()
                 .map(|p| p.others.clone())
                 .unwrap_or_default();
-            let (cost, others) = self.refit(best, k, best[k] + sign * offset, &start)?;
+            let (cost, others) = self.refit(best, guide, best[k] + sign * offset, &start)?;
             let rise = cost - chi2;
             walk.points.push(Point {
                 offset,
@@ -185,14 +225,15 @@ impl Search<'_, '_> {
     fn bisect(
         &mut self,
         best: &[f64],
-        k: usize,
+        guide: &Guide,
         sign: f64,
         (mut a, mut b): (Point, Point),
-        (chi2, threshold): (f64, f64),
+        threshold: f64,
     ) -> Result<f64> {
+        let (k, chi2) = (guide.k, guide.chi2);
         for _ in 0..BISECTIONS {
             let offset = 0.5 * (a.offset + b.offset);
-            let (cost, others) = self.refit(best, k, best[k] + sign * offset, &a.others)?;
+            let (cost, others) = self.refit(best, guide, best[k] + sign * offset, &a.others)?;
             let mid = Point {
                 offset,
                 rise: cost - chi2,
@@ -211,10 +252,39 @@ impl Search<'_, '_> {
         Ok(a.offset + t * (b.offset - a.offset))
     }
 
-    /// The misfit with key `k` held at `u_k` and the others refitted from
-    /// `start` (their values in order, `k` left out); infinite where the
-    /// candidate fails.
+    /// The misfit with the guide's key held at `u_k` and the others
+    /// refitted from `start` (their values in order, the key left out);
+    /// where that ends above the quadratic model's expectation, also from
+    /// the others' regression on the key, the lower of the two. Infinite
+    /// where every candidate fails.
     fn refit(
+        &mut self,
+        best: &[f64],
+        guide: &Guide,
+        u_k: f64,
+        start: &[f64],
+    ) -> Result<(f64, Vec<f64>)> {
+        let (k, slope) = (guide.k, &guide.slope);
+        if best.len() == 1 {
+            return self.refit_from(best, k, u_k, start);
+        }
+        let (lo, hi) = (others(&self.lo, k), others(&self.hi, k));
+        let guess: Vec<f64> = others(best, k)
+            .iter()
+            .zip(slope)
+            .enumerate()
+            .map(|(j, (b, s))| (b + s * (u_k - best[k])).clamp(lo[j], hi[j]))
+            .collect();
+        let warm = self.refit_from(best, k, u_k, start)?;
+        if guess == start || warm.0 <= guide.expected(u_k, best[k]) {
+            return Ok(warm);
+        }
+        let guided = self.refit_from(best, k, u_k, &guess)?;
+        Ok(if guided.0 < warm.0 { guided } else { warm })
+    }
+
+    /// [`Search::refit`] from one start.
+    fn refit_from(
         &mut self,
         best: &[f64],
         k: usize,
@@ -234,7 +304,8 @@ impl Search<'_, '_> {
         let (lo, hi) = (others(&self.lo, k), others(&self.hi, k));
         let steps: Vec<f64> = others(&self.widths, k).iter().map(|w| 1e-3 * w).collect();
         let opts = LmOptions {
-            max_iterations: 20,
+            max_iterations: REFIT_ITERATIONS,
+            ftol: REFIT_FTOL,
             ..LmOptions::new(steps)
         };
         let mut eval = |us: &[Vec<f64>]| {

@@ -361,16 +361,20 @@ impl<'p, 'a> Search<'p, 'a> {
         jacobian: &jacobian::Sided,
     ) -> Result<super::profile::Profiles> {
         let cov = lsq::covariance(&jacobian.j, 1.0);
-        let mut se = vec![f64::NAN; u.len()];
-        for (&k, s) in jacobian.probed.iter().zip(&cov.standard_errors) {
-            se[k] = *s;
+        let mut full = vec![vec![f64::NAN; u.len()]; u.len()];
+        for (a, &i) in jacobian.probed.iter().enumerate() {
+            for (b, &j) in jacobian.probed.iter().enumerate() {
+                full[i][j] = cov.covariance[a][b];
+            }
+            // Infinite for a key the data do not determine.
+            full[i][i] = cov.standard_errors[a].powi(2);
         }
         let dof = self.problem.data.measurements() as f64 - u.len() as f64;
         let scale = match (self.problem.errors, dof > 0.0) {
             (super::spec::Errors::Scaled, true) => point.chi2 / dof,
             _ => 1.0,
         };
-        self.profiles(u, point.chi2, &se, scale)
+        self.profiles(u, point.chi2, &full, scale)
     }
 
     /// The point `u` evaluated: its chi2 and its rows' model.
