@@ -21,10 +21,22 @@ import tempfile
 import h5py
 import numpy as np
 
+#: The steady measurement's tolerance of the truth [m per cycle]: the
+#: integrator's own error, far under any noise a data set is given, so that
+#: the truth's own measurement error does not bias the data.
+TRUTH_TOLERANCE = 1e-10
+
 
 def point_scene(truth: str, rows: list[dict]) -> str:
-    """The truth scene with one [[points]] table per row."""
+    """The truth scene, measured at TRUTH_TOLERANCE where it is steady, with
+    one [[points]] table per row."""
     text = truth.rstrip() + "\n"
+    if 'measure = "window"' not in text:
+        line = f"step_tolerance = {TRUTH_TOLERANCE!r}\n"
+        if "[simulation]\n" in text:
+            text = text.replace("[simulation]\n", "[simulation]\n" + line, 1)
+        else:
+            text += "\n[simulation]\n" + line
     for row in rows:
         text += "\n[[points]]\n"
         for key, value in row.items():
