@@ -82,7 +82,6 @@ const PROFILE_TOP: f64 = 10.0;
 /// Each free key's profile: the rise of chi2 with the other keys refitted,
 /// against the key, with the 68 % and 95 % thresholds.
 fn profiles(problem: &Problem, answer: &Answer) -> Vec<FitPanel> {
-    use super::profile::{DELTA_68, DELTA_95};
     problem
         .free
         .iter()
@@ -113,8 +112,14 @@ fn profiles(problem: &Problem, answer: &Answer) -> Vec<FitPanel> {
                         points: curve.iter().map(|&(x, y)| (x, y, 0.0)).collect(),
                         curve,
                     },
-                    level("68 %: rise 1", DELTA_68),
-                    level("95 %: rise 3.84", DELTA_95),
+                    level(
+                        &format!("68 %: rise {:.3}", answer.thresholds[0]),
+                        answer.thresholds[0],
+                    ),
+                    level(
+                        &format!("95 %: rise {:.3}", answer.thresholds[1]),
+                        answer.thresholds[1],
+                    ),
                 ],
             }
         })

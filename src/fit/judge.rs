@@ -46,6 +46,8 @@ pub struct Answer {
     pub intervals: Option<Vec<super::profile::Interval>>,
     /// The profiles walked, per key (search coordinate, rise of chi2).
     pub profiles: Vec<Vec<(f64, f64)>>,
+    /// The rises of chi2 that bound the 68 % and 95 % intervals.
+    pub thresholds: [f64; 2],
     /// Correlation matrix in `keys`' order (of the search coordinates: the
     /// logarithm of a key searched on a log scale).
     pub correlation: Vec<Vec<f64>>,
@@ -87,6 +89,10 @@ pub fn judge(problem: &Problem, found: Found) -> Answer {
             .as_ref()
             .map(|p| p.curves.clone())
             .unwrap_or_default(),
+        thresholds: found
+            .profiles
+            .as_ref()
+            .map_or([f64::NAN; 2], |p| p.thresholds),
         correlation: identity(p),
         chi2: found.best.chi2,
         dof,
@@ -322,7 +328,7 @@ fn goodness(problem: &Problem, found: &Found, answer: &mut Answer) {
 }
 
 /// Not identifiable where a key's 68 % profile interval is open: the
-/// misfit never rises by [`super::profile::DELTA_68`] inside its bounds
+/// misfit never rises by the 68 % threshold inside its bounds
 /// on some side.
 fn open_intervals(problem: &Problem, answer: &mut Answer) {
     let Some(intervals) = answer.intervals.clone() else {
@@ -336,10 +342,11 @@ fn open_intervals(problem: &Problem, answer: &mut Answer) {
             .collect();
         if !sides.is_empty() {
             answer.warn(format!(
-                "`{}`: its 68 % interval is open on the {} side: the misfit never rises by 1 \
-                 there inside the bounds, so the data do not bound it",
+                "`{}`: its 68 % interval is open on the {} side: the misfit never rises by \
+                 {:.3} there inside the bounds, so the data do not bound it",
                 free.key,
-                sides.join(" and ")
+                sides.join(" and "),
+                answer.thresholds[0]
             ));
         }
     }
@@ -422,9 +429,14 @@ fn notes(problem: &Problem, found: &Found) -> Vec<String> {
     }
     if let Some(profiles) = &found.profiles {
         notes.push(format!(
-            "the profile-likelihood intervals cost {} candidates ({} for the whole fit; \
-             --no-intervals skips them)",
-            profiles.evaluations, problem.evaluations
+            "the profile-likelihood intervals bound rises of chi2 by {:.3} (68 %) and {:.3} \
+             (95 %; 1 and 3.84 where the data's errors are known, Student's quantiles squared \
+             where repeats or residuals estimate them) and cost {} candidates ({} for the \
+             whole fit; --no-intervals skips them)",
+            profiles.thresholds[0],
+            profiles.thresholds[1],
+            profiles.evaluations,
+            problem.evaluations
         ));
     }
     if found.restarts > 0 {

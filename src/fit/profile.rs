@@ -1,8 +1,10 @@
 //! Profile-likelihood intervals (docs/fit.md): for each free key, the
 //! values where the misfit, with the other keys refitted, rises by 1
-//! (68.3 %) or 3.84 (95 %) above the best (times the reduced chi2 where
-//! `fit.errors = "scaled"`). Unlike value ± se they follow a kink or a
-//! curved valley, and a log-scale key's are not symmetric.
+//! (68.3 %) or 3.84 (95 %) above the best where the data's errors are
+//! known; by Student's quantiles squared where they are estimated (from
+//! repeats or residuals, `super::goodness::rise`), times the reduced chi2
+//! where `fit.errors = "scaled"`. Unlike value ± se they follow a kink or
+//! a curved valley, and a log-scale key's are not symmetric.
 //!
 //! Each side of each key is walked outward from the best value in steps
 //! of its standard error (1, 2, 3, 4, 6, ... up to 40, then the bound),
@@ -23,13 +25,6 @@ use anyhow::Result;
 
 use super::lsq::{self, LmOptions};
 use super::solve::Search;
-
-/// The rise of the misfit that bounds a 68.3 % interval of one key.
-pub const DELTA_68: f64 = 1.0;
-
-/// The rise of the misfit that bounds a 95 % interval of one key: the
-/// chi-square distribution's 95 % quantile on one degree of freedom.
-pub const DELTA_95: f64 = 3.841_458_820_694_124;
 
 /// The steps of a walk, in standard errors from the best value.
 const WALK: [f64; 8] = [1.0, 2.0, 3.0, 4.0, 6.0, 10.0, 20.0, 40.0];
@@ -64,6 +59,8 @@ impl Interval {
 #[derive(Clone, Debug, Default)]
 pub struct Profiles {
     pub intervals: Vec<Interval>,
+    /// The rises of chi2 that bound the 68 % and 95 % intervals.
+    pub thresholds: [f64; 2],
     pub curves: Vec<Vec<(f64, f64)>>,
     pub evaluations: usize,
 }
@@ -99,13 +96,14 @@ struct Point {
 impl Search<'_, '_> {
     /// The profiles through `best` (search coordinates, misfit `chi2`),
     /// walked in steps of `se` (search coordinates; a tenth of a hundredth
-    /// of the bounds where unknown), with thresholds times `scale`.
+    /// of the bounds where unknown), up to the rises `thresholds` (68 % and
+    /// 95 %, `super::goodness::rise`).
     pub fn profiles(
         &mut self,
         best: &[f64],
         chi2: f64,
         cov: &[Vec<f64>],
-        scale: f64,
+        thresholds: [f64; 2],
     ) -> Result<Profiles> {
         let se: Vec<f64> = (0..best.len()).map(|k| cov[k][k].max(0.0).sqrt()).collect();
         self.ticker.stage("intervals");
@@ -138,16 +136,16 @@ impl Search<'_, '_> {
                 } else {
                     hi - best[k]
                 };
-                let walk = self.walk(best, &guide, (sign, unit, room), scale)?;
+                let walk = self.walk(best, &guide, (sign, unit, room), thresholds[1])?;
                 curve.extend(
                     walk.points
                         .iter()
                         .map(|p| (best[k] + sign * p.offset, p.rise)),
                 );
-                for (t, threshold) in [DELTA_68, DELTA_95].into_iter().enumerate() {
-                    sides[t][side] = match walk.crossing(threshold * scale) {
+                for (t, threshold) in thresholds.into_iter().enumerate() {
+                    sides[t][side] = match walk.crossing(threshold) {
                         Some((a, b)) => {
-                            let at = self.bisect(best, &guide, sign, (a, b), threshold * scale)?;
+                            let at = self.bisect(best, &guide, sign, (a, b), threshold)?;
                             Some(self.problem.free[k].value(best[k] + sign * at))
                         }
                         None => None,
@@ -164,6 +162,7 @@ impl Search<'_, '_> {
             });
         }
         out.evaluations = self.problem.evaluations - before;
+        out.thresholds = thresholds;
         Ok(out)
     }
 
@@ -174,7 +173,7 @@ impl Search<'_, '_> {
         best: &[f64],
         guide: &Guide,
         (sign, unit, room): (f64, f64, f64),
-        scale: f64,
+        top: f64,
     ) -> Result<Walk> {
         let (k, chi2) = (guide.k, guide.chi2);
         let mut walk = Walk {
@@ -203,11 +202,7 @@ impl Search<'_, '_> {
                 rise,
                 others,
             });
-            above = if rise > DELTA_95 * scale {
-                above + 1
-            } else {
-                0
-            };
+            above = if rise > top { above + 1 } else { 0 };
             if offset >= room {
                 walk.reached_bound = true;
                 break;

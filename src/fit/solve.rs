@@ -352,8 +352,9 @@ impl<'p, 'a> Search<'p, 'a> {
     }
 
     /// The profiles through the final point `u`, walked in steps of the
-    /// standard errors its Jacobian gives, their thresholds scaled by the
-    /// reduced chi2 where `fit.errors = "scaled"`.
+    /// standard errors its Jacobian gives, up to Student's rises where the
+    /// errors are estimated, scaled by the reduced chi2 where `fit.errors =
+    /// "scaled"`.
     fn profiles_at(
         &mut self,
         u: &[f64],
@@ -369,12 +370,19 @@ impl<'p, 'a> Search<'p, 'a> {
             // Infinite for a key the data do not determine.
             full[i][i] = cov.standard_errors[a].powi(2);
         }
-        let dof = self.problem.data.measurements() as f64 - u.len() as f64;
-        let scale = match (self.problem.errors, dof > 0.0) {
-            (super::spec::Errors::Scaled, true) => point.chi2 / dof,
+        use super::goodness::{LEVEL_68, estimated_dof, rise};
+        let dof = self.problem.data.measurements() as i64 - u.len() as i64;
+        let mut nu = estimated_dof(&self.problem.data, dof);
+        let scale = match (self.problem.errors, dof > 0) {
+            (super::spec::Errors::Scaled, true) => {
+                // The residuals then estimate the errors' scale too.
+                nu = Some(nu.map_or(dof as f64, |n| n.min(dof as f64)));
+                point.chi2 / dof as f64
+            }
             _ => 1.0,
         };
-        self.profiles(u, point.chi2, &full, scale)
+        let thresholds = [rise(LEVEL_68, nu) * scale, rise(0.95, nu) * scale];
+        self.profiles(u, point.chi2, &full, thresholds)
     }
 
     /// The point `u` evaluated: its chi2 and its rows' model.
