@@ -188,8 +188,12 @@ impl GpuBackend {
         // Replicas: LuGre's lanes run no group merges, so the instances
         // that split run their groups on the CPU's threads in f64, the
         // reference (marked on_cpu), and the rest on the device.
-        let count =
-            crate::replicas::count_queued(settings.replicas, self.ctx.lanes(), instances.len());
+        // The groups run on the CPU's threads: `auto` counts those.
+        let count = crate::replicas::count(
+            settings.replicas,
+            rayon::current_num_threads(),
+            instances.len(),
+        );
         let splits: Vec<Option<Replica>> = instances
             .iter()
             .map(|inst| crate::replicas::split_of(inst, settings, count))
