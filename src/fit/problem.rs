@@ -121,7 +121,17 @@ impl<'a> Problem<'a> {
         // Velocities become steps at each line's own frequency, then the
         // lines of one setting are pooled (docs/fit.md, "The data").
         if !problem.data.velocity_axes().is_empty() {
-            let frequencies = super::velocity::frequencies(&problem)?;
+            let scene_at = |values: &[f64]| {
+                problem
+                    .scene(values, problem.points())
+                    .map_err(|e| message(&e))
+            };
+            let frequencies = super::velocity::frequencies(
+                &problem.data,
+                &problem.free,
+                &problem.middle(),
+                &scene_at,
+            )?;
             problem.data.to_steps(&frequencies);
         }
         problem.data.pool_repeats();

@@ -23,8 +23,9 @@
 
 use anyhow::Result;
 
+use super::jacobian::Eval;
 use super::lsq::{self, LmOptions};
-use super::solve::Search;
+use super::spec::Free;
 
 /// The steps of a walk, in standard errors from the best value.
 const WALK: [f64; 8] = [1.0, 2.0, 3.0, 4.0, 6.0, 10.0, 20.0, 40.0];
@@ -93,11 +94,22 @@ struct Point {
     others: Vec<f64>,
 }
 
-impl Search<'_, '_> {
+/// What profiles are walked with: the candidates' weighted residuals, a
+/// batch at a time (the search's own, `super::solve`), and the free keys
+/// with their bounds in search coordinates.
+pub struct Walker<'w, 'e> {
+    pub eval: &'w mut Eval<'e>,
+    pub free: &'w [Free],
+    pub lo: &'w [f64],
+    pub hi: &'w [f64],
+}
+
+impl Walker<'_, '_> {
     /// The profiles through `best` (search coordinates, misfit `chi2`),
-    /// walked in steps of `se` (search coordinates; a tenth of a hundredth
-    /// of the bounds where unknown), up to the rises `thresholds` (68 % and
-    /// 95 %, `super::goodness::rise`).
+    /// walked in steps of the standard errors `cov` gives (search
+    /// coordinates; a hundredth of the bounds where unknown), up to the
+    /// rises `thresholds` (68 % and 95 %, `super::goodness::rise`). The
+    /// caller counts their candidates.
     pub fn profiles(
         &mut self,
         best: &[f64],
@@ -106,11 +118,9 @@ impl Search<'_, '_> {
         thresholds: [f64; 2],
     ) -> Result<Profiles> {
         let se: Vec<f64> = (0..best.len()).map(|k| cov[k][k].max(0.0).sqrt()).collect();
-        self.ticker.stage("intervals");
-        let before = self.problem.evaluations;
         let mut out = Profiles::default();
         for k in 0..best.len() {
-            let [lo, hi] = self.problem.free[k].coordinate_bounds();
+            let [lo, hi] = self.free[k].coordinate_bounds();
             let unit = match se[k].is_finite() && se[k] > 0.0 {
                 true => se[k].min(hi - lo),
                 false => 0.01 * (hi - lo),
@@ -146,7 +156,7 @@ impl Search<'_, '_> {
                     sides[t][side] = match walk.crossing(threshold) {
                         Some((a, b)) => {
                             let at = self.bisect(best, &guide, sign, (a, b), threshold)?;
-                            Some(self.problem.free[k].value(best[k] + sign * at))
+                            Some(self.free[k].value(best[k] + sign * at))
                         }
                         None => None,
                     };
@@ -161,7 +171,6 @@ impl Search<'_, '_> {
                 hi95: sides[1][1],
             });
         }
-        out.evaluations = self.problem.evaluations - before;
         out.thresholds = thresholds;
         Ok(out)
     }
@@ -263,7 +272,7 @@ impl Search<'_, '_> {
         if best.len() == 1 {
             return self.refit_from(best, k, u_k, start);
         }
-        let (lo, hi) = (others(&self.lo, k), others(&self.hi, k));
+        let (lo, hi) = (others(self.lo, k), others(self.hi, k));
         let guess: Vec<f64> = others(best, k)
             .iter()
             .zip(slope)
@@ -278,7 +287,7 @@ impl Search<'_, '_> {
         Ok(if guided.0 < warm.0 { guided } else { warm })
     }
 
-    /// [`Search::refit`] from one start.
+    /// [`Walker::refit`] from one start.
     fn refit_from(
         &mut self,
         best: &[f64],
@@ -292,12 +301,12 @@ impl Search<'_, '_> {
             u
         };
         if best.len() == 1 {
-            let r = self.residuals(&[full(&[])])?.pop().flatten();
+            let r = (self.eval)(&[full(&[])])?.pop().flatten();
             let cost = r.map_or(f64::INFINITY, |r| r.iter().map(|x| x * x).sum());
             return Ok((cost, Vec::new()));
         }
-        let (lo, hi) = (others(&self.lo, k), others(&self.hi, k));
-        let steps: Vec<f64> = others(&self.widths, k).iter().map(|w| 1e-3 * w).collect();
+        let (lo, hi) = (others(self.lo, k), others(self.hi, k));
+        let steps: Vec<f64> = lo.iter().zip(&hi).map(|(l, h)| 1e-3 * (h - l)).collect();
         let opts = LmOptions {
             max_iterations: REFIT_ITERATIONS,
             ftol: REFIT_FTOL,
@@ -305,7 +314,7 @@ impl Search<'_, '_> {
         };
         let mut eval = |us: &[Vec<f64>]| {
             let full: Vec<Vec<f64>> = us.iter().map(|u| full(u)).collect();
-            self.residuals(&full)
+            (self.eval)(&full)
         };
         match lsq::levenberg_marquardt(&mut eval, &lo, &hi, start, &opts, &mut |_, _, _| true) {
             Ok(lm) => Ok((lm.cost, lm.u)),

@@ -115,10 +115,10 @@ pub struct Search<'p, 'a> {
     pub weights: Weights,
     pub best: Option<Best>,
     history: Vec<(Vec<f64>, Vec<RowModel>)>,
-    pub(super) ticker: Ticker,
-    pub(super) widths: Vec<f64>,
-    pub(super) lo: Vec<f64>,
-    pub(super) hi: Vec<f64>,
+    ticker: Ticker,
+    widths: Vec<f64>,
+    lo: Vec<f64>,
+    hi: Vec<f64>,
     /// Whether the profile-likelihood intervals are walked (`--no-intervals`
     /// skips them).
     pub intervals: bool,
@@ -382,7 +382,19 @@ impl<'p, 'a> Search<'p, 'a> {
             _ => 1.0,
         };
         let thresholds = [rise(LEVEL_68, nu) * scale, rise(0.95, nu) * scale];
-        self.profiles(u, point.chi2, &full, thresholds)
+        self.ticker.stage("intervals");
+        let before = self.problem.evaluations;
+        let (free, lo, hi) = (self.problem.free.clone(), self.lo.clone(), self.hi.clone());
+        let mut eval = |us: &[Vec<f64>]| self.residuals(us);
+        let mut walker = super::profile::Walker {
+            eval: &mut eval,
+            free: &free,
+            lo: &lo,
+            hi: &hi,
+        };
+        let mut profiles = walker.profiles(u, point.chi2, &full, thresholds)?;
+        profiles.evaluations = self.problem.evaluations - before;
+        Ok(profiles)
     }
 
     /// The point `u` evaluated: its chi2 and its rows' model.
@@ -401,7 +413,7 @@ impl<'p, 'a> Search<'p, 'a> {
 
     /// The weighted residuals of candidates (search coordinates), one batch;
     /// keeps the best point and ticks the progress.
-    pub(super) fn residuals(&mut self, us: &[Vec<f64>]) -> Result<Vec<Option<Vec<f64>>>> {
+    fn residuals(&mut self, us: &[Vec<f64>]) -> Result<Vec<Option<Vec<f64>>>> {
         let values: Vec<Vec<f64>> = us.iter().map(|u| self.values(u)).collect();
         let evaluations = self.problem.evaluate(&values)?;
         let mut out = Vec::with_capacity(us.len());

@@ -10,7 +10,8 @@
 
 use anyhow::{Result, bail};
 
-use super::problem::Problem;
+use super::data::Data;
+use super::spec::Free;
 use crate::model::{AXES, AXIS_NAMES};
 use crate::scene::Scene;
 
@@ -19,26 +20,31 @@ use crate::scene::Scene;
 const PROBES: [f64; 4] = [0.0, 0.25, 0.75, 1.0];
 
 /// Each data row's drive frequency on each axis [Hz], with the free keys
-/// in the middle of their bounds; an error when some free key moves the
-/// frequency of an axis the data measure as a velocity.
-pub fn frequencies(problem: &Problem) -> Result<Vec<[f64; AXES]>> {
-    let axes = problem.data.velocity_axes();
-    let middle = problem.middle();
-    let scene = match problem.scene(&middle, problem.points()) {
+/// at `middle` (the middle of their bounds); an error when some free key
+/// moves the frequency of an axis the data measure as a velocity.
+/// `scene_at` is the scene of the rows at the free keys' values, or why it
+/// has none.
+pub fn frequencies(
+    data: &Data,
+    free: &[Free],
+    middle: &[f64],
+    scene_at: &dyn Fn(&[f64]) -> std::result::Result<Scene, String>,
+) -> Result<Vec<[f64; AXES]>> {
+    let axes = data.velocity_axes();
+    let scene = match scene_at(middle) {
         Ok(scene) => scene,
         Err(e) => bail!(
-            "{}: the rows' instances, to turn velocities into steps: {}",
-            problem.data.path.display(),
-            super::problem::message(&e)
+            "{}: the rows' instances, to turn velocities into steps: {e}",
+            data.path.display(),
         ),
     };
     let base = of(&scene);
-    for (k, free) in problem.free.iter().enumerate() {
+    for (k, free) in free.iter().enumerate() {
         let [lo, hi] = free.coordinate_bounds();
         for t in PROBES {
-            let mut values = middle.clone();
+            let mut values = middle.to_vec();
             values[k] = free.value(lo + t * (hi - lo));
-            let Ok(scene) = problem.scene(&values, problem.points()) else {
+            let Ok(scene) = scene_at(&values) else {
                 continue;
             };
             let moved = of(&scene);
@@ -48,7 +54,7 @@ pub fn frequencies(problem: &Problem) -> Result<Vec<[f64; AXES]>> {
                     .zip(&moved)
                     .any(|(a, b)| (a[axis] - b[axis]).abs() > 1e-12 * a[axis].abs());
                 if changed {
-                    let column = problem.data.value[axis].as_ref().map_or("", |m| &m.name);
+                    let column = data.value[axis].as_ref().map_or("", |m| &m.name);
                     let a = AXIS_NAMES[axis];
                     bail!(
                         "`{}` is free in [fit] and moves axis {a}'s drive frequency, which turns \
@@ -56,7 +62,7 @@ pub fn frequencies(problem: &Problem) -> Result<Vec<[f64; AXES]>> {
                          velocity needs frequencies the fit does not move; give the steps \
                          (step_{a}_um, ...) or fix `{}`",
                         free.key,
-                        problem.data.path.display(),
+                        data.path.display(),
                         free.key
                     );
                 }

@@ -198,6 +198,14 @@ pub(super) fn with_mapped_prefix<T>(
     Ok(out)
 }
 
+/// Whether any instance of a batch measures the steady step (its batch
+/// then needs one set of accumulators per instance).
+pub(super) fn any_steady(instances: &[Instance]) -> bool {
+    instances
+        .iter()
+        .any(|inst| matches!(inst.measure, Measure::Steady { .. }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

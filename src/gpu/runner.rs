@@ -241,7 +241,7 @@ impl<'a> Runner<'a> {
         packed: Option<&[u8]>,
         progress: &mut dyn FnMut(u64, u64),
     ) -> Result<Vec<GpuOutcome>, GpuError> {
-        let state_size = if super::slices::any_steady(instances) {
+        let state_size = if super::readback::any_steady(instances) {
             size_of::<L::State>()
                 .max(size_of::<L::Measure>() * super::staging::measure_entries(self.loop_limiter()))
         } else {

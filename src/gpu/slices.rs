@@ -316,7 +316,7 @@ impl Runner<'_> {
     ) -> Result<Sliced<L>, GpuError> {
         let instances = work.instances;
         let n = instances.len();
-        let steady = kernel.steady && any_steady(instances);
+        let steady = kernel.steady && super::readback::any_steady(instances);
         let uploading = profile::span(Phase::Upload);
         let b = Buffers::new::<L>(self.device, &work, steady, kernel.loop_limiter);
         let probe_iterations = self.options.probe_iterations.max(1);
@@ -531,7 +531,7 @@ impl Runner<'_> {
         iterations: u32,
     ) -> Stepper<'s> {
         let n = work.instances.len();
-        let steady = kernel.steady && any_steady(work.instances);
+        let steady = kernel.steady && super::readback::any_steady(work.instances);
         let b = Buffers::new::<L>(self.device, &work, steady, kernel.loop_limiter);
         let control = self.control(iterations, 0, 0, n as u32);
         let group = b.bind_group(self.device, kernel, &control);
@@ -660,12 +660,4 @@ impl Stepper<'_> {
                 .collect()
         })
     }
-}
-
-/// Whether any instance of a batch measures the steady step (its batch
-/// then needs one set of accumulators per instance).
-pub(super) fn any_steady(instances: &[Instance]) -> bool {
-    instances
-        .iter()
-        .any(|inst| matches!(inst.measure, Measure::Steady { .. }))
 }
