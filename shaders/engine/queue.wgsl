@@ -20,8 +20,12 @@ const TAKEN: u32 = 6u;
 struct Counters {
     // The next position of `order` no lane has taken yet.
     next: atomic<u32>,
-    // Instances finished (normally or not).
+    // Instances finished (normally or not), or parked at the cap.
     finished: atomic<u32>,
+    // Instances parked at the cap since the host last queued them again,
+    // and their indices (`park`).
+    parked: atomic<u32>,
+    parked_list: array<u32>,
 }
 
 // The per-dispatch controls, read from a small storage buffer.
@@ -44,6 +48,11 @@ struct Control {
     // Lanes below this one that hold no instance at the start take one
     // from `order` (replicas queued again between dispatches).
     lanes: u32,
+    // The round's cap on an instance's steps (Karnopp's; 0xffffffff: none):
+    // a lane parks an instance at its first iteration boundary at or past
+    // it, so that where the CPU takes over a run depends on the run alone,
+    // not on the lanes' timing (`pidm::gpu::slices`, the rounds).
+    cap: u32,
 }
 
 // What a lane did in one dispatch (`pidm::gpu::layout::Tally`).
@@ -79,6 +88,21 @@ fn count_kind(tally: ptr<function, Tally>, kind: u32) {
     let k = vec4<u32>(kind);
     (*tally).kinds += select(vec4<u32>(0u), vec4<u32>(1u), k == vec4<u32>(0u, 1u, 2u, 3u));
     (*tally).more += select(vec4<u32>(0u), vec4<u32>(1u), k == vec4<u32>(4u, 5u, 6u, 7u));
+}
+
+// Whether an instance that has taken `steps` steps has reached the
+// round's cap (`control.cap`).
+fn at_cap(steps: u32) -> bool {
+    return steps >= control.cap;
+}
+
+// Parks instance `index`, whose state the caller has stored: it counts as
+// finished for this round, and the host queues it again under a higher cap
+// or hands it to the CPU.
+fn park(index: u32) {
+    let k = atomicAdd(&counters.parked, 1u);
+    counters.parked_list[k] = index;
+    atomicAdd(&counters.finished, 1u);
 }
 
 // The queue's next instance for a lane that holds none, or NO_INSTANCE.

@@ -66,10 +66,15 @@ fn advance_slice(
     var st = take(index, control.initialize == 1u);
     var left = control.max_iterations;
     loop {
-        if is_finished(st) {
+        let finished = is_finished(st);
+        if finished || at_cap(st.steps) {
             states[index] = st;
-            finish_measure(index);
-            atomicAdd(&counters.finished, 1u);
+            if finished {
+                finish_measure(index);
+                atomicAdd(&counters.finished, 1u);
+            } else {
+                park(index);
+            }
             let slot = atomicAdd(&counters.next, 1u);
             if slot >= control.queued {
                 index = NO_INSTANCE;
@@ -113,6 +118,10 @@ fn advance_slice(
         finish_measure(index);
         atomicAdd(&counters.finished, 1u);
         index = NO_INSTANCE;
+    } else if index != NO_INSTANCE && at_cap(st.steps) {
+        states[index] = st;
+        park(index);
+        index = NO_INSTANCE;
     }
     if index != NO_INSTANCE {
         states[index] = st;
@@ -145,7 +154,7 @@ fn advance(
 ) -> Advance {
     var iteration = 0u;
     for (; iteration < max_iterations; iteration++) {
-        if is_finished(*st) {
+        if is_finished(*st) || at_cap((*st).steps) {
             break;
         }
         if at_measured_end(*st, index) {

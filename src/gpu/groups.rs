@@ -315,6 +315,7 @@ impl Runner<'_> {
             &job_instances[..first],
             &states[..first],
             &measure_list[..first.min(measure_list.len())],
+            Vec::new(),
         );
         let mut out: Vec<Option<GpuOutcome>> = vec![None; n];
         for (&k, outcome) in alone.iter().zip(ran_alone) {

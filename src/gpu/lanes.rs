@@ -15,6 +15,7 @@ use layout::control::Tally;
 /// One law's lanes, in one precision, as the engine sees them.
 pub(super) trait Lanes {
     const PRECISION: Precision;
+
     /// Per instance, read only: what the steady measurement reads
     /// (binding 0).
     type Coefficients: HostLayout + Send + Sync;
@@ -32,6 +33,14 @@ pub(super) trait Lanes {
     fn from_head(h: &Self::Head) -> Self::Measure;
     /// The steps a state has taken.
     fn steps(st: &Self::State) -> u32;
+    /// `inst`'s whole run on the CPU in f64, as the CPU tail's outcomes
+    /// are, where the law's lanes park an instance at the round's cap on
+    /// its steps (`control.cap`), so that a batch can run in rounds
+    /// (`slices::first_cap`); `None` where they don't (the clock then
+    /// decides the batch's tail).
+    fn pilot(_inst: &Instance, _settings: &Settings) -> Option<GpuOutcome> {
+        None
+    }
     /// Whether the instance's run has ended on the device.
     fn finished(inst: &Instance, st: &Self::State) -> bool;
     /// An upper bound on the slices one of `instances` can need on a lane
@@ -96,6 +105,10 @@ pub(super) struct Sliced<L: Lanes> {
     pub(super) readback: Readback<L>,
     /// The tallies of the first dispatch (instance k's on lane k).
     pub(super) probe_tallies: Vec<Tally>,
+    /// The instances a round's pilot ran whole on the CPU, and their
+    /// outcomes, which stand: the queue left them out
+    /// (`slices::first_cap`).
+    pub(super) pilot: Vec<(usize, GpuOutcome)>,
     /// Dispatches, each followed by a readback of the counters.
     pub(super) dispatches: u64,
     /// Iterations the dispatches offered the lanes that held an

@@ -497,6 +497,7 @@ impl<'a> Runner<'a> {
         let (pipeline, variant) = self.pipeline::<L>(L::PRECISION, &coefficients)?;
         let Sliced {
             readback: (states, measure_list),
+            pilot,
             ..
         } = self.slices::<L>(
             Work {
@@ -510,18 +511,21 @@ impl<'a> Runner<'a> {
             None,
         )?;
         drop(coefficients);
-        let out = self.outcomes::<L>(instances, &states, &measure_list);
+        let out = self.outcomes::<L>(instances, &states, &measure_list, pilot);
         progress(n as u64);
         Ok(out)
     }
 
     /// The outcomes of a batch's jobs from their states and (steady)
-    /// measurements; the CPU finishes what the device left unfinished.
+    /// measurements, but those of `done`, the CPU's already (a round's
+    /// pilot, [`Sliced::pilot`]); the CPU finishes what the device left
+    /// unfinished.
     pub(super) fn outcomes<L: Layout>(
         &self,
         instances: &[Instance],
         states: &[L::State],
         measure_list: &[L::Measure],
+        done: Vec<(usize, GpuOutcome)>,
     ) -> Vec<GpuOutcome> {
         let n = instances.len();
         let reducing = profile::span(Phase::Reduce);
@@ -538,9 +542,10 @@ impl<'a> Runner<'a> {
                     }
                 })
                 .collect();
+            let is_done: std::collections::HashSet<usize> = done.iter().map(|(k, _)| *k).collect();
             let tail: Vec<(usize, L::State)> = (0..n)
                 .into_par_iter()
-                .filter(|&k| !L::finished(&instances[k], &states[k]))
+                .filter(|&k| !is_done.contains(&k) && !L::finished(&instances[k], &states[k]))
                 .map(|k| (k, states[k]))
                 .collect();
             (out, tail)
@@ -567,6 +572,9 @@ impl<'a> Runner<'a> {
             .collect();
         for ((k, _), outcome) in tail.iter().zip(tail_outcomes) {
             out[*k] = outcome;
+        }
+        for (k, outcome) in done {
+            out[k] = outcome;
         }
         out
     }

@@ -13,7 +13,7 @@
 use super::runner::{Runner, storage};
 use super::*;
 use crate::profile::{self, Phase};
-use layout::control::Tally;
+use layout::control::{NO_CAP, Tally};
 use warps::{CriticalPath, LaneBytes, NO_INSTANCE, Probed, Warps, queue_order};
 
 /// The engine's queue in WGSL (`shaders/engine/queue.wgsl`: the controls,
@@ -44,6 +44,21 @@ pub(super) trait Between {
     /// Whether the CPU takes what is left of the batch now, with the queue
     /// empty and `unfinished` jobs neither finished nor waiting.
     fn hand_over(&self, unfinished: u64) -> bool;
+}
+
+/// The engine's counters before the parked instances' list
+/// (`shaders/engine/queue.wgsl`'s `Counters`).
+const COUNTER_WORDS: usize = 3;
+
+/// The counters after a dispatch.
+#[derive(Clone, Copy, Debug)]
+struct Counts {
+    /// Queue entries taken (and overrun).
+    next: u64,
+    /// Instances finished or parked.
+    finished: u64,
+    /// Instances parked at the cap since the queue was last written.
+    parked: u64,
 }
 
 /// A batch's device buffers.
@@ -107,8 +122,13 @@ impl Buffers {
             heads: storage(device, "heads", (size_of::<L::Head>() * per_steady) as u64),
             lanes: init("lanes", bytemuck::cast_slice(&identity), true),
             lanes_read: readback::mappable(device, "lanes readback", 4 * n as u64),
-            counters: init("counters", bytemuck::cast_slice(&[0u32, 0u32]), true),
-            counters_read: readback::mappable(device, "counters readback", 8),
+            // next, finished, parked, then the parked instances' list.
+            counters: init("counters", &vec![0u8; 4 * (COUNTER_WORDS + n)], true),
+            counters_read: readback::mappable(
+                device,
+                "counters readback",
+                4 * n.max(COUNTER_WORDS) as u64,
+            ),
             order: init("order", bytemuck::cast_slice(&identity), false),
             tallies: storage(device, "tallies", (n * size_of::<Tally>()) as u64),
             tallies_read: readback::mappable(
@@ -189,7 +209,90 @@ struct Queue {
     /// Unfinished jobs the CPU may take once the queue is empty.
     tail_size: u64,
     slice_limit: Option<u64>,
+    /// The first round's cap on an instance's steps, where the batch runs
+    /// in rounds ([`first_cap`]); `None`: in one, the tail taken by the
+    /// clock.
+    cap: Option<u32>,
+    /// Parked instances a round may end with that the CPU takes.
+    hand_over: u64,
 }
+
+/// Where a batch runs in rounds (a law whose lanes park, a CPU tail, no
+/// replica groups), the first round's cap on an instance's steps: the most
+/// steps of a pilot of up to `tail_size` of the unfinished instances in
+/// `order`, spread over them by index, each run whole on the CPU in f64,
+/// times 1.5 ([`PILOT_QUARTERS`]), at least [`MIN_CAP`]; and the pilot's
+/// outcomes, which stand (the CPU tail's own), taken out of `order`.
+///
+/// Why rounds: the CPU integrates an instance with other roundings than
+/// the shader (a fused multiply-add, an emulated division), so a run the
+/// CPU finishes differs from the device's by the tolerance's scatter. Were
+/// the tail the instances left when the clock says so, which ones those
+/// are, and where the CPU takes them over, would change from run to run.
+/// In rounds, the lanes park every instance at its first iteration
+/// boundary at or past the round's cap (steps, which only the run's own
+/// arithmetic sets); a round ends once every instance has finished or
+/// parked, and the count of the parked decides: at most the tail's size
+/// ([`HAND_OVER`]), and the CPU continues them from there; more, and they
+/// go on in a round of a cap 1.125 times higher ([`ROUND_GROWTH_EIGHTHS`]). Both depend on the runs alone, so the same command
+/// writes the same bits. (The first dispatch's own prediction of the cost,
+/// which ranks the queue, overestimates a window run's steps about
+/// sixtyfold: its 128 iterations see the start from rest.)
+fn first_cap<L: Lanes>(
+    instances: &[Instance],
+    settings: &Settings,
+    order: &mut Vec<u32>,
+    tail_size: u64,
+) -> Option<(u32, Vec<(usize, GpuOutcome)>)> {
+    let mut unfinished = order.clone();
+    unfinished.sort_unstable();
+    let count = unfinished.len();
+    let m = (tail_size as usize)
+        .min(PILOT_PER_THREAD * rayon::current_num_threads())
+        .clamp(1, count);
+    let pilot = (0..m)
+        .into_par_iter()
+        .map(|k| {
+            let index = unfinished[k * count / m] as usize;
+            L::pilot(&instances[index], settings).map(|outcome| (index, outcome))
+        })
+        .collect::<Option<Vec<(usize, GpuOutcome)>>>()?;
+    let piloted: std::collections::HashSet<u32> = pilot.iter().map(|(k, _)| *k as u32).collect();
+    order.retain(|k| !piloted.contains(k));
+    let most = pilot.iter().map(|(_, o)| o.steps).max().unwrap_or(0);
+    let cap = most as u64 * PILOT_QUARTERS / 4;
+    Some((cap.clamp(MIN_CAP as u64, NO_CAP as u64 - 1) as u32, pilot))
+}
+
+/// Pilot instances per CPU thread at most ([`first_cap`]): the pilot's
+/// largest steps then stand for the batch's upper thousandth or so.
+const PILOT_PER_THREAD: usize = 64;
+
+/// The first round's cap over the pilot's most steps ([`first_cap`]), in
+/// quarters: 1.5. On random 2,000 on lavapipe f64 (its pilot's most, 4,156
+/// steps; results/house.md) 1 and 1.25 take more rounds; 1.5 parks 51,
+/// which the CPU takes ([`HAND_OVER`]) as fast as the clock's tail; a
+/// higher cap makes every lane wait longer for the instances that started
+/// last.
+const PILOT_QUARTERS: u64 = 6;
+
+/// Each round's cap over the last one's, in eighths: 1.125. Fine steps,
+/// since the parked instances go on together and a round costs little
+/// more than its steps, and a coarse one overshoots the tail: on random
+/// 2,000, 1.25 and 2 ended with 21 and 12 parked of the 32 and 64 the CPU
+/// would take, after longer rounds.
+const ROUND_GROWTH_EIGHTHS: u64 = 9;
+
+/// The parked instances, over the default tail's size, that the CPU
+/// takes at a round's end ([`Queue::hand_over`]; a tail's size set by
+/// `PIDM_GPU_TAIL` is taken as it is). The clock's tail takes the last
+/// ones whenever few are left, the instances that started last among
+/// them; a round waits for those to reach its cap, so it lets the CPU take
+/// more.
+const HAND_OVER: u64 = 2;
+
+/// The smallest first round's cap [steps]: four first dispatches' worth.
+const MIN_CAP: u32 = 4 * PROBE_ITERATIONS;
 
 /// The periods an instance is expected to run, for ranking the queue: a
 /// window's cycles; a steady measurement's settling and sixteen batches of
@@ -213,14 +316,14 @@ pub(super) fn expected_periods(inst: &Instance) -> f64 {
 
 impl Runner<'_> {
     /// One dispatch of `lanes` lanes with `group`; returns the counters
-    /// after it: queue entries taken (and overrun) and instances finished.
+    /// after it.
     fn dispatch(
         &self,
         b: &Buffers,
         kernel: Kernel,
         group: &wgpu::BindGroup,
         lanes: usize,
-    ) -> Result<(u64, u64), GpuError> {
+    ) -> Result<Counts, GpuError> {
         let (gx, gy) = workgroups(
             lanes,
             kernel.workgroup_size,
@@ -233,11 +336,40 @@ impl Runner<'_> {
             pass.set_bind_group(0, group, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         }
-        encoder.copy_buffer_to_buffer(&b.counters, 0, &b.counters_read, 0, 8);
+        let bytes = 4 * COUNTER_WORDS as u64;
+        encoder.copy_buffer_to_buffer(&b.counters, 0, &b.counters_read, 0, bytes);
         self.queue.submit([encoder.finish()]);
-        let bytes = readback::read_buffer(self.device, &b.counters_read)?;
-        let word = |k: usize| u32::from_le_bytes(bytes[4 * k..4 * k + 4].try_into().unwrap());
-        Ok((word(0) as u64, word(1) as u64))
+        let words = self.read_words(b, bytes)?;
+        Ok(Counts {
+            next: words[0] as u64,
+            finished: words[1] as u64,
+            parked: words[2] as u64,
+        })
+    }
+
+    /// The first `bytes` of `b.counters_read` as words, once a copy into
+    /// it has been submitted.
+    fn read_words(&self, b: &Buffers, bytes: u64) -> Result<Vec<u32>, GpuError> {
+        readback::with_mapped_prefix(self.device, &b.counters_read, bytes, |bytes| {
+            bytes
+                .chunks_exact(4)
+                .map(|w| u32::from_le_bytes(w.try_into().unwrap()))
+                .collect()
+        })
+    }
+
+    /// The `parked` instances the lanes parked at the cap since the queue
+    /// was last written, in index order (the order the lanes parked them
+    /// in is theirs, not the runs').
+    fn parked(&self, b: &Buffers, parked: u64) -> Result<Vec<u32>, GpuError> {
+        let bytes = 4 * parked;
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        let from = 4 * COUNTER_WORDS as u64;
+        encoder.copy_buffer_to_buffer(&b.counters, from, &b.counters_read, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        let mut list = self.read_words(b, bytes)?;
+        list.sort_unstable();
+        Ok(list)
     }
 
     /// The tallies of the first `lanes` lanes of the last dispatch.
@@ -284,6 +416,7 @@ impl Runner<'_> {
         initialize: u32,
         queued: u32,
         lanes: u32,
+        cap: u32,
     ) -> wgpu::Buffer {
         let probe = self.options.probe_passes.max(layout::PROBE_PASSES);
         self.device
@@ -298,6 +431,7 @@ impl Runner<'_> {
                     zero: 0,
                     queued,
                     lanes,
+                    cap,
                 }),
                 usage: wgpu::BufferUsages::STORAGE,
             })
@@ -320,7 +454,7 @@ impl Runner<'_> {
         let uploading = profile::span(Phase::Upload);
         let b = Buffers::new::<L>(self.device, &work, steady, kernel.loop_limiter);
         let probe_iterations = self.options.probe_iterations.max(1);
-        let probe_control = self.control(probe_iterations, 1, 0, 0);
+        let probe_control = self.control(probe_iterations, 1, 0, 0, NO_CAP);
         let probe_group = b.bind_group(self.device, kernel, &probe_control);
         drop(uploading);
         let dispatching = profile::span(Phase::Dispatch);
@@ -336,7 +470,7 @@ impl Runner<'_> {
         };
         // The first dispatch: every instance on a lane of its own.
         let started = std::time::Instant::now();
-        let (_, mut finished) = self.dispatch(&b, kernel, &probe_group, n)?;
+        let mut finished = self.dispatch(&b, kernel, &probe_group, n)?.finished;
         let tallies = self.tallies(&b, n)?;
         profile::add_lanes(
             kernel.whole_workgroups(n) as u64,
@@ -373,12 +507,28 @@ impl Runner<'_> {
         let stop_now = order.is_empty()
             || order.len() as u64 <= tail_size
             || slice_limit.is_some_and(|limit| limit <= 1);
+        let mut pilot = Vec::new();
         if !stop_now {
+            let rounds = tail_size > 0 && between.is_none();
+            let cap = match rounds {
+                true => first_cap::<L>(instances, self.settings, &mut order, tail_size),
+                false => None,
+            }
+            .map(|(cap, outcomes)| {
+                pilot = outcomes;
+                cap
+            });
             let queue = Queue {
                 order,
-                finished,
+                // The pilot's instances finished on the CPU.
+                finished: finished + pilot.len() as u64,
                 tail_size,
+                hand_over: match self.options.cpu_tail {
+                    Some(_) => tail_size,
+                    None => HAND_OVER * tail_size,
+                },
                 slice_limit,
+                cap,
             };
             self.work_through::<L>(
                 (instances, &b, kernel),
@@ -396,6 +546,7 @@ impl Runner<'_> {
         Ok(Sliced {
             readback: out,
             probe_tallies: tallies,
+            pilot,
             dispatches: spent.dispatches,
             offered: spent.offered,
         })
@@ -419,6 +570,8 @@ impl Runner<'_> {
             mut finished,
             tail_size,
             slice_limit,
+            mut cap,
+            hand_over,
         } = queue;
         // The queue, and its first entries on the lanes.
         let lanes = self.options.lanes.unwrap_or(LANES).clamp(1, order.len());
@@ -426,17 +579,20 @@ impl Runner<'_> {
         first.resize(kernel.whole_workgroups(lanes).min(n), NO_INSTANCE);
         self.queue
             .write_buffer(&b.lanes, 0, bytemuck::cast_slice(&first));
-        let mut group = self.requeue(b, kernel, &order, lanes, lanes as u32, finished);
+        let mut group = self.requeue(b, kernel, (&order, lanes), lanes as u32, finished, cap);
         count_in.path.lanes = lanes;
         let mut active = lanes;
         let rounds = n.div_ceil(lanes) as u64;
-        let max_slices = L::slice_bound(instances, self.settings).saturating_mul(rounds) + 1;
+        // A round of the cap adds a slice at most, and there are fewer than
+        // 32 of them.
+        let max_slices = L::slice_bound(instances, self.settings).saturating_mul(rounds) + 33;
         let mut unfinished_before = n as u64 - finished;
         let mut slice: u64 = 1;
         loop {
             let started = std::time::Instant::now();
-            let (mut next, done) = self.dispatch(b, kernel, &group, active)?;
-            finished = done;
+            let counts = self.dispatch(b, kernel, &group, active)?;
+            let mut next = counts.next;
+            finished = counts.finished;
             let dispatched = kernel.whole_workgroups(active);
             let busy = unfinished_before.min(active as u64);
             profile::add_lanes(dispatched as u64, busy, started.elapsed());
@@ -461,22 +617,38 @@ impl Runner<'_> {
                         false => active,
                     };
                     active = (busy + order.len()).clamp(1, lanes);
-                    group = self.requeue(b, kernel, &order, 0, active as u32, finished);
+                    group = self.requeue(b, kernel, (&order, 0), active as u32, finished, cap);
                     next = 0;
                 }
             }
             let unfinished = (n as u64).saturating_sub(finished);
             unfinished_before = unfinished;
             slice += 1;
-            progress(finished.min(n as u64));
+            progress((finished - counts.parked).min(n as u64));
             let drained = next >= order.len() as u64;
-            // Every instance started, and only the slow tail is left.
-            let handed = drained
-                && between
-                    .as_deref()
-                    .is_some_and(|between| between.hand_over(unfinished));
-            if unfinished == 0 || (drained && unfinished <= tail_size) || handed {
-                return Ok(());
+            if let Some(round_cap) = cap {
+                // A round ends once every instance finished or parked.
+                if drained && unfinished == 0 {
+                    if counts.parked <= hand_over {
+                        return Ok(());
+                    }
+                    order = self.parked(b, counts.parked)?;
+                    finished -= counts.parked;
+                    unfinished_before = counts.parked;
+                    let next = round_cap as u64 * ROUND_GROWTH_EIGHTHS / 8;
+                    cap = Some(next.min(NO_CAP as u64 - 1) as u32);
+                    active = order.len().clamp(1, lanes);
+                    group = self.requeue(b, kernel, (&order, 0), active as u32, finished, cap);
+                }
+            } else {
+                // Every instance started, and only the slow tail is left.
+                let handed = drained
+                    && between
+                        .as_deref()
+                        .is_some_and(|between| between.hand_over(unfinished));
+                if unfinished == 0 || (drained && unfinished <= tail_size) || handed {
+                    return Ok(());
+                }
             }
             if slice_limit.is_some_and(|limit| slice >= limit) {
                 return Ok(());
@@ -499,25 +671,33 @@ impl Runner<'_> {
     }
 
     /// Writes `order` as the queue, of which `taken` entries are on lanes,
-    /// with `finished` jobs finished, and returns the bind group of the
-    /// dispatches that work through it on `lanes` lanes.
+    /// with `finished` jobs finished and none parked, and returns the bind
+    /// group of the dispatches that work through it on `lanes` lanes under
+    /// `cap` (`None`: no cap).
     fn requeue(
         &self,
         b: &Buffers,
         kernel: Kernel,
-        order: &[u32],
-        taken: usize,
+        (order, taken): (&[u32], usize),
         lanes: u32,
         finished: u64,
+        cap: Option<u32>,
     ) -> wgpu::BindGroup {
         self.queue
             .write_buffer(&b.order, 0, bytemuck::cast_slice(order));
         self.queue.write_buffer(
             &b.counters,
             0,
-            bytemuck::cast_slice(&[taken as u32, finished as u32]),
+            bytemuck::cast_slice(&[taken as u32, finished as u32, 0]),
         );
-        let control = self.control(self.options.slice_iterations, 0, order.len() as u32, lanes);
+        let cap = cap.unwrap_or(NO_CAP);
+        let control = self.control(
+            self.options.slice_iterations,
+            0,
+            order.len() as u32,
+            lanes,
+            cap,
+        );
         b.bind_group(self.device, kernel, &control)
     }
 
@@ -533,7 +713,7 @@ impl Runner<'_> {
         let n = work.instances.len();
         let steady = kernel.steady && super::readback::any_steady(work.instances);
         let b = Buffers::new::<L>(self.device, &work, steady, kernel.loop_limiter);
-        let control = self.control(iterations, 0, 0, n as u32);
+        let control = self.control(iterations, 0, 0, n as u32, NO_CAP);
         let group = b.bind_group(self.device, kernel, &control);
         Stepper {
             runner: self,

@@ -612,9 +612,12 @@ fn few_lanes_work_through_every_instance() {
 }
 
 /// The slow tail of a batch goes to the CPU: seven short instances and one
-/// forty periods long; once only the long one is left, the CPU integrates
-/// it (in f64, from its start) and says so, and every outcome matches the
-/// CPU.
+/// forty periods long, a tail of one. The batch runs in rounds: the
+/// round's pilot, the first one the probe left unfinished (the third),
+/// runs whole on the CPU (f64), and
+/// sets the first cap; the rounds end with only the long one parked, which
+/// the CPU continues (in f64 from the device's state, in f32 from its
+/// start), saying so; every outcome matches the CPU.
 #[test]
 fn the_slow_tail_of_a_batch_finishes_on_the_cpu() {
     let Some(ctx) = context() else {
@@ -636,8 +639,10 @@ fn the_slow_tail_of_a_batch_finishes_on_the_cpu() {
         let on_cpu: Vec<bool> = gpu.iter().map(|g| g.finished_on_cpu).collect();
         assert_eq!(
             on_cpu,
-            [false, false, false, false, false, false, false, true]
+            [false, false, true, false, false, false, false, true]
         );
+        // The pilot's outcome is the CPU's own.
+        assert_eq!(gpu[2].displacement, displacement(&instances[2], &cpu[2]));
         match precision {
             // In f32 the CPU starts the long one over: its result is the
             // CPU's own.

@@ -110,8 +110,15 @@ pub mod control {
             /// at the dispatch's start (replica members queued again,
             /// `gpu::groups`); 0 in the first dispatch.
             pub lanes: u32,
+            /// The round's cap on an instance's steps ([`NO_CAP`]: none):
+            /// a lane parks an instance at its first iteration boundary
+            /// at or past it (`pidm::gpu::slices`, the rounds).
+            pub cap: u32,
         }
     }
+
+    /// [`Control::cap`] of a dispatch that parks nothing.
+    pub const NO_CAP: u32 = u32::MAX;
 
     host_struct! {
         /// What one lane did in one dispatch (`pidm::gpu::warps`).

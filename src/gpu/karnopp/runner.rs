@@ -68,6 +68,12 @@ impl Lanes for Single {
     fn steps(st: &Self::State) -> u32 {
         st.steps
     }
+    fn pilot(inst: &Instance, settings: &Settings) -> Option<GpuOutcome> {
+        Some(GpuOutcome {
+            finished_on_cpu: true,
+            ..crate::gpu::tail::on_cpu(inst, settings, None)
+        })
+    }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::single::finished(inst, st)
     }
@@ -130,6 +136,12 @@ impl Lanes for Double {
     }
     fn steps(st: &Self::State) -> u32 {
         st.steps
+    }
+    fn pilot(inst: &Instance, settings: &Settings) -> Option<GpuOutcome> {
+        Some(GpuOutcome {
+            finished_on_cpu: true,
+            ..crate::gpu::tail::on_cpu(inst, settings, None)
+        })
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::double::finished(inst, st)
