@@ -39,17 +39,13 @@ FLOOR = "imports crate::laws::karnopp (issue 58: the floor)"
 LANES = "imports crate::gpu::lugre (issue 58: to move behind laws::Law)"
 DEBT = {
     "src/accuracy/limit.rs": NAMES,
-    "src/accuracy/measurement.rs": FLOOR,
     "src/accuracy/mod.rs": FLOOR,
     "src/backend/cpu.rs": FLOOR,
     "src/commands/info.rs": LANES,
     "src/commands/run.rs": LANES,
     "src/commands/summary.rs": FLOOR,
-    "src/gpu/groups.rs": FLOOR,
     "src/gpu/isa/mod.rs": LANES,
-    "src/gpu/lugre/layout.rs": FLOOR,
     "src/gpu/lugre/runner.rs": FLOOR,
-    "src/gpu/slices.rs": FLOOR,
     "src/gpu/tail.rs": FLOOR,
     "src/gpu/warps.rs": FLOOR,
     "src/laws/lugre/run.rs": FLOOR,

@@ -14,7 +14,7 @@
 //! lie within 1 / q_{n+1} of an even lattice, so that its error is at most
 //! the variation of the increments over the phase divided by q_n
 //! (Denjoy-Koksma; measured 0.0002-0.003 um at q_n of 1,000-3,000 on the
-//! instances of `laws::karnopp::integrate::phase`).
+//! instances of `laws::floor::phase`).
 
 use super::Method;
 use crate::backend::{Backend, CpuBackend};
@@ -75,13 +75,13 @@ pub fn measurement_reference(instances: &[Instance]) -> Vec<Instance> {
 /// continued-fraction denominator of rho, the faster drive's advance per
 /// scene period.
 pub fn lattice_length(inst: &Instance, longest: u32) -> Option<u32> {
-    use crate::laws::karnopp::integrate::measure::{SHORT_COMMON_PERIOD, common_period};
+    use crate::laws::floor::measure::{SHORT_COMMON_PERIOD, common_period};
     let [x, y] = &inst.axes;
     if !(x.is_driven() && y.is_driven()) || x.frequency == y.frequency {
         return None;
     }
     let period = inst.period();
-    let frequency = crate::laws::karnopp::integrate::Vec2::new(x.frequency, y.frequency);
+    let frequency = crate::laws::floor::Vec2::new(x.frequency, y.frequency);
     let cycles = frequency * period;
     let q = common_period(frequency, cycles, [true, true]);
     if q > 0 && q <= SHORT_COMMON_PERIOD {

@@ -22,7 +22,7 @@ use std::marker::PhantomData;
 use super::runner::Runner;
 use super::slices::Between;
 use super::*;
-use crate::laws::karnopp::integrate::measure::VERDICT_RUNNING;
+use crate::laws::floor::measure::VERDICT_RUNNING;
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Replica, Replicas};
 use crate::model::motion::Motion;

@@ -228,7 +228,7 @@ mod tests {
     /// The sizes the module's documentation, docs/steady.md and results/gpu.md
     /// quote: a head of 48 bytes in f64 (32 in f32) against accumulators of
     /// 2,048 (1,112), of which the phase ladder's windows
-    /// (`laws::karnopp::integrate::phase`) take 752 (376), a replica's sums for its
+    /// (`laws::floor::phase`) take 752 (376), a replica's sums for its
     /// group's merge 112 (56) of those.
     #[test]
     fn a_head_is_a_fortieth_of_the_accumulators_in_f64() {

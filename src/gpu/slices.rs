@@ -300,7 +300,7 @@ const MIN_CAP: u32 = 4 * PROBE_ITERATIONS;
 /// which a periodic motion undercuts and an irregular one may outrun, but
 /// at most its `max_cycles`.
 pub(super) fn expected_periods(inst: &Instance) -> f64 {
-    use crate::laws::karnopp::integrate::{Vec2, measure};
+    use crate::laws::floor::{Vec2, measure};
     match inst.measure {
         Measure::Window => inst.cycles as f64,
         Measure::Steady { .. } => {

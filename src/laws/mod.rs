@@ -12,6 +12,7 @@
 //! says what a third law touches. [`settings`] are what every law's
 //! integrator takes.
 
+pub mod floor;
 pub mod karnopp;
 pub mod law;
 pub mod lugre;

@@ -5,14 +5,12 @@
 //! GPU's once their states and accumulators are read back in f64.
 //!
 //! The per-period bookkeeping and the stop rule are
-//! `laws::karnopp::integrate::measure` (mirrored by the shader); this module only
+//! `laws::floor::measure` (mirrored by the shader); this module only
 //! reads what they left.
 
 pub mod status;
 
-use crate::laws::karnopp::integrate::measure::{
-    VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, estimate,
-};
+use crate::laws::floor::measure::{VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, estimate};
 use crate::laws::karnopp::integrate::{Run, State};
 use crate::laws::status::STATUS_NOT_STEADY;
 use crate::laws::status::STATUS_OK;
@@ -125,7 +123,7 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                 )
             };
             // The larger of an estimate's standard errors per own cycle.
-            let worst = |se2: crate::laws::karnopp::integrate::Vec2| {
+            let worst = |se2: crate::laws::floor::Vec2| {
                 (0..AXES)
                     .map(|i| se2[i].sqrt() / own_cycles(i))
                     .fold(0.0, f64::max)

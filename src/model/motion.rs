@@ -10,7 +10,7 @@
 //! * *quasi-periodic*: the phase-resolved estimate converged: the slider's
 //!   increments over successive scene periods are a smooth function of
 //!   the faster drive's phase (docs/model.md section 4; the estimator is
-//!   `laws::karnopp::integrate::phase`). A periodic motion whose period is longer
+//!   `laws::floor::phase`). A periodic motion whose period is longer
 //!   than the run needed to measure it counts here too;
 //! * *irregular*: only the batch means (with the cumulative-sum floor)
 //!   converged: the increments are neither periodic nor a smooth function

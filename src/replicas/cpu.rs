@@ -144,7 +144,7 @@ fn drive_group(
 
 /// Lets a replica that waits for its group's merge go on.
 pub fn release(run: &mut Run) {
-    use crate::laws::karnopp::integrate::measure::{VERDICT_RUNNING, VERDICT_WAITING};
+    use crate::laws::floor::measure::{VERDICT_RUNNING, VERDICT_WAITING};
     if run.measure.verdict == VERDICT_WAITING {
         run.measure.verdict = VERDICT_RUNNING;
         run.state.measured = 0;

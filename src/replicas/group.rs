@@ -20,13 +20,15 @@
 //! [`DISAGREEMENT_FLOOR`] on either axis sits on another attractor: the
 //! group is not merged.
 
-use crate::laws::karnopp::integrate::measure::{
+use crate::laws::floor::Vec2;
+use crate::laws::floor::measure::Measure;
+use crate::laws::floor::measure::{
     Snapshot, VERDICT_PERIODIC, VERDICT_PHASE, VERDICT_RUNNING, repeats,
 };
-use crate::laws::karnopp::integrate::phase::{
+use crate::laws::floor::phase::{
     Gaps, LevelSums, PhaseEstimate, evaluate_sums, ladder_length, window_weight,
 };
-use crate::laws::karnopp::integrate::{Coefficients, Measure, Run, Vec2};
+use crate::laws::karnopp::integrate::{Coefficients, Run};
 use crate::laws::karnopp::integrate::{initial_measure, initial_state};
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Replica, Settings};
@@ -415,7 +417,7 @@ pub fn replica_weight(g: &Gaps, start: u32, length: u32, index: u32, count: u32)
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::laws::karnopp::integrate::phase::gaps;
+    use crate::laws::floor::phase::gaps;
 
     /// The replicas' shares of a window's weights add up to the whole
     /// circle, and each is about its fraction of it, wherever the window

@@ -4,7 +4,7 @@
 //! its slowest.
 //!
 //! A quasi-periodic motion's step is the mean over its attractor, and the
-//! phase ladder (`laws::karnopp::integrate::phase`) estimates it by a trapezoid rule
+//! phase ladder (`laws::floor::phase`) estimates it by a trapezoid rule
 //! over the faster drive's phase, whatever order the phases came in. So an
 //! instance whose ladder is on ([`splittable`]) runs as R replicas: replica
 //! r is the instance with its faster drive's phase advanced by r rho / R
@@ -44,7 +44,8 @@ pub mod group;
 
 pub use group::{Group, Member, Step};
 
-use crate::laws::karnopp::integrate::{Coefficients, phase};
+use crate::laws::floor::phase;
+use crate::laws::karnopp::integrate::Coefficients;
 use crate::laws::{Law, Replica, Settings};
 use crate::model::{Instance, Measure};
 

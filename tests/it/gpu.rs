@@ -12,7 +12,7 @@ use pidm::gpu::{
     BatchOptions, F32Check, GpuContext, GpuOutcome, Precision, Route, run_batch, run_batch_with,
 };
 use pidm::laws::Settings;
-use pidm::laws::karnopp::integrate::measure::VERDICT_PERIODIC;
+use pidm::laws::floor::measure::VERDICT_PERIODIC;
 use pidm::laws::karnopp::integrate::run_instance;
 use pidm::laws::status::STATUS_OK;
 use pidm::laws::status::{STATUS_GRAZE, STATUS_NOT_STEADY};

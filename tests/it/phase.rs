@@ -1,5 +1,5 @@
 //! Two drive frequencies (issue 31): common periods from the frequencies as
-//! written, the phase-resolved estimate (`pidm::laws::karnopp::integrate::phase`)
+//! written, the phase-resolved estimate (`pidm::laws::floor::phase`)
 //! against long references, near resonances, and the kind of motion each
 //! run records (`/maps/motion`).
 

@@ -146,9 +146,9 @@ macro_rules! precision_structs {
         /// Storage structs of one precision.
         pub mod $module {
             use super::*;
-            use crate::laws::karnopp::integrate::Vec2;
-            use crate::laws::karnopp::integrate::measure;
-            use crate::laws::karnopp::integrate::phase;
+            use crate::laws::floor::Vec2;
+            use crate::laws::floor::measure;
+            use crate::laws::floor::phase;
             use crate::laws::karnopp::$mirror::integrate as mirror;
             use mirror::coefficients::Oscillator as MirrorOscillator;
 
@@ -186,7 +186,7 @@ macro_rules! precision_structs {
             }
 
             host_struct! {
-                /// `pidm::laws::karnopp::integrate::phase::Gaps`: the three-gap
+                /// `pidm::laws::floor::phase::Gaps`: the three-gap
                 /// table of one window length.
                 pub struct Gaps {
                     pub a: u32,
@@ -305,7 +305,7 @@ macro_rules! precision_structs {
             }
 
             host_struct! {
-                /// `pidm::laws::karnopp::integrate::measure::Snapshot` in shader units.
+                /// `pidm::laws::floor::measure::Snapshot` in shader units.
                 pub struct Snapshot {
                     pub x_p: V2,
                     pub v_p: V2,
@@ -318,7 +318,7 @@ macro_rules! precision_structs {
             }
 
             host_struct! {
-                /// `pidm::laws::karnopp::integrate::phase::LevelSums` in shader units
+                /// `pidm::laws::floor::phase::LevelSums` in shader units
                 /// (its quarters as four members: the shader indexes no
                 /// private array at run time).
                 pub struct LevelSums {
@@ -333,7 +333,7 @@ macro_rules! precision_structs {
             }
 
             host_struct! {
-                /// `pidm::laws::karnopp::integrate::phase::Phase` in shader units.
+                /// `pidm::laws::floor::phase::Phase` in shader units.
                 pub struct Phase {
                     pub whole: [V2; phase::LEVELS],
                     pub second: [V2; phase::LEVELS],
@@ -448,11 +448,11 @@ macro_rules! precision_structs {
                     pending_level: m.pending_level,
                     se2: Vec2::new(m.se2.x as f64, m.se2.y as f64)
                         * (1.0 / (UNITS.metre * UNITS.metre)),
-                    phase: crate::laws::karnopp::integrate::phase::Phase {
+                    phase: crate::laws::floor::phase::Phase {
                         whole: m.phase.whole.map(length),
                         second: m.phase.second.map(length),
                         quarters: m.phase.quarters.map(length),
-                        pending: crate::laws::karnopp::integrate::phase::LevelSums {
+                        pending: crate::laws::floor::phase::LevelSums {
                             whole: length(m.phase.pending.whole),
                             half: length(m.phase.pending.half),
                             second: length(m.phase.pending.second),

@@ -9,8 +9,9 @@
 
 use crate::gpu::{GpuError, Precision, STATUS_LOOP_LIMIT, workgroup_size};
 use crate::laws::Settings;
+use crate::laws::floor::{Vec2, measure, phase};
+use crate::laws::karnopp::integrate::Coefficients;
 use crate::laws::karnopp::integrate::constants::{self, TAYLOR_STAGE_TERMS, TAYLOR_TERMS};
-use crate::laws::karnopp::integrate::{Coefficients, Vec2, measure, phase};
 use crate::model::Instance;
 
 /// The shader files, in the order they are concatenated (WGSL declarations
@@ -521,12 +522,23 @@ pub fn parse_and_validate(
 }
 
 /// Function names defined in a source text (`fn name(` at any
-/// indentation), leaving out a Rust file's test module.
+/// indentation), leaving out a Rust file's test module, its traits and its
+/// trait impls (the floor's `Gauge` and `Slider` and a law's accessors for
+/// them, which in WGSL are struct members read by name).
 #[cfg(test)]
 pub(crate) fn defined_functions(text: &str) -> Vec<String> {
     let text = text.split("#[cfg(test)]").next().unwrap_or(text);
     let mut names = Vec::new();
+    let mut in_trait = false;
     for line in text.lines() {
+        let is_trait = line.starts_with("pub trait ")
+            || line.starts_with("trait ")
+            || (line.starts_with("impl") && line.contains(" for "));
+        let is_trait = is_trait && !line.trim_end().ends_with("{}");
+        in_trait = (in_trait || is_trait) && line != "}";
+        if in_trait {
+            continue;
+        }
         let line = line.trim_start();
         let rest = ["pub(crate) fn ", "pub(super) fn ", "pub fn ", "fn "]
             .iter()

@@ -6,7 +6,7 @@ use super::{LANE_FRESH, LANE_STOPPED};
 use bytemuck::{Pod, Zeroable};
 
 use crate::gpu::layout::double::{Measure as GpuMeasure, measure_to_cpu};
-use crate::laws::karnopp::integrate::measure::SNAPSHOTS;
+use crate::laws::floor::measure::SNAPSHOTS;
 use crate::laws::lugre::run::{Clock, Kept, Linear, N, PeriodStart, Periods, State, first_step};
 use crate::model::AXES;
 

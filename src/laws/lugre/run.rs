@@ -8,12 +8,11 @@
 // (`crate::gpu::lugre` and `shaders/lugre/`).
 pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
 pub(crate) use super::rodas::{A, C, GAMMA, R, REDUCED, SMALLEST_STEP, rodas4, segment};
-use crate::laws::karnopp::integrate::measure::{
-    Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, period_end,
+use crate::laws::floor::Vec2;
+use crate::laws::floor::measure::{
+    Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, initial_measure, period_end,
 };
-use crate::laws::karnopp::integrate::{
-    Coefficients, Run, Vec2, initial_measure, initial_state, is_finished,
-};
+use crate::laws::karnopp::integrate::{Coefficients, Run, initial_state, is_finished};
 use crate::laws::observe::{Observer, Positions};
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Replica, Settings};

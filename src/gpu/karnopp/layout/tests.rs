@@ -129,7 +129,7 @@ fn f64_states_continue_on_the_cpu_member_by_member() {
     st.stalled = 16;
     st.rejections = 17;
     let cpu = double::to_cpu(&st);
-    let v = |k: f64| crate::laws::karnopp::integrate::Vec2::new(k, k + 0.5);
+    let v = |k: f64| crate::laws::floor::Vec2::new(k, k + 0.5);
     assert_eq!(
         [cpu.x_p, cpu.v_p, cpu.x_s, cpu.v_s, cpu.v_rel, cpu.held],
         [v(1.0), v(2.0), v(3.0), v(4.0), v(5.0), v(6.0)]

@@ -85,11 +85,11 @@ fn rust_mirrors() -> [(&'static str, &'static str); 9] {
         ),
         (
             "shared/measure.wgsl",
-            include_str!("../../../laws/karnopp/integrate/measure.rs"),
+            include_str!("../../../laws/floor/measure.rs"),
         ),
         (
             "shared/phase.wgsl",
-            include_str!("../../../laws/karnopp/integrate/phase.rs"),
+            include_str!("../../../laws/floor/phase.rs"),
         ),
     ]
 }

@@ -6,6 +6,9 @@
 pub mod precision {
     use crate::laws::karnopp::units::Units;
 
+    /// The floor in this precision (`crate::laws::floor`).
+    pub use crate::laws::floor::double as floor;
+
     /// The scalar type (the shader's `alias Real`).
     pub type Real = f64;
     /// The unit system.

@@ -48,10 +48,10 @@ pub mod constants;
 pub mod drive;
 pub mod events;
 pub mod flow;
-pub mod measure;
-pub mod phase;
 pub mod step;
-pub mod vec2;
+
+// The floor's measurement, phase ladder and Vec2, in this precision.
+pub use super::precision::floor::{measure, phase, vec2};
 
 pub use coefficients::Coefficients;
 pub use constants::{
@@ -192,6 +192,37 @@ pub fn is_finished(c: &Coefficients, st: &State) -> bool {
 /// `time_lo` are zero but in f32).
 pub fn time_reached(st: &State, t: Real, t_lo: Real) -> bool {
     st.time > t || (st.time == t && st.time_lo >= t_lo)
+}
+
+/// Karnopp's state as the floor's measurement reads it.
+impl measure::Slider for State {
+    fn period(&self) -> u32 {
+        self.period
+    }
+    fn reached(&self, t: Real, t_lo: Real) -> bool {
+        time_reached(self, t, t_lo)
+    }
+    fn x_p(&self) -> Vec2 {
+        self.x_p
+    }
+    fn v_p(&self) -> Vec2 {
+        self.v_p
+    }
+    fn x_s(&self) -> Vec2 {
+        self.x_s
+    }
+    fn v_s(&self) -> Vec2 {
+        self.v_s
+    }
+    fn mode(&self) -> u32 {
+        self.mode
+    }
+    fn measured(&self) -> u32 {
+        self.measured
+    }
+    fn set_measured(&mut self, measured: u32) {
+        self.measured = measured;
+    }
 }
 
 /// Where a run ended: the integrator's state and the measurement's

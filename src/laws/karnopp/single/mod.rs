@@ -9,6 +9,9 @@
 pub mod precision {
     use crate::laws::karnopp::units::Units;
 
+    /// The floor in this precision (`crate::laws::floor`).
+    pub use crate::laws::floor::single as floor;
+
     /// The scalar type (the shader's `alias Real`).
     pub type Real = f32;
     /// The unit system: every quantity of the paper's mechanism is of order

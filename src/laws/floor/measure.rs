@@ -18,7 +18,7 @@
 //!   that may stop the run ends with every axis' standard error at most
 //!   the step tolerance;
 //! * *converged*: at least [`MIN_BATCHES`] batches, each spanning the
-//!   slowest beat of the drives (`Coefficients::min_batch`), are complete, what MSER keeps of them is
+//!   slowest beat of the drives (`Gauge::min_batch`), are complete, what MSER keeps of them is
 //!   stationary (its halves agree), and every axis' standard error
 //!   ([`estimate`]) is at most the step tolerance.
 //!
@@ -45,11 +45,67 @@
 //! halves of the kept batches agree (Geweke 1992's comparison of early and
 //! late means), which a motion still changing on a longer scale fails.
 
-use super::coefficients::Coefficients;
-use super::phase::{Phase, phase_period_end};
+use super::Real;
+use super::phase::{Gaps, LEVELS, Phase, phase_period_end};
 use super::precision::only_f64;
 use super::vec2::Vec2;
-use super::{Real, State};
+
+/// What the measurement reads of an instance: constants every law computes
+/// once per instance (Karnopp's `Coefficients` carries them among its own,
+/// as its shader's struct does: `shaders/shared/measure.wgsl` reads them
+/// by these names).
+pub trait Gauge {
+    /// The run is a steady measurement (not a window).
+    fn steady(&self) -> bool;
+    /// The scene period T in two parts, hi + lo [s] (lo zero but in f32).
+    fn period(&self) -> Real;
+    fn period_lo(&self) -> Real;
+    /// Leading scene periods not measured.
+    fn settle(&self) -> u32;
+    /// The first batch length and the shortest a batch may be judged at
+    /// [scene periods]: the slowest beat of the drives.
+    fn batch_length(&self) -> u32;
+    fn min_batch(&self) -> u32;
+    /// The drives' common period [scene periods] (0: none short enough).
+    fn common_period(&self) -> u32;
+    /// The squared step tolerance per scene period, per axis [m^2].
+    fn se_limit2(&self) -> Vec2;
+    /// The recurrence test's tolerances on positions [m] and velocities
+    /// [m/s] (`repeat_tolerances`).
+    fn repeat_x(&self) -> Real;
+    fn repeat_v(&self) -> Real;
+    /// The phase ladder's levels that may stop the run (a bit each), its
+    /// lattice rule and its three-gap tables (`super::phase`).
+    fn phase_levels(&self) -> u32;
+    fn phase_lattice(&self) -> u32;
+    fn gaps(&self) -> &[Gaps; LEVELS];
+    /// This run's replica and its group's size (1: none).
+    fn replica(&self) -> u32;
+    fn replicas(&self) -> u32;
+}
+
+/// What the measurement reads of a run's state, and the mark it sets on
+/// it: every law's state has these (Karnopp's `State`, LuGre's, and their
+/// shaders' structs by the same names).
+pub trait Slider {
+    /// The scene period the run is in.
+    fn period(&self) -> u32;
+    /// Whether the run's time within its period has reached t + t_lo
+    /// (two-part times; t_lo is zero unless the law keeps time in two
+    /// parts).
+    fn reached(&self, t: Real, t_lo: Real) -> bool;
+    /// Stage and slider positions [m] and velocities [m/s], and the
+    /// friction mode (a law's own code) the recurrence test compares.
+    fn x_p(&self) -> Vec2;
+    fn v_p(&self) -> Vec2;
+    fn x_s(&self) -> Vec2;
+    fn v_s(&self) -> Vec2;
+    fn mode(&self) -> u32;
+    /// 0 while measuring, 1 once complete, 2 while a replica waits
+    /// ([`VERDICT_WAITING`]).
+    fn measured(&self) -> u32;
+    fn set_measured(&mut self, measured: u32);
+}
 
 /// Common-period ends whose states are kept for the recurrence test: the
 /// longest lag found is this many common periods (subharmonic motion of
@@ -106,7 +162,7 @@ pub const VERDICT_CONVERGED: u32 = 2;
 /// tolerance (`super::phase`).
 pub const VERDICT_PHASE: u32 = 3;
 /// A replica of a split run (`super::phase::Replica`) reached a level of
-/// the phase ladder that may stop the run: it waits, `State::measured`
+/// the phase ladder that may stop the run: it waits, `Slider::measured`
 /// 2, while its group merges the replicas' sums of that level
 /// (`pidm::replicas`), which stops the group or lets it go on.
 pub const VERDICT_WAITING: u32 = 4;
@@ -172,7 +228,7 @@ pub struct Measure {
 }
 
 /// The accumulators of a run that has not started.
-pub fn initial_measure(c: &Coefficients) -> Measure {
+pub fn initial_measure(c: &impl Gauge) -> Measure {
     Measure {
         last_x_s: Vec2::ZERO,
         batch_start: Vec2::ZERO,
@@ -184,7 +240,7 @@ pub fn initial_measure(c: &Coefficients) -> Measure {
         next_end: 0,
         measured: 0,
         filled: 0,
-        batch_length: c.batch_length,
+        batch_length: c.batch_length(),
         in_batch: 0,
         snapshots: 0,
         lag: 0,
@@ -198,46 +254,46 @@ pub fn initial_measure(c: &Coefficients) -> Measure {
 
 /// Whether the state sits at a period end that [`period_end`] has not
 /// processed yet (a steady measurement only).
-pub fn at_period_end(c: &Coefficients, st: &State, m: &Measure) -> bool {
-    c.steady && super::time_reached(st, c.period, c.period_lo) && m.next_end == st.period
+pub fn at_period_end(c: &impl Gauge, st: &impl Slider, m: &Measure) -> bool {
+    c.steady() && st.reached(c.period(), c.period_lo()) && m.next_end == st.period()
 }
 
-/// Processes the end of period `st.period`: the state is at t = (period + 1)
-/// T, before the boundary is passed. Sets `st.measured` when the
+/// Processes the end of period `st.period()`: the state is at t = (period + 1)
+/// T, before the boundary is passed. Sets `st.measured()` when the
 /// measurement is complete.
-pub fn period_end(c: &Coefficients, st: &mut State, m: &mut Measure) {
-    m.next_end = st.period + 1;
-    let ended = st.period + 1;
-    if ended < c.settle {
+pub fn period_end(c: &impl Gauge, st: &mut impl Slider, m: &mut Measure) {
+    m.next_end = st.period() + 1;
+    let ended = st.period() + 1;
+    if ended < c.settle() {
         return;
     }
-    if ended > c.settle {
-        let d = st.x_s - m.last_x_s;
+    if ended > c.settle() {
+        let d = st.x_s() - m.last_x_s;
         m.d_min = m.d_min.zip(d, Real::min);
         m.d_max = m.d_max.zip(d, Real::max);
         m.measured += 1;
         m.in_batch += 1;
         if m.in_batch == m.batch_length {
-            close_batch(m, st.x_s);
+            close_batch(m, st.x_s());
         }
     } else {
-        m.batch_start = st.x_s;
+        m.batch_start = st.x_s();
     }
-    m.last_x_s = st.x_s;
-    if c.common_period > 0 && (ended - c.settle).is_multiple_of(c.common_period) {
+    m.last_x_s = st.x_s();
+    if c.common_period() > 0 && (ended - c.settle()).is_multiple_of(c.common_period()) {
         recurrence(c, st, m);
     }
-    if c.phase_levels != 0 {
-        let judged = phase_period_end(c, &mut m.phase, ended - c.settle, st.x_s);
+    if c.phase_levels() != 0 {
+        let judged = phase_period_end(c, &mut m.phase, ended - c.settle(), st.x_s());
         if judged.span > 0 && m.verdict == VERDICT_RUNNING {
-            if c.replicas > 1 {
+            if c.replicas() > 1 {
                 m.pending_level = judged.level;
                 m.verdict = VERDICT_WAITING;
             } else {
                 m.travel = judged.value * judged.span as Real;
                 m.span = judged.span;
                 m.se2 = judged.se2;
-                if judged.se2.x <= c.se_limit2.x && judged.se2.y <= c.se_limit2.y {
+                if judged.se2.x <= c.se_limit2().x && judged.se2.y <= c.se_limit2().y {
                     m.verdict = VERDICT_PHASE;
                 }
             }
@@ -246,17 +302,17 @@ pub fn period_end(c: &Coefficients, st: &mut State, m: &mut Measure) {
     if m.verdict == VERDICT_RUNNING
         && m.in_batch == 0
         && m.filled >= MIN_BATCHES
-        && m.batch_length >= c.min_batch
+        && m.batch_length >= c.min_batch()
     {
         let e = estimate(m);
-        if e.stationary && e.se2.x <= c.se_limit2.x && e.se2.y <= c.se_limit2.y {
+        if e.stationary && e.se2.x <= c.se_limit2().x && e.se2.y <= c.se_limit2().y {
             m.verdict = VERDICT_CONVERGED;
         }
     }
     if m.verdict == VERDICT_WAITING {
-        st.measured = 2;
+        st.set_measured(2);
     } else if m.verdict != VERDICT_RUNNING {
-        st.measured = 1;
+        st.set_measured(1);
     }
 }
 
@@ -279,20 +335,20 @@ fn close_batch(m: &mut Measure, x_s: Vec2) {
 /// Compares the state with the last common-period ends, nearest first;
 /// records the lag and the travel over it when one matches, else keeps the
 /// state.
-fn recurrence(c: &Coefficients, st: &State, m: &mut Measure) {
+fn recurrence(c: &impl Gauge, st: &impl Slider, m: &mut Measure) {
     let now = Snapshot {
-        x_p: st.x_p,
-        v_p: st.v_p,
-        v_s: st.v_s,
-        x_s: st.x_s,
-        mode: st.mode,
+        x_p: st.x_p(),
+        v_p: st.v_p(),
+        v_s: st.v_s(),
+        x_s: st.x_s(),
+        mode: st.mode(),
     };
     let kept = m.snapshots.min(SNAPSHOTS as u32);
     for back in 1..=kept {
         let s = &m.snaps[((m.snapshots - back) % SNAPSHOTS as u32) as usize];
         if repeats(c, &now, s) {
-            m.lag = back * c.common_period;
-            m.travel = st.x_s - s.x_s;
+            m.lag = back * c.common_period();
+            m.travel = st.x_s() - s.x_s;
             m.verdict = VERDICT_PERIODIC;
             return;
         }
@@ -307,11 +363,11 @@ fn recurrence(c: &Coefficients, st: &State, m: &mut Measure) {
 /// compared). The recurrence test's rule, and the one a cycle split's
 /// group joins its pieces by (`pidm::replicas::group`); the shader's
 /// recurrence test inlines it.
-pub fn repeats(c: &Coefficients, a: &Snapshot, b: &Snapshot) -> bool {
+pub fn repeats(c: &impl Gauge, a: &Snapshot, b: &Snapshot) -> bool {
     a.mode == b.mode
-        && close(a.x_p, b.x_p, c.repeat_x)
-        && close(a.v_p, b.v_p, c.repeat_v)
-        && close(a.v_s, b.v_s, c.repeat_v)
+        && close(a.x_p, b.x_p, c.repeat_x())
+        && close(a.v_p, b.v_p, c.repeat_v())
+        && close(a.v_s, b.v_s, c.repeat_v())
 }
 
 fn close(a: Vec2, b: Vec2, tolerance: Real) -> bool {

@@ -2,7 +2,7 @@
 //! frequencies (docs/model.md section 4): the CPU mirror of
 //! `shaders/shared/phase.wgsl` (same functions, same order of
 //! operations); its constants reach the shader through the prelude and its
-//! per-instance tables through `Coefficients`.
+//! per-instance tables through the law's `Gauge` (`super::measure::Gauge`).
 //!
 //! **The idea.** With two frequencies the slider's travel over scene period
 //! k is, once the motion has settled (measured: within one or two periods
@@ -31,7 +31,7 @@
 //! at six periods: [`window_coefficient`]. The weights depend on L and rho
 //! only (a rotation of every phase changes no gap), so the host computes
 //! (a, b, alpha, beta) once per window length ([`Gaps`], in
-//! `Coefficients::gaps`) and the run adds each position to the windows
+//! `Gauge::gaps`) and the run adds each position to the windows
 //! that need it as the period passes: no per-period arrays.
 //!
 //! **The ladder.** Windows start where the measurement starts (`settle`).
@@ -58,7 +58,7 @@
 //! whose largest gap is at most 2 / q has every phase it misses between
 //! two it has, so it resolves the motion as finely as the whole period
 //! would up to a factor 2, and its quarters (which do not) are left out
-//! (`Coefficients::phase_lattice`). Measured against 20,000-40,000-period references on 46
+//! (`Gauge::phase_lattice`). Measured against 20,000-40,000-period references on 46
 //! two-frequency instances (Table 1 and the text's set, incommensurate,
 //! near resonances, two-decimal frequencies, voltages from -100 to 100 V,
 //! duties 0.8-0.98) at 36-41 starting periods each: of 999 stops at the
@@ -80,7 +80,7 @@
 //! same clusters as the window and agree whatever lies between them, so a
 //! window's largest gap may be at most [`MAX_BUNCHING`] / its length,
 //! unless the beat lies beyond the run ([`BUNCHED_HORIZON`]). The host
-//! folds the rules into [`Coefficients::phase_levels`], a bit per level.
+//! folds the rules into [`Gauge::phase_levels`], a bit per level.
 //! Where rho = p / q is rational (a common period q), only windows of at
 //! most q periods are used (longer ones repeat phases); the recurrence test
 //! (`measure::recurrence`) finds such a motion exact at q.
@@ -94,7 +94,7 @@
 //! window is an empirical guard, not a proof.
 
 use super::Real;
-use super::coefficients::Coefficients;
+use super::measure::Gauge;
 use super::precision::only_f64;
 use super::vec2::Vec2;
 
@@ -319,18 +319,18 @@ pub struct PhaseEstimate {
 
 /// Adds the slider position `x` at period `k` of the measurement (k = 0 at
 /// its start) to every window that has a cut there, and judges the window
-/// that ends there, if any may stop the run ([`Coefficients::phase_levels`]).
+/// that ends there, if any may stop the run ([`Gauge::phase_levels`]).
 /// Windows are processed level by level, and a level ending at `k` is
 /// judged before a longer level starts its quarters there. A replica
 /// ([`Replica`]) adds its positions to the virtual run's windows, and does
 /// not judge them: where a level ends it keeps the level's sums in
 /// `p.pending` for its group's merge and returns the level with a zero
 /// estimate.
-pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> PhaseEstimate {
+pub fn phase_period_end(c: &impl Gauge, p: &mut Phase, k: u32, x: Vec2) -> PhaseEstimate {
     // The virtual run's step is the host's concern (its tables).
     let r = Replica {
-        index: c.replica,
-        count: c.replicas,
+        index: c.replica(),
+        count: c.replicas(),
         turns: 0,
         cycle: 0,
     };
@@ -338,11 +338,11 @@ pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> Pha
     for j in 0..LEVELS as u32 {
         let length = ladder_length(j);
         let level = j as usize;
-        p.whole[level] = add_to_window(p.whole[level], &c.gaps[level], 0, length, k, r, x);
+        p.whole[level] = add_to_window(p.whole[level], &c.gaps()[level], 0, length, k, r, x);
         if j >= 2 {
             let half = ladder_length(j - 2);
             p.second[level] =
-                add_to_window(p.second[level], &c.gaps[level - 2], half, half, k, r, x);
+                add_to_window(p.second[level], &c.gaps()[level - 2], half, half, k, r, x);
         }
         if j >= FIRST_JUDGED {
             let quarter = ladder_length(j - 4);
@@ -353,7 +353,7 @@ pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> Pha
             }
             p.quarters[ring] = add_to_window(
                 p.quarters[ring],
-                &c.gaps[level - 4],
+                &c.gaps()[level - 4],
                 2 * quarter,
                 quarter,
                 k,
@@ -362,14 +362,14 @@ pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> Pha
             );
             p.quarters[ring + 1] = add_to_window(
                 p.quarters[ring + 1],
-                &c.gaps[level - 4],
+                &c.gaps()[level - 4],
                 3 * quarter,
                 quarter,
                 k,
                 r,
                 x,
             );
-            if first_at(k, r, length) && (c.phase_levels >> j) & 1 == 1 {
+            if first_at(k, r, length) && (c.phase_levels() >> j) & 1 == 1 {
                 if r.count > 1 {
                     p.pending = level_sums(p, j);
                     judged = PhaseEstimate {
@@ -379,7 +379,7 @@ pub fn phase_period_end(c: &Coefficients, p: &mut Phase, k: u32, x: Vec2) -> Pha
                         level: j,
                     };
                 } else {
-                    judged = evaluate(p, j, (c.phase_lattice >> j) & 1 == 1);
+                    judged = evaluate(p, j, (c.phase_lattice() >> j) & 1 == 1);
                 }
             }
         }

@@ -1,0 +1,21 @@
+//! The floor every friction law stands on (issue 58): what the laws share
+//! and neither owns. Its files are written for a scalar `Real`, as the
+//! laws' integrators are, and compiled once per precision: [`double`]
+//! (f64, SI units) and [`single`] (f32, the f32 shader's mirror's units).
+//!
+//! * `vec2.rs`: [`Vec2`], one value per axis (WGSL's `vec2<Real>`).
+//! * `measure.rs`: the steady measurement (docs/model.md section 4), the
+//!   CPU mirror of `shaders/shared/measure.wgsl`, read through two traits
+//!   a law implements: [`measure::Gauge`] (its per-instance constants) and
+//!   [`measure::Slider`] (its state).
+//! * `phase.rs`: the phase ladder, the mirror of
+//!   `shaders/shared/phase.wgsl`.
+//!
+//! The run's settings are [`crate::laws::settings`], its status codes
+//! [`crate::laws::status`]. Laws import the floor; the floor imports no law.
+//! The f64 instance is re-exported here.
+
+pub mod double;
+pub mod single;
+
+pub use double::{Vec2, measure, phase, vec2};
