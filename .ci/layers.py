@@ -58,13 +58,7 @@ DEBT = {
 
 # Shader includes across laws kept for now (rule 3), each with its reason;
 # an entry no longer needed fails the check, as DEBT's do.
-INCLUDE_DEBT = {
-    (
-        "src/gpu/lugre/mod.rs",
-        "shaders/karnopp/coefficients.wgsl",
-    ): "the per-instance constants the shared measurement reads are Karnopp's "
-    "struct until the drive moves to the floor (issues 58, 59)",
-}
+INCLUDE_DEBT: dict = {}
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 NOT_LAWS = {"engine", "shared"}

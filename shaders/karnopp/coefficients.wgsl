@@ -14,14 +14,6 @@ struct Oscillator {
     inv_w2: V2,
 }
 
-// The three-gap table of one window length (phase.rs).
-struct Gaps {
-    a: u32,
-    b: u32,
-    alpha: Real,
-    beta: Real,
-}
-
 struct Coefficients {
     stiffness: V2,
     damping: V2,

@@ -1,15 +1,39 @@
 // The steady measurement of a LuGre run at its period ends, on the device:
-// mirror of `laws::lugre::run::Periods::period_end`. Karnopp's per-period
-// bookkeeping (`shaders/karnopp/coefficients.wgsl`, `measure.wgsl` and
+// mirror of `laws::lugre::run::Periods::period_end`. The floor's per-period
+// bookkeeping (`shaders/shared/setup.wgsl`, `measure.wgsl` and
 // `phase.wgsl`, included as they are after this file: batches, the phase
 // ladder and the stop rule, on the instance's own accumulators in
 // `measures`), then docs/model.md section 8's recurrence test, which
-// compares z too. Karnopp's own recurrence test never runs here: the host
-// packs LuGre's coefficients with a common period of 0, as the CPU's run
-// does, and passes the real one in `Model.common_period`.
+// compares z too. The floor's own recurrence test never runs here: the
+// host packs LuGre's coefficients with a common period of 0, as the CPU's
+// run does, and passes the real one in `Model.common_period`.
 
-// The members of Karnopp's state (`shaders/karnopp/advance.wgsl`) that its
-// measurement reads and writes at a period end.
+// A run's constants: the floor's measurement constants
+// (`pidm::laws::floor::Setup`, by the names shaders/shared/measure.wgsl
+// reads) and the periods it may integrate (`pidm::gpu::lugre::layout::
+// Coefficients` on the host).
+struct Coefficients {
+    se_limit2: V2,
+    period: Real,
+    period_lo: Real,
+    repeat_x: Real,
+    repeat_v: Real,
+    cycles: u32,
+    settle: u32,
+    steady: u32,
+    common_period: u32,
+    batch_length: u32,
+    min_batch: u32,
+    phase_levels: u32,
+    phase_lattice: u32,
+    replica: u32,
+    replicas: u32,
+    _pad: vec2<u32>,
+    gaps: array<Gaps, LEVELS>,
+}
+
+// The members of a law's state that the floor's measurement reads and
+// writes at a period end (`pidm::laws::floor::measure::Slider`).
 struct State {
     x_p: V2,
     v_p: V2,
@@ -36,8 +60,9 @@ struct Recurrence {
     _pad: u32,
 }
 
-// Karnopp's measurement reads the instance `held` holds in `coefficients`
-// and `measures` (its `coefficients[held]`): here the lane's own.
+// The floor's measurement reads the instance `held` holds in
+// `coefficients` and `measures` (its `coefficients[held]`): here the
+// lane's own.
 var<private> held: u32;
 
 @group(0) @binding(0) var<storage, read> coefficients: array<Coefficients>;

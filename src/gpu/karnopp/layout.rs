@@ -584,13 +584,17 @@ macro_rules! precision_structs {
                     phase_lattice: c.phase_lattice,
                     replica: c.replica,
                     replicas: c.replicas,
-                    gaps: c.gaps.map(|g| Gaps {
-                        a: g.a,
-                        b: g.b,
-                        alpha: g.alpha,
-                        beta: g.beta,
-                    }),
+                    gaps: gaps(&c.gaps),
                 }
+            }
+
+            fn gaps(g: &[mirror::phase::Gaps; phase::LEVELS]) -> [Gaps; phase::LEVELS] {
+                g.map(|g| Gaps {
+                    a: g.a,
+                    b: g.b,
+                    alpha: g.alpha,
+                    beta: g.beta,
+                })
             }
 
             /// The CPU mirror's state this shader state stands for: the

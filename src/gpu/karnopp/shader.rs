@@ -17,10 +17,14 @@ use crate::model::Instance;
 /// The shader files, in the order they are concatenated (WGSL declarations
 /// may come in any order; this one reads top-down), with their text and
 /// the part of the shader each belongs to (`File::part`).
-pub const FILES: [(&str, &str); 11] = [
+pub const FILES: [(&str, &str); 12] = [
     (
         "karnopp/arith.wgsl",
         include_str!("../../../shaders/karnopp/arith.wgsl"),
+    ),
+    (
+        "shared/setup.wgsl",
+        include_str!("../../../shaders/shared/setup.wgsl"),
     ),
     (
         "karnopp/coefficients.wgsl",

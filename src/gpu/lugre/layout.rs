@@ -5,8 +5,11 @@
 use super::{LANE_FRESH, LANE_STOPPED};
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::layout::double::{Measure as GpuMeasure, measure_to_cpu};
+use crate::gpu::layout::double::{Gaps, Measure as GpuMeasure, measure_to_cpu};
+use crate::gpu::layout::{F64x2, U32x2};
+use crate::laws::floor::Setup;
 use crate::laws::floor::measure::SNAPSHOTS;
+use crate::laws::floor::phase::LEVELS;
 use crate::laws::lugre::run::{Clock, Kept, Linear, N, PeriodStart, Periods, State, first_step};
 use crate::model::AXES;
 
@@ -121,6 +124,90 @@ pub struct Lane {
     /// `LANE_FRESH`, `LANE_RUNNING` or `LANE_STOPPED`.
     pub flag: u32,
     pub _pad: u32,
+}
+
+/// A run's constants (`measure.wgsl`'s `Coefficients`): the floor's
+/// measurement constants ([`Setup`]), by the names the floor's shader
+/// reads, and the periods the run may integrate.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct Coefficients {
+    pub se_limit2: F64x2,
+    pub period: f64,
+    pub period_lo: f64,
+    pub repeat_x: f64,
+    pub repeat_v: f64,
+    pub cycles: u32,
+    pub settle: u32,
+    pub steady: u32,
+    pub common_period: u32,
+    pub batch_length: u32,
+    pub min_batch: u32,
+    pub phase_levels: u32,
+    pub phase_lattice: u32,
+    pub replica: u32,
+    pub replicas: u32,
+    pub _pad: U32x2,
+    pub gaps: [Gaps; LEVELS],
+}
+
+impl Coefficients {
+    /// The constants of a run of `cycles` periods with measurement `g`.
+    pub fn of(g: &Setup, cycles: u32) -> Coefficients {
+        Coefficients {
+            se_limit2: F64x2 {
+                x: g.se_limit2.x,
+                y: g.se_limit2.y,
+            },
+            period: g.period,
+            period_lo: g.period_lo,
+            repeat_x: g.repeat_x,
+            repeat_v: g.repeat_v,
+            cycles,
+            settle: g.settle,
+            steady: g.steady as u32,
+            common_period: g.common_period,
+            batch_length: g.batch_length,
+            min_batch: g.min_batch,
+            phase_levels: g.phase_levels,
+            phase_lattice: g.phase_lattice,
+            replica: g.replica,
+            replicas: g.replicas,
+            _pad: U32x2::default(),
+            gaps: g.gaps.map(|g| Gaps {
+                a: g.a,
+                b: g.b,
+                alpha: g.alpha,
+                beta: g.beta,
+            }),
+        }
+    }
+}
+
+impl crate::gpu::layout::HostLayout for Coefficients {
+    const NAME: &'static str = "Coefficients";
+    fn members() -> Vec<(&'static str, usize)> {
+        use std::mem::offset_of;
+        vec![
+            ("se_limit2", offset_of!(Coefficients, se_limit2)),
+            ("period", offset_of!(Coefficients, period)),
+            ("period_lo", offset_of!(Coefficients, period_lo)),
+            ("repeat_x", offset_of!(Coefficients, repeat_x)),
+            ("repeat_v", offset_of!(Coefficients, repeat_v)),
+            ("cycles", offset_of!(Coefficients, cycles)),
+            ("settle", offset_of!(Coefficients, settle)),
+            ("steady", offset_of!(Coefficients, steady)),
+            ("common_period", offset_of!(Coefficients, common_period)),
+            ("batch_length", offset_of!(Coefficients, batch_length)),
+            ("min_batch", offset_of!(Coefficients, min_batch)),
+            ("phase_levels", offset_of!(Coefficients, phase_levels)),
+            ("phase_lattice", offset_of!(Coefficients, phase_lattice)),
+            ("replica", offset_of!(Coefficients, replica)),
+            ("replicas", offset_of!(Coefficients, replicas)),
+            ("_pad", offset_of!(Coefficients, _pad)),
+            ("gaps", offset_of!(Coefficients, gaps)),
+        ]
+    }
 }
 
 impl crate::gpu::layout::HostLayout for Lane {
@@ -315,6 +402,14 @@ mod tests {
         for (name, offset) in rust {
             let (_, o) = members.iter().find(|(n, _)| n == name).unwrap();
             assert_eq!(*o as usize, offset, "Model.{name}");
+        }
+        let (span, members) = offsets("Coefficients");
+        assert_eq!(span as usize, size_of::<Coefficients>());
+        let rust = <Coefficients as crate::gpu::layout::HostLayout>::members();
+        assert_eq!(rust.len(), members.len(), "Coefficients' members");
+        for (name, offset) in rust {
+            let (_, o) = members.iter().find(|(n, _)| n == name).unwrap();
+            assert_eq!(*o as usize, offset, "Coefficients.{name}");
         }
         let (span, members) = offsets("Lane");
         assert_eq!(span as usize, size_of::<Lane>());

@@ -16,7 +16,7 @@
 //!   dispatches anywhere, on any lane, gives the same bits; the
 //!   per-instance parameters are packed once ([`Params`], binding 9).
 //! * A lane measures its period ends itself (`shaders/lugre/measure.wgsl`):
-//!   Karnopp's measurement files (`measure.wgsl`, `phase.wgsl`,
+//!   the floor's measurement files (`setup.wgsl`, `measure.wgsl`, `phase.wgsl`,
 //!   [`MEASUREMENT_FILES`]) on its own accumulators, then the recurrence
 //!   test that compares z, as the CPU run's `Periods::period_end` does,
 //!   and starts its next period; a finished run leaves the engine's head.
@@ -109,12 +109,12 @@ pub const FILES: [(&str, &str); 4] = [
     ),
 ];
 
-/// Karnopp's measurement files, which every LuGre shader includes as they
-/// are after [`FILES`] (`measure.wgsl` says how they fit).
+/// The floor's measurement files, which every LuGre shader includes as
+/// they are after [`FILES`] (`measure.wgsl` says how they fit).
 pub const MEASUREMENT_FILES: [(&str, &str); 3] = [
     (
-        "karnopp/coefficients.wgsl",
-        include_str!("../../../shaders/karnopp/coefficients.wgsl"),
+        "shared/setup.wgsl",
+        include_str!("../../../shaders/shared/setup.wgsl"),
     ),
     (
         "shared/measure.wgsl",

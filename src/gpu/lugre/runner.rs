@@ -16,8 +16,9 @@ use bytemuck::Zeroable;
 use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 
+use super::layout::Coefficients;
 use crate::gpu::lanes::{Kernel, Lanes, Work};
-use crate::gpu::layout::double::{Coefficients, Head, Measure as GpuMeasure, packed};
+use crate::gpu::layout::double::{Head, Measure as GpuMeasure};
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::gpu::runner::{Runner, storage};
 use crate::gpu::{BatchOptions, GpuContext, GpuError, Precision};
@@ -404,7 +405,10 @@ impl<'a> LugreGpu<'a> {
             (books.len() * size_of::<Recurrence>()) as u64,
         );
         (
-            books.iter().map(|b| packed(b.coefficients())).collect(),
+            books
+                .iter()
+                .map(|b| Coefficients::of(b.setup(), b.cycles()))
+                .collect(),
             books.iter().map(Lane::start).collect(),
             [models, recurrences],
         )

@@ -10,6 +10,8 @@
 //!   [`measure::Slider`] (its state).
 //! * `phase.rs`: the phase ladder, the mirror of
 //!   `shaders/shared/phase.wgsl`.
+//! * `setup.rs`: [`Setup`], the measurement's constants of an instance,
+//!   computed from the instance alone.
 //!
 //! The run's settings are [`crate::laws::settings`], its status codes
 //! [`crate::laws::status`]. Laws import the floor; the floor imports no law.
@@ -18,4 +20,4 @@
 pub mod double;
 pub mod single;
 
-pub use double::{Vec2, measure, phase, vec2};
+pub use double::{Setup, Vec2, measure, phase, setup, vec2};

@@ -8,11 +8,12 @@
 // (`crate::gpu::lugre` and `shaders/lugre/`).
 pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
 pub(crate) use super::rodas::{A, C, GAMMA, R, REDUCED, SMALLEST_STEP, rodas4, segment};
+use crate::laws::floor::Setup;
 use crate::laws::floor::Vec2;
 use crate::laws::floor::measure::{
     Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, initial_measure, period_end,
 };
-use crate::laws::karnopp::integrate::{Coefficients, Run, initial_state, is_finished};
+use crate::laws::karnopp::integrate::Run;
 use crate::laws::observe::{Observer, Positions};
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Replica, Settings};
@@ -20,6 +21,18 @@ use crate::model::{AXES, Instance, Lugre};
 
 /// The state a run ends in (`integrate::Run::state`).
 type State0 = crate::laws::karnopp::integrate::State;
+
+/// A run's record at rest at the start of period 0, in stick: of
+/// [`State0`]'s fields a LuGre run keeps positions, velocities, the
+/// period, the status, the steps and the measurement's mark; the rest are
+/// Karnopp's integrator's and stay zero.
+fn at_rest() -> State0 {
+    State0 {
+        mode: 0,
+        status: STATUS_OK,
+        ..State0::default()
+    }
+}
 
 /// What `simulation.tolerance` (a number, 1e-4 by default) means under
 /// LuGre: each Rodas4 step's local error is at most `tolerance` times
@@ -95,7 +108,7 @@ pub struct Resumable {
 
 impl Resumable {
     /// Replica `r` of a split run at rest (`inst` the replica's instance,
-    /// `Coefficients::of_replica`).
+    /// `Setup::new`).
     pub fn new(inst: &Instance, settings: &Settings, r: Replica) -> Resumable {
         let book = Periods::new_replica(inst, settings, r);
         let start = PeriodStart::first(&book);
@@ -271,7 +284,7 @@ pub(crate) struct Periods {
     /// The run so far: its `state.steps` and `state.status` are the
     /// integrator's to set ([`Periods::add_steps`]).
     pub(crate) run: Run,
-    c: Coefficients,
+    c: Setup,
     /// The common period of the recurrence test (0: none).
     common: u32,
     recurrence: Recurrence,
@@ -291,13 +304,13 @@ impl Periods {
     pub(crate) fn new_replica(inst: &Instance, settings: &Settings, r: Replica) -> Periods {
         let lugre = *inst.mechanism.lugre().expect("a LuGre instance");
         let model = Model::new(inst, &lugre);
-        let mut c = Coefficients::of_replica(inst, settings, r);
+        let mut c = Setup::new(inst, settings, r);
         // The recurrence test compares z too: done here, not by `period_end`.
         let common = std::mem::replace(&mut c.common_period, 0);
         let recurrence = Recurrence::new(&c, inst, &lugre);
         let scale = error_scale(&model, &lugre, settings.tolerance);
         let mut run = Run {
-            state: initial_state(&c),
+            state: at_rest(),
             measure: initial_measure(&c),
         };
         if c.settle == 0 {
@@ -319,7 +332,8 @@ impl Periods {
 
     /// Whether the run has ended: measured, failed or out of periods.
     pub(crate) fn is_finished(&self) -> bool {
-        is_finished(&self.c, &self.run.state)
+        let st = &self.run.state;
+        st.status != STATUS_OK || st.period >= self.inst.cycles || st.measured != 0
     }
 
     /// The drive's clock of the current scene period.
@@ -405,10 +419,15 @@ impl Periods {
         self.recurrence.taken = kept.taken;
     }
 
-    /// The steady measurement's coefficients (Karnopp's, with no common
+    /// The steady measurement's constants (the floor's, with no common
     /// period: the recurrence test is this run's, [`Periods::period_end`]).
-    pub(crate) fn coefficients(&self) -> &Coefficients {
+    pub(crate) fn setup(&self) -> &Setup {
         &self.c
+    }
+
+    /// The periods the run may integrate (the instance's `cycles`).
+    pub(crate) fn cycles(&self) -> u32 {
+        self.inst.cycles
     }
 
     /// The recurrence test's tolerances per component (infinite: not
@@ -420,7 +439,7 @@ impl Periods {
 
 /// docs/model.md section 4's recurrence test under LuGre: the state at a common
 /// period's end against the last [`SNAPSHOTS`] ones, z included (section
-/// 8), with the tolerances of Karnopp's test (`Coefficients::repeat_x`,
+/// 8), with the tolerances of Karnopp's test (`Setup::repeat_x`,
 /// `repeat_v`) and z's force-equivalent one.
 struct Recurrence {
     repeat: State,
@@ -429,7 +448,7 @@ struct Recurrence {
 }
 
 impl Recurrence {
-    fn new(c: &Coefficients, inst: &Instance, lugre: &Lugre) -> Recurrence {
+    fn new(c: &Setup, inst: &Instance, lugre: &Lugre) -> Recurrence {
         let stiffness = inst
             .axes
             .iter()

@@ -13,6 +13,7 @@ pub mod precision {
 }
 
 pub use precision::Real;
+pub use setup::Setup;
 pub use vec2::Vec2;
 
 // The same sources as the other precision's, on purpose (the shader's
@@ -23,6 +24,9 @@ pub mod measure;
 #[allow(clippy::duplicate_mod)]
 #[path = "../phase.rs"]
 pub mod phase;
+#[allow(clippy::duplicate_mod)]
+#[path = "../setup.rs"]
+pub mod setup;
 #[allow(clippy::duplicate_mod)]
 #[path = "../vec2.rs"]
 pub mod vec2;

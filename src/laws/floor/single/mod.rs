@@ -14,6 +14,7 @@ pub mod precision {
 }
 
 pub use precision::Real;
+pub use setup::Setup;
 pub use vec2::Vec2;
 
 // The same sources as the other precision's, on purpose (the shader's
@@ -26,6 +27,10 @@ pub mod measure;
 #[path = "../phase.rs"]
 #[allow(dead_code)]
 pub mod phase;
+#[allow(clippy::duplicate_mod)]
+#[path = "../setup.rs"]
+#[allow(dead_code)]
+pub mod setup;
 #[allow(clippy::duplicate_mod)]
 #[path = "../vec2.rs"]
 #[allow(dead_code)]

@@ -520,54 +520,22 @@ impl Coefficients {
     /// ladder, the batches and the stop rules' tolerances (after
     /// [`Coefficients::set_mechanism`] and [`Coefficients::set_drive`]).
     fn set_measurement(&mut self, inst: &Instance, settings: &Settings, r: Replica) {
-        let (cycles_per_period, driven) = (self.cycles_per_period, self.driven);
-        let step_tolerance = inst.measure.step_tolerance();
-        let se_limit = cycles_per_period * step_tolerance;
-        let deflection = (self.amplitude.abs() * self.stiffness.map(|k| 1.0 / k)).max_element();
-        let (repeat_x, repeat_v) = super::measure::repeat_tolerances(
-            settings.tolerance,
-            deflection,
-            self.slip.rate.max_element(),
-        );
-        // A cycle split's piece (`Replica::cycle`) has no stop rule of its
-        // own: its recurrence test keeps the states where its piece starts
-        // and ends (a "common period" of the piece's length), its ladder
-        // and batch means are off, and it runs to its `cycles`.
-        let piece = (r.cycle > 0).then(|| r.cycle_segment().1);
-        let common_period = piece.unwrap_or_else(|| {
-            super::measure::common_period(self.frequency, cycles_per_period, driven)
-        });
-        let steady = matches!(inst.measure, crate::model::Measure::Steady { .. });
-        // The faster drive's advance per scene period [cycles].
-        let rho = cycles_per_period.max_element().fract();
-        let ladder_on =
-            steady && piece.is_none() && super::phase::ladder_on(driven, rho, common_period);
-        // A replica's ladder is its group's virtual run's.
-        // The periods the run (a group's virtual run: its replicas'
-        // together) may measure.
-        let horizon = inst.cycles.saturating_sub(inst.settle).saturating_mul(r.count);
-        let ladder = super::phase::ladder(
-            r.virtual_step(rho),
-            ladder_on,
-            common_period.saturating_mul(r.count),
-            horizon,
-        );
+        // The floor's, computed from the instance alone (its period and
+        // settling are already set, to the same values).
+        let g = super::setup::Setup::new(inst, settings, r);
         *self = Coefficients {
-            steady,
-            common_period,
-            gaps: ladder.gaps,
-            phase_levels: ladder.levels,
-            phase_lattice: ladder.lattice,
-            replica: if piece.is_some() { 0 } else { r.index },
-            replicas: if piece.is_some() { 1 } else { r.count },
-            batch_length: super::measure::first_batch_length(cycles_per_period, driven, inst.cycles),
-            min_batch: match piece {
-                Some(_) => u32::MAX,
-                None => super::measure::beat_batch_length(cycles_per_period, driven),
-            },
-            se_limit2: se_limit * se_limit,
-            repeat_x,
-            repeat_v,
+            steady: g.steady,
+            common_period: g.common_period,
+            gaps: g.gaps,
+            phase_levels: g.phase_levels,
+            phase_lattice: g.phase_lattice,
+            replica: g.replica,
+            replicas: g.replicas,
+            batch_length: g.batch_length,
+            min_batch: g.min_batch,
+            se_limit2: g.se_limit2,
+            repeat_x: g.repeat_x,
+            repeat_v: g.repeat_v,
             ..*self
         };
     }

@@ -51,7 +51,7 @@ pub mod flow;
 pub mod step;
 
 // The floor's measurement, phase ladder and Vec2, in this precision.
-pub use super::precision::floor::{measure, phase, vec2};
+pub use super::precision::floor::{measure, phase, setup, vec2};
 
 pub use coefficients::Coefficients;
 pub use constants::{
@@ -81,7 +81,7 @@ use crate::model::{AXES, Instance};
 /// The complete integrator state of one instance. It is everything needed to
 /// continue a run, so a run may be cut into slices anywhere between
 /// iterations.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct State {
     /// Stage positions [m] and velocities [m/s].
     pub x_p: Vec2,
