@@ -46,8 +46,6 @@ DEBT = {
     "src/commands/summary.rs": FLOOR,
     "src/gpu/isa/mod.rs": LANES,
     "src/gpu/lugre/runner.rs": FLOOR,
-    "src/gpu/tail.rs": FLOOR,
-    "src/gpu/warps.rs": FLOOR,
     "src/laws/lugre/run.rs": FLOOR,
     "src/measurement/mod.rs": FLOOR,
     "src/replicas/cpu.rs": FLOOR,

@@ -304,7 +304,7 @@ impl Runner<'_> {
                 coefficients: &coefficients,
                 states: None,
             },
-            Kernel::karnopp(&pipeline, variant),
+            Kernel::of_variant(&pipeline, variant),
             &mut job_progress,
             None,
             Some(&mut groups),

@@ -72,17 +72,6 @@ pub(super) struct Kernel<'p> {
 }
 
 impl<'p> Kernel<'p> {
-    /// Karnopp's pipeline of `variant`.
-    pub(super) fn karnopp(pipeline: &'p wgpu::ComputePipeline, variant: Variant) -> Kernel<'p> {
-        Kernel {
-            pipeline,
-            steady: variant.parts.steady,
-            loop_limiter: variant.loop_limiter,
-            workgroup_size: workgroup_size(),
-            extra: &[],
-        }
-    }
-
     /// `n` lanes rounded up to whole workgroups.
     pub(super) fn whole_workgroups(&self, n: usize) -> usize {
         n.div_ceil(self.workgroup_size as usize) * self.workgroup_size as usize

@@ -505,7 +505,7 @@ impl<'a> Runner<'a> {
                 coefficients: &coefficients,
                 states: None,
             },
-            Kernel::karnopp(&pipeline, variant),
+            Kernel::of_variant(&pipeline, variant),
             progress,
             None,
             None,

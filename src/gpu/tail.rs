@@ -1,6 +1,5 @@
 //! What the CPU takes over from a batch: the heaviest runs f32's check
-//! picks, and one instance integrated on the CPU from its start or from the
-//! state the f64 shader left.
+//! picks (the law's `on_cpu` integrates each).
 
 use super::*;
 
@@ -23,18 +22,4 @@ pub(super) fn heaviest_candidates(instances: &[Instance], out: &[GpuOutcome]) ->
         })
         .map(|(k, (o, _))| (k, o.steps))
         .collect()
-}
-
-/// One instance integrated on the CPU, which the shader mirrors, as a GPU
-/// outcome (the caller marks why it ran there): from its start, or from a
-/// run the f64 shader left unfinished.
-pub(super) fn on_cpu(inst: &Instance, settings: &Settings, from: Option<Run>) -> GpuOutcome {
-    let run = match from {
-        Some(run) => {
-            crate::laws::karnopp::integrate::continue_instance_until(inst, settings, run, || false)
-                .expect("never asked to stop")
-        }
-        None => run_instance(inst, settings),
-    };
-    GpuOutcome::of(&reduce(inst, &run), run.state.steps)
 }

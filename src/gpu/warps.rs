@@ -27,8 +27,8 @@ use std::fmt::Write;
 use std::sync::Mutex;
 
 use super::layout::control::Tally;
-pub use crate::laws::karnopp::integrate::constants::KIND_NAMES;
-use crate::laws::karnopp::integrate::constants::{
+pub use crate::laws::floor::kinds::KIND_NAMES;
+use crate::laws::floor::kinds::{
     ITERATION_KINDS, ITERATION_REJECTED, ITERATION_SLIP, rejected_share,
 };
 
@@ -329,8 +329,7 @@ impl LaneBytes {
         let tally = size_of::<Tally>() as u64;
         let per_lane = (self.coefficients + 2 * self.state) as u64 + 8 + tally;
         let per_take = (self.coefficients + 2 * self.state) as u64;
-        let period_ends =
-            warps.passes[crate::laws::karnopp::integrate::constants::ITERATION_PERIOD_END as usize];
+        let period_ends = warps.passes[crate::laws::floor::kinds::ITERATION_PERIOD_END as usize];
         warps.lane_slots * per_lane + warps.taken * per_take + period_ends * 2 * self.measure as u64
     }
 

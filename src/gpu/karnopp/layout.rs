@@ -588,7 +588,8 @@ macro_rules! precision_structs {
                 }
             }
 
-            fn gaps(g: &[mirror::phase::Gaps; phase::LEVELS]) -> [Gaps; phase::LEVELS] {
+            /// The phase ladder's three-gap tables in shader units.
+            pub fn gaps(g: &[mirror::phase::Gaps; phase::LEVELS]) -> [Gaps; phase::LEVELS] {
                 g.map(|g| Gaps {
                     a: g.a,
                     b: g.b,

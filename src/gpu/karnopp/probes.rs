@@ -58,7 +58,7 @@ fn first_dispatch<L: Layout>(
                 coefficients: &coefficients,
                 states: None,
             },
-            Kernel::karnopp(&pipeline, variant),
+            Kernel::of_variant(&pipeline, variant),
             &mut |_| {},
             Some(1),
             None,

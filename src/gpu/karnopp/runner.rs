@@ -71,7 +71,7 @@ impl Lanes for Single {
     fn pilot(inst: &Instance, settings: &Settings) -> Option<GpuOutcome> {
         Some(GpuOutcome {
             finished_on_cpu: true,
-            ..crate::gpu::tail::on_cpu(inst, settings, None)
+            ..on_cpu(inst, settings, None)
         })
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
@@ -140,7 +140,7 @@ impl Lanes for Double {
     fn pilot(inst: &Instance, settings: &Settings) -> Option<GpuOutcome> {
         Some(GpuOutcome {
             finished_on_cpu: true,
-            ..crate::gpu::tail::on_cpu(inst, settings, None)
+            ..on_cpu(inst, settings, None)
         })
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
@@ -200,4 +200,38 @@ impl Layout for Double {
     }
     const MEASURED_OFFSET: usize = std::mem::offset_of!(layout::double::State, measured);
     const VERDICT_OFFSET: usize = std::mem::offset_of!(layout::double::Measure, verdict);
+}
+
+/// One instance integrated on the CPU, which the shader mirrors, as a GPU
+/// outcome (the caller marks why it ran there): from its start, or from a
+/// run the f64 shader left unfinished.
+pub(in crate::gpu) fn on_cpu(
+    inst: &Instance,
+    settings: &Settings,
+    from: Option<Run>,
+) -> GpuOutcome {
+    let run = match from {
+        Some(run) => {
+            crate::laws::karnopp::integrate::continue_instance_until(inst, settings, run, || false)
+                .expect("never asked to stop")
+        }
+        None => run_instance(inst, settings),
+    };
+    GpuOutcome::of(&reduce(inst, &run), run.state.steps)
+}
+
+impl<'p> Kernel<'p> {
+    /// Karnopp's pipeline of `variant`.
+    pub(in crate::gpu) fn of_variant(
+        pipeline: &'p wgpu::ComputePipeline,
+        variant: Variant,
+    ) -> Kernel<'p> {
+        Kernel {
+            pipeline,
+            steady: variant.parts.steady,
+            loop_limiter: variant.loop_limiter,
+            workgroup_size: workgroup_size(),
+            extra: &[],
+        }
+    }
 }

@@ -5,7 +5,7 @@
 use super::{LANE_FRESH, LANE_STOPPED};
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::layout::double::{Gaps, Measure as GpuMeasure, measure_to_cpu};
+use crate::gpu::layout::double::{Gaps, Measure as GpuMeasure, gaps, measure_to_cpu};
 use crate::gpu::layout::{F64x2, U32x2};
 use crate::laws::floor::Setup;
 use crate::laws::floor::measure::SNAPSHOTS;
@@ -174,12 +174,7 @@ impl Coefficients {
             replica: g.replica,
             replicas: g.replicas,
             _pad: U32x2::default(),
-            gaps: g.gaps.map(|g| Gaps {
-                a: g.a,
-                b: g.b,
-                alpha: g.alpha,
-                beta: g.beta,
-            }),
+            gaps: gaps(&g.gaps),
         }
     }
 }

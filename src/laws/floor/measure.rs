@@ -84,6 +84,62 @@ pub trait Gauge {
     fn replicas(&self) -> u32;
 }
 
+/// Implements [`Gauge`] for a struct that holds the constants as fields of
+/// the same names (the floor's `Setup`, Karnopp's `Coefficients`); `Gauge`,
+/// `Real`, `Vec2`, `Gaps` and `LEVELS` of the struct's precision in scope.
+macro_rules! gauge_by_fields {
+    ($t:ty) => {
+        impl Gauge for $t {
+            fn steady(&self) -> bool {
+                self.steady
+            }
+            fn period(&self) -> Real {
+                self.period
+            }
+            fn period_lo(&self) -> Real {
+                self.period_lo
+            }
+            fn settle(&self) -> u32 {
+                self.settle
+            }
+            fn batch_length(&self) -> u32 {
+                self.batch_length
+            }
+            fn min_batch(&self) -> u32 {
+                self.min_batch
+            }
+            fn common_period(&self) -> u32 {
+                self.common_period
+            }
+            fn se_limit2(&self) -> Vec2 {
+                self.se_limit2
+            }
+            fn repeat_x(&self) -> Real {
+                self.repeat_x
+            }
+            fn repeat_v(&self) -> Real {
+                self.repeat_v
+            }
+            fn phase_levels(&self) -> u32 {
+                self.phase_levels
+            }
+            fn phase_lattice(&self) -> u32 {
+                self.phase_lattice
+            }
+            fn gaps(&self) -> &[Gaps; LEVELS] {
+                &self.gaps
+            }
+            fn replica(&self) -> u32 {
+                self.replica
+            }
+            fn replicas(&self) -> u32 {
+                self.replicas
+            }
+        }
+    };
+}
+pub(crate) use gauge_by_fields;
+
 /// What the measurement reads of a run's state, and the mark it sets on
 /// it: every law's state has these (Karnopp's `State`, LuGre's, and their
 /// shaders' structs by the same names).

@@ -10,6 +10,7 @@
 //!   [`measure::Slider`] (its state).
 //! * `phase.rs`: the phase ladder, the mirror of
 //!   `shaders/shared/phase.wgsl`.
+//! * `kinds.rs`: the kinds of work a lane counts (the engine's tallies).
 //! * `setup.rs`: [`Setup`], the measurement's constants of an instance,
 //!   computed from the instance alone.
 //!
@@ -18,6 +19,7 @@
 //! The f64 instance is re-exported here.
 
 pub mod double;
+pub mod kinds;
 pub mod single;
 
 pub use double::{Setup, Vec2, measure, phase, setup, vec2};

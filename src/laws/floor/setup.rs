@@ -5,7 +5,7 @@
 //! its WGSL struct holds them.
 
 use super::Real;
-use super::measure::Gauge;
+use super::measure::{Gauge, gauge_by_fields};
 use super::phase::{Gaps, LEVELS};
 use super::precision::only_f64;
 use super::vec2::Vec2;
@@ -30,53 +30,7 @@ pub struct Setup {
     pub replicas: u32,
 }
 
-impl Gauge for Setup {
-    fn steady(&self) -> bool {
-        self.steady
-    }
-    fn period(&self) -> Real {
-        self.period
-    }
-    fn period_lo(&self) -> Real {
-        self.period_lo
-    }
-    fn settle(&self) -> u32 {
-        self.settle
-    }
-    fn batch_length(&self) -> u32 {
-        self.batch_length
-    }
-    fn min_batch(&self) -> u32 {
-        self.min_batch
-    }
-    fn common_period(&self) -> u32 {
-        self.common_period
-    }
-    fn se_limit2(&self) -> Vec2 {
-        self.se_limit2
-    }
-    fn repeat_x(&self) -> Real {
-        self.repeat_x
-    }
-    fn repeat_v(&self) -> Real {
-        self.repeat_v
-    }
-    fn phase_levels(&self) -> u32 {
-        self.phase_levels
-    }
-    fn phase_lattice(&self) -> u32 {
-        self.phase_lattice
-    }
-    fn gaps(&self) -> &[Gaps; LEVELS] {
-        &self.gaps
-    }
-    fn replica(&self) -> u32 {
-        self.replica
-    }
-    fn replicas(&self) -> u32 {
-        self.replicas
-    }
-}
+gauge_by_fields!(Setup);
 
 only_f64! {
 use super::measure::{

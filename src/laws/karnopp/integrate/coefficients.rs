@@ -5,6 +5,7 @@
 //! GPU packs the same numbers (`pidm::gpu::layout`), so the shader divides
 //! by no parameter and takes no square root of one.
 
+use super::measure::Gauge;
 use super::phase::{Gaps, LEVELS, Replica};
 use super::precision::{TIME_EPSILON, UNITS, only_f64};
 use super::vec2::Vec2;
@@ -178,55 +179,9 @@ pub struct Coefficients {
     pub frictionless: bool,
 }
 
-/// Karnopp's coefficients carry the floor's measurement constants among
-/// their own, flat, as `shaders/karnopp/coefficients.wgsl` does.
-impl super::measure::Gauge for Coefficients {
-    fn steady(&self) -> bool {
-        self.steady
-    }
-    fn period(&self) -> Real {
-        self.period
-    }
-    fn period_lo(&self) -> Real {
-        self.period_lo
-    }
-    fn settle(&self) -> u32 {
-        self.settle
-    }
-    fn batch_length(&self) -> u32 {
-        self.batch_length
-    }
-    fn min_batch(&self) -> u32 {
-        self.min_batch
-    }
-    fn common_period(&self) -> u32 {
-        self.common_period
-    }
-    fn se_limit2(&self) -> Vec2 {
-        self.se_limit2
-    }
-    fn repeat_x(&self) -> Real {
-        self.repeat_x
-    }
-    fn repeat_v(&self) -> Real {
-        self.repeat_v
-    }
-    fn phase_levels(&self) -> u32 {
-        self.phase_levels
-    }
-    fn phase_lattice(&self) -> u32 {
-        self.phase_lattice
-    }
-    fn gaps(&self) -> &[Gaps; LEVELS] {
-        &self.gaps
-    }
-    fn replica(&self) -> u32 {
-        self.replica
-    }
-    fn replicas(&self) -> u32 {
-        self.replicas
-    }
-}
+// Karnopp's coefficients carry the floor's measurement constants among
+// their own, flat, as `shaders/karnopp/coefficients.wgsl` does.
+super::measure::gauge_by_fields!(Coefficients);
 
 impl Coefficients {
     /// The coefficients of an instance in this precision's units: computed

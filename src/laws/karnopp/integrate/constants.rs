@@ -34,47 +34,12 @@ pub const EVENT_REVERSAL: u32 = 4;
 /// quadratic, so f32 resolves it too.
 pub const EVENT_APPROACH: u32 = 5;
 
-/// What one call of `iterate` did (its return value), for the lanes'
-/// counts the shader keeps (`pidm::gpu::warps`): lanes of one warp that do
-/// different kinds of iteration run each other's code. `iterate` passed
-/// drive corners or period ends and took no step (or finished there).
-pub const ITERATION_BOUNDARY: u32 = 0;
-/// A step in stick that located no event.
-pub const ITERATION_STICK: u32 = 1;
-/// A step in slip (in or outside the band) that located no event.
-pub const ITERATION_SLIP: u32 = 2;
-/// A slip trial rejected: only the step length changed.
-pub const ITERATION_REJECTED: u32 = 3;
-/// A step that located an event and moved to it.
-pub const ITERATION_EVENT: u32 = 4;
-/// Not an iteration of `iterate`: a steady measurement's bookkeeping at a
-/// period end (`measure::period_end`), which the lane's loop runs between
-/// iterations. The lanes' counts keep it beside the kinds above.
-pub const ITERATION_PERIOD_END: u32 = 5;
-/// The kinds of iteration a lane counts.
-pub const ITERATION_KINDS: usize = 6;
-/// The kinds' names in the profile table (`ITERATION_*` order).
-pub const KIND_NAMES: [&str; ITERATION_KINDS] = [
-    "boundary",
-    "stick step",
-    "slip step",
-    "rejected trial",
-    "event location",
-    "period end",
-];
-
-/// Rejected slip trials as a share of all slip trials (slip steps and
-/// rejected trials) in counts by kind: the work the step-size controller
-/// throws away (issue 47 holds it to 12 %).
-pub fn rejected_share(kinds: &[u64; ITERATION_KINDS]) -> f64 {
-    let rejected = kinds[ITERATION_REJECTED as usize];
-    let trials = rejected + kinds[ITERATION_SLIP as usize];
-    if trials == 0 {
-        0.0
-    } else {
-        rejected as f64 / trials as f64
-    }
-}
+// The kinds of iteration a lane counts: the floor's (`iterate` returns
+// one of them).
+pub use crate::laws::floor::kinds::{
+    ITERATION_BOUNDARY, ITERATION_EVENT, ITERATION_KINDS, ITERATION_PERIOD_END, ITERATION_REJECTED,
+    ITERATION_SLIP, ITERATION_STICK, KIND_NAMES, rejected_share,
+};
 
 /// The band grazes that an f32 run hands to the f64 reference, as a
 /// fraction of the band: slip whose relative velocity passes the velocity
