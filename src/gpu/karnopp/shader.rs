@@ -526,9 +526,10 @@ pub fn parse_and_validate(
 }
 
 /// Function names defined in a source text (`fn name(` at any
-/// indentation), leaving out a Rust file's test module, its traits and its
-/// trait impls (the floor's `Gauge` and `Slider` and a law's accessors for
-/// them, which in WGSL are struct members read by name).
+/// indentation), leaving out a Rust file's test module, its traits, its
+/// trait impls and its macros (the floor's `Gauge` and `Slider` and a
+/// law's accessors for them, which in WGSL are struct members read by
+/// name).
 #[cfg(test)]
 pub(crate) fn defined_functions(text: &str) -> Vec<String> {
     let text = text.split("#[cfg(test)]").next().unwrap_or(text);
@@ -537,6 +538,7 @@ pub(crate) fn defined_functions(text: &str) -> Vec<String> {
     for line in text.lines() {
         let is_trait = line.starts_with("pub trait ")
             || line.starts_with("trait ")
+            || line.starts_with("macro_rules! ")
             || (line.starts_with("impl") && line.contains(" for "));
         let is_trait = is_trait && !line.trim_end().ends_with("{}");
         in_trait = (in_trait || is_trait) && line != "}";
