@@ -36,7 +36,7 @@ pub(super) trait Lanes {
     /// `inst`'s whole run on the CPU in f64, as the CPU tail's outcomes
     /// are, where the law's lanes park an instance at the round's cap on
     /// its steps (`control.cap`), so that a batch can run in rounds
-    /// (`slices::first_cap`); `None` where they don't (the clock then
+    /// (`rounds::first_cap`); `None` where they don't (the clock then
     /// decides the batch's tail).
     fn pilot(_inst: &Instance, _settings: &Settings) -> Option<GpuOutcome> {
         None
@@ -96,7 +96,7 @@ pub(super) struct Sliced<L: Lanes> {
     pub(super) probe_tallies: Vec<Tally>,
     /// The instances a round's pilot ran whole on the CPU, and their
     /// outcomes, which stand: the queue left them out
-    /// (`slices::first_cap`).
+    /// (`rounds::first_cap`).
     pub(super) pilot: Vec<(usize, GpuOutcome)>,
     /// Dispatches, each followed by a readback of the counters.
     pub(super) dispatches: u64,

@@ -62,6 +62,7 @@ mod lanes;
 pub mod lugre;
 mod options;
 pub mod readback;
+mod rounds;
 mod runner;
 mod slices;
 mod staging;

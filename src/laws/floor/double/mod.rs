@@ -19,6 +19,9 @@ pub use vec2::Vec2;
 // The same sources as the other precision's, on purpose (the shader's
 // `alias Real`).
 #[allow(clippy::duplicate_mod)]
+#[path = "../gauge.rs"]
+pub mod gauge;
+#[allow(clippy::duplicate_mod)]
 #[path = "../measure.rs"]
 pub mod measure;
 #[allow(clippy::duplicate_mod)]

@@ -20,6 +20,10 @@ pub use vec2::Vec2;
 // The same sources as the other precision's, on purpose (the shader's
 // `alias Real`).
 #[allow(clippy::duplicate_mod)]
+#[path = "../gauge.rs"]
+#[allow(dead_code)]
+pub mod gauge;
+#[allow(clippy::duplicate_mod)]
 #[path = "../measure.rs"]
 #[allow(dead_code)]
 pub mod measure;

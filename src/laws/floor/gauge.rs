@@ -1,0 +1,120 @@
+//! How a law meets the floor's measurement: [`Gauge`], the constants it
+//! reads of an instance, and [`Slider`], what it reads of a run's state and
+//! the mark it sets on it (re-exported by `super::measure`).
+
+use super::Real;
+use super::phase::{Gaps, LEVELS};
+use super::vec2::Vec2;
+
+/// What the measurement reads of an instance: constants every law computes
+/// once per instance (Karnopp's `Coefficients` carries them among its own,
+/// as its shader's struct does: `shaders/shared/measure.wgsl` reads them
+/// by these names).
+pub trait Gauge {
+    /// The run is a steady measurement (not a window).
+    fn steady(&self) -> bool;
+    /// The scene period T in two parts, hi + lo [s] (lo zero but in f32).
+    fn period(&self) -> Real;
+    fn period_lo(&self) -> Real;
+    /// Leading scene periods not measured.
+    fn settle(&self) -> u32;
+    /// The first batch length and the shortest a batch may be judged at
+    /// [scene periods]: the slowest beat of the drives.
+    fn batch_length(&self) -> u32;
+    fn min_batch(&self) -> u32;
+    /// The drives' common period [scene periods] (0: none short enough).
+    fn common_period(&self) -> u32;
+    /// The squared step tolerance per scene period, per axis [m^2].
+    fn se_limit2(&self) -> Vec2;
+    /// The recurrence test's tolerances on positions [m] and velocities
+    /// [m/s] (`repeat_tolerances`).
+    fn repeat_x(&self) -> Real;
+    fn repeat_v(&self) -> Real;
+    /// The phase ladder's levels that may stop the run (a bit each), its
+    /// lattice rule and its three-gap tables (`super::phase`).
+    fn phase_levels(&self) -> u32;
+    fn phase_lattice(&self) -> u32;
+    fn gaps(&self) -> &[Gaps; LEVELS];
+    /// This run's replica and its group's size (1: none).
+    fn replica(&self) -> u32;
+    fn replicas(&self) -> u32;
+}
+
+/// Implements [`Gauge`] for a struct that holds the constants as fields of
+/// the same names (the floor's `Setup`, Karnopp's `Coefficients`); `Gauge`,
+/// `Real`, `Vec2`, `Gaps` and `LEVELS` of the struct's precision in scope.
+macro_rules! gauge_by_fields {
+    ($t:ty) => {
+        impl Gauge for $t {
+            fn steady(&self) -> bool {
+                self.steady
+            }
+            fn period(&self) -> Real {
+                self.period
+            }
+            fn period_lo(&self) -> Real {
+                self.period_lo
+            }
+            fn settle(&self) -> u32 {
+                self.settle
+            }
+            fn batch_length(&self) -> u32 {
+                self.batch_length
+            }
+            fn min_batch(&self) -> u32 {
+                self.min_batch
+            }
+            fn common_period(&self) -> u32 {
+                self.common_period
+            }
+            fn se_limit2(&self) -> Vec2 {
+                self.se_limit2
+            }
+            fn repeat_x(&self) -> Real {
+                self.repeat_x
+            }
+            fn repeat_v(&self) -> Real {
+                self.repeat_v
+            }
+            fn phase_levels(&self) -> u32 {
+                self.phase_levels
+            }
+            fn phase_lattice(&self) -> u32 {
+                self.phase_lattice
+            }
+            fn gaps(&self) -> &[Gaps; LEVELS] {
+                &self.gaps
+            }
+            fn replica(&self) -> u32 {
+                self.replica
+            }
+            fn replicas(&self) -> u32 {
+                self.replicas
+            }
+        }
+    };
+}
+pub(crate) use gauge_by_fields;
+
+/// What the measurement reads of a run's state, and the mark it sets on
+/// it: every law's state has these (Karnopp's `State`, LuGre's, and their
+/// shaders' structs by the same names).
+pub trait Slider {
+    /// The scene period the run is in.
+    fn period(&self) -> u32;
+    /// Whether the run's time within its period has reached t + t_lo
+    /// (two-part times; t_lo is zero unless the law keeps time in two
+    /// parts).
+    fn reached(&self, t: Real, t_lo: Real) -> bool;
+    /// Stage and slider positions [m] and velocities [m/s], and the
+    /// friction mode (a law's own code) the recurrence test compares.
+    fn x_p(&self) -> Vec2;
+    fn v_p(&self) -> Vec2;
+    fn x_s(&self) -> Vec2;
+    fn v_s(&self) -> Vec2;
+    fn mode(&self) -> u32;
+    /// 0 while measuring, 1 once complete, 2 while a replica waits
+    /// ([`super::measure::VERDICT_WAITING`]).
+    fn measured(&self) -> u32;
+    fn set_measured(&mut self, measured: u32);
+}
