@@ -41,53 +41,69 @@ pub trait Gauge {
 }
 
 /// Implements [`Gauge`] for a struct that holds the constants as fields of
-/// the same names (the floor's `Setup`, Karnopp's `Coefficients`); `Gauge`,
+/// the same names, each accessor inlined where the measurement reads it
+/// (at every iteration: `at_period_end`) (the floor's `Setup`, Karnopp's `Coefficients`); `Gauge`,
 /// `Real`, `Vec2`, `Gaps` and `LEVELS` of the struct's precision in scope.
 macro_rules! gauge_by_fields {
     ($t:ty) => {
         impl Gauge for $t {
+            #[inline]
             fn steady(&self) -> bool {
                 self.steady
             }
+            #[inline]
             fn period(&self) -> Real {
                 self.period
             }
+            #[inline]
             fn period_lo(&self) -> Real {
                 self.period_lo
             }
+            #[inline]
             fn settle(&self) -> u32 {
                 self.settle
             }
+            #[inline]
             fn batch_length(&self) -> u32 {
                 self.batch_length
             }
+            #[inline]
             fn min_batch(&self) -> u32 {
                 self.min_batch
             }
+            #[inline]
             fn common_period(&self) -> u32 {
                 self.common_period
             }
+            #[inline]
             fn se_limit2(&self) -> Vec2 {
                 self.se_limit2
             }
+            #[inline]
             fn repeat_x(&self) -> Real {
                 self.repeat_x
             }
+            #[inline]
             fn repeat_v(&self) -> Real {
                 self.repeat_v
             }
+            #[inline]
             fn phase_levels(&self) -> u32 {
                 self.phase_levels
             }
+            #[inline]
             fn phase_lattice(&self) -> u32 {
                 self.phase_lattice
             }
+            #[inline]
             fn gaps(&self) -> &[Gaps; LEVELS] {
                 &self.gaps
             }
+            #[inline]
             fn replica(&self) -> u32 {
                 self.replica
             }
+            #[inline]
             fn replicas(&self) -> u32 {
                 self.replicas
             }

@@ -196,30 +196,39 @@ pub fn time_reached(st: &State, t: Real, t_lo: Real) -> bool {
 
 /// Karnopp's state as the floor's measurement reads it.
 impl measure::Slider for State {
+    #[inline]
     fn period(&self) -> u32 {
         self.period
     }
+    #[inline]
     fn reached(&self, t: Real, t_lo: Real) -> bool {
         time_reached(self, t, t_lo)
     }
+    #[inline]
     fn x_p(&self) -> Vec2 {
         self.x_p
     }
+    #[inline]
     fn v_p(&self) -> Vec2 {
         self.v_p
     }
+    #[inline]
     fn x_s(&self) -> Vec2 {
         self.x_s
     }
+    #[inline]
     fn v_s(&self) -> Vec2 {
         self.v_s
     }
+    #[inline]
     fn mode(&self) -> u32 {
         self.mode
     }
+    #[inline]
     fn measured(&self) -> u32 {
         self.measured
     }
+    #[inline]
     fn set_measured(&mut self, measured: u32) {
         self.measured = measured;
     }
