@@ -193,8 +193,8 @@ impl std::fmt::Display for F32Check {
 
 /// The CPU tail of this process's batches ([`BatchOptions::cpu_tail`]):
 /// the default rule, or `PIDM_GPU_TAIL` = `auto` or a count of instances
-/// (`0`: none, so that a map is the device's alone and bit for bit the same
-/// from run to run; tests/golden/house.sh).
+/// (`0`: none, so that a map is the device's alone, the same bits however
+/// it is split into batches; tests/golden/house.sh).
 ///
 /// [`BatchOptions::cpu_tail`]: super::BatchOptions::cpu_tail
 pub fn cpu_tail() -> Tail {
