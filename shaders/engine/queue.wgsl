@@ -48,7 +48,7 @@ struct Control {
     // Lanes below this one that hold no instance at the start take one
     // from `order` (replicas queued again between dispatches).
     lanes: u32,
-    // The round's cap on an instance's steps (Karnopp's; 0xffffffff: none):
+    // The round's cap on an instance's steps (0xffffffff: none):
     // a lane parks an instance at its first iteration boundary at or past
     // it, so that where the CPU takes over a run depends on the run alone,
     // not on the lanes' timing (`pidm::gpu::slices`, the rounds).

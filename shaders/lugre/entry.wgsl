@@ -236,10 +236,19 @@ fn lugre_advance(
             lane = take_run(index);
             taken = false;
         }
-        if lane.flag == LANE_STOPPED {
+        // A run that reached the round's cap on its steps parks here, at
+        // the loop's top, so within the period its steps reached the cap
+        // in, whose start the CPU continues it from
+        // (`pidm::gpu::rounds`).
+        let parked = lane.flag != LANE_STOPPED && at_cap(lane.steps);
+        if lane.flag == LANE_STOPPED || parked {
             states[index] = lane;
-            finish_measure();
-            atomicAdd(&counters.finished, 1u);
+            if parked {
+                park(index);
+            } else {
+                finish_measure();
+                atomicAdd(&counters.finished, 1u);
+            }
             let slot = atomicAdd(&counters.next, 1u);
             if slot >= control.queued || order[slot] >= count {
                 index = NO_INSTANCE;

@@ -33,14 +33,17 @@ pub(super) trait Lanes {
     fn from_head(h: &Self::Head) -> Self::Measure;
     /// The steps a state has taken.
     fn steps(st: &Self::State) -> u32;
-    /// `inst`'s whole run on the CPU in f64, as the CPU tail's outcomes
+    /// What a round's pilot keeps of a run on the CPU: the law's host
+    /// result (Karnopp's outcome, LuGre's run).
+    type Pilot: Send;
+    /// `inst`'s whole run on the CPU in f64, as the CPU tail's results
     /// are, where the law's lanes park an instance at the round's cap on
     /// its steps (`control.cap`), so that a batch can run in rounds
     /// (`rounds::first_cap`); `None` where they don't (the clock then
     /// decides the batch's tail).
-    fn pilot(_inst: &Instance, _settings: &Settings) -> Option<GpuOutcome> {
-        None
-    }
+    fn pilot(inst: &Instance, settings: &Settings) -> Option<Self::Pilot>;
+    /// The steps a pilot's run took.
+    fn pilot_steps(p: &Self::Pilot) -> u32;
     /// Whether the instance's run has ended on the device.
     fn finished(inst: &Instance, st: &Self::State) -> bool;
     /// An upper bound on the slices one of `instances` can need on a lane
@@ -97,7 +100,7 @@ pub(super) struct Sliced<L: Lanes> {
     /// The instances a round's pilot ran whole on the CPU, and their
     /// outcomes, which stand: the queue left them out
     /// (`rounds::first_cap`).
-    pub(super) pilot: Vec<(usize, GpuOutcome)>,
+    pub(super) pilot: Vec<(usize, L::Pilot)>,
     /// Dispatches, each followed by a readback of the counters.
     pub(super) dispatches: u64,
     /// Iterations the dispatches offered the lanes that held an

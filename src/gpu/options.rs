@@ -35,11 +35,10 @@ pub struct BatchOptions {
     /// (`PIDM_GPU_COMPACT=0` leaves them where they are, for measuring
     /// what packing is worth).
     pub compact: bool,
-    /// Hand the slow tail of a batch to the CPU: Karnopp's batches in
-    /// rounds of a cap on an instance's steps (`super::rounds`: once a
-    /// round ends with at most this many parked, twice it by default),
-    /// LuGre's and replica groups' once every instance has started and at
-    /// most this many are unfinished; the GPU stops and the CPU finishes
+    /// Hand the slow tail of a batch to the CPU: in rounds of a cap on an
+    /// instance's steps (`super::rounds`: once a round ends with at most
+    /// this many parked, twice it by default), a replica batch's once
+    /// every job has started and at most this many are unfinished; the GPU stops and the CPU finishes
     /// those, in parallel: from where the GPU left them in f64
     /// (the shader mirrors the CPU step for step, so no work is lost), from
     /// their start in f32 (the f32 mirror could continue an f32 state, but

@@ -32,7 +32,7 @@ pub(super) fn first_cap<L: Lanes>(
     settings: &Settings,
     order: &mut Vec<u32>,
     tail_size: u64,
-) -> Option<(u32, Vec<(usize, GpuOutcome)>)> {
+) -> Option<(u32, Vec<(usize, L::Pilot)>)> {
     let mut unfinished = order.clone();
     unfinished.sort_unstable();
     let count = unfinished.len();
@@ -45,10 +45,14 @@ pub(super) fn first_cap<L: Lanes>(
             let index = unfinished[k * count / m] as usize;
             L::pilot(&instances[index], settings).map(|outcome| (index, outcome))
         })
-        .collect::<Option<Vec<(usize, GpuOutcome)>>>()?;
+        .collect::<Option<Vec<(usize, L::Pilot)>>>()?;
     let piloted: std::collections::HashSet<u32> = pilot.iter().map(|(k, _)| *k as u32).collect();
     order.retain(|k| !piloted.contains(k));
-    let most = pilot.iter().map(|(_, o)| o.steps).max().unwrap_or(0);
+    let most = pilot
+        .iter()
+        .map(|(_, p)| L::pilot_steps(p))
+        .max()
+        .unwrap_or(0);
     let cap = most as u64 * PILOT_QUARTERS / 4;
     Some((cap.clamp(MIN_CAP as u64, NO_CAP as u64 - 1) as u32, pilot))
 }

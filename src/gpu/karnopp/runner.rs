@@ -7,7 +7,7 @@ use crate::laws::Replica;
 
 /// The host side of one precision of Karnopp's lanes: packing, outcomes,
 /// replicas and continuation (the engine's part is [`Lanes`]).
-pub(in crate::gpu) trait Layout: Lanes {
+pub(in crate::gpu) trait Layout: Lanes<Pilot = GpuOutcome> {
     /// The CPU mirror's state of this precision.
     type Mirror;
     fn mirror(st: &Self::State) -> Self::Mirror;
@@ -68,11 +68,15 @@ impl Lanes for Single {
     fn steps(st: &Self::State) -> u32 {
         st.steps
     }
+    type Pilot = GpuOutcome;
     fn pilot(inst: &Instance, settings: &Settings) -> Option<GpuOutcome> {
         Some(GpuOutcome {
             finished_on_cpu: true,
             ..on_cpu(inst, settings, None)
         })
+    }
+    fn pilot_steps(p: &GpuOutcome) -> u32 {
+        p.steps
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::single::finished(inst, st)
@@ -137,11 +141,15 @@ impl Lanes for Double {
     fn steps(st: &Self::State) -> u32 {
         st.steps
     }
+    type Pilot = GpuOutcome;
     fn pilot(inst: &Instance, settings: &Settings) -> Option<GpuOutcome> {
         Some(GpuOutcome {
             finished_on_cpu: true,
             ..on_cpu(inst, settings, None)
         })
+    }
+    fn pilot_steps(p: &GpuOutcome) -> u32 {
+        p.steps
     }
     fn finished(inst: &Instance, st: &Self::State) -> bool {
         layout::double::finished(inst, st)

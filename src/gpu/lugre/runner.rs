@@ -117,6 +117,13 @@ impl Lanes for Lugre {
     fn steps(st: &Lane) -> u32 {
         st.steps
     }
+    type Pilot = Run;
+    fn pilot(inst: &Instance, settings: &Settings) -> Option<Run> {
+        crate::laws::lugre::run::run_instance_until(inst, settings, || false)
+    }
+    fn pilot_steps(p: &Run) -> u32 {
+        p.state.steps
+    }
     fn finished(_: &Instance, st: &Lane) -> bool {
         st.flag == LANE_STOPPED
     }
@@ -355,7 +362,12 @@ impl<'a> LugreGpu<'a> {
         self.ctx.check_health()?;
         report.dispatches += sliced.dispatches;
         report.gpu_seconds += started.elapsed().as_secs_f64();
-        let (lanes, measures) = sliced.readback;
+        let (mut lanes, measures) = sliced.readback;
+        // The round's pilot ran whole on the CPU: its runs stand, and its
+        // lanes (left after the first dispatch) are done.
+        for (k, _) in &sliced.pilot {
+            lanes[*k].flag = LANE_STOPPED;
+        }
         let recurrences = self.recurrences(&extra[1], &lanes)?;
         for (k, book) in books.iter_mut().enumerate() {
             // A batch of windows reads no accumulators.
@@ -366,6 +378,10 @@ impl<'a> LugreGpu<'a> {
                 kept.measure = book.run.measure;
             }
             book.resume(&kept);
+        }
+        for (k, run) in sliced.pilot {
+            books[k].run = run;
+            report.on_cpu.push(k);
         }
         if lanes.iter().any(|l| l.flag != LANE_STOPPED) {
             report
