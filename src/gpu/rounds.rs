@@ -6,6 +6,9 @@
 use super::*;
 use layout::control::NO_CAP;
 
+/// A round's pilot: each instance's index and its run's result.
+pub(super) type Piloted<L> = Vec<(usize, <L as Lanes>::Pilot)>;
+
 /// Where a batch runs in rounds (a law whose lanes park, a CPU tail, no
 /// replica groups), the first round's cap on an instance's steps: the most
 /// steps of a pilot of up to `tail_size` of the unfinished instances in
@@ -32,7 +35,7 @@ pub(super) fn first_cap<L: Lanes>(
     settings: &Settings,
     order: &mut Vec<u32>,
     tail_size: u64,
-) -> Option<(u32, Vec<(usize, L::Pilot)>)> {
+) -> Option<(u32, Piloted<L>)> {
     let mut unfinished = order.clone();
     unfinished.sort_unstable();
     let count = unfinished.len();
