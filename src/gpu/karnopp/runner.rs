@@ -70,10 +70,7 @@ impl Lanes for Single {
     }
     type Pilot = GpuOutcome;
     fn pilot(inst: &Instance, settings: &Settings) -> Option<GpuOutcome> {
-        Some(GpuOutcome {
-            finished_on_cpu: true,
-            ..on_cpu(inst, settings, None)
-        })
+        Some(pilot(inst, settings))
     }
     fn pilot_steps(p: &GpuOutcome) -> u32 {
         p.steps
@@ -143,10 +140,7 @@ impl Lanes for Double {
     }
     type Pilot = GpuOutcome;
     fn pilot(inst: &Instance, settings: &Settings) -> Option<GpuOutcome> {
-        Some(GpuOutcome {
-            finished_on_cpu: true,
-            ..on_cpu(inst, settings, None)
-        })
+        Some(pilot(inst, settings))
     }
     fn pilot_steps(p: &GpuOutcome) -> u32 {
         p.steps
@@ -208,6 +202,15 @@ impl Layout for Double {
     }
     const MEASURED_OFFSET: usize = std::mem::offset_of!(layout::double::State, measured);
     const VERDICT_OFFSET: usize = std::mem::offset_of!(layout::double::Measure, verdict);
+}
+
+/// A round's pilot run: the CPU's f64 run from the start, counted as the
+/// CPU tail's (`rounds::first_cap`).
+fn pilot(inst: &Instance, settings: &Settings) -> GpuOutcome {
+    GpuOutcome {
+        finished_on_cpu: true,
+        ..on_cpu(inst, settings, None)
+    }
 }
 
 /// One instance integrated on the CPU, which the shader mirrors, as a GPU

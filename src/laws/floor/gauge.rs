@@ -3,8 +3,22 @@
 //! the mark it sets on it (re-exported by `super::measure`).
 
 use super::Real;
-use super::phase::{Gaps, LEVELS};
 use super::vec2::Vec2;
+
+/// Levels of the phase ladder (`super::phase`).
+pub const LEVELS: usize = 18;
+
+/// The three-gap structure of the phases k rho, 0 <= k < L, of a window of
+/// L periods (`super::phase`'s docs): computed by the host in f64 and rounded once.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Gaps {
+    /// The index of the phase nearest above 0 and that nearest below 1.
+    pub a: u32,
+    pub b: u32,
+    /// frac(a rho) and 1 - frac(b rho) [cycles].
+    pub alpha: Real,
+    pub beta: Real,
+}
 
 /// What the measurement reads of an instance: constants every law computes
 /// once per instance (Karnopp's `Coefficients` carries them among its own,

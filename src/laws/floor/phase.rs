@@ -94,12 +94,12 @@
 //! window is an empirical guard, not a proof.
 
 use super::Real;
-use super::measure::Gauge;
+// The ladder's per-instance tables are the gauge's (a law holds them).
+use super::gauge::Gauge;
+pub use super::gauge::{Gaps, LEVELS};
 use super::precision::only_f64;
 use super::vec2::Vec2;
 
-/// Levels of the window ladder.
-pub const LEVELS: usize = 18;
 /// The shortest windows of the two interleaved doubling ladders [scene
 /// periods]: even levels are 60 2^(j/2), odd ones 85 2^((j-1)/2) (85/60
 /// is about sqrt 2), so that windows end often enough for a run to stop
@@ -154,18 +154,6 @@ pub fn ladder_length(j: u32) -> u32 {
         LADDER_ODD
     };
     base << (j / 2)
-}
-
-/// The three-gap structure of the phases k rho, 0 <= k < L, of a window of
-/// L periods (module docs): computed by the host in f64 and rounded once.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Gaps {
-    /// The index of the phase nearest above 0 and that nearest below 1.
-    pub a: u32,
-    pub b: u32,
-    /// frac(a rho) and 1 - frac(b rho) [cycles].
-    pub alpha: Real,
-    pub beta: Real,
 }
 
 /// The accumulators of the window ladder. Each window's entry adds up the
