@@ -15,12 +15,16 @@
 //! ```
 //! (R = 8 replicas, n = 6; about 5 minutes on 2 cores.)
 
-use pidm::laws::karnopp::integrate::run_instance;
 use pidm::laws::{Replicas, Settings};
 use pidm::measurement::{Measured, reduce};
 use pidm::model::{Instance, Measure};
 use pidm::replicas::{self, cpu::run_group};
 use rayon::prelude::*;
+
+/// One whole run of `inst` with its law's integrator.
+fn run_instance(inst: &Instance, settings: &Settings) -> pidm::laws::Run {
+    pidm::laws::run_until(inst, settings, || false).expect("never asked to stop")
+}
 
 /// Table 1 at 100 V on both axes, x at `fx` and y at `fy` Hz, steady to
 /// 0.01 um within 20,000 periods.

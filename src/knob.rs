@@ -1,6 +1,6 @@
 //! Environment knobs: values that override a tuning constant for
 //! measurements, read once per process by their owners (`gpu::knobs`,
-//! `laws::karnopp::check`). A value a knob refuses is reported on stderr and the
+//! `laws::floor::check`). A value a knob refuses is reported on stderr and the
 //! default stands: a knob never stops a run.
 
 use std::str::FromStr;

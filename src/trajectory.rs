@@ -34,7 +34,7 @@
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 
-use crate::laws::karnopp::integrate::State;
+use crate::laws::Record;
 use crate::laws::observe::{Observer, Positions};
 use crate::laws::{Law, Settings};
 use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
@@ -54,7 +54,7 @@ pub struct Trajectory {
     /// Drive voltage per axis [V].
     pub voltage: [Vec<f64>; AXES],
     /// The state the run ended in (the same as [`integrate::run_instance`]'s).
-    pub state: State,
+    pub state: Record,
     /// Samples per scene period.
     pub samples_per_cycle: u32,
 }

@@ -14,8 +14,8 @@ use plotters::prelude::*;
 
 use super::{LogLog, log_log_png};
 use crate::backend::{Backend, CpuBackend};
-use crate::laws::Settings;
-use crate::model::{AXES, Friction, Instance, Lugre};
+use crate::laws::{Law, Settings};
+use crate::model::{AXES, Friction, Instance};
 
 /// The ladder of bristle stiffness [N/m]: docs/model.md's table and the issue's
 /// limit, 1e7 to 1e10.
@@ -39,7 +39,13 @@ pub struct LimitRow {
 }
 
 /// The Karnopp steps of `instances` [um] (their friction replaced by
-/// Karnopp's at its default band) and the ladder's rows, at `settings`.
+/// their law's limit, `Law::limit`: Karnopp's at its default band) and the
+/// ladder's rows, at `settings`. The rungs keep the instances' law (LuGre)
+/// with its own keys at sigma0, a derived sigma1, no viscous friction and
+/// [`LIMIT_STRIBECK`].
+///
+/// # Panics
+/// If the instances' law has no limit.
 pub fn karnopp_limit(
     instances: &[Instance],
     settings: Settings,
@@ -67,16 +73,16 @@ pub fn karnopp_limit(
             .collect();
         Ok((um, failed, wall))
     };
-    let (karnopp, _, _) = steps(&with(Friction::Karnopp))?;
+    let Some(first) = instances.first() else {
+        return Ok((Vec::new(), Vec::new()));
+    };
+    let law = Law::of_instance(first);
+    let limit = law.limit().expect("a law with a limit");
+    let (karnopp, _, _) = steps(&with(limit.friction([f64::NAN; 4])))?;
     let mut rows = Vec::new();
     for sigma0 in LIMIT_STIFFNESS {
-        let lugre = Lugre {
-            bristle_stiffness: sigma0,
-            bristle_damping: None,
-            viscous_friction: 0.0,
-            stribeck_velocity: LIMIT_STRIBECK,
-        };
-        let (um, failed, wall_s) = steps(&with(Friction::Lugre(lugre)))?;
+        let rung = law.friction([sigma0, f64::NAN, 0.0, LIMIT_STRIBECK]);
+        let (um, failed, wall_s) = steps(&with(rung))?;
         let max_difference_um = um
             .iter()
             .zip(&karnopp)

@@ -12,7 +12,6 @@ use anyhow::{Context, Result};
 use plotters::prelude::*;
 
 use crate::backend::{Backend, CpuBackend};
-use crate::laws::karnopp::paper_rk4;
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Law, Settings};
 use crate::measurement::keeps_values;
@@ -111,17 +110,21 @@ pub fn backend_method<'a>(backend: Box<dyn Backend + 'a>, base: Settings, law: L
     }
 }
 
-/// The paper's fixed-step Karnopp RK4 at a ladder of step sizes.
-pub fn karnopp_method<'a>(steps: Vec<f64>) -> Method<'a> {
+/// A law's fixed-step baseline (`Law::fixed_step_baseline`: the paper's
+/// Karnopp RK4) at a ladder of step sizes.
+pub fn fixed_step_method<'a>(
+    run_fixed_step: crate::laws::law::FixedStep,
+    steps: Vec<f64>,
+) -> Method<'a> {
     Method {
         name: "fixed-step Karnopp RK4 (paper's method)".into(),
         setting_name: "step [s]",
         settings: steps,
-        run: Box::new(|instances, step| {
+        run: Box::new(move |instances, step| {
             Ok(instances
                 .iter()
                 .map(|inst| {
-                    let (displacement, steps) = paper_rk4::run_fixed_step(inst, step);
+                    let (displacement, steps) = run_fixed_step(inst, step);
                     Outcome {
                         displacement,
                         span: (inst.cycles - inst.settle) as f64,

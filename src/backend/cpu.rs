@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use super::{Backend, Hardware, Precision};
 use crate::interrupt::interrupt_requested;
 use crate::laws::Law;
-use crate::laws::karnopp::check;
+use crate::laws::floor::check;
 use crate::laws::status::STATUS_GRAZE;
 use crate::laws::{Replica, Settings};
 use crate::measurement::{Outcome, reduce};
@@ -183,6 +183,6 @@ pub fn run_one_in(inst: &Instance, settings: &Settings, precision: Precision) ->
     };
     Outcome {
         graze: sent == Some(STATUS_GRAZE),
-        ..Outcome::of(&reduce(inst, &run), run.state.steps, sent.is_some())
+        ..Outcome::of(&reduce(inst, &run), run.record.steps, sent.is_some())
     }
 }

@@ -3,7 +3,7 @@
 use anyhow::{Result, bail};
 
 use super::{Backend, Hardware, Precision, Staged};
-use crate::gpu::lugre::LugreGpu;
+use crate::gpu::LugreGpu;
 use crate::gpu::{BatchOptions, GpuContext, GpuOutcome, Parts, run_batch_packed};
 use crate::laws::status::STATUS_GRAZE;
 use crate::laws::{Law, Replica, Settings};

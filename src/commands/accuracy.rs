@@ -145,8 +145,11 @@ fn integrator_methods<'a>(
             Err(err) => println!("  gpu: not studied ({err})"),
         }
     }
-    if law.has_fixed_step_baseline() {
-        methods.push(accuracy::karnopp_method(karnopp_steps.to_vec()));
+    if let Some(run_fixed_step) = law.fixed_step_baseline() {
+        methods.push(accuracy::fixed_step_method(
+            run_fixed_step,
+            karnopp_steps.to_vec(),
+        ));
     }
     Ok(methods)
 }

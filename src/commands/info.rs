@@ -76,8 +76,8 @@ pub fn shader_info(dir: &Path) -> Result<()> {
     let mut names = write_sources(dir, &variants)
         .with_context(|| format!("writing the shader variants into {}", dir.display()))?;
     names.extend(
-        write_lugre_sources(dir)
-            .with_context(|| format!("writing LuGre's shader into {}", dir.display()))?,
+        crate::gpu::write_law_sources(dir)
+            .with_context(|| format!("writing the laws' shaders into {}", dir.display()))?,
     );
     println!(
         "{} shader variants written into {} (hardware: no loop limiter; limiter: llvmpipe's)",
@@ -104,16 +104,11 @@ pub fn shader_info(dir: &Path) -> Result<()> {
     for v in &variants {
         row(&footprint::variant_name(*v), footprint::measure(*v)?);
     }
-    // LuGre's one pipeline, as a hardware adapter and llvmpipe compile it.
-    use crate::gpu::lugre::{Arithmetic, HARDWARE_WORKGROUP_SIZE, SOFTWARE_WORKGROUP_SIZE};
-    row(
-        "lugre f64 (hardware)",
-        crate::gpu::lugre::footprint(HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused)?,
-    );
-    row(
-        "lugre f64 (llvmpipe)",
-        crate::gpu::lugre::footprint(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native)?,
-    );
+    // The laws' own pipelines, as a hardware adapter and llvmpipe compile
+    // them.
+    for (name, f) in crate::gpu::law_footprints()? {
+        row(&name, f);
+    }
     println!(
         "indexed: private arrays an access chain indexes at run time after `spirv-opt {}` \
          (local memory on NVIDIA, at every access); variables: function variables of naga's \
@@ -131,29 +126,6 @@ pub fn shader_info(dir: &Path) -> Result<()> {
     }
     registers()?;
     probe_emulated()
-}
-
-/// LuGre's pipeline as a hardware adapter and llvmpipe compile it, beside
-/// Karnopp's variants.
-fn write_lugre_sources(dir: &Path) -> std::io::Result<Vec<String>> {
-    use crate::gpu::lugre::{Arithmetic, HARDWARE_WORKGROUP_SIZE, SOFTWARE_WORKGROUP_SIZE, source};
-    let mut names = Vec::new();
-    for (name, size, arithmetic) in [
-        (
-            "lugre-f64-hardware.wgsl",
-            HARDWARE_WORKGROUP_SIZE,
-            Arithmetic::Fused,
-        ),
-        (
-            "lugre-f64-limiter.wgsl",
-            SOFTWARE_WORKGROUP_SIZE,
-            Arithmetic::Native,
-        ),
-    ] {
-        std::fs::write(dir.join(name), source(size, arithmetic))?;
-        names.push(name.to_string());
-    }
-    Ok(names)
 }
 
 /// Every statistic the system's own Vulkan device lists for each hardware

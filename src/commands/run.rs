@@ -95,7 +95,7 @@ pub fn run(opts: &RunOptions) -> Result<u64> {
             crate::profile::table(),
             crate::laws::Law::iteration_lines(),
             crate::gpu::warps::table_lines(),
-            crate::gpu::lugre::table_lines()
+            crate::gpu::law_table_lines()
         );
     }
     // Closing a GPU device costs NVIDIA's driver 0.03-0.05 s, as long as

@@ -156,7 +156,10 @@ fn print_precision(s: &Summary) {
              (in |v_rel|^2), where the direction tolerance decides whether the slip ends \
              (docs/gpu.md, \"Precision\")",
             s.grazes,
-            crate::laws::karnopp::integrate::constants::GRAZE_MARGIN
+            crate::laws::Law::ALL
+                .iter()
+                .find_map(|law| law.graze_margin())
+                .expect("a law with f32 grazes")
         );
     }
     if s.checked > 0 {
@@ -166,9 +169,9 @@ fn print_precision(s: &Summary) {
              value (their twin, nudged and at {}x the tolerance, disagreed, or the check integrated them in \
              f64 directly), {} keep f32's (their twin agreed within half of 0.005 um + 1 %)",
             s.checked,
-            (crate::laws::karnopp::check::share() * 1000.0).round() / 10.0,
+            (crate::laws::floor::check::share() * 1000.0).round() / 10.0,
             s.checked_on_cpu,
-            crate::laws::karnopp::check::TWIN_LOOSENING,
+            crate::laws::floor::check::TWIN_LOOSENING,
             s.checked - s.checked_on_cpu
         );
     }

@@ -483,7 +483,7 @@ impl GpuContext {
                     got.shader_status
                 )));
             }
-            let want = reduce(inst, &run_instance(inst, &settings));
+            let want = reduce(inst, &run_instance(inst, &settings).ended());
             if got.status != want.status || got.lag != want.lag {
                 return Err(fail(format!(
                     "status {} and cycle {} periods where the CPU ends with {} and {}",

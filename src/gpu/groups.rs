@@ -187,7 +187,7 @@ impl<L: Layout> Between for Groups<L> {
                 .iter()
                 .zip(&taken)
                 .zip(group.replicas())
-                .map(|((s, m), (replica, _))| Member::of(&replica, &L::group_run(s, m)))
+                .map(|((s, m), (replica, _))| Member::of(&replica, &L::group_run(s, m).ended()))
                 .collect();
             match g.group.step(&members) {
                 Step::Wait => {}
@@ -355,9 +355,11 @@ impl Runner<'_> {
             .map(|g| {
                 let replicas = g.group.replicas();
                 let runs = (g.first..g.first + replicas.len())
-                    .map(|j| {
-                        L::continuable(&g.inst, &states[j], Some(&measures[j]))
-                            .expect("an f64 state continues on the CPU")
+                    .zip(&replicas)
+                    .map(|(j, &(replica, r))| {
+                        let run = L::continuable(&g.inst, &states[j], Some(&measures[j]))
+                            .expect("an f64 state continues on the CPU");
+                        crate::laws::law::Resumable::of_run(&replica, self.settings, r, run)
                     })
                     .collect();
                 let stop = crate::interrupt::interrupt_requested;

@@ -34,7 +34,7 @@
 //!   or stops at a band graze is integrated again on the CPU in f64
 //!   ([`f32_needs_f64`]; [`GpuOutcome::shader_status`] says which). The
 //!   heaviest fifth of an f32 call's window runs is checked
-//!   ([`crate::laws::karnopp::check`], [`BatchOptions::check`]): by twins at a
+//!   ([`crate::laws::floor::check`], [`BatchOptions::check`]): by twins at a
 //!   looser tolerance on a hardware adapter (while the CPU integrates the
 //!   failures and grazes), by the f64 reference on the CPU on a software
 //!   one ([`GpuOutcome::checked`]).
@@ -87,6 +87,26 @@ use options::*;
 use tail::*;
 
 pub use karnopp::{footprint, layout, shader};
+
+// The twin of `crate::laws::Law` on the device side: what the commands and
+// the backend ask of the laws' own lanes beside the engine's variants
+// (Karnopp's), named for what they are, not for their law.
+pub use lugre::LugreGpu;
+pub use lugre::PIPELINE_NAME as LAW_PIPELINE_NAME;
+pub use lugre::hardware_lane as law_hardware_lane;
+pub use lugre::table_lines as law_table_lines;
+
+/// The laws' own pipelines' WGSL written into `dir` (`pidm info --shader`,
+/// beside the engine's variants); their file names.
+pub fn write_law_sources(dir: &std::path::Path) -> std::io::Result<Vec<String>> {
+    lugre::write_sources(dir)
+}
+
+/// The laws' own pipelines' footprints, named as `pidm info`'s table
+/// lists them.
+pub fn law_footprints() -> Result<Vec<(String, footprint::Footprint)>, GpuError> {
+    lugre::footprints()
+}
 pub use knobs::{
     CHUNK_ROUNDS, LANES, PROBE_ITERATIONS, SLICE_ITERATIONS, SOFTWARE_CHUNK_ROUNDS,
     SOFTWARE_LANES_PER_THREAD, Tail, WORKGROUP_SIZE, compact, cpu_tail, f32_check, lanes,
@@ -105,7 +125,7 @@ use thiserror::Error;
 use wgpu::util::DeviceExt;
 
 use crate::laws::Settings;
-use crate::laws::karnopp::check;
+use crate::laws::floor::check;
 use crate::laws::karnopp::integrate::{Run, initial_measure, run_instance};
 use crate::measurement::{Measured, reduce};
 use crate::model::{Instance, Measure};
@@ -121,7 +141,7 @@ pub const STATUS_LOOP_LIMIT: u32 = 100;
 
 pub use crate::laws::Precision;
 
-pub use crate::laws::karnopp::check::Route;
+pub use crate::laws::floor::check::Route;
 pub use crate::laws::karnopp::{f32_needs_f64, is_integrator_failure};
 
 /// What went wrong on the GPU path.
@@ -221,7 +241,7 @@ pub struct GpuOutcome {
     /// see [`BatchOptions::cpu_tail`].
     pub finished_on_cpu: bool,
     /// True for an f32 window run among the heaviest of its batch, which
-    /// was checked ([`crate::laws::karnopp::check`]): it keeps f32's value where
+    /// was checked ([`crate::laws::floor::check`]): it keeps f32's value where
     /// its twin agreed, and carries the f64 reference's (with
     /// [`GpuOutcome::cpu_fallback`] set) where the twin disagreed or the
     /// check ran the reference directly.

@@ -60,12 +60,12 @@ pub struct BatchOptions {
     /// random scenes of results/gpu.md since issue 19).
     pub cpu_tail: Option<usize>,
     /// How an f32 batch checks its heaviest window runs
-    /// ([`crate::laws::karnopp::check`]); f64 batches are not checked.
+    /// ([`crate::laws::floor::check`]); f64 batches are not checked.
     pub check: F32Check,
 }
 
 /// How an f32 batch checks its heaviest window runs
-/// ([`crate::laws::karnopp::check`]).
+/// ([`crate::laws::floor::check`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum F32Check {
     /// [`Route::Reference`] on a software adapter (its "GPU" is the CPU's

@@ -282,7 +282,7 @@ impl<'a> Runner<'a> {
         // Instances the driver's loop limiter kept from advancing at all,
         // and f32 instances that failed or met a band graze, are
         // integrated on the CPU; f32's heaviest window runs are checked
-        // (`laws::karnopp::check`), on the CPU (the reference route) or by twins
+        // (`laws::floor::check`), on the CPU (the reference route) or by twins
         // on the device while the CPU integrates the others.
         let fallback: Vec<CpuJob> = out
             .iter()
@@ -403,7 +403,7 @@ impl<'a> Runner<'a> {
         })
     }
 
-    /// The twins of f32's `picked` runs ([`crate::laws::karnopp::check`]),
+    /// The twins of f32's `picked` runs ([`crate::laws::floor::check`]),
     /// nudged and at the looser tolerance, in batches of at most `per_batch`, each to its end
     /// on the device (no slow tail); returns the runs whose twin
     /// disagrees, or did not finish on the device with the run's status.

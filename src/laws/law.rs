@@ -3,10 +3,11 @@
 //! commands and plots ask a `Law` what differs between laws (its keys, its
 //! tolerance's meaning, its precisions, what `--backend auto` knows of it)
 //! instead of branching on one; the device side's twin is
-//! `crate::gpu::law`. ARCHITECTURE.md's checklist says what a third law
+//! `crate::gpu` (its `mod.rs`). ARCHITECTURE.md's checklist says what a third law
 //! touches.
 
-use super::karnopp::integrate::{self, Run, State};
+use super::floor::{Record, Run};
+use super::karnopp::integrate;
 use super::observe::Observer;
 use super::{Precision, Replica, Settings};
 use super::{karnopp, lugre};
@@ -24,6 +25,11 @@ pub enum Law {
     /// Rodas4 in f64.
     Lugre,
 }
+
+/// A fixed-step integration of an instance ([`Law::fixed_step_baseline`]):
+/// the travel over the measured periods [m] at about `step` seconds per
+/// step, and the steps taken.
+pub type FixedStep = fn(inst: &Instance, step: f64) -> ([f64; crate::model::AXES], u64);
 
 /// One of a law's own parameters, as `pidm check` and the result file
 /// describe it.
@@ -180,10 +186,25 @@ impl Law {
         }
     }
 
-    /// Whether the paper's fixed-step RK4 of this law exists
-    /// (`laws::karnopp::paper_rk4`), a baseline for `pidm accuracy`.
-    pub fn has_fixed_step_baseline(self) -> bool {
-        self == Law::Karnopp
+    /// The paper's fixed-step RK4 of this law, where it exists
+    /// (`laws::karnopp::paper_rk4`), a baseline for `pidm accuracy`: the
+    /// slider's travel over the measured periods [m] at a step of about
+    /// the given seconds, and the steps taken.
+    pub fn fixed_step_baseline(self) -> Option<FixedStep> {
+        match self {
+            Law::Karnopp => Some(karnopp::paper_rk4::run_fixed_step),
+            Law::Lugre => None,
+        }
+    }
+
+    /// The margin of the f32 formulation's band graze in |v_rel|^2, in
+    /// units of the band's square (`status::STATUS_GRAZE`), where the law
+    /// has one.
+    pub fn graze_margin(self) -> Option<f64> {
+        match self {
+            Law::Karnopp => Some(integrate::constants::GRAZE_MARGIN),
+            Law::Lugre => None,
+        }
     }
 
     /// Why the law has no f32 formulation, where it has none: every
@@ -251,7 +272,7 @@ impl Law {
     /// says so (then `None`).
     pub fn run_until(inst: &Instance, settings: &Settings, stop: impl Fn() -> bool) -> Option<Run> {
         match Law::of_instance(inst) {
-            Law::Karnopp => integrate::run_instance_until(inst, settings, stop),
+            Law::Karnopp => integrate::run_instance_until(inst, settings, stop).map(|r| r.ended()),
             Law::Lugre => lugre::run_instance_until(inst, settings, stop),
         }
     }
@@ -268,21 +289,22 @@ impl Law {
         stop: impl Fn() -> bool + Copy,
     ) -> Option<(Run, Option<u32>)> {
         match Law::of_instance(inst) {
-            Law::Karnopp => karnopp::run_in_until(inst, settings, precision, stop),
+            Law::Karnopp => karnopp::run_in_until(inst, settings, precision, stop)
+                .map(|(run, sent)| (run.ended(), sent)),
             Law::Lugre => lugre::run_instance_until(inst, settings, stop).map(|run| (run, None)),
         }
     }
 
     /// Integrates `inst` (of any law) in f64 to its end, showing `observer`
-    /// every step's motion (`crate::trajectory`), and returns the state it
-    /// ends in: the map run's, bit for bit.
+    /// every step's motion (`crate::trajectory`), and returns the record it
+    /// ends with: the map run's, bit for bit.
     pub fn run_observed(
         inst: &Instance,
         settings: &Settings,
         observer: &mut dyn Observer,
-    ) -> State {
+    ) -> Record {
         match Law::of_instance(inst) {
-            Law::Karnopp => karnopp::run_observed(inst, settings, observer),
+            Law::Karnopp => karnopp::run_observed(inst, settings, observer).record(),
             Law::Lugre => lugre::run::run_observed(inst, settings, observer),
         }
     }
@@ -299,7 +321,7 @@ impl Law {
 /// merge (`measure::VERDICT_WAITING`) and goes on once released: the
 /// replicas of a split steady measurement (`crate::replicas`).
 pub enum Resumable {
-    Karnopp(Box<(integrate::Coefficients, Run)>),
+    Karnopp(Box<(integrate::Coefficients, integrate::Run)>),
     Lugre(Box<lugre::run::Resumable>),
 }
 
@@ -309,7 +331,7 @@ impl Resumable {
         match Law::of_instance(inst) {
             Law::Karnopp => {
                 let c = integrate::Coefficients::of_replica(inst, settings, r);
-                let run = Run {
+                let run = integrate::Run {
                     state: integrate::initial_state(&c),
                     measure: integrate::initial_measure(&c),
                 };
@@ -321,7 +343,12 @@ impl Resumable {
 
     /// Replica `r` where `run` stands: a Karnopp run a GPU batch handed
     /// over (`gpu::groups`; LuGre's lanes run no groups).
-    pub fn of_run(inst: &Instance, settings: &Settings, r: Replica, run: Run) -> Resumable {
+    pub fn of_run(
+        inst: &Instance,
+        settings: &Settings,
+        r: Replica,
+        run: integrate::Run,
+    ) -> Resumable {
         assert_eq!(
             Law::of_instance(inst),
             Law::Karnopp,
@@ -347,18 +374,21 @@ impl Resumable {
     }
 
     /// The run so far.
-    pub fn run(&self) -> &Run {
+    pub fn run(&self) -> Run {
         match self {
-            Resumable::Karnopp(k) => &k.1,
-            Resumable::Lugre(l) => l.run(),
+            Resumable::Karnopp(k) => k.1.ended(),
+            Resumable::Lugre(l) => *l.run(),
         }
     }
 
-    /// The run so far, for its group to release it.
-    pub fn run_mut(&mut self) -> &mut Run {
+    /// Lets the run go on if it waits for its group's merge.
+    pub fn release(&mut self) {
         match self {
-            Resumable::Karnopp(k) => &mut k.1,
-            Resumable::Lugre(l) => l.run_mut(),
+            Resumable::Karnopp(k) => {
+                let run = &mut k.1;
+                super::floor::record::release(&mut run.state, &mut run.measure);
+            }
+            Resumable::Lugre(l) => l.run_mut().release(),
         }
     }
 }

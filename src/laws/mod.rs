@@ -20,6 +20,7 @@ pub mod observe;
 pub mod settings;
 pub mod status;
 
+pub use floor::{Record, Run};
 pub use law::{Law, Parameter};
 pub use settings::{Replica, Replicas, Settings};
 
@@ -30,11 +31,7 @@ use std::fmt;
 /// ([`Law::run_until`]) to the end, or until `stop` says so (then
 /// `None`). Every caller that integrates an instance of any scene goes
 /// through here.
-pub fn run_until(
-    inst: &Instance,
-    settings: &Settings,
-    stop: impl Fn() -> bool,
-) -> Option<karnopp::integrate::Run> {
+pub fn run_until(inst: &Instance, settings: &Settings, stop: impl Fn() -> bool) -> Option<Run> {
     Law::run_until(inst, settings, stop)
 }
 

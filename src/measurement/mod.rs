@@ -11,9 +11,9 @@
 pub mod status;
 
 use crate::laws::floor::measure::{VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, estimate};
-use crate::laws::karnopp::integrate::{Run, State};
 use crate::laws::status::STATUS_NOT_STEADY;
 use crate::laws::status::STATUS_OK;
+use crate::laws::{Record, Run};
 use crate::model::motion::Motion;
 use crate::model::{AXES, Instance, Measure};
 
@@ -45,7 +45,7 @@ pub fn keeps_values(status: u32) -> bool {
 
 /// Reduces a finished run of `inst`.
 pub fn reduce(inst: &Instance, run: &Run) -> Measured {
-    let st = &run.state;
+    let st = &run.record;
     let m = &run.measure;
     let failed = Measured {
         status: st.status,
@@ -85,8 +85,8 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                     motion: Motion::Periodic,
                 };
             }
-            // The phase ladder's judged window (module `laws::karnopp::integrate::
-            // phase`): the verdict's, or the latest, which a run that ends
+            // The phase ladder's judged window (`laws::floor::phase`): the
+            // verdict's, or the latest, which a run that ends
             // not steady reports where its standard error is smaller than
             // the batch means'.
             let phase = (m.span > 0).then_some((m.travel, m.span as f64, m.se2));
@@ -158,9 +158,11 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
     }
 }
 
-/// The slider travel over a fixed window that a run's final state holds
-/// [m], or zero where it did not finish normally.
-pub fn window_displacement(inst: &Instance, st: &State) -> [f64; AXES] {
+/// The slider travel over a fixed window that a run's final record holds
+/// [m], or zero where it did not finish normally (`st`: a record, or a
+/// law's state that gives one).
+pub fn window_displacement(inst: &Instance, st: impl Into<Record>) -> [f64; AXES] {
+    let st: Record = st.into();
     if st.status == STATUS_OK && st.period >= inst.cycles {
         (st.x_s - st.settle_x_s).to_array()
     } else {
@@ -195,7 +197,7 @@ pub struct Outcome {
     /// (`laws::status::STATUS_GRAZE`).
     pub graze: bool,
     /// An f32 window run among the heaviest of its batch, checked
-    /// (`laws::karnopp::check`): by a twin that agreed (f32's value kept), or
+    /// (`laws::floor::check`): by a twin that agreed (f32's value kept), or
     /// integrated again in f64 (`on_cpu` set too).
     pub checked: bool,
     /// The replicas whose merged estimate it is (`crate::replicas`; 1: one

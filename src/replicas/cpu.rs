@@ -7,7 +7,6 @@
 use rayon::prelude::*;
 
 use super::{Group, Member, Step};
-use crate::laws::karnopp::integrate::Run;
 use crate::laws::law::Resumable;
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Replica, Settings};
@@ -57,22 +56,17 @@ pub fn run_replicas(
 
 /// [`run_replicas`] from where the replicas stand (`runs`, in replica
 /// order): running, or waiting for their group's merge. A GPU batch hands
-/// its last groups over so (`gpu::groups`): the shader mirrors the CPU's
-/// integrator step for step in f64, so a group ends as it would have on
-/// the device, merges and all.
+/// its last groups over so (`gpu::groups`, with `Resumable::of_run`): the
+/// shader mirrors the CPU's integrator step for step in f64, so a group
+/// ends as it would have on the device, merges and all.
 pub fn continue_replicas(
     inst: &Instance,
     settings: &Settings,
     group: &Group,
     replicas: &[(Instance, Replica)],
-    runs: Vec<Run>,
+    runs: Vec<Resumable>,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Option<GroupRun> {
-    let runs: Vec<Resumable> = replicas
-        .iter()
-        .zip(runs)
-        .map(|(&(replica, r), run)| Resumable::of_run(&replica, settings, r, run))
-        .collect();
     drive_group(inst, settings, group, replicas, runs, stop)
 }
 
@@ -102,9 +96,9 @@ fn drive_group(
         let members: Vec<Member> = runs
             .iter()
             .zip(&instances)
-            .map(|(run, replica)| Member::of(replica, run.run()))
+            .map(|(run, replica)| Member::of(replica, &run.run()))
             .collect();
-        let steps = runs.iter().map(|run| run.run().state.steps).sum::<u32>();
+        let steps = runs.iter().map(|run| run.run().record.steps).sum::<u32>();
         if let Some(d) = group.disagreement(&members) {
             disagreement = disagreement.max(d);
         }
@@ -119,7 +113,7 @@ fn drive_group(
             }
             Step::Continue => {
                 for run in &mut runs {
-                    release(run.run_mut());
+                    run.release();
                 }
             }
             // Every replica ran to its wait or end: a wait is for all.
@@ -134,19 +128,10 @@ fn drive_group(
                 return Some(GroupRun {
                     measured,
                     replicas: 1,
-                    steps: steps.saturating_add(alone.state.steps),
+                    steps: steps.saturating_add(alone.record.steps),
                     disagreement,
                 });
             }
         }
-    }
-}
-
-/// Lets a replica that waits for its group's merge go on.
-pub fn release(run: &mut Run) {
-    use crate::laws::floor::measure::{VERDICT_RUNNING, VERDICT_WAITING};
-    if run.measure.verdict == VERDICT_WAITING {
-        run.measure.verdict = VERDICT_RUNNING;
-        run.state.measured = 0;
     }
 }

@@ -20,17 +20,18 @@
 //! [`DISAGREEMENT_FLOOR`] on either axis sits on another attractor: the
 //! group is not merged.
 
+use crate::laws::floor::Setup;
 use crate::laws::floor::Vec2;
 use crate::laws::floor::measure::Measure;
+use crate::laws::floor::measure::initial_measure;
 use crate::laws::floor::measure::{
     Snapshot, VERDICT_PERIODIC, VERDICT_PHASE, VERDICT_RUNNING, repeats,
 };
 use crate::laws::floor::phase::{
     Gaps, LevelSums, PhaseEstimate, evaluate_sums, ladder_length, window_weight,
 };
-use crate::laws::karnopp::integrate::{Coefficients, Run};
-use crate::laws::karnopp::integrate::{initial_measure, initial_state};
 use crate::laws::status::STATUS_OK;
+use crate::laws::{Record, Run};
 use crate::laws::{Replica, Settings};
 use crate::measurement::{Measured, reduce};
 use crate::model::Instance;
@@ -57,7 +58,7 @@ pub const DISAGREEMENT_FLOOR: f64 = 0.002e-6;
 pub struct Member {
     /// The replica's status (`STATUS_OK` while it runs).
     pub status: u32,
-    /// `State::measured`: 0 running, 1 finished, 2 waiting for the merge.
+    /// `Record::measured`: 0 running, 1 finished, 2 waiting for the merge.
     pub measured: u32,
     /// It ran to its `max_cycles` without a verdict.
     pub at_max: bool,
@@ -76,9 +77,9 @@ impl Member {
     pub fn of(inst: &Instance, run: &Run) -> Member {
         let m = &run.measure;
         Member {
-            status: run.state.status,
-            measured: run.state.measured,
-            at_max: run.state.period >= inst.cycles,
+            status: run.record.status,
+            measured: run.record.measured,
+            at_max: run.record.period >= inst.cycles,
             periods: m.next_end,
             level: m.pending_level,
             sums: m.phase.pending,
@@ -126,9 +127,11 @@ pub struct Group {
     inst: Instance,
     /// The split: `index` unused.
     split: Replica,
-    /// Replica 0's coefficients in f64 (the virtual run's ladder: every
+    /// Replica 0's measurement constants (the virtual run's ladder: every
     /// replica's is the same but for the index).
-    c: Coefficients,
+    c: Setup,
+    /// Each axis' drive cycles per scene period.
+    cycles_per_period: Vec2,
 }
 
 impl Group {
@@ -137,14 +140,17 @@ impl Group {
     pub fn new(inst: &Instance, settings: &Settings, split: Replica) -> Group {
         let split = Replica { index: 0, ..split };
         let c = match split.cycle {
-            0 => Coefficients::of_replica(inst, settings, split),
+            0 => Setup::new(inst, settings, split),
             // The instance's own: its recurrence test's tolerances.
-            _ => Coefficients::of(inst, settings),
+            _ => Setup::new(inst, settings, Replica::NONE),
         };
+        let period = inst.period();
+        let [ax, ay] = &inst.axes;
         Group {
             inst: *inst,
             split,
             c,
+            cycles_per_period: Vec2::new(ax.frequency * period, ay.frequency * period),
         }
     }
 
@@ -201,7 +207,7 @@ impl Group {
         self.split.cycle > 0
     }
 
-    /// Whether replica `r`, with this status, `State::measured` and
+    /// Whether replica `r`, with this status, `Record::measured` and
     /// period, keeps its group waiting: it still runs, and has neither
     /// reached what its group waits for (a phase split's level, a piece's
     /// end) nor ended the split ([`Group::gives_up`]).
@@ -310,7 +316,7 @@ impl Group {
     /// (measured: a tenth of the pooled error), which alone would call
     /// one attractor two.
     fn disagreement_of(&self, members: &[Member], level: u32, merged: &PhaseEstimate) -> f64 {
-        let floor = self.c.cycles_per_period * DISAGREEMENT_FLOOR;
+        let floor = self.cycles_per_period * DISAGREEMENT_FLOOR;
         let own: Vec<PhaseEstimate> = members
             .iter()
             .enumerate()
@@ -376,19 +382,21 @@ impl Group {
     /// verdict and travel `measure` holds, through [`reduce`] as any
     /// finished run's.
     fn finished(&self, periods: u32, measure: Measure) -> Measured {
-        let mut state = initial_state(&self.c);
-        state.period = periods;
-        state.measured = 1;
+        let record = Record {
+            period: periods,
+            measured: 1,
+            ..Record::at_rest()
+        };
         let measure = Measure {
             next_end: periods,
             ..measure
         };
         debug_assert_ne!(measure.verdict, VERDICT_RUNNING);
-        reduce(&self.inst, &Run { state, measure })
+        reduce(&self.inst, &Run { record, measure })
     }
 }
 
-/// Whether a replica with this status, `State::measured` and `at_max`
+/// Whether a replica with this status, `Record::measured` and `at_max`
 /// (it ran to its `max_cycles`) has ended: it failed, was measured by a
 /// rule of its own (a recurrence, batch means) or ran out; the group then
 /// gives up the split.

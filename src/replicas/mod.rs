@@ -44,8 +44,8 @@ pub mod group;
 
 pub use group::{Group, Member, Step};
 
+use crate::laws::floor::Setup;
 use crate::laws::floor::phase;
-use crate::laws::karnopp::integrate::Coefficients;
 use crate::laws::{Law, Replica, Settings};
 use crate::model::{Instance, Measure};
 
@@ -73,9 +73,10 @@ pub fn splittable(inst: &Instance, settings: &Settings) -> bool {
     {
         return false;
     }
-    let c = Coefficients::of(inst, settings);
+    let c = Setup::new(inst, settings, Replica::NONE);
     let rho = faster_drive(inst).1;
-    let on = phase::ladder_on(c.driven, rho, c.common_period);
+    let driven = inst.axes.each_ref().map(|a| a.is_driven());
+    let on = phase::ladder_on(driven, rho, c.common_period);
     let horizon = inst.cycles.saturating_sub(inst.settle);
     phase::ladder(rho, on, c.common_period, horizon).resolving != 0
 }
@@ -116,7 +117,7 @@ pub fn count_queued(setting: Replicas, lanes: usize, jobs: usize) -> u32 {
 }
 
 /// The index of the faster drive (the one whose cycles per scene period
-/// are the most, as `Coefficients` takes it) and its advance per scene
+/// are the most, as `Setup` takes it) and its advance per scene
 /// period [cycles].
 fn faster_drive(inst: &Instance) -> (usize, f64) {
     let period = inst.period();
@@ -163,7 +164,7 @@ pub const MIN_PIECE: u32 = 32;
 
 /// The cycle split of `inst` into at most `count` pieces, if it has one
 /// (`Replica::cycle`): a steady measurement of drives that repeat after a
-/// common period q (`Coefficients::common_period`) that the run alone
+/// common period q (`Setup::common_period`) that the run alone
 /// could reach (`settle + q <= max_cycles`), cut into as many pieces as
 /// `count` allows with at least [`MIN_PIECE`] periods (and `settle`) each,
 /// none longer than the run alone's first chance to stop: the shortest
@@ -177,7 +178,7 @@ pub fn cycle_split(inst: &Instance, settings: &Settings, count: u32) -> Option<R
     {
         return None;
     }
-    let c = Coefficients::of(inst, settings);
+    let c = Setup::new(inst, settings, Replica::NONE);
     let q = c.common_period;
     if q == 0 || inst.settle.saturating_add(q) > inst.cycles {
         return None;

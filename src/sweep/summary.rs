@@ -39,7 +39,7 @@ pub struct Summary {
     /// Of those, f32 runs that stopped at a band graze.
     pub grazes: u64,
     /// f32 window runs among the heaviest of their batch, checked
-    /// (`laws::karnopp::check`); those that carry the f64 reference's value are
+    /// (`laws::floor::check`); those that carry the f64 reference's value are
     /// counted in `on_cpu` too.
     pub checked: u64,
     /// Of the checked, those that carry the f64 reference's value.

@@ -399,7 +399,7 @@ fn the_f32_summary_counts_band_grazes_and_their_values_are_the_references() {
         .unwrap_or_else(|| panic!("no graze line in:\n{text32}"));
     assert!(grazes >= 1, "{text32}");
     // The mirror checks the heaviest fifth of the runs it finished itself
-    // against the reference (`laws::karnopp::check`), and says how many.
+    // against the reference (`laws::floor::check`), and says how many.
     let checked: Vec<u64> = text32
         .lines()
         .find(|l| l.contains("the heaviest 20 % of those f32 finished itself"))

@@ -86,7 +86,7 @@ pub fn case(vx: f64, vy: f64, fx: f64, fy: f64, axis: Axis) -> Instance {
 }
 
 /// `n` light window runs for the tests of f32's check of its heaviest runs
-/// (`pidm::laws::karnopp::check`): Table 1 with x at 40 V and up by `volts` [V]
+/// (`pidm::laws::floor::check`): Table 1 with x at 40 V and up by `volts` [V]
 /// each, y at 15 Hz, 2 periods of which 1 settles. Each takes far fewer
 /// steps than a random scene's heavy instances, so a check passes them by.
 pub fn light_instances(n: usize, volts: f64) -> Vec<Instance> {

@@ -122,14 +122,14 @@ fn compare(
         eprintln!(
             "{label} {k} at {tolerance:e}: CPU {w:?} um, {} steps; GPU {g:?} um, {} steps; \
              {diff:.1e} um apart",
-            cpu[k].state.steps, runs[k].state.steps,
+            cpu[k].record.steps, runs[k].record.steps,
         );
         assert_eq!(got.status, want.status, "{label} {k}: {inst:?}");
         assert_eq!(want.status, 0, "{label} {k}");
         assert!(g.iter().all(|x| x.is_finite()), "{label} {k}: {g:?}");
         assert!(diff <= bound, "{label} {k}: GPU {g:?} against CPU {w:?} um");
         if bound == 0.0 {
-            assert_eq!(runs[k].state.steps, cpu[k].state.steps, "{label} {k}");
+            assert_eq!(runs[k].record.steps, cpu[k].record.steps, "{label} {k}");
         }
         assert_eq!(got.periods, want.periods, "{label} {k}");
         assert_eq!(got.lag, want.lag, "{label} {k}");
@@ -448,7 +448,7 @@ fn dispatches_cut_nothing_short() {
         report.dispatches, gpu.attempts, slow_report.dispatches, few.attempts
     );
     for (k, inst) in instances.iter().enumerate() {
-        assert_eq!(runs[k].state.steps, slow_runs[k].state.steps, "{k}");
+        assert_eq!(runs[k].record.steps, slow_runs[k].record.steps, "{k}");
         let (a, b) = (reduce(inst, &runs[k]), reduce(inst, &slow_runs[k]));
         assert_eq!(a.travel, b.travel, "{k}");
         assert_eq!(a.status, b.status, "{k}");
@@ -462,9 +462,9 @@ fn dispatches_cut_nothing_short() {
         eprintln!(
             "{} attempts per dispatch: {} steps against {} ({})",
             few.attempts,
-            cut[0].state.steps,
-            runs[7].state.steps,
-            if cut[0].state.steps == runs[7].state.steps {
+            cut[0].record.steps,
+            runs[7].record.steps,
+            if cut[0].record.steps == runs[7].record.steps {
                 "not cut"
             } else {
                 "cut: the numbers changed"
@@ -498,7 +498,7 @@ fn the_batch_reports_each_finished_instance_once() {
     let calls = calls.into_inner().unwrap();
     assert_eq!(calls.iter().sum::<u64>(), 3, "{calls:?}");
     assert!(calls.len() >= 2, "{calls:?}");
-    assert!(runs.iter().all(|r| r.state.status == 0));
+    assert!(runs.iter().all(|r| r.record.status == 0));
 }
 
 /// The lanes measure their period ends as the CPU's run does: on a
@@ -530,9 +530,9 @@ fn the_lanes_measure_as_the_cpu_s_run_does() {
     let (runs, report) = gpu.run(&instances, &settings).expect("the GPU batch");
     // The paths are taken: a periodic verdict, ladder windows filled.
     assert!(
-        cpu[0].state.measured == 1 && cpu[0].measure.lag > 0,
+        cpu[0].record.measured == 1 && cpu[0].measure.lag > 0,
         "{:?}",
-        cpu[0].state
+        cpu[0].record
     );
     assert!(
         cpu[1].measure.phase.whole[4].x != 0.0,
@@ -541,13 +541,13 @@ fn the_lanes_measure_as_the_cpu_s_run_does() {
     );
     assert_eq!(
         report.periods,
-        cpu.iter().map(|r| r.state.period as u64).sum::<u64>()
+        cpu.iter().map(|r| r.record.period as u64).sum::<u64>()
     );
     for (k, (got, want)) in runs.iter().zip(&cpu).enumerate() {
         if software {
             assert_eq!(got, want, "{k}");
         } else {
-            let (g, w) = (&got.state, &want.state);
+            let (g, w) = (&got.record, &want.record);
             assert_eq!(
                 (g.status, g.period, g.measured),
                 (w.status, w.period, w.measured),

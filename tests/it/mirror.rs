@@ -217,8 +217,11 @@ fn f32_mirror_measures_steady_steps_as_the_reference() {
     let instances = crate::common::steady_instances();
     let settings = Settings::default();
     for (k, inst) in instances.iter().enumerate() {
-        let exact = reduce(inst, &reference::run_instance(inst, &settings));
-        let single = reduce(inst, &si::run(&mirror::run_instance(inst, &settings)));
+        let exact = reduce(inst, &reference::run_instance(inst, &settings).ended());
+        let single = reduce(
+            inst,
+            &si::run(&mirror::run_instance(inst, &settings)).ended(),
+        );
         assert_eq!(single.status, exact.status, "#{k}: status");
         assert_eq!(single.lag, exact.lag, "#{k}: the detected cycle");
         assert_eq!(single.periods, exact.periods, "#{k}: periods run");
@@ -235,7 +238,7 @@ fn f32_mirror_measures_steady_steps_as_the_reference() {
 }
 
 /// Issue 19: the mirror's backend checks its heaviest runs as the shader's
-/// batches do on a software adapter (`pidm::laws::karnopp::check`, the reference
+/// batches do on a software adapter (`pidm::laws::floor::check`, the reference
 /// route). Six instances the guarded mirror got wrong on the fresh seeds
 /// 61-80 (results/gpu.md, "The heaviest tenth"), among 24 light ones: the
 /// heaviest fifth of the runs that neither failed nor grazed (by the
@@ -245,7 +248,7 @@ fn f32_mirror_measures_steady_steps_as_the_reference() {
 #[test]
 fn the_f32_mirror_checks_its_heaviest_runs_against_the_reference() {
     use pidm::backend::{Backend, CpuBackend};
-    use pidm::laws::karnopp::check::{heaviest, is_candidate};
+    use pidm::laws::floor::check::{heaviest, is_candidate};
     let settings = Settings::default();
     let mut instances = Vec::new();
     for (seed, k) in [

@@ -48,7 +48,7 @@ pub fn quasi_periodic_reference() -> [f64; 2] {
 }
 
 pub fn measure(inst: &Instance) -> Measured {
-    reduce(inst, &run_instance(inst, &Settings::default()))
+    reduce(inst, &run_instance(inst, &Settings::default()).ended())
 }
 
 pub fn step_um(inst: &Instance, m: &Measured, axis: usize) -> f64 {
@@ -181,7 +181,7 @@ fn window_measurement_is_untouched_by_the_steady_machinery() {
     // The window's arithmetic: travel over cycles - settle periods.
     let inst = Instance::TABLE1;
     let run = run_instance(&inst, &Settings::default());
-    let got = reduce(&inst, &run);
+    let got = reduce(&inst, &run.ended());
     assert_eq!(got.span, 8.0);
     assert_eq!(got.periods, 10);
     assert_eq!(got.se, [0.0, 0.0]);

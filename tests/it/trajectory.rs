@@ -46,7 +46,7 @@ fn instances() -> Vec<(&'static str, Instance)> {
 fn recording_leaves_the_run_unchanged_bit_for_bit() {
     let settings = Settings::default();
     for (name, inst) in instances() {
-        let plain = run_instance(&inst, &settings).state;
+        let plain = run_instance(&inst, &settings).state.record();
         for per in [7, 2000] {
             let t = record(&inst, &settings, per);
             assert_eq!(t.state, plain, "{name}, {per} samples per cycle");
@@ -58,9 +58,9 @@ fn recording_leaves_the_run_unchanged_bit_for_bit() {
 fn the_samples_give_the_map_displacement() {
     let settings = Settings::default();
     for (name, inst) in instances() {
-        let plain = run_instance(&inst, &settings).state;
+        let plain = run_instance(&inst, &settings).state.record();
         assert_eq!(plain.status, STATUS_OK, "{name}");
-        let want = displacement(&inst, &plain);
+        let want = displacement(&inst, plain);
         let t = record(&inst, &settings, 500);
         assert_eq!(t.time.len(), inst.cycles as usize * 500 + 1, "{name}");
         assert_eq!(t.time[0], 0.0);
@@ -202,7 +202,7 @@ fn a_scene_records_its_trajectories_with_baselines() {
     assert_eq!(bases[0].instance, alone);
     assert_eq!(
         bases[0].trajectory.state,
-        run_instance(&alone, &scene.settings).state
+        run_instance(&alone, &scene.settings).state.record()
     );
     assert!(bases[0].trajectory.slider[1].iter().all(|&v| v == 0.0));
     assert_eq!(recorded[0].main.time.len(), 151);
@@ -249,12 +249,12 @@ fn lugre_runs_record_their_trajectories() {
     inst.mechanism.friction = Friction::Lugre(Lugre::DEFAULT);
     let plain = pidm::laws::run_until(&inst, &settings, || false)
         .expect("not stopped")
-        .state;
+        .record;
     let t = record(&inst, &settings, 200);
     assert_eq!(t.state, plain);
     assert_eq!(t.time.len(), 4 * 200 + 1);
     let got = measured_displacement(&t, inst.settle, inst.cycles).expect("a complete trajectory");
-    assert_eq!(got, displacement(&inst, &plain));
+    assert_eq!(got, displacement(&inst, plain));
     assert_ne!(got, [0.0, 0.0]);
     // The stage's static stroke: gain V / stiffness, per axis.
     for i in 0..2 {

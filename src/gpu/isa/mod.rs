@@ -109,20 +109,18 @@ pub fn batch_pipelines() -> Result<Vec<Pipeline>, GpuError> {
             });
         }
     }
-    use crate::gpu::lugre::{Arithmetic, ENTRY_POINT as LUGRE_ENTRY, HARDWARE_WORKGROUP_SIZE};
-    let (module, words) =
-        crate::gpu::lugre::lane_spirv(HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused)?;
+    let (name, module, words, entry) = crate::gpu::law_hardware_lane()?;
     out.push(Pipeline {
-        name: LUGRE_NAME.to_string(),
+        name,
         words,
-        entry: LUGRE_ENTRY.to_string(),
+        entry,
         bindings: bindings(&module),
     });
     Ok(out)
 }
 
 /// The name of LuGre's hardware pipeline in the tables.
-pub const LUGRE_NAME: &str = "lugre-f64-hardware";
+pub use crate::gpu::LAW_PIPELINE_NAME as LUGRE_NAME;
 
 /// ACO's statistics of one pipeline's compute executable, the figures a
 /// budget reads, and every statistic the driver listed.

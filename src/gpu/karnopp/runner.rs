@@ -47,7 +47,7 @@ pub(in crate::gpu) fn reduce_shader(
     measure: crate::laws::karnopp::integrate::Measure,
 ) -> GpuOutcome {
     let steps = state.steps;
-    GpuOutcome::of(&reduce(inst, &Run { state, measure }), steps)
+    GpuOutcome::of(&reduce(inst, &Run { state, measure }.ended()), steps)
 }
 
 pub(in crate::gpu) struct Single;
@@ -228,7 +228,7 @@ pub(in crate::gpu) fn on_cpu(
         }
         None => run_instance(inst, settings),
     };
-    GpuOutcome::of(&reduce(inst, &run), run.state.steps)
+    GpuOutcome::of(&reduce(inst, &run.ended()), run.state.steps)
 }
 
 impl<'p> Kernel<'p> {

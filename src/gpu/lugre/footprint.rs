@@ -30,6 +30,59 @@ pub fn lane_spirv(
     Ok((module, words))
 }
 
+/// The name of LuGre's hardware pipeline in `pidm info`'s tables and the
+/// register budgets (`crate::gpu::isa`).
+pub const PIPELINE_NAME: &str = "lugre-f64-hardware";
+
+/// LuGre's two pipelines as `pidm info --shader` lists them: the
+/// hardware's (no loop limiter) and llvmpipe's, each with its file name,
+/// its table row's name, its workgroup size and its arithmetic.
+const LISTED: [(&str, &str, u32, Arithmetic); 2] = [
+    (
+        "lugre-f64-hardware.wgsl",
+        "lugre f64 (hardware)",
+        super::HARDWARE_WORKGROUP_SIZE,
+        Arithmetic::Fused,
+    ),
+    (
+        "lugre-f64-limiter.wgsl",
+        "lugre f64 (llvmpipe)",
+        super::SOFTWARE_WORKGROUP_SIZE,
+        Arithmetic::Native,
+    ),
+];
+
+/// Writes both pipelines' WGSL into `dir`; their file names.
+pub fn write_sources(dir: &std::path::Path) -> std::io::Result<Vec<String>> {
+    let mut names = Vec::new();
+    for (file, _, size, arithmetic) in LISTED {
+        std::fs::write(dir.join(file), source(size, arithmetic))?;
+        names.push(file.to_string());
+    }
+    Ok(names)
+}
+
+/// Both pipelines' footprints, named as `pidm info`'s table lists them.
+pub fn footprints() -> Result<Vec<(String, crate::gpu::footprint::Footprint)>, GpuError> {
+    LISTED
+        .iter()
+        .map(|&(_, row, size, arithmetic)| Ok((row.to_string(), footprint(size, arithmetic)?)))
+        .collect()
+}
+
+/// The hardware pipeline as a driver receives it, for its register
+/// statistics (`crate::gpu::isa`): its name, module, SPIR-V and entry
+/// point.
+pub fn hardware_lane() -> Result<(String, naga::Module, Vec<u32>, String), GpuError> {
+    let (module, words) = lane_spirv(super::HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused)?;
+    Ok((
+        PIPELINE_NAME.to_string(),
+        module,
+        words,
+        super::ENTRY_POINT.to_string(),
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -23,8 +23,8 @@
 //!   The host reads the engine's two counters after each dispatch, and
 //!   the runs, their heads (and the accumulators the reductions need), and
 //!   the recurrence snapshots of runs still going once, at the batch's
-//!   end. The result is an
-//!   `integrate::Run` per instance (`Periods::resume`), which
+//!   end. The result is a
+//!   floor `Run` per instance (`Periods::resume`), which
 //!   `measurement::reduce` turns into the record the CPU gives.
 //! * The batch's slow tail goes to the CPU by the Karnopp batches' rule
 //!   ([`crate::gpu::tail_size`], [`LugreGpu::cpu_tail`]): once no more
@@ -84,7 +84,9 @@ mod runner;
 mod shader;
 
 pub use crate::laws::lugre::libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};
-pub use footprint::{footprint, lane_spirv};
+pub use footprint::{
+    PIPELINE_NAME, footprint, footprints, hardware_lane, lane_spirv, write_sources,
+};
 pub use layout::{Lane, MirrorCheck, Params, Probe, Probed};
 pub use runner::{BatchReport, LugreGpu, table_lines};
 pub use shader::{Arithmetic, parse_and_validate, prelude, source};

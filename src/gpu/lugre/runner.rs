@@ -22,8 +22,8 @@ use crate::gpu::layout::double::{Head, Measure as GpuMeasure};
 use crate::gpu::readback::{mappable, read_buffer};
 use crate::gpu::runner::{Runner, storage};
 use crate::gpu::{BatchOptions, GpuContext, GpuError, Precision};
+use crate::laws::Run;
 use crate::laws::Settings;
-use crate::laws::karnopp::integrate::Run;
 use crate::laws::lugre::run::{Periods, continue_until};
 use crate::model::{Instance, Measure};
 use crate::profile::{self, Phase};
@@ -122,7 +122,7 @@ impl Lanes for Lugre {
         crate::laws::lugre::run::run_instance_until(inst, settings, || false)
     }
     fn pilot_steps(p: &Run) -> u32 {
-        p.state.steps
+        p.record.steps
     }
     fn finished(_: &Instance, st: &Lane) -> bool {
         st.flag == LANE_STOPPED
@@ -199,8 +199,8 @@ impl<'a> LugreGpu<'a> {
         })
     }
 
-    /// Integrates LuGre `instances` to the ends of their measurements: an
-    /// `integrate::Run` each, as `laws::lugre::run_instance_until` gives.
+    /// Integrates LuGre `instances` to the ends of their measurements: a
+    /// floor `Run` each, as `laws::lugre::run_instance_until` gives.
     ///
     /// # Panics
     /// If an instance's friction is not LuGre's.
@@ -251,7 +251,7 @@ impl<'a> LugreGpu<'a> {
             .iter()
             .zip(&runs)
             .map(|(inst, run)| {
-                crate::gpu::GpuOutcome::of(&crate::measurement::reduce(inst, run), run.state.steps)
+                crate::gpu::GpuOutcome::of(&crate::measurement::reduce(inst, run), run.record.steps)
             })
             .collect();
         report

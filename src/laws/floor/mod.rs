@@ -13,13 +13,20 @@
 //! * `kinds.rs`: the kinds of work a lane counts (the engine's tallies).
 //! * `setup.rs`: [`Setup`], the measurement's constants of an instance,
 //!   computed from the instance alone.
+//! * `check.rs` (f64 host code): f32's check of its heaviest window runs,
+//!   the rule both f32 paths follow, whatever the law.
+//! * `record.rs` (f64 only): [`Record`] and [`Run`], where a run of any
+//!   law stands, as everything above the laws reads it.
 //!
 //! The run's settings are [`crate::laws::settings`], its status codes
 //! [`crate::laws::status`]. Laws import the floor; the floor imports no law.
 //! The f64 instance is re-exported here.
 
+pub mod check;
 pub mod double;
 pub mod kinds;
+pub mod record;
 pub mod single;
 
 pub use double::{Setup, Vec2, measure, phase, setup, vec2};
+pub use record::{Record, Run};

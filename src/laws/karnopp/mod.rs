@@ -6,13 +6,49 @@
 //! shader's mirror). [`integrate`] is the f64 one. [`paper_rk4`] is the
 //! paper's fixed-step RK4 of the same law, a baseline, not the reference.
 
-pub mod check;
 pub mod double;
 pub mod paper_rk4;
 pub mod single;
 pub mod units;
 
 pub use double::integrate;
+
+// The floor's record of an f64 state and run: what everything above the
+// laws reads (`crate::laws::floor::record`).
+impl integrate::State {
+    /// The floor's record of this state (`crate::laws::floor::Record`).
+    pub fn record(&self) -> crate::laws::floor::Record {
+        crate::laws::floor::Record {
+            x_p: self.x_p,
+            v_p: self.v_p,
+            x_s: self.x_s,
+            v_s: self.v_s,
+            settle_x_s: self.settle_x_s,
+            time: self.time,
+            mode: self.mode,
+            period: self.period,
+            status: self.status,
+            steps: self.steps,
+            measured: self.measured,
+        }
+    }
+}
+
+impl From<&integrate::State> for crate::laws::floor::Record {
+    fn from(st: &integrate::State) -> crate::laws::floor::Record {
+        st.record()
+    }
+}
+
+impl integrate::Run {
+    /// The floor's run: the record of the state, the same measurement.
+    pub fn ended(&self) -> crate::laws::floor::Run {
+        crate::laws::floor::Run {
+            record: self.state.record(),
+            measure: self.measure,
+        }
+    }
+}
 
 /// Whether `status` says the integration failed (step budget, non-finite
 /// state, step underflow, event storm), as opposed to finishing or to a

@@ -1,38 +1,21 @@
 //! A LuGre run: period by period, each one Rodas4 segments between the
 //! drive's corners, with the measurement of every backend on top (the
 //! window's travel, or `measure::period_end`'s batches, phase ladder and
-//! stop rule). Its result is an `integrate::Run`, which
-//! `measurement::reduce` turns into a record as it does Karnopp's.
+//! stop rule). Its result is the floor's `Run`, which
+//! `measurement::reduce` turns into a map's values as it does Karnopp's.
 
 // The model and Rodas4's coefficients, also for the GPU's mirror of both
 // (`crate::gpu::lugre` and `shaders/lugre/`).
 pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
 pub(crate) use super::rodas::{A, C, GAMMA, R, REDUCED, SMALLEST_STEP, rodas4, segment};
-use crate::laws::floor::Setup;
-use crate::laws::floor::Vec2;
 use crate::laws::floor::measure::{
     Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, initial_measure, period_end,
 };
-use crate::laws::karnopp::integrate::Run;
+use crate::laws::floor::{Record, Run, Setup, Vec2};
 use crate::laws::observe::{Observer, Positions};
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Replica, Settings};
 use crate::model::{AXES, Instance, Lugre};
-
-/// The state a run ends in (`integrate::Run::state`).
-type State0 = crate::laws::karnopp::integrate::State;
-
-/// A run's record at rest at the start of period 0, in stick: of
-/// [`State0`]'s fields a LuGre run keeps positions, velocities, the
-/// period, the status, the steps and the measurement's mark; the rest are
-/// Karnopp's integrator's and stay zero.
-fn at_rest() -> State0 {
-    State0 {
-        mode: 0,
-        status: STATUS_OK,
-        ..State0::default()
-    }
-}
 
 /// What `simulation.tolerance` (a number, 1e-4 by default) means under
 /// LuGre: each Rodas4 step's local error is at most `tolerance` times
@@ -138,14 +121,14 @@ impl Resumable {
 /// are the cubic Hermite interpolant of the ends' positions and
 /// velocities (third order in the step; Rodas4's own dense output is not
 /// kept); at step ends they are the integrator's.
-pub fn run_observed(inst: &Instance, settings: &Settings, observer: &mut dyn Observer) -> State0 {
+pub fn run_observed(inst: &Instance, settings: &Settings, observer: &mut dyn Observer) -> Record {
     let mut book = Periods::new(inst, settings);
     let start = PeriodStart::first(&book);
     let mut seen = |period: u32, a: &State, b: &State| {
         observer.step(period, a[T], b[T], &|t| hermite(a, b, t));
     };
     let _ = observe_until(&mut book, start, || false, &mut seen);
-    book.run.state
+    book.run.record
 }
 
 /// The positions at local time `t` between step ends `a` and `b`: cubic
@@ -236,7 +219,7 @@ fn observe_from(
             return false;
         }
         let clock = book.clock();
-        let period_index = book.run.state.period;
+        let period_index = book.run.record.period;
         y[T] = 0.0;
         while y[T] < period {
             let end = (0..AXES)
@@ -255,7 +238,7 @@ fn observe_from(
             ) {
                 Ok(steps) => book.add_steps(steps),
                 Err(status) => {
-                    book.run.state.status = status;
+                    book.run.record.status = status;
                     return true;
                 }
             }
@@ -263,13 +246,13 @@ fn observe_from(
         book.period_end(&y);
         *start = PeriodStart { y, h, budget };
     }
-    debug_assert_eq!(book.run.state.status, STATUS_OK);
+    debug_assert_eq!(book.run.record.status, STATUS_OK);
     true
 }
 
 /// A LuGre run's bookkeeping outside the integrator, period by period: the
 /// model, the error control's weights, the step budget, the run's
-/// `integrate::Run` and the measurement on top of it (`measure::period_end`
+/// floor `Run` and the measurement on top of it (`measure::period_end`
 /// and the recurrence test with z). The CPU's run ([`run_instance_until`])
 /// uses it; the GPU's lanes measure with its WGSL mirror
 /// (`shaders/lugre/measure.wgsl`), and their host turns what they kept into
@@ -281,7 +264,7 @@ pub(crate) struct Periods {
     pub(crate) scale: State,
     /// Steps (accepted and rejected) the whole run may take.
     pub(crate) budget: u32,
-    /// The run so far: its `state.steps` and `state.status` are the
+    /// The run so far: its `record.steps` and `record.status` are the
     /// integrator's to set ([`Periods::add_steps`]).
     pub(crate) run: Run,
     c: Setup,
@@ -310,11 +293,11 @@ impl Periods {
         let recurrence = Recurrence::new(&c, inst, &lugre);
         let scale = error_scale(&model, &lugre, settings.tolerance);
         let mut run = Run {
-            state: at_rest(),
+            record: Record::at_rest(),
             measure: initial_measure(&c),
         };
         if c.settle == 0 {
-            run.state.settle_x_s = run.state.x_s;
+            run.record.settle_x_s = run.record.x_s;
         }
         let budget =
             (settings.max_steps_per_period as u64 * inst.cycles as u64).min(u32::MAX as u64) as u32;
@@ -332,18 +315,18 @@ impl Periods {
 
     /// Whether the run has ended: measured, failed or out of periods.
     pub(crate) fn is_finished(&self) -> bool {
-        let st = &self.run.state;
+        let st = &self.run.record;
         st.status != STATUS_OK || st.period >= self.inst.cycles || st.measured != 0
     }
 
     /// The drive's clock of the current scene period.
     pub(crate) fn clock(&self) -> Clock {
-        Clock::of(&self.inst, self.run.state.period)
+        Clock::of(&self.inst, self.run.record.period)
     }
 
     /// Counts the steps of one segment.
     pub(crate) fn add_steps(&mut self, steps: u32) {
-        let st = &mut self.run.state;
+        let st = &mut self.run.record;
         st.steps = st.steps.saturating_add(steps);
     }
 
@@ -352,7 +335,7 @@ impl Periods {
     /// (`measure::period_end` and the recurrence test), the next period.
     pub(crate) fn period_end(&mut self, y: &State) {
         let (c, common) = (&self.c, self.common);
-        let (st, m) = (&mut self.run.state, &mut self.run.measure);
+        let (st, m) = (&mut self.run.record, &mut self.run.measure);
         set_motion(st, y);
         st.time = self.inst.period();
         if c.steady {
@@ -376,12 +359,11 @@ impl Periods {
 }
 
 /// The positions and velocities of the state `y` in `st`.
-fn set_motion(st: &mut crate::laws::karnopp::integrate::State, y: &State) {
+fn set_motion(st: &mut Record, y: &State) {
     st.x_p = Vec2::new(y[XP], y[XP + 1]);
     st.v_p = Vec2::new(y[VP], y[VP + 1]);
     st.x_s = Vec2::new(y[XS], y[XS + 1]);
     st.v_s = Vec2::new(y[VS], y[VS + 1]);
-    st.v_rel = st.v_p - st.v_s;
 }
 
 /// A run as the GPU kept it (`crate::gpu::lugre`, which measures its
@@ -406,7 +388,7 @@ impl Periods {
     /// it: the result of a run the device finished, or where the CPU
     /// continues one ([`continue_until`]).
     pub(crate) fn resume(&mut self, kept: &Kept) {
-        let st = &mut self.run.state;
+        let st = &mut self.run.record;
         set_motion(st, &kept.y);
         st.time = 0.0;
         st.period = kept.period;

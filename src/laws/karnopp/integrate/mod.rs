@@ -234,8 +234,9 @@ impl measure::Slider for State {
     }
 }
 
-/// Where a run ended: the integrator's state and the measurement's
-/// accumulators (unused by a window).
+/// Where a Karnopp run ended or paused: the integrator's state and the
+/// measurement's accumulators (unused by a window). Everything above the
+/// laws reads its floor record ([`Run::ended`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Run {
     pub state: State,

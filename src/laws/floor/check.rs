@@ -29,7 +29,8 @@
 
 use std::sync::OnceLock;
 
-use crate::laws::karnopp::integrate::{STATUS_OK, Settings};
+use crate::laws::Settings;
+use crate::laws::status::STATUS_OK;
 use crate::model::{Instance, Measure};
 
 /// Share of an f32 batch's window runs (those f32 finished itself, status

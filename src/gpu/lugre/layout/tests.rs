@@ -1,0 +1,65 @@
+//! LuGre's host layouts' tests: the buffers' Rust structs against naga's
+//! layout of the shader.
+
+use super::*;
+use crate::gpu::lugre::{Arithmetic, SOFTWARE_WORKGROUP_SIZE, parse_and_validate};
+
+/// The buffers' Rust structs have the shader's layout.
+#[test]
+pub(super) fn params_and_lanes_have_the_shader_layout() {
+    let (module, _) = parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native).unwrap();
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).unwrap();
+    let find = |name: &str| {
+        module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("no {name}"))
+    };
+    let offsets = |name: &str| -> (u32, Vec<(String, u32)>) {
+        let (handle, ty) = find(name);
+        let naga::TypeInner::Struct { members, span } = &ty.inner else {
+            panic!("{name} is no struct")
+        };
+        assert_eq!(layouter[handle].size, *span);
+        (
+            *span,
+            members
+                .iter()
+                .map(|m| (m.name.clone().unwrap(), m.offset))
+                .collect(),
+        )
+    };
+    let (span, members) = offsets("Model");
+    assert_eq!(span as usize, size_of::<Params>());
+    let rust = [
+        ("gain", std::mem::offset_of!(Params, gain)),
+        ("load", std::mem::offset_of!(Params, load)),
+        ("slider_mass", std::mem::offset_of!(Params, slider_mass)),
+        ("period", std::mem::offset_of!(Params, period)),
+        ("scale", std::mem::offset_of!(Params, scale)),
+        ("one", std::mem::offset_of!(Params, one)),
+    ];
+    for (name, offset) in rust {
+        let (_, o) = members.iter().find(|(n, _)| n == name).unwrap();
+        assert_eq!(*o as usize, offset, "Model.{name}");
+    }
+    let (span, members) = offsets("Coefficients");
+    assert_eq!(span as usize, size_of::<Coefficients>());
+    let rust = <Coefficients as crate::gpu::layout::HostLayout>::members();
+    assert_eq!(rust.len(), members.len(), "Coefficients' members");
+    for (name, offset) in rust {
+        let (_, o) = members.iter().find(|(n, _)| n == name).unwrap();
+        assert_eq!(*o as usize, offset, "Coefficients.{name}");
+    }
+    let (span, members) = offsets("Lane");
+    assert_eq!(span as usize, size_of::<Lane>());
+    // Every member the engine's `HostLayout` names, at WGSL's offset.
+    let rust = <Lane as crate::gpu::layout::HostLayout>::members();
+    assert_eq!(rust.len(), members.len() - 1, "Lane's members but `_pad`");
+    for (name, offset) in rust {
+        let (_, o) = members.iter().find(|(n, _)| n == name).unwrap();
+        assert_eq!(*o as usize, offset, "Lane.{name}");
+    }
+}

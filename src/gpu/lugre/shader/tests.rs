@@ -1,0 +1,127 @@
+//! LuGre's shader source's tests: the source parsed, validated and
+//! written as SPIR-V, its literals, every WGSL file mirroring its Rust
+//! file, and no f64 division or square root in the fused arithmetic.
+
+use super::*;
+use crate::gpu::lugre::{HARDWARE_WORKGROUP_SIZE, SOFTWARE_WORKGROUP_SIZE};
+use crate::gpu::shader::defined_functions;
+
+#[test]
+fn the_shader_parses_validates_and_writes_spir_v() {
+    for (size, arithmetic) in [
+        (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native),
+        (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused),
+    ] {
+        let (module, info) = parse_and_validate(size, arithmetic).unwrap_or_else(|e| panic!("{e}"));
+        let options = naga::back::spv::Options::default();
+        let words = naga::back::spv::write_vec(&module, &info, &options, None)
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert!(words.len() > 1000);
+    }
+}
+
+/// Literals read back as the values they were written from.
+#[test]
+fn prelude_literals_round_trip() {
+    for v in EXP_TAYLOR
+        .iter()
+        .chain(&EXP_HALVINGS)
+        .chain(A.iter().flatten())
+        .chain(C.iter().flatten())
+        .chain(&[EXP_LN2_HI, EXP_LN2_LO, f64::MIN_POSITIVE, SMALLEST_STEP])
+    {
+        assert_eq!(lit(*v).parse::<f64>().unwrap(), *v);
+    }
+}
+
+/// `model.wgsl` and `rodas.wgsl` define the functions of their Rust
+/// files and only those, apart from the listed ones.
+#[test]
+fn the_shader_files_mirror_their_rust_files() {
+    let rust = [
+        (
+            "lugre/model.wgsl",
+            include_str!("../../../laws/lugre/model.rs"),
+        ),
+        (
+            "lugre/rodas.wgsl",
+            include_str!("../../../laws/lugre/rodas.rs"),
+        ),
+    ];
+    // Shader only: WGSL has no exp, hypot, powf or is_finite (their
+    // CPU mirrors are in this file), and no methods: `solve_lu` is
+    // `Lu::solve` (`solve` is `W::solve`'s name).
+    let shader_only = [
+        "keep",
+        "two_sum",
+        "split",
+        "two_prod",
+        "exp_nonpositive",
+        "hypot",
+        "hypot_kernel",
+        "is_finite",
+        "fourth_root",
+        "solve_lu",
+        // The bodies of the CPU's loops over the axes and the reduced
+        // rows, called with literal indices (no array indexed at run
+        // time once inlined).
+        "rhs_axis",
+        "jacobian_axis",
+        "jacobian_pair",
+        "ddz_dvr",
+        "w_row",
+        "reduced_entry",
+        // Rodas4's stages and coefficients by switches.
+        "stage_a",
+        "stage_c",
+        "stage",
+        "pick",
+    ];
+    // CPU only: `Model::new`, `Clock::of` and `cycles_per_period`,
+    // which the host computes (`Params::of`; a lane's `begin_period`
+    // takes the clock from the cycles per period).
+    // Written out by the host (`factor_source`), not in rodas.wgsl.
+    let cpu_only = ["new", "of", "cycles_per_period", "factor"];
+    for (wgsl_name, rust_text) in rust {
+        let (_, wgsl_text) = FILES.iter().find(|(n, _)| *n == wgsl_name).unwrap();
+        let wgsl = defined_functions(wgsl_text);
+        let cpu = defined_functions(rust_text);
+        let lists = (&shader_only[..], &cpu_only[..]);
+        crate::gpu::shader::assert_mirrors(wgsl_name, &wgsl, &wgsl, &cpu, lists);
+    }
+}
+
+/// NVIDIA's compiler rejects f64 division and square roots
+/// (`crate::gpu::shader`): the hardware variant has none but in the
+/// Karnopp prelude's helpers; the software one divides natively.
+#[test]
+fn the_fused_shader_neither_divides_nor_takes_square_roots() {
+    let count = |arithmetic| {
+        let (module, info) = parse_and_validate(HARDWARE_WORKGROUP_SIZE, arithmetic).unwrap();
+        let mut found = 0;
+        for (handle, f) in module.functions.iter() {
+            let fi = &info[handle];
+            for (e, expr) in f.expressions.iter() {
+                let is_f64 = fi[e]
+                    .ty
+                    .inner_with(&module.types)
+                    .scalar()
+                    .is_some_and(|s| s.kind == naga::ScalarKind::Float && s.width == 8);
+                let op = matches!(
+                    expr,
+                    naga::Expression::Binary {
+                        op: naga::BinaryOperator::Divide,
+                        ..
+                    } | naga::Expression::Math {
+                        fun: naga::MathFunction::Sqrt,
+                        ..
+                    }
+                );
+                found += usize::from(op && is_f64);
+            }
+        }
+        found
+    };
+    assert_eq!(count(Arithmetic::Fused), 0);
+    assert!(count(Arithmetic::Native) >= 2);
+}
