@@ -59,6 +59,7 @@ pub mod isa;
 pub mod karnopp;
 mod knobs;
 mod lanes;
+pub mod layout;
 pub mod lugre;
 mod options;
 pub mod readback;
@@ -86,7 +87,7 @@ use lanes::*;
 use options::*;
 use tail::*;
 
-pub use karnopp::{footprint, layout, shader};
+pub use karnopp::{footprint, shader};
 
 // The twin of `crate::laws::Law` on the device side: what the commands and
 // the backend ask of the laws' own lanes beside the engine's variants

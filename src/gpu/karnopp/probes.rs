@@ -4,6 +4,7 @@
 //! LuGre's).
 
 use crate::gpu::runner::Runner;
+use super::layout;
 use crate::gpu::*;
 
 /// The shader's state of every instance after `iterations` iterations of

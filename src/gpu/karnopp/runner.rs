@@ -2,6 +2,7 @@
 //! `Lanes`), and the host side of each (`Layout`: the f32 and f64
 //! shaders' storage structs, their packing and reduction) for the runner.
 
+use super::layout;
 use crate::gpu::*;
 use crate::laws::Replica;
 

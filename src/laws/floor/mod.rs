@@ -13,6 +13,8 @@
 //! * `kinds.rs`: the kinds of work a lane counts (the engine's tallies).
 //! * `setup.rs`: [`Setup`], the measurement's constants of an instance,
 //!   computed from the instance alone.
+//! * `units.rs`: the unit systems of the precisions (SI for f64,
+//!   micrometres and milliseconds for f32).
 //! * `check.rs` (f64 host code): f32's check of its heaviest window runs,
 //!   the rule both f32 paths follow, whatever the law.
 //! * `record.rs` (f64 only): [`Record`] and [`Run`], where a run of any
@@ -27,6 +29,7 @@ pub mod double;
 pub mod kinds;
 pub mod record;
 pub mod single;
+pub mod units;
 
 pub use double::{Setup, Vec2, measure, phase, setup, vec2};
 pub use record::{Record, Run};

@@ -9,7 +9,6 @@
 pub mod double;
 pub mod paper_rk4;
 pub mod single;
-pub mod units;
 
 pub use double::integrate;
 

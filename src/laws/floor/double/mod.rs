@@ -4,6 +4,8 @@
 pub mod precision {
     /// The scalar type (the shader's `alias Real`).
     pub type Real = f64;
+    /// The unit system: SI, as the reference's.
+    pub const UNITS: crate::laws::floor::units::Units = crate::laws::floor::units::Units::SI;
 
     /// Keeps its items: they exist in f64 only.
     macro_rules! only_f64 {

@@ -5,6 +5,10 @@
 pub mod precision {
     /// The scalar type (the shader's `alias Real`).
     pub type Real = f32;
+    /// The unit system: micrometres and milliseconds, in which every
+    /// quantity of the paper's mechanism is of order one.
+    pub const UNITS: crate::laws::floor::units::Units =
+        crate::laws::floor::units::Units::MICRO_MILLI;
 
     /// Drops its items: they exist in f64 only (`double::precision`).
     macro_rules! only_f64 {

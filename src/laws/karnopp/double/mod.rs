@@ -4,7 +4,7 @@
 /// What `integrate/` computes in: the f64 shader's prelude
 /// (`pidm::gpu::shader::prelude`).
 pub mod precision {
-    use crate::laws::karnopp::units::Units;
+    use crate::laws::floor::units::Units;
 
     /// The floor in this precision (`crate::laws::floor`).
     pub use crate::laws::floor::double as floor;
@@ -12,7 +12,7 @@ pub mod precision {
     /// The scalar type (the shader's `alias Real`).
     pub type Real = f64;
     /// The unit system.
-    pub const UNITS: Units = Units::SI;
+    pub const UNITS: Units = crate::laws::floor::double::precision::UNITS;
     /// Relative resolution of the time within a period.
     pub const TIME_EPSILON: f64 = f64::EPSILON;
     /// The smallest divisor kept away from zero.

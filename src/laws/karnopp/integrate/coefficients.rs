@@ -2,7 +2,7 @@
 //! computed once per instance in Real (`Coefficients::new`, which exists
 //! in Real only) and rounded once to the precision in its units
 //! ([`Coefficients::of`]). The Real integrator reads them in SI units; the
-//! GPU packs the same numbers (`pidm::gpu::layout`), so the shader divides
+//! GPU packs the same numbers (`pidm::gpu::karnopp::layout`), so the shader divides
 //! by no parameter and takes no square root of one.
 
 use super::measure::Gauge;
@@ -186,7 +186,7 @@ super::measure::gauge_by_fields!(Coefficients);
 impl Coefficients {
     /// The coefficients of an instance in this precision's units: computed
     /// in f64 from the instance in those units and rounded once, exactly
-    /// as the GPU packs them (`pidm::gpu::layout`), the corner clock's
+    /// as the GPU packs them (`pidm::gpu::karnopp::layout`), the corner clock's
     /// values split into a rounded part and the rounded rest. In f64 they
     /// are those of `Coefficients::new` in SI units.
     pub fn of(inst: &Instance, settings: &Settings) -> Coefficients {

@@ -271,7 +271,7 @@ pub fn run_instance_until(
 }
 
 /// Integrates one instance to the end from a state it reached, which the
-/// f64 shader may have left (see `pidm::gpu::layout::double::State`): the
+/// f64 shader may have left (see `pidm::gpu::karnopp::layout::double::State`): the
 /// shader mirrors this integrator step for step, so the run continues
 /// where the GPU stopped. `stop` as in [`run_instance_until`].
 pub fn continue_instance_until(

@@ -7,7 +7,7 @@
 /// What `integrate/` computes in: the f32 shader's prelude
 /// (`pidm::gpu::shader::prelude`).
 pub mod precision {
-    use crate::laws::karnopp::units::Units;
+    use crate::laws::floor::units::Units;
 
     /// The floor in this precision (`crate::laws::floor`).
     pub use crate::laws::floor::single as floor;
@@ -16,7 +16,7 @@ pub mod precision {
     pub type Real = f32;
     /// The unit system: every quantity of the paper's mechanism is of order
     /// one, inside f32's range.
-    pub const UNITS: Units = Units::MICRO_MILLI;
+    pub const UNITS: Units = crate::laws::floor::single::precision::UNITS;
     /// Relative resolution of the two-part time within a period.
     pub const TIME_EPSILON: f64 = 1e-13;
     /// The smallest divisor kept away from zero.
