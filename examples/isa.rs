@@ -24,13 +24,13 @@ fn main() -> anyhow::Result<()> {
     let precision = pidm::laws::Precision::F64;
     let info = naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
-        pidm::gpu::shader::capabilities(precision),
+        pidm::gpu::prelude::capabilities(precision),
     )
     .validate(&module)
     .map_err(|e| anyhow::anyhow!("{}", e.emit_to_string(&src)))?;
     let pipeline = isa::Pipeline {
         name: file.clone(),
-        words: pidm::gpu::footprint::module_spirv(&module, &info, precision)?,
+        words: pidm::gpu::spirv::module_spirv(&module, &info, precision)?,
         entry: entry.to_string(),
         bindings: isa::bindings(&module),
     };

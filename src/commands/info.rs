@@ -72,6 +72,7 @@ const PROBE_INSTANCES: usize = 64;
 /// slip trial of the f64 pipeline on a probe batch.
 pub fn shader_info(dir: &Path) -> Result<()> {
     use crate::gpu::footprint::{self, write_sources};
+    use crate::gpu::spirv::{Footprint, SPIRV_OPT_ARGS};
     let variants = crate::gpu::shader::Variant::every();
     let mut names = write_sources(dir, &variants)
         .with_context(|| format!("writing the shader variants into {}", dir.display()))?;
@@ -89,7 +90,7 @@ pub fn shader_info(dir: &Path) -> Result<()> {
         "variant", "indexed [B]", "variables [B]", "instructions", "inlined"
     );
     let mut measured = true;
-    let mut row = |name: &str, f: footprint::Footprint| {
+    let mut row = |name: &str, f: Footprint| {
         let show = |x: Option<usize>| x.map_or("-".to_string(), |n| n.to_string());
         measured &= f.indexed.is_some();
         println!(
@@ -116,7 +117,7 @@ pub fn shader_info(dir: &Path) -> Result<()> {
          everything and folds; inlined: naga's SPIR-V with every call inlined before any \
          folding, what a driver that inlines first works through (lavapipe's pipeline \
          creation scales with it)",
-        footprint::SPIRV_OPT_ARGS.join(" ")
+        SPIRV_OPT_ARGS.join(" ")
     );
     if !measured {
         println!(

@@ -328,7 +328,9 @@ macro_rules! floor_structs {
             }
 
             /// The phase ladder's three-gap tables in shader units.
-            pub fn gaps(g: &[crate::laws::floor::$floor::phase::Gaps; phase::LEVELS]) -> [Gaps; phase::LEVELS] {
+            pub fn gaps(
+                g: &[crate::laws::floor::$floor::phase::Gaps; phase::LEVELS],
+            ) -> [Gaps; phase::LEVELS] {
                 g.map(|g| Gaps {
                     a: g.a,
                     b: g.b,

@@ -61,11 +61,15 @@ mod knobs;
 mod lanes;
 pub mod layout;
 pub mod lugre;
+#[cfg(test)]
+pub(crate) mod mirrors;
 mod options;
+pub mod prelude;
 pub mod readback;
 mod rounds;
 mod runner;
 mod slices;
+pub mod spirv;
 mod staging;
 mod tail;
 pub mod warps;
@@ -105,7 +109,7 @@ pub fn write_law_sources(dir: &std::path::Path) -> std::io::Result<Vec<String>> 
 
 /// The laws' own pipelines' footprints, named as `pidm info`'s table
 /// lists them.
-pub fn law_footprints() -> Result<Vec<(String, footprint::Footprint)>, GpuError> {
+pub fn law_footprints() -> Result<Vec<(String, spirv::Footprint)>, GpuError> {
     lugre::footprints()
 }
 pub use knobs::{

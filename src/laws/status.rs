@@ -29,3 +29,18 @@ pub const STATUS_NOT_STEADY: u32 = 6;
 /// by more than `pidm::sweep::VERIFY_ALLOWANCE_M`. Like every non-zero status, its map
 /// entries are 0. Set by the sweep, not by an integrator.
 pub const STATUS_UNCONVERGED: u32 = 5;
+
+/// The codes an integrator sets, as WGSL constants: every law's shader
+/// prelude reads them from here (`crate::gpu::prelude`).
+pub fn wgsl_constants() -> String {
+    [
+        ("STATUS_OK", STATUS_OK),
+        ("STATUS_STEP_BUDGET", STATUS_STEP_BUDGET),
+        ("STATUS_NON_FINITE", STATUS_NON_FINITE),
+        ("STATUS_STEP_UNDERFLOW", STATUS_STEP_UNDERFLOW),
+        ("STATUS_EVENT_STORM", STATUS_EVENT_STORM),
+        ("STATUS_GRAZE", STATUS_GRAZE),
+    ]
+    .map(|(name, v)| format!("const {name}: u32 = {v}u;\n"))
+    .concat()
+}

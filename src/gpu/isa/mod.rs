@@ -9,7 +9,7 @@
 //! scratch (AMD) or local memory (NVIDIA: at most 255 registers a thread),
 //! off-chip, at every access: the figure that decides whether a lane runs
 //! at the GPU's speed. The SPIR-V measured is the one pidm hands the
-//! driver (`footprint::module_spirv`), the batch's entry point alone.
+//! driver (`spirv::module_spirv`), the batch's entry point alone.
 //!
 //! The probe is a child process (`pidm isa-probe JOBS.json`, `probe.rs`)
 //! with the newer RADV's folder on `LD_LIBRARY_PATH` and its ICD file in
@@ -90,8 +90,9 @@ pub fn bindings(module: &naga::Module) -> Vec<Binding> {
 /// Karnopp variants (two precisions, six combinations of parts) and
 /// LuGre's.
 pub fn batch_pipelines() -> Result<Vec<Pipeline>, GpuError> {
-    use crate::gpu::footprint::{module_spirv, variant_name};
+    use crate::gpu::footprint::variant_name;
     use crate::gpu::shader::{ENTRY_POINT, Parts, Variant, parse_and_validate};
+    use crate::gpu::spirv::module_spirv;
     let mut out = Vec::new();
     for precision in [crate::laws::Precision::F64, crate::laws::Precision::F32] {
         for parts in Parts::every() {
@@ -235,7 +236,7 @@ fn probe(
     radv: Option<(&Path, Family)>,
     pipelines: &[Pipeline],
 ) -> Result<probe::Report> {
-    let work = crate::gpu::footprint::tempfile_dir()
+    let work = crate::gpu::spirv::tempfile_dir()
         .context("creating a temporary folder for the probe's jobs")?;
     let result = probe_in(&work, radv, probe_exe, pipelines);
     let _ = std::fs::remove_dir_all(&work);

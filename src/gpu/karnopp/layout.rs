@@ -59,7 +59,6 @@ macro_rules! precision_structs {
                 }
             }
 
-
             host_struct! {
                 /// `pidm::laws::karnopp::integrate::Coefficients` in shader units.
                 pub struct Coefficients {
@@ -167,7 +166,6 @@ macro_rules! precision_structs {
                     pub _pad_v: U32x2,
                 }
             }
-
 
             /// The CPU state, in SI units, that a reduction reads of a
             /// finished shader state: status, period and slider positions.
@@ -288,7 +286,6 @@ macro_rules! precision_structs {
                     gaps: gaps(&c.gaps),
                 }
             }
-
 
             /// The CPU mirror's state this shader state stands for: the
             /// same quantities in the same units, so the mirror can

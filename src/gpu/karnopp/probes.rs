@@ -3,8 +3,8 @@
 //! holds them, and what each lane counted (as `gpu::lugre::probes` is
 //! LuGre's).
 
-use crate::gpu::runner::Runner;
 use super::layout;
+use crate::gpu::runner::Runner;
 use crate::gpu::*;
 
 /// The shader's state of every instance after `iterations` iterations of

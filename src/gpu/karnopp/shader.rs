@@ -9,7 +9,7 @@
 
 use crate::gpu::{GpuError, Precision, STATUS_LOOP_LIMIT, workgroup_size};
 use crate::laws::Settings;
-use crate::laws::floor::{Vec2, measure, phase};
+use crate::laws::floor::Vec2;
 use crate::laws::karnopp::integrate::Coefficients;
 use crate::laws::karnopp::integrate::constants::{self, TAYLOR_STAGE_TERMS, TAYLOR_TERMS};
 use crate::model::Instance;
@@ -259,115 +259,6 @@ fn load_terms(load: bool) -> String {
         .collect()
 }
 
-/// The f64 arithmetic helpers. NVIDIA's Vulkan compiler (driver 580) fails
-/// ("NVVM compilation failed: 3") on the integrator when it contains f64
-/// division or square root, so f64 builds both from `inverseSqrt` (which it
-/// compiles) and fused multiply-adds: Newton's iteration to full precision,
-/// then one correction, which gives the correctly rounded result in all but
-/// rare halfway cases (so the shader computes what the CPU computes). The
-/// guess squares its argument, so the helpers hold for 1e-154 < |b| <
-/// 1e154; the integrator's non-zero divisors, in SI units, are expected
-/// to stay inside it.
-/// Outside it they differ from the CPU: `recip(0)` is the largest finite
-/// value, not infinity.
-const F64_HELPERS: &str = "\
-// 1 / b: a first guess from inverseSqrt(b^2), three Newton steps (each
-// doubles the correct digits of the driver's guess), then a correction.
-fn recip(b: Real) -> Real {
-    emulated += 1u;
-    if b == Real(0.0) {
-        return INFINITY;
-    }
-    var y = inverseSqrt(b * b);
-    y = select(y, -y, b < Real(0.0));
-    y = fma(y, fma(-b, y, Real(1.0)), y);
-    y = fma(y, fma(-b, y, Real(1.0)), y);
-    y = fma(y, fma(-b, y, Real(1.0)), y);
-    return fma(y, fma(-b, y, Real(1.0)), y);
-}
-
-// a / b, rounded as the CPU rounds it (but for rare halfway cases).
-fn div(a: Real, b: Real) -> Real {
-    if b == Real(0.0) {
-        return a * recip(b);
-    }
-    let y = recip(b);
-    let q = a * y;
-    return fma(fma(-b, q, a), y, q);
-}
-
-// sqrt(x) for 0 < x < INFINITY, rounded as the CPU rounds it, and the
-// inverse square root it came from: inverseSqrt, three Newton steps, one
-// correction.
-struct RootParts {
-    s: Real,
-    y: Real,
-}
-
-fn root_parts(x: Real) -> RootParts {
-    var y = inverseSqrt(x);
-    let half = Real(0.5) * x;
-    y = y * fma(-half * y, y, Real(1.5));
-    y = y * fma(-half * y, y, Real(1.5));
-    y = y * fma(-half * y, y, Real(1.5));
-    let s = x * y;
-    return RootParts(fma(fma(-s, s, x), Real(0.5) * y, s), y);
-}
-
-// sqrt(x) for x >= 0 (and x itself for 0 and NaN).
-fn root(x: Real) -> Real {
-    emulated += 1u;
-    if !(x > Real(0.0)) || x > INFINITY {
-        return x;
-    }
-    return root_parts(x).s;
-}
-
-// 1 / sqrt(x) rounded as the CPU's 1.0 / x.sqrt() (the reciprocal of the
-// rounded root): the root, then its reciprocal from the root's own
-// inverse square root, already within an ulp of it, in one Newton step
-// and recip's correction (not recip's whole sequence). x as root takes it.
-fn recip_root(x: Real) -> Real {
-    if !(x > Real(0.0)) || x > INFINITY {
-        return recip(root(x));
-    }
-    emulated += 1u;
-    let r = root_parts(x);
-    let y = fma(r.y, fma(-r.s, r.y, Real(1.0)), r.y);
-    return fma(y, fma(-r.s, y, Real(1.0)), y);
-}
-";
-
-/// The f32 helpers: the hardware's own division and square root.
-const F32_HELPERS: &str = "\
-fn recip(b: Real) -> Real {
-    return Real(1.0) / b;
-}
-
-fn div(a: Real, b: Real) -> Real {
-    return a / b;
-}
-
-fn root(x: Real) -> Real {
-    return sqrt(x);
-}
-
-fn recip_root(x: Real) -> Real {
-    return Real(1.0) / sqrt(x);
-}
-";
-
-/// Helpers common to both precisions, and the count of emulated f64
-/// operations (`recip`, `root` and `recip_root` calls, a division counted
-/// as its `recip`) the lane's tally reports: f32 counts none.
-const COMMON_HELPERS: &str = "\
-var<private> emulated: u32;
-
-fn div2(a: V2, b: V2) -> V2 {
-    return V2(div(a.x, b.x), div(a.y, b.y));
-}
-";
-
 /// `fn inverse_integer(n: u32) -> Real`: 1 / n as a literal for every n
 /// the Taylor series use, so no series divides (the CPU multiplies by the
 /// same constants), and the same literals as constants `INVERSE_n` for the
@@ -390,20 +281,16 @@ fn inverse_integer_fn() -> String {
 }
 
 /// The prelude that defines `Real`, `V2`, the constants and the helpers of
-/// one variant.
+/// one variant: the floor's (`crate::gpu::prelude`), then Karnopp's.
 pub fn prelude(variant: Variant) -> String {
-    // Per precision: the scalar type, its epsilon and largest value, the
-    // helpers, and the rest from the CPU mirror's precision module (the
+    // Per precision: the rest from the CPU mirror's precision module (the
     // time scale's epsilon, the smallest divisor kept away from zero and
     // the f32 formulation's switches), so shader and mirror cannot differ.
     macro_rules! from {
-        ($p:path, $real:literal, $eps:expr, $max:expr, $helpers:expr) => {{
+        ($p:path) => {{
             use $p as p;
             (
-                $real,
-                $eps,
                 p::TIME_EPSILON,
-                $max,
                 format!("{:e}", p::TINY),
                 [
                     p::COMPENSATED_TIME,
@@ -413,25 +300,12 @@ pub fn prelude(variant: Variant) -> String {
                     p::APPROACH_NOISE,
                     p::GRAZE_GUARD,
                 ],
-                $helpers,
             )
         }};
     }
-    let (real, eps, time_eps, max, tiny, switches, helpers) = match variant.precision {
-        Precision::F32 => from!(
-            crate::laws::karnopp::single::precision,
-            "f32",
-            f32::EPSILON as f64,
-            f32::MAX as f64,
-            F32_HELPERS
-        ),
-        Precision::F64 => from!(
-            crate::laws::karnopp::double::precision,
-            "f64",
-            f64::EPSILON,
-            f64::MAX,
-            F64_HELPERS
-        ),
+    let (time_eps, tiny, switches) = match variant.precision {
+        Precision::F32 => from!(crate::laws::karnopp::single::precision),
+        Precision::F64 => from!(crate::laws::karnopp::double::precision),
     };
     let [
         compensated,
@@ -441,36 +315,32 @@ pub fn prelude(variant: Variant) -> String {
         approach_noise,
         graze_guard,
     ] = switches;
-    let body = format!(
-        "alias Real = {real};\n\
-         const EPSILON: Real = {eps:e};\n\
+    format!(
+        "// Prelude for {variant:?}, generated by pidm::gpu::shader.\n\
+         {floor}\
          const TIME_EPSILON: Real = {time_eps:e};\n\
-         const INFINITY: Real = {max:e};\n\
          const TINY: Real = {tiny};\n\
          const COMPENSATED_TIME: bool = {compensated};\n\
          const FIXED_PHASE: bool = {fixed_phase};\n\
          const CORNER_CLOCK: bool = {corner_clock};\n\
          const DEFLECTION: bool = {deflection};\n\
          const APPROACH_NOISE: bool = {approach_noise};\n\
-         const GRAZE_GUARD: bool = {graze_guard};\n"
-    );
-    format!(
-        "// Prelude for {variant:?}, generated by pidm::gpu::shader.\n\
-         {body}alias V2 = vec2<Real>;\n\
+         const GRAZE_GUARD: bool = {graze_guard};\n\
          const WORKGROUP_SIZE: u32 = {workgroup}u;\n\
          const LOOP_LIMITER: bool = {limiter};\n\
          const STEADY: bool = {steady};\n\
-         const PHASE: bool = {phase};\n\
          const LOAD: bool = {load};\n\
          const STATUS_LOOP_LIMIT: u32 = {STATUS_LOOP_LIMIT}u;\n\
-         {constants}\n{helpers}\n{COMMON_HELPERS}\n{inverse}\n",
+         {constants}\n{inverse}\n",
+        floor = crate::gpu::prelude::floor(
+            variant.precision,
+            variant.parts.steady && variant.parts.phase
+        ),
         limiter = variant.loop_limiter,
         steady = variant.parts.steady,
-        phase = variant.parts.steady && variant.parts.phase,
         load = variant.parts.load,
         workgroup = workgroup_size(),
-        constants =
-            constants::wgsl_constants() + &measure::wgsl_constants() + &phase::wgsl_constants(),
+        constants = constants::wgsl_constants(),
         inverse = inverse_integer_fn(),
     )
 }
@@ -496,14 +366,6 @@ pub fn source(variant: Variant) -> String {
     src
 }
 
-/// The naga capabilities the shader needs in one precision.
-pub fn capabilities(precision: Precision) -> naga::valid::Capabilities {
-    match precision {
-        Precision::F32 => naga::valid::Capabilities::empty(),
-        Precision::F64 => naga::valid::Capabilities::FLOAT64,
-    }
-}
-
 /// Parses and validates one variant with naga, as wgpu will, and returns
 /// the module (with its type arena, for layout checks).
 pub fn parse_and_validate(
@@ -515,75 +377,16 @@ pub fn parse_and_validate(
         precision,
         message: e.emit_to_string(&src),
     })?;
-    let info =
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), capabilities(precision))
-            .validate(&module)
-            .map_err(|e| GpuError::ShaderCompile {
-                precision,
-                message: e.emit_to_string(&src),
-            })?;
+    let info = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        crate::gpu::prelude::capabilities(precision),
+    )
+    .validate(&module)
+    .map_err(|e| GpuError::ShaderCompile {
+        precision,
+        message: e.emit_to_string(&src),
+    })?;
     Ok((module, info))
-}
-
-/// Function names defined in a source text (`fn name(` at any
-/// indentation), leaving out a Rust file's test module, its traits, its
-/// trait impls and its macros (the floor's `Gauge` and `Slider` and a
-/// law's accessors for them, which in WGSL are struct members read by
-/// name).
-#[cfg(test)]
-pub(crate) fn defined_functions(text: &str) -> Vec<String> {
-    let text = text.split("#[cfg(test)]").next().unwrap_or(text);
-    let mut names = Vec::new();
-    let mut in_trait = false;
-    for line in text.lines() {
-        let is_trait = line.starts_with("pub trait ")
-            || line.starts_with("trait ")
-            || line.starts_with("macro_rules! ")
-            || (line.starts_with("impl") && line.contains(" for "));
-        let is_trait = is_trait && !line.trim_end().ends_with("{}");
-        in_trait = (in_trait || is_trait) && line != "}";
-        if in_trait {
-            continue;
-        }
-        let line = line.trim_start();
-        let rest = ["pub(crate) fn ", "pub(super) fn ", "pub fn ", "fn "]
-            .iter()
-            .find_map(|prefix| line.strip_prefix(prefix));
-        if let Some(rest) = rest {
-            let name: String = rest
-                .chars()
-                .take_while(|c| c.is_alphanumeric() || *c == '_')
-                .collect();
-            names.push(name);
-        }
-    }
-    names
-}
-
-/// A WGSL file's functions (`wgsl`) each in its Rust mirror (`cpu`) or
-/// listed as shader-only, and each Rust function among `found` (the
-/// file's, with those the shader defines elsewhere for it) or listed as
-/// CPU-only: both laws' mirror tests.
-#[cfg(test)]
-pub(crate) fn assert_mirrors(
-    wgsl_name: &str,
-    wgsl: &[String],
-    found: &[String],
-    cpu: &[String],
-    (shader_only, cpu_only): (&[&str], &[&str]),
-) {
-    for f in wgsl {
-        assert!(
-            cpu.contains(f) || shader_only.contains(&f.as_str()),
-            "{wgsl_name} defines {f}, its Rust mirror does not"
-        );
-    }
-    for f in cpu {
-        assert!(
-            found.contains(f) || cpu_only.contains(&f.as_str()),
-            "the Rust mirror of {wgsl_name} defines {f}, the shader does not"
-        );
-    }
 }
 
 #[cfg(test)]

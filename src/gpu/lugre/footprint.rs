@@ -10,9 +10,9 @@ use crate::laws::Precision;
 pub fn footprint(
     workgroup_size: u32,
     arithmetic: Arithmetic,
-) -> Result<crate::gpu::footprint::Footprint, GpuError> {
+) -> Result<crate::gpu::spirv::Footprint, GpuError> {
     let (_, words) = lane_spirv(workgroup_size, arithmetic)?;
-    Ok(crate::gpu::footprint::measure_spirv(&words))
+    Ok(crate::gpu::spirv::measure_spirv(&words))
 }
 
 /// The module of the integrator's entry point alone and the SPIR-V naga
@@ -26,7 +26,7 @@ pub fn lane_spirv(
     let (mut module, _) = parse_and_validate(workgroup_size, arithmetic)?;
     module.entry_points.retain(|e| e.name == super::ENTRY_POINT);
     let info = validate(&module, &source(workgroup_size, arithmetic))?;
-    let words = crate::gpu::footprint::module_spirv(&module, &info, Precision::F64)?;
+    let words = crate::gpu::spirv::module_spirv(&module, &info, Precision::F64)?;
     Ok((module, words))
 }
 
@@ -63,7 +63,7 @@ pub fn write_sources(dir: &std::path::Path) -> std::io::Result<Vec<String>> {
 }
 
 /// Both pipelines' footprints, named as `pidm info`'s table lists them.
-pub fn footprints() -> Result<Vec<(String, crate::gpu::footprint::Footprint)>, GpuError> {
+pub fn footprints() -> Result<Vec<(String, crate::gpu::spirv::Footprint)>, GpuError> {
     LISTED
         .iter()
         .map(|&(_, row, size, arithmetic)| Ok((row.to_string(), footprint(size, arithmetic)?)))
@@ -95,7 +95,7 @@ mod tests {
     /// absence fails the test, elsewhere it is said and skipped.
     #[test]
     fn the_lane_indexes_no_private_array_at_run_time() {
-        if !crate::gpu::footprint::spirv_opt_available() {
+        if !crate::gpu::spirv::spirv_opt_available() {
             assert!(
                 std::env::var_os("CI").is_none(),
                 "spirv-opt is missing (Debian's spirv-tools)"

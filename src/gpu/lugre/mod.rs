@@ -44,8 +44,8 @@
 //!   checks that a batch gives the same bits at 3 attempts per dispatch (an
 //!   attempt cut short changes the numbers).
 //! * Arithmetic ([`Arithmetic`]): on llvmpipe WGSL's own f64 division and
-//!   square root, which are IEEE's, as the CPU's; on hardware the Karnopp
-//!   prelude's `div` and `root` ([`crate::gpu::shader::prelude`]), as
+//!   square root, which are IEEE's, as the CPU's; on hardware the floor
+//!   prelude's `div` and `root` ([`crate::gpu::prelude`]), as
 //!   NVIDIA's compiler requires. llvmpipe's f64 `fma` is not fused (a
 //!   rounded product and a sum), and its compiler rewrites a + b - a to b
 //!   where it may reassociate: the shader uses no fma, and `keep` guards
@@ -58,7 +58,7 @@
 //!   the shader's right-hand side, Jacobian and Rodas4 step are the CPU's
 //!   to the last bit ([`LugreGpu::mirror_check`]), and whole runs are too
 //!   (`tests/it/gpu_lugre.rs`). On hardware, division and square root go
-//!   through the Karnopp prelude's helpers and may round otherwise; the
+//!   through the floor prelude's helpers and may round otherwise; the
 //!   step control is chaotic at the tolerance's scale (one unit in the
 //!   last place of the tolerance moves the CPU's own results by up to
 //!   8.5e-6 um per cycle at the default 1e-4, 2.3e-7 um at 1e-6).

@@ -46,3 +46,18 @@ pub fn rejected_share(kinds: &[u64; ITERATION_KINDS]) -> f64 {
         rejected as f64 / trials as f64
     }
 }
+
+/// The kinds as WGSL constants, for every law's shader prelude
+/// (`crate::gpu::prelude`).
+pub fn wgsl_constants() -> String {
+    [
+        ("ITERATION_BOUNDARY", ITERATION_BOUNDARY),
+        ("ITERATION_STICK", ITERATION_STICK),
+        ("ITERATION_SLIP", ITERATION_SLIP),
+        ("ITERATION_REJECTED", ITERATION_REJECTED),
+        ("ITERATION_EVENT", ITERATION_EVENT),
+        ("ITERATION_PERIOD_END", ITERATION_PERIOD_END),
+    ]
+    .map(|(name, v)| format!("const {name}: u32 = {v}u;\n"))
+    .concat()
+}

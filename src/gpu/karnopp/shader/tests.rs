@@ -4,6 +4,7 @@
 //! or square root outside the prelude's helpers.
 
 use super::*;
+use crate::gpu::mirrors::{assert_mirrors, defined_functions};
 
 #[test]
 fn prelude_literals_round_trip() {

@@ -4,7 +4,7 @@
 
 use super::*;
 use crate::gpu::lugre::{HARDWARE_WORKGROUP_SIZE, SOFTWARE_WORKGROUP_SIZE};
-use crate::gpu::shader::defined_functions;
+use crate::gpu::mirrors::{assert_mirrors, defined_functions};
 
 #[test]
 fn the_shader_parses_validates_and_writes_spir_v() {
@@ -87,13 +87,13 @@ fn the_shader_files_mirror_their_rust_files() {
         let wgsl = defined_functions(wgsl_text);
         let cpu = defined_functions(rust_text);
         let lists = (&shader_only[..], &cpu_only[..]);
-        crate::gpu::shader::assert_mirrors(wgsl_name, &wgsl, &wgsl, &cpu, lists);
+        assert_mirrors(wgsl_name, &wgsl, &wgsl, &cpu, lists);
     }
 }
 
 /// NVIDIA's compiler rejects f64 division and square roots
-/// (`crate::gpu::shader`): the hardware variant has none but in the
-/// Karnopp prelude's helpers; the software one divides natively.
+/// (`crate::gpu::prelude`): the hardware variant has none but in the
+/// floor prelude's helpers; the software one divides natively.
 #[test]
 fn the_fused_shader_neither_divides_nor_takes_square_roots() {
     let count = |arithmetic| {
