@@ -30,7 +30,14 @@ from types import SimpleNamespace
 
 # The files outside a law's folders that may name a law: ARCHITECTURE.md's
 # "adding a law" checklist, at most 6 files (issue 58).
-ALLOW = ["src/laws/mod.rs", "src/gpu/mod.rs", "src/model/mod.rs", "src/backend/gpu.rs"]
+ALLOW = [
+    "src/laws/law.rs",
+    "src/laws/mod.rs",
+    "src/gpu/mod.rs",
+    "src/model/mod.rs",
+    "src/scene/keys.rs",
+    "src/backend/gpu.rs",
+]
 
 # The files that break rule 2 or 4 today: warnings, not errors. It only
 # shrinks: a file here that breaks neither fails the check.
