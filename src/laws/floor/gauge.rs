@@ -148,3 +148,52 @@ pub trait Slider {
     fn measured(&self) -> u32;
     fn set_measured(&mut self, measured: u32);
 }
+
+/// Implements [`Slider`] for a state that holds its fields under the
+/// trait's names (`period`, `x_p`, `v_p`, `x_s`, `v_s`, `mode`,
+/// `measured`), with `$reached(&state, t, t_lo)` saying whether its time
+/// has reached t + t_lo (the floor's `Record`, Karnopp's `State`);
+/// `Slider`, `Real` and `Vec2` of the state's precision in scope.
+macro_rules! slider_by_fields {
+    ($t:ty, $reached:path) => {
+        impl Slider for $t {
+            #[inline]
+            fn period(&self) -> u32 {
+                self.period
+            }
+            #[inline]
+            fn reached(&self, t: Real, t_lo: Real) -> bool {
+                $reached(self, t, t_lo)
+            }
+            #[inline]
+            fn x_p(&self) -> Vec2 {
+                self.x_p
+            }
+            #[inline]
+            fn v_p(&self) -> Vec2 {
+                self.v_p
+            }
+            #[inline]
+            fn x_s(&self) -> Vec2 {
+                self.x_s
+            }
+            #[inline]
+            fn v_s(&self) -> Vec2 {
+                self.v_s
+            }
+            #[inline]
+            fn mode(&self) -> u32 {
+                self.mode
+            }
+            #[inline]
+            fn measured(&self) -> u32 {
+                self.measured
+            }
+            #[inline]
+            fn set_measured(&mut self, measured: u32) {
+                self.measured = measured;
+            }
+        }
+    };
+}
+pub(crate) use slider_by_fields;

@@ -50,7 +50,7 @@ use super::phase::{Phase, phase_period_end};
 use super::precision::only_f64;
 use super::vec2::Vec2;
 
-pub(crate) use super::gauge::gauge_by_fields;
+pub(crate) use super::gauge::{gauge_by_fields, slider_by_fields};
 pub use super::gauge::{Gauge, Slider};
 
 /// Common-period ends whose states are kept for the recurrence test: the

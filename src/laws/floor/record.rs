@@ -5,8 +5,8 @@
 //! keeps its run in one directly. Laws differ in their state, never in
 //! their record.
 
-use super::double::Vec2;
 use super::double::gauge::Slider;
+use super::double::{Real, Vec2};
 use super::double::measure::Measure;
 use crate::laws::status::STATUS_OK;
 
@@ -82,43 +82,15 @@ impl From<&Record> for Record {
     }
 }
 
-/// The record as the floor's measurement reads it (LuGre measures on its
-/// record; time is in one part, f64).
-impl Slider for Record {
-    #[inline]
-    fn period(&self) -> u32 {
-        self.period
-    }
+impl Record {
+    /// Whether the record's time within its period has reached t + t_lo
+    /// (f64 keeps time in one part).
     #[inline]
     fn reached(&self, t: f64, t_lo: f64) -> bool {
         self.time > t || (self.time == t && 0.0 >= t_lo)
     }
-    #[inline]
-    fn x_p(&self) -> Vec2 {
-        self.x_p
-    }
-    #[inline]
-    fn v_p(&self) -> Vec2 {
-        self.v_p
-    }
-    #[inline]
-    fn x_s(&self) -> Vec2 {
-        self.x_s
-    }
-    #[inline]
-    fn v_s(&self) -> Vec2 {
-        self.v_s
-    }
-    #[inline]
-    fn mode(&self) -> u32 {
-        self.mode
-    }
-    #[inline]
-    fn measured(&self) -> u32 {
-        self.measured
-    }
-    #[inline]
-    fn set_measured(&mut self, measured: u32) {
-        self.measured = measured;
-    }
 }
+
+// The record as the floor's measurement reads it (LuGre measures on its
+// record).
+super::double::gauge::slider_by_fields!(Record, Record::reached);

@@ -194,44 +194,11 @@ pub fn time_reached(st: &State, t: Real, t_lo: Real) -> bool {
     st.time > t || (st.time == t && st.time_lo >= t_lo)
 }
 
-/// Karnopp's state as the floor's measurement reads it.
-impl measure::Slider for State {
-    #[inline]
-    fn period(&self) -> u32 {
-        self.period
-    }
-    #[inline]
-    fn reached(&self, t: Real, t_lo: Real) -> bool {
-        time_reached(self, t, t_lo)
-    }
-    #[inline]
-    fn x_p(&self) -> Vec2 {
-        self.x_p
-    }
-    #[inline]
-    fn v_p(&self) -> Vec2 {
-        self.v_p
-    }
-    #[inline]
-    fn x_s(&self) -> Vec2 {
-        self.x_s
-    }
-    #[inline]
-    fn v_s(&self) -> Vec2 {
-        self.v_s
-    }
-    #[inline]
-    fn mode(&self) -> u32 {
-        self.mode
-    }
-    #[inline]
-    fn measured(&self) -> u32 {
-        self.measured
-    }
-    #[inline]
-    fn set_measured(&mut self, measured: u32) {
-        self.measured = measured;
-    }
+// Karnopp's state as the floor's measurement reads it.
+mod slider {
+    use super::measure::{Slider, slider_by_fields};
+    use super::{Real, State, Vec2, time_reached};
+    slider_by_fields!(State, time_reached);
 }
 
 /// Where a Karnopp run ended or paused: the integrator's state and the
