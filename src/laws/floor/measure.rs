@@ -50,8 +50,8 @@ use super::phase::{Phase, phase_period_end};
 use super::precision::only_f64;
 use super::vec2::Vec2;
 
-pub(crate) use super::gauge::{gauge_by_fields, slider_by_fields};
 pub use super::gauge::{Gauge, Slider};
+pub(crate) use super::gauge::{gauge_by_fields, slider_by_fields};
 
 /// Common-period ends whose states are kept for the recurrence test: the
 /// longest lag found is this many common periods (subharmonic motion of

@@ -6,8 +6,8 @@
 //! their record.
 
 use super::double::gauge::Slider;
-use super::double::{Real, Vec2};
 use super::double::measure::Measure;
+use super::double::{Real, Vec2};
 use crate::laws::status::STATUS_OK;
 
 /// The law-neutral part of a run's state: what the steady measurement
