@@ -179,7 +179,7 @@ fn close_segment(
 // started if the host has just set it up.
 fn take_run(index: u32) -> Lane {
     held = index;
-    model = models[index];
+    load_model(index);
     opaque_one = model.one;
     var lane = states[index];
     if lane.flag == LANE_FRESH {
@@ -330,7 +330,8 @@ fn lugre_mirror(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x >= arrayLength(&probes) || gid.x >= arrayLength(&probed) {
         return;
     }
-    model = models[0];
+    held = gid.x;
+    load_model(held);
     opaque_one = model.one;
     let p = probes[gid.x];
     let step = rodas4(p.drive, p.y, p.h);

@@ -57,8 +57,10 @@ struct Model {
     _pad: u32,
 }
 
-// The instance the invocation integrates (Rust's `self`).
-var<private> model: Model;
+// The instance the invocation integrates (Rust's `self`) is `model`: a
+// private copy on llvmpipe (hold_registers.wgsl); on hardware the host
+// writes `models[held]` for it, read where used (`pidm::gpu::lugre`'s
+// `read_where_used`).
 
 // A drive voltage linear in time over a segment: `a + b t` [V], t the time
 // within the scene period [s].

@@ -35,59 +35,35 @@ struct W {
 
 // One Rodas4 step of size `h` from `y`. The stages solve (I / (gamma h) -
 // J) k = rhs, that is gamma h (I - gamma h J)^-1 rhs. The CPU's loops stay
-// loops (one rhs, one solve and one sum of each kind in the code), but the
-// stages are six vectors of their own, picked by switches (`stage`,
-// `pick`), and the sums over a vector's components are written
-// out (`axpy`, `add_quotients`, from the host): nothing here is indexed at
-// run time.
+// loops (one rhs, one solve and one sum of each kind in the code), the
+// stages and W are kept where the lane holds them (`stage`, `keep_stage`,
+// `w_lu` and its kin: hold_memory.wgsl or hold_registers.wgsl), and the sums
+// over a vector's components are written out (`axpy`, `add_quotients`,
+// from the host).
 fn rodas4(drive: Drive, y: Vector, h: Real) -> Step {
-    var w = w_matrix(drive, y, GAMMA * h);
-    var k0: Vector;
-    var k1: Vector;
-    var k2: Vector;
-    var k3: Vector;
-    var k4: Vector;
-    var k5: Vector;
+    keep_stage_matrix(w_matrix(drive, y, GAMMA * h));
     var start = y;
     for (var i = 0u; i < 6u; i++) {
         if i >= 1u && i < 5u {
             let a = stage_a(i);
             start = y;
             for (var j = 0u; j < i; j++) {
-                start = axpy(start, pick(a, j), stage(j, k0, k1, k2, k3, k4));
+                start = axpy(start, pick(a, j), stage(j));
             }
         } else if i == 5u {
-            start = add(start, k4);
+            start = add(start, stage(4u));
         }
         var f = rhs(start, drive);
         if i > 0u {
             let c = stage_c(i);
             for (var j = 0u; j < i; j++) {
-                f = add_quotients(f, pick(c, j), stage(j, k0, k1, k2, k3, k4), h);
+                f = add_quotients(f, pick(c, j), stage(j), h);
             }
         }
-        let k = scaled(GAMMA * h, solve(&w, f));
-        switch i {
-            case 0u: { k0 = k; }
-            case 1u: { k1 = k; }
-            case 2u: { k2 = k; }
-            case 3u: { k3 = k; }
-            case 4u: { k4 = k; }
-            default: { k5 = k; }
-        }
+        keep_stage(i, scaled(GAMMA * h, solve(f)));
     }
+    let k5 = stage(5u);
     return Step(add(start, k5), k5);
-}
-
-// Stage j's vector (j < 5), by a switch: no array of stages to index.
-fn stage(j: u32, k0: Vector, k1: Vector, k2: Vector, k3: Vector, k4: Vector) -> Vector {
-    switch j {
-        case 0u: { return k0; }
-        case 1u: { return k1; }
-        case 2u: { return k2; }
-        case 3u: { return k3; }
-        default: { return k4; }
-    }
 }
 
 // Entry j of a coefficient row, by literal indices.
@@ -237,18 +213,18 @@ fn w_row(w: ptr<function, W>, a: ptr<function, ReducedMatrix>, j: ptr<function, 
     (*w).j_t[r] = (*j)[n][T];
 }
 
-// W::solve: W x = b. The CPU's loops over the reduced rows and the axes
-// are written out, with literal indices.
-fn solve(w: ptr<function, W>, b: Vector) -> Vector {
-    let g = (*w).g;
+// W::solve: W x = b, with the step's W (`w_lu` and its kin). The CPU's loops
+// over the reduced rows and the axes are written out, with literal indices.
+fn solve(b: Vector) -> Vector {
+    let g = w_g();
     var reduced: Reduced;
-    reduced[0] = reduced_entry(w, b, 0u);
-    reduced[1] = reduced_entry(w, b, 1u);
-    reduced[2] = reduced_entry(w, b, 2u);
-    reduced[3] = reduced_entry(w, b, 3u);
-    reduced[4] = reduced_entry(w, b, 4u);
-    reduced[5] = reduced_entry(w, b, 5u);
-    let v = solve_lu(w, reduced);
+    reduced[0] = reduced_entry(b, 0u);
+    reduced[1] = reduced_entry(b, 1u);
+    reduced[2] = reduced_entry(b, 2u);
+    reduced[3] = reduced_entry(b, 3u);
+    reduced[4] = reduced_entry(b, 4u);
+    reduced[5] = reduced_entry(b, 5u);
+    let v = solve_lu(reduced);
     var x: Vector;
     x[REDUCED[0]] = v[0];
     x[REDUCED[1]] = v[1];
@@ -266,10 +242,10 @@ fn solve(w: ptr<function, W>, b: Vector) -> Vector {
 
 // Reduced row `r` of the right-hand side `b` (Rust's sum over the axes,
 // from -0.0, which adds nothing).
-fn reduced_entry(w: ptr<function, W>, b: Vector, r: u32) -> Real {
-    let g = (*w).g;
-    let from_xp = (*w).j_xp[r][0] * b[XP] + (*w).j_xp[r][1] * b[XP + 1u];
-    return b[REDUCED[r]] + g * from_xp + g * (*w).j_t[r] * b[T];
+fn reduced_entry(b: Vector, r: u32) -> Real {
+    let g = w_g();
+    let from_xp = w_j_xp(r, 0) * b[XP] + w_j_xp(r, 1) * b[XP + 1u];
+    return b[REDUCED[r]] + g * from_xp + g * w_j_t(r) * b[T];
 }
 
 // Lu::factor (`factor`) is written out by the host too

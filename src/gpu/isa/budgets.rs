@@ -85,10 +85,12 @@ pub const BUDGETS: [Budget; 7] = [
         limit: Limit::NoSpills,
         held: false,
     },
+    // Held since the lane reads its model, stages and W from device
+    // memory where used (237 VGPRs asked on navi31, none spilled).
     Budget {
         prefix: super::LUGRE_NAME,
         limit: Limit::NoSpills,
-        held: false,
+        held: true,
     },
     Budget {
         prefix: "f64-hardware",

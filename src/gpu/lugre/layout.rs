@@ -10,7 +10,7 @@ use crate::gpu::layout::{F64x2, U32x2};
 use crate::laws::floor::Setup;
 use crate::laws::floor::measure::SNAPSHOTS;
 use crate::laws::floor::phase::LEVELS;
-use crate::laws::lugre::run::{Clock, Kept, Linear, N, PeriodStart, Periods, State, first_step};
+use crate::laws::lugre::run::{Clock, Kept, Linear, N, PeriodStart, Periods, R, State, first_step};
 use crate::model::AXES;
 
 /// One instance's parameters (`model.wgsl`'s `Model`): the model, the
@@ -275,6 +275,25 @@ impl Lane {
             taken: recurrence.taken,
         }
     }
+}
+
+/// The bytes of one instance's Rodas4 stages in device memory
+/// (`rodas.wgsl`'s `stages`, binding 14: six states): only the shader
+/// reads and writes them; the host sizes the buffer.
+pub const STAGE_BYTES: usize = 6 * size_of::<State>();
+
+/// One instance's stage matrix W in device memory (`rodas.wgsl`'s `W` in
+/// `ws`, binding 15): its LU factorisation (`Lu`'s `a` and `pivot`), g,
+/// and the Jacobian's position and time columns on the reduced rows. Only
+/// the shader reads and writes it; the host sizes the buffer.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct StageMatrix {
+    pub lu: [[f64; R]; R],
+    pub pivot: [u32; R],
+    pub g: f64,
+    pub j_xp: [[f64; 2]; R],
+    pub j_t: [f64; R],
 }
 
 /// One instance's recurrence snapshots (`measure.wgsl`'s `Recurrence`).

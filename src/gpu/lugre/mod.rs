@@ -111,6 +111,33 @@ pub const FILES: [(&str, &str); 4] = [
     ),
 ];
 
+/// Where a lane holds its parameters, Rodas4 stages and W: in device
+/// memory on hardware (`Arithmetic::Fused`'s adapters), in private
+/// variables on llvmpipe (`Arithmetic::Native`), each file defining the
+/// same functions ([`holder`]).
+pub const HOLDERS: [(&str, &str); 2] = [
+    (
+        "lugre/hold_memory.wgsl",
+        include_str!("../../../shaders/lugre/hold_memory.wgsl"),
+    ),
+    (
+        "lugre/hold_registers.wgsl",
+        include_str!("../../../shaders/lugre/hold_registers.wgsl"),
+    ),
+];
+
+/// The holder of `arithmetic`'s adapters ([`HOLDERS`]): device memory on
+/// hardware, where registers are few (issue 57: 237 VGPRs on RADV's
+/// compiler, none spilled, against 479 asked and 271 spilled), private
+/// variables on llvmpipe, where device memory ran the 61 x 61 LuGre map
+/// 2.9 times slower.
+pub fn holder(arithmetic: Arithmetic) -> (&'static str, &'static str) {
+    match arithmetic {
+        Arithmetic::Fused => HOLDERS[0],
+        Arithmetic::Native => HOLDERS[1],
+    }
+}
+
 /// The floor's measurement files, which every LuGre shader includes as
 /// they are after [`FILES`] (`measure.wgsl` says how they fit).
 pub const MEASUREMENT_FILES: [(&str, &str); 3] = [

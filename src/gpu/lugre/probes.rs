@@ -4,8 +4,8 @@
 use super::layout::drive_of;
 use super::runner::{Lugre, compile};
 use super::{
-    FUNCTIONS_ENTRY_POINT, LANE_FRESH, LANE_STOPPED, Lane, LugreGpu, MIRROR_ENTRY_POINT,
-    MirrorCheck, Params, Probe, Probed,
+    Arithmetic, FUNCTIONS_ENTRY_POINT, LANE_FRESH, LANE_STOPPED, Lane, LugreGpu,
+    MIRROR_ENTRY_POINT, MirrorCheck, Params, Probe, Probed,
 };
 use crate::gpu::lanes::Work;
 use crate::gpu::runner::Runner;
@@ -39,7 +39,8 @@ impl LugreGpu<'_> {
         // The lane through the engine's protocol, one attempt a dispatch.
         let options = self.options();
         let (coefficients, states, extra) = self.upload(std::slice::from_ref(&book));
-        let bound = [(9, &extra[0]), (10, &extra[1])];
+        let bound: Vec<(u32, &wgpu::Buffer)> =
+            extra.iter().map(|(b, buffer)| (*b, buffer)).collect();
         let runner = Runner::on(self.ctx, settings, &options);
         let work = Work {
             instances: std::slice::from_ref(inst),
@@ -155,9 +156,11 @@ impl LugreGpu<'_> {
                 usage: wgpu::BufferUsages::STORAGE | usage,
             })
         };
+        // The model once per probe: each invocation reads its own
+        // (`models[held]`), as a batch's lanes do.
         let models = storage(
             "lugre probe model",
-            bytemuck::bytes_of(params),
+            bytemuck::cast_slice(&vec![*params; probes.len()]),
             wgpu::BufferUsages::empty(),
         );
         let input = storage(
@@ -172,23 +175,48 @@ impl LugreGpu<'_> {
             wgpu::BufferUsages::COPY_SRC,
         );
         let read = mappable(device, "lugre probed read", bytes);
+        // Room for each probe's stages and W where the lane holds them in
+        // device memory (hold_memory.wgsl).
+        let stages = storage(
+            "lugre probe stages",
+            &vec![0; probes.len() * super::layout::STAGE_BYTES],
+            wgpu::BufferUsages::empty(),
+        );
+        let matrices = storage(
+            "lugre probe stage matrices",
+            &vec![0; probes.len() * size_of::<super::layout::StageMatrix>()],
+            wgpu::BufferUsages::empty(),
+        );
+        let mut entries = vec![
+            wgpu::BindGroupEntry {
+                binding: 9,
+                resource: models.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 12,
+                resource: input.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 13,
+                resource: output.as_entire_binding(),
+            },
+        ];
+        if self.arithmetic == Arithmetic::Fused {
+            entries.extend([
+                wgpu::BindGroupEntry {
+                    binding: 14,
+                    resource: stages.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 15,
+                    resource: matrices.as_entire_binding(),
+                },
+            ]);
+        }
         let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("lugre mirror"),
             layout: &pipeline.get_bind_group_layout(0),
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 9,
-                    resource: models.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 12,
-                    resource: input.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 13,
-                    resource: output.as_entire_binding(),
-                },
-            ],
+            entries: &entries,
         });
         let mut encoder = device.create_command_encoder(&Default::default());
         {

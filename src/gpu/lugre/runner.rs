@@ -4,7 +4,7 @@
 //! resumes each run from what its lane kept, and the CPU continues the
 //! batch's slow tail from the runs' period starts.
 
-use super::layout::Recurrence;
+use super::layout::{Recurrence, STAGE_BYTES, StageMatrix};
 use super::{
     Arithmetic, ENTRY_POINT, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_STOPPED, Lane,
     Params, SOFTWARE_ATTEMPTS, SOFTWARE_LANES, SOFTWARE_WORKGROUP_SIZE, parse_and_validate, source,
@@ -271,6 +271,8 @@ impl<'a> LugreGpu<'a> {
             size_of::<GpuMeasure>(),
             size_of::<Head>(),
             size_of::<Recurrence>(),
+            STAGE_BYTES,
+            size_of::<StageMatrix>(),
             size_of::<crate::gpu::layout::control::Tally>(),
         ]
         .into_iter()
@@ -340,7 +342,8 @@ impl<'a> LugreGpu<'a> {
         }
         let n = books.len();
         let (coefficients, states, extra) = profile::time(Phase::Upload, || self.upload(&books));
-        let bound = [(9, &extra[0]), (10, &extra[1])];
+        let bound: Vec<(u32, &wgpu::Buffer)> =
+            extra.iter().map(|(b, buffer)| (*b, buffer)).collect();
         let kernel = self.kernel(&bound);
         let options = self.options();
         let started = Instant::now();
@@ -368,7 +371,7 @@ impl<'a> LugreGpu<'a> {
         for (k, _) in &sliced.pilot {
             lanes[*k].flag = LANE_STOPPED;
         }
-        let recurrences = self.recurrences(&extra[1], &lanes)?;
+        let recurrences = self.recurrences(&extra[1].1, &lanes)?;
         for (k, book) in books.iter_mut().enumerate() {
             // A batch of windows reads no accumulators.
             let measure = measures.get(k).copied().unwrap_or_else(GpuMeasure::zeroed);
@@ -401,13 +404,15 @@ impl<'a> LugreGpu<'a> {
     }
 
     /// A batch's coefficients (the measurement's, packed), its runs as the
-    /// host sets them up, and its own buffers: the parameters (binding 9)
-    /// and room for the recurrence snapshots (binding 10).
+    /// host sets them up, and its own buffers: the parameters (binding 9),
+    /// room for the recurrence snapshots (binding 10), and on hardware
+    /// room for each instance's Rodas4 stages and W (bindings 14 and 15,
+    /// `shaders/lugre/hold_memory.wgsl`), each with its binding.
     #[allow(clippy::type_complexity)]
     pub(super) fn upload(
         &self,
         books: &[Periods],
-    ) -> (Vec<Coefficients>, Vec<Lane>, [wgpu::Buffer; 2]) {
+    ) -> (Vec<Coefficients>, Vec<Lane>, Vec<(u32, wgpu::Buffer)>) {
         let device = self.ctx.device();
         let params: Vec<Params> = books.iter().map(Params::of).collect();
         let models = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -420,13 +425,21 @@ impl<'a> LugreGpu<'a> {
             "lugre recurrences",
             (books.len() * size_of::<Recurrence>()) as u64,
         );
+        let mut own = vec![(9, models), (10, recurrences)];
+        if self.arithmetic == Arithmetic::Fused {
+            let n = books.len() as u64;
+            let stages = storage(device, "lugre stages", n * STAGE_BYTES as u64);
+            let w_bytes = n * size_of::<StageMatrix>() as u64;
+            let matrices = storage(device, "lugre stage matrices", w_bytes);
+            own.extend([(14, stages), (15, matrices)]);
+        }
         (
             books
                 .iter()
                 .map(|b| Coefficients::of(b.setup(), b.cycles()))
                 .collect(),
             books.iter().map(Lane::start).collect(),
-            [models, recurrences],
+            own,
         )
     }
 

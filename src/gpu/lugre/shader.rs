@@ -1,10 +1,11 @@
 //! The shader's source: the prelude generated from the Rust constants
 //! (Rodas4's coefficients, the reduced layout, statuses, the exp
-//! polynomial), the arithmetic of the adapter, and the three files.
+//! polynomial), the arithmetic of the adapter, the files, and where the
+//! lane holds its parameters, stages and W (`holder`).
 
 use super::{
     CORNER_RETRIES, FILES, LANE_FRESH, LANE_RUNNING, LANE_STOPPED, MEASUREMENT_FILES, SEGMENT_DONE,
-    SEGMENT_GOING, SOFTWARE_PERIOD_ENDS,
+    SEGMENT_GOING, SOFTWARE_PERIOD_ENDS, holder,
 };
 use crate::laws::lugre::libm::*;
 
@@ -203,14 +204,14 @@ fn libm_source() -> String {
 fn solve_lu_source() -> String {
     let mut s = String::from(
         "// Lu::solve, written out by pidm::gpu::lugre (`solve_lu_source`).\n\
-         fn solve_lu(w: ptr<function, W>, rhs_b: Reduced) -> Reduced {\n",
+         fn solve_lu(rhs_b: Reduced) -> Reduced {\n",
     );
     for r in 0..R {
         s += &format!("    var b{r} = rhs_b[{r}];\n");
     }
     for k in 0..R {
         // b[k] <-> b[p]: b[k] takes b[p], b[p] takes the old b[k].
-        s += &format!("    let p{k} = (*w).lu.pivot[{k}];\n    let t{k} = b{k};\n");
+        s += &format!("    let p{k} = w_pivot({k});\n    let t{k} = b{k};\n");
         let mut taken = format!("b{k}");
         for j in k + 1..R {
             taken = format!("select({taken}, b{j}, p{k} == {j}u)");
@@ -222,14 +223,14 @@ fn solve_lu_source() -> String {
     }
     for k in 0..R {
         for i in k + 1..R {
-            s += &format!("    b{i} -= (*w).lu.a[{i}][{k}] * b{k};\n");
+            s += &format!("    b{i} -= w_lu({i}, {k}) * b{k};\n");
         }
     }
     for k in (0..R).rev() {
         for j in k + 1..R {
-            s += &format!("    b{k} -= (*w).lu.a[{k}][{j}] * b{j};\n");
+            s += &format!("    b{k} -= w_lu({k}, {j}) * b{j};\n");
         }
-        s += &format!("    b{k} = quotient(b{k}, (*w).lu.a[{k}][{k}]);\n");
+        s += &format!("    b{k} = quotient(b{k}, w_lu({k}, {k}));\n");
     }
     // One constructor of its own would be a second array type in naga's
     // SPIR-V, which spirv-opt's validator rejects as the return value.
@@ -280,7 +281,7 @@ fn vector_source() -> String {
     s += "    return err;\n}\n\nfn repeats_snapshot(y: Vector, s: u32) -> bool {\n    return true";
     for n in 0..N {
         s += &format!(
-            "\n        && abs(y[{n}] - recurrences[held].snaps[s][{n}]) <= models[held].repeat[{n}]"
+            "\n        && abs(y[{n}] - recurrences[held].snaps[s][{n}]) <= model.repeat[{n}]"
         );
     }
     s += ";\n}\n\nfn all_finite(x: Vector) -> bool {\n    return true";
@@ -352,7 +353,7 @@ fn factor_source() -> String {
 pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
     let mut src = prelude(workgroup_size, arithmetic);
     src += &crate::gpu::engine_queue();
-    for (name, text) in FILES {
+    for (name, text) in FILES.into_iter().chain([holder(arithmetic)]) {
         src += &format!("\n// ---- shaders/{name}\n");
         src += text;
     }
@@ -366,7 +367,29 @@ pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
     src += &solve_lu_source();
     src += "\n";
     src += &vector_source();
-    src
+    match arithmetic {
+        Arithmetic::Fused => read_where_used(&src),
+        Arithmetic::Native => src,
+    }
+}
+
+/// `src` with the hardware lane's parameters read where used: every
+/// `model.` (the private copy of hold_registers.wgsl, which this variant
+/// does not include) written `models[held].`, the instance's own entry of
+/// binding 9, so that no register holds them. The WGSL text stays one,
+/// the llvmpipe variant's; a comment's `docs/model.md` is left alone.
+pub fn read_where_used(src: &str) -> String {
+    const COPY: &str = "model.";
+    let mut out = String::with_capacity(src.len() + src.len() / 8);
+    let mut rest = src;
+    while let Some(at) = rest.find(COPY) {
+        let before = rest[..at].chars().next_back();
+        let is_name = !before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == '/');
+        out += &rest[..at];
+        out += if is_name { "models[held]." } else { COPY };
+        rest = &rest[at + COPY.len()..];
+    }
+    out + rest
 }
 
 /// Parses and validates the shader with naga, as wgpu will.

@@ -63,3 +63,40 @@ pub(super) fn params_and_lanes_have_the_shader_layout() {
         assert_eq!(*o as usize, offset, "Lane.{name}");
     }
 }
+
+/// The host's `StageMatrix` is the shader's `W`, member for member
+/// (`Lu`'s `a` and `pivot` as its first two).
+#[test]
+fn the_stage_matrix_has_the_shader_layout() {
+    let (module, _) = parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native).unwrap();
+    let member = |name: &str, field: &str| {
+        let (_, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("no {name}"));
+        let naga::TypeInner::Struct { members, span } = &ty.inner else {
+            panic!("{name} is no struct")
+        };
+        let m = members.iter().find(|m| m.name.as_deref() == Some(field));
+        (
+            *span,
+            m.unwrap_or_else(|| panic!("no {name}.{field}")).offset,
+        )
+    };
+    let (span, lu) = member("W", "lu");
+    assert_eq!(span as usize, size_of::<StageMatrix>());
+    assert_eq!(lu as usize, std::mem::offset_of!(StageMatrix, lu));
+    let (_, pivot) = member("Lu", "pivot");
+    assert_eq!(
+        (lu + pivot) as usize,
+        std::mem::offset_of!(StageMatrix, pivot)
+    );
+    for (field, offset) in [
+        ("g", std::mem::offset_of!(StageMatrix, g)),
+        ("j_xp", std::mem::offset_of!(StageMatrix, j_xp)),
+        ("j_t", std::mem::offset_of!(StageMatrix, j_t)),
+    ] {
+        assert_eq!(member("W", field).1 as usize, offset, "W.{field}");
+    }
+}

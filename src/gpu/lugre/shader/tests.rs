@@ -74,7 +74,6 @@ fn the_shader_files_mirror_their_rust_files() {
         // Rodas4's stages and coefficients by switches.
         "stage_a",
         "stage_c",
-        "stage",
         "pick",
     ];
     // CPU only: `Model::new`, `Clock::of` and `cycles_per_period`,
@@ -124,4 +123,26 @@ fn the_fused_shader_neither_divides_nor_takes_square_roots() {
     };
     assert_eq!(count(Arithmetic::Fused), 0);
     assert!(count(Arithmetic::Native) >= 2);
+}
+
+/// The hardware variant reads its parameters where used: no `model.`
+/// outside comments, no private copy; `docs/model.md` in a comment is
+/// left as it is.
+#[test]
+fn the_hardware_variant_reads_its_parameters_where_used() {
+    let src = source(HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused);
+    let code: String = src
+        .lines()
+        .map(|l| l.split("//").next().unwrap_or(""))
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert!(!code.contains(" model.") && !code.contains("(model."));
+    assert!(!code.contains("var<private> model"));
+    assert!(code.contains("models[held].stiffness"));
+    assert_eq!(
+        read_where_used("x = model.a; // docs/model.md\nmodels.b"),
+        "x = models[held].a; // docs/model.md\nmodels.b"
+    );
+    let software = source(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native);
+    assert!(software.contains("var<private> model: Model;"));
 }
