@@ -165,7 +165,9 @@ mod tests {
         let all = [
             stats("f64-hardware-window", 256, 461, 33024),
             stats("f32-hardware-window", 240, 0, 0),
-            stats(crate::gpu::isa::LUGRE_NAME, 256, 271, 69376),
+            // LuGre's lane since it reads its model, stages and W where
+            // used (309d7b2's: 256 VGPRs, 271 spilled, 69,376 B).
+            stats(crate::gpu::isa::LUGRE_NAME, 252, 0, 0),
         ];
         let v = verdicts(&all);
         // Each budget reads the one pipeline of its prefix.
@@ -173,7 +175,7 @@ mod tests {
         for (b, s, kept) in v {
             assert!(s.pipeline.starts_with(b.prefix));
             assert_eq!(kept, b.kept(s));
-            // Every budget held today is kept by 309d7b2's figures.
+            // Every budget held today is kept by today's figures.
             assert!(!b.held || kept, "{}", b.describe());
         }
     }
