@@ -41,39 +41,39 @@ fn initial_state() -> State {
     let c = &coefficients[held];
     let p = frac(c.phase);
     let rising = p < c.duty;
-    var st: State;
-    st.x_p = V2(0.0);
-    st.v_p = V2(0.0);
-    st.x_s = V2(0.0);
-    st.v_s = V2(0.0);
-    st.v_rel = V2(0.0);
-    st.held = V2(0.0);
-    st.settle_x_s = V2(0.0);
-    st.cycle_phase = p;
-    st.next_corner = select(V2(1.0), c.duty, rising);
-    st.corner_at = c.first_corner;
-    st.corner_at_lo = c.first_corner_lo;
-    st.time = Real(0.0);
-    st.time_lo = Real(0.0);
-    st.h_slip = Real(0.0);
-    st.h_accepted = Real(0.0);
-    st.err_accepted = Real(0.0);
-    st.rising = select(vec2<u32>(0u), vec2<u32>(1u), rising);
-    st.mode = MODE_STICK;
-    st.period = 0u;
-    st.status = STATUS_OK;
-    st.steps = 0u;
-    st.stalled = 0u;
-    st.rejections = 0u;
-    st.measured = 0u;
-    st._pad = Real(0.0);
+    var init: State;
+    init.x_p = V2(0.0);
+    init.v_p = V2(0.0);
+    init.x_s = V2(0.0);
+    init.v_s = V2(0.0);
+    init.v_rel = V2(0.0);
+    init.held = V2(0.0);
+    init.settle_x_s = V2(0.0);
+    init.cycle_phase = p;
+    init.next_corner = select(V2(1.0), c.duty, rising);
+    init.corner_at = c.first_corner;
+    init.corner_at_lo = c.first_corner_lo;
+    init.time = Real(0.0);
+    init.time_lo = Real(0.0);
+    init.h_slip = Real(0.0);
+    init.h_accepted = Real(0.0);
+    init.err_accepted = Real(0.0);
+    init.rising = select(vec2<u32>(0u), vec2<u32>(1u), rising);
+    init.mode = MODE_STICK;
+    init.period = 0u;
+    init.status = STATUS_OK;
+    init.steps = 0u;
+    init.stalled = 0u;
+    init.rejections = 0u;
+    init.measured = 0u;
+    init._pad = Real(0.0);
     if DEFLECTION {
         // At rest at zero: deflected by minus the drive's static motion.
-        let drive = drive_force(st);
-        st.x_p = -drive.force * c.inv_stiffness;
-        st.v_p = -drive.slope * c.inv_stiffness;
+        let drive = drive_force(init);
+        init.x_p = -drive.force * c.inv_stiffness;
+        init.v_p = -drive.slope * c.inv_stiffness;
     }
-    return st;
+    return init;
 }
 
 fn is_finished(st: State) -> bool {

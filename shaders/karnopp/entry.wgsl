@@ -27,19 +27,14 @@ fn limited_at_start(st: ptr<function, State>) {
 @group(0) @binding(0) var<storage, read> coefficients: array<Coefficients>;
 @group(0) @binding(1) var<storage, read_write> states: array<State>;
 
-// Starts (`initialize`) or loads instance `index`.
-fn take(index: u32, initialize: bool) -> State {
-    if !initialize {
-        return states[index];
-    }
-    start_measure(index);
-    return initial_state();
-}
-
 // The instance the lane holds, whose coefficients every function reads
 // where it uses them (`let c = &coefficients[held];`): a lane copies none
 // of them.
 var<private> held: u32;
+
+// The lane's own entry of the buffers where an f64 hardware lane holds a
+// step's flow and samples (hold_memory.wgsl).
+var<private> lane_slot: u32;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn advance_slice(
@@ -50,6 +45,7 @@ fn advance_slice(
     if lane >= arrayLength(&lanes) {
         return;
     }
+    lane_slot = lane;
     var tally: Tally;
     let count = min(arrayLength(&states), arrayLength(&coefficients));
     var index = lanes[lane];
@@ -63,12 +59,13 @@ fn advance_slice(
         count_kind(&tally, TAKEN);
     }
     held = index;
-    var st = take(index, control.initialize == 1u);
+    var st: State;
+    take_state(index, control.initialize == 1u, &st);
     var left = control.max_iterations;
     loop {
         let finished = is_finished(st);
         if finished || at_cap(st.steps) {
-            states[index] = st;
+            keep_state(index, &st);
             if finished {
                 finish_measure(index);
                 atomicAdd(&counters.finished, 1u);
@@ -82,7 +79,7 @@ fn advance_slice(
             }
             index = order[slot];
             held = index;
-            st = states[index];
+            load_state(index, &st);
             count_kind(&tally, TAKEN);
         }
         if left == 0u {
@@ -114,17 +111,17 @@ fn advance_slice(
     // (a replica released by its group's merge: two lanes would then run
     // it, each writing its state and accumulators).
     if index != NO_INSTANCE && is_finished(st) {
-        states[index] = st;
+        keep_state(index, &st);
         finish_measure(index);
         atomicAdd(&counters.finished, 1u);
         index = NO_INSTANCE;
     } else if index != NO_INSTANCE && at_cap(st.steps) {
-        states[index] = st;
+        keep_state(index, &st);
         park(index);
         index = NO_INSTANCE;
     }
     if index != NO_INSTANCE {
-        states[index] = st;
+        keep_state(index, &st);
         tally.progress = f32(st.period) + f32(st.time) / f32(coefficients[index].period);
     }
     lanes[lane] = index;

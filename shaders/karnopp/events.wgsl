@@ -42,12 +42,12 @@ fn primary_event(kind: u32, s: Sample) -> V2 {
     return V2(-e, -de);
 }
 
-fn approach_event(flow: Flow, s: Sample) -> V2 {
+fn approach_event(s: Sample) -> V2 {
     let c = &coefficients[held];
     return V2(dot(relative_velocity(s), flow.b0) - c.band, dot(relative_acceleration(s), flow.b0));
 }
 
-fn approach_scale(flow: Flow, s: Sample) -> Real {
+fn approach_scale(s: Sample) -> Real {
     let c = &coefficients[held];
     return c.band + dot(abs(s.v_p) + abs(s.v_s), abs(flow.b0));
 }
@@ -71,43 +71,52 @@ fn reversal_scale(st: State, s: Sample) -> Real {
     return dot(abs(s.v_p) + abs(s.v_s), abs(st.held));
 }
 
-// The event values at the five samples of a step: five members, not an
-// array, so that nothing is indexed at run time (a private array indexed at
-// run time lives in memory, off-chip on NVIDIA).
-struct EventSamples {
-    v0: V2,
-    v1: V2,
-    v2: V2,
-    v3: V2,
-    v4: V2,
+// The value of event `kind` at sample j of the lane's `samples`, times
+// `sign`: the CPU's array of event values, each entry computed where it
+// is read, so that no lane holds five of them.
+fn sample_event(st: State, kind: u32, sign: Real, j: u32) -> V2 {
+    switch j {
+        case 0u: {
+            return sign * kind_event(st, kind, samples.s0);
+        }
+        case 1u: {
+            return sign * kind_event(st, kind, samples.s1);
+        }
+        case 2u: {
+            return sign * kind_event(st, kind, samples.s2);
+        }
+        case 3u: {
+            return sign * kind_event(st, kind, samples.s3);
+        }
+        default: {
+            return sign * kind_event(st, kind, samples.s4);
+        }
+    }
 }
 
-// `ev[j]` by selection.
-fn event_sample(ev: EventSamples, j: u32) -> V2 {
-    var out = ev.v0;
-    out = select(out, ev.v1, j == 1u);
-    out = select(out, ev.v2, j == 2u);
-    out = select(out, ev.v3, j == 3u);
-    return select(out, ev.v4, j == 4u);
+// The value of event `kind` at `s`.
+fn kind_event(st: State, kind: u32, s: Sample) -> V2 {
+    if kind == EVENT_REVERSAL {
+        return reversal_event(st, s);
+    }
+    return any_primary_event(kind, s);
 }
 
 fn find_crossing(
     st: State,
     kind: u32,
     sign: Real,
-    ev: EventSamples,
     scale: Real,
-    flow: Flow,
     h: Real,
 ) -> Crossing {
-    var prev = sign * ev.v0;
+    var prev = sample_event(st, kind, sign, 0u);
     let noise = EVENT_NOISE * EPSILON * scale;
     if prev.x < -noise {
         return Crossing(true, Real(0.0), Real(0.0), INFINITY);
     }
     var closest = INFINITY;
     for (var j = 0u; j < 4u; j++) {
-        let next = sign * event_sample(ev, j + 1u);
+        let next = sample_event(st, kind, sign, j + 1u);
         let lo = theta(j) * h;
         let hi = theta(j + 1u) * h;
         let armed = prev.x > Real(0.0) || j == 0u;
@@ -116,7 +125,7 @@ fn find_crossing(
         }
         if prev.x > Real(0.0) && next.x > Real(0.0) && prev.y < Real(0.0) && next.y > Real(0.0) {
             let tau = hermite_minimum(prev, next, hi - lo);
-            let e = event_at(st, kind, sign, flow, lo + tau).x;
+            let e = event_at(st, kind, sign, lo + tau).x;
             if e <= Real(0.0) {
                 return Crossing(true, lo, lo + tau, closest);
             }
@@ -127,17 +136,8 @@ fn find_crossing(
     return Crossing(false, Real(0.0), Real(0.0), closest);
 }
 
-fn event_at(st: State, kind: u32, sign: Real, flow: Flow, tau: Real) -> V2 {
-    let s = eval_at(flow, tau);
-    var ev: V2;
-    if kind == EVENT_REVERSAL {
-        ev = reversal_event(st, s);
-    } else if kind == EVENT_APPROACH {
-        ev = approach_event(flow, s);
-    } else {
-        ev = primary_event(kind, s);
-    }
-    return sign * ev;
+fn event_at(st: State, kind: u32, sign: Real, tau: Real) -> V2 {
+    return sign * kind_event(st, kind, eval_at(tau));
 }
 
 // The `good` closure of `hermite_minimum`.
@@ -179,7 +179,6 @@ fn locate(
     st: State,
     kind: u32,
     sign: Real,
-    flow: Flow,
     lo_in: Real,
     hi_in: Real,
 ) -> Real {
@@ -194,7 +193,7 @@ fn locate(
         if hi - lo <= resolution {
             break;
         }
-        let ev = event_at(st, kind, sign, flow, tau);
+        let ev = event_at(st, kind, sign, tau);
         if ev.x > Real(0.0) {
             lo = tau;
         } else {

@@ -28,9 +28,11 @@ struct Sample {
     v_rel: V2,
 }
 
-// The motion of both axes over one step.
+// The motion of both axes over one step: the lane's one `flow`
+// (hold_registers.wgsl or hold_memory.wgsl), which `set_flow` writes. Its
+// flags are u32s (1 true), so that it may live in device memory.
 struct Flow {
-    stuck: bool,
+    stuck: u32,
     osc: Oscillator,
     damping: V2,
     stiffness: V2,
@@ -59,7 +61,7 @@ struct Flow {
     g0_rel: V2,
     g1_rel: V2,
     ramp: V2,
-    taylor: vec2<bool>,
+    taylor: vec2<u32>,
 }
 
 // The friction direction model u(theta) = b0 + b1 theta + b2 theta^2.
@@ -145,14 +147,20 @@ fn compose(osc: Oscillator, a: Propagator, b: Propagator) -> Propagator {
     );
 }
 
-fn sample_propagators(flow: Flow, h: Real) -> SamplePropagators {
+// `sample_propagators` of the lane's flow, into the lane's `props`
+// (hold_registers.wgsl or hold_memory.wgsl).
+fn set_sample_propagators(h: Real) {
     let osc = flow.osc;
     let quarter = propagator(osc, Real(0.25) * h);
     let half = compose(osc, quarter, quarter);
-    return SamplePropagators(quarter, half, compose(osc, half, quarter), compose(osc, half, half));
+    props.quarter = quarter;
+    props.half = half;
+    props.three_quarters = compose(osc, half, quarter);
+    props.full = compose(osc, half, half);
 }
 
-fn make_flow(
+// `make_flow`, into the lane's `flow`.
+fn set_flow(
     stuck: bool,
     x_p: V2,
     v_p: V2,
@@ -164,7 +172,7 @@ fn make_flow(
     dir: DirectionModel,
     h: Real,
     inv_h: Real,
-) -> Flow {
+) {
     let c = &coefficients[held];
     var osc = c.slip;
     var g0_rel = -c.coulomb * dir.b0;
@@ -187,44 +195,42 @@ fn make_flow(
     let x0 = (g0 - c.damping * x1 - Real(2.0) * osc.mass * x2) * c.inv_stiffness;
     let turning = dir.b1 != V2(0.0) | dir.b2 != V2(0.0);
     let short = osc.rate * h <= V2(1.0);
-    var f: Flow;
-    f.stuck = stuck;
-    f.osc = osc;
-    f.damping = c.damping;
-    f.stiffness = c.stiffness;
-    f.h = h;
-    f.inv_h = inv_h;
-    f.part1 = x1;
-    f.part2 = x2;
-    f.y0 = x_p - x0;
-    f.w0 = v_p - x1;
-    f.g0_rel = g0_rel;
-    f.g1_rel = g1_rel;
-    f.ramp = slope * c.inv_stiffness;
+    flow.stuck = select(0u, 1u, stuck);
+    flow.osc = osc;
+    flow.damping = c.damping;
+    flow.stiffness = c.stiffness;
+    flow.h = h;
+    flow.inv_h = inv_h;
+    flow.part1 = x1;
+    flow.part2 = x2;
+    flow.y0 = x_p - x0;
+    flow.w0 = v_p - x1;
+    flow.g0_rel = g0_rel;
+    flow.g1_rel = g1_rel;
+    flow.ramp = slope * c.inv_stiffness;
     if DEFLECTION {
         // x_p and v_p are deflections (x_p - F / k, v_p - slope / k): the
         // homogeneous part's start is their sum with the small offsets of
         // the particular solution from the drive's static motion, with no
         // difference of two large positions (f32 would know it only to
         // 6e-8 of the stage's position).
-        f.part1 = (g1_rel - Real(2.0) * c.damping * x2) * c.inv_stiffness;
-        f.y0 = x_p + (c.damping * x1 + Real(2.0) * osc.mass * x2 - g0_rel) * c.inv_stiffness;
-        f.w0 = v_p + (Real(2.0) * c.damping * x2 - g1_rel) * c.inv_stiffness;
+        flow.part1 = (g1_rel - Real(2.0) * c.damping * x2) * c.inv_stiffness;
+        flow.y0 = x_p + (c.damping * x1 + Real(2.0) * osc.mass * x2 - g0_rel) * c.inv_stiffness;
+        flow.w0 = v_p + (Real(2.0) * c.damping * x2 - g1_rel) * c.inv_stiffness;
     }
-    f.x_p = x_p;
-    f.v_p = v_p;
-    f.x_s = x_s;
-    f.v_s = v_s;
-    f.v_rel = v_rel;
-    f.b0 = dir.b0;
-    f.slider0 = c.fc_over_ms * dir.b0 - neg_load_accel();
-    f.slider1 = c.fc_over_ms * dir.b1;
-    f.slider2 = c.fc_over_ms * dir.b2;
-    f.g0 = g0;
-    f.g1 = g1;
-    f.g2 = g2;
-    f.taylor = vec2<bool>(!stuck) & turning & short;
-    return f;
+    flow.x_p = x_p;
+    flow.v_p = v_p;
+    flow.x_s = x_s;
+    flow.v_s = v_s;
+    flow.v_rel = v_rel;
+    flow.b0 = dir.b0;
+    flow.slider0 = c.fc_over_ms * dir.b0 - neg_load_accel();
+    flow.slider1 = c.fc_over_ms * dir.b1;
+    flow.slider2 = c.fc_over_ms * dir.b2;
+    flow.g0 = g0;
+    flow.g1 = g1;
+    flow.g2 = g2;
+    flow.taylor = select(vec2<u32>(0u), vec2<u32>(1u), vec2<bool>(!stuck) & turning & short);
 }
 
 // Stage (x, change of v since the start, a, jerk) per axis.
@@ -235,33 +241,31 @@ struct Stage {
     j: V2,
 }
 
-fn eval_stage(f: Flow, prop: Propagator, tau: Real) -> Stage {
-    let o = f.osc;
-    let dy = prop.a0m1 * f.y0 + prop.a1 * f.w0;
-    let dw = prop.a0m1 * f.w0 + prop.a1 * (-o.w2 * f.y0 - Real(2.0) * o.sigma * f.w0);
-    let y = f.y0 + dy;
-    let w = f.w0 + dw;
-    let a_h = -o.w2 * y - Real(2.0) * o.sigma * w;
-    let j_h = -o.w2 * w - Real(2.0) * o.sigma * a_h;
-    let x = f.x_p + (f.part1 + f.part2 * tau) * tau + dy;
-    let dv = Real(2.0) * f.part2 * tau + dw;
-    let a = Real(2.0) * f.part2 + a_h;
+fn eval_stage(prop: Propagator, tau: Real) -> Stage {
+    let dy = prop.a0m1 * flow.y0 + prop.a1 * flow.w0;
+    let dw = prop.a0m1 * flow.w0 + prop.a1 * (-flow.osc.w2 * flow.y0 - Real(2.0) * flow.osc.sigma * flow.w0);
+    let y = flow.y0 + dy;
+    let w = flow.w0 + dw;
+    let a_h = -flow.osc.w2 * y - Real(2.0) * flow.osc.sigma * w;
+    let j_h = -flow.osc.w2 * w - Real(2.0) * flow.osc.sigma * a_h;
+    let x = flow.x_p + (flow.part1 + flow.part2 * tau) * tau + dy;
+    let dv = Real(2.0) * flow.part2 * tau + dw;
+    let a = Real(2.0) * flow.part2 + a_h;
     return Stage(x, dv, a, j_h);
 }
 
-fn eval_stage_taylor(f: Flow, tau: Real) -> Stage {
-    let o = f.osc;
-    var d0 = f.x_p;
-    var d1 = f.v_p;
-    var d2 = (f.g0 - f.damping * d1 - f.stiffness * d0) * o.inv_mass;
-    var d3 = (f.g1 - f.damping * d2 - f.stiffness * d1) * o.inv_mass;
+fn eval_stage_taylor(tau: Real) -> Stage {
+    var d0 = flow.x_p;
+    var d1 = flow.v_p;
+    var d2 = (flow.g0 - flow.damping * d1 - flow.stiffness * d0) * flow.osc.inv_mass;
+    var d3 = (flow.g1 - flow.damping * d2 - flow.stiffness * d1) * flow.osc.inv_mass;
     if DEFLECTION {
         // The same derivatives from the deflections (F - k x_p = -k d).
-        d2 = (f.g0_rel - f.damping * (d1 + f.ramp) - f.stiffness * d0) * o.inv_mass;
-        d3 = (f.g1_rel - f.damping * d2 - f.stiffness * d1) * o.inv_mass;
+        d2 = (flow.g0_rel - flow.damping * (d1 + flow.ramp) - flow.stiffness * d0) * flow.osc.inv_mass;
+        d3 = (flow.g1_rel - flow.damping * d2 - flow.stiffness * d1) * flow.osc.inv_mass;
     }
     var t = Real(1.0);
-    let rate_tau = o.rate * tau;
+    let rate_tau = flow.osc.rate * tau;
     var bound = V2(1.0);
     var out = Stage(V2(0.0), V2(0.0), V2(0.0), V2(0.0));
     for (var n = 0u; n < TAYLOR_STAGE_TERMS; n++) {
@@ -279,9 +283,9 @@ fn eval_stage_taylor(f: Flow, tau: Real) -> Stage {
         out.j = select(out.j, out.j + d3 * t, live);
         var g = V2(0.0);
         if n == 0u {
-            g = Real(2.0) * f.g2;
+            g = Real(2.0) * flow.g2;
         }
-        let d4 = (g - f.damping * d3 - f.stiffness * d2) * o.inv_mass;
+        let d4 = (g - flow.damping * d3 - flow.stiffness * d2) * flow.osc.inv_mass;
         d0 = d1;
         d1 = d2;
         d2 = d3;
@@ -291,33 +295,34 @@ fn eval_stage_taylor(f: Flow, tau: Real) -> Stage {
     return out;
 }
 
-fn eval_flow(flow: Flow, prop: Propagator, tau: Real) -> Sample {
+fn eval_flow(prop: Propagator, tau: Real) -> Sample {
     // Each form only where an axis needs it (see flow.rs).
-    var st = Stage(V2(0.0), V2(0.0), V2(0.0), V2(0.0));
-    if !all(flow.taylor) {
-        st = eval_stage(flow, prop, tau);
+    var stage = Stage(V2(0.0), V2(0.0), V2(0.0), V2(0.0));
+    let taylor = flow.taylor != vec2<u32>(0u);
+    if !all(taylor) {
+        stage = eval_stage(prop, tau);
     }
-    if any(flow.taylor) {
-        let ts = eval_stage_taylor(flow, tau);
-        st.x = select(st.x, ts.x, flow.taylor);
-        st.dv = select(st.dv, ts.dv, flow.taylor);
-        st.a = select(st.a, ts.a, flow.taylor);
-        st.j = select(st.j, ts.j, flow.taylor);
+    if any(taylor) {
+        let ts = eval_stage_taylor(tau);
+        stage.x = select(stage.x, ts.x, taylor);
+        stage.dv = select(stage.dv, ts.dv, taylor);
+        stage.a = select(stage.a, ts.a, taylor);
+        stage.j = select(stage.j, ts.j, taylor);
     }
-    let v = flow.v_p + st.dv;
+    let v = flow.v_p + stage.dv;
     var s: Sample;
-    s.x_p = st.x;
+    s.x_p = stage.x;
     s.v_p = v;
-    s.a_p = st.a;
-    s.j_p = st.j;
-    if flow.stuck {
-        s.x_s = flow.x_s + (st.x - flow.x_p);
+    s.a_p = stage.a;
+    s.j_p = stage.j;
+    if flow.stuck != 0u {
+        s.x_s = flow.x_s + (stage.x - flow.x_p);
         s.v_s = v;
         if DEFLECTION {
-            s.x_s = flow.x_s + ((st.x - flow.x_p) + flow.ramp * tau);
+            s.x_s = flow.x_s + ((stage.x - flow.x_p) + flow.ramp * tau);
             s.v_s = v + flow.ramp;
         }
-        s.a_s = st.a;
+        s.a_s = stage.a;
         s.v_rel = V2(0.0);
     } else {
         let th = tau * flow.inv_h;
@@ -331,11 +336,11 @@ fn eval_flow(flow: Flow, prop: Propagator, tau: Real) -> Sample {
         let dv_s = (h * th) * (c0 + (c1 * Real(0.5) + c2 * (ONE_THIRD * th)) * th);
         s.v_s = flow.v_s + dv_s;
         s.a_s = c0 + (c1 + c2 * th) * th;
-        s.v_rel = flow.v_rel + (st.dv - dv_s);
+        s.v_rel = flow.v_rel + (stage.dv - dv_s);
     }
     return s;
 }
 
-fn eval_at(flow: Flow, tau: Real) -> Sample {
-    return eval_flow(flow, propagator(flow.osc, tau), tau);
+fn eval_at(tau: Real) -> Sample {
+    return eval_flow(propagator(flow.osc, tau), tau);
 }

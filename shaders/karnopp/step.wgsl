@@ -8,12 +8,14 @@ const STEP_MOVED: u32 = 0u;
 const STEP_REJECTED: u32 = 1u;
 const STEP_LOCATED: u32 = 2u;
 
-fn mode_flow(st: State, drive: Drive, dir: DirectionModel, h: Real, inv_h: Real) -> Flow {
-    return make_flow(st.mode == MODE_STICK, st.x_p, st.v_p, st.x_s, st.v_s, st.v_rel, drive.force, drive.slope, dir, h, inv_h);
+// The flow of the state's mode, into the lane's `flow`.
+fn set_mode_flow(st: State, drive: Drive, dir: DirectionModel, h: Real, inv_h: Real) {
+    set_flow(st.mode == MODE_STICK, st.x_p, st.v_p, st.x_s, st.v_s, st.v_rel, drive.force, drive.slope, dir, h, inv_h);
 }
 
 // The five samples of a step (`[Sample; 5]` on the CPU): members, not an
-// array.
+// array; the lane's one `samples` (hold_registers.wgsl or
+// hold_memory.wgsl).
 struct Samples {
     s0: Sample,
     s1: Sample,
@@ -26,9 +28,9 @@ struct Samples {
 const SAMPLES_ALL: u32 = 31u;
 const SAMPLES_QUARTERS: u32 = 10u;
 
-// The samples of `mask` of a flow over a step of length h, in one loop: one
-// copy of the flow's evaluation, whatever the samples.
-fn sample_flow(flow: Flow, props: SamplePropagators, h: Real, out: ptr<function, Samples>, mask: u32) {
+// The samples of `mask` of the flow over a step of length h, in one loop:
+// one copy of the flow's evaluation, whatever the samples.
+fn sample_flow(h: Real, mask: u32) {
     for (var j = 0u; j < 5u; j++) {
         if ((mask >> j) & 1u) == 0u {
             continue;
@@ -43,22 +45,22 @@ fn sample_flow(flow: Flow, props: SamplePropagators, h: Real, out: ptr<function,
         } else if j == 4u {
             prop = props.full;
         }
-        let s = eval_flow(flow, prop, theta(j) * h);
+        let s = eval_flow(prop, theta(j) * h);
         switch j {
             case 0u: {
-                (*out).s0 = s;
+                samples.s0 = s;
             }
             case 1u: {
-                (*out).s1 = s;
+                samples.s1 = s;
             }
             case 2u: {
-                (*out).s2 = s;
+                samples.s2 = s;
             }
             case 3u: {
-                (*out).s3 = s;
+                samples.s3 = s;
             }
             default: {
-                (*out).s4 = s;
+                samples.s4 = s;
             }
         }
     }
@@ -86,7 +88,6 @@ struct Trial {
     h: Real,
     inv_h: Real,
     dir: DirectionModel,
-    flow: Flow,
     safe: bool,
     err: Real,
     slip_event: u32,
@@ -103,23 +104,22 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
     let c = &coefficients[held];
     let drive = drive_force(*st);
     let slipping = (*st).mode == MODE_SLIP;
-    var samples: Samples;
-    var t = trial(*st, drive, h_max, &samples);
-    let props = sample_propagators(t.flow, t.h);
-    collocate(*st, drive, props, &t, &samples);
+    var t = trial(*st, drive, h_max);
+    set_sample_propagators(t.h);
+    collocate(*st, drive, &t);
     if slipping && c.frictionless == 0u {
         if t.err == Real(0.0) {
-            t.err = direction_error(t.dir, samples, 4u);
+            t.err = direction_error(t.dir, 4u);
         }
         if t.err >= INFINITY {
-            approach_trial(*st, drive, props, &t, &samples);
+            approach_trial(*st, drive, &t);
         }
         if t.err > c.tolerance {
             reject(st, t.h, t.err);
             return STEP_REJECTED;
         }
     }
-    var found = find_event(*st, t, samples);
+    var found = find_event(*st, t);
     if found.kind == EVENT_NONE {
         move_to(st, samples.s4, t.h, h_max, stop, stop_lo);
         if slipping {
@@ -141,7 +141,7 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
 
 // The trial of a step: its length, the direction model's constant term and
 // the flow; every sample starts as the flow's start.
-fn trial(st: State, drive: Drive, h_max: Real, samples: ptr<function, Samples>) -> Trial {
+fn trial(st: State, drive: Drive, h_max: Real) -> Trial {
     let c = &coefficients[held];
     let stuck = st.mode == MODE_STICK;
     let slipping = st.mode == MODE_SLIP;
@@ -167,14 +167,14 @@ fn trial(st: State, drive: Drive, h_max: Real, samples: ptr<function, Samples>) 
         inv_h = recip(h);
         flow_h = h;
     }
-    var flow = mode_flow(st, drive, dir, flow_h, inv_h);
-    let first = eval_flow(flow, identity_propagator(), Real(0.0));
+    set_mode_flow(st, drive, dir, flow_h, inv_h);
+    let first = eval_flow(identity_propagator(), Real(0.0));
     if slipping {
         if c.frictionless == 0u {
             h = approach_limit(st.v_rel, relative_acceleration(first), h);
         }
         inv_h = recip(h);
-        flow = mode_flow(st, drive, dir, h, inv_h);
+        set_mode_flow(st, drive, dir, h, inv_h);
     }
     var safe = false;
     if stuck {
@@ -184,8 +184,12 @@ fn trial(st: State, drive: Drive, h_max: Real, samples: ptr<function, Samples>) 
             h = min(h_max, c.event_step_stuck);
         }
     }
-    *samples = Samples(first, first, first, first, first);
-    return Trial(h, inv_h, dir, flow, safe, Real(0.0), EVENT_ENTER_BAND);
+    samples.s0 = first;
+    samples.s1 = first;
+    samples.s2 = first;
+    samples.s3 = first;
+    samples.s4 = first;
+    return Trial(h, inv_h, dir, safe, Real(0.0), EVENT_ENTER_BAND);
 }
 
 // The samples of the trial. SLIP: first the collocation of the direction
@@ -193,7 +197,7 @@ fn trial(st: State, drive: Drive, h_max: Real, samples: ptr<function, Samples>) 
 // each pass, so that the code evaluates a flow in one place (every copy of
 // a flow's evaluation is code the driver compiles and the lanes fetch).
 // Other modes evaluate once and leave.
-fn collocate(st: State, drive: Drive, props: SamplePropagators, t: ptr<function, Trial>, samples: ptr<function, Samples>) {
+fn collocate(st: State, drive: Drive, t: ptr<function, Trial>) {
     let c = &coefficients[held];
     let collocating = st.mode == MODE_SLIP && c.frictionless == 0u;
     let h = (*t).h;
@@ -201,13 +205,13 @@ fn collocate(st: State, drive: Drive, props: SamplePropagators, t: ptr<function,
     let u0 = (*t).dir.b0;
     var k = 0u;
     loop {
-        (*samples).s2 = eval_flow((*t).flow, props.half, Real(0.5) * h);
-        (*samples).s4 = eval_flow((*t).flow, props.full, h);
+        samples.s2 = eval_flow(props.half, Real(0.5) * h);
+        samples.s4 = eval_flow(props.full, h);
         if done || k == COLLOCATION_ITERATIONS {
             break;
         }
-        let um = direction((*samples).s2);
-        let ue = direction((*samples).s4);
+        let um = direction(samples.s2);
+        let ue = direction(samples.s4);
         if !um.ok || !ue.ok {
             (*t).err = INFINITY;
             break;
@@ -222,32 +226,24 @@ fn collocate(st: State, drive: Drive, props: SamplePropagators, t: ptr<function,
         if change == Real(0.0) {
             break;
         }
-        (*t).flow = mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
+        set_mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
         done = change <= c.collocation_tolerance;
         k++;
     }
     // The start again where collocation changed the flow, and the
     // quarters.
-    sample_flow((*t).flow, props, h, samples, select(SAMPLES_QUARTERS, SAMPLES_QUARTERS | 1u, collocating));
+    sample_flow(h, select(SAMPLES_QUARTERS, SAMPLES_QUARTERS | 1u, collocating));
 }
 
 // The relative velocity reversed within the trial: the constant direction
 // of the start up to where it slows into the band (see step.rs).
-fn approach_trial(st: State, drive: Drive, props: SamplePropagators, t: ptr<function, Trial>, samples: ptr<function, Samples>) {
+fn approach_trial(st: State, drive: Drive, t: ptr<function, Trial>) {
     let h = (*t).h;
     (*t).dir = DirectionModel((*t).dir.b0, V2(0.0), V2(0.0));
-    let flow = mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
-    (*t).flow = flow;
-    sample_flow(flow, props, h, samples, SAMPLES_ALL);
-    let ev = EventSamples(
-        approach_event(flow, (*samples).s0),
-        approach_event(flow, (*samples).s1),
-        approach_event(flow, (*samples).s2),
-        approach_event(flow, (*samples).s3),
-        approach_event(flow, (*samples).s4),
-    );
-    let scale = approach_scale(flow, (*samples).s0);
-    let entry = find_crossing(st, EVENT_APPROACH, Real(1.0), ev, scale, flow, h);
+    set_mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
+    sample_flow(h, SAMPLES_ALL);
+    let scale = approach_scale(samples.s0);
+    let entry = find_crossing(st, EVENT_APPROACH, Real(1.0), scale, h);
     if entry.found {
         var before = 0u;
         for (var j = 1u; j < 5u; j++) {
@@ -255,15 +251,14 @@ fn approach_trial(st: State, drive: Drive, props: SamplePropagators, t: ptr<func
                 before = j;
             }
         }
-        (*t).err = direction_error((*t).dir, *samples, before);
+        (*t).err = direction_error((*t).dir, before);
         (*t).slip_event = EVENT_APPROACH;
     }
 }
 
 // The first event the accepted trial meets (see step.rs).
-fn find_event(st: State, t: Trial, samples: Samples) -> StepEvent {
+fn find_event(st: State, t: Trial) -> StepEvent {
     let c = &coefficients[held];
-    let flow = t.flow;
     let h = t.h;
     var primary = EVENT_LEAVE_BAND;
     if st.mode == MODE_STICK {
@@ -271,25 +266,9 @@ fn find_event(st: State, t: Trial, samples: Samples) -> StepEvent {
     } else if st.mode == MODE_SLIP {
         primary = t.slip_event;
     }
-    let start = samples.s0;
-    let end = samples.s4;
-    let ev_primary = EventSamples(
-        any_primary_event(primary, flow, start),
-        any_primary_event(primary, flow, samples.s1),
-        any_primary_event(primary, flow, samples.s2),
-        any_primary_event(primary, flow, samples.s3),
-        any_primary_event(primary, flow, end),
-    );
-    let ev_reversal = EventSamples(
-        reversal_event(st, start),
-        reversal_event(st, samples.s1),
-        reversal_event(st, samples.s2),
-        reversal_event(st, samples.s3),
-        reversal_event(st, end),
-    );
     var sign = Real(0.0);
     for (var j = 0u; j < 5u; j++) {
-        let d = event_sample(ev_reversal, j).x;
+        let d = sample_event(st, EVENT_REVERSAL, Real(1.0), j).x;
         if sign == Real(0.0) && d != Real(0.0) {
             sign = select(Real(-1.0), Real(1.0), d > Real(0.0));
         }
@@ -302,29 +281,25 @@ fn find_event(st: State, t: Trial, samples: Samples) -> StepEvent {
         var scale: Real;
         if k == 0u {
             if primary == EVENT_APPROACH {
-                scale = approach_scale(flow, start);
+                scale = approach_scale(samples.s0);
             } else {
-                scale = primary_scale(primary, start);
+                scale = primary_scale(primary, samples.s0);
             }
         } else {
             kind = select(EVENT_NONE, EVENT_REVERSAL, watch_reversal);
             kind_sign = sign;
-            scale = reversal_scale(st, start);
+            scale = reversal_scale(st, samples.s0);
         }
         if kind == EVENT_NONE {
             continue;
         }
         // One call for both kinds (one copy of its code).
-        var ev = ev_primary;
-        if k == 1u {
-            ev = ev_reversal;
-        }
-        let crossing = find_crossing(st, kind, kind_sign, ev, scale, flow, h);
+        let crossing = find_crossing(st, kind, kind_sign, scale, h);
         if kind == EVENT_ENTER_BAND && !crossing.found {
             found.grazed = crossing.closest < GRAZE_MARGIN * c.band2;
         }
         if crossing.found {
-            let tau = locate(st, kind, kind_sign, flow, crossing.lo, crossing.hi);
+            let tau = locate(st, kind, kind_sign, crossing.lo, crossing.hi);
             if found.kind == EVENT_NONE || tau < found.tau {
                 found.kind = kind;
                 found.tau = tau;
@@ -339,8 +314,8 @@ fn find_event(st: State, t: Trial, samples: Samples) -> StepEvent {
 fn take_event(st: ptr<function, State>, t: Trial, found: ptr<function, StepEvent>, h_max: Real, stop: Real, stop_lo: Real) -> bool {
     let event = (*found).kind;
     (*st).h_accepted = Real(0.0);
-    let s = eval_at(t.flow, (*found).tau);
-    if event == EVENT_APPROACH && approach_turned(s, t.flow) {
+    let s = eval_at((*found).tau);
+    if event == EVENT_APPROACH && approach_turned(s) {
         reject(st, t.h, INFINITY);
         return false;
     }
@@ -368,7 +343,7 @@ fn take_event(st: ptr<function, State>, t: Trial, found: ptr<function, StepEvent
 // Whether v_rel turned on its way to the approach event at `s`: the
 // approach is the band entry only while v_rel still points along the
 // step's direction (see step.rs).
-fn approach_turned(s: Sample, flow: Flow) -> bool {
+fn approach_turned(s: Sample) -> bool {
     let c = &coefficients[held];
     let u = direction(s);
     var turned = INFINITY;
@@ -400,9 +375,9 @@ fn skims_band(s: Sample) -> bool {
 
 // The primary event of a step (the `if primary == EVENT_APPROACH` of
 // step.rs).
-fn any_primary_event(kind: u32, flow: Flow, s: Sample) -> V2 {
+fn any_primary_event(kind: u32, s: Sample) -> V2 {
     if kind == EVENT_APPROACH {
-        return approach_event(flow, s);
+        return approach_event(s);
     }
     return primary_event(kind, s);
 }
@@ -425,19 +400,19 @@ fn sample_direction_error(dir: DirectionModel, s: Sample, th: Real, prev_v: V2) 
 
 // The error at samples 1 to `last`: one root of the largest square (see
 // step.rs).
-fn direction_error(dir: DirectionModel, s: Samples, last: u32) -> Real {
+fn direction_error(dir: DirectionModel, last: u32) -> Real {
     var err = Real(0.0);
     if last >= 1u {
-        err = max(err, sample_direction_error(dir, s.s1, Real(0.25), relative_velocity(s.s0)));
+        err = max(err, sample_direction_error(dir, samples.s1, Real(0.25), relative_velocity(samples.s0)));
     }
     if last >= 2u {
-        err = max(err, sample_direction_error(dir, s.s2, Real(0.5), relative_velocity(s.s1)));
+        err = max(err, sample_direction_error(dir, samples.s2, Real(0.5), relative_velocity(samples.s1)));
     }
     if last >= 3u {
-        err = max(err, sample_direction_error(dir, s.s3, Real(0.75), relative_velocity(s.s2)));
+        err = max(err, sample_direction_error(dir, samples.s3, Real(0.75), relative_velocity(samples.s2)));
     }
     if last >= 4u {
-        err = max(err, sample_direction_error(dir, s.s4, Real(1.0), relative_velocity(s.s3)));
+        err = max(err, sample_direction_error(dir, samples.s4, Real(1.0), relative_velocity(samples.s3)));
     }
     if err >= INFINITY {
         return INFINITY;
@@ -543,8 +518,8 @@ fn initial_slip_step(st: State, h_max: Real) -> Real {
     let drive = drive_force(st);
     let v0 = st.v_rel;
     let dir = DirectionModel(v0 * recip_root(dot(v0, v0)), V2(0.0), V2(0.0));
-    let flow = mode_flow(st, drive, dir, Real(1.0), Real(1.0));
-    let s = eval_flow(flow, identity_propagator(), Real(0.0));
+    set_mode_flow(st, drive, dir, Real(1.0), Real(1.0));
+    let s = eval_flow(identity_propagator(), Real(0.0));
     let v = relative_velocity(s);
     let a = relative_acceleration(s);
     let speed = root(dot(v, v));

@@ -72,6 +72,10 @@ pub(super) struct Kernel<'p> {
     /// The law's own buffers and their bindings, after the engine's 0 to
     /// 8 (LuGre's parameters and recurrence snapshots).
     pub(super) extra: &'p [(u32, &'p wgpu::Buffer)],
+    /// Buffers the engine gives each lane an entry of, with their
+    /// bindings and bytes per entry (Karnopp's f64 hardware lanes hold a
+    /// step's flow, samples and propagators there).
+    pub(super) per_lane: &'p [(u32, u64)],
 }
 
 impl<'p> Kernel<'p> {

@@ -147,3 +147,24 @@ fn div2(a: V2, b: V2) -> V2 {
     return V2(div(a.x, b.x), div(a.y, b.y));
 }
 ";
+
+/// `src` with every use of the private variable `copy` (`copy.` after no
+/// name character, dot or slash) written `held.`: a hardware lane's
+/// value read where it is used, from the device memory `held` names,
+/// not kept in registers. The WGSL text stays one, the llvmpipe
+/// variant's, whose holder file declares `copy`; a comment's
+/// `docs/model.md` is left alone.
+pub fn read_where_used(src: &str, copy: &str, held: &str) -> String {
+    let copy = format!("{copy}.");
+    let held = format!("{held}.");
+    let mut out = String::with_capacity(src.len() + src.len() / 8);
+    let mut rest = src;
+    while let Some(at) = rest.find(&copy) {
+        let before = rest[..at].chars().next_back();
+        let is_name = !before.is_some_and(|c| c.is_alphanumeric() || "_/.".contains(c));
+        out += &rest[..at];
+        out += if is_name { &held } else { &copy };
+        rest = &rest[at + copy.len()..];
+    }
+    out + rest
+}

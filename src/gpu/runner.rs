@@ -247,6 +247,16 @@ impl<'a> Runner<'a> {
         } else {
             size_of::<L::State>()
         };
+        // A lane's entries where the variant holds a step in device memory
+        // (the batch has a lane per instance).
+        let held = Variant {
+            precision: L::PRECISION,
+            loop_limiter: self.loop_limiter(),
+            parts: Parts::default(),
+        };
+        let state_size = super::karnopp::shader::per_lane(held)
+            .iter()
+            .fold(state_size, |m, &(_, bytes)| m.max(bytes as usize));
         let per_batch = max_batch_instances(
             self.limits,
             size_of::<L::Coefficients>(),

@@ -77,6 +77,9 @@ struct Buffers {
     order: wgpu::Buffer,
     tallies: wgpu::Buffer,
     tallies_read: wgpu::Buffer,
+    /// The kernel's per-lane buffers (`Kernel::per_lane`), with their
+    /// bindings.
+    per_lane: Vec<(u32, wgpu::Buffer)>,
 }
 
 impl Buffers {
@@ -84,9 +87,10 @@ impl Buffers {
         device: &wgpu::Device,
         work: &Work<L>,
         steady: bool,
-        loop_limiter: bool,
+        kernel: Kernel,
     ) -> Buffers {
         let n = work.coefficients.len();
+        let loop_limiter = kernel.loop_limiter;
         let init = |label: &str, contents: &[u8], copy: bool| {
             let mut usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
             if copy {
@@ -137,6 +141,11 @@ impl Buffers {
                 "tallies readback",
                 (n * size_of::<Tally>()) as u64,
             ),
+            per_lane: kernel
+                .per_lane
+                .iter()
+                .map(|&(binding, bytes)| (binding, storage(device, "per lane", n as u64 * bytes)))
+                .collect(),
         }
     }
 
@@ -162,6 +171,11 @@ impl Buffers {
             buffers.extend([(5, &self.measures), (6, &self.heads)]);
         }
         buffers.extend(kernel.extra.iter().copied());
+        buffers.extend(
+            self.per_lane
+                .iter()
+                .map(|(binding, buffer)| (*binding, buffer)),
+        );
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .into_iter()
             .map(|(binding, buffer)| wgpu::BindGroupEntry {
@@ -376,7 +390,7 @@ impl Runner<'_> {
         let n = instances.len();
         let steady = kernel.steady && super::readback::any_steady(instances);
         let uploading = profile::span(Phase::Upload);
-        let b = Buffers::new::<L>(self.device, &work, steady, kernel.loop_limiter);
+        let b = Buffers::new::<L>(self.device, &work, steady, kernel);
         let probe_iterations = self.options.probe_iterations.max(1);
         let probe_control = self.control(probe_iterations, 1, 0, 0, NO_CAP);
         let probe_group = b.bind_group(self.device, kernel, &probe_control);
@@ -636,7 +650,7 @@ impl Runner<'_> {
     ) -> Stepper<'s> {
         let n = work.instances.len();
         let steady = kernel.steady && super::readback::any_steady(work.instances);
-        let b = Buffers::new::<L>(self.device, &work, steady, kernel.loop_limiter);
+        let b = Buffers::new::<L>(self.device, &work, steady, kernel);
         let control = self.control(iterations, 0, 0, n as u32, NO_CAP);
         let group = b.bind_group(self.device, kernel, &control);
         Stepper {

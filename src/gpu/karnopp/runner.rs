@@ -3,6 +3,7 @@
 //! shaders' storage structs, their packing and reduction) for the runner.
 
 use super::layout;
+use super::shader::per_lane;
 use crate::gpu::*;
 use crate::laws::Replica;
 
@@ -244,6 +245,7 @@ impl<'p> Kernel<'p> {
             loop_limiter: variant.loop_limiter,
             workgroup_size: workgroup_size(),
             extra: &[],
+            per_lane: per_lane(variant),
         }
     }
 }

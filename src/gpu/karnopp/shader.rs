@@ -7,6 +7,7 @@
 //! written. Every shader file but `entry.wgsl` mirrors the Rust file of the
 //! same name in `src/laws/karnopp/integrate/` (`advance.wgsl` mirrors `mod.rs`).
 
+use crate::gpu::prelude::read_where_used;
 use crate::gpu::{GpuError, Precision, STATUS_LOOP_LIMIT, workgroup_size};
 use crate::laws::Settings;
 use crate::laws::floor::Vec2;
@@ -67,6 +68,55 @@ pub const FILES: [(&str, &str); 12] = [
         include_str!("../../../shaders/karnopp/entry.wgsl"),
     ),
 ];
+
+/// Where a lane holds a step's flow and samples: in private variables
+/// (registers), or, for an f64 hardware lane, in device memory read where
+/// used (bindings 9 to 11; [`Variant::holds_in_memory`]).
+const HOLDERS: [(&str, &str); 2] = [
+    (
+        "karnopp/hold_registers.wgsl",
+        include_str!("../../../shaders/karnopp/hold_registers.wgsl"),
+    ),
+    (
+        "karnopp/hold_memory.wgsl",
+        include_str!("../../../shaders/karnopp/hold_memory.wgsl"),
+    ),
+];
+
+/// The bindings of an f64 hardware lane's flow and samples
+/// (`shaders/karnopp/hold_memory.wgsl`), after the engine's 0 to 8, with
+/// the struct of each entry: one entry per lane.
+pub const HELD_IN_MEMORY: [(u32, &str); 3] =
+    [(9, "Flow"), (10, "Samples"), (11, "SamplePropagators")];
+
+/// Each buffer of [`HELD_IN_MEMORY`] with the bytes of its entry, a lane's,
+/// from the shader's own layout of its struct, where `variant` holds a
+/// step in device memory; none elsewhere.
+pub fn per_lane(variant: Variant) -> &'static [(u32, u64)] {
+    static HELD: std::sync::OnceLock<Vec<(u32, u64)>> = std::sync::OnceLock::new();
+    if !variant.holds_in_memory() {
+        return &[];
+    }
+    HELD.get_or_init(|| {
+        let (module, _) = parse_and_validate(variant).expect("the f64 hardware shader validates");
+        let mut layouter = naga::proc::Layouter::default();
+        layouter
+            .update(module.to_ctx())
+            .expect("the shader's types have a layout");
+        HELD_IN_MEMORY
+            .iter()
+            .map(|&(binding, name)| {
+                let (handle, _) = module
+                    .types
+                    .iter()
+                    .find(|(_, t)| t.name.as_deref() == Some(name))
+                    .expect("the held struct is declared");
+                let l = layouter[handle];
+                (binding, l.to_stride() as u64)
+            })
+            .collect()
+    })
+}
 
 /// The name of the compute entry point.
 pub const ENTRY_POINT: &str = "advance_slice";
@@ -199,6 +249,15 @@ pub struct Variant {
 }
 
 impl Variant {
+    /// Whether its lanes hold a step's flow and samples in device memory
+    /// (`shaders/karnopp/hold_memory.wgsl`): an f64 lane on hardware. In
+    /// registers RADV's compiler spilled 461 VGPRs of the f64 lane
+    /// (results/registers.md). llvmpipe keeps private variables as the
+    /// CPU's code does, and the f32 lane fits in registers.
+    pub fn holds_in_memory(self) -> bool {
+        self.precision == Precision::F64 && !self.loop_limiter
+    }
+
     /// Every variant: both precisions, both kinds of adapter, every
     /// combination of parts.
     pub fn every() -> Vec<Variant> {
@@ -357,11 +416,19 @@ pub fn source(variant: Variant) -> String {
         src += NO_LADDER;
     }
     src += &crate::gpu::engine_queue();
-    for (name, text) in FILES {
+    let (holder, text) = HOLDERS[usize::from(variant.holds_in_memory())];
+    for (name, text) in FILES.into_iter().chain([(holder, text)]) {
         if parts.include(name) {
             src += &format!("\n// ---- shaders/{name}\n");
             src += text;
         }
+    }
+    if variant.holds_in_memory() {
+        let src = read_where_used(&src, "(*st)", "states[held]");
+        let src = read_where_used(&src, "st", "states[held]");
+        let src = read_where_used(&src, "flow", "flows[lane_slot]");
+        let src = read_where_used(&src, "samples", "step_samples[lane_slot]");
+        return read_where_used(&src, "props", "step_props[lane_slot]");
     }
     src
 }

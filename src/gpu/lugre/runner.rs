@@ -290,6 +290,7 @@ impl<'a> LugreGpu<'a> {
             loop_limiter: false,
             workgroup_size: self.workgroup_size,
             extra: bound,
+            per_lane: &[],
         }
     }
 

@@ -376,20 +376,9 @@ pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
 /// `src` with the hardware lane's parameters read where used: every
 /// `model.` (the private copy of hold_registers.wgsl, which this variant
 /// does not include) written `models[held].`, the instance's own entry of
-/// binding 9, so that no register holds them. The WGSL text stays one,
-/// the llvmpipe variant's; a comment's `docs/model.md` is left alone.
+/// binding 9, so that no register holds them (`gpu::prelude::read_where_used`).
 pub fn read_where_used(src: &str) -> String {
-    const COPY: &str = "model.";
-    let mut out = String::with_capacity(src.len() + src.len() / 8);
-    let mut rest = src;
-    while let Some(at) = rest.find(COPY) {
-        let before = rest[..at].chars().next_back();
-        let is_name = !before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == '/');
-        out += &rest[..at];
-        out += if is_name { "models[held]." } else { COPY };
-        rest = &rest[at + COPY.len()..];
-    }
-    out + rest
+    crate::gpu::prelude::read_where_used(src, "model", "models[held]")
 }
 
 /// Parses and validates the shader with naga, as wgpu will.
