@@ -29,7 +29,7 @@ struct Sample {
 }
 
 // The motion of both axes over one step: the lane's one `flow`
-// (hold_registers.wgsl or hold_memory.wgsl), which `set_flow` writes. Its
+// (hold_registers.wgsl or hold_memory.wgsl), which `make_flow` writes. Its
 // flags are u32s (1 true), so that it may live in device memory.
 struct Flow {
     stuck: u32,
@@ -75,8 +75,8 @@ fn identity_propagator() -> Propagator {
     return Propagator(V2(0.0), V2(0.0));
 }
 
-fn propagator(osc: Oscillator, tau: Real) -> Propagator {
-    var scale = osc.rate * tau;
+fn propagator(tau: Real) -> Propagator {
+    var scale = flow.osc.rate * tau;
     var t = V2(tau);
     var squarings = vec2<u32>(0u);
     for (var k = 0u; k < MAX_SQUARINGS; k++) {
@@ -88,10 +88,10 @@ fn propagator(osc: Oscillator, tau: Real) -> Propagator {
         t = select(t, t * Real(0.5), more);
         squarings += select(vec2<u32>(0u), vec2<u32>(1u), more);
     }
-    var prop = taylor_propagator(osc, t);
+    var prop = taylor_propagator(t);
     let most = max(squarings.x, squarings.y);
     for (var k = 0u; k < most; k++) {
-        let squared = compose(osc, prop, prop);
+        let squared = compose(prop, prop);
         let more = vec2<u32>(k) < squarings;
         prop = Propagator(select(prop.a0m1, squared.a0m1, more), select(prop.a1, squared.a1, more));
     }
@@ -107,9 +107,9 @@ struct Series {
     a1: V2,
 }
 
-fn series_term(s: ptr<function, Series>, osc: Oscillator, f: V2) {
-    let next_p = -osc.w2 * (*s).q * f;
-    let next_q = ((*s).p - Real(2.0) * osc.sigma * (*s).q) * f;
+fn series_term(s: ptr<function, Series>, f: V2) {
+    let next_p = -flow.osc.w2 * (*s).q * f;
+    let next_q = ((*s).p - Real(2.0) * flow.osc.sigma * (*s).q) * f;
     (*s).p = next_p;
     (*s).q = next_q;
     (*s).a0m1 = (*s).a0m1 + next_p;
@@ -120,47 +120,46 @@ fn series_term(s: ptr<function, Series>, osc: Oscillator, f: V2) {
 // prelude's INVERSE_n literals (a call of `inverse_integer` would be
 // inlined, switch and all, before its argument is folded; the host checks
 // that the count matches).
-fn taylor_propagator(osc: Oscillator, t: V2) -> Propagator {
+fn taylor_propagator(t: V2) -> Propagator {
     var s = Series(V2(1.0), V2(0.0), V2(0.0), V2(0.0));
-    series_term(&s, osc, t * INVERSE_1);
-    series_term(&s, osc, t * INVERSE_2);
-    series_term(&s, osc, t * INVERSE_3);
-    series_term(&s, osc, t * INVERSE_4);
-    series_term(&s, osc, t * INVERSE_5);
-    series_term(&s, osc, t * INVERSE_6);
-    series_term(&s, osc, t * INVERSE_7);
-    series_term(&s, osc, t * INVERSE_8);
-    series_term(&s, osc, t * INVERSE_9);
-    series_term(&s, osc, t * INVERSE_10);
-    series_term(&s, osc, t * INVERSE_11);
-    series_term(&s, osc, t * INVERSE_12);
-    series_term(&s, osc, t * INVERSE_13);
-    series_term(&s, osc, t * INVERSE_14);
+    series_term(&s, t * INVERSE_1);
+    series_term(&s, t * INVERSE_2);
+    series_term(&s, t * INVERSE_3);
+    series_term(&s, t * INVERSE_4);
+    series_term(&s, t * INVERSE_5);
+    series_term(&s, t * INVERSE_6);
+    series_term(&s, t * INVERSE_7);
+    series_term(&s, t * INVERSE_8);
+    series_term(&s, t * INVERSE_9);
+    series_term(&s, t * INVERSE_10);
+    series_term(&s, t * INVERSE_11);
+    series_term(&s, t * INVERSE_12);
+    series_term(&s, t * INVERSE_13);
+    series_term(&s, t * INVERSE_14);
     return Propagator(s.a0m1, s.a1);
 }
 
-fn compose(osc: Oscillator, a: Propagator, b: Propagator) -> Propagator {
+fn compose(a: Propagator, b: Propagator) -> Propagator {
     let ab = a.a1 * b.a1;
     return Propagator(
-        a.a0m1 + b.a0m1 + a.a0m1 * b.a0m1 - osc.w2 * ab,
-        a.a1 + b.a1 + a.a0m1 * b.a1 + a.a1 * b.a0m1 - Real(2.0) * osc.sigma * ab,
+        a.a0m1 + b.a0m1 + a.a0m1 * b.a0m1 - flow.osc.w2 * ab,
+        a.a1 + b.a1 + a.a0m1 * b.a1 + a.a1 * b.a0m1 - Real(2.0) * flow.osc.sigma * ab,
     );
 }
 
 // `sample_propagators` of the lane's flow, into the lane's `props`
 // (hold_registers.wgsl or hold_memory.wgsl).
-fn set_sample_propagators(h: Real) {
-    let osc = flow.osc;
-    let quarter = propagator(osc, Real(0.25) * h);
-    let half = compose(osc, quarter, quarter);
+fn sample_propagators(h: Real) {
+    let quarter = propagator(Real(0.25) * h);
+    let half = compose(quarter, quarter);
     props.quarter = quarter;
     props.half = half;
-    props.three_quarters = compose(osc, half, quarter);
-    props.full = compose(osc, half, half);
+    props.three_quarters = compose(half, quarter);
+    props.full = compose(half, half);
 }
 
 // `make_flow`, into the lane's `flow`.
-fn set_flow(
+fn make_flow(
     stuck: bool,
     x_p: V2,
     v_p: V2,
@@ -173,63 +172,60 @@ fn set_flow(
     h: Real,
     inv_h: Real,
 ) {
+    // Each member is written as soon as it is known and read back where it
+    // is used, so that a lane whose flow lives in device memory holds few
+    // of them at once (the CPU's arithmetic, in its order per member).
     let c = &coefficients[held];
-    var osc = c.slip;
-    var g0_rel = -c.coulomb * dir.b0;
-    var g1_rel = -c.coulomb * dir.b1 * inv_h;
-    var g0 = force + g0_rel;
-    var g1 = slope + g1_rel;
-    var g2 = -c.coulomb * dir.b2 * (inv_h * inv_h);
+    flow.stuck = select(0u, 1u, stuck);
+    flow.h = h;
+    flow.inv_h = inv_h;
+    flow.x_p = x_p;
+    flow.v_p = v_p;
+    flow.x_s = x_s;
+    flow.v_s = v_s;
+    flow.v_rel = v_rel;
+    flow.damping = c.damping;
+    flow.stiffness = c.stiffness;
+    flow.ramp = slope * c.inv_stiffness;
+    flow.b0 = dir.b0;
+    flow.slider0 = c.fc_over_ms * dir.b0 - neg_load_accel();
+    flow.slider1 = c.fc_over_ms * dir.b1;
+    flow.slider2 = c.fc_over_ms * dir.b2;
     if stuck {
         // The load acts on stage and slider as one body (docs/model.md section
         // 7): only the particular solution moves.
-        osc = c.stick;
-        g0 = force - neg_load();
-        g1 = slope;
-        g2 = V2(0.0);
-        g0_rel = V2(0.0) - neg_load();
-        g1_rel = V2(0.0);
+        flow.osc = c.stick;
+        flow.g0 = force - neg_load();
+        flow.g1 = slope;
+        flow.g2 = V2(0.0);
+        flow.g0_rel = V2(0.0) - neg_load();
+        flow.g1_rel = V2(0.0);
+    } else {
+        flow.osc = c.slip;
+        flow.g0_rel = -c.coulomb * dir.b0;
+        flow.g1_rel = -c.coulomb * dir.b1 * inv_h;
+        flow.g0 = force + flow.g0_rel;
+        flow.g1 = slope + flow.g1_rel;
+        flow.g2 = -c.coulomb * dir.b2 * (inv_h * inv_h);
     }
-    let x2 = g2 * c.inv_stiffness;
-    let x1 = (g1 - Real(2.0) * c.damping * x2) * c.inv_stiffness;
-    let x0 = (g0 - c.damping * x1 - Real(2.0) * osc.mass * x2) * c.inv_stiffness;
-    let turning = dir.b1 != V2(0.0) | dir.b2 != V2(0.0);
-    let short = osc.rate * h <= V2(1.0);
-    flow.stuck = select(0u, 1u, stuck);
-    flow.osc = osc;
-    flow.damping = c.damping;
-    flow.stiffness = c.stiffness;
-    flow.h = h;
-    flow.inv_h = inv_h;
-    flow.part1 = x1;
-    flow.part2 = x2;
-    flow.y0 = x_p - x0;
-    flow.w0 = v_p - x1;
-    flow.g0_rel = g0_rel;
-    flow.g1_rel = g1_rel;
-    flow.ramp = slope * c.inv_stiffness;
+    // The particular solution x0 + x1 tau + x2 tau^2.
+    flow.part2 = flow.g2 * c.inv_stiffness;
+    flow.part1 = (flow.g1 - Real(2.0) * c.damping * flow.part2) * c.inv_stiffness;
+    let x0 = (flow.g0 - c.damping * flow.part1 - Real(2.0) * flow.osc.mass * flow.part2) * c.inv_stiffness;
+    flow.y0 = flow.x_p - x0;
+    flow.w0 = flow.v_p - flow.part1;
     if DEFLECTION {
         // x_p and v_p are deflections (x_p - F / k, v_p - slope / k): the
         // homogeneous part's start is their sum with the small offsets of
         // the particular solution from the drive's static motion, with no
         // difference of two large positions (f32 would know it only to
         // 6e-8 of the stage's position).
-        flow.part1 = (g1_rel - Real(2.0) * c.damping * x2) * c.inv_stiffness;
-        flow.y0 = x_p + (c.damping * x1 + Real(2.0) * osc.mass * x2 - g0_rel) * c.inv_stiffness;
-        flow.w0 = v_p + (Real(2.0) * c.damping * x2 - g1_rel) * c.inv_stiffness;
+        flow.y0 = flow.x_p + (c.damping * flow.part1 + Real(2.0) * flow.osc.mass * flow.part2 - flow.g0_rel) * c.inv_stiffness;
+        flow.w0 = flow.v_p + (Real(2.0) * c.damping * flow.part2 - flow.g1_rel) * c.inv_stiffness;
+        flow.part1 = (flow.g1_rel - Real(2.0) * c.damping * flow.part2) * c.inv_stiffness;
     }
-    flow.x_p = x_p;
-    flow.v_p = v_p;
-    flow.x_s = x_s;
-    flow.v_s = v_s;
-    flow.v_rel = v_rel;
-    flow.b0 = dir.b0;
-    flow.slider0 = c.fc_over_ms * dir.b0 - neg_load_accel();
-    flow.slider1 = c.fc_over_ms * dir.b1;
-    flow.slider2 = c.fc_over_ms * dir.b2;
-    flow.g0 = g0;
-    flow.g1 = g1;
-    flow.g2 = g2;
+    let turning = dir.b1 != V2(0.0) | dir.b2 != V2(0.0);
+    let short = flow.osc.rate * h <= V2(1.0);
     flow.taylor = select(vec2<u32>(0u), vec2<u32>(1u), vec2<bool>(!stuck) & turning & short);
 }
 
@@ -342,5 +338,5 @@ fn eval_flow(prop: Propagator, tau: Real) -> Sample {
 }
 
 fn eval_at(tau: Real) -> Sample {
-    return eval_flow(propagator(flow.osc, tau), tau);
+    return eval_flow(propagator(tau), tau);
 }

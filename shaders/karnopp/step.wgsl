@@ -9,8 +9,8 @@ const STEP_REJECTED: u32 = 1u;
 const STEP_LOCATED: u32 = 2u;
 
 // The flow of the state's mode, into the lane's `flow`.
-fn set_mode_flow(st: State, drive: Drive, dir: DirectionModel, h: Real, inv_h: Real) {
-    set_flow(st.mode == MODE_STICK, st.x_p, st.v_p, st.x_s, st.v_s, st.v_rel, drive.force, drive.slope, dir, h, inv_h);
+fn mode_flow(st: State, drive: Drive, dir: DirectionModel, h: Real, inv_h: Real) {
+    make_flow(st.mode == MODE_STICK, st.x_p, st.v_p, st.x_s, st.v_s, st.v_rel, drive.force, drive.slope, dir, h, inv_h);
 }
 
 // The five samples of a step (`[Sample; 5]` on the CPU): members, not an
@@ -105,7 +105,7 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
     let drive = drive_force(*st);
     let slipping = (*st).mode == MODE_SLIP;
     var t = trial(*st, drive, h_max);
-    set_sample_propagators(t.h);
+    sample_propagators(t.h);
     collocate(*st, drive, &t);
     if slipping && c.frictionless == 0u {
         if t.err == Real(0.0) {
@@ -167,14 +167,14 @@ fn trial(st: State, drive: Drive, h_max: Real) -> Trial {
         inv_h = recip(h);
         flow_h = h;
     }
-    set_mode_flow(st, drive, dir, flow_h, inv_h);
+    mode_flow(st, drive, dir, flow_h, inv_h);
     let first = eval_flow(identity_propagator(), Real(0.0));
     if slipping {
         if c.frictionless == 0u {
             h = approach_limit(st.v_rel, relative_acceleration(first), h);
         }
         inv_h = recip(h);
-        set_mode_flow(st, drive, dir, h, inv_h);
+        mode_flow(st, drive, dir, h, inv_h);
     }
     var safe = false;
     if stuck {
@@ -226,7 +226,7 @@ fn collocate(st: State, drive: Drive, t: ptr<function, Trial>) {
         if change == Real(0.0) {
             break;
         }
-        set_mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
+        mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
         done = change <= c.collocation_tolerance;
         k++;
     }
@@ -240,7 +240,7 @@ fn collocate(st: State, drive: Drive, t: ptr<function, Trial>) {
 fn approach_trial(st: State, drive: Drive, t: ptr<function, Trial>) {
     let h = (*t).h;
     (*t).dir = DirectionModel((*t).dir.b0, V2(0.0), V2(0.0));
-    set_mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
+    mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
     sample_flow(h, SAMPLES_ALL);
     let scale = approach_scale(samples.s0);
     let entry = find_crossing(st, EVENT_APPROACH, Real(1.0), scale, h);
@@ -518,7 +518,7 @@ fn initial_slip_step(st: State, h_max: Real) -> Real {
     let drive = drive_force(st);
     let v0 = st.v_rel;
     let dir = DirectionModel(v0 * recip_root(dot(v0, v0)), V2(0.0), V2(0.0));
-    set_mode_flow(st, drive, dir, Real(1.0), Real(1.0));
+    mode_flow(st, drive, dir, Real(1.0), Real(1.0));
     let s = eval_flow(identity_propagator(), Real(0.0));
     let v = relative_velocity(s);
     let a = relative_acceleration(s);
