@@ -139,7 +139,10 @@ mod tests {
     #[test]
     fn a_budget_reads_only_the_pipelines_of_its_prefix() {
         let all = [
-            stats("f64-hardware-window", 256, 461, 33024),
+            // Karnopp's f64 lane since it holds its state and a step's
+            // values in device memory (309d7b2's: 256 VGPRs, 461 spilled,
+            // 33,024 B).
+            stats("f64-hardware-window", 240, 0, 0),
             stats("f32-hardware-window", 240, 0, 0),
             // LuGre's lane since it reads its model, stages and W where
             // used (309d7b2's: 256 VGPRs, 271 spilled, 69,376 B).
