@@ -1,7 +1,8 @@
 //! The Karnopp shader source's tests: the prelude's literals, every
 //! variant parsed, validated and written as SPIR-V, every WGSL file
 //! mirroring its Rust file, the propagator unrolled, and no f64 division
-//! or square root outside the prelude's helpers.
+//! or square root outside the prelude's helpers, and where a lane holds a
+//! step.
 
 use super::*;
 use crate::gpu::mirrors::{assert_mirrors, defined_functions};
@@ -256,4 +257,45 @@ fn the_f64_shader_neither_divides_nor_takes_square_roots() {
         }
     }
     assert!(checked > 1000, "only {checked} expressions seen");
+}
+
+/// Only an f64 hardware lane holds a step in device memory: its own
+/// entries of bindings 9 to 11 in the shader's layout of the flow, the
+/// samples and the propagators, and its state read and written in place;
+/// its source keeps no private copy and no `st.` or `(*st).` outside
+/// comments. Every other variant binds none and keeps its copies.
+#[test]
+fn only_an_f64_hardware_lane_holds_a_step_in_device_memory() {
+    let code = |v: Variant| -> String {
+        source(v)
+            .lines()
+            .map(|l| l.split("//").next().unwrap_or(""))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    for v in Variant::every() {
+        let src = code(v);
+        if v.holds_in_memory() {
+            assert_eq!(v.precision, Precision::F64);
+            assert!(!v.loop_limiter);
+            assert_eq!(per_lane(v), &[(9, 480), (10, 640), (11, 128)]);
+            assert!(!src.contains("var<private> flow"), "{v:?}");
+            // `(*st).` only as a call's argument, as in
+            // `drive_force(*st).slope`.
+            let derefs = src.match_indices("(*st).").all(|(at, _)| {
+                src[..at]
+                    .chars()
+                    .next_back()
+                    .is_some_and(|c| c.is_alphanumeric() || c == '_')
+            });
+            assert!(derefs, "{v:?}");
+            assert!(!src.contains(" st.") && !src.contains("(st."), "{v:?}");
+            assert!(src.contains("states[held].x_p"), "{v:?}");
+            assert!(src.contains("flows[lane_slot].osc.w2"), "{v:?}");
+        } else {
+            assert!(per_lane(v).is_empty(), "{v:?}");
+            assert!(src.contains("var<private> flow: Flow;"), "{v:?}");
+            assert!(!src.contains("flows[lane_slot]"), "{v:?}");
+        }
+    }
 }
