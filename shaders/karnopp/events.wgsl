@@ -71,27 +71,24 @@ fn reversal_scale(st: State, s: Sample) -> Real {
     return dot(abs(s.v_p) + abs(s.v_s), abs(st.held));
 }
 
-// The value of event `kind` at sample j of the lane's `samples`, times
-// `sign`: the CPU's array of event values, each entry computed where it
-// is read, so that no lane holds five of them.
-fn sample_event(st: State, kind: u32, sign: Real, j: u32) -> V2 {
-    switch j {
-        case 0u: {
-            return sign * kind_event(st, kind, samples.s0);
-        }
-        case 1u: {
-            return sign * kind_event(st, kind, samples.s1);
-        }
-        case 2u: {
-            return sign * kind_event(st, kind, samples.s2);
-        }
-        case 3u: {
-            return sign * kind_event(st, kind, samples.s3);
-        }
-        default: {
-            return sign * kind_event(st, kind, samples.s4);
-        }
-    }
+// The event values at the five samples of a step: five members, not an
+// array, so that nothing is indexed at run time (a private array indexed at
+// run time lives in memory, off-chip on NVIDIA).
+struct EventSamples {
+    v0: V2,
+    v1: V2,
+    v2: V2,
+    v3: V2,
+    v4: V2,
+}
+
+// `ev[j]` by selection.
+fn event_sample(ev: EventSamples, j: u32) -> V2 {
+    var out = ev.v0;
+    out = select(out, ev.v1, j == 1u);
+    out = select(out, ev.v2, j == 2u);
+    out = select(out, ev.v3, j == 3u);
+    return select(out, ev.v4, j == 4u);
 }
 
 // The value of event `kind` at `s`.
@@ -106,17 +103,18 @@ fn find_crossing(
     st: State,
     kind: u32,
     sign: Real,
+    ev: EventSamples,
     scale: Real,
     h: Real,
 ) -> Crossing {
-    var prev = sample_event(st, kind, sign, 0u);
+    var prev = sign * ev.v0;
     let noise = EVENT_NOISE * EPSILON * scale;
     if prev.x < -noise {
         return Crossing(true, Real(0.0), Real(0.0), INFINITY);
     }
     var closest = INFINITY;
     for (var j = 0u; j < 4u; j++) {
-        let next = sample_event(st, kind, sign, j + 1u);
+        let next = sign * event_sample(ev, j + 1u);
         let lo = theta(j) * h;
         let hi = theta(j + 1u) * h;
         let armed = prev.x > Real(0.0) || j == 0u;

@@ -242,8 +242,15 @@ fn approach_trial(st: State, drive: Drive, t: ptr<function, Trial>) {
     (*t).dir = DirectionModel((*t).dir.b0, V2(0.0), V2(0.0));
     mode_flow(st, drive, (*t).dir, h, (*t).inv_h);
     sample_flow(h, SAMPLES_ALL);
+    let ev = EventSamples(
+        approach_event(samples.s0),
+        approach_event(samples.s1),
+        approach_event(samples.s2),
+        approach_event(samples.s3),
+        approach_event(samples.s4),
+    );
     let scale = approach_scale(samples.s0);
-    let entry = find_crossing(st, EVENT_APPROACH, Real(1.0), scale, h);
+    let entry = find_crossing(st, EVENT_APPROACH, Real(1.0), ev, scale, h);
     if entry.found {
         var before = 0u;
         for (var j = 1u; j < 5u; j++) {
@@ -266,9 +273,23 @@ fn find_event(st: State, t: Trial) -> StepEvent {
     } else if st.mode == MODE_SLIP {
         primary = t.slip_event;
     }
+    let ev_primary = EventSamples(
+        any_primary_event(primary, samples.s0),
+        any_primary_event(primary, samples.s1),
+        any_primary_event(primary, samples.s2),
+        any_primary_event(primary, samples.s3),
+        any_primary_event(primary, samples.s4),
+    );
+    let ev_reversal = EventSamples(
+        reversal_event(st, samples.s0),
+        reversal_event(st, samples.s1),
+        reversal_event(st, samples.s2),
+        reversal_event(st, samples.s3),
+        reversal_event(st, samples.s4),
+    );
     var sign = Real(0.0);
     for (var j = 0u; j < 5u; j++) {
-        let d = sample_event(st, EVENT_REVERSAL, Real(1.0), j).x;
+        let d = event_sample(ev_reversal, j).x;
         if sign == Real(0.0) && d != Real(0.0) {
             sign = select(Real(-1.0), Real(1.0), d > Real(0.0));
         }
@@ -294,7 +315,11 @@ fn find_event(st: State, t: Trial) -> StepEvent {
             continue;
         }
         // One call for both kinds (one copy of its code).
-        let crossing = find_crossing(st, kind, kind_sign, scale, h);
+        var ev = ev_primary;
+        if k == 1u {
+            ev = ev_reversal;
+        }
+        let crossing = find_crossing(st, kind, kind_sign, ev, scale, h);
         if kind == EVENT_ENTER_BAND && !crossing.found {
             found.grazed = crossing.closest < GRAZE_MARGIN * c.band2;
         }
