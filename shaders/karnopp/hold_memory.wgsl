@@ -8,7 +8,7 @@
 // `flow.`, `step_samples[lane_slot].` for `samples.` and
 // `step_props[lane_slot].` for `props.` in this variant's source
 // (`gpu::prelude::read_where_used`). In registers RADV's compiler asked
-// 475 VGPRs for the f64 lane and spilled 461 (issue 57).
+// 475 VGPRs for the f64 lane and spilled 461; so, 243 and none (issue 57).
 // hold_registers.wgsl holds them in registers elsewhere.
 
 @group(0) @binding(9) var<storage, read_write> flows: array<Flow>;
