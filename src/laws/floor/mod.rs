@@ -19,6 +19,9 @@
 //!   the rule both f32 paths follow, whatever the law.
 //! * `record.rs` (f64 only): [`Record`] and [`Run`], where a run of any
 //!   law stands, as everything above the laws reads it.
+//! * `drive/` (f64 host code): a waveform's corners over one cycle and
+//!   the slew-limited follower's periodic orbit (issue 59; no scene
+//!   reaches it yet).
 //!
 //! The run's settings are [`crate::laws::settings`], its status codes
 //! [`crate::laws::status`]. Laws import the floor; the floor imports no law.
@@ -26,6 +29,7 @@
 
 pub mod check;
 pub mod double;
+pub mod drive;
 pub mod kinds;
 pub mod record;
 pub mod single;
