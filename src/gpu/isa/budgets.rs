@@ -142,7 +142,7 @@ mod tests {
             // Karnopp's f64 lane since it holds its state and a step's
             // values in device memory (309d7b2's: 256 VGPRs, 461 spilled,
             // 33,024 B).
-            stats("f64-hardware-window", 240, 0, 0),
+            stats("f64-hardware-window", 256, 0, 0),
             stats("f32-hardware-window", 240, 0, 0),
             // LuGre's lane since it reads its model, stages and W where
             // used (309d7b2's: 256 VGPRs, 271 spilled, 69,376 B).

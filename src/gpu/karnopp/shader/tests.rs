@@ -104,9 +104,9 @@ fn shader_only_functions() -> [&'static str; 12] {
         "identity_propagator",
         "series_term",
         "theta",
-        // No arrays indexed at run time and no lane holding five event
-        // values: each sample's event value where it is read.
-        "sample_event",
+        // No arrays indexed at run time: the event samples by selection,
+        // and one function for an event of any kind at a sample.
+        "event_sample",
         "kind_event",
         "hermite_good",
         "any_primary_event",
