@@ -22,6 +22,7 @@ pub mod replicas;
 pub mod run;
 pub mod scene;
 pub mod scope;
+pub mod search;
 pub mod stall;
 pub mod sweep;
 pub mod trajectory;

@@ -7,7 +7,8 @@
 //! Each candidate set of values becomes a scene with one point per data
 //! row ([`problem`]), so every scene rule applies to it; a batch of
 //! candidates is integrated at once on one backend. The search
-//! ([`solve`]) runs differential evolution over the bounds ([`search`]),
+//! ([`solve`]) runs differential evolution over the bounds
+//! ([`crate::search::evolution`]),
 //! then Levenberg-Marquardt ([`lsq`]) with finite-difference Jacobians,
 //! weighing each measurement by [`weights`]; [`judge`] turns the Jacobian
 //! at the best point into standard errors, correlations and warnings;
@@ -25,7 +26,6 @@ pub mod problem;
 pub mod profile;
 pub mod repeats;
 pub mod report;
-pub mod search;
 pub mod solve;
 pub mod spec;
 pub mod ticker;

@@ -13,9 +13,9 @@ use anyhow::Result;
 use super::jacobian;
 use super::lsq::{self, LmOptions};
 use super::problem::{Problem, RowModel};
-use super::search::{self, DeOptions};
 use super::ticker::Ticker;
 use super::weights::Weights;
+use crate::search::evolution::{self as search, DeOptions, Fitness};
 
 /// The tightest step tolerance a fit asks for [m per own drive cycle]:
 /// the integrator's own error, 1e-4 um (docs/model.md section 4), below
@@ -274,7 +274,13 @@ impl<'p, 'a> Search<'p, 'a> {
             ..DeOptions::for_dimension(p, seed)
         };
         let (lo, hi) = (self.lo.clone(), self.hi.clone());
-        let mut eval = |us: &[Vec<f64>]| self.residuals(us);
+        let mut eval = |us: &[Vec<f64>]| -> Result<Vec<Fitness>> {
+            let residuals = self.residuals(us)?;
+            Ok(residuals
+                .iter()
+                .map(|r| Fitness::squares(r.as_deref()))
+                .collect())
+        };
         search::differential_evolution(&mut eval, &lo, &hi, &opts, &mut |_, _, _| {
             search::Progress::Continue
         })

@@ -1,16 +1,73 @@
-//! Differential evolution: the global stage of a weighted least-squares fit.
+//! Differential evolution: the global stage of `pidm fit` (a weighted
+//! least-squares cost) and of any search for the best of a scalar cost
+//! under constraints.
 //!
-//! Points live in the search space (`u` coordinates) inside box bounds. The cost of a
-//! residual vector `r` is `Σ r_i²`. Candidates are evaluated in batches through a
-//! callback so that an expensive simulation can run a whole generation together: the
-//! initial population is one batch and every later generation is exactly one batch.
-//! Everything random comes from a seeded SplitMix64, so a seed reproduces a run bit for bit.
+//! Points live in the search space (`u` coordinates) inside box bounds. A
+//! candidate's [`Fitness`] is a cost of any sign and a constraint violation;
+//! candidates are ranked feasibility first (Deb's rules, [`Fitness::beats`]).
+//! Candidates are evaluated in batches through a callback so that an
+//! expensive simulation can run a whole generation together: the initial
+//! population is one batch and every later generation is exactly one batch.
+//! Everything random comes from a seeded SplitMix64, so a seed reproduces a
+//! run bit for bit.
 
 use anyhow::{Result, bail, ensure};
 
-/// Residuals of a batch of candidates, each a point in the search space (u coordinates);
-/// None for a candidate that is infeasible or whose evaluation failed.
-pub type Batch<'a> = dyn FnMut(&[Vec<f64>]) -> anyhow::Result<Vec<Option<Vec<f64>>>> + 'a;
+/// What a candidate scored: the cost to minimise (any sign) and how far it
+/// breaks its constraints (0 where it keeps them all).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Fitness {
+    pub cost: f64,
+    pub violation: f64,
+}
+
+impl Fitness {
+    /// A candidate that keeps every constraint.
+    pub fn feasible(cost: f64) -> Fitness {
+        Fitness {
+            cost,
+            violation: 0.0,
+        }
+    }
+
+    /// A candidate whose evaluation failed: worse than any other.
+    pub const FAILED: Fitness = Fitness {
+        cost: f64::INFINITY,
+        violation: f64::INFINITY,
+    };
+
+    /// A least-squares cost, `Σ r_i²`, of keeping residuals `r`: failed
+    /// where they are missing or the sum is not finite.
+    pub fn squares(r: Option<&[f64]>) -> Fitness {
+        let cost = r.map_or(f64::INFINITY, |r| r.iter().map(|x| x * x).sum());
+        if cost.is_finite() {
+            Fitness::feasible(cost)
+        } else {
+            Fitness::FAILED
+        }
+    }
+
+    /// Whether the evaluation failed.
+    pub fn failed(&self) -> bool {
+        self.violation.is_infinite()
+    }
+
+    /// Deb's rules: a feasible candidate beats an infeasible one; of two
+    /// feasible ones the lower cost wins; of two infeasible ones the
+    /// smaller violation. Strict: neither beats an equal.
+    pub fn beats(&self, other: &Fitness) -> bool {
+        match (self.violation == 0.0, other.violation == 0.0) {
+            (true, true) => self.cost < other.cost,
+            (true, false) => true,
+            (false, true) => false,
+            (false, false) => self.violation < other.violation,
+        }
+    }
+}
+
+/// Fitness of a batch of candidates, each a point in the search space (u
+/// coordinates).
+pub type Batch<'a> = dyn FnMut(&[Vec<f64>]) -> anyhow::Result<Vec<Fitness>> + 'a;
 
 /// Settings of [`differential_evolution`].
 #[derive(Debug, Clone, PartialEq)]
@@ -21,9 +78,13 @@ pub struct DeOptions {
     pub max_generations: usize,
     /// Seed of the SplitMix64 generator; the same seed gives the same run.
     pub seed: u64,
-    /// Stop when the relative cost spread `(worst - best) / (best + tiny)` of the
-    /// population falls below this (dimensionless), or when the best cost is below 1e-300.
+    /// Stop when the relative cost spread `(worst - best) / (|best| + tiny)` of the
+    /// population falls below this (dimensionless); an infeasible member counts as an
+    /// infinite cost.
     pub tolerance: f64,
+    /// Stop when the best feasible cost falls below this (a least-squares fit: 1e-300,
+    /// a perfect fit; a cost of any sign: none).
+    pub stop_below: Option<f64>,
     /// Mutation scale F (dimensionless); each trial dithers it uniformly in `[F/2, 3F/2)`.
     pub f: f64,
     /// Crossover probability CR in `[0, 1]`: chance that a coordinate comes from the mutant.
@@ -31,15 +92,17 @@ pub struct DeOptions {
 }
 
 impl DeOptions {
-    /// Defaults for `p` parameters: population `clamp(8 p, 12, 40)`, 40 generations,
-    /// tolerance 1e-3, F 0.7, CR 0.9. Sized for a few hundred to ~1600 evaluations,
-    /// enough to find the basin that Levenberg-Marquardt then polishes.
+    /// Defaults for a least-squares fit of `p` parameters: population
+    /// `clamp(8 p, 12, 40)`, 40 generations, tolerance 1e-3, F 0.7, CR 0.9, stop below
+    /// a cost of 1e-300. Sized for a few hundred to ~1600 evaluations, enough to find
+    /// the basin that Levenberg-Marquardt then polishes.
     pub fn for_dimension(p: usize, seed: u64) -> DeOptions {
         DeOptions {
             population: (8 * p).clamp(12, 40),
             max_generations: 40,
             seed,
             tolerance: 1e-3,
+            stop_below: Some(1e-300),
             f: 0.7,
             cr: 0.9,
         }
@@ -51,13 +114,15 @@ impl DeOptions {
 pub struct DeResult {
     /// Best candidate found (u coordinates, inside the bounds).
     pub best: Vec<f64>,
-    /// Cost of `best`: sum of squared residuals.
+    /// Cost of `best` (for a fit: the sum of squared residuals).
     pub best_cost: f64,
+    /// How far `best` breaks its constraints: 0 where it keeps them.
+    pub best_violation: f64,
     /// Generations run after the initial population.
     pub generations: usize,
     /// Candidates evaluated in all batches, the initial population included.
     pub evaluations: usize,
-    /// Candidates that came back None or with non-finite residuals (treated as infinite cost).
+    /// Candidates whose evaluation failed ([`Fitness::FAILED`]).
     pub failed: usize,
 }
 
@@ -101,16 +166,18 @@ struct Tally {
     failed: usize,
 }
 
-/// Global minimisation of the batched least-squares cost inside `[lo, hi]` (u coordinates).
+/// Global minimisation of the batched cost inside `[lo, hi]` (u coordinates), feasible
+/// candidates first.
 ///
 /// Strategy: "current-to-best/1/bin" with per-trial dither of F. With a budget of only
 /// tens of generations, pulling every member toward the best converges several times
 /// faster than "rand/1/bin"; the premature-convergence risk this brings is reduced by the
 /// dither and the difference vector, and is acceptable because a local Levenberg-Marquardt
 /// stage polishes the result. Mutants leaving the box bounce back to a random point between
-/// the parent and the bound. Selection is greedy (a trial replaces its parent when its cost
-/// is not larger); None counts as infinite cost. `on_generation(g, best_cost, best_u)` is
-/// called after the initial population (g = 0) and after each generation.
+/// the parent and the bound. Selection is greedy (a trial replaces its parent unless the
+/// parent beats it, [`Fitness::beats`]); a failed evaluation loses to every other.
+/// `on_generation(g, best_cost, best_u)` is called after the initial population (g = 0)
+/// and after each generation.
 pub fn differential_evolution(
     eval: &mut Batch<'_>,
     lo: &[f64],
@@ -123,7 +190,7 @@ pub fn differential_evolution(
     let mut tally = Tally::default();
     let mut pop = latin_hypercube(lo, hi, opts.population, &mut rng);
     let mut costs = evaluate(eval, &pop, &mut tally)?;
-    if costs.iter().all(|c| c.is_infinite()) {
+    if costs.iter().all(Fitness::failed) {
         bail!(
             "no candidate in the bounds could be evaluated: all {} initial candidates failed",
             pop.len()
@@ -131,27 +198,28 @@ pub fn differential_evolution(
     }
     let mut best = argmin(&costs);
     let mut generations = 0;
-    let mut stop = on_generation(0, costs[best], &pop[best]) == Progress::Stop
-        || converged(&costs, best, opts.tolerance);
+    let mut stop = on_generation(0, costs[best].cost, &pop[best]) == Progress::Stop
+        || converged(&costs, best, opts);
     while !stop && generations < opts.max_generations {
         let trials: Vec<Vec<f64>> = (0..pop.len())
             .map(|i| trial(&pop, i, best, lo, hi, opts, &mut rng))
             .collect();
         let trial_costs = evaluate(eval, &trials, &mut tally)?;
         for (i, (t, c)) in trials.into_iter().zip(trial_costs).enumerate() {
-            if c <= costs[i] {
+            if !costs[i].beats(&c) {
                 pop[i] = t;
                 costs[i] = c;
             }
         }
         best = argmin(&costs);
         generations += 1;
-        stop = on_generation(generations, costs[best], &pop[best]) == Progress::Stop
-            || converged(&costs, best, opts.tolerance);
+        stop = on_generation(generations, costs[best].cost, &pop[best]) == Progress::Stop
+            || converged(&costs, best, opts);
     }
     Ok(DeResult {
         best: pop.swap_remove(best),
-        best_cost: costs[best],
+        best_cost: costs[best].cost,
+        best_violation: costs[best].violation,
         generations,
         evaluations: tally.evaluations,
         failed: tally.failed,
@@ -194,8 +262,8 @@ fn latin_hypercube(lo: &[f64], hi: &[f64], n: usize, rng: &mut SplitMix64) -> Ve
     points
 }
 
-/// Evaluates one batch and returns the costs; None or non-finite residuals give infinity.
-fn evaluate(eval: &mut Batch<'_>, points: &[Vec<f64>], tally: &mut Tally) -> Result<Vec<f64>> {
+/// Evaluates one batch; a non-finite cost or violation is a failed evaluation.
+fn evaluate(eval: &mut Batch<'_>, points: &[Vec<f64>], tally: &mut Tally) -> Result<Vec<Fitness>> {
     let results = eval(points)?;
     ensure!(
         results.len() == points.len(),
@@ -204,34 +272,45 @@ fn evaluate(eval: &mut Batch<'_>, points: &[Vec<f64>], tally: &mut Tally) -> Res
         points.len()
     );
     tally.evaluations += points.len();
-    let costs = results.into_iter().map(|r| {
-        let cost = r.map_or(f64::INFINITY, |r| r.iter().map(|x| x * x).sum());
-        if cost.is_finite() {
-            cost
-        } else {
-            f64::INFINITY
-        }
-    });
-    let costs: Vec<f64> = costs.collect();
-    tally.failed += costs.iter().filter(|c| c.is_infinite()).count();
+    let costs: Vec<Fitness> = results
+        .into_iter()
+        .map(|f| {
+            let ok = f.cost.is_finite() && f.violation.is_finite() && f.violation >= 0.0;
+            if ok { f } else { Fitness::FAILED }
+        })
+        .collect();
+    tally.failed += costs.iter().filter(|c| c.failed()).count();
     Ok(costs)
 }
 
-/// Index of the smallest cost (the first one on ties).
-fn argmin(costs: &[f64]) -> usize {
+/// Index of the best candidate (the first one on ties).
+fn argmin(costs: &[Fitness]) -> usize {
     let mut best = 0;
-    for (i, &c) in costs.iter().enumerate() {
-        if c < costs[best] {
+    for (i, c) in costs.iter().enumerate() {
+        if c.beats(&costs[best]) {
             best = i;
         }
     }
     best
 }
 
-/// True when the population's relative cost spread is below `tolerance` or the best is ~0.
-fn converged(costs: &[f64], best: usize, tolerance: f64) -> bool {
-    let worst = costs.iter().copied().fold(0.0, f64::max);
-    costs[best] < 1e-300 || (worst - costs[best]) / (costs[best] + 1e-300) < tolerance
+/// True when the population's relative cost spread is below the tolerance (every member
+/// feasible) or the best cost is below `stop_below`.
+fn converged(costs: &[Fitness], best: usize, opts: &DeOptions) -> bool {
+    let b = costs[best];
+    let feasible = b.violation == 0.0;
+    if feasible && opts.stop_below.is_some_and(|floor| b.cost < floor) {
+        return true;
+    }
+    let cost = |f: &Fitness| {
+        if f.violation == 0.0 {
+            f.cost
+        } else {
+            f64::INFINITY
+        }
+    };
+    let worst = costs.iter().map(cost).fold(b.cost, f64::max);
+    feasible && (worst - b.cost) / (b.cost.abs() + 1e-300) < opts.tolerance
 }
 
 /// Trial vector for member `i`: current-to-best/1 mutation, binomial crossover, bounce-back.
@@ -282,16 +361,20 @@ mod tests {
     use super::*;
     use std::cell::RefCell;
 
-    type Out = anyhow::Result<Vec<Option<Vec<f64>>>>;
+    type Out = anyhow::Result<Vec<Fitness>>;
 
-    /// Batch evaluator from a pointwise model, counting calls.
+    /// Batch evaluator of least squares from a pointwise model of residuals,
+    /// counting calls.
     fn batched<'a>(
         model: impl Fn(&[f64]) -> Option<Vec<f64>> + 'a,
         calls: &'a RefCell<Vec<usize>>,
     ) -> impl FnMut(&[Vec<f64>]) -> Out + 'a {
         move |pts: &[Vec<f64>]| {
             calls.borrow_mut().push(pts.len());
-            Ok(pts.iter().map(|u| model(u)).collect())
+            Ok(pts
+                .iter()
+                .map(|u| Fitness::squares(model(u).as_deref()))
+                .collect())
         }
     }
 
@@ -437,5 +520,63 @@ mod tests {
             cells.sort_unstable();
             assert_eq!(cells, (0..10).collect::<Vec<_>>());
         }
+    }
+
+    /// A cost of any sign under a constraint, feasibility first: the
+    /// largest x + y (cost -(x + y)) on the disc x² + y² <= 1 (violation
+    /// x² + y² - 1 outside it) is at (1, 1) / √2; no infeasible candidate
+    /// is ever the best once a feasible one is seen.
+    #[test]
+    fn deb_rules_find_a_constrained_maximum_of_any_sign() {
+        let score = |u: &[f64]| Fitness {
+            cost: -(u[0] + u[1]),
+            violation: (u[0] * u[0] + u[1] * u[1] - 1.0).max(0.0),
+        };
+        let mut feasible_seen = false;
+        let mut eval = |pts: &[Vec<f64>]| -> Out { Ok(pts.iter().map(|u| score(u)).collect()) };
+        let opts = DeOptions {
+            max_generations: 200,
+            stop_below: None,
+            tolerance: 1e-9,
+            ..DeOptions::for_dimension(2, 17)
+        };
+        let res =
+            differential_evolution(&mut eval, &[-2.0; 2], &[2.0; 2], &opts, &mut |_, _, u| {
+                let inside = score(u).violation == 0.0;
+                assert!(
+                    inside || !feasible_seen,
+                    "an infeasible best after a feasible one"
+                );
+                feasible_seen |= inside;
+                Progress::Continue
+            })
+            .unwrap();
+        assert_eq!(res.best_violation, 0.0);
+        let r = std::f64::consts::FRAC_1_SQRT_2;
+        assert!(
+            (res.best[0] - r).abs() < 1e-3 && (res.best[1] - r).abs() < 1e-3,
+            "{res:?}"
+        );
+        assert!(
+            (res.best_cost + std::f64::consts::SQRT_2).abs() < 1e-6,
+            "{res:?}"
+        );
+    }
+
+    /// Deb's rules, case by case; a failed evaluation loses to every other.
+    #[test]
+    fn feasible_beats_infeasible_then_cost_then_violation() {
+        let f = Fitness::feasible;
+        let bad = |v| Fitness {
+            cost: -1e9,
+            violation: v,
+        };
+        assert!(f(5.0).beats(&bad(1e-12)));
+        assert!(!bad(1e-12).beats(&f(5.0)));
+        assert!(f(-3.0).beats(&f(-2.0)) && !f(-2.0).beats(&f(-2.0)));
+        assert!(bad(0.1).beats(&bad(0.2)));
+        assert!(bad(1e300).beats(&Fitness::FAILED) && !Fitness::FAILED.beats(&Fitness::FAILED));
+        assert_eq!(Fitness::squares(Some(&[3.0, 4.0])), f(25.0));
+        assert!(Fitness::squares(Some(&[f64::NAN])).failed() && Fitness::squares(None).failed());
     }
 }
