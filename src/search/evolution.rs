@@ -11,6 +11,7 @@
 //! Everything random comes from a seeded SplitMix64, so a seed reproduces a
 //! run bit for bit.
 
+use super::rng::SplitMix64;
 use anyhow::{Result, bail, ensure};
 
 /// What a candidate scored: the cost to minimise (any sign) and how far it
@@ -134,29 +135,6 @@ pub enum Progress {
     Continue,
     /// Stop now and return the best so far.
     Stop,
-}
-
-/// SplitMix64 pseudo-random generator (small, fast, and identical on every platform).
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)` with 53 random bits.
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform integer in `0..n` (`n > 0`).
-    fn below(&mut self, n: usize) -> usize {
-        ((self.unit() * n as f64) as usize).min(n - 1)
-    }
 }
 
 /// Counts of evaluated and failed candidates.

@@ -1,6 +1,13 @@
-//! Derivative-free searches over a box of parameters, shared by the
-//! commands that look for a best point: `pidm fit`'s global stage today
-//! (issue 61: `pidm optimize` is to share it). They know nothing of the
-//! engine: a candidate is scored by a batch callback.
+//! Derivative-free searches and samplings of a box of parameters, shared
+//! by the commands that look for a best point or for what matters:
+//! `pidm fit`'s global stage today (issue 61: `pidm optimize` and `pidm
+//! sensitivity` are to share them). They know nothing of the engine: a
+//! candidate is scored by a batch callback, a sample by its output.
+//!
+//! * `evolution.rs`: differential evolution, feasibility first.
+//! * `sobol.rs`: Saltelli's sample and the Sobol' indices SALib reports.
+//! * `rng.rs`: the seeded generator both draw from.
 
 pub mod evolution;
+pub mod rng;
+pub mod sobol;
