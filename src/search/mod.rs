@@ -5,9 +5,11 @@
 //! candidate is scored by a batch callback, a sample by its output.
 //!
 //! * `evolution.rs`: differential evolution, feasibility first.
+//! * `pattern.rs`: a compass search, the local stage for a noisy cost.
 //! * `sobol.rs`: Saltelli's sample and the Sobol' indices SALib reports.
 //! * `rng.rs`: the seeded generator both draw from.
 
 pub mod evolution;
+pub mod pattern;
 pub mod rng;
 pub mod sobol;

@@ -54,7 +54,7 @@ pub struct Indices {
 pub fn analyze(y: &[f64], k: usize, resamples: usize, seed: u64) -> Result<Indices> {
     ensure!(k > 0, "no keys to analyse");
     ensure!(
-        !y.is_empty() && y.len() % (k + 2) == 0,
+        !y.is_empty() && y.len().is_multiple_of(k + 2),
         "{} outputs are not whole base rows of {} runs",
         y.len(),
         k + 2
