@@ -7,8 +7,11 @@
 //! * `evolution.rs`: differential evolution, feasibility first.
 //! * `pattern.rs`: a compass search, the local stage for a noisy cost.
 //! * `sobol.rs`: Saltelli's sample and the Sobol' indices SALib reports.
+//! * `distributions.rs`: a key's value from a point of the unit cube, and
+//!   an output's spread.
 //! * `rng.rs`: the seeded generator both draw from.
 
+pub mod distributions;
 pub mod evolution;
 pub mod pattern;
 pub mod rng;
