@@ -48,6 +48,13 @@ impl Fitness {
         }
     }
 
+    /// The fitness as a search ranks it: failed where the cost or the
+    /// violation is not finite or the violation is below 0.
+    pub fn checked(self) -> Fitness {
+        let ok = self.cost.is_finite() && self.violation.is_finite() && self.violation >= 0.0;
+        if ok { self } else { Fitness::FAILED }
+    }
+
     /// Whether the evaluation failed.
     pub fn failed(&self) -> bool {
         self.violation.is_infinite()
@@ -240,8 +247,17 @@ fn latin_hypercube(lo: &[f64], hi: &[f64], n: usize, rng: &mut SplitMix64) -> Ve
     points
 }
 
-/// Evaluates one batch; a non-finite cost or violation is a failed evaluation.
+/// Evaluates one batch ([`scored`]), counting it.
 fn evaluate(eval: &mut Batch<'_>, points: &[Vec<f64>], tally: &mut Tally) -> Result<Vec<Fitness>> {
+    let costs = scored(eval, points)?;
+    tally.evaluations += points.len();
+    tally.failed += costs.iter().filter(|c| c.failed()).count();
+    Ok(costs)
+}
+
+/// One batch's fitness, one per point, each [`Fitness::checked`]: every
+/// search's one call of its evaluator.
+pub(super) fn scored(eval: &mut Batch<'_>, points: &[Vec<f64>]) -> Result<Vec<Fitness>> {
     let results = eval(points)?;
     ensure!(
         results.len() == points.len(),
@@ -249,16 +265,7 @@ fn evaluate(eval: &mut Batch<'_>, points: &[Vec<f64>], tally: &mut Tally) -> Res
         results.len(),
         points.len()
     );
-    tally.evaluations += points.len();
-    let costs: Vec<Fitness> = results
-        .into_iter()
-        .map(|f| {
-            let ok = f.cost.is_finite() && f.violation.is_finite() && f.violation >= 0.0;
-            if ok { f } else { Fitness::FAILED }
-        })
-        .collect();
-    tally.failed += costs.iter().filter(|c| c.failed()).count();
-    Ok(costs)
+    Ok(results.into_iter().map(Fitness::checked).collect())
 }
 
 /// Index of the best candidate (the first one on ties).

@@ -14,7 +14,7 @@
 //! them (a compass search stopped at x + y = 1.34 of the unit disc's 1.41);
 //! rotating ones do not.
 
-use super::evolution::{Batch, Fitness};
+use super::evolution::{Batch, Fitness, scored};
 use super::rng::SplitMix64;
 use anyhow::{Result, ensure};
 
@@ -81,7 +81,7 @@ pub fn compass_search(
     let mut rng = SplitMix64(opts.seed);
     let mut step = opts.initial_step;
     let mut x = start.to_vec();
-    let mut fx = one(eval, &[x.clone()])?[0];
+    let mut fx = scored(eval, &[x.clone()])?[0];
     let mut evaluations = 1;
     while step >= opts.tolerance && evaluations + 2 * p <= opts.max_evaluations {
         let basis = rotation(p, &mut rng);
@@ -94,7 +94,7 @@ pub fn compass_search(
                     .collect()
             })
             .collect();
-        let scores = one(eval, &polls)?;
+        let scores = scored(eval, &polls)?;
         evaluations += polls.len();
         let mut best = None;
         for (m, s) in scores.iter().enumerate() {
@@ -134,24 +134,6 @@ fn rotation(p: usize, rng: &mut SplitMix64) -> Vec<Vec<f64>> {
                 .collect()
         })
         .collect()
-}
-
-/// One batch, checked for its length; a non-finite score is a failure.
-fn one(eval: &mut Batch<'_>, points: &[Vec<f64>]) -> Result<Vec<Fitness>> {
-    let scores = eval(points)?;
-    ensure!(
-        scores.len() == points.len(),
-        "the batch evaluator returned {} results for {} candidates",
-        scores.len(),
-        points.len()
-    );
-    Ok(scores
-        .into_iter()
-        .map(|f| {
-            let ok = f.cost.is_finite() && f.violation.is_finite() && f.violation >= 0.0;
-            if ok { f } else { Fitness::FAILED }
-        })
-        .collect())
 }
 
 #[cfg(test)]
