@@ -11,9 +11,8 @@
 // 475 VGPRs for the f64 lane and spilled 461; so, 243 and none (issue 57).
 // hold_registers.wgsl holds them in registers elsewhere.
 
-@group(0) @binding(9) var<storage, read_write> flows: array<Flow>;
-@group(0) @binding(10) var<storage, read_write> step_samples: array<Samples>;
-@group(0) @binding(11) var<storage, read_write> step_props: array<SamplePropagators>;
+// The buffers themselves (bindings 9 to 11) are declared by the host from
+// `gpu::karnopp::shader::HELD_IN_MEMORY`, the one home of their bindings.
 
 // Starts (`initialize`) instance `index` in its entry of `states`, which
 // the lane works on in place (`held` is `index`): `st` is not read. The

@@ -233,22 +233,17 @@ impl<'a> Runner<'a> {
         }
     }
 
-    /// Runs all instances, batch by batch; `packed` holds their
-    /// coefficients where they were packed ahead.
-    fn all<L: Layout>(
-        &self,
-        instances: &[Instance],
-        packed: Option<&[u8]>,
-        progress: &mut dyn FnMut(u64, u64),
-    ) -> Result<Vec<GpuOutcome>, GpuError> {
+    /// The most instances one batch of `instances` may hold: what a binding
+    /// holds of the largest per-instance entry, the state (or a steady
+    /// measurement's accumulators) or a lane's entries where the variant
+    /// holds a step in device memory (the batch has a lane per instance).
+    fn batch_size<L: Layout>(&self, instances: &[Instance]) -> usize {
         let state_size = if super::readback::any_steady(instances) {
             size_of::<L::State>()
                 .max(size_of::<L::Measure>() * super::staging::measure_entries(self.loop_limiter()))
         } else {
             size_of::<L::State>()
         };
-        // A lane's entries where the variant holds a step in device memory
-        // (the batch has a lane per instance).
         let held = Variant {
             precision: L::PRECISION,
             loop_limiter: self.loop_limiter(),
@@ -257,12 +252,23 @@ impl<'a> Runner<'a> {
         let state_size = super::karnopp::shader::per_lane(held)
             .iter()
             .fold(state_size, |m, &(_, bytes)| m.max(bytes as usize));
-        let per_batch = max_batch_instances(
+        max_batch_instances(
             self.limits,
             size_of::<L::Coefficients>(),
             state_size,
             self.options,
-        );
+        )
+    }
+
+    /// Runs all instances, batch by batch; `packed` holds their
+    /// coefficients where they were packed ahead.
+    fn all<L: Layout>(
+        &self,
+        instances: &[Instance],
+        packed: Option<&[u8]>,
+        progress: &mut dyn FnMut(u64, u64),
+    ) -> Result<Vec<GpuOutcome>, GpuError> {
+        let per_batch = self.batch_size::<L>(instances);
         let total = instances.len() as u64;
         let route = match L::PRECISION {
             Precision::F32 => self.options.check.route(true),

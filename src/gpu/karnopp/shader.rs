@@ -83,11 +83,16 @@ const HOLDERS: [(&str, &str); 2] = [
     ),
 ];
 
-/// The bindings of an f64 hardware lane's flow and samples
-/// (`shaders/karnopp/hold_memory.wgsl`), after the engine's 0 to 8, with
-/// the struct of each entry: one entry per lane.
-pub const HELD_IN_MEMORY: [(u32, &str); 3] =
-    [(9, "Flow"), (10, "Samples"), (11, "SamplePropagators")];
+/// Where an f64 hardware lane holds a step's flow, samples and
+/// propagators, one entry per lane, the one home of each: its binding
+/// (after the engine's 0 to 8), the private variable of
+/// `hold_registers.wgsl` that this variant reads instead, the storage
+/// buffer [`source`] declares for it and the struct of its entries.
+pub const HELD_IN_MEMORY: [(u32, &str, &str, &str); 3] = [
+    (9, "flow", "flows", "Flow"),
+    (10, "samples", "step_samples", "Samples"),
+    (11, "props", "step_props", "SamplePropagators"),
+];
 
 /// Each buffer of [`HELD_IN_MEMORY`] with the bytes of its entry, a lane's,
 /// from the shader's own layout of its struct, where `variant` holds a
@@ -105,7 +110,7 @@ pub fn per_lane(variant: Variant) -> &'static [(u32, u64)] {
             .expect("the shader's types have a layout");
         HELD_IN_MEMORY
             .iter()
-            .map(|&(binding, name)| {
+            .map(|&(binding, _, _, name)| {
                 let (handle, _) = module
                     .types
                     .iter()
@@ -424,11 +429,15 @@ pub fn source(variant: Variant) -> String {
         }
     }
     if variant.holds_in_memory() {
-        let src = read_where_used(&src, "(*st)", "states[held]");
-        let src = read_where_used(&src, "st", "states[held]");
-        let src = read_where_used(&src, "flow", "flows[lane_slot]");
-        let src = read_where_used(&src, "samples", "step_samples[lane_slot]");
-        return read_where_used(&src, "props", "step_props[lane_slot]");
+        let mut src = read_where_used(&src, "(*st)", "states[held]");
+        src = read_where_used(&src, "st", "states[held]");
+        for (binding, private, buffer, ty) in HELD_IN_MEMORY {
+            src += &format!(
+                "@group(0) @binding({binding}) var<storage, read_write> {buffer}: array<{ty}>;\n"
+            );
+            src = read_where_used(&src, private, &format!("{buffer}[lane_slot]"));
+        }
+        return src;
     }
     src
 }
