@@ -5,8 +5,11 @@
 //! functions, shared by the CPU integrator, the GPU packer and the scene
 //! expander.
 
+pub mod drive;
 pub mod motion;
 pub mod random;
+
+pub use drive::{NO_SLEW_LIMIT, Shape, Table};
 
 /// Number of actuated axes of the mechanism (x and y).
 pub const AXES: usize = 2;
@@ -34,6 +37,19 @@ pub struct Axis {
     pub duty: f64,
     /// Drive phase offset [cycles].
     pub phase: f64,
+    /// The waveform: the sawtooth (with `duty`), the trapezoid (with the
+    /// three fractions below) or a table (docs/model.md section 2).
+    pub shape: Shape,
+    /// The trapezoid's rise, hold at the top and fall, each a fraction of
+    /// a cycle (0 is a jump); the rest of the cycle dwells at 0. Unused
+    /// (0) by the other shapes.
+    pub rise: f64,
+    pub hold: f64,
+    pub fall: f64,
+    /// The amplifier's slew limit [V/s]: the stage's voltage follows the
+    /// waveform never faster than this. [`NO_SLEW_LIMIT`] (infinite) by
+    /// default, the waveform itself.
+    pub slew_rate: f64,
 }
 
 /// The shared friction interface and its slider (docs/model.md section 3).
@@ -147,7 +163,7 @@ impl Mechanism {
 }
 
 /// The bits of every parameter of an [`Instance`] ([`Instance::key`]).
-pub type InstanceKey = [u64; 31];
+pub type InstanceKey = [u64; 43];
 
 /// How an instance's step is measured (docs/model.md section 4).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -226,6 +242,11 @@ impl Axis {
         frequency: 10.0,
         duty: 0.98,
         phase: 0.0,
+        shape: Shape::Sawtooth,
+        rise: 0.0,
+        hold: 0.0,
+        fall: 0.0,
+        slew_rate: NO_SLEW_LIMIT,
     };
 
     /// The paper's text (1 kHz, Q = 50) with k = 1e6 N/m, through eqs. 6-7.
@@ -246,6 +267,25 @@ impl Axis {
             ("frequency", self.frequency),
             ("duty", self.duty),
             ("phase", self.phase),
+        ]
+    }
+
+    /// The drive's shape beyond the sawtooth's keys, as bits: the shape,
+    /// its fractions, the slew limit and the table's identity (zeros for
+    /// a plain sawtooth).
+    pub fn shape_key(&self) -> [u64; 6] {
+        let (tag, table) = match self.shape {
+            Shape::Sawtooth => (0, 0),
+            Shape::Trapezoid => (1, 0),
+            Shape::Table(t) => (2, t.id()),
+        };
+        [
+            tag,
+            self.rise.to_bits(),
+            self.hold.to_bits(),
+            self.fall.to_bits(),
+            self.slew_rate.to_bits(),
+            table,
         ]
     }
 
@@ -372,7 +412,7 @@ impl Instance {
     /// The instance's exact identity: every parameter's bits. Two instances
     /// with the same key integrate to the same result on any backend.
     pub fn key(&self) -> InstanceKey {
-        let mut key = [0; 31];
+        let mut key = [0; 43];
         key[..6].copy_from_slice(&self.mechanism.parameters().map(|(_, v)| v.to_bits()));
         key[6..8].copy_from_slice(&[self.cycles as u64, self.settle as u64]);
         for (i, a) in self.axes.iter().enumerate() {
@@ -382,7 +422,10 @@ impl Instance {
         key[25] = self.measure.step_tolerance().to_bits();
         if let Some(lugre) = self.mechanism.lugre() {
             key[26] = 1;
-            key[27..].copy_from_slice(&lugre.parameters().map(|(_, v)| v.to_bits()));
+            key[27..31].copy_from_slice(&lugre.parameters().map(|(_, v)| v.to_bits()));
+        }
+        for (i, a) in self.axes.iter().enumerate() {
+            key[31 + 6 * i..37 + 6 * i].copy_from_slice(&a.shape_key());
         }
         key
     }

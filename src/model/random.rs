@@ -27,6 +27,7 @@ pub fn random_instance(rng: &mut Rng, cycles: u32, settle: u32) -> Instance {
             frequency: rng.uniform(5.0, 40.0),
             duty: rng.uniform(0.6, 1.0),
             phase: rng.unit(),
+            ..Axis::TABLE1
         };
     }
     let static_friction = rng.uniform(0.5, 2.0);

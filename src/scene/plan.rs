@@ -351,6 +351,7 @@ impl AxisPlan {
             frequency: self.frequency.get(raw),
             duty: self.duty.get(raw),
             phase: self.phase.get(raw),
+            ..Axis::TABLE1
         }
     }
 }

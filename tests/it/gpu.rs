@@ -1521,7 +1521,7 @@ fn state_distance(
         g.status,
         g.period,
         g.steps,
-        g.rising,
+        g.segment,
         g.rejections,
         g.measured,
     ) == (
@@ -1529,7 +1529,7 @@ fn state_distance(
         m.status,
         m.period,
         m.steps,
-        m.rising,
+        m.segment,
         m.rejections,
         m.measured,
     );

@@ -171,9 +171,11 @@ macro_rules! precision_structs {
             /// finished shader state: status, period and slider positions.
             pub fn reduced_state(st: &State) -> crate::laws::karnopp::integrate::State {
                 let length = |v: V2| Vec2::new(v.x as f64, v.y as f64) * (1.0 / UNITS.metre);
-                let mut out = crate::laws::karnopp::integrate::initial_state(
-                    &crate::laws::karnopp::integrate::Coefficients::default(),
-                );
+                let mut out = crate::laws::karnopp::integrate::State {
+                    mode: crate::laws::karnopp::integrate::MODE_STICK,
+                    status: STATUS_OK,
+                    ..Default::default()
+                };
                 out.x_s = length(st.x_s);
                 out.settle_x_s = length(st.settle_x_s);
                 out.status = st.status;
@@ -214,6 +216,18 @@ macro_rules! precision_structs {
             /// The CPU mirror's coefficients `c` in this layout (LuGre's
             /// runs pack their own: `crate::gpu::lugre`).
             pub fn packed(c: &mirror::Coefficients) -> Coefficients {
+                // The shader drives sawtooths: its rise is the mirror's
+                // first segment and its fall the second (none at duty 1).
+                let rise = |f: fn(&mirror::drive::Segment) -> mirror::Real| {
+                    v2(mirror::Vec2::new(
+                        f(&c.segments[0][0]),
+                        f(&c.segments[1][0]),
+                    ))
+                };
+                let fall = |f: fn(&mirror::drive::Segment) -> mirror::Real| {
+                    let at = |i: usize| c.segments[i].get(1).map_or(0.0, f);
+                    v2(mirror::Vec2::new(at(0), at(1)))
+                };
                 Coefficients {
                     stiffness: v2(c.stiffness),
                     damping: v2(c.damping),
@@ -222,17 +236,17 @@ macro_rules! precision_structs {
                     slip: oscillator(&c.slip),
                     amplitude: v2(c.amplitude),
                     frequency: v2(c.frequency),
-                    duty: v2(c.duty),
-                    inv_duty: v2(c.inv_duty),
-                    inv_fall: v2(c.inv_fall),
-                    rise_slope: v2(c.rise_slope),
-                    fall_slope: v2(c.fall_slope),
+                    duty: rise(|s| s.end),
+                    inv_duty: rise(|s| s.per_cycle),
+                    inv_fall: fall(|s| -s.per_cycle),
+                    rise_slope: rise(|s| s.slope),
+                    fall_slope: fall(|s| s.slope),
                     phase: v2(c.phase),
                     cycles_per_period: v2(c.cycles_per_period),
-                    rise_time: v2(c.rise_time),
-                    rise_time_lo: v2(c.rise_time_lo),
-                    fall_time: v2(c.fall_time),
-                    fall_time_lo: v2(c.fall_time_lo),
+                    rise_time: rise(|s| s.time),
+                    rise_time_lo: rise(|s| s.time_lo),
+                    fall_time: fall(|s| s.time),
+                    fall_time_lo: fall(|s| s.time_lo),
                     first_corner: v2(c.first_corner),
                     first_corner_lo: v2(c.first_corner_lo),
                     stage_share: v2(c.stage_share),
@@ -308,7 +322,8 @@ macro_rules! precision_structs {
                     h_slip: st.h_slip,
                     h_accepted: st.h_accepted,
                     err_accepted: st.err_accepted,
-                    rising: [st.rising.x, st.rising.y],
+                    // The sawtooth's rise is segment 0 and its fall 1.
+                    segment: [1 - st.rising.x, 1 - st.rising.y],
                     mode: st.mode,
                     period: st.period,
                     status: st.status,

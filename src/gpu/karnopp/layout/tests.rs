@@ -139,7 +139,7 @@ fn f64_states_continue_on_the_cpu_member_by_member() {
         [v(7.0), v(8.0), v(9.0)]
     );
     assert_eq!([cpu.time, cpu.h_slip], [10.0, 11.0]);
-    assert_eq!(cpu.rising, [1, 0]);
+    assert_eq!(cpu.segment, [0, 1], "rising is segment 0");
     assert_eq!(
         [
             cpu.mode,

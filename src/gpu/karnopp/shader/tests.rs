@@ -121,7 +121,7 @@ fn shader_only_functions() -> [&'static str; 12] {
 }
 
 /// The functions only the Rust mirrors define.
-fn cpu_only_functions() -> [&'static str; 41] {
+fn cpu_only_functions() -> [&'static str; 45] {
     // CPU only: constructors, the observer of trajectories (its `step`
     // method and `StepMotion`), the whole run (stoppable, also from a
     // state the f64 shader left) and its result, Rust's rounding and
@@ -142,6 +142,14 @@ fn cpu_only_functions() -> [&'static str; 41] {
         "set_steps",
         "set_measurement",
         "rounded",
+        // The drive's segments (issue 59): the shader drives sawtooths
+        // from their coefficients (`layout::packed`: rise and fall are
+        // segments 0 and 1), the same arithmetic, until its waveform
+        // variant reads a segment buffer.
+        "segments_of",
+        "segment_at",
+        "current_segments",
+        "first_corner",
         "inverse_integer",
         "run_instance",
         "run_instance_until",

@@ -9,13 +9,42 @@
 //! consecutive corners and from the last one to the first one a cycle
 //! later. Two corners at one u are a jump, from the first level to the
 //! second; w at a jump is the level after it, as the sawtooth's
-//! (`model::sawtooth`) is at its drop. The scene side (keys per axis, the
-//! grid rules) is not wired yet: today every scene drives a sawtooth.
+//! (`model::sawtooth`) is at its drop. [`axis_corners`] is what a law
+//! reads: an axis' waveform, slew-limited where its amplifier is.
 
 mod slew;
 
 #[cfg(test)]
 mod tests;
+
+use crate::model::{Axis, Shape};
+
+/// The waveform an axis' keys give.
+pub fn axis_waveform(axis: &Axis) -> Waveform {
+    match axis.shape {
+        Shape::Sawtooth => Waveform::Sawtooth { duty: axis.duty },
+        Shape::Trapezoid => Waveform::Trapezoid {
+            rise: axis.rise,
+            hold: axis.hold,
+            fall: axis.fall,
+        },
+        Shape::Table(table) => Waveform::Table(table.entries().to_vec()),
+    }
+}
+
+/// One cycle of the levels the stage sees on `axis`: its waveform's
+/// corners, on the follower's periodic orbit where the amplifier's
+/// `slew_rate` limits a flank. The limit in levels per cycle is
+/// slew_rate / (|voltage| frequency); an undriven axis sees no limit.
+pub fn axis_corners(axis: &Axis) -> Corners {
+    let corners = axis_waveform(axis).corners();
+    let sigma = axis.slew_rate / (axis.voltage.abs() * axis.frequency);
+    if axis.is_driven() && sigma.is_finite() {
+        corners.slew_limited(sigma)
+    } else {
+        corners
+    }
+}
 
 /// The most corners a table may hold.
 pub const MAX_TABLE_ENTRIES: usize = 64;

@@ -33,7 +33,7 @@ pub struct Oscillator {
 
 /// The per-instance constants of the integrator, in one unit system
 /// (whatever the instance is given in).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Coefficients {
     /// Stiffness k and damping c per axis (the stage mass enters through
     /// the oscillators and the shares below).
@@ -49,13 +49,8 @@ pub struct Coefficients {
     pub amplitude: Vec2,
     /// Drive frequency f [1/s].
     pub frequency: Vec2,
-    /// Rise fraction d, 1 / d, and 1 / (1 - d) (0 where d = 1: no fall).
-    pub duty: Vec2,
-    pub inv_duty: Vec2,
-    pub inv_fall: Vec2,
-    /// Force slopes on the rise and on the fall [N/s].
-    pub rise_slope: Vec2,
-    pub fall_slope: Vec2,
+    /// Each axis' drive, one cycle's linear segments (`drive::Segment`).
+    pub segments: [Box<[super::drive::Segment]>; 2],
     /// Drive phase [cycles] and drive cycles per scene period.
     pub phase: Vec2,
     pub cycles_per_period: Vec2,
@@ -115,14 +110,9 @@ pub struct Coefficients {
     /// in f64).
     pub period: Real,
     pub period_lo: Real,
-    /// The corner clock (`drive::CornerClock`, f32's `CORNER_CLOCK`): the
-    /// durations of a rise (a cycle at duty 1) and of a fall, and the local
-    /// time of the first corner, each as hi + lo [s]; zero on undriven
-    /// axes.
-    pub rise_time: Vec2,
-    pub rise_time_lo: Vec2,
-    pub fall_time: Vec2,
-    pub fall_time_lo: Vec2,
+    /// The corner clock's (`drive::CornerClock`, f32's `CORNER_CLOCK`)
+    /// local time of the first corner, as hi + lo [s] (the segments carry
+    /// their durations); zero on undriven axes.
     pub first_corner: Vec2,
     pub first_corner_lo: Vec2,
     /// Step lengths that sample the fastest oscillation of stick and of
@@ -221,7 +211,11 @@ impl Coefficients {
             inv_mass: v(o.inv_mass),
             inv_w2: v(o.inv_w2),
         };
-        let clock = exact_integrate::drive::CornerClock::new(exact, |x| x as Real as f64);
+        let period = {
+            let hi = exact.period as Real;
+            (hi, (exact.period - hi as f64) as Real)
+        };
+        let first = exact_integrate::drive::first_corner(exact, |x| x as Real as f64);
         let e = exact;
         Coefficients {
             stiffness: v(e.stiffness),
@@ -231,11 +225,10 @@ impl Coefficients {
             slip: osc(&e.slip),
             amplitude: v(e.amplitude),
             frequency: v(e.frequency),
-            duty: v(e.duty),
-            inv_duty: v(e.inv_duty),
-            inv_fall: v(e.inv_fall),
-            rise_slope: v(e.rise_slope),
-            fall_slope: v(e.fall_slope),
+            segments: e
+                .segments
+                .clone()
+                .map(|s| super::drive::rounded(&s, |x| x as Real as f64)),
             phase: v(e.phase),
             cycles_per_period: v(e.cycles_per_period),
             phase_fixed: e.phase_fixed,
@@ -258,14 +251,10 @@ impl Coefficients {
             fc_over_ms: r(e.fc_over_ms),
             band: r(e.band),
             band2: r(e.band2),
-            period: r(clock.period.0),
-            period_lo: r(clock.period.1),
-            rise_time: v(clock.rise.0),
-            rise_time_lo: v(clock.rise.1),
-            fall_time: v(clock.fall.0),
-            fall_time_lo: v(clock.fall.1),
-            first_corner: v(clock.first.0),
-            first_corner_lo: v(clock.first.1),
+            period: period.0,
+            period_lo: period.1,
+            first_corner: v(first.0),
+            first_corner_lo: v(first.1),
             event_step_stuck: r(e.event_step_stuck),
             event_step_slip: r(e.event_step_slip),
             min_step: r(e.min_step),
@@ -338,10 +327,7 @@ impl Coefficients {
         c.set_drive(inst);
         c.set_steps(inst, settings, time_epsilon);
         c.set_measurement(inst, settings, r);
-        let clock = super::drive::CornerClock::new(&c, |x| x);
-        (c.rise_time, c.rise_time_lo) = clock.rise;
-        (c.fall_time, c.fall_time_lo) = clock.fall;
-        (c.first_corner, c.first_corner_lo) = clock.first;
+        (c.first_corner, c.first_corner_lo) = super::drive::first_corner(&c, |x| x);
         c
     }
 
@@ -388,16 +374,15 @@ impl Coefficients {
             band: m.velocity_band,
             band2: m.velocity_band * m.velocity_band,
             frictionless: fc == 0.0,
-            ..*self
+            ..std::mem::take(self)
         };
     }
 
-    /// The sawtooth drives and the scene period (the corner clock is set
+    /// The drives and the scene period (the corner clock is set
     /// from these by [`Coefficients::new_replica`]).
     fn set_drive(&mut self, inst: &Instance) {
         let [ax, ay] = &inst.axes;
         let per_axis = |f: &dyn Fn(&crate::model::Axis) -> f64| Vec2::new(f(ax), f(ay));
-        let has_fall = |a: &crate::model::Axis| a.duty < 1.0;
         let period = inst.period();
         let cycles_per_period = per_axis(&|a| a.frequency * period);
         *self = Coefficients {
@@ -409,29 +394,7 @@ impl Coefficients {
                 }
             }),
             frequency: per_axis(&|a| a.frequency),
-            duty: per_axis(&|a| a.duty),
-            inv_duty: per_axis(&|a| 1.0 / a.duty),
-            inv_fall: per_axis(&|a| {
-                if has_fall(a) {
-                    1.0 / (1.0 - a.duty)
-                } else {
-                    0.0
-                }
-            }),
-            rise_slope: per_axis(&|a| {
-                if a.is_driven() {
-                    a.gain * a.voltage * a.frequency / a.duty
-                } else {
-                    0.0
-                }
-            }),
-            fall_slope: per_axis(&|a| {
-                if a.is_driven() && has_fall(a) {
-                    -(a.gain * a.voltage) * a.frequency / (1.0 - a.duty)
-                } else {
-                    0.0
-                }
-            }),
+            segments: [ax, ay].map(super::drive::segments_of),
             phase: per_axis(&|a| a.phase),
             cycles_per_period,
             phase_fixed: [ax.phase, ay.phase].map(fixed_fraction_32),
@@ -445,7 +408,7 @@ impl Coefficients {
             period,
             // The corner clock, exact in f64.
             period_lo: 0.0,
-            ..*self
+            ..std::mem::take(self)
         };
     }
 
@@ -467,7 +430,7 @@ impl Coefficients {
             tolerance: settings.tolerance,
             collocation_tolerance: COLLOCATION_CONVERGED * settings.tolerance,
             budget,
-            ..*self
+            ..std::mem::take(self)
         };
     }
 
@@ -491,7 +454,7 @@ impl Coefficients {
             se_limit2: g.se_limit2,
             repeat_x: g.repeat_x,
             repeat_v: g.repeat_v,
-            ..*self
+            ..std::mem::take(self)
         };
     }
 }

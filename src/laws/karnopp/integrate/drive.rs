@@ -9,6 +9,28 @@ use super::step::{start_slip, stick_force};
 use super::vec2::{Vec2, norm2};
 use super::{Real, State, time_reached};
 
+/// One linear piece of an axis' drive over a cycle, from a corner to the
+/// next (docs/model.md section 2; `laws::floor::drive::Corners`). The
+/// drive there is `amplitude * (level - to_corner * fall)`, with
+/// `to_corner` the cycles left to its end: the sawtooth's rise is
+/// `1 - to_corner / d` and its fall `to_corner / (1 - d)`, the same bits.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Segment {
+    /// The phase of its end [cycles], and its length [cycles] (above 0:
+    /// a jump is the step between one segment's end level and the next
+    /// one's start).
+    pub end: Real,
+    pub length: Real,
+    /// The level at its end, and its change per cycle, (L1 - L0) / length.
+    pub level: Real,
+    pub per_cycle: Real,
+    /// The drive force's slope on it [N/s], (delta V f)(L1 - L0) / length.
+    pub slope: Real,
+    /// Its duration, length / f, as hi + lo [s] (the corner clock's).
+    pub time: Real,
+    pub time_lo: Real,
+}
+
 /// Local time of each axis' next drive corner, or infinity where undriven.
 /// It divides by the frequency rather than multiplying by its inverse:
 /// corners of different axes that coincide exactly (3.5 cycles at 35 Hz
@@ -46,10 +68,27 @@ pub fn drive_force(c: &Coefficients, st: &State) -> (Vec2, Vec2) {
         let u = st.cycle_phase + c.frequency * st.time;
         (st.next_corner - u).map(|d| d.max(0.0))
     };
-    let rising = [st.rising[0] == 1, st.rising[1] == 1];
-    let w = Vec2::select(to_corner * c.inv_fall, 1.0 - to_corner * c.inv_duty, rising);
-    let slope = Vec2::select(c.fall_slope, c.rise_slope, rising);
-    (c.amplitude * w, slope)
+    let [x, y] = current_segments(c, st);
+    let w = Vec2::new(x.level, y.level) - to_corner * Vec2::new(x.per_cycle, y.per_cycle);
+    (c.amplitude * w, Vec2::new(x.slope, y.slope))
+}
+
+/// Each axis' current segment.
+fn current_segments<'a>(c: &'a Coefficients, st: &State) -> [&'a Segment; 2] {
+    [0, 1].map(|i| &c.segments[i][st.segment[i] as usize])
+}
+
+/// The segment of `segments` that holds cycle phase `p` in [0, 1), and
+/// the phase of its end (on `p`'s scale): the first one to end past `p`,
+/// or the one that wraps past the cycle's end where `p` lies before the
+/// first one's start.
+pub fn segment_at(segments: &[Segment], p: Real) -> (u32, Real) {
+    let last = segments.len() - 1;
+    if p < segments[0].end - segments[0].length {
+        return (last as u32, segments[last].end - 1.0);
+    }
+    let k = segments.iter().position(|s| p < s.end).unwrap_or(last);
+    (k as u32, segments[k].end)
 }
 
 /// Passes every drive corner and the period end that lie at the current
@@ -66,28 +105,19 @@ pub fn pass_boundaries(c: &Coefficients, st: &mut State) {
     let corners_lo = corner_time_lo(c, st);
     for i in 0..2 {
         if time_reached(st, corners[i], corners_lo[i]) {
-            let duty = c.duty[i];
-            let rising = st.rising[i] == 1;
-            if duty >= 1.0 {
-                st.next_corner[i] += 1.0;
-            } else if rising {
-                st.rising[i] = 0;
-                st.next_corner[i] += 1.0 - duty;
+            let count = c.segments[i].len() as u32;
+            st.segment[i] = if st.segment[i] + 1 < count {
+                st.segment[i] + 1
             } else {
-                st.rising[i] = 1;
-                st.next_corner[i] += duty;
-            }
+                0
+            };
+            let next = &c.segments[i][st.segment[i] as usize];
+            st.next_corner[i] += next.length;
             if CORNER_CLOCK {
-                // The next corner is a fall after a rise, a rise after a
-                // fall, and a cycle after a jump (duty 1, whose rise time
-                // is the cycle).
-                let falls = rising && duty < 1.0;
-                let next = if falls {
-                    (c.fall_time[i], c.fall_time_lo[i])
-                } else {
-                    (c.rise_time[i], c.rise_time_lo[i])
-                };
-                let moved = add_parts((st.corner_at[i], st.corner_at_lo[i]), next);
+                let moved = add_parts(
+                    (st.corner_at[i], st.corner_at_lo[i]),
+                    (next.time, next.time_lo),
+                );
                 st.corner_at[i] = moved.0;
                 st.corner_at_lo[i] = moved.1;
             }
@@ -160,57 +190,84 @@ pub fn fixed_start_phase(c: &Coefficients, period: u32) -> Vec2 {
     Vec2::new(at(0), at(1))
 }
 
-only_f64! {
-/// The f32 shader's corner clock (`CORNER_CLOCK`): each axis' next drive
-/// corner as a local time in two parts, hi + lo, each in the shader's
-/// precision, advanced by the two-part durations of the drive's segments
-/// and moved back by the two-part period at each period end, so a corner
-/// is known to about 1e-14 of the period where one f32 time within the
-/// period knows it to 6e-8 of the period (about 1e-7 drive cycles): the
-/// random scenes' f32 misses of issue 19 went with per-corner noise of that
-/// size (results/gpu.md). The drive reads its distance to the corner from
-/// the same two parts, so the force reaches its corner value exactly where
-/// the step stops. The f64 paths keep the phase of [`drive_force`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CornerClock {
-    /// Duration of a rise (a whole cycle for duty 1) and of a fall, as
-    /// (hi, lo) [time units].
-    pub rise: (Vec2, Vec2),
-    pub fall: (Vec2, Vec2),
-    /// The local time of the first corner (as [`corner_time`] of the
-    /// initial state).
-    pub first: (Vec2, Vec2),
-    /// The scene period.
-    pub period: (Real, Real),
+/// `exact` (an f64 drive's segments) in this precision: each value
+/// rounded once, the lengths the differences of the rounded ends (the
+/// sawtooth's fall is then `1 - d` in this precision, as the shader has
+/// it), and the durations in two parts split by `round`.
+#[allow(clippy::unnecessary_cast)]
+pub fn rounded(
+    exact: &[crate::laws::karnopp::double::integrate::drive::Segment],
+    round: impl Fn(f64) -> f64,
+) -> Box<[Segment]> {
+    let last_end = exact.last().expect("a drive has a segment").end as Real;
+    let mut start = last_end - 1.0;
+    exact
+        .iter()
+        .map(|e| {
+            let end = e.end as Real;
+            let hi = round(e.time);
+            let seg = Segment {
+                end,
+                length: end - start,
+                level: e.level as Real,
+                per_cycle: e.per_cycle as Real,
+                slope: e.slope as Real,
+                time: hi as Real,
+                time_lo: round(e.time - hi) as Real,
+            };
+            start = end;
+            seg
+        })
+        .collect()
 }
 
-impl CornerClock {
-    /// The clock of coefficients `c`, each value split into a part that
-    /// `round` (to the shader's precision) leaves unchanged and the rounded
-    /// rest; zero on undriven axes. With `round` the identity (f64) the low
-    /// parts are zero.
-    pub fn new(c: &Coefficients, round: impl Fn(Real) -> Real) -> CornerClock {
-        let split = |x: Real| {
-            let hi = round(x);
-            (hi, round(x - hi))
-        };
-        let per_axis = |f: &dyn Fn(usize) -> Real| {
-            let x = split(if c.driven[0] { f(0) } else { 0.0 });
-            let y = split(if c.driven[1] { f(1) } else { 0.0 });
-            (Vec2::new(x.0, y.0), Vec2::new(x.1, y.1))
-        };
-        let first = |i: usize| {
-            let p = frac(c.phase[i]);
-            let corner = if p < c.duty[i] { c.duty[i] } else { 1.0 };
-            ((corner - p) / c.frequency[i]).max(0.0)
-        };
-        CornerClock {
-            rise: per_axis(&|i| c.duty[i].min(1.0) / c.frequency[i]),
-            fall: per_axis(&|i| (1.0 - c.duty[i]).max(0.0) / c.frequency[i]),
-            first: per_axis(&first),
-            period: split(c.period),
+only_f64! {
+/// One cycle of `axis`' drive as segments (`floor::drive::axis_corners`),
+/// in the axis' units: jumps are no segment of their own. On an undriven
+/// axis the slopes and durations are zero (its corners are never passed).
+pub fn segments_of(axis: &crate::model::Axis) -> Box<[Segment]> {
+    let corners = crate::laws::floor::drive::axis_corners(axis);
+    let driven = axis.is_driven();
+    let amplitude_rate = axis.gain * axis.voltage * axis.frequency;
+    let pieces: Vec<_> = corners.segments().filter(|(a, b)| b[0] > a[0]).collect();
+    let mut start = pieces.last().expect("a waveform rises or falls").1[0] - 1.0;
+    pieces
+        .into_iter()
+        .map(|(a, b)| {
+            let (end, level) = (b[0], b[1]);
+            let length = end - start;
+            let change = level - a[1];
+            start = end;
+            Segment {
+                end,
+                length,
+                level,
+                per_cycle: change / length,
+                slope: if driven { amplitude_rate * change / length } else { 0.0 },
+                time: if driven { length / axis.frequency } else { 0.0 },
+                time_lo: 0.0,
+            }
+        })
+        .collect()
+}
+
+/// The local time of each axis' first corner, as hi + lo [s] with the
+/// parts split by `round` (zero low parts in f64): the corner clock's
+/// start (f32's `CORNER_CLOCK`). It divides by the frequency, as
+/// [`corner_time`] does.
+pub fn first_corner(c: &Coefficients, round: impl Fn(Real) -> Real) -> (Vec2, Vec2) {
+    let at = |i: usize| {
+        if !c.driven[i] {
+            return (0.0, 0.0);
         }
-    }
+        let p = frac(c.phase[i]);
+        let (_, corner) = segment_at(&c.segments[i], p);
+        let t = ((corner - p) / c.frequency[i]).max(0.0);
+        let hi = round(t);
+        (hi, round(t - hi))
+    };
+    let (x, y) = (at(0), at(1));
+    (Vec2::new(x.0, y.0), Vec2::new(x.1, y.1))
 }
 }
 
@@ -262,30 +319,25 @@ mod tests {
         inst.axes[0].frequency = 18.810317121061885;
         inst.axes[0].phase = 0.9206799357119667;
         let c = Coefficients::new(&inst, &Settings::default(), Real::EPSILON);
-        let f32_parts = CornerClock::new(&c, |x| x as f32 as Real);
-        let exact = CornerClock::new(&c, |x| x);
-        assert_eq!(exact.rise.1, Vec2::ZERO);
-        let part = |p: (Vec2, Vec2)| (p.0.x as f32, p.1.x as f32);
-        let (rise, fall) = (part(f32_parts.rise), part(f32_parts.fall));
-        let period = (f32_parts.period.0 as f32, f32_parts.period.1 as f32);
-        let mut at = part(f32_parts.first);
+        let to_f32 = |x: Real| x as f32 as Real;
+        let f32_segments = rounded(&c.segments[0], to_f32);
+        let exact = &c.segments[0];
+        assert!(exact.iter().all(|s| s.time_lo == 0.0));
+        let f32_first = first_corner(&c, to_f32);
+        let period = (c.period as f32, (c.period - c.period as f32 as Real) as f32);
+        let mut at = (f32_first.0.x as f32, f32_first.1.x as f32);
         let mut plain = at.0;
-        let mut truth = exact.first.0.x;
-        let mut rising = frac(inst.axes[0].phase) < inst.axes[0].duty;
+        let mut truth = first_corner(&c, |x| x).0.x;
+        let mut k = segment_at(exact, frac(inst.axes[0].phase)).0 as usize;
         let mut worst: Real = 0.0;
         let mut worst_plain: Real = 0.0;
         for _ in 0..1000 {
             while truth < c.period {
-                let seg = if rising { fall } else { rise };
-                let seg_exact = if rising {
-                    exact.fall.0.x
-                } else {
-                    exact.rise.0.x
-                };
+                k = (k + 1) % exact.len();
+                let seg = (f32_segments[k].time as f32, f32_segments[k].time_lo as f32);
                 at = add_parts(at, seg);
                 plain += seg.0;
-                truth += seg_exact;
-                rising = !rising;
+                truth += exact[k].time;
                 let got = at.0 as Real + at.1 as Real;
                 worst = worst.max((got - truth).abs());
                 worst_plain = worst_plain.max((plain as Real - truth).abs());

@@ -118,8 +118,8 @@ pub struct State {
     /// the slip has none yet.
     pub h_accepted: Real,
     pub err_accepted: Real,
-    /// 1 while an axis' drive is on its rise, 0 on its fall.
-    pub rising: [u32; AXES],
+    /// The index of each axis' current drive segment (`drive::Segment`).
+    pub segment: [u32; AXES],
     pub mode: u32,
     /// Index of the current scene period.
     pub period: u32,
@@ -139,7 +139,7 @@ pub struct State {
 /// start of period 0 (docs/model.md section 4).
 pub fn initial_state(c: &Coefficients) -> State {
     let p = c.phase.map(frac);
-    let rising = [p.x < c.duty.x, p.y < c.duty.y];
+    let [(sx, cx), (sy, cy)] = [0, 1].map(|i| drive::segment_at(&c.segments[i], p[i]));
     let mut st = State {
         x_p: Vec2::ZERO,
         v_p: Vec2::ZERO,
@@ -149,7 +149,7 @@ pub fn initial_state(c: &Coefficients) -> State {
         held: Vec2::ZERO,
         settle_x_s: Vec2::ZERO,
         cycle_phase: p,
-        next_corner: Vec2::select(Vec2::splat(1.0), c.duty, rising),
+        next_corner: Vec2::new(cx, cy),
         corner_at: if CORNER_CLOCK {
             c.first_corner
         } else {
@@ -165,7 +165,7 @@ pub fn initial_state(c: &Coefficients) -> State {
         h_slip: 0.0,
         h_accepted: 0.0,
         err_accepted: 0.0,
-        rising: [rising[0] as u32, rising[1] as u32],
+        segment: [sx, sy],
         mode: MODE_STICK,
         period: 0,
         status: STATUS_OK,

@@ -39,7 +39,7 @@ pub fn state(st: &State) -> si::State {
         h_slip: time(st.h_slip),
         h_accepted: time(st.h_accepted),
         err_accepted: st.err_accepted as f64,
-        rising: st.rising,
+        segment: st.segment,
         mode: st.mode,
         period: st.period,
         status: st.status,
