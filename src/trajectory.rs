@@ -35,9 +35,10 @@ use anyhow::{Context, Result};
 use rayon::prelude::*;
 
 use crate::laws::Record;
+use crate::laws::floor::drive::{Corners, axis_corners};
 use crate::laws::observe::{Observer, Positions};
 use crate::laws::{Law, Settings};
-use crate::model::{AXES, AXIS_NAMES, Instance, sawtooth};
+use crate::model::{AXES, AXIS_NAMES, Instance};
 use crate::output::schema;
 use crate::output::{dimension_scales, write_f64_attr, write_str_attr, write_u64_attr};
 use crate::scene::{Scene, TrajectoryPoint};
@@ -62,6 +63,8 @@ pub struct Trajectory {
 /// Collects samples as the integrator's steps go by.
 struct Sampler<'a> {
     inst: &'a Instance,
+    /// Each axis' drive over a cycle (`floor::drive::axis_corners`).
+    drives: [Corners; AXES],
     period: f64,
     per: u64,
     /// Index of the next sample to take; sample k is at k T / per.
@@ -88,7 +91,7 @@ impl Sampler<'_> {
             self.out.slider[i].push(x_s[i]);
             let axis = &self.inst.axes[i];
             let v = if axis.is_driven() {
-                axis.voltage * sawtooth(axis.frequency * t + axis.phase, axis.duty)
+                axis.voltage * self.drives[i].level(axis.frequency * t + axis.phase)
             } else {
                 0.0
             };
@@ -131,6 +134,7 @@ pub fn record(inst: &Instance, settings: &Settings, samples_per_cycle: u32) -> T
     let series = || std::array::from_fn(|_| Vec::with_capacity(capacity));
     let mut sampler = Sampler {
         inst,
+        drives: inst.axes.map(|a| axis_corners(&a)),
         period: inst.period(),
         per,
         next: 0,

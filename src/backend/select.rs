@@ -74,6 +74,9 @@ pub struct Workload {
     /// The scene's friction law: whether f32 and `--backend auto`'s cost
     /// model apply to it.
     pub law: Law,
+    /// The first key that drives beyond a plain sawtooth (a waveform or a
+    /// slew limit), if any: the shader drives sawtooths only so far.
+    pub drive: Option<String>,
 }
 
 impl Workload {
@@ -169,6 +172,21 @@ pub fn select_backend(
         && precision == Some(Precision::F32)
     {
         bail!("--precision f32: {why}");
+    }
+    if let Some(key) = &work.drive {
+        // The shader drives sawtooths from their coefficients; the
+        // segments of other drives are the CPU's so far (issue 59).
+        match choice {
+            BackendChoice::Gpu => bail!(
+                "--backend gpu: the shader drives sawtooths only, and this scene sets {key}; \
+                 run it with --backend cpu"
+            ),
+            BackendChoice::Auto => {
+                eprintln!("pidm: --backend auto: the CPU path in f64 (the scene sets {key})");
+                return cpu(threads);
+            }
+            BackendChoice::Cpu => {}
+        }
     }
     if let Some(why) = work.law.auto_on_cpu()
         && choice == BackendChoice::Auto

@@ -23,9 +23,10 @@ use super::plan::{Culprits, Plan, Src, check_instance};
 use super::refine::RefineSpec;
 use super::trajectories::{DEFAULT_SAMPLES_PER_CYCLE, SpecAt};
 use super::values::Entry;
+use super::waveform::effective_shapes;
 use super::{GridAxis, Layout, Scene};
 use crate::laws::Settings;
-use crate::model::{AXES, Instance};
+use crate::model::{AXES, Instance, Shape};
 
 /// Parses and validates a scene; see [`Scene::from_toml`].
 pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, SceneError> {
@@ -38,7 +39,14 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
     let settings = base_settings(base, parsed.replicas.as_ref());
     let keys = BaseKeys::new(base, parsed.measure, parsed.friction.as_ref());
     let grid = grid_entries(base);
-    let plan = Plan::build(&keys.given, &keys.ties, keys.mode, keys.friction);
+    let base_shapes = base.shapes.clone().map(|s| s.map(|s| s.shape));
+    parser.check_shape_keys(base, effective_shapes(&[base]), "")?;
+    let plan = Plan::build(
+        &keys.given,
+        &keys.ties,
+        (keys.mode, keys.friction),
+        base_shapes,
+    );
 
     let mut scene = Scene {
         name,
@@ -277,7 +285,7 @@ fn point_instance(
     for axis in 0..AXES {
         let upper = point.layer.axis_given(axis);
         let lower = base.layer.axis_given(axis);
-        let kept = kept_from_lower(&upper, &lower, true);
+        let kept = kept_from_lower(&upper, &lower, true, point.layer.shapes[axis].is_some());
         for j in 0..AXIS_FIELDS.len() {
             point_given[axis_slot(axis, j)] = upper[j] || kept[j];
         }
@@ -293,7 +301,20 @@ fn point_instance(
             *tie = None;
         }
     }
-    let point_plan = Plan::build(&point_given, &point_ties, base.mode, base.friction);
+    let layers = [&point.layer, base.layer];
+    let prefix = format!("{}: ", point_name(index, &point.label));
+    parser.check_shape_keys(&point.layer, effective_shapes(&layers), &prefix)?;
+    let shapes: [Option<Shape>; AXES] = std::array::from_fn(|axis| {
+        layers
+            .iter()
+            .find_map(|layer| layer.shapes[axis].as_ref().map(|s| s.shape))
+    });
+    let point_plan = Plan::build(
+        &point_given,
+        &point_ties,
+        (base.mode, base.friction),
+        shapes,
+    );
     let instance = point_plan.resolve(&point_raw);
     check_instance(&instance, &point_plan).map_err(|(message, slot)| SceneError::Invalid {
         message: format!("{}: {message}", point_name(index, &point.label)),
@@ -398,6 +419,9 @@ fn check_grid_corners(
                     | Field::LoadX
                     | Field::LoadY
                     | Field::CoulombFriction
+                    | Field::Rise
+                    | Field::Hold
+                    | Field::Fall
             )
         })
         .map(|(slot, entry)| {

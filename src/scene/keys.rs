@@ -32,6 +32,10 @@ pub(super) enum Field {
     Duty,
     Phase,
     FrequencyRatio,
+    Rise,
+    Hold,
+    Fall,
+    SlewRate,
     Cycles,
     Settle,
     Tolerance,
@@ -65,6 +69,10 @@ impl Field {
             Field::Duty => "duty",
             Field::Phase => "phase",
             Field::FrequencyRatio => "frequency_ratio",
+            Field::Rise => "rise",
+            Field::Hold => "hold",
+            Field::Fall => "fall",
+            Field::SlewRate => "slew_rate",
             Field::Cycles => "cycles",
             Field::Settle => "settle",
             Field::Tolerance => "tolerance",
@@ -85,10 +93,14 @@ impl Field {
             Field::ResonanceHz | Field::Frequency => "Hz",
             Field::QualityFactor
             | Field::Duty
+            | Field::Rise
+            | Field::Hold
+            | Field::Fall
             | Field::MaxStepsPerPeriod
             | Field::FrequencyRatio => "1",
             Field::Gain => "N/V",
             Field::Voltage => "V",
+            Field::SlewRate => "V/s",
             Field::Phase | Field::Cycles | Field::Settle | Field::MaxCycles => "cycles",
             Field::Tolerance => "rad",
             Field::StepTolerance => "m",
@@ -102,6 +114,17 @@ impl Field {
         Law::ALL
             .into_iter()
             .find(|law| law.keys().contains(&self.name()))
+    }
+
+    /// The one waveform the key shapes, if it shapes one (`duty` the
+    /// sawtooth, `rise`, `hold` and `fall` the trapezoid). An axis with
+    /// another waveform refuses the key.
+    pub(super) fn waveform(self) -> Option<&'static str> {
+        match self {
+            Field::Duty => Some("sawtooth"),
+            Field::Rise | Field::Hold | Field::Fall => Some("trapezoid"),
+            _ => None,
+        }
     }
 
     /// Whether the key applies to the whole scene (one value, no points).
@@ -170,6 +193,19 @@ pub(super) const FIT_SCENE: &str = "[fit] makes this a fit scene, which calibrat
      measured steps: run it with `pidm fit SCENE --out FIT.json` (`pidm run` maps a scene \
      without [fit])";
 
+/// The waveforms an axis may name (`model::Shape::name`), the default
+/// first, each with the keys that shape it.
+pub(super) const WAVEFORMS: [(&str, &str); 3] = [
+    ("sawtooth", "duty"),
+    ("trapezoid", "rise, hold and fall"),
+    ("table", "table"),
+];
+
+/// An axis' string key: its waveform.
+pub(super) const WAVEFORM_KEY: &str = "waveform";
+/// An axis' table of `[u, level]` entries (`waveform = "table"`).
+pub(super) const TABLE_KEY: &str = "table";
+
 /// `[mechanism]`'s string key: the friction law, scene-wide.
 pub(super) const FRICTION_KEY: &str = "friction";
 
@@ -197,7 +233,7 @@ pub(super) const LOAD_SLOTS: [usize; 2] = [4, 5];
 /// The keys of `[axis.x]` and `[axis.y]`, in slot order. `frequency_ratio`
 /// has a slot on both axes but only `axis.y` accepts it (the parser refuses
 /// it on `axis.x`).
-pub(super) const AXIS_FIELDS: [Field; 11] = [
+pub(super) const AXIS_FIELDS: [Field; 15] = [
     Field::StageMass,
     Field::Stiffness,
     Field::Damping,
@@ -209,6 +245,10 @@ pub(super) const AXIS_FIELDS: [Field; 11] = [
     Field::Duty,
     Field::Phase,
     Field::FrequencyRatio,
+    Field::Rise,
+    Field::Hold,
+    Field::Fall,
+    Field::SlewRate,
 ];
 
 /// The numeric keys of `[simulation]`, in slot order. `measure`, its one
@@ -269,10 +309,20 @@ pub(super) const DUTY: usize = 8;
 pub(super) const PHASE: usize = 9;
 /// Index of `frequency_ratio`: f_y = frequency_ratio x f_x, `axis.y` only.
 pub(super) const FREQUENCY_RATIO: usize = 10;
+/// Index of `rise`, `hold` and `fall` (the trapezoid's).
+pub(super) const RISE: usize = 11;
+pub(super) const HOLD: usize = 12;
+pub(super) const FALL: usize = 13;
+/// Index of `slew_rate`.
+pub(super) const SLEW_RATE: usize = 14;
+/// The keys that shape a waveform (indices into [`AXIS_FIELDS`]).
+pub(super) const SHAPE_KEYS: [usize; 4] = [DUTY, RISE, HOLD, FALL];
 
 /// The drive keys one axis may tie to the same key of the other axis with
 /// `{ same_as = "axis.<other>.<key>" }` (indices into [`AXIS_FIELDS`]).
-pub(super) const TIEABLE: [usize; 5] = [GAIN, VOLTAGE, FREQUENCY, DUTY, PHASE];
+pub(super) const TIEABLE: [usize; 9] = [
+    GAIN, VOLTAGE, FREQUENCY, DUTY, PHASE, RISE, HOLD, FALL, SLEW_RATE,
+];
 
 /// The first raw slot of the axes (the mechanism's come before).
 pub(super) const AXIS_SLOTS: usize = MECHANISM_FIELDS.len();

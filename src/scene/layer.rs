@@ -5,10 +5,19 @@
 use std::ops::Range;
 
 use super::keys::{
-    AXIS_FIELDS, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, GAIN, PHASE, QUALITY, RESONANCE, SLOTS,
-    STAGE_MASS, STIFFNESS, VOLTAGE, axis_slot,
+    AXIS_FIELDS, DAMPING, FREQUENCY, FREQUENCY_RATIO, GAIN, PHASE, QUALITY, RESONANCE, SHAPE_KEYS,
+    SLEW_RATE, SLOTS, STAGE_MASS, STIFFNESS, VOLTAGE, axis_slot,
 };
 use super::values::Entry;
+use crate::model::{AXES, Shape};
+
+/// An axis' waveform as a layer gives it (`waveform`, with its `table`).
+#[derive(Clone, Debug)]
+pub(super) struct ShapeGiven {
+    pub(super) shape: Shape,
+    /// Where `waveform` is in the text.
+    pub(super) span: Range<usize>,
+}
 
 /// A key given as `{ same_as = "..." }`: it takes another key's value in
 /// every instance (only in the base, only a drive key of one axis to the
@@ -29,6 +38,8 @@ pub(super) struct Layer {
     /// The tie of each raw slot given as `{ same_as = "..." }`; such a slot
     /// has no entry.
     pub(super) ties: [Option<Tie>; SLOTS],
+    /// Each axis' waveform, when given.
+    pub(super) shapes: [Option<ShapeGiven>; AXES],
 }
 
 impl Default for Layer {
@@ -36,6 +47,7 @@ impl Default for Layer {
         Layer {
             entries: std::array::from_fn(|_| None),
             ties: std::array::from_fn(|_| None),
+            shapes: [None, None],
         }
     }
 }
@@ -59,15 +71,20 @@ pub(super) struct PointSpec {
 /// Which keys of a lower layer survive under an upper layer: those the upper
 /// one does not give, as long as they do not over-determine the stage. The
 /// voltage is kept only when `voltage` is set (a point over the base, not
-/// `axis.y` over `axis.x`).
+/// `axis.y` over `axis.x`); the shape keys only when the upper layer gives
+/// no waveform of its own (`upper_shape`).
 pub(super) fn kept_from_lower(
     upper: &[bool; AXIS_FIELDS.len()],
     lower: &[bool; AXIS_FIELDS.len()],
     voltage: bool,
+    upper_shape: bool,
 ) -> [bool; AXIS_FIELDS.len()] {
     let mut kept = [false; AXIS_FIELDS.len()];
-    for j in [GAIN, VOLTAGE, FREQUENCY, DUTY, PHASE, FREQUENCY_RATIO] {
+    for j in [GAIN, VOLTAGE, FREQUENCY, PHASE, FREQUENCY_RATIO, SLEW_RATE] {
         kept[j] = lower[j] && !upper[j];
+    }
+    for j in SHAPE_KEYS {
+        kept[j] = lower[j] && !upper[j] && !upper_shape;
     }
     kept[VOLTAGE] &= voltage;
     // A frequency and a frequency ratio are two ways to give one value: an

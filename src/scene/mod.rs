@@ -112,6 +112,7 @@ mod suggest;
 mod ties;
 pub mod trajectories;
 mod values;
+mod waveform;
 
 pub use error::{Location, SceneError};
 pub use file::{MAX_SCENE_BYTES, read as read_text};
@@ -277,6 +278,38 @@ impl Scene {
         let (_, text) = SHIPPED.iter().find(|(p, _)| *p == path)?;
         let stem = Path::new(path).file_stem()?.to_string_lossy().into_owned();
         Some(Scene::from_toml(text, Some(&stem)))
+    }
+
+    /// The first key that drives an axis with something other than a plain
+    /// sawtooth (a waveform or a slew limit), as a scene would write it;
+    /// `None` when every instance drives sawtooths.
+    pub fn drive_beyond_sawtooth(&self) -> Option<String> {
+        let of = |a: usize, shape: crate::model::Shape, slewed: bool| {
+            let name = crate::model::AXIS_NAMES[a];
+            if shape != crate::model::Shape::Sawtooth {
+                Some(format!("axis.{name}.waveform = {:?}", shape.name()))
+            } else if slewed {
+                Some(format!("axis.{name}.slew_rate"))
+            } else {
+                None
+            }
+        };
+        match &self.layout {
+            Layout::Points { .. } => self.points.iter().find_map(|p| {
+                (0..AXES).find_map(|a| {
+                    let axis = &p.axes[a];
+                    of(a, axis.shape, axis.slew_rate != crate::model::NO_SLEW_LIMIT)
+                })
+            }),
+            Layout::Grid { .. } => (0..AXES).find_map(|a| {
+                let plan = &self.plan.axes[a];
+                of(
+                    a,
+                    plan.shape,
+                    plan.slew_rate != plan::Src::Const(crate::model::NO_SLEW_LIMIT),
+                )
+            }),
+        }
     }
 
     /// Whether axis `axis` has a non-zero voltage in at least one instance.

@@ -12,10 +12,10 @@ use toml::de::{DeTable, DeValue};
 use super::error::{Location, SceneError};
 use super::format::{fmt_num, fmt_short};
 use super::keys::{
-    AXIS_FIELDS, DAMPING, FIT_SCENE, FRICTION_KEY, Field, Law, MAX_REPLICAS, MEASURE_KEY,
-    MECHANISM_FIELDS, Mode, OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, REPLICAS_KEY,
-    RESONANCE, ROOT_KEYS, SAME_AS_KEY, SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS,
-    STAGE_MASS, STIFFNESS, axis_slot, expected_law, slot_field, slot_path,
+    DAMPING, FIT_SCENE, FRICTION_KEY, Field, Law, MAX_REPLICAS, MEASURE_KEY, MECHANISM_FIELDS,
+    Mode, OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, REPLICAS_KEY, RESONANCE,
+    ROOT_KEYS, SAME_AS_KEY, SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS,
+    STIFFNESS, axis_slot, expected_law, slot_field, slot_path,
 };
 use super::layer::{Layer, PointSpec, Tie};
 use super::name::check_name;
@@ -480,32 +480,7 @@ impl Parser<'_> {
             let Some(axis) = AXIS_NAMES.iter().position(|&n| n == name) else {
                 return Err(self.unknown_key(key, "axis", &AXIS_NAMES));
             };
-            self.group(
-                value,
-                &format!("axis.{name}"),
-                &AXIS_FIELDS,
-                axis_slot(axis, 0),
-                layer,
-                context,
-            )?;
-        }
-        Ok(())
-    }
-
-    /// A table of numeric keys: `[mechanism]`, `[axis.*]` or `[simulation]`.
-    pub(super) fn group(
-        &self,
-        value: &Value<'_>,
-        path: &str,
-        fields: &[Field],
-        slot_base: usize,
-        layer: &mut Layer,
-        context: Context,
-    ) -> Result<(), SceneError> {
-        let table = self.table(path, "expected a table", value)?;
-        let names: Vec<&str> = fields.iter().map(|f| f.name()).collect();
-        for (key, value) in table.iter() {
-            self.field(key, value, path, fields, &names, slot_base, layer, context)?;
+            self.axis(value, axis, layer, context)?;
         }
         Ok(())
     }
@@ -604,7 +579,7 @@ impl Parser<'_> {
 
     /// One numeric key of a table: its values, checked, into `layer`.
     #[allow(clippy::too_many_arguments)]
-    fn field(
+    pub(super) fn field(
         &self,
         key: &Key<'_>,
         value: &Value<'_>,

@@ -5,13 +5,15 @@
 
 use super::format::{fmt_num, fmt_short};
 use super::keys::{
-    AXIS_FIELDS, COULOMB_SLOT, CYCLES_SLOT, DAMPING, DUTY, FREQUENCY, FREQUENCY_RATIO, Field, GAIN,
-    LOAD_SLOTS, Law, MAX_CYCLES_SLOT, MECHANISM_FIELDS, Mode, PHASE, QUALITY, RESONANCE,
-    SETTLE_SLOT, SLOTS, STAGE_MASS, STEP_TOLERANCE_SLOT, STIFFNESS, TIEABLE, VOLTAGE, axis_slot,
-    slot_path,
+    AXIS_FIELDS, COULOMB_SLOT, CYCLES_SLOT, DAMPING, DUTY, FALL, FREQUENCY, FREQUENCY_RATIO, Field,
+    GAIN, HOLD, LOAD_SLOTS, Law, MAX_CYCLES_SLOT, MECHANISM_FIELDS, Mode, PHASE, QUALITY,
+    RESONANCE, RISE, SETTLE_SLOT, SLEW_RATE, SLOTS, STAGE_MASS, STEP_TOLERANCE_SLOT, STIFFNESS,
+    TIEABLE, VOLTAGE, axis_slot, slot_path,
 };
 use super::layer::kept_from_lower;
-use crate::model::{AXES, AXIS_NAMES, Axis, Instance, Lugre, Measure, Mechanism};
+use crate::model::{
+    AXES, AXIS_NAMES, Axis, Instance, Lugre, Measure, Mechanism, NO_SLEW_LIMIT, Shape,
+};
 
 /// Where a parameter's value comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -117,6 +119,13 @@ pub(super) struct AxisPlan {
     pub(super) duty: Src,
     /// Phase offset [cycles].
     pub(super) phase: Src,
+    /// The waveform, and the trapezoid's fractions [1] (0 unless given).
+    pub(super) shape: Shape,
+    pub(super) rise: Src,
+    pub(super) hold: Src,
+    pub(super) fall: Src,
+    /// The amplifier's slew limit [V/s] (none unless given).
+    pub(super) slew_rate: Src,
 }
 
 /// Where every parameter of an instance comes from.
@@ -148,18 +157,21 @@ impl Plan {
     /// `ties` holds, for each tied raw slot, the slot it is tied to (checked
     /// by the parser: only drive keys, to the same key of the other axis,
     /// whose source is final); the tied key takes that key's source.
+    ///
+    /// `shapes` holds each axis' waveform where the keys give one; `axis.y`
+    /// without one takes `axis.x`'s, and its shape keys with it.
     pub(super) fn build(
         given: &[bool; SLOTS],
         ties: &[Option<usize>; SLOTS],
-        mode: Mode,
-        friction: Law,
+        (mode, friction): (Mode, Law),
+        shapes: [Option<Shape>; AXES],
     ) -> Plan {
         let own = |axis: usize| -> [bool; AXIS_FIELDS.len()] {
             std::array::from_fn(|j| given[axis_slot(axis, j)])
         };
         let x = own(0);
         let y = own(1);
-        let kept = kept_from_lower(&y, &x, false);
+        let kept = kept_from_lower(&y, &x, false, shapes[1].is_some());
         let x_sources: [Option<usize>; AXIS_FIELDS.len()] =
             std::array::from_fn(|j| x[j].then(|| axis_slot(0, j)));
         let y_sources: [Option<usize>; AXIS_FIELDS.len()] = std::array::from_fn(|j| {
@@ -191,9 +203,10 @@ impl Plan {
                 Src::Const(default)
             }
         };
+        let x_shape = shapes[0].unwrap_or_default();
         let mut axes = [
-            AxisPlan::build(&x_sources, Axis::TABLE1.voltage),
-            AxisPlan::build(&y_sources, 0.0),
+            AxisPlan::build(&x_sources, Axis::TABLE1.voltage, x_shape),
+            AxisPlan::build(&y_sources, 0.0, shapes[1].unwrap_or(x_shape)),
         ];
         if let Some(ratio) = y_sources[FREQUENCY_RATIO] {
             axes[1].frequency = axes[0].frequency.times(ratio);
@@ -268,7 +281,11 @@ impl Plan {
 
 impl AxisPlan {
     /// The plan of one axis from the slots its keys come from.
-    pub(super) fn build(sources: &[Option<usize>; AXIS_FIELDS.len()], voltage: f64) -> AxisPlan {
+    pub(super) fn build(
+        sources: &[Option<usize>; AXIS_FIELDS.len()],
+        voltage: f64,
+        shape: Shape,
+    ) -> AxisPlan {
         let t = Axis::TABLE1;
         let src = |j: usize, default: f64| sources[j].map_or(Src::Const(default), Src::Slot);
         let stage = match (sources[STAGE_MASS], sources[STIFFNESS], sources[RESONANCE]) {
@@ -299,6 +316,11 @@ impl AxisPlan {
             frequency: src(FREQUENCY, t.frequency),
             duty: src(DUTY, t.duty),
             phase: src(PHASE, t.phase),
+            shape,
+            rise: src(RISE, 0.0),
+            hold: src(HOLD, 0.0),
+            fall: src(FALL, 0.0),
+            slew_rate: src(SLEW_RATE, NO_SLEW_LIMIT),
         }
     }
 
@@ -316,6 +338,10 @@ impl AxisPlan {
             FREQUENCY => &mut self.frequency,
             DUTY => &mut self.duty,
             PHASE => &mut self.phase,
+            RISE => &mut self.rise,
+            HOLD => &mut self.hold,
+            FALL => &mut self.fall,
+            SLEW_RATE => &mut self.slew_rate,
             _ => unreachable!("axis key {j} is not a drive key"),
         }
     }
@@ -351,7 +377,11 @@ impl AxisPlan {
             frequency: self.frequency.get(raw),
             duty: self.duty.get(raw),
             phase: self.phase.get(raw),
-            ..Axis::TABLE1
+            shape: self.shape,
+            rise: self.rise.get(raw),
+            hold: self.hold.get(raw),
+            fall: self.fall.get(raw),
+            slew_rate: self.slew_rate.get(raw),
         }
     }
 }
@@ -367,12 +397,38 @@ pub(super) fn src_slot(src: Src) -> Option<usize> {
     }
 }
 
+/// The trapezoid's fractions sum to more than 0 and at most 1; every
+/// waveform is one `floor::drive::Waveform::check` accepts.
+fn check_waveform(name: &str, axis: &Axis, plan: &AxisPlan) -> Result<(), (String, Culprits)> {
+    if axis.shape == Shape::Trapezoid {
+        let sum = axis.rise + axis.hold + axis.fall;
+        if !(sum > 0.0 && sum <= 1.0) {
+            return Err((
+                format!(
+                    "axis.{name}: rise + hold + fall = {} + {} + {} = {}: expected fractions of \
+                     a cycle that sum to more than 0 and at most 1 (the rest of the cycle dwells \
+                     at 0)",
+                    fmt_num(axis.rise),
+                    fmt_num(axis.hold),
+                    fmt_num(axis.fall),
+                    fmt_num(sum)
+                ),
+                [src_slot(plan.rise), src_slot(plan.fall)],
+            ));
+        }
+    }
+    crate::laws::floor::drive::axis_waveform(axis)
+        .check()
+        .map_err(|e| (format!("axis.{name}.{e}"), [None, None]))
+}
+
 /// Checks what per-key checks cannot: derived stage quantities, the load
 /// against the kinetic friction, and settle < cycles (a window) or settle <
 /// max_cycles (steady). Returns the message and the slots to locate it by.
 pub(super) fn check_instance(instance: &Instance, plan: &Plan) -> Result<(), (String, Culprits)> {
     for (a, (axis, axis_plan)) in instance.axes.iter().zip(&plan.axes).enumerate() {
         let name = AXIS_NAMES[a];
+        check_waveform(name, axis, axis_plan)?;
         let derived = match axis_plan.stage {
             StagePlan::MassStiffness { .. } => None,
             StagePlan::ResonanceStiffness {

@@ -65,17 +65,30 @@ impl Parser<'_> {
                 (None, Some(tie)) => tie.span.clone(),
                 (None, None) => continue,
             };
-            {
-                return Err(self.invalid(
-                    span,
-                    format!(
-                        "{}: a scene with [random] draws every mechanism and axis parameter \
+            return Err(self.invalid(
+                span,
+                format!(
+                    "{}: a scene with [random] draws every mechanism and axis parameter \
                          of its instances (see `pidm random-scene`); expected only \
                          [simulation] keys beside [random]",
-                        slot_path(slot)
-                    ),
-                ));
-            }
+                    slot_path(slot)
+                ),
+            ));
+        }
+        if let Some((axis, given)) = base
+            .shapes
+            .iter()
+            .enumerate()
+            .find_map(|(axis, s)| s.as_ref().map(|s| (axis, s)))
+        {
+            return Err(self.invalid(
+                given.span.clone(),
+                format!(
+                    "axis.{}.waveform: a scene with [random] draws sawtooth instances (see \
+                     `pidm random-scene`); expected only [simulation] keys beside [random]",
+                    crate::model::AXIS_NAMES[axis]
+                ),
+            ));
         }
         Ok(())
     }

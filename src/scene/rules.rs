@@ -222,6 +222,19 @@ const DUTY: Bounds = Bounds {
     max: 1.0,
 };
 
+/// The trapezoid's rise, hold and fall, 0 to 1 [1]: fractions of a cycle
+/// (0 is a jump); their sum is checked per instance (at most 1, not 0).
+const FRACTION: Bounds = Bounds { min: 0.0, max: 1.0 };
+
+/// The amplifier's slew limit, 1e-3 V/s to 1e12 V/s [V/s]: a stack of 1 uF
+/// on a 1 A amplifier slews at 1e6 V/s (I_max / C); the ends only keep the
+/// limit's slope, slew_rate / (|V| f) levels per cycle, finite and
+/// positive. A limit at or above every flank is the waveform itself.
+const SLEW_RATE: Bounds = Bounds {
+    min: 1e-3,
+    max: 1e12,
+};
+
 /// Phase offset, -1e6 to 1e6 periods [cycles]: only its fraction matters,
 /// and beyond a million periods f64 keeps fewer than 10 of its digits.
 const PHASE: Bounds = Bounds {
@@ -268,11 +281,15 @@ impl Field {
             | Field::Tolerance
             | Field::StepTolerance
             | Field::BristleStiffness
-            | Field::StribeckVelocity => Rule::Positive,
+            | Field::StribeckVelocity
+            | Field::SlewRate => Rule::Positive,
             Field::CoulombFriction
             | Field::Damping
             | Field::BristleDamping
-            | Field::ViscousFriction => Rule::NonNegative,
+            | Field::ViscousFriction
+            | Field::Rise
+            | Field::Hold
+            | Field::Fall => Rule::NonNegative,
             Field::Gain | Field::Voltage | Field::Phase | Field::LoadX | Field::LoadY => {
                 Rule::Finite
             }
@@ -305,6 +322,8 @@ impl Field {
             Field::Frequency => FREQUENCY,
             Field::FrequencyRatio => FREQUENCY_RATIO,
             Field::Duty => DUTY,
+            Field::Rise | Field::Hold | Field::Fall => FRACTION,
+            Field::SlewRate => SLEW_RATE,
             Field::Phase => PHASE,
             Field::Tolerance => TOLERANCE,
             Field::StepTolerance => STEP_TOLERANCE,

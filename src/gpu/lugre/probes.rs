@@ -52,6 +52,9 @@ impl LugreGpu<'_> {
         let mut probes = Vec::new();
         let mut drives = Vec::new();
         let period = inst.period();
+        let corners = inst
+            .axes
+            .map(|a| crate::laws::floor::drive::axis_corners(&a));
         while check.attempts < attempts && lane.flag != LANE_STOPPED {
             let mut before = lane;
             let after = stepper.step::<Lugre>()?[0];
@@ -81,10 +84,10 @@ impl LugreGpu<'_> {
             } else {
                 // The segment the lane starts, as the CPU's run starts it.
                 let end = (0..AXES)
-                    .map(|i| clock.next_corner(inst, i, before.y[T]))
+                    .map(|i| clock.next_corner(inst, &corners[i], i, before.y[T]))
                     .fold(period, f64::min);
                 let mid = 0.5 * (before.y[T] + end);
-                let drive = [0, 1].map(|i| clock.drive_on(inst, i, mid));
+                let drive = [0, 1].map(|i| clock.drive_on(inst, &corners[i], i, mid));
                 check.segments += 1;
                 if after.end != end
                     || drive_of(&after.drive).map(|l| (l.a, l.b)) != drive.map(|l| (l.a, l.b))

@@ -8,25 +8,27 @@
 //! diagram with relay and saturation blocks computes. It converges slowly
 //! and erratically: docs/model.md section 3 explains why.
 
-use crate::model::{AXES, Instance, sawtooth};
+use crate::laws::floor::drive::{Corners, axis_corners};
+use crate::model::{AXES, Instance};
 
 /// State: stage x, v and slider x, v per axis.
 type KState = [[f64; 4]; AXES];
 
-fn drive(inst: &Instance, t: f64) -> [f64; AXES] {
+/// The drive force [N]: each axis' levels (`axis_corners`) at time `t`.
+fn drive(inst: &Instance, drives: &[Corners; AXES], t: f64) -> [f64; AXES] {
     let mut f = [0.0; AXES];
     for (i, axis) in inst.axes.iter().enumerate() {
         if axis.is_driven() {
             let u = axis.frequency * t + axis.phase;
-            f[i] = axis.gain * axis.voltage * sawtooth(u, axis.duty);
+            f[i] = axis.gain * axis.voltage * drives[i].level(u);
         }
     }
     f
 }
 
-fn derivative(inst: &Instance, t: f64, s: &KState) -> KState {
+fn derivative(inst: &Instance, drives: &[Corners; AXES], t: f64, s: &KState) -> KState {
     let m = &inst.mechanism;
-    let force = drive(inst, t);
+    let force = drive(inst, drives, t);
     let mut v_rel = [0.0; AXES];
     let mut p = [0.0; AXES];
     let mut need = [0.0; AXES];
@@ -80,6 +82,7 @@ fn axpy(s: &KState, k: &KState, h: f64) -> KState {
 /// of about `step` seconds (rounded so that whole periods are covered), and
 /// the number of steps taken.
 pub fn run_fixed_step(inst: &Instance, step: f64) -> ([f64; AXES], u64) {
+    let drives = inst.axes.map(|a| axis_corners(&a));
     let period = inst.period();
     let per_period = (period / step).ceil().max(1.0) as u64;
     let h = period / per_period as f64;
@@ -92,10 +95,10 @@ pub fn run_fixed_step(inst: &Instance, step: f64) -> ([f64; AXES], u64) {
         }
         for k in 0..per_period {
             let t = n as f64 * period + k as f64 * h;
-            let k1 = derivative(inst, t, &s);
-            let k2 = derivative(inst, t + 0.5 * h, &axpy(&s, &k1, 0.5 * h));
-            let k3 = derivative(inst, t + 0.5 * h, &axpy(&s, &k2, 0.5 * h));
-            let k4 = derivative(inst, t + h, &axpy(&s, &k3, h));
+            let k1 = derivative(inst, &drives, t, &s);
+            let k2 = derivative(inst, &drives, t + 0.5 * h, &axpy(&s, &k1, 0.5 * h));
+            let k3 = derivative(inst, &drives, t + 0.5 * h, &axpy(&s, &k2, 0.5 * h));
+            let k4 = derivative(inst, &drives, t + h, &axpy(&s, &k3, h));
             for i in 0..AXES {
                 for j in 0..4 {
                     s[i][j] += h / 6.0 * (k1[i][j] + 2.0 * k2[i][j] + 2.0 * k3[i][j] + k4[i][j]);

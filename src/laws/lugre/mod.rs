@@ -60,7 +60,10 @@ mod tests {
         inst.mechanism.load = [0.1, -0.2];
         let model = Model::new(&inst, &Lugre::DEFAULT);
         let clock = Clock::of(&inst, 3);
-        let drive = [0, 1].map(|i| clock.drive_on(&inst, i, 0.03));
+        let drives = inst
+            .axes
+            .map(|a| crate::laws::floor::drive::axis_corners(&a));
+        let drive = [0, 1].map(|i| clock.drive_on(&inst, &drives[i], i, 0.03));
         let slip: State = [
             1e-6, -2e-6, 0.01, -0.02, 3e-6, 1e-6, -0.003, 0.001, 5e-8, -7e-8, 0.03,
         ];

@@ -10,6 +10,7 @@
 //! ```
 
 use super::libm::{exp_nonpositive, hypot};
+use crate::laws::floor::drive::Corners;
 use crate::model::{AXES, Instance, Lugre};
 
 /// The state: stage positions [m] and velocities [m/s], slider positions
@@ -165,8 +166,17 @@ impl Clock {
     }
 
     /// Axis `i`'s drive over a segment that contains `t_mid` [s] and no
-    /// corner (docs/model.md section 2), linear in time.
-    pub(crate) fn drive_on(&self, inst: &Instance, i: usize, t_mid: f64) -> Linear {
+    /// corner (docs/model.md section 2), linear in time; `corners` are the
+    /// axis' (`floor::drive::axis_corners`). A piece is written from its
+    /// corner at level 0 where it has one (the sawtooth's rise from its
+    /// start, its fall from its end: the same bits as before corners).
+    pub(crate) fn drive_on(
+        &self,
+        inst: &Instance,
+        corners: &Corners,
+        i: usize,
+        t_mid: f64,
+    ) -> Linear {
         let a = &inst.axes[i];
         if a.voltage == 0.0 {
             return Linear { a: 0.0, b: 0.0 };
@@ -174,25 +184,27 @@ impl Clock {
         let u0 = self.start[i];
         let n = (u0 + a.frequency * t_mid).floor();
         let v = a.voltage;
-        // u = u0 + f t; rise: (u - n) / d, fall: (n + 1 - u) / (1 - d).
-        if u0 + a.frequency * t_mid - n < a.duty {
-            let k = v / a.duty;
+        let (from, to) = corners.piece_at(u0 + a.frequency * t_mid - n);
+        // The voltage per cycle on the piece; u = u0 + f t.
+        let k = v * (to[1] - from[1]) / (to[0] - from[0]);
+        if to[1] == 0.0 {
+            // v (L_to - k / v (n + u_to - u)), L_to = 0.
             Linear {
-                a: k * (u0 - n),
+                a: -k * (n + to[0] - u0),
                 b: k * a.frequency,
             }
         } else {
-            let k = v / (1.0 - a.duty);
+            let at = k * (u0 - n - from[0]);
             Linear {
-                a: k * (n + 1.0 - u0),
-                b: -k * a.frequency,
+                a: if from[1] == 0.0 { at } else { v * from[1] + at },
+                b: k * a.frequency,
             }
         }
     }
 
     /// The first drive corner of axis `i` after `t` [s] (infinity
-    /// undriven).
-    pub(crate) fn next_corner(&self, inst: &Instance, i: usize, t: f64) -> f64 {
+    /// undriven); `corners` as [`Clock::drive_on`]'s.
+    pub(crate) fn next_corner(&self, inst: &Instance, corners: &Corners, i: usize, t: f64) -> f64 {
         let a = &inst.axes[i];
         if a.voltage == 0.0 {
             return f64::INFINITY;
@@ -200,11 +212,11 @@ impl Clock {
         let u0 = self.start[i];
         let u = u0 + a.frequency * t;
         let n = u.floor();
-        let corner = if u - n < a.duty { n + a.duty } else { n + 1.0 };
+        let corner = n + corners.piece_at(u - n).1[0];
         let at = (corner - u0) / a.frequency;
         // A corner rounded onto t: the next one.
         if at <= t + 1e-15 * (t.abs() + 1.0 / a.frequency) {
-            self.next_corner(inst, i, at + 1e-12 / a.frequency)
+            self.next_corner(inst, corners, i, at + 1e-12 / a.frequency)
         } else {
             at
         }

@@ -8,6 +8,7 @@
 // (`crate::gpu::lugre` and `shaders/lugre/`).
 pub(crate) use super::model::{Clock, Linear, Model, N, State, T, VP, VS, XP, XS, Z};
 pub(crate) use super::rodas::{A, C, GAMMA, R, REDUCED, SMALLEST_STEP, rodas4, segment};
+use crate::laws::floor::drive::{Corners, axis_corners};
 use crate::laws::floor::measure::{
     Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, initial_measure, period_end,
 };
@@ -223,10 +224,10 @@ fn observe_from(
         y[T] = 0.0;
         while y[T] < period {
             let end = (0..AXES)
-                .map(|i| clock.next_corner(&inst, i, y[T]))
+                .map(|i| clock.next_corner(&inst, &book.drives[i], i, y[T]))
                 .fold(period, f64::min);
             let mid = 0.5 * (y[T] + end);
-            let drive = [0, 1].map(|i| clock.drive_on(&inst, i, mid));
+            let drive = [0, 1].map(|i| clock.drive_on(&inst, &book.drives[i], i, mid));
             match segment(
                 &book.model,
                 &drive,
@@ -267,6 +268,8 @@ pub(crate) struct Periods {
     /// The run so far: its `record.steps` and `record.status` are the
     /// integrator's to set ([`Periods::add_steps`]).
     pub(crate) run: Run,
+    /// Each axis' drive over a cycle (`floor::drive::axis_corners`).
+    pub(crate) drives: [Corners; AXES],
     c: Setup,
     /// The common period of the recurrence test (0: none).
     common: u32,
@@ -307,6 +310,7 @@ impl Periods {
             scale,
             budget,
             run,
+            drives: inst.axes.map(|a| axis_corners(&a)),
             c,
             common,
             recurrence,

@@ -74,7 +74,7 @@ impl std::fmt::Display for DriveError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "`{}` = {} is not {}",
+            "{} = {}: expected {}",
             self.key, self.value, self.expected
         )
     }
@@ -204,7 +204,15 @@ impl Corners {
         if b[0] == a[0] {
             return b[1];
         }
-        a[1] + (b[1] - a[1]) * (p - a[0]) / (b[0] - a[0])
+        // From the corner at level 0 where there is one: the sawtooth's
+        // p / d and (1 - p) / (1 - d), as `model::sawtooth` has them.
+        if b[1] == 0.0 {
+            a[1] * (b[0] - p) / (b[0] - a[0])
+        } else if a[1] == 0.0 {
+            b[1] * (p - a[0]) / (b[0] - a[0])
+        } else {
+            a[1] + (b[1] - a[1]) * (p - a[0]) / (b[0] - a[0])
+        }
     }
 
     /// The steepest flank's slope [levels per cycle]: infinite where the
@@ -219,6 +227,27 @@ impl Corners {
                 }
             })
             .fold(0.0, f64::max)
+    }
+
+    /// The piece of the cycle that holds phase `p` in [0, 1): the segment
+    /// (no jump) from corner `a` to corner `b` with a.u <= p < b.u, where
+    /// the segment that wraps past the cycle's end is shifted back a cycle
+    /// when `p` lies before the first corner.
+    pub fn piece_at(&self, p: f64) -> ([f64; 2], [f64; 2]) {
+        let mut pieces = self.segments().filter(|(a, b)| b[0] > a[0]);
+        let first = pieces.next().expect("a waveform rises or falls");
+        if p < first.0[0] {
+            let (a, b) = self
+                .segments()
+                .filter(|(a, b)| b[0] > a[0])
+                .last()
+                .unwrap_or(first);
+            return ([a[0] - 1.0, a[1]], [b[0] - 1.0, b[1]]);
+        }
+        std::iter::once(first)
+            .chain(pieces)
+            .find(|(_, b)| p < b[0])
+            .unwrap_or(first)
     }
 
     /// Each segment of one cycle, from a corner to the next (the last to
