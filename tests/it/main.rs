@@ -41,3 +41,4 @@ mod stall;
 mod steady;
 mod trajectory;
 mod variants;
+mod waveform;

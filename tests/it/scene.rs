@@ -807,7 +807,7 @@ fn bad_scenes_are_refused_with_clear_messages() {
         ),
         (
             "[axis.y]\nstiffness = { same_as = \"axis.x.stiffness\" }",
-            "axis.y.stiffness = { same_as = \"axis.x.stiffness\" }: only an axis' drive keys (gain, voltage, frequency, duty, phase) can be tied",
+            "axis.y.stiffness = { same_as = \"axis.x.stiffness\" }: only an axis' drive keys (gain, voltage, frequency, duty, phase, rise, hold, fall, slew_rate) can be tied",
         ),
         (
             "[simulation]\nsettle = { same_as = \"simulation.cycles\" }",

@@ -1,0 +1,255 @@
+//! The drive as a design variable (issue 59): waveforms and slew limits in
+//! scenes (the keys, their refusals and inheritance) and the invariants of
+//! their steps on the f64 CPU path, under both friction laws.
+
+use pidm::laws::Settings;
+use pidm::laws::status::STATUS_OK;
+use pidm::model::{Instance, Lugre, Measure, NO_SLEW_LIMIT, Shape, Table};
+use pidm::scene::Scene;
+use pidm::sweep::{self, run_one};
+
+use crate::common::{pidm, s};
+
+/// A scene's error message, which must contain `needle`.
+fn check(text: &str, needle: &str) {
+    let text = format!("name = \"w\"\n{text}");
+    match Scene::from_toml(&text, None) {
+        Ok(_) => panic!("accepted\n{text}\nexpected an error with {needle:?}"),
+        Err(e) => {
+            let message = e.to_string();
+            assert!(
+                message.contains(needle),
+                "{text}\ngave {message}\nwithout {needle:?}"
+            );
+        }
+    }
+}
+
+fn parse(text: &str) -> Scene {
+    Scene::from_toml(&format!("name = \"w\"\n{text}"), None).expect("a valid scene")
+}
+
+#[test]
+fn bad_waveforms_are_refused_by_key() {
+    let trapezoid = "[axis.x]\nwaveform = \"trapezoid\"\n";
+    let table = "[axis.x]\nwaveform = \"table\"\n";
+    let cases: Vec<(String, &str)> = vec![
+        (format!("{trapezoid}rise = 0.5\nduty = 0.3"), "axis.x.duty applies to waveform = \"sawtooth\" only"),
+        ("[axis.x]\nrise = 0.5".into(), "axis.x.rise applies to waveform = \"trapezoid\" only"),
+        (format!("{trapezoid}rise = 0.5\n[axis.y]\nduty = 0.5"), "axis.y.duty applies to waveform = \"sawtooth\""),
+        (format!("{trapezoid}rise = 0.5\nfall = 0.6"), "rise + hold + fall = 0.5 + 0 + 0.6 = 1.1"),
+        (format!("{trapezoid}rise = [0.2, 0.5]\nfall = [0.1, 0.6]"), "0.5 + 0 + 0.6 = 1.1"),
+        (trapezoid.into(), "rise + hold + fall = 0 + 0 + 0 = 0"),
+        (format!("{trapezoid}rise = -0.1\nfall = 0.5"), "axis.x.rise = -0.1: expected a number >= 0"),
+        (format!("{trapezoid}hold = 1.5"), "axis.x.hold = 1.5"),
+        ("[axis.x]\ntable = [[0.0, 0.0], [0.5, 1.0]]".into(), "axis.x.table applies to waveform = \"table\" only"),
+        (table.into(), "waveform = \"table\" needs axis.x.table"),
+        (format!("{table}table = [[0.5, 0.0], [0.2, 1.0]]"), "no earlier than entry 0's"),
+        (format!("{table}table = [[0.5, 0.0], [0.5, 1.0], [0.5, 0.3]]"), "at most two entries (a jump) at one u"),
+        (format!("{table}table = [[0.5, 2.0], [0.6, 1.0]]"), "level in [-1, 1]"),
+        (format!("{table}table = [[1.0, 0.0], [0.6, 1.0]]"), "u in [0, 1)"),
+        (format!("{table}table = [[0.5, 0.0]]"), "a table of 2 to 64"),
+        (format!("{table}table = [[0.5, 0.0], 3]"), "is no [u, level] pair"),
+        (format!("{table}table = 3"), "axis.x.table"),
+        ("[axis.x]\nwaveform = \"square\"".into(), "axis.x.waveform = \"square\": expected \"sawtooth\""),
+        ("[axis.x]\nwaveform = 3".into(), "axis.x.waveform"),
+        ("[axis.x]\nslew_rate = 0".into(), "axis.x.slew_rate = 0: expected a number > 0"),
+        ("[axis.x]\nslew_rate = -3".into(), "axis.x.slew_rate = -3"),
+        ("[axis.x]\nslew_rate = inf".into(), "axis.x.slew_rate"),
+        ("[axis.x]\nslew_rate = nan".into(), "axis.x.slew_rate"),
+        (
+            "[simulation]\nmeasure = \"window\"\n[random]\nseed = 1\ncount = 2\n[axis.x]\nwaveform = \"trapezoid\"".into(),
+            "draws sawtooth instances",
+        ),
+        (
+            format!("{trapezoid}rise = 0.5\n[[points]]\naxis.x = {{ duty = 0.5 }}"),
+            "points[0]: axis.x.duty applies to waveform = \"sawtooth\" only",
+        ),
+    ];
+    for (text, needle) in &cases {
+        check(text, needle);
+    }
+    let table = 64;
+    let entries: Vec<String> = (0..=table)
+        .map(|k| format!("[{}, 0.5]", k as f64 / 100.0))
+        .collect();
+    check(
+        &format!(
+            "[axis.x]\nwaveform = \"table\"\ntable = [{}]",
+            entries.join(", ")
+        ),
+        "a table of 2 to 64",
+    );
+}
+
+#[test]
+fn axes_and_points_take_waveforms_as_the_keys_say() {
+    // axis.y takes axis.x's waveform and shape keys unless it names its own.
+    let scene = parse(
+        "[axis.x]\nwaveform = \"trapezoid\"\nrise = 0.5\nfall = 0.2\nslew_rate = 1e5\n\
+         [axis.y]\nvoltage = 50\n",
+    );
+    let [x, y] = scene.instance(0).axes;
+    assert_eq!(
+        (x.shape, x.rise, x.hold, x.fall),
+        (Shape::Trapezoid, 0.5, 0.0, 0.2)
+    );
+    assert_eq!(
+        (y.shape, y.rise, y.fall, y.slew_rate),
+        (x.shape, 0.5, 0.2, 1e5)
+    );
+    let scene = parse(
+        "[axis.x]\nwaveform = \"trapezoid\"\nrise = 0.5\n[axis.y]\nvoltage = 50\n\
+         waveform = \"sawtooth\"\n",
+    );
+    let y = scene.instance(0).axes[1];
+    assert_eq!(
+        (y.shape, y.rise, y.duty, y.slew_rate),
+        (Shape::Sawtooth, 0.0, 0.98, NO_SLEW_LIMIT)
+    );
+    // A point's waveform replaces the base's, with none of its shape keys.
+    let scene = parse(
+        "[axis.x]\nwaveform = \"trapezoid\"\nrise = 0.5\n[[points]]\n\
+         axis.x = { waveform = \"table\", table = [[0.0, 0.0], [0.5, 1.0], [0.5, -1.0]] }\n\
+         [[points]]\naxis.x = { hold = 0.25 }\n",
+    );
+    let [a, b] = [0, 1].map(|k| scene.instance(k).axes[0]);
+    let want = Table::intern(&[[0.0, 0.0], [0.5, 1.0], [0.5, -1.0]]);
+    assert_eq!((a.shape, a.rise), (Shape::Table(want), 0.0));
+    assert_eq!((b.shape, b.rise, b.hold), (Shape::Trapezoid, 0.5, 0.25));
+    // Ties and grids of the fractions.
+    let scene = parse(
+        "[axis.x]\nwaveform = \"trapezoid\"\nrise = [0.3, 0.5]\nfall = 0.1\n\
+         [axis.y]\nvoltage = 50\nrise = { same_as = \"axis.x.rise\" }\n",
+    );
+    assert_eq!(scene.instance_count(), 2);
+    for k in 0..2 {
+        let [x, y] = scene.instance(k).axes;
+        assert_eq!(x.rise, y.rise);
+    }
+}
+
+/// The steady steps [um] of `inst` on the f64 CPU path; finished normally.
+fn steps_um(inst: &Instance) -> [f64; 2] {
+    let out = run_one(inst, &Settings::default());
+    assert_eq!(out.status, STATUS_OK, "{inst:?}");
+    let rec = sweep::record(inst, &out);
+    [rec.step[0] * 1e6, rec.step[1] * 1e6]
+}
+
+/// Table 1 at 100 V on x and 60 V at 14 Hz on y, unloaded, steady from
+/// period 1, under `lugre` friction where given.
+fn base(lugre: bool) -> Instance {
+    let mut inst = Instance::TABLE1;
+    inst.axes[1].voltage = 60.0;
+    inst.axes[1].frequency = 14.0;
+    inst.settle = 1;
+    inst.cycles = 400;
+    inst.measure = Measure::Steady {
+        step_tolerance: Measure::DEFAULT_STEP_TOLERANCE,
+    };
+    if lugre {
+        inst.mechanism.friction = pidm::model::Friction::Lugre(Lugre {
+            stribeck_velocity: 1e-5,
+            ..Lugre::DEFAULT
+        });
+    }
+    inst
+}
+
+/// `inst` with axis x driven by `shape` (and its fractions).
+fn shaped(mut inst: Instance, shape: Shape, fractions: [f64; 3]) -> Instance {
+    let x = &mut inst.axes[0];
+    x.shape = shape;
+    [x.rise, x.hold, x.fall] = fractions;
+    inst
+}
+
+/// A trapezoid (d, 0, 1 - d), the table of that shape and the sawtooth of
+/// duty d are one drive: the same steps, under both laws (the same bits,
+/// since their corners are the same).
+#[test]
+fn a_sawtooths_trapezoid_and_table_step_as_the_sawtooth() {
+    for lugre in [false, true] {
+        for duty in [0.98, 0.9] {
+            let mut saw = base(lugre);
+            saw.axes[0].duty = duty;
+            let trapezoid = shaped(base(lugre), Shape::Trapezoid, [duty, 0.0, 1.0 - duty]);
+            let table = Table::intern(&[[0.0, 0.0], [duty, 1.0]]);
+            let table = shaped(base(lugre), Shape::Table(table), [0.0; 3]);
+            let want = steps_um(&saw);
+            for inst in [trapezoid, table] {
+                let got = steps_um(&inst);
+                for i in 0..2 {
+                    assert!(
+                        (got[i] - want[i]).abs() <= 1e-6,
+                        "lugre {lugre} duty {duty} axis {i}: {} um against the sawtooth's {} um",
+                        got[i],
+                        want[i]
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// Negated levels on x negate x's step and keep y's (the friction is
+/// isotropic, so the mirror image x -> -x is a motion too); a
+/// constant level moves nothing; a slew limit at or above every flank is
+/// no limit, bit for bit.
+#[test]
+fn negated_constant_and_unlimited_drives_step_as_they_must() {
+    let up = Table::intern(&[[0.0, 0.0], [0.6, 1.0], [0.7, 0.4], [0.72, 0.0]]);
+    let down = Table::intern(&[[0.0, -0.0], [0.6, -1.0], [0.7, -0.4], [0.72, -0.0]]);
+    let [a, b] = [up, down].map(|t| steps_um(&shaped(base(false), Shape::Table(t), [0.0; 3])));
+    assert!(a[0].abs() > 0.01, "the table moves x: {a:?}");
+    assert!((a[0] + b[0]).abs() <= 1e-6, "x: {} and {} um", a[0], b[0]);
+    assert!((a[1] - b[1]).abs() <= 1e-6, "y: {} and {} um", a[1], b[1]);
+    let flat = Table::intern(&[[0.0, 0.5], [0.5, 0.5]]);
+    let mut still = shaped(base(false), Shape::Table(flat), [0.0; 3]);
+    still.axes[1].voltage = 0.0;
+    let steps = steps_um(&still);
+    assert!(
+        steps[0].abs() <= 1e-6,
+        "a constant drive steps {steps:?} um"
+    );
+    // The sawtooth's steepest flank: 100 V over 0.02 of a 10 Hz cycle.
+    let mut limited = base(false);
+    limited.axes[0].slew_rate = 100.0 * 10.0 / 0.02;
+    limited.axes[1].slew_rate = 1e9;
+    assert_eq!(steps_um(&limited), steps_um(&base(false)));
+    limited.axes[0].slew_rate *= 0.5;
+    assert_ne!(steps_um(&limited)[0], steps_um(&base(false))[0]);
+}
+
+/// A refused scene leaves no file; the GPU names what it cannot drive.
+#[test]
+fn refusals_leave_no_file_and_the_gpu_names_the_waveform() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        "name = \"bad\"\n[axis.x]\nwaveform = \"trapezoid\"\nrise = 0.6\nfall = 0.6\n",
+    )
+    .expect("written");
+    let out = dir.path().join("bad.h5");
+    let run = pidm(&["run", s(&bad), "--out", s(&out)], dir.path());
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("rise + hold + fall"));
+    assert!(!out.exists());
+    let good = dir.path().join("good.toml");
+    std::fs::write(
+        &good,
+        "name = \"good\"\n[axis.x]\nwaveform = \"trapezoid\"\nrise = 0.9\nfall = 0.02\n\
+         [axis.y]\nvoltage = 0\n[simulation]\nmax_cycles = 50\n",
+    )
+    .expect("written");
+    let run = pidm(
+        &["run", s(&good), "--backend", "gpu", "--out", s(&out)],
+        dir.path(),
+    );
+    assert!(!run.status.success());
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(err.contains("axis.x.waveform = \"trapezoid\""), "{err}");
+    assert!(!out.exists());
+}
