@@ -287,6 +287,7 @@ fn run_attrs(g: &hdf5::Group, inst: &Instance, t: &Trajectory) -> Result<hdf5::D
         write_f64_attr(g, &attr(schema::FREQUENCY), axis.frequency)?;
         write_f64_attr(g, &attr(schema::DUTY), axis.duty)?;
         write_f64_attr(g, &attr(schema::PHASE), axis.phase)?;
+        write_str_attr(g, &attr(schema::DRIVE), &crate::scene::drive_words(axis))?;
     }
     let time = dataset(
         g,

@@ -152,7 +152,8 @@ def open_trajectory(path: PathLike, k: int | str = 0, *, baseline: str | None = 
     variables ``stage_x``, ``stage_y``, ``slider_x``, ``slider_y`` [m] and
     ``voltage_x``, ``voltage_y`` [V]; its attributes name the instance (``point``,
     ``label``, ``index``) and give its drive (``voltage_x`` [V], ``frequency_x``
-    [Hz], ``duty_x``, ``phase_x`` [cycles], the same for y), ``period_s``,
+    [Hz], ``duty_x``, ``phase_x`` [cycles], ``drive_x``, the waveform and slew limit
+    in words, the same for y), ``period_s``,
     ``settle_s``, ``duration_s`` [s] and ``status``.
 
     ``baseline="x"`` or ``"y"`` reads the 1-DOF run of that axis instead (scenes

@@ -372,6 +372,9 @@ pub const VOLTAGE: &str = "voltage";
 pub const FREQUENCY: &str = "frequency";
 pub const DUTY: &str = "duty";
 pub const PHASE: &str = "phase";
+/// The axis' waveform and slew limit in words (`scene::drive_words`:
+/// "duty 0.98", "trapezoid rise 0.3, hold 0, fall 0.1, slew rate 1e5 V/s").
+pub const DRIVE: &str = "drive";
 
 #[cfg(test)]
 mod tests {

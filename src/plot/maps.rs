@@ -246,8 +246,25 @@ pub(super) fn fixed_drive(scene: &crate::scene::Scene) -> Option<String> {
         if fixed(&|x| x.frequency) {
             items.push(with_unit(drive.frequency, "Hz"));
         }
-        if fixed(&|x| x.duty) {
-            items.push(format!("duty {}", short(drive.duty)));
+        match drive.shape {
+            crate::model::Shape::Sawtooth if fixed(&|x| x.duty) => {
+                items.push(format!("duty {}", short(drive.duty)));
+            }
+            crate::model::Shape::Trapezoid
+                if fixed(&|x| x.rise) && fixed(&|x| x.hold) && fixed(&|x| x.fall) =>
+            {
+                items.push(format!(
+                    "trapezoid {}/{}/{}",
+                    short(drive.rise),
+                    short(drive.hold),
+                    short(drive.fall)
+                ));
+            }
+            crate::model::Shape::Table(_) => items.push("table".to_owned()),
+            _ => {}
+        }
+        if drive.slew_rate != crate::model::NO_SLEW_LIMIT && fixed(&|x| x.slew_rate) {
+            items.push(format!("slew {}", with_unit(drive.slew_rate, "V/s")));
         }
         if fixed(&|x| x.phase) {
             items.push(format!("phase {}", short(drive.phase)));

@@ -125,7 +125,7 @@ fn write_scene_header(md: &mut String, scene: &Scene) -> Result<()> {
         md,
         "## Scene `{}`\n\nStage m_p = {:.4e} kg, k = {:.3e} N/m, c = {:.4} N s/m \
          (resonance {:.1} Hz, Q = {:.2}); slider m_s = {:.1e} kg, f_s = {} N, f_c = {} N, \
-         a = {:.0e} m/s; duty {}, {} periods of which {} settle ({} measurement). Tolerance \
+         a = {:.0e} m/s; {}, {} periods of which {} settle ({} measurement). Tolerance \
          {:.0e} rad (default); the last column is the largest change of any step when it is \
          tightened 1000 times. The steady column is the long-run mean step of the 2-DOF \
          point (docs/model.md section 4), measured until its motion repeats or its standard \
@@ -141,7 +141,7 @@ fn write_scene_header(md: &mut String, scene: &Scene) -> Result<()> {
         first.mechanism.static_friction,
         first.mechanism.coulomb_friction,
         first.mechanism.velocity_band,
-        axis.duty,
+        crate::scene::drive_words(&axis),
         first.cycles,
         first.settle,
         first.measure.name(),
@@ -233,6 +233,7 @@ fn invariant_checks(point: &PointResult, settings: &Settings, checks: &mut Vec<S
         && inst.axes[0].gain == inst.axes[1].gain
         && inst.axes[0].frequency == inst.axes[1].frequency
         && inst.axes[0].duty == inst.axes[1].duty
+        && inst.axes[0].shape_key() == inst.axes[1].shape_key()
         && inst.axes[0].phase == inst.axes[1].phase;
     if same_axes && inst.axes[1].voltage == 0.0 {
         let one = steps(&inst.baseline(0), settings).0;

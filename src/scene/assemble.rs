@@ -338,6 +338,15 @@ fn point_keys(point: &PointSpec) -> String {
             })
         })
         .collect();
+    for (axis, given) in point.layer.shapes.iter().enumerate() {
+        if let Some(given) = given {
+            let name = crate::model::AXIS_NAMES[axis];
+            keys.push((
+                given.span.start,
+                format!("axis.{name}.waveform = {:?}", given.shape.name()),
+            ));
+        }
+    }
     keys.sort();
     let keys: Vec<String> = keys.into_iter().map(|(_, key)| key).collect();
     if keys.is_empty() {

@@ -174,7 +174,7 @@ fn write_first_instance(out: &mut String, first: &Instance) {
             out,
             "  axis.{name}: stage_mass {} kg, stiffness {} N/m, damping {} N s/m \
              (resonance {:.4} Hz, Q {:.4}), gain {} N/V, voltage {} V, frequency {} Hz, \
-             duty {}, phase {} cycles",
+             {}, phase {} cycles",
             fmt_short(axis.stage_mass),
             fmt_short(axis.stiffness),
             fmt_short(axis.damping),
@@ -183,11 +183,33 @@ fn write_first_instance(out: &mut String, first: &Instance) {
             fmt_short(axis.gain),
             fmt_short(axis.voltage),
             fmt_short(axis.frequency),
-            fmt_short(axis.duty),
+            drive_words(axis),
             fmt_short(axis.phase)
         );
     }
     let _ = writeln!(out, "  simulation: {}", describe_measure(first));
+}
+
+/// An axis' waveform and slew limit in words: "duty 0.98", "trapezoid
+/// rise 0.3, hold 0, fall 0.1", "table of 4 entries", each with ", slew
+/// rate 1e5 V/s" where the amplifier limits it.
+pub fn drive_words(axis: &crate::model::Axis) -> String {
+    use crate::model::Shape;
+    let shape = match axis.shape {
+        Shape::Sawtooth => format!("duty {}", fmt_short(axis.duty)),
+        Shape::Trapezoid => format!(
+            "trapezoid rise {}, hold {}, fall {}",
+            fmt_short(axis.rise),
+            fmt_short(axis.hold),
+            fmt_short(axis.fall)
+        ),
+        Shape::Table(table) => format!("table of {} entries", table.entries().len()),
+    };
+    if axis.slew_rate == crate::model::NO_SLEW_LIMIT {
+        shape
+    } else {
+        format!("{shape}, slew rate {} V/s", fmt_short(axis.slew_rate))
+    }
 }
 
 /// How an instance is measured, for the summary: "window, cycles 10,

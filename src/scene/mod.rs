@@ -114,6 +114,7 @@ pub mod trajectories;
 mod values;
 mod waveform;
 
+pub use describe::drive_words;
 pub use error::{Location, SceneError};
 pub use file::{MAX_SCENE_BYTES, read as read_text};
 pub use keys::instance_key;

@@ -1,0 +1,1006 @@
+#!/usr/bin/env python3
+"""Independent cross-check of pidm's drive waveforms and slew limit against SciPy.
+
+Issue 59 gave the drive other waveforms than the paper's sawtooth and an
+amplifier slew limit (docs/model.md section 2, docs/scenes.md "Waveforms and
+the amplifier's slew limit"). This script writes seeded instances of them
+as one points scene, runs it through the engine (`pidm run --backend cpu`,
+the GPU refuses waveforms so far) and integrates every instance again here
+with the hybrid solve_ivp integration of crosscheck.py (imported from it:
+the Karnopp model's modes, events, slip direction and stick check are
+crosscheck.py's `Reference`, unchanged). What is new here is the drive, built
+from the scene's keys with no engine code:
+
+* The waveform w(u), u in cycles, as a closed polyline over one cycle:
+  points (U_0, L_0) ... (U_m, L_m) with U_m = U_0 + 1, U not decreasing,
+  linear between points, periodic; two points at one u are a jump and w
+  there is the level after it; L_m != L_0 is a jump at the wrap.
+  - sawtooth of duty d: (0, 0), (d, 1), (1, 0); d = 1: (0, 0), (1, 1)
+    (the drop at the wrap), which is also the table [[0, 1], [0, 0]];
+  - trapezoid (rise r, hold h, fall f): (0, 0), (r, 1), (r + h, 1),
+    (r + h + f, 0), (1, 0), repeated points dropped; a fraction of 0 is a
+    jump, r + h + f = 1 leaves no dwell;
+  - table [[u_k, l_k]]: the entries, then (u_0 + 1, l_0).
+* The slew limit S [V/s]: the follower y(u) moves toward w(u) at most at
+  sigma = S / (|V| f) levels per cycle, and tracks w where |w'| <= sigma
+  once it has met it. Its one-cycle map Phi (follow one cycle from
+  y(U_0) = y0, exactly, segment by segment: the meeting points are
+  solved in closed form) is non-decreasing with slope at most 1, and
+  Phi(min w) >= min w, Phi(max w) <= max w, so the periodic orbit is a root
+  of Phi(y) - y on [min w, max w], found here by bisection to the last bit.
+  A root is unique when the follower meets the waveform or crosses a
+  finite flank in a cycle; the script checks that it is (it refuses an
+  instance whose orbit is not unique). The orbit is again a polyline,
+  without jumps: its corners are the meeting and leaving points and the
+  waveform's corners.
+* The drive force F_i(t) = gain_i V_i y_i(f_i t + phase_i) is affine
+  between consecutive corners; every corner of every driven axis is a
+  breakpoint where the integration restarts (and a stuck slider is checked
+  for breakaway, as crosscheck.py does at duty-1 drops).
+
+Also computed, and printed but not asserted (the engine does not write it
+yet): the **backward travel** per axis per own drive cycle over the
+measured window, (total variation of x_s,i - |net displacement|) / 2 /
+(own drive cycles in the window). The slider's velocity zeros are located
+as non-terminal events of every piece of the integration, with the zeros
+of its acceleration (the extrema of v_s,i) watched too, so a pair of zeros
+hidden inside one step is found on the dense output (counted like
+crosscheck.py's recovered crossings). Events that do not end a piece do
+not change solve_ivp's steps, so the steps are the same with or without
+this. `--backward` asserts it against /maps/backward_x and /maps/backward_y
+within BACKWARD_BOUND_M once the engine writes them (today it fails,
+naming the missing dataset).
+
+The instances (each family from its own random stream [seed, k], so a
+family's size changes no other family), mechanisms and stages drawn as in
+crosscheck.py (`draw`: equal stages for even indices, a stage per axis for
+odd ones), bands 1e-7 to 1e-5 m/s, window 3 / 1 (`l` family: 5 / 1);
+instance 0 of every family (and 3 of t, j, b) has axis y undriven (1-DOF),
+the rest are 2-DOF with both axes of the family's kind:
+
+* t: trapezoids with holds and a dwell (rise 0.2-0.55, hold 0.05-0.3, fall
+  0.01-0.1);
+* j: trapezoids with jumps: rise 0, fall 0, both 0 (a square pulse), and
+  rise + hold + fall = 1 (no dwell, jumps included);
+* b: tables of 3 to 7 entries with one or two jumps (two entries at one
+  u, one of them at u = 0 in b2), negative levels, the first entry after
+  u = 0 (the wrap segment crosses the cycle's start);
+* s: slew-limited sawtooths of duty 0.7-0.98, S = 0.3-0.9 of the fall's
+  slope |V| f / (1 - d) (the follower tracks the rise or, where sigma is
+  below the rise's slope, never meets it and crosses it twice a cycle),
+  and duty 1 with the drop slewed over 1-10 % of a cycle;
+* p: slew-limited trapezoids: flanks at 0.3-0.9 of the steeper flank's
+  slope, and a jump (rise 0 or fall 0) slewed over 10-50 % of the hold;
+* w: slew-limited tables with a jump and negative levels, S 1.1-2 times
+  the steepest finite flank (only the jump is limited) or 0.3-0.9 of it;
+* l: longer windows (5 cycles, 1 settling) of a trapezoid and a table,
+  2-DOF at a 2:1 frequency ratio (x twice y), slewed on one axis.
+
+Two checks, both asserted (exit status 1 when either fails), as in
+crosscheck.py:
+
+* default: the engine at its default simulation.tolerance; every instance
+  must end with status 0 and each step must be within BOUND_M (1e-9 m,
+  0.001 um per own drive cycle) of SciPy's;
+* tight: the engine at simulation.tolerance = `--tight` (1e-8) within
+  TIGHT_BOUND_M (see its comment for the measurement). `--tight 0` skips it.
+
+Usage: waveform.py [--pidm PATH] [--seed S] [--tight TOL] [--jobs N]
+                   [--keep DIR] [--only NAME...] [--backward] [--verbose]
+Environment: PIDM_BIN = path of the pidm binary when `--pidm` is not given
+(else `cargo run --release`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import os
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+# The Karnopp model's SciPy integration (modes, events, slip direction,
+# stick check), the engine's run and its file, and the draws of a
+# mechanism and its stages: crosscheck.py's, unchanged.
+from crosscheck import (
+    ATOL,
+    RTOL,
+    SLIP,
+    STICK,
+    Instance,
+    Reference,
+    divided,
+    draw,
+    run_engine,
+)
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+SEED = 20240611
+CYCLES = 3
+SETTLE = 1
+LONG_CYCLES = 5
+BANDS = (-7.0, -5.0)
+# Instances per family (see the docstring).
+FAMILIES = {"t": 6, "j": 6, "b": 6, "s": 6, "p": 5, "w": 4, "l": 2}
+# The default check: 0.001 um per own drive cycle, the project's bar.
+BOUND_M = 1e-9
+# The tight check, at simulation.tolerance = 1e-8 (crosscheck.py's): see
+# the measurement below (seed 20240611).
+TIGHT_BOUND_M = 4e-13  # 4e-7 um per own drive cycle
+TIGHT = 1e-8
+# --backward: the bound on the backward travel per own drive cycle. A
+# placeholder, the default check's bar, until the engine writes
+# /maps/backward_* and the difference can be measured.
+BACKWARD_BOUND_M = 1e-9
+
+# Instances left out of the checks, by name, with the reason (printed).
+EXCLUDED: dict[str, str] = {}
+
+
+# ----------------------------------------------------------------------------
+# Waveforms and the slew limit (docs/model.md section 2), from the scene keys
+
+
+def polyline(shape: dict) -> tuple[list[float], list[float]]:
+    """The waveform of `shape` (scene keys) as a closed polyline (U, L).
+
+    U[0] <= U[1] <= ... <= U[-1] = U[0] + 1; w is linear between points,
+    two points at one u are a jump (w there is the later level), and
+    L[-1] != L[0] is a jump at the wrap.
+    """
+    kind = shape["waveform"]
+    if kind == "sawtooth":
+        d = shape["duty"]
+        pts = [(0.0, 0.0), (1.0, 1.0)] if d == 1.0 else [(0.0, 0.0), (d, 1.0), (1.0, 0.0)]
+    elif kind == "trapezoid":
+        r, h, f = shape["rise"], shape["hold"], shape["fall"]
+        raw = [(0.0, 0.0), (r, 1.0), (r + h, 1.0), (r + h + f, 0.0), (1.0, 0.0)]
+        pts = [raw[0]]
+        for p in raw[1:]:
+            if p != pts[-1]:
+                pts.append(p)
+    elif kind == "table":
+        pts = [(float(u), float(lv)) for u, lv in shape["table"]]
+        pts.append((pts[0][0] + 1.0, pts[0][1]))
+    else:
+        raise ValueError(f"unknown waveform {kind!r}")
+    U = [p[0] for p in pts]
+    L = [p[1] for p in pts]
+    if any(b < a for a, b in itertools.pairwise(U)) or U[-1] != U[0] + 1.0:
+        raise ValueError(f"not a cycle: {pts}")
+    return U, L
+
+
+def follow(U, L, sigma: float, y0: float) -> tuple[list[float], list[float], bool]:
+    """The slew-limited follower over one cycle from y(U[0]) = y0, exactly.
+
+    Returns the follower's polyline (continuous, U[0] to U[0] + 1) and
+    whether it met the waveform. On a segment of slope b the follower moves
+    at +-sigma toward w until the gap closes (in closed form); on w it
+    tracks w where |b| <= sigma and leaves it at sigma sign(b) where
+    |b| > sigma. A jump of w takes the follower off it.
+    """
+    us, ys = [U[0]], [y0]
+    y = y0
+    on = False
+    met = False
+    for j in range(len(U) - 1):
+        ua, ub, la, lb = U[j], U[j + 1], L[j], L[j + 1]
+        if ub == ua:  # a jump
+            if lb != y:
+                on = False
+            continue
+        b = (lb - la) / (ub - ua)
+        u = ua
+        for _ in range(4):
+            if on:
+                if abs(b) <= sigma:
+                    u, y = ub, lb
+                else:
+                    y += math.copysign(sigma, b) * (ub - u)
+                    u, on = ub, False
+                break
+            w = la + b * (u - ua)
+            gap = w - y
+            if gap == 0.0:
+                on = met = True
+                continue
+            s = sigma if gap > 0.0 else -sigma
+            closing = s - b  # d(gap)/du = b - s
+            if closing != 0.0 and (gap > 0.0) == (closing > 0.0):
+                tau = gap / closing
+                if u + tau < ub:
+                    u += tau
+                    y = la + b * (u - ua)
+                    us.append(u)
+                    ys.append(y)
+                    on = met = True
+                    continue
+            y += s * (ub - u)
+            u = ub
+            break
+        else:
+            raise RuntimeError("follower: no progress on a segment")
+        if u != us[-1]:
+            us.append(u)
+            ys.append(y)
+    return us, ys, met
+
+
+def slewed(U, L, sigma: float) -> tuple[list[float], list[float]]:
+    """The follower's periodic orbit as a polyline: the root of Phi(y) - y."""
+    if not math.isfinite(sigma):
+        return list(U), list(L)
+
+    def h(y0: float) -> float:
+        return follow(U, L, sigma, y0)[1][-1] - y0
+
+    lo, hi = min(L), max(L)
+    if h(lo) < 0.0 or h(hi) > 0.0:
+        raise RuntimeError("slew orbit: Phi maps [min w, max w] outside itself")
+    while True:
+        mid = 0.5 * (lo + hi)
+        if mid <= lo or mid >= hi:
+            break
+        if h(mid) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    y = lo if abs(h(lo)) <= abs(h(hi)) else hi
+    # Unique: Phi - id strictly falls through the root (slope -1 where the
+    # follower tracks, 2 sigma / (sigma + |b|) - 1 per crossing otherwise).
+    delta = 1e-6
+    if not (h(y - delta) > 1e-3 * delta and h(y + delta) < -1e-3 * delta):
+        raise RuntimeError("slew orbit is not unique (the follower never meets the waveform)")
+    us, ys, _ = follow(U, L, sigma, y)
+    if abs(ys[-1] - y) > 1e-12:
+        raise RuntimeError(f"slew orbit does not close: {ys[-1] - y:.3e}")
+    ys[-1] = y  # periodic: the orbit's end is its start
+    return us, ys
+
+
+def steepest(U, L) -> float:
+    """The steepest finite flank of a polyline, in levels per cycle."""
+    return max(
+        (abs(lb - la) / (ub - ua) for ua, ub, la, lb in zip(U, U[1:], L, L[1:]) if ub > ua),
+        default=0.0,
+    )
+
+
+# ----------------------------------------------------------------------------
+# Instances
+
+
+@dataclass
+class WaveInstance(Instance):
+    """crosscheck.py's instance with a waveform (scene keys) and a slew limit per axis."""
+
+    shape: list[dict] = field(default_factory=list)
+    slew_rate: list[float | None] = field(default_factory=lambda: [None, None])
+
+    def sigma(self, i: int) -> float:
+        """The slew limit in levels per cycle (inf: none)."""
+        s = self.slew_rate[i]
+        if s is None or not self.driven(i):
+            return math.inf
+        return s / (abs(self.voltage[i]) * self.frequency[i])
+
+    def drive(self, i: int) -> tuple[list[float], list[float]]:
+        """The polyline the stage sees: the waveform, slewed where limited."""
+        U, L = polyline(self.shape[i])
+        return slewed(U, L, self.sigma(i))
+
+
+def sawtooth(d: float) -> dict:
+    return {"waveform": "sawtooth", "duty": d}
+
+
+def trapezoid(r: float, h: float, f: float) -> dict:
+    return {"waveform": "trapezoid", "rise": r, "hold": h, "fall": f}
+
+
+def table(entries: list[tuple[float, float]]) -> dict:
+    return {"waveform": "table", "table": [list(e) for e in entries]}
+
+
+def draw_table(rng, jumps: int, first_at_zero: bool = False, steep: bool = False) -> dict:
+    """3 to 6 distinct u with `jumps` of them doubled (jumps), levels of both signs.
+
+    `first_at_zero` puts a jump at u = 0; `steep` adds an entry 0.002 to
+    0.01 of a cycle after another one, at a level across 0 from it (a steep
+    finite flank).
+    """
+
+    def level(lo: float, hi: float) -> float:
+        return float(np.round(rng.uniform(lo, hi), 4))
+
+    n = max(int(rng.integers(3, 7)), jumps + 1)
+    us = {0.0} if first_at_zero else set()
+    while len(us) < n:
+        us.add(level(0.0, 0.95))
+    us = sorted(us)
+    rest = [k for k in range(len(us)) if not (first_at_zero and k == 0)]
+    doubled = [int(k) for k in rng.choice(rest, size=jumps - first_at_zero, replace=False)]
+    if first_at_zero:
+        doubled.append(0)
+    entries = []
+    for k, u in enumerate(us):
+        entries.append([u, level(-1.0, 1.0)])
+        if k in doubled:
+            a = entries[-1][1]
+            b = level(0.3, 1.0) * (-1.0 if a > 0.0 else 1.0) + (0.0 if abs(a) < 0.7 else a)
+            entries.append([u, float(np.clip(np.round(b, 4), -1.0, 1.0))])
+    # At least one level well below 0 and one well above.
+    entries[int(rng.integers(len(entries)))][1] = -level(0.5, 1.0)
+    entries[int(rng.integers(len(entries)))][1] = level(0.5, 1.0)
+    for a, b in itertools.pairwise(entries):
+        if a[0] == b[0] and abs(a[1] - b[1]) < 0.3:  # keep every jump a jump
+            b[1] = float(np.round(a[1] - math.copysign(0.6, a[1]), 4))
+    if steep:
+        k = int(rng.integers(len(entries)))
+        u = float(np.round(entries[k][0] + rng.uniform(0.002, 0.01), 4))
+        nxt = entries[k + 1][0] if k + 1 < len(entries) else 1.0
+        if u < nxt and u < 1.0:
+            lv = entries[k][1]
+            entries.insert(k + 1, [u, -math.copysign(level(0.5, 1.0), lv)])
+    return table([tuple(e) for e in entries])
+
+
+def draw_trapezoid(rng, family: str, j: int) -> dict:
+    """A trapezoid: with a hold and a dwell ("t") or with jumps ("j", by j)."""
+
+    def f(lo, hi):
+        return float(np.round(rng.uniform(lo, hi), 4))
+
+    if family == "t":
+        return trapezoid(f(0.2, 0.55), f(0.05, 0.3), f(0.002, 0.03))
+    kind = j % 4
+    if kind == 0:  # rise 0: a jump up
+        return trapezoid(0.0, f(0.1, 0.4), f(0.003, 0.05))
+    if kind == 1:  # fall 0: a jump down
+        return trapezoid(f(0.3, 0.8), f(0.0, 0.1), 0.0)
+    if kind == 2:  # a square pulse
+        return trapezoid(0.0, f(0.2, 0.6), 0.0)
+    # No dwell: exact 1/256ths summing to 1 (fall 0: the drop at the wrap).
+    r = int(rng.integers(64, 192))
+    h = int(rng.integers(1, 256 - r))
+    fall = 256 - r - h if rng.uniform() < 0.5 else 0
+    return trapezoid(r / 256, (256 - r - fall) / 256, fall / 256)
+
+
+def make_instances(seed: int, families: dict[str, int]) -> list[WaveInstance]:
+    """The families of the docstring, each from its own stream [seed, 100 + k]."""
+    out = []
+    for k, (fam, count) in enumerate(families.items()):
+        rng = np.random.default_rng([seed, 100 + k])
+        for j in range(count):
+            base = draw(rng, f"{fam}{j}", BANDS, equal_stages=j % 2 == 0)
+            inst = WaveInstance(**{key: getattr(base, key) for key in base.__dataclass_fields__})
+            # 60 to 150 V (the sign drawn): smaller drives mostly stick.
+            inst.voltage = [math.copysign(float(rng.uniform(60.0, 150.0)), v) for v in inst.voltage]
+            one_dof = j == 0 or (j == 3 and fam in "tjb")
+            shapes, slews, notes = [], [None, None], []
+            for i in range(2):
+                V, fr = abs(inst.voltage[i]), inst.frequency[i]
+                if fam in "tj":
+                    shapes.append(draw_trapezoid(rng, fam, j + i))
+                elif fam == "b":
+                    first = j == 2 and i == 0
+                    shapes.append(draw_table(rng, 1 + (j + i) % 2, first, steep=(j + i) % 3 == 0))
+                elif fam == "s":
+                    if j in (1, 4) and i == 0:
+                        # Duty 1: the drop slewed over 0.1 to 1 % of a cycle.
+                        shapes.append(sawtooth(1.0))
+                        slews[i] = V * fr / float(rng.uniform(0.001, 0.01))
+                    elif j == 5 and i == 0:
+                        # sigma below the rise's slope: the follower never meets
+                        # the waveform, it crosses it twice a cycle.
+                        shapes.append(sawtooth(0.7))
+                        slews[i] = float(rng.uniform(0.3, 0.4)) * V * fr / 0.3
+                    else:
+                        d = float(np.round(rng.uniform(0.9, 0.995), 4))
+                        shapes.append(sawtooth(d))
+                        slews[i] = float(rng.uniform(0.3, 0.9)) * V * fr / (1.0 - d)
+                elif fam == "p":
+                    shp = draw_trapezoid(rng, "j" if (j + i) % 3 == 1 else "t", j + i)
+                    shapes.append(shp)
+                    U, L = polyline(shp)
+                    if shp["rise"] == 0.0 or shp["fall"] == 0.0:
+                        # A jump, slewed over 0.1 to 1 % of a cycle.
+                        slews[i] = V * fr / float(rng.uniform(0.001, 0.01))
+                    else:
+                        slews[i] = float(rng.uniform(0.3, 0.9)) * V * fr * steepest(U, L)
+                elif fam == "w":
+                    shp = draw_table(rng, 1, steep=True)
+                    shapes.append(shp)
+                    U, L = polyline(shp)
+                    if (j + i) % 2:
+                        # Only the jumps limited: 1.1 to 2 times the steepest
+                        # finite flank, the jump over at most 1 % of a cycle.
+                        sigma = max(float(rng.uniform(1.1, 2.0)) * steepest(U, L), 200.0)
+                    else:
+                        sigma = float(rng.uniform(0.3, 0.9)) * steepest(U, L)
+                    slews[i] = sigma * V * fr
+                elif fam == "l":
+                    shp = trapezoid(0.5, 0.1, 0.01) if i == 0 else draw_table(rng, 1, steep=True)
+                    shapes.append(shp)
+                    if i == j % 2:
+                        U, L = polyline(shp)
+                        slews[i] = 0.5 * V * fr * steepest(U, L)
+            if fam == "l":
+                inst.frequency[0] = 2.0 * inst.frequency[1]
+                inst.cycles = LONG_CYCLES
+                notes.append("2:1")
+            if one_dof:
+                inst.voltage[1] = 0.0
+                notes.append("1-DOF")
+            # A scene's axis y inherits axis x's slew_rate: the families give a
+            # limited x a limited y (or an undriven one, where a limit is none).
+            if slews[0] is not None and slews[1] is None and not one_dof:
+                raise AssertionError(f"{fam}{j}: x slewed, y not")
+            if one_dof:
+                slews[1] = None
+            inst.shape = shapes
+            inst.slew_rate = slews
+            inst.duty = [math.nan, math.nan]  # unused: the shape is the drive
+            kinds = []
+            for i in range(1 if one_dof else 2):
+                kinds.append(shape_word(shapes[i]) + ("/S" if slews[i] else ""))
+            inst.label = f"{fam}{j} " + " ".join(kinds + notes + (["mp"] if j % 2 else []))
+            out.append(inst)
+    return out
+
+
+def shape_word(shape: dict) -> str:
+    kind = shape["waveform"]
+    if kind == "sawtooth":
+        return f"saw{shape['duty']:g}"
+    if kind == "trapezoid":
+        return "trap"
+    return f"tab{len(shape['table'])}"
+
+
+def name(inst: Instance) -> str:
+    return inst.label.split()[0]
+
+
+def toml_value(v) -> str:
+    if isinstance(v, str):
+        return f'"{v}"'
+    if isinstance(v, list):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return repr(float(v))
+
+
+def scene_toml(instances: list[WaveInstance], tolerance: float | None = None) -> str:
+    lines = [
+        'name = "waveform crosscheck"',
+        'description = "seeded waveform and slew-limit instances for the SciPy cross-check"',
+        "",
+        "[simulation]",
+        'measure = "window"',
+        f"cycles = {CYCLES}",
+        f"settle = {SETTLE}",
+    ]
+    if tolerance is not None:
+        lines.append(f"tolerance = {tolerance!r}")
+    lines.append("")
+    for inst in instances:
+        lines.append("[[points]]")
+        lines.append(f'label = "{inst.label}"')
+        lines.append(f"simulation.cycles = {inst.cycles}")
+        lines.append(f"simulation.settle = {inst.settle}")
+        for key in ("slider_mass", "static_friction", "coulomb_friction", "velocity_band"):
+            lines.append(f"mechanism.{key} = {getattr(inst, key)!r}")
+        for i, axis in enumerate("xy"):
+            for key in ("stage_mass", "stiffness", "damping", "gain"):
+                lines.append(f"axis.{axis}.{key} = {getattr(inst, key)[i]!r}")
+            lines.append(f"axis.{axis}.voltage = {inst.voltage[i]!r}")
+            lines.append(f"axis.{axis}.frequency = {inst.frequency[i]!r}")
+            lines.append(f"axis.{axis}.phase = {inst.phase[i]!r}")
+            for key, value in inst.shape[i].items():
+                lines.append(f"axis.{axis}.{key} = {toml_value(value)}")
+            if inst.slew_rate[i] is not None:
+                lines.append(f"axis.{axis}.slew_rate = {inst.slew_rate[i]!r}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+# ----------------------------------------------------------------------------
+# The SciPy reference: crosscheck.py's with this drive and the travel
+
+
+class WaveReference(Reference):
+    """crosscheck.py's hybrid integration, driven by polylines.
+
+    Also accumulates the slider's total variation per axis over the measured
+    window (located velocity zeros; see `integrate_piece`).
+    """
+
+    def __init__(self, inst: WaveInstance, rtol: float = RTOL):
+        super().__init__(inst)
+        # crosscheck.py's tolerances, the absolute ones scaled with rtol.
+        self.rtol = rtol
+        self.atol = ATOL * (rtol / RTOL)
+        self.drives = [inst.drive(i) if inst.driven(i) else None for i in range(2)]
+        self.variation = [0.0, 0.0]
+        self.travel_recovered = 0
+
+    # -- drive ---------------------------------------------------------------
+
+    def breakpoints(self, t_end: float, T: float) -> list[float]:
+        periods = [k * T for k in range(self.inst.cycles + 1)]
+        corners = set()
+        for i in range(2):
+            if self.drives[i] is None:
+                continue
+            U, _ = self.drives[i]
+            f, p = self.inst.frequency[i], self.inst.phase[i]
+            n_lo = math.floor(p - U[0]) - 1
+            n_hi = math.ceil(f * t_end + p - U[0]) + 1
+            for n in range(n_lo, n_hi + 1):
+                for u in set(U[:-1]):
+                    t = (n + u - p) / f
+                    if 0.0 < t < t_end:
+                        corners.add(t)
+        # A corner within rounding of a period end is that period end (the
+        # settle time must stay a breakpoint; nothing lies between).
+        eps = 1e-13 * T
+        kept = [t for t in corners if min(abs(t - s) for s in periods) > eps]
+        return sorted(set(periods) | set(kept))
+
+    def segment_force(self, t0: float, t1: float) -> list[tuple[float, float]]:
+        """Drive force of each axis on (t0, t1) as c0 + c1 t (affine there)."""
+        out = []
+        tm = 0.5 * (t0 + t1)
+        for i in range(2):
+            A = self.amp[i]
+            if A == 0.0 or self.drives[i] is None:
+                out.append((0.0, 0.0))
+                continue
+            U, L = self.drives[i]
+            f, p = self.inst.frequency[i], self.inst.phase[i]
+            n = math.floor(p + f * tm - U[0])
+            r = p + f * tm - n  # in [U[0], U[0] + 1)
+            j = min(max(int(np.searchsorted(U, r, side="right")) - 1, 0), len(U) - 2)
+            while U[j + 1] <= U[j]:  # never inside a jump (r < U[j + 1])
+                j += 1
+            s = (L[j + 1] - L[j]) / (U[j + 1] - U[j])
+            # level(t) = L[j] + s (p + f t - n - U[j])
+            out.append((A * (L[j] + s * (p - n - U[j])), A * s * f))
+        return out
+
+    # -- the travel ----------------------------------------------------------
+
+    def travel_events(self, rhs):
+        """Zeros of v_s,i and of a_s,i (extrema of v_s,i) of the driven axes."""
+        events = []
+        for i in range(2):
+            if self.drives[i] is None:
+                continue  # v_s,i is 0 throughout: no zeros to find
+
+            def zero(t, y, i=i):
+                return y[6 + i]
+
+            def extremum(t, y, i=i):
+                return rhs(t, y)[6 + i]
+
+            for g in (zero, extremum):
+                g.terminal = False
+                g.direction = 0.0
+                events.append((i, g))
+        return events
+
+    def add_travel(self, t0, y0, t_end, y_end, sol, travel, rhs, kw, t1, events):
+        """Total variation of x_s over one piece [t0, t_end] into self.variation."""
+        base = len(events) - len(travel)  # the travel events come last
+        for i in range(2):
+            if self.drives[i] is None:
+                continue
+            # The piece's points in time order: its ends, the zeros (sign 0)
+            # and the extrema of v_s,i located by solve_ivp.
+            pts = [(t0, np.asarray(y0), None), (t_end, np.asarray(y_end), None)]
+            for k, (axis, g) in enumerate(travel):
+                if axis != i:
+                    continue
+                is_zero = g.__name__ == "zero"
+                for te, ye in zip(sol.t_events[base + k], sol.y_events[base + k]):
+                    if t0 < te < t_end:
+                        pts.append((te, ye, 0 if is_zero else None))
+            pts.sort(key=lambda q: q[0])
+
+            def sign(q, i=i):
+                return q[2] if q[2] is not None else np.sign(q[1][6 + i])
+
+            # Between neighbours v_s,i is monotone; a sign change with no
+            # located zero is a pair hidden in one step: find it on the
+            # dense output (the same steps again, with the interpolants).
+            full = [pts[0]]
+            dense = None
+            for a, b in itertools.pairwise(pts):
+                if sign(a) * sign(b) < 0:
+                    if dense is None:
+                        dense = solve_ivp(rhs, (t0, t1), y0, events=events, dense_output=True, **kw)
+                    v = dense.sol
+
+                    def velocity(s, v=v, i=i):
+                        return v(s)[6 + i]
+
+                    te = brentq(velocity, a[0], b[0], xtol=1e-18, rtol=4 * np.finfo(float).eps)
+                    full.append((te, v(te), 0))
+                    self.travel_recovered += 1
+                full.append(b)
+            self.variation[i] += sum(
+                abs(b[1][4 + i] - a[1][4 + i]) for a, b in itertools.pairwise(full)
+            )
+
+    # -- crosscheck.py's piece, with the travel events -------------------------
+
+    def integrate_piece(self, mode, force, held, t0, t1, y0, fresh, in_window=False):
+        """crosscheck.py's `integrate_piece` (unchanged), plus the travel in the window."""
+        rhs, raw = self.system(mode, force, held)
+        watched = []
+        for nm, g, dg, at_zero in raw:
+            if at_zero and fresh:
+                if dg(t0, y0) < 0.0:
+                    return t0, y0, nm
+                g = divided(g, dg, t0)
+            watched.append((nm, g, dg))
+        events = []
+        for _, g, dg in watched:
+            g.terminal = True
+            g.direction = -1.0
+            dg.terminal = False
+            dg.direction = 1.0
+            events += [g, dg]
+        travel = self.travel_events(rhs) if in_window else []
+        events += [g for _, g in travel]
+        kw = {
+            "method": "DOP853",
+            "rtol": self.rtol,
+            "atol": self.atol,
+            "max_step": self.max_step[mode],
+        }
+        sol = solve_ivp(rhs, (t0, t1), y0, events=events, **kw)
+        if sol.status < 0:
+            raise RuntimeError(f"solve_ivp failed: {sol.message}")
+        self.nfev += sol.nfev
+        t_end = sol.t[-1]
+        y_end = sol.y[:, -1]
+        name = None
+        for j, (nm, g, _) in enumerate(watched):
+            if len(sol.t_events[2 * j]):
+                te = sol.t_events[2 * j][0]
+                if name is None or te < t_end or (te == t_end):
+                    name, t_end, y_end = nm, te, sol.y_events[2 * j][0]
+        missed = None
+        for j, (nm, g, _) in enumerate(watched):
+            for tm, ym in zip(sol.t_events[2 * j + 1], sol.y_events[2 * j + 1]):
+                if tm < t_end and g(tm, ym) < 0.0 and (missed is None or tm < missed[1]):
+                    missed = (j, tm)
+                    break
+        if missed is not None:
+            j, tm = missed
+            nm, g, _ = watched[j]
+            dense = solve_ivp(rhs, (t0, t1), y0, events=events, dense_output=True, **kw)
+            k = min(int(np.searchsorted(dense.t, tm)) - 1, len(dense.sol.interpolants) - 1)
+            step = dense.sol.interpolants[k]
+            lo = dense.t[k]
+            if not g(lo, step(lo)) > 0.0 or not g(tm, step(tm)) < 0.0:
+                raise RuntimeError(f"could not bracket a crossing hidden in a step at t = {tm}")
+            te = brentq(lambda s: g(s, step(s)), lo, tm, xtol=1e-18, rtol=4 * np.finfo(float).eps)
+            self.recovered += 1
+            t_end, y_end, name = te, step(te), nm
+        if travel:
+            self.add_travel(t0, y0, t_end, y_end, sol, travel, rhs, kw, t1, events)
+        return t_end, np.array(y_end), name
+
+    def run(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """crosscheck.py's `run` (unchanged) with the travel: (steps, backward travel)."""
+        cycles, settle = self.inst.cycles, self.inst.settle
+        T = self.inst.period()
+        t_end = cycles * T
+        pts = self.breakpoints(t_end, T)
+        y = np.zeros(8)
+        mode, held = STICK, None
+        fresh = False
+        settle_xs = None
+        for t0, t1 in itertools.pairwise(pts):
+            if t0 == settle * T:
+                settle_xs = y[4:6].copy()
+            in_window = settle_xs is not None
+            force = self.segment_force(t0, t1)
+            if mode == STICK:
+                need = self.f_need(t0, y, force)
+                if math.hypot(*need) > self.fs:
+                    mode, held = self.start_slip(need)
+                    fresh = True
+                    self.events.append((t0, "breakaway at corner"))
+            t = t0
+            stalled = 0
+            while t < t1:
+                t_new, y, name = self.integrate_piece(mode, force, held, t, t1, y, fresh, in_window)
+                stalled = stalled + 1 if t_new <= t else 0
+                if stalled > 64:
+                    raise RuntimeError(f"event storm at t = {t}")
+                t = t_new
+                fresh = name is not None
+                if name is None:
+                    break
+                self.events.append((t, f"{mode}: {name}"))
+                if name == "breakaway":
+                    mode, held = self.start_slip(self.f_need(t, y, force))
+                elif name == "leave band":
+                    mode, held = SLIP, None
+                else:  # enter band, reversal
+                    mode, held, y = self.stick_check(t, y, force)
+                    self.events.append((t, f"-> {mode}"))
+        if settle_xs is None:
+            raise RuntimeError("the settle time is not a breakpoint")
+        disp = y[4:6] - settle_xs
+        window = (cycles - settle) * T
+        own = [window * self.inst.frequency[i] for i in range(2)]
+        steps = (disp[0] / own[0], disp[1] / own[1])
+        backward = tuple(0.5 * (self.variation[i] - abs(disp[i])) / own[i] for i in range(2))
+        return steps, backward
+
+
+@dataclass
+class Integrated:
+    step: tuple[float, float]
+    backward: tuple[float, float]
+    events: int
+    recovered: int
+    travel_recovered: int
+    seconds: float
+    error: str | None
+
+
+def integrate(inst: WaveInstance, rtol: float = RTOL) -> Integrated:
+    """One instance's SciPy reference (run in a worker process)."""
+    started = time.time()
+    try:
+        ref = WaveReference(inst, rtol)
+        (step, backward), error = ref.run(), None
+        extra = (len(ref.events), ref.recovered, ref.travel_recovered)
+    except RuntimeError as err:
+        step, backward, error = (math.nan, math.nan), (math.nan, math.nan), str(err)
+        extra = (0, 0, 0)
+    return Integrated(step, backward, *extra, time.time() - started, error)
+
+
+# ----------------------------------------------------------------------------
+# The engine
+
+
+@dataclass
+class Engine:
+    """One `pidm run` of the scene: its steps, statuses and (optional) travel."""
+
+    step: tuple[np.ndarray, np.ndarray]
+    status: np.ndarray
+    backward: tuple[np.ndarray, np.ndarray] | None
+    seconds: float
+    backend: str
+    problems: list[str]
+
+
+def engine(scene: Path, out: Path, binary: str | None, backward: bool) -> Engine:
+    """`pidm run SCENE --backend cpu --out FILE` (crosscheck.py's run_engine), read back."""
+    run = run_engine(scene, out, "cpu", None, binary)
+    problems = list(run.problems)
+    travel = None
+    if backward:
+        with h5py.File(out, "r") as h5:
+            missing = [k for k in ("/maps/backward_x", "/maps/backward_y") if k not in h5]
+            if missing:
+                problems.append(f"--backward: {out.name} has no {', '.join(missing)}")
+            else:
+                travel = tuple(
+                    np.asarray(h5[k][...], dtype=float)
+                    for k in ("/maps/backward_x", "/maps/backward_y")
+                )
+    return Engine((run.step_x, run.step_y), run.status, travel, run.seconds, run.backend, problems)
+
+
+# ----------------------------------------------------------------------------
+
+
+def describe(inst: WaveInstance) -> str:
+    """The drive of each axis, for --verbose."""
+    parts = []
+    for i, axis in enumerate("xy"):
+        if not inst.driven(i):
+            parts.append(f"    {axis}: undriven")
+            continue
+        shape = ", ".join(f"{k} = {v}" for k, v in inst.shape[i].items())
+        U, _ = inst.drive(i)
+        slew = ""
+        if inst.slew_rate[i] is not None:
+            slew = f", slew_rate {inst.slew_rate[i]:.6g} V/s (sigma {inst.sigma(i):.4g}/cycle)"
+        parts.append(
+            f"    {axis}: {inst.voltage[i]:+.2f} V, {inst.frequency[i]:.3f} Hz, phase "
+            f"{inst.phase[i]:.4f}, {shape}{slew}; {len(U) - 1} drive segments"
+        )
+    return "\n".join(parts)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--pidm", help="the pidm binary (else $PIDM_BIN, else cargo run --release)")
+    ap.add_argument("--seed", type=int, default=SEED)
+    ap.add_argument("--keep", type=Path, help="write the scenes and HDF5 files here")
+    ap.add_argument("--only", nargs="+", metavar="NAME", help="only these instances (t0, s3, ...)")
+    ap.add_argument(
+        "--tight",
+        type=float,
+        default=TIGHT,
+        help=f"also run the engine at this simulation.tolerance and check it against "
+        f"the tight bound ({TIGHT_BOUND_M * 1e6:g} um, measured at {TIGHT:g}); 0 skips it",
+    )
+    ap.add_argument(
+        "--jobs",
+        type=int,
+        default=os.cpu_count() or 1,
+        help="SciPy integrations in parallel (default: one per core)",
+    )
+    ap.add_argument(
+        "--backward",
+        action="store_true",
+        help="also assert the backward travel against /maps/backward_x and /maps/backward_y "
+        f"(within {BACKWARD_BOUND_M * 1e6:g} um per own drive cycle)",
+    )
+    ap.add_argument(
+        "--rtol",
+        type=float,
+        default=RTOL,
+        help=f"SciPy's DOP853 rtol (default crosscheck.py's {RTOL:g}; atol scaled alike)",
+    )
+    ap.add_argument("--verbose", "-v", action="store_true", help="print each instance's drive")
+    args = ap.parse_args()
+    binary = args.pidm or os.environ.get("PIDM_BIN")
+    started = time.time()
+    instances = make_instances(args.seed, FAMILIES)
+    if args.only:
+        unknown = set(args.only) - {name(inst) for inst in instances}
+        if unknown:
+            ap.error(f"--only: no instance named {', '.join(sorted(unknown))}")
+        instances = [inst for inst in instances if name(inst) in args.only]
+    runs: dict[str, Engine] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        work = args.keep or Path(tmp)
+        work.mkdir(parents=True, exist_ok=True)
+        for which, tolerance in (("default", None), ("tight", args.tight or None)):
+            if which == "tight" and tolerance is None:
+                continue
+            scene = work / f"waveform_{which}.toml"
+            scene.write_text(scene_toml(instances, tolerance))
+            runs[which] = engine(scene, work / f"waveform_{which}.h5", binary, args.backward)
+    eng, tight = runs["default"], runs.get("tight")
+    failures = []
+    for which, run in runs.items():
+        failures += [f"{which}: {p}" for p in run.problems]
+    counts = {}
+    for inst in instances:
+        counts[name(inst)[0]] = counts.get(name(inst)[0], 0) + 1
+    print(
+        f"{len(instances)} instances ("
+        + ", ".join(f"{fam} {n}" for fam, n in counts.items())
+        + (f"; only {' '.join(args.only)}" if args.only else "")
+        + f"), seed {args.seed}; engine: {eng.backend}, {eng.seconds:.1f} s at the default "
+        "tolerance" + (f", {tight.seconds:.1f} s at {args.tight:g}" if tight else "")
+    )
+    print(
+        "steps and backward travel in um per own drive cycle; pass: engine status 0, "
+        f"|engine - scipy| <= {BOUND_M * 1e6:g} um at the default tolerance"
+        + (f" and <= {TIGHT_BOUND_M * 1e6:g} um at {args.tight:g}" if tight else " (tight skipped)")
+        + (
+            f"; backward within {BACKWARD_BOUND_M * 1e6:g} um"
+            if args.backward
+            else "; backward travel printed, not checked"
+        )
+    )
+    header = (
+        f"{'instance':<28} {'st':>2} {'axis':>4} {'engine':>12} {'scipy':>12} {'diff':>9} "
+        f"{'tight':>9} {'backward':>10}"
+    )
+    if args.backward:
+        header += f" {'bw diff':>9}"
+    print(header + f" {'events':>6} {'s':>5}")
+    wall_scipy = time.time()
+    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        references = list(pool.map(integrate, instances, itertools.repeat(args.rtol)))
+    wall_scipy = time.time() - wall_scipy
+    worst = {"default": (0.0, ""), "tight": (0.0, ""), "backward": (0.0, "")}
+    t_scipy = 0.0
+    for j, (inst, ref) in enumerate(zip(instances, references)):
+        excluded = EXCLUDED.get(name(inst))
+        if args.verbose:
+            print(describe(inst))
+        if ref.error:
+            print(f"{inst.label:<28} SciPy reference failed: {ref.error}  FAIL")
+            failures.append(f"{inst.label}: SciPy reference failed: {ref.error}")
+            continue
+        t_scipy += ref.seconds
+        for i, axis in enumerate("xy"):
+            s = ref.step[i]
+            e = eng.step[i][j]
+            checks = [("default", eng, e, s, BOUND_M)]
+            if tight:
+                checks.append(("tight", tight, tight.step[i][j], s, TIGHT_BOUND_M))
+            cells, bad = {}, []
+            for which, run, value, want, bound in checks:
+                diff = abs(value - want)
+                cells[which] = diff
+                if run.status[j] != 0:
+                    bad.append(f"{which} status {run.status[j]}")
+                elif not diff <= bound:
+                    bad.append(f"{which} {diff * 1e6:.2e} um")
+                elif not excluded and diff > worst[which][0]:
+                    worst[which] = (diff, f"{name(inst)} {axis}")
+            bw = ref.backward[i]
+            bw_cell = ""
+            if args.backward and eng.backward is not None:
+                diff = abs(eng.backward[i][j] - bw)
+                bw_cell = f" {diff * 1e6:>9.2e}"
+                if not diff <= BACKWARD_BOUND_M:
+                    bad.append(f"backward {diff * 1e6:.2e} um")
+                elif not excluded and diff > worst["backward"][0]:
+                    worst["backward"] = (diff, f"{name(inst)} {axis}")
+            mark = ""
+            if excluded:
+                mark = "  excluded"
+            elif bad:
+                mark = "  FAIL (" + ", ".join(bad) + ")"
+                failures.append(f"{inst.label} {axis}: " + ", ".join(bad))
+            first = i == 0
+            print(
+                f"{inst.label if first else '':<28} {eng.status[j]:>2} {axis:>4} "
+                f"{e * 1e6:>12.6f} {s * 1e6:>12.6f} {cells['default'] * 1e6:>9.2e} "
+                f"{cells.get('tight', math.nan) * 1e6:>9.2e} {bw * 1e6:>10.4f}{bw_cell} "
+                f"{ref.events if first else '':>6} {f'{ref.seconds:.1f}' if first else '':>5}"
+                f"{mark}"
+            )
+        if ref.recovered or ref.travel_recovered:
+            print(
+                f"{'':<28} ({ref.recovered} mode crossing(s), {ref.travel_recovered} velocity "
+                "zero(s) inside a step recovered from the dense output)"
+            )
+    for label, reason in EXCLUDED.items():
+        print(f"excluded {label}: {reason}")
+    for which, title in (
+        ("default", "the default tolerance"),
+        ("tight", f"tolerance {args.tight:g}"),
+    ):
+        if which == "tight" and not tight:
+            continue
+        bound = BOUND_M if which == "default" else TIGHT_BOUND_M
+        print(
+            f"max |engine - scipy| at {title} = {worst[which][0] * 1e6:.3e} um "
+            f"({worst[which][1]}; bound {bound * 1e6:g} um)"
+        )
+    if args.backward:
+        print(
+            f"max |engine - scipy| of the backward travel = {worst['backward'][0] * 1e6:.3e} um "
+            f"({worst['backward'][1]}; bound {BACKWARD_BOUND_M * 1e6:g} um)"
+        )
+    for failure in failures:
+        print(f"FAIL: {failure}")
+    print(
+        f"waveform crosscheck: {len(failures)} failure(s); scipy {t_scipy:.1f} s in {args.jobs} "
+        f"process(es), {wall_scipy:.1f} s wall; total {time.time() - started:.1f} s"
+    )
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
