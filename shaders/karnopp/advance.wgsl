@@ -23,7 +23,7 @@ struct State {
     h_accepted: Real,
     err_accepted: Real,
     _pad: Real,
-    rising: vec2<u32>,
+    segment: vec2<u32>,
     mode: u32,
     period: u32,
     status: u32,
@@ -51,6 +51,13 @@ fn initial_state() -> State {
     init.settle_x_s = V2(0.0);
     init.cycle_phase = p;
     init.next_corner = select(V2(1.0), c.duty, rising);
+    init.segment = select(vec2<u32>(1u), vec2<u32>(0u), rising);
+    if WAVEFORM {
+        let x = segment_at(c.segment_first.x, c.segment_count.x, p.x);
+        let y = segment_at(c.segment_first.y, c.segment_count.y, p.y);
+        init.next_corner = V2(x.corner, y.corner);
+        init.segment = vec2<u32>(x.index, y.index);
+    }
     init.corner_at = c.first_corner;
     init.corner_at_lo = c.first_corner_lo;
     init.time = Real(0.0);
@@ -58,7 +65,6 @@ fn initial_state() -> State {
     init.h_slip = Real(0.0);
     init.h_accepted = Real(0.0);
     init.err_accepted = Real(0.0);
-    init.rising = select(vec2<u32>(0u), vec2<u32>(1u), rising);
     init.mode = MODE_STICK;
     init.period = 0u;
     init.status = STATUS_OK;

@@ -74,8 +74,8 @@ struct Coefficients {
     phase_fixed: vec2<u32>,
     cycles_fixed: vec2<u32>,
     cycles_fixed_lo: vec2<u32>,
-    _pad: vec2<u32>,
-    _pad2: vec2<u32>,
+    segment_first: vec2<u32>,
+    segment_count: vec2<u32>,
     // The steady measurement (`laws::karnopp::integrate::measure`).
     se_limit2: V2,
     repeat_x: Real,

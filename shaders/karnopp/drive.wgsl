@@ -1,4 +1,6 @@
-// Mirror of `laws::karnopp::integrate::drive`: the sawtooth drives.
+// Mirror of `laws::karnopp::integrate::drive`: the drives. A sawtooth's
+// rise and fall (segments 0 and 1) come from the coefficients; other
+// waveforms' segments from their buffer (`segments.wgsl`, WAVEFORM).
 
 // Local time of each axis' next drive corner, or INFINITY where undriven.
 fn corner_time(st: State) -> V2 {
@@ -38,7 +40,10 @@ fn drive_force(st: State) -> Drive {
         let ahead = (st.corner_at - st.time) + (st.corner_at_lo - st.time_lo);
         to_corner = max(c.frequency * ahead, V2(0.0));
     }
-    let rising = st.rising == vec2<u32>(1u);
+    if WAVEFORM {
+        return segment_drive(st, to_corner);
+    }
+    let rising = st.segment == vec2<u32>(0u);
     let w = select(to_corner * c.inv_fall, Real(1.0) - to_corner * c.inv_duty, rising);
     let slope = select(c.fall_slope, c.rise_slope, rising);
     return Drive(c.amplitude * w, slope);
@@ -60,23 +65,11 @@ fn pass_boundaries(st: ptr<function, State>) {
         time_reached(*st, corners.x, corners_lo.x),
         time_reached(*st, corners.y, corners_lo.y),
     );
-    let jump = c.duty >= V2(1.0);
-    let rising = (*st).rising == vec2<u32>(1u);
-    // Duty 1: one corner per cycle; otherwise the rise ends or begins.
-    let advance_by = select(select(c.duty, Real(1.0) - c.duty, rising), V2(1.0), jump);
-    (*st).next_corner = select((*st).next_corner, (*st).next_corner + advance_by, reached);
-    let flips = reached & !jump;
-    if CORNER_CLOCK {
-        // The next corner is a fall after a rise, a rise after a fall, and
-        // a cycle after a jump (duty 1, whose rise_time is the cycle).
-        let falls = flips & rising;
-        let next = select(c.rise_time, c.fall_time, falls);
-        let next_lo = select(c.rise_time_lo, c.fall_time_lo, falls);
-        let moved = add_parts((*st).corner_at, (*st).corner_at_lo, next, next_lo);
-        (*st).corner_at = select((*st).corner_at, moved.hi, reached);
-        (*st).corner_at_lo = select((*st).corner_at_lo, moved.lo, reached);
+    if WAVEFORM {
+        next_segments(st, reached);
+    } else {
+        pass_sawtooth_corners(st, reached);
     }
-    (*st).rising = select((*st).rising, select(vec2<u32>(1u), vec2<u32>(0u), rising), flips);
     if DEFLECTION {
         // The deflections follow the drive's static motion across the
         // corner: its slope changes, and its force jumps at duty 1.
@@ -113,6 +106,29 @@ fn pass_boundaries(st: ptr<function, State>) {
             start_slip(st, need);
         }
     }
+}
+
+// The sawtooth's corners at `reached`: a rise ends or begins (duty 1: one
+// corner per cycle).
+fn pass_sawtooth_corners(st: ptr<function, State>, reached: vec2<bool>) {
+    let c = &coefficients[held];
+    let jump = c.duty >= V2(1.0);
+    let rising = (*st).segment == vec2<u32>(0u);
+    // Duty 1: one corner per cycle; otherwise the rise ends or begins.
+    let advance_by = select(select(c.duty, Real(1.0) - c.duty, rising), V2(1.0), jump);
+    (*st).next_corner = select((*st).next_corner, (*st).next_corner + advance_by, reached);
+    let flips = reached & !jump;
+    if CORNER_CLOCK {
+        // The next corner is a fall after a rise, a rise after a fall, and
+        // a cycle after a jump (duty 1, whose rise_time is the cycle).
+        let falls = flips & rising;
+        let next = select(c.rise_time, c.fall_time, falls);
+        let next_lo = select(c.rise_time_lo, c.fall_time_lo, falls);
+        let moved = add_parts((*st).corner_at, (*st).corner_at_lo, next, next_lo);
+        (*st).corner_at = select((*st).corner_at, moved.hi, reached);
+        (*st).corner_at_lo = select((*st).corner_at_lo, moved.lo, reached);
+    }
+    (*st).segment = select((*st).segment, select(vec2<u32>(0u), vec2<u32>(1u), rising), flips);
 }
 
 // The high word of the 64-bit product a * b, from 16-bit halves.

@@ -75,7 +75,7 @@ pub struct Workload {
     /// model apply to it.
     pub law: Law,
     /// The first key that drives beyond a plain sawtooth (a waveform or a
-    /// slew limit), if any: the shader drives sawtooths only so far.
+    /// slew limit), if any: a law's shader may drive sawtooths only.
     pub drive: Option<String>,
 }
 
@@ -173,16 +173,17 @@ pub fn select_backend(
     {
         bail!("--precision f32: {why}");
     }
-    if let Some(key) = &work.drive {
-        // The shader drives sawtooths from their coefficients; the
-        // segments of other drives are the CPU's so far (issue 59).
+    if let Some(key) = &work.drive
+        && let Some(why) = work.law.sawtooth_only_on_gpu()
+    {
         match choice {
-            BackendChoice::Gpu => bail!(
-                "--backend gpu: the shader drives sawtooths only, and this scene sets {key}; \
-                 run it with --backend cpu"
-            ),
+            BackendChoice::Gpu => {
+                bail!("--backend gpu: {why}, and this scene sets {key}; run it with --backend cpu")
+            }
             BackendChoice::Auto => {
-                eprintln!("pidm: --backend auto: the CPU path in f64 (the scene sets {key})");
+                eprintln!(
+                    "pidm: --backend auto: the CPU path in f64 ({why}; the scene sets {key})"
+                );
                 return cpu(threads);
             }
             BackendChoice::Cpu => {}

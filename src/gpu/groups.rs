@@ -287,12 +287,23 @@ impl Runner<'_> {
             ..*self.options
         };
         let runner = self.with(self.settings, &options);
-        let coefficients: Vec<L::Coefficients> = jobs
+        let mut coefficients: Vec<L::Coefficients> = jobs
             .par_iter()
             .map(|(inst, r)| L::pack_replica(inst, self.settings, *r))
             .collect();
         let job_instances: Vec<Instance> = jobs.iter().map(|(inst, _)| *inst).collect();
         let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
+        let segments = super::karnopp::runner::segment_binding::<L>(
+            self.device,
+            variant,
+            &job_instances,
+            self.settings,
+            &mut coefficients,
+        );
+        let extra: Vec<(u32, &wgpu::Buffer)> = segments
+            .iter()
+            .map(|b| (super::karnopp::runner::SEGMENT_BINDING, b))
+            .collect();
         let total = job_instances.len() as u64;
         let mut job_progress = |done: u64| progress(done * n as u64 / total);
         let Sliced {
@@ -304,7 +315,7 @@ impl Runner<'_> {
                 coefficients: &coefficients,
                 states: None,
             },
-            Kernel::of_variant(&pipeline, variant),
+            Kernel::with_segments(&pipeline, variant, &extra),
             &mut job_progress,
             None,
             Some(&mut groups),

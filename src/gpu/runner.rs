@@ -509,8 +509,19 @@ impl<'a> Runner<'a> {
             return self.batch_split::<L>(instances, split, progress);
         }
         let n = instances.len();
-        let coefficients = self.coefficients::<L>(instances, packed);
+        let mut coefficients = self.coefficients::<L>(instances, packed);
         let (pipeline, variant) = self.pipeline::<L>(L::PRECISION, &coefficients)?;
+        let segments = super::karnopp::runner::segment_binding::<L>(
+            self.device,
+            variant,
+            instances,
+            self.settings,
+            &mut coefficients,
+        );
+        let extra: Vec<(u32, &wgpu::Buffer)> = segments
+            .iter()
+            .map(|b| (super::karnopp::runner::SEGMENT_BINDING, b))
+            .collect();
         let Sliced {
             readback: (states, measure_list),
             pilot,
@@ -521,7 +532,7 @@ impl<'a> Runner<'a> {
                 coefficients: &coefficients,
                 states: None,
             },
-            Kernel::of_variant(&pipeline, variant),
+            Kernel::with_segments(&pipeline, variant, &extra),
             progress,
             None,
             None,

@@ -114,8 +114,11 @@ macro_rules! precision_structs {
                     pub phase_fixed: U32x2,
                     pub cycles_fixed: U32x2,
                     pub cycles_fixed_lo: U32x2,
-                    pub _pad: U32x2,
-                    pub _pad2: U32x2,
+                    /// The axes' segments in the batch's buffer (binding
+                    /// 12), set per batch (`segment_buffer`); the count is
+                    /// 0 where the drive is a sawtooth's.
+                    pub segment_first: U32x2,
+                    pub segment_count: U32x2,
                     pub se_limit2: V2,
                     pub repeat_x: Real,
                     pub repeat_v: Real,
@@ -152,7 +155,7 @@ macro_rules! precision_structs {
                     pub h_accepted: Real,
                     pub err_accepted: Real,
                     pub _pad: Real,
-                    pub rising: U32x2,
+                    pub segment: U32x2,
                     pub mode: u32,
                     pub period: u32,
                     pub status: u32,
@@ -284,8 +287,20 @@ macro_rules! precision_structs {
                     phase_fixed: u32x2(c.phase_fixed),
                     cycles_fixed: u32x2(c.cycles_fixed),
                     cycles_fixed_lo: u32x2(c.cycles_fixed_lo),
-                    _pad: U32x2::default(),
-                    _pad2: U32x2::default(),
+                    segment_first: U32x2::default(),
+                    segment_count: {
+                        let count = |s: &[mirror::drive::Segment]| {
+                            if mirror::drive::is_sawtooth(s) {
+                                0
+                            } else {
+                                s.len() as u32
+                            }
+                        };
+                        U32x2 {
+                            x: count(&c.segments[0]),
+                            y: count(&c.segments[1]),
+                        }
+                    },
                     se_limit2: v2(c.se_limit2),
                     repeat_x: c.repeat_x,
                     repeat_v: c.repeat_v,
@@ -322,8 +337,7 @@ macro_rules! precision_structs {
                     h_slip: st.h_slip,
                     h_accepted: st.h_accepted,
                     err_accepted: st.err_accepted,
-                    // The sawtooth's rise is segment 0 and its fall 1.
-                    segment: [1 - st.rising.x, 1 - st.rising.y],
+                    segment: [st.segment.x, st.segment.y],
                     mode: st.mode,
                     period: st.period,
                     status: st.status,
@@ -347,8 +361,58 @@ macro_rules! precision_structs {
                             || nonzero(self.load_accel)
                             || nonzero(self.neg_load)
                             || nonzero(self.neg_load_accel),
+                        waveform: self.segment_count.x != 0 || self.segment_count.y != 0,
                     }
                 }
+            }
+
+            host_struct! {
+                /// `pidm::laws::karnopp::integrate::drive::Segment`.
+                pub struct Segment {
+                    pub end: Real,
+                    pub length: Real,
+                    pub level: Real,
+                    pub per_cycle: Real,
+                    pub slope: Real,
+                    pub time: Real,
+                    pub time_lo: Real,
+                    pub _pad: Real,
+                }
+            }
+
+            /// A waveform batch's segment buffer (binding 12): every
+            /// instance's segments, x then y, each axis' first entry and
+            /// count set in its coefficients (a sawtooth's too: the
+            /// waveform variant reads every instance's segments, which are
+            /// the sawtooth's coefficients' arithmetic, bit for bit).
+            pub fn segment_buffer(
+                instances: &[Instance],
+                settings: &Settings,
+                coefficients: &mut [Coefficients],
+            ) -> Vec<Segment> {
+                let mut out = Vec::new();
+                for (inst, c) in instances.iter().zip(coefficients.iter_mut()) {
+                    let mirror = mirror::Coefficients::of(inst, settings);
+                    let mut first = [0u32; AXES];
+                    let mut count = [0u32; AXES];
+                    for axis in 0..AXES {
+                        first[axis] = out.len() as u32;
+                        count[axis] = mirror.segments[axis].len() as u32;
+                        out.extend(mirror.segments[axis].iter().map(|s| Segment {
+                            end: s.end,
+                            length: s.length,
+                            level: s.level,
+                            per_cycle: s.per_cycle,
+                            slope: s.slope,
+                            time: s.time,
+                            time_lo: s.time_lo,
+                            _pad: 0.0,
+                        }));
+                    }
+                    c.segment_first = u32x2(first);
+                    c.segment_count = u32x2(count);
+                }
+                out
             }
 
             /// True once the instance ended, normally or with a status.

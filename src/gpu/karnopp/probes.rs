@@ -51,15 +51,26 @@ fn first_dispatch<L: Layout>(
     let out = {
         let _turn = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
         let runner = Runner::on(ctx, settings, &options);
-        let coefficients = runner.coefficients::<L>(instances, None);
+        let mut coefficients = runner.coefficients::<L>(instances, None);
         let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
+        let segments = super::runner::segment_binding::<L>(
+            ctx.device(),
+            variant,
+            instances,
+            settings,
+            &mut coefficients,
+        );
+        let extra: Vec<(u32, &wgpu::Buffer)> = segments
+            .iter()
+            .map(|b| (super::runner::SEGMENT_BINDING, b))
+            .collect();
         runner.slices::<L>(
             Work {
                 instances,
                 coefficients: &coefficients,
                 states: None,
             },
-            Kernel::of_variant(&pipeline, variant),
+            Kernel::with_segments(&pipeline, variant, &extra),
             &mut |_| {},
             Some(1),
             None,

@@ -14,6 +14,13 @@ pub(in crate::gpu) trait Layout: Lanes<Pilot = GpuOutcome> {
     type Mirror;
     fn mirror(st: &Self::State) -> Self::Mirror;
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
+    /// A waveform batch's segment buffer as bytes, each instance's
+    /// segments located in its coefficients (`layout::segment_buffer`).
+    fn segment_buffer(
+        instances: &[Instance],
+        settings: &Settings,
+        coefficients: &mut [Self::Coefficients],
+    ) -> Vec<u8>;
     /// The shader's parts that packed coefficients use.
     fn parts(c: &Self::Coefficients) -> Parts;
     /// The outcome of a finished fixed window.
@@ -93,6 +100,18 @@ impl Layout for Single {
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::single::pack(inst, settings)
     }
+    fn segment_buffer(
+        instances: &[Instance],
+        settings: &Settings,
+        coefficients: &mut [Self::Coefficients],
+    ) -> Vec<u8> {
+        bytemuck::cast_slice(&layout::single::segment_buffer(
+            instances,
+            settings,
+            coefficients,
+        ))
+        .to_vec()
+    }
     fn parts(c: &Self::Coefficients) -> Parts {
         c.parts()
     }
@@ -162,6 +181,18 @@ impl Layout for Double {
     }
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::double::pack(inst, settings)
+    }
+    fn segment_buffer(
+        instances: &[Instance],
+        settings: &Settings,
+        coefficients: &mut [Self::Coefficients],
+    ) -> Vec<u8> {
+        bytemuck::cast_slice(&layout::double::segment_buffer(
+            instances,
+            settings,
+            coefficients,
+        ))
+        .to_vec()
     }
     fn parts(c: &Self::Coefficients) -> Parts {
         c.parts()
@@ -233,7 +264,47 @@ pub(in crate::gpu) fn on_cpu(
     GpuOutcome::of(&reduce(inst, &run.ended()), run.state.steps)
 }
 
+/// The binding of a waveform variant's segments (`segments.wgsl`).
+pub(in crate::gpu) const SEGMENT_BINDING: u32 = 12;
+
+/// A waveform variant's segment buffer for a batch of `instances`, whose
+/// coefficients it locates their segments in; `None` for a sawtooth
+/// variant, which binds none.
+pub(in crate::gpu) fn segment_binding<L: Layout>(
+    device: &wgpu::Device,
+    variant: Variant,
+    instances: &[Instance],
+    settings: &Settings,
+    coefficients: &mut [L::Coefficients],
+) -> Option<wgpu::Buffer> {
+    if !variant.parts.waveform {
+        return None;
+    }
+    let bytes = L::segment_buffer(instances, settings, coefficients);
+    Some(wgpu::util::DeviceExt::create_buffer_init(
+        device,
+        &wgpu::util::BufferInitDescriptor {
+            label: Some("segments"),
+            contents: &bytes,
+            usage: wgpu::BufferUsages::STORAGE,
+        },
+    ))
+}
+
 impl<'p> Kernel<'p> {
+    /// Karnopp's pipeline of `variant`, binding `segments` where it is a
+    /// waveform variant's ([`segment_binding`]).
+    pub(in crate::gpu) fn with_segments(
+        pipeline: &'p wgpu::ComputePipeline,
+        variant: Variant,
+        extra: &'p [(u32, &'p wgpu::Buffer)],
+    ) -> Kernel<'p> {
+        Kernel {
+            extra,
+            ..Kernel::of_variant(pipeline, variant)
+        }
+    }
+
     /// Karnopp's pipeline of `variant`.
     pub(in crate::gpu) fn of_variant(
         pipeline: &'p wgpu::ComputePipeline,

@@ -18,7 +18,7 @@ use crate::model::Instance;
 /// The shader files, in the order they are concatenated (WGSL declarations
 /// may come in any order; this one reads top-down), with their text and
 /// the part of the shader each belongs to (`File::part`).
-pub const FILES: [(&str, &str); 12] = [
+pub const FILES: [(&str, &str); 13] = [
     (
         "karnopp/arith.wgsl",
         include_str!("../../../shaders/karnopp/arith.wgsl"),
@@ -38,6 +38,10 @@ pub const FILES: [(&str, &str); 12] = [
     (
         "karnopp/drive.wgsl",
         include_str!("../../../shaders/karnopp/drive.wgsl"),
+    ),
+    (
+        "karnopp/segments.wgsl",
+        include_str!("../../../shaders/karnopp/segments.wgsl"),
     ),
     (
         "karnopp/events.wgsl",
@@ -143,6 +147,10 @@ pub struct Parts {
     /// A load on the slider (docs/model.md section 7): without it the load terms
     /// are the +0 they are at zero load, folded by the compiler.
     pub load: bool,
+    /// A drive other than a sawtooth (issue 59: a trapezoid, a table, a
+    /// slew limit): its segments from a buffer (`segments.wgsl`, binding
+    /// 12); without it the sawtooth's rise and fall from the coefficients.
+    pub waveform: bool,
 }
 
 impl Parts {
@@ -151,6 +159,7 @@ impl Parts {
         steady: true,
         phase: true,
         load: true,
+        waveform: true,
     };
 
     /// Every combination a variant may have (`phase` only with `steady`).
@@ -159,14 +168,17 @@ impl Parts {
         for steady in [false, true] {
             for phase in [false, true] {
                 for load in [false, true] {
-                    if phase && !steady {
-                        continue;
+                    for waveform in [false, true] {
+                        if phase && !steady {
+                            continue;
+                        }
+                        out.push(Parts {
+                            steady,
+                            phase,
+                            load,
+                            waveform,
+                        });
                     }
-                    out.push(Parts {
-                        steady,
-                        phase,
-                        load,
-                    });
                 }
             }
         }
@@ -179,6 +191,7 @@ impl Parts {
             steady: self.steady || other.steady,
             phase: self.phase || other.phase,
             load: self.load || other.load,
+            waveform: self.waveform || other.waveform,
         }
     }
 
@@ -199,6 +212,10 @@ impl Parts {
                 || nonzero(c.load_accel)
                 || nonzero(c.neg_load)
                 || nonzero(c.neg_load_accel),
+            waveform: !c
+                .segments
+                .iter()
+                .all(|s| crate::laws::karnopp::integrate::drive::is_sawtooth(s)),
         }
     }
 
@@ -225,6 +242,9 @@ impl Parts {
         if self.load {
             words.push("load");
         }
+        if self.waveform {
+            words.push("waveform");
+        }
         words.join("+")
     }
 
@@ -233,6 +253,7 @@ impl Parts {
         match file {
             "shared/measure.wgsl" | "karnopp/steady.wgsl" => self.steady,
             "shared/phase.wgsl" => self.steady && self.phase,
+            "karnopp/segments.wgsl" => self.waveform,
             _ => true,
         }
     }
@@ -304,6 +325,25 @@ fn measure_period_end(st: ptr<function, State>, index: u32, lane: u32, fresh: bo
 const NO_LADDER: &str = "\
 fn phase_period_end(slot: u32, k: u32, x: V2) -> PhaseEstimate {
     return PhaseEstimate(V2(0.0), V2(0.0), 0u, 0u);
+}
+";
+
+/// A sawtooth variant: the segments' functions of `segments.wgsl` as
+/// stand-ins that are never called (`WAVEFORM` is false) and bind nothing.
+const SAWTOOTH_ONLY: &str = "\
+struct SegmentAt {
+    index: u32,
+    corner: Real,
+}
+
+fn segment_drive(st: State, to_corner: V2) -> Drive {
+    return Drive(V2(0.0), V2(0.0));
+}
+
+fn next_segments(st: ptr<function, State>, reached: vec2<bool>) {}
+
+fn segment_at(first: u32, count: u32, p: Real) -> SegmentAt {
+    return SegmentAt(0u, Real(0.0));
 }
 ";
 
@@ -394,6 +434,7 @@ pub fn prelude(variant: Variant) -> String {
          const LOOP_LIMITER: bool = {limiter};\n\
          const STEADY: bool = {steady};\n\
          const LOAD: bool = {load};\n\
+         const WAVEFORM: bool = {waveform};\n\
          const STATUS_LOOP_LIMIT: u32 = {STATUS_LOOP_LIMIT}u;\n\
          {constants}\n{inverse}\n",
         floor = crate::gpu::prelude::floor(
@@ -403,6 +444,7 @@ pub fn prelude(variant: Variant) -> String {
         limiter = variant.loop_limiter,
         steady = variant.parts.steady,
         load = variant.parts.load,
+        waveform = variant.parts.waveform,
         workgroup = workgroup_size(),
         constants = constants::wgsl_constants(),
         inverse = inverse_integer_fn(),
@@ -419,6 +461,9 @@ pub fn source(variant: Variant) -> String {
         src += WINDOW_ONLY;
     } else if !parts.phase {
         src += NO_LADDER;
+    }
+    if !parts.waveform {
+        src += SAWTOOTH_ONLY;
     }
     src += &crate::gpu::engine_queue();
     let (holder, text) = HOLDERS[usize::from(variant.holds_in_memory())];

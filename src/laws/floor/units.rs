@@ -43,6 +43,9 @@ impl Units {
             a.damping *= newton * self.second / self.metre;
             a.gain *= newton;
             a.frequency /= self.second;
+            // Volts per time unit: the slew limit's levels per cycle,
+            // slew_rate / (|V| f), are the same in every unit system.
+            a.slew_rate /= self.second;
         }
         if let Measure::Steady { step_tolerance } = &mut out.measure {
             *step_tolerance *= self.metre;

@@ -65,6 +65,7 @@ fn shader_layout_matches_host_structs() {
                 check_struct::<single::Phase>(&module, &layouter, precision);
                 check_struct::<single::Measure>(&module, &layouter, precision);
                 check_struct::<single::Head>(&module, &layouter, precision);
+                check_struct::<single::Segment>(&module, &layouter, precision);
             }
             Precision::F64 => {
                 check_struct::<double::Oscillator>(&module, &layouter, precision);
@@ -75,6 +76,7 @@ fn shader_layout_matches_host_structs() {
                 check_struct::<double::Phase>(&module, &layouter, precision);
                 check_struct::<double::Measure>(&module, &layouter, precision);
                 check_struct::<double::Head>(&module, &layouter, precision);
+                check_struct::<double::Segment>(&module, &layouter, precision);
             }
         }
     }
@@ -121,7 +123,7 @@ fn f64_states_continue_on_the_cpu_member_by_member() {
     st.next_corner = pair(9.0);
     st.time = 10.0;
     st.h_slip = 11.0;
-    st.rising = U32x2 { x: 1, y: 0 };
+    st.segment = U32x2 { x: 0, y: 1 };
     st.mode = 2;
     st.period = 13;
     st.status = 14;
@@ -139,7 +141,7 @@ fn f64_states_continue_on_the_cpu_member_by_member() {
         [v(7.0), v(8.0), v(9.0)]
     );
     assert_eq!([cpu.time, cpu.h_slip], [10.0, 11.0]);
-    assert_eq!(cpu.segment, [0, 1], "rising is segment 0");
+    assert_eq!(cpu.segment, [0, 1]);
     assert_eq!(
         [
             cpu.mode,

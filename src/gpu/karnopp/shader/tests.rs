@@ -55,7 +55,7 @@ fn every_shader_file_mirrors_its_rust_file() {
 
 /// Each shader file (but the entry point) with the text of its Rust
 /// mirror.
-fn rust_mirrors() -> [(&'static str, &'static str); 9] {
+fn rust_mirrors() -> [(&'static str, &'static str); 10] {
     [
         (
             "karnopp/arith.wgsl",
@@ -71,6 +71,10 @@ fn rust_mirrors() -> [(&'static str, &'static str); 9] {
         ),
         (
             "karnopp/drive.wgsl",
+            include_str!("../../../laws/karnopp/integrate/drive.rs"),
+        ),
+        (
+            "karnopp/segments.wgsl",
             include_str!("../../../laws/karnopp/integrate/drive.rs"),
         ),
         (
@@ -97,7 +101,7 @@ fn rust_mirrors() -> [(&'static str, &'static str); 9] {
 }
 
 /// The functions only the shader defines.
-fn shader_only_functions() -> [&'static str; 12] {
+fn shader_only_functions() -> [&'static str; 16] {
     // Shader only: WGSL has no Option, closures, methods or
     // is_finite, and splits some expressions into functions.
     [
@@ -117,6 +121,13 @@ fn shader_only_functions() -> [&'static str; 12] {
         "two_sum2",
         // No closures: `window_coefficient`'s cut test.
         "is_cut",
+        // The drive's two forms (issue 59): a sawtooth's corners from its
+        // coefficients, other waveforms' segments from their buffer; the
+        // CPU has the segments' one form, which is both's arithmetic.
+        "pass_sawtooth_corners",
+        "segment_drive",
+        "next_segments",
+        "following",
     ]
 }
 
@@ -142,12 +153,11 @@ fn cpu_only_functions() -> [&'static str; 45] {
         "set_steps",
         "set_measurement",
         "rounded",
-        // The drive's segments (issue 59): the shader drives sawtooths
-        // from their coefficients (`layout::packed`: rise and fall are
-        // segments 0 and 1), the same arithmetic, until its waveform
-        // variant reads a segment buffer.
+        // The drive's segments (issue 59), made on the host (the shader
+        // reads a sawtooth's from its coefficients, `layout::packed`, and
+        // other waveforms' from their buffer, `layout::segment_buffer`).
         "segments_of",
-        "segment_at",
+        "is_sawtooth",
         "current_segments",
         "first_corner",
         "inverse_integer",
@@ -207,6 +217,12 @@ fn check_mirror(wgsl_name: &str, rust_text: &str, shader_only: &[&str], cpu_only
     let mut found = wgsl.clone();
     if wgsl_name == "karnopp/advance.wgsl" {
         found.extend(defined_functions(shader_text("karnopp/entry.wgsl")));
+    }
+    // The drive's two files mirror drive.rs together: a waveform
+    // variant's segments beside the sawtooth's corners.
+    let drive = ["karnopp/drive.wgsl", "karnopp/segments.wgsl"];
+    if let Some(k) = drive.iter().position(|&n| n == wgsl_name) {
+        found.extend(defined_functions(shader_text(drive[1 - k])));
     }
     assert_mirrors(wgsl_name, &wgsl, &found, &cpu, (shader_only, cpu_only));
 }

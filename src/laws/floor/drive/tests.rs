@@ -219,3 +219,23 @@ fn the_orbit_is_where_a_stepped_follower_settles() {
         }
     }
 }
+
+/// A slew-limited drive is the same drive in every unit system: the f32
+/// shader's units (um, ms) scale `slew_rate` with the frequency, so the
+/// limit in levels per cycle, and the corners, stay what they are in SI.
+#[test]
+fn slew_limited_corners_do_not_depend_on_the_units() {
+    use crate::laws::floor::units::Units;
+    let mut inst = crate::model::Instance::TABLE1;
+    inst.axes[0].slew_rate = 3e4;
+    let si = axis_corners(&inst.axes[0]);
+    let scaled = axis_corners(&Units::MICRO_MILLI.scale(&inst).axes[0]);
+    assert!(si.points.len() > 2, "the limit is active: {si:?}");
+    assert_eq!(si.points.len(), scaled.points.len());
+    for (a, b) in si.points.iter().zip(&scaled.points) {
+        assert!(
+            (a[0] - b[0]).abs() < 1e-12 && (a[1] - b[1]).abs() < 1e-12,
+            "{a:?} {b:?}"
+        );
+    }
+}

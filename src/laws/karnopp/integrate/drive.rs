@@ -73,6 +73,20 @@ pub fn drive_force(c: &Coefficients, st: &State) -> (Vec2, Vec2) {
     (c.amplitude * w, Vec2::new(x.slope, y.slope))
 }
 
+/// Whether an axis' segments are a sawtooth's, corner for corner: a
+/// rise to level 1 from u = 0 and a fall to level 0 ending at u = 1 (or,
+/// at duty 1, one rise to 1 over the cycle). The shader then drives it
+/// from its coefficients (`gpu::karnopp::layout`: duty, 1 / d, 1 / (1 -
+/// d), the slopes and durations of segments 0 and 1), which is this
+/// module's arithmetic on these segments, bit for bit.
+pub fn is_sawtooth(segments: &[Segment]) -> bool {
+    match segments {
+        [rise] => rise.end == 1.0 && rise.level == 1.0,
+        [rise, fall] => rise.level == 1.0 && fall.level == 0.0 && fall.end == 1.0,
+        _ => false,
+    }
+}
+
 /// Each axis' current segment.
 fn current_segments<'a>(c: &'a Coefficients, st: &State) -> [&'a Segment; 2] {
     [0, 1].map(|i| &c.segments[i][st.segment[i] as usize])
