@@ -30,6 +30,19 @@ fn instances() -> Vec<Instance> {
     ladder.cycles = 300;
     let mut out = windows;
     out.extend([steady[2], steady[3], steady[7], ladder]);
+    // A window, a steady run and the ladder's under a slew-limited
+    // trapezoid on x (the waveform part).
+    let shaped: Vec<Instance> = [out[0], steady[2], ladder]
+        .into_iter()
+        .map(|mut inst| {
+            let x = &mut inst.axes[0];
+            x.shape = pidm::model::Shape::Trapezoid;
+            [x.rise, x.hold, x.fall] = [0.9, 0.03, 0.02];
+            x.slew_rate = 3e4;
+            inst
+        })
+        .collect();
+    out.extend(shaped);
     let loaded = crate::common::loaded(&out, 5);
     out.extend(loaded);
     out
