@@ -293,17 +293,14 @@ impl Runner<'_> {
             .collect();
         let job_instances: Vec<Instance> = jobs.iter().map(|(inst, _)| *inst).collect();
         let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
-        let segments = super::karnopp::runner::segment_binding::<L>(
+        let segments = segment_binding::<L>(
             self.device,
             variant,
             &job_instances,
             self.settings,
             &mut coefficients,
         );
-        let extra: Vec<(u32, &wgpu::Buffer)> = segments
-            .iter()
-            .map(|b| (super::karnopp::runner::SEGMENT_BINDING, b))
-            .collect();
+        let extra = segment_entries(&segments);
         let total = job_instances.len() as u64;
         let mut job_progress = |done: u64| progress(done * n as u64 / total);
         let Sliced {

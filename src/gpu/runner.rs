@@ -511,17 +511,14 @@ impl<'a> Runner<'a> {
         let n = instances.len();
         let mut coefficients = self.coefficients::<L>(instances, packed);
         let (pipeline, variant) = self.pipeline::<L>(L::PRECISION, &coefficients)?;
-        let segments = super::karnopp::runner::segment_binding::<L>(
+        let segments = segment_binding::<L>(
             self.device,
             variant,
             instances,
             self.settings,
             &mut coefficients,
         );
-        let extra: Vec<(u32, &wgpu::Buffer)> = segments
-            .iter()
-            .map(|b| (super::karnopp::runner::SEGMENT_BINDING, b))
-            .collect();
+        let extra = segment_entries(&segments);
         let Sliced {
             readback: (states, measure_list),
             pilot,

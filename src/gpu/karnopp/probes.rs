@@ -53,17 +53,14 @@ fn first_dispatch<L: Layout>(
         let runner = Runner::on(ctx, settings, &options);
         let mut coefficients = runner.coefficients::<L>(instances, None);
         let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
-        let segments = super::runner::segment_binding::<L>(
+        let segments = segment_binding::<L>(
             ctx.device(),
             variant,
             instances,
             settings,
             &mut coefficients,
         );
-        let extra: Vec<(u32, &wgpu::Buffer)> = segments
-            .iter()
-            .map(|b| (super::runner::SEGMENT_BINDING, b))
-            .collect();
+        let extra = segment_entries(&segments);
         runner.slices::<L>(
             Work {
                 instances,

@@ -291,6 +291,13 @@ pub(in crate::gpu) fn segment_binding<L: Layout>(
     ))
 }
 
+/// The bindings of a batch's segment buffer, where it has one.
+pub(in crate::gpu) fn segment_entries(
+    segments: &Option<wgpu::Buffer>,
+) -> Vec<(u32, &wgpu::Buffer)> {
+    segments.iter().map(|b| (SEGMENT_BINDING, b)).collect()
+}
+
 impl<'p> Kernel<'p> {
     /// Karnopp's pipeline of `variant`, binding `segments` where it is a
     /// waveform variant's ([`segment_binding`]).
