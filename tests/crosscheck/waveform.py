@@ -5,7 +5,8 @@ Issue 59 gave the drive other waveforms than the paper's sawtooth and an
 amplifier slew limit (docs/model.md section 2, docs/scenes.md "Waveforms and
 the amplifier's slew limit"). This script writes seeded instances of them
 as one points scene, runs it through the engine on the CPU path (`pidm run
---backend cpu`; the shader is not checked here) and integrates every
+--backend cpu`; with `--backend gpu`, the f64 shader, which must run every
+integration itself, as crosscheck.py's GPU check asks) and integrates every
 instance again here with the hybrid solve_ivp integration of
 crosscheck.py, imported from it: the Karnopp model's modes, events, slip
 direction and stick check are crosscheck.py's `Reference`, subclassed; its
@@ -419,9 +420,12 @@ class Engine:
     problems: list[str]
 
 
-def engine(scene: Path, out: Path, binary: str | None, backward: bool) -> Engine:
-    """`pidm run SCENE --backend cpu --out FILE` (crosscheck.py's run_engine), read back."""
-    run = run_engine(scene, out, "cpu", None, binary)
+def engine(
+    scene: Path, out: Path, binary: str | None, backward: bool, backend: str = "cpu"
+) -> Engine:
+    """`pidm run SCENE --backend BACKEND --out FILE` (crosscheck.py's run_engine,
+    f64 on the GPU), read back."""
+    run = run_engine(scene, out, backend, "f64" if backend == "gpu" else None, binary)
     problems = list(run.problems)
     travel = None
     if backward:
@@ -463,6 +467,12 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--pidm", help="the pidm binary (else $PIDM_BIN, else cargo run --release)")
     ap.add_argument("--seed", type=int, default=SEED)
+    ap.add_argument(
+        "--backend",
+        choices=["cpu", "gpu"],
+        default="cpu",
+        help="the engine's backend (gpu: the f64 shader, which must run every instance itself)",
+    )
     ap.add_argument("--keep", type=Path, help="write the scenes and HDF5 files here")
     ap.add_argument("--only", nargs="+", metavar="NAME", help="only these instances (t0, s3, ...)")
     ap.add_argument(
@@ -510,7 +520,7 @@ def main() -> int:
             scene = work / f"waveform_{which}.toml"
             scene.write_text(scene_toml(instances, tolerance))
             travel = args.backward and which == "default"  # the default run's only
-            runs[which] = engine(scene, work / f"waveform_{which}.h5", binary, travel)
+            runs[which] = engine(scene, work / f"waveform_{which}.h5", binary, travel, args.backend)
     eng, tight = runs["default"], runs.get("tight")
     failures = []
     for which, run in runs.items():

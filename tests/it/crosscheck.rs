@@ -151,6 +151,26 @@ fn waveforms_and_slew_limits_agree_with_scipy_on_the_cpu() {
     run_script("waveform.py", &[], "waveform crosscheck: 0 failure(s)");
 }
 
+/// The same waveforms on the f64 shader (Karnopp's waveform pipeline,
+/// `shaders/karnopp/segments.wgsl`; a sawtooth-shaped trapezoid or table
+/// takes the sawtooth's): the same bounds, every integration the shader's
+/// own.
+#[test]
+fn waveforms_and_slew_limits_agree_with_scipy_on_the_gpu_in_f64() {
+    match GpuContext::new(true) {
+        Err(e) => return cannot_run(&format!("no GPU adapter is usable ({e})")),
+        Ok(ctx) if !ctx.supports_f64() => {
+            return cannot_run(&format!("{} offers no f64", ctx.describe()));
+        }
+        Ok(_) => {}
+    }
+    run_script(
+        "waveform.py",
+        &["--backend", "gpu"],
+        "waveform crosscheck: 0 failure(s)",
+    );
+}
+
 /// The f64 shader against the same SciPy reference and the same bounds,
 /// on a subset: the four corner cases (duty 1, an undriven axis), the
 /// unequal-stage instances whose result depends most on the slip direction
