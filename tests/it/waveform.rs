@@ -362,3 +362,68 @@ fn the_shader_drives_waveforms_as_the_cpu_does() {
         }
     }
 }
+
+/// `pidm fit` fits a trapezoid's fall like any key: steps made by pidm at
+/// fall 0.012 over seven voltages (2 % errors, no noise) give back 0.012
+/// within 3 standard errors, from a start of 0.011.
+#[test]
+fn a_fit_recovers_a_trapezoids_fall() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let path = |name: &str| dir.path().join(name);
+    let shape = "[axis.x]\nwaveform = \"trapezoid\"\nrise = 0.9\n";
+    std::fs::write(
+        path("truth.toml"),
+        format!(
+            "name = \"truth\"\n{shape}fall = 0.012\nvoltage = [60, 70, 80, 90, 100, 110, 120]\n\
+             [axis.y]\nvoltage = 0\n"
+        ),
+    )
+    .expect("written");
+    let truth = Scene::from_toml(
+        &std::fs::read_to_string(path("truth.toml")).expect("read"),
+        None,
+    )
+    .expect("the truth scene");
+    let mut csv = String::from("axis.x.voltage,step_x,step_x_se\n");
+    for k in 0..truth.instance_count() {
+        let inst = truth.instance(k);
+        let step = steps_um(&inst)[0] * 1e-6;
+        let se = (0.02 * step.abs()).max(1e-8);
+        csv += &format!("{},{step:e},{se:e}\n", inst.axes[0].voltage);
+    }
+    std::fs::write(path("steps.csv"), csv).expect("written");
+    std::fs::write(
+        path("fall.toml"),
+        format!(
+            "name = \"fit_fall\"\n{shape}fall = 0.011\n[axis.y]\nvoltage = 0\n[fit]\n\
+             data = \"steps.csv\"\nfree = {{ \"axis.x.fall\" = [0.010, 0.014] }}\n"
+        ),
+    )
+    .expect("written");
+    let out = path("fit.json");
+    let run = pidm(
+        &[
+            "fit",
+            s(&path("fall.toml")),
+            "--out",
+            s(&out),
+            "--backend",
+            "cpu",
+        ],
+        dir.path(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).expect("FIT.json")).expect("JSON");
+    assert_eq!(json["status"], "converged", "{json:#}");
+    let p = &json["parameters"]["axis.x.fall"];
+    let (value, se) = (p["value"].as_f64().unwrap(), p["se"].as_f64().unwrap());
+    assert!(
+        se > 0.0 && (value - 0.012).abs() <= 3.0 * se,
+        "fall {value} +- {se}"
+    );
+}
