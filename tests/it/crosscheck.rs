@@ -54,6 +54,19 @@ fn crosscheck(args: &[&str]) {
     run_script("crosscheck.py", args, "crosscheck: 0 failure(s)");
 }
 
+/// Whether an adapter with f64 runs the shader here; where none does,
+/// [`cannot_run`] says so (a failure under CI).
+fn f64_adapter() -> bool {
+    match GpuContext::new(true) {
+        Err(e) => cannot_run(&format!("no GPU adapter is usable ({e})")),
+        Ok(ctx) if !ctx.supports_f64() => {
+            cannot_run(&format!("{} offers no f64", ctx.describe()));
+        }
+        Ok(_) => return true,
+    }
+    false
+}
+
 /// Runs `tests/crosscheck/<script>` with `args` on this build's binary and
 /// asserts that it passed and printed `verdict`.
 fn run_script(script: &str, args: &[&str], verdict: &str) {
@@ -157,12 +170,8 @@ fn waveforms_and_slew_limits_agree_with_scipy_on_the_cpu() {
 /// own.
 #[test]
 fn waveforms_and_slew_limits_agree_with_scipy_on_the_gpu_in_f64() {
-    match GpuContext::new(true) {
-        Err(e) => return cannot_run(&format!("no GPU adapter is usable ({e})")),
-        Ok(ctx) if !ctx.supports_f64() => {
-            return cannot_run(&format!("{} offers no f64", ctx.describe()));
-        }
-        Ok(_) => {}
+    if !f64_adapter() {
+        return;
     }
     run_script(
         "waveform.py",
@@ -179,12 +188,8 @@ fn waveforms_and_slew_limits_agree_with_scipy_on_the_gpu_in_f64() {
 /// bands of 4e-9 and 2e-8 m/s (n5, n6).
 #[test]
 fn random_instances_agree_with_scipy_on_the_gpu_in_f64() {
-    match GpuContext::new(true) {
-        Err(e) => return cannot_run(&format!("no GPU adapter is usable ({e})")),
-        Ok(ctx) if !ctx.supports_f64() => {
-            return cannot_run(&format!("{} offers no f64", ctx.describe()));
-        }
-        Ok(_) => {}
+    if !f64_adapter() {
+        return;
     }
     crosscheck(&[
         "--backend",

@@ -15,7 +15,7 @@ use std::process::{Command, Stdio};
 use crate::common::{manifest, pidm, s, signal};
 
 /// Fits `scene` on `backend` into `dir`; FIT.json's object.
-fn fit(scene: &str, dir: &Path, backend: &str, extra: &[&str]) -> serde_json::Value {
+pub(crate) fn fit(scene: &str, dir: &Path, backend: &str, extra: &[&str]) -> serde_json::Value {
     let out = dir.join("fit.json");
     let mut args = vec!["fit", scene, "--out", s(&out), "--backend", backend];
     args.extend(extra);

@@ -400,25 +400,7 @@ fn a_fit_recovers_a_trapezoids_fall() {
         ),
     )
     .expect("written");
-    let out = path("fit.json");
-    let run = pidm(
-        &[
-            "fit",
-            s(&path("fall.toml")),
-            "--out",
-            s(&out),
-            "--backend",
-            "cpu",
-        ],
-        dir.path(),
-    );
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&out).expect("FIT.json")).expect("JSON");
+    let json = crate::fit::fit(s(&path("fall.toml")), dir.path(), "cpu", &[]);
     assert_eq!(json["status"], "converged", "{json:#}");
     let p = &json["parameters"]["axis.x.fall"];
     let (value, se) = (p["value"].as_f64().unwrap(), p["se"].as_f64().unwrap());

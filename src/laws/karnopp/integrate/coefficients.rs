@@ -225,10 +225,9 @@ impl Coefficients {
             slip: osc(&e.slip),
             amplitude: v(e.amplitude),
             frequency: v(e.frequency),
-            segments: e
-                .segments
-                .clone()
-                .map(|s| super::drive::rounded(&s, |x| x as Real as f64)),
+            segments: std::array::from_fn(|i| {
+                super::drive::rounded(&e.segments[i], |x| x as Real as f64)
+            }),
             phase: v(e.phase),
             cycles_per_period: v(e.cycles_per_period),
             phase_fixed: e.phase_fixed,
