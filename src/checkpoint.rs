@@ -28,16 +28,16 @@ use crate::sweep::Record;
 /// The journal's first bytes: its format. Format 3 added the kind of motion
 /// to every record, format 4 its replica count; a journal of another format is refused by name, never
 /// read with this format's record layout.
-const MAGIC: &[u8; 12] = b"PIDM-CKPT-4\n";
+const MAGIC: &[u8; 12] = b"PIDM-CKPT-5\n";
 /// What every format's magic starts with.
 const MAGIC_FAMILY: &[u8] = b"PIDM-CKPT-";
 
 /// Bytes of an entry's head: start, count, part, wall time so far.
 const HEAD_BYTES: usize = 32;
 
-/// Bytes of one record in the journal: eight f64, six u32 and the motion
-/// code (one byte).
-pub const RECORD_BYTES: usize = 8 * 8 + 4 * 6 + 1;
+/// Bytes of one record in the journal: sixteen f64 (the backward maps
+/// since format 5), six u32 and the motion code (one byte).
+pub const RECORD_BYTES: usize = 16 * 8 + 4 * 6 + 1;
 
 /// The checkpoint journal of one output file.
 pub struct Checkpoint {
@@ -71,6 +71,10 @@ fn encode(record: &Record, out: &mut Vec<u8>) {
         .chain(&record.velocity)
         .chain(&record.baseline_step)
         .chain(&record.step_se)
+        .chain(&record.backward.travel)
+        .chain(&record.backward.travel_se)
+        .chain(&record.backward.ratio)
+        .chain(&record.backward.ratio_se)
     {
         out.extend_from_slice(&v.to_le_bytes());
     }
@@ -92,19 +96,25 @@ fn encode(record: &Record, out: &mut Vec<u8>) {
 /// refused here, as [`Record::implausibility`] refuses the rest).
 fn decode(bytes: &[u8]) -> Result<Record, String> {
     let f = |k: usize| f64::from_le_bytes(bytes[8 * k..8 * k + 8].try_into().unwrap());
-    let u = |k: usize| u32::from_le_bytes(bytes[64 + 4 * k..68 + 4 * k].try_into().unwrap());
+    let u = |k: usize| u32::from_le_bytes(bytes[128 + 4 * k..132 + 4 * k].try_into().unwrap());
     Ok(Record {
         step: [f(0), f(1)],
         velocity: [f(2), f(3)],
         baseline_step: [f(4), f(5)],
         step_se: [f(6), f(7)],
+        backward: crate::sweep::Backward {
+            travel: [f(8), f(9)],
+            travel_se: [f(10), f(11)],
+            ratio: [f(12), f(13)],
+            ratio_se: [f(14), f(15)],
+        },
         status: u(0),
         steps: u(1),
         baseline_status: u(2),
         periods: u(3),
         period_lag: u(4),
         replicas: u(5),
-        motion: crate::sweep::stored_motion(bytes[88])?,
+        motion: crate::sweep::stored_motion(bytes[152])?,
     })
 }
 
@@ -480,6 +490,12 @@ mod tests {
             replicas: 1 + i as u32 % 3,
             baseline_step: [0.25, -0.0],
             baseline_status: 5,
+            backward: crate::sweep::Backward {
+                travel: [value(i as f64 * 1e-10), 0.0],
+                travel_se: [value(1e-12), 0.0],
+                ratio: [value(0.25), 0.0],
+                ratio_se: [value(0.01), 0.0],
+            },
         }
     }
 

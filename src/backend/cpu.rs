@@ -11,7 +11,7 @@ use crate::laws::Law;
 use crate::laws::floor::check;
 use crate::laws::status::STATUS_GRAZE;
 use crate::laws::{Replica, Settings};
-use crate::measurement::{Outcome, reduce};
+use crate::measurement::{Outcome, reduce, reduce_variation};
 use crate::model::Instance;
 use crate::replicas;
 
@@ -89,9 +89,13 @@ impl Backend for CpuBackend {
     ) -> Result<Vec<Outcome>> {
         // Replicas on the threads a batch leaves idle (f64, the reference;
         // the f32 mirror runs every instance alone).
+        // The backward travel is measured on runs of their own
+        // (`Settings::backward`).
         let count = match self.precision {
-            Precision::F64 => replicas::count(settings.replicas, self.threads(), instances.len()),
-            Precision::F32 => 1,
+            Precision::F64 if !settings.backward => {
+                replicas::count(settings.replicas, self.threads(), instances.len())
+            }
+            _ => 1,
         };
         Ok(self.pool.install(|| {
             let mut out: Vec<Outcome> = instances
@@ -176,6 +180,9 @@ pub fn run_one(inst: &Instance, settings: &Settings) -> Outcome {
 /// as the f32 shader's are (`laws::karnopp::f32_needs_f64`), and marked `on_cpu`: the
 /// mirror's backend gives what the f32 GPU path gives.
 pub fn run_one_in(inst: &Instance, settings: &Settings, precision: Precision) -> Outcome {
+    if settings.backward {
+        return run_with_variation(inst, settings);
+    }
     // The f32 status that sent the instance to f64, if one did.
     let Some((run, sent)) = Law::run_in_until(inst, settings, precision, interrupt_requested)
     else {
@@ -184,5 +191,20 @@ pub fn run_one_in(inst: &Instance, settings: &Settings, precision: Precision) ->
     Outcome {
         graze: sent == Some(STATUS_GRAZE),
         ..Outcome::of(&reduce(inst, &run), run.record.steps, sent.is_some())
+    }
+}
+
+/// Integrates one instance on the CPU in f64 keeping the slider's total
+/// variation (`Settings::backward`, which only f64 on the CPU measures:
+/// the scene's backend selection sees to that); stops as [`run_one`].
+fn run_with_variation(inst: &Instance, settings: &Settings) -> Outcome {
+    let Some((run, v)) = Law::run_with_variation_until(inst, settings, interrupt_requested) else {
+        return Outcome::default();
+    };
+    let (variation, variation_se) = reduce_variation(inst, &run, &v);
+    Outcome {
+        variation,
+        variation_se,
+        ..Outcome::of(&reduce(inst, &run), run.record.steps, false)
     }
 }

@@ -173,6 +173,20 @@ pub fn select_backend(
     {
         bail!("--precision f32: {why}");
     }
+    if work.settings.backward {
+        let why = "output.backward = true: the backward travel is measured on the CPU in f64 only";
+        if precision == Some(Precision::F32) {
+            bail!("--precision f32: {why}; run it in f64");
+        }
+        match choice {
+            BackendChoice::Gpu => bail!("--backend gpu: {why}; run it with --backend cpu"),
+            BackendChoice::Auto => {
+                eprintln!("pidm: --backend auto: the CPU path in f64 ({why})");
+                return cpu(threads);
+            }
+            BackendChoice::Cpu => {}
+        }
+    }
     if let Some(key) = &work.drive
         && let Some(why) = work.law.sawtooth_only_on_gpu()
     {

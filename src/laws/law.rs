@@ -6,6 +6,7 @@
 //! `crate::gpu` (its `mod.rs`). ARCHITECTURE.md's checklist says what a third law
 //! touches.
 
+use super::floor::variation::Variation;
 use super::floor::{Record, Run};
 use super::karnopp::integrate;
 use super::observe::Observer;
@@ -284,6 +285,21 @@ impl Law {
         match Law::of_instance(inst) {
             Law::Karnopp => integrate::run_instance_until(inst, settings, stop).map(|r| r.ended()),
             Law::Lugre => lugre::run_instance_until(inst, settings, stop),
+        }
+    }
+
+    /// [`Law::run_until`], keeping the slider's total variation beside
+    /// the step's measurement (`crate::laws::floor::variation`): the same
+    /// run, bit for bit, and its variation.
+    pub fn run_with_variation_until(
+        inst: &Instance,
+        settings: &Settings,
+        stop: impl Fn() -> bool,
+    ) -> Option<(Run, Variation)> {
+        match Law::of_instance(inst) {
+            Law::Karnopp => karnopp::variation::run_until(inst, settings, stop)
+                .map(|(run, v)| (run.ended(), v)),
+            Law::Lugre => lugre::run::run_with_variation_until(inst, settings, stop),
         }
     }
 

@@ -21,6 +21,11 @@ pub struct Settings {
     /// library's callers ask for replicas, a scene gets them unless it
     /// says otherwise.
     pub replicas: Replicas,
+    /// Whether a run also measures the slider's backward travel
+    /// (`output.backward`; `crate::laws::floor::variation`): the CPU in
+    /// f64 keeps the slider's total variation beside the step. Off by
+    /// default: a run that does not ask pays nothing.
+    pub backward: bool,
 }
 
 impl Default for Settings {
@@ -29,6 +34,7 @@ impl Default for Settings {
             tolerance: 1e-4,
             max_steps_per_period: 2_000_000,
             replicas: Replicas::default(),
+            backward: false,
         }
     }
 }

@@ -10,7 +10,12 @@
 
 pub mod status;
 
-use crate::laws::floor::measure::{VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, estimate};
+use crate::laws::floor::Vec2;
+use crate::laws::floor::measure::{
+    Measure as MeasureState, VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, cut,
+    estimate_from,
+};
+use crate::laws::floor::variation::Variation;
 use crate::laws::status::STATUS_NOT_STEADY;
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Record, Run};
@@ -72,68 +77,11 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
             }
         }
         Measure::Steady { .. } => {
-            let own_cycles = |i: usize| inst.axes[i].frequency * inst.period();
             let periods = m.next_end;
-            if m.verdict == VERDICT_PERIODIC {
-                return Measured {
-                    travel: m.travel.to_array(),
-                    span: m.lag as f64,
-                    se: [0.0; AXES],
-                    periods,
-                    lag: m.lag,
-                    status: STATUS_OK,
-                    motion: Motion::Periodic,
-                };
-            }
-            // The phase ladder's judged window (`laws::floor::phase`): the
-            // verdict's, or the latest, which a run that ends
-            // not steady reports where its standard error is smaller than
-            // the batch means'.
-            let phase = (m.span > 0).then_some((m.travel, m.span as f64, m.se2));
-            if m.verdict == VERDICT_PHASE {
-                let (travel, span, se2) = phase.expect("a phase verdict has a judged window");
-                return Measured {
-                    travel: travel.to_array(),
-                    span,
-                    se: std::array::from_fn(|i| se2[i].sqrt() / own_cycles(i)),
-                    periods,
-                    lag: 0,
-                    status: STATUS_OK,
-                    motion: Motion::QuasiPeriodic,
-                };
-            }
-            let status = if m.verdict == VERDICT_CONVERGED {
-                STATUS_OK
-            } else {
-                STATUS_NOT_STEADY
-            };
-            let (mut travel, mut span, mut se2) = if m.filled > 0 {
-                let e = estimate(m);
-                (e.travel, e.span as f64, e.se2)
-            } else {
-                // Not one batch complete (a tiny max_cycles): the periods
-                // measured so far, with the largest single-period travel as
-                // the error.
-                let largest = m.d_min.abs().zip(m.d_max.abs(), f64::max);
-                let largest = largest.map(|v| if v.is_finite() { v } else { 0.0 });
-                (
-                    m.last_x_s - m.batch_start,
-                    m.in_batch as f64,
-                    largest * largest,
-                )
-            };
-            // The larger of an estimate's standard errors per own cycle.
-            let worst = |se2: crate::laws::floor::Vec2| {
-                (0..AXES)
-                    .map(|i| se2[i].sqrt() / own_cycles(i))
-                    .fold(0.0, f64::max)
-            };
-            if let Some((p_travel, p_span, p_se2)) = phase
-                && status == STATUS_NOT_STEADY
-                && (span == 0.0 || worst(p_se2) < worst(se2))
-            {
-                (travel, span, se2) = (p_travel, p_span, p_se2);
-            }
+            let source = choose(inst, run);
+            let (travel, span, se2) = values(m, source);
+            let own_cycles = |i: usize| inst.axes[i].frequency * inst.period();
+            let status = source.status();
             if span == 0.0 {
                 return Measured {
                     status,
@@ -141,19 +89,140 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
                     ..Measured::default()
                 };
             }
+            let (lag, motion) = match source {
+                Source::Periodic => (m.lag, Motion::Periodic),
+                Source::Phase { verdict: true } => (0, Motion::QuasiPeriodic),
+                _ if status == STATUS_OK => (0, Motion::Irregular),
+                _ => (0, Motion::Undetermined),
+            };
             Measured {
                 travel: travel.to_array(),
                 span,
                 se: std::array::from_fn(|i| se2[i].sqrt() / own_cycles(i)),
                 periods,
-                lag: 0,
+                lag,
                 status,
-                motion: if status == STATUS_OK {
-                    Motion::Irregular
-                } else {
-                    Motion::Undetermined
-                },
+                motion,
             }
+        }
+    }
+}
+
+/// Which of a steady run's estimates its map shows (docs/model.md section
+/// 4): chosen on the step's accumulators, and used as it is for a quantity
+/// that follows them (`laws::floor::variation`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Source {
+    /// The detected cycle: exact, no standard error.
+    Periodic,
+    /// The phase ladder's judged window (`laws::floor::phase`): the
+    /// verdict's, or the latest, which a run that ends not steady reports
+    /// where its standard error is smaller than the batch means'.
+    Phase { verdict: bool },
+    /// The batch means from MSER's cut on; `converged` is the verdict.
+    Batches { cut: u32, converged: bool },
+    /// Not one batch complete (a tiny max_cycles): the periods measured
+    /// so far, with the largest single-period travel as the error.
+    Partial,
+}
+
+impl Source {
+    fn status(self) -> u32 {
+        match self {
+            Source::Periodic | Source::Phase { verdict: true } => STATUS_OK,
+            Source::Batches {
+                converged: true, ..
+            } => STATUS_OK,
+            _ => STATUS_NOT_STEADY,
+        }
+    }
+}
+
+/// The estimate a finished steady run's map shows.
+fn choose(inst: &Instance, run: &Run) -> Source {
+    let m = &run.measure;
+    if m.verdict == VERDICT_PERIODIC {
+        return Source::Periodic;
+    }
+    if m.verdict == VERDICT_PHASE {
+        assert!(m.span > 0, "a phase verdict has a judged window");
+        return Source::Phase { verdict: true };
+    }
+    let converged = m.verdict == VERDICT_CONVERGED;
+    let batches = if m.filled > 0 {
+        Source::Batches { cut: cut(m), converged }
+    } else {
+        Source::Partial
+    };
+    if m.span == 0 || converged {
+        return batches;
+    }
+    // The larger of an estimate's standard errors per own cycle.
+    let own_cycles = |i: usize| inst.axes[i].frequency * inst.period();
+    let worst = |se2: Vec2| {
+        (0..AXES)
+            .map(|i| se2[i].sqrt() / own_cycles(i))
+            .fold(0.0, f64::max)
+    };
+    let (_, span, se2) = values(m, batches);
+    if span == 0.0 || worst(m.se2) < worst(se2) {
+        Source::Phase { verdict: false }
+    } else {
+        batches
+    }
+}
+
+/// The travel [m], the periods it spans and the squared standard error of
+/// the mean travel per scene period [m^2] of estimate `source` of the
+/// accumulators `m` (a step's, or a quantity's that follows it).
+fn values(m: &MeasureState, source: Source) -> (Vec2, f64, Vec2) {
+    match source {
+        Source::Periodic => (m.travel, m.lag as f64, Vec2::ZERO),
+        Source::Phase { .. } => (m.travel, m.span as f64, m.se2),
+        Source::Batches { cut, .. } => {
+            let e = estimate_from(m, cut);
+            (e.travel, e.span as f64, e.se2)
+        }
+        Source::Partial => {
+            let largest = m.d_min.abs().zip(m.d_max.abs(), f64::max);
+            let largest = largest.map(|v| if v.is_finite() { v } else { 0.0 });
+            (
+                m.last_x_s - m.batch_start,
+                m.in_batch as f64,
+                largest * largest,
+            )
+        }
+    }
+}
+
+/// The slider's total variation over the span of the estimate [`reduce`]
+/// gives the step [m], and its standard error per own drive cycle [m]:
+/// the same estimate of the accumulators that followed the step's
+/// (`laws::floor::variation::follow`), or over a window's periods.
+/// Zeros where the step keeps no values.
+pub fn reduce_variation(inst: &Instance, run: &Run, v: &Variation) -> ([f64; AXES], [f64; AXES]) {
+    let st = &run.record;
+    let zero = ([0.0; AXES], [0.0; AXES]);
+    if st.status != STATUS_OK {
+        return zero;
+    }
+    match inst.measure {
+        Measure::Window => {
+            if st.period < inst.cycles {
+                return zero;
+            }
+            ((v.total - v.settle_total).to_array(), [0.0; AXES])
+        }
+        Measure::Steady { .. } => {
+            let (travel, span, se2) = values(&v.measure, choose(inst, run));
+            if span == 0.0 {
+                return zero;
+            }
+            let own_cycles = |i: usize| inst.axes[i].frequency * inst.period();
+            (
+                travel.to_array(),
+                std::array::from_fn(|i| se2[i].sqrt() / own_cycles(i)),
+            )
         }
     }
 }
@@ -203,6 +272,11 @@ pub struct Outcome {
     /// The replicas whose merged estimate it is (`crate::replicas`; 1: one
     /// run of its own).
     pub replicas: u32,
+    /// The slider's total variation over the span [m] and its standard
+    /// error [m per own drive cycle] (`reduce_variation`), where the run
+    /// kept it (`Settings::backward`); zeros otherwise.
+    pub variation: [f64; AXES],
+    pub variation_se: [f64; AXES],
 }
 
 impl Outcome {
@@ -221,6 +295,8 @@ impl Outcome {
             graze: false,
             checked: false,
             replicas: 1,
+            variation: [0.0; AXES],
+            variation_se: [0.0; AXES],
         }
     }
 

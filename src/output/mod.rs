@@ -124,4 +124,7 @@ pub struct FileInfo {
     /// The stalled axis of a scene with `[stall]`: its stall maps are
     /// written too (`schema::STALL_DATASETS`).
     pub stall: Option<usize>,
+    /// The scene asks for the backward-travel maps (`[output] backward`,
+    /// `schema::BACKWARD_DATASETS`).
+    pub backward: bool,
 }

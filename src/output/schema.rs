@@ -120,6 +120,62 @@ pub const BASELINE_DATASETS: [MapDataset; 3] = [
     ),
 ];
 
+/// The backward-travel maps of one axis (`[output] backward`).
+macro_rules! backward_maps {
+    ($a:literal) => {
+        [
+            map(
+                concat!("backward_", $a),
+                "m",
+                concat!(
+                    "slider travel against the step along ",
+                    $a,
+                    " per ",
+                    $a,
+                    " drive cycle: (total variation - |net travel|) / 2"
+                ),
+                F64,
+            ),
+            map(
+                concat!("backward_", $a, "_se"),
+                "m",
+                concat!("standard error of backward_", $a),
+                F64,
+            ),
+            map(
+                concat!("backward_ratio_", $a),
+                "1",
+                concat!(
+                    "backward_",
+                    $a,
+                    " / (|step_",
+                    $a,
+                    "| + backward_",
+                    $a,
+                    "), 0 where both are 0"
+                ),
+                F64,
+            ),
+            map(
+                concat!("backward_ratio_", $a, "_se"),
+                "1",
+                concat!("standard error of backward_ratio_", $a),
+                F64,
+            ),
+        ]
+    };
+}
+
+/// The datasets under [`MAPS`] of a scene with `[output] backward = true`,
+/// per axis (x, y), in the order of `crate::sweep::Record`'s backward
+/// fields.
+pub const BACKWARD_DATASETS: [[MapDataset; 4]; 2] = [backward_maps!("x"), backward_maps!("y")];
+
+/// The path of backward map `k` (of [`BACKWARD_DATASETS`]) of `axis`.
+pub fn backward_path(axis: usize, k: usize) -> String {
+    format!("{MAPS}/{}", BACKWARD_DATASETS[axis][k].name)
+}
+
 /// The stall maps of one axis.
 macro_rules! stall_maps {
     ($a:literal) => {
@@ -206,9 +262,9 @@ const fn map(
 }
 
 /// Bytes the maps of one instance take in a result file (and in memory
-/// while a map is assembled), with or without its baselines and stall
-/// maps.
-pub const fn bytes_per_instance(baselines: bool, stall: bool) -> u64 {
+/// while a map is assembled), with or without its baselines, stall maps
+/// and backward maps.
+pub const fn bytes_per_instance(baselines: bool, stall: bool, backward: bool) -> u64 {
     let mut bytes = 0;
     let mut k = 0;
     while k < MAP_DATASETS.len() {
@@ -226,6 +282,13 @@ pub const fn bytes_per_instance(baselines: bool, stall: bool) -> u64 {
         let mut k = 0;
         while k < STALL_DATASETS[0].len() {
             bytes += STALL_DATASETS[0][k].bytes();
+            k += 1;
+        }
+    }
+    if backward {
+        let mut k = 0;
+        while k < BACKWARD_DATASETS[0].len() {
+            bytes += 2 * BACKWARD_DATASETS[0][k].bytes();
             k += 1;
         }
     }
@@ -400,11 +463,15 @@ mod tests {
         // (status, steps, periods, period_lag, replicas) and the u8 motion
         // map: 6 x 8 + 5 x 4 + 1; two f64 and one u32 baselines add 20.
         assert_eq!(MAP_DATASETS[11].name, "replicas");
-        assert_eq!(bytes_per_instance(false, false), 69);
-        assert_eq!(bytes_per_instance(true, false), 89);
+        assert_eq!(bytes_per_instance(false, false, false), 69);
+        assert_eq!(bytes_per_instance(true, false, false), 89);
+        // The backward maps: four f64 per axis.
+        assert_eq!(bytes_per_instance(false, false, true), 69 + 64);
+        assert_eq!(BACKWARD_DATASETS[1][2].name, "backward_ratio_y");
+        assert_eq!(backward_path(0, 1), "maps/backward_x_se");
         // The stall maps: three f64 (load, the steps at the bracket's
         // ends) and two u32 (waves, status), named by their axis.
-        assert_eq!(bytes_per_instance(false, true), 69 + 32);
+        assert_eq!(bytes_per_instance(false, true, false), 69 + 32);
         assert_eq!(STALL_DATASETS[0][0].name, "stall_load_x");
         assert_eq!(STALL_DATASETS[1][4].name, "stall_status_y");
         assert_eq!(stall_path(0, 0), "maps/stall_load_x");

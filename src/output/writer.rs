@@ -27,6 +27,9 @@ pub struct MapWriter {
     baselines: Vec<Dataset>,
     /// The stall maps of a scene with `[stall]` (empty otherwise).
     stall: Vec<Dataset>,
+    /// The backward maps of a scene with `[output] backward`, x's then
+    /// y's (empty otherwise).
+    backward: Vec<Dataset>,
     /// The grid axes' keys, in grid order (their dimension scales).
     scale_names: Vec<String>,
 }
@@ -268,6 +271,7 @@ impl MapWriter {
             maps: Vec::new(),
             baselines: Vec::new(),
             stall: Vec::new(),
+            backward: Vec::new(),
             scale_names: info.axes.iter().map(|a| a.key.clone()).collect(),
         };
         write_file_attributes(&file, info)?;
@@ -293,6 +297,11 @@ impl MapWriter {
                 write_motion_flags(&ds)?;
             }
             writer.maps.push(ds);
+        }
+        if info.backward {
+            for d in schema::BACKWARD_DATASETS.iter().flatten() {
+                writer.backward.push(maker.create(&maps, schema::MAPS, *d)?);
+            }
         }
         if let Some(axis) = info.stall {
             for d in schema::STALL_DATASETS[axis] {
@@ -345,6 +354,11 @@ impl MapWriter {
             start,
             &take_u32(&|r| r.replicas),
         )?;
+        for (k, ds) in self.backward.iter().enumerate() {
+            let (axis, column) = (k / 4, k % 4);
+            let values = take(&|r| r.backward.columns(axis)[column]);
+            write_flat(ds, &self.shape, start, &values)?;
+        }
         if !self.baselines.is_empty() {
             write_flat(
                 &self.baselines[0],

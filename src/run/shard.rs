@@ -18,7 +18,7 @@ use crate::output::claim::is_same_file;
 use crate::output::{MapWriter, OutputClaim, ShardInfo, read_str_attr, schema};
 use crate::scene::Scene;
 use crate::stall::StallRecord;
-use crate::sweep::{Record, stored_motion};
+use crate::sweep::{Backward, Record, stored_motion};
 
 pub use crate::output::shard_spec::ShardSpec;
 
@@ -84,7 +84,12 @@ impl ShardFile {
     /// Checks that every map the merge reads is a 1-D dataset of `len`
     /// values, naming the file and the dataset that is not: the stall maps
     /// of `stall`'s axis too.
-    fn check_layout(&self, len: u64, baselines: bool, stall: Option<usize>) -> Result<()> {
+    fn check_layout(
+        &self,
+        len: u64,
+        (baselines, backward): (bool, bool),
+        stall: Option<usize>,
+    ) -> Result<()> {
         let in_group = |group: &str, d: &schema::MapDataset| format!("{group}/{}", d.name);
         let mut names: Vec<String> = schema::MAP_DATASETS
             .iter()
@@ -94,6 +99,9 @@ impl ShardFile {
             names.extend(
                 (0..schema::STALL_DATASETS[axis].len()).map(|k| schema::stall_path(axis, k)),
             );
+        }
+        if backward {
+            names.extend((0..2).flat_map(|axis| (0..4).map(move |k| schema::backward_path(axis, k))));
         }
         if baselines {
             names.extend(
@@ -138,7 +146,13 @@ impl ShardFile {
     /// they can be right: a known status and motion, finite values, and
     /// zeros (and no kind of motion) where an instance did not finish
     /// normally.
-    fn records(&self, at: u64, n: u64, first: u64, baselines: bool) -> Result<Vec<Record>> {
+    fn records(
+        &self,
+        at: u64,
+        n: u64,
+        first: u64,
+        (baselines, backward): (bool, bool),
+    ) -> Result<Vec<Record>> {
         let range = at as usize..(at + n) as usize;
         let f64s = |path: &str| self.column::<f64>(path, range.clone());
         let u32s = |path: &str| self.column::<u32>(path, range.clone());
@@ -160,6 +174,19 @@ impl ShardFile {
             )
         } else {
             (zeros_f.clone(), zeros_f, zeros_u)
+        };
+        let backward_columns = if backward {
+            let column = |axis: usize, k: usize| f64s(&schema::backward_path(axis, k));
+            let axis = |a: usize| -> Result<[Vec<f64>; 4]> {
+                Ok([column(a, 0)?, column(a, 1)?, column(a, 2)?, column(a, 3)?])
+            };
+            Some([axis(0)?, axis(1)?])
+        } else {
+            None
+        };
+        let backward_of = |k: usize| match &backward_columns {
+            Some(c) => Backward::from_columns([0, 1].map(|a| [0, 1, 2, 3].map(|j| c[a][j][k]))),
+            None => Backward::default(),
         };
         let cannot_be_right = |k: usize, why: String| {
             anyhow!(
@@ -183,6 +210,7 @@ impl ShardFile {
                     replicas: replicas[k],
                     baseline_step: [base_x[k], base_y[k]],
                     baseline_status: base_status[k],
+                    backward: backward_of(k),
                 })
             })
             .collect::<Result<_>>()?;
@@ -364,7 +392,8 @@ fn check_instances(shard: &ShardFile, scene: &Scene, total: u64) -> Result<()> {
     }
     let expected: Vec<u64> = shard.spec.ranges(total).into_iter().flatten().collect();
     let stall = scene.stall.map(|stall| stall.axis);
-    shard.check_layout(expected.len() as u64, scene.baselines, stall)?;
+    let optional = (scene.baselines, scene.settings.backward);
+    shard.check_layout(expected.len() as u64, optional, stall)?;
     let stored: Vec<u64> = shard
         .file
         .dataset(schema::SHARD_INSTANCE)
@@ -406,7 +435,7 @@ fn write_merged(
         let mut at = 0;
         for range in ShardInfo::new(shard.spec, total).ranges {
             let n = range.end - range.start;
-            let records = shard.records(at, n, range.start, scene.baselines)?;
+            let records = shard.records(at, n, range.start, (scene.baselines, scene.settings.backward))?;
             writer.write(range.start, &records)?;
             if let Some(stall) = scene.stall {
                 let stalls = shard.stall_records(at, n, range.start, stall.axis)?;

@@ -36,7 +36,8 @@ pub(super) fn scene(text: &str, default_name: Option<&str>) -> Result<Scene, Sce
 
     let name = scene_name(parsed.name, default_name)?;
     let base = &parsed.base;
-    let settings = base_settings(base, parsed.replicas.as_ref());
+    let mut settings = base_settings(base, parsed.replicas.as_ref());
+    settings.backward = parsed.backward;
     let keys = BaseKeys::new(base, parsed.measure, parsed.friction.as_ref());
     let grid = grid_entries(base);
     let base_shapes = base.shapes.clone().map(|s| s.map(|s| s.shape));
@@ -378,6 +379,7 @@ fn grid_layout(
         false,
         scene.baselines,
         scene.stall.is_some(),
+        scene.settings.backward,
         MAP_MEMORY_BUDGET_BYTES,
     )?;
 

@@ -409,8 +409,12 @@ pub(super) const SAME_AS_KEY: &str = "same_as";
 pub(super) const RANGE_KEYS: [&str; 4] = ["from", "to", "steps", "log"];
 
 /// Keys of `[output]`.
-pub(super) const OUTPUT_KEYS: [&str; 3] =
-    ["baselines", "trajectories", "trajectory_samples_per_cycle"];
+pub(super) const OUTPUT_KEYS: [&str; 4] = [
+    "baselines",
+    "backward",
+    "trajectories",
+    "trajectory_samples_per_cycle",
+];
 
 /// What a numeric key should look like, for type errors.
 pub(super) const NUMERIC_EXPECTED: &str =

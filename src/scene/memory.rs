@@ -8,9 +8,14 @@ pub const MAP_MEMORY_BUDGET_BYTES: u64 = 8 << 30;
 
 impl Scene {
     /// Output bytes per instance: the maps of the result-file schema, with
-    /// the baselines' and the stall maps when the scene asks for them.
+    /// the baselines', the stall maps and the backward maps when the scene
+    /// asks for them.
     pub fn bytes_per_instance(&self) -> u64 {
-        bytes_per_instance(self.baselines, self.stall.is_some())
+        bytes_per_instance(
+            self.baselines,
+            self.stall.is_some(),
+            self.settings.backward,
+        )
     }
 
     /// Refuses the scene when its output maps exceed `budget_bytes`.
@@ -22,14 +27,15 @@ impl Scene {
             points,
             self.baselines,
             self.stall.is_some(),
+            self.settings.backward,
             budget_bytes,
         )
     }
 }
 
 /// Output bytes per instance, as the result file's schema lays them out.
-pub(super) fn bytes_per_instance(baselines: bool, stall: bool) -> u64 {
-    crate::output::schema::bytes_per_instance(baselines, stall)
+pub(super) fn bytes_per_instance(baselines: bool, stall: bool, backward: bool) -> u64 {
+    crate::output::schema::bytes_per_instance(baselines, stall, backward)
 }
 
 /// Refuses a layout whose output maps exceed `budget`.
@@ -38,13 +44,14 @@ pub(super) fn check_memory(
     points: bool,
     baselines: bool,
     stall: bool,
+    backward: bool,
     budget: u64,
 ) -> Result<(), SceneError> {
     let instances = shape
         .iter()
         .try_fold(1u128, |acc, &n| acc.checked_mul(n as u128))
         .unwrap_or(u128::MAX);
-    let per = bytes_per_instance(baselines, stall);
+    let per = bytes_per_instance(baselines, stall, backward);
     if instances.saturating_mul(per as u128) > budget as u128 {
         return Err(SceneError::Memory {
             shape: shape.to_vec(),

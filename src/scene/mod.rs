@@ -350,6 +350,7 @@ impl Scene {
             axes,
             labels,
             baselines: self.baselines,
+            backward: self.settings.backward,
             backend,
             precision,
             variant,

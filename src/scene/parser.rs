@@ -59,6 +59,8 @@ pub(super) struct Parsed {
     pub(super) whole_cycles: bool,
     /// `output.baselines`.
     pub(super) baselines: bool,
+    /// `output.backward`: the backward-travel maps.
+    pub(super) backward: bool,
     /// `output.trajectories`, not yet resolved against the layout.
     pub(super) trajectories: Vec<SpecAt>,
     /// `output.trajectory_samples_per_cycle`.
@@ -270,6 +272,18 @@ impl Parser<'_> {
                 "simulation.replicas applies to measure = \"steady\" (replicas split a steady \
                  measurement); a fixed window runs every instance once. This scene sets \
                  measure = \"window\": remove it, or set measure = \"steady\"",
+            ));
+        }
+        if let Some((Replicas::Count(n @ 2..), span)) = &parsed.replicas
+            && parsed.backward
+        {
+            return Err(self.invalid(
+                span.clone(),
+                format!(
+                    "simulation.replicas = {n} with output.backward = true: the backward travel \
+                     is measured on runs of their own, not on replicas yet. Remove \
+                     simulation.replicas (each instance then runs alone), or output.backward"
+                ),
             ));
         }
         for (index, point) in parsed.points.iter().flatten().enumerate() {
@@ -656,20 +670,20 @@ impl Parser<'_> {
                 "trajectory_samples_per_cycle" => {
                     parsed.samples_per_cycle = Some(self.samples_per_cycle(value)?);
                 }
-                "baselines" => match value.get_ref() {
-                    DeValue::Boolean(b) => parsed.baselines = *b,
-                    _ => {
-                        return Err(self.wrong_type(
-                            "output.baselines",
-                            "expected a boolean (true or false)",
-                            value,
-                        ));
-                    }
-                },
+                "baselines" => parsed.baselines = self.boolean("output.baselines", value)?,
+                "backward" => parsed.backward = self.boolean("output.backward", value)?,
                 _ => return Err(self.unknown_key(key, "output", &OUTPUT_KEYS)),
             }
         }
         Ok(())
+    }
+
+    /// A boolean key's value.
+    fn boolean(&self, path: &str, value: &Value<'_>) -> Result<bool, SceneError> {
+        match value.get_ref() {
+            DeValue::Boolean(b) => Ok(*b),
+            _ => Err(self.wrong_type(path, "expected a boolean (true or false)", value)),
+        }
     }
 
     /// `[[points]]`.

@@ -9,7 +9,7 @@ use super::memory::MAP_MEMORY_BUDGET_BYTES;
 /// default budget [`MAP_MEMORY_BUDGET_BYTES`], 124491805. A larger range could never
 /// run, and a cap keeps every count of values far from overflowing.
 pub const MAX_RANGE_STEPS: u64 =
-    MAP_MEMORY_BUDGET_BYTES / crate::output::schema::bytes_per_instance(false, false);
+    MAP_MEMORY_BUDGET_BYTES / crate::output::schema::bytes_per_instance(false, false, false);
 
 /// The values given to one key.
 #[derive(Clone, Debug)]

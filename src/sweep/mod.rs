@@ -28,5 +28,5 @@ pub use chunks::{
     Plan, VERIFY_ALLOWANCE_M, VERIFY_TIGHTENING, pipelining, run, run_chunks, run_with_memo,
 };
 pub use dedup::distinct_integrations;
-pub use record::{Record, record, stored_motion};
+pub use record::{Backward, Record, record, stored_motion};
 pub use summary::Summary;

@@ -36,6 +36,63 @@ pub struct Record {
     pub baseline_step: [f64; AXES],
     /// Worst status of the two baselines.
     pub baseline_status: u32,
+    /// The slider's backward travel [m per own drive cycle] and its
+    /// standard error; the backward ratio backward / (|step| + backward)
+    /// and its standard error ([`Backward`]; zeros unless the scene asks,
+    /// `[output] backward`).
+    pub backward: Backward,
+}
+
+/// One instance's backward travel per axis (docs/model.md section 4,
+/// "Backward travel").
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Backward {
+    /// (total variation - |step|) / 2 per own drive cycle [m], at least 0.
+    pub travel: [f64; AXES],
+    pub travel_se: [f64; AXES],
+    /// travel / (|step| + travel), 0 where that is 0 / 0.
+    pub ratio: [f64; AXES],
+    pub ratio_se: [f64; AXES],
+}
+
+impl Backward {
+    /// From the step and the total variation T per own drive cycle and
+    /// their standard errors [m]: B = (T - |S|) / 2, 0 where rounding or
+    /// the estimates' noise puts T below |S|; its error from both, taken
+    /// as independent; the ratio r = B / (|S| + B) = (T - |S|) / (T + |S|)
+    /// and its error by the delta method.
+    pub fn of(step: f64, step_se: f64, variation: f64, variation_se: f64) -> (f64, f64, f64, f64) {
+        let (s, t) = (step.abs(), variation.max(step.abs()));
+        let travel = 0.5 * (t - s);
+        let travel_se = 0.5 * step_se.hypot(variation_se);
+        let sum = t + s;
+        if sum <= 0.0 {
+            return (travel, travel_se, 0.0, 0.0);
+        }
+        let ratio = (t - s) / sum;
+        let ratio_se = 2.0 * (s * variation_se).hypot(t * step_se) / (sum * sum);
+        (travel, travel_se, ratio, ratio_se)
+    }
+
+    /// The values of each axis, in `schema::BACKWARD_DATASETS`' order.
+    pub fn columns(&self, axis: usize) -> [f64; 4] {
+        [
+            self.travel[axis],
+            self.travel_se[axis],
+            self.ratio[axis],
+            self.ratio_se[axis],
+        ]
+    }
+
+    /// From each axis' values in `schema::BACKWARD_DATASETS`' order.
+    pub fn from_columns(columns: [[f64; 4]; AXES]) -> Backward {
+        Backward {
+            travel: columns.map(|c| c[0]),
+            travel_se: columns.map(|c| c[1]),
+            ratio: columns.map(|c| c[2]),
+            ratio_se: columns.map(|c| c[3]),
+        }
+    }
 }
 
 impl Record {
@@ -71,6 +128,7 @@ impl Record {
                 Motion::Undetermined.name()
             ));
         }
+        let b = &self.backward;
         let values = [
             ("step_x", self.step[0]),
             ("step_y", self.step[1]),
@@ -78,17 +136,28 @@ impl Record {
             ("velocity_y", self.velocity[1]),
             ("step_x_se", self.step_se[0]),
             ("step_y_se", self.step_se[1]),
+            ("backward_x", b.travel[0]),
+            ("backward_y", b.travel[1]),
+            ("backward_x_se", b.travel_se[0]),
+            ("backward_y_se", b.travel_se[1]),
+            ("backward_ratio_x", b.ratio[0]),
+            ("backward_ratio_y", b.ratio[1]),
+            ("backward_ratio_x_se", b.ratio_se[0]),
+            ("backward_ratio_y_se", b.ratio_se[1]),
             ("baseline step_x", self.baseline_step[0]),
             ("baseline step_y", self.baseline_step[1]),
         ];
         if let Some((what, value)) = values.iter().find(|(_, v)| !v.is_finite()) {
             return Some(format!("its {what} is {value}"));
         }
-        if let Some((what, value)) = values[4..6].iter().find(|(_, v)| *v < 0.0) {
+        if let Some((what, value)) = values[4..14].iter().find(|(_, v)| *v < 0.0) {
             return Some(format!("its {what} is {value:e}, below 0"));
         }
+        if let Some((what, value)) = values[10..12].iter().find(|(_, v)| *v > 1.0) {
+            return Some(format!("its {what} is {value:e}, above 1"));
+        }
         let failed = !keeps_values(self.status);
-        let kept = values[..6].iter().find(|(_, v)| *v != 0.0);
+        let kept = values[..14].iter().find(|(_, v)| *v != 0.0);
         match kept {
             Some((what, value)) if failed => Some(format!(
                 "its status is {} ({}) but its {what} is {value:e}, not 0",
@@ -129,6 +198,14 @@ pub fn record(inst: &Instance, out: &Outcome) -> Record {
         let (velocity, step) = inst.measure_over(i, out.displacement[i], out.span);
         rec.velocity[i] = velocity;
         rec.step[i] = step;
+        // No variation kept (not asked, or a slider that never moved):
+        // no backward travel.
+        if out.variation[i] != 0.0 || out.variation_se[i] != 0.0 {
+            let variation = inst.measure_over(i, out.variation[i], out.span).1;
+            let b = &mut rec.backward;
+            (b.travel[i], b.travel_se[i], b.ratio[i], b.ratio_se[i]) =
+                Backward::of(step, out.se[i], variation, out.variation_se[i]);
+        }
     }
     rec
 }

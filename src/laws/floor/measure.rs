@@ -264,7 +264,7 @@ pub fn period_end(c: &impl Gauge, st: &mut impl Slider, m: &mut Measure) {
 
 /// Stores the batch that ends at `x_s`; folds the batches in pairs when
 /// all are full.
-fn close_batch(m: &mut Measure, x_s: Vec2) {
+pub fn close_batch(m: &mut Measure, x_s: Vec2) {
     m.sums[m.filled as usize] = x_s - m.batch_start;
     m.filled += 1;
     m.batch_start = x_s;
@@ -415,9 +415,20 @@ pub fn statistics(m: &Measure, start: u32, end: u32) -> Statistics {
 /// one, the spread is unknown and the standard error is the largest
 /// single-period travel.
 pub fn estimate(m: &Measure) -> Estimate {
-    let n = m.filled;
+    estimate_from(m, cut(m))
+}
+
+/// The leading batches MSER cuts: the larger of the axes' cuts.
+pub fn cut(m: &Measure) -> u32 {
     let cuts = mser_cut(m);
-    let cut = cuts.x.max(cuts.y) as u32;
+    cuts.x.max(cuts.y) as u32
+}
+
+/// [`estimate`] over the complete batches from `cut` on: the step's cut
+/// for the step, and the step's cut for a quantity that follows it
+/// (`crate::laws::floor::variation`: the same batches).
+pub fn estimate_from(m: &Measure, cut: u32) -> Estimate {
+    let n = m.filled;
     let kept = n - cut;
     let span = kept * m.batch_length;
     if kept < 2 {

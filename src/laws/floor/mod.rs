@@ -19,9 +19,11 @@
 //!   the rule both f32 paths follow, whatever the law.
 //! * `record.rs` (f64 only): [`Record`] and [`Run`], where a run of any
 //!   law stands, as everything above the laws reads it.
+//! * `variation.rs` (f64 only): the slider's total variation, the
+//!   backward travel's position, measured beside the step.
 //! * `drive/` (f64 host code): a waveform's corners over one cycle and
-//!   the slew-limited follower's periodic orbit (issue 59; no scene
-//!   reaches it yet).
+//!   the slew-limited follower's periodic orbit (issue 59), which
+//!   both laws read.
 //!
 //! The run's settings are [`crate::laws::settings`], its status codes
 //! [`crate::laws::status`]. Laws import the floor; the floor imports no law.
@@ -34,6 +36,7 @@ pub mod kinds;
 pub mod record;
 pub mod single;
 pub mod units;
+pub mod variation;
 
 pub use double::{Setup, Vec2, measure, phase, setup, vec2};
 pub use record::{Record, Run};

@@ -5,10 +5,13 @@
 //! held to) and [`single`] (f32 in micrometres and milliseconds: the f32
 //! shader's mirror). [`integrate`] is the f64 one. [`paper_rk4`] is the
 //! paper's fixed-step RK4 of the same law, a baseline, not the reference.
+//! [`variation`] keeps the slider's total variation (the backward
+//! travel's position) beside a run.
 
 pub mod double;
 pub mod paper_rk4;
 pub mod single;
+pub mod variation;
 
 pub use double::integrate;
 

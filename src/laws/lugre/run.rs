@@ -12,6 +12,7 @@ use crate::laws::floor::drive::{Corners, axis_corners};
 use crate::laws::floor::measure::{
     Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, initial_measure, period_end,
 };
+use crate::laws::floor::variation::{Point, Variation, follow, piece_variation};
 use crate::laws::floor::{Record, Run, Setup, Vec2};
 use crate::laws::observe::{Observer, Positions};
 use crate::laws::status::STATUS_OK;
@@ -80,6 +81,53 @@ pub fn run_instance_until(
     let mut book = Periods::new(inst, settings);
     let start = PeriodStart::first(&book);
     continue_until(&mut book, start, stop).then_some(book.run)
+}
+
+/// [`run_instance_until`], keeping the slider's total variation beside
+/// the measurement (`crate::laws::floor::variation`): the same run, bit
+/// for bit, and its variation.
+pub fn run_with_variation_until(
+    inst: &Instance,
+    settings: &Settings,
+    stop: impl Fn() -> bool,
+) -> Option<(Run, Variation)> {
+    let mut book = Periods::new(inst, settings);
+    book.variation = Some(Box::new(Variation::new(&book.c)));
+    let start = PeriodStart::first(&book);
+    if !continue_until(&mut book, start, stop) {
+        return None;
+    }
+    let v = *book.variation.take().expect("kept from the start");
+    Some((book.run, v))
+}
+
+/// The slider's total variation per axis over one accepted step from `a`
+/// to `b` [m]: over the cubic Hermite of the ends' positions and
+/// velocities ([`hermite`], the trajectories' dense output), whose
+/// velocity zeros are a quadratic's.
+fn step_variation(a: &State, b: &State) -> Vec2 {
+    let h = b[T] - a[T];
+    let mut total = Vec2::ZERO;
+    for i in 0..AXES {
+        let (xa, va, xb, vb) = (a[XS + i], a[VS + i], b[XS + i], b[VS + i]);
+        // x(s) = xa + h va s + c2 s^2 + c3 s^3, s = t / h.
+        let c2 = 3.0 * (xb - xa) - h * (2.0 * va + vb);
+        let c3 = 2.0 * (xa - xb) + h * (va + vb);
+        let point = |t: f64| {
+            let s = if h > 0.0 { t / h } else { 0.0 };
+            let inv_h = if h > 0.0 { 1.0 / h } else { 0.0 };
+            Point {
+                x: xa + s * (h * va + s * (c2 + s * c3)),
+                v: va + s * (2.0 * c2 + 3.0 * s * c3) * inv_h,
+                a: (2.0 * c2 + 6.0 * s * c3) * inv_h * inv_h,
+            }
+        };
+        let (pa, mut pb) = (point(0.0), point(h));
+        // The ends are the integrator's own.
+        (pb.x, pb.v) = (xb, vb);
+        total[i] = piece_variation(Point { x: xa, v: va, ..pa }, pb, h, &point);
+    }
+    total
 }
 
 /// A LuGre run that stops where a replica waits for its group's merge
@@ -215,6 +263,7 @@ fn observe_from(
         mut h,
         mut budget,
     } = *start;
+    let mut total = book.variation.as_ref().map(|v| v.total);
     while !book.is_finished() {
         if stop() {
             return false;
@@ -235,7 +284,12 @@ fn observe_from(
                 &mut y,
                 end,
                 (&mut h, &mut budget),
-                &mut |a: &State, b: &State| observe(period_index, a, b),
+                &mut |a: &State, b: &State| {
+                    if let Some(t) = total.as_mut() {
+                        *t = *t + step_variation(a, b);
+                    }
+                    observe(period_index, a, b)
+                },
             ) {
                 Ok(steps) => book.add_steps(steps),
                 Err(status) => {
@@ -243,6 +297,9 @@ fn observe_from(
                     return true;
                 }
             }
+        }
+        if let (Some(v), Some(t)) = (book.variation.as_deref_mut(), total) {
+            v.total = t;
         }
         book.period_end(&y);
         *start = PeriodStart { y, h, budget };
@@ -274,6 +331,9 @@ pub(crate) struct Periods {
     /// The common period of the recurrence test (0: none).
     common: u32,
     recurrence: Recurrence,
+    /// The slider's total variation beside the measurement, when the run
+    /// keeps it (`crate::laws::floor::variation`; [`run_with_variation_until`]).
+    pub(crate) variation: Option<Box<Variation>>,
 }
 
 impl Periods {
@@ -314,6 +374,7 @@ impl Periods {
             c,
             common,
             recurrence,
+            variation: None,
         }
     }
 
@@ -353,11 +414,17 @@ impl Periods {
             {
                 st.measured = 1;
             }
+            if let Some(v) = self.variation.as_deref_mut() {
+                follow(c, common, st.period + 1, m, v);
+            }
         }
         st.period += 1;
         st.time = 0.0;
         if st.period == c.settle {
             st.settle_x_s = st.x_s;
+            if let Some(v) = self.variation.as_deref_mut() {
+                v.settle_total = v.total;
+            }
         }
     }
 }

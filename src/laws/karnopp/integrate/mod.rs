@@ -218,7 +218,7 @@ pub fn run_instance(inst: &Instance, settings: &Settings) -> Run {
 /// Iterations between two looks at the stop request of
 /// [`run_instance_until`]: about a millisecond of integration, and far too
 /// many for the look to cost anything measurable.
-const ITERATIONS_BETWEEN_STOP_CHECKS: u32 = 1 << 14;
+pub const ITERATIONS_BETWEEN_STOP_CHECKS: u32 = 1 << 14;
 
 /// Integrates one instance to the end, or until `stop` returns true (it is
 /// asked every `ITERATIONS_BETWEEN_STOP_CHECKS` iterations), in which
@@ -282,6 +282,12 @@ pub trait StepObserver {
     /// the state at the start of the step (period `st.period`, local time
     /// `st.time`), `motion` the motion over the step.
     fn step(&mut self, st: &State, motion: &StepMotion);
+
+    /// Called at every period end the steady measurement processes, right
+    /// after it (`measure::period_end`): `m.next_end` is the period that
+    /// ended plus one.
+    #[inline(always)]
+    fn period_end(&mut self, _c: &Coefficients, _st: &State, _m: &Measure) {}
 }
 
 /// The observer of plain runs: does nothing, and compiles to nothing.
@@ -326,6 +332,24 @@ impl StepMotion<'_> {
         let s = eval_at(self.flow, tau.max(0.0));
         (s.x_p.to_array(), s.x_s.to_array())
     }
+
+    /// The slider's positions [m], velocities [m/s] and accelerations
+    /// [m/s^2] at `tau` seconds into the step, 0 <= tau <= the length; at
+    /// the end the state's own positions and velocities.
+    pub fn slider_at(&self, tau: Real) -> (Vec2, Vec2, Vec2) {
+        let s = if tau >= self.tau {
+            *self.at_end
+        } else {
+            eval_at(self.flow, tau.max(0.0))
+        };
+        (s.x_s, s.v_s, s.a_s)
+    }
+
+    /// The fastest rate of the step's oscillators [1/s] (sqrt(k / m) +
+    /// 2 sigma, the larger axis'): how fast its motion can turn.
+    pub fn rate(&self) -> Real {
+        self.flow.osc.rate.max_element()
+    }
 }
 
 /// [`advance`] with an observer that sees the motion over every step.
@@ -345,6 +369,7 @@ pub fn advance_observed<O: StepObserver>(
         }
         if measure::at_period_end(c, st, m) {
             measure::period_end(c, st, m);
+            observer.period_end(c, st, m);
             kinds[ITERATION_PERIOD_END as usize] += 1;
             if is_finished(c, st) {
                 break;
