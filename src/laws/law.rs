@@ -297,8 +297,9 @@ impl Law {
         stop: impl Fn() -> bool,
     ) -> Option<(Run, Variation)> {
         match Law::of_instance(inst) {
-            Law::Karnopp => karnopp::variation::run_until(inst, settings, stop)
-                .map(|(run, v)| (run.ended(), v)),
+            Law::Karnopp => {
+                karnopp::variation::run_until(inst, settings, stop).map(|(run, v)| (run.ended(), v))
+            }
             Law::Lugre => lugre::run::run_with_variation_until(inst, settings, stop),
         }
     }

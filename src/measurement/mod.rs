@@ -12,8 +12,7 @@ pub mod status;
 
 use crate::laws::floor::Vec2;
 use crate::laws::floor::measure::{
-    Measure as MeasureState, VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, cut,
-    estimate_from,
+    Measure as MeasureState, VERDICT_CONVERGED, VERDICT_PERIODIC, VERDICT_PHASE, cut, estimate_from,
 };
 use crate::laws::floor::variation::Variation;
 use crate::laws::status::STATUS_NOT_STEADY;
@@ -150,7 +149,10 @@ fn choose(inst: &Instance, run: &Run) -> Source {
     }
     let converged = m.verdict == VERDICT_CONVERGED;
     let batches = if m.filled > 0 {
-        Source::Batches { cut: cut(m), converged }
+        Source::Batches {
+            cut: cut(m),
+            converged,
+        }
     } else {
         Source::Partial
     };

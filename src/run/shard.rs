@@ -101,7 +101,9 @@ impl ShardFile {
             );
         }
         if backward {
-            names.extend((0..2).flat_map(|axis| (0..4).map(move |k| schema::backward_path(axis, k))));
+            names.extend(
+                (0..2).flat_map(|axis| (0..4).map(move |k| schema::backward_path(axis, k))),
+            );
         }
         if baselines {
             names.extend(
@@ -435,7 +437,12 @@ fn write_merged(
         let mut at = 0;
         for range in ShardInfo::new(shard.spec, total).ranges {
             let n = range.end - range.start;
-            let records = shard.records(at, n, range.start, (scene.baselines, scene.settings.backward))?;
+            let records = shard.records(
+                at,
+                n,
+                range.start,
+                (scene.baselines, scene.settings.backward),
+            )?;
             writer.write(range.start, &records)?;
             if let Some(stall) = scene.stall {
                 let stalls = shard.stall_records(at, n, range.start, stall.axis)?;

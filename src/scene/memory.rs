@@ -11,11 +11,7 @@ impl Scene {
     /// the baselines', the stall maps and the backward maps when the scene
     /// asks for them.
     pub fn bytes_per_instance(&self) -> u64 {
-        bytes_per_instance(
-            self.baselines,
-            self.stall.is_some(),
-            self.settings.backward,
-        )
+        bytes_per_instance(self.baselines, self.stall.is_some(), self.settings.backward)
     }
 
     /// Refuses the scene when its output maps exceed `budget_bytes`.

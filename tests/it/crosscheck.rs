@@ -158,10 +158,17 @@ fn random_instances_agree_with_scipy_on_the_cpu() {
 /// periodic orbit by its own bisection, restarting at every corner. Every
 /// step within 0.001 um per cycle at the default tolerance and within
 /// 2e-7 um per cycle at tolerance 1e-8 (the script's docstring says why).
-/// About 35 s on two cores.
+/// With `--backward`, the default run writes the backward maps
+/// (`[output] backward = true`) and every axis' backward travel is held
+/// to SciPy's within 0.001 um per cycle too (velocity zeros located by
+/// SciPy's own events). About 35 s on two cores.
 #[test]
-fn waveforms_and_slew_limits_agree_with_scipy_on_the_cpu() {
-    run_script("waveform.py", &[], "waveform crosscheck: 0 failure(s)");
+fn waveforms_slew_limits_and_backward_travel_agree_with_scipy_on_the_cpu() {
+    run_script(
+        "waveform.py",
+        &["--backward"],
+        "waveform crosscheck: 0 failure(s)",
+    );
 }
 
 /// The same waveforms on the f64 shader (Karnopp's waveform pipeline,

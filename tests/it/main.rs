@@ -6,6 +6,7 @@
 mod common;
 mod golden;
 
+mod backward;
 mod bench;
 mod cli;
 mod crosscheck;

@@ -31,6 +31,7 @@ fn info(shape: Vec<usize>, baselines: bool) -> FileInfo {
         verify_tolerance: None,
         shard: None,
         stall: None,
+        backward: false,
     }
 }
 
@@ -57,6 +58,7 @@ fn record(i: usize) -> Record {
         replicas: 1 + (i % 4) as u32,
         baseline_step: [i as f64 + 0.5, i as f64 - 0.5],
         baseline_status: 0,
+        backward: Default::default(),
     }
 }
 

@@ -1,6 +1,7 @@
 //! The drive as a design variable (issue 59): waveforms and slew limits in
 //! scenes (the keys, their refusals and inheritance) and the invariants of
-//! their steps on the f64 CPU path, under both friction laws.
+//! their steps and backward travels on the f64 CPU path, under both
+//! friction laws.
 
 use pidm::laws::Settings;
 use pidm::laws::status::STATUS_OK;
@@ -131,10 +132,23 @@ fn axes_and_points_take_waveforms_as_the_keys_say() {
 
 /// The steady steps [um] of `inst` on the f64 CPU path; finished normally.
 fn steps_um(inst: &Instance) -> [f64; 2] {
-    let out = run_one(inst, &Settings::default());
+    travels_um(inst).0
+}
+
+/// The steady steps and backward travels [um per own drive cycle] of
+/// `inst` on the f64 CPU path (`Settings::backward`); finished normally.
+fn travels_um(inst: &Instance) -> ([f64; 2], [f64; 2]) {
+    let settings = Settings {
+        backward: true,
+        ..Settings::default()
+    };
+    let out = run_one(inst, &settings);
     assert_eq!(out.status, STATUS_OK, "{inst:?}");
     let rec = sweep::record(inst, &out);
-    [rec.step[0] * 1e6, rec.step[1] * 1e6]
+    (
+        rec.step.map(|v| v * 1e6),
+        rec.backward.travel.map(|v| v * 1e6),
+    )
 }
 
 /// Table 1 at 100 V on x and 60 V at 14 Hz on y, unloaded, steady from
@@ -166,8 +180,8 @@ fn shaped(mut inst: Instance, shape: Shape, fractions: [f64; 3]) -> Instance {
 }
 
 /// A trapezoid (d, 0, 1 - d), the table of that shape and the sawtooth of
-/// duty d are one drive: the same steps, under both laws (the same bits,
-/// since their corners are the same).
+/// duty d are one drive: the same steps and backward travels, under both
+/// laws (the same bits, since their corners are the same).
 #[test]
 fn a_sawtooths_trapezoid_and_table_step_as_the_sawtooth() {
     for lugre in [false, true] {
@@ -177,15 +191,26 @@ fn a_sawtooths_trapezoid_and_table_step_as_the_sawtooth() {
             let trapezoid = shaped(base(lugre), Shape::Trapezoid, [duty, 0.0, 1.0 - duty]);
             let table = Table::intern(&[[0.0, 0.0], [duty, 1.0]]);
             let table = shaped(base(lugre), Shape::Table(table), [0.0; 3]);
-            let want = steps_um(&saw);
+            let (want, want_back) = travels_um(&saw);
+            assert!(
+                want_back[0] > 1.0,
+                "the slider rides the ramp back: {want_back:?}"
+            );
             for inst in [trapezoid, table] {
-                let got = steps_um(&inst);
+                let (got, got_back) = travels_um(&inst);
                 for i in 0..2 {
+                    let what = format!("lugre {lugre} duty {duty} axis {i}");
                     assert!(
                         (got[i] - want[i]).abs() <= 1e-6,
-                        "lugre {lugre} duty {duty} axis {i}: {} um against the sawtooth's {} um",
+                        "{what}: {} um against the sawtooth's {} um",
                         got[i],
                         want[i]
+                    );
+                    assert!(
+                        (got_back[i] - want_back[i]).abs() <= 1e-6,
+                        "{what}: backward {} um against the sawtooth's {} um",
+                        got_back[i],
+                        want_back[i]
                     );
                 }
             }
@@ -201,17 +226,25 @@ fn a_sawtooths_trapezoid_and_table_step_as_the_sawtooth() {
 fn negated_constant_and_unlimited_drives_step_as_they_must() {
     let up = Table::intern(&[[0.0, 0.0], [0.6, 1.0], [0.7, 0.4], [0.72, 0.0]]);
     let down = Table::intern(&[[0.0, -0.0], [0.6, -1.0], [0.7, -0.4], [0.72, -0.0]]);
-    let [a, b] = [up, down].map(|t| steps_um(&shaped(base(false), Shape::Table(t), [0.0; 3])));
+    let [(a, a_back), (b, b_back)] =
+        [up, down].map(|t| travels_um(&shaped(base(false), Shape::Table(t), [0.0; 3])));
     assert!(a[0].abs() > 0.01, "the table moves x: {a:?}");
     assert!((a[0] + b[0]).abs() <= 1e-6, "x: {} and {} um", a[0], b[0]);
     assert!((a[1] - b[1]).abs() <= 1e-6, "y: {} and {} um", a[1], b[1]);
+    // The mirror image travels back as far.
+    for i in 0..2 {
+        assert!(
+            (a_back[i] - b_back[i]).abs() <= 1e-6,
+            "backward {i}: {a_back:?} and {b_back:?} um"
+        );
+    }
     let flat = Table::intern(&[[0.0, 0.5], [0.5, 0.5]]);
     let mut still = shaped(base(false), Shape::Table(flat), [0.0; 3]);
     still.axes[1].voltage = 0.0;
-    let steps = steps_um(&still);
+    let (steps, back) = travels_um(&still);
     assert!(
-        steps[0].abs() <= 1e-6,
-        "a constant drive steps {steps:?} um"
+        steps[0].abs() <= 1e-6 && back[0].abs() <= 1e-6,
+        "a constant drive steps {steps:?} um and travels back {back:?} um"
     );
     // The sawtooth's steepest flank: 100 V over 0.02 of a 10 Hz cycle.
     let mut limited = base(false);
