@@ -66,7 +66,7 @@ use constants::{
     ITERATION_STICK, MAX_STALLED_EVENTS,
 };
 use drive::{corner_time, corner_time_lo, drive_force, frac, pass_boundaries};
-use flow::{Flow, Sample, eval_at};
+use flow::{Flow, Propagator, Sample, eval_at, eval_flow};
 use std::sync::atomic::{AtomicU64, Ordering};
 use step::StepOutcome;
 
@@ -333,22 +333,77 @@ impl StepMotion<'_> {
         (s.x_p.to_array(), s.x_s.to_array())
     }
 
-    /// The slider's positions [m], velocities [m/s] and accelerations
-    /// [m/s^2] at `tau` seconds into the step, 0 <= tau <= the length; at
-    /// the end the state's own positions and velocities.
-    pub fn slider_at(&self, tau: Real) -> (Vec2, Vec2, Vec2) {
-        let s = if tau >= self.tau {
+    /// The motion at `tau` seconds into the step, 0 <= tau <= the length,
+    /// given the propagator over `tau` (`flow::propagator`, or composed of
+    /// shorter ones by [`StepMotion::compose`]); at the end the state the
+    /// integrator moves to.
+    pub fn sample(&self, prop: Propagator, tau: Real) -> Sample {
+        if tau >= self.tau {
             *self.at_end
         } else {
-            eval_at(self.flow, tau.max(0.0))
-        };
-        (s.x_s, s.v_s, s.a_s)
+            eval_flow(self.flow, prop, tau.max(0.0))
+        }
+    }
+
+    /// The motion at the step's start: the state's positions and
+    /// velocities, with the accelerations of its mode (the stage's from
+    /// its equation of motion, the slider's from the friction model), no
+    /// jerk; the propagator's evaluation at 0 to rounding, without it.
+    pub fn start(&self) -> Sample {
+        let f = self.flow;
+        let a_p = (f.g0 - f.damping * f.v_p - f.stiffness * f.x_p) * f.osc.inv_mass;
+        Sample {
+            x_p: f.x_p,
+            v_p: f.v_p,
+            a_p,
+            j_p: Vec2::ZERO,
+            x_s: f.x_s,
+            v_s: f.v_s,
+            a_s: if f.stuck { a_p } else { f.slider0 },
+            v_rel: f.v_rel,
+        }
+    }
+
+    /// The propagator over `tau` of the step's oscillators.
+    pub fn propagator(&self, tau: Real) -> Propagator {
+        flow::propagator(&self.flow.osc, tau)
+    }
+
+    /// The propagator over the sum of two times, from theirs.
+    pub fn compose(&self, a: Propagator, b: Propagator) -> Propagator {
+        flow::compose(&self.flow.osc, a, b)
     }
 
     /// The fastest rate of the step's oscillators [1/s] (sqrt(k / m) +
     /// 2 sigma, the larger axis'): how fast its motion can turn.
     pub fn rate(&self) -> Real {
         self.flow.osc.rate.max_element()
+    }
+
+    /// Whether the slider rides on the stage over the step (stick): its
+    /// velocity is then the stage's, a damped oscillation about a drift;
+    /// otherwise (slip, band) a polynomial of degree at most 3 in time.
+    pub fn stuck(&self) -> bool {
+        self.flow.stuck
+    }
+
+    /// The stage's drift velocity at `tau`, the particular solution's
+    /// [m/s] (f64: `DEFLECTION` off).
+    pub fn drift(&self, tau: Real) -> Vec2 {
+        self.flow.part1 + 2.0 * self.flow.part2 * tau
+    }
+
+    /// The squared amplitude bound of the stage's oscillation about its
+    /// drift at `tau`, from the sample `s` there [m^2/s^2]: w^2 + w2 y^2 of
+    /// the homogeneous part (y, w), which never grows (its rate of change
+    /// is -4 sigma w^2), so |v - drift| stays below its root from `tau`
+    /// on (f64: `DEFLECTION` off).
+    pub fn ringing_energy(&self, s: &Sample, tau: Real) -> Vec2 {
+        let f = self.flow;
+        let dy = s.x_p - f.x_p - (f.part1 + f.part2 * tau) * tau;
+        let y = f.y0 + dy;
+        let w = s.v_p - self.drift(tau);
+        w * w + f.osc.w2 * y * y
     }
 }
 
