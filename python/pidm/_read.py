@@ -86,6 +86,10 @@ def open(path: PathLike) -> xr.Dataset:
       existed. ``ds.motion == 1`` selects the
       periodic instances; ``dict(zip(ds.motion.attrs["flag_meanings"].split(),
       ds.motion.attrs["flag_values"]))`` names the codes;
+    - with ``[output] backward = true`` (docs/model.md section 4): ``backward_x``
+      [m per own drive cycle], the slider's travel against its step,
+      ``backward_ratio_x`` (1), its share of the path, and their standard errors
+      ``backward_x_se`` and ``backward_ratio_x_se`` (``_y`` for axis y);
     - for a scene with ``[stall]`` (docs/model.md section 7): ``stall_load_x`` [N],
       the load along x at which the x step stops (0 unless ``stall_status_x`` is 0
       or 6; status 8: no stall load below the kinetic friction), the steps at the

@@ -171,7 +171,9 @@ def run(
         coordinates with ``units``, every map as a data variable (``step_x``,
         ``step_y`` [m per own drive cycle], ``velocity_x``, ``velocity_y`` [m/s],
         ``status``, ``steps``, ``motion`` (uint8 kind of motion with CF
-        ``flag_values`` and ``flag_meanings``), ``baseline_*``, and for a scene with
+        ``flag_values`` and ``flag_meanings``), ``baseline_*``, with ``[output] backward``
+        ``backward_x`` [m per own drive cycle] and ``backward_ratio_x`` with their
+        ``_se`` (and ``_y``), and for a scene with
         ``[stall]`` the stall maps ``stall_load_x`` [N], ``stall_step_near_x``,
         ``stall_step_far_x`` [m per own drive cycle], ``stall_waves_x`` and
         ``stall_status_x`` (or ``_y``), ...), the scene and run facts as attributes. A run where some instances did not finish normally warns

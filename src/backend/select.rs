@@ -174,7 +174,7 @@ pub fn select_backend(
         bail!("--precision f32: {why}");
     }
     if work.settings.backward {
-        let why = "output.backward = true: the backward travel is measured on the CPU in f64 only";
+        let why = crate::laws::settings::BACKWARD_CPU_ONLY;
         if precision == Some(Precision::F32) {
             bail!("--precision f32: {why}; run it in f64");
         }

@@ -166,7 +166,7 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
         human_duration(crate::run::estimate::RUN_OVERHEAD_S)
     );
     println!("  {}", probe_note(probe));
-    match scene.law().auto_on_cpu() {
+    match scene.auto_on_cpu() {
         Some(why) => println!("--backend auto: the CPU path ({why})"),
         None => println!("--backend auto: {}", auto_note(auto)),
     }
@@ -317,7 +317,7 @@ pub fn check_json(scene: &Scene, report: &CheckReport) -> serde_json::Value {
             "parallelism": probe.parallelism,
         },
         "nominal_simulated_per_core_s": NOMINAL_SIMULATED_PER_CORE,
-        "auto": match scene.law().auto_on_cpu() {
+        "auto": match scene.auto_on_cpu() {
             Some(why) => serde_json::json!({ "backend": "cpu", "weighed": false, "why": why }),
             None => auto_json(&report.auto),
         },

@@ -28,6 +28,12 @@ pub struct Settings {
     pub backward: bool,
 }
 
+/// Why a scene with `output.backward` runs on the CPU in f64 only: what
+/// `--backend auto` says and `--backend gpu` and `--precision f32` refuse
+/// with.
+pub const BACKWARD_CPU_ONLY: &str =
+    "output.backward = true: the backward travel is measured on the CPU in f64 only";
+
 impl Default for Settings {
     fn default() -> Self {
         Settings {

@@ -15,7 +15,7 @@ use super::grid::Cell;
 use super::rule::weights;
 use super::waves::{INFERRED, Refinement};
 use crate::model::AXES;
-use crate::sweep::Record;
+use crate::sweep::{Backward, Record};
 
 /// The bilinear interpolant of the corner records (in
 /// [`Cell::corners`] order) at (u, v).
@@ -37,6 +37,14 @@ pub fn bilinear(corners: &[Record; 4], u: f64, v: f64) -> Record {
         // marks them (docs/adaptive.md).
         step_se: mix(&|r| r.step_se),
         baseline_step: mix(&|r| r.baseline_step),
+        // The backward travel and its ratio, interpolated as the step is
+        // (the ratio of interpolated values would be no better).
+        backward: Backward {
+            travel: mix(&|r| r.backward.travel),
+            travel_se: mix(&|r| r.backward.travel_se),
+            ratio: mix(&|r| r.backward.ratio),
+            ratio_se: mix(&|r| r.backward.ratio_se),
+        },
         // Counts 0, motion undetermined: nothing was integrated here.
         ..Record::default()
     }

@@ -103,6 +103,13 @@ impl Scene {
                 "no"
             }
         );
+        if self.settings.backward {
+            let _ = writeln!(
+                out,
+                "backward travel: yes (/maps/backward_* and backward_ratio_*, on the CPU in f64, \
+                 each instance a run of its own)"
+            );
+        }
         if !self.trajectories.is_empty() {
             let names: Vec<&str> = self.trajectories.iter().map(|t| t.name.as_str()).collect();
             let _ = writeln!(
@@ -123,6 +130,7 @@ impl Scene {
                 out,
                 "replicas: {} (split steady measurements whose phase ladder is on)",
                 match self.settings.replicas {
+                    _ if self.settings.backward => "1, none (output.backward)".to_string(),
                     crate::laws::settings::Replicas::Auto => {
                         "auto, as many as idle threads or lanes allow".to_string()
                     }

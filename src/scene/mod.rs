@@ -281,6 +281,16 @@ impl Scene {
         Some(Scene::from_toml(text, Some(&stem)))
     }
 
+    /// Why `--backend auto` keeps this scene on the CPU without weighing
+    /// it, if it does: the backward travel (measured on the CPU only), or
+    /// its law's reason (`Law::auto_on_cpu`).
+    pub fn auto_on_cpu(&self) -> Option<&'static str> {
+        if self.settings.backward {
+            return Some(crate::laws::settings::BACKWARD_CPU_ONLY);
+        }
+        self.law().auto_on_cpu()
+    }
+
     /// The first key that drives an axis with something other than a plain
     /// sawtooth (a waveform or a slew limit), as a scene would write it;
     /// `None` when every instance drives sawtooths.

@@ -94,6 +94,31 @@ def pidm_run_file(tmp_path: Path) -> Path:
     return out
 
 
+def test_the_backward_maps_come_back_labelled() -> None:
+    scene = {
+        "name": "backward",
+        "axis": {"x": {"duty": [0.9, 0.98]}, "y": {"voltage": 0.0}},
+        "output": {"backward": True},
+    }
+    ds = pidm.run(scene, progress=False)
+    assert "cpu" in ds.attrs["backend"]
+    for axis in ("x", "y"):
+        for name, units in (
+            (f"backward_{axis}", "m"),
+            (f"backward_{axis}_se", "m"),
+            (f"backward_ratio_{axis}", "1"),
+            (f"backward_ratio_{axis}_se", "1"),
+        ):
+            assert ds[name].dims == ("axis.x.duty",), name
+            assert ds[name].attrs["units"] == units, name
+    # Table 1's slider rides the ramp back: tens of micrometres, most of its path.
+    assert (ds.backward_x > 50e-6).all()
+    assert (ds.backward_ratio_x > 0.9).all() and (ds.backward_ratio_x <= 1.0).all()
+    assert (ds.backward_y == 0.0).all()
+    with pytest.raises(pidm.PidmError, match="measured on the CPU in f64 only"):
+        pidm.run(scene, backend="gpu", progress=False)
+
+
 def test_out_none_leaves_no_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     temp = tmp_path / "tmp"
     temp.mkdir()
