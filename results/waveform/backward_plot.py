@@ -9,8 +9,8 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import xarray as xr  # noqa: E402
+import matplotlib.pyplot as plt
+import xarray as xr
 
 ds = xr.open_dataset(sys.argv[1], engine="h5netcdf")
 fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
