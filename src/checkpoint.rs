@@ -584,7 +584,7 @@ mod tests {
             .expect("refused");
         let err = err.to_string();
         assert!(
-            err.contains("is of another pidm (journal format 3; this pidm reads format 4 only)")
+            err.contains("is of another pidm (journal format 3; this pidm reads format 5 only)")
                 && err.contains("delete the checkpoint to start over"),
             "{err}"
         );

@@ -132,7 +132,7 @@ fn shader_only_functions() -> [&'static str; 16] {
 }
 
 /// The functions only the Rust mirrors define.
-fn cpu_only_functions() -> [&'static str; 45] {
+fn cpu_only_functions() -> [&'static str; 55] {
     // CPU only: constructors, the observer of trajectories (its `step`
     // method and `StepMotion`), the whole run (stoppable, also from a
     // state the f64 shader left) and its result, Rust's rounding and
@@ -171,6 +171,21 @@ fn cpu_only_functions() -> [&'static str; 45] {
         "length",
         "end",
         "positions_at",
+        // What the backward travel reads of a step (CPU only, issue 59:
+        // `laws::karnopp::variation`), and the observer's period end.
+        "start",
+        "sample",
+        "propagator",
+        "compose",
+        "rate",
+        "stuck",
+        "drift",
+        "ringing_energy",
+        // `measure::estimate` in two parts, MSER's cut and the estimate
+        // from a cut, so that the backward travel's estimate takes the
+        // step's cut (the shader's `estimate` is both at once).
+        "cut",
+        "estimate_from",
         "round_half_even",
         "sample_flow",
         // The host's part of the measurement: the common period, the
