@@ -402,9 +402,9 @@ fn a_refined_run_resumes_in_the_middle_of_a_level_to_the_uninterrupted_file() {
         "4",
     ];
     // The coarse grid is 25 isolated points: 25 journal entries of one
-    // record (32-byte head, 84-byte record, 8-byte sum); two more chunks
-    // of level 1 beyond them.
-    let entry = 32 + 84 + 8;
+    // record (32-byte head, the record, 8-byte sum); two more chunks of
+    // level 1 beyond them.
+    let entry = (32 + pidm::checkpoint::RECORD_BYTES + 8) as u64;
     for signal in ["INT", "KILL"] {
         let mut child = Command::new(env!("CARGO_BIN_EXE_pidm"))
             .args(args)
