@@ -79,7 +79,6 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
             let periods = m.next_end;
             let source = choose(inst, run);
             let (travel, span, se2) = values(m, source);
-            let own_cycles = |i: usize| inst.axes[i].frequency * inst.period();
             let status = source.status();
             if span == 0.0 {
                 return Measured {
@@ -97,7 +96,7 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
             Measured {
                 travel: travel.to_array(),
                 span,
-                se: std::array::from_fn(|i| se2[i].sqrt() / own_cycles(i)),
+                se: se_per_cycle(inst, se2),
                 periods,
                 lag,
                 status,
@@ -105,6 +104,12 @@ pub fn reduce(inst: &Instance, run: &Run) -> Measured {
             }
         }
     }
+}
+
+/// Each axis' standard error per own drive cycle [m] of a squared
+/// standard error per scene period [m^2].
+fn se_per_cycle(inst: &Instance, se2: Vec2) -> [f64; AXES] {
+    std::array::from_fn(|i| se2[i].sqrt() / (inst.axes[i].frequency * inst.period()))
 }
 
 /// Which of a steady run's estimates its map shows (docs/model.md section
@@ -160,12 +165,7 @@ fn choose(inst: &Instance, run: &Run) -> Source {
         return batches;
     }
     // The larger of an estimate's standard errors per own cycle.
-    let own_cycles = |i: usize| inst.axes[i].frequency * inst.period();
-    let worst = |se2: Vec2| {
-        (0..AXES)
-            .map(|i| se2[i].sqrt() / own_cycles(i))
-            .fold(0.0, f64::max)
-    };
+    let worst = |se2: Vec2| se_per_cycle(inst, se2).into_iter().fold(0.0, f64::max);
     let (_, span, se2) = values(m, batches);
     if span == 0.0 || worst(m.se2) < worst(se2) {
         Source::Phase { verdict: false }
@@ -220,11 +220,7 @@ pub fn reduce_variation(inst: &Instance, run: &Run, v: &Variation) -> ([f64; AXE
             if span == 0.0 {
                 return zero;
             }
-            let own_cycles = |i: usize| inst.axes[i].frequency * inst.period();
-            (
-                travel.to_array(),
-                std::array::from_fn(|i| se2[i].sqrt() / own_cycles(i)),
-            )
+            (travel.to_array(), se_per_cycle(inst, se2))
         }
     }
 }

@@ -117,6 +117,21 @@ fn lugres_backward_travel_tends_to_karnopps() {
         "step {lugre:?} against {karnopp:?}"
     );
     assert!(karnopp.1 > 50e-6 && karnopp.2 > 0.9, "{karnopp:?}");
+    // A window of whole cycles of this periodic motion (10 / 2) measures
+    // what the steady run does, under both laws: the window's start is
+    // where each law sets it.
+    for lugre in [None, Some(1e10)] {
+        let steady_travel = travel(lugre).1;
+        let mut window = steady(inst, lugre);
+        (window.measure, window.cycles, window.settle) = (Measure::Window, 10, 2);
+        let out = run_one(&window, &backward());
+        let rec = sweep::record(&window, &out);
+        let b = rec.backward.travel[0];
+        assert!(
+            (b - steady_travel).abs() <= 1e-10,
+            "{lugre:?}: {b} against {steady_travel}"
+        );
+    }
 }
 
 const SCENE: &str = "name = \"bw\"\n[axis.x]\nduty = [0.9, 0.95, 0.98, 1.0]\n\

@@ -32,7 +32,8 @@ use super::double::vec2::Vec2;
 pub struct Variation {
     /// The slider's total variation since the run began, per axis [m].
     pub total: Vec2,
-    /// `total` when the measured periods began (a window's start) [m].
+    /// `total` when the measured periods began [m]: a window's start,
+    /// which each law sets where it sets its record's `settle_x_s`.
     pub settle_total: Vec2,
     /// The step's accumulators, kept of `total` instead of the slider's
     /// position: `measure.travel` is the variation over the step's cycle
@@ -83,7 +84,6 @@ pub fn follow(c: &impl Gauge, common: u32, ended: u32, step: &Measure, v: &mut V
         }
     } else {
         m.batch_start = x;
-        v.settle_total = x;
     }
     m.last_x_s = x;
     let running = m.verdict == VERDICT_RUNNING;
@@ -188,11 +188,7 @@ fn hermite_extremum(a: Point, b: Point, h: f64) -> Option<f64> {
     if a.v.abs().min(b.v.abs()) * 27.0 > 4.0 * (m0.abs() + m1.abs()) {
         return None;
     }
-    // v(s) = c0 + c1 s + c2 s^2 + c3 s^3, s = t / h in [0, 1].
-    let c0 = a.v;
-    let c1 = m0;
-    let c2 = 3.0 * (b.v - a.v) - 2.0 * m0 - m1;
-    let c3 = 2.0 * (a.v - b.v) + m0 + m1;
+    let [c0, c1, c2, c3] = hermite_cubic(a, b, h);
     let value = |s: f64| c0 + s * (c1 + s * (c2 + s * c3));
     // v'(s) = c1 + 2 c2 s + 3 c3 s^2 = 0.
     let (qa, qb, qc) = (3.0 * c3, 2.0 * c2, c1);
@@ -216,18 +212,28 @@ fn hermite_extremum(a: Point, b: Point, h: f64) -> Option<f64> {
         .map(|s| s * h)
 }
 
+/// The cubic Hermite of the velocity over a piece from `a` to `b` (`h`
+/// long): v(s) = c0 + c1 s + c2 s^2 + c3 s^3 for s = t / h in [0, 1],
+/// with the ends' values and derivatives.
+fn hermite_cubic(a: Point, b: Point, h: f64) -> [f64; 4] {
+    let (m0, m1) = (a.a * h, b.a * h);
+    [
+        a.v,
+        m0,
+        3.0 * (b.v - a.v) - 2.0 * m0 - m1,
+        2.0 * (a.v - b.v) + m0 + m1,
+    ]
+}
+
 /// A first guess of the velocity zero between `a` and `b` (`h` apart,
 /// velocities of opposite signs) [s after a]: the zero of the cubic
 /// Hermite of the velocity, by Newton's steps on the cubic from the
 /// secant's zero, kept inside the bracket.
 fn hermite_root(a: Point, b: Point, h: f64) -> f64 {
-    let (m0, m1) = (a.a * h, b.a * h);
-    let c1 = m0;
-    let c2 = 3.0 * (b.v - a.v) - 2.0 * m0 - m1;
-    let c3 = 2.0 * (a.v - b.v) + m0 + m1;
+    let [c0, c1, c2, c3] = hermite_cubic(a, b, h);
     let mut s = a.v / (a.v - b.v);
     for _ in 0..4 {
-        let v = a.v + s * (c1 + s * (c2 + s * c3));
+        let v = c0 + s * (c1 + s * (c2 + s * c3));
         let d = c1 + s * (2.0 * c2 + 3.0 * s * c3);
         let next = if d != 0.0 { s - v / d } else { s };
         if !(next > 0.0 && next < 1.0) {

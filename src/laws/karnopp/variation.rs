@@ -117,7 +117,8 @@ struct Follower<'a> {
 impl StepObserver for Follower<'_> {
     fn step(&mut self, st: &State, motion: &StepMotion) {
         if st.period == self.settle && st.time == 0.0 {
-            // A window's start (the steady measurement keeps its own).
+            // The measured periods begin (`integrate::iterate` sets the
+            // state's `settle_x_s` here).
             self.v.settle_total = self.v.total;
         }
         self.v.total = self.v.total + step_variation(motion);
@@ -158,9 +159,6 @@ pub fn run_until(
             ITERATIONS_BETWEEN_STOP_CHECKS,
             &mut follower,
         );
-    }
-    if c.settle == 0 {
-        v.settle_total = Vec2::ZERO;
     }
     Some((run, v))
 }

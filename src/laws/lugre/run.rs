@@ -110,22 +110,34 @@ fn step_variation(a: &State, b: &State) -> Vec2 {
     let mut total = Vec2::ZERO;
     for i in 0..AXES {
         let (xa, va, xb, vb) = (a[XS + i], a[VS + i], b[XS + i], b[VS + i]);
+        if h <= 0.0 {
+            total[i] = (xb - xa).abs();
+            continue;
+        }
         // x(s) = xa + h va s + c2 s^2 + c3 s^3, s = t / h.
         let c2 = 3.0 * (xb - xa) - h * (2.0 * va + vb);
         let c3 = 2.0 * (xa - xb) + h * (va + vb);
+        let inv_h = 1.0 / h;
         let point = |t: f64| {
-            let s = if h > 0.0 { t / h } else { 0.0 };
-            let inv_h = if h > 0.0 { 1.0 / h } else { 0.0 };
+            let s = t * inv_h;
             Point {
                 x: xa + s * (h * va + s * (c2 + s * c3)),
                 v: va + s * (2.0 * c2 + 3.0 * s * c3) * inv_h,
                 a: (2.0 * c2 + 6.0 * s * c3) * inv_h * inv_h,
             }
         };
-        let (pa, mut pb) = (point(0.0), point(h));
-        // The ends are the integrator's own.
-        (pb.x, pb.v) = (xb, vb);
-        total[i] = piece_variation(Point { x: xa, v: va, ..pa }, pb, h, &point);
+        // The ends are the integrator's own, with the Hermite's slopes.
+        let start = Point {
+            x: xa,
+            v: va,
+            ..point(0.0)
+        };
+        let end = Point {
+            x: xb,
+            v: vb,
+            ..point(h)
+        };
+        total[i] = piece_variation(start, end, h, &point);
     }
     total
 }
