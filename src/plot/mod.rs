@@ -23,6 +23,9 @@
 //!   a LuGre map whose long axis is a bristle key, each line's instance
 //!   under Karnopp's friction as a dashed reference line (integrated on
 //!   the CPU when the picture is drawn: docs/model.md section 8's limit);
+//! - a grid of two or more axes with `[output] backward`: also a map of
+//!   each axis' backward ratio (`backward`); other layouts show it in the
+//!   file only;
 //! - a scene with `[stall]`: the stall-load map (`stall`), a heatmap per
 //!   slice, a line for a 1-D grid or a dot per point;
 //! - every stored trajectory: stage and slider displacement against time
@@ -50,6 +53,7 @@
 //!   `lines` (1-D grids), `bars` (points), `trajectory`;
 //! - `staging`: all pictures or none.
 
+mod backward;
 mod bars;
 mod canvas;
 mod checked;
@@ -181,6 +185,7 @@ fn draw(
                 }
             };
             maps::grid_maps(data, axes, plane, dir, files, notes)?;
+            backward::backward_maps(data, axes, plane, dir, files, notes)?;
             if let Some(dims) = lines::family_dims(&data.shape) {
                 lines::family_lines(data, axes, dims, dir, files)?;
             }

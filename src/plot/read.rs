@@ -57,6 +57,8 @@ pub(super) struct Data {
     /// The standard errors of the steps per axis [m per own drive cycle],
     /// when stored (files of the steady measurement).
     pub(super) step_se: Option<[Vec<f64>; 2]>,
+    /// The backward ratios per axis (`[output] backward`), when stored.
+    pub(super) backward_ratio: Option<[Vec<f64>; 2]>,
     /// 1 where a refined map's value was interpolated (`/maps/inferred`),
     /// when stored.
     pub(super) inferred: Option<Vec<u32>>,
@@ -117,6 +119,7 @@ impl Data {
         let shape = step[0].shape.clone();
         let baseline = read_baseline(&file, &shape, &mut notes)?;
         let step_se = read_step_se(&file, &shape)?;
+        let backward_ratio = read_backward_ratio(&file, &shape)?;
         let inferred = read_inferred(&file, &shape)?;
         let motion = read_motion(&file, &shape)?;
         note_no_verdict(motion.as_deref(), scene.as_ref(), &mut notes);
@@ -132,6 +135,7 @@ impl Data {
             status,
             baseline,
             step_se,
+            backward_ratio,
             inferred,
             motion,
             trajectories,
@@ -170,20 +174,40 @@ fn read_baseline(
 /// Reads the standard errors of the steps per axis [m per own drive
 /// cycle] when the file has both, shaped `shape`, each finite and >= 0.
 fn read_step_se(file: &ResultFile, shape: &[usize]) -> Checked<Option<[Vec<f64>; 2]>> {
-    if !schema::STEP_SE.iter().all(|path| file.exists(path)) {
+    let paths = schema::STEP_SE.map(String::from);
+    let rule = "a standard error is finite and >= 0";
+    read_pair(file, &paths, shape, &|v| v.is_finite() && v >= 0.0, rule)
+}
+
+/// Reads the backward ratios per axis (`[output] backward`) when the file
+/// has both, shaped `shape`, each in [0, 1].
+fn read_backward_ratio(file: &ResultFile, shape: &[usize]) -> Checked<Option<[Vec<f64>; 2]>> {
+    let paths = [0, 1].map(|axis| schema::backward_path(axis, 2));
+    let rule = "a backward ratio is in [0, 1]";
+    read_pair(file, &paths, shape, &|v| (0.0..=1.0).contains(&v), rule)
+}
+
+/// Reads one f64 map per axis at `paths` when the file has both, shaped
+/// `shape`, each value passing `valid` (else an error naming the dataset,
+/// the value and the `rule`).
+fn read_pair(
+    file: &ResultFile,
+    paths: &[String; 2],
+    shape: &[usize],
+    valid: &dyn Fn(f64) -> bool,
+    rule: &str,
+) -> Checked<Option<[Vec<f64>; 2]>> {
+    if !paths.iter().all(|path| file.exists(path)) {
         return Ok(None);
     }
     let mut read = Vec::new();
-    for path in schema::STEP_SE {
-        let se = file.floats(path)?;
-        file.expect_shape(&se, shape, format!("the shape of /{}", schema::STEP[0]))?;
-        if let Some(v) = se.values.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
-            return Err(file.dataset_error(
-                path,
-                Problem::Invalid(format!("holds {v}: a standard error is finite and >= 0")),
-            ));
+    for path in paths {
+        let map = file.floats(path)?;
+        file.expect_shape(&map, shape, format!("the shape of /{}", schema::STEP[0]))?;
+        if let Some(v) = map.values.iter().find(|v| !valid(**v)) {
+            return Err(file.dataset_error(path, Problem::Invalid(format!("holds {v}: {rule}"))));
         }
-        read.push(se.values);
+        read.push(map.values);
     }
     let y = read.pop().expect("two axes");
     let x = read.pop().expect("two axes");

@@ -222,3 +222,51 @@ fn backward_maps_are_written_merged_and_refused() {
     let wrong = SCENE.replace("backward = true", "backward = 1");
     refused(&[], &wrong, "output.backward");
 }
+
+/// `pidm plot` draws each moving axis' backward ratio beside the step maps
+/// of a 2-D grid, notes the axis that never travels back, and refuses a
+/// ratio outside [0, 1] naming the dataset, drawing nothing.
+#[test]
+fn pidm_plot_maps_the_backward_ratio() {
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let d = dir.path();
+    std::fs::write(
+        d.join("bw.toml"),
+        "name = \"bw\"\n[axis.x]\nduty = [0.9, 0.95, 0.98]\nvoltage = [80.0, 100.0]\n\
+         [axis.y]\nvoltage = 0\n[output]\nbackward = true\n",
+    )
+    .expect("written");
+    let run = |args: &[&str]| pidm(args, d);
+    assert!(run(&["run", "bw.toml", "--out", "bw.h5"]).status.success());
+    let plotted = run(&["plot", "bw.h5", "--out", "plots"]);
+    let said = String::from_utf8_lossy(&plotted.stdout);
+    assert!(plotted.status.success(), "{said}");
+    assert!(
+        said.contains("backward_ratio_y is 0 everywhere; not drawn"),
+        "{said}"
+    );
+    let png = std::fs::read(d.join("plots/backward_ratio_x.png")).expect("drawn");
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 10_000,
+        "{} bytes",
+        png.len()
+    );
+    assert!(!d.join("plots/backward_ratio_y.png").exists());
+
+    std::fs::copy(d.join("bw.h5"), d.join("bad.h5")).expect("copied");
+    let file = hdf5::File::open_rw(d.join("bad.h5")).expect("opened");
+    let ds = file.dataset("maps/backward_ratio_x").expect("stored");
+    let mut values: Vec<f64> = ds.read_raw().expect("read");
+    values[1] = 1.5;
+    ds.write_raw(&values).expect("written");
+    drop(ds);
+    file.close().expect("closed");
+    let refused = run(&["plot", "bad.h5", "--out", "bad"]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success(), "{err}");
+    assert!(
+        err.contains("dataset /maps/backward_ratio_x holds 1.5: a backward ratio is in [0, 1]"),
+        "{err}"
+    );
+    assert!(!d.join("bad").exists());
+}
