@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 use crate::laws::Settings;
-use crate::laws::run_until;
+use crate::laws::{Law, run_until};
 use crate::laws::status::STATUS_NOT_STEADY;
 use crate::model::{Instance, Measure};
 
@@ -131,7 +131,13 @@ fn probe_one(
         ..*inst
     };
     let begin = Instant::now();
-    let run = run_until(&capped, settings, || cut.load(Ordering::Relaxed));
+    let stop = || cut.load(Ordering::Relaxed);
+    // The run the sweep will make: with the backward travel where asked.
+    let run = if settings.backward {
+        Law::run_with_variation_until(&capped, settings, stop).map(|(run, _)| run)
+    } else {
+        run_until(&capped, settings, stop)
+    };
     let wall = begin.elapsed().as_secs_f64();
     let Some(run) = run else {
         // Cut off: charged at the nominal rate, and at least what it took.
