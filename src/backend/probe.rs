@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 
 use crate::laws::Settings;
-use crate::laws::{Law, run_until};
 use crate::laws::status::STATUS_NOT_STEADY;
+use crate::laws::{Law, run_until};
 use crate::model::{Instance, Measure};
 
 /// At most this many integrations are probed.
