@@ -6,6 +6,7 @@ pub mod accuracy;
 pub mod backend;
 pub mod checkpoint;
 pub mod commands;
+pub mod design;
 pub mod fit;
 pub mod gpu;
 pub mod interrupt;

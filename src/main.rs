@@ -19,7 +19,8 @@ Exit status:
   3    pidm run: some instance did not finish normally (/maps/status says why)
   130  pidm run stopped by SIGINT (Ctrl-C), 143 by SIGTERM: the finished
        instances stay in the checkpoint beside the output, and the command
-       printed on stderr (the same with --resume) continues the run";
+       printed on stderr (the same with --resume) continues the run;
+       pidm sensitivity and optimize so stopped write nothing";
 
 /// Maps how two-axis piezoelectric impact drives move.
 #[derive(Parser, Debug)]
@@ -94,6 +95,10 @@ enum Command {
     /// FIT.toml (the scene with the fitted values) and FIT.png beside it
     /// (docs/fit.md).
     Fit(commands::FitCommand),
+    /// Sobol' indices and the spread of a scene's quantities over
+    /// distributions of its keys ([sensitivity]): writes SENS.json and
+    /// SENS.png beside it (docs/design.md).
+    Sensitivity(commands::SensitivityCommand),
     /// Joins the shard files of one scene (`pidm run --shard K/N`) into one
     /// map file, the same as a single run's.
     Merge {
@@ -265,6 +270,7 @@ impl Command {
                 *backend != backend::BackendChoice::Cpu
             }
             Command::Fit(fit) => fit.backend != backend::BackendChoice::Cpu,
+            Command::Sensitivity(s) => s.backend != backend::BackendChoice::Cpu,
             Command::Info { .. } | Command::Bench { .. } => true,
             Command::Accuracy { gpu, .. } => *gpu,
             _ => false,
@@ -336,6 +342,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
                 return Ok(ExitCode::from(130));
             }
         }
+        Command::Sensitivity(s) => commands::sensitivity(&s)?,
         Command::Merge { out, shards } => commands::merge(&out, &shards)?,
         Command::Check { scene, json } => commands::check(&scene, json)?,
         Command::Plot {
@@ -443,6 +450,7 @@ fn main() -> ExitCode {
 /// Runs the command and turns its outcome into the exit status, printing
 /// the error chain.
 fn exit_code(cli: Cli) -> ExitCode {
+    let resumable = matches!(cli.command, Command::Run { .. });
     match run(cli) {
         Ok(code) => code,
         Err(err) => {
@@ -458,10 +466,14 @@ fn exit_code(cli: Cli) -> ExitCode {
                 } else {
                     "SIGINT"
                 };
-                eprintln!(
-                    "pidm: stopped by {name}; continue the run with:\n  {}",
-                    resume_command()
-                );
+                if resumable {
+                    eprintln!(
+                        "pidm: stopped by {name}; continue the run with:\n  {}",
+                        resume_command()
+                    );
+                } else {
+                    eprintln!("pidm: stopped by {name}; nothing was written");
+                }
                 return ExitCode::from(128 + signal.clamp(0, 127) as u8);
             }
             ExitCode::FAILURE

@@ -108,8 +108,12 @@ pub fn check_report(scene: &Scene) -> CheckReport {
 /// `pidm check`: validates and describes a scene without running it, as
 /// text or (`json`) as one JSON object on stdout (see [`check_json`]).
 pub fn check(path: &Path, json: bool) -> Result<()> {
-    if crate::fit::spec::is_fit_scene(&crate::scene::read_text(path)?) {
+    let text = crate::scene::read_text(path)?;
+    if crate::fit::spec::is_fit_scene(&text) {
         return check_fit(path, json);
+    }
+    if super::check_design::is_sensitivity(&text) {
+        return super::check_design::check_sensitivity(path, json);
     }
     let scene = Scene::load(path)?;
     scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;

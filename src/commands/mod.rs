@@ -3,7 +3,7 @@
 //! tests can call it.
 //!
 //! One file per subcommand, as cargo's `commands/`: `run.rs`, `merge.rs`,
-//! `check.rs`, `fit.rs`, `info.rs`, `report.rs`, `accuracy.rs`, `random_scene.rs`,
+//! `check.rs`, `fit.rs`, `sensitivity.rs`, `info.rs`, `report.rs`, `accuracy.rs`, `random_scene.rs`,
 //! `bench.rs` and `refine_study.rs`. `summary.rs` is the one home of the
 //! run summary `pidm run` prints, `format.rs` of the numbers and words the
 //! commands write for people, and `scenes.rs` of how the commands load
@@ -12,6 +12,7 @@
 mod accuracy;
 mod bench;
 mod check;
+mod check_design;
 mod fit;
 mod format;
 mod info;
@@ -21,6 +22,7 @@ mod refine_study;
 mod report;
 mod run;
 mod scenes;
+mod sensitivity;
 mod summary;
 
 pub use crate::run::estimate::NOMINAL_SIMULATED_PER_CORE;
@@ -36,3 +38,4 @@ pub use refine_study::refine_study;
 pub use report::report;
 pub use run::{RunOptions, run};
 pub use scenes::{DEFAULT_SCENE, load_scene};
+pub use sensitivity::{SensitivityCommand, sensitivity};

@@ -15,6 +15,7 @@ use crate::laws::status::STATUS_OK;
 use crate::measurement::status;
 use crate::model::motion::Motion;
 use crate::model::{AXES, Instance};
+use crate::scene::free::{bare_message as message, pin_replicas as fixed_replicas, set_key as set};
 use crate::scene::{Layout, Scene, SceneError};
 
 /// Top-level scene tables a fit scene may not hold, and why.
@@ -367,45 +368,6 @@ fn row_model(
         step: std::array::from_fn(|a| outcome.step(inst, a)),
         se: outcome.se,
     })
-}
-
-/// A scene error's message without its location (a candidate's scene text
-/// is generated, so its lines mean nothing to the user).
-pub(super) fn message(e: &SceneError) -> String {
-    match e {
-        SceneError::Invalid { message, .. } => message.clone(),
-        other => other.to_string(),
-    }
-}
-
-/// `simulation.replicas = 1` in a steady scene unless the scene sets it
-/// (a window has no replicas): how many replicas
-/// `auto` runs depends on the idle workers, hence on the batch's size, and
-/// a fit evaluates one candidate in batches of many sizes; its differences
-/// must see the candidate, not the batch (ARCHITECTURE.md's determinism).
-fn fixed_replicas(table: &mut toml::Table) {
-    let simulation = table
-        .entry("simulation")
-        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-    if let Some(simulation) = simulation.as_table_mut() {
-        simulation
-            .entry("replicas")
-            .or_insert(toml::Value::Integer(1));
-    }
-}
-
-/// Sets a dotted key in a TOML table, making the tables on its way.
-fn set(table: &mut toml::Table, key: &str, value: f64) {
-    let mut parts: Vec<&str> = key.split('.').collect();
-    let last = parts.pop().expect("a key has a name");
-    let mut here = table;
-    for part in parts {
-        let entry = here
-            .entry(part)
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        here = entry.as_table_mut().expect("scene keys nest in tables");
-    }
-    here.insert(last.into(), toml::Value::Float(value));
 }
 
 impl Problem<'_> {

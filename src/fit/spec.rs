@@ -6,40 +6,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 
-/// Bounds whose ratio reaches this (both positive) are searched on a log
-/// scale: a stiffness known to a factor of 100 is as likely 1e4 as 1e5.
-pub const LOG_RATIO: f64 = 100.0;
-
-/// One free key of a fit.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Free {
-    /// The dotted scene key, e.g. "mechanism.static_friction".
-    pub key: String,
-    /// Its bounds, in the key's own units, `lo < hi`.
-    pub bounds: [f64; 2],
-    /// Searched on a log scale (see [`LOG_RATIO`]).
-    pub log: bool,
-    /// The key's units ("N", "N/V", ...).
-    pub units: &'static str,
-}
-
-impl Free {
-    /// The key's value at search coordinate `u` (its logarithm on a log
-    /// scale).
-    pub fn value(&self, u: f64) -> f64 {
-        if self.log { u.exp() } else { u }
-    }
-
-    /// The search coordinate of `value`.
-    pub fn coordinate(&self, value: f64) -> f64 {
-        if self.log { value.ln() } else { value }
-    }
-
-    /// The bounds in search coordinates.
-    pub fn coordinate_bounds(&self) -> [f64; 2] {
-        self.bounds.map(|b| self.coordinate(b))
-    }
-}
+pub use crate::scene::free::{Free, LOG_RATIO};
+use crate::scene::free::{blank_table, free_keys};
 
 /// Which standard errors a fit reports (`fit.errors`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -107,8 +75,8 @@ pub fn read(text: &str, path: &Path) -> Result<FitScene> {
         None => "",
     };
     let folder = path.parent().unwrap_or(Path::new("."));
-    let free = free_keys(fit.get("free"))?;
-    let base_text = blank_fit(text);
+    let free = free_keys(fit.get("free"), "fit")?;
+    let base_text = blank_table(text, "fit");
     let rest: toml::Table = toml::from_str(&base_text).context("the scene without [fit]")?;
     if rest.contains_key("fit") {
         bail!("write the fit as one [fit] table (with `free` inside it), not as dotted keys");
@@ -137,93 +105,6 @@ fn errors(value: Option<&toml::Value>) -> Result<Errors> {
         Some("scaled") => Ok(Errors::Scaled),
         _ => bail!("fit.errors = {value}: {expected}"),
     }
-}
-
-/// `fit.free`: each key with its bounds.
-fn free_keys(value: Option<&toml::Value>) -> Result<Vec<Free>> {
-    let table = value
-        .context("[fit] has no `free`: the keys to fit with their bounds, e.g. free = { \"mechanism.static_friction\" = [0.5, 3.0] }")?
-        .as_table()
-        .context("`fit.free` must be a table of keys and bounds")?;
-    if table.is_empty() {
-        bail!("`fit.free` is empty: name at least one key to fit");
-    }
-    let mut free = Vec::new();
-    for (key, bounds) in flatten(table, "") {
-        free.push(free_key(&key, bounds)?);
-    }
-    Ok(free)
-}
-
-/// The keys of a table as dotted paths: `free` may be written with quoted
-/// dotted keys or as nested tables.
-fn flatten<'a>(table: &'a toml::Table, prefix: &str) -> Vec<(String, &'a toml::Value)> {
-    let mut out = Vec::new();
-    for (key, value) in table {
-        let path = if prefix.is_empty() {
-            key.clone()
-        } else {
-            format!("{prefix}.{key}")
-        };
-        match value.as_table() {
-            Some(inner) => out.extend(flatten(inner, &path)),
-            None => out.push((path, value)),
-        }
-    }
-    out
-}
-
-/// One free key, checked: a real-valued instance key with ordered bounds.
-fn free_key(key: &str, bounds: &toml::Value) -> Result<Free> {
-    let units = crate::scene::instance_key(key)
-        .map_err(|why| anyhow::anyhow!("fit.free: `{key}` cannot be fitted: {why}"))?;
-    if key.starts_with("simulation.") {
-        bail!("fit.free: `{key}` is a setting of the measurement, not a parameter of the model");
-    }
-    let pair: Option<Vec<f64>> = bounds.as_array().and_then(|a| {
-        a.iter()
-            .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
-            .collect()
-    });
-    let [lo, hi] = pair.as_deref().unwrap_or(&[]) else {
-        bail!("fit.free.\"{key}\" = {bounds}: expected two bounds [lower, upper] in {units}");
-    };
-    let (lo, hi) = (*lo, *hi);
-    if !(lo.is_finite() && hi.is_finite()) || lo >= hi {
-        bail!(
-            "fit.free.\"{key}\" = [{lo}, {hi}]: expected finite bounds with lower < upper \
-             (in {units})"
-        );
-    }
-    Ok(Free {
-        key: key.to_owned(),
-        bounds: [lo, hi],
-        log: lo > 0.0 && hi / lo >= LOG_RATIO,
-        units,
-    })
-}
-
-/// `text` with every line of its `[fit]` table (and any `[fit.*]` table)
-/// turned blank, so that line numbers stay those of the file.
-fn blank_fit(text: &str) -> String {
-    let mut inside = false;
-    let mut out = String::with_capacity(text.len());
-    for line in text.split_inclusive('\n') {
-        let trimmed = line.trim_start();
-        if trimmed.starts_with('[') {
-            let header = trimmed.trim_start_matches('[').trim_start();
-            inside = !trimmed.starts_with("[[")
-                && (header.starts_with("fit]")
-                    || header.starts_with("fit.")
-                    || header.starts_with("fit ]"));
-        }
-        if inside {
-            out.push_str(if line.ends_with('\n') { "\n" } else { "" });
-        } else {
-            out.push_str(line);
-        }
-    }
-    out
 }
 
 #[cfg(test)]
@@ -279,7 +160,7 @@ mod tests {
         );
         check(
             &fit("\"mechanism.static_frictoin\" = [0.5, 3.0]"),
-            Err("`mechanism.static_frictoin` cannot be fitted"),
+            Err("`mechanism.static_frictoin` cannot be searched"),
         );
         check(&fit("\"simulation.cycles\" = [1, 3]"), Err("integer"));
         check(

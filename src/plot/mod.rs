@@ -69,6 +69,7 @@ mod read;
 mod read_trajectories;
 mod regime;
 pub use regime::{Regime, ZERO_STEP_M};
+mod sobol;
 mod staging;
 mod stall;
 mod text;
@@ -98,6 +99,7 @@ pub struct Plotted {
 }
 
 pub use fit::{FitPanel, FitSeries, fit_figure};
+pub use sobol::{IndexPanel, sensitivity_figure};
 
 /// Default output folder: `results/plots/<file stem>/`.
 pub fn default_out_dir(file: &Path) -> PathBuf {

@@ -446,6 +446,69 @@ pub fn instance_key(path: &str) -> Result<&'static str, &'static str> {
     Ok(field.units())
 }
 
+/// The values a real-valued instance key accepts (its rule and its
+/// plausible bounds, `crate::scene::rules`), for the design commands'
+/// bounds and distributions (`crate::design`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KeyRange {
+    /// The key's units ("N", "1", ...).
+    pub units: &'static str,
+    /// The smallest and largest plausible values.
+    pub low: f64,
+    pub high: f64,
+    /// Whether `low` itself is refused (a key that must be above 0 whose
+    /// plausible range starts at 0).
+    pub low_open: bool,
+}
+
+impl KeyRange {
+    /// Whether the key accepts `value`.
+    pub fn accepts(&self, value: f64) -> bool {
+        value.is_finite()
+            && value <= self.high
+            && (value > self.low || (value == self.low && !self.low_open))
+    }
+
+    /// What the key accepts, for error messages.
+    pub fn expected(&self) -> String {
+        let unit = if self.units == "1" {
+            String::new()
+        } else {
+            format!(" {}", self.units)
+        };
+        let open = if self.low_open { " (excluded)" } else { "" };
+        format!(
+            "a value from {}{open} to {}{unit}",
+            super::format::fmt_num(self.low),
+            super::format::fmt_num(self.high)
+        )
+    }
+}
+
+/// The range of an instance key ([`instance_key`]'s keys), or why it has
+/// none.
+pub fn instance_key_range(path: &str) -> Result<KeyRange, &'static str> {
+    let units = instance_key(path)?;
+    let name = path.rsplit('.').next().unwrap_or(path);
+    let field = MECHANISM_FIELDS
+        .iter()
+        .chain(AXIS_FIELDS.iter())
+        .chain(SIMULATION_FIELDS.iter())
+        .find(|f| f.name() == name)
+        .copied()
+        .ok_or("no numeric scene key of that name")?;
+    let bounds = field
+        .bounds()
+        .ok_or("it holds an integer (a count of periods)")?;
+    let rule = field.rule();
+    Ok(KeyRange {
+        units,
+        low: bounds.min,
+        high: bounds.max,
+        low_open: !rule.accepts(bounds.min),
+    })
+}
+
 /// What `mechanism.friction` takes: every law's name, the default first,
 /// each with the section of docs/model.md that defines it.
 pub(super) fn expected_law() -> String {
