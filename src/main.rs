@@ -99,6 +99,11 @@ enum Command {
     /// distributions of its keys ([sensitivity]): writes SENS.json and
     /// SENS.png beside it (docs/design.md).
     Sensitivity(commands::SensitivityCommand),
+    /// The best values of a scene's free keys ([optimize]) for an objective
+    /// under constraints, or the front between two objectives: writes
+    /// OPT.json, OPT.toml (the scene at the optimum) and OPT.png
+    /// (docs/design.md).
+    Optimize(commands::OptimizeCommand),
     /// Joins the shard files of one scene (`pidm run --shard K/N`) into one
     /// map file, the same as a single run's.
     Merge {
@@ -271,6 +276,7 @@ impl Command {
             }
             Command::Fit(fit) => fit.backend != backend::BackendChoice::Cpu,
             Command::Sensitivity(s) => s.backend != backend::BackendChoice::Cpu,
+            Command::Optimize(o) => o.backend != backend::BackendChoice::Cpu,
             Command::Info { .. } | Command::Bench { .. } => true,
             Command::Accuracy { gpu, .. } => *gpu,
             _ => false,
@@ -343,6 +349,7 @@ fn run(cli: Cli) -> Result<ExitCode> {
             }
         }
         Command::Sensitivity(s) => commands::sensitivity(&s)?,
+        Command::Optimize(o) => commands::optimize(&o)?,
         Command::Merge { out, shards } => commands::merge(&out, &shards)?,
         Command::Check { scene, json } => commands::check(&scene, json)?,
         Command::Plot {

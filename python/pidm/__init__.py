@@ -18,6 +18,9 @@ without one (:func:`find_binary`). The binary must be of the package's version::
 - :func:`fit`: calibrates a fit scene's free keys (its ``[fit]`` table) to measured
   steps and returns a :class:`FitResult` (values, standard errors, correlations,
   the fitted scene);
+- :func:`sensitivity`: Sobol' indices and the spread of a sensitivity scene's
+  quantities over distributions of its keys (its ``[sensitivity]`` table) as a
+  :class:`SensitivityResult` (pandas DataFrames of the indices and the spread);
 - :class:`SceneError` (a ValueError) for a scene pidm refuses, :class:`PidmError`
   for any other failure, both with pidm's message.
 
@@ -26,6 +29,7 @@ m/s, voltages in V, frequencies in Hz, times in s, phases in cycles.
 """
 
 from ._binary import BINARY_VARIABLE, find_binary
+from ._design import SensitivityResult, SensitivityWarning, sensitivity
 from ._errors import PidmError, SceneError
 from ._fit import FitResult, FitWarning, fit
 from ._read import open, open_trajectory, trajectory_names
@@ -40,6 +44,8 @@ __all__ = [
     "PidmError",
     "RunWarning",
     "SceneError",
+    "SensitivityResult",
+    "SensitivityWarning",
     "check",
     "find_binary",
     "fit",
@@ -47,6 +53,7 @@ __all__ = [
     "open_trajectory",
     "run",
     "scene_toml",
+    "sensitivity",
     "trajectory_names",
 ]
 

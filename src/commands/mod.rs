@@ -3,7 +3,7 @@
 //! tests can call it.
 //!
 //! One file per subcommand, as cargo's `commands/`: `run.rs`, `merge.rs`,
-//! `check.rs`, `fit.rs`, `sensitivity.rs`, `info.rs`, `report.rs`, `accuracy.rs`, `random_scene.rs`,
+//! `check.rs`, `fit.rs`, `sensitivity.rs`, `optimize.rs`, `info.rs`, `report.rs`, `accuracy.rs`, `random_scene.rs`,
 //! `bench.rs` and `refine_study.rs`. `summary.rs` is the one home of the
 //! run summary `pidm run` prints, `format.rs` of the numbers and words the
 //! commands write for people, and `scenes.rs` of how the commands load
@@ -17,6 +17,7 @@ mod fit;
 mod format;
 mod info;
 mod merge;
+mod optimize;
 mod random_scene;
 mod refine_study;
 mod report;
@@ -33,6 +34,7 @@ pub use fit::{FitCommand, fit};
 pub use format::{human_duration, instance_name, plural, um};
 pub use info::{info, registers, shader_info};
 pub use merge::merge;
+pub use optimize::{OptimizeCommand, optimize};
 pub use random_scene::{random_scene, random_scene_compact};
 pub use refine_study::refine_study;
 pub use report::report;

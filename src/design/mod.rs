@@ -11,5 +11,6 @@
 //! * `optimize/`: `[optimize]`, the search, OPT.json, OPT.toml, OPT.png.
 
 pub mod model;
+pub mod optimize;
 pub mod quantity;
 pub mod sensitivity;

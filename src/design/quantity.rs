@@ -57,7 +57,7 @@ impl Map {
     fn from_name(name: &str) -> Option<Map> {
         Map::ALL
             .iter()
-            .flat_map(|make| (0..AXES).map(move |a| make(a)))
+            .flat_map(|make| (0..AXES).map(make))
             .find(|m| m.name() == name)
     }
 
