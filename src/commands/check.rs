@@ -115,6 +115,9 @@ pub fn check(path: &Path, json: bool) -> Result<()> {
     if super::check_design::is_sensitivity(&text) {
         return super::check_design::check_sensitivity(path, json);
     }
+    if super::check_design::is_optimize(&text) {
+        return super::check_design::check_optimize(path, json);
+    }
     let scene = Scene::load(path)?;
     scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
     let report = check_report(&scene);

@@ -75,3 +75,65 @@ pub fn check_sensitivity(path: &Path, json: bool) -> Result<()> {
     println!("the scene at the inputs' medians:\n{}", middle.describe());
     Ok(())
 }
+
+/// Whether `text` is an optimize scene.
+pub fn is_optimize(text: &str) -> bool {
+    crate::design::optimize::spec::is_optimize_scene(text)
+}
+
+/// `pidm check` of an optimize scene: its objectives, free keys,
+/// constraints and budget.
+pub fn check_optimize(path: &Path, json: bool) -> Result<()> {
+    let (spec, model) = super::optimize::load(path)?;
+    let middle = model.scene(&spec.middle())?;
+    let report = check_report(&middle);
+    let estimate_s = report.sweep_s * spec.budget as f64;
+    let objectives: Vec<String> = spec
+        .objectives
+        .iter()
+        .map(|o| format!("{} {}", o.sense.name(), o.quantity.text()))
+        .collect();
+    let constraints: Vec<String> = spec.constraints.iter().map(|c| c.written.clone()).collect();
+    if json {
+        let free: Vec<_> = spec
+            .free
+            .iter()
+            .map(|f| serde_json::json!({"key": f.key, "bounds": f.bounds, "units": f.units, "scale": if f.log { "log" } else { "linear" }}))
+            .collect();
+        let value = serde_json::json!({
+            "optimize": true,
+            "objectives": objectives,
+            "front": spec.front(),
+            "free": free,
+            "subject_to": constraints,
+            "budget": spec.budget,
+            "estimate_s": estimate_s,
+        });
+        println!("{value:#}");
+        return Ok(());
+    }
+    let what = if spec.front() { "a front: " } else { "" };
+    println!("optimize scene: {what}{}", objectives.join(" and "));
+    for f in &spec.free {
+        let scale = if f.log { "log scale" } else { "linear" };
+        println!(
+            "  {} in [{}, {}] {} ({scale})",
+            f.key, f.bounds[0], f.bounds[1], f.units
+        );
+    }
+    for c in &constraints {
+        println!("  subject to {c}");
+    }
+    println!(
+        "a budget of {} runs, estimated at {} on {} CPU {}",
+        spec.budget,
+        human_duration(estimate_s),
+        report.cores,
+        plural(report.cores as u64, "core", "cores")
+    );
+    println!(
+        "the scene at the middle of the bounds:\n{}",
+        middle.describe()
+    );
+    Ok(())
+}

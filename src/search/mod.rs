@@ -5,6 +5,7 @@
 //! candidate is scored by a batch callback, a sample by its output.
 //!
 //! * `evolution.rs`: differential evolution, feasibility first.
+//! * `front.rs`: GDE3, a front between two costs, feasibility first.
 //! * `pattern.rs`: a compass search, the local stage for a noisy cost.
 //! * `sobol.rs`: Saltelli's sample and the Sobol' indices SALib reports.
 //! * `distributions.rs`: a key's value from a point of the unit cube, and
@@ -13,6 +14,7 @@
 
 pub mod distributions;
 pub mod evolution;
+pub mod front;
 pub mod pattern;
 pub mod rng;
 pub mod sobol;

@@ -38,7 +38,11 @@ fn sensitivity(dir: &Path, scene: &Path, seed: &str, out: &str) -> Value {
         ],
         dir,
     );
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
     assert!(out.with_extension("png").is_file());
     read_json(&out)
 }
@@ -67,7 +71,10 @@ fn sensitivity_finds_an_additive_model_and_an_ignored_key() {
         assert!((s1 - st).abs() <= 0.02, "input {i}: S1 {s1} ST {st}");
         assert!(s1 > 0.1, "input {i} matters: S1 {s1}");
     }
-    assert!(index("first", 2).abs() <= 0.02 && index("total", 2).abs() <= 0.02, "{out}");
+    assert!(
+        index("first", 2).abs() <= 0.02 && index("total", 2).abs() <= 0.02,
+        "{out}"
+    );
     assert_eq!(json["runs"], 4096 * 5);
     assert_eq!(json["rows_dropped"], 0);
 }
@@ -86,7 +93,10 @@ fn sensitivity_is_reproducible_by_its_seed() {
          \"mechanism.static_friction\" = { lognormal = { median = 1.2, factor = 1.05 } }\n",
     );
     let strip = |mut v: Value| {
-        v.as_object_mut().unwrap().remove("wall_time_s").expect("timed");
+        v.as_object_mut()
+            .unwrap()
+            .remove("wall_time_s")
+            .expect("timed");
         v
     };
     let a = strip(sensitivity(dir.path(), &path, "5", "a.json"));
@@ -103,9 +113,21 @@ fn sensitivity_refuses_bad_studies_before_any_work() {
     let dir = tempfile::tempdir().unwrap();
     let input = "\"axis.x.voltage\" = { uniform = [90, 110] }";
     let cases = [
-        ("samples = 1\noutputs = [\"step_x\"]", input, "from 2 to 1048576"),
-        ("samples = 1048577\noutputs = [\"step_x\"]", input, "from 2 to 1048576"),
-        ("samples = 8\noutputs = [\"step_z\"]", input, "`step_z` is no quantity"),
+        (
+            "samples = 1\noutputs = [\"step_x\"]",
+            input,
+            "from 2 to 1048576",
+        ),
+        (
+            "samples = 1048577\noutputs = [\"step_x\"]",
+            input,
+            "from 2 to 1048576",
+        ),
+        (
+            "samples = 8\noutputs = [\"step_z\"]",
+            input,
+            "`step_z` is no quantity",
+        ),
         (
             "samples = 8\noutputs = [\"backward_ratio_x\"]",
             input,
@@ -130,9 +152,15 @@ fn sensitivity_refuses_bad_studies_before_any_work() {
         );
         for cmd in ["check", "sensitivity"] {
             let out = dir.path().join(format!("bad{k}.json"));
-            let run = pidm(&[cmd, s(&path), "--out", s(&out)][..if cmd == "check" { 2 } else { 4 }], dir.path());
+            let run = pidm(
+                &[cmd, s(&path), "--out", s(&out)][..if cmd == "check" { 2 } else { 4 }],
+                dir.path(),
+            );
             let err = String::from_utf8_lossy(&run.stderr);
-            assert!(!run.status.success() && err.contains(part), "{cmd} case {k}: {err}");
+            assert!(
+                !run.status.success() && err.contains(part),
+                "{cmd} case {k}: {err}"
+            );
             assert!(!out.exists() && !out.with_extension("png").exists());
         }
     }
@@ -143,5 +171,275 @@ fn sensitivity_refuses_bad_studies_before_any_work() {
     );
     let run = pidm(&["check", s(&good)], dir.path());
     let text = String::from_utf8_lossy(&run.stdout);
-    assert!(text.contains("N = 10 base rows x (k + 2 = 3) = 30 runs"), "{text}");
+    assert!(
+        text.contains("N = 10 base rows x (k + 2 = 3) = 30 runs"),
+        "{text}"
+    );
+}
+
+/// Table 1's 1-DOF stage with its backward maps, x's voltage and
+/// frequency free: the step's velocity swings with the frequency (the
+/// fall's length against the stage's ringing), a rugged landscape.
+const FREE: &str = "free = { \"axis.x.voltage\" = [50, 150], \"axis.x.frequency\" = [5, 40] }";
+
+/// Every run of a 41 x 41 grid over [`FREE`]'s box, through the library:
+/// per point (velocity_x, its SE, backward_ratio_x, its SE, status).
+fn grid() -> Vec<[f64; 5]> {
+    use pidm::design::model::Model;
+    let base = "[axis.y]\nvoltage = 0\n[output]\nbackward = true\n";
+    let keys = vec!["axis.x.voltage".to_owned(), "axis.x.frequency".to_owned()];
+    let mut model = Model::new(base, "optimize", keys, &[100.0, 20.0]).unwrap();
+    let backend = pidm::backend::CpuBackend::new(None).unwrap();
+    model.on(&backend);
+    let points: Vec<Vec<f64>> = (0..41 * 41)
+        .map(|k| vec![50.0 + 2.5 * (k / 41) as f64, 5.0 + 0.875 * (k % 41) as f64])
+        .collect();
+    let runs = model.evaluate(&points, &|_| {}).unwrap();
+    runs.into_iter()
+        .map(|r| {
+            let r = r.unwrap();
+            let (rec, f) = (r.record, r.frequency[0]);
+            [
+                rec.velocity[0],
+                rec.step_se[0] * f,
+                rec.backward.ratio[0],
+                rec.backward.ratio_se[0],
+                f64::from(rec.status),
+            ]
+        })
+        .collect()
+}
+
+/// Runs `pidm optimize` on the CPU; OPT.json.
+fn optimize(dir: &Path, scene: &Path, seed: &str, out: &str) -> Value {
+    let out = dir.join(out);
+    let run = pidm(
+        &[
+            "optimize",
+            s(scene),
+            "--out",
+            s(&out),
+            "--backend",
+            "cpu",
+            "--seed",
+            seed,
+        ],
+        dir,
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(out.with_extension("png").is_file() && out.with_extension("toml").is_file());
+    read_json(&out)
+}
+
+/// The fastest x motion with a backward ratio of at most 0.8: the search
+/// finds the 41 x 41 grid's best feasible velocity within 2 SE or better
+/// in at most 420 runs, steady, and OPT.toml runs to the same value.
+#[test]
+fn optimize_finds_the_grids_best_feasible_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene(
+        dir.path(),
+        "fastest",
+        &format!(
+            "[output]\nbackward = true\n[optimize]\nmaximize = \"velocity_x\"\n{FREE}\n\
+             subject_to = [\"backward_ratio_x <= 0.8\"]\n"
+        ),
+    );
+    let json = optimize(dir.path(), &path, "1", "opt.json");
+    let best = grid()
+        .into_iter()
+        .filter(|g| g[2] <= 0.8 && g[4] == 0.0)
+        .max_by(|a, b| a[0].total_cmp(&b[0]))
+        .unwrap();
+    let optimum = &json["optimum"];
+    let value = optimum["objectives"][0]["value"].as_f64().unwrap();
+    let se = optimum["objectives"][0]["se"].as_f64().unwrap();
+    assert!(
+        value >= best[0] - 2.0 * se.hypot(best[1]),
+        "{value} against the grid's {best:?}"
+    );
+    assert!(json["runs"].as_u64().unwrap() <= 420, "{}", json["runs"]);
+    assert_eq!(optimum["status"], 0);
+    assert!(
+        json["status"].as_str().unwrap().starts_with("ok"),
+        "{}",
+        json["status"]
+    );
+    assert_eq!(optimum["constraints"][0]["kept"], true);
+    assert_eq!(
+        optimum["neighbourhood"]["probes"].as_array().unwrap().len(),
+        4
+    );
+    // OPT.toml is a scene whose run gives the optimum's velocity.
+    let h5 = dir.path().join("at.h5");
+    let run = pidm(
+        &[
+            "run",
+            s(&dir.path().join("opt.toml")),
+            "--out",
+            s(&h5),
+            "--backend",
+            "cpu",
+        ],
+        dir.path(),
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let file = hdf5::File::open(&h5).unwrap();
+    let v: f64 = file
+        .dataset("maps/velocity_x")
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap()[0];
+    assert_eq!(v, value);
+}
+
+/// The front of the x velocity (maximized) and the backward ratio
+/// (minimized) over the same box, against the grid's: no grid point
+/// dominates a front point by more than 2 SE on both objectives, and
+/// every point of the grid's own non-dominated set has a front point
+/// within 2 SE plus the resolution (the largest difference to its 8 grid
+/// neighbours) on both.
+#[test]
+fn optimize_finds_the_grids_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene(
+        dir.path(),
+        "front",
+        &format!(
+            "[output]\nbackward = true\n[optimize]\nmaximize = \"velocity_x\"\n\
+             minimize = \"backward_ratio_x\"\n{FREE}\n"
+        ),
+    );
+    let json = optimize(dir.path(), &path, "1", "pareto.json");
+    let front: Vec<[f64; 4]> = json["front"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| {
+            let o = |k: usize, f: &str| p["objectives"][k][f].as_f64().unwrap();
+            [o(0, "value"), o(0, "se"), o(1, "value"), o(1, "se")]
+        })
+        .collect();
+    assert!(front.len() >= 10, "{}", front.len());
+    let grid = grid();
+    for f in &front {
+        let beaten = grid.iter().find(|g| {
+            g[4] == 0.0
+                && g[0] > f[0] + 2.0 * f[1].hypot(g[1])
+                && g[2] < f[2] - 2.0 * f[3].hypot(g[3])
+        });
+        assert!(
+            beaten.is_none(),
+            "front point {f:?} dominated by {beaten:?}"
+        );
+    }
+    let at = |i: usize, j: usize| grid[i * 41 + j];
+    let mut own = 0;
+    for i in 0..41 {
+        for j in 0..41 {
+            let g = at(i, j);
+            let dominated = grid
+                .iter()
+                .any(|h| h[0] >= g[0] && h[2] <= g[2] && (h[0] > g[0] || h[2] < g[2]));
+            if dominated {
+                continue;
+            }
+            own += 1;
+            let mut resolution = [0.0f64; 2];
+            for (di, dj) in (-1i32..=1).flat_map(|a| (-1i32..=1).map(move |b| (a, b))) {
+                let (a, b) = (i as i32 + di, j as i32 + dj);
+                if (0..41).contains(&a) && (0..41).contains(&b) {
+                    let h = at(a as usize, b as usize);
+                    resolution[0] = resolution[0].max((h[0] - g[0]).abs());
+                    resolution[1] = resolution[1].max((h[2] - g[2]).abs());
+                }
+            }
+            let near = front.iter().any(|f| {
+                (f[0] - g[0]).abs() <= 2.0 * f[1].hypot(g[1]) + resolution[0]
+                    && (f[2] - g[2]).abs() <= 2.0 * f[3].hypot(g[3]) + resolution[1]
+            });
+            assert!(near, "grid point {g:?} ({i}, {j}) has no front point near");
+        }
+    }
+    assert!(own >= 5, "{own}");
+}
+
+/// The same seed gives the same OPT.json but its wall time.
+#[test]
+fn optimize_is_reproducible_by_its_seed() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene(
+        dir.path(),
+        "seeded",
+        &format!("[optimize]\nmaximize = \"abs(step_x)\"\n{FREE}\nbudget = 150\n"),
+    );
+    let strip = |mut v: Value| {
+        v.as_object_mut()
+            .unwrap()
+            .remove("wall_time_s")
+            .expect("timed");
+        v
+    };
+    let a = strip(optimize(dir.path(), &path, "4", "a.json"));
+    let b = strip(optimize(dir.path(), &path, "4", "b.json"));
+    assert_eq!(a, b);
+    assert!(a["runs"].as_u64().unwrap() <= 150);
+}
+
+/// Each bad search is refused before any run, naming what is wrong, and
+/// leaves no file.
+#[test]
+fn optimize_refuses_bad_searches_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let cases = [
+        (
+            format!("maximize = \"backward_x\"\n{FREE}"),
+            "only with `[output] backward = true`",
+        ),
+        (
+            format!("maximize = \"step_w\"\n{FREE}"),
+            "`step_w` is no quantity",
+        ),
+        (
+            "maximize = \"step_x\"\nfree = { \"axis.x.duty\" = [0.5, 1.5] }".to_owned(),
+            "outside the key's range",
+        ),
+        (
+            format!("maximize = \"step_x\"\n{FREE}\nsubject_to = [\"speed_x <= 1\"]"),
+            "`speed_x` is no quantity",
+        ),
+        (
+            format!("maximize = \"step_x\"\n{FREE}\nbudget = 3"),
+            "budget = 3",
+        ),
+        (
+            "maximize = \"step_x\"\nfree = { \"simulation.settle\" = [1, 3] }".to_owned(),
+            "cannot be searched",
+        ),
+    ];
+    for (k, (body, part)) in cases.iter().enumerate() {
+        let path = scene(
+            dir.path(),
+            &format!("bad{k}"),
+            &format!("[optimize]\n{body}\n"),
+        );
+        let out = dir.path().join(format!("out{k}.json"));
+        let run = pidm(&["optimize", s(&path), "--out", s(&out)], dir.path());
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !run.status.success() && err.contains(part),
+            "case {k}: {err}"
+        );
+        for ext in ["json", "toml", "png"] {
+            assert!(!out.with_extension(ext).exists(), "case {k}: {ext}");
+        }
+    }
 }

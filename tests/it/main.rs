@@ -10,6 +10,7 @@ mod backward;
 mod bench;
 mod cli;
 mod crosscheck;
+mod design;
 mod docs;
 mod extreme;
 mod files;

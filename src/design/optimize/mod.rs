@@ -10,7 +10,7 @@ pub mod spec;
 
 use anyhow::Result;
 
-use self::search::{Epsilon, PROBE, SCAN_POINTS, Search, objective_value};
+use self::search::{PROBE, SCAN_POINTS, Search};
 use self::spec::OptimizeScene;
 use crate::design::model::{Evaluation, Model};
 use crate::model::AXES;
@@ -44,23 +44,11 @@ pub fn optimize(search: &mut Search) -> Result<Found> {
     let p = spec.free.len();
     let probes = 2 * p;
     if spec.front() {
-        let share = (spec.budget - probes) / spec.front_points;
-        search.minimise(0, None, share)?;
-        search.minimise(1, None, share)?;
-        let level = |i: Option<usize>| {
-            i.map(|i| objective_value(&spec.objectives[1], &search.archive.runs[i]).value)
-        };
-        if let (Some(low), Some(high)) = (level(search.best(1, None)), level(search.best(0, None)))
-        {
-            for j in 1..spec.front_points - 1 {
-                let eps = low + (high - low) * j as f64 / (spec.front_points - 1) as f64;
-                search.minimise(0, Some(Epsilon { eps }), share)?;
-            }
-        }
+        search.front_search(spec.budget - probes)?;
     } else {
-        search.minimise(0, None, spec.budget - probes - SCAN_POINTS * p)?;
+        search.minimise(0, spec.budget - probes - SCAN_POINTS * p)?;
     }
-    let optimum = search.best(0, None);
+    let optimum = search.best(0);
     let mut found = Found {
         optimum,
         probes: Vec::new(),

@@ -29,16 +29,16 @@ pub const METHOD: &str = "differential evolution (current-to-best/1/bin, feasibi
      orthogonal directions from its best; the optimum is the best of every run";
 
 /// How a front is made, as OPT.json names it.
-pub const FRONT_METHOD: &str = "a series of epsilon-constraint problems (the first objective \
-     alone, the second alone, then the first with the second bounded at evenly spaced levels \
-     between them), each searched as one objective; the front is the non-dominated set of \
-     every steady, feasible run";
+pub const FRONT_METHOD: &str = "non-dominated sorting in the population: GDE3 (generalized \
+     differential evolution, Kukkonen and Lampinen 2005; rand/1/bin trials, constraint-domination \
+     by Deb's rules, NSGA-II's crowding distance); the front is the non-dominated set of every \
+     steady, feasible run";
 
 /// The search's verdict.
 pub fn status(search: &Search, found: &Found) -> &'static str {
     match found.optimum {
         None => "failed: no run finished",
-        Some(i) if search.fitness(0, None, &search.archive.runs[i]).violation > 0.0 => {
+        Some(i) if search.fitness(0, &search.archive.runs[i]).violation > 0.0 => {
             "infeasible: no run kept every constraint; the optimum is the least violation"
         }
         Some(_) if found.probes.iter().any(|p| !p.changes.is_empty()) => "ok, on a cliff",

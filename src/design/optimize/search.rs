@@ -7,26 +7,29 @@
 //! derivative of a noisy objective) with the rest but what the
 //! neighbourhood probe and OPT.png's scans need.
 //!
-//! Two objectives (a front): a series of ε-constraint problems. The first
-//! objective (the one maximized) alone, the second alone, then the first
-//! with the second bounded by each of `front_points - 2` levels evenly
-//! between the two extremes; each with an equal share of the budget. The
-//! front is the non-dominated set of every steady, feasible run made.
+//! Two objectives (a front): non-dominated sorting in the population,
+//! GDE3 (`crate::search::front`), over the budget but the neighbourhood
+//! probe. The front is the non-dominated set of every steady, feasible
+//! run made.
 //!
 //! Every run is kept ([`Archive`]); the optimum is the best of all of
 //! them, so no stage can lose what an earlier one found.
 
 use anyhow::Result;
 
-use super::spec::{Objective, OptimizeScene, Sense};
+use super::spec::{Objective, OptimizeScene};
 use crate::design::model::{Evaluation, Model};
 use crate::design::quantity::{Side, Value};
 use crate::laws::status::STATUS_OK;
 use crate::search::evolution::{DeOptions, Fitness, Progress, differential_evolution};
+use crate::search::front::{FrontOptions, Score, gde3};
 use crate::search::pattern::{PatternOptions, compass_search};
 
 /// Points along each free key through the optimum, for OPT.png.
 pub const SCAN_POINTS: usize = 11;
+
+/// The front members a round of [`Search::polish_front`] polls.
+pub const POLISHED: usize = 16;
 
 /// The neighbourhood probe's offset, a fraction of each key's range.
 pub const PROBE: f64 = 0.01;
@@ -39,13 +42,6 @@ pub struct Archive {
     /// After each batch: the runs so far and the best feasible first
     /// objective (NaN before there is one).
     pub progress: Vec<(usize, f64)>,
-}
-
-/// An ε-constraint on the second objective: it may be at most `eps`
-/// (minimized) or at least `eps` (maximized).
-#[derive(Clone, Copy, Debug)]
-pub struct Epsilon {
-    pub eps: f64,
 }
 
 /// The search over a model.
@@ -88,16 +84,15 @@ impl Search<'_, '_, '_> {
         let runs = self.model.evaluate(&values, self.done)?;
         self.archive.values.extend(values);
         self.archive.runs.extend(runs.iter().cloned());
-        let best = self.best(0, None).map_or(f64::NAN, |i| {
+        let best = self.best(0).map_or(f64::NAN, |i| {
             objective_value(&self.spec.objectives[0], &self.archive.runs[i]).value
         });
         self.archive.progress.push((self.model.runs, best));
         Ok(runs)
     }
 
-    /// The fitness of a run for objective `o`, under the constraints and
-    /// `eps` on the other objective.
-    pub fn fitness(&self, o: usize, eps: Option<Epsilon>, run: &Evaluation) -> Fitness {
+    /// The fitness of a run for objective `o` under the constraints.
+    pub fn fitness(&self, o: usize, run: &Evaluation) -> Fitness {
         let Ok(r) = run else {
             return Fitness::FAILED;
         };
@@ -111,15 +106,6 @@ impl Search<'_, '_, '_> {
             let slack = c.slack(&r.record, r.frequency);
             violation += (-slack.value).max(0.0) / scale(c, &r.record, r.frequency);
         }
-        if let Some(Epsilon { eps }) = eps {
-            let other = &self.spec.objectives[1 - o];
-            let v = other.quantity.value(&r.record, r.frequency).value;
-            let over = match other.sense {
-                Sense::Minimize => v - eps,
-                Sense::Maximize => eps - v,
-            };
-            violation += over.max(0.0) / eps.abs().max(f64::MIN_POSITIVE);
-        }
         Fitness {
             cost: objective.sense.cost(value),
             violation,
@@ -127,11 +113,11 @@ impl Search<'_, '_, '_> {
         .checked()
     }
 
-    /// The archive's best run for objective `o` (under `eps`), if any ran.
-    pub fn best(&self, o: usize, eps: Option<Epsilon>) -> Option<usize> {
+    /// The archive's best run for objective `o`, if any ran.
+    pub fn best(&self, o: usize) -> Option<usize> {
         let mut best: Option<(usize, Fitness)> = None;
         for (i, run) in self.archive.runs.iter().enumerate() {
-            let f = self.fitness(o, eps, run);
+            let f = self.fitness(o, run);
             if f.failed() {
                 continue;
             }
@@ -142,9 +128,9 @@ impl Search<'_, '_, '_> {
         best.map(|(i, _)| i)
     }
 
-    /// One single-objective search of `o` under `eps` with `budget` runs:
-    /// evolution, then the compass search from its best.
-    pub fn minimise(&mut self, o: usize, eps: Option<Epsilon>, budget: usize) -> Result<()> {
+    /// One single-objective search of `o` with `budget` runs: evolution,
+    /// then the compass search from its best.
+    pub fn minimise(&mut self, o: usize, budget: usize) -> Result<()> {
         let (lo, hi) = self.bounds();
         let p = lo.len();
         let mut de = DeOptions::for_dimension(p, self.seed);
@@ -153,7 +139,7 @@ impl Search<'_, '_, '_> {
         let start = self.model.runs;
         let mut eval = |us: &[Vec<f64>]| -> Result<Vec<Fitness>> {
             let runs = self.run(us)?;
-            Ok(runs.iter().map(|r| self.fitness(o, eps, r)).collect())
+            Ok(runs.iter().map(|r| self.fitness(o, r)).collect())
         };
         let found = differential_evolution(&mut eval, &lo, &hi, &de, &mut |_, _, _| {
             if crate::interrupt::interrupt_requested() {
@@ -173,18 +159,99 @@ impl Search<'_, '_, '_> {
             };
             let mut eval = |us: &[Vec<f64>]| -> Result<Vec<Fitness>> {
                 let runs = self.run(us)?;
-                Ok(runs.iter().map(|r| self.fitness(o, eps, r)).collect())
+                Ok(runs.iter().map(|r| self.fitness(o, r)).collect())
             };
             compass_search(&mut eval, &found.best, &lo, &hi, &opts)?;
         }
         Ok(())
     }
 
+    /// A front with `budget` runs: GDE3 over both objectives with half,
+    /// then [`Search::polish_front`] with the rest.
+    pub fn front_search(&mut self, budget: usize) -> Result<()> {
+        let (lo, hi) = self.bounds();
+        let start = self.model.runs;
+        let opts = FrontOptions::for_dimension(lo.len(), budget / 2, self.seed);
+        let mut eval = |us: &[Vec<f64>]| -> Result<Vec<Score>> {
+            let runs = self.run(us)?;
+            Ok(runs.iter().map(|r| self.score(r)).collect())
+        };
+        gde3(&mut eval, &lo, &hi, &opts)?;
+        let used = self.model.runs - start;
+        self.polish_front(budget.saturating_sub(used))
+    }
+
+    /// A compass search of the front: each round polls, along each key
+    /// both ways, the [`POLISHED`] front members with the largest steps
+    /// (a twentieth of each key's range at first, clamped to the bounds,
+    /// so a front on a bound is reached); a member none of whose polls
+    /// dominates it halves its step, a poll that dominates it takes the
+    /// step over. Ends when the budget or every step (below a thousandth)
+    /// is spent.
+    fn polish_front(&mut self, budget: usize) -> Result<()> {
+        let (lo, hi) = self.bounds();
+        let p = lo.len();
+        let start = self.model.runs;
+        let mut steps: std::collections::HashMap<usize, f64> = Default::default();
+        loop {
+            let mut members: Vec<(usize, f64)> = self
+                .front()
+                .into_iter()
+                .map(|i| (i, *steps.entry(i).or_insert(0.05)))
+                .filter(|&(_, s)| s >= 1e-3)
+                .collect();
+            members.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
+            members.truncate(POLISHED.min((budget + start - self.model.runs) / (2 * p)));
+            if members.is_empty() || crate::interrupt::interrupt_requested() {
+                return Ok(());
+            }
+            let mut polls = Vec::new();
+            for &(i, step) in &members {
+                let at: Vec<f64> = (0..p)
+                    .map(|j| self.spec.free[j].coordinate(self.archive.values[i][j]))
+                    .collect();
+                for j in 0..p {
+                    for sign in [-1.0, 1.0] {
+                        let mut u = at.clone();
+                        u[j] = (u[j] + sign * step * (hi[j] - lo[j])).clamp(lo[j], hi[j]);
+                        polls.push(u);
+                    }
+                }
+            }
+            let first = self.archive.runs.len();
+            self.run(&polls)?;
+            for (m, &(i, step)) in members.iter().enumerate() {
+                let centre = self.score(&self.archive.runs[i]);
+                let better: Vec<usize> = (first + 2 * p * m..first + 2 * p * (m + 1))
+                    .filter(|&k| self.score(&self.archive.runs[k]).dominates(&centre))
+                    .collect();
+                for &k in &better {
+                    steps.insert(k, step);
+                }
+                steps.insert(i, if better.is_empty() { 0.5 * step } else { step });
+            }
+        }
+    }
+
+    /// A run's costs on both objectives and its violation.
+    fn score(&self, run: &Evaluation) -> Score {
+        let first = self.fitness(0, run);
+        if first.failed() {
+            return Score::FAILED;
+        }
+        let second = &self.spec.objectives[1];
+        let v = objective_value(second, run).value;
+        Score {
+            costs: [first.cost, second.sense.cost(v)],
+            violation: first.violation,
+        }
+    }
+
     /// The non-dominated set of the steady, feasible runs on both
     /// objectives, ordered by the second; indices into the archive.
     pub fn front(&self) -> Vec<usize> {
         let feasible: Vec<(usize, [f64; 2])> = (0..self.archive.runs.len())
-            .filter(|&i| self.fitness(0, None, &self.archive.runs[i]).violation == 0.0)
+            .filter(|&i| self.fitness(0, &self.archive.runs[i]).violation == 0.0)
             .map(|i| {
                 let run = &self.archive.runs[i];
                 let cost = |o: usize| {

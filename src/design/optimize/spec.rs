@@ -16,14 +16,7 @@ use crate::design::quantity::{Constraint, Quantity};
 use crate::scene::free::{Free, blank_table, free_keys};
 
 /// The keys `[optimize]` takes.
-const KEYS: [&str; 6] = [
-    "maximize",
-    "minimize",
-    "free",
-    "subject_to",
-    "budget",
-    "front_points",
-];
+const KEYS: [&str; 5] = ["maximize", "minimize", "free", "subject_to", "budget"];
 
 /// Runs per free key when the scene gives no budget: 420 for two keys,
 /// the bound for a 41 x 41 grid's best.
@@ -33,8 +26,9 @@ pub const RUNS_PER_KEY: usize = 210;
 /// a few polls, the neighbourhood and the scans.
 pub const MIN_RUNS_PER_KEY: usize = 60;
 
-/// The ε-levels of a front when the scene gives none.
-pub const FRONT_POINTS: usize = 8;
+/// Runs per free key of a front when the scene gives no budget: a front
+/// is many optima.
+pub const FRONT_RUNS_PER_KEY: usize = 2000;
 
 /// Which way an objective goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -78,8 +72,6 @@ pub struct OptimizeScene {
     pub constraints: Vec<Constraint>,
     /// Every run the search may make, probes and scans included.
     pub budget: usize,
-    /// The ε-levels of a front.
-    pub front_points: usize,
 }
 
 impl OptimizeScene {
@@ -150,23 +142,23 @@ pub fn read(text: &str) -> Result<OptimizeScene> {
         }
     };
     let p = free.len();
+    let per_key = if objectives.len() == 2 {
+        FRONT_RUNS_PER_KEY
+    } else {
+        RUNS_PER_KEY
+    };
     let budget = count(
         section.get("budget"),
         "budget",
-        RUNS_PER_KEY * p,
+        per_key * p,
         MIN_RUNS_PER_KEY * p,
     )?;
-    let front_points = count(section.get("front_points"), "front_points", FRONT_POINTS, 2)?;
-    if section.contains_key("front_points") && objectives.len() == 1 {
-        bail!("optimize.front_points applies to a front only: give both `maximize` and `minimize`");
-    }
     Ok(OptimizeScene {
         base_text,
         free,
         objectives,
         constraints,
         budget,
-        front_points,
     })
 }
 
