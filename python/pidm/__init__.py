@@ -21,6 +21,10 @@ without one (:func:`find_binary`). The binary must be of the package's version::
 - :func:`sensitivity`: Sobol' indices and the spread of a sensitivity scene's
   quantities over distributions of its keys (its ``[sensitivity]`` table) as a
   :class:`SensitivityResult` (pandas DataFrames of the indices and the spread);
+- :func:`optimize`: the best values of an optimize scene's free keys (its
+  ``[optimize]`` table) for an objective under constraints, or the front between
+  two objectives, as an :class:`OptimizeResult` (the optimum's values, objective
+  and constraints, the front as a pandas DataFrame, the scene at the optimum);
 - :class:`SceneError` (a ValueError) for a scene pidm refuses, :class:`PidmError`
   for any other failure, both with pidm's message.
 
@@ -29,7 +33,14 @@ m/s, voltages in V, frequencies in Hz, times in s, phases in cycles.
 """
 
 from ._binary import BINARY_VARIABLE, find_binary
-from ._design import SensitivityResult, SensitivityWarning, sensitivity
+from ._design import (
+    OptimizeResult,
+    OptimizeWarning,
+    SensitivityResult,
+    SensitivityWarning,
+    optimize,
+    sensitivity,
+)
 from ._errors import PidmError, SceneError
 from ._fit import FitResult, FitWarning, fit
 from ._read import open, open_trajectory, trajectory_names
@@ -41,6 +52,8 @@ __all__ = [
     "BINARY_VARIABLE",
     "FitResult",
     "FitWarning",
+    "OptimizeResult",
+    "OptimizeWarning",
     "PidmError",
     "RunWarning",
     "SceneError",
@@ -51,6 +64,7 @@ __all__ = [
     "fit",
     "open",
     "open_trajectory",
+    "optimize",
     "run",
     "scene_toml",
     "sensitivity",

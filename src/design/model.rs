@@ -58,7 +58,7 @@ impl<'a> Model<'a> {
             && let Some(axis) = axes.first()
         {
             bail!(
-                "`{}` has {} values: a [{section}] scene gives every key one value (the \
+                "`{}` has {} values: a scene with [{section}] gives every key one value (the \
                  command chooses the candidates)",
                 axis.key,
                 axis.values.len()
@@ -67,14 +67,14 @@ impl<'a> Model<'a> {
         let base: toml::Table = toml::from_str(base_text)?;
         for (key, why) in REFUSED {
             if base.contains_key(key) {
-                bail!("a [{section}] scene takes no `{key}`: {why}");
+                bail!("a scene with [{section}] takes no `{key}`: {why}");
             }
         }
         let output = base.get("output").and_then(|o| o.as_table());
         if let Some(key) = output.and_then(|o| o.keys().find(|k| *k != "backward")) {
             bail!(
-                "a [{section}] scene takes `[output] backward` only, not `output.{key}`: it \
-                 writes its own files, not a map"
+                "a scene with [{section}] takes `[output] backward` only, not `output.{key}`: \
+                 the command writes its own files, not a map"
             );
         }
         let backward = output

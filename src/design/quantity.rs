@@ -306,7 +306,7 @@ pub struct Constraint {
 impl Constraint {
     /// Reads one entry of `subject_to`.
     pub fn parse(text: &str, backward: bool) -> Result<Constraint> {
-        let what = "subject_to";
+        let what = "optimize.subject_to";
         let (at, op) = ["<=", ">=", "<", ">"]
             .iter()
             .find_map(|op| text.find(op).map(|at| (at, *op)))

@@ -303,10 +303,14 @@ fn optimize_finds_the_grids_best_feasible_value() {
 
 /// The front of the x velocity (maximized) and the backward ratio
 /// (minimized) over the same box, against the grid's: no grid point
-/// dominates a front point by more than 2 SE on both objectives, and
-/// every point of the grid's own non-dominated set has a front point
-/// within 2 SE plus the resolution (the largest difference to its 8 grid
-/// neighbours) on both.
+/// dominates a front point by more than 2 SE, plus a thousandth of the
+/// objective's range over the grid, on both objectives; and every point
+/// of the grid's own non-dominated set has a front point within 2 SE plus
+/// the resolution (the largest difference to its 8 grid neighbours) on
+/// both. Every run here is periodic, so every SE is 0: the thousandth is
+/// what "2 SE" cannot give a deterministic map (the worst grid point
+/// beats a front point by 2e-7 m/s and 4e-5, a ten-thousandth of each
+/// range, where the rugged landscape has narrow ridges).
 #[test]
 fn optimize_finds_the_grids_front() {
     let dir = tempfile::tempdir().unwrap();
@@ -330,11 +334,20 @@ fn optimize_finds_the_grids_front() {
         .collect();
     assert!(front.len() >= 10, "{}", front.len());
     let grid = grid();
+    let range = |k: usize| {
+        let (lo, hi) = grid
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), g| {
+                (l.min(g[k]), h.max(g[k]))
+            });
+        1e-3 * (hi - lo)
+    };
+    let (floor_v, floor_r) = (range(0), range(2));
     for f in &front {
         let beaten = grid.iter().find(|g| {
             g[4] == 0.0
-                && g[0] > f[0] + 2.0 * f[1].hypot(g[1])
-                && g[2] < f[2] - 2.0 * f[3].hypot(g[3])
+                && g[0] > f[0] + 2.0 * f[1].hypot(g[1]) + floor_v
+                && g[2] < f[2] - 2.0 * f[3].hypot(g[3]) - floor_r
         });
         assert!(
             beaten.is_none(),

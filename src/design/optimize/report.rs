@@ -123,6 +123,7 @@ pub fn json(search: &Search, found: &Found, origin: &Origin) -> Json {
                 let mut q = point(search, pr.index);
                 q["moved"] = json!({"key": spec.free[pr.key].key, "direction": pr.direction});
                 q["changes"] = json!(pr.changes);
+                q["constraints"] = json!(constraints(search, &search.archive.runs[pr.index]));
                 q
             })
             .collect();
@@ -221,19 +222,46 @@ pub fn table(search: &Search, found: &Found) -> String {
     out
 }
 
+/// How OPT.png shows a quantity: lengths in um, velocities in um/s (the
+/// map's units, docs/output.md, in m and m/s, label ticks poorly).
+fn shown(q: &crate::design::quantity::Quantity) -> (f64, &'static str) {
+    match q.units() {
+        "m" => (1e6, "um"),
+        "m/s" => (1e6, "um/s"),
+        other => (1.0, other),
+    }
+}
+
+/// One panel of points with their SEs joined by a line.
+fn panel(
+    title: String,
+    x_label: String,
+    y_label: String,
+    points: Vec<(f64, f64, f64)>,
+) -> FitPanel {
+    FitPanel {
+        title,
+        x_label,
+        y_label,
+        series: vec![FitSeries {
+            label: "steady runs".into(),
+            curve: points.iter().map(|p| (p.0, p.1)).collect(),
+            points,
+        }],
+    }
+}
+
 /// OPT.png: the search's progress, then the front or the objective along
 /// each free key through the optimum.
 pub fn draw(search: &Search, found: &Found, origin: &Origin, path: &Path) -> Result<()> {
     let spec = search.spec;
     let first = &spec.objectives[0];
+    let (k1, u1) = shown(&first.quantity);
+    let label1 = format!("{} {} [{u1}]", first.sense.name(), first.quantity.text());
     let progress = FitPanel {
-        title: "search progress".into(),
+        title: "search progress: the best feasible run so far".into(),
         x_label: "runs".into(),
-        y_label: format!(
-            "best feasible {} [{}]",
-            first.quantity.text(),
-            first.quantity.units()
-        ),
+        y_label: label1.clone(),
         series: vec![FitSeries {
             label: "best so far".into(),
             points: Vec::new(),
@@ -242,65 +270,50 @@ pub fn draw(search: &Search, found: &Found, origin: &Origin, path: &Path) -> Res
                 .progress
                 .iter()
                 .filter(|p| p.1.is_finite())
-                .map(|&(n, b)| (n as f64, b))
+                .map(|&(n, b)| (n as f64, k1 * b))
                 .collect(),
         }],
     };
     let mut below = Vec::new();
     if spec.front() {
         let second = &spec.objectives[1];
-        let pts: Vec<(f64, f64, f64)> = found
+        let (k2, u2) = shown(&second.quantity);
+        let points = found
             .front
             .iter()
             .map(|&i| {
                 let run = &search.archive.runs[i];
                 let (a, b) = (objective_value(first, run), objective_value(second, run));
-                (b.value, a.value, a.se)
+                (k2 * b.value, k1 * a.value, k1 * a.se)
             })
             .collect();
-        below.push(FitPanel {
-            title: "front (non-dominated runs)".into(),
-            x_label: format!(
-                "{} {} [{}]",
-                second.sense.name(),
-                second.quantity.text(),
-                second.quantity.units()
-            ),
-            y_label: format!(
-                "{} {} [{}]",
-                first.sense.name(),
-                first.quantity.text(),
-                first.quantity.units()
-            ),
-            series: vec![FitSeries {
-                label: "front".into(),
-                curve: pts.iter().map(|p| (p.0, p.1)).collect(),
-                points: pts,
-            }],
-        });
+        let label2 = format!("{} {} [{u2}]", second.sense.name(), second.quantity.text());
+        below.push(panel(
+            "front (non-dominated runs)".into(),
+            label2,
+            label1,
+            points,
+        ));
     } else {
         for (j, scan) in found.scans.iter().enumerate() {
             let f = &spec.free[j];
-            let pts: Vec<(f64, f64, f64)> = scan
+            let points = scan
                 .iter()
                 .filter(
                     |&&i| matches!(&search.archive.runs[i], Ok(r) if r.record.status == STATUS_OK),
                 )
                 .map(|&i| {
                     let v = objective_value(first, &search.archive.runs[i]);
-                    (search.archive.values[i][j], v.value, v.se)
+                    (search.archive.values[i][j], k1 * v.value, k1 * v.se)
                 })
                 .collect();
-            below.push(FitPanel {
-                title: format!("through the optimum along {}", f.key),
-                x_label: format!("{} [{}]", f.key, f.units),
-                y_label: format!("{} [{}]", first.quantity.text(), first.quantity.units()),
-                series: vec![FitSeries {
-                    label: "steady runs".into(),
-                    curve: pts.iter().map(|p| (p.0, p.1)).collect(),
-                    points: pts,
-                }],
-            });
+            let title = format!("through the optimum along {}", f.key);
+            below.push(panel(
+                title,
+                format!("{} [{}]", f.key, f.units),
+                label1.clone(),
+                points,
+            ));
         }
     }
     let title = vec![

@@ -166,12 +166,16 @@ impl Search<'_, '_, '_> {
         Ok(())
     }
 
-    /// A front with `budget` runs: GDE3 over both objectives with half,
-    /// then [`Search::polish_front`] with the rest.
+    /// A front with `budget` runs: each objective alone first (a fifth of
+    /// the budget each, [`Search::minimise`]: the front's ends, which a
+    /// population spread along the front reaches last), then GDE3 over
+    /// both with 3/10, then [`Search::polish_front`] with the rest.
     pub fn front_search(&mut self, budget: usize) -> Result<()> {
-        let (lo, hi) = self.bounds();
         let start = self.model.runs;
-        let opts = FrontOptions::for_dimension(lo.len(), budget / 2, self.seed);
+        self.minimise(0, budget / 5)?;
+        self.minimise(1, budget / 5)?;
+        let (lo, hi) = self.bounds();
+        let opts = FrontOptions::for_dimension(lo.len(), budget * 3 / 10, self.seed);
         let mut eval = |us: &[Vec<f64>]| -> Result<Vec<Score>> {
             let runs = self.run(us)?;
             Ok(runs.iter().map(|r| self.score(r)).collect())
@@ -185,9 +189,10 @@ impl Search<'_, '_, '_> {
     /// both ways, the [`POLISHED`] front members with the largest steps
     /// (a twentieth of each key's range at first, clamped to the bounds,
     /// so a front on a bound is reached); a member none of whose polls
-    /// dominates it halves its step, a poll that dominates it takes the
-    /// step over. Ends when the budget or every step (below a thousandth)
-    /// is spent.
+    /// dominates it halves its step, and its polls take the step it ends
+    /// with (a poll that joins the front goes on from there, not from the
+    /// start). Ends when the budget or every step (below a thousandth) is
+    /// spent.
     fn polish_front(&mut self, budget: usize) -> Result<()> {
         let (lo, hi) = self.bounds();
         let p = lo.len();
@@ -222,13 +227,14 @@ impl Search<'_, '_, '_> {
             self.run(&polls)?;
             for (m, &(i, step)) in members.iter().enumerate() {
                 let centre = self.score(&self.archive.runs[i]);
-                let better: Vec<usize> = (first + 2 * p * m..first + 2 * p * (m + 1))
-                    .filter(|&k| self.score(&self.archive.runs[k]).dominates(&centre))
-                    .collect();
-                for &k in &better {
-                    steps.insert(k, step);
+                let polled = first + 2 * p * m..first + 2 * p * (m + 1);
+                let improved = polled
+                    .clone()
+                    .any(|k| self.score(&self.archive.runs[k]).dominates(&centre));
+                let next = if improved { step } else { 0.5 * step };
+                for k in polled.chain([i]) {
+                    steps.insert(k, next);
                 }
-                steps.insert(i, if better.is_empty() { 0.5 * step } else { step });
             }
         }
     }
@@ -248,7 +254,8 @@ impl Search<'_, '_, '_> {
     }
 
     /// The non-dominated set of the steady, feasible runs on both
-    /// objectives, ordered by the second; indices into the archive.
+    /// objectives, ordered by the second; indices into the archive. Runs
+    /// whose objectives agree to 1e-9 (relative) count once: the first.
     pub fn front(&self) -> Vec<usize> {
         let feasible: Vec<(usize, [f64; 2])> = (0..self.archive.runs.len())
             .filter(|&i| self.fitness(0, &self.archive.runs[i]).violation == 0.0)
@@ -266,7 +273,10 @@ impl Search<'_, '_, '_> {
         let mut front: Vec<(usize, [f64; 2])> = Vec::new();
         for &(i, c) in &feasible {
             let beaten = feasible.iter().any(|&(_, d)| dominated(c, d));
-            if !beaten && !front.iter().any(|&(_, d)| d == c) {
+            let same = |d: [f64; 2]| {
+                (0..2).all(|k| (c[k] - d[k]).abs() <= 1e-9 * c[k].abs().max(d[k].abs()))
+            };
+            if !beaten && !front.iter().any(|&(_, d)| same(d)) {
                 front.push((i, c));
             }
         }

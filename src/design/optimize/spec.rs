@@ -177,6 +177,15 @@ fn objectives(section: &toml::Table, backward: bool) -> Result<Vec<Objective>> {
             out.push(Objective { sense, quantity });
         }
     }
+    if let [a, b] = &out[..]
+        && a.quantity == b.quantity
+    {
+        bail!(
+            "optimize: maximize and minimize name the same quantity, {}: a front needs two \
+             quantities that trade against each other",
+            a.quantity.text()
+        );
+    }
     if out.is_empty() {
         bail!(
             "[optimize] has no objective: give `maximize = \"QUANTITY\"` or `minimize`, or both \
