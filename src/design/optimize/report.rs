@@ -259,7 +259,7 @@ pub fn draw(search: &Search, found: &Found, origin: &Origin, path: &Path) -> Res
     let (k1, u1) = shown(&first.quantity);
     let label1 = format!("{} {} [{u1}]", first.sense.name(), first.quantity.text());
     let progress = FitPanel {
-        title: "search progress: the best feasible run so far".into(),
+        title: "search progress: the best run so far (feasible first)".into(),
         x_label: "runs".into(),
         y_label: label1.clone(),
         series: vec![FitSeries {
