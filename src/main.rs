@@ -275,8 +275,8 @@ impl Command {
                 *backend != backend::BackendChoice::Cpu
             }
             Command::Fit(fit) => fit.backend != backend::BackendChoice::Cpu,
-            Command::Sensitivity(s) => s.backend != backend::BackendChoice::Cpu,
-            Command::Optimize(o) => o.backend != backend::BackendChoice::Cpu,
+            Command::Sensitivity(s) => s.args.backend != backend::BackendChoice::Cpu,
+            Command::Optimize(o) => o.args.backend != backend::BackendChoice::Cpu,
             Command::Info { .. } | Command::Bench { .. } => true,
             Command::Accuracy { gpu, .. } => *gpu,
             _ => false,

@@ -33,18 +33,12 @@ m/s, voltages in V, frequencies in Hz, times in s, phases in cycles.
 """
 
 from ._binary import BINARY_VARIABLE, find_binary
-from ._design import (
-    OptimizeResult,
-    OptimizeWarning,
-    SensitivityResult,
-    SensitivityWarning,
-    optimize,
-    sensitivity,
-)
 from ._errors import PidmError, SceneError
 from ._fit import FitResult, FitWarning, fit
+from ._optimize import OptimizeResult, OptimizeWarning, optimize
 from ._read import open, open_trajectory, trajectory_names
 from ._run import RunWarning, check, run
+from ._sensitivity import SensitivityResult, SensitivityWarning, sensitivity
 from ._toml import dumps as scene_toml
 from ._version import package_version
 

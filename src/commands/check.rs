@@ -105,18 +105,13 @@ pub fn check_report(scene: &Scene) -> CheckReport {
     }
 }
 
-/// `pidm check`: validates and describes a scene without running it, as
-/// text or (`json`) as one JSON object on stdout (see [`check_json`]).
-pub fn check(path: &Path, json: bool) -> Result<()> {
-    let text = crate::scene::read_text(path)?;
-    if crate::fit::spec::is_fit_scene(&text) {
+/// `pidm check` of a map or fit scene (`check_design::check` takes the
+/// design scenes and hands this the others): validates and describes it
+/// without running it, as text or (`json`) as one JSON object on stdout
+/// (see [`check_json`]).
+pub fn check_scene(path: &Path, text: &str, json: bool) -> Result<()> {
+    if crate::fit::spec::is_fit_scene(text) {
         return check_fit(path, json);
-    }
-    if super::check_design::is_sensitivity(&text) {
-        return super::check_design::check_sensitivity(path, json);
-    }
-    if super::check_design::is_optimize(&text) {
-        return super::check_design::check_optimize(path, json);
     }
     let scene = Scene::load(path)?;
     scene.check_memory(MAP_MEMORY_BUDGET_BYTES)?;
@@ -342,11 +337,7 @@ fn check_fit(path: &Path, json: bool) -> Result<()> {
     let candidates = crate::fit::solve::expected_candidates(spec.free.len());
     let estimate_s = report.sweep_s * candidates as f64;
     if json {
-        let free: Vec<_> = spec
-            .free
-            .iter()
-            .map(|f| serde_json::json!({"key": f.key, "bounds": f.bounds, "units": f.units, "scale": if f.log { "log" } else { "linear" }}))
-            .collect();
+        let free: Vec<_> = spec.free.iter().map(|f| f.describe()).collect();
         let value = serde_json::json!({
             "fit": true,
             "free": free,

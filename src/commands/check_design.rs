@@ -9,14 +9,23 @@ use super::check::check_report;
 use super::format::{human_duration, plural};
 use crate::design::model::Model;
 
-/// Whether `text` is a sensitivity scene.
-pub fn is_sensitivity(text: &str) -> bool {
-    crate::design::sensitivity::spec::is_sensitivity_scene(text)
+/// `pidm check`: validates and describes a scene without running it, as
+/// text or (`json`) as one JSON object on stdout; a design scene here, any
+/// other by `check::check_scene`.
+pub fn check(path: &Path, json: bool) -> Result<()> {
+    let text = crate::scene::read_text(path)?;
+    if crate::design::sensitivity::spec::is_sensitivity_scene(&text) {
+        check_sensitivity(path, json)
+    } else if crate::design::optimize::spec::is_optimize_scene(&text) {
+        check_optimize(path, json)
+    } else {
+        super::check::check_scene(path, &text, json)
+    }
 }
 
 /// `pidm check` of a sensitivity scene: its inputs, outputs and the
 /// N (k + 2) runs it costs.
-pub fn check_sensitivity(path: &Path, json: bool) -> Result<()> {
+fn check_sensitivity(path: &Path, json: bool) -> Result<()> {
     let (spec, outputs) = super::sensitivity::load(path)?;
     let keys: Vec<String> = spec.inputs.iter().map(|i| i.key.clone()).collect();
     let model = Model::new(&spec.base_text, "sensitivity", keys, &spec.middle())?;
@@ -76,14 +85,9 @@ pub fn check_sensitivity(path: &Path, json: bool) -> Result<()> {
     Ok(())
 }
 
-/// Whether `text` is an optimize scene.
-pub fn is_optimize(text: &str) -> bool {
-    crate::design::optimize::spec::is_optimize_scene(text)
-}
-
 /// `pidm check` of an optimize scene: its objectives, free keys,
 /// constraints and budget.
-pub fn check_optimize(path: &Path, json: bool) -> Result<()> {
+fn check_optimize(path: &Path, json: bool) -> Result<()> {
     let (spec, model) = super::optimize::load(path)?;
     let middle = model.scene(&spec.middle())?;
     let report = check_report(&middle);
@@ -95,11 +99,7 @@ pub fn check_optimize(path: &Path, json: bool) -> Result<()> {
         .collect();
     let constraints: Vec<String> = spec.constraints.iter().map(|c| c.written.clone()).collect();
     if json {
-        let free: Vec<_> = spec
-            .free
-            .iter()
-            .map(|f| serde_json::json!({"key": f.key, "bounds": f.bounds, "units": f.units, "scale": if f.log { "log" } else { "linear" }}))
-            .collect();
+        let free: Vec<_> = spec.free.iter().map(|f| f.describe()).collect();
         let value = serde_json::json!({
             "optimize": true,
             "objectives": objectives,

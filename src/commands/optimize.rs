@@ -6,13 +6,13 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 
-use crate::backend::{BackendChoice, Precision, select_backend};
+use super::design_args::{DesignArgs, create_parent, out_paths};
 use crate::design::model::Model;
 use crate::design::optimize::{self, report, spec};
 use crate::fit::report::write_whole;
-use crate::progress::{Progress, ProgressMode};
+use crate::progress::Progress;
 
 /// `pidm optimize`'s command line.
 #[derive(Clone, Debug, clap::Args)]
@@ -23,46 +23,8 @@ pub struct OptimizeCommand {
     /// results/<scene stem>.opt.json].
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Worker threads of the CPU path, from 1 to 4 per core (or 64)
-    /// [default: every core].
-    #[arg(long, value_parser = crate::backend::select::thread_count)]
-    pub threads: Option<usize>,
-    /// auto, gpu or cpu, as for `pidm run`; a search runs in f64 only.
-    #[arg(long, value_enum, default_value_t = BackendChoice::Auto)]
-    pub backend: BackendChoice,
-    /// Seed of the search: the same seed gives the same OPT.json (but its
-    /// wall_time_s).
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
-    /// How progress is shown on stderr: bar, jsonl (as `pidm run`'s, over
-    /// the budget's runs) or none [default: bar on a terminal, else none].
-    #[arg(long, value_enum)]
-    pub progress: Option<ProgressMode>,
-}
-
-/// OPT.json, OPT.toml and OPT.png for `out` (a .json), none the scene.
-fn outputs(out: &Path, scene: &Path) -> Result<[PathBuf; 3]> {
-    if out.extension().and_then(|e| e.to_str()) != Some("json") {
-        bail!(
-            "--out {}: expected a .json file (OPT.toml and OPT.png are written beside it)",
-            out.display()
-        );
-    }
-    let paths = [
-        out.to_owned(),
-        out.with_extension("toml"),
-        out.with_extension("png"),
-    ];
-    for path in &paths {
-        if crate::output::claim::is_same_file(path, scene) {
-            bail!(
-                "--out {}: {} would overwrite the scene file",
-                out.display(),
-                path.display()
-            );
-        }
-    }
-    Ok(paths)
+    #[command(flatten)]
+    pub args: DesignArgs,
 }
 
 /// An optimize scene read and checked: its spec and model (the middle of
@@ -80,21 +42,12 @@ pub fn load(path: &Path) -> Result<(spec::OptimizeScene, Model<'static>)> {
 pub fn optimize(cmd: &OptimizeCommand) -> Result<()> {
     crate::run::install_interrupt_handler();
     let started = Instant::now();
-    let out = cmd.out.clone().unwrap_or_else(|| {
-        let stem = cmd
-            .scene
-            .file_stem()
-            .map_or("optimize".into(), |s| s.to_string_lossy().into_owned());
-        PathBuf::from("results").join(format!("{stem}.opt.json"))
-    });
-    let [json_path, toml_path, png_path] = outputs(&out, &cmd.scene)?;
+    let paths = out_paths(cmd.out.as_deref(), &cmd.scene, "opt", &["toml", "png"])?;
+    let [json_path, toml_path, png_path] = [0, 1, 2].map(|k| paths[k].clone());
     let (spec, mut model) = load(&cmd.scene)?;
-    let selected = select_backend(
-        cmd.backend,
-        Some(Precision::F64),
-        cmd.threads,
-        &model.workload(&spec.middle(), spec.budget as u64)?,
-    )?;
+    let selected = cmd
+        .args
+        .select(&model.workload(&spec.middle(), spec.budget as u64)?)?;
     let backend = selected.backend();
     model.on(backend);
     let objectives: Vec<String> = spec
@@ -115,14 +68,11 @@ pub fn optimize(cmd: &OptimizeCommand) -> Result<()> {
         },
         spec.budget,
         backend.describe(),
-        cmd.seed
+        cmd.args.seed
     );
-    let mode = cmd
-        .progress
-        .unwrap_or_else(ProgressMode::default_for_stderr);
-    let progress = Progress::new(mode, 0, spec.budget as u64);
+    let progress = Progress::new(cmd.args.progress_mode(), 0, spec.budget as u64);
     let done = |n| progress.inc(n);
-    let mut search = optimize::new_search(&spec, &mut model, cmd.seed, &done);
+    let mut search = optimize::new_search(&spec, &mut model, cmd.args.seed, &done);
     let found = match optimize::optimize(&mut search) {
         Ok(found) => {
             progress.finish();
@@ -136,13 +86,10 @@ pub fn optimize(cmd: &OptimizeCommand) -> Result<()> {
     let origin = report::Origin {
         scene: &cmd.scene,
         backend: backend.describe(),
-        seed: cmd.seed,
+        seed: cmd.args.seed,
         wall_time_s: started.elapsed().as_secs_f64(),
     };
-    if let Some(parent) = json_path.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent)
-            .with_context(|| format!("cannot create {}", parent.display()))?;
-    }
+    create_parent(&json_path)?;
     let partial = png_path.with_extension("partial.png");
     report::draw(&search, &found, &origin, &partial)?;
     std::fs::rename(&partial, &png_path)

@@ -401,11 +401,11 @@ mod tests {
         match (got, expected) {
             (Ok(got), Ok(want)) => {
                 assert!(
-                    (got.0 - want.0).abs() <= 1e-15 * want.0.abs().max(1e-300),
+                    (got.0 - want.0).abs() <= 1e-12 * want.0.abs().max(1e-300),
                     "{text}"
                 );
                 assert!(
-                    (got.1 - want.1).abs() <= 1e-15 * want.1.abs().max(1e-300),
+                    (got.1 - want.1).abs() <= 1e-12 * want.1.abs().max(1e-300),
                     "{text}"
                 );
             }
@@ -419,8 +419,12 @@ mod tests {
         check("step_x", Ok((3e-7, 3e-9)));
         check("abs(step_y)", Ok((4e-7, 4e-9)));
         check("velocity_y", Ok((-4e-6, 4e-8)));
-        // h = 5e-7, se = sqrt((3e-7 3e-9)^2 + (4e-7 4e-9)^2) / 5e-7 = 5e-9.
-        check(" hypot( step_x , step_y ) ", Ok((5e-7, 5e-9)));
+        // h = 5e-7, se = sqrt((3e-7 3e-9)^2 + (4e-7 4e-9)^2) / 5e-7
+        // = sqrt(337) 2e-10.
+        check(
+            " hypot( step_x , step_y ) ",
+            Ok((5e-7, 337f64.sqrt() * 2e-10)),
+        );
         check("backward_ratio_x", Ok((0.02, 0.001)));
         check("step_z", Err("`step_z` is no quantity"));
         check("hypot(step_x, velocity_x)", Err("same units"));

@@ -170,13 +170,7 @@ impl<'a> Problem<'a> {
 
     /// The middle of the bounds (geometric on a log scale).
     pub fn middle(&self) -> Vec<f64> {
-        self.free
-            .iter()
-            .map(|f| {
-                let [lo, hi] = f.coordinate_bounds();
-                f.value(0.5 * (lo + hi))
-            })
-            .collect()
+        crate::scene::free::middle(&self.free)
     }
 
     /// Every row, alone, makes a valid instance at the middle of the bounds

@@ -34,10 +34,26 @@ impl Free {
         if self.log { value.ln() } else { value }
     }
 
+    /// The key as `pidm check --json` and the reports give it.
+    pub fn describe(&self) -> serde_json::Value {
+        let scale = if self.log { "log" } else { "linear" };
+        serde_json::json!({"key": self.key, "bounds": self.bounds, "units": self.units, "scale": scale})
+    }
+
     /// The bounds in search coordinates.
     pub fn coordinate_bounds(&self) -> [f64; 2] {
         self.bounds.map(|b| self.coordinate(b))
     }
+}
+
+/// The middle of each key's bounds (geometric on a log scale).
+pub fn middle(free: &[Free]) -> Vec<f64> {
+    free.iter()
+        .map(|f| {
+            let [lo, hi] = f.coordinate_bounds();
+            f.value(0.5 * (lo + hi))
+        })
+        .collect()
 }
 
 /// `SECTION.free`: each key with its bounds, in file order.

@@ -22,29 +22,45 @@ fn read_json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
-/// Runs `pidm sensitivity` on the CPU; SENS.json.
-fn sensitivity(dir: &Path, scene: &Path, seed: &str, out: &str) -> Value {
+/// Runs `pidm COMMAND` (sensitivity or optimize) on the CPU; its JSON,
+/// after checking the files beside it (`siblings`) were written.
+fn design(
+    dir: &Path,
+    command: &str,
+    scene: &Path,
+    seed: &str,
+    out: &str,
+    siblings: &[&str],
+) -> Value {
     let out = dir.join(out);
-    let run = pidm(
-        &[
-            "sensitivity",
-            s(scene),
-            "--out",
-            s(&out),
-            "--backend",
-            "cpu",
-            "--seed",
-            seed,
-        ],
-        dir,
-    );
+    let args = [
+        command,
+        s(scene),
+        "--out",
+        s(&out),
+        "--backend",
+        "cpu",
+        "--seed",
+        seed,
+    ];
+    let run = pidm(&args, dir);
     assert!(
         run.status.success(),
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
-    assert!(out.with_extension("png").is_file());
+    for ext in siblings {
+        assert!(out.with_extension(ext).is_file(), "{ext}");
+    }
     read_json(&out)
+}
+
+fn sensitivity(dir: &Path, scene: &Path, seed: &str, out: &str) -> Value {
+    design(dir, "sensitivity", scene, seed, out, &["png"])
+}
+
+fn optimize(dir: &Path, scene: &Path, seed: &str, out: &str) -> Value {
+    design(dir, "optimize", scene, seed, out, &["png", "toml"])
 }
 
 /// Two keys whose effect on the step is nearly additive (the voltage and
@@ -208,31 +224,6 @@ fn grid() -> Vec<[f64; 5]> {
             ]
         })
         .collect()
-}
-
-/// Runs `pidm optimize` on the CPU; OPT.json.
-fn optimize(dir: &Path, scene: &Path, seed: &str, out: &str) -> Value {
-    let out = dir.join(out);
-    let run = pidm(
-        &[
-            "optimize",
-            s(scene),
-            "--out",
-            s(&out),
-            "--backend",
-            "cpu",
-            "--seed",
-            seed,
-        ],
-        dir,
-    );
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    assert!(out.with_extension("png").is_file() && out.with_extension("toml").is_file());
-    read_json(&out)
 }
 
 /// The fastest x motion with a backward ratio of at most 0.8: the search

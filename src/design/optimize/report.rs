@@ -103,11 +103,7 @@ fn constraints(search: &Search, run: &Evaluation) -> Vec<Json> {
 /// OPT.json's content.
 pub fn json(search: &Search, found: &Found, origin: &Origin) -> Json {
     let spec = search.spec;
-    let free: Vec<Json> = spec
-        .free
-        .iter()
-        .map(|f| json!({"key": f.key, "bounds": f.bounds, "units": f.units, "scale": if f.log { "log" } else { "linear" }}))
-        .collect();
+    let free: Vec<Json> = spec.free.iter().map(|f| f.describe()).collect();
     let objectives: Vec<Json> = spec
         .objectives
         .iter()

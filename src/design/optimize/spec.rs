@@ -77,13 +77,7 @@ pub struct OptimizeScene {
 impl OptimizeScene {
     /// The middle of the bounds (geometric on a log scale).
     pub fn middle(&self) -> Vec<f64> {
-        self.free
-            .iter()
-            .map(|f| {
-                let [lo, hi] = f.coordinate_bounds();
-                f.value(0.5 * (lo + hi))
-            })
-            .collect()
+        crate::scene::free::middle(&self.free)
     }
 
     /// Whether the scene asks for a front.

@@ -174,7 +174,12 @@ fn inputs(value: Option<&toml::Value>) -> Result<Vec<Input>> {
         )?
         .as_table()
         .context("`sensitivity.inputs` must be a table of keys and distributions")?;
-    let leaf = |t: &toml::Table| t.keys().any(|k| DISTRIBUTIONS.contains(&k.as_str()));
+    // A distribution's table names one (or holds a value that is no table,
+    // `beta = [1, 3]`): a table of tables is a nesting of keys.
+    let leaf = |t: &toml::Table| {
+        t.iter()
+            .any(|(k, v)| DISTRIBUTIONS.contains(&k.as_str()) || !v.is_table())
+    };
     let inputs: Vec<Input> = flatten(table, "", &leaf)
         .into_iter()
         .map(|(key, value)| input(&key, value))
