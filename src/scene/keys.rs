@@ -193,6 +193,16 @@ pub(super) const FIT_SCENE: &str = "[fit] makes this a fit scene, which calibrat
      measured steps: run it with `pidm fit SCENE --out FIT.json` (`pidm run` maps a scene \
      without [fit])";
 
+/// Why `pidm run` refuses a scene with `[optimize]` (`crate::design`).
+pub(super) const OPTIMIZE_SCENE: &str = "[optimize] makes this an optimize scene, which searches \
+     its free keys: run it with `pidm optimize SCENE --out OPT.json` (docs/design.md; `pidm run` \
+     maps a scene without [optimize])";
+
+/// Why `pidm run` refuses a scene with `[sensitivity]` (`crate::design`).
+pub(super) const SENSITIVITY_SCENE: &str = "[sensitivity] makes this a sensitivity scene, which \
+     samples its inputs: run it with `pidm sensitivity SCENE --out SENS.json` (docs/design.md; \
+     `pidm run` maps a scene without [sensitivity])";
+
 /// The waveforms an axis may name (`model::Shape::name`), the default
 /// first, each with the keys that shape it.
 pub(super) const WAVEFORMS: [(&str, &str); 3] = [

@@ -13,9 +13,9 @@ use super::error::{Location, SceneError};
 use super::format::{fmt_num, fmt_short};
 use super::keys::{
     DAMPING, FIT_SCENE, FRICTION_KEY, Field, Law, MAX_REPLICAS, MEASURE_KEY, MECHANISM_FIELDS,
-    Mode, OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, REPLICAS_KEY, RESONANCE,
-    ROOT_KEYS, SAME_AS_KEY, SIMULATION_FIELDS, SIMULATION_KEYS, SIMULATION_SLOTS, STAGE_MASS,
-    STIFFNESS, axis_slot, expected_law, slot_field, slot_path,
+    Mode, OPTIMIZE_SCENE, OUTPUT_KEYS, PHASE, PHASE_UNITS_KEY, POINT_KEYS, QUALITY, REPLICAS_KEY,
+    RESONANCE, ROOT_KEYS, SAME_AS_KEY, SENSITIVITY_SCENE, SIMULATION_FIELDS, SIMULATION_KEYS,
+    SIMULATION_SLOTS, STAGE_MASS, STIFFNESS, axis_slot, expected_law, slot_field, slot_path,
 };
 use super::layer::{Layer, PointSpec, Tie};
 use super::name::check_name;
@@ -240,6 +240,8 @@ impl Parser<'_> {
                 "stall" => parsed.stall = Some(self.stall(value)?),
                 "random" => parsed.random = Some(self.random(value)?),
                 "fit" => return Err(self.invalid(key.span(), FIT_SCENE)),
+                "optimize" => return Err(self.invalid(key.span(), OPTIMIZE_SCENE)),
+                "sensitivity" => return Err(self.invalid(key.span(), SENSITIVITY_SCENE)),
                 _ => return Err(self.unknown_key(key, "", &ROOT_KEYS)),
             }
         }
