@@ -72,7 +72,8 @@ struct JsonLines {
 }
 
 impl JsonLines {
-    fn line(&self, done: u64) -> String {
+    /// The line of `done` of `total` instances.
+    fn line_of(&self, done: u64, total: u64) -> String {
         let elapsed = self.started.elapsed().as_secs_f64();
         let new = done.saturating_sub(self.before);
         let rate = if elapsed > 0.0 {
@@ -80,16 +81,16 @@ impl JsonLines {
         } else {
             0.0
         };
-        let eta = if done >= self.total {
+        let eta = if done >= total {
             Some(0.0)
         } else if new > 0 && rate > 0.0 {
-            Some((self.total - done) as f64 / rate)
+            Some((total - done) as f64 / rate)
         } else {
             None
         };
         serde_json::json!({
             "done": done,
-            "total": self.total,
+            "total": total,
             "elapsed_s": elapsed,
             "eta_s": eta,
             "instances_per_s": rate,
@@ -99,6 +100,11 @@ impl JsonLines {
 
     /// Writes a line now (`force`) or when the interval has passed.
     fn emit(&self, done: u64, force: bool) {
+        self.emit_of(done, self.total, force);
+    }
+
+    /// [`JsonLines::emit`] of `done` of `total`.
+    fn emit_of(&self, done: u64, total: u64, force: bool) {
         let Ok(mut last) = self.last.lock() else {
             return;
         };
@@ -107,7 +113,7 @@ impl JsonLines {
             return;
         }
         *last = now;
-        let line = self.line(done);
+        let line = self.line_of(done, total);
         // A closed stderr must not end the run: the lines are advisory.
         let _ = writeln!(std::io::stderr().lock(), "{line}");
     }
@@ -157,6 +163,17 @@ impl Progress {
         match &self.kind {
             Kind::Bar(bar) => bar.finish_and_clear(),
             Kind::Json(lines) => lines.emit(lines.total, true),
+            Kind::Off => {}
+        }
+    }
+
+    /// A search that may end before its budget finished after `done`
+    /// instances: the bar is cleared, and the last JSON line says `done` of
+    /// `done` (the budget was a bound, not a count).
+    pub fn finish_at(&self, done: u64) {
+        match &self.kind {
+            Kind::Bar(bar) => bar.finish_and_clear(),
+            Kind::Json(lines) => lines.emit_of(done, done, true),
             Kind::Off => {}
         }
     }
@@ -219,19 +236,19 @@ mod tests {
     #[test]
     fn a_json_line_has_the_documented_fields() {
         let l = lines(10, 4);
-        let start: serde_json::Value = serde_json::from_str(&l.line(4)).unwrap();
+        let start: serde_json::Value = serde_json::from_str(&l.line_of(4, l.total)).unwrap();
         assert_eq!(start["done"], 4);
         assert_eq!(start["total"], 10);
         // No instance of this run finished yet: no estimate.
         assert!(start["eta_s"].is_null(), "{start}");
         assert!(start["elapsed_s"].as_f64().unwrap() >= 0.0);
         std::thread::sleep(std::time::Duration::from_millis(5));
-        let later: serde_json::Value = serde_json::from_str(&l.line(7)).unwrap();
+        let later: serde_json::Value = serde_json::from_str(&l.line_of(7, l.total)).unwrap();
         let rate = later["instances_per_s"].as_f64().unwrap();
         assert!(rate > 0.0, "{later}");
         let eta = later["eta_s"].as_f64().unwrap();
         assert!((eta - 3.0 / rate).abs() < 1e-9 * eta.max(1.0), "{later}");
-        let end: serde_json::Value = serde_json::from_str(&l.line(10)).unwrap();
+        let end: serde_json::Value = serde_json::from_str(&l.line_of(10, l.total)).unwrap();
         assert_eq!(end["eta_s"], 0.0);
     }
 }

@@ -75,7 +75,7 @@ pub fn optimize(cmd: &OptimizeCommand) -> Result<()> {
     let mut search = optimize::new_search(&spec, &mut model, cmd.args.seed, &done);
     let found = match optimize::optimize(&mut search) {
         Ok(found) => {
-            progress.finish();
+            progress.finish_at(search.model.runs as u64);
             found
         }
         Err(e) => {
