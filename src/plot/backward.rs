@@ -1,15 +1,18 @@
-//! The backward-ratio maps of a scene with `[output] backward = true`
+//! The backward-ratio pictures of a scene with `[output] backward = true`
 //! (docs/model.md section 4, "Backward travel"): a heatmap per axis and
 //! slice of a grid with two or more axes, `backward_ratio_x.png` beside
-//! `step_x.png`. A ratio is drawn where the status keeps values (0, and
-//! 6 with its estimate); failed instances are grey, never a number.
+//! `step_x.png`, and for a grid of one axis a line per moving axis,
+//! `backward_ratio.png` beside `steps.png`. A ratio is drawn where the
+//! status keeps values (0, and 6 with its estimate); failed instances are
+//! grey, never a number.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 
-use super::colour::{Diverging, FAILED};
+use super::colour::{Diverging, FAILED, axis_colour};
 use super::heatmap::{MapLegend, heatmap};
+use super::lines::{LineChart, Series};
 use super::maps::{Plane, plane_slices};
 use super::read::{AxisData, Data};
 use crate::measurement::keeps_values;
@@ -25,17 +28,9 @@ pub(super) fn backward_maps(
     files: &mut Vec<PathBuf>,
     notes: &mut Vec<String>,
 ) -> Result<()> {
-    let Some(ratio) = &data.backward_ratio else {
+    let Some((ratio, drawn)) = drawn(data, notes) else {
         return Ok(());
     };
-    // An axis whose slider never travels back (undriven) has no picture.
-    let drawn: Vec<usize> = (0..2)
-        .filter(|&a| ratio[a].iter().any(|&r| r != 0.0))
-        .collect();
-    for a in (0..2).filter(|a| !drawn.contains(a)) {
-        let a = AXIS_NAMES[a];
-        notes.push(format!("backward_ratio_{a} is 0 everywhere; not drawn"));
-    }
     let (across, up) = (&axes[plane.across], &axes[plane.up]);
     for slice in plane_slices(data, axes, plane) {
         for &axis in &drawn {
@@ -91,5 +86,82 @@ pub(super) fn backward_maps(
             files.push(path);
         }
     }
+    Ok(())
+}
+
+/// The file's ratios and the axes drawn: an axis whose slider never
+/// travels back (undriven) has no picture, and a note says so; `None`
+/// where the file has no backward maps.
+fn drawn<'d>(data: &'d Data, notes: &mut Vec<String>) -> Option<(&'d [Vec<f64>; 2], Vec<usize>)> {
+    let ratio = data.backward_ratio.as_ref()?;
+    let drawn: Vec<usize> = (0..2)
+        .filter(|&a| ratio[a].iter().any(|&r| r != 0.0))
+        .collect();
+    for a in (0..2).filter(|a| !drawn.contains(a)) {
+        let a = AXIS_NAMES[a];
+        notes.push(format!("backward_ratio_{a} is 0 everywhere; not drawn"));
+    }
+    Some((ratio, drawn))
+}
+
+/// Draws the backward ratio of a grid of one axis, `backward_ratio.png`:
+/// a line per moving axis against the grid's axis, with a line at 0.5 (as
+/// far back as the step); failed instances are marked on it in grey.
+/// Nothing where the file has no backward maps or no axis moves.
+pub(super) fn backward_lines(
+    data: &Data,
+    axis: &AxisData,
+    dir: &Path,
+    files: &mut Vec<PathBuf>,
+    notes: &mut Vec<String>,
+) -> Result<()> {
+    let Some((ratio, drawn)) = drawn(data, notes) else {
+        return Ok(());
+    };
+    if drawn.is_empty() {
+        return Ok(());
+    }
+    let n = axis.values.len();
+    let kept = |k: &usize| keeps_values(data.status[*k]);
+    let failed: Vec<usize> = (0..n).filter(|k| !kept(k)).collect();
+    let series = drawn
+        .iter()
+        .map(|&a| Series {
+            name: format!("backward ratio along {}", AXIS_NAMES[a]),
+            colour: axis_colour(a),
+            dashed: false,
+            points: (0..n)
+                .filter(kept)
+                .map(|k| (axis.values[k], ratio[a][k]))
+                .collect(),
+        })
+        .collect();
+    let chart = LineChart {
+        title: vec![
+            format!(
+                "{}: backward ratio backward / (|step| + backward) against {}",
+                data.name, axis.key
+            ),
+            "the slider's travel against its step, as a share of its path: 0 no travel back, \
+             0.5 as far back as the step (the line), 1 no net step"
+                .to_owned(),
+        ],
+        axis,
+        y_title: "backward ratio [1]",
+        reference: 0.5,
+        series,
+        markers: failed
+            .iter()
+            .map(|&k| (axis.values[k], 0.5, FAILED))
+            .collect(),
+        extra_legend: if failed.is_empty() {
+            Vec::new()
+        } else {
+            vec![(FAILED, format!("failed (status ≠ 0, 6): {}", failed.len()))]
+        },
+    };
+    let path = dir.join("backward_ratio.png");
+    chart.draw(&path)?;
+    files.push(path);
     Ok(())
 }

@@ -23,9 +23,9 @@
 //!   a LuGre map whose long axis is a bristle key, each line's instance
 //!   under Karnopp's friction as a dashed reference line (integrated on
 //!   the CPU when the picture is drawn: docs/model.md section 8's limit);
-//! - a grid of two or more axes with `[output] backward`: also a map of
-//!   each axis' backward ratio (`backward`); other layouts show it in the
-//!   file only;
+//! - a scene with `[output] backward`: also each moving axis' backward
+//!   ratio (`backward`), a map per slice of a grid of two or more axes, a
+//!   line for a grid of one axis; a points scene shows it in the file only;
 //! - a scene with `[stall]`: the stall-load map (`stall`), a heatmap per
 //!   slice, a line for a 1-D grid or a dot per point;
 //! - every stored trajectory: stage and slider displacement against time
@@ -176,7 +176,10 @@ fn draw(
         Kind::Grid(axes) if axes.is_empty() => {
             bars::point_bars(data, &["the single instance".to_owned()], dir, files)?
         }
-        Kind::Grid(axes) if axes.len() == 1 => lines::grid_lines(data, &axes[0], dir, files)?,
+        Kind::Grid(axes) if axes.len() == 1 => {
+            lines::grid_lines(data, &axes[0], dir, files)?;
+            backward::backward_lines(data, &axes[0], dir, files, notes)?;
+        }
         Kind::Grid(axes) => {
             let default;
             let plane = match plane {

@@ -224,8 +224,9 @@ fn backward_maps_are_written_merged_and_refused() {
 }
 
 /// `pidm plot` draws each moving axis' backward ratio beside the step maps
-/// of a 2-D grid, notes the axis that never travels back, and refuses a
-/// ratio outside [0, 1] naming the dataset, drawing nothing.
+/// of a 2-D grid (and as a line along a 1-D one), notes the axis that
+/// never travels back, and refuses a ratio outside [0, 1] naming the
+/// dataset, drawing nothing.
 #[test]
 fn pidm_plot_maps_the_backward_ratio() {
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -252,6 +253,30 @@ fn pidm_plot_maps_the_backward_ratio() {
         png.len()
     );
     assert!(!d.join("plots/backward_ratio_y.png").exists());
+
+    std::fs::write(
+        d.join("line.toml"),
+        "name = \"line\"\n[axis.x]\nduty = [0.9, 0.95, 0.98]\n[axis.y]\nvoltage = 0\n\
+         [output]\nbackward = true\n",
+    )
+    .expect("written");
+    assert!(
+        run(&["run", "line.toml", "--out", "line.h5"])
+            .status
+            .success()
+    );
+    let plotted = run(&["plot", "line.h5", "--out", "line"]);
+    let said = String::from_utf8_lossy(&plotted.stdout);
+    assert!(
+        plotted.status.success() && said.contains("line/backward_ratio.png"),
+        "{said}"
+    );
+    let png = std::fs::read(d.join("line/backward_ratio.png")).expect("drawn");
+    assert!(
+        png.starts_with(b"\x89PNG") && png.len() > 10_000,
+        "{} bytes",
+        png.len()
+    );
 
     std::fs::copy(d.join("bw.h5"), d.join("bad.h5")).expect("copied");
     let file = hdf5::File::open_rw(d.join("bad.h5")).expect("opened");
