@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import xarray as xr
 
 from ._binary import find_binary
 from ._design import _failure
@@ -132,6 +133,21 @@ class OptimizeResult:
     def quantities(self) -> list[str]:
         """The objectives' quantities, as the scene wrote them."""
         return [str(entry["quantity"]) for entry in self.json["objectives"]]
+
+    def to_xarray(self) -> xr.Dataset | None:
+        """The front as labelled arrays over ``point`` (ordered by the second
+        objective): each free key's value and each objective's value and SE, with
+        their ``units`` attributes; None for one objective."""
+        if self.front is None:
+            return None
+        ds = xr.Dataset.from_dataframe(self.front.reset_index(drop=True).rename_axis("point"))
+        for name in ds.data_vars:
+            base = str(name).removesuffix("_se")
+            if base in self.units:
+                ds[name].attrs["units"] = self.units[base]
+        return ds.assign_attrs(
+            scene=str(self.json.get("scene", "")), seed=int(self.json.get("seed", 0))
+        )
 
     def table(self) -> str:
         """The status, the optimum's values, objectives and constraints' slacks,

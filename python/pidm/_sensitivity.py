@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import xarray as xr
 
 from ._binary import find_binary
 from ._design import _failure
@@ -105,6 +106,22 @@ class SensitivityResult:
         """The outputs, as the scene wrote them (``step_x``, ``hypot(step_x,
         step_y)``, ...), in SENS.json's order."""
         return [str(entry["quantity"]) for entry in self.json["outputs"]]
+
+    def to_xarray(self) -> xr.Dataset:
+        """The indices and the spread as labelled arrays: ``S1``, ``S1_conf``, ``ST``
+        and ``ST_conf`` (dimensionless) over ``("quantity", "key")`` and ``mean``,
+        ``sd``, ``q5``, ``q50``, ``q95`` (each quantity in its own units, the
+        ``quantity_units`` coordinate) and ``noise`` (dimensionless) over
+        ``quantity``, in SENS.json's order; ``key_units`` gives each input's
+        units."""
+        ds = xr.merge([self.indices.to_xarray(), self.spread.to_xarray()])
+        ds = ds.reindex(quantity=self.quantities, key=self.keys)
+        for name in (*_INDEX_COLUMNS, "noise"):
+            ds[name].attrs["units"] = "1"
+        return ds.assign_coords(
+            quantity_units=("quantity", [self.units.get(q, "") for q in self.quantities]),
+            key_units=("key", [self.units.get(k, "") for k in self.keys]),
+        ).assign_attrs(scene=str(self.json.get("scene", "")), seed=int(self.json.get("seed", 0)))
 
     def table(self) -> str:
         """Per output its units, spread and each input's S1 and ST with their 95 %

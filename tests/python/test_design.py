@@ -137,6 +137,12 @@ def test_the_indices_are_salibs_on_the_same_runs(tmp_path: Path) -> None:
     assert list(result.indices.columns) == ["S1", "S1_conf", "ST", "ST_conf"]
     assert result.indices.index.names == ["quantity", "key"]
     assert result.indices.index.get_level_values("key").tolist() == KEYS
+    # The same as labelled arrays, in the inputs' order, with units.
+    ds = result.to_xarray()
+    assert ds["key"].values.tolist() == KEYS and ds["quantity_units"].values.tolist() == ["m"]
+    assert ds["ST"].sel(quantity="step_x").values.tolist() == ours["total"]
+    assert ds["S1"].attrs["units"] == "1"
+    assert float(ds["mean"].sel(quantity="step_x")) == result.spread.loc["step_x", "mean"]
 
     # The spread is over the A and B rows: 2 N independent units.
     units = frame[frame["matrix"].isin(["A", "B"])]["step_x"].to_numpy()
@@ -370,6 +376,11 @@ def test_a_front_is_its_non_dominated_points(tmp_path: Path) -> None:
     assert result.objective[0] == front["velocity_x"].max()
     assert result.json_path is None and result.toml_path is None and result.png_path is None
     assert result.scene_text is not None and "[optimize]" not in result.scene_text
+    # The front as labelled arrays over `point`, with units.
+    ds = result.to_xarray()
+    assert ds.sizes == {"point": len(front)}
+    assert (ds["velocity_x"].values == front["velocity_x"].to_numpy()).all()
+    assert ds["velocity_x"].attrs["units"] == "m/s" and ds["axis.x.voltage"].attrs["units"] == "V"
     assert "front: " in str(result)
 
 
