@@ -447,3 +447,67 @@ fn optimize_refuses_bad_searches_before_any_work() {
         }
     }
 }
+
+/// Ctrl-C stops a design command mid-search with status 130, says that
+/// nothing was written, and leaves no file (a LuGre steady scene on one
+/// thread, stopped once its progress shows finished runs).
+#[test]
+fn ctrl_c_stops_a_design_command_and_writes_nothing() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let dir = tempfile::tempdir().unwrap();
+    let base = "[mechanism]\nfriction = \"lugre\"\n";
+    let cases = [
+        (
+            "optimize",
+            format!("{base}[optimize]\nmaximize = \"step_x\"\n{FREE}\nbudget = 100000\n"),
+            vec!["json", "toml", "png"],
+        ),
+        (
+            "sensitivity",
+            format!(
+                "{base}[sensitivity]\nsamples = 100000\noutputs = [\"step_x\"]\n\
+                 inputs = {{ \"axis.x.voltage\" = {{ uniform = [90, 110] }} }}\n"
+            ),
+            vec!["json", "png"],
+        ),
+    ];
+    for (command, section, files) in cases {
+        let path = scene(dir.path(), command, &section);
+        let out = dir.path().join(format!("{command}_out.json"));
+        let mut child = Command::new(env!("CARGO_BIN_EXE_pidm"))
+            .args([command, s(&path), "--out", s(&out), "--backend", "cpu"])
+            .args(["--threads", "1", "--progress", "jsonl"])
+            .current_dir(dir.path())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+        let mut said = String::new();
+        for line in lines.by_ref() {
+            let line = line.unwrap();
+            said.push_str(&line);
+            said.push('\n');
+            let record: Option<Value> = serde_json::from_str(&line).ok();
+            if record.is_some_and(|r| r["done"].as_u64().unwrap_or(0) > 0) {
+                break;
+            }
+        }
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "{command} ended too soon: {said}"
+        );
+        crate::common::signal(&child, "INT");
+        let rest: Vec<String> = lines.map(|l| l.unwrap()).collect();
+        let status = child.wait().unwrap();
+        let rest = rest.join("\n");
+        assert_eq!(status.code(), Some(130), "{command}: {rest}");
+        assert!(
+            rest.contains("stopped by SIGINT; nothing was written"),
+            "{command}: {rest}"
+        );
+        for ext in files {
+            assert!(!out.with_extension(ext).exists(), "{command}: {ext} left");
+        }
+    }
+}
