@@ -1,8 +1,9 @@
 //! The backward-ratio pictures of a scene with `[output] backward = true`
 //! (docs/model.md section 4, "Backward travel"): a heatmap per axis and
 //! slice of a grid with two or more axes, `backward_ratio_x.png` beside
-//! `step_x.png`, and for a grid of one axis a line per moving axis,
-//! `backward_ratio.png` beside `steps.png`. A ratio is drawn where the
+//! `step_x.png`; for a grid of one axis a line per moving axis, and for a
+//! points scene a bar per moving axis and point, `backward_ratio.png`
+//! beside `steps.png`. A ratio is drawn where the
 //! status keeps values (0, and 6 with its estimate); failed instances are
 //! grey, never a number.
 
@@ -10,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 
+use super::bars::{Bar, Bars, draw_bars};
 use super::colour::{Diverging, FAILED, axis_colour};
 use super::heatmap::{MapLegend, heatmap};
 use super::lines::{LineChart, Series};
@@ -164,4 +166,65 @@ pub(super) fn backward_lines(
     chart.draw(&path)?;
     files.push(path);
     Ok(())
+}
+
+/// Draws the backward ratio of a points scene (or a single instance),
+/// `backward_ratio.png`: a bar per moving axis and point, failed runs as
+/// grey stubs. Nothing where the file has no backward maps or no axis
+/// moves.
+pub(super) fn backward_bars(
+    data: &Data,
+    labels: &[String],
+    dir: &Path,
+    files: &mut Vec<PathBuf>,
+    notes: &mut Vec<String>,
+) -> Result<()> {
+    let Some((ratio, drawn)) = drawn(data, notes) else {
+        return Ok(());
+    };
+    if drawn.is_empty() {
+        return Ok(());
+    }
+    let n = labels.len();
+    let failed = (0..n).filter(|&k| !keeps_values(data.status[k])).count();
+    let bars = (0..n)
+        .flat_map(|k| {
+            drawn.iter().map(move |&axis| Bar {
+                point: k,
+                axis,
+                baseline: false,
+                value: ratio[axis][k],
+                ok: keeps_values(data.status[k]),
+            })
+        })
+        .collect();
+    let mut legend: Vec<_> = drawn
+        .iter()
+        .map(|&a| {
+            (
+                axis_colour(a),
+                format!("backward ratio along {}", AXIS_NAMES[a]),
+            )
+        })
+        .collect();
+    if failed > 0 {
+        legend.push((FAILED, "failed (status ≠ 0, 6)".to_owned()));
+    }
+    let chart = Bars {
+        file: "backward_ratio.png",
+        title: vec![
+            format!(
+                "{}: backward ratio backward / (|step| + backward) at each point",
+                data.name
+            ),
+            "the slider's travel against its step, as a share of its path: 0 no travel back, \
+             0.5 as far back as the step, 1 no net step"
+                .to_owned(),
+        ],
+        y_desc: "backward ratio [1]".to_owned(),
+        bars,
+        per: drawn.len(),
+        legend,
+    };
+    draw_bars(data, labels, dir, files, &chart)
 }

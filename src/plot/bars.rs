@@ -16,17 +16,28 @@ use super::text::short;
 use crate::model::motion::Motion;
 
 /// One bar of the chart.
-struct Bar {
+pub(super) struct Bar {
     /// The point's index.
-    point: usize,
-    /// The axis the step is along (0 = x).
-    axis: usize,
-    /// Whether the step is the 1-DOF baseline's.
-    baseline: bool,
-    /// The step [µm per own drive cycle].
-    value: f64,
-    /// Whether its run ended with status 0.
-    ok: bool,
+    pub(super) point: usize,
+    /// The axis the value is along (0 = x).
+    pub(super) axis: usize,
+    /// Whether the value is the 1-DOF baseline's (drawn light).
+    pub(super) baseline: bool,
+    /// The value in the chart's units (a step in µm per own drive cycle).
+    pub(super) value: f64,
+    /// Whether its run has a value (else a grey stub).
+    pub(super) ok: bool,
+}
+
+/// A bar chart of one quantity per point: its file, title, y axis, bars
+/// (`per` of them a point, in slot order) and legend.
+pub(super) struct Bars {
+    pub(super) file: &'static str,
+    pub(super) title: Vec<String>,
+    pub(super) y_desc: String,
+    pub(super) bars: Vec<Bar>,
+    pub(super) per: usize,
+    pub(super) legend: Vec<(RGBColor, String)>,
 }
 
 /// The chart of the bars: points across, steps [µm per own drive cycle] up.
@@ -41,46 +52,78 @@ pub(super) fn point_bars(
     files: &mut Vec<PathBuf>,
 ) -> Result<()> {
     let n = labels.len();
-    let base = data.baseline.as_ref();
-    let bars = bars_of(data, n);
-    let per = if base.is_some() { 4 } else { 2 };
-    let values: Vec<f64> = bars.iter().filter(|b| b.ok).map(|b| b.value).collect();
+    let failed = (0..n).filter(|&k| data.status[k] != 0).count();
+    let chart = Bars {
+        file: "steps.png",
+        title: bars_title(data, failed, data.motion_shown().is_some()),
+        y_desc: "step [µm per own drive cycle]".to_owned(),
+        bars: bars_of(data, n),
+        per: if data.baseline.is_some() { 4 } else { 2 },
+        legend: bars_legend(data.baseline.is_some(), failed),
+    };
+    draw_bars(data, labels, dir, files, &chart)
+}
+
+/// Draws `chart` into its file in `dir`, one slot per point of `labels`
+/// with its label (and kind of motion, where the file shows them) under
+/// it, adding the file to `files`.
+pub(super) fn draw_bars(
+    data: &Data,
+    labels: &[String],
+    dir: &Path,
+    files: &mut Vec<PathBuf>,
+    chart: &Bars,
+) -> Result<()> {
+    let n = labels.len();
+    let values: Vec<f64> = chart
+        .bars
+        .iter()
+        .filter(|b| b.ok)
+        .map(|b| b.value)
+        .collect();
     let hi = values.iter().copied().fold(0.0f64, f64::max);
     let lo = values.iter().copied().fold(0.0f64, f64::min);
     let pad = 0.15 * (hi - lo).max(1e-6);
-    let failed = (0..n).filter(|&k| data.status[k] != 0).count();
     let motion = data.motion_shown();
-    let title = bars_title(data, failed, motion.is_some());
     let width = (1100u32).max(220 * n as u32 + LEGEND_WIDTH + 120).min(4000);
-    let path = dir.join("steps.png");
+    let path = dir.join(chart.file);
     save(&path, (width, 760), |root| {
-        let body = title_block(root, &title)?;
+        let body = title_block(root, &chart.title)?;
         let (left, right) = body.split_horizontally(width - LEGEND_WIDTH);
-        let mut chart = ChartBuilder::on(&left)
+        let mut plot = ChartBuilder::on(&left)
             .margin(15)
             .x_label_area_size(50)
             .y_label_area_size(80)
             .build_cartesian_2d(0.0..n as f64, (lo - pad)..(hi + pad))?;
-        chart
-            .configure_mesh()
+        plot.configure_mesh()
             .disable_x_mesh()
             .disable_x_axis()
-            .y_desc("step [µm per own drive cycle]")
+            .y_desc(chart.y_desc.as_str())
             .y_label_formatter(&|v| short(*v))
             .label_style(font(15))
             .axis_desc_style(font(17))
             .draw()?;
-        chart.draw_series(LineSeries::new(
+        plot.draw_series(LineSeries::new(
             vec![(0.0, 0.0), (n as f64, 0.0)],
             BLACK.stroke_width(1),
         ))?;
-        let slot = 0.8 / per as f64;
+        let slot = 0.8 / chart.per as f64;
         let stub = 0.04 * (hi - lo).max(1e-6);
-        for (m, bar) in bars.iter().enumerate() {
-            draw_bar(root, &mut chart, bar, slot * (m % per) as f64, slot, stub)?;
+        for (m, bar) in chart.bars.iter().enumerate() {
+            draw_bar(
+                root,
+                &mut plot,
+                bar,
+                slot * (m % chart.per) as f64,
+                slot,
+                stub,
+            )?;
         }
-        point_labels(root, &chart, labels, motion, lo - pad)?;
-        bars_legend(&right, base.is_some(), failed)
+        point_labels(root, &plot, labels, motion, lo - pad)?;
+        for (k, (c, text)) in chart.legend.iter().enumerate() {
+            swatch(&right, 0, 30 + 30 * k as i32, *c, text)?;
+        }
+        Ok(())
     })?;
     files.push(path);
     Ok(())
@@ -212,9 +255,9 @@ fn point_labels(
     Ok(())
 }
 
-/// Draws the legend swatches on `right`: the 2-DOF bars, the 1-DOF ones
-/// with `baselines`, and the failed stubs when `failed` is above 0.
-fn bars_legend(right: &Area<'_>, baselines: bool, failed: usize) -> Result<()> {
+/// The legend of the step bars: the 2-DOF bars, the 1-DOF ones with
+/// `baselines`, and the failed stubs when `failed` is above 0.
+fn bars_legend(baselines: bool, failed: usize) -> Vec<(RGBColor, String)> {
     let mut items = vec![
         (X_COLOUR, "2-DOF step along x".to_owned()),
         (Y_COLOUR, "2-DOF step along y".to_owned()),
@@ -235,8 +278,5 @@ fn bars_legend(right: &Area<'_>, baselines: bool, failed: usize) -> Result<()> {
     if failed > 0 {
         items.push((FAILED, "not computed (status ≠ 0)".to_owned()));
     }
-    for (k, (c, text)) in items.iter().enumerate() {
-        swatch(right, 0, 30 + 30 * k as i32, *c, text)?;
-    }
-    Ok(())
+    items
 }

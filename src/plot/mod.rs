@@ -25,7 +25,7 @@
 //!   the CPU when the picture is drawn: docs/model.md section 8's limit);
 //! - a scene with `[output] backward`: also each moving axis' backward
 //!   ratio (`backward`), a map per slice of a grid of two or more axes, a
-//!   line for a grid of one axis; a points scene shows it in the file only;
+//!   line for a grid of one axis, a bar per point of a points scene;
 //! - a scene with `[stall]`: the stall-load map (`stall`), a heatmap per
 //!   slice, a line for a 1-D grid or a dot per point;
 //! - every stored trajectory: stage and slider displacement against time
@@ -172,9 +172,14 @@ fn draw(
     notes: &mut Vec<String>,
 ) -> Result<()> {
     match &data.kind {
-        Kind::Points(labels) => bars::point_bars(data, labels, dir, files)?,
+        Kind::Points(labels) => {
+            bars::point_bars(data, labels, dir, files)?;
+            backward::backward_bars(data, labels, dir, files, notes)?;
+        }
         Kind::Grid(axes) if axes.is_empty() => {
-            bars::point_bars(data, &["the single instance".to_owned()], dir, files)?
+            let labels = ["the single instance".to_owned()];
+            bars::point_bars(data, &labels, dir, files)?;
+            backward::backward_bars(data, &labels, dir, files, notes)?;
         }
         Kind::Grid(axes) if axes.len() == 1 => {
             lines::grid_lines(data, &axes[0], dir, files)?;

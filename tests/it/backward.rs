@@ -224,7 +224,7 @@ fn backward_maps_are_written_merged_and_refused() {
 }
 
 /// `pidm plot` draws each moving axis' backward ratio beside the step maps
-/// of a 2-D grid (and as a line along a 1-D one), notes the axis that
+/// of a 2-D grid (a line along a 1-D one, a bar per point), notes the axis that
 /// never travels back, and refuses a ratio outside [0, 1] naming the
 /// dataset, drawing nothing.
 #[test]
