@@ -293,13 +293,8 @@ impl Runner<'_> {
             .collect();
         let job_instances: Vec<Instance> = jobs.iter().map(|(inst, _)| *inst).collect();
         let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
-        let segments = segment_binding::<L>(
-            self.device,
-            variant,
-            &job_instances,
-            self.settings,
-            &mut coefficients,
-        );
+        let segments =
+            segment_binding::<L>(self.device, variant, &job_instances, &mut coefficients);
         let extra = segment_entries(&segments);
         let total = job_instances.len() as u64;
         let mut job_progress = |done: u64| progress(done * n as u64 / total);

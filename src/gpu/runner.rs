@@ -511,13 +511,7 @@ impl<'a> Runner<'a> {
         let n = instances.len();
         let mut coefficients = self.coefficients::<L>(instances, packed);
         let (pipeline, variant) = self.pipeline::<L>(L::PRECISION, &coefficients)?;
-        let segments = segment_binding::<L>(
-            self.device,
-            variant,
-            instances,
-            self.settings,
-            &mut coefficients,
-        );
+        let segments = segment_binding::<L>(self.device, variant, instances, &mut coefficients);
         let extra = segment_entries(&segments);
         let Sliced {
             readback: (states, measure_list),

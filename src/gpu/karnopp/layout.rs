@@ -387,18 +387,17 @@ macro_rules! precision_structs {
             /// the sawtooth's coefficients' arithmetic, bit for bit).
             pub fn segment_buffer(
                 instances: &[Instance],
-                settings: &Settings,
                 coefficients: &mut [Coefficients],
             ) -> Vec<Segment> {
                 let mut out = Vec::new();
                 for (inst, c) in instances.iter().zip(coefficients.iter_mut()) {
-                    let mirror = mirror::Coefficients::of(inst, settings);
+                    let segments = mirror::Coefficients::segments_of(inst);
                     let mut first = [0u32; AXES];
                     let mut count = [0u32; AXES];
                     for axis in 0..AXES {
                         first[axis] = out.len() as u32;
-                        count[axis] = mirror.segments[axis].len() as u32;
-                        out.extend(mirror.segments[axis].iter().map(|s| Segment {
+                        count[axis] = segments[axis].len() as u32;
+                        out.extend(segments[axis].iter().map(|s| Segment {
                             end: s.end,
                             length: s.length,
                             level: s.level,

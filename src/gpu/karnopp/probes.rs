@@ -53,13 +53,7 @@ fn first_dispatch<L: Layout>(
         let runner = Runner::on(ctx, settings, &options);
         let mut coefficients = runner.coefficients::<L>(instances, None);
         let (pipeline, variant) = runner.pipeline::<L>(L::PRECISION, &coefficients)?;
-        let segments = segment_binding::<L>(
-            ctx.device(),
-            variant,
-            instances,
-            settings,
-            &mut coefficients,
-        );
+        let segments = segment_binding::<L>(ctx.device(), variant, instances, &mut coefficients);
         let extra = segment_entries(&segments);
         runner.slices::<L>(
             Work {

@@ -16,11 +16,7 @@ pub(in crate::gpu) trait Layout: Lanes<Pilot = GpuOutcome> {
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients;
     /// A waveform batch's segment buffer as bytes, each instance's
     /// segments located in its coefficients (`layout::segment_buffer`).
-    fn segment_buffer(
-        instances: &[Instance],
-        settings: &Settings,
-        coefficients: &mut [Self::Coefficients],
-    ) -> Vec<u8>;
+    fn segment_buffer(instances: &[Instance], coefficients: &mut [Self::Coefficients]) -> Vec<u8>;
     /// The shader's parts that packed coefficients use.
     fn parts(c: &Self::Coefficients) -> Parts;
     /// The outcome of a finished fixed window.
@@ -100,17 +96,8 @@ impl Layout for Single {
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::single::pack(inst, settings)
     }
-    fn segment_buffer(
-        instances: &[Instance],
-        settings: &Settings,
-        coefficients: &mut [Self::Coefficients],
-    ) -> Vec<u8> {
-        bytemuck::cast_slice(&layout::single::segment_buffer(
-            instances,
-            settings,
-            coefficients,
-        ))
-        .to_vec()
+    fn segment_buffer(instances: &[Instance], coefficients: &mut [Self::Coefficients]) -> Vec<u8> {
+        bytemuck::cast_slice(&layout::single::segment_buffer(instances, coefficients)).to_vec()
     }
     fn parts(c: &Self::Coefficients) -> Parts {
         c.parts()
@@ -182,17 +169,8 @@ impl Layout for Double {
     fn pack(inst: &Instance, settings: &Settings) -> Self::Coefficients {
         layout::double::pack(inst, settings)
     }
-    fn segment_buffer(
-        instances: &[Instance],
-        settings: &Settings,
-        coefficients: &mut [Self::Coefficients],
-    ) -> Vec<u8> {
-        bytemuck::cast_slice(&layout::double::segment_buffer(
-            instances,
-            settings,
-            coefficients,
-        ))
-        .to_vec()
+    fn segment_buffer(instances: &[Instance], coefficients: &mut [Self::Coefficients]) -> Vec<u8> {
+        bytemuck::cast_slice(&layout::double::segment_buffer(instances, coefficients)).to_vec()
     }
     fn parts(c: &Self::Coefficients) -> Parts {
         c.parts()
@@ -274,13 +252,12 @@ pub(in crate::gpu) fn segment_binding<L: Layout>(
     device: &wgpu::Device,
     variant: Variant,
     instances: &[Instance],
-    settings: &Settings,
     coefficients: &mut [L::Coefficients],
 ) -> Option<wgpu::Buffer> {
     if !variant.parts.waveform {
         return None;
     }
-    let bytes = L::segment_buffer(instances, settings, coefficients);
+    let bytes = L::segment_buffer(instances, coefficients);
     Some(wgpu::util::DeviceExt::create_buffer_init(
         device,
         &wgpu::util::BufferInitDescriptor {

@@ -154,3 +154,49 @@ fn f64_states_continue_on_the_cpu_member_by_member() {
         [2, 13, 14, 15, 16, 17]
     );
 }
+
+/// A waveform batch's segments, made from the instances alone
+/// (`Coefficients::segments_of`), are every precision's coefficients'
+/// segments, bit for bit: trapezoids, tables with jumps, slew limits.
+#[test]
+fn segments_of_an_instance_are_its_coefficients_segments() {
+    use crate::model::{Instance, Shape, Table};
+    let settings = Settings::default();
+    let drives = [
+        (Shape::Sawtooth, [0.0; 3], crate::model::NO_SLEW_LIMIT),
+        (
+            Shape::Trapezoid,
+            [0.9, 0.05, 0.02],
+            crate::model::NO_SLEW_LIMIT,
+        ),
+        (Shape::Trapezoid, [0.5, 0.0, 0.2], 3e4),
+        (
+            Shape::Table(Table::intern(&[
+                [0.1, -0.5],
+                [0.8, 1.0],
+                [0.82, 0.2],
+                [0.82, -0.3],
+            ])),
+            [0.0; 3],
+            crate::model::NO_SLEW_LIMIT,
+        ),
+        (Shape::Sawtooth, [0.0; 3], 4e4),
+    ];
+    for (shape, [rise, hold, fall], slew) in drives {
+        let mut inst = Instance::TABLE1;
+        inst.axes[0].shape = shape;
+        (inst.axes[0].rise, inst.axes[0].hold, inst.axes[0].fall) = (rise, hold, fall);
+        inst.axes[0].slew_rate = slew;
+        inst.axes[1].voltage = 40.0;
+        inst.axes[1].frequency = 13.0;
+        let single = crate::laws::karnopp::single::integrate::Coefficients::of(&inst, &settings);
+        let s = crate::laws::karnopp::single::integrate::Coefficients::segments_of(&inst);
+        assert_eq!(single.segments, s, "single, {shape:?}");
+        let double = Coefficients::of(&inst, &settings);
+        assert_eq!(
+            double.segments,
+            Coefficients::segments_of(&inst),
+            "double, {shape:?}"
+        );
+    }
+}

@@ -183,6 +183,19 @@ impl Coefficients {
         Coefficients::of_replica(inst, settings, Replica::NONE)
     }
 
+    /// Each axis' drive segments of `inst` as [`Coefficients::of`] (and
+    /// `of_replica`, whose replicas share their drive's shape) holds them,
+    /// without deriving the rest: a waveform batch's segment buffer
+    /// (`gpu::karnopp::layout::segment_buffer`) from the instances alone.
+    pub fn segments_of(inst: &Instance) -> [Box<[super::drive::Segment]>; 2] {
+        let scaled = UNITS.scale(inst);
+        std::array::from_fn(|i| {
+            let exact =
+                crate::laws::karnopp::double::integrate::drive::segments_of(&scaled.axes[i]);
+            super::drive::rounded(&exact, |x| x as Real as f64)
+        })
+    }
+
     /// [`Coefficients::of`] for replica `r` of a split run: `inst` is the
     /// replica's instance (its faster drive's phase advanced,
     /// `pidm::replicas::replica_instance`).
