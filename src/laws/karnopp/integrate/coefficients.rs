@@ -187,6 +187,7 @@ impl Coefficients {
     /// `of_replica`, whose replicas share their drive's shape) holds them,
     /// without deriving the rest: a waveform batch's segment buffer
     /// (`gpu::karnopp::layout::segment_buffer`) from the instances alone.
+    #[allow(clippy::unnecessary_cast)]
     pub fn segments_of(inst: &Instance) -> [Box<[super::drive::Segment]>; 2] {
         let scaled = UNITS.scale(inst);
         std::array::from_fn(|i| {
