@@ -93,7 +93,7 @@ pub(super) fn backward_maps(
 
 /// The file's ratios and the axes drawn: an axis whose slider never
 /// travels back (undriven) has no picture, and a note says so; `None`
-/// where the file has no backward maps.
+/// where the file has no backward maps or no axis is drawn.
 fn drawn<'d>(data: &'d Data, notes: &mut Vec<String>) -> Option<(&'d [Vec<f64>; 2], Vec<usize>)> {
     let ratio = data.backward_ratio.as_ref()?;
     let drawn: Vec<usize> = (0..2)
@@ -103,7 +103,7 @@ fn drawn<'d>(data: &'d Data, notes: &mut Vec<String>) -> Option<(&'d [Vec<f64>; 
         let a = AXIS_NAMES[a];
         notes.push(format!("backward_ratio_{a} is 0 everywhere; not drawn"));
     }
-    Some((ratio, drawn))
+    (!drawn.is_empty()).then_some((ratio, drawn))
 }
 
 /// Draws the backward ratio of a grid of one axis, `backward_ratio.png`:
@@ -120,9 +120,6 @@ pub(super) fn backward_lines(
     let Some((ratio, drawn)) = drawn(data, notes) else {
         return Ok(());
     };
-    if drawn.is_empty() {
-        return Ok(());
-    }
     let n = axis.values.len();
     let kept = |k: &usize| keeps_values(data.status[*k]);
     let failed: Vec<usize> = (0..n).filter(|k| !kept(k)).collect();
@@ -182,9 +179,6 @@ pub(super) fn backward_bars(
     let Some((ratio, drawn)) = drawn(data, notes) else {
         return Ok(());
     };
-    if drawn.is_empty() {
-        return Ok(());
-    }
     let n = labels.len();
     let failed = (0..n).filter(|&k| !keeps_values(data.status[k])).count();
     let bars = (0..n)

@@ -511,3 +511,49 @@ fn ctrl_c_stops_a_design_command_and_writes_nothing() {
         }
     }
 }
+
+/// On the GPU (lavapipe in CI) a search finds the CPU's optimum: the same
+/// runs and keys, the objective within 1e-12 of it (f64 on lavapipe is
+/// the CPU's to rounding, docs/gpu.md).
+#[test]
+fn optimize_on_the_gpu_finds_the_cpus_optimum() {
+    if crate::gpu::context().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let path = scene(
+        dir.path(),
+        "gpu",
+        &format!("[optimize]\nmaximize = \"velocity_x\"\n{FREE}\nbudget = 150\n"),
+    );
+    let run = |backend: &str| {
+        let out = dir.path().join(format!("on_{backend}.json"));
+        let args = ["optimize", s(&path), "--out", s(&out), "--backend", backend];
+        let done = pidm(&args, dir.path());
+        assert!(
+            done.status.success(),
+            "{}",
+            String::from_utf8_lossy(&done.stderr)
+        );
+        read_json(&out)
+    };
+    let (gpu, cpu) = (run("gpu"), run("cpu"));
+    assert!(
+        gpu["backend"].as_str().unwrap().starts_with("gpu"),
+        "{}",
+        gpu["backend"]
+    );
+    assert_eq!(gpu["runs"], cpu["runs"]);
+    let value = |j: &Value| j["optimum"]["objectives"][0]["value"].as_f64().unwrap();
+    assert!(
+        (value(&gpu) - value(&cpu)).abs() <= 1e-12 * value(&cpu).abs(),
+        "{gpu} {cpu}"
+    );
+    for key in ["axis.x.voltage", "axis.x.frequency"] {
+        let at = |j: &Value| j["optimum"]["values"][key].as_f64().unwrap();
+        assert!(
+            (at(&gpu) - at(&cpu)).abs() <= 1e-9 * at(&cpu).abs(),
+            "{key}"
+        );
+    }
+}
