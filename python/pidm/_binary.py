@@ -10,7 +10,7 @@ import subprocess
 from collections.abc import Sequence
 from pathlib import Path
 
-from ._errors import PidmError
+from ._errors import PidmError, SceneError
 from ._version import installed_distribution, package_version
 
 #: The environment variable that names the binary to run.
@@ -113,6 +113,23 @@ def describe_exit(returncode: int) -> str:
         name = "SIGINT" if returncode == 130 else "SIGTERM"
         return f"pidm was stopped by {name} (exit status {returncode})"
     return f"pidm exited with status {returncode}"
+
+
+def classify_failure(
+    command: list[str], returncode: int, stderr: str, *, start: str, refusals: tuple[str, ...]
+) -> PidmError:
+    """The error for a failed pidm search (``fit``, ``sensitivity``, ``optimize``):
+    SceneError when pidm refused its input before the search started (exit status
+    1, the message starting with one of ``refusals``, and no line yet starting with
+    ``start``, the one pidm writes once the input is read and a backend chosen);
+    PidmError otherwise."""
+    message = error_text(stderr)
+    started = any(line.startswith(start) for line in stderr.splitlines())
+    if returncode == 1 and not started and message.startswith(refusals):
+        return SceneError(message, stderr=stderr, returncode=1, command=command)
+    if returncode != 1:
+        message = f"{describe_exit(returncode)}: {message}"
+    return PidmError(message, stderr=stderr, returncode=returncode, command=command)
 
 
 def run_quiet(args: Sequence[str]) -> subprocess.CompletedProcess:

@@ -17,13 +17,12 @@ import numpy as np
 import pandas as pd
 import xarray as xr
 
-from ._binary import describe_exit, error_text, find_binary
-from ._errors import PidmError, SceneError
+from ._binary import classify_failure, find_binary
+from ._errors import PidmError
 from ._run import (
     ProgressArg,
     Scene,
-    _check_backend,
-    _check_threads,
+    _check_search,
     _scene_file,
     _Shower,
     _watch,
@@ -239,15 +238,7 @@ def fit(
         ``out`` then holds the best point so far (``"status": "interrupted"``)
         when pidm wrote it in time; the interrupt is raised again.
     """
-    _check_backend(backend)
-    _check_threads(threads)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed={seed!r}: expected a whole number of at least 0")
-    if out is not None and Path(out).suffix != ".json":
-        raise ValueError(
-            f"out={os.fspath(out)!r}: expected a .json file (FIT.toml and FIT.png are "
-            "written beside it)"
-        )
+    _check_search(backend, threads, seed, out, "FIT.toml and FIT.png are")
     if isinstance(data, (str, os.PathLike)) and not Path(data).is_file():
         raise FileNotFoundError(f"no data file {os.fspath(data)}")
     binary = find_binary()
@@ -350,13 +341,7 @@ def _failure(command: list[str], returncode: int, stderr: str) -> PidmError:
     """The error for a failed ``pidm fit``: SceneError when pidm refused the
     scene or the data before fitting, PidmError otherwise. The message tells
     which (``pidm check``, which ``pidm.run`` asks, takes no ``--data``)."""
-    message = error_text(stderr)
-    started = any(line.startswith(_STARTED) for line in stderr.splitlines())
-    if returncode == 1 and not started and message.startswith(_REFUSALS):
-        return SceneError(message, stderr=stderr, returncode=1, command=command)
-    if returncode != 1:
-        message = f"{describe_exit(returncode)}: {message}"
-    return PidmError(message, stderr=stderr, returncode=returncode, command=command)
+    return classify_failure(command, returncode, stderr, start=_STARTED, refusals=_REFUSALS)
 
 
 def _read(path: Path, *, keep: bool) -> FitResult:

@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import xarray as xr
 
 from ._binary import describe_exit, error_text, find_binary, run_quiet
@@ -254,6 +255,22 @@ def _check_threads(threads: int | None) -> None:
         isinstance(threads, bool) or int(threads) != threads or threads < 1
     ):
         raise ValueError(f"threads={threads!r}: expected a whole number of at least 1")
+
+
+def _check_search(
+    backend: str, threads: int | None, seed: object, out: object, beside: str
+) -> None:
+    """The arguments every search takes (``pidm.fit``, ``pidm.optimize``,
+    ``pidm.sensitivity``): ``backend``, ``threads``, a ``seed`` of at least 0, and
+    an ``out`` that is a .json file (``beside``: what is written beside it)."""
+    _check_backend(backend)
+    _check_threads(threads)
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed={seed!r}: expected a whole number of at least 0")
+    if out is not None and Path(out).suffix != ".json":
+        raise ValueError(
+            f"out={os.fspath(out)!r}: expected a .json file ({beside} written beside it)"
+        )
 
 
 def _after_interrupt(result: Path, existed: bool, interrupt: BaseException) -> None:

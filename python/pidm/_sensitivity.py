@@ -23,8 +23,7 @@ from ._fit import _mtime, _note, _number
 from ._run import (
     ProgressArg,
     Scene,
-    _check_backend,
-    _check_threads,
+    _check_search,
     _scene_file,
     _watch,
 )
@@ -236,14 +235,7 @@ def sensitivity(
         On Ctrl-C pidm is stopped (SIGINT, then SIGKILL after a grace); a study
         so stopped writes nothing, and the interrupt is raised again.
     """
-    _check_backend(backend)
-    _check_threads(threads)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed={seed!r}: expected a whole number of at least 0")
-    if out is not None and Path(out).suffix != ".json":
-        raise ValueError(
-            f"out={os.fspath(out)!r}: expected a .json file (SENS.png is written beside it)"
-        )
+    _check_search(backend, threads, seed, out, "SENS.png is")
     binary = find_binary()
     workdir = Path(tempfile.mkdtemp(prefix="pidm-"))
     try:
