@@ -89,13 +89,9 @@ impl Backend for CpuBackend {
     ) -> Result<Vec<Outcome>> {
         // Replicas on the threads a batch leaves idle (f64, the reference;
         // the f32 mirror runs every instance alone).
-        // The backward travel is measured on runs of their own
-        // (`Settings::backward`).
         let count = match self.precision {
-            Precision::F64 if !settings.backward => {
-                replicas::count(settings.replicas, self.threads(), instances.len())
-            }
-            _ => 1,
+            Precision::F64 => replicas::count(settings.replicas, self.threads(), instances.len()),
+            Precision::F32 => 1,
         };
         Ok(self.pool.install(|| {
             let mut out: Vec<Outcome> = instances
@@ -157,10 +153,15 @@ fn check_heaviest(instances: &[Instance], settings: &Settings, out: &mut [Outcom
 /// (`replicas::cpu`); stops as [`run_one`].
 pub(super) fn run_split(inst: &Instance, settings: &Settings, split: Replica) -> Outcome {
     match replicas::cpu::run_group(inst, settings, split, &interrupt_requested) {
-        Some(group) => Outcome {
-            replicas: group.replicas,
-            ..Outcome::of(&group.measured, group.steps, false)
-        },
+        Some(group) => {
+            let (variation, variation_se) = group.variation.unwrap_or_default();
+            Outcome {
+                replicas: group.replicas,
+                variation,
+                variation_se,
+                ..Outcome::of(&group.measured, group.steps, false)
+            }
+        }
         None => Outcome::default(),
     }
 }

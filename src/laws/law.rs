@@ -346,10 +346,21 @@ impl Law {
 
 /// A run of either law that stops where a replica waits for its group's
 /// merge (`measure::VERDICT_WAITING`) and goes on once released: the
-/// replicas of a split steady measurement (`crate::replicas`).
+/// replicas of a split steady measurement (`crate::replicas`). Where the
+/// settings ask for the backward travel (`Settings::backward`) it keeps
+/// the slider's total variation beside the step's measurement, as
+/// [`Law::run_with_variation_until`] does: the same run, bit for bit.
 pub enum Resumable {
-    Karnopp(Box<(integrate::Coefficients, integrate::Run)>),
+    Karnopp(Box<KarnoppRun>),
     Lugre(Box<lugre::run::Resumable>),
+}
+
+/// A Karnopp replica's coefficients, run so far, and its variation
+/// where it keeps one.
+pub struct KarnoppRun {
+    c: integrate::Coefficients,
+    run: integrate::Run,
+    variation: Option<Variation>,
 }
 
 impl Resumable {
@@ -362,14 +373,16 @@ impl Resumable {
                     state: integrate::initial_state(&c),
                     measure: integrate::initial_measure(&c),
                 };
-                Resumable::Karnopp(Box::new((c, run)))
+                let variation = settings.backward.then(|| Variation::new(&c));
+                Resumable::Karnopp(Box::new(KarnoppRun { c, run, variation }))
             }
             Law::Lugre => Resumable::Lugre(Box::new(lugre::run::Resumable::new(inst, settings, r))),
         }
     }
 
     /// Replica `r` where `run` stands: a Karnopp run a GPU batch handed
-    /// over (`gpu::groups`; LuGre's lanes run no groups).
+    /// over (`gpu::groups`; LuGre's lanes run no groups, and no lane keeps
+    /// the variation).
     pub fn of_run(
         inst: &Instance,
         settings: &Settings,
@@ -381,21 +394,29 @@ impl Resumable {
             Law::Karnopp,
             "only Karnopp's lanes hand groups over"
         );
+        assert!(
+            !settings.backward,
+            "the GPU does not measure the backward travel"
+        );
         let c = integrate::Coefficients::of_replica(inst, settings, r);
-        Resumable::Karnopp(Box::new((c, run)))
+        Resumable::Karnopp(Box::new(KarnoppRun {
+            c,
+            run,
+            variation: None,
+        }))
     }
 
     /// Integrates to the run's end or its next wait (true), or until
     /// `stop` returns true (false).
     pub fn advance(&mut self, stop: impl Fn() -> bool) -> bool {
         match self {
-            Resumable::Karnopp(k) => match integrate::continue_until(&k.0, k.1, stop) {
-                Some(run) => {
-                    k.1 = run;
-                    true
-                }
-                None => false,
-            },
+            Resumable::Karnopp(k) => {
+                let ran = match k.variation.as_mut() {
+                    Some(v) => karnopp::variation::continue_until(&k.c, k.run, v, stop),
+                    None => integrate::continue_until(&k.c, k.run, stop),
+                };
+                ran.map(|run| k.run = run).is_some()
+            }
             Resumable::Lugre(l) => l.advance(stop),
         }
     }
@@ -403,8 +424,16 @@ impl Resumable {
     /// The run so far.
     pub fn run(&self) -> Run {
         match self {
-            Resumable::Karnopp(k) => k.1.ended(),
+            Resumable::Karnopp(k) => k.run.ended(),
             Resumable::Lugre(l) => *l.run(),
+        }
+    }
+
+    /// The slider's total variation so far, where the run keeps it.
+    pub fn variation(&self) -> Option<&Variation> {
+        match self {
+            Resumable::Karnopp(k) => k.variation.as_ref(),
+            Resumable::Lugre(l) => l.variation(),
         }
     }
 
@@ -412,10 +441,13 @@ impl Resumable {
     pub fn release(&mut self) {
         match self {
             Resumable::Karnopp(k) => {
-                let run = &mut k.1;
+                let run = &mut k.run;
                 super::floor::record::release(&mut run.state, &mut run.measure);
+                if let Some(v) = k.variation.as_mut() {
+                    v.release();
+                }
             }
-            Resumable::Lugre(l) => l.run_mut().release(),
+            Resumable::Lugre(l) => l.release(),
         }
     }
 }

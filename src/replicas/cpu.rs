@@ -9,10 +9,10 @@ use rayon::prelude::*;
 use super::{Group, Member, Step};
 use crate::laws::law::Resumable;
 use crate::laws::status::STATUS_OK;
-use crate::laws::{Replica, Settings};
-use crate::measurement::{Measured, reduce};
-use crate::model::Instance;
+use crate::laws::{Law, Replica, Settings};
+use crate::measurement::{Measured, reduce, reduce_variation};
 use crate::model::motion::Motion;
+use crate::model::{AXES, Instance};
 
 /// What a group's run gave: the instance's values and the replicas that
 /// made them (1 where it ran alone), the steps every replica took, and the
@@ -20,6 +20,10 @@ use crate::model::motion::Motion;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GroupRun {
     pub measured: Measured,
+    /// The backward travel's values where the settings ask for them
+    /// (`Settings::backward`; `measurement::reduce_variation`): the
+    /// slider's total variation per axis and its standard error.
+    pub variation: Option<([f64; AXES], [f64; AXES])>,
     pub replicas: u32,
     pub steps: u32,
     pub disagreement: f64,
@@ -96,7 +100,7 @@ fn drive_group(
         let members: Vec<Member> = runs
             .iter()
             .zip(&instances)
-            .map(|(run, replica)| Member::of(replica, &run.run()))
+            .map(|(run, replica)| Member::of(replica, &run.run()).following(run.variation()))
             .collect();
         let steps = runs.iter().map(|run| run.run().record.steps).sum::<u32>();
         if let Some(d) = group.disagreement(&members) {
@@ -106,6 +110,7 @@ fn drive_group(
             Step::Merged(measured) => {
                 return Some(GroupRun {
                     measured,
+                    variation: group.followed(&members),
                     replicas: count,
                     steps,
                     disagreement,
@@ -119,7 +124,12 @@ fn drive_group(
             // Every replica ran to its wait or end: a wait is for all.
             Step::Wait => unreachable!("every replica on the CPU runs to its wait"),
             Step::Alone { multistable } => {
-                let alone = crate::laws::run_until(inst, settings, stop)?;
+                let (alone, variation) = if settings.backward {
+                    let (run, v) = Law::run_with_variation_until(inst, settings, stop)?;
+                    (run, Some(reduce_variation(inst, &run, &v)))
+                } else {
+                    (crate::laws::run_until(inst, settings, stop)?, None)
+                };
                 let mut measured = reduce(inst, &alone);
                 // Only a finished run has a kind of motion (docs/output.md).
                 if multistable && measured.status == STATUS_OK {
@@ -127,6 +137,7 @@ fn drive_group(
                 }
                 return Some(GroupRun {
                     measured,
+                    variation,
                     replicas: 1,
                     steps: steps.saturating_add(alone.record.steps),
                     disagreement,

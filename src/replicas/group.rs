@@ -30,10 +30,12 @@ use crate::laws::floor::measure::{
 use crate::laws::floor::phase::{
     Gaps, LevelSums, PhaseEstimate, evaluate_sums, ladder_length, window_weight,
 };
+use crate::laws::floor::variation::Variation;
 use crate::laws::status::STATUS_OK;
 use crate::laws::{Record, Run};
 use crate::laws::{Replica, Settings};
-use crate::measurement::{Measured, reduce};
+use crate::measurement::{Measured, reduce, reduce_variation};
+use crate::model::AXES;
 use crate::model::Instance;
 
 /// How many of their combined errors a replica's estimate may differ from
@@ -70,6 +72,19 @@ pub struct Member {
     /// A cycle split's piece: the states where its piece starts and ends,
     /// once it has run it.
     pub ends: Option<(Snapshot, Snapshot)>,
+    /// The slider's total variation as it follows the step, where the run
+    /// keeps it (`Settings::backward`): merged or joined as the step is,
+    /// never deciding ([`Group::followed`]).
+    pub followed: Option<Followed>,
+}
+
+/// What a group reads of a replica's variation (`laws::floor::variation`):
+/// its sums at the level it waits at, and a piece's variation over its
+/// measured periods.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Followed {
+    pub sums: LevelSums,
+    pub piece: Option<Vec2>,
 }
 
 impl Member {
@@ -84,6 +99,19 @@ impl Member {
             level: m.pending_level,
             sums: m.phase.pending,
             ends: piece_ends(m),
+            followed: None,
+        }
+    }
+
+    /// [`Member::of`] with the replica's variation, where its run keeps
+    /// one (`laws::law::Resumable::variation`).
+    pub fn following(self, v: Option<&Variation>) -> Member {
+        Member {
+            followed: v.map(|v| Followed {
+                sums: v.measure.phase.pending,
+                piece: v.piece_travel(),
+            }),
+            ..self
         }
     }
 }
@@ -269,15 +297,30 @@ impl Group {
             .iter()
             .fold(Vec2::ZERO, |sum, (start, end)| sum + (end.x_s - start.x_s));
         let periods = members.iter().map(|m| m.periods).max().unwrap_or(0);
-        Step::Merged(self.finished(
-            periods,
-            Measure {
-                verdict: VERDICT_PERIODIC,
-                travel,
-                lag: self.split.cycle,
-                ..initial_measure(&self.c)
-            },
-        ))
+        Step::Merged(self.finished(periods, self.periodic(travel)))
+    }
+
+    /// The accumulators of a merged window's estimate (a phase-resolved
+    /// verdict).
+    fn phase_measure(&self, merged: &PhaseEstimate) -> Measure {
+        Measure {
+            verdict: VERDICT_PHASE,
+            travel: merged.value * merged.span as f64,
+            span: merged.span,
+            se2: merged.se2,
+            ..initial_measure(&self.c)
+        }
+    }
+
+    /// The accumulators of a joined cycle split whose position travelled
+    /// `travel` over the common period.
+    fn periodic(&self, travel: Vec2) -> Measure {
+        Measure {
+            verdict: VERDICT_PERIODIC,
+            travel,
+            lag: self.split.cycle,
+            ..initial_measure(&self.c)
+        }
     }
 
     /// How far the replicas' own estimates lie from the merged one where
@@ -296,17 +339,56 @@ impl Group {
 
     /// The virtual run's estimate of `level` from the replicas' sums.
     fn merge(&self, members: &[Member], level: u32) -> PhaseEstimate {
+        self.merge_sums(members.iter().map(|m| &m.sums), level)
+    }
+
+    /// The virtual run's estimate of `level` from the replicas' sums of a
+    /// position (the slider's, or its total variation's).
+    fn merge_sums<'a>(
+        &self,
+        sums: impl Iterator<Item = &'a LevelSums>,
+        level: u32,
+    ) -> PhaseEstimate {
         let mut total = LevelSums::ZERO;
-        for m in members {
-            total.whole = total.whole + m.sums.whole;
-            total.half = total.half + m.sums.half;
-            total.second = total.second + m.sums.second;
-            for (t, q) in total.quarters.iter_mut().zip(m.sums.quarters) {
+        for s in sums {
+            total.whole = total.whole + s.whole;
+            total.half = total.half + s.half;
+            total.second = total.second + s.second;
+            for (t, q) in total.quarters.iter_mut().zip(s.quarters) {
                 *t = *t + q;
             }
         }
         let lattice = (self.c.phase_lattice >> level) & 1 == 1;
         evaluate_sums(&total, level, lattice)
+    }
+
+    /// The backward travel's values (`measurement::reduce_variation`: the
+    /// variation per axis and its standard error) of a group whose
+    /// [`Group::step`] merged its `members`, where every member keeps its
+    /// variation: the variation's sums merged at the step's level, or its
+    /// pieces' variations added over the joined cycle, reduced with the
+    /// step's verdict, as one run's variation follows its step. `None`
+    /// where a member keeps none or the group did not merge.
+    pub fn followed(&self, members: &[Member]) -> Option<([f64; AXES], [f64; AXES])> {
+        let parts: Vec<Followed> = members.iter().map(|m| m.followed).collect::<Option<_>>()?;
+        let periods = members.iter().map(|m| m.periods).max().unwrap_or(0);
+        let (step, followed) = if self.split.cycle > 0 {
+            let Step::Merged(_) = self.join(members) else {
+                return None;
+            };
+            let travel = parts
+                .iter()
+                .try_fold(Vec2::ZERO, |sum, p| p.piece.map(|t| sum + t))?;
+            (self.periodic(Vec2::ZERO), self.periodic(travel))
+        } else {
+            let level = common_level(members)?;
+            let step = self.merge(members, level);
+            let followed = self.merge_sums(parts.iter().map(|p| &p.sums), level);
+            (self.phase_measure(&step), self.phase_measure(&followed))
+        };
+        let mut v = Variation::new(&self.c);
+        v.measure = followed;
+        Some(reduce_variation(&self.inst, &self.run(periods, step), &v))
     }
 
     /// [`Self::disagreement`] against `merged`. A replica's error is the
@@ -366,22 +448,19 @@ impl Group {
     /// The map's values of a merged window, through the one reduction
     /// every run's results pass through: a phase-resolved verdict.
     fn measured(&self, merged: &PhaseEstimate, periods: u32) -> Measured {
-        self.finished(
-            periods,
-            Measure {
-                verdict: VERDICT_PHASE,
-                travel: merged.value * merged.span as f64,
-                span: merged.span,
-                se2: merged.se2,
-                ..initial_measure(&self.c)
-            },
-        )
+        self.finished(periods, self.phase_measure(merged))
     }
 
     /// The map's values of a group that ended after `periods` with the
     /// verdict and travel `measure` holds, through [`reduce`] as any
     /// finished run's.
     fn finished(&self, periods: u32, measure: Measure) -> Measured {
+        reduce(&self.inst, &self.run(periods, measure))
+    }
+
+    /// The run of the instance a group that ended after `periods` with
+    /// `measure` stands for.
+    fn run(&self, periods: u32, measure: Measure) -> Run {
         let record = Record {
             period: periods,
             measured: 1,
@@ -392,7 +471,7 @@ impl Group {
             ..measure
         };
         debug_assert_ne!(measure.verdict, VERDICT_RUNNING);
-        reduce(&self.inst, &Run { record, measure })
+        Run { record, measure }
     }
 }
 

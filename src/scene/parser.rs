@@ -276,18 +276,6 @@ impl Parser<'_> {
                  measure = \"window\": remove it, or set measure = \"steady\"",
             ));
         }
-        if let Some((Replicas::Count(n @ 2..), span)) = &parsed.replicas
-            && parsed.backward
-        {
-            return Err(self.invalid(
-                span.clone(),
-                format!(
-                    "simulation.replicas = {n} with output.backward = true: the backward travel \
-                     is measured on runs of their own, not on replicas yet. Remove \
-                     simulation.replicas (each instance then runs alone), or output.backward"
-                ),
-            ));
-        }
         for (index, point) in parsed.points.iter().flatten().enumerate() {
             self.check_mode_keys(&point.layer, mode, parsed.measure.is_none())
                 .map_err(|e| e.in_point(index, &point.label))?;

@@ -138,9 +138,8 @@ const SCENE: &str = "name = \"bw\"\n[axis.x]\nduty = [0.9, 0.95, 0.98, 1.0]\n\
                      [axis.y]\nvoltage = [0, 60]\n[output]\nbackward = true\n";
 
 /// A scene with `backward = true` writes the eight maps with units, and
-/// its shards merge into the single run's file bit for bit; the GPU, f32
-/// and replicas are refused before any work, naming the key, leaving no
-/// file.
+/// its shards merge into the single run's file bit for bit; the GPU and
+/// f32 are refused before any work, naming the key, leaving no file.
 #[test]
 fn backward_maps_are_written_merged_and_refused() {
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -213,12 +212,6 @@ fn backward_maps_are_written_merged_and_refused() {
     let why = "output.backward = true: the backward travel is measured on the CPU in f64 only";
     refused(&["--backend", "gpu"], SCENE, why);
     refused(&["--backend", "cpu", "--precision", "f32"], SCENE, why);
-    let replicas = format!("{SCENE}[simulation]\nreplicas = 4\n");
-    refused(
-        &[],
-        &replicas,
-        "simulation.replicas = 4 with output.backward = true",
-    );
     let wrong = SCENE.replace("backward = true", "backward = 1");
     refused(&[], &wrong, "output.backward");
 }

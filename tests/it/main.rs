@@ -7,6 +7,7 @@ mod common;
 mod golden;
 
 mod backward;
+mod backward_replicas;
 mod bench;
 mod cli;
 mod crosscheck;

@@ -20,7 +20,8 @@
 
 use super::double::gauge::Gauge;
 use super::double::measure::{
-    Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, close_batch, initial_measure,
+    Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, VERDICT_WAITING, close_batch,
+    initial_measure,
 };
 use super::double::phase::phase_period_end;
 use super::double::vec2::Vec2;
@@ -56,6 +57,27 @@ impl Variation {
             measure: initial_measure(c),
             snaps: [Vec2::ZERO; SNAPSHOTS],
             taken: 0,
+        }
+    }
+
+    /// Lets the accumulators go on where the step's replica was released
+    /// from its group's wait (`record::release`): `follow` then reads the
+    /// step's next verdict as running again, as the step's own measure does.
+    pub fn release(&mut self) {
+        if self.measure.verdict == VERDICT_WAITING {
+            self.measure.verdict = VERDICT_RUNNING;
+        }
+    }
+
+    /// A cycle split's piece (`crate::replicas::cycle_split`), once it has
+    /// run: the variation over its measured periods, read where the step's
+    /// piece reads its ends (`replicas::group`'s `piece_ends`): over the
+    /// cycle the step found, or between the first two common-period ends.
+    pub fn piece_travel(&self) -> Option<Vec2> {
+        match (self.measure.verdict, self.taken) {
+            (VERDICT_PERIODIC, _) => Some(self.measure.travel),
+            (_, 2..) => Some(self.snaps[1] - self.snaps[0]),
+            _ => None,
         }
     }
 }

@@ -139,26 +139,39 @@ pub fn run_until(
     stop: impl Fn() -> bool,
 ) -> Option<(Run, Variation)> {
     let c = Coefficients::of(inst, settings);
-    let mut run = Run {
+    let run = Run {
         state: integrate::initial_state(&c),
         measure: integrate::initial_measure(&c),
     };
     let mut v = Variation::new(&c);
+    continue_until(&c, run, &mut v, stop).map(|run| (run, v))
+}
+
+/// `integrate::continue_until` keeping the variation `v` beside the
+/// step's measurement: from where `run` stands to its end or a replica's
+/// wait for its group's merge (`crate::replicas`), or until `stop` returns
+/// true (then `None`).
+pub fn continue_until(
+    c: &Coefficients,
+    mut run: Run,
+    v: &mut Variation,
+    stop: impl Fn() -> bool,
+) -> Option<Run> {
     let mut follower = Follower {
-        v: &mut v,
+        v,
         settle: c.settle,
     };
-    while !integrate::is_finished(&c, &run.state) {
+    while !integrate::is_finished(c, &run.state) {
         if stop() {
             return None;
         }
         integrate::advance_observed(
-            &c,
+            c,
             &mut run.state,
             &mut run.measure,
             ITERATIONS_BETWEEN_STOP_CHECKS,
             &mut follower,
         );
     }
-    Some((run, v))
+    Some(run)
 }

@@ -154,7 +154,10 @@ impl Resumable {
     /// Replica `r` of a split run at rest (`inst` the replica's instance,
     /// `Setup::new`).
     pub fn new(inst: &Instance, settings: &Settings, r: Replica) -> Resumable {
-        let book = Periods::new_replica(inst, settings, r);
+        let mut book = Periods::new_replica(inst, settings, r);
+        if settings.backward {
+            book.variation = Some(Box::new(Variation::new(&book.c)));
+        }
         let start = PeriodStart::first(&book);
         Resumable { book, start }
     }
@@ -170,9 +173,19 @@ impl Resumable {
         &self.book.run
     }
 
-    /// The run so far, for its group to release it.
-    pub fn run_mut(&mut self) -> &mut Run {
-        &mut self.book.run
+    /// The slider's total variation so far, where the run keeps it
+    /// (`Settings::backward`).
+    pub fn variation(&self) -> Option<&Variation> {
+        self.book.variation.as_deref()
+    }
+
+    /// Lets the run go on if it waits for its group's merge, and the
+    /// variation's accumulators with it.
+    pub fn release(&mut self) {
+        self.book.run.release();
+        if let Some(v) = self.book.variation.as_deref_mut() {
+            v.release();
+        }
     }
 }
 
