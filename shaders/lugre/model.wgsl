@@ -54,6 +54,9 @@ struct Model {
     // common period (0: no test), read where used (measure.wgsl).
     repeat: array<Real, N>,
     common_period: u32,
+    // Each axis' corners in `corners` (WAVEFORM variants: corners.wgsl).
+    corner_first: array<u32, 2>,
+    corner_count: array<u32, 2>,
     _pad: u32,
 }
 
@@ -313,8 +316,12 @@ fn jacobian_pair(jac: ptr<function, Matrix>, y: Vector, fr: Friction, i: u32, j:
 }
 
 // Axis `i`'s drive over a segment that contains `t_mid` [s] and no corner
-// (docs/model.md section 2), linear in time.
+// (docs/model.md section 2), linear in time: a sawtooth's, or in a
+// WAVEFORM variant any waveform's (corners.wgsl).
 fn drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
+    if WAVEFORM {
+        return corner_drive_on(clock, i, t_mid);
+    }
     var start = clock.start;
     let v = model.voltage[i];
     if v == Real(0.0) {
@@ -337,6 +344,9 @@ fn drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
 // The CPU's recursion (a corner rounded onto t: the next one) is a loop
 // here, of at most CORNER_RETRIES passes.
 fn next_corner(clock: Clock, i: u32, t: Real) -> Real {
+    if WAVEFORM {
+        return corner_next(clock, i, t);
+    }
     var start = clock.start;
     if model.voltage[i] == Real(0.0) {
         return INFINITY;

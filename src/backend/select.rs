@@ -74,9 +74,6 @@ pub struct Workload {
     /// The scene's friction law: whether f32 and `--backend auto`'s cost
     /// model apply to it.
     pub law: Law,
-    /// The first key that drives beyond a plain sawtooth (a waveform or a
-    /// slew limit), if any: a law's shader may drive sawtooths only.
-    pub drive: Option<String>,
 }
 
 impl Workload {
@@ -182,22 +179,6 @@ pub fn select_backend(
             BackendChoice::Gpu => bail!("--backend gpu: {why}; run it with --backend cpu"),
             BackendChoice::Auto => {
                 eprintln!("pidm: --backend auto: the CPU path in f64 ({why})");
-                return cpu(threads);
-            }
-            BackendChoice::Cpu => {}
-        }
-    }
-    if let Some(key) = &work.drive
-        && let Some(why) = work.law.sawtooth_only_on_gpu()
-    {
-        match choice {
-            BackendChoice::Gpu => {
-                bail!("--backend gpu: {why}, and this scene sets {key}; run it with --backend cpu")
-            }
-            BackendChoice::Auto => {
-                eprintln!(
-                    "pidm: --backend auto: the CPU path in f64 ({why}; the scene sets {key})"
-                );
                 return cpu(threads);
             }
             BackendChoice::Cpu => {}

@@ -129,7 +129,6 @@ fn workload(scene: &Scene, scope: RunScope) -> Workload {
             integrations: count,
             stall: scene.stall.is_some(),
             law: scene.law(),
-            drive: scene.drive_beyond_sawtooth(),
             candidates,
             settings: scene.settings,
         };
@@ -140,7 +139,6 @@ fn workload(scene: &Scene, scope: RunScope) -> Workload {
         integrations: candidates.len() as u64,
         stall: scene.stall.is_some(),
         law: scene.law(),
-        drive: scene.drive_beyond_sawtooth(),
         candidates,
         settings: scene.settings,
     }

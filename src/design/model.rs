@@ -123,7 +123,6 @@ impl<'a> Model<'a> {
             integrations: runs,
             stall: false,
             law: scene.law(),
-            drive: scene.drive_beyond_sawtooth(),
             candidates: vec![scene.instance(0)],
             settings: scene.settings,
         })

@@ -157,7 +157,6 @@ impl<'a> Problem<'a> {
             integrations: candidates.len() as u64 * 1000,
             stall: false,
             law: scene.law(),
-            drive: scene.drive_beyond_sawtooth(),
             candidates,
             settings: scene.settings,
         })

@@ -98,7 +98,7 @@ pub use karnopp::{footprint, shader};
 // (Karnopp's), named for what they are, not for their law.
 pub use lugre::LugreGpu;
 pub use lugre::PIPELINE_NAME as LAW_PIPELINE_NAME;
-pub use lugre::hardware_lane as law_hardware_lane;
+pub use lugre::hardware_lanes as law_hardware_lanes;
 pub use lugre::table_lines as law_table_lines;
 
 /// The laws' own pipelines' WGSL written into `dir` (`pidm info --shader`,

@@ -221,16 +221,6 @@ impl Law {
         }
     }
 
-    /// Why the law's shader cannot drive a waveform other than the
-    /// sawtooth, or a slew limit (issue 59); `None` where it can
-    /// (Karnopp's segments, `shaders/karnopp/segments.wgsl`).
-    pub fn sawtooth_only_on_gpu(self) -> Option<&'static str> {
-        match self {
-            Law::Karnopp => None,
-            Law::Lugre => Some("the LuGre shader drives sawtooths only"),
-        }
-    }
-
     /// Why `--backend auto` keeps the law's scenes on the CPU, where its
     /// cost model does not weigh them; `None` where it does.
     pub fn auto_on_cpu(self) -> Option<&'static str> {

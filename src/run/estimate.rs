@@ -109,7 +109,6 @@ pub fn workload(scene: &Scene) -> Workload {
         integrations,
         stall: scene.stall.is_some(),
         law: scene.law(),
-        drive: scene.drive_beyond_sawtooth(),
         candidates,
         settings: scene.settings,
     }

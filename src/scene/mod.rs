@@ -292,38 +292,6 @@ impl Scene {
         self.law().auto_on_cpu()
     }
 
-    /// The first key that drives an axis with something other than a plain
-    /// sawtooth (a waveform or a slew limit), as a scene would write it;
-    /// `None` when every instance drives sawtooths.
-    pub fn drive_beyond_sawtooth(&self) -> Option<String> {
-        let of = |a: usize, shape: crate::model::Shape, slewed: bool| {
-            let name = crate::model::AXIS_NAMES[a];
-            if shape != crate::model::Shape::Sawtooth {
-                Some(format!("axis.{name}.waveform = {:?}", shape.name()))
-            } else if slewed {
-                Some(format!("axis.{name}.slew_rate"))
-            } else {
-                None
-            }
-        };
-        match &self.layout {
-            Layout::Points { .. } => self.points.iter().find_map(|p| {
-                (0..AXES).find_map(|a| {
-                    let axis = &p.axes[a];
-                    of(a, axis.shape, axis.slew_rate != crate::model::NO_SLEW_LIMIT)
-                })
-            }),
-            Layout::Grid { .. } => (0..AXES).find_map(|a| {
-                let plan = &self.plan.axes[a];
-                of(
-                    a,
-                    plan.shape,
-                    plan.slew_rate != plan::Src::Const(crate::model::NO_SLEW_LIMIT),
-                )
-            }),
-        }
-    }
-
     /// Whether axis `axis` has a non-zero voltage in at least one instance.
     pub fn axis_ever_driven(&self, axis: usize) -> bool {
         self.driven.get(axis).copied().unwrap_or(false)

@@ -569,7 +569,8 @@ fn the_hardware_variant_measures_period_ends_anywhere() {
     let Some((_, _)) = lugre_gpu() else {
         return;
     };
-    let gpu = LugreGpu::hardware_variant(context().expect("a context")).expect("the pipeline");
+    let gpu =
+        LugreGpu::hardware_variant(context().expect("a context"), false).expect("the pipeline");
     let mut instances = seven_cases();
     let mut undriven = instances[0];
     undriven.axes[0].voltage = 0.0;

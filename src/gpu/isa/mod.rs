@@ -110,13 +110,14 @@ pub fn batch_pipelines() -> Result<Vec<Pipeline>, GpuError> {
             });
         }
     }
-    let (name, module, words, entry) = crate::gpu::law_hardware_lane()?;
-    out.push(Pipeline {
-        name,
-        words,
-        entry,
-        bindings: bindings(&module),
-    });
+    for (name, module, words, entry) in crate::gpu::law_hardware_lanes()? {
+        out.push(Pipeline {
+            name,
+            words,
+            entry,
+            bindings: bindings(&module),
+        });
+    }
     Ok(out)
 }
 

@@ -5,13 +5,14 @@ use super::shader::{Arithmetic, parse_and_validate, source, validate};
 use crate::gpu::GpuError;
 use crate::laws::Precision;
 
+/// A LuGre pipeline's shape: its workgroup size, its arithmetic, and
+/// whether it drives any waveform (else sawtooths only).
+pub type Shape = (u32, Arithmetic, bool);
+
 /// What a lane of the LuGre integrator carries (as `gpu::footprint` reads
 /// a Karnopp variant's): its entry point's, not the tests'.
-pub fn footprint(
-    workgroup_size: u32,
-    arithmetic: Arithmetic,
-) -> Result<crate::gpu::spirv::Footprint, GpuError> {
-    let (_, words) = lane_spirv(workgroup_size, arithmetic)?;
+pub fn footprint(shape: Shape) -> Result<crate::gpu::spirv::Footprint, GpuError> {
+    let (_, words) = lane_spirv(shape)?;
     Ok(crate::gpu::spirv::measure_spirv(&words))
 }
 
@@ -20,67 +21,80 @@ pub fn footprint(
 /// compiles for a LuGre batch (the tests' entry points, the functions and
 /// the mirror's probes, carry arrays of their own no run touches).
 pub fn lane_spirv(
-    workgroup_size: u32,
-    arithmetic: Arithmetic,
+    (workgroup_size, arithmetic, waveform): Shape,
 ) -> Result<(naga::Module, Vec<u32>), GpuError> {
-    let (mut module, _) = parse_and_validate(workgroup_size, arithmetic)?;
+    let (mut module, _) = parse_and_validate(workgroup_size, arithmetic, waveform)?;
     module.entry_points.retain(|e| e.name == super::ENTRY_POINT);
-    let info = validate(&module, &source(workgroup_size, arithmetic))?;
+    let info = validate(&module, &source(workgroup_size, arithmetic, waveform))?;
     let words = crate::gpu::spirv::module_spirv(&module, &info, Precision::F64)?;
     Ok((module, words))
 }
 
 /// The name of LuGre's hardware pipeline in `pidm info`'s tables and the
-/// register budgets (`crate::gpu::isa`).
+/// register budgets (`crate::gpu::isa`); its waveform variant's adds
+/// "-waveform", under the same budgets.
 pub const PIPELINE_NAME: &str = "lugre-f64-hardware";
 
-/// LuGre's two pipelines as `pidm info --shader` lists them: the
-/// hardware's (no loop limiter) and llvmpipe's, each with its file name,
-/// its table row's name, its workgroup size and its arithmetic.
-const LISTED: [(&str, &str, u32, Arithmetic); 2] = [
+/// LuGre's pipelines as `pidm info --shader` lists them: the hardware's
+/// (no loop limiter) and llvmpipe's, each a sawtooth's and a waveform's,
+/// with its file name, its table row's name and its shape.
+const LISTED: [(&str, &str, Shape); 4] = [
     (
         "lugre-f64-hardware.wgsl",
         "lugre f64 (hardware)",
-        super::HARDWARE_WORKGROUP_SIZE,
-        Arithmetic::Fused,
+        (super::HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, false),
     ),
     (
         "lugre-f64-limiter.wgsl",
         "lugre f64 (llvmpipe)",
-        super::SOFTWARE_WORKGROUP_SIZE,
-        Arithmetic::Native,
+        (super::SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false),
+    ),
+    (
+        "lugre-f64-hardware-waveform.wgsl",
+        "lugre f64 waveform (hardware)",
+        (super::HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, true),
+    ),
+    (
+        "lugre-f64-limiter-waveform.wgsl",
+        "lugre f64 waveform (llvmpipe)",
+        (super::SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, true),
     ),
 ];
 
-/// Writes both pipelines' WGSL into `dir`; their file names.
+/// Writes the pipelines' WGSL into `dir`; their file names.
 pub fn write_sources(dir: &std::path::Path) -> std::io::Result<Vec<String>> {
     let mut names = Vec::new();
-    for (file, _, size, arithmetic) in LISTED {
-        std::fs::write(dir.join(file), source(size, arithmetic))?;
+    for (file, _, (size, arithmetic, waveform)) in LISTED {
+        std::fs::write(dir.join(file), source(size, arithmetic, waveform))?;
         names.push(file.to_string());
     }
     Ok(names)
 }
 
-/// Both pipelines' footprints, named as `pidm info`'s table lists them.
+/// The pipelines' footprints, named as `pidm info`'s table lists them.
 pub fn footprints() -> Result<Vec<(String, crate::gpu::spirv::Footprint)>, GpuError> {
     LISTED
         .iter()
-        .map(|&(_, row, size, arithmetic)| Ok((row.to_string(), footprint(size, arithmetic)?)))
+        .map(|&(_, row, shape)| Ok((row.to_string(), footprint(shape)?)))
         .collect()
 }
 
-/// The hardware pipeline as a driver receives it, for its register
-/// statistics (`crate::gpu::isa`): its name, module, SPIR-V and entry
-/// point.
-pub fn hardware_lane() -> Result<(String, naga::Module, Vec<u32>, String), GpuError> {
-    let (module, words) = lane_spirv(super::HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused)?;
-    Ok((
-        PIPELINE_NAME.to_string(),
-        module,
-        words,
-        super::ENTRY_POINT.to_string(),
-    ))
+/// The hardware pipelines as a driver receives them, for their register
+/// statistics (`crate::gpu::isa`): each one's name, module, SPIR-V and
+/// entry point, the sawtooth's then the waveform's.
+#[allow(clippy::type_complexity)]
+pub fn hardware_lanes() -> Result<Vec<(String, naga::Module, Vec<u32>, String)>, GpuError> {
+    [
+        (PIPELINE_NAME.to_string(), false),
+        (format!("{PIPELINE_NAME}-waveform"), true),
+    ]
+    .into_iter()
+    .map(|(name, waveform)| {
+        let shape = (super::HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, waveform);
+        let (module, words) = lane_spirv(shape)?;
+        Ok((name, module, words, super::ENTRY_POINT.to_string()))
+    })
+    .collect()
 }
 
 #[cfg(test)]
@@ -88,7 +102,7 @@ mod tests {
     use super::*;
     use crate::gpu::lugre::{HARDWARE_WORKGROUP_SIZE, SOFTWARE_WORKGROUP_SIZE};
 
-    /// Both LuGre variants' lanes index no private array at run time (local
+    /// Every LuGre variant's lane indexes no private array at run time (local
     /// memory on NVIDIA), as the Karnopp variants' (`gpu::footprint`):
     /// 4,976 B before the loops' bodies were called with literal indices
     /// and the vector sums written out. Needs `spirv-opt`: under `CI` its
@@ -103,11 +117,14 @@ mod tests {
             eprintln!("notice: spirv-opt not found; the LuGre footprint is not checked");
             return;
         }
-        for (size, arithmetic) in [
-            (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native),
-            (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused),
+        for shape in [
+            (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false),
+            (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, false),
+            (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, true),
+            (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, true),
         ] {
-            let f = footprint(size, arithmetic).unwrap();
+            let arithmetic = shape;
+            let f = footprint(shape).unwrap();
             let indexed = f.indexed.clone().expect("spirv-opt ran");
             assert!(indexed.is_empty(), "{arithmetic:?}: {indexed:?}");
             assert!(f.instructions.unwrap() > 1000, "{f:?}");

@@ -45,6 +45,10 @@ pub struct Params {
     /// (`Periods::recurrence_test`).
     pub repeat: State,
     pub common_period: u32,
+    /// Each axis' first corner and corner count in a waveform variant's
+    /// corner buffer (binding 16, [`corner_buffer`]); 0 elsewhere.
+    pub corner_first: [u32; AXES],
+    pub corner_count: [u32; AXES],
     pub _pad: u32,
 }
 
@@ -78,9 +82,47 @@ impl Params {
             phase: axis(|a| a.phase),
             repeat,
             common_period,
+            corner_first: [0; AXES],
+            corner_count: [0; AXES],
             _pad: 0,
         }
     }
+}
+
+/// One corner of a waveform (`corners.wgsl`'s `Corner`): the cycle phase
+/// [cycles] and the level (a fraction of the voltage).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct Corner {
+    pub u: f64,
+    pub level: f64,
+}
+
+/// A waveform variant's corner buffer (binding 16): every run's corners
+/// (`Periods::drives`, what the CPU's clock reads), x then y, each axis'
+/// first entry and count set in its parameters. An axis with more than
+/// `MAX_CORNERS` corners is refused.
+pub(super) fn corner_buffer(
+    books: &[Periods],
+    params: &mut [Params],
+) -> Result<Vec<Corner>, String> {
+    let mut out = Vec::new();
+    for (book, p) in books.iter().zip(params.iter_mut()) {
+        for (axis, corners) in book.drives.iter().enumerate() {
+            let n = corners.points.len();
+            if n > super::MAX_CORNERS {
+                return Err(format!(
+                    "axis {axis} of an instance has {n} drive corners, more than the LuGre \
+                     shader's {}",
+                    super::MAX_CORNERS
+                ));
+            }
+            p.corner_first[axis] = out.len() as u32;
+            p.corner_count[axis] = n as u32;
+            out.extend(corners.points.iter().map(|&[u, level]| Corner { u, level }));
+        }
+    }
+    Ok(out)
 }
 
 /// One instance's run between dispatches (`entry.wgsl`'s `Lane`).

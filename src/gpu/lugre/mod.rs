@@ -85,7 +85,7 @@ mod shader;
 
 pub use crate::laws::lugre::libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};
 pub use footprint::{
-    PIPELINE_NAME, footprint, footprints, hardware_lane, lane_spirv, write_sources,
+    PIPELINE_NAME, footprint, footprints, hardware_lanes, lane_spirv, write_sources,
 };
 pub use layout::{Lane, MirrorCheck, Params, Probe, Probed};
 pub use runner::{BatchReport, LugreGpu, table_lines};
@@ -110,6 +110,14 @@ pub const FILES: [(&str, &str); 4] = [
         include_str!("../../../shaders/lugre/entry.wgsl"),
     ),
 ];
+
+/// The drive over an axis' corners (waveform variants: `WAVEFORM`),
+/// included after the engine's queue, or its stand-ins
+/// (`shader::SAWTOOTH_ONLY`) in a sawtooth variant.
+pub const CORNER_FILE: (&str, &str) = (
+    "lugre/corners.wgsl",
+    include_str!("../../../shaders/lugre/corners.wgsl"),
+);
 
 /// Where a lane holds its parameters, Rodas4 stages and W: in device
 /// memory on hardware (`Arithmetic::Fused`'s adapters), in private
@@ -182,6 +190,17 @@ pub const LOOP_LIMIT: u32 = 65_535;
 pub const LOOP_PASSES_PER_ATTEMPT: u32 =
     1 + 2 * (CORNER_RETRIES + 1) + (6 + 1) + (10 + 4) + (15 + 5);
 
+/// [`LOOP_PASSES_PER_ATTEMPT`] of a waveform variant: a segment's start
+/// makes two corners' searches of [`CORNER_RETRIES`], each pass of which
+/// looks its piece up in at most [`CORNER_SEARCH`] halvings (and one more
+/// for the loop's entry), and two drives, one lookup each.
+pub const WAVEFORM_PASSES_PER_ATTEMPT: u32 = 1
+    + 2 * (CORNER_RETRIES + 1 + CORNER_RETRIES * (CORNER_SEARCH + 1))
+    + 2 * (CORNER_SEARCH + 1)
+    + (6 + 1)
+    + (10 + 4)
+    + (15 + 5);
+
 /// The loop passes of one period end, counted as [`LOOP_PASSES_PER_ATTEMPT`]
 /// (iterations and entries): the phase ladder's 18 levels 19, a batch's
 /// halving 17, the batch estimate's MSER cut 885 (17 cuts of two passes
@@ -201,6 +220,11 @@ pub const SOFTWARE_PERIOD_ENDS: u32 = 1;
 /// [`LOOP_LIMIT`] as counted in the source.
 pub const SOFTWARE_ATTEMPTS: u32 =
     (LOOP_LIMIT / 3 - 2 * PERIOD_END_PASSES) / (2 * LOOP_PASSES_PER_ATTEMPT);
+
+/// [`SOFTWARE_ATTEMPTS`] of a waveform variant
+/// ([`WAVEFORM_PASSES_PER_ATTEMPT`]).
+pub const SOFTWARE_WAVEFORM_ATTEMPTS: u32 =
+    (LOOP_LIMIT / 3 - 2 * PERIOD_END_PASSES) / (2 * WAVEFORM_PASSES_PER_ATTEMPT);
 
 /// The lanes a LuGre batch keeps busy after its first dispatch on a
 /// software adapter (the engine's queue; Karnopp's take
@@ -225,6 +249,16 @@ pub const HARDWARE_WORKGROUP_SIZE: u32 = 64;
 /// The attempts a next corner's search makes before it takes what it has
 /// (the CPU recurses; a corner rounded onto t once is already rare).
 pub const CORNER_RETRIES: u32 = 4;
+
+/// The halvings of a waveform variant's search for the piece that holds
+/// a phase (`corners.wgsl`'s `piece_at`): an axis' corners are at most
+/// [`MAX_CORNERS`], which a table of `floor::drive::MAX_TABLE_ENTRIES`
+/// keeps under its amplifier's slew limit (a corner where the follower
+/// meets each flank, at most; tested).
+pub const CORNER_SEARCH: u32 = 8;
+
+/// The most corners an axis may have in a waveform variant.
+pub const MAX_CORNERS: usize = 1 << CORNER_SEARCH;
 
 /// What `segment` returns after a step attempt that leaves the run going,
 /// and once the segment is complete (the other values are statuses).

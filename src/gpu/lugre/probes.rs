@@ -38,7 +38,7 @@ impl LugreGpu<'_> {
         let mut lane = Lane::start(&book);
         // The lane through the engine's protocol, one attempt a dispatch.
         let options = self.options();
-        let (coefficients, states, extra) = self.upload(std::slice::from_ref(&book));
+        let (coefficients, states, extra) = self.upload(std::slice::from_ref(&book))?;
         let bound: Vec<(u32, &wgpu::Buffer)> =
             extra.iter().map(|(b, buffer)| (*b, buffer)).collect();
         let runner = Runner::on(self.ctx, settings, &options);
@@ -145,13 +145,8 @@ impl LugreGpu<'_> {
             return Ok(Vec::new());
         }
         let device = self.ctx.device();
-        let pipeline = compile(
-            device,
-            self.workgroup_size,
-            self.arithmetic,
-            MIRROR_ENTRY_POINT,
-            None,
-        )?;
+        let shape = (self.workgroup_size, self.arithmetic, self.waveform);
+        let pipeline = compile(device, shape, MIRROR_ENTRY_POINT, None)?;
         let storage = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -246,13 +241,8 @@ impl LugreGpu<'_> {
             return Ok(Vec::new());
         }
         let device = self.ctx.device();
-        let pipeline = compile(
-            device,
-            self.workgroup_size,
-            self.arithmetic,
-            FUNCTIONS_ENTRY_POINT,
-            None,
-        )?;
+        let shape = (self.workgroup_size, self.arithmetic, self.waveform);
+        let pipeline = compile(device, shape, FUNCTIONS_ENTRY_POINT, None)?;
         let values: Vec<f64> = args
             .iter()
             .flat_map(|&(x, y)| [x, y, 0.0, 0.0, 0.0])

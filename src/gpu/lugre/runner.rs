@@ -7,7 +7,8 @@
 use super::layout::{Recurrence, STAGE_BYTES, StageMatrix};
 use super::{
     Arithmetic, ENTRY_POINT, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_STOPPED, Lane,
-    Params, SOFTWARE_ATTEMPTS, SOFTWARE_LANES, SOFTWARE_WORKGROUP_SIZE, parse_and_validate, source,
+    Params, SOFTWARE_ATTEMPTS, SOFTWARE_LANES, SOFTWARE_WAVEFORM_ATTEMPTS, SOFTWARE_WORKGROUP_SIZE,
+    parse_and_validate, source,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -16,7 +17,10 @@ use bytemuck::Zeroable;
 use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 
-use super::layout::Coefficients;
+use super::layout::{Coefficients, corner_buffer};
+
+/// The binding of a waveform variant's corners (`corners.wgsl`).
+pub(super) const CORNER_BINDING: u32 = 16;
 use crate::gpu::lanes::{Kernel, Lanes, Work};
 use crate::gpu::layout::double::{Head, Measure as GpuMeasure};
 use crate::gpu::readback::{mappable, read_buffer};
@@ -50,6 +54,9 @@ pub struct LugreGpu<'a> {
     pub(super) pipeline: wgpu::ComputePipeline,
     pub(super) workgroup_size: u32,
     pub(super) arithmetic: Arithmetic,
+    /// A waveform variant: every run's drive from its corners (binding 16,
+    /// `shaders/lugre/corners.wgsl`); else sawtooths only.
+    pub(super) waveform: bool,
     /// Step attempts per lane and dispatch.
     pub attempts: u32,
     /// The running instances a batch hands over to the CPU once no more
@@ -71,21 +78,22 @@ pub struct LugreGpu<'a> {
     pub whole_accumulators: bool,
 }
 
-/// Compiles one entry point of the shader on `device` (runtime checks off:
-/// every loop is bounded, every index below its array's length).
+/// Compiles one entry point of the shader (a `waveform` variant or a
+/// sawtooth one) on `device` (runtime checks off: every loop is bounded,
+/// every index below its array's length).
 pub(super) fn compile(
     device: &wgpu::Device,
-    workgroup_size: u32,
-    arithmetic: Arithmetic,
+    (workgroup_size, arithmetic, waveform): (u32, Arithmetic, bool),
     entry: &str,
     cache: Option<&wgpu::PipelineCache>,
 ) -> Result<wgpu::ComputePipeline, GpuError> {
-    parse_and_validate(workgroup_size, arithmetic)?;
-    let src = source(workgroup_size, arithmetic);
+    parse_and_validate(workgroup_size, arithmetic, waveform)?;
+    let src = source(workgroup_size, arithmetic, waveform);
     // SAFETY: every loop of the shader is bounded by a constant or by
     // `control.attempts`; every index is a constant, a loop counter below
     // its array's length, a pivot (below R) or an instance below both
-    // storage arrays' lengths.
+    // storage arrays' lengths, a corner's below its axis' count (at most
+    // MAX_CORNERS, `layout::corner_buffer`).
     unsafe {
         crate::gpu::context::compile_trusted(
             device,
@@ -95,6 +103,27 @@ pub(super) fn compile(
             cache,
         )
     }
+}
+
+/// Step attempts per dispatch on a software adapter: a waveform
+/// variant's corner searches take more of llvmpipe's loop passes.
+fn software_attempts(waveform: bool) -> u32 {
+    match waveform {
+        true => SOFTWARE_WAVEFORM_ATTEMPTS,
+        false => SOFTWARE_ATTEMPTS,
+    }
+}
+
+/// Whether every driven axis of `inst` is a sawtooth without a slew
+/// limit that bites: its corners are its duty's sawtooth's, which the
+/// sawtooth variant drives by the same arithmetic, bit for bit.
+pub fn drives_sawtooths(inst: &Instance) -> bool {
+    use crate::laws::floor::drive::{Waveform, axis_corners};
+    inst.axes.iter().all(|a| {
+        !a.is_driven()
+            || (matches!(a.shape, crate::model::Shape::Sawtooth)
+                && axis_corners(a) == Waveform::Sawtooth { duty: a.duty }.corners())
+    })
 }
 
 /// LuGre's lanes as the engine sees them (`gpu::lanes::Lanes`): the
@@ -139,7 +168,24 @@ impl<'a> LugreGpu<'a> {
     /// Compiles the integrator on `ctx`, which must offer f64: the
     /// variant of its kind of adapter.
     pub fn new(ctx: &'a GpuContext) -> Result<LugreGpu<'a>, GpuError> {
-        LugreGpu::variant(ctx, ctx.is_hardware())
+        LugreGpu::variant(ctx, ctx.is_hardware(), false)
+    }
+
+    /// Whether this pipeline drives any waveform (from its corners), not
+    /// sawtooths only.
+    pub fn drives_waveforms(&self) -> bool {
+        self.waveform
+    }
+
+    /// [`LugreGpu::new`] for a batch of `instances`: the waveform variant
+    /// where one of them drives an axis other than by the sawtooth
+    /// (a waveform or a slew limit), else the sawtooth's.
+    pub fn for_instances(
+        ctx: &'a GpuContext,
+        instances: &[Instance],
+    ) -> Result<LugreGpu<'a>, GpuError> {
+        let waveform = instances.iter().any(|inst| !drives_sawtooths(inst));
+        LugreGpu::variant(ctx, ctx.is_hardware(), waveform)
     }
 
     /// The variant a hardware adapter gets (its workgroup size, the fused
@@ -149,49 +195,57 @@ impl<'a> LugreGpu<'a> {
     /// shader there too. Its period ends are not counted against llvmpipe's
     /// loop limit: a window's have no loops, but many steady ones in one
     /// dispatch could reach it, so on a software adapter it is for tests.
-    pub fn hardware_variant(ctx: &'a GpuContext) -> Result<LugreGpu<'a>, GpuError> {
-        let mut gpu = LugreGpu::variant(ctx, true)?;
+    pub fn hardware_variant(ctx: &'a GpuContext, waveform: bool) -> Result<LugreGpu<'a>, GpuError> {
+        let mut gpu = LugreGpu::variant(ctx, true, waveform)?;
         if !ctx.is_hardware() {
-            gpu.attempts = SOFTWARE_ATTEMPTS;
+            gpu.attempts = software_attempts(waveform);
         }
         Ok(gpu)
     }
 
-    /// The variant for a hardware adapter (`hardware`) or a software one.
-    fn variant(ctx: &'a GpuContext, hardware: bool) -> Result<LugreGpu<'a>, GpuError> {
+    /// The variant for a hardware adapter (`hardware`) or a software one,
+    /// driving any `waveform` or sawtooths only.
+    fn variant(
+        ctx: &'a GpuContext,
+        hardware: bool,
+        waveform: bool,
+    ) -> Result<LugreGpu<'a>, GpuError> {
         if !ctx.supports_f64() {
             return Err(GpuError::F64Unsupported {
                 adapter: ctx.describe(),
             });
         }
-        let (workgroup_size, attempts, arithmetic, name) = if hardware {
-            let name = "lugre (hardware)";
-            (
+        let name = match (hardware, waveform) {
+            (true, false) => "lugre (hardware)",
+            (true, true) => "lugre (hardware, waveform)",
+            (false, false) => "lugre (software)",
+            (false, true) => "lugre (software, waveform)",
+        };
+        let (workgroup_size, attempts, arithmetic) = match hardware {
+            true => (
                 HARDWARE_WORKGROUP_SIZE,
                 HARDWARE_ATTEMPTS,
                 Arithmetic::Fused,
-                name,
-            )
-        } else {
-            let name = "lugre (software)";
-            (
+            ),
+            false => (
                 SOFTWARE_WORKGROUP_SIZE,
-                SOFTWARE_ATTEMPTS,
+                software_attempts(waveform),
                 Arithmetic::Native,
-                name,
-            )
+            ),
         };
         // One compile per context and variant: every batch of a run takes
         // the same pipeline (the driver's cache on disk spares later runs
         // it too).
         let pipeline = ctx.law_pipeline(name, |cache| {
-            compile(ctx.device(), workgroup_size, arithmetic, ENTRY_POINT, cache)
+            let shape = (workgroup_size, arithmetic, waveform);
+            compile(ctx.device(), shape, ENTRY_POINT, cache)
         })?;
         Ok(LugreGpu {
             ctx,
             pipeline,
             workgroup_size,
             arithmetic,
+            waveform,
             attempts,
             cpu_tail: crate::gpu::cpu_tail().0,
             lanes: None,
@@ -342,7 +396,7 @@ impl<'a> LugreGpu<'a> {
             return Err(GpuError::Interrupted);
         }
         let n = books.len();
-        let (coefficients, states, extra) = profile::time(Phase::Upload, || self.upload(&books));
+        let (coefficients, states, extra) = profile::time(Phase::Upload, || self.upload(&books))?;
         let bound: Vec<(u32, &wgpu::Buffer)> =
             extra.iter().map(|(b, buffer)| (*b, buffer)).collect();
         let kernel = self.kernel(&bound);
@@ -406,16 +460,21 @@ impl<'a> LugreGpu<'a> {
 
     /// A batch's coefficients (the measurement's, packed), its runs as the
     /// host sets them up, and its own buffers: the parameters (binding 9),
-    /// room for the recurrence snapshots (binding 10), and on hardware
+    /// room for the recurrence snapshots (binding 10), a waveform
+    /// variant's corners ([`CORNER_BINDING`]), and on hardware
     /// room for each instance's Rodas4 stages and W (bindings 14 and 15,
     /// `shaders/lugre/hold_memory.wgsl`), each with its binding.
     #[allow(clippy::type_complexity)]
     pub(super) fn upload(
         &self,
         books: &[Periods],
-    ) -> (Vec<Coefficients>, Vec<Lane>, Vec<(u32, wgpu::Buffer)>) {
+    ) -> Result<(Vec<Coefficients>, Vec<Lane>, Vec<(u32, wgpu::Buffer)>), GpuError> {
         let device = self.ctx.device();
-        let params: Vec<Params> = books.iter().map(Params::of).collect();
+        let mut params: Vec<Params> = books.iter().map(Params::of).collect();
+        let corners = match self.waveform {
+            true => Some(corner_buffer(books, &mut params).map_err(GpuError::Execution)?),
+            false => None,
+        };
         let models = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("lugre models"),
             contents: bytemuck::cast_slice(&params),
@@ -427,6 +486,14 @@ impl<'a> LugreGpu<'a> {
             (books.len() * size_of::<Recurrence>()) as u64,
         );
         let mut own = vec![(9, models), (10, recurrences)];
+        if let Some(corners) = corners {
+            let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("lugre corners"),
+                contents: bytemuck::cast_slice(&corners),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            own.push((CORNER_BINDING, buffer));
+        }
         if self.arithmetic == Arithmetic::Fused {
             let n = books.len() as u64;
             let stages = storage(device, "lugre stages", n * STAGE_BYTES as u64);
@@ -434,14 +501,14 @@ impl<'a> LugreGpu<'a> {
             let matrices = storage(device, "lugre stage matrices", w_bytes);
             own.extend([(14, stages), (15, matrices)]);
         }
-        (
+        Ok((
             books
                 .iter()
                 .map(|b| Coefficients::of(b.setup(), b.cycles()))
                 .collect(),
             books.iter().map(Lane::start).collect(),
             own,
-        )
+        ))
     }
 
     /// Every lane's recurrence snapshots, read back where some run is

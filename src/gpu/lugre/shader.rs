@@ -4,8 +4,8 @@
 //! lane holds its parameters, stages and W (`holder`).
 
 use super::{
-    CORNER_RETRIES, FILES, LANE_FRESH, LANE_RUNNING, LANE_STOPPED, MEASUREMENT_FILES, SEGMENT_DONE,
-    SEGMENT_GOING, SOFTWARE_PERIOD_ENDS, holder,
+    CORNER_FILE, CORNER_RETRIES, CORNER_SEARCH, FILES, LANE_FRESH, LANE_RUNNING, LANE_STOPPED,
+    MEASUREMENT_FILES, SEGMENT_DONE, SEGMENT_GOING, SOFTWARE_PERIOD_ENDS, holder,
 };
 use crate::laws::lugre::libm::*;
 
@@ -42,10 +42,12 @@ pub enum Arithmetic {
 /// (`crate::gpu::prelude`: Real, the statuses, INFINITY, the helpers div
 /// and root), `quotient` and
 /// `square_root` in `arithmetic`, the state's layout, Rodas4's
-/// coefficients and the step control's constants from the Rust consts, and
-/// `exp_tail` / `exp_halvings` written out straight from [`EXP_TAYLOR`]
-/// and [`EXP_HALVINGS`] (loops would count against llvmpipe's limit).
-pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic) -> String {
+/// coefficients and the step control's constants from the Rust consts,
+/// whether the variant drives `waveform`s other than the sawtooth
+/// (`WAVEFORM`, [`CORNER_FILE`]), and `exp_tail` / `exp_halvings` written
+/// out straight from [`EXP_TAYLOR`] and [`EXP_HALVINGS`] (loops would
+/// count against llvmpipe's limit).
+pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic, waveform: bool) -> String {
     // Steady measurements with the phase ladder: the floor's measurement
     // files are part of every LuGre shader.
     let base = crate::gpu::prelude::floor(Precision::F64, true);
@@ -64,6 +66,7 @@ pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic) -> String {
         }
     };
     out += &lane_constants(workgroup_size, arithmetic);
+    out += &format!("const WAVEFORM: bool = {waveform};\n");
     out += &rodas_tables();
     out += &libm_source();
     out
@@ -104,6 +107,7 @@ fn lane_constants(workgroup_size: u32, arithmetic: Arithmetic) -> String {
     };
     out += &u("PERIOD_ENDS_PER_DISPATCH", ends as usize);
     out += &u("CORNER_RETRIES", CORNER_RETRIES as usize);
+    out += &u("CORNER_SEARCH", CORNER_SEARCH as usize);
     out += &u("SEGMENT_GOING", SEGMENT_GOING as usize);
     out += &u("SEGMENT_DONE", SEGMENT_DONE as usize);
     out += &u("LANE_FRESH", LANE_FRESH as usize);
@@ -348,11 +352,29 @@ fn factor_source() -> String {
     s
 }
 
+/// A sawtooth variant: the corners' functions of [`CORNER_FILE`] as
+/// stand-ins that are never called (`WAVEFORM` is false) and bind nothing.
+const SAWTOOTH_ONLY: &str = "\
+fn corner_drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
+    return Linear(Real(0.0), Real(0.0));
+}
+
+fn corner_next(clock: Clock, i: u32, t: Real) -> Real {
+    return Real(0.0);
+}
+";
+
 /// The complete shader source for `workgroup_size` invocations per group
-/// in `arithmetic`.
-pub fn source(workgroup_size: u32, arithmetic: Arithmetic) -> String {
-    let mut src = prelude(workgroup_size, arithmetic);
+/// in `arithmetic`, driving any `waveform` from its corners, or sawtooths
+/// only.
+pub fn source(workgroup_size: u32, arithmetic: Arithmetic, waveform: bool) -> String {
+    let mut src = prelude(workgroup_size, arithmetic, waveform);
     src += &crate::gpu::engine_queue();
+    let (name, text) = CORNER_FILE;
+    match waveform {
+        true => src += &format!("\n// ---- shaders/{name}\n{text}"),
+        false => src += SAWTOOTH_ONLY,
+    }
     for (name, text) in FILES.into_iter().chain([holder(arithmetic)]) {
         src += &format!("\n// ---- shaders/{name}\n");
         src += text;
@@ -385,8 +407,9 @@ pub fn read_where_used(src: &str) -> String {
 pub fn parse_and_validate(
     workgroup_size: u32,
     arithmetic: Arithmetic,
+    waveform: bool,
 ) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
-    let src = source(workgroup_size, arithmetic);
+    let src = source(workgroup_size, arithmetic, waveform);
     let module =
         naga::front::wgsl::parse_str(&src).map_err(|e| compile_error(e.emit_to_string(&src)))?;
     let info = validate(&module, &src)?;

@@ -7,7 +7,8 @@ use crate::gpu::lugre::{Arithmetic, SOFTWARE_WORKGROUP_SIZE, parse_and_validate}
 /// The buffers' Rust structs have the shader's layout.
 #[test]
 pub(super) fn params_and_lanes_have_the_shader_layout() {
-    let (module, _) = parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native).unwrap();
+    let (module, _) =
+        parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false).unwrap();
     let mut layouter = naga::proc::Layouter::default();
     layouter.update(module.to_ctx()).unwrap();
     let find = |name: &str| {
@@ -40,6 +41,9 @@ pub(super) fn params_and_lanes_have_the_shader_layout() {
         ("period", std::mem::offset_of!(Params, period)),
         ("scale", std::mem::offset_of!(Params, scale)),
         ("one", std::mem::offset_of!(Params, one)),
+        ("common_period", std::mem::offset_of!(Params, common_period)),
+        ("corner_first", std::mem::offset_of!(Params, corner_first)),
+        ("corner_count", std::mem::offset_of!(Params, corner_count)),
     ];
     for (name, offset) in rust {
         let (_, o) = members.iter().find(|(n, _)| n == name).unwrap();
@@ -68,7 +72,8 @@ pub(super) fn params_and_lanes_have_the_shader_layout() {
 /// (`Lu`'s `a` and `pivot` as its first two).
 #[test]
 fn the_stage_matrix_has_the_shader_layout() {
-    let (module, _) = parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native).unwrap();
+    let (module, _) =
+        parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false).unwrap();
     let member = |name: &str, field: &str| {
         let (_, ty) = module
             .types
@@ -99,4 +104,43 @@ fn the_stage_matrix_has_the_shader_layout() {
     ] {
         assert_eq!(member("W", field).1 as usize, offset, "W.{field}");
     }
+}
+
+/// The largest table (64 entries, 32 jumps between -1 and 1) under
+/// amplifier slew limits from barely biting to a crawl keeps its axis
+/// within the waveform pipeline's `MAX_CORNERS`, and the corner buffer
+/// locates each axis' corners in its parameters.
+#[test]
+fn the_largest_slew_limited_table_fits_the_corner_search() {
+    use crate::laws::Settings;
+    use crate::laws::floor::drive::{MAX_TABLE_ENTRIES, axis_corners};
+    use crate::model::{Instance, Shape, Table};
+    let entries: Vec<[f64; 2]> = (0..MAX_TABLE_ENTRIES / 2)
+        .flat_map(|k| {
+            let u = k as f64 / (MAX_TABLE_ENTRIES / 2) as f64;
+            let level = if k % 2 == 0 { 1.0 } else { -1.0 };
+            [[u, level], [u, -level]]
+        })
+        .collect();
+    let mut inst = Instance::TABLE1;
+    inst.axes[0].shape = Shape::Table(Table::intern(&entries));
+    let unlimited = axis_corners(&inst.axes[0]);
+    for slew in [1e7, 1e6, 1e5, 3e4, 1e4, 3e3] {
+        inst.axes[0].slew_rate = slew;
+        let corners = axis_corners(&inst.axes[0]);
+        assert_ne!(corners, unlimited, "slew rate {slew} bites");
+        let n = corners.points.len();
+        assert!(
+            n <= crate::gpu::lugre::MAX_CORNERS,
+            "slew rate {slew}: {n} corners"
+        );
+    }
+    inst.mechanism.friction = crate::model::Friction::Lugre(crate::model::Lugre::DEFAULT);
+    let books = [Periods::new(&inst, &Settings::default())];
+    let mut params = [Params::of(&books[0])];
+    let corners = corner_buffer(&books, &mut params).unwrap();
+    let counts = params[0].corner_count;
+    assert_eq!(params[0].corner_first, [0, counts[0]]);
+    assert_eq!(corners.len(), (counts[0] + counts[1]) as usize);
+    assert_eq!(corners[0].u, books[0].drives[0].points[0][0]);
 }

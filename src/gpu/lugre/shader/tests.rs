@@ -8,11 +8,14 @@ use crate::gpu::mirrors::{assert_mirrors, defined_functions};
 
 #[test]
 fn the_shader_parses_validates_and_writes_spir_v() {
-    for (size, arithmetic) in [
-        (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native),
-        (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused),
+    for (size, arithmetic, waveform) in [
+        (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false),
+        (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, false),
+        (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, true),
+        (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, true),
     ] {
-        let (module, info) = parse_and_validate(size, arithmetic).unwrap_or_else(|e| panic!("{e}"));
+        let (module, info) =
+            parse_and_validate(size, arithmetic, waveform).unwrap_or_else(|e| panic!("{e}"));
         let options = naga::back::spv::Options::default();
         let words = naga::back::spv::write_vec(&module, &info, &options, None)
             .unwrap_or_else(|e| panic!("{e}"));
@@ -95,8 +98,9 @@ fn the_shader_files_mirror_their_rust_files() {
 /// floor prelude's helpers; the software one divides natively.
 #[test]
 fn the_fused_shader_neither_divides_nor_takes_square_roots() {
-    let count = |arithmetic| {
-        let (module, info) = parse_and_validate(HARDWARE_WORKGROUP_SIZE, arithmetic).unwrap();
+    let count = |arithmetic, waveform| {
+        let (module, info) =
+            parse_and_validate(HARDWARE_WORKGROUP_SIZE, arithmetic, waveform).unwrap();
         let mut found = 0;
         for (handle, f) in module.functions.iter() {
             let fi = &info[handle];
@@ -121,8 +125,10 @@ fn the_fused_shader_neither_divides_nor_takes_square_roots() {
         }
         found
     };
-    assert_eq!(count(Arithmetic::Fused), 0);
-    assert!(count(Arithmetic::Native) >= 2);
+    for waveform in [false, true] {
+        assert_eq!(count(Arithmetic::Fused, waveform), 0);
+        assert!(count(Arithmetic::Native, waveform) >= 2);
+    }
 }
 
 /// The hardware variant reads its parameters where used: no `model.`
@@ -130,19 +136,22 @@ fn the_fused_shader_neither_divides_nor_takes_square_roots() {
 /// left as it is.
 #[test]
 fn the_hardware_variant_reads_its_parameters_where_used() {
-    let src = source(HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused);
-    let code: String = src
-        .lines()
-        .map(|l| l.split("//").next().unwrap_or(""))
-        .collect::<Vec<_>>()
-        .join("\n");
-    assert!(!code.contains(" model.") && !code.contains("(model."));
-    assert!(!code.contains("var<private> model"));
-    assert!(code.contains("models[held].stiffness"));
+    for waveform in [false, true] {
+        let src = source(HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, waveform);
+        let code: String = src
+            .lines()
+            .map(|l| l.split("//").next().unwrap_or(""))
+            .collect::<Vec<_>>()
+            .join("\n");
+        assert!(!code.contains(" model.") && !code.contains("(model."));
+        assert!(!code.contains("var<private> model"));
+        assert!(code.contains("models[held].stiffness"));
+        assert_eq!(code.contains("models[held].corner_first"), waveform);
+    }
     assert_eq!(
         read_where_used("x = model.a; // docs/model.md\nmodels.b"),
         "x = models[held].a; // docs/model.md\nmodels.b"
     );
-    let software = source(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native);
+    let software = source(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false);
     assert!(software.contains("var<private> model: Model;"));
 }
