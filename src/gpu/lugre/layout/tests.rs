@@ -135,7 +135,9 @@ fn the_largest_slew_limited_table_fits_the_corner_search() {
             "slew rate {slew}: {n} corners"
         );
     }
-    inst.mechanism.friction = crate::model::Friction::Lugre(crate::model::Lugre::DEFAULT);
+    // docs/model.md section 8's interface (its default keys, by name).
+    let law = crate::laws::Law::from_name("lugre").expect("a law");
+    inst.mechanism.friction = law.friction([1e7, f64::NAN, 0.0, 1e-3]);
     let books = [Periods::new(&inst, &Settings::default())];
     let mut params = [Params::of(&books[0])];
     let corners = corner_buffer(&books, &mut params).unwrap();
