@@ -3,7 +3,8 @@
 // waveform's one cycle of (u, level) corners, slew-limited where the
 // amplifier is, of instance `held` in `corners` from
 // `model.corner_first[i]`, `model.corner_count[i]` of them per axis.
-// `model.wgsl`'s `drive_on` and `next_corner` call these.
+// `model.wgsl`'s `drive_on` and `cycle_corner` call `piece_drive` and
+// `piece_end`.
 
 struct Corner {
     u: Real,
@@ -16,8 +17,8 @@ struct Corner {
 // from the last corner at or before `p` to the first one after it (the
 // first one a cycle later past the last), or, where `p` lies before the
 // first corner, the last piece shifted back a cycle (its end is the CPU's
-// (u + 1) - 1, kept from being folded to u). No piece found is a jump:
-// the first corner after `p` follows one at or before it. A binary search
+// (u + 1) - 1, kept from being folded to u). The piece found is never a
+// jump: its end lies past `p`, its start at or before it. A binary search
 // over the corners, at most CORNER_SEARCH halvings (the host keeps an
 // axis' corners within 2^CORNER_SEARCH).
 struct Piece {
@@ -54,19 +55,12 @@ fn piece_at(i: u32, p: Real) -> Piece {
     return Piece(start, corners[first + hi]);
 }
 
-// `Clock::drive_on` over the corners: axis `i`'s drive over a segment
-// that contains `t_mid` [s] and no corner, linear in time, each piece
-// written from its corner at level 0 where it has one.
-fn corner_drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
-    var start = clock.start;
-    let v = model.voltage[i];
-    if v == Real(0.0) {
-        return Linear(Real(0.0), Real(0.0));
-    }
-    let u0 = start[i];
-    let f = model.frequency[i];
-    let n = floor(u0 + f * t_mid);
-    let piece = piece_at(i, u0 + f * t_mid - n);
+// `Clock::drive_on` over the corners, once `drive_on` found axis `i`
+// driven at `v` [V] and its phase `p` in cycle `n` (u0 its clock): the
+// drive over the piece that holds `p`, linear in time, written from its
+// corner at level 0 where it has one.
+fn piece_drive(i: u32, v: Real, u0: Real, n: Real, f: Real, p: Real) -> Linear {
+    let piece = piece_at(i, p);
     let k = quotient(v * (piece.end.level - piece.start.level), piece.end.u - piece.start.u);
     if piece.end.level == Real(0.0) {
         return Linear(-k * (n + piece.end.u - u0), k * f);
@@ -75,28 +69,8 @@ fn corner_drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
     return Linear(select(v * piece.start.level + at, at, piece.start.level == Real(0.0)), k * f);
 }
 
-// `Clock::next_corner` over the corners: the first corner of axis `i`
-// after `t` [s] (INFINITY undriven); a corner rounded onto t gives the
-// next one, at most CORNER_RETRIES times, as `next_corner` does.
-fn corner_next(clock: Clock, i: u32, t: Real) -> Real {
-    var start = clock.start;
-    if model.voltage[i] == Real(0.0) {
-        return INFINITY;
-    }
-    let u0 = start[i];
-    let f = model.frequency[i];
-    var after = t;
-    var at = t;
-    for (var retry = 0u; retry < CORNER_RETRIES; retry++) {
-        let u = u0 + f * after;
-        let n = floor(u);
-        let corner = n + piece_at(i, u - n).end.u;
-        at = quotient(corner - u0, f);
-        if at <= after + Real(1e-15) * (abs(after) + quotient(Real(1.0), f)) {
-            after = at + quotient(Real(1e-12), f);
-        } else {
-            break;
-        }
-    }
-    return at;
+// The end of the piece that holds phase `p` [cycles]: what `model.wgsl`'s
+// `next_corner` (`Clock::next_corner`) reads of the corners.
+fn piece_end(i: u32, p: Real) -> Real {
+    return piece_at(i, p).end.u;
 }

@@ -319,9 +319,6 @@ fn jacobian_pair(jac: ptr<function, Matrix>, y: Vector, fr: Friction, i: u32, j:
 // (docs/model.md section 2), linear in time: a sawtooth's, or in a
 // WAVEFORM variant any waveform's (corners.wgsl).
 fn drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
-    if WAVEFORM {
-        return corner_drive_on(clock, i, t_mid);
-    }
     var start = clock.start;
     let v = model.voltage[i];
     if v == Real(0.0) {
@@ -329,8 +326,11 @@ fn drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
     }
     let u0 = start[i];
     let f = model.frequency[i];
-    let duty = model.duty[i];
     let n = floor(u0 + f * t_mid);
+    if WAVEFORM {
+        return piece_drive(i, v, u0, n, f, u0 + f * t_mid - n);
+    }
+    let duty = model.duty[i];
     // u = u0 + f t; rise: (u - n) / d, fall: (n + 1 - u) / (1 - d).
     if u0 + f * t_mid - n < duty {
         let k = quotient(v, duty);
@@ -344,22 +344,18 @@ fn drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
 // The CPU's recursion (a corner rounded onto t: the next one) is a loop
 // here, of at most CORNER_RETRIES passes.
 fn next_corner(clock: Clock, i: u32, t: Real) -> Real {
-    if WAVEFORM {
-        return corner_next(clock, i, t);
-    }
     var start = clock.start;
     if model.voltage[i] == Real(0.0) {
         return INFINITY;
     }
     let u0 = start[i];
     let f = model.frequency[i];
-    let duty = model.duty[i];
     var after = t;
     var at = t;
     for (var retry = 0u; retry < CORNER_RETRIES; retry++) {
         let u = u0 + f * after;
         let n = floor(u);
-        let corner = select(n + Real(1.0), n + duty, u - n < duty);
+        let corner = n + cycle_corner(i, u - n);
         at = quotient(corner - u0, f);
         if at <= after + Real(1e-15) * (abs(after) + quotient(Real(1.0), f)) {
             after = at + quotient(Real(1e-12), f);
@@ -368,4 +364,15 @@ fn next_corner(clock: Clock, i: u32, t: Real) -> Real {
         }
     }
     return at;
+}
+
+// The end of the piece of axis `i`'s cycle that holds phase `p` in [0, 1)
+// [cycles] (`Corners::piece_at`'s end): the sawtooth's duty or 1, or in a
+// WAVEFORM variant its corners' (corners.wgsl).
+fn cycle_corner(i: u32, p: Real) -> Real {
+    if WAVEFORM {
+        return piece_end(i, p);
+    }
+    let duty = model.duty[i];
+    return select(Real(1.0), duty, p < duty);
 }

@@ -355,11 +355,11 @@ fn factor_source() -> String {
 /// A sawtooth variant: the corners' functions of [`CORNER_FILE`] as
 /// stand-ins that are never called (`WAVEFORM` is false) and bind nothing.
 const SAWTOOTH_ONLY: &str = "\
-fn corner_drive_on(clock: Clock, i: u32, t_mid: Real) -> Linear {
+fn piece_drive(i: u32, v: Real, u0: Real, n: Real, f: Real, p: Real) -> Linear {
     return Linear(Real(0.0), Real(0.0));
 }
 
-fn corner_next(clock: Clock, i: u32, t: Real) -> Real {
+fn piece_end(i: u32, p: Real) -> Real {
     return Real(0.0);
 }
 ";

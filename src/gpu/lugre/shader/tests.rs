@@ -74,6 +74,9 @@ fn the_shader_files_mirror_their_rust_files() {
         "ddz_dvr",
         "w_row",
         "reduced_entry",
+        // The end of `Corners::piece_at`'s piece, or the sawtooth's, that
+        // `Clock::next_corner` reads inline.
+        "cycle_corner",
         // Rodas4's stages and coefficients by switches.
         "stage_a",
         "stage_c",
