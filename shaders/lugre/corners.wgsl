@@ -19,7 +19,8 @@ struct Corner {
 // first corner, the last piece shifted back a cycle (its end is the CPU's
 // (u + 1) - 1, kept from being folded to u). The piece found is never a
 // jump: its end lies past `p`, its start at or before it. A binary search
-// over the corners, at most CORNER_SEARCH halvings (the host keeps an
+// over the corners (`search_corners`, CORNER_SEARCH halvings written out
+// by the host: no loop, so no llvmpipe loop passes; the host keeps an
 // axis' corners within 2^CORNER_SEARCH).
 struct Piece {
     start: Corner,
@@ -36,18 +37,7 @@ fn piece_at(i: u32, p: Real) -> Piece {
     if p < head.u {
         return Piece(Corner(last.u - Real(1.0), last.level), Corner(keep(head.u + Real(1.0)) - Real(1.0), head.level));
     }
-    // u of corner lo is at most p; corner hi (n: the first a cycle later)
-    // lies past it.
-    var lo = 0u;
-    var hi = n;
-    for (var s = 0u; s < CORNER_SEARCH && hi - lo > 1u; s++) {
-        let mid = (lo + hi) / 2u;
-        if corners[first + mid].u > p {
-            hi = mid;
-        } else {
-            lo = mid;
-        }
-    }
+    let hi = search_corners(first, n, p);
     let start = corners[first + hi - 1u];
     if hi == n {
         return Piece(start, Corner(head.u + Real(1.0), head.level));
@@ -67,6 +57,16 @@ fn piece_drive(i: u32, v: Real, u0: Real, n: Real, f: Real, p: Real) -> Linear {
     }
     let at = k * (u0 - n - piece.start.u);
     return Linear(select(v * piece.start.level + at, at, piece.start.level == Real(0.0)), k * f);
+}
+
+// One halving of the search's bracket b = (lo, hi) over the corners from
+// `first`: corner lo lies at or before `p`, corner hi past it (hi = the
+// count: the first corner a cycle later). A bracket of one piece stays.
+fn halve(first: u32, b: vec2<u32>, p: Real) -> vec2<u32> {
+    let mid = (b.x + b.y) / 2u;
+    let past = corners[first + mid].u > p;
+    let narrower = select(vec2<u32>(mid, b.y), vec2<u32>(b.x, mid), past);
+    return select(b, narrower, b.y - b.x > 1u);
 }
 
 // The end of the piece that holds phase `p` [cycles]: what `model.wgsl`'s

@@ -381,7 +381,8 @@ fn the_shader_drives_waveforms_as_the_cpu_does() {
 /// The LuGre shader drives every waveform from its corners
 /// (`shaders/lugre/corners.wgsl`) as the CPU's clock does: the batch of
 /// waveform families (and a plain sawtooth among them, which the waveform
-/// variant drives from its corners too) takes the waveform variant, whose
+/// variant drives from its corners too, and a slow 1 Hz lane whose every
+/// dispatch is full of attempts) takes the waveform variant, whose
 /// records on a software adapter are the CPU's bit for bit (steps
 /// included), and within 1e-6 um per cycle elsewhere; the hardware's
 /// variant (fused arithmetic) within 2e-5 um, LuGre's hardware bound at
@@ -402,6 +403,11 @@ fn the_lugre_shader_drives_waveforms_as_the_cpu_does() {
     let mut sawtooth = Instance::TABLE1;
     (sawtooth.cycles, sawtooth.settle, sawtooth.measure) = (4, 1, Measure::Window);
     instances.push(sawtooth);
+    // A slow lane (1 Hz, a table with a jump): its dispatches are all
+    // attempts, where llvmpipe's loop limit would cut one short.
+    let mut slow = instances[3];
+    (slow.axes[0].frequency, slow.axes[1].frequency, slow.cycles) = (1.0, 1.0, 2);
+    instances.push(slow);
     for inst in &mut instances {
         inst.mechanism.friction = Friction::Lugre(Lugre::DEFAULT);
     }
@@ -429,7 +435,10 @@ fn the_lugre_shader_drives_waveforms_as_the_cpu_does() {
             for i in 0..2 {
                 let w = inst.measure_over(i, want.travel[i], want.span).1 * 1e6;
                 let g = inst.measure_over(i, got.travel[i], got.span).1 * 1e6;
-                eprintln!("LuGre {label} #{k} axis {i}: cpu {w:.9} gpu {g:.9} um");
+                eprintln!(
+                    "LuGre {label} #{k} axis {i}: cpu {w:.9} gpu {g:.9} um, {} steps",
+                    cpu[k].record.steps
+                );
                 assert!(
                     (g - w).abs() <= bound,
                     "{label} #{k} axis {i}: {g} against {w} um"

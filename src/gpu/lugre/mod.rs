@@ -181,7 +181,8 @@ pub const LOOP_LIMIT: u32 = 65_535;
 /// The loop passes of one step attempt, counted in the shader's source as
 /// llvmpipe counts them (a loop's iterations and one more per entry): the
 /// attempts' loop 1, a segment's start at most 10 (two corners' searches
-/// of [`CORNER_RETRIES`]), Rodas4's stage loop 7 and its sums over the
+/// of [`CORNER_RETRIES`]; a waveform variant's lookups of the piece are
+/// written out, [`CORNER_SEARCH`]), Rodas4's stage loop 7 and its sums over the
 /// earlier stages 14 and 20. The Jacobian, W, its factorisation and solve,
 /// the right-hand side, the vector sums and the error norm have no loops:
 /// they are written out. Measured on llvmpipe 15: a lone lane of a 1 Hz
@@ -189,17 +190,6 @@ pub const LOOP_LIMIT: u32 = 65_535;
 /// 55 passes each (`tests/it/gpu_lugre.rs`, `dispatches_cut_nothing_short`).
 pub const LOOP_PASSES_PER_ATTEMPT: u32 =
     1 + 2 * (CORNER_RETRIES + 1) + (6 + 1) + (10 + 4) + (15 + 5);
-
-/// [`LOOP_PASSES_PER_ATTEMPT`] of a waveform variant: a segment's start
-/// makes two corners' searches of [`CORNER_RETRIES`], each pass of which
-/// looks its piece up in at most [`CORNER_SEARCH`] halvings (and one more
-/// for the loop's entry), and two drives, one lookup each.
-pub const WAVEFORM_PASSES_PER_ATTEMPT: u32 = 1
-    + 2 * (CORNER_RETRIES + 1 + CORNER_RETRIES * (CORNER_SEARCH + 1))
-    + 2 * (CORNER_SEARCH + 1)
-    + (6 + 1)
-    + (10 + 4)
-    + (15 + 5);
 
 /// The loop passes of one period end, counted as [`LOOP_PASSES_PER_ATTEMPT`]
 /// (iterations and entries): the phase ladder's 18 levels 19, a batch's
@@ -220,11 +210,6 @@ pub const SOFTWARE_PERIOD_ENDS: u32 = 1;
 /// [`LOOP_LIMIT`] as counted in the source.
 pub const SOFTWARE_ATTEMPTS: u32 =
     (LOOP_LIMIT / 3 - 2 * PERIOD_END_PASSES) / (2 * LOOP_PASSES_PER_ATTEMPT);
-
-/// [`SOFTWARE_ATTEMPTS`] of a waveform variant
-/// ([`WAVEFORM_PASSES_PER_ATTEMPT`]).
-pub const SOFTWARE_WAVEFORM_ATTEMPTS: u32 =
-    (LOOP_LIMIT / 3 - 2 * PERIOD_END_PASSES) / (2 * WAVEFORM_PASSES_PER_ATTEMPT);
 
 /// The lanes a LuGre batch keeps busy after its first dispatch on a
 /// software adapter (the engine's queue; Karnopp's take
@@ -251,7 +236,8 @@ pub const HARDWARE_WORKGROUP_SIZE: u32 = 64;
 pub const CORNER_RETRIES: u32 = 4;
 
 /// The halvings of a waveform variant's search for the piece that holds
-/// a phase (`corners.wgsl`'s `piece_at`): an axis' corners are at most
+/// a phase (`corners.wgsl`'s `piece_at`, its `search_corners` written out
+/// by `shader::corner_search_source`): an axis' corners are at most
 /// [`MAX_CORNERS`], which a table of `floor::drive::MAX_TABLE_ENTRIES`
 /// keeps under its amplifier's slew limit (a corner where the follower
 /// meets each flank, at most; tested).

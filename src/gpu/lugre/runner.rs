@@ -7,8 +7,7 @@
 use super::layout::{Recurrence, STAGE_BYTES, StageMatrix};
 use super::{
     Arithmetic, ENTRY_POINT, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_STOPPED, Lane,
-    Params, SOFTWARE_ATTEMPTS, SOFTWARE_LANES, SOFTWARE_WAVEFORM_ATTEMPTS, SOFTWARE_WORKGROUP_SIZE,
-    parse_and_validate, source,
+    Params, SOFTWARE_ATTEMPTS, SOFTWARE_LANES, SOFTWARE_WORKGROUP_SIZE, parse_and_validate, source,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -105,15 +104,6 @@ pub(super) fn compile(
     }
 }
 
-/// Step attempts per dispatch on a software adapter: a waveform
-/// variant's corner searches take more of llvmpipe's loop passes.
-fn software_attempts(waveform: bool) -> u32 {
-    match waveform {
-        true => SOFTWARE_WAVEFORM_ATTEMPTS,
-        false => SOFTWARE_ATTEMPTS,
-    }
-}
-
 /// Whether every driven axis of `inst` is a sawtooth without a slew
 /// limit that bites: its corners are its duty's sawtooth's, which the
 /// sawtooth variant drives by the same arithmetic, bit for bit.
@@ -198,7 +188,7 @@ impl<'a> LugreGpu<'a> {
     pub fn hardware_variant(ctx: &'a GpuContext, waveform: bool) -> Result<LugreGpu<'a>, GpuError> {
         let mut gpu = LugreGpu::variant(ctx, true, waveform)?;
         if !ctx.is_hardware() {
-            gpu.attempts = software_attempts(waveform);
+            gpu.attempts = SOFTWARE_ATTEMPTS;
         }
         Ok(gpu)
     }
@@ -229,7 +219,7 @@ impl<'a> LugreGpu<'a> {
             ),
             false => (
                 SOFTWARE_WORKGROUP_SIZE,
-                software_attempts(waveform),
+                SOFTWARE_ATTEMPTS,
                 Arithmetic::Native,
             ),
         };

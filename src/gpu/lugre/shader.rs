@@ -107,7 +107,6 @@ fn lane_constants(workgroup_size: u32, arithmetic: Arithmetic) -> String {
     };
     out += &u("PERIOD_ENDS_PER_DISPATCH", ends as usize);
     out += &u("CORNER_RETRIES", CORNER_RETRIES as usize);
-    out += &u("CORNER_SEARCH", CORNER_SEARCH as usize);
     out += &u("SEGMENT_GOING", SEGMENT_GOING as usize);
     out += &u("SEGMENT_DONE", SEGMENT_DONE as usize);
     out += &u("LANE_FRESH", LANE_FRESH as usize);
@@ -364,6 +363,23 @@ fn piece_end(i: u32, p: Real) -> Real {
 }
 ";
 
+/// `search_corners` (`shaders/lugre/corners.wgsl`): the first corner of
+/// the `n` from `first` past phase `p` (`n`: none, the first a cycle
+/// later), by [`CORNER_SEARCH`] halvings written out, so that the search
+/// makes no loop passes (llvmpipe's limit).
+fn corner_search_source() -> String {
+    let mut s = String::from(
+        "// The first corner past `p`, written out by pidm::gpu::lugre \
+         (`corner_search_source`).\n\
+         fn search_corners(first: u32, n: u32, p: Real) -> u32 {\n    \
+         var b = vec2<u32>(0u, n);\n",
+    );
+    for _ in 0..CORNER_SEARCH {
+        s += "    b = halve(first, b, p);\n";
+    }
+    s + "    return b.y;\n}\n"
+}
+
 /// The complete shader source for `workgroup_size` invocations per group
 /// in `arithmetic`, driving any `waveform` from its corners, or sawtooths
 /// only.
@@ -372,7 +388,12 @@ pub fn source(workgroup_size: u32, arithmetic: Arithmetic, waveform: bool) -> St
     src += &crate::gpu::engine_queue();
     let (name, text) = CORNER_FILE;
     match waveform {
-        true => src += &format!("\n// ---- shaders/{name}\n{text}"),
+        true => {
+            src += &format!(
+                "\n// ---- shaders/{name}\n{text}\n{}",
+                corner_search_source()
+            )
+        }
         false => src += SAWTOOTH_ONLY,
     }
     for (name, text) in FILES.into_iter().chain([holder(arithmetic)]) {
