@@ -289,12 +289,14 @@ impl GpuContext {
     /// ([`GpuContext::prepare_timed`]). Returns it with its variant.
     /// The pipeline a law other than Karnopp's keeps under `name`, built by
     /// `compile` (given the driver's pipeline cache, where there is one) on
-    /// first use and kept for the context's life; the cache is saved after
-    /// a compile.
+    /// first use, self-tested by `test` before any instance runs on it, and
+    /// kept for the context's life; the cache is saved after a compile. A
+    /// pipeline whose self-test fails is not kept.
     pub fn law_pipeline(
         &self,
         name: &'static str,
         compile: impl FnOnce(Option<&wgpu::PipelineCache>) -> Result<wgpu::ComputePipeline, GpuError>,
+        test: impl FnOnce(&wgpu::ComputePipeline) -> Result<(), GpuError>,
     ) -> Result<wgpu::ComputePipeline, GpuError> {
         let mut pipelines = self.law_pipelines.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(pipeline) = pipelines.get(name) {
@@ -304,6 +306,7 @@ impl GpuContext {
         if let Some(cache) = &self.cache {
             cache.save();
         }
+        test(&pipeline)?;
         pipelines.insert(name, pipeline.clone());
         Ok(pipeline)
     }

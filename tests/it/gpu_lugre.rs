@@ -589,3 +589,28 @@ fn the_hardware_variant_measures_period_ends_anywhere() {
         report.dispatches
     );
 }
+
+/// Each LuGre pipeline (the sawtooth's and the waveform's) passed its
+/// self-test on its first compile (`LugreGpu::new` and `for_instances`
+/// would have failed), passes it again, and fails it against a CPU
+/// reference moved by twice its allowance, naming the pipeline and the
+/// step: a wrong shader is caught before any instance runs on it.
+#[test]
+fn each_lugre_pipeline_is_self_tested() {
+    let Some(_) = lugre_gpu() else {
+        return;
+    };
+    let ctx = context().expect("a context");
+    for waveform in [false, true] {
+        let gpu = LugreGpu::hardware_variant(ctx, waveform).expect("self-tested");
+        assert_eq!(gpu.drives_waveforms(), waveform);
+        gpu.self_test_skewed(0.0).expect("the self-test passes");
+        let skewed = gpu.self_test_skewed(2e-10).expect_err("a skewed reference fails");
+        let said = skewed.to_string();
+        let name = if waveform { "waveform" } else { "sawtooth" };
+        assert!(
+            said.contains(&format!("LuGre's {name} pipeline")) && said.contains("allowed"),
+            "{said}"
+        );
+    }
+}

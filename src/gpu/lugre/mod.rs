@@ -81,6 +81,7 @@ mod footprint;
 mod layout;
 mod probes;
 mod runner;
+mod selftest;
 mod shader;
 
 pub use crate::laws::lugre::libm::{exp_nonpositive, fourth_root, hypot, split, two_prod, two_sum};

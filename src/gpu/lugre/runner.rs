@@ -161,6 +161,20 @@ impl<'a> LugreGpu<'a> {
         LugreGpu::variant(ctx, ctx.is_hardware(), false)
     }
 
+    /// This pipeline's self-test batch (run on its first compile in a
+    /// context) against the CPU's steps moved by `skew` [m per own drive
+    /// cycle]: a skew beyond `selftest::ALLOWANCE_M` must fail it (tests).
+    pub fn self_test_skewed(&self, skew: f64) -> Result<(), GpuError> {
+        let once = LugreGpu {
+            pipeline: self.pipeline.clone(),
+            cpu_tail: Some(0),
+            lanes: None,
+            whole_accumulators: false,
+            ..*self
+        };
+        super::selftest::self_test(&once, skew)
+    }
+
     /// Whether this pipeline drives any waveform (from its corners), not
     /// sawtooths only.
     pub fn drives_waveforms(&self) -> bool {
@@ -186,11 +200,7 @@ impl<'a> LugreGpu<'a> {
     /// loop limit: a window's have no loops, but many steady ones in one
     /// dispatch could reach it, so on a software adapter it is for tests.
     pub fn hardware_variant(ctx: &'a GpuContext, waveform: bool) -> Result<LugreGpu<'a>, GpuError> {
-        let mut gpu = LugreGpu::variant(ctx, true, waveform)?;
-        if !ctx.is_hardware() {
-            gpu.attempts = SOFTWARE_ATTEMPTS;
-        }
-        Ok(gpu)
+        LugreGpu::variant(ctx, true, waveform)
     }
 
     /// The variant for a hardware adapter (`hardware`) or a software one,
@@ -211,25 +221,41 @@ impl<'a> LugreGpu<'a> {
             (false, false) => "lugre (software)",
             (false, true) => "lugre (software, waveform)",
         };
-        let (workgroup_size, attempts, arithmetic) = match hardware {
-            true => (
-                HARDWARE_WORKGROUP_SIZE,
-                HARDWARE_ATTEMPTS,
-                Arithmetic::Fused,
-            ),
-            false => (
-                SOFTWARE_WORKGROUP_SIZE,
-                SOFTWARE_ATTEMPTS,
-                Arithmetic::Native,
-            ),
+        let (workgroup_size, arithmetic) = match hardware {
+            true => (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused),
+            false => (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native),
+        };
+        // A software adapter's attempts per dispatch stay within
+        // llvmpipe's loop limit, whichever variant it runs.
+        let attempts = match ctx.is_hardware() {
+            true => HARDWARE_ATTEMPTS,
+            false => SOFTWARE_ATTEMPTS,
         };
         // One compile per context and variant: every batch of a run takes
         // the same pipeline (the driver's cache on disk spares later runs
         // it too).
-        let pipeline = ctx.law_pipeline(name, |cache| {
-            let shape = (workgroup_size, arithmetic, waveform);
-            compile(ctx.device(), shape, ENTRY_POINT, cache)
-        })?;
+        let shape = (workgroup_size, arithmetic, waveform);
+        let pipeline = ctx.law_pipeline(
+            name,
+            |cache| compile(ctx.device(), shape, ENTRY_POINT, cache),
+            |pipeline| {
+                super::selftest::self_test(
+                    &LugreGpu {
+                        ctx,
+                        pipeline: pipeline.clone(),
+                        workgroup_size,
+                        arithmetic,
+                        waveform,
+                        attempts,
+                        // The shader must finish every self-test run itself.
+                        cpu_tail: Some(0),
+                        lanes: None,
+                        whole_accumulators: false,
+                    },
+                    0.0,
+                )
+            },
+        )?;
         Ok(LugreGpu {
             ctx,
             pipeline,
