@@ -605,7 +605,9 @@ fn each_lugre_pipeline_is_self_tested() {
         let gpu = LugreGpu::hardware_variant(ctx, waveform).expect("self-tested");
         assert_eq!(gpu.drives_waveforms(), waveform);
         gpu.self_test_skewed(0.0).expect("the self-test passes");
-        let skewed = gpu.self_test_skewed(2e-10).expect_err("a skewed reference fails");
+        let skewed = gpu
+            .self_test_skewed(2e-10)
+            .expect_err("a skewed reference fails");
         let said = skewed.to_string();
         let name = if waveform { "waveform" } else { "sawtooth" };
         assert!(
