@@ -197,6 +197,16 @@ pub fn integrating() -> bool {
     INTEGRATING.with(|i| i.get())
 }
 
+/// Runs `f` outside the integrator's counts: a pipeline's self-test
+/// batch, compiled on a batch's first use inside an integration span
+/// (`gpu::lugre`), adds nothing to the integrator's parts.
+pub fn outside_integration<T>(f: impl FnOnce() -> T) -> T {
+    let was = INTEGRATING.with(|i| i.replace(false));
+    let out = f();
+    INTEGRATING.with(|i| i.set(was));
+    out
+}
+
 /// Times a phase until dropped.
 #[must_use = "a span times until it is dropped"]
 pub struct Span {
