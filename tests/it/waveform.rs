@@ -451,6 +451,53 @@ fn the_lugre_shader_drives_waveforms_as_the_cpu_does() {
     }
 }
 
+/// `pidm run --backend gpu` runs a LuGre scene of trapezoids and a table
+/// on LuGre's waveform pipeline (no longer refused): on a software adapter
+/// its step maps are the CPU path's bit for bit.
+#[test]
+fn pidm_runs_lugre_waveforms_on_the_gpu() {
+    let Some(ctx) = crate::gpu::context() else {
+        return;
+    };
+    if !ctx.supports_f64() || ctx.is_hardware() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let d = dir.path();
+    std::fs::write(
+        d.join("lw.toml"),
+        "name = \"lw\"\n[mechanism]\nfriction = \"lugre\"\n[axis.x]\n\
+         waveform = \"trapezoid\"\nrise = [0.6, 0.9]\nhold = 0.05\nfall = 0.03\n\
+         slew_rate = [3e4, 1e9]\n[axis.y]\nwaveform = \"table\"\n\
+         table = [[0.1, -0.5], [0.6, 1.0], [0.6, 0.2]]\nvoltage = 60\n\
+         [simulation]\nmeasure = \"window\"\ncycles = 3\nsettle = 1\n",
+    )
+    .expect("written");
+    let maps = |backend: &str| -> Vec<Vec<f64>> {
+        let out = d.join(format!("{backend}.h5"));
+        let args = ["run", "lw.toml", "--backend", backend, "--out", s(&out)];
+        let run = pidm(&args, d);
+        let said = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "{said}");
+        assert!(said.contains(&format!("pidm: backend {backend}")), "{said}");
+        let file = hdf5::File::open(&out).expect("a result file");
+        ["step_x", "step_y"]
+            .map(|m| {
+                file.dataset(&format!("maps/{m}"))
+                    .unwrap()
+                    .read_raw()
+                    .unwrap()
+            })
+            .to_vec()
+    };
+    let (cpu, gpu) = (maps("cpu"), maps("gpu"));
+    assert!(
+        cpu[0].iter().any(|v| v.abs() > 1e-8),
+        "the slider moves: {cpu:?}"
+    );
+    assert_eq!(gpu, cpu);
+}
+
 /// `pidm fit` fits a trapezoid's fall like any key: steps made by pidm at
 /// fall 0.012 over seven voltages (2 % errors, no noise) give back 0.012
 /// within 3 standard errors, from a start of 0.011.
