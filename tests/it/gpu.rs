@@ -68,6 +68,23 @@ pub fn context() -> Option<&'static GpuContext> {
         .as_ref()
 }
 
+/// [`context`] where it offers f64 (the LuGre shader's and the f64 paths'
+/// tests); under CI an adapter without f64 fails the test rather than
+/// skipping it.
+pub fn f64_context() -> Option<&'static GpuContext> {
+    let ctx = context()?;
+    if ctx.supports_f64() {
+        return Some(ctx);
+    }
+    assert!(
+        std::env::var_os("CI").is_none(),
+        "CI is set and {} offers no f64",
+        ctx.describe()
+    );
+    eprintln!("{} offers no f64: an f64 GPU test skipped", ctx.describe());
+    None
+}
+
 /// A batch that must run, without progress reports.
 pub fn gpu_batch(
     ctx: &GpuContext,

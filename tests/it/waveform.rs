@@ -393,12 +393,9 @@ fn the_lugre_shader_drives_waveforms_as_the_cpu_does() {
     use pidm::laws::lugre::run_instance_until;
     use pidm::measurement::reduce;
     use pidm::model::{Friction, Lugre};
-    let Some(ctx) = crate::gpu::context() else {
+    let Some(ctx) = crate::gpu::f64_context() else {
         return;
     };
-    if !ctx.supports_f64() {
-        return;
-    }
     let mut instances = gpu_instances();
     let mut sawtooth = Instance::TABLE1;
     (sawtooth.cycles, sawtooth.settle, sawtooth.measure) = (4, 1, Measure::Window);
@@ -453,15 +450,13 @@ fn the_lugre_shader_drives_waveforms_as_the_cpu_does() {
 
 /// `pidm run --backend gpu` runs a LuGre scene of trapezoids and a table
 /// on LuGre's waveform pipeline (no longer refused): on a software adapter
-/// its step maps are the CPU path's bit for bit.
+/// its step maps are the CPU path's bit for bit, on hardware within LuGre's
+/// hardware bound.
 #[test]
 fn pidm_runs_lugre_waveforms_on_the_gpu() {
-    let Some(ctx) = crate::gpu::context() else {
+    let Some(ctx) = crate::gpu::f64_context() else {
         return;
     };
-    if !ctx.supports_f64() || ctx.is_hardware() {
-        return;
-    }
     let dir = tempfile::tempdir().expect("a temporary directory");
     let d = dir.path();
     std::fs::write(
@@ -495,7 +490,15 @@ fn pidm_runs_lugre_waveforms_on_the_gpu() {
         cpu[0].iter().any(|v| v.abs() > 1e-8),
         "the slider moves: {cpu:?}"
     );
-    assert_eq!(gpu, cpu);
+    if ctx.is_hardware() {
+        // The hardware's arithmetic: LuGre's bound at the default
+        // tolerance, 2e-5 um per cycle (`gpu_lugre.rs`).
+        for (g, c) in gpu.iter().flatten().zip(cpu.iter().flatten()) {
+            assert!((g - c).abs() <= 2e-11, "{g} against {c} m");
+        }
+    } else {
+        assert_eq!(gpu, cpu);
+    }
 }
 
 /// `pidm fit` fits a trapezoid's fall like any key: steps made by pidm at
