@@ -130,6 +130,14 @@ fn advance_slice(
     tallies[lane] = tally;
 }
 
+// The backward travel's total variation and its value when the measured
+// periods began [m] (variation.wgsl), kept across an iteration the
+// driver's loop limiter may cut short.
+struct Followed {
+    total: V2,
+    settle: V2,
+}
+
 // What a call of `advance` did.
 struct Advance {
     // Iterations completed.
@@ -165,10 +173,17 @@ fn advance(
         // drop the branch LOOP_LIMITER rules out, so two calls would
         // compile the integrator twice.
         let before = *st;
+        var followed = Followed(V2(0.0), V2(0.0));
+        if LOOP_LIMITER && BACKWARD {
+            followed = followed_now();
+        }
         let kind = iterate(st);
         if LOOP_LIMITER {
             if !loop_limiter_intact((*st).steps) {
                 *st = before;
+                if BACKWARD {
+                    follow_undo(followed);
+                }
                 if iteration == 0u && fresh {
                     limited_at_start(st);
                 }

@@ -28,6 +28,16 @@ struct Sample {
     v_rel: V2,
 }
 
+// What the variation reads of a `Sample`: the stage's position and
+// velocity (the ringing's bound) and the slider's motion.
+struct Slider {
+    x_p: V2,
+    v_p: V2,
+    x_s: V2,
+    v_s: V2,
+    a_s: V2,
+}
+
 // The motion of both axes over one step: the lane's one `flow`
 // (hold_registers.wgsl or hold_memory.wgsl), which `make_flow` writes. Its
 // flags are u32s (1 true), so that it may live in device memory.
@@ -62,6 +72,28 @@ struct Flow {
     g1_rel: V2,
     ramp: V2,
     taylor: vec2<u32>,
+    // The backward travel's view of the step (variation.wgsl, BACKWARD
+    // variants only): its length [s] and where it ends (`end`), one
+    // piece's propagator, the propagators to the piece's start and end,
+    // and the motion at both. Kept here, where an f64
+    // hardware lane's flow lives in device memory, so that its registers
+    // do not hold them.
+    end_tau: Real,
+    end: Slider,
+    piece: Propagator,
+    base: Propagator,
+    next_base: Propagator,
+    piece_from: Slider,
+    piece_to: Slider,
+    // The variation so far [m], a piece's length and where it starts [s].
+    total: V2,
+    piece_length: Real,
+    piece_t0: Real,
+    // Where the step moved from: its period and local time [s].
+    start_time: Real,
+    start_period: u32,
+    // The propagator of a point inside a piece (`piece_point`).
+    point_prop: Propagator,
 }
 
 // The friction direction model u(theta) = b0 + b1 theta + b2 theta^2.

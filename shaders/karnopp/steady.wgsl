@@ -13,11 +13,25 @@
 // What the host reads of every finished steady measurement: the engine's
 // `heads` (`shaders/engine/queue.wgsl`).
 
-// A steady instance's accumulators start with its run.
+// The entries of the steady measurement's half of `measures`: all of them,
+// or the first half where the second holds the backward travel's
+// (variation.wgsl).
+fn measure_entries() -> u32 {
+    if BACKWARD {
+        return arrayLength(&measures) / 2u;
+    }
+    return arrayLength(&measures);
+}
+
+// A steady instance's accumulators start with its run, and so do the
+// backward travel's of any instance.
 fn start_measure(index: u32) {
     let c = &coefficients[held];
     if c.steady == 1u {
         measures[index] = initial_measure();
+    }
+    if BACKWARD {
+        measures[variation_slot(index)] = initial_measure();
     }
 }
 
@@ -54,11 +68,17 @@ fn at_measured_end(st: State, index: u32) -> bool {
 fn measure_period_end(st: ptr<function, State>, index: u32, lane: u32, fresh: bool) -> bool {
     var slot = index;
     if LOOP_LIMITER {
-        slot = arrayLength(&measures) - arrayLength(&lanes) + lane;
+        slot = measure_entries() - arrayLength(&lanes) + lane;
         measures[slot] = measures[index];
+        if BACKWARD {
+            measures[variation_slot(slot)] = measures[variation_slot(index)];
+        }
     }
     let before = *st;
     period_end(st, slot);
+    if BACKWARD {
+        follow_period_end(slot);
+    }
     if LOOP_LIMITER {
         if !loop_limiter_intact((*st).steps) {
             *st = before;
@@ -68,6 +88,9 @@ fn measure_period_end(st: ptr<function, State>, index: u32, lane: u32, fresh: bo
             return false;
         }
         measures[index] = measures[slot];
+        if BACKWARD {
+            measures[variation_slot(index)] = measures[variation_slot(slot)];
+        }
     }
     (*st).limited = 0u;
     return true;

@@ -120,8 +120,25 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
         }
     }
     var found = find_event(*st, t);
+    // One call of `move_to` for a step to its end and to an event (the
+    // first half of step.rs's `take_event` is here): a driver that inlines
+    // every call compiles what `move_to` calls once (the backward travel's
+    // variation.wgsl).
+    var moved = samples.s4;
+    var tau = t.h;
+    if found.kind != EVENT_NONE {
+        (*st).h_accepted = Real(0.0);
+        moved = eval_at(found.tau);
+        tau = found.tau;
+        if found.kind == EVENT_APPROACH && approach_turned(moved) {
+            reject(st, t.h, INFINITY);
+            return STEP_REJECTED;
+        }
+        // Read of the sample before the move, which leaves it unused.
+        found.grazed = found.kind == EVENT_ENTER_BAND && skims_band(moved);
+    }
+    move_to(st, moved, tau, h_max, stop, stop_lo);
     if found.kind == EVENT_NONE {
-        move_to(st, samples.s4, t.h, h_max, stop, stop_lo);
         if slipping {
             if t.h < h_max {
                 (*st).h_slip = next_slip_step(st, t.h, t.err);
@@ -129,8 +146,8 @@ fn step(st: ptr<function, State>, h_max: Real, stop: Real, stop_lo: Real) -> u32
                 (*st).h_slip = max((*st).h_slip, t.h);
             }
         }
-    } else if !take_event(st, t, &found, h_max, stop, stop_lo) {
-        return STEP_REJECTED;
+    } else {
+        take_event(st, t, found.kind, h_max);
     }
     if GRAZE_GUARD && c.steady == 0u && found.grazed {
         (*st).status = STATUS_GRAZE;
@@ -334,18 +351,9 @@ fn find_event(st: State, t: Trial) -> StepEvent {
     return found;
 }
 
-// Moves the state to the event and changes its mode there; false where an
-// approach turned too far on the way (see step.rs).
-fn take_event(st: ptr<function, State>, t: Trial, found: ptr<function, StepEvent>, h_max: Real, stop: Real, stop_lo: Real) -> bool {
-    let event = (*found).kind;
-    (*st).h_accepted = Real(0.0);
-    let s = eval_at((*found).tau);
-    if event == EVENT_APPROACH && approach_turned(s) {
-        reject(st, t.h, INFINITY);
-        return false;
-    }
-    move_to(st, s, (*found).tau, h_max, stop, stop_lo);
-    (*found).grazed = event == EVENT_ENTER_BAND && skims_band(s);
+// The second half of step.rs's `take_event`: the mode the event (kind
+// `event`), where the state has moved to, leads to (`step` has the first).
+fn take_event(st: ptr<function, State>, t: Trial, event: u32, h_max: Real) {
     // One call of `start_slip` for both ways slip starts (see step.rs).
     var slip = SlipStart(false, V2(0.0));
     if event == EVENT_BREAKAWAY {
@@ -362,7 +370,6 @@ fn take_event(st: ptr<function, State>, t: Trial, found: ptr<function, StepEvent
     if slip.starts {
         start_slip(st, slip.need);
     }
-    return true;
 }
 
 // Whether v_rel turned on its way to the approach event at `s`: the
@@ -521,6 +528,12 @@ fn grid_fraction(x: Real, bound: Real) -> Real {
 }
 
 fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Real, stop_lo: Real) {
+    // The CPU's observer sees the motion first (variation.wgsl): where the
+    // step starts and ends, kept before the move, and the step's variation
+    // after it, when the sample is no longer live.
+    if BACKWARD {
+        follow_end((*st).period, (*st).time, s, tau);
+    }
     (*st).x_p = s.x_p;
     (*st).v_p = s.v_p;
     (*st).x_s = s.x_s;
@@ -535,6 +548,9 @@ fn move_to(st: ptr<function, State>, s: Sample, tau: Real, h_max: Real, stop: Re
         (*st).time_lo = t.lo;
     } else {
         (*st).time += tau;
+    }
+    if BACKWARD {
+        follow_step();
     }
 }
 

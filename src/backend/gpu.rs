@@ -254,10 +254,8 @@ impl GpuOutcome {
             graze: o.cpu_fallback && o.shader_status == STATUS_GRAZE,
             checked: o.checked,
             replicas: o.replicas,
-            // The device keeps no variation (`Settings::backward` runs on
-            // the CPU).
-            variation: [0.0; 2],
-            variation_se: [0.0; 2],
+            variation: o.variation,
+            variation_se: o.variation_se,
         }
     }
 }

@@ -171,14 +171,25 @@ pub fn select_backend(
         bail!("--precision f32: {why}");
     }
     if work.settings.backward {
-        let why = crate::laws::settings::BACKWARD_CPU_ONLY;
+        use crate::laws::settings::{BACKWARD_AUTO_ON_CPU, BACKWARD_F64_ONLY};
         if precision == Some(Precision::F32) {
-            bail!("--precision f32: {why}; run it in f64");
+            bail!("--precision f32: {BACKWARD_F64_ONLY}; run it in f64");
         }
         match choice {
-            BackendChoice::Gpu => bail!("--backend gpu: {why}; run it with --backend cpu"),
+            BackendChoice::Gpu if work.law.no_backward_on_gpu().is_some() => {
+                let why = work.law.no_backward_on_gpu().unwrap_or_default();
+                bail!("--backend gpu: {why}; run it with --backend cpu")
+            }
+            BackendChoice::Gpu => {
+                if work.settings.replicas != crate::laws::settings::Replicas::Count(1) {
+                    eprintln!(
+                        "pidm: --backend gpu: each instance runs alone where the GPU measures \
+                         the backward travel (simulation.replicas applies on --backend cpu)"
+                    );
+                }
+            }
             BackendChoice::Auto => {
-                eprintln!("pidm: --backend auto: the CPU path in f64 ({why})");
+                eprintln!("pidm: --backend auto: the CPU path in f64 ({BACKWARD_AUTO_ON_CPU})");
                 return cpu(threads);
             }
             BackendChoice::Cpu => {}
@@ -209,6 +220,14 @@ pub fn select_backend(
                 None if ctx.supports_f64() => Precision::F64,
                 None => Precision::F32,
             };
+            if work.settings.backward && precision == Precision::F32 {
+                bail!(
+                    "--backend gpu: adapter {} has no 64-bit floats in shaders (SHADER_F64); {}; \
+                     run it with --backend cpu",
+                    ctx.describe(),
+                    crate::laws::settings::BACKWARD_F64_ONLY
+                );
+            }
             if !ctx.is_hardware() {
                 let name = ctx.describe();
                 let kind = if name.contains("llvmpipe") {

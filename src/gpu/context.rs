@@ -376,7 +376,14 @@ impl GpuContext {
         )?;
         self.check_health()?;
         let compiled = started.elapsed().as_secs_f64();
-        self.self_test(&pipeline, variant, 0.0)?;
+        self.self_test(
+            &pipeline,
+            variant,
+            Skew {
+                step: 0.0,
+                backward: 0.0,
+            },
+        )?;
         let tested = started.elapsed().as_secs_f64();
         if let Some(cache) = &self.cache {
             cache.save();
@@ -397,12 +404,48 @@ impl GpuContext {
     /// beyond the precision's allowance must fail with
     /// [`GpuError::SelfTest`]).
     pub fn self_test_skewed(&self, precision: Precision, skew: f64) -> Result<(), GpuError> {
+        self.self_test_fresh(
+            precision,
+            Parts::ALL,
+            Skew {
+                step: skew,
+                backward: 0.0,
+            },
+        )
+    }
+
+    /// [`GpuContext::self_test_skewed`] of the f64 variant that measures
+    /// the backward travel, the CPU reference's backward travel (not its
+    /// steps) shifted by `skew` [m]: beyond [`BACKWARD_ALLOWANCE_M`] it
+    /// must fail.
+    pub fn self_test_backward_skewed(&self, skew: f64) -> Result<(), GpuError> {
+        let parts = Parts::ALL.with_settings(&Settings {
+            backward: true,
+            ..Settings::default()
+        });
+        self.self_test_fresh(
+            Precision::F64,
+            parts,
+            Skew {
+                step: 0.0,
+                backward: skew,
+            },
+        )
+    }
+
+    /// The self-test on a pipeline of `parts` compiled for it alone.
+    fn self_test_fresh(
+        &self,
+        precision: Precision,
+        parts: Parts,
+        skew: Skew,
+    ) -> Result<(), GpuError> {
         if precision == Precision::F64 && !self.f64 {
             return Err(GpuError::F64Unsupported {
                 adapter: self.describe(),
             });
         }
-        let variant = self.variant(precision, Parts::ALL);
+        let variant = self.variant(precision, parts);
         let pipeline = create_pipeline(
             &self.device,
             variant,
@@ -422,7 +465,7 @@ impl GpuContext {
         &self,
         pipeline: &wgpu::ComputePipeline,
         variant: Variant,
-        skew: f64,
+        skew: Skew,
     ) -> Result<(), GpuError> {
         let precision = variant.precision;
         let mut fig8 = Instance::TABLE1;
@@ -446,7 +489,12 @@ impl GpuContext {
         if variant.parts.load {
             instances.push(loaded);
         }
-        let settings = Settings::default();
+        // A variant that measures the backward travel is tested measuring
+        // it (`backward_self_test`).
+        let settings = Settings {
+            backward: variant.parts.backward,
+            ..Settings::default()
+        };
         let fail = |message: String| GpuError::SelfTest {
             precision,
             adapter: self.describe(),
@@ -497,7 +545,7 @@ impl GpuContext {
                 let step = |m: &GpuOutcome| inst.measure_over(axis, m.displacement[axis], m.span).1;
                 let (g, w) = (
                     step(got),
-                    inst.measure_over(axis, want.travel[axis], want.span).1 + skew,
+                    inst.measure_over(axis, want.travel[axis], want.span).1 + skew.step,
                 );
                 let err = (g - w).abs();
                 if err.is_nan() || err > allowance {
@@ -506,6 +554,9 @@ impl GpuContext {
                          apart, more than the {allowance:.0e} m allowed in {precision}"
                     )));
                 }
+            }
+            if settings.backward {
+                backward_self_test(inst, &settings, got, skew.backward).map_err(fail)?;
             }
         }
         Ok(())
@@ -593,4 +644,43 @@ pub(crate) unsafe fn compile_trusted(
         });
     }
     Ok(pipeline)
+}
+
+/// What a self-test adds to the CPU reference [m]: its steps' and its
+/// backward travels' shifts (zero but in tests of the refusal).
+#[derive(Clone, Copy, Debug)]
+struct Skew {
+    step: f64,
+    backward: f64,
+}
+
+/// The most a self-test instance's backward travel may differ from the
+/// CPU's [m per own drive cycle]: it adds up the velocity zeros each step
+/// locates, which fused arithmetic moves on hardware; a thousandth of the
+/// cross-check's 1e-3 um (issue 59).
+pub const BACKWARD_ALLOWANCE_M: f64 = 1e-10;
+
+/// The self-test of a variant that measures the backward travel: the
+/// device's outcome `got` of `inst` against the CPU's f64 variation
+/// (`Law::run_with_variation_until`), moved by `skew` [m].
+fn backward_self_test(
+    inst: &Instance,
+    settings: &Settings,
+    got: &GpuOutcome,
+    skew: f64,
+) -> Result<(), String> {
+    let (run, v) = crate::laws::Law::run_with_variation_until(inst, settings, || false)
+        .expect("never asked to stop");
+    let (want, _) = crate::measurement::reduce_variation(inst, &run, &v);
+    for (axis, (g, w)) in got.variation.into_iter().zip(want).enumerate() {
+        let w = w + skew;
+        let err = (g - w).abs();
+        if err.is_nan() || err > BACKWARD_ALLOWANCE_M {
+            return Err(format!(
+                "axis {axis} backward travel {g:.6e} m where the CPU gives {w:.6e} m, {err:.2e} m \
+                 apart, more than the {BACKWARD_ALLOWANCE_M:.0e} m allowed"
+            ));
+        }
+    }
+    Ok(())
 }

@@ -299,7 +299,7 @@ impl Runner<'_> {
         let total = job_instances.len() as u64;
         let mut job_progress = |done: u64| progress(done * n as u64 / total);
         let Sliced {
-            readback: (states, measure_list),
+            readback: (states, measure_list, _),
             ..
         } = runner.slices::<L>(
             Work {
@@ -317,7 +317,7 @@ impl Runner<'_> {
         let ran_alone = runner.outcomes::<L>(
             &job_instances[..first],
             &states[..first],
-            &measure_list[..first.min(measure_list.len())],
+            (&measure_list[..first.min(measure_list.len())], &[]),
             Vec::new(),
         );
         let mut out: Vec<Option<GpuOutcome>> = vec![None; n];

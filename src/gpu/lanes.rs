@@ -53,9 +53,15 @@ pub(super) trait Lanes {
     fn slice_bound(instances: &[Instance], settings: &Settings) -> u64;
 }
 
-/// Every state of a batch and, for a batch with a steady instance, every
-/// measurement, as read back from the device.
-pub(super) type Readback<L> = (Vec<<L as Lanes>::State>, Vec<<L as Lanes>::Measure>);
+/// Every state of a batch; for a batch with a steady instance, every
+/// measurement; and for a kernel that measures the backward travel
+/// ([`Kernel::backward`]), every instance's variation entry (empty
+/// otherwise), as read back from the device.
+pub(super) type Readback<L> = (
+    Vec<<L as Lanes>::State>,
+    Vec<<L as Lanes>::Measure>,
+    Vec<<L as Lanes>::Measure>,
+);
 
 /// A law's compiled pipeline, and what the engine binds and sizes for it.
 #[derive(Clone, Copy)]
@@ -67,6 +73,10 @@ pub(super) struct Kernel<'p> {
     /// Its adapter's loop limiter cuts iterations short (Karnopp on
     /// llvmpipe): the accumulators end with a scratch entry per lane.
     pub(super) loop_limiter: bool,
+    /// It measures the backward travel (Karnopp's `variation.wgsl`, with
+    /// `steady`): the accumulators' buffer has a second half of as many
+    /// entries, each instance's variation, which every instance uses.
+    pub(super) backward: bool,
     /// Invocations per workgroup, as its source declares them.
     pub(super) workgroup_size: u32,
     /// The law's own buffers and their bindings, after the engine's 0 to

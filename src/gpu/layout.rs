@@ -344,3 +344,26 @@ macro_rules! floor_structs {
 
 floor_structs!(single, f32, F32x2, single);
 floor_structs!(double, f64, F64x2, double);
+
+/// The backward travel's entry of an f64 instance (the second half of the
+/// accumulators' buffer: `shaders/karnopp/variation.wgsl`) as the CPU's
+/// [`Variation`](crate::laws::floor::variation::Variation), in SI units:
+/// the step's accumulators kept of the total variation, with the total in
+/// `snaps[0].x_p`, its value when the measured periods began in
+/// `snaps[0].v_p`, the ring of totals in `snaps[k].x_s` and their count in
+/// `snapshots`.
+pub fn variation_to_cpu(m: &double::Measure) -> crate::laws::floor::variation::Variation {
+    use crate::laws::floor::double::measure::{SNAPSHOTS, Snapshot};
+    let length =
+        |v: double::V2| crate::laws::floor::Vec2::new(v.x, v.y) * (1.0 / double::UNITS.metre);
+    let mut measure = double::measure_to_cpu(m);
+    measure.snaps = [Snapshot::default(); SNAPSHOTS];
+    measure.snapshots = 0;
+    crate::laws::floor::variation::Variation::from_parts(
+        length(m.snaps[0].x_p),
+        length(m.snaps[0].v_p),
+        measure,
+        m.snaps.map(|s| length(s.x_s)),
+        m.snapshots,
+    )
+}

@@ -77,7 +77,7 @@ pub mod warps;
 pub use adapters::{
     AdapterSummary, PrecisionCheck, check_adapters, list_adapters, private_runtime_dir,
 };
-pub use context::{GpuContext, Preparation, create_pipeline};
+pub use context::{BACKWARD_ALLOWANCE_M, GpuContext, Preparation, create_pipeline};
 pub use options::{BatchOptions, CPU_TAIL_MIN_BATCH, CPU_TAIL_PER_THREAD, F32Check, tail_size};
 pub use runner::{
     dispatch_size, execute_gpu_inner, run_batch, run_batch_packed, run_batch_with, workgroups,
@@ -254,6 +254,12 @@ pub struct GpuOutcome {
     /// The replicas whose merged estimate it is (`crate::replicas`; 1: one
     /// run of its own).
     pub replicas: u32,
+    /// The backward travel per axis [m per own drive cycle] and its
+    /// standard error, where the run measured it (`Settings::backward`:
+    /// `crate::measurement::reduce_variation` of the lane's variation
+    /// entry, or of the CPU's run); zero otherwise.
+    pub variation: [f64; 2],
+    pub variation_se: [f64; 2],
 }
 
 impl GpuOutcome {
@@ -273,6 +279,8 @@ impl GpuOutcome {
             finished_on_cpu: false,
             checked: false,
             replicas: 1,
+            variation: [0.0; 2],
+            variation_se: [0.0; 2],
         }
     }
 }

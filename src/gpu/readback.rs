@@ -124,6 +124,28 @@ pub(super) fn accumulators<L: Lanes>(
     Ok(list)
 }
 
+/// Every instance's backward-travel entry (the second half of
+/// `measures`, whose first `n` entries of that half are the instances':
+/// `shaders/karnopp/variation.wgsl`'s `variation_slot`).
+pub(super) fn variations<L: Lanes>(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    measures: &wgpu::Buffer,
+    n: usize,
+) -> Result<Vec<L::Measure>, GpuError> {
+    let bytes = (n * size_of::<L::Measure>()) as u64;
+    let target = mappable(device, "variations readback", bytes);
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(measures, measures.size() / 2, &target, 0, bytes);
+    queue.submit([encoder.finish()]);
+    with_mapped(device, &target, |bytes| {
+        bytes
+            .chunks_exact(size_of::<L::Measure>())
+            .map(bytemuck::pod_read_unaligned)
+            .collect()
+    })
+}
+
 /// A buffer of `size` bytes that the device copies results into and the
 /// host maps to read them.
 pub(super) fn mappable(device: &wgpu::Device, label: &str, size: u64) -> wgpu::Buffer {

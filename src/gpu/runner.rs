@@ -205,7 +205,8 @@ impl<'a> Runner<'a> {
         let needs = coefficients
             .par_iter()
             .map(L::parts)
-            .reduce(Parts::default, Parts::union);
+            .reduce(Parts::default, Parts::union)
+            .with_settings(self.settings);
         match self.pipelines {
             Pipelines::Context(ctx) => ctx.pipeline_for(precision, needs),
             Pipelines::Fixed((pipeline, variant)) if variant.parts.covers(needs) => {
@@ -505,7 +506,13 @@ impl<'a> Runner<'a> {
         // precision.
         let lanes = self.options.lanes.unwrap_or(LANES);
         let count = crate::replicas::count_queued(self.settings.replicas, lanes, instances.len());
-        if let Some(split) = groups::Split::of(instances, self.settings, count) {
+        // The device's replica groups merge steps only: a run that
+        // measures the backward travel runs each instance alone
+        // (`backend::select` says so where the scene asks for replicas).
+        let split = (!self.settings.backward)
+            .then(|| groups::Split::of(instances, self.settings, count))
+            .flatten();
+        if let Some(split) = split {
             return self.batch_split::<L>(instances, split, progress);
         }
         let n = instances.len();
@@ -514,7 +521,7 @@ impl<'a> Runner<'a> {
         let segments = segment_binding::<L>(self.device, variant, instances, &mut coefficients);
         let extra = segment_entries(&segments);
         let Sliced {
-            readback: (states, measure_list),
+            readback: (states, measure_list, variations),
             pilot,
             ..
         } = self.slices::<L>(
@@ -529,20 +536,21 @@ impl<'a> Runner<'a> {
             None,
         )?;
         drop(coefficients);
-        let out = self.outcomes::<L>(instances, &states, &measure_list, pilot);
+        let out = self.outcomes::<L>(instances, &states, (&measure_list, &variations), pilot);
         progress(n as u64);
         Ok(out)
     }
 
-    /// The outcomes of a batch's jobs from their states and (steady)
-    /// measurements, but those of `done`, the CPU's already (a round's
-    /// pilot, [`Sliced::pilot`]); the CPU finishes what the device left
-    /// unfinished.
+    /// The outcomes of a batch's jobs from their states, (steady)
+    /// measurements and backward-travel entries (`variations`: empty where
+    /// the kernel measured none), but those of `done`, the CPU's already (a
+    /// round's pilot, [`Sliced::pilot`]); the CPU finishes what the device
+    /// left unfinished.
     pub(super) fn outcomes<L: Layout>(
         &self,
         instances: &[Instance],
         states: &[L::State],
-        measure_list: &[L::Measure],
+        (measure_list, variations): (&[L::Measure], &[L::Measure]),
         done: Vec<(usize, GpuOutcome)>,
     ) -> Vec<GpuOutcome> {
         let n = instances.len();
@@ -553,10 +561,21 @@ impl<'a> Runner<'a> {
             let out: Vec<GpuOutcome> = (0..n)
                 .into_par_iter()
                 .map(|k| {
-                    if is_steady(k) {
+                    let outcome = if is_steady(k) {
                         L::reduce(&instances[k], &states[k], &measure_list[k])
                     } else {
                         L::unpack(&instances[k], &states[k])
+                    };
+                    match variations.get(k) {
+                        Some(v) if L::finished(&instances[k], &states[k]) => {
+                            let m = is_steady(k).then(|| &measure_list[k]);
+                            with_variation(
+                                &instances[k],
+                                outcome,
+                                L::followed(&instances[k], &states[k], m, v),
+                            )
+                        }
+                        _ => outcome,
                     }
                 })
                 .collect();
@@ -578,13 +597,14 @@ impl<'a> Runner<'a> {
             .with_max_len(1)
             .map(|(k, st)| {
                 let m = is_steady(*k).then(|| &measure_list[*k]);
+                let inst = &instances[*k];
+                let outcome = match variations.get(*k) {
+                    Some(v) => on_cpu_followed(inst, self.settings, L::followed(inst, st, m, v)),
+                    None => on_cpu(inst, self.settings, L::continuable(inst, st, m)),
+                };
                 GpuOutcome {
                     finished_on_cpu: true,
-                    ..on_cpu(
-                        &instances[*k],
-                        self.settings,
-                        L::continuable(&instances[*k], st, m),
-                    )
+                    ..outcome
                 }
             })
             .collect();
@@ -595,6 +615,24 @@ impl<'a> Runner<'a> {
             out[k] = outcome;
         }
         out
+    }
+}
+
+/// `outcome` with the backward travel of `followed` (a finished lane's run
+/// and variation entry, as the CPU's: `Layout::followed`).
+fn with_variation(
+    inst: &Instance,
+    outcome: GpuOutcome,
+    followed: Option<(Run, crate::laws::floor::variation::Variation)>,
+) -> GpuOutcome {
+    let Some((run, v)) = followed else {
+        return outcome;
+    };
+    let (variation, variation_se) = crate::measurement::reduce_variation(inst, &run.ended(), &v);
+    GpuOutcome {
+        variation,
+        variation_se,
+        ..outcome
     }
 }
 

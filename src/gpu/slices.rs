@@ -105,9 +105,12 @@ impl Buffers {
         // The accumulators: one per instance where any instance is steady
         // (and a scratch entry per lane, one per instance at most, on a
         // loop-limited adapter: `steady.wgsl`), else one unused entry
-        // (windows never touch them).
-        let per_steady = if steady { n } else { 1 };
-        let measures = per_steady * super::staging::measure_entries(steady && loop_limiter);
+        // (windows never touch them); twice that where the kernel keeps
+        // each instance's backward travel in a second half.
+        let per_steady = if steady || kernel.backward { n } else { 1 };
+        let halves = if kernel.backward { 2 } else { 1 };
+        let measures =
+            per_steady * super::staging::measure_entries(steady && loop_limiter) * halves;
         let identity: Vec<u32> = (0..n as u32).collect();
         Buffers {
             coefficients: init(
@@ -477,7 +480,7 @@ impl Runner<'_> {
             )?;
         }
         drop(dispatching);
-        let out = self.read_back::<L>(instances, &b, steady)?;
+        let out = self.read_back::<L>(instances, &b, steady, kernel.backward)?;
         if profiling {
             self.record_profile::<L>(instances, &out, &probed, steady, count_in);
         }
@@ -698,13 +701,16 @@ impl Runner<'_> {
         warps::record(&warps, path, bytes);
     }
 
-    /// Every state and, for a steady batch, every measurement
-    /// ([`readback::accumulators`]).
+    /// Every state, for a steady batch every measurement
+    /// ([`readback::accumulators`]), and where the kernel measures the
+    /// backward travel every instance's variation entry (the second half
+    /// of the accumulators' buffer).
     fn read_back<L: Lanes>(
         &self,
         instances: &[Instance],
         b: &Buffers,
         steady: bool,
+        backward: bool,
     ) -> Result<Readback<L>, GpuError> {
         let _reading = profile::span(Phase::Readback);
         let n = instances.len();
@@ -742,12 +748,17 @@ impl Runner<'_> {
             )?,
             None => Vec::new(),
         };
+        let variations = if backward {
+            readback::variations::<L>(self.device, self.queue, &b.measures, n)?
+        } else {
+            Vec::new()
+        };
         profile::add_bytes_read(
             state_bytes
                 + if steady { head_bytes } else { 0 }
-                + (read.count * size_of::<L::Measure>()) as u64,
+                + ((read.count + variations.len()) * size_of::<L::Measure>()) as u64,
         );
-        Ok((states, measure_list))
+        Ok((states, measure_list, variations))
     }
 }
 

@@ -233,6 +233,16 @@ impl Law {
         }
     }
 
+    /// Why the law's shader cannot measure the backward travel
+    /// (`Settings::backward`), if it cannot: Karnopp's does
+    /// (`shaders/karnopp/variation.wgsl`), LuGre's does not.
+    pub fn no_backward_on_gpu(self) -> Option<&'static str> {
+        match self {
+            Law::Karnopp => None,
+            Law::Lugre => Some(crate::laws::settings::BACKWARD_NOT_IN_LUGRE_SHADER),
+        }
+    }
+
     /// Whether a steady measurement under this law may be split into
     /// replicas at other phases of the faster drive (`simulation.replicas`,
     /// `crate::replicas`): every law's, as the phase ladder reads positions

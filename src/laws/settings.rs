@@ -28,11 +28,20 @@ pub struct Settings {
     pub backward: bool,
 }
 
-/// Why a scene with `output.backward` runs on the CPU in f64 only: what
-/// `--backend auto` says and `--backend gpu` and `--precision f32` refuse
-/// with.
-pub const BACKWARD_CPU_ONLY: &str =
-    "output.backward = true: the backward travel is measured on the CPU in f64 only";
+/// Why a scene with `output.backward` runs in f64 only: what `--precision
+/// f32` is refused with.
+pub const BACKWARD_F64_ONLY: &str =
+    "output.backward = true: the backward travel is measured in f64 only";
+
+/// Why `--backend auto` keeps a scene with `output.backward` on the CPU:
+/// its cost model does not weigh the backward travel's work (`--backend
+/// gpu` measures it on the GPU under Karnopp's law).
+pub const BACKWARD_AUTO_ON_CPU: &str = "output.backward = true: --backend auto does not weigh \
+     the backward travel's cost (--backend gpu measures it in Karnopp's shader)";
+
+/// Why `--backend gpu` refuses a LuGre scene with `output.backward`.
+pub const BACKWARD_NOT_IN_LUGRE_SHADER: &str =
+    "output.backward = true: LuGre's shader does not measure the backward travel";
 
 impl Default for Settings {
     fn default() -> Self {

@@ -283,11 +283,11 @@ impl Scene {
     }
 
     /// Why `--backend auto` keeps this scene on the CPU without weighing
-    /// it, if it does: the backward travel (measured on the CPU only), or
-    /// its law's reason (`Law::auto_on_cpu`).
+    /// it, if it does: the backward travel (whose cost auto does not
+    /// weigh), or its law's reason (`Law::auto_on_cpu`).
     pub fn auto_on_cpu(&self) -> Option<&'static str> {
         if self.settings.backward {
-            return Some(crate::laws::settings::BACKWARD_CPU_ONLY);
+            return Some(crate::laws::settings::BACKWARD_AUTO_ON_CPU);
         }
         self.law().auto_on_cpu()
     }

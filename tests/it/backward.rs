@@ -138,8 +138,9 @@ const SCENE: &str = "name = \"bw\"\n[axis.x]\nduty = [0.9, 0.95, 0.98, 1.0]\n\
                      [axis.y]\nvoltage = [0, 60]\n[output]\nbackward = true\n";
 
 /// A scene with `backward = true` writes the eight maps with units, and
-/// its shards merge into the single run's file bit for bit; the GPU and
-/// f32 are refused before any work, naming the key, leaving no file.
+/// its shards merge into the single run's file bit for bit; f32, and
+/// LuGre's shader, are refused before any work, naming the key, leaving
+/// no file (`gpu_backward` runs Karnopp's shader).
 #[test]
 fn backward_maps_are_written_merged_and_refused() {
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -158,7 +159,7 @@ fn backward_maps_are_written_merged_and_refused() {
     };
     let said = run(&["run", s(&scene), "--out", s(&single)]);
     assert!(
-        said.contains("backward travel is measured on the CPU"),
+        said.contains("--backend auto does not weigh the backward travel's cost"),
         "{said}"
     );
     let file = hdf5::File::open(&single).expect("a result file");
@@ -209,9 +210,12 @@ fn backward_maps_are_written_merged_and_refused() {
         );
         assert!(!out.exists(), "{all:?} left {}", out.display());
     };
-    let why = "output.backward = true: the backward travel is measured on the CPU in f64 only";
-    refused(&["--backend", "gpu"], SCENE, why);
+    let why = "output.backward = true: the backward travel is measured in f64 only";
     refused(&["--backend", "cpu", "--precision", "f32"], SCENE, why);
+    refused(&["--backend", "gpu", "--precision", "f32"], SCENE, why);
+    let lugre = format!("{SCENE}[mechanism]\nfriction = \"lugre\"\n");
+    let why = "LuGre's shader does not measure the backward travel";
+    refused(&["--backend", "gpu"], &lugre, why);
     let wrong = SCENE.replace("backward = true", "backward = 1");
     refused(&[], &wrong, "output.backward");
 }

@@ -187,7 +187,7 @@ fn compare(
 }
 
 /// docs/model.md section 6: every reference case.
-fn paper_cases() -> Vec<Instance> {
+pub fn paper_cases() -> Vec<Instance> {
     crate::common::reference_cases()
         .into_iter()
         .map(|(_, instance, _)| instance)
@@ -197,7 +197,7 @@ fn paper_cases() -> Vec<Instance> {
 /// The seven cases of docs/model.md section 6 with Table 1's mechanism (the
 /// text's follow them): a small batch for the tests of batching, lanes and
 /// slices.
-fn table1_cases() -> Vec<Instance> {
+pub fn table1_cases() -> Vec<Instance> {
     let mut instances = paper_cases();
     instances.truncate(7);
     instances

@@ -19,6 +19,7 @@ mod fit;
 mod fit_data;
 mod fit_errors;
 mod gpu;
+mod gpu_backward;
 mod gpu_lugre;
 mod gpu_phase;
 mod install;

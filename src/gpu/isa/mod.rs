@@ -86,21 +86,20 @@ pub fn bindings(module: &naga::Module) -> Vec<Binding> {
         .collect()
 }
 
-/// Every compute pipeline a batch creates on a hardware adapter: the 12
-/// Karnopp variants (two precisions, six combinations of parts) and
-/// LuGre's.
+/// Every compute pipeline a batch creates on a hardware adapter: Karnopp's
+/// variants (two precisions, every combination of parts, and f64's with
+/// the backward travel) and LuGre's.
 pub fn batch_pipelines() -> Result<Vec<Pipeline>, GpuError> {
     use crate::gpu::footprint::variant_name;
-    use crate::gpu::shader::{ENTRY_POINT, Parts, Variant, parse_and_validate};
+    use crate::gpu::shader::{ENTRY_POINT, Variant, parse_and_validate};
     use crate::gpu::spirv::module_spirv;
     let mut out = Vec::new();
-    for precision in [crate::laws::Precision::F64, crate::laws::Precision::F32] {
-        for parts in Parts::every() {
-            let v = Variant {
-                precision,
-                loop_limiter: false,
-                parts,
-            };
+    for v in Variant::every() {
+        if v.loop_limiter {
+            continue;
+        }
+        let precision = v.precision;
+        {
             let (module, info) = parse_and_validate(v)?;
             out.push(Pipeline {
                 name: variant_name(v),

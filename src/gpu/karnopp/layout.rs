@@ -362,6 +362,9 @@ macro_rules! precision_structs {
                             || nonzero(self.neg_load)
                             || nonzero(self.neg_load_accel),
                         waveform: self.segment_count.x != 0 || self.segment_count.y != 0,
+                        // A setting, not a coefficient: the runner adds it
+                        // (`Parts::with_settings`).
+                        backward: false,
                     }
                 }
             }
@@ -444,6 +447,8 @@ macro_rules! precision_structs {
                     finished_on_cpu: false,
                     checked: false,
                     replicas: 1,
+                    variation: [0.0; AXES],
+                    variation_se: [0.0; AXES],
                 }
             }
         }

@@ -18,7 +18,7 @@ pub(in crate::gpu) fn states_after<L: Layout>(
     settings: &Settings,
     iterations: u32,
 ) -> Result<Vec<L::Mirror>, GpuError> {
-    let ((states, _), _) = first_dispatch::<L>(ctx, instances, settings, iterations)?;
+    let ((states, _, _), _) = first_dispatch::<L>(ctx, instances, settings, iterations)?;
     Ok(states.iter().map(L::mirror).collect())
 }
 

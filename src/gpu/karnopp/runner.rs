@@ -6,6 +6,7 @@ use super::layout;
 use super::shader::per_lane;
 use crate::gpu::*;
 use crate::laws::Replica;
+use crate::laws::floor::variation::Variation;
 
 /// The host side of one precision of Karnopp's lanes: packing, outcomes,
 /// replicas and continuation (the engine's part is [`Lanes`]).
@@ -30,6 +31,15 @@ pub(in crate::gpu) trait Layout: Lanes<Pilot = GpuOutcome> {
     /// (f32: the slow tail is where f32 is least sure; the f64 reference
     /// starts it over).
     fn continuable(inst: &Instance, st: &Self::State, m: Option<&Self::Measure>) -> Option<Run>;
+    /// [`Layout::continuable`]'s run with the backward travel's entry `v`
+    /// of the lane (`shaders/karnopp/variation.wgsl`) as the CPU's
+    /// variation (f64; `None` in f32, which never measures it).
+    fn followed(
+        inst: &Instance,
+        st: &Self::State,
+        m: Option<&Self::Measure>,
+        v: &Self::Measure,
+    ) -> Option<(Run, Variation)>;
     /// Packs replica `r` of a split run (`inst` the replica's instance).
     fn pack_replica(inst: &Instance, settings: &Settings, r: Replica) -> Self::Coefficients;
     /// A replica's run as a group reads it (`replicas::Member::of`): status,
@@ -111,6 +121,14 @@ impl Layout for Single {
             layout::single::reduced_state(st),
             layout::single::measure_to_cpu(m),
         )
+    }
+    fn followed(
+        _: &Instance,
+        _: &Self::State,
+        _: Option<&Self::Measure>,
+        _: &Self::Measure,
+    ) -> Option<(Run, Variation)> {
+        None
     }
     fn continuable(_: &Instance, _: &Self::State, _: Option<&Self::Measure>) -> Option<Run> {
         None
@@ -199,6 +217,15 @@ impl Layout for Double {
             },
         })
     }
+    fn followed(
+        inst: &Instance,
+        st: &Self::State,
+        m: Option<&Self::Measure>,
+        v: &Self::Measure,
+    ) -> Option<(Run, Variation)> {
+        let run = Self::continuable(inst, st, m)?;
+        Some((run, crate::gpu::layout::variation_to_cpu(v)))
+    }
     fn pack_replica(inst: &Instance, settings: &Settings, r: Replica) -> Self::Coefficients {
         layout::double::pack_replica(inst, settings, r)
     }
@@ -226,12 +253,17 @@ fn pilot(inst: &Instance, settings: &Settings) -> GpuOutcome {
 
 /// One instance integrated on the CPU, which the shader mirrors, as a GPU
 /// outcome (the caller marks why it ran there): from its start, or from a
-/// run the f64 shader left unfinished.
+/// run the f64 shader left unfinished. One that measures the backward
+/// travel from its start keeps it ([`on_cpu_followed`]); from a shader's
+/// run it needs the lane's variation, which only `on_cpu_followed` takes.
 pub(in crate::gpu) fn on_cpu(
     inst: &Instance,
     settings: &Settings,
     from: Option<Run>,
 ) -> GpuOutcome {
+    if settings.backward && from.is_none() {
+        return on_cpu_followed(inst, settings, None);
+    }
     let run = match from {
         Some(run) => {
             crate::laws::karnopp::integrate::continue_instance_until(inst, settings, run, || false)
@@ -240,6 +272,33 @@ pub(in crate::gpu) fn on_cpu(
         None => run_instance(inst, settings),
     };
     GpuOutcome::of(&reduce(inst, &run.ended()), run.state.steps)
+}
+
+/// [`on_cpu`] keeping the backward travel (`Settings::backward`): from its
+/// start, or from a run and variation the f64 shader left unfinished
+/// (`Layout::followed`), as `laws::karnopp::variation` keeps it.
+pub(in crate::gpu) fn on_cpu_followed(
+    inst: &Instance,
+    settings: &Settings,
+    from: Option<(Run, Variation)>,
+) -> GpuOutcome {
+    use crate::laws::karnopp::variation;
+    let (run, v) = match from {
+        Some((run, mut v)) => {
+            let c = crate::laws::karnopp::integrate::Coefficients::of(inst, settings);
+            let run =
+                variation::continue_until(&c, run, &mut v, || false).expect("never asked to stop");
+            (run, v)
+        }
+        None => variation::run_until(inst, settings, || false).expect("never asked to stop"),
+    };
+    let run = run.ended();
+    let (variation, variation_se) = crate::measurement::reduce_variation(inst, &run, &v);
+    GpuOutcome {
+        variation,
+        variation_se,
+        ..GpuOutcome::of(&reduce(inst, &run), run.record.steps)
+    }
 }
 
 /// The binding of a waveform variant's segments (`segments.wgsl`).
@@ -298,6 +357,7 @@ impl<'p> Kernel<'p> {
             pipeline,
             steady: variant.parts.steady,
             loop_limiter: variant.loop_limiter,
+            backward: variant.parts.backward,
             workgroup_size: workgroup_size(),
             extra: &[],
             per_lane: per_lane(variant),

@@ -18,7 +18,7 @@ use crate::model::Instance;
 /// The shader files, in the order they are concatenated (WGSL declarations
 /// may come in any order; this one reads top-down), with their text and
 /// the part of the shader each belongs to (`File::part`).
-pub const FILES: [(&str, &str); 13] = [
+pub const FILES: [(&str, &str); 14] = [
     (
         "karnopp/arith.wgsl",
         include_str!("../../../shaders/karnopp/arith.wgsl"),
@@ -66,6 +66,10 @@ pub const FILES: [(&str, &str); 13] = [
     (
         "karnopp/steady.wgsl",
         include_str!("../../../shaders/karnopp/steady.wgsl"),
+    ),
+    (
+        "karnopp/variation.wgsl",
+        include_str!("../../../shaders/karnopp/variation.wgsl"),
     ),
     (
         "karnopp/entry.wgsl",
@@ -151,18 +155,28 @@ pub struct Parts {
     /// slew limit): its segments from a buffer (`segments.wgsl`, binding
     /// 12); without it the sawtooth's rise and fall from the coefficients.
     pub waveform: bool,
+    /// The backward travel (`Settings::backward`, issue 59:
+    /// `variation.wgsl`): every step's total variation and its
+    /// accumulators in the second half of the measures buffer. Only with
+    /// `steady`, whose accumulators it follows and whose buffer it shares
+    /// (a window instance's variation needs its entry too).
+    pub backward: bool,
 }
 
 impl Parts {
-    /// Every part: the whole shader.
+    /// Every part an instance may need: the whole shader but the backward
+    /// travel, which a run's settings ask for ([`Parts::with_settings`]).
     pub const ALL: Parts = Parts {
         steady: true,
         phase: true,
         load: true,
         waveform: true,
+        backward: false,
     };
 
-    /// Every combination a variant may have (`phase` only with `steady`).
+    /// Every combination instances may need (`phase` only with
+    /// `steady`); the backward travel, a run's setting, is
+    /// [`Parts::with_backward`]'s.
     pub fn every() -> Vec<Parts> {
         let mut out = Vec::new();
         for steady in [false, true] {
@@ -177,11 +191,29 @@ impl Parts {
                             phase,
                             load,
                             waveform,
+                            backward: false,
                         });
                     }
                 }
             }
         }
+        out
+    }
+
+    /// Every combination with the backward travel (f64 only): those of
+    /// [`Parts::every`] that it leaves (it takes the steady and waveform
+    /// parts: [`Parts::with_settings`]).
+    pub fn with_backward() -> Vec<Parts> {
+        let backward = Settings {
+            backward: true,
+            ..Settings::default()
+        };
+        let mut out: Vec<Parts> = Parts::every()
+            .into_iter()
+            .map(|p| p.with_settings(&backward))
+            .collect();
+        out.sort();
+        out.dedup();
         out
     }
 
@@ -192,12 +224,34 @@ impl Parts {
             phase: self.phase || other.phase,
             load: self.load || other.load,
             waveform: self.waveform || other.waveform,
+            backward: self.backward || other.backward,
         }
     }
 
-    /// Whether a variant with these parts runs everything `needs` asks for.
+    /// These parts and the backward travel where `settings` measure it,
+    /// which takes the steady part ([`Parts::backward`]) and the waveform
+    /// part: its pipelines read every drive, a sawtooth's too, from the
+    /// segment buffer. With the sawtooth's own corners the f64 hardware
+    /// lane asked 257-261 VGPRs and spilled 3-6 (RADV, navi31); with the
+    /// segments 241-245 and none (`pidm info --registers`).
+    pub fn with_settings(self, settings: &Settings) -> Parts {
+        if !settings.backward {
+            return self;
+        }
+        Parts {
+            steady: true,
+            waveform: true,
+            backward: true,
+            ..self
+        }
+    }
+
+    /// Whether a variant with these parts runs everything `needs` asks
+    /// for, and measures the backward travel exactly where it asks (a
+    /// variant that measures it keeps a second half of accumulators and
+    /// reads it back: work a run without it does not pay for).
     pub fn covers(self, needs: Parts) -> bool {
-        self.union(needs) == self
+        self.union(needs) == self && self.backward == needs.backward
     }
 
     /// The parts an instance's f64 coefficients use (what the shader would
@@ -216,6 +270,7 @@ impl Parts {
                 .segments
                 .iter()
                 .all(|s| crate::laws::karnopp::integrate::drive::is_sawtooth(s)),
+            backward: false,
         }
     }
 
@@ -231,6 +286,7 @@ impl Parts {
             .fold(Parts::default(), |parts, inst| {
                 parts.union(Parts::of_coefficients(&Coefficients::of(inst, settings)))
             })
+            .with_settings(settings)
     }
 
     /// "steady+phase+load", "window": the parts in words.
@@ -245,6 +301,9 @@ impl Parts {
         if self.waveform {
             words.push("waveform");
         }
+        if self.backward {
+            words.push("backward");
+        }
         words.join("+")
     }
 
@@ -254,6 +313,7 @@ impl Parts {
             "shared/measure.wgsl" | "karnopp/steady.wgsl" => self.steady,
             "shared/phase.wgsl" => self.steady && self.phase,
             "karnopp/segments.wgsl" => self.waveform,
+            "karnopp/variation.wgsl" => self.backward,
             _ => true,
         }
     }
@@ -285,12 +345,17 @@ impl Variant {
     }
 
     /// Every variant: both precisions, both kinds of adapter, every
-    /// combination of parts.
+    /// combination of parts (the backward travel's in f64 only).
     pub fn every() -> Vec<Variant> {
         let mut out = Vec::new();
         for precision in [Precision::F64, Precision::F32] {
             for loop_limiter in [false, true] {
-                for parts in Parts::every() {
+                let mut every = Parts::every();
+                if precision == Precision::F64 {
+                    // The backward travel is measured in f64 only.
+                    every.extend(Parts::with_backward());
+                }
+                for parts in every {
                     out.push(Variant {
                         precision,
                         loop_limiter,
@@ -317,6 +382,26 @@ fn at_measured_end(st: State, index: u32) -> bool {
 
 fn measure_period_end(st: ptr<function, State>, index: u32, lane: u32, fresh: bool) -> bool {
     return true;
+}
+";
+
+/// A variant without the backward travel: `variation.wgsl`'s functions as
+/// ones that do nothing (and are never called: `BACKWARD` is false).
+const NO_BACKWARD: &str = "\
+fn follow_end(period: u32, time: Real, s: Sample, tau: Real) {}
+
+fn follow_step() {}
+
+fn follow_period_end(step: u32) {}
+
+fn followed_now() -> Followed {
+    return Followed(V2(0.0), V2(0.0));
+}
+
+fn follow_undo(f: Followed) {}
+
+fn variation_slot(slot: u32) -> u32 {
+    return slot;
 }
 ";
 
@@ -435,8 +520,9 @@ pub fn prelude(variant: Variant) -> String {
          const STEADY: bool = {steady};\n\
          const LOAD: bool = {load};\n\
          const WAVEFORM: bool = {waveform};\n\
+         const BACKWARD: bool = {backward};\n\
          const STATUS_LOOP_LIMIT: u32 = {STATUS_LOOP_LIMIT}u;\n\
-         {constants}\n{inverse}\n",
+         {constants}\n{variation}{inverse}\n",
         floor = crate::gpu::prelude::floor(
             variant.precision,
             variant.parts.steady && variant.parts.phase
@@ -445,6 +531,8 @@ pub fn prelude(variant: Variant) -> String {
         steady = variant.parts.steady,
         load = variant.parts.load,
         waveform = variant.parts.waveform,
+        backward = variant.parts.backward,
+        variation = crate::laws::karnopp::variation::wgsl_constants(),
         workgroup = workgroup_size(),
         constants = constants::wgsl_constants(),
         inverse = inverse_integer_fn(),
@@ -464,6 +552,9 @@ pub fn source(variant: Variant) -> String {
     }
     if !parts.waveform {
         src += SAWTOOTH_ONLY;
+    }
+    if !parts.backward {
+        src += NO_BACKWARD;
     }
     src += &crate::gpu::engine_queue();
     let (holder, text) = HOLDERS[usize::from(variant.holds_in_memory())];

@@ -358,6 +358,7 @@ impl<'a> LugreGpu<'a> {
             pipeline: &self.pipeline,
             steady: true,
             loop_limiter: false,
+            backward: false,
             workgroup_size: self.workgroup_size,
             extra: bound,
             per_lane: &[],
@@ -436,7 +437,7 @@ impl<'a> LugreGpu<'a> {
         self.ctx.check_health()?;
         report.dispatches += sliced.dispatches;
         report.gpu_seconds += started.elapsed().as_secs_f64();
-        let (mut lanes, measures) = sliced.readback;
+        let (mut lanes, measures, _) = sliced.readback;
         // The round's pilot ran whole on the CPU: its runs stand, and its
         // lanes (left after the first dispatch) are done.
         for (k, _) in &sliced.pilot {

@@ -60,6 +60,26 @@ impl Variation {
         }
     }
 
+    /// A variation kept elsewhere (a GPU lane's entry:
+    /// `crate::gpu::layout::variation_to_cpu`): its total and the total
+    /// when the measured periods began [m], its accumulators, and the ring
+    /// of totals at common-period ends with the count taken.
+    pub fn from_parts(
+        total: Vec2,
+        settle_total: Vec2,
+        measure: Measure,
+        snaps: [Vec2; SNAPSHOTS],
+        taken: u32,
+    ) -> Variation {
+        Variation {
+            total,
+            settle_total,
+            measure,
+            snaps,
+            taken,
+        }
+    }
+
     /// Lets the accumulators go on where the step's replica was released
     /// from its group's wait (`record::release`): `follow` then reads the
     /// step's next verdict as running again, as the step's own measure does.
