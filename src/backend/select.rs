@@ -181,7 +181,9 @@ pub fn select_backend(
                 bail!("--backend gpu: {why}; run it with --backend cpu")
             }
             BackendChoice::Gpu => {
-                if work.settings.replicas != crate::laws::settings::Replicas::Count(1) {
+                use crate::laws::settings::Replicas;
+                // "auto" leaves the split to pidm: running alone is one.
+                if matches!(work.settings.replicas, Replicas::Count(n) if n > 1) {
                     eprintln!(
                         "pidm: --backend gpu: each instance runs alone where the GPU measures \
                          the backward travel (simulation.replicas applies on --backend cpu)"
