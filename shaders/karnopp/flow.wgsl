@@ -344,29 +344,52 @@ fn eval_flow(prop: Propagator, tau: Real) -> Sample {
     s.a_p = stage.a;
     s.j_p = stage.j;
     if flow.stuck != 0u {
-        s.x_s = flow.x_s + (stage.x - flow.x_p);
-        s.v_s = v;
-        if DEFLECTION {
-            s.x_s = flow.x_s + ((stage.x - flow.x_p) + flow.ramp * tau);
-            s.v_s = v + flow.ramp;
-        }
-        s.a_s = stage.a;
+        let rides = stuck_slider(stage, tau);
+        s.x_s = rides.x_s;
+        s.v_s = rides.v_s;
+        s.a_s = rides.a_s;
         s.v_rel = V2(0.0);
     } else {
-        let th = tau * flow.inv_h;
-        let h = flow.h;
-        let c0 = flow.slider0;
-        let c1 = flow.slider1;
-        let c2 = flow.slider2;
-        s.x_s = flow.x_s
-            + flow.v_s * tau
-            + (h * h * th * th) * (c0 * Real(0.5) + (c1 * ONE_SIXTH + c2 * (ONE_TWELFTH * th)) * th);
-        let dv_s = (h * th) * (c0 + (c1 * Real(0.5) + c2 * (ONE_THIRD * th)) * th);
-        s.v_s = flow.v_s + dv_s;
-        s.a_s = c0 + (c1 + c2 * th) * th;
-        s.v_rel = flow.v_rel + (stage.dv - dv_s);
+        let free = slip_slider(tau);
+        s.x_s = free.x_s;
+        s.v_s = flow.v_s + free.dv_s;
+        s.a_s = free.a_s;
+        s.v_rel = flow.v_rel + (stage.dv - free.dv_s);
     }
     return s;
+}
+
+// The stage and the slider stuck to it at `tau`, from the stage's motion
+// there (`eval_flow`'s and the backward travel's `motion_sample`'s).
+fn stuck_slider(stage: Stage, tau: Real) -> Slider {
+    let v = flow.v_p + stage.dv;
+    var s = Slider(stage.x, v, flow.x_s + (stage.x - flow.x_p), v, stage.a);
+    if DEFLECTION {
+        s.x_s = flow.x_s + ((stage.x - flow.x_p) + flow.ramp * tau);
+        s.v_s = v + flow.ramp;
+    }
+    return s;
+}
+
+// The slider's polynomial in slip and in the band at `tau`: its position,
+// its change of velocity since the step began and its acceleration.
+struct SlipSlider {
+    x_s: V2,
+    dv_s: V2,
+    a_s: V2,
+}
+
+fn slip_slider(tau: Real) -> SlipSlider {
+    let th = tau * flow.inv_h;
+    let h = flow.h;
+    let c0 = flow.slider0;
+    let c1 = flow.slider1;
+    let c2 = flow.slider2;
+    let x_s = flow.x_s
+        + flow.v_s * tau
+        + (h * h * th * th) * (c0 * Real(0.5) + (c1 * ONE_SIXTH + c2 * (ONE_TWELFTH * th)) * th);
+    let dv_s = (h * th) * (c0 + (c1 * Real(0.5) + c2 * (ONE_THIRD * th)) * th);
+    return SlipSlider(x_s, dv_s, c0 + (c1 + c2 * th) * th);
 }
 
 fn eval_at(tau: Real) -> Sample {

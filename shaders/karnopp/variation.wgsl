@@ -81,38 +81,19 @@ fn follow_undo(f: Followed) {
 // `prop` its propagator (read in stick only): in stick (whose flow has no
 // Taylor form: `make_flow`) the stage's closed form, which the slider
 // shares; in slip and in the band only the slider's polynomial, the
-// stage's members left 0 (nothing here reads them there). Each member is
-// `eval_flow`'s arithmetic, so the values are its own, with a fraction of
-// its code for a driver that inlines every call.
+// stage's members left 0 (nothing here reads them there). Both are
+// `eval_flow`'s own functions, with a fraction of its code for a driver
+// that inlines every call.
 fn motion_sample(prop: Propagator, tau: Real) -> Slider {
     if tau >= flow.end_tau {
         return motion_end();
     }
     let at = max(tau, Real(0.0));
-    var s: Slider;
     if flow.stuck != 0u {
-        let stage = eval_stage(prop, at);
-        let v = flow.v_p + stage.dv;
-        s.x_p = stage.x;
-        s.v_p = v;
-        s.x_s = flow.x_s + (stage.x - flow.x_p);
-        s.v_s = v;
-        if DEFLECTION {
-            s.x_s = flow.x_s + ((stage.x - flow.x_p) + flow.ramp * at);
-            s.v_s = v + flow.ramp;
-        }
-        s.a_s = stage.a;
-        return s;
+        return stuck_slider(eval_stage(prop, at), at);
     }
-    let th = at * flow.inv_h;
-    let h = flow.h;
-    let c0 = flow.slider0;
-    let c1 = flow.slider1;
-    let c2 = flow.slider2;
-    s.x_s = flow.x_s + flow.v_s * at + (h * h * th * th) * (c0 * Real(0.5) + (c1 * ONE_SIXTH + c2 * (ONE_TWELFTH * th)) * th);
-    s.v_s = flow.v_s + (h * th) * (c0 + (c1 * Real(0.5) + c2 * (ONE_THIRD * th)) * th);
-    s.a_s = c0 + (c1 + c2 * th) * th;
-    return s;
+    let free = slip_slider(at);
+    return Slider(V2(0.0), V2(0.0), free.x_s, flow.v_s + free.dv_s, free.a_s);
 }
 
 // `StepMotion::start`.

@@ -101,7 +101,7 @@ fn rust_mirrors() -> [(&'static str, &'static str); 10] {
 }
 
 /// The functions only the shader defines.
-fn shader_only_functions() -> [&'static str; 16] {
+fn shader_only_functions() -> [&'static str; 18] {
     // Shader only: WGSL has no Option, closures, methods or
     // is_finite, and splits some expressions into functions.
     [
@@ -128,6 +128,10 @@ fn shader_only_functions() -> [&'static str; 16] {
         "segment_drive",
         "next_segments",
         "following",
+        // `eval_flow`'s slider in stick and in slip, which the backward
+        // travel's `variation.wgsl` also reads (issue 59).
+        "stuck_slider",
+        "slip_slider",
     ]
 }
 
