@@ -77,7 +77,7 @@ fn measure_period_end(st: ptr<function, State>, index: u32, lane: u32, fresh: bo
     let before = *st;
     period_end(st, slot);
     if BACKWARD {
-        follow_period_end(slot);
+        follow(slot, coefficients[held].common_period);
     }
     if LOOP_LIMITER {
         if !loop_limiter_intact((*st).steps) {

@@ -77,6 +77,9 @@ fn start_measure() {
     if c.steady == 1u {
         measures[held] = initial_measure();
     }
+    if BACKWARD {
+        measures[variation_slot(held)] = initial_measure();
+    }
     recurrences[held].taken = 0u;
 }
 
@@ -102,6 +105,9 @@ fn lugre_period_end(lane: ptr<function, Lane>, y: Vector) {
     st.v_s = V2(y[VS], y[VS + 1u]);
     st.period = (*lane).period;
     st.measured = (*lane).measured;
+    // The period's variation counts (variation.wgsl), before the
+    // measurement the backward travel follows.
+    follow_commit();
     if c.steady == 1u {
         period_end(&st, held);
         let ended = st.period + 1u;
@@ -110,12 +116,14 @@ fn lugre_period_end(lane: ptr<function, Lane>, y: Vector) {
             && measures[held].verdict == VERDICT_RUNNING && repeats(y, lag_unit) {
             st.measured = 1u;
         }
+        follow(held, lag_unit);
     }
     (*lane).last = y;
     (*lane).period = st.period + 1u;
     (*lane).measured = st.measured;
     if (*lane).period == c.settle {
         (*lane).settle_x_s = array<Real, 2>(st.x_s.x, st.x_s.y);
+        follow_settle();
     }
 }
 

@@ -153,6 +153,16 @@ fn segment(
         return SEGMENT_GOING;
     }
     if err <= Real(1.0) {
+        if BACKWARD {
+            // The backward travel follows the accepted step
+            // (variation.wgsl), from its ends as the CPU's `observe` sees
+            // them.
+            var next = attempt.next;
+            if last {
+                next[T] = end;
+            }
+            follow_step(*y, next);
+        }
         *y = attempt.next;
         if last {
             (*y)[T] = end;

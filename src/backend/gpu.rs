@@ -204,7 +204,7 @@ impl GpuBackend {
             .filter(|(_, split)| split.is_none())
             .map(|(inst, _)| *inst)
             .collect();
-        let mut gpu = LugreGpu::for_instances(&self.ctx, &alone)?;
+        let mut gpu = LugreGpu::for_instances(&self.ctx, &alone, settings)?;
         gpu.cpu_tail = self.options.cpu_tail;
         let mut on_device = gpu
             .outcomes_until(

@@ -176,14 +176,12 @@ pub fn select_backend(
             bail!("--precision f32: {BACKWARD_F64_ONLY}; run it in f64");
         }
         match choice {
-            BackendChoice::Gpu if work.law.no_backward_on_gpu().is_some() => {
-                let why = work.law.no_backward_on_gpu().unwrap_or_default();
-                bail!("--backend gpu: {why}; run it with --backend cpu")
-            }
             BackendChoice::Gpu => {
                 use crate::laws::settings::Replicas;
                 // "auto" leaves the split to pidm: running alone is one.
-                if matches!(work.settings.replicas, Replicas::Count(n) if n > 1) {
+                if work.law.runs_alone_when_backward_on_gpu()
+                    && matches!(work.settings.replicas, Replicas::Count(n) if n > 1)
+                {
                     eprintln!(
                         "pidm: --backend gpu: each instance runs alone where the GPU measures \
                          the backward travel (simulation.replicas applies on --backend cpu)"

@@ -556,7 +556,13 @@ impl GpuContext {
                 }
             }
             if settings.backward {
-                backward_self_test(inst, &settings, got, skew.backward).map_err(fail)?;
+                backward_self_test(
+                    inst,
+                    &settings,
+                    got.variation,
+                    (skew.backward, BACKWARD_ALLOWANCE_M),
+                )
+                .map_err(fail)?;
             }
         }
         Ok(())
@@ -661,24 +667,25 @@ struct Skew {
 pub const BACKWARD_ALLOWANCE_M: f64 = 1e-10;
 
 /// The self-test of a variant that measures the backward travel: the
-/// device's outcome `got` of `inst` against the CPU's f64 variation
-/// (`Law::run_with_variation_until`), moved by `skew` [m].
-fn backward_self_test(
+/// device's backward travel `got` of `inst` per axis [m per own drive
+/// cycle] against the CPU's f64 variation (`Law::run_with_variation_until`),
+/// moved by `skew` [m], within `allowed` [m]; either law's.
+pub(crate) fn backward_self_test(
     inst: &Instance,
     settings: &Settings,
-    got: &GpuOutcome,
-    skew: f64,
+    got: [f64; 2],
+    (skew, allowed): (f64, f64),
 ) -> Result<(), String> {
     let (run, v) = crate::laws::Law::run_with_variation_until(inst, settings, || false)
         .expect("never asked to stop");
     let (want, _) = crate::measurement::reduce_variation(inst, &run, &v);
-    for (axis, (g, w)) in got.variation.into_iter().zip(want).enumerate() {
+    for (axis, (g, w)) in got.into_iter().zip(want).enumerate() {
         let w = w + skew;
         let err = (g - w).abs();
-        if err.is_nan() || err > BACKWARD_ALLOWANCE_M {
+        if err.is_nan() || err > allowed {
             return Err(format!(
                 "axis {axis} backward travel {g:.6e} m where the CPU gives {w:.6e} m, {err:.2e} m \
-                 apart, more than the {BACKWARD_ALLOWANCE_M:.0e} m allowed"
+                 apart, more than the {allowed:.0e} m allowed"
             ));
         }
     }

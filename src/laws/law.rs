@@ -233,13 +233,15 @@ impl Law {
         }
     }
 
-    /// Why the law's shader cannot measure the backward travel
-    /// (`Settings::backward`), if it cannot: Karnopp's does
-    /// (`shaders/karnopp/variation.wgsl`), LuGre's does not.
-    pub fn no_backward_on_gpu(self) -> Option<&'static str> {
+    /// Whether `--backend gpu` runs an instance that would split into
+    /// replicas (`simulation.replicas`) alone where the run measures the
+    /// backward travel: Karnopp's device groups merge the steps, not the
+    /// variation; LuGre's split instances run their groups on the CPU's
+    /// threads whether or not (`backend::gpu`'s `run_lugre`).
+    pub fn runs_alone_when_backward_on_gpu(self) -> bool {
         match self {
-            Law::Karnopp => None,
-            Law::Lugre => Some(crate::laws::settings::BACKWARD_NOT_IN_LUGRE_SHADER),
+            Law::Karnopp => true,
+            Law::Lugre => false,
         }
     }
 

@@ -37,11 +37,7 @@ pub const BACKWARD_F64_ONLY: &str =
 /// its cost model does not weigh the backward travel's work (`--backend
 /// gpu` measures it on the GPU under Karnopp's law).
 pub const BACKWARD_AUTO_ON_CPU: &str = "output.backward = true: --backend auto does not weigh \
-     the backward travel's cost (--backend gpu measures it in Karnopp's shader)";
-
-/// Why `--backend gpu` refuses a LuGre scene with `output.backward`.
-pub const BACKWARD_NOT_IN_LUGRE_SHADER: &str =
-    "output.backward = true: LuGre's shader does not measure the backward travel";
+     the backward travel's cost (--backend gpu measures it on the GPU)";
 
 impl Default for Settings {
     fn default() -> Self {

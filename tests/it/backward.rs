@@ -138,9 +138,9 @@ const SCENE: &str = "name = \"bw\"\n[axis.x]\nduty = [0.9, 0.95, 0.98, 1.0]\n\
                      [axis.y]\nvoltage = [0, 60]\n[output]\nbackward = true\n";
 
 /// A scene with `backward = true` writes the eight maps with units, and
-/// its shards merge into the single run's file bit for bit; f32, and
-/// LuGre's shader, are refused before any work, naming the key, leaving
-/// no file (`gpu_backward` runs Karnopp's shader).
+/// its shards merge into the single run's file bit for bit; f32 is
+/// refused before any work, naming the key, leaving no file
+/// (`gpu_backward` and `gpu_lugre_backward` run the shaders).
 #[test]
 fn backward_maps_are_written_merged_and_refused() {
     let dir = tempfile::tempdir().expect("a temporary directory");
@@ -213,11 +213,62 @@ fn backward_maps_are_written_merged_and_refused() {
     let why = "output.backward = true: the backward travel is measured in f64 only";
     refused(&["--backend", "cpu", "--precision", "f32"], SCENE, why);
     refused(&["--backend", "gpu", "--precision", "f32"], SCENE, why);
-    let lugre = format!("{SCENE}[mechanism]\nfriction = \"lugre\"\n");
-    let why = "LuGre's shader does not measure the backward travel";
-    refused(&["--backend", "gpu"], &lugre, why);
     let wrong = SCENE.replace("backward = true", "backward = 1");
     refused(&[], &wrong, "output.backward");
+}
+
+/// `pidm run --backend gpu` measures a LuGre scene's backward travel in
+/// LuGre's shader (issue 59; no longer refused): on a software adapter its
+/// maps are the CPU path's bit for bit, on hardware the steps within
+/// LuGre's hardware bound and the backward travels within its self-test's
+/// allowance.
+#[test]
+fn pidm_runs_lugres_backward_travel_on_the_gpu() {
+    let Some(ctx) = crate::gpu::f64_context() else {
+        return;
+    };
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    let d = dir.path();
+    std::fs::write(
+        d.join("lb.toml"),
+        "name = \"lb\"\n[mechanism]\nfriction = \"lugre\"\n[axis.x]\nduty = [0.9, 0.98]\n\
+         [axis.y]\nvoltage = [0, 60]\nfrequency = 20.0\n[simulation]\nmeasure = \"window\"\n\
+         cycles = 3\nsettle = 1\n[output]\nbackward = true\n",
+    )
+    .expect("written");
+    let names = ["step_x", "step_y", "backward_x", "backward_y"];
+    let maps = |backend: &str| -> Vec<Vec<f64>> {
+        let out = d.join(format!("{backend}.h5"));
+        let run = pidm(
+            &["run", "lb.toml", "--backend", backend, "--out", s(&out)],
+            d,
+        );
+        let said = String::from_utf8_lossy(&run.stderr);
+        assert!(run.status.success(), "{said}");
+        assert!(said.contains(&format!("pidm: backend {backend}")), "{said}");
+        let file = hdf5::File::open(&out).expect("a result file");
+        names
+            .map(|m| {
+                file.dataset(&format!("maps/{m}"))
+                    .unwrap()
+                    .read_raw()
+                    .unwrap()
+            })
+            .to_vec()
+    };
+    let (cpu, gpu) = (maps("cpu"), maps("gpu"));
+    assert!(cpu[2].iter().any(|&b| b > 1e-7), "travels back: {cpu:?}");
+    if ctx.is_hardware() {
+        let bars = [2e-11, 2e-11, pidm::gpu::lugre::BACKWARD_ALLOWANCE_M];
+        for (k, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+            for (g, c) in g.iter().zip(c) {
+                let bar = bars[k.min(2)];
+                assert!((g - c).abs() <= bar, "{}: {g} against {c} m", names[k]);
+            }
+        }
+    } else {
+        assert_eq!(gpu, cpu);
+    }
 }
 
 /// `pidm plot` draws each moving axis' backward ratio beside the step maps

@@ -21,6 +21,7 @@ mod fit_errors;
 mod gpu;
 mod gpu_backward;
 mod gpu_lugre;
+mod gpu_lugre_backward;
 mod gpu_phase;
 mod install;
 mod lanes;

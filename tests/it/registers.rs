@@ -36,9 +36,9 @@ fn every_batch_pipeline_keeps_the_budgets_held() {
     let Some(stats) = statistics() else { return };
     eprint!("{}", isa::table(&stats));
     // 28 Karnopp variants (the waveform part doubles them; f64 adds 4
-    // with the backward travel) and LuGre's
-    // two (a sawtooth's and a waveform's), on both families.
-    assert_eq!(stats.len(), 2 * 30);
+    // with the backward travel) and LuGre's three (a sawtooth's, a
+    // waveform's and a backward one's), on both families.
+    assert_eq!(stats.len(), 2 * 31);
     for s in &stats {
         // Sanity: the figures are a compiled program's.
         assert!(s.vgprs > 0 && s.instructions.unwrap_or(1) > 0, "{s:?}");

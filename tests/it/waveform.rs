@@ -414,7 +414,7 @@ fn the_lugre_shader_drives_waveforms_as_the_cpu_does() {
         .map(|inst| run_instance_until(inst, &settings, || false).expect("not stopped"))
         .collect();
     let software = !ctx.is_hardware();
-    let own = LugreGpu::for_instances(ctx, &instances).expect("the waveform pipeline");
+    let own = LugreGpu::for_instances(ctx, &instances, &settings).expect("the waveform pipeline");
     assert!(own.drives_waveforms());
     let hardware = LugreGpu::hardware_variant(ctx, true).expect("the hardware's waveform pipeline");
     for (label, gpu, bound) in [

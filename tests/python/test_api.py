@@ -117,7 +117,7 @@ def test_the_backward_maps_come_back_labelled() -> None:
     assert (ds.backward_y == 0.0).all()
     with pytest.raises(pidm.PidmError, match="measured in f64 only"):
         pidm.run(scene, backend="cpu", precision="f32", progress=False)
-    # Karnopp's shader measures it too (lavapipe in CI): the CPU's to 1e-6 um.
+    # The GPU measures it too (lavapipe in CI): the CPU's to 1e-6 um.
     gpu = pidm.run(scene, backend="gpu", progress=False)
     assert "gpu" in gpu.attrs["backend"]
     for axis in ("x", "y"):

@@ -18,7 +18,7 @@ use crate::model::Instance;
 /// The shader files, in the order they are concatenated (WGSL declarations
 /// may come in any order; this one reads top-down), with their text and
 /// the part of the shader each belongs to (`File::part`).
-pub const FILES: [(&str, &str); 14] = [
+pub const FILES: [(&str, &str); 15] = [
     (
         "karnopp/arith.wgsl",
         include_str!("../../../shaders/karnopp/arith.wgsl"),
@@ -66,6 +66,10 @@ pub const FILES: [(&str, &str); 14] = [
     (
         "karnopp/steady.wgsl",
         include_str!("../../../shaders/karnopp/steady.wgsl"),
+    ),
+    (
+        "shared/variation.wgsl",
+        include_str!("../../../shaders/shared/variation.wgsl"),
     ),
     (
         "karnopp/variation.wgsl",
@@ -313,7 +317,7 @@ impl Parts {
             "shared/measure.wgsl" | "karnopp/steady.wgsl" => self.steady,
             "shared/phase.wgsl" => self.steady && self.phase,
             "karnopp/segments.wgsl" => self.waveform,
-            "karnopp/variation.wgsl" => self.backward,
+            "shared/variation.wgsl" | "karnopp/variation.wgsl" => self.backward,
             _ => true,
         }
     }
@@ -392,7 +396,7 @@ fn follow_end(period: u32, time: Real, s: Sample, tau: Real) {}
 
 fn follow_step() {}
 
-fn follow_period_end(step: u32) {}
+fn follow(step: u32, lag_unit: u32) {}
 
 fn followed_now() -> Followed {
     return Followed(V2(0.0), V2(0.0));

@@ -145,7 +145,7 @@ impl LugreGpu<'_> {
             return Ok(Vec::new());
         }
         let device = self.ctx.device();
-        let shape = (self.workgroup_size, self.arithmetic, self.waveform);
+        let shape = (self.workgroup_size, self.arithmetic, self.form);
         let pipeline = compile(device, shape, MIRROR_ENTRY_POINT, None)?;
         let storage = |label: &str, contents: &[u8], usage: wgpu::BufferUsages| {
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -241,7 +241,7 @@ impl LugreGpu<'_> {
             return Ok(Vec::new());
         }
         let device = self.ctx.device();
-        let shape = (self.workgroup_size, self.arithmetic, self.waveform);
+        let shape = (self.workgroup_size, self.arithmetic, self.form);
         let pipeline = compile(device, shape, FUNCTIONS_ENTRY_POINT, None)?;
         let values: Vec<f64> = args
             .iter()

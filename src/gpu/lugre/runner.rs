@@ -6,8 +6,9 @@
 
 use super::layout::{Recurrence, STAGE_BYTES, StageMatrix};
 use super::{
-    Arithmetic, ENTRY_POINT, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_STOPPED, Lane,
-    Params, SOFTWARE_ATTEMPTS, SOFTWARE_LANES, SOFTWARE_WORKGROUP_SIZE, parse_and_validate, source,
+    Arithmetic, ENTRY_POINT, Form, HARDWARE_ATTEMPTS, HARDWARE_WORKGROUP_SIZE, LANE_STOPPED, Lane,
+    Params, SOFTWARE_ATTEMPTS, SOFTWARE_BACKWARD_ATTEMPTS, SOFTWARE_LANES, SOFTWARE_WORKGROUP_SIZE,
+    parse_and_validate, source,
 };
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
@@ -27,9 +28,15 @@ use crate::gpu::runner::{Runner, storage};
 use crate::gpu::{BatchOptions, GpuContext, GpuError, Precision};
 use crate::laws::Run;
 use crate::laws::Settings;
+use crate::laws::floor::variation::Variation;
 use crate::laws::lugre::run::{Periods, continue_until};
 use crate::model::{Instance, Measure};
 use crate::profile::{self, Phase};
+
+/// A run and, where the batch measures the backward travel
+/// (`Settings::backward`), its variation: what `laws::lugre::run`'s
+/// `run_with_variation_until` gives.
+pub type Followed = (Run, Option<Variation>);
 
 /// What a batch cost.
 #[derive(Clone, Debug, Default)]
@@ -53,9 +60,11 @@ pub struct LugreGpu<'a> {
     pub(super) pipeline: wgpu::ComputePipeline,
     pub(super) workgroup_size: u32,
     pub(super) arithmetic: Arithmetic,
-    /// A waveform variant: every run's drive from its corners (binding 16,
-    /// `shaders/lugre/corners.wgsl`); else sawtooths only.
-    pub(super) waveform: bool,
+    /// What the variant drives and measures: a waveform (or backward)
+    /// variant drives every run from its corners (binding 16,
+    /// `shaders/lugre/corners.wgsl`), else sawtooths only; a backward one
+    /// also measures each run's backward travel (`variation.wgsl`).
+    pub(super) form: Form,
     /// Step attempts per lane and dispatch.
     pub attempts: u32,
     /// The running instances a batch hands over to the CPU once no more
@@ -77,17 +86,17 @@ pub struct LugreGpu<'a> {
     pub whole_accumulators: bool,
 }
 
-/// Compiles one entry point of the shader (a `waveform` variant or a
-/// sawtooth one) on `device` (runtime checks off: every loop is bounded,
-/// every index below its array's length).
+/// Compiles one entry point of the shader (of a [`Form`]) on `device`
+/// (runtime checks off: every loop is bounded, every index below its
+/// array's length).
 pub(super) fn compile(
     device: &wgpu::Device,
-    (workgroup_size, arithmetic, waveform): (u32, Arithmetic, bool),
+    (workgroup_size, arithmetic, form): (u32, Arithmetic, Form),
     entry: &str,
     cache: Option<&wgpu::PipelineCache>,
 ) -> Result<wgpu::ComputePipeline, GpuError> {
-    parse_and_validate(workgroup_size, arithmetic, waveform)?;
-    let src = source(workgroup_size, arithmetic, waveform);
+    parse_and_validate(workgroup_size, arithmetic, form)?;
+    let src = source(workgroup_size, arithmetic, form);
     // SAFETY: every loop of the shader is bounded by a constant or by
     // `control.attempts`; every index is a constant, a loop counter below
     // its array's length, a pivot (below R) or an instance below both
@@ -136,12 +145,18 @@ impl Lanes for Lugre {
     fn steps(st: &Lane) -> u32 {
         st.steps
     }
-    type Pilot = Run;
-    fn pilot(inst: &Instance, settings: &Settings) -> Option<Run> {
-        crate::laws::lugre::run::run_instance_until(inst, settings, || false)
+    /// The run, with its variation where the batch measures the backward
+    /// travel (`Settings::backward`).
+    type Pilot = Followed;
+    fn pilot(inst: &Instance, settings: &Settings) -> Option<Followed> {
+        use crate::laws::lugre::run::{run_instance_until, run_with_variation_until};
+        match settings.backward {
+            true => run_with_variation_until(inst, settings, || false).map(|(r, v)| (r, Some(v))),
+            false => run_instance_until(inst, settings, || false).map(|r| (r, None)),
+        }
     }
-    fn pilot_steps(p: &Run) -> u32 {
-        p.record.steps
+    fn pilot_steps(p: &Followed) -> u32 {
+        p.0.record.steps
     }
     fn finished(_: &Instance, st: &Lane) -> bool {
         st.flag == LANE_STOPPED
@@ -158,13 +173,30 @@ impl<'a> LugreGpu<'a> {
     /// Compiles the integrator on `ctx`, which must offer f64: the
     /// variant of its kind of adapter.
     pub fn new(ctx: &'a GpuContext) -> Result<LugreGpu<'a>, GpuError> {
-        LugreGpu::variant(ctx, ctx.is_hardware(), false)
+        LugreGpu::variant(ctx, ctx.is_hardware(), Form::Sawtooth)
     }
 
     /// This pipeline's self-test batch (run on its first compile in a
     /// context) against the CPU's steps moved by `skew` [m per own drive
     /// cycle]: a skew beyond `selftest::ALLOWANCE_M` must fail it (tests).
     pub fn self_test_skewed(&self, skew: f64) -> Result<(), GpuError> {
+        self.self_test_with(super::selftest::Skew {
+            step: skew,
+            backward: 0.0,
+        })
+    }
+
+    /// [`LugreGpu::self_test_skewed`] of a backward pipeline, the CPU's
+    /// backward travels moved by `skew` [m per own drive cycle]: a skew
+    /// beyond `gpu::BACKWARD_ALLOWANCE_M` must fail it (tests).
+    pub fn self_test_backward_skewed(&self, skew: f64) -> Result<(), GpuError> {
+        self.self_test_with(super::selftest::Skew {
+            step: 0.0,
+            backward: skew,
+        })
+    }
+
+    fn self_test_with(&self, skew: super::selftest::Skew) -> Result<(), GpuError> {
         let once = LugreGpu {
             pipeline: self.pipeline.clone(),
             cpu_tail: Some(0),
@@ -178,18 +210,29 @@ impl<'a> LugreGpu<'a> {
     /// Whether this pipeline drives any waveform (from its corners), not
     /// sawtooths only.
     pub fn drives_waveforms(&self) -> bool {
-        self.waveform
+        self.form.waveform()
     }
 
-    /// [`LugreGpu::new`] for a batch of `instances`: the waveform variant
-    /// where one of them drives an axis other than by the sawtooth
-    /// (a waveform or a slew limit), else the sawtooth's.
+    /// Whether this pipeline measures the backward travel.
+    pub fn measures_backward(&self) -> bool {
+        self.form.backward()
+    }
+
+    /// [`LugreGpu::new`] for a batch of `instances` run with `settings`:
+    /// the backward variant where the run measures the backward travel,
+    /// else the waveform variant where one of them drives an axis other
+    /// than by the sawtooth (a waveform or a slew limit), else the
+    /// sawtooth's.
     pub fn for_instances(
         ctx: &'a GpuContext,
         instances: &[Instance],
+        settings: &Settings,
     ) -> Result<LugreGpu<'a>, GpuError> {
-        let waveform = instances.iter().any(|inst| !drives_sawtooths(inst));
-        LugreGpu::variant(ctx, ctx.is_hardware(), waveform)
+        let form = match settings.backward {
+            true => Form::Backward,
+            false => Form::of(instances.iter().any(|inst| !drives_sawtooths(inst))),
+        };
+        LugreGpu::variant(ctx, ctx.is_hardware(), form)
     }
 
     /// The variant a hardware adapter gets (its workgroup size, the fused
@@ -200,26 +243,29 @@ impl<'a> LugreGpu<'a> {
     /// loop limit: a window's have no loops, but many steady ones in one
     /// dispatch could reach it, so on a software adapter it is for tests.
     pub fn hardware_variant(ctx: &'a GpuContext, waveform: bool) -> Result<LugreGpu<'a>, GpuError> {
-        LugreGpu::variant(ctx, true, waveform)
+        LugreGpu::variant(ctx, true, Form::of(waveform))
     }
 
-    /// The variant for a hardware adapter (`hardware`) or a software one,
-    /// driving any `waveform` or sawtooths only.
-    fn variant(
+    /// The variant of `form` for a hardware adapter (`hardware`, as
+    /// [`LugreGpu::hardware_variant`]) or a software one, on any f64
+    /// adapter (tests).
+    pub fn variant(
         ctx: &'a GpuContext,
         hardware: bool,
-        waveform: bool,
+        form: Form,
     ) -> Result<LugreGpu<'a>, GpuError> {
         if !ctx.supports_f64() {
             return Err(GpuError::F64Unsupported {
                 adapter: ctx.describe(),
             });
         }
-        let name = match (hardware, waveform) {
-            (true, false) => "lugre (hardware)",
-            (true, true) => "lugre (hardware, waveform)",
-            (false, false) => "lugre (software)",
-            (false, true) => "lugre (software, waveform)",
+        let name = match (hardware, form) {
+            (true, Form::Sawtooth) => "lugre (hardware)",
+            (true, Form::Waveform) => "lugre (hardware, waveform)",
+            (true, Form::Backward) => "lugre (hardware, backward)",
+            (false, Form::Sawtooth) => "lugre (software)",
+            (false, Form::Waveform) => "lugre (software, waveform)",
+            (false, Form::Backward) => "lugre (software, backward)",
         };
         let (workgroup_size, arithmetic) = match hardware {
             true => (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused),
@@ -227,14 +273,15 @@ impl<'a> LugreGpu<'a> {
         };
         // A software adapter's attempts per dispatch stay within
         // llvmpipe's loop limit, whichever variant it runs.
-        let attempts = match ctx.is_hardware() {
-            true => HARDWARE_ATTEMPTS,
-            false => SOFTWARE_ATTEMPTS,
+        let attempts = match (ctx.is_hardware(), form.backward()) {
+            (true, _) => HARDWARE_ATTEMPTS,
+            (false, false) => SOFTWARE_ATTEMPTS,
+            (false, true) => SOFTWARE_BACKWARD_ATTEMPTS,
         };
         // One compile per context and variant: every batch of a run takes
         // the same pipeline (the driver's cache on disk spares later runs
         // it too).
-        let shape = (workgroup_size, arithmetic, waveform);
+        let shape = (workgroup_size, arithmetic, form);
         let pipeline = ctx.law_pipeline(
             name,
             |cache| compile(ctx.device(), shape, ENTRY_POINT, cache),
@@ -245,14 +292,14 @@ impl<'a> LugreGpu<'a> {
                         pipeline: pipeline.clone(),
                         workgroup_size,
                         arithmetic,
-                        waveform,
+                        form,
                         attempts,
                         // The shader must finish every self-test run itself.
                         cpu_tail: Some(0),
                         lanes: None,
                         whole_accumulators: false,
                     },
-                    0.0,
+                    super::selftest::Skew::default(),
                 )
             },
         )?;
@@ -261,7 +308,7 @@ impl<'a> LugreGpu<'a> {
             pipeline,
             workgroup_size,
             arithmetic,
-            waveform,
+            form,
             attempts,
             cpu_tail: crate::gpu::cpu_tail().0,
             lanes: None,
@@ -294,6 +341,27 @@ impl<'a> LugreGpu<'a> {
         stop: impl Fn() -> bool + Sync,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<(Vec<Run>, BatchReport), GpuError> {
+        let (followed, report) = self.followed_until(instances, settings, stop, done)?;
+        Ok((followed.into_iter().map(|(run, _)| run).collect(), report))
+    }
+
+    /// [`LugreGpu::run_until`] with each run's variation where `settings`
+    /// ask for the backward travel (a backward pipeline measures it).
+    ///
+    /// # Panics
+    /// If `settings` ask for the backward travel of a pipeline that does
+    /// not measure it.
+    pub fn followed_until(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        stop: impl Fn() -> bool + Sync,
+        done: &(dyn Fn(u64) + Sync),
+    ) -> Result<(Vec<Followed>, BatchReport), GpuError> {
+        assert!(
+            !settings.backward || self.form.backward(),
+            "the backward travel needs a backward pipeline"
+        );
         let started = Instant::now();
         let mut report = BatchReport::default();
         let mut runs = Vec::with_capacity(instances.len());
@@ -316,12 +384,25 @@ impl<'a> LugreGpu<'a> {
         stop: impl Fn() -> bool + Sync,
         done: &(dyn Fn(u64) + Sync),
     ) -> Result<Vec<crate::gpu::GpuOutcome>, GpuError> {
-        let (runs, report) = self.run_until(instances, settings, stop, done)?;
+        let (runs, report) = self.followed_until(instances, settings, stop, done)?;
         let mut out: Vec<crate::gpu::GpuOutcome> = instances
             .iter()
             .zip(&runs)
-            .map(|(inst, run)| {
-                crate::gpu::GpuOutcome::of(&crate::measurement::reduce(inst, run), run.record.steps)
+            .map(|(inst, (run, variation))| {
+                let measured = crate::measurement::reduce(inst, run);
+                let outcome = crate::gpu::GpuOutcome::of(&measured, run.record.steps);
+                match variation {
+                    Some(v) => {
+                        let (variation, variation_se) =
+                            crate::measurement::reduce_variation(inst, run, v);
+                        crate::gpu::GpuOutcome {
+                            variation,
+                            variation_se,
+                            ..outcome
+                        }
+                    }
+                    None => outcome,
+                }
             })
             .collect();
         report
@@ -358,7 +439,7 @@ impl<'a> LugreGpu<'a> {
             pipeline: &self.pipeline,
             steady: true,
             loop_limiter: false,
-            backward: false,
+            backward: self.form.backward(),
             workgroup_size: self.workgroup_size,
             extra: bound,
             per_lane: &[],
@@ -401,11 +482,16 @@ impl<'a> LugreGpu<'a> {
         settings: &Settings,
         (stop, done): (&(impl Fn() -> bool + Sync), &(dyn Fn(u64) + Sync)),
         report: &mut BatchReport,
-    ) -> Result<Vec<Run>, GpuError> {
+    ) -> Result<Vec<Followed>, GpuError> {
         let mut books: Vec<Periods> = instances
             .iter()
             .map(|inst| Periods::new(inst, settings))
             .collect();
+        if settings.backward {
+            for book in &mut books {
+                book.variation = Some(Box::new(Variation::new(book.setup())));
+            }
+        }
         if books.is_empty() {
             return Ok(Vec::new());
         }
@@ -437,7 +523,7 @@ impl<'a> LugreGpu<'a> {
         self.ctx.check_health()?;
         report.dispatches += sliced.dispatches;
         report.gpu_seconds += started.elapsed().as_secs_f64();
-        let (mut lanes, measures, _) = sliced.readback;
+        let (mut lanes, measures, variations) = sliced.readback;
         // The round's pilot ran whole on the CPU: its runs stand, and its
         // lanes (left after the first dispatch) are done.
         for (k, _) in &sliced.pilot {
@@ -453,9 +539,15 @@ impl<'a> LugreGpu<'a> {
                 kept.measure = book.run.measure;
             }
             book.resume(&kept);
+            // The variation at the lane's last period end, where the CPU
+            // tail continues its run (`variation.wgsl`).
+            if let (Some(v), Some(entry)) = (book.variation.as_deref_mut(), variations.get(k)) {
+                *v = crate::gpu::layout::variation_to_cpu(entry);
+            }
         }
-        for (k, run) in sliced.pilot {
+        for (k, (run, variation)) in sliced.pilot {
             books[k].run = run;
+            books[k].variation = variation.map(Box::new);
             report.on_cpu.push(k);
         }
         if lanes.iter().any(|l| l.flag != LANE_STOPPED) {
@@ -472,7 +564,10 @@ impl<'a> LugreGpu<'a> {
             lanes.iter().map(|l| l.steps as u64).sum(),
             periods,
         ]);
-        Ok(books.into_iter().map(|b| b.run).collect())
+        Ok(books
+            .into_iter()
+            .map(|b| (b.run, b.variation.map(|v| *v)))
+            .collect())
     }
 
     /// A batch's coefficients (the measurement's, packed), its runs as the
@@ -488,7 +583,7 @@ impl<'a> LugreGpu<'a> {
     ) -> Result<(Vec<Coefficients>, Vec<Lane>, Vec<(u32, wgpu::Buffer)>), GpuError> {
         let device = self.ctx.device();
         let mut params: Vec<Params> = books.iter().map(Params::of).collect();
-        let corners = match self.waveform {
+        let corners = match self.form.waveform() {
             true => Some(corner_buffer(books, &mut params).map_err(GpuError::Execution)?),
             false => None,
         };

@@ -20,6 +20,16 @@ use crate::model::{Instance, Measure, Shape, Table};
 /// bound, while a driver that computes wrong numbers is micrometres off.
 pub const ALLOWANCE_M: f64 = 1e-10;
 
+/// How far a backward pipeline's self-test backward travel may lie from
+/// the CPU's [m per own drive cycle]: on hardware the step control moves
+/// (as for [`ALLOWANCE_M`]) and with it where the cubic Hermite of each
+/// step is read, which moves the backward travel more than the step: a
+/// one-ulp change of the tolerance moves the CPU's own by up to 3.9e-10 m
+/// on the self-test's waveform instance, and the hardware's variant on
+/// lavapipe lies 4.2e-10 m from it there; five times the CPU's spread, two
+/// thousandths of a micrometre, while a wrong variation is micrometres off.
+pub const BACKWARD_ALLOWANCE_M: f64 = 2e-9;
+
 /// The self-test's windows (2 periods, settling 1) at docs/model.md
 /// section 8's interface: Table 1's stage against 20 Hz on y, and for a
 /// waveform pipeline a slew-limited trapezoid on x against a table with a
@@ -44,24 +54,38 @@ fn instances(waveform: bool) -> Vec<Instance> {
 
 /// Runs `gpu`'s self-test batch: an error naming the instance and axis
 /// where the device's run fails, leaves a run to the CPU, or differs from
-/// the CPU's steps, moved by `skew` [m per own drive cycle; 0 but in the
-/// tests that the self-test can fail], by more than [`ALLOWANCE_M`].
-pub(super) fn self_test(gpu: &LugreGpu, skew: f64) -> Result<(), GpuError> {
+/// the CPU's steps by more than [`ALLOWANCE_M`], or a backward pipeline's
+/// backward travel from the CPU's by more than [`BACKWARD_ALLOWANCE_M`],
+/// the CPU's moved by `skew` [m per own
+/// drive cycle; 0 but in the tests that the self-test can fail].
+pub(super) fn self_test(gpu: &LugreGpu, skew: Skew) -> Result<(), GpuError> {
     let fail = |message: String| GpuError::SelfTest {
         precision: Precision::F64,
         adapter: gpu.ctx.describe(),
         message: format!("LuGre's {} pipeline: {message}", variant(gpu)),
     };
-    let settings = Settings::default();
-    let instances = instances(gpu.waveform);
+    // A backward pipeline is tested measuring the backward travel.
+    let settings = Settings {
+        backward: gpu.form.backward(),
+        ..Settings::default()
+    };
+    let instances = instances(gpu.form.waveform());
     // Not the run's integration: its figures stay out of the profile.
-    let (runs, report) = crate::profile::outside_integration(|| gpu.run(&instances, &settings))
-        .map_err(|e| fail(e.to_string()))?;
+    let (runs, report) = crate::profile::outside_integration(|| {
+        gpu.followed_until(&instances, &settings, || false, &|_| {})
+    })
+    .map_err(|e| fail(e.to_string()))?;
     if !report.on_cpu.is_empty() {
         return Err(fail("the CPU finished a self-test run".into()));
     }
-    for (k, (inst, run)) in instances.iter().zip(&runs).enumerate() {
+    for (k, (inst, (run, variation))) in instances.iter().zip(&runs).enumerate() {
         let cpu = run_instance_until(inst, &settings, || false).expect("never stopped");
+        if let Some(v) = variation {
+            let got = crate::measurement::reduce_variation(inst, run, v).0;
+            let allowed = BACKWARD_ALLOWANCE_M;
+            crate::gpu::context::backward_self_test(inst, &settings, got, (skew.backward, allowed))
+                .map_err(|m| fail(format!("instance {k} {m}")))?;
+        }
         let (got, want) = (reduce(inst, run), reduce(inst, &cpu));
         if got.status != want.status {
             return Err(fail(format!(
@@ -71,7 +95,7 @@ pub(super) fn self_test(gpu: &LugreGpu, skew: f64) -> Result<(), GpuError> {
         }
         for axis in 0..2 {
             let g = inst.measure_over(axis, got.travel[axis], got.span).1;
-            let w = inst.measure_over(axis, want.travel[axis], want.span).1 + skew;
+            let w = inst.measure_over(axis, want.travel[axis], want.span).1 + skew.step;
             let err = (g - w).abs();
             if err.is_nan() || err > ALLOWANCE_M {
                 return Err(fail(format!(
@@ -84,11 +108,20 @@ pub(super) fn self_test(gpu: &LugreGpu, skew: f64) -> Result<(), GpuError> {
     Ok(())
 }
 
+/// What a self-test adds to the CPU's steps and backward travels [m per
+/// own drive cycle]: zero but in the tests that it can fail.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Skew {
+    pub step: f64,
+    pub backward: f64,
+}
+
 /// The pipeline's name in a self-test's message.
 fn variant(gpu: &LugreGpu) -> &'static str {
-    match gpu.waveform {
-        true => "waveform",
-        false => "sawtooth",
+    match gpu.form {
+        super::Form::Sawtooth => "sawtooth",
+        super::Form::Waveform => "waveform",
+        super::Form::Backward => "backward",
     }
 }
 

@@ -5,7 +5,7 @@
 
 use super::{
     CORNER_FILE, CORNER_RETRIES, CORNER_SEARCH, FILES, LANE_FRESH, LANE_RUNNING, LANE_STOPPED,
-    MEASUREMENT_FILES, SEGMENT_DONE, SEGMENT_GOING, SOFTWARE_PERIOD_ENDS, holder,
+    MEASUREMENT_FILES, SEGMENT_DONE, SEGMENT_GOING, SOFTWARE_PERIOD_ENDS, VARIATION_FILES, holder,
 };
 use crate::laws::lugre::libm::*;
 
@@ -38,16 +38,54 @@ pub enum Arithmetic {
     Fused,
 }
 
+/// What a LuGre variant drives and measures beyond its steps: sawtooths
+/// only, any waveform from its corners (`corners.wgsl`), or any waveform
+/// and the backward travel (`variation.wgsl` with the floor's
+/// `shared/variation.wgsl`). A backward variant always reads the
+/// corners, as Karnopp's backward variants take the waveform part: one
+/// variant more per kind of adapter, not two.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Form {
+    Sawtooth,
+    Waveform,
+    Backward,
+}
+
+impl Form {
+    /// The variant that drives any waveform (`waveform`) or sawtooths
+    /// only, without the backward travel.
+    pub fn of(waveform: bool) -> Form {
+        match waveform {
+            true => Form::Waveform,
+            false => Form::Sawtooth,
+        }
+    }
+
+    /// Whether the variant drives from the corners (`WAVEFORM`).
+    pub fn waveform(self) -> bool {
+        self != Form::Sawtooth
+    }
+
+    /// Whether the variant measures the backward travel (`BACKWARD`).
+    pub fn backward(self) -> bool {
+        self == Form::Backward
+    }
+
+    /// Every form, in the order `pidm info` lists them.
+    pub const ALL: [Form; 3] = [Form::Sawtooth, Form::Waveform, Form::Backward];
+}
+
 /// The LuGre prelude: the floor's in f64 with the phase ladder
 /// (`crate::gpu::prelude`: Real, the statuses, INFINITY, the helpers div
 /// and root), `quotient` and
 /// `square_root` in `arithmetic`, the state's layout, Rodas4's
 /// coefficients and the step control's constants from the Rust consts,
-/// whether the variant drives `waveform`s other than the sawtooth
-/// (`WAVEFORM`, [`CORNER_FILE`]), and `exp_tail` / `exp_halvings` written
+/// whether the variant drives waveforms other than the sawtooth
+/// (`WAVEFORM`, [`CORNER_FILE`]) and measures the backward travel
+/// (`BACKWARD`, [`VARIATION_FILES`]), and `exp_tail` / `exp_halvings` written
 /// out straight from [`EXP_TAYLOR`] and [`EXP_HALVINGS`] (loops would
 /// count against llvmpipe's limit).
-pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic, waveform: bool) -> String {
+pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic, form: Form) -> String {
     // Steady measurements with the phase ladder: the floor's measurement
     // files are part of every LuGre shader.
     let base = crate::gpu::prelude::floor(Precision::F64, true);
@@ -66,7 +104,14 @@ pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic, waveform: bool) -> S
         }
     };
     out += &lane_constants(workgroup_size, arithmetic);
-    out += &format!("const WAVEFORM: bool = {waveform};\n");
+    out += &format!(
+        "const WAVEFORM: bool = {};\nconst BACKWARD: bool = {};\n",
+        form.waveform(),
+        form.backward()
+    );
+    if form.backward() {
+        out += &crate::laws::floor::variation::wgsl_constants();
+    }
     out += &rodas_tables();
     out += &libm_source();
     out
@@ -380,14 +425,30 @@ fn corner_search_source() -> String {
     s + "    return b.y;\n}\n"
 }
 
+/// A variant without the backward travel: `variation.wgsl`'s functions as
+/// ones that do nothing (`BACKWARD` is false), called where the backward
+/// variant's are.
+const NO_BACKWARD: &str = "\
+fn variation_slot(slot: u32) -> u32 {
+    return slot;
+}
+
+fn follow_step(a: Vector, b: Vector) {}
+
+fn follow_commit() {}
+
+fn follow_settle() {}
+
+fn follow(step: u32, lag_unit: u32) {}
+";
+
 /// The complete shader source for `workgroup_size` invocations per group
-/// in `arithmetic`, driving any `waveform` from its corners, or sawtooths
-/// only.
-pub fn source(workgroup_size: u32, arithmetic: Arithmetic, waveform: bool) -> String {
-    let mut src = prelude(workgroup_size, arithmetic, waveform);
+/// in `arithmetic`, driving and measuring what its `form` says.
+pub fn source(workgroup_size: u32, arithmetic: Arithmetic, form: Form) -> String {
+    let mut src = prelude(workgroup_size, arithmetic, form);
     src += &crate::gpu::engine_queue();
     let (name, text) = CORNER_FILE;
-    match waveform {
+    match form.waveform() {
         true => {
             src += &format!(
                 "\n// ---- shaders/{name}\n{text}\n{}",
@@ -403,6 +464,15 @@ pub fn source(workgroup_size: u32, arithmetic: Arithmetic, waveform: bool) -> St
     for (name, text) in MEASUREMENT_FILES {
         src += &format!("\n// ---- shaders/{name}\n");
         src += text;
+    }
+    match form.backward() {
+        true => {
+            for (name, text) in VARIATION_FILES {
+                src += &format!("\n// ---- shaders/{name}\n");
+                src += text;
+            }
+        }
+        false => src += NO_BACKWARD,
     }
     src += "\n";
     src += &factor_source();
@@ -428,9 +498,9 @@ pub fn read_where_used(src: &str) -> String {
 pub fn parse_and_validate(
     workgroup_size: u32,
     arithmetic: Arithmetic,
-    waveform: bool,
+    form: Form,
 ) -> Result<(naga::Module, naga::valid::ModuleInfo), GpuError> {
-    let src = source(workgroup_size, arithmetic, waveform);
+    let src = source(workgroup_size, arithmetic, form);
     let module =
         naga::front::wgsl::parse_str(&src).map_err(|e| compile_error(e.emit_to_string(&src)))?;
     let info = validate(&module, &src)?;

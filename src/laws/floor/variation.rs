@@ -155,6 +155,16 @@ pub fn follow(c: &impl Gauge, common: u32, ended: u32, step: &Measure, v: &mut V
     m.verdict = step.verdict;
 }
 
+/// The constants of `shaders/shared/variation.wgsl`, from these (the one
+/// home of each): the zero search's Hermite guess, its end and its cap.
+pub fn wgsl_constants() -> String {
+    format!(
+        "const HERMITE_GUESS: Real = {HERMITE_GUESS:e};\n\
+         const ZERO_TIME: Real = {ZERO_TIME:e};\n\
+         const ZERO_ITERATIONS: u32 = {ZERO_ITERATIONS}u;\n"
+    )
+}
+
 /// The slider's position, velocity and acceleration on one axis at one
 /// instant [m, m/s, m/s^2].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -171,7 +181,7 @@ pub struct Point {
 /// travel off.
 pub const ZERO_ITERATIONS: u32 = 40;
 
-/// A Newton step from the Hermite's zero ([`locate`]) at most this share
+/// A Newton step from the Hermite's zero ([`locate_zero`]) at most this share
 /// of the bracket gives the zero's position from that one evaluation: the
 /// quadratic through it is off by a jerk's (1e-3 h)^3 / 6 there, 8e-11
 /// of the ringing's amplitude over an eighth of its period at most.
@@ -198,15 +208,15 @@ pub const ZERO_TIME: f64 = 1e-6;
 /// Hermite's error.
 pub fn piece_variation(a: Point, b: Point, h: f64, at: &impl Fn(f64) -> Point) -> f64 {
     if a.v * b.v < 0.0 {
-        let z = locate(a, 0.0, b, h, at);
+        let z = locate_zero(a, 0.0, b, h, at);
         return (z.x - a.x).abs() + (b.x - z.x).abs();
     }
     match hermite_extremum(a, b, h) {
         Some(t) => {
             let m = at(t);
             if m.v * a.v < 0.0 || (a.v == 0.0 && m.v * b.v < 0.0) {
-                let z1 = locate(a, 0.0, m, t, at);
-                let z2 = locate(m, t, b, h, at);
+                let z1 = locate_zero(a, 0.0, m, t, at);
+                let z2 = locate_zero(m, t, b, h, at);
                 (z1.x - a.x).abs() + (z2.x - z1.x).abs() + (b.x - z2.x).abs()
             } else {
                 (b.x - a.x).abs()
@@ -290,7 +300,7 @@ fn hermite_root(a: Point, b: Point, h: f64) -> f64 {
 /// velocities differ in sign or one of which is zero: Newton's steps
 /// from the secant's guess, each kept inside the bracket (bisection where
 /// it would leave it).
-fn locate(a: Point, ta: f64, b: Point, tb: f64, at: &impl Fn(f64) -> Point) -> Point {
+fn locate_zero(a: Point, ta: f64, b: Point, tb: f64, at: &impl Fn(f64) -> Point) -> Point {
     if a.v == 0.0 {
         return a;
     }

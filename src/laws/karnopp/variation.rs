@@ -111,14 +111,11 @@ const RINGING_MARGIN: f64 = 0.98;
 /// the floor's `piece_variation` with, as WGSL declarations (their one
 /// home is here and in `crate::laws::floor::variation`).
 pub fn wgsl_constants() -> String {
-    use crate::laws::floor::variation::{HERMITE_GUESS, ZERO_ITERATIONS, ZERO_TIME};
     format!(
         "const PIECE_RADIANS: Real = {PIECE_RADIANS:e};\n\
          const MAX_PIECES: u32 = {MAX_PIECES}u;\n\
-         const RINGING_MARGIN: Real = {RINGING_MARGIN:e};\n\
-         const HERMITE_GUESS: Real = {HERMITE_GUESS:e};\n\
-         const ZERO_TIME: Real = {ZERO_TIME:e};\n\
-         const ZERO_ITERATIONS: u32 = {ZERO_ITERATIONS}u;\n"
+         const RINGING_MARGIN: Real = {RINGING_MARGIN:e};\n{}",
+        crate::laws::floor::variation::wgsl_constants()
     )
 }
 

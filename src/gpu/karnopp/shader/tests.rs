@@ -55,7 +55,7 @@ fn every_shader_file_mirrors_its_rust_file() {
 
 /// Each shader file (but the entry point) with the text of its Rust
 /// mirror.
-fn rust_mirrors() -> [(&'static str, &'static str); 10] {
+fn rust_mirrors() -> [(&'static str, &'static str); 11] {
     [
         (
             "karnopp/arith.wgsl",
@@ -97,11 +97,15 @@ fn rust_mirrors() -> [(&'static str, &'static str); 10] {
             "shared/phase.wgsl",
             include_str!("../../../laws/floor/phase.rs"),
         ),
+        (
+            "shared/variation.wgsl",
+            include_str!("../../../laws/floor/variation.rs"),
+        ),
     ]
 }
 
 /// The functions only the shader defines.
-fn shader_only_functions() -> [&'static str; 18] {
+fn shader_only_functions() -> [&'static str; 19] {
     // Shader only: WGSL has no Option, closures, methods or
     // is_finite, and splits some expressions into functions.
     [
@@ -132,11 +136,14 @@ fn shader_only_functions() -> [&'static str; 18] {
         // travel's `variation.wgsl` also reads (issue 59).
         "stuck_slider",
         "slip_slider",
+        // No closures: the velocity's Hermite at s (`hermite_extremum`'s
+        // `value`).
+        "cubic_value",
     ]
 }
 
 /// The functions only the Rust mirrors define.
-fn cpu_only_functions() -> [&'static str; 55] {
+fn cpu_only_functions() -> [&'static str; 58] {
     // CPU only: constructors, the observer of trajectories (its `step`
     // method and `StepMotion`), the whole run (stoppable, also from a
     // state the f64 shader left) and its result, Rust's rounding and
@@ -216,6 +223,11 @@ fn cpu_only_functions() -> [&'static str; 55] {
         // The host's fixed-point phase coefficients.
         "fixed_fraction_32",
         "fixed_fraction_64",
+        // The variation kept elsewhere (a lane's entry, read back), a
+        // replica's release and a cycle split's piece: the host's.
+        "from_parts",
+        "release",
+        "piece_travel",
     ]
 }
 

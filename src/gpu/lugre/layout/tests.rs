@@ -2,13 +2,13 @@
 //! layout of the shader.
 
 use super::*;
-use crate::gpu::lugre::{Arithmetic, SOFTWARE_WORKGROUP_SIZE, parse_and_validate};
+use crate::gpu::lugre::{Arithmetic, Form, SOFTWARE_WORKGROUP_SIZE, parse_and_validate};
 
 /// The buffers' Rust structs have the shader's layout.
 #[test]
 pub(super) fn params_and_lanes_have_the_shader_layout() {
     let (module, _) =
-        parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false).unwrap();
+        parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, Form::Sawtooth).unwrap();
     let mut layouter = naga::proc::Layouter::default();
     layouter.update(module.to_ctx()).unwrap();
     let find = |name: &str| {
@@ -73,7 +73,7 @@ pub(super) fn params_and_lanes_have_the_shader_layout() {
 #[test]
 fn the_stage_matrix_has_the_shader_layout() {
     let (module, _) =
-        parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false).unwrap();
+        parse_and_validate(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, Form::Sawtooth).unwrap();
     let member = |name: &str, field: &str| {
         let (_, ty) = module
             .types

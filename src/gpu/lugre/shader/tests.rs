@@ -8,14 +8,15 @@ use crate::gpu::mirrors::{assert_mirrors, defined_functions};
 
 #[test]
 fn the_shader_parses_validates_and_writes_spir_v() {
-    for (size, arithmetic, waveform) in [
-        (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false),
-        (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, false),
-        (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, true),
-        (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, true),
-    ] {
+    let shapes = Form::ALL.into_iter().flat_map(|form| {
+        [
+            (SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, form),
+            (HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, form),
+        ]
+    });
+    for (size, arithmetic, form) in shapes {
         let (module, info) =
-            parse_and_validate(size, arithmetic, waveform).unwrap_or_else(|e| panic!("{e}"));
+            parse_and_validate(size, arithmetic, form).unwrap_or_else(|e| panic!("{e}"));
         let options = naga::back::spv::Options::default();
         let words = naga::back::spv::write_vec(&module, &info, &options, None)
             .unwrap_or_else(|e| panic!("{e}"));
@@ -101,9 +102,8 @@ fn the_shader_files_mirror_their_rust_files() {
 /// floor prelude's helpers; the software one divides natively.
 #[test]
 fn the_fused_shader_neither_divides_nor_takes_square_roots() {
-    let count = |arithmetic, waveform| {
-        let (module, info) =
-            parse_and_validate(HARDWARE_WORKGROUP_SIZE, arithmetic, waveform).unwrap();
+    let count = |arithmetic, form| {
+        let (module, info) = parse_and_validate(HARDWARE_WORKGROUP_SIZE, arithmetic, form).unwrap();
         let mut found = 0;
         for (handle, f) in module.functions.iter() {
             let fi = &info[handle];
@@ -128,9 +128,9 @@ fn the_fused_shader_neither_divides_nor_takes_square_roots() {
         }
         found
     };
-    for waveform in [false, true] {
-        assert_eq!(count(Arithmetic::Fused, waveform), 0);
-        assert!(count(Arithmetic::Native, waveform) >= 2);
+    for form in Form::ALL {
+        assert_eq!(count(Arithmetic::Fused, form), 0);
+        assert!(count(Arithmetic::Native, form) >= 2);
     }
 }
 
@@ -139,8 +139,8 @@ fn the_fused_shader_neither_divides_nor_takes_square_roots() {
 /// left as it is.
 #[test]
 fn the_hardware_variant_reads_its_parameters_where_used() {
-    for waveform in [false, true] {
-        let src = source(HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, waveform);
+    for form in Form::ALL {
+        let src = source(HARDWARE_WORKGROUP_SIZE, Arithmetic::Fused, form);
         let code: String = src
             .lines()
             .map(|l| l.split("//").next().unwrap_or(""))
@@ -149,12 +149,12 @@ fn the_hardware_variant_reads_its_parameters_where_used() {
         assert!(!code.contains(" model.") && !code.contains("(model."));
         assert!(!code.contains("var<private> model"));
         assert!(code.contains("models[held].stiffness"));
-        assert_eq!(code.contains("models[held].corner_first"), waveform);
+        assert_eq!(code.contains("models[held].corner_first"), form.waveform());
     }
     assert_eq!(
         read_where_used("x = model.a; // docs/model.md\nmodels.b"),
         "x = models[held].a; // docs/model.md\nmodels.b"
     );
-    let software = source(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, false);
+    let software = source(SOFTWARE_WORKGROUP_SIZE, Arithmetic::Native, Form::Sawtooth);
     assert!(software.contains("var<private> model: Model;"));
 }

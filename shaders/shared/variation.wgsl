@@ -1,0 +1,247 @@
+// Mirror of the floor's `laws::floor::variation` (issue 59; docs/model.md
+// section 4, "Backward travel"): the total variation of one axis' slider
+// over a piece of a step, its velocity zeros located on the law's dense
+// output, and `follow`, which records the total at every period end the
+// step's measurement processes into accumulators of the step's shape.
+// Every law's BACKWARD variants carry this file beside their own
+// variation file, which defines what it reads: `piece_point(t0, t, axis)`
+// (the law's dense output, `at` on the CPU) and `variation_slot(slot)`
+// (where the variation's entry of a measurement slot lives). The entry's
+// snapshots (which `follow` does not use) hold what the CPU's
+// `Variation` keeps beside its accumulators: `snaps[0].x_p` the total
+// [m], `snaps[0].v_p` the total when the measured periods began, the ring
+// of totals at common-period ends in `snaps[k].x_s` and their count in
+// `snapshots` (`pidm::gpu::layout::variation_to_cpu` reads them back).
+
+// The slider on one axis at one instant [m, m/s, m/s^2] (`Point`).
+struct Point {
+    x: Real,
+    v: Real,
+    a: Real,
+}
+
+// One axis' path from `a` through the velocity
+// zeros to `b`, each zero located in its bracket by one call of
+// `locate_zero`.
+fn piece_variation(a: Point, b: Point, h: Real, t0: Real, axis: u32) -> Real {
+    // The brackets' ends: a to b, or a to the dip m and m to b.
+    var mid = b;
+    var t_mid = h;
+    var zeros = 0u;
+    if a.v * b.v < Real(0.0) {
+        zeros = 1u;
+    } else {
+        let t = hermite_extremum(a, b, h);
+        if t < Real(0.0) {
+            return abs(b.x - a.x);
+        }
+        let m = piece_point(t0, t, axis);
+        if !(m.v * a.v < Real(0.0) || (a.v == Real(0.0) && m.v * b.v < Real(0.0))) {
+            return abs(b.x - a.x);
+        }
+        mid = m;
+        t_mid = t;
+        zeros = 2u;
+    }
+    var total = Real(0.0);
+    var last = a;
+    for (var k = 0u; k < zeros; k++) {
+        var lo = a;
+        var t_lo = Real(0.0);
+        var hi = mid;
+        var t_hi = t_mid;
+        if k == 1u {
+            lo = mid;
+            t_lo = t_mid;
+            hi = b;
+            t_hi = h;
+        }
+        let z = locate_zero(lo, t_lo, hi, t_hi, t0, axis);
+        total = total + abs(z.x - last.x);
+        last = z;
+    }
+    return total + abs(b.x - last.x);
+}
+
+// `hermite_cubic`: v(s) = c0 + c1 s + c2 s^2 + c3 s^3.
+struct Cubic {
+    c0: Real,
+    c1: Real,
+    c2: Real,
+    c3: Real,
+}
+
+fn hermite_cubic(a: Point, b: Point, h: Real) -> Cubic {
+    let m0 = a.a * h;
+    let m1 = b.a * h;
+    return Cubic(a.v, m0, Real(3.0) * (b.v - a.v) - Real(2.0) * m0 - m1, Real(2.0) * (a.v - b.v) + m0 + m1);
+}
+
+fn cubic_value(q: Cubic, s: Real) -> Real {
+    return q.c0 + s * (q.c1 + s * (q.c2 + s * q.c3));
+}
+
+// `hermite_extremum` [s into the piece], or -1 where it has none.
+fn hermite_extremum(a: Point, b: Point, h: Real) -> Real {
+    if h <= Real(0.0) {
+        return Real(-1.0);
+    }
+    let m0 = a.a * h;
+    let m1 = b.a * h;
+    if min(abs(a.v), abs(b.v)) * Real(27.0) > Real(4.0) * (abs(m0) + abs(m1)) {
+        return Real(-1.0);
+    }
+    let q = hermite_cubic(a, b, h);
+    let qa = Real(3.0) * q.c3;
+    let qb = Real(2.0) * q.c2;
+    let qc = q.c1;
+    // The roots of v'(s), each with whether it exists (the CPU's NaN).
+    var r0 = Real(0.0);
+    var r1 = Real(0.0);
+    var has = vec2<bool>(false);
+    if abs(qa) <= Real(1e-14) * (abs(qb) + abs(qc)) {
+        if qb != Real(0.0) {
+            r0 = div(-qc, qb);
+            has.x = true;
+        }
+    } else {
+        let disc = qb * qb - Real(4.0) * qa * qc;
+        if disc >= Real(0.0) {
+            let qs = -Real(0.5) * (qb + select(Real(1.0), Real(-1.0), qb < Real(0.0)) * root(disc));
+            r0 = div(qs, qa);
+            has.x = true;
+            if qs != Real(0.0) {
+                r1 = div(qc, qs);
+                has.y = true;
+            }
+        }
+    }
+    let sign = select(b.v, a.v, a.v != Real(0.0));
+    if has.x && r0 > Real(0.0) && r0 < Real(1.0) && cubic_value(q, r0) * sign <= Real(0.0) {
+        return r0 * h;
+    }
+    if has.y && r1 > Real(0.0) && r1 < Real(1.0) && cubic_value(q, r1) * sign <= Real(0.0) {
+        return r1 * h;
+    }
+    return Real(-1.0);
+}
+
+// `hermite_root` [s after a].
+fn hermite_root(a: Point, b: Point, h: Real) -> Real {
+    let q = hermite_cubic(a, b, h);
+    var s = div(a.v, a.v - b.v);
+    for (var k = 0u; k < 4u; k++) {
+        let v = cubic_value(q, s);
+        let d = q.c1 + s * (Real(2.0) * q.c2 + Real(3.0) * s * q.c3);
+        var next = s;
+        if d != Real(0.0) {
+            next = s - div(v, d);
+        }
+        if !(next > Real(0.0) && next < Real(1.0)) {
+            break;
+        }
+        s = next;
+    }
+    return s * h;
+}
+
+// The velocity zero between `a` (at `ta` into the piece) and
+// `b` (at `tb`), the motion evaluated in one place: evaluation 0 is the
+// Hermite's guess, each later one a Newton or bisection step's.
+fn locate_zero(a: Point, ta: Real, b: Point, tb: Real, t0: Real, axis: u32) -> Point {
+    if a.v == Real(0.0) {
+        return a;
+    }
+    if b.v == Real(0.0) {
+        return b;
+    }
+    var lo = ta;
+    var hi = tb;
+    let rising = a.v > Real(0.0);
+    var t = hermite_root(a, b, tb - ta) + ta;
+    var p = a;
+    var settled = false;
+    // A bound the compiler cannot know (`control.zero` is 0), so that it
+    // keeps the loop rolled: unrolled, its 41 evaluations of the motion
+    // tripled llvmpipe's compile of the whole shader.
+    let most = ZERO_ITERATIONS + control.zero;
+    for (var k = 0u; k <= most; k++) {
+        p = piece_point(t0, t, axis);
+        if k == 0u && p.a != Real(0.0) {
+            let dt = div(-p.v, p.a);
+            if abs(dt) <= HERMITE_GUESS * (tb - ta) && t + dt > ta && t + dt < tb {
+                return Point(p.x + Real(0.5) * p.v * dt, Real(0.0), p.a);
+            }
+        }
+        if settled || k == most || p.v == Real(0.0) {
+            break;
+        }
+        if (p.v > Real(0.0)) == rising {
+            lo = t;
+        } else {
+            hi = t;
+        }
+        var next = Real(0.5) * (lo + hi);
+        if p.a != Real(0.0) {
+            let newton = t - div(p.v, p.a);
+            if newton > lo && newton < hi {
+                next = newton;
+            }
+        }
+        settled = abs(next - t) <= ZERO_TIME * (tb - ta);
+        t = next;
+    }
+    return p;
+}
+
+// Records the total at the period end the step's measurement (slot
+// `step`) has just processed, deciding nothing; `lag_unit` is the law's
+// common period of its recurrence test (the CPU's `common`; 0: none).
+fn follow(step: u32, lag_unit: u32) {
+    let c = &coefficients[held];
+    let v = variation_slot(step);
+    let ended = measures[step].next_end;
+    let x = measures[v].snaps[0].x_p;
+    measures[v].next_end = ended;
+    if ended < c.settle {
+        return;
+    }
+    if ended > c.settle {
+        let d = x - measures[v].last_x_s;
+        measures[v].d_min = min(measures[v].d_min, d);
+        measures[v].d_max = max(measures[v].d_max, d);
+        measures[v].measured += 1u;
+        measures[v].in_batch += 1u;
+        if measures[v].in_batch == measures[v].batch_length {
+            close_batch(v, x);
+        }
+    } else {
+        measures[v].batch_start = x;
+    }
+    measures[v].last_x_s = x;
+    let running = measures[v].verdict == VERDICT_RUNNING;
+    let cycle_found = running && measures[step].verdict == VERDICT_PERIODIC;
+    if PHASE && c.phase_levels != 0u {
+        let judged = phase_period_end(v, ended - c.settle, x);
+        if judged.span > 0u && running && !cycle_found {
+            if c.replicas > 1u {
+                measures[v].pending_level = judged.level;
+            } else {
+                measures[v].travel = judged.value * Real(judged.span);
+                measures[v].span = judged.span;
+                measures[v].se2 = judged.se2;
+            }
+        }
+    }
+    if lag_unit > 0u && (ended - c.settle) % lag_unit == 0u && running {
+        if cycle_found {
+            let back = measures[step].lag / lag_unit;
+            measures[v].lag = measures[step].lag;
+            measures[v].travel = x - measures[v].snaps[(measures[v].snapshots - back) % SNAPSHOTS].x_s;
+        } else {
+            measures[v].snaps[measures[v].snapshots % SNAPSHOTS].x_s = x;
+            measures[v].snapshots += 1u;
+        }
+    }
+    measures[v].verdict = measures[step].verdict;
+}
