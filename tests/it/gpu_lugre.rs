@@ -216,7 +216,9 @@ fn the_shader_s_functions_are_their_mirrors() {
 /// 0.0076 relative in a component that cancels), the right-hand side and
 /// the Rodas4 step within a hundred-thousandth of the error control's
 /// units (`MirrorCheck::rhs_scaled_worst`; the H200 2026-11-30 measured
-/// 1.09e-6 and 1.0e-7 on the first instance) and the Jacobian within 1e-13.
+/// 1.09e-6 and 1.1e-7, a rejected attempt's in units of its error
+/// estimate) and the Jacobian within 1e-9 relative; on a software adapter
+/// the hardware's variant is held to those bars too.
 #[test]
 fn the_shader_mirrors_the_cpu_function_by_function() {
     let Some((gpu, exact)) = lugre_gpu() else {
@@ -224,14 +226,30 @@ fn the_shader_mirrors_the_cpu_function_by_function() {
     };
     let seven = seven_cases();
     let other = other_cases();
-    for inst in [seven[0], seven[5], seven[6], other[0], other[1]] {
+    let cases = [seven[0], seven[5], seven[6], other[0], other[1]];
+    // On a software adapter the hardware's variant too (its fused
+    // arithmetic), held to the hardware's bars.
+    let hardware = match exact {
+        true => Some(LugreGpu::hardware_variant(gpu.context(), false).expect("the pipeline")),
+        false => None,
+    };
+    let runs = cases.iter().map(|inst| (&gpu, inst, exact)).chain(
+        hardware
+            .iter()
+            .flat_map(|h| cases.iter().map(move |inst| (h, inst, false))),
+    );
+    for (gpu, inst, exact) in runs {
         let check = gpu
-            .mirror_check(&inst, &Settings::default(), 1500)
+            .mirror_check(inst, &Settings::default(), 1500)
             .expect("the mirror check");
         eprintln!("{check:?}");
         assert_eq!(check.attempts, 1500);
         assert_eq!(check.segment_mismatches, 0, "{check:?}");
-        assert!(check.jacobian_worst <= 1e-13, "{check:?}");
+        // Relatively per entry, where an entry that cancels moves most: the
+        // hardware's variant on lavapipe measured 2.2e-11 on the loaded
+        // instance, the H200 at most 9.9e-15 on the first four; a wrong
+        // term is off by its own size.
+        assert!(check.jacobian_worst <= 1e-9, "{check:?}");
         // Rounding, measured in the error control's units, stays a
         // hundred-thousandth of the tolerance (ten times the H200's worst):
         // a wrong term would not.

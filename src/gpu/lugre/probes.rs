@@ -345,7 +345,10 @@ fn compare_probes(
         if next != gpu.next || error != gpu.error {
             check.rodas4_mismatches += 1;
             check.next_worst = check.next_worst.max(relative(&next, &gpu.next));
-            let per = |i: usize| book.scale[i];
+            // An attempt whose error estimate exceeds the tolerance is
+            // rejected whatever its rounding (its next state discarded):
+            // there both are compared in units of the estimate itself.
+            let per = |i: usize| book.scale[i].max(error[i].abs());
             let worst = scaled(&next, &gpu.next, &per).max(scaled(&error, &gpu.error, &per));
             check.next_scaled_worst = check.next_scaled_worst.max(worst);
         }

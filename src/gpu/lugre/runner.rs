@@ -213,6 +213,11 @@ impl<'a> LugreGpu<'a> {
         self.form.waveform()
     }
 
+    /// The context this pipeline runs in.
+    pub fn context(&self) -> &'a GpuContext {
+        self.ctx
+    }
+
     /// Whether this pipeline measures the backward travel.
     pub fn measures_backward(&self) -> bool {
         self.form.backward()
