@@ -11,7 +11,7 @@ use pidm::laws::status::STATUS_OK;
 use pidm::model::{Friction, Instance, Lugre, Measure};
 use pidm::sweep::{self, run_one};
 
-use crate::common::{pidm, s};
+use crate::common::{pidm, run_maps, s};
 use pidm::model::random::random_instances;
 
 fn backward() -> Settings {
@@ -237,25 +237,7 @@ fn pidm_runs_lugres_backward_travel_on_the_gpu() {
     )
     .expect("written");
     let names = ["step_x", "step_y", "backward_x", "backward_y"];
-    let maps = |backend: &str| -> Vec<Vec<f64>> {
-        let out = d.join(format!("{backend}.h5"));
-        let run = pidm(
-            &["run", "lb.toml", "--backend", backend, "--out", s(&out)],
-            d,
-        );
-        let said = String::from_utf8_lossy(&run.stderr);
-        assert!(run.status.success(), "{said}");
-        assert!(said.contains(&format!("pidm: backend {backend}")), "{said}");
-        let file = hdf5::File::open(&out).expect("a result file");
-        names
-            .map(|m| {
-                file.dataset(&format!("maps/{m}"))
-                    .unwrap()
-                    .read_raw()
-                    .unwrap()
-            })
-            .to_vec()
-    };
+    let maps = |backend: &str| run_maps(d, "lb.toml", backend, &names);
     let (cpu, gpu) = (maps("cpu"), maps("gpu"));
     assert!(cpu[2].iter().any(|&b| b > 1e-7), "travels back: {cpu:?}");
     if ctx.is_hardware() {

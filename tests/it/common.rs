@@ -62,6 +62,27 @@ pub fn pidm(args: &[&str], dir: &Path) -> Output {
         .expect("pidm runs")
 }
 
+/// `pidm run SCENE --backend BACKEND` in `dir` (a scene file there): the
+/// maps `names` of its result file, after asserting that it ran on that
+/// backend.
+pub fn run_maps(dir: &Path, scene: &str, backend: &str, names: &[&str]) -> Vec<Vec<f64>> {
+    let out = dir.join(format!("{backend}.h5"));
+    let run = pidm(&["run", scene, "--backend", backend, "--out", s(&out)], dir);
+    let said = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "{said}");
+    assert!(said.contains(&format!("pidm: backend {backend}")), "{said}");
+    let file = hdf5::File::open(&out).expect("a result file");
+    names
+        .iter()
+        .map(|m| {
+            file.dataset(&format!("maps/{m}"))
+                .unwrap()
+                .read_raw()
+                .unwrap()
+        })
+        .collect()
+}
+
 /// A path inside the repository, as text.
 pub fn manifest(path: &str) -> String {
     format!("{}/{path}", env!("CARGO_MANIFEST_DIR"))

@@ -9,7 +9,7 @@ use pidm::model::{Instance, Lugre, Measure, NO_SLEW_LIMIT, Shape, Table};
 use pidm::scene::Scene;
 use pidm::sweep::{self, run_one};
 
-use crate::common::{pidm, s};
+use crate::common::{pidm, run_maps, s};
 
 /// A scene's error message, which must contain `needle`.
 fn check(text: &str, needle: &str) {
@@ -468,23 +468,7 @@ fn pidm_runs_lugre_waveforms_on_the_gpu() {
          [simulation]\nmeasure = \"window\"\ncycles = 3\nsettle = 1\n",
     )
     .expect("written");
-    let maps = |backend: &str| -> Vec<Vec<f64>> {
-        let out = d.join(format!("{backend}.h5"));
-        let args = ["run", "lw.toml", "--backend", backend, "--out", s(&out)];
-        let run = pidm(&args, d);
-        let said = String::from_utf8_lossy(&run.stderr);
-        assert!(run.status.success(), "{said}");
-        assert!(said.contains(&format!("pidm: backend {backend}")), "{said}");
-        let file = hdf5::File::open(&out).expect("a result file");
-        ["step_x", "step_y"]
-            .map(|m| {
-                file.dataset(&format!("maps/{m}"))
-                    .unwrap()
-                    .read_raw()
-                    .unwrap()
-            })
-            .to_vec()
-    };
+    let maps = |backend: &str| run_maps(d, "lw.toml", backend, &["step_x", "step_y"]);
     let (cpu, gpu) = (maps("cpu"), maps("gpu"));
     assert!(
         cpu[0].iter().any(|v| v.abs() > 1e-8),
