@@ -283,4 +283,20 @@ impl GpuOutcome {
             variation_se: [0.0; 2],
         }
     }
+
+    /// This outcome with the backward travel of `run`'s variation `v`,
+    /// reduced as the CPU's (`measurement::reduce_variation`), either law's.
+    pub fn with_variation(
+        self,
+        inst: &Instance,
+        run: &crate::laws::Run,
+        v: &crate::laws::floor::variation::Variation,
+    ) -> GpuOutcome {
+        let (variation, variation_se) = crate::measurement::reduce_variation(inst, run, v);
+        GpuOutcome {
+            variation,
+            variation_se,
+            ..self
+        }
+    }
 }

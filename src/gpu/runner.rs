@@ -625,14 +625,9 @@ fn with_variation(
     outcome: GpuOutcome,
     followed: Option<(Run, crate::laws::floor::variation::Variation)>,
 ) -> GpuOutcome {
-    let Some((run, v)) = followed else {
-        return outcome;
-    };
-    let (variation, variation_se) = crate::measurement::reduce_variation(inst, &run.ended(), &v);
-    GpuOutcome {
-        variation,
-        variation_se,
-        ..outcome
+    match followed {
+        Some((run, v)) => outcome.with_variation(inst, &run.ended(), &v),
+        None => outcome,
     }
 }
 

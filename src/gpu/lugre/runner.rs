@@ -397,15 +397,7 @@ impl<'a> LugreGpu<'a> {
                 let measured = crate::measurement::reduce(inst, run);
                 let outcome = crate::gpu::GpuOutcome::of(&measured, run.record.steps);
                 match variation {
-                    Some(v) => {
-                        let (variation, variation_se) =
-                            crate::measurement::reduce_variation(inst, run, v);
-                        crate::gpu::GpuOutcome {
-                            variation,
-                            variation_se,
-                            ..outcome
-                        }
-                    }
+                    Some(v) => outcome.with_variation(inst, run, v),
                     None => outcome,
                 }
             })
