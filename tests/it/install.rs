@@ -6,10 +6,13 @@
 //! package shipped, whose `--version` is the package's.
 //!
 //! The build fetches maturin, and the environment numpy, xarray, h5py and
-//! h5netcdf, from PyPI; the binary's release build shares the tests' target
-//! folder, so under `cargo test --release` it is the tests' own binary,
-//! already built (cargo finds it fresh and leaves it alone while the other
-//! tests run it). It runs under CI (`CI` set) or with
+//! h5netcdf, from PyPI; the binary's release build has a target folder of
+//! its own inside the tests' (`target/wheel`): with the tests' own folder
+//! shared, a test that started `target/release/pidm` failed with "No such
+//! file or directory" twice in three CI runs (2026-11-30), the binary's
+//! file older than the run: most likely cargo linking it anew in the
+//! wheel's build, fresh as it was. It runs under CI
+//! (`CI` set) or with
 //! `PIDM_TEST_INSTALL=1`, and elsewhere prints a notice and passes.
 
 use std::path::Path;
@@ -39,17 +42,18 @@ fn only_file(dir: &Path, suffix: &str) -> std::path::PathBuf {
     found[0].clone()
 }
 
-/// The target folder of the tests' own build (`CARGO_BIN_EXE_pidm` is
-/// TARGET/PROFILE/pidm): the wheel's release build shares it, so under
-/// `cargo test --release` maturin's cargo finds the binary built and only
-/// packs it (a build of its own took minutes in CI).
-fn shared_target() -> std::path::PathBuf {
+/// The wheel's own target folder, `wheel` inside the tests' target folder
+/// (`CARGO_BIN_EXE_pidm` is TARGET/PROFILE/pidm): never the tests' own,
+/// whose binary the other tests run meanwhile (the module's note); kept
+/// between local runs, so only CI's
+/// first build is whole (103 s and more).
+fn wheel_target() -> std::path::PathBuf {
     let binary = Path::new(env!("CARGO_BIN_EXE_pidm"));
     binary
         .parent()
         .and_then(Path::parent)
         .expect("the binary is TARGET/PROFILE/pidm")
-        .to_path_buf()
+        .join("wheel")
 }
 
 const PROBE: &str = r#"
@@ -89,7 +93,7 @@ fn the_wheel_installs_into_a_fresh_environment_and_runs_its_own_binary() {
             .args(["-m", "pip", "wheel", "--quiet", "--no-deps", "--wheel-dir"])
             .arg(&wheels)
             .arg(root.join("python"))
-            .env("CARGO_TARGET_DIR", shared_target())
+            .env("CARGO_TARGET_DIR", wheel_target())
             .current_dir(dir.path()),
         "pip wheel ./python",
     );
