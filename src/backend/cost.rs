@@ -67,6 +67,14 @@ pub const DEFAULT_READY_S: f64 = 0.05;
 /// 16 CPU cores and 1.51 s on the GPU in f64, 2.95 x 16 / 1.51 = 31 cores.
 pub const DEFAULT_GPU_CORES: f64 = 31.0;
 
+/// How much more a GPU's throughput falls than the CPU path's where a run
+/// measures the backward travel (`output.backward`): the probe's
+/// core-seconds already carry the CPU's share, the GPU's throughput is
+/// divided by this. On the H200 of results/bench.md ("On an H200") random
+/// 2,000 and 20,000 integrated 1.33-1.35x and 1.50x slower with it on the
+/// GPU, 1.27x on 16 CPU cores: 1.50 / 1.27 = 1.18, rounded up.
+pub const BACKWARD_GPU_SLOWDOWN: f64 = 1.2;
+
 /// Where a figure of [`GpuCosts`] comes from: measured by earlier runs on
 /// an adapter (the median of `runs`), or the default of results/gpu.md.
 #[derive(Clone, Debug, PartialEq)]
@@ -91,6 +99,9 @@ pub struct GpuCosts {
     pub fixed_from: Option<Measured>,
     /// Where `cores` comes from (`None`: the default).
     pub cores_from: Option<Measured>,
+    /// `cores` is for a run that measures the backward travel
+    /// ([`GpuCosts::for_backward`]).
+    pub backward: bool,
 }
 
 impl Default for GpuCosts {
@@ -102,6 +113,7 @@ impl Default for GpuCosts {
             cores: DEFAULT_GPU_CORES,
             fixed_from: None,
             cores_from: None,
+            backward: false,
         }
     }
 }
@@ -117,17 +129,48 @@ impl GpuCosts {
         core_s / self.cores.max(f64::MIN_POSITIVE)
     }
 
+    /// The costs of a run that measures the backward travel: the
+    /// throughput over [`BACKWARD_GPU_SLOWDOWN`] (the book keeps runs
+    /// without it).
+    pub fn for_backward(self) -> GpuCosts {
+        if self.backward {
+            return self;
+        }
+        GpuCosts {
+            cores: self.cores / BACKWARD_GPU_SLOWDOWN,
+            backward: true,
+            ..self
+        }
+    }
+
     /// Where the figures come from, in words: "results/gpu.md's defaults,
     /// throughput 31 CPU cores", "measured on NVIDIA H100 (...) in f64:
     /// fixed costs the median of 5 runs, throughput 27 CPU cores the
-    /// median of 3".
+    /// median of 3"; for the backward travel ", over 1.2 for the backward
+    /// travel" after it.
     pub fn source(&self) -> String {
+        let said = self.source_of_runs();
+        if self.backward {
+            format!(
+                "{said}, over {BACKWARD_GPU_SLOWDOWN} for the backward travel (results/bench.md)"
+            )
+        } else {
+            said
+        }
+    }
+
+    fn source_of_runs(&self) -> String {
+        // The throughput the runs measured, before `for_backward`.
+        let throughput = if self.backward {
+            self.cores * BACKWARD_GPU_SLOWDOWN
+        } else {
+            self.cores
+        };
         let runs = |n: usize| format!("{n} {}", if n == 1 { "run" } else { "runs" });
         match (&self.fixed_from, &self.cores_from) {
-            (None, None) => format!(
-                "results/gpu.md's defaults, throughput {:.0} CPU cores",
-                self.cores
-            ),
+            (None, None) => {
+                format!("results/gpu.md's defaults, throughput {throughput:.0} CPU cores")
+            }
             (Some(f), Some(c)) if f.adapter == c.adapter && f.precision == c.precision => {
                 format!(
                     "measured on {} in {}: fixed costs the median of {}, throughput {:.0} CPU \
@@ -135,7 +178,7 @@ impl GpuCosts {
                     f.adapter,
                     f.precision,
                     runs(f.runs),
-                    self.cores,
+                    throughput,
                     runs(c.runs)
                 )
             }
@@ -152,12 +195,12 @@ impl GpuCosts {
                 let cores = match cores {
                     Some(c) => format!(
                         "throughput {:.0} CPU cores measured on {} in {}, the median of {}",
-                        self.cores,
+                        throughput,
                         c.adapter,
                         c.precision,
                         runs(c.runs)
                     ),
-                    None => format!("results/gpu.md's throughput, {:.0} CPU cores", self.cores),
+                    None => format!("results/gpu.md's throughput, {throughput:.0} CPU cores"),
                 };
                 format!("{fixed}; {cores}")
             }
@@ -409,6 +452,7 @@ mod tests {
             cores,
             fixed_from: Some(m.clone()),
             cores_from: Some(m),
+            backward: false,
         }
     }
 
@@ -543,6 +587,36 @@ mod tests {
             "fixed costs measured on NVIDIA H100 80GB HBM3 (Vulkan, DiscreteGpu) in f64, the \
              median of 3 runs; results/gpu.md's throughput, 31 CPU cores"
         );
+    }
+
+    /// The backward travel slows the GPU's throughput by the H200's
+    /// measured share, once, and says so; the time on the GPU grows by it.
+    #[test]
+    fn the_backward_travel_slows_the_gpu_by_its_measured_share() {
+        let back = measured(0.15, 0.04, 27.4).for_backward();
+        assert_eq!(back.cores, 27.4 / BACKWARD_GPU_SLOWDOWN);
+        assert_eq!(back.clone().for_backward(), back, "applied once");
+        assert_eq!(
+            back.source(),
+            "measured on NVIDIA H100 80GB HBM3 (Vulkan, DiscreteGpu) in f64: fixed costs the \
+             median of 3 runs, throughput 27 CPU cores the median of 3 runs, over 1.2 for the \
+             backward travel (results/bench.md)"
+        );
+        let estimate = |gpu: GpuCosts| Estimate {
+            cpu: CpuEstimate {
+                seconds: 1.0,
+                core_s: 16.0,
+                threads: 16,
+            },
+            gpu,
+        };
+        let plain = estimate(GpuCosts::default());
+        let slowed = estimate(GpuCosts::default().for_backward());
+        let ratio = slowed.gpu_work_s() / plain.gpu_work_s();
+        assert!((ratio - BACKWARD_GPU_SLOWDOWN).abs() < 1e-12, "{ratio}");
+        // 16 core-seconds: 0.52 s of work on the default GPU, 0.62 s with
+        // the backward travel.
+        assert!(!plain.cpu_wins(false) && !slowed.cpu_wins(false));
     }
 
     #[test]

@@ -170,27 +170,25 @@ pub fn select_backend(
     {
         bail!("--precision f32: {why}");
     }
+    let mut precision = precision;
     if work.settings.backward {
-        use crate::laws::settings::{BACKWARD_AUTO_ON_CPU, BACKWARD_F64_ONLY};
+        use crate::laws::settings::BACKWARD_F64_ONLY;
         if precision == Some(Precision::F32) {
             bail!("--precision f32: {BACKWARD_F64_ONLY}; run it in f64");
         }
         match choice {
             BackendChoice::Gpu => {
-                use crate::laws::settings::Replicas;
-                // "auto" leaves the split to pidm: running alone is one.
-                if work.law.runs_alone_when_backward_on_gpu()
-                    && matches!(work.settings.replicas, Replicas::Count(n) if n > 1)
-                {
-                    eprintln!(
-                        "pidm: --backend gpu: each instance runs alone where the GPU measures \
-                         the backward travel (simulation.replicas applies on --backend cpu)"
-                    );
+                if let Some(why) = work.law.backward_runs_alone_on_gpu(&work.settings) {
+                    eprintln!("pidm: --backend gpu: {why}");
                 }
             }
             BackendChoice::Auto => {
-                eprintln!("pidm: --backend auto: the CPU path in f64 ({BACKWARD_AUTO_ON_CPU})");
-                return cpu(threads);
+                if let Some(why) = work.law.backward_runs_alone_on_gpu(&work.settings) {
+                    eprintln!("pidm: --backend auto: the CPU path in f64 ({why})");
+                    return cpu(threads);
+                }
+                // Weighed as any run, in f64 (`GpuCosts::for_backward`).
+                precision = Some(Precision::F64);
             }
             BackendChoice::Cpu => {}
         }
@@ -267,7 +265,7 @@ fn auto(
         precision,
         || {
             let loaded = cost_book::load();
-            let known = loaded.known(precision);
+            let known = known_costs(&loaded, precision, &work.settings);
             book = Some(loaded);
             known
         },
@@ -323,9 +321,13 @@ fn auto(
     let precision = match auto_choice(facts, precision) {
         AutoChoice::Gpu(p) => p,
         AutoChoice::Cpu => {
+            let why = if work.settings.backward {
+                crate::laws::settings::BACKWARD_F64_ONLY
+            } else {
+                "--precision f64 needs them; leave --precision out to run the GPU in f32"
+            };
             eprintln!(
-                "pidm: {adapter} has no 64-bit floats in shaders; using the CPU path in f64 \
-                 (--precision f64 needs them; leave --precision out to run the GPU in f32)"
+                "pidm: {adapter} has no 64-bit floats in shaders; using the CPU path in f64 ({why})"
             );
             // Closing a device costs NVIDIA's driver 0.03-0.05 s; the
             // operating system frees it at exit either way.
@@ -338,7 +340,7 @@ fn auto(
         let book = book.unwrap_or_else(cost_book::load);
         let estimate = Estimate {
             cpu: estimate.cpu.clone(),
-            gpu: book.costs(&adapter, precision),
+            gpu: backward_costs(book.costs(&adapter, precision), &work.settings),
         };
         eprintln!("pidm: {}", estimate.say(&adapter, true));
         if estimate.cpu_wins(true) {
@@ -357,13 +359,43 @@ fn auto(
     match GpuBackend::for_parts(ctx, precision, work.parts()) {
         Ok(gpu) => {
             eprintln!("pidm: {}", gpu.readiness());
-            let measure = measure_of(&gpu, estimate.map(|e| e.cpu.core_s));
+            // The book keeps the throughput of runs without the backward
+            // travel (`GpuCosts::for_backward` scales it).
+            let core_s = estimate
+                .filter(|_| !work.settings.backward)
+                .map(|e| e.cpu.core_s);
+            let measure = measure_of(&gpu, core_s);
             finish(Box::new(gpu), measure)
         }
         Err(err) => {
             eprintln!("pidm: the GPU path cannot run on {adapter}, using the CPU path ({err:#})");
             cpu(threads)
         }
+    }
+}
+
+/// The GPUs `book` knows that auto weighs for a run with `settings` in
+/// `precision` (`None`: either; f64 where the run measures the backward
+/// travel), their throughput slowed where it does ([`backward_costs`]).
+pub fn known_costs(
+    book: &cost_book::Book,
+    precision: Option<Precision>,
+    settings: &Settings,
+) -> Vec<cost::GpuCosts> {
+    let precision = precision.or(settings.backward.then_some(Precision::F64));
+    book.known(precision)
+        .into_iter()
+        .map(|g| backward_costs(g, settings))
+        .collect()
+}
+
+/// A GPU's costs for a run with `settings`: slower where it measures the
+/// backward travel (`cost::GpuCosts::for_backward`).
+fn backward_costs(costs: cost::GpuCosts, settings: &Settings) -> cost::GpuCosts {
+    if settings.backward {
+        costs.for_backward()
+    } else {
+        costs
     }
 }
 

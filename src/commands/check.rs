@@ -86,7 +86,10 @@ pub fn check_report(scene: &Scene) -> CheckReport {
         cores,
         cores,
         None,
-        || crate::backend::cost_book::load().known(None),
+        || {
+            let book = crate::backend::cost_book::load();
+            crate::backend::select::known_costs(&book, None, &scene.settings)
+        },
         |_| probe.clone(),
     );
     let estimate_s = sweep_s + trajectories_s + crate::run::estimate::RUN_OVERHEAD_S;

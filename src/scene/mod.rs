@@ -283,13 +283,13 @@ impl Scene {
     }
 
     /// Why `--backend auto` keeps this scene on the CPU without weighing
-    /// it, if it does: the backward travel (whose cost auto does not
-    /// weigh), or its law's reason (`Law::auto_on_cpu`).
+    /// it, if it does: a GPU would run its replicas each alone
+    /// (`Law::backward_runs_alone_on_gpu`), or its law's reason
+    /// (`Law::auto_on_cpu`).
     pub fn auto_on_cpu(&self) -> Option<&'static str> {
-        if self.settings.backward {
-            return Some(crate::laws::settings::BACKWARD_AUTO_ON_CPU);
-        }
-        self.law().auto_on_cpu()
+        let law = self.law();
+        law.backward_runs_alone_on_gpu(&self.settings)
+            .or(law.auto_on_cpu())
     }
 
     /// Whether axis `axis` has a non-zero voltage in at least one instance.

@@ -161,11 +161,11 @@ fn pidm_run_splits_with_the_backward_travel() {
         .expect("written");
         let out = d.join(format!("{name}.h5"));
         let ran = pidm(&["run", s(&scene), "--out", s(&out)], d);
-        assert!(
-            ran.status.success(),
-            "{}",
-            String::from_utf8_lossy(&ran.stderr)
-        );
+        let said = String::from_utf8_lossy(&ran.stderr);
+        assert!(ran.status.success(), "{said}");
+        // auto keeps a split run on the CPU, saying why, before weighing.
+        let kept = said.contains("--backend auto: the CPU path in f64 (output.backward = true with simulation.replicas above 1");
+        assert_eq!(kept, backward && replicas > 1, "{said}");
         hdf5::File::open(&out).expect("a result file")
     };
     let read = |f: &hdf5::File, name: &str| -> f64 {
