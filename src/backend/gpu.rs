@@ -155,13 +155,38 @@ impl Backend for GpuBackend {
             bail!("--precision f32: {why}");
         }
         if law == Law::Lugre {
-            return self.run_lugre(instances, settings, done);
+            return self.groups_on_cpu(instances, settings, done, |alone| {
+                self.run_lugre(alone, settings, done)
+            });
         }
+        if settings.backward {
+            // Karnopp's device groups merge steps only, not the backward
+            // travel: the instances that split run their groups on the
+            // CPU, the rest on the device (packed anew where some split).
+            let all = instances.len();
+            return self.groups_on_cpu(instances, settings, done, |alone| {
+                let staged = staged.0.as_ref().filter(|_| alone.len() == all);
+                self.run_karnopp(alone, settings, staged, done)
+            });
+        }
+        self.run_karnopp(instances, settings, staged.0.as_ref(), done)
+    }
+}
+
+impl GpuBackend {
+    /// A batch of Karnopp instances on Karnopp's shader.
+    fn run_karnopp(
+        &self,
+        instances: &[Instance],
+        settings: &Settings,
+        packed: Option<&crate::gpu::Packed>,
+        done: &(dyn Fn(u64) + Sync),
+    ) -> Result<Vec<Outcome>> {
         let mut reported = 0;
         let outcomes = run_batch_packed(
             &self.ctx,
             instances,
-            staged.0.as_ref(),
+            packed,
             settings,
             self.precision,
             &self.options,
@@ -174,21 +199,20 @@ impl Backend for GpuBackend {
         )?;
         Ok(outcomes.into_iter().map(GpuOutcome::into_outcome).collect())
     }
-}
 
-impl GpuBackend {
-    /// A batch of LuGre instances (a scene's friction is one law for all)
-    /// on the LuGre shader (`crate::gpu::lugre`), in f64.
-    fn run_lugre(
+    /// A batch whose instances that split into replicas
+    /// (`simulation.replicas`) run their groups on the CPU's threads in
+    /// f64, the reference (marked on_cpu), and the rest on the device
+    /// (`device`, given them in order): LuGre's lanes run no group merges,
+    /// and Karnopp's merge no backward travel. The groups are counted as
+    /// the CPU path counts them, so that their outcomes are its own.
+    fn groups_on_cpu(
         &self,
         instances: &[Instance],
         settings: &Settings,
         done: &(dyn Fn(u64) + Sync),
+        device: impl FnOnce(&[Instance]) -> Result<Vec<Outcome>>,
     ) -> Result<Vec<Outcome>> {
-        // Replicas: LuGre's lanes run no group merges, so the instances
-        // that split run their groups on the CPU's threads in f64, the
-        // reference (marked on_cpu), and the rest on the device.
-        // The groups run on the CPU's threads: `auto` counts those.
         let count = crate::replicas::count(
             settings.replicas,
             rayon::current_num_threads(),
@@ -204,17 +228,12 @@ impl GpuBackend {
             .filter(|(_, split)| split.is_none())
             .map(|(inst, _)| *inst)
             .collect();
-        let mut gpu = LugreGpu::for_instances(&self.ctx, &alone, settings)?;
-        gpu.cpu_tail = self.options.cpu_tail;
-        let mut on_device = gpu
-            .outcomes_until(
-                &alone,
-                settings,
-                crate::interrupt::interrupt_requested,
-                done,
-            )?
-            .into_iter()
-            .map(GpuOutcome::into_outcome);
+        let on_device = if alone.is_empty() {
+            Vec::new()
+        } else {
+            device(&alone)?
+        };
+        let mut on_device = on_device.into_iter();
         let grouped: Vec<Option<Outcome>> = instances
             .par_iter()
             .zip(&splits)
@@ -232,6 +251,23 @@ impl GpuBackend {
         Ok(grouped
             .into_iter()
             .map(|group| group.unwrap_or_else(|| on_device.next().expect("one per instance alone")))
+            .collect())
+    }
+
+    /// A batch of LuGre instances that run alone (a scene's friction is
+    /// one law for all) on the LuGre shader (`crate::gpu::lugre`), in f64.
+    fn run_lugre(
+        &self,
+        alone: &[Instance],
+        settings: &Settings,
+        done: &(dyn Fn(u64) + Sync),
+    ) -> Result<Vec<Outcome>> {
+        let mut gpu = LugreGpu::for_instances(&self.ctx, alone, settings)?;
+        gpu.cpu_tail = self.options.cpu_tail;
+        Ok(gpu
+            .outcomes_until(alone, settings, crate::interrupt::interrupt_requested, done)?
+            .into_iter()
+            .map(GpuOutcome::into_outcome)
             .collect())
     }
 }

@@ -172,25 +172,15 @@ pub fn select_backend(
     }
     let mut precision = precision;
     if work.settings.backward {
-        use crate::laws::settings::BACKWARD_F64_ONLY;
         if precision == Some(Precision::F32) {
-            bail!("--precision f32: {BACKWARD_F64_ONLY}; run it in f64");
+            bail!(
+                "--precision f32: {}; run it in f64",
+                crate::laws::settings::BACKWARD_F64_ONLY
+            );
         }
-        match choice {
-            BackendChoice::Gpu => {
-                if let Some(why) = work.law.backward_runs_alone_on_gpu(&work.settings) {
-                    eprintln!("pidm: --backend gpu: {why}");
-                }
-            }
-            BackendChoice::Auto => {
-                if let Some(why) = work.law.backward_runs_alone_on_gpu(&work.settings) {
-                    eprintln!("pidm: --backend auto: the CPU path in f64 ({why})");
-                    return cpu(threads);
-                }
-                // Weighed as any run, in f64 (`GpuCosts::for_backward`).
-                precision = Some(Precision::F64);
-            }
-            BackendChoice::Cpu => {}
+        if choice == BackendChoice::Auto {
+            // Weighed as any run, in f64 (`GpuCosts::for_backward`).
+            precision = Some(Precision::F64);
         }
     }
     if let Some(why) = work.law.auto_on_cpu()

@@ -507,8 +507,9 @@ impl<'a> Runner<'a> {
         let lanes = self.options.lanes.unwrap_or(LANES);
         let count = crate::replicas::count_queued(self.settings.replicas, lanes, instances.len());
         // The device's replica groups merge steps only: a run that
-        // measures the backward travel runs each instance alone
-        // (`backend::select` says so where the scene asks for replicas).
+        // measures the backward travel runs each instance alone (the GPU
+        // backend gives the instances that split to the CPU's groups:
+        // `backend::gpu`'s `groups_on_cpu`).
         let split = (!self.settings.backward)
             .then(|| groups::Split::of(instances, self.settings, count))
             .flatten();

@@ -233,22 +233,6 @@ impl Law {
         }
     }
 
-    /// Why a GPU runs each instance of a scene with `settings` alone, where
-    /// it measures the backward travel and the scene asks for replicas
-    /// (`simulation.replicas` above 1): Karnopp's device groups merge the
-    /// steps, not the variation; LuGre's split instances run their groups
-    /// on the CPU's threads whether or not (`backend::gpu`'s `run_lugre`).
-    /// `None` where a GPU runs the scene as the CPU path does.
-    pub fn backward_runs_alone_on_gpu(self, settings: &Settings) -> Option<&'static str> {
-        use crate::laws::settings::{BACKWARD_RUNS_ALONE_ON_GPU, Replicas};
-        let split = matches!(settings.replicas, Replicas::Count(n) if n > 1);
-        let alone = match self {
-            Law::Karnopp => true,
-            Law::Lugre => false,
-        };
-        (settings.backward && split && alone).then_some(BACKWARD_RUNS_ALONE_ON_GPU)
-    }
-
     /// Whether a steady measurement under this law may be split into
     /// replicas at other phases of the faster drive (`simulation.replicas`,
     /// `crate::replicas`): every law's, as the phase ladder reads positions

@@ -33,13 +33,6 @@ pub struct Settings {
 pub const BACKWARD_F64_ONLY: &str =
     "output.backward = true: the backward travel is measured in f64 only";
 
-/// Why a GPU runs each instance alone where it measures the backward
-/// travel of a scene that asks for replicas under Karnopp's law
-/// (`Law::runs_alone_when_backward_on_gpu`), which the CPU path splits.
-pub const BACKWARD_RUNS_ALONE_ON_GPU: &str = "output.backward = true with simulation.replicas \
-     above 1: Karnopp's shader runs each instance alone where it measures the backward travel; \
-     the CPU path splits it into replicas";
-
 impl Default for Settings {
     fn default() -> Self {
         Settings {

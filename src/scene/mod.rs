@@ -283,13 +283,9 @@ impl Scene {
     }
 
     /// Why `--backend auto` keeps this scene on the CPU without weighing
-    /// it, if it does: a GPU would run its replicas each alone
-    /// (`Law::backward_runs_alone_on_gpu`), or its law's reason
-    /// (`Law::auto_on_cpu`).
+    /// it, if it does: its law's reason (`Law::auto_on_cpu`).
     pub fn auto_on_cpu(&self) -> Option<&'static str> {
-        let law = self.law();
-        law.backward_runs_alone_on_gpu(&self.settings)
-            .or(law.auto_on_cpu())
+        self.law().auto_on_cpu()
     }
 
     /// Whether axis `axis` has a non-zero voltage in at least one instance.

@@ -163,9 +163,9 @@ fn pidm_run_splits_with_the_backward_travel() {
         let ran = pidm(&["run", s(&scene), "--out", s(&out)], d);
         let said = String::from_utf8_lossy(&ran.stderr);
         assert!(ran.status.success(), "{said}");
-        // auto keeps a split run on the CPU, saying why, before weighing.
-        let kept = said.contains("--backend auto: the CPU path in f64 (output.backward = true with simulation.replicas above 1");
-        assert_eq!(kept, backward && replicas > 1, "{said}");
+        // auto weighs a split backward run as any: one integration is
+        // too few for a GPU.
+        assert!(said.contains("too few for a GPU"), "{said}");
         hdf5::File::open(&out).expect("a result file")
     };
     let read = |f: &hdf5::File, name: &str| -> f64 {

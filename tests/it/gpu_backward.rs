@@ -193,3 +193,47 @@ fn a_backward_pipelines_self_test_checks_the_variation() {
         .to_string();
     assert!(err.contains("backward travel"), "{err}");
 }
+
+/// `pidm run --backend gpu` of a backward scene whose first instance
+/// splits into two replicas (100 V at 10 Hz against 60 V at 10 sqrt 2 Hz)
+/// and whose second does not (both at 10 Hz): the split one runs its
+/// group on the CPU, the CPU path's outcome bit for bit (Karnopp's device
+/// groups merge no backward travel), the other on the device, within the
+/// bar of the CPU's.
+#[test]
+fn a_split_instance_runs_its_group_on_the_cpu_beside_the_device() {
+    use crate::common::run_maps;
+    let dir = tempfile::tempdir().expect("a temporary directory");
+    std::fs::write(
+        dir.path().join("split.toml"),
+        "name = \"split\"\n[axis.x]\nvoltage = 100\n\
+         [axis.y]\nvoltage = 60\nfrequency = [14.142135623730951, 10.0]\n\
+         [simulation]\nreplicas = 2\n[output]\nbackward = true\n",
+    )
+    .expect("written");
+    let names = [
+        "replicas",
+        "step_x",
+        "backward_x",
+        "backward_y",
+        "backward_ratio_y",
+    ];
+    let cpu = run_maps(dir.path(), "split.toml", "cpu", &names);
+    let gpu = run_maps(dir.path(), "split.toml", "gpu", &names);
+    assert_eq!(
+        (cpu[0].clone(), gpu[0].clone()),
+        (vec![2.0, 1.0], vec![2.0, 1.0])
+    );
+    for (k, name) in names.iter().enumerate().skip(1) {
+        assert_eq!(
+            gpu[k][0].to_bits(),
+            cpu[k][0].to_bits(),
+            "{name}: {gpu:?} {cpu:?}"
+        );
+        let bar = if name.contains("ratio") { 1e-6 } else { BAR_M };
+        assert!(
+            (gpu[k][1] - cpu[k][1]).abs() <= bar,
+            "{name}: {gpu:?} {cpu:?}"
+        );
+    }
+}
