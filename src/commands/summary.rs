@@ -145,8 +145,8 @@ fn print_precision(s: &Summary) {
              continued from the GPU's state in f64 (under LuGre from the start of its period) \
              and started over in f32; instances that \
              failed or met a band graze in f32, or that f32's check of its heaviest runs sent \
-             there; iterations the driver's loop limiter cut; or LuGre instances split into \
-             replicas, whose groups run on the CPU's threads)",
+             there; iterations the driver's loop limiter cut; or instances split into replicas \
+             under LuGre, or with the backward travel, whose groups run on the CPU's threads)",
             s.on_cpu
         );
     }
