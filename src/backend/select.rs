@@ -311,13 +311,9 @@ fn auto(
     let precision = match auto_choice(facts, precision) {
         AutoChoice::Gpu(p) => p,
         AutoChoice::Cpu => {
-            let why = if work.settings.backward {
-                crate::laws::settings::BACKWARD_F64_ONLY
-            } else {
-                "--precision f64 needs them; leave --precision out to run the GPU in f32"
-            };
             eprintln!(
-                "pidm: {adapter} has no 64-bit floats in shaders; using the CPU path in f64 ({why})"
+                "pidm: {adapter} has no 64-bit floats in shaders; using the CPU path in f64 ({})",
+                why_f64(&work.settings)
             );
             // Closing a device costs NVIDIA's driver 0.03-0.05 s; the
             // operating system frees it at exit either way.
@@ -361,6 +357,16 @@ fn auto(
             eprintln!("pidm: the GPU path cannot run on {adapter}, using the CPU path ({err:#})");
             cpu(threads)
         }
+    }
+}
+
+/// Why auto runs f64 where an adapter has none: the backward travel, or
+/// `--precision f64`.
+fn why_f64(settings: &Settings) -> &'static str {
+    if settings.backward {
+        crate::laws::settings::BACKWARD_F64_ONLY
+    } else {
+        "--precision f64 needs them; leave --precision out to run the GPU in f32"
     }
 }
 
