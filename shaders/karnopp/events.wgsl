@@ -187,11 +187,25 @@ fn locate(
     // EPSILON); in f32 it stops the bisection at the resolution of tau.
     let resolution = max(Real(4.0) * TIME_EPSILON * c.period, Real(4.0) * EPSILON * hi);
     var tau = Real(0.5) * (lo + hi);
+    var checks = 0u;
     for (var k = 0u; k < ROOT_ITERATIONS; k++) {
-        if hi - lo <= resolution {
-            break;
+        // The crossing found is the first only where the function is still
+        // positive halfway to it (a bracket may hold three: results/events.md).
+        let check = hi - lo <= resolution;
+        if check {
+            if checks == FIRST_ROOT_CHECKS {
+                break;
+            }
+            checks += 1u;
+            tau = Real(0.5) * (lo_in + hi);
         }
         let ev = event_at(st, kind, sign, tau);
+        if check {
+            if ev.x > Real(0.0) {
+                break;
+            }
+            lo = lo_in;
+        }
         if ev.x > Real(0.0) {
             lo = tau;
         } else {

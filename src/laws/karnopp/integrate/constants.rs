@@ -86,6 +86,10 @@ pub const SLIP_DIRECTION_ITERATIONS: u32 = 40;
 pub const EVENT_NOISE: f64 = 16.0;
 /// Bisection-guarded Newton iterations when locating an event.
 pub const ROOT_ITERATIONS: u32 = 80;
+/// How many times `events::locate` looks for an earlier crossing before
+/// the one it found, each time halfway to it (one event evaluation each
+/// where the one found is the first; results/events.md).
+pub const FIRST_ROOT_CHECKS: u32 = 4;
 /// Consecutive events allowed without the time advancing.
 pub const MAX_STALLED_EVENTS: u32 = 64;
 /// Step rejections allowed in a row before a slip step gives up.
@@ -150,6 +154,7 @@ pub fn wgsl_constants() -> String {
         u("SLIP_DIRECTION_ITERATIONS", SLIP_DIRECTION_ITERATIONS),
         r("EVENT_NOISE", EVENT_NOISE),
         u("ROOT_ITERATIONS", ROOT_ITERATIONS),
+        u("FIRST_ROOT_CHECKS", FIRST_ROOT_CHECKS),
         u("MAX_STALLED_EVENTS", MAX_STALLED_EVENTS),
         u("MAX_REJECTIONS", MAX_REJECTIONS),
         u("MAX_SQUARINGS", MAX_SQUARINGS),

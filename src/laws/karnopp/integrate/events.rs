@@ -11,7 +11,9 @@
 use super::Real;
 use super::State;
 use super::coefficients::Coefficients;
-use super::constants::{EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_NOISE, ROOT_ITERATIONS};
+use super::constants::{
+    EVENT_BREAKAWAY, EVENT_ENTER_BAND, EVENT_NOISE, FIRST_ROOT_CHECKS, ROOT_ITERATIONS,
+};
 use super::flow::{Flow, Sample, eval_at};
 use super::precision::{TIME_EPSILON, TINY};
 use super::vec2::{Vec2, dot, norm2};
@@ -231,7 +233,7 @@ pub fn hermite_minimum(a: EventValue, b: EventValue, len: Real) -> Real {
 }
 
 /// Locates an event in (lo, hi) by bisection-guarded Newton iteration and
-/// returns the step time just past the crossing.
+/// returns the step time just past its first crossing there.
 pub fn locate(
     c: &Coefficients,
     st: &State,
@@ -248,11 +250,28 @@ pub fn locate(
     // tau.
     let resolution = (4.0 * TIME_EPSILON as Real * c.period).max(4.0 * Real::EPSILON * hi);
     let mut tau = 0.5 * (lo + hi);
+    let mut checks = 0;
     for _ in 0..ROOT_ITERATIONS {
-        if hi - lo <= resolution {
-            break;
+        // A bracket may hold three crossings (a band left, re-entered and
+        // left again inside it: results/events.md), and Newton's steps
+        // settle on any: a crossing found is the first only where the
+        // function is still positive halfway to it, else the search goes
+        // on before that point.
+        let check = hi - lo <= resolution;
+        if check {
+            if checks == FIRST_ROOT_CHECKS {
+                break;
+            }
+            checks += 1;
+            tau = 0.5 * (lo_in + hi);
         }
         let [e, de] = event_at(c, st, kind, sign, flow, tau);
+        if check {
+            if e > 0.0 {
+                break;
+            }
+            lo = lo_in;
+        }
         if e > 0.0 {
             lo = tau;
         } else {
