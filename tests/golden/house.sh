@@ -32,7 +32,7 @@ case $mode in
 write)
     {
         echo "# tests/golden/house.sh: every shipped scene on the CPU and on lavapipe in f64,"
-        echo "# written by the binary of $(git rev-parse --short HEAD), where issue 48's restructure starts."
+        echo "# written by the binary of $(git rev-parse --short HEAD) (say in this header what moved the lines that changed)."
         cat "$work/now.txt"
     } > "$golden"
     echo "wrote $golden" ;;
