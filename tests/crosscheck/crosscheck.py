@@ -313,11 +313,17 @@ class EngineRun:
 
 
 def run_engine(
-    scene: Path, out: Path, backend: str, precision: str | None, binary: str | None = None
+    scene: Path,
+    out: Path,
+    backend: str,
+    precision: str | None,
+    binary: str | None = None,
+    extra: tuple[str, ...] = (),
 ) -> EngineRun:
-    """`pidm run` on the scene (`binary`, else $PIDM_BIN, else cargo), read back."""
+    """`pidm run` on the scene (`binary`, else $PIDM_BIN, else cargo), read back;
+    `extra` are further options of `pidm run` (`--verify`)."""
     binary = binary or os.environ.get("PIDM_BIN")
-    args = ["run", str(scene), "--out", str(out), "--backend", backend]
+    args = ["run", str(scene), "--out", str(out), "--backend", backend, *extra]
     if precision:
         args += ["--precision", precision]
     if binary:
