@@ -73,9 +73,9 @@ struct Flow {
     ramp: V2,
     taylor: vec2<u32>,
     // The backward travel's view of the step (variation.wgsl, BACKWARD
-    // variants only): its length [s] and where it ends (`end`), one
-    // piece's propagator, the propagators to the piece's start and end,
-    // and the motion at both. Kept here, where an f64
+    // variants only): its length [s] and where it ends (`end`), the half
+    // period's propagator (`piece`), the propagators to a piece's start
+    // and end, and the motion at both. Kept here, where an f64
     // hardware lane's flow lives in device memory, so that its registers
     // do not hold them.
     end_tau: Real,
@@ -85,9 +85,7 @@ struct Flow {
     next_base: Propagator,
     piece_from: Slider,
     piece_to: Slider,
-    // The variation so far [m], a piece's length and where it starts [s].
-    total: V2,
-    piece_length: Real,
+    // Where a piece starts [s].
     piece_t0: Real,
     // Where the step moved from: its period and local time [s].
     start_time: Real,

@@ -107,69 +107,24 @@ fn ringing_energy(s: Slider, tau: Real) -> V2 {
     return w * w + flow.osc.w2 * y * y;
 }
 
-// `cannot_reverse`.
-fn cannot_reverse(s: Slider, tau: Real) -> bool {
-    let energy = ringing_energy(s, tau);
-    let d0 = motion_drift(tau);
-    let d1 = motion_drift(flow.end_tau);
-    let slowest = min(abs(d0), abs(d1));
-    let still = energy == V2(0.0) & d0 == V2(0.0) & d1 == V2(0.0);
-    return all(still | (d0 * d1 > V2(0.0) & energy < slowest * slowest * RINGING_MARGIN));
+fn pick(v: V2, axis: u32) -> Real {
+    return select(v.y, v.x, axis == 0u);
 }
 
-// `step_variation` of the lane's flow over `h`. A step in slip or in the
-// band is one piece (the CPU's first branch); each `piece_pair` and
-// `piece_point` is called from one place, so that a driver that inlines
-// every call (llvmpipe) compiles the flow's evaluation a few times, not
-// once per path to it. The pieces' ends and propagators live in the flow
-// (`piece_from`, `piece_to`, `base`, `next_base`), not in registers.
+// `step_variation` of the lane's flow over `h`, an axis at a time
+// (`axis_variation`), so that `piece_variation` (and the `piece_point`
+// it evaluates) is called from one place: a driver that inlines every
+// call (llvmpipe) compiles the flow's evaluation a few times, not once
+// per path to it. The pieces' ends and propagators live in the flow
+// (`piece_from`, `piece_to`, `base`, `next_base`, `piece`), not in
+// registers.
 fn step_variation(h: Real) -> V2 {
     if h <= Real(0.0) {
         return V2(0.0);
     }
-    let stuck = flow.stuck != 0u;
-    var pieces = 1u;
-    if stuck {
-        let rate = max(flow.osc.rate.x, flow.osc.rate.y);
-        pieces = u32(clamp(ceil(div(h * rate, PIECE_RADIANS)), Real(1.0), Real(MAX_PIECES)));
-    }
-    flow.piece_length = div(h, Real(pieces));
-    flow.piece = identity_propagator();
-    if pieces > 1u {
-        flow.piece = propagator(flow.piece_length);
-    }
-    flow.base = identity_propagator();
-    flow.piece_from = motion_start();
-    flow.piece_t0 = Real(0.0);
-    flow.total = V2(0.0);
-    for (var k = 0u; k < pieces; k++) {
-        if stuck && cannot_reverse(flow.piece_from, flow.piece_t0) {
-            return flow.total + abs(flow.end.x_s - flow.piece_from.x_s);
-        }
-        let last = k + 1u == pieces;
-        flow.next_base = flow.base;
-        var t1 = flow.end_tau;
-        if last {
-            flow.piece_to = flow.end;
-        } else {
-            flow.next_base = compose(flow.base, flow.piece);
-            t1 = flow.piece_t0 + flow.piece_length;
-            flow.piece_to = motion_sample(flow.next_base, t1);
-        }
-        flow.total = flow.total + piece_pair(t1 - flow.piece_t0, flow.piece_t0);
-        flow.base = flow.next_base;
-        flow.piece_from = flow.piece_to;
-        flow.piece_t0 = t1;
-    }
-    return flow.total;
-}
-
-// Both axes' `piece` from `flow.piece_from` to `flow.piece_to`, `h` long, starting
-// `t0` into the step (`flow.base` the propagator over `t0`).
-fn piece_pair(h: Real, t0: Real) -> V2 {
     var out = V2(0.0);
     for (var axis = 0u; axis < 2u; axis++) {
-        let v = piece_variation(axis_point(flow.piece_from, axis), axis_point(flow.piece_to, axis), h, t0, axis);
+        let v = axis_variation(h, axis);
         if axis == 0u {
             out.x = v;
         } else {
@@ -177,6 +132,172 @@ fn piece_pair(h: Real, t0: Real) -> V2 {
         }
     }
     return out;
+}
+
+// One axis' variation over the step: in slip and in the band one piece
+// (the CPU's `step_variation`), in stick the pieces between the ringing's
+// extrema (`stick_variation`), `flow.piece` the half period's propagator.
+fn axis_variation(h: Real, axis: u32) -> Real {
+    let stuck = flow.stuck != 0u;
+    flow.base = identity_propagator();
+    flow.next_base = identity_propagator();
+    flow.piece = identity_propagator();
+    flow.piece_from = motion_start();
+    flow.piece_t0 = Real(0.0);
+    var ring = Ring(Real(0.0), Real(0.0), Real(0.0));
+    var half = INFINITY;
+    var q = Real(1.0);
+    var t1 = h;
+    if stuck {
+        ring = Ring(pick(flow.part1, axis), pick(flow.osc.sigma, axis), pick(flow.osc.w2, axis));
+        let cuts = ring_cuts(ring, axis_point(flow.piece_from, axis));
+        half = cuts.half;
+        if half < h {
+            flow.piece = propagator(half);
+        }
+        if half < INFINITY {
+            q = -(Real(1.0) + pick(flow.piece.a0m1, axis));
+        }
+        t1 = min(cuts.first, h);
+        if t1 < h {
+            flow.next_base = propagator(t1);
+        }
+    }
+    var total = Real(0.0);
+    for (var k = 0u; k < MAX_PIECES; k++) {
+        let last = t1 >= h;
+        if last {
+            flow.piece_to = flow.end;
+        } else {
+            flow.piece_to = motion_sample(flow.next_base, t1);
+        }
+        let a = axis_point(flow.piece_from, axis);
+        let b = axis_point(flow.piece_to, axis);
+        let length = t1 - flow.piece_t0;
+        var guess = Real(-1.0);
+        if stuck {
+            guess = zero_guess(ring, a, b, length);
+        }
+        total = total + piece_variation(a, b, length, flow.piece_t0, axis, guess);
+        if last {
+            return total;
+        }
+        if ring_settled(ring, pick(ringing_energy(flow.piece_to, t1), axis), b.v, q) {
+            return total + abs(pick(flow.end.x_s, axis) - b.x);
+        }
+        flow.base = flow.next_base;
+        flow.piece_t0 = t1;
+        flow.piece_from = flow.piece_to;
+        flow.next_base = compose(flow.base, flow.piece);
+        t1 = min(t1 + half, h);
+    }
+    return total + abs(pick(flow.end.x_s, axis) - pick(flow.piece_from.x_s, axis));
+}
+
+// `Ring`: one axis' stick motion, velocity = drift + the ringing of an
+// oscillator with `sigma` and `w2`.
+struct Ring {
+    drift: Real,
+    sigma: Real,
+    w2: Real,
+}
+
+struct Cuts {
+    first: Real,
+    half: Real,
+}
+
+// `Ring::cuts` (INFINITY for the CPU's infinity): the phase of the
+// ringing's acceleration from f32's atan2.
+fn ring_cuts(r: Ring, p: Point) -> Cuts {
+    let w = p.v - r.drift;
+    let a = p.a;
+    let jerk = -r.w2 * w - Real(2.0) * r.sigma * a;
+    let none = Cuts(INFINITY, INFINITY);
+    let squared = r.w2 - r.sigma * r.sigma;
+    if squared > Real(0.0) {
+        let omega = root(squared);
+        let beta = div(jerk + r.sigma * a, omega);
+        let scale = max(abs(a), abs(beta));
+        if scale == Real(0.0) {
+            return none;
+        }
+        var theta = atan2(f32(div(-a, scale)), f32(div(beta, scale)));
+        if theta < 0.0 {
+            theta += PI_F32;
+        }
+        if theta >= PI_F32 {
+            theta -= PI_F32;
+        }
+        return Cuts(div(Real(theta), omega), div(PI_REAL, omega));
+    }
+    let mu = root(-squared);
+    let denominator = jerk + (r.sigma + mu) * a;
+    if denominator == Real(0.0) {
+        return none;
+    }
+    let u = div(-a, denominator);
+    let x = f32(Real(2.0) * mu * u);
+    var ratio = 1.0 - x * (0.5 - x / 3.0);
+    if abs(x) >= 1e-4 {
+        ratio = log(1.0 + x) / x;
+    }
+    let first = u * Real(ratio);
+    if !(1.0 + x > 0.0) || !(first > Real(0.0)) {
+        return none;
+    }
+    return Cuts(first, INFINITY);
+}
+
+// `Ring::zero_guess`, negative for none.
+fn zero_guess(r: Ring, a: Point, b: Point, length: Real) -> Real {
+    let squared = r.w2 - r.sigma * r.sigma;
+    if !(a.v * b.v < Real(0.0)) || !(squared > Real(0.0)) {
+        return Real(-1.0);
+    }
+    let omega = f32(root(squared));
+    let sigma = f32(r.sigma);
+    let drift = f32(r.drift);
+    let w = f32(a.v - r.drift);
+    let acc = f32(a.a);
+    let jerk = -f32(r.w2) * w - 2.0 * sigma * acc;
+    let sw = (acc + sigma * w) / omega;
+    let sa = (jerk + sigma * acc) / omega;
+    let l = f32(length);
+    var lo = 0.0;
+    var hi = l;
+    let negative_first = a.v < Real(0.0);
+    var s = l * (acos(f32(div(-(a.v + b.v), a.v - b.v))) * ONE_OVER_PI_F32);
+    for (var k = 0u; k < GUESS_ITERATIONS; k++) {
+        let c = cos(omega * s);
+        let sn = sin(omega * s);
+        let decay = exp(-sigma * s);
+        let v = drift + decay * (w * c + sw * sn);
+        let dv = decay * (acc * c + sa * sn);
+        if (v < 0.0) == negative_first {
+            lo = s;
+        } else {
+            hi = s;
+        }
+        var next = 0.5 * (lo + hi);
+        let newton = s - v / dv;
+        if newton > lo && newton < hi {
+            next = newton;
+        }
+        let done = abs(next - s) <= GUESS_TIME * l;
+        s = next;
+        if done {
+            break;
+        }
+    }
+    return Real(s);
+}
+
+// `Ring::settled`.
+fn ring_settled(r: Ring, energy: Real, v: Real, q: Real) -> bool {
+    let outrun = r.drift * v > Real(0.0) && energy < r.drift * r.drift * RINGING_MARGIN;
+    let floor = RINGING_FLOOR * (Real(1.0) - q);
+    return outrun || Real(16.0) * energy <= r.w2 * floor * floor;
 }
 
 // The piece's `at(t)`: axis `axis` of the motion `t` into the piece.

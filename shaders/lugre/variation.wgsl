@@ -84,7 +84,7 @@ fn step_variation(a: Vector, b: Vector) -> V2 {
         start.v = select(va.y, va.x, axis == 0u);
         end.x = select(xb.y, xb.x, axis == 0u);
         end.v = select(vb.y, vb.x, axis == 0u);
-        let v = piece_variation(start, end, h, Real(0.0), axis);
+        let v = piece_variation(start, end, h, Real(0.0), axis, Real(-1.0));
         if axis == 0u {
             total.x = v;
         } else {

@@ -22,8 +22,9 @@ struct Point {
 
 // One axis' path from `a` through the velocity
 // zeros to `b`, each zero located in its bracket by one call of
-// `locate_zero`.
-fn piece_variation(a: Point, b: Point, h: Real, t0: Real, axis: u32) -> Real {
+// `locate_zero`; `guess` is the law's first guess of the one zero between
+// ends of opposite signs [s after a] (negative: the Hermite's).
+fn piece_variation(a: Point, b: Point, h: Real, t0: Real, axis: u32, guess: Real) -> Real {
     // The brackets' ends: a to b, or a to the dip m and m to b.
     var mid = b;
     var t_mid = h;
@@ -56,7 +57,11 @@ fn piece_variation(a: Point, b: Point, h: Real, t0: Real, axis: u32) -> Real {
             hi = b;
             t_hi = h;
         }
-        let z = locate_zero(lo, t_lo, hi, t_hi, t0, axis);
+        var first = guess;
+        if zeros == 2u || !(guess > Real(0.0) && guess < h) {
+            first = t_lo + hermite_root(lo, hi, t_hi - t_lo);
+        }
+        let z = locate_zero(lo, t_lo, hi, t_hi, t0, axis, first);
         total = total + abs(z.x - last.x);
         last = z;
     }
@@ -146,9 +151,10 @@ fn hermite_root(a: Point, b: Point, h: Real) -> Real {
 }
 
 // The velocity zero between `a` (at `ta` into the piece) and
-// `b` (at `tb`), the motion evaluated in one place: evaluation 0 is the
-// Hermite's guess, each later one a Newton or bisection step's.
-fn locate_zero(a: Point, ta: Real, b: Point, tb: Real, t0: Real, axis: u32) -> Point {
+// `b` (at `tb`), the motion evaluated in one place: evaluation 0 is at
+// `first` (the Hermite's guess or the law's), each later one a Newton or
+// bisection step's.
+fn locate_zero(a: Point, ta: Real, b: Point, tb: Real, t0: Real, axis: u32, first: Real) -> Point {
     if a.v == Real(0.0) {
         return a;
     }
@@ -158,7 +164,7 @@ fn locate_zero(a: Point, ta: Real, b: Point, tb: Real, t0: Real, axis: u32) -> P
     var lo = ta;
     var hi = tb;
     let rising = a.v > Real(0.0);
-    var t = hermite_root(a, b, tb - ta) + ta;
+    var t = first;
     var p = a;
     var settled = false;
     // A bound the compiler cannot know (`control.zero` is 0), so that it

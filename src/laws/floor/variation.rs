@@ -181,10 +181,12 @@ pub struct Point {
 /// travel off.
 pub const ZERO_ITERATIONS: u32 = 40;
 
-/// A Newton step from the Hermite's zero ([`locate_zero`]) at most this share
-/// of the bracket gives the zero's position from that one evaluation: the
-/// quadratic through it is off by a jerk's (1e-3 h)^3 / 6 there, 8e-11
-/// of the ringing's amplitude over an eighth of its period at most.
+/// A Newton step from the first guess ([`locate_zero`]) at most this
+/// share of the bracket gives the zero's position from that one
+/// evaluation: the quadratic through it is off by a jerk's (1e-3 h)^3 / 6
+/// there, 8e-11 of the ringing's amplitude over an eighth of its period
+/// and 5e-9 over half of it (Karnopp's stick pieces, whose closed-form
+/// guess is within about 1e-6 of the bracket).
 pub const HERMITE_GUESS: f64 = 1e-3;
 
 /// A Newton step shorter than this share of the bracket ends the search:
@@ -201,22 +203,31 @@ pub const ZERO_TIME: f64 = 1e-6;
 /// cubic Hermite of the velocity (its values and derivatives at the ends)
 /// shows whether it dips through zero between them, and if the true
 /// velocity at the Hermite's extremum does, two zeros are located around
-/// it. The piece must be short against the motion's ringing (a law cuts
-/// its steps to pieces of an eighth of the fastest oscillation), so that
-/// its velocity has at most one extremum and two zeros in it; a dip the
-/// Hermite does not show is one whose travel is of the order of the
-/// Hermite's error.
-pub fn piece_variation(a: Point, b: Point, h: f64, at: &impl Fn(f64) -> Point) -> f64 {
+/// it. The piece must be short against the motion's ringing, so that its
+/// velocity has at most one extremum and two zeros in it (LuGre's steps
+/// are; Karnopp cuts its stick steps at the velocity's extrema, so that
+/// the velocity is monotone in each piece); a dip the Hermite does not
+/// show is one whose travel is of the order of the Hermite's error.
+/// `guess` is the law's first guess of the time [s after a] of the one
+/// zero between ends of opposite signs (else the Hermite's zero).
+pub fn piece_variation(
+    a: Point,
+    b: Point,
+    h: f64,
+    guess: Option<f64>,
+    at: &impl Fn(f64) -> Point,
+) -> f64 {
     if a.v * b.v < 0.0 {
-        let z = locate_zero(a, 0.0, b, h, at);
+        let first = guess.unwrap_or_else(|| hermite_root(a, b, h));
+        let z = locate_zero(a, 0.0, b, h, first, at);
         return (z.x - a.x).abs() + (b.x - z.x).abs();
     }
     match hermite_extremum(a, b, h) {
         Some(t) => {
             let m = at(t);
             if m.v * a.v < 0.0 || (a.v == 0.0 && m.v * b.v < 0.0) {
-                let z1 = locate_zero(a, 0.0, m, t, at);
-                let z2 = locate_zero(m, t, b, h, at);
+                let z1 = locate_zero(a, 0.0, m, t, hermite_root(a, m, t), at);
+                let z2 = locate_zero(m, t, b, h, t + hermite_root(m, b, h - t), at);
                 (z1.x - a.x).abs() + (z2.x - z1.x).abs() + (b.x - z2.x).abs()
             } else {
                 (b.x - a.x).abs()
@@ -298,9 +309,16 @@ fn hermite_root(a: Point, b: Point, h: f64) -> f64 {
 
 /// The velocity zero between `a` (at time ta) and `b` (at tb), whose
 /// velocities differ in sign or one of which is zero: Newton's steps
-/// from the secant's guess, each kept inside the bracket (bisection where
-/// it would leave it).
-fn locate_zero(a: Point, ta: f64, b: Point, tb: f64, at: &impl Fn(f64) -> Point) -> Point {
+/// from the time `first` (the Hermite's zero, or the law's guess), each
+/// kept inside the bracket (bisection where it would leave it).
+fn locate_zero(
+    a: Point,
+    ta: f64,
+    b: Point,
+    tb: f64,
+    first: f64,
+    at: &impl Fn(f64) -> Point,
+) -> Point {
     if a.v == 0.0 {
         return a;
     }
@@ -309,9 +327,13 @@ fn locate_zero(a: Point, ta: f64, b: Point, tb: f64, at: &impl Fn(f64) -> Point)
     }
     let (mut lo, mut hi) = (ta, tb);
     let lo_sign = a.v.signum();
-    let mut t = hermite_root(a, b, tb - ta) + ta;
+    let mut t = if first > ta && first < tb {
+        first
+    } else {
+        hermite_root(a, b, tb - ta) + ta
+    };
     let mut p = at(t);
-    // The Hermite's zero is within about 1e-3 of the bracket: where the
+    // The guess is within about 1e-3 of the bracket: where the
     // Newton step from it is that short, the position at the zero is the
     // quadratic's extremum, x - v^2 / (2 a), to a jerk's v^3 / a^3 / 6.
     if p.a != 0.0 {
@@ -372,7 +394,7 @@ mod tests {
             (0..pieces)
                 .map(|k| {
                     let s = t0 + k as f64 * h;
-                    piece_variation(f(s), f(s + h), h, &|t| f(s + t))
+                    piece_variation(f(s), f(s + h), h, None, &|t| f(s + t))
                 })
                 .sum()
         };

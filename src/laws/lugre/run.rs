@@ -137,7 +137,7 @@ fn step_variation(a: &State, b: &State) -> Vec2 {
             v: vb,
             ..point(h)
         };
-        total[i] = piece_variation(start, end, h, &point);
+        total[i] = piece_variation(start, end, h, None, &point);
     }
     total
 }

@@ -380,6 +380,12 @@ impl StepMotion<'_> {
         self.flow.osc.rate.max_element()
     }
 
+    /// The step's oscillators: in stick each axis' stage and slider as one
+    /// body, the ringing of the stage's velocity about its drift.
+    pub fn oscillator(&self) -> &coefficients::Oscillator {
+        &self.flow.osc
+    }
+
     /// Whether the slider rides on the stage over the step (stick): its
     /// velocity is then the stage's, a damped oscillation about a drift;
     /// otherwise (slip, band) a polynomial of degree at most 3 in time.
