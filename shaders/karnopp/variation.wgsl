@@ -264,31 +264,15 @@ fn zero_guess(r: Ring, a: Point, b: Point, length: Real) -> Real {
     let sw = (acc + sigma * w) / omega;
     let sa = (jerk + sigma * acc) / omega;
     let l = f32(length);
-    var lo = 0.0;
-    var hi = l;
-    let negative_first = a.v < Real(0.0);
-    var s = l * (acos(f32(div(-(a.v + b.v), a.v - b.v))) * ONE_OVER_PI_F32);
-    for (var k = 0u; k < GUESS_ITERATIONS; k++) {
-        let c = cos(omega * s);
-        let sn = sin(omega * s);
-        let decay = exp(-sigma * s);
-        let v = drift + decay * (w * c + sw * sn);
-        let dv = decay * (acc * c + sa * sn);
-        if (v < 0.0) == negative_first {
-            lo = s;
-        } else {
-            hi = s;
-        }
-        var next = 0.5 * (lo + hi);
-        let newton = s - v / dv;
-        if newton > lo && newton < hi {
-            next = newton;
-        }
-        let done = abs(next - s) <= GUESS_TIME * l;
-        s = next;
-        if done {
-            break;
-        }
+    let s = l * (acos(f32(div(-(a.v + b.v), a.v - b.v))) * ONE_OVER_PI_F32);
+    let c = cos(omega * s);
+    let sn = sin(omega * s);
+    let decay = exp(-sigma * s);
+    let v = drift + decay * (w * c + sw * sn);
+    let dv = decay * (acc * c + sa * sn);
+    let newton = s - v / dv;
+    if newton > 0.0 && newton < l {
+        return Real(newton);
     }
     return Real(s);
 }

@@ -58,10 +58,12 @@ fn piece_variation(a: Point, b: Point, h: Real, t0: Real, axis: u32, guess: Real
             t_hi = h;
         }
         var first = guess;
+        var share = GUESSED_SHARE;
         if zeros == 2u || !(guess > Real(0.0) && guess < h) {
             first = t_lo + hermite_root(lo, hi, t_hi - t_lo);
+            share = HERMITE_GUESS;
         }
-        let z = locate_zero(lo, t_lo, hi, t_hi, t0, axis, first);
+        let z = locate_zero(lo, t_lo, hi, t_hi, t0, axis, first, share);
         total = total + abs(z.x - last.x);
         last = z;
     }
@@ -152,9 +154,10 @@ fn hermite_root(a: Point, b: Point, h: Real) -> Real {
 
 // The velocity zero between `a` (at `ta` into the piece) and
 // `b` (at `tb`), the motion evaluated in one place: evaluation 0 is at
-// `first` (the Hermite's guess or the law's), each later one a Newton or
-// bisection step's.
-fn locate_zero(a: Point, ta: Real, b: Point, tb: Real, t0: Real, axis: u32, first: Real) -> Point {
+// `first` (the Hermite's guess or the law's, whose one-evaluation
+// shortcut takes a first step within `share` of the bracket), each later
+// one a Newton or bisection step's.
+fn locate_zero(a: Point, ta: Real, b: Point, tb: Real, t0: Real, axis: u32, first: Real, share: Real) -> Point {
     if a.v == Real(0.0) {
         return a;
     }
@@ -175,7 +178,7 @@ fn locate_zero(a: Point, ta: Real, b: Point, tb: Real, t0: Real, axis: u32, firs
         p = piece_point(t0, t, axis);
         if k == 0u && p.a != Real(0.0) {
             let dt = div(-p.v, p.a);
-            if abs(dt) <= HERMITE_GUESS * (tb - ta) && t + dt > ta && t + dt < tb {
+            if abs(dt) <= share * (tb - ta) && t + dt > ta && t + dt < tb {
                 return Point(p.x + Real(0.5) * p.v * dt, Real(0.0), p.a);
             }
         }

@@ -160,6 +160,7 @@ pub fn follow(c: &impl Gauge, common: u32, ended: u32, step: &Measure, v: &mut V
 pub fn wgsl_constants() -> String {
     format!(
         "const HERMITE_GUESS: Real = {HERMITE_GUESS:e};\n\
+         const GUESSED_SHARE: Real = {GUESSED_SHARE:e};\n\
          const ZERO_TIME: Real = {ZERO_TIME:e};\n\
          const ZERO_ITERATIONS: u32 = {ZERO_ITERATIONS}u;\n"
     )
@@ -188,6 +189,12 @@ pub const ZERO_ITERATIONS: u32 = 40;
 /// and 5e-9 over half of it (Karnopp's stick pieces, whose closed-form
 /// guess is within about 1e-6 of the bracket).
 pub const HERMITE_GUESS: f64 = 1e-3;
+
+/// The same share for a law's own guess (Karnopp's closed form in stick,
+/// within about 1e-6 of its half-period bracket): the quadratic is then
+/// off by (1e-5 pi)^3 / 6, 5e-15 of the ringing's amplitude, where a
+/// share of 1e-3 would let a rougher guess leave 5e-9 of it.
+pub const GUESSED_SHARE: f64 = 1e-5;
 
 /// A Newton step shorter than this share of the bracket ends the search:
 /// the position is stationary at the zero, so the position found is off
@@ -218,16 +225,26 @@ pub fn piece_variation(
     at: &impl Fn(f64) -> Point,
 ) -> f64 {
     if a.v * b.v < 0.0 {
-        let first = guess.unwrap_or_else(|| hermite_root(a, b, h));
-        let z = locate_zero(a, 0.0, b, h, first, at);
+        let (first, share) = match guess {
+            Some(t) => (t, GUESSED_SHARE),
+            None => (hermite_root(a, b, h), HERMITE_GUESS),
+        };
+        let z = locate_zero(a, 0.0, b, h, (first, share), at);
         return (z.x - a.x).abs() + (b.x - z.x).abs();
     }
     match hermite_extremum(a, b, h) {
         Some(t) => {
             let m = at(t);
             if m.v * a.v < 0.0 || (a.v == 0.0 && m.v * b.v < 0.0) {
-                let z1 = locate_zero(a, 0.0, m, t, hermite_root(a, m, t), at);
-                let z2 = locate_zero(m, t, b, h, t + hermite_root(m, b, h - t), at);
+                let z1 = locate_zero(a, 0.0, m, t, (hermite_root(a, m, t), HERMITE_GUESS), at);
+                let z2 = locate_zero(
+                    m,
+                    t,
+                    b,
+                    h,
+                    (t + hermite_root(m, b, h - t), HERMITE_GUESS),
+                    at,
+                );
                 (z1.x - a.x).abs() + (z2.x - z1.x).abs() + (b.x - z2.x).abs()
             } else {
                 (b.x - a.x).abs()
@@ -310,13 +327,15 @@ fn hermite_root(a: Point, b: Point, h: f64) -> f64 {
 /// The velocity zero between `a` (at time ta) and `b` (at tb), whose
 /// velocities differ in sign or one of which is zero: Newton's steps
 /// from the time `first` (the Hermite's zero, or the law's guess), each
-/// kept inside the bracket (bisection where it would leave it).
+/// kept inside the bracket (bisection where it would leave it); a first
+/// step within `share` of the bracket ends the search at once
+/// ([`HERMITE_GUESS`], [`GUESSED_SHARE`]).
 fn locate_zero(
     a: Point,
     ta: f64,
     b: Point,
     tb: f64,
-    first: f64,
+    (first, share): (f64, f64),
     at: &impl Fn(f64) -> Point,
 ) -> Point {
     if a.v == 0.0 {
@@ -338,7 +357,7 @@ fn locate_zero(
     // quadratic's extremum, x - v^2 / (2 a), to a jerk's v^3 / a^3 / 6.
     if p.a != 0.0 {
         let dt = -p.v / p.a;
-        if dt.abs() <= HERMITE_GUESS * (tb - ta) && t + dt > ta && t + dt < tb {
+        if dt.abs() <= share * (tb - ta) && t + dt > ta && t + dt < tb {
             return Point {
                 x: p.x + 0.5 * p.v * dt,
                 v: 0.0,
