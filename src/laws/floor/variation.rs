@@ -226,8 +226,8 @@ pub fn piece_variation(
 ) -> f64 {
     if a.v * b.v < 0.0 {
         let (first, share) = match guess {
-            Some(t) => (t, GUESSED_SHARE),
-            None => (hermite_root(a, b, h), HERMITE_GUESS),
+            Some(t) if t > 0.0 && t < h => (t, GUESSED_SHARE),
+            _ => (hermite_root(a, b, h), HERMITE_GUESS),
         };
         let z = locate_zero(a, 0.0, b, h, (first, share), at);
         return (z.x - a.x).abs() + (b.x - z.x).abs();
