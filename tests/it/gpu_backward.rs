@@ -34,7 +34,8 @@ fn backward() -> Settings {
 
 /// Windows and steady runs: Table 1 against 14 Hz (periodic), against
 /// 10 sqrt 2 Hz (the phase ladder), 1-DOF, under a load, a slew-limited
-/// trapezoid, and random windows with and without loads.
+/// trapezoid, a trapezoid with a hold, stages that do not ring in stick,
+/// and random windows with and without loads.
 fn cases() -> Vec<Instance> {
     let steady = |mut inst: Instance| {
         inst.settle = 1;
@@ -69,6 +70,21 @@ fn cases() -> Vec<Instance> {
     window.cycles = 6;
     window.settle = 2;
     out.push(window);
+    // A hold and a dwell, where a stuck stage rings about no drift, and
+    // stages that do not ring in stick (critically damped, overdamped):
+    // the extrema cut's other branches (`ring_cuts`, `ring_settled`).
+    let mut hold = window;
+    hold.axes[0].shape = Shape::Trapezoid;
+    [hold.axes[0].rise, hold.axes[0].hold, hold.axes[0].fall] = [0.5, 0.3, 0.02];
+    out.push(hold);
+    for zeta in [1.0, 3.0] {
+        let mut dead = window;
+        for axis in dead.axes.iter_mut() {
+            let mass = axis.stage_mass + dead.mechanism.slider_mass;
+            axis.damping = 2.0 * zeta * (axis.stiffness * mass).sqrt();
+        }
+        out.push(dead);
+    }
     out.extend(random_instances(17, 6, 6, 2));
     out
 }
