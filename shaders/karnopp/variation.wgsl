@@ -144,12 +144,12 @@ fn axis_variation(h: Real, axis: u32) -> Real {
     flow.piece = identity_propagator();
     flow.piece_from = motion_start();
     flow.piece_t0 = Real(0.0);
-    var ring = Ring(Real(0.0), Real(0.0), Real(0.0));
+    var ring = Ring(Real(0.0), Real(0.0), Real(0.0), Real(0.0));
     var half = INFINITY;
     var q = Real(1.0);
     var t1 = h;
     if stuck {
-        ring = Ring(pick(flow.part1, axis), pick(flow.osc.sigma, axis), pick(flow.osc.w2, axis));
+        ring = ring_of(pick(flow.part1, axis), pick(flow.osc.sigma, axis), pick(flow.osc.w2, axis));
         let cuts = ring_cuts(ring, axis_point(flow.piece_from, axis));
         half = cuts.half;
         if half < h {
@@ -195,11 +195,23 @@ fn axis_variation(h: Real, axis: u32) -> Real {
 }
 
 // `Ring`: one axis' stick motion, velocity = drift + the ringing of an
-// oscillator with `sigma` and `w2`.
+// oscillator with `sigma` and `w2`, its damped frequency `omega` (0 where
+// it does not ring).
 struct Ring {
     drift: Real,
     sigma: Real,
     w2: Real,
+    omega: Real,
+}
+
+// `Ring::new`.
+fn ring_of(drift: Real, sigma: Real, w2: Real) -> Ring {
+    let squared = w2 - sigma * sigma;
+    var omega = Real(0.0);
+    if squared > Real(0.0) {
+        omega = root(squared);
+    }
+    return Ring(drift, sigma, w2, omega);
 }
 
 struct Cuts {
@@ -214,9 +226,8 @@ fn ring_cuts(r: Ring, p: Point) -> Cuts {
     let a = p.a;
     let jerk = -r.w2 * w - Real(2.0) * r.sigma * a;
     let none = Cuts(INFINITY, INFINITY);
-    let squared = r.w2 - r.sigma * r.sigma;
-    if squared > Real(0.0) {
-        let omega = root(squared);
+    if r.omega > Real(0.0) {
+        let omega = r.omega;
         let beta = div(jerk + r.sigma * a, omega);
         let scale = max(abs(a), abs(beta));
         if scale == Real(0.0) {
@@ -231,7 +242,7 @@ fn ring_cuts(r: Ring, p: Point) -> Cuts {
         }
         return Cuts(div(Real(theta), omega), div(PI_REAL, omega));
     }
-    let mu = root(-squared);
+    let mu = root(r.sigma * r.sigma - r.w2);
     let denominator = jerk + (r.sigma + mu) * a;
     if denominator == Real(0.0) {
         return none;
@@ -251,11 +262,10 @@ fn ring_cuts(r: Ring, p: Point) -> Cuts {
 
 // `Ring::zero_guess`, negative for none.
 fn zero_guess(r: Ring, a: Point, b: Point, length: Real) -> Real {
-    let squared = r.w2 - r.sigma * r.sigma;
-    if !(a.v * b.v < Real(0.0)) || !(squared > Real(0.0)) {
+    if !(a.v * b.v < Real(0.0)) || !(r.omega > Real(0.0)) {
         return Real(-1.0);
     }
-    let omega = f32(root(squared));
+    let omega = f32(r.omega);
     let sigma = f32(r.sigma);
     let drift = f32(r.drift);
     let w = f32(a.v - r.drift);

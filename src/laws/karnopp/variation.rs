@@ -58,11 +58,7 @@ pub fn step_variation(motion: &StepMotion) -> Vec2 {
 fn stick_variation(motion: &StepMotion, i: usize, start: &Sample, end: &Sample) -> f64 {
     let h = motion.length();
     let osc = motion.oscillator();
-    let ring = Ring {
-        drift: motion.drift(0.0)[i],
-        sigma: osc.sigma[i],
-        w2: osc.w2[i],
-    };
+    let ring = Ring::new(motion.drift(0.0)[i], osc.sigma[i], osc.w2[i]);
     let first = point(start, i);
     let cuts = ring.cuts(first);
     let half = if cuts.half < h {
@@ -121,11 +117,13 @@ fn point(s: &Sample, i: usize) -> Point {
 }
 
 /// One axis' stick motion: velocity = `drift` + w, the ringing w of an
-/// oscillator w'' + 2 `sigma` w' + `w2` w = 0 [m/s, 1/s, 1/s^2].
+/// oscillator w'' + 2 `sigma` w' + `w2` w = 0 [m/s, 1/s, 1/s^2], whose
+/// damped frequency is `omega` [1/s] (0 where it does not ring).
 struct Ring {
     drift: f64,
     sigma: f64,
     w2: f64,
+    omega: f64,
 }
 
 /// Where one axis' stick pieces are cut [s]: at `first`, the velocity's
@@ -139,6 +137,17 @@ struct Cuts {
 }
 
 impl Ring {
+    fn new(drift: f64, sigma: f64, w2: f64) -> Ring {
+        let squared = w2 - sigma * sigma;
+        let omega = if squared > 0.0 { squared.sqrt() } else { 0.0 };
+        Ring {
+            drift,
+            sigma,
+            w2,
+            omega,
+        }
+    }
+
     /// The cuts for a step starting at `p`: where the ringing's
     /// acceleration, a damped sinusoid e^(-sigma t) (a cos(w t) + beta
     /// sin(w t)), is zero. Its phase comes from f32's atan2: a cut off the
@@ -152,9 +161,8 @@ impl Ring {
             first: f64::INFINITY,
             half: f64::INFINITY,
         };
-        let squared = self.w2 - self.sigma * self.sigma;
-        if squared > 0.0 {
-            let omega = squared.sqrt();
+        if self.omega > 0.0 {
+            let omega = self.omega;
             let beta = (jerk + self.sigma * a) / omega;
             let scale = a.abs().max(beta.abs());
             if scale == 0.0 {
@@ -175,7 +183,7 @@ impl Ring {
         // Not ringing: a = C1 e^(r1 t) + C2 e^(r2 t), r = -sigma +- mu, is
         // zero once at most, at ln(1 + x) / (2 mu) = u ln(1 + x) / x with
         // u = -a / (jerk - r2 a) (critical damping's zero) and x = 2 mu u.
-        let mu = (-squared).sqrt();
+        let mu = (self.sigma * self.sigma - self.w2).sqrt();
         let denominator = jerk + (self.sigma + mu) * a;
         if denominator == 0.0 {
             return none;
@@ -206,13 +214,12 @@ impl Ring {
     /// evaluation. Only where the ends' velocities differ in sign and the
     /// oscillator rings (else the floor's Hermite guesses).
     fn zero_guess(&self, a: Point, b: Point, length: f64) -> Option<f64> {
-        let squared = self.w2 - self.sigma * self.sigma;
-        let brackets = a.v * b.v < 0.0 && squared > 0.0;
+        let brackets = a.v * b.v < 0.0 && self.omega > 0.0;
         if !brackets {
             return None;
         }
         let f = |x: f64| x as f32;
-        let (omega, sigma, drift) = (f(squared.sqrt()), f(self.sigma), f(self.drift));
+        let (omega, sigma, drift) = (f(self.omega), f(self.sigma), f(self.drift));
         let (w, acc) = (f(a.v - self.drift), f(a.a));
         let jerk = -f(self.w2) * w - 2.0 * sigma * acc;
         let (sw, sa) = ((acc + sigma * w) / omega, (jerk + sigma * acc) / omega);
