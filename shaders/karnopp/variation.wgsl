@@ -111,7 +111,9 @@ fn pick(v: V2, axis: u32) -> Real {
     return select(v.y, v.x, axis == 0u);
 }
 
-// `step_variation` of the lane's flow over `h`, an axis at a time
+// `step_variation` of the lane's flow over `h`: a slip or band step whose
+// axes are both `monotone` at once, with no loop for the lane to wait in
+// (most steps); otherwise an axis at a time
 // (`axis_variation`), so that `piece_variation` (and the `piece_point`
 // it evaluates) is called from one place: a driver that inlines every
 // call (llvmpipe) compiles the flow's evaluation a few times, not once
@@ -121,6 +123,13 @@ fn pick(v: V2, axis: u32) -> Real {
 fn step_variation(h: Real) -> V2 {
     if h <= Real(0.0) {
         return V2(0.0);
+    }
+    if flow.stuck == 0u {
+        let a = motion_start();
+        let ax = monotone(axis_point(a, 0u), axis_point(flow.end, 0u), h);
+        if ax && monotone(axis_point(a, 1u), axis_point(flow.end, 1u), h) {
+            return abs(flow.end.x_s - a.x_s);
+        }
     }
     var out = V2(0.0);
     for (var axis = 0u; axis < 2u; axis++) {

@@ -25,6 +25,9 @@ struct Point {
 // `locate_zero`; `guess` is the law's first guess of the one zero between
 // ends of opposite signs [s after a] (negative: the Hermite's).
 fn piece_variation(a: Point, b: Point, h: Real, t0: Real, axis: u32, guess: Real) -> Real {
+    if monotone(a, b, h) {
+        return abs(b.x - a.x);
+    }
     // The brackets' ends: a to b, or a to the dip m and m to b.
     var mid = b;
     var t_mid = h;
@@ -88,14 +91,26 @@ fn cubic_value(q: Cubic, s: Real) -> Real {
     return q.c0 + s * (q.c1 + s * (q.c2 + s * q.c3));
 }
 
+// `no_dip`: the velocity's Hermite cubic over `h` cannot dip through zero
+// between ends that share a sign.
+fn no_dip(a: Point, b: Point, h: Real) -> bool {
+    let m0 = a.a * h;
+    let m1 = b.a * h;
+    return min(abs(a.v), abs(b.v)) * Real(27.0) > Real(4.0) * (abs(m0) + abs(m1));
+}
+
+// `monotone`: `piece_variation` is |b.x - a.x| from the ends alone.
+fn monotone(a: Point, b: Point, h: Real) -> bool {
+    let crosses = a.v * b.v < Real(0.0);
+    return !crosses && h > Real(0.0) && no_dip(a, b, h);
+}
+
 // `hermite_extremum` [s into the piece], or -1 where it has none.
 fn hermite_extremum(a: Point, b: Point, h: Real) -> Real {
     if h <= Real(0.0) {
         return Real(-1.0);
     }
-    let m0 = a.a * h;
-    let m1 = b.a * h;
-    if min(abs(a.v), abs(b.v)) * Real(27.0) > Real(4.0) * (abs(m0) + abs(m1)) {
+    if no_dip(a, b, h) {
         return Real(-1.0);
     }
     let q = hermite_cubic(a, b, h);

@@ -224,6 +224,9 @@ pub fn piece_variation(
     guess: Option<f64>,
     at: &impl Fn(f64) -> Point,
 ) -> f64 {
+    if monotone(a, b, h) {
+        return (b.x - a.x).abs();
+    }
     if a.v * b.v < 0.0 {
         let (first, share) = match guess {
             Some(t) if t > 0.0 && t < h => (t, GUESSED_SHARE),
@@ -254,6 +257,27 @@ pub fn piece_variation(
     }
 }
 
+/// Whether the cubic Hermite of the velocity over a piece of `h` [s]
+/// cannot dip through zero between ends that share a sign: in
+/// `v(s) = v0 H00 + v1 H01 + m0 H10 + m1 H11`, `H00 + H01 = 1` with both
+/// at least 0, and `|H10|` and `|H11|` are at most 4 / 27, so no dip
+/// reaches zero where the smaller end's speed exceeds 4 / 27 of the
+/// slopes' sum.
+fn no_dip(a: Point, b: Point, h: f64) -> bool {
+    let (m0, m1) = (a.a * h, b.a * h);
+    a.v.abs().min(b.v.abs()) * 27.0 > 4.0 * (m0.abs() + m1.abs())
+}
+
+/// Whether [`piece_variation`] of a piece of `h` [s] from `a` to `b` is
+/// `|b.x - a.x|` from the ends alone: no sign change between them and no
+/// dip ([`no_dip`]). A law may skip a step's pieces where every axis'
+/// is (Karnopp's slip steps, whose lanes then leave the pieces' loops
+/// out); the value is `piece_variation`'s, bit for bit.
+pub fn monotone(a: Point, b: Point, h: f64) -> bool {
+    let crosses = a.v * b.v < 0.0;
+    !crosses && h > 0.0 && no_dip(a, b, h)
+}
+
 /// Where the cubic Hermite of the velocity over [0, h] (values a.v, b.v,
 /// derivatives a.a, b.a) has an extremum strictly inside whose value has
 /// the sign opposite to the ends' (or is zero), if it has one.
@@ -261,11 +285,7 @@ fn hermite_extremum(a: Point, b: Point, h: f64) -> Option<f64> {
     if h <= 0.0 {
         return None;
     }
-    let (m0, m1) = (a.a * h, b.a * h);
-    // v(s) = v0 H00 + v1 H01 + m0 H10 + m1 H11 with H00 + H01 = 1, both
-    // at least 0, and |H10|, |H11| at most 4 / 27: no dip reaches zero
-    // where the smaller end's speed exceeds 4 / 27 of the slopes' sum.
-    if a.v.abs().min(b.v.abs()) * 27.0 > 4.0 * (m0.abs() + m1.abs()) {
+    if no_dip(a, b, h) {
         return None;
     }
     let [c0, c1, c2, c3] = hermite_cubic(a, b, h);

@@ -12,7 +12,7 @@ use super::integrate::{
 use crate::laws::Settings;
 #[cfg(doc)]
 use crate::laws::floor::variation::GUESSED_SHARE;
-use crate::laws::floor::variation::{Point, Variation, follow, piece_variation};
+use crate::laws::floor::variation::{Point, Variation, follow, monotone, piece_variation};
 use crate::model::Instance;
 
 /// The most pieces one axis' stick step is cut into: half periods of
@@ -25,7 +25,9 @@ pub const MAX_PIECES: u32 = 1 << 14;
 /// The slider's total variation per axis over one step [m]. In slip and
 /// in the band the slider's velocity is a polynomial of degree at most 3
 /// (its acceleration is the direction model's quadratic): one piece, the
-/// floor's Hermite looking for a dip. In stick it is the stage's, a
+/// floor's Hermite looking for a dip, or, where both axes' ends show a
+/// monotone piece ([`monotone`]), their travel at once (the GPU's lanes
+/// then skip the pieces' loops). In stick it is the stage's, a
 /// damped oscillation about the drive's drift: see [`stick_variation`].
 pub fn step_variation(motion: &StepMotion) -> Vec2 {
     let h = motion.length();
@@ -34,6 +36,9 @@ pub fn step_variation(motion: &StepMotion) -> Vec2 {
     }
     let start = motion.start();
     let end = motion.sample(IDENTITY, h);
+    if !motion.stuck() && (0..2).all(|i| monotone(point(&start, i), point(&end, i), h)) {
+        return (end.x_s - start.x_s).abs();
+    }
     let mut total = Vec2::ZERO;
     for i in 0..2 {
         total[i] = if motion.stuck() {
