@@ -124,12 +124,8 @@ fn step_variation(h: Real) -> V2 {
     if h <= Real(0.0) {
         return V2(0.0);
     }
-    if flow.stuck == 0u {
-        let a = motion_start();
-        let ax = monotone(axis_point(a, 0u), axis_point(flow.end, 0u), h);
-        if ax && monotone(axis_point(a, 1u), axis_point(flow.end, 1u), h) {
-            return abs(flow.end.x_s - a.x_s);
-        }
+    if flow.stuck == 0u && slip_monotone(0u, h) && slip_monotone(1u, h) {
+        return abs(flow.end.x_s - flow.x_s);
     }
     var out = V2(0.0);
     for (var axis = 0u; axis < 2u; axis++) {
@@ -141,6 +137,13 @@ fn step_variation(h: Real) -> V2 {
         }
     }
     return out;
+}
+
+// `monotone` of one axis over a slip or band step of `h`, from its start
+// (`motion_start`'s slider, read where used) to its end.
+fn slip_monotone(axis: u32, h: Real) -> bool {
+    let a = Point(pick(flow.x_s, axis), pick(flow.v_s, axis), pick(flow.slider0, axis));
+    return monotone(a, axis_point(flow.end, axis), h);
 }
 
 // One axis' variation over the step: in slip and in the band one piece
