@@ -1,8 +1,8 @@
 // Mirror of `laws::lugre::run`'s backward travel (issue 59; docs/model.md
 // section 4): the slider's total variation over every accepted Rodas4
 // step, on the cubic Hermite of the step's ends (`step_variation`, the
-// trajectories' dense output), with the floor's `piece_variation` and
-// `follow` from `shared/variation.wgsl`, whose `piece_point` and
+// trajectories' dense output), whose velocity zeros are a quadratic's
+// roots, with the floor's `follow` from `shared/variation.wgsl`, whose
 // `variation_slot` this file defines. Only BACKWARD variants carry the
 // two files (`pidm::gpu::lugre::source`); the others get empty twins of
 // `follow_step` and `follow_period_end`. What they add never changes the
@@ -20,44 +20,10 @@ fn variation_slot(slot: u32) -> u32 {
     return slot + arrayLength(&measures) / 2u;
 }
 
-// The step being followed: each axis' cubic Hermite of the slider's
-// position, x(s) = xa + s (h va + s (c2 + s c3)) for s = t / h.
-struct HermiteStep {
-    xa: V2,
-    va: V2,
-    c2: V2,
-    c3: V2,
-    h: Real,
-    inv_h: Real,
-}
-
-var<private> hermite: HermiteStep;
-
-// The dense output's `point` on axis `axis`, `t` into the step (`t0` is
-// 0: a LuGre step is one piece).
-fn piece_point(t0: Real, t: Real, axis: u32) -> Point {
-    let s = t * hermite.inv_h;
-    var xa = hermite.xa.x;
-    var va = hermite.va.x;
-    var c2 = hermite.c2.x;
-    var c3 = hermite.c3.x;
-    if axis != 0u {
-        xa = hermite.xa.y;
-        va = hermite.va.y;
-        c2 = hermite.c2.y;
-        c3 = hermite.c3.y;
-    }
-    let h = hermite.h;
-    let inv_h = hermite.inv_h;
-    return Point(
-        xa + s * (h * va + s * (c2 + s * c3)),
-        va + s * (Real(2.0) * c2 + Real(3.0) * s * c3) * inv_h,
-        (Real(2.0) * c2 + Real(6.0) * s * c3) * inv_h * inv_h,
-    );
-}
-
 // `step_variation`: the slider's total variation per axis over the
-// accepted step from `a` to `b` [m].
+// accepted step from `a` to `b` [m], over each axis' cubic Hermite of the
+// ends (the trajectories' dense output), written out per axis: no loop
+// for llvmpipe's limiter to count.
 fn step_variation(a: Vector, b: Vector) -> V2 {
     let h = b[T] - a[T];
     let xa = V2(a[XS], a[XS + 1u]);
@@ -67,31 +33,50 @@ fn step_variation(a: Vector, b: Vector) -> V2 {
     if h <= Real(0.0) {
         return abs(xb - xa);
     }
-    hermite = HermiteStep(
-        xa,
-        va,
-        Real(3.0) * (xb - xa) - h * (Real(2.0) * va + vb),
-        Real(2.0) * (xa - xb) + h * (va + vb),
-        h,
-        quotient(Real(1.0), h),
+    return V2(
+        cubic_variation(xa.x, va.x, xb.x, vb.x, h),
+        cubic_variation(xa.y, va.y, xb.y, vb.y, h),
     );
-    var total = V2(0.0);
-    for (var axis = 0u; axis < 2u; axis++) {
-        // The ends are the integrator's own, with the Hermite's slopes.
-        var start = piece_point(Real(0.0), Real(0.0), axis);
-        var end = piece_point(Real(0.0), h, axis);
-        start.x = select(xa.y, xa.x, axis == 0u);
-        start.v = select(va.y, va.x, axis == 0u);
-        end.x = select(xb.y, xb.x, axis == 0u);
-        end.v = select(vb.y, vb.x, axis == 0u);
-        let v = piece_variation(start, end, h, Real(0.0), axis, Real(-1.0));
-        if axis == 0u {
-            total.x = v;
-        } else {
-            total.y = v;
-        }
+}
+
+// `cubic_variation`: the total variation of x(s) = xa + s (h va + s (c2
+// + s c3)) over s in [0, 1], between the zeros of its slope.
+fn cubic_variation(xa: Real, va: Real, xb: Real, vb: Real, h: Real) -> Real {
+    let c2 = Real(3.0) * (xb - xa) - h * (Real(2.0) * va + vb);
+    let c3 = Real(2.0) * (xa - xb) + h * (va + vb);
+    let roots = quadratic_roots(Real(3.0) * c3, Real(2.0) * c2, h * va);
+    var p1 = xa;
+    if roots.x > Real(0.0) && roots.x < Real(1.0) {
+        let s = roots.x;
+        p1 = xa + s * (h * va + s * (c2 + s * c3));
     }
-    return total;
+    var p2 = p1;
+    if roots.y > Real(0.0) && roots.y < Real(1.0) {
+        let s = roots.y;
+        p2 = xa + s * (h * va + s * (c2 + s * c3));
+    }
+    return abs(p1 - xa) + abs(p2 - p1) + abs(xb - p2);
+}
+
+// `quadratic_roots`: the real roots of qa s^2 + qb s + qc, the smaller
+// first, -1 for one that does not exist.
+fn quadratic_roots(qa: Real, qb: Real, qc: Real) -> V2 {
+    let disc = qb * qb - Real(4.0) * qa * qc;
+    let real = disc >= Real(0.0);
+    if !real {
+        return V2(-1.0);
+    }
+    let sign = select(Real(1.0), Real(-1.0), qb < Real(0.0));
+    let q = Real(-0.5) * (qb + sign * square_root(disc));
+    var r1 = Real(-1.0);
+    if qa != Real(0.0) {
+        r1 = quotient(q, qa);
+    }
+    var r2 = Real(-1.0);
+    if q != Real(0.0) {
+        r2 = quotient(qc, q);
+    }
+    return V2(min(r1, r2), max(r1, r2));
 }
 
 // Adds the accepted step from `a` to `b` to the running total of the

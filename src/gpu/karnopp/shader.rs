@@ -18,7 +18,7 @@ use crate::model::Instance;
 /// The shader files, in the order they are concatenated (WGSL declarations
 /// may come in any order; this one reads top-down), with their text and
 /// the part of the shader each belongs to (`File::part`).
-pub const FILES: [(&str, &str); 15] = [
+pub const FILES: [(&str, &str); 16] = [
     (
         "karnopp/arith.wgsl",
         include_str!("../../../shaders/karnopp/arith.wgsl"),
@@ -70,6 +70,10 @@ pub const FILES: [(&str, &str); 15] = [
     (
         "shared/variation.wgsl",
         include_str!("../../../shaders/shared/variation.wgsl"),
+    ),
+    (
+        "shared/pieces.wgsl",
+        include_str!("../../../shaders/shared/pieces.wgsl"),
     ),
     (
         "karnopp/variation.wgsl",
@@ -317,7 +321,9 @@ impl Parts {
             "shared/measure.wgsl" | "karnopp/steady.wgsl" => self.steady,
             "shared/phase.wgsl" => self.steady && self.phase,
             "karnopp/segments.wgsl" => self.waveform,
-            "shared/variation.wgsl" | "karnopp/variation.wgsl" => self.backward,
+            "shared/variation.wgsl" | "shared/pieces.wgsl" | "karnopp/variation.wgsl" => {
+                self.backward
+            }
             _ => true,
         }
     }

@@ -167,7 +167,7 @@ pub const MEASUREMENT_FILES: [(&str, &str); 3] = [
 
 /// The backward travel's files (issue 59), which a backward variant
 /// ([`Form::Backward`]) includes after [`MEASUREMENT_FILES`]: the floor's
-/// piece variation and `follow`, then LuGre's dense output and hooks.
+/// `follow`, then LuGre's step variation and hooks.
 pub const VARIATION_FILES: [(&str, &str); 2] = [
     (
         "shared/variation.wgsl",
@@ -227,22 +227,15 @@ pub const SOFTWARE_PERIOD_ENDS: u32 = 1;
 pub const SOFTWARE_ATTEMPTS: u32 =
     (LOOP_LIMIT / 3 - 2 * PERIOD_END_PASSES) / (2 * LOOP_PASSES_PER_ATTEMPT);
 
-/// The loop passes the backward travel adds to an accepted attempt
-/// (`variation.wgsl`, counted as [`LOOP_PASSES_PER_ATTEMPT`]): its loop
-/// over the axes 3 and, per axis, `piece_variation`'s over the zeros 3
-/// and each of its two zeros' search, the Hermite's root 5 and the
-/// located zero's `ZERO_ITERATIONS + 1` evaluations 42.
-pub const VARIATION_PASSES_PER_ATTEMPT: u32 =
-    3 + 2 * (3 + 2 * ((4 + 1) + (crate::laws::floor::variation::ZERO_ITERATIONS + 1 + 1)));
-
 /// The loop passes the backward travel adds to a period end: `follow`'s
 /// phase ladder 19 and batch halving 17, as the step's.
 pub const FOLLOW_PASSES: u32 = 19 + 17;
 
-/// [`SOFTWARE_ATTEMPTS`] of a backward variant ([`Form::Backward`]).
-pub const SOFTWARE_BACKWARD_ATTEMPTS: u32 = (LOOP_LIMIT / 3
-    - 2 * (PERIOD_END_PASSES + FOLLOW_PASSES))
-    / (2 * (LOOP_PASSES_PER_ATTEMPT + VARIATION_PASSES_PER_ATTEMPT));
+/// [`SOFTWARE_ATTEMPTS`] of a backward variant ([`Form::Backward`]): an
+/// accepted attempt's variation (`variation.wgsl`) is written out, with
+/// no loop passes, so only `follow`'s at the period ends count.
+pub const SOFTWARE_BACKWARD_ATTEMPTS: u32 =
+    (LOOP_LIMIT / 3 - 2 * (PERIOD_END_PASSES + FOLLOW_PASSES)) / (2 * LOOP_PASSES_PER_ATTEMPT);
 
 /// The lanes a LuGre batch keeps busy after its first dispatch on a
 /// software adapter (the engine's queue; Karnopp's take

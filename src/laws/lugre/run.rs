@@ -12,7 +12,7 @@ use crate::laws::floor::drive::{Corners, axis_corners};
 use crate::laws::floor::measure::{
     Measure, SNAPSHOTS, VERDICT_PERIODIC, VERDICT_RUNNING, initial_measure, period_end,
 };
-use crate::laws::floor::variation::{Point, Variation, follow, piece_variation};
+use crate::laws::floor::variation::{Variation, follow};
 use crate::laws::floor::{Record, Run, Setup, Vec2};
 use crate::laws::observe::{Observer, Positions};
 use crate::laws::status::STATUS_OK;
@@ -104,42 +104,55 @@ pub fn run_with_variation_until(
 /// The slider's total variation per axis over one accepted step from `a`
 /// to `b` [m]: over the cubic Hermite of the ends' positions and
 /// velocities ([`hermite`], the trajectories' dense output), whose
-/// velocity zeros are a quadratic's.
+/// velocity is a quadratic ([`cubic_variation`]).
 fn step_variation(a: &State, b: &State) -> Vec2 {
     let h = b[T] - a[T];
     let mut total = Vec2::ZERO;
     for i in 0..AXES {
         let (xa, va, xb, vb) = (a[XS + i], a[VS + i], b[XS + i], b[VS + i]);
-        if h <= 0.0 {
-            total[i] = (xb - xa).abs();
-            continue;
-        }
-        // x(s) = xa + h va s + c2 s^2 + c3 s^3, s = t / h.
-        let c2 = 3.0 * (xb - xa) - h * (2.0 * va + vb);
-        let c3 = 2.0 * (xa - xb) + h * (va + vb);
-        let inv_h = 1.0 / h;
-        let point = |t: f64| {
-            let s = t * inv_h;
-            Point {
-                x: xa + s * (h * va + s * (c2 + s * c3)),
-                v: va + s * (2.0 * c2 + 3.0 * s * c3) * inv_h,
-                a: (2.0 * c2 + 6.0 * s * c3) * inv_h * inv_h,
-            }
+        total[i] = if h > 0.0 {
+            cubic_variation(xa, va, xb, vb, h)
+        } else {
+            (xb - xa).abs()
         };
-        // The ends are the integrator's own, with the Hermite's slopes.
-        let start = Point {
-            x: xa,
-            v: va,
-            ..point(0.0)
-        };
-        let end = Point {
-            x: xb,
-            v: vb,
-            ..point(h)
-        };
-        total[i] = piece_variation(start, end, h, None, &point);
     }
     total
+}
+
+/// The total variation [m] of the cubic `x(s) = xa + s (h va + s (c2 +
+/// s c3))`, `s = t / h` in [0, 1], through positions `xa`, `xb` [m] with
+/// velocities `va`, `vb` [m/s] over `h` [s]. Its slope `3 c3 s^2 + 2 c2
+/// s + h va` has at most two zeros, found in closed form
+/// ([`quadratic_roots`]): the velocity's zeros are located, not sampled,
+/// with no iteration (`shaders/lugre/variation.wgsl` mirrors it written
+/// out, no loop for llvmpipe's limiter to count). Between them x is
+/// monotone.
+pub fn cubic_variation(xa: f64, va: f64, xb: f64, vb: f64, h: f64) -> f64 {
+    let c2 = 3.0 * (xb - xa) - h * (2.0 * va + vb);
+    let c3 = 2.0 * (xa - xb) + h * (va + vb);
+    let [lo, hi] = quadratic_roots(3.0 * c3, 2.0 * c2, h * va);
+    let x = |s: f64| xa + s * (h * va + s * (c2 + s * c3));
+    let inside = |s: f64| s > 0.0 && s < 1.0;
+    let p1 = if inside(lo) { x(lo) } else { xa };
+    let p2 = if inside(hi) { x(hi) } else { p1 };
+    (p1 - xa).abs() + (p2 - p1).abs() + (xb - p2).abs()
+}
+
+/// The real roots of qa s^2 + qb s + qc, the smaller first, by the
+/// cancellation-free form (q = -(qb + sign(qb) sqrt(disc)) / 2, roots q /
+/// qa and qc / q); -1 for a root that does not exist (no real roots, or
+/// qa = 0: the one root of the line, or none).
+pub fn quadratic_roots(qa: f64, qb: f64, qc: f64) -> [f64; 2] {
+    let disc = qb * qb - 4.0 * qa * qc;
+    let real = disc >= 0.0;
+    if !real {
+        return [-1.0, -1.0];
+    }
+    let sign = if qb < 0.0 { -1.0 } else { 1.0 };
+    let q = -0.5 * (qb + sign * disc.sqrt());
+    let r1 = if qa != 0.0 { q / qa } else { -1.0 };
+    let r2 = if q != 0.0 { qc / q } else { -1.0 };
+    [r1.min(r2), r1.max(r2)]
 }
 
 /// A LuGre run that stops where a replica waits for its group's merge
@@ -567,5 +580,100 @@ impl Recurrence {
         self.snaps[(self.taken % SNAPSHOTS as u32) as usize] = *y;
         self.taken += 1;
         false
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::cubic_variation;
+    use crate::laws::floor::variation::{Point, piece_variation};
+
+    /// The floor's iterative search on the same cubic (what the closed
+    /// form replaced), a dense sum over 20,000 samples, and the most the
+    /// samples can miss (|x''| / 8 n^2 at each of two peaks).
+    fn references(xa: f64, va: f64, xb: f64, vb: f64, h: f64) -> (f64, f64, f64) {
+        let c2 = 3.0 * (xb - xa) - h * (2.0 * va + vb);
+        let c3 = 2.0 * (xa - xb) + h * (va + vb);
+        let x = |s: f64| xa + s * (h * va + s * (c2 + s * c3));
+        let point = |t: f64| {
+            let s = t / h;
+            Point {
+                x: x(s),
+                v: va + s * (2.0 * c2 + 3.0 * s * c3) / h,
+                a: (2.0 * c2 + 6.0 * s * c3) / (h * h),
+            }
+        };
+        let a = Point {
+            x: xa,
+            v: va,
+            ..point(0.0)
+        };
+        let b = Point {
+            x: xb,
+            v: vb,
+            ..point(h)
+        };
+        let iterative = piece_variation(a, b, h, None, &point);
+        let n = 20_000;
+        let dense = (1..=n).map(|k| (x(k as f64 / n as f64) - x((k - 1) as f64 / n as f64)).abs());
+        let miss = 2.0 * (2.0 * c2.abs() + 6.0 * c3.abs()) / (8.0 * (n * n) as f64);
+        (iterative, dense.sum(), miss)
+    }
+
+    fn check(name: &str, (xa, va, xb, vb, h): (f64, f64, f64, f64, f64)) {
+        let got = cubic_variation(xa, va, xb, vb, h);
+        let (iterative, dense, miss) = references(xa, va, xb, vb, h);
+        let scale = xa.abs().max(xb.abs()).max(va.abs() * h).max(vb.abs() * h);
+        assert!(
+            (got - iterative).abs() <= 1e-14 * scale,
+            "{name}: {got:e} against {iterative:e}"
+        );
+        let below = got - dense;
+        assert!(
+            below >= -1e-15 * scale && below <= miss + 1e-15 * scale,
+            "{name}: {got:e} against dense {dense:e}"
+        );
+        assert!(
+            got >= (xb - xa).abs() * (1.0 - 1e-15),
+            "{name}: {got:e} below the net travel"
+        );
+    }
+
+    #[test]
+    fn cubic_variation_agrees_with_the_iterative_search_and_a_dense_sum() {
+        let h = 1e-4;
+        let cases = [
+            ("monotone", (0.0, 1e-3, 2e-7, 3e-3, h)),
+            ("one zero", (0.0, 1e-3, -1e-8, -2e-3, h)),
+            ("two zeros", (0.0, 2e-3, 1e-8, 2e-3, h)),
+            ("two zeros, backward first", (1e-6, -1e-3, 1e-6, -1e-3, h)),
+            ("at rest at the start", (0.0, 0.0, 1e-7, -1e-3, h)),
+            ("at rest at the end", (0.0, 1e-3, 1e-7, 0.0, h)),
+            ("at rest", (5e-7, 0.0, 5e-7, 0.0, h)),
+            ("a line", (0.0, 1e-3, 1e-7, 1e-3, h)),
+            (
+                "nearly tangent",
+                (0.0, 1e-3, 6.6666e-8, 1e-3 * (1.0 - 1e-9), h),
+            ),
+        ];
+        for (name, case) in cases {
+            check(name, case);
+        }
+        // Seeded cubics of every shape (a Weyl sequence, no dependency).
+        let mut u = 0.5f64;
+        let mut next = || {
+            u = (u + 0.618_033_988_749_894_9) % 1.0;
+            2.0 * u - 1.0
+        };
+        for k in 0..200 {
+            let case = (
+                next() * 1e-6,
+                next() * 1e-2,
+                next() * 1e-6,
+                next() * 1e-2,
+                h,
+            );
+            check(&format!("seeded {k}"), case);
+        }
     }
 }

@@ -250,11 +250,18 @@ fn check_mirror(wgsl_name: &str, rust_text: &str, shader_only: &[&str], cpu_only
     if wgsl_name == "karnopp/advance.wgsl" {
         found.extend(defined_functions(shader_text("karnopp/entry.wgsl")));
     }
-    // The drive's two files mirror drive.rs together: a waveform
-    // variant's segments beside the sawtooth's corners.
-    let drive = ["karnopp/drive.wgsl", "karnopp/segments.wgsl"];
-    if let Some(k) = drive.iter().position(|&n| n == wgsl_name) {
-        found.extend(defined_functions(shader_text(drive[1 - k])));
+    // Pairs of files that mirror one Rust file together: the drive's (a
+    // waveform variant's segments beside the sawtooth's corners), and
+    // the floor's variation (`follow`, and the pieces only Karnopp
+    // carries).
+    let pairs = [
+        ["karnopp/drive.wgsl", "karnopp/segments.wgsl"],
+        ["shared/variation.wgsl", "shared/pieces.wgsl"],
+    ];
+    for pair in pairs {
+        if let Some(k) = pair.iter().position(|&n| n == wgsl_name) {
+            found.extend(defined_functions(shader_text(pair[1 - k])));
+        }
     }
     assert_mirrors(wgsl_name, &wgsl, &found, &cpu, (shader_only, cpu_only));
 }
