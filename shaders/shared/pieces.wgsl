@@ -103,9 +103,6 @@ fn hermite_extremum(a: Point, b: Point, h: Real) -> Real {
     if h <= Real(0.0) {
         return Real(-1.0);
     }
-    if no_dip(a, b, h) {
-        return Real(-1.0);
-    }
     let q = hermite_cubic(a, b, h);
     let qa = Real(3.0) * q.c3;
     let qb = Real(2.0) * q.c2;

@@ -40,8 +40,8 @@ pub enum Arithmetic {
 
 /// What a LuGre variant drives and measures beyond its steps: sawtooths
 /// only, any waveform from its corners (`corners.wgsl`), or any waveform
-/// and the backward travel (`variation.wgsl` with the floor's
-/// `shared/variation.wgsl`). A backward variant always reads the
+/// and the backward travel (`variation.wgsl` with the floor's `follow`
+/// in `shared/variation.wgsl`). A backward variant always reads the
 /// corners, as Karnopp's backward variants take the waveform part: one
 /// variant more per kind of adapter, not two.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -109,9 +109,6 @@ pub fn prelude(workgroup_size: u32, arithmetic: Arithmetic, form: Form) -> Strin
         form.waveform(),
         form.backward()
     );
-    if form.backward() {
-        out += &crate::laws::floor::variation::wgsl_constants();
-    }
     out += &rodas_tables();
     out += &libm_source();
     out

@@ -155,7 +155,7 @@ pub fn follow(c: &impl Gauge, common: u32, ended: u32, step: &Measure, v: &mut V
     m.verdict = step.verdict;
 }
 
-/// The constants of `shaders/shared/variation.wgsl`, from these (the one
+/// The constants of `shaders/shared/pieces.wgsl`, from these (the one
 /// home of each): the zero search's Hermite guess, its end and its cap.
 pub fn wgsl_constants() -> String {
     format!(
@@ -280,12 +280,10 @@ pub fn monotone(a: Point, b: Point, h: f64) -> bool {
 
 /// Where the cubic Hermite of the velocity over [0, h] (values a.v, b.v,
 /// derivatives a.a, b.a) has an extremum strictly inside whose value has
-/// the sign opposite to the ends' (or is zero), if it has one.
+/// the sign opposite to the ends' (or is zero), if it has one. Its one
+/// caller, [`piece_variation`], has found a dip possible ([`monotone`]).
 fn hermite_extremum(a: Point, b: Point, h: f64) -> Option<f64> {
     if h <= 0.0 {
-        return None;
-    }
-    if no_dip(a, b, h) {
         return None;
     }
     let [c0, c1, c2, c3] = hermite_cubic(a, b, h);
